@@ -1,0 +1,83 @@
+# Brume build. `make` builds build/master and build/worker; `make test` runs every test;
+# `make demo` renders the default scene with local workers; `make bench` measures.
+# Missing Debian packages are installed on first use (apt-get, with sudo when not root).
+
+CC      ?= gcc
+SAN     ?=
+BUILD   ?= build
+OPT     ?= -O2
+
+WARN    := -Wall -Wextra -Wpedantic -Wshadow -Wstrict-prototypes -Wmissing-prototypes \
+           -Wpointer-arith -Wcast-qual -Wwrite-strings -Wformat=2 -Wundef -Wvla
+CFLAGS  := -std=c11 -D_GNU_SOURCE $(OPT) -g -fno-fast-math -ffp-contract=off $(WARN) -Icommon -pthread
+LDLIBS  := -lembree3 -lOpenEXRCore-3_1 -lzmq -ljansson -lsodium -lpng -lm -pthread
+ifneq ($(SAN),)
+CFLAGS  += -fsanitize=$(SAN) -fno-omit-frame-pointer -fno-sanitize-recover=undefined
+LDFLAGS += -fsanitize=$(SAN)
+BUILD   := build-san
+endif
+ifeq ($(filter address,$(subst $(comma), ,$(SAN))),address)
+endif
+comma := ,
+
+DEB_PKGS := gcc make pkg-config libembree-dev libopenexr-dev openexr libzmq3-dev libjansson-dev \
+            libsodium-dev libpng-dev libcriterion-dev embree-tools python3
+DEPS_STAMP := $(BUILD)/.deps-ok
+
+COMMON_SRC := $(wildcard common/*.c)
+COMMON_OBJ := $(COMMON_SRC:%.c=$(BUILD)/%.o)
+MASTER_OBJ := $(patsubst %.c,$(BUILD)/%.o,$(wildcard master/*.c))
+WORKER_OBJ := $(patsubst %.c,$(BUILD)/%.o,$(wildcard worker/*.c))
+UNIT_SRC   := $(wildcard tests/unit/test_*.c)
+UNIT_OBJ   := $(UNIT_SRC:%.c=$(BUILD)/%.o)
+
+.PHONY: all deps test unit integration demo bench clean fuzz
+all: $(BUILD)/master $(BUILD)/worker
+
+# Install what is missing; the stamp makes later builds skip the check.
+$(DEPS_STAMP): scripts/install-deps.sh
+	@mkdir -p $(BUILD)
+	@sh scripts/install-deps.sh $(DEB_PKGS)
+	@touch $@
+deps: $(DEPS_STAMP)
+
+$(BUILD)/%.o: %.c $(DEPS_STAMP)
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS) -MMD -MP -c $< -o $@
+
+$(BUILD)/libbrume.a: $(COMMON_OBJ)
+	ar rcs $@ $^
+
+$(BUILD)/master: $(MASTER_OBJ) $(BUILD)/libbrume.a
+	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
+
+$(BUILD)/worker: $(WORKER_OBJ) $(BUILD)/libbrume.a
+	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
+
+$(BUILD)/unit_tests: $(UNIT_OBJ) $(BUILD)/libbrume.a
+	$(CC) $(LDFLAGS) -o $@ $^ -lcriterion $(LDLIBS)
+
+unit: $(BUILD)/unit_tests
+	cd tests/unit && ../../$(BUILD)/unit_tests --jobs=2
+
+integration: all
+	BUILD=$(BUILD) sh tests/integration/run.sh
+
+test: unit integration
+
+demo: all
+	@mkdir -p out
+	$(BUILD)/master scenes/cornell/cornell.json -o out/cornell.exr --workers 2 --preview out/cornell.png
+
+bench: all
+	BUILD=$(BUILD) sh scripts/bench.sh
+
+# Fuzz targets (libFuzzer, clang): make fuzz FUZZ_SECONDS=60
+FUZZ_SECONDS ?= 30
+fuzz:
+	BUILD=$(BUILD) FUZZ_SECONDS=$(FUZZ_SECONDS) sh tests/fuzz/run.sh
+
+clean:
+	rm -rf build build-san
+
+-include $(COMMON_OBJ:.o=.d) $(MASTER_OBJ:.o=.d) $(WORKER_OBJ:.o=.d) $(UNIT_OBJ:.o=.d)

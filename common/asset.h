@@ -1,0 +1,46 @@
+/* Where a scene's files come from. The master reads them from the scene's folder on disk
+ * (and records their bytes to publish as blobs); a worker reads them from its blob cache.
+ * Paths are relative to the scene's folder, as written in the scene; asset_path_check()
+ * rejects absolute paths, ".." components, empty components and backslashes, so a
+ * scene cannot name a file outside its folder. */
+#ifndef BRUME_ASSET_H
+#define BRUME_ASSET_H
+#include <stddef.h>
+#include <stdint.h>
+
+#define ASSET_PATH_MAX 1024
+
+struct asset_source {
+    /* Reads rel_path into a mem_alloc'd buffer (*data, NUL-terminated beyond *size).
+     * Returns 0, or -1 with one line in err (naming the path). */
+    int (*read)(void *ctx, const char *rel_path, char **data, size_t *size, char *err, size_t errlen);
+    void *ctx;
+};
+
+/* 0 if rel_path is a safe relative path (see above), else -1 with the reason in err. */
+int asset_path_check(const char *rel_path, char *err, size_t errlen);
+
+/* Joins a directory (relative to the scene folder, "" for the folder itself) and a path
+ * written in a file in that directory (e.g. an MTL named by an OBJ); result checked with
+ * asset_path_check. Returns 0 or -1. */
+int asset_path_join(const char *dir, const char *rel, char *out, size_t outlen, char *err, size_t errlen);
+
+/* A source reading from a folder on disk; it also records every file read (path and
+ * bytes), which the master publishes as blobs. Symlinks that resolve outside the folder
+ * are refused. */
+struct asset_dir {
+    char root[4096];          /* realpath of the scene folder */
+    struct asset_file {
+        char path[ASSET_PATH_MAX];
+        char *data;
+        size_t size;
+    } *files;
+    size_t num_files, cap_files;
+};
+int asset_dir_init(struct asset_dir *dir, const char *folder, char *err, size_t errlen);
+struct asset_source asset_dir_source(struct asset_dir *dir);
+/* Reads a file through the source and records it (used for the scene file itself). */
+int asset_dir_read(void *ctx, const char *rel_path, char **data, size_t *size, char *err, size_t errlen);
+void asset_dir_free(struct asset_dir *dir);
+
+#endif

@@ -1,0 +1,54 @@
+/* Content-addressed blobs: the scene file and every asset travel to workers as blobs
+ * named by their BLAKE2b-256 hash (libsodium), fetched in chunks and cached by hash, so
+ * a worker needs no shared filesystem and never renders with data whose hash differs
+ * from the master's. The same mechanism carries the volume photon map later. */
+#ifndef BRUME_BLOB_H
+#define BRUME_BLOB_H
+#include <stddef.h>
+#include <stdint.h>
+
+#define BLOB_HASH_SIZE 32
+#define BLOB_MAX_SIZE (1ull << 32)      /* 4 GiB: larger assets are refused */
+#define BLOB_CHUNK_SIZE (256u * 1024u)  /* bytes per BLOB_DATA message */
+
+struct blob_hash { uint8_t bytes[BLOB_HASH_SIZE]; };
+
+void blob_hash_compute(const void *data, size_t size, struct blob_hash *out);
+/* 64 lowercase hex digits and a NUL into hex[65]. */
+void blob_hash_hex(const struct blob_hash *h, char hex[65]);
+int blob_hash_equal(const struct blob_hash *a, const struct blob_hash *b);
+
+/* A blob being received in chunks: the buffer is allocated from the announced size
+ * (checked against BLOB_MAX_SIZE first), chunks may arrive in any order and more than
+ * once, and the blob is complete when every byte arrived; blob_recv_finish then checks
+ * the hash. */
+struct blob_recv {
+    struct blob_hash hash;
+    uint64_t size;
+    uint8_t *data;
+    uint8_t *have;          /* one flag per chunk */
+    uint64_t num_chunks, chunks_have;
+};
+int blob_recv_init(struct blob_recv *r, const struct blob_hash *hash, uint64_t size, char *err, size_t errlen);
+/* Stores chunk bytes at offset; offset must be a multiple of BLOB_CHUNK_SIZE and the
+ * length exactly the chunk's length. Returns 0, or -1 with a reason (nothing stored). */
+int blob_recv_put(struct blob_recv *r, uint64_t offset, const uint8_t *bytes, size_t len, char *err, size_t errlen);
+int blob_recv_complete(const struct blob_recv *r);
+/* Verifies the hash of a complete blob; on success hands the data to *data (caller owns)
+ * and returns 0. */
+int blob_recv_finish(struct blob_recv *r, uint8_t **data, char *err, size_t errlen);
+void blob_recv_free(struct blob_recv *r);
+
+/* An in-memory store of blobs by hash (master: published files; worker: cache). */
+struct blob_store {
+    struct blob_entry { struct blob_hash hash; uint8_t *data; uint64_t size; } *entries;
+    size_t count, cap;
+};
+/* Adds a copy of data, or does nothing if present; returns the entry. */
+const struct blob_entry *blob_store_put(struct blob_store *s, const void *data, uint64_t size);
+/* Takes ownership of data (already hashed as *hash). */
+const struct blob_entry *blob_store_adopt(struct blob_store *s, const struct blob_hash *hash, uint8_t *data, uint64_t size);
+const struct blob_entry *blob_store_get(const struct blob_store *s, const struct blob_hash *hash);
+void blob_store_free(struct blob_store *s);
+
+#endif

@@ -1,0 +1,94 @@
+/* The flat scene: what a job renders, after parsing and with every transform applied
+ * (all positions in world space). Owned by the job; read-only while tiles render.
+ * Built by scene_json.c (from scene.json and its OBJ/MTL assets); consumed by accel.c,
+ * light.c, camera.c and integrator.c on both master and worker. */
+#ifndef BRUME_SCENE_H
+#define BRUME_SCENE_H
+#include <stddef.h>
+#include <stdint.h>
+#include "vec.h"
+
+#define SCENE_MAX_DIM 16384      /* width or height */
+#define SCENE_MAX_SPP 1048576
+#define SCENE_MAX_DEPTH 1024
+#define SCENE_NAME_MAX 128
+
+enum material_type { MATERIAL_DIFFUSE };
+
+struct material {
+    char name[SCENE_NAME_MAX];
+    enum material_type type;
+    vec3 albedo;   /* diffuse reflectance, each channel in [0, 1] */
+    vec3 emission; /* emitted radiance (W / sr / m^2), >= 0; non-zero makes the surface a light */
+};
+
+/* A triangle mesh in world space. normals and uvs are per vertex and may be NULL. */
+struct mesh {
+    char name[SCENE_NAME_MAX];
+    uint32_t num_vertices, num_triangles;
+    float *positions;       /* 3 * num_vertices */
+    float *normals;         /* 3 * num_vertices, or NULL */
+    float *uvs;             /* 2 * num_vertices, or NULL */
+    uint32_t *indices;      /* 3 * num_triangles, each < num_vertices */
+    uint32_t *material_ids; /* num_triangles, each < scene.num_materials */
+};
+
+struct sphere {
+    char name[SCENE_NAME_MAX];
+    vec3 center;
+    float radius;
+    uint32_t material_id;
+};
+
+enum light_type { LIGHT_POINT };
+
+struct light {
+    enum light_type type;
+    vec3 position;
+    vec3 intensity; /* radiant intensity (W / sr) per channel */
+};
+
+/* Camera as described; camera.c turns it into a ray generator. aperture 0 = pinhole. */
+struct camera_desc {
+    vec3 position, look_at, up;
+    float fov_y_deg;
+    float aperture_radius;  /* reserved for the thin lens; 0 = pinhole */
+    float focus_distance;   /* reserved for the thin lens; 0 = distance to look_at */
+};
+
+struct render_settings {
+    uint32_t width, height;
+    uint32_t spp;
+    uint32_t max_depth;     /* path vertices after the camera; 1 = direct light only */
+    uint64_t seed;
+    uint32_t tile_size;     /* square tiles of tile_size pixels; edge tiles are clipped */
+};
+
+struct scene {
+    struct camera_desc camera;
+    struct render_settings settings;
+    struct material *materials;
+    uint32_t num_materials;
+    struct mesh *meshes;
+    uint32_t num_meshes;
+    struct sphere *spheres;
+    uint32_t num_spheres;
+    struct light *lights;
+    uint32_t num_lights;
+};
+
+/* Frees everything the scene owns and zeroes it. Safe on a zeroed scene. */
+void scene_free(struct scene *scene);
+
+/* Appends a material / mesh / sphere / light and returns its index. The scene takes
+ * ownership of a mesh's arrays. */
+uint32_t scene_add_material(struct scene *scene, const struct material *m);
+uint32_t scene_add_mesh(struct scene *scene, const struct mesh *m);
+uint32_t scene_add_sphere(struct scene *scene, const struct sphere *s);
+uint32_t scene_add_light(struct scene *scene, const struct light *l);
+
+/* Checks invariants (indices in range, finite numbers, sizes within limits); on failure
+ * writes one line into err and returns -1. Run on every scene before rendering. */
+int scene_validate(const struct scene *scene, char *err, size_t errlen);
+
+#endif

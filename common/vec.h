@@ -1,0 +1,74 @@
+/* Small 3-vector maths, header-only and inline. Plain struct of three floats; every
+ * function is pure. Used everywhere from scene loading to the integrator's inner loop. */
+#ifndef BRUME_VEC_H
+#define BRUME_VEC_H
+#include <math.h>
+
+typedef struct vec3 { float x, y, z; } vec3;
+
+static inline vec3 v3(float x, float y, float z) { vec3 r = {x, y, z}; return r; }
+static inline vec3 v3_add(vec3 a, vec3 b) { return v3(a.x + b.x, a.y + b.y, a.z + b.z); }
+static inline vec3 v3_sub(vec3 a, vec3 b) { return v3(a.x - b.x, a.y - b.y, a.z - b.z); }
+static inline vec3 v3_mul(vec3 a, vec3 b) { return v3(a.x * b.x, a.y * b.y, a.z * b.z); }
+static inline vec3 v3_scale(vec3 a, float s) { return v3(a.x * s, a.y * s, a.z * s); }
+static inline vec3 v3_neg(vec3 a) { return v3(-a.x, -a.y, -a.z); }
+static inline float v3_dot(vec3 a, vec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+static inline vec3 v3_cross(vec3 a, vec3 b)
+{
+    return v3(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x);
+}
+static inline float v3_length(vec3 a) { return sqrtf(v3_dot(a, a)); }
+static inline vec3 v3_normalize(vec3 a)
+{
+    float l = v3_length(a);
+    return l > 0.0f ? v3_scale(a, 1.0f / l) : a;
+}
+static inline float v3_max_component(vec3 a) { return fmaxf(a.x, fmaxf(a.y, a.z)); }
+static inline float v3_max_abs(vec3 a) { return fmaxf(fabsf(a.x), fmaxf(fabsf(a.y), fabsf(a.z))); }
+static inline float v3_luminance(vec3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
+static inline int v3_is_finite(vec3 a) { return isfinite(a.x) && isfinite(a.y) && isfinite(a.z); }
+static inline int v3_is_black(vec3 a) { return a.x == 0.0f && a.y == 0.0f && a.z == 0.0f; }
+
+/* Orthonormal basis around unit n (Duff et al. 2017, branchless). */
+static inline void v3_basis(vec3 n, vec3 *t, vec3 *b)
+{
+    float sign = copysignf(1.0f, n.z);
+    float a = -1.0f / (sign + n.z);
+    float bb = n.x * n.y * a;
+    *t = v3(1.0f + sign * n.x * n.x * a, sign * bb, -sign * n.x);
+    *b = v3(bb, sign + n.y * n.y * a, -n.y);
+}
+
+/* Row-major 3x4 affine transform: p' = M[:, :3] p + M[:, 3]. */
+struct xform { float m[3][4]; };
+
+static inline struct xform xform_identity(void)
+{
+    struct xform t = {{{1, 0, 0, 0}, {0, 1, 0, 0}, {0, 0, 1, 0}}};
+    return t;
+}
+static inline vec3 xform_point(const struct xform *t, vec3 p)
+{
+    return v3(t->m[0][0] * p.x + t->m[0][1] * p.y + t->m[0][2] * p.z + t->m[0][3],
+              t->m[1][0] * p.x + t->m[1][1] * p.y + t->m[1][2] * p.z + t->m[1][3],
+              t->m[2][0] * p.x + t->m[2][1] * p.y + t->m[2][2] * p.z + t->m[2][3]);
+}
+static inline vec3 xform_vector(const struct xform *t, vec3 v)
+{
+    return v3(t->m[0][0] * v.x + t->m[0][1] * v.y + t->m[0][2] * v.z,
+              t->m[1][0] * v.x + t->m[1][1] * v.y + t->m[1][2] * v.z,
+              t->m[2][0] * v.x + t->m[2][1] * v.y + t->m[2][2] * v.z);
+}
+/* a then b: result applies a first, then b. */
+static inline struct xform xform_then(const struct xform *a, const struct xform *b)
+{
+    struct xform r;
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 4; j++) {
+            float s = b->m[i][0] * a->m[0][j] + b->m[i][1] * a->m[1][j] + b->m[i][2] * a->m[2][j];
+            r.m[i][j] = s + (j == 3 ? b->m[i][3] : 0.0f);
+        }
+    return r;
+}
+
+#endif
