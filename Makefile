@@ -16,23 +16,20 @@ CFLAGS  += -fsanitize=$(SAN) -fno-omit-frame-pointer -fno-sanitize-recover=undef
 LDFLAGS += -fsanitize=$(SAN)
 BUILD   := build-san
 endif
-ifeq ($(filter address,$(subst $(comma), ,$(SAN))),address)
-endif
-comma := ,
 
 DEB_PKGS := gcc make pkg-config libembree-dev libopenexr-dev openexr libzmq3-dev libjansson-dev \
             libsodium-dev libpng-dev libcriterion-dev embree-tools python3
 DEPS_STAMP := $(BUILD)/.deps-ok
 
 COMMON_SRC := $(wildcard common/*.c)
-COMMON_OBJ := $(COMMON_SRC:%.c=$(BUILD)/%.o)
-MASTER_OBJ := $(patsubst %.c,$(BUILD)/%.o,$(wildcard master/*.c))
-WORKER_OBJ := $(patsubst %.c,$(BUILD)/%.o,$(wildcard worker/*.c))
+COMMON_OBJ := $(COMMON_SRC:%.c=$(BUILD)/obj/%.o)
+MASTER_OBJ := $(patsubst %.c,$(BUILD)/obj/%.o,$(wildcard master/*.c))
+WORKER_OBJ := $(patsubst %.c,$(BUILD)/obj/%.o,$(wildcard worker/*.c))
 UNIT_SRC   := $(wildcard tests/unit/test_*.c)
-UNIT_OBJ   := $(UNIT_SRC:%.c=$(BUILD)/%.o)
+UNIT_OBJ   := $(UNIT_SRC:%.c=$(BUILD)/obj/%.o)
 
-.PHONY: all deps test unit integration demo bench clean fuzz
-all: $(BUILD)/master $(BUILD)/worker
+.PHONY: all deps test unit integration demo bench clean fuzz tools
+all: $(BUILD)/master $(BUILD)/worker $(BUILD)/exrtool
 
 # Install what is missing; the stamp makes later builds skip the check.
 $(DEPS_STAMP): scripts/install-deps.sh
@@ -41,7 +38,7 @@ $(DEPS_STAMP): scripts/install-deps.sh
 	@touch $@
 deps: $(DEPS_STAMP)
 
-$(BUILD)/%.o: %.c $(DEPS_STAMP)
+$(BUILD)/obj/%.o: %.c $(DEPS_STAMP)
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS) -MMD -MP -c $< -o $@
 
@@ -52,6 +49,9 @@ $(BUILD)/master: $(MASTER_OBJ) $(BUILD)/libbrume.a
 	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
 
 $(BUILD)/worker: $(WORKER_OBJ) $(BUILD)/libbrume.a
+	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
+
+$(BUILD)/exrtool: $(BUILD)/obj/tests/tools/exrtool.o $(BUILD)/libbrume.a
 	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
 
 $(BUILD)/unit_tests: $(UNIT_OBJ) $(BUILD)/libbrume.a
@@ -80,4 +80,4 @@ fuzz:
 clean:
 	rm -rf build build-san
 
--include $(COMMON_OBJ:.o=.d) $(MASTER_OBJ:.o=.d) $(WORKER_OBJ:.o=.d) $(UNIT_OBJ:.o=.d)
+-include $(COMMON_OBJ:.o=.d) $(MASTER_OBJ:.o=.d) $(WORKER_OBJ:.o=.d) $(UNIT_OBJ:.o=.d) $(BUILD)/obj/tests/tools/exrtool.d

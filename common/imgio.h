@@ -58,10 +58,12 @@ int imgio_decode_tile(const struct image_desc *d, uint32_t tx, uint32_t ty, cons
 struct imgio_writer;
 struct imgio_writer *imgio_writer_open(const char *path, const struct image_desc *d,
                                        const struct image_attrs *a, char *err, size_t errlen);
-/* Writes an encoded chunk for tile (tx, ty) as is; tiles may arrive in any order. */
+/* Writes an encoded chunk for tile (tx, ty) as is; tiles may arrive in any order. A tile
+ * already written is skipped and returns 0 (re-issued tiles are bit-identical). */
 int imgio_writer_put_tile(struct imgio_writer *w, uint32_t tx, uint32_t ty, const uint8_t *chunk,
                           size_t chunk_size, char *err, size_t errlen);
 /* Finishes the file (offset table) and fsyncs it. Returns 0 or -1; frees w either way.
+ * Fails if any tile is missing. On failure the (regular) file at path is removed.
  * The master opens the writer once every tile has arrived, so the attributes (render
  * time included) are final when the header is written. */
 int imgio_writer_close(struct imgio_writer **w, char *err, size_t errlen);

@@ -10,6 +10,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "blob.h"
+#include "tile.h"
 
 #define PROTO_MAGIC 0x4d555242u /* "BRUM" little-endian */
 #define PROTO_VERSION 1
@@ -79,15 +80,6 @@ struct msg_tile {
     uint32_t frame;
     uint32_t tile;      /* index: ty * tiles_x + tx */
     uint32_t attempt;
-};
-
-struct tile_stats {
-    uint64_t samples;       /* camera samples traced */
-    uint64_t rays;          /* all rays (camera, bounce, shadow) */
-    uint64_t nan_samples;   /* samples dropped for NaN or Inf */
-    uint64_t render_ns;     /* time spent rendering the tile */
-    double sum_rel_stderr;  /* sum over pixels of relative standard error (luminance) */
-    uint32_t rel_stderr_pixels; /* pixels counted in that sum (non-black) */
 };
 
 struct msg_result {

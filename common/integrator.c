@@ -1,0 +1,254 @@
+/* Unidirectional path tracer with next-event estimation and multiple importance sampling
+ * (power heuristic) between light and BSDF sampling, Russian roulette after the third
+ * vertex. max_depth counts shading vertices: 1 = direct lighting only (as Embree's
+ * pathtracer counts path length). Hit points are rebuilt from barycentrics and rays leave
+ * surfaces with integer-ULP offsets along the geometric normal (Waechter and Binder,
+ * Ray Tracing Gems ch. 6), which stays acne-free at any coordinate magnitude. */
+#include "integrator.h"
+#include "log.h"
+#include "material.h"
+#include "sampler.h"
+#include <math.h>
+#include <string.h>
+
+int render_job_init(struct render_job *job, const struct scene *scene, uint32_t frame, uint32_t threads,
+                    char *err, size_t errlen)
+{
+    memset(job, 0, sizeof *job);
+    job->scene = scene;
+    job->frame = frame;
+    if (accel_build(&job->accel, scene, threads, err, errlen) != 0)
+        return -1;
+    light_table_build(&job->lights, scene);
+    camera_init(&job->camera, &scene->camera, scene->settings.width, scene->settings.height);
+    return 0;
+}
+
+void render_job_free(struct render_job *job)
+{
+    accel_free(&job->accel);
+    light_table_free(&job->lights);
+    memset(job, 0, sizeof *job);
+}
+
+static float float_bits_offset(float p, int delta)
+{
+    int32_t i;
+    memcpy(&i, &p, sizeof i);
+    i += (p < 0.0f) ? -delta : delta;
+    float r;
+    memcpy(&r, &i, sizeof r);
+    return r;
+}
+
+/* Moves p off the surface to the side of n (unit). */
+static vec3 offset_ray_origin(vec3 p, vec3 n)
+{
+    const float origin = 1.0f / 32.0f, float_scale = 1.0f / 65536.0f, int_scale = 256.0f;
+    int ox = (int)(int_scale * n.x), oy = (int)(int_scale * n.y), oz = (int)(int_scale * n.z);
+    vec3 pi = v3(float_bits_offset(p.x, ox), float_bits_offset(p.y, oy), float_bits_offset(p.z, oz));
+    return v3(fabsf(p.x) < origin ? p.x + float_scale * n.x : pi.x,
+              fabsf(p.y) < origin ? p.y + float_scale * n.y : pi.y,
+              fabsf(p.z) < origin ? p.z + float_scale * n.z : pi.z);
+}
+
+struct surface {
+    vec3 p;
+    vec3 ng;            /* unit geometric normal as the geometry defines it (emission side) */
+    vec3 ns;            /* unit shading normal, same side as ng */
+    uint32_t material;
+    uint32_t light;     /* light entry, or LIGHT_NONE */
+};
+
+static void surface_from_hit(const struct render_job *job, vec3 org, vec3 dir, const struct accel_hit *h,
+                             struct surface *s)
+{
+    const struct scene *sc = job->scene;
+    if (h->geom == job->accel.sphere_geom && sc->num_spheres > 0) {
+        const struct sphere *sp = &sc->spheres[h->prim];
+        vec3 p = v3_add(org, v3_scale(dir, h->t));
+        vec3 n = v3_normalize(v3_sub(p, sp->center));
+        s->p = v3_add(sp->center, v3_scale(n, sp->radius)); /* re-project onto the surface */
+        s->ng = s->ns = n;
+        s->material = sp->material_id;
+        s->light = job->lights.sphere_light ? job->lights.sphere_light[h->prim] : LIGHT_NONE;
+        return;
+    }
+    const struct mesh *m = &sc->meshes[h->geom];
+    const uint32_t *idx = &m->indices[3 * h->prim];
+    const float *a = &m->positions[3 * idx[0]], *b = &m->positions[3 * idx[1]], *c = &m->positions[3 * idx[2]];
+    float w = 1.0f - h->u - h->v;
+    vec3 va = v3(a[0], a[1], a[2]), vb = v3(b[0], b[1], b[2]), vc = v3(c[0], c[1], c[2]);
+    s->p = v3_add(v3_add(v3_scale(va, w), v3_scale(vb, h->u)), v3_scale(vc, h->v));
+    s->ng = v3_normalize(v3_cross(v3_sub(vb, va), v3_sub(vc, va)));
+    s->ns = s->ng;
+    if (m->normals) {
+        const float *na = &m->normals[3 * idx[0]], *nb = &m->normals[3 * idx[1]], *nc = &m->normals[3 * idx[2]];
+        vec3 n = v3_add(v3_add(v3_scale(v3(na[0], na[1], na[2]), w), v3_scale(v3(nb[0], nb[1], nb[2]), h->u)),
+                        v3_scale(v3(nc[0], nc[1], nc[2]), h->v));
+        n = v3_normalize(n);
+        if (v3_is_finite(n) && v3_dot(n, n) > 0.5f)
+            s->ns = v3_dot(n, s->ng) < 0.0f ? v3_neg(n) : n;
+    }
+    s->material = m->material_ids[h->prim];
+    s->light = job->lights.tri_light && job->lights.tri_light[h->geom] ? job->lights.tri_light[h->geom][h->prim]
+                                                                        : LIGHT_NONE;
+}
+
+static float power_heuristic(float a, float b)
+{
+    float a2 = a * a, b2 = b * b;
+    return a2 + b2 > 0.0f ? a2 / (a2 + b2) : 0.0f;
+}
+
+/* Radiance a front-facing emitter sends back along -dir. */
+static vec3 emitted(const struct render_job *job, const struct surface *s, vec3 dir)
+{
+    if (v3_dot(s->ng, dir) >= 0.0f)
+        return v3(0, 0, 0); /* one-sided emitters: seen from behind */
+    return job->scene->materials[s->material].emission;
+}
+
+vec3 integrator_sample(const struct render_job *job, uint32_t px, uint32_t py, uint32_t sample_index,
+                       uint64_t *rays, int *hit_any)
+{
+    const struct scene *sc = job->scene;
+    const struct render_settings *rs = &sc->settings;
+    struct sampler smp = sampler_start(rs->seed, job->frame, (uint64_t)py * rs->width + px, sample_index);
+    float fx = (float)px + sampler_get(&smp, DIM_PIXEL_X);
+    float fy = (float)py + sampler_get(&smp, DIM_PIXEL_Y);
+    vec3 org, dir;
+    camera_ray(&job->camera, fx, fy, &org, &dir);
+
+    vec3 L = v3(0, 0, 0), beta = v3(1, 1, 1);
+    float prev_pdf = 0.0f;      /* solid-angle pdf of the BSDF sample that produced dir */
+    vec3 prev_p = org;
+    int prev_delta = 1;         /* camera rays count as specular: no MIS on what they hit */
+    *hit_any = 0;
+    for (uint32_t vertex = 1;; vertex++) {
+        struct accel_hit h;
+        (*rays)++;
+        if (!accel_intersect(&job->accel, org, dir, INFINITY, &h))
+            break;
+        if (vertex == 1)
+            *hit_any = 1;
+        struct surface s;
+        surface_from_hit(job, org, dir, &h, &s);
+
+        if (s.light != LIGHT_NONE) {
+            vec3 le = emitted(job, &s, dir);
+            if (!v3_is_black(le)) {
+                float w = 1.0f;
+                if (!prev_delta) {
+                    float lp = light_pdf(&job->lights, sc, s.light, prev_p, s.p, s.ng);
+                    w = power_heuristic(prev_pdf, lp);
+                }
+                L = v3_add(L, v3_mul(beta, v3_scale(le, w)));
+            }
+        }
+        if (vertex > rs->max_depth)
+            break;
+
+        const struct material *mat = &sc->materials[s.material];
+        vec3 wo = v3_neg(dir);
+        /* Shade on the side the ray came from: surfaces are two-sided for reflection. */
+        vec3 ng = v3_dot(s.ng, wo) < 0.0f ? v3_neg(s.ng) : s.ng;
+        vec3 ns = v3_dot(s.ns, ng) < 0.0f ? v3_neg(s.ns) : s.ns;
+        vec3 p_off = offset_ray_origin(s.p, ng);
+        uint32_t d0 = sampler_bounce_dim(vertex - 1, 0);
+
+        /* Next-event estimation. */
+        if (job->lights.num_entries > 0) {
+            struct light_sample ls;
+            light_sample(&job->lights, sc, s.p, sampler_get(&smp, d0 + DIM_LIGHT_PICK),
+                         sampler_get(&smp, d0 + DIM_LIGHT_U), sampler_get(&smp, d0 + DIM_LIGHT_V), &ls);
+            if (ls.pdf > 0.0f && !v3_is_black(ls.radiance)) {
+                vec3 to = v3_sub(ls.p, s.p);
+                float dist = v3_length(to);
+                vec3 wi = v3_scale(to, 1.0f / dist);
+                float bpdf;
+                vec3 f = v3_dot(wi, ng) > 0.0f ? material_eval(mat, ns, wo, wi, &bpdf) : (bpdf = 0.0f, v3(0, 0, 0));
+                if (!v3_is_black(f)) {
+                    vec3 target = ls.is_delta ? ls.p : offset_ray_origin(ls.p, v3_dot(ls.n, wi) < 0.0f ? ls.n : v3_neg(ls.n));
+                    vec3 seg = v3_sub(target, p_off);
+                    (*rays)++;
+                    if (!accel_occluded(&job->accel, p_off, seg, 1.0f - 0x1p-12f)) {
+                        float w = ls.is_delta ? 1.0f : power_heuristic(ls.pdf, bpdf);
+                        L = v3_add(L, v3_mul(beta, v3_scale(v3_mul(f, ls.radiance), w / ls.pdf)));
+                    }
+                }
+            }
+        }
+
+        /* BSDF sampling for the next vertex (also the MIS partner of the NEE above). */
+        struct bsdf_sample bs;
+        material_sample(mat, ns, wo, sampler_get(&smp, d0 + DIM_BSDF_U), sampler_get(&smp, d0 + DIM_BSDF_V), &bs);
+        if (bs.pdf <= 0.0f || v3_dot(bs.wi, ng) <= 0.0f)
+            break;
+        beta = v3_mul(beta, bs.weight);
+        if (vertex >= 3) {
+            float q = fmaxf(0.05f, 1.0f - v3_max_component(beta));
+            if (sampler_get(&smp, d0 + DIM_RR) < q)
+                break;
+            beta = v3_scale(beta, 1.0f / (1.0f - q));
+        }
+        if (v3_is_black(beta))
+            break;
+        prev_pdf = bs.pdf;
+        prev_p = s.p;
+        prev_delta = 0;
+        org = p_off;
+        dir = bs.wi;
+    }
+    return L;
+}
+
+void integrator_render_tile(const struct render_job *job, uint32_t x0, uint32_t y0, uint32_t w, uint32_t h,
+                            float *pixels, struct tile_stats *stats)
+{
+    const uint32_t spp = job->scene->settings.spp;
+    memset(stats, 0, sizeof *stats);
+    for (uint32_t y = 0; y < h; y++)
+        for (uint32_t x = 0; x < w; x++) {
+            double sum[3] = {0, 0, 0}, sum2[3] = {0, 0, 0}, lum_sum = 0.0, lum_sum2 = 0.0, cover = 0.0;
+            uint32_t n = 0;
+            for (uint32_t si = 0; si < spp; si++) {
+                int hit_any;
+                vec3 l = integrator_sample(job, x0 + x, y0 + y, si, &stats->rays, &hit_any);
+                stats->samples++;
+                if (!v3_is_finite(l)) {
+                    stats->nan_samples++;
+                    continue;
+                }
+                double c[3] = {l.x, l.y, l.z};
+                for (int k = 0; k < 3; k++) {
+                    sum[k] += c[k];
+                    sum2[k] += c[k] * c[k];
+                }
+                double lum = 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
+                lum_sum += lum;
+                lum_sum2 += lum * lum;
+                cover += hit_any;
+                n++;
+            }
+            float *px = &pixels[((size_t)y * w + x) * TILE_NUM_CHANNELS];
+            double mean[3], var_mean[3];
+            for (int k = 0; k < 3; k++) {
+                mean[k] = n ? sum[k] / n : 0.0;
+                /* Variance of the mean from the sample variance (unbiased, n-1). */
+                double var = n > 1 ? (sum2[k] - n * mean[k] * mean[k]) / (n - 1) : 0.0;
+                var_mean[k] = n > 1 ? fmax(0.0, var) / n : 0.0;
+                px[CH_R + k] = (float)mean[k];
+                px[CH_VAR_R + k] = (float)var_mean[k];
+            }
+            px[CH_A] = n ? (float)(cover / n) : 0.0f;
+            /* Relative standard error of the pixel's luminance, from the luminance of each
+             * sample (so correlation between channels is accounted for). */
+            double lum_mean = n ? lum_sum / n : 0.0;
+            if (lum_mean > 0.0 && n > 1) {
+                double var_lum = fmax(0.0, (lum_sum2 - n * lum_mean * lum_mean) / (n - 1)) / n;
+                stats->sum_rel_stderr += sqrt(var_lum) / lum_mean;
+                stats->rel_stderr_pixels++;
+            }
+        }
+}

@@ -1,0 +1,38 @@
+/* Path tracing of tiles. A render_job bundles what every tile of a frame reads (scene,
+ * Embree scene, light table, camera); it is built once per frame and shared read-only by
+ * the render threads. integrator_render_tile() writes a tile's interleaved channels
+ * (tile.h order) and statistics; its pixels depend only on (scene, seed, frame, pixel),
+ * never on the thread, tile size or order. Called by the worker (and by tests). */
+#ifndef BRUME_INTEGRATOR_H
+#define BRUME_INTEGRATOR_H
+#include <stddef.h>
+#include <stdint.h>
+#include "accel.h"
+#include "camera.h"
+#include "light.h"
+#include "scene.h"
+#include "tile.h"
+
+struct render_job {
+    const struct scene *scene;
+    struct accel accel;
+    struct light_table lights;
+    struct camera camera;
+    uint32_t frame;
+};
+
+int render_job_init(struct render_job *job, const struct scene *scene, uint32_t frame, uint32_t threads,
+                    char *err, size_t errlen);
+void render_job_free(struct render_job *job);
+
+/* Radiance along one camera sample of pixel (px, py); *hit_any = 1 if the camera ray hit
+ * geometry. May return NaN or Inf on a numerical failure (the caller counts and drops). */
+vec3 integrator_sample(const struct render_job *job, uint32_t px, uint32_t py, uint32_t sample_index,
+                       uint64_t *rays, int *hit_any);
+
+/* Renders the pixel rectangle [x0, x0+w) x [y0, y0+h) into pixels (w*h*TILE_NUM_CHANNELS
+ * floats). Fills stats (render_ns excluded: the caller times). */
+void integrator_render_tile(const struct render_job *job, uint32_t x0, uint32_t y0, uint32_t w, uint32_t h,
+                            float *pixels, struct tile_stats *stats);
+
+#endif

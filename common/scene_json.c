@@ -1,0 +1,811 @@
+/* Scene file (version 1) to flat scene (see scene_json.h, docs/scene-format.md).
+ * jansson checks the syntax; this file checks the meaning: every object's keys against a
+ * closed list, every value's type and range. jansson keeps no positions, so values are
+ * addressed by a path of ordinals (member order in the text, which jansson preserves;
+ * duplicates are rejected) and, only when an error is reported, the already valid text
+ * is rescanned along that path to find the line:col of the key or value. Errors are
+ * reported on first occurrence. Called by the master and by workers. */
+#include "scene_json.h"
+#include "log.h"
+#include "mesh_obj.h"
+#include <float.h>
+#include <jansson.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdbool.h>
+#include <stdio.h>
+#include <string.h>
+
+#define JPATH_MAX 16
+#define SCENE_VERSION 1
+
+/* Location of a value: ordinal of the member (objects) or element (arrays) per level. */
+struct jpath {
+    int n;
+    uint32_t comp[JPATH_MAX];
+};
+
+struct ctx {
+    const char *name;
+    const char *text;
+    size_t len;
+    char *err;
+    size_t errlen;
+    struct scene *scene;
+    const struct asset_source *src;
+    struct mesh_obj_cache cache;
+    uint32_t num_json_materials;  /* materials 0..n-1 are the scene file's, by name */
+    char display_dir[1024];
+};
+
+static struct jpath jpath_child(const struct jpath *p, uint32_t ordinal)
+{
+    struct jpath c = *p;
+    CHECK(c.n < JPATH_MAX);
+    c.comp[c.n++] = ordinal;
+    return c;
+}
+
+/* ---- Position lookup on valid JSON text ---- */
+
+struct scanner {
+    const char *t;
+    size_t len, i;
+    uint32_t line, col;
+};
+
+static void scan_advance(struct scanner *s)
+{
+    unsigned char c = (unsigned char)s->t[s->i++];
+    if (c == '\n') {
+        s->line++;
+        s->col = 1;
+    } else if ((c & 0xC0) != 0x80) {
+        s->col++;  /* columns count code points, as jansson's do */
+    }
+}
+
+static void scan_ws(struct scanner *s)
+{
+    while (s->i < s->len && (s->t[s->i] == ' ' || s->t[s->i] == '\t' || s->t[s->i] == '\n' || s->t[s->i] == '\r'))
+        scan_advance(s);
+}
+
+static void scan_string(struct scanner *s)
+{
+    scan_advance(s);  /* opening quote */
+    while (s->i < s->len && s->t[s->i] != '"') {
+        if (s->t[s->i] == '\\' && s->i + 1 < s->len)
+            scan_advance(s);
+        scan_advance(s);
+    }
+    if (s->i < s->len)
+        scan_advance(s);
+}
+
+static void scan_skip_value(struct scanner *s)
+{
+    if (s->i >= s->len)
+        return;
+    char c = s->t[s->i];
+    if (c == '"') {
+        scan_string(s);
+    } else if (c == '{' || c == '[') {
+        size_t depth = 0;
+        while (s->i < s->len) {
+            c = s->t[s->i];
+            if (c == '"') {
+                scan_string(s);
+                continue;
+            }
+            if (c == '{' || c == '[')
+                depth++;
+            else if ((c == '}' || c == ']') && --depth == 0) {
+                scan_advance(s);
+                return;
+            }
+            scan_advance(s);
+        }
+    } else {
+        while (s->i < s->len && !strchr(",]} \t\r\n", s->t[s->i]))
+            scan_advance(s);
+    }
+}
+
+/* s is at a value at depth `depth` of path p; finds the key or value p names. */
+static bool scan_locate(struct scanner *s, const struct jpath *p, int depth, bool want_key, uint32_t *line,
+                        uint32_t *col)
+{
+    scan_ws(s);
+    if (s->i >= s->len)
+        return false;
+    if (depth == p->n) {
+        *line = s->line;
+        *col = s->col;
+        return true;
+    }
+    char open = s->t[s->i];
+    if (open != '{' && open != '[')
+        return false;
+    scan_advance(s);
+    for (uint32_t k = 0;; k++) {
+        scan_ws(s);
+        if (s->i >= s->len || s->t[s->i] == '}' || s->t[s->i] == ']')
+            return false;
+        uint32_t kline = s->line, kcol = s->col;
+        if (open == '{') {
+            scan_string(s);
+            scan_ws(s);
+            if (s->i < s->len && s->t[s->i] == ':')
+                scan_advance(s);
+        }
+        if (k == p->comp[depth]) {
+            if (want_key && open == '{' && depth + 1 == p->n) {
+                *line = kline;
+                *col = kcol;
+                return true;
+            }
+            return scan_locate(s, p, depth + 1, want_key, line, col);
+        }
+        scan_ws(s);
+        scan_skip_value(s);
+        scan_ws(s);
+        if (s->i < s->len && s->t[s->i] == ',')
+            scan_advance(s);
+    }
+}
+
+enum at { AT_VALUE, AT_KEY };
+
+__attribute__((format(printf, 4, 5))) static int fail(struct ctx *c, const struct jpath *p, enum at at,
+                                                      const char *fmt, ...)
+{
+    struct scanner s = {c->text, c->len, 0, 1, 1};
+    uint32_t line = 1, col = 1;
+    if (!scan_locate(&s, p, 0, at == AT_KEY, &line, &col))
+        line = col = 1;
+    char msg[1024];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    str_fmt(c->err, c->errlen, "%s:%u:%u: %s", c->name, line, col, msg);
+    return -1;
+}
+
+/* A key or name made safe to print inside quotes in a one-line message. */
+static const char *printable(const char *in, char *buf, size_t size)
+{
+    size_t o = 0;
+    for (const char *p = in; *p && o + 4 < size; p++)
+        buf[o++] = ((unsigned char)*p < 0x20 || *p == 0x7f || *p == '"') ? '?' : *p;
+    if (o + 4 >= size && strlen(in) > o) {
+        buf[o++] = '.';
+        buf[o++] = '.';
+        buf[o++] = '.';
+    }
+    buf[o] = '\0';
+    return buf;
+}
+
+/* ---- Typed access ---- */
+
+struct member {
+    json_t *val;
+    struct jpath path;
+};
+
+/* Keys that later versions will accept; naming them says so instead of "unknown". */
+static const char *const planned_keys[] = {"shutter", "keyframes", "motion"};
+
+/* Checks obj's keys against allowed (a closed list) and fills out[i] for allowed[i]
+ * (val NULL when absent). */
+static int object_members(struct ctx *c, json_t *obj, const struct jpath *p, const char *what,
+                          const char *const *allowed, size_t n_allowed, struct member *out)
+{
+    if (!json_is_object(obj))
+        return fail(c, p, AT_VALUE, "%s must be an object", what);
+    for (size_t i = 0; i < n_allowed; i++)
+        out[i].val = NULL;
+    const char *key;
+    json_t *val;
+    uint32_t ordinal = 0;
+    json_object_foreach(obj, key, val) {
+        struct jpath kp = jpath_child(p, ordinal++);
+        size_t i = 0;
+        while (i < n_allowed && strcmp(key, allowed[i]) != 0)
+            i++;
+        if (i < n_allowed) {
+            out[i].val = val;
+            out[i].path = kp;
+            continue;
+        }
+        char kb[80];
+        for (size_t k = 0; k < sizeof planned_keys / sizeof *planned_keys; k++)
+            if (strcmp(key, planned_keys[k]) == 0)
+                return fail(c, &kp, AT_KEY, "key \"%s\" in %s is planned, not yet accepted", key, what);
+        char list[512] = "";
+        size_t o = 0;
+        for (size_t k = 0; k < n_allowed && o < sizeof list; k++)
+            o += (size_t)snprintf(list + o, sizeof list - o, "%s%s", k ? ", " : "", allowed[k]);
+        return fail(c, &kp, AT_KEY, "unknown key \"%s\" in %s (expected one of: %s)",
+                    printable(key, kb, sizeof kb), what, list);
+    }
+    return 0;
+}
+
+static int require(struct ctx *c, const struct member *m, const struct jpath *obj_path, const char *what,
+                   const char *key)
+{
+    if (!m->val)
+        return fail(c, obj_path, AT_VALUE, "%s: missing key \"%s\"", what, key);
+    return 0;
+}
+
+static const char *type_name(const json_t *v)
+{
+    switch (json_typeof(v)) {
+    case JSON_OBJECT: return "an object";
+    case JSON_ARRAY: return "an array";
+    case JSON_STRING: return "a string";
+    case JSON_INTEGER: return "an integer";
+    case JSON_REAL: return "a number";
+    case JSON_TRUE:
+    case JSON_FALSE: return "a boolean";
+    case JSON_NULL: return "null";
+    }
+    return "?";
+}
+
+static int get_float(struct ctx *c, json_t *v, const struct jpath *p, const char *what, float *out)
+{
+    if (!json_is_number(v))
+        return fail(c, p, AT_VALUE, "%s must be a number, not %s", what, type_name(v));
+    double d = json_number_value(v);
+    if (!(d >= -FLT_MAX && d <= FLT_MAX))
+        return fail(c, p, AT_VALUE, "%s is out of range", what);
+    *out = (float)d;
+    return 0;
+}
+
+static int get_uint(struct ctx *c, const struct member *m, const char *what, json_int_t lo, json_int_t hi,
+                    json_int_t *out)
+{
+    if (!json_is_integer(m->val))
+        return fail(c, &m->path, AT_VALUE, "%s must be an integer, not %s", what, type_name(m->val));
+    json_int_t v = json_integer_value(m->val);
+    if (v < lo || v > hi)
+        return fail(c, &m->path, AT_VALUE, "%s %lld out of range %lld..%lld", what, (long long)v, (long long)lo,
+                    (long long)hi);
+    *out = v;
+    return 0;
+}
+
+static int get_vec3(struct ctx *c, json_t *v, const struct jpath *p, const char *what, vec3 *out)
+{
+    if (!json_is_array(v) || json_array_size(v) != 3)
+        return fail(c, p, AT_VALUE, "%s must be an array of 3 numbers", what);
+    float f[3];
+    for (size_t i = 0; i < 3; i++) {
+        struct jpath ep = jpath_child(p, (uint32_t)i);
+        if (get_float(c, json_array_get(v, i), &ep, what, &f[i]) != 0)
+            return -1;
+    }
+    *out = v3(f[0], f[1], f[2]);
+    return 0;
+}
+
+/* Each component of a colour in [lo, hi]; the message points at the component. */
+static int check_color(struct ctx *c, const struct member *m, const char *what, float lo, float hi, vec3 col)
+{
+    float f[3] = {col.x, col.y, col.z};
+    for (uint32_t i = 0; i < 3; i++)
+        if (!(f[i] >= lo && f[i] <= hi)) {
+            struct jpath ep = jpath_child(&m->path, i);
+            if (hi == FLT_MAX)
+                return fail(c, &ep, AT_VALUE, "%s components must be >= %g", what, (double)lo);
+            return fail(c, &ep, AT_VALUE, "%s components must be in [%g, %g]", what, (double)lo, (double)hi);
+        }
+    return 0;
+}
+
+static int get_string(struct ctx *c, const struct member *m, const char *what, const char **out)
+{
+    if (!json_is_string(m->val))
+        return fail(c, &m->path, AT_VALUE, "%s must be a string, not %s", what, type_name(m->val));
+    *out = json_string_value(m->val);
+    return 0;
+}
+
+/* ---- Transforms ---- */
+
+/* Affine 3x4 in double: composing in double keeps float rounding to one final step. */
+struct dxf { double m[3][4]; };
+
+static struct dxf dxf_identity(void)
+{
+    struct dxf t = {{{1, 0, 0, 0}, {0, 1, 0, 0}, {0, 0, 1, 0}}};
+    return t;
+}
+
+/* b after a */
+static struct dxf dxf_then(const struct dxf *a, const struct dxf *b)
+{
+    struct dxf r;
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 4; j++)
+            r.m[i][j] = b->m[i][0] * a->m[0][j] + b->m[i][1] * a->m[1][j] + b->m[i][2] * a->m[2][j] +
+                        (j == 3 ? b->m[i][3] : 0.0);
+    return r;
+}
+
+static int parse_rotation(struct ctx *c, json_t *v, const struct jpath *p, struct dxf *out)
+{
+    static const char *const keys[] = {"axis", "degrees"};
+    struct member m[2];
+    if (object_members(c, v, p, "rotate", keys, 2, m) != 0 || require(c, &m[0], p, "rotate", "axis") != 0 ||
+        require(c, &m[1], p, "rotate", "degrees") != 0)
+        return -1;
+    vec3 axis;
+    float deg;
+    if (get_vec3(c, m[0].val, &m[0].path, "rotate axis", &axis) != 0 ||
+        get_float(c, m[1].val, &m[1].path, "rotate degrees", &deg) != 0)
+        return -1;
+    double x = axis.x, y = axis.y, z = axis.z, l = sqrt(x * x + y * y + z * z);
+    if (!(l > 0.0) || !isfinite(l))
+        return fail(c, &m[0].path, AT_VALUE, "rotate axis must be a non-zero vector");
+    x /= l, y /= l, z /= l;
+    double a = (double)deg * (M_PI / 180.0), s = sin(a), co = cos(a), t = 1.0 - co;
+    struct dxf r = {{{t * x * x + co, t * x * y - s * z, t * x * z + s * y, 0},
+                     {t * x * y + s * z, t * y * y + co, t * y * z - s * x, 0},
+                     {t * x * z - s * y, t * y * z + s * x, t * z * z + co, 0}}};
+    *out = r;
+    return 0;
+}
+
+static int parse_transform(struct ctx *c, const struct member *tm, struct xform *out, double *uniform_scale,
+                           bool *uniform)
+{
+    static const char *const keys[] = {"translate", "rotate", "scale", "matrix"};
+    struct member m[4];
+    if (object_members(c, tm->val, &tm->path, "transform", keys, 4, m) != 0)
+        return -1;
+    struct dxf t = dxf_identity();
+    if (m[3].val) {
+        if (m[0].val || m[1].val || m[2].val)
+            return fail(c, &m[3].path, AT_KEY, "matrix cannot be combined with translate, rotate or scale");
+        size_t n = json_is_array(m[3].val) ? json_array_size(m[3].val) : 0;
+        if (n != 12 && n != 16)
+            return fail(c, &m[3].path, AT_VALUE, "matrix must be an array of 12 or 16 numbers (row-major)");
+        float f[16];
+        for (size_t i = 0; i < n; i++) {
+            struct jpath ep = jpath_child(&m[3].path, (uint32_t)i);
+            if (get_float(c, json_array_get(m[3].val, i), &ep, "matrix entry", &f[i]) != 0)
+                return -1;
+        }
+        if (n == 16 && !(f[12] == 0 && f[13] == 0 && f[14] == 0 && f[15] == 1))
+            return fail(c, &m[3].path, AT_VALUE, "matrix: last row must be 0 0 0 1 (affine transforms only)");
+        for (int i = 0; i < 3; i++)
+            for (int j = 0; j < 4; j++)
+                t.m[i][j] = f[4 * i + j];
+    } else {
+        if (m[2].val) {
+            double sc[3];
+            if (json_is_number(m[2].val)) {
+                sc[0] = sc[1] = sc[2] = json_number_value(m[2].val);
+            } else if (json_is_array(m[2].val) && json_array_size(m[2].val) == 3) {
+                vec3 v;
+                if (get_vec3(c, m[2].val, &m[2].path, "scale", &v) != 0)
+                    return -1;
+                sc[0] = v.x, sc[1] = v.y, sc[2] = v.z;
+            } else {
+                return fail(c, &m[2].path, AT_VALUE, "scale must be a number or an array of 3 numbers");
+            }
+            for (int i = 0; i < 3; i++) {
+                if (!(fabs(sc[i]) > 0.0) || !(fabs(sc[i]) <= FLT_MAX))
+                    return fail(c, &m[2].path, AT_VALUE, "scale must be non-zero and finite");
+                t.m[i][i] = sc[i];
+            }
+        }
+        if (m[1].val) {
+            if (json_is_array(m[1].val)) {
+                for (size_t i = 0; i < json_array_size(m[1].val); i++) {
+                    struct jpath ep = jpath_child(&m[1].path, (uint32_t)i);
+                    struct dxf r;
+                    if (parse_rotation(c, json_array_get(m[1].val, i), &ep, &r) != 0)
+                        return -1;
+                    t = dxf_then(&t, &r);
+                }
+            } else {
+                struct dxf r;
+                if (parse_rotation(c, m[1].val, &m[1].path, &r) != 0)
+                    return -1;
+                t = dxf_then(&t, &r);
+            }
+        }
+        if (m[0].val) {
+            vec3 v;
+            if (get_vec3(c, m[0].val, &m[0].path, "translate", &v) != 0)
+                return -1;
+            t.m[0][3] += v.x;
+            t.m[1][3] += v.y;
+            t.m[2][3] += v.z;
+        }
+    }
+    double (*a)[4] = t.m;
+    double det = a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) -
+                 a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0]) +
+                 a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
+    bool finite = isfinite(det);
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 4; j++)
+            finite = finite && fabs(a[i][j]) <= FLT_MAX;
+    if (!finite || det == 0.0)
+        return fail(c, &tm->path, AT_VALUE, "transform is singular or not finite");
+    /* Uniform scale: the columns are orthogonal and of equal length (rotation * s). */
+    double len2[3], maxdot = 0.0;
+    for (int j = 0; j < 3; j++)
+        len2[j] = a[0][j] * a[0][j] + a[1][j] * a[1][j] + a[2][j] * a[2][j];
+    for (int j = 0; j < 3; j++)
+        for (int k = j + 1; k < 3; k++)
+            maxdot = fmax(maxdot, fabs(a[0][j] * a[0][k] + a[1][j] * a[1][k] + a[2][j] * a[2][k]));
+    double mean = (len2[0] + len2[1] + len2[2]) / 3.0, tol = 1e-5 * mean;
+    *uniform = fabs(len2[0] - mean) <= tol && fabs(len2[1] - mean) <= tol && fabs(len2[2] - mean) <= tol &&
+               maxdot <= tol;
+    *uniform_scale = sqrt(mean);
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 4; j++)
+            out->m[i][j] = (float)a[i][j];
+    return 0;
+}
+
+/* ---- Sections ---- */
+
+static int parse_materials(struct ctx *c, const struct member *mm)
+{
+    if (!json_is_object(mm->val))
+        return fail(c, &mm->path, AT_VALUE, "materials must be an object (name -> material)");
+    static const char *const keys[] = {"type", "albedo", "emission"};
+    const char *name;
+    json_t *def;
+    uint32_t ordinal = 0;
+    json_object_foreach(mm->val, name, def) {
+        struct jpath p = jpath_child(&mm->path, ordinal++);
+        char nb[80];
+        size_t n = strlen(name);
+        if (n == 0 || n >= SCENE_NAME_MAX)
+            return fail(c, &p, AT_KEY, "material name must be 1 to %d bytes long", SCENE_NAME_MAX - 1);
+        char what[160];
+        str_fmt(what, sizeof what, "material \"%s\"", printable(name, nb, sizeof nb));
+        struct member m[3];
+        const char *type;
+        if (object_members(c, def, &p, what, keys, 3, m) != 0 || require(c, &m[0], &p, what, "type") != 0 ||
+            get_string(c, &m[0], "type", &type) != 0)
+            return -1;
+        if (strcmp(type, "diffuse") != 0) {
+            char tb[80];
+            return fail(c, &m[0].path, AT_VALUE, "unknown material type \"%s\" (known: diffuse)",
+                        printable(type, tb, sizeof tb));
+        }
+        struct material mat;
+        memset(&mat, 0, sizeof mat);
+        memcpy(mat.name, name, n + 1);
+        mat.type = MATERIAL_DIFFUSE;
+        mat.albedo = v3(0.8f, 0.8f, 0.8f);
+        mat.emission = v3(0, 0, 0);
+        if (m[1].val && (get_vec3(c, m[1].val, &m[1].path, "albedo", &mat.albedo) != 0 ||
+                         check_color(c, &m[1], "albedo", 0.0f, 1.0f, mat.albedo) != 0))
+            return -1;
+        if (m[2].val && (get_vec3(c, m[2].val, &m[2].path, "emission", &mat.emission) != 0 ||
+                         check_color(c, &m[2], "emission", 0.0f, FLT_MAX, mat.emission) != 0))
+            return -1;
+        scene_add_material(c->scene, &mat);
+        c->num_json_materials++;
+    }
+    return 0;
+}
+
+static int find_material(struct ctx *c, const struct member *m, uint32_t *id)
+{
+    const char *name;
+    if (get_string(c, m, "material", &name) != 0)
+        return -1;
+    for (uint32_t i = 0; i < c->num_json_materials; i++)
+        if (strcmp(c->scene->materials[i].name, name) == 0) {
+            *id = i;
+            return 0;
+        }
+    char nb[80];
+    return fail(c, &m->path, AT_VALUE, "unknown material \"%s\" (not in \"materials\")",
+                printable(name, nb, sizeof nb));
+}
+
+static int parse_camera(struct ctx *c, const struct member *cm)
+{
+    static const char *const keys[] = {"position", "look_at", "up", "fov_y", "aperture", "focus_distance"};
+    struct member m[6];
+    if (object_members(c, cm->val, &cm->path, "camera", keys, 6, m) != 0)
+        return -1;
+    for (int i = 0; i < 4; i++)
+        if (i != 2 && require(c, &m[i], &cm->path, "camera", keys[i]) != 0)
+            return -1;
+    struct camera_desc *cd = &c->scene->camera;
+    cd->up = v3(0, 1, 0);
+    if (get_vec3(c, m[0].val, &m[0].path, "position", &cd->position) != 0 ||
+        get_vec3(c, m[1].val, &m[1].path, "look_at", &cd->look_at) != 0 ||
+        (m[2].val && get_vec3(c, m[2].val, &m[2].path, "up", &cd->up) != 0) ||
+        get_float(c, m[3].val, &m[3].path, "fov_y", &cd->fov_y_deg) != 0)
+        return -1;
+    if (!(cd->fov_y_deg > 0.0f && cd->fov_y_deg < 180.0f))
+        return fail(c, &m[3].path, AT_VALUE, "fov_y must be in (0, 180) degrees");
+    vec3 fwd = v3_sub(cd->look_at, cd->position);
+    if (!(v3_length(fwd) > 0.0f) || !isfinite(v3_length(fwd)))
+        return fail(c, &m[1].path, AT_VALUE, "look_at must differ from position");
+    float cross = v3_length(v3_cross(v3_normalize(fwd), v3_normalize(cd->up)));
+    if (!(cross > 1e-6f))
+        return fail(c, m[2].val ? &m[2].path : &cm->path, AT_VALUE,
+                    "up must not be zero or parallel to the view direction");
+    if (m[4].val) {
+        if (get_float(c, m[4].val, &m[4].path, "aperture", &cd->aperture_radius) != 0)
+            return -1;
+        if (cd->aperture_radius != 0.0f)
+            return fail(c, &m[4].path, AT_VALUE, "thin lens not implemented yet: aperture must be 0");
+    }
+    if (m[5].val) {
+        if (get_float(c, m[5].val, &m[5].path, "focus_distance", &cd->focus_distance) != 0)
+            return -1;
+        if (!(cd->focus_distance >= 0.0f))
+            return fail(c, &m[5].path, AT_VALUE, "focus_distance must be >= 0 (0 = distance to look_at)");
+    }
+    return 0;
+}
+
+static int parse_render(struct ctx *c, const struct member *rm)
+{
+    static const char *const keys[] = {"width", "height", "spp", "max_depth", "seed", "tile_size"};
+    struct member m[6];
+    if (object_members(c, rm->val, &rm->path, "render", keys, 6, m) != 0 ||
+        require(c, &m[0], &rm->path, "render", "width") != 0 ||
+        require(c, &m[1], &rm->path, "render", "height") != 0)
+        return -1;
+    struct render_settings *r = &c->scene->settings;
+    json_int_t v[6] = {0, 0, 16, 8, 0, 32};  /* defaults of the optional ones */
+    const json_int_t lo[6] = {1, 1, 1, 1, 0, 8};
+    const json_int_t hi[6] = {SCENE_MAX_DIM, SCENE_MAX_DIM, SCENE_MAX_SPP, SCENE_MAX_DEPTH, INT64_MAX, 1024};
+    for (int i = 0; i < 6; i++)
+        if (m[i].val && get_uint(c, &m[i], keys[i], lo[i], hi[i], &v[i]) != 0)
+            return -1;
+    r->width = (uint32_t)v[0];
+    r->height = (uint32_t)v[1];
+    r->spp = (uint32_t)v[2];
+    r->max_depth = (uint32_t)v[3];
+    r->seed = (uint64_t)v[4];
+    r->tile_size = (uint32_t)v[5];
+    return 0;
+}
+
+/* Finds "type" among an object's members (its ordinal is needed for messages). */
+static int object_type(struct ctx *c, json_t *obj, const struct jpath *p, const char *what, struct member *out,
+                       const char **type)
+{
+    if (!json_is_object(obj))
+        return fail(c, p, AT_VALUE, "%s must be an object", what);
+    const char *key;
+    json_t *val;
+    uint32_t ordinal = 0;
+    json_object_foreach(obj, key, val) {
+        if (strcmp(key, "type") == 0) {
+            out->val = val;
+            out->path = jpath_child(p, ordinal);
+            return get_string(c, out, "type", type);
+        }
+        ordinal++;
+    }
+    return fail(c, p, AT_VALUE, "%s: missing key \"type\"", what);
+}
+
+static int parse_obj_object(struct ctx *c, json_t *obj, const struct jpath *p, const char *what)
+{
+    static const char *const keys[] = {"type", "file", "material", "transform", "name"};
+    struct member m[5];
+    if (object_members(c, obj, p, what, keys, 5, m) != 0 || require(c, &m[1], p, what, "file") != 0)
+        return -1;
+    struct mesh_obj_options opt = mesh_obj_default_options();
+    opt.display_dir = c->display_dir;
+    const char *file, *name = NULL;
+    char why[1024];
+    if (get_string(c, &m[1], "file", &file) != 0)
+        return -1;
+    if (asset_path_check(file, why, sizeof why) != 0)
+        return fail(c, &m[1].path, AT_VALUE, "file: %s", why);
+    if (m[2].val && find_material(c, &m[2], &opt.material_override) != 0)
+        return -1;
+    if (m[3].val) {
+        double s;
+        bool uniform;
+        if (parse_transform(c, &m[3], &opt.transform, &s, &uniform) != 0)
+            return -1;
+    }
+    if (m[4].val && get_string(c, &m[4], "name", &name) != 0)
+        return -1;
+    opt.mesh_name = name;
+    char *data = NULL;
+    size_t size = 0;
+    if (!c->src || !c->src->read)
+        return fail(c, &m[1].path, AT_VALUE, "cannot read OBJ file \"%s\": no asset source", file);
+    if (c->src->read(c->src->ctx, file, &data, &size, why, sizeof why) != 0)
+        return fail(c, &m[1].path, AT_VALUE, "cannot read OBJ file: %s", why);
+    int rc = mesh_obj_parse(c->scene, &c->cache, c->src, file, data, size, &opt, c->err, c->errlen);
+    free(data);
+    return rc;
+}
+
+static int parse_sphere(struct ctx *c, json_t *obj, const struct jpath *p, const char *what)
+{
+    static const char *const keys[] = {"type", "center", "radius", "material", "transform", "name"};
+    struct member m[6];
+    if (object_members(c, obj, p, what, keys, 6, m) != 0 || require(c, &m[1], p, what, "center") != 0 ||
+        require(c, &m[2], p, what, "radius") != 0 || require(c, &m[3], p, what, "material") != 0)
+        return -1;
+    struct sphere sp;
+    memset(&sp, 0, sizeof sp);
+    if (get_vec3(c, m[1].val, &m[1].path, "center", &sp.center) != 0 ||
+        get_float(c, m[2].val, &m[2].path, "radius", &sp.radius) != 0)
+        return -1;
+    if (!(sp.radius > 0.0f))
+        return fail(c, &m[2].path, AT_VALUE, "radius must be > 0");
+    if (find_material(c, &m[3], &sp.material_id) != 0)
+        return -1;
+    if (m[4].val) {
+        struct xform t;
+        double s;
+        bool uniform;
+        if (parse_transform(c, &m[4], &t, &s, &uniform) != 0)
+            return -1;
+        if (!uniform)
+            return fail(c, &m[4].path, AT_VALUE, "a sphere's transform must scale uniformly");
+        sp.center = xform_point(&t, sp.center);
+        double r = (double)sp.radius * s;
+        if (!(r > 0.0 && r <= FLT_MAX) || !v3_is_finite(sp.center))
+            return fail(c, &m[4].path, AT_VALUE, "transformed sphere is out of range");
+        sp.radius = (float)r;
+    }
+    const char *name = NULL;
+    if (m[5].val && get_string(c, &m[5], "name", &name) != 0)
+        return -1;
+    if (name)
+        str_fmt(sp.name, sizeof sp.name, "%s", name);
+    else
+        str_fmt(sp.name, sizeof sp.name, "sphere %u", c->scene->num_spheres);
+    scene_add_sphere(c->scene, &sp);
+    return 0;
+}
+
+static int parse_objects(struct ctx *c, const struct member *om)
+{
+    if (!json_is_array(om->val))
+        return fail(c, &om->path, AT_VALUE, "objects must be an array");
+    for (size_t i = 0; i < json_array_size(om->val); i++) {
+        struct jpath p = jpath_child(&om->path, (uint32_t)i);
+        json_t *obj = json_array_get(om->val, i);
+        char what[64];
+        str_fmt(what, sizeof what, "objects[%zu]", i);
+        struct member tm;
+        const char *type;
+        if (object_type(c, obj, &p, what, &tm, &type) != 0)
+            return -1;
+        int rc;
+        if (strcmp(type, "obj") == 0) {
+            rc = parse_obj_object(c, obj, &p, what);
+        } else if (strcmp(type, "sphere") == 0) {
+            rc = parse_sphere(c, obj, &p, what);
+        } else {
+            char tb[80];
+            rc = fail(c, &tm.path, AT_VALUE, "unknown object type \"%s\" (known: obj, sphere)",
+                      printable(type, tb, sizeof tb));
+        }
+        if (rc != 0)
+            return -1;
+    }
+    return 0;
+}
+
+static int parse_lights(struct ctx *c, const struct member *lm)
+{
+    if (!json_is_array(lm->val))
+        return fail(c, &lm->path, AT_VALUE, "lights must be an array");
+    static const char *const keys[] = {"type", "position", "intensity"};
+    for (size_t i = 0; i < json_array_size(lm->val); i++) {
+        struct jpath p = jpath_child(&lm->path, (uint32_t)i);
+        json_t *obj = json_array_get(lm->val, i);
+        char what[64];
+        str_fmt(what, sizeof what, "lights[%zu]", i);
+        struct member tm;
+        const char *type;
+        if (object_type(c, obj, &p, what, &tm, &type) != 0)
+            return -1;
+        if (strcmp(type, "point") != 0) {
+            char tb[80];
+            return fail(c, &tm.path, AT_VALUE,
+                        "unknown light type \"%s\" (known: point; area lights are emissive materials)",
+                        printable(type, tb, sizeof tb));
+        }
+        struct member m[3];
+        struct light l;
+        memset(&l, 0, sizeof l);
+        l.type = LIGHT_POINT;
+        if (object_members(c, obj, &p, what, keys, 3, m) != 0 || require(c, &m[1], &p, what, "position") != 0 ||
+            require(c, &m[2], &p, what, "intensity") != 0 ||
+            get_vec3(c, m[1].val, &m[1].path, "position", &l.position) != 0 ||
+            get_vec3(c, m[2].val, &m[2].path, "intensity", &l.intensity) != 0 ||
+            check_color(c, &m[2], "intensity", 0.0f, FLT_MAX, l.intensity) != 0)
+            return -1;
+        scene_add_light(c->scene, &l);
+    }
+    return 0;
+}
+
+static int parse_root(struct ctx *c, json_t *root)
+{
+    static const char *const keys[] = {"version", "camera", "render", "materials", "objects", "lights"};
+    struct jpath rp = {0, {0}};
+    struct member m[6];
+    if (object_members(c, root, &rp, "the scene", keys, 6, m) != 0 ||
+        require(c, &m[0], &rp, "scene", "version") != 0)
+        return -1;
+    if (!json_is_integer(m[0].val))
+        return fail(c, &m[0].path, AT_VALUE, "version must be an integer, not %s", type_name(m[0].val));
+    if (json_integer_value(m[0].val) != SCENE_VERSION)
+        return fail(c, &m[0].path, AT_VALUE, "unsupported scene version %lld (this build reads version %d)",
+                    (long long)json_integer_value(m[0].val), SCENE_VERSION);
+    if (require(c, &m[1], &rp, "scene", "camera") != 0 || require(c, &m[2], &rp, "scene", "render") != 0)
+        return -1;
+    /* Materials first: objects refer to them by name wherever they appear in the file. */
+    if (m[3].val && parse_materials(c, &m[3]) != 0)
+        return -1;
+    if (parse_camera(c, &m[1]) != 0 || parse_render(c, &m[2]) != 0)
+        return -1;
+    if (m[4].val && parse_objects(c, &m[4]) != 0)
+        return -1;
+    if (m[5].val && parse_lights(c, &m[5]) != 0)
+        return -1;
+    return 0;
+}
+
+int scene_json_parse(const char *name, const char *text, size_t len, const struct asset_source *src,
+                     struct scene *out, char *err, size_t errlen)
+{
+    memset(out, 0, sizeof *out);
+    json_error_t jerr;
+    json_t *root = json_loadb(text, len, JSON_REJECT_DUPLICATES, &jerr);
+    if (!root) {
+        str_fmt(err, errlen, "%s:%d:%d: %s", name, jerr.line > 0 ? jerr.line : 1, jerr.column > 0 ? jerr.column : 1,
+                jerr.text);
+        return -1;
+    }
+    struct ctx c;
+    memset(&c, 0, sizeof c);
+    c.name = name;
+    c.text = text;
+    c.len = len;
+    c.err = err;
+    c.errlen = errlen;
+    c.scene = out;
+    c.src = src;
+    const char *slash = strrchr(name, '/');
+    if (slash && (size_t)(slash - name) + 2 <= sizeof c.display_dir)
+        memcpy(c.display_dir, name, (size_t)(slash - name) + 1);
+    int rc = parse_root(&c, root);
+    json_decref(root);
+    mesh_obj_cache_free(&c.cache);
+    if (rc == 0) {
+        char why[512];
+        if (scene_validate(out, why, sizeof why) != 0) {
+            str_fmt(err, errlen, "%s: %s", name, why);
+            rc = -1;
+        }
+    }
+    if (rc != 0)
+        scene_free(out);
+    return rc;
+}

@@ -1,0 +1,26 @@
+/* The master: loads the scene, publishes its files as blobs, starts local workers,
+ * schedules tiles over a ROUTER socket, checks and keeps each returned EXR tile chunk,
+ * and assembles the tiled EXR (atomically: temporary file, fsync, rename). Called by
+ * master/main.c. */
+#ifndef BRUME_MASTER_H
+#define BRUME_MASTER_H
+#include <stdint.h>
+
+struct master_opts {
+    const char *scene_path;
+    const char *output_path;
+    const char *preview_path;   /* PNG next to the EXR, or NULL */
+    const char *bind;           /* extra endpoint for remote workers, or NULL */
+    const char *worker_exe;     /* worker binary for local workers */
+    uint32_t workers;           /* local workers to start */
+    uint32_t threads;           /* per local worker */
+    uint32_t worker_timeout_ms; /* evict a worker silent this long */
+    int have_spp, have_seed, have_tile, have_depth;
+    uint32_t spp, tile, depth;
+    uint64_t seed;
+};
+
+/* Renders the frame; returns 0 on success, 1 on failure (one line logged). */
+int master_run(const struct master_opts *opts);
+
+#endif

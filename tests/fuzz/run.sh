@@ -1,0 +1,53 @@
+#!/bin/sh
+# Builds every tests/fuzz/fuzz_*.c as a libFuzzer target (clang, ASan + UBSan) and runs
+# each for FUZZ_SECONDS (default 30) on a seed corpus made from the files in scenes/.
+# Prints one summary line per target; exits non-zero if any target fails to build or
+# finds a crash (crash inputs are kept in $BUILD/fuzz/<target>/). Run from anywhere.
+set -u
+cd "$(dirname "$0")/../.." || exit 2
+FUZZ_SECONDS=${FUZZ_SECONDS:-30}
+BUILD=${BUILD:-build}
+CC_FUZZ=${CC_FUZZ:-clang}
+OUT="$BUILD/fuzz"
+mkdir -p "$OUT"
+LIBS="-lembree3 -lOpenEXRCore-3_1 -lzmq -ljansson -lsodium -lpng -lm -pthread"
+CFLAGS_FUZZ="-g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined -std=c11 -D_GNU_SOURCE -Icommon"
+
+seed_dir="$OUT/seed"
+rm -rf "$seed_dir"
+mkdir -p "$seed_dir"
+n=0
+for f in $(find scenes -type f \( -name '*.json' -o -name '*.obj' -o -name '*.mtl' \) 2>/dev/null); do
+    n=$((n + 1))
+    cp "$f" "$seed_dir/seed_${n}_$(basename "$f")"
+done
+
+failed=0
+total=0
+for src in tests/fuzz/fuzz_*.c; do
+    [ -e "$src" ] || continue
+    total=$((total + 1))
+    name=$(basename "$src" .c)
+    dir="$OUT/$name"
+    mkdir -p "$dir/corpus"
+    cp "$seed_dir"/* "$dir/corpus/" 2>/dev/null
+    if ! $CC_FUZZ $CFLAGS_FUZZ "$src" common/*.c -o "$dir/$name" $LIBS >"$dir/build.log" 2>&1; then
+        echo "fuzz: $name: BUILD FAILED (see $dir/build.log)"
+        failed=$((failed + 1))
+        continue
+    fi
+    (cd "$dir" && ./"$name" -max_total_time="$FUZZ_SECONDS" -timeout=10 -rss_limit_mb=2048 \
+        -artifact_prefix=./ -print_final_stats=1 corpus >run.log 2>&1)
+    rc=$?
+    execs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$dir/run.log" | grep -o '[0-9]*$')
+    cov=$(grep -o 'cov: [0-9]*' "$dir/run.log" | tail -n 1 | grep -o '[0-9]*')
+    if [ $rc -ne 0 ]; then
+        crash=$(ls "$dir"/crash-* "$dir"/leak-* "$dir"/timeout-* "$dir"/oom-* 2>/dev/null | head -n 1)
+        echo "fuzz: $name: FAILED (rc $rc) after ${execs:-?} runs; input: ${crash:-none}; log: $dir/run.log"
+        failed=$((failed + 1))
+    else
+        echo "fuzz: $name: ok, ${execs:-?} runs in ${FUZZ_SECONDS}s, coverage ${cov:-?}"
+    fi
+done
+echo "fuzz: $total targets, $((total - failed)) passed, $failed failed"
+[ $failed -eq 0 ]

@@ -1,0 +1,75 @@
+#!/bin/sh
+# Multi-process integration tests: a master and workers on this machine (ipc and tcp
+# loopback), each step bounded by a timeout. Ends with "integration: N passed, N failed".
+# Usage: BUILD=build sh tests/integration/run.sh
+set -u
+BUILD=${BUILD:-build}
+M=$BUILD/master
+W=$BUILD/worker
+X=$BUILD/exrtool
+T=$(mktemp -d /tmp/brume-it.XXXXXX)
+trap 'rm -rf "$T"' EXIT
+pass=0
+fail=0
+ok() { pass=$((pass + 1)); echo "ok: $1"; }
+bad() { fail=$((fail + 1)); echo "FAIL: $1"; [ -f "$T/log" ] && sed 's/^/    /' "$T/log" | tail -20; }
+run() { timeout "${TMO:-120}" "$@" >"$T/log" 2>&1; }
+port() { echo $((20000 + ($$ % 20000))); }
+
+# --- help and command-line errors ---
+if run $M --help && grep -q "usage: master" "$T/log"; then ok "master --help"; else bad "master --help"; fi
+if run $W --help && grep -q "usage: worker" "$T/log"; then ok "worker --help"; else bad "worker --help"; fi
+if ! run $M scenes/tiny/tiny.json && grep -q "error: .*-o" "$T/log"; then ok "missing -o is an error"; else bad "missing -o is an error"; fi
+if ! run $M scenes/tiny/tiny.json -o "$T/x.exr" --spp abc && grep -q -- "--spp" "$T/log"; then ok "bad number named"; else bad "bad number named"; fi
+if ! run $M "$T/none.json" -o "$T/x.exr" && grep -q "none.json" "$T/log" && [ ! -e "$T/x.exr" ]; then
+  ok "missing scene file named, no output"; else bad "missing scene file named, no output"; fi
+
+# --- a scene error names file:line:col ---
+mkdir -p "$T/bad"
+printf '{\n  "version": 1,\n  "camera": {"position": [0,0,5], "look_at": [0,0,0], "fov_yy": 40},\n  "render": {"width": 8, "height": 8}\n}\n' >"$T/bad/bad.json"
+if ! run $M "$T/bad/bad.json" -o "$T/bad.exr" && grep -qE "bad.json:3:[0-9]+: .*fov_yy" "$T/log"; then
+  ok "unknown key reported as file:line:col"; else bad "unknown key reported as file:line:col"; fi
+
+# --- tiny scene: 1 worker vs 3 workers, other threads and tile sizes: identical pixels ---
+run $M scenes/tiny/tiny.json -o "$T/t1.exr" --workers 1 --threads 1 && r1=0 || r1=1
+run $M scenes/tiny/tiny.json -o "$T/t3.exr" --workers 3 --threads 2 && r3=0 || r3=1
+if [ $r1 = 0 ] && [ $r3 = 0 ] && $X cmp "$T/t1.exr" "$T/t3.exr"; then ok "tiny: 1 vs 3 workers bit-identical"; else bad "tiny: 1 vs 3 workers bit-identical"; fi
+run $M scenes/tiny/tiny.json -o "$T/t16.exr" --workers 2 --tile 8 && r=0 || r=1
+if [ $r = 0 ] && $X cmp "$T/t1.exr" "$T/t16.exr"; then ok "tiny: tile size 8 vs default bit-identical"; else bad "tiny: tile size 8 vs default bit-identical"; fi
+run $M scenes/tiny/tiny.json -o "$T/s2.exr" --workers 1 --seed 12345 && r=0 || r=1
+if [ $r = 0 ] && ! $X cmp "$T/t1.exr" "$T/s2.exr" >/dev/null; then ok "tiny: another seed gives other pixels"; else bad "tiny: another seed gives other pixels"; fi
+
+# --- Cornell box: 1 vs 3 workers bit-identical; output is a tiled EXR an independent reader accepts ---
+run $M scenes/cornell/cornell.json -o "$T/c1.exr" --workers 1 --spp 4 --preview "$T/c1.png" && r1=0 || r1=1
+cp "$T/log" "$T/c1.log"
+run $M scenes/cornell/cornell.json -o "$T/c3.exr" --workers 3 --threads 1 --spp 4 --tile 48 && r3=0 || r3=1
+if [ $r1 = 0 ] && [ $r3 = 0 ] && $X cmp "$T/c1.exr" "$T/c3.exr"; then ok "cornell: 1 vs 3 workers bit-identical"; else bad "cornell: 1 vs 3 workers bit-identical"; fi
+if exrheader "$T/c1.exr" >"$T/hdr" 2>&1 && grep -qi "tiledesc" "$T/hdr" && grep -q "brume_spp" "$T/hdr"; then
+  ok "exrheader reads a tiled EXR with our attributes"; else cp "$T/hdr" "$T/log"; bad "exrheader reads a tiled EXR with our attributes"; fi
+if command -v exrcheck >/dev/null 2>&1; then
+  if exrcheck "$T/c1.exr" >"$T/log" 2>&1; then ok "exrcheck accepts the file"; else bad "exrcheck accepts the file"; fi
+fi
+if head -c 8 "$T/c1.png" | od -An -c | grep -q "P   N   G"; then ok "PNG preview written"; else bad "PNG preview written"; fi
+if grep -q "summary: wall" "$T/c1.log" && grep -q "Mrays/s" "$T/c1.log" && grep -q "NaN/Inf samples dropped: 0" "$T/c1.log" &&
+  grep -q "relative standard error" "$T/c1.log"; then ok "summary reports speed, NaNs and noise"; else cp "$T/c1.log" "$T/log"; bad "summary reports speed, NaNs and noise"; fi
+ls "$T" | grep -q "\.tmp\." && bad "no temporary files left" || ok "no temporary files left"
+
+# --- a remote worker over tcp loopback (master starts none) gives the same pixels ---
+P=$(port)
+timeout 60 $M scenes/tiny/tiny.json -o "$T/r.exr" --workers 0 --bind "tcp://127.0.0.1:$P" >"$T/log" 2>&1 &
+mpid=$!
+sleep 0.3
+timeout 60 $W --connect "tcp://127.0.0.1:$P" --threads 2 >"$T/wlog" 2>&1
+wait $mpid && r=0 || r=1
+if [ $r = 0 ] && $X cmp "$T/t1.exr" "$T/r.exr"; then ok "remote tcp worker gives identical pixels"; else bad "remote tcp worker gives identical pixels"; fi
+
+# --- a worker killed mid-render: its tiles are re-queued, the image is unchanged ---
+run $M scenes/cornell/cornell.json -o "$T/k.exr" --workers 3 --threads 1 --spp 4 --tile 16 &
+sleep 0.5
+victim=$(pgrep -f "$W --connect ipc://" | head -1)
+[ -n "$victim" ] && kill -9 "$victim"
+wait $! && r=0 || r=1
+if [ $r = 0 ] && $X cmp "$T/c1.exr" "$T/k.exr"; then ok "killed worker: tiles re-queued, identical pixels"; else bad "killed worker: tiles re-queued, identical pixels"; fi
+
+echo "integration: $pass passed, $fail failed"
+[ $fail = 0 ]

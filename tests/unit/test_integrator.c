@@ -1,0 +1,209 @@
+/* The path tracer against scenes with known answers, built in code:
+ * - a closed diffuse sphere with a point light at its centre (every bounce depth);
+ * - a floor under a square area light (differential-area-to-rectangle form factor), which
+ *   checks next-event estimation and the MIS weights on triangle emitters;
+ * - a floor under a spherical light (irradiance pi L r^2 / d^2), the same for spheres;
+ * and the determinism of pixels under any tile split. */
+#include <criterion/criterion.h>
+#include <math.h>
+#include <string.h>
+#include "integrator.h"
+#include "log.h"
+
+static uint32_t add_mat(struct scene *s, vec3 albedo, vec3 emission)
+{
+    struct material m;
+    memset(&m, 0, sizeof m);
+    m.type = MATERIAL_DIFFUSE;
+    m.albedo = albedo;
+    m.emission = emission;
+    return scene_add_material(s, &m);
+}
+
+static void add_quad(struct scene *s, vec3 a, vec3 b, vec3 c, vec3 d, uint32_t mat)
+{
+    struct mesh m;
+    memset(&m, 0, sizeof m);
+    m.num_vertices = 4;
+    m.num_triangles = 2;
+    m.positions = mem_alloc(sizeof(float) * 12);
+    vec3 v[4] = {a, b, c, d};
+    for (int i = 0; i < 4; i++) {
+        m.positions[3 * i] = v[i].x;
+        m.positions[3 * i + 1] = v[i].y;
+        m.positions[3 * i + 2] = v[i].z;
+    }
+    static const uint32_t idx[6] = {0, 1, 2, 0, 2, 3};
+    m.indices = mem_alloc(sizeof idx);
+    memcpy(m.indices, idx, sizeof idx);
+    m.material_ids = mem_alloc(sizeof(uint32_t) * 2);
+    m.material_ids[0] = m.material_ids[1] = mat;
+    scene_add_mesh(s, &m);
+}
+
+static void settings(struct scene *s, uint32_t w, uint32_t h, uint32_t spp, uint32_t depth)
+{
+    s->settings.width = w;
+    s->settings.height = h;
+    s->settings.spp = spp;
+    s->settings.max_depth = depth;
+    s->settings.seed = 5;
+    s->settings.tile_size = 16;
+}
+
+/* Mean of channel R over the image and its standard error (from the variance channel). */
+static void render_mean(const struct scene *s, double *mean, double *stderr_, uint64_t *nans)
+{
+    struct render_job job;
+    char err[256];
+    cr_assert_eq(render_job_init(&job, s, 0, 2, err, sizeof err), 0, "%s", err);
+    uint32_t w = s->settings.width, h = s->settings.height;
+    float *px = mem_alloc(sizeof(float) * w * h * TILE_NUM_CHANNELS);
+    struct tile_stats st;
+    integrator_render_tile(&job, 0, 0, w, h, px, &st);
+    double sum = 0, var = 0;
+    for (uint32_t i = 0; i < w * h; i++) {
+        sum += px[i * TILE_NUM_CHANNELS + CH_R];
+        var += px[i * TILE_NUM_CHANNELS + CH_VAR_R];
+    }
+    *mean = sum / (w * h);
+    *stderr_ = sqrt(var) / (w * h);
+    *nans = st.nan_samples;
+    free(px);
+    render_job_free(&job);
+}
+
+static void furnace_sphere(uint32_t depth)
+{
+    struct scene s;
+    memset(&s, 0, sizeof s);
+    const float rho = 0.7f, R = 2.0f, I = 10.0f;
+    uint32_t mat = add_mat(&s, v3(rho, rho, rho), v3(0, 0, 0));
+    struct sphere sp = {"shell", v3(1, 2, 3), R, mat};
+    scene_add_sphere(&s, &sp);
+    struct light l = {LIGHT_POINT, v3(1, 2, 3), v3(I, I, I)};
+    scene_add_light(&s, &l);
+    s.camera = (struct camera_desc){v3(1, 2, 3), v3(1, 2, 4), v3(0, 1, 0), 90.0f, 0, 0};
+    settings(&s, 16, 16, 64, depth);
+    double expect = 0.0;
+    for (uint32_t k = 0; k < depth && k < 200; k++)
+        expect += pow(rho, k);
+    expect *= rho / M_PI * I / (R * R);
+    double mean, se;
+    uint64_t nans;
+    render_mean(&s, &mean, &se, &nans);
+    cr_assert_eq(nans, 0);
+    cr_assert(fabs(mean - expect) < 4.0 * se + 1e-5 * expect, "depth %u: mean %.6f expected %.6f (stderr %.2g)",
+              depth, mean, expect, se);
+    scene_free(&s);
+}
+
+Test(integrator, closed_sphere_point_light_depth_1) { furnace_sphere(1); }
+Test(integrator, closed_sphere_point_light_depth_3) { furnace_sphere(3); }
+Test(integrator, closed_sphere_point_light_depth_50) { furnace_sphere(50); }
+
+/* Form factor from a differential area to a parallel a x b rectangle at height h, the
+ * rectangle's corner straight above the point. */
+static double ff_corner(double a, double b, double h)
+{
+    double x = a / h, y = b / h;
+    return (x / sqrt(1 + x * x) * atan(y / sqrt(1 + x * x)) + y / sqrt(1 + y * y) * atan(x / sqrt(1 + y * y))) /
+           (2 * M_PI);
+}
+
+Test(integrator, floor_under_square_area_light)
+{
+    struct scene s;
+    memset(&s, 0, sizeof s);
+    const float rho = 0.5f, Le = 3.0f;
+    uint32_t floor_m = add_mat(&s, v3(rho, rho, rho), v3(0, 0, 0));
+    uint32_t light_m = add_mat(&s, v3(0, 0, 0), v3(Le, Le, Le));
+    add_quad(&s, v3(-50, 0, -50), v3(-50, 0, 50), v3(50, 0, 50), v3(50, 0, -50), floor_m);
+    add_quad(&s, v3(-1, 1, -1), v3(1, 1, -1), v3(1, 1, 1), v3(-1, 1, 1), light_m); /* faces down */
+    s.camera = (struct camera_desc){v3(0, 0.5f, 0), v3(0, 0, 0), v3(0, 0, 1), 0.5f, 0, 0};
+    settings(&s, 8, 8, 256, 1);
+    double expect = rho * Le * 4.0 * ff_corner(1, 1, 1);
+    double mean, se;
+    uint64_t nans;
+    render_mean(&s, &mean, &se, &nans);
+    cr_assert_eq(nans, 0);
+    cr_assert(fabs(mean - expect) < 4.0 * se + 1e-3 * expect, "mean %.6f expected %.6f (stderr %.2g)", mean, expect,
+              se);
+    scene_free(&s);
+}
+
+Test(integrator, floor_under_sphere_light)
+{
+    struct scene s;
+    memset(&s, 0, sizeof s);
+    const float rho = 0.8f, Le = 2.0f, r = 0.5f, d = 3.0f;
+    uint32_t floor_m = add_mat(&s, v3(rho, rho, rho), v3(0, 0, 0));
+    uint32_t light_m = add_mat(&s, v3(0, 0, 0), v3(Le, Le, Le));
+    add_quad(&s, v3(-50, 0, -50), v3(-50, 0, 50), v3(50, 0, 50), v3(50, 0, -50), floor_m);
+    struct sphere sp = {"bulb", v3(0, d, 0), r, light_m};
+    scene_add_sphere(&s, &sp);
+    s.camera = (struct camera_desc){v3(0, 0.5f, 0), v3(0, 0, 0), v3(0, 0, 1), 0.5f, 0, 0};
+    settings(&s, 8, 8, 256, 1);
+    double expect = rho * Le * (r * r) / (d * d);
+    double mean, se;
+    uint64_t nans;
+    render_mean(&s, &mean, &se, &nans);
+    cr_assert_eq(nans, 0);
+    cr_assert(fabs(mean - expect) < 4.0 * se + 1e-3 * expect, "mean %.6f expected %.6f (stderr %.2g)", mean, expect,
+              se);
+    scene_free(&s);
+}
+
+Test(integrator, pixels_do_not_depend_on_tile_split)
+{
+    struct scene s;
+    memset(&s, 0, sizeof s);
+    uint32_t floor_m = add_mat(&s, v3(0.6f, 0.5f, 0.4f), v3(0, 0, 0));
+    uint32_t light_m = add_mat(&s, v3(0, 0, 0), v3(5, 5, 5));
+    add_quad(&s, v3(-5, 0, -5), v3(-5, 0, 5), v3(5, 0, 5), v3(5, 0, -5), floor_m);
+    add_quad(&s, v3(-1, 2, -1), v3(1, 2, -1), v3(1, 2, 1), v3(-1, 2, 1), light_m);
+    struct sphere sp = {"ball", v3(0, 0.5f, 0), 0.5f, floor_m};
+    scene_add_sphere(&s, &sp);
+    s.camera = (struct camera_desc){v3(0, 1, 4), v3(0, 0.5f, 0), v3(0, 1, 0), 50.0f, 0, 0};
+    settings(&s, 20, 12, 4, 5);
+    struct render_job job;
+    char err[256];
+    cr_assert_eq(render_job_init(&job, &s, 0, 1, err, sizeof err), 0);
+    enum { N = 20 * 12 * TILE_NUM_CHANNELS };
+    static float whole[N], part[N];
+    struct tile_stats st;
+    integrator_render_tile(&job, 0, 0, 20, 12, whole, &st);
+    /* Render 7x5 pieces, in reverse order, and paste them. */
+    float piece[7 * 5 * TILE_NUM_CHANNELS];
+    for (int ty = 2; ty >= 0; ty--)
+        for (int tx = 2; tx >= 0; tx--) {
+            uint32_t x0 = tx * 7, y0 = ty * 5, w = x0 + 7 > 20 ? 20 - x0 : 7, h = y0 + 5 > 12 ? 12 - y0 : 5;
+            integrator_render_tile(&job, x0, y0, w, h, piece, &st);
+            for (uint32_t y = 0; y < h; y++)
+                memcpy(&part[((y0 + y) * 20 + x0) * TILE_NUM_CHANNELS], &piece[y * w * TILE_NUM_CHANNELS],
+                       sizeof(float) * w * TILE_NUM_CHANNELS);
+        }
+    cr_assert_eq(memcmp(whole, part, sizeof whole), 0);
+    render_job_free(&job);
+    scene_free(&s);
+}
+
+Test(integrator, huge_coordinates_no_acne)
+{
+    /* A floor far from the origin under a light: no self-shadowing at 1e5 units. */
+    struct scene s;
+    memset(&s, 0, sizeof s);
+    const float rho = 0.5f, Le = 3.0f, X = 1.0e5f;
+    uint32_t floor_m = add_mat(&s, v3(rho, rho, rho), v3(0, 0, 0));
+    uint32_t light_m = add_mat(&s, v3(0, 0, 0), v3(Le, Le, Le));
+    add_quad(&s, v3(X - 50, 0, X - 50), v3(X - 50, 0, X + 50), v3(X + 50, 0, X + 50), v3(X + 50, 0, X - 50), floor_m);
+    add_quad(&s, v3(X - 1, 1, X - 1), v3(X + 1, 1, X - 1), v3(X + 1, 1, X + 1), v3(X - 1, 1, X + 1), light_m);
+    s.camera = (struct camera_desc){v3(X, 0.5f, X), v3(X, 0, X), v3(0, 0, 1), 0.5f, 0, 0};
+    settings(&s, 8, 8, 256, 1);
+    double expect = rho * Le * 4.0 * ff_corner(1, 1, 1);
+    double mean, se;
+    uint64_t nans;
+    render_mean(&s, &mean, &se, &nans);
+    cr_assert(fabs(mean - expect) < 4.0 * se + 1e-2 * expect, "mean %.6f expected %.6f", mean, expect);
+    scene_free(&s);
+}

@@ -1,0 +1,294 @@
+/* Unit tests of the OBJ/MTL reader (common/mesh_obj.c): every face form, relative
+ * indices, polygons, CRLF, transforms, materials, and that each error names the right
+ * file:line:col. Files come from an in-memory asset source. */
+#include <criterion/criterion.h>
+#include <stdio.h>
+#include <string.h>
+#include "mesh_obj.h"
+
+struct mem_file { const char *path, *data; };
+
+static int mem_read(void *ctx, const char *rel_path, char **data, size_t *size, char *err, size_t errlen)
+{
+    for (const struct mem_file *f = ctx; f->path; f++)
+        if (strcmp(f->path, rel_path) == 0) {
+            *size = strlen(f->data);
+            *data = malloc(*size + 1);
+            memcpy(*data, f->data, *size + 1);
+            return 0;
+        }
+    snprintf(err, errlen, "%s: No such file or directory", rel_path);
+    return -1;
+}
+
+/* Parses text as "m.obj" with files as the rest of the folder; returns the rc. */
+static int parse(const char *text, const struct mem_file *files, const struct mesh_obj_options *opt,
+                 struct scene *s, char *err)
+{
+    static const struct mem_file none[] = {{NULL, NULL}};
+    struct asset_source src = {mem_read, (void *)(uintptr_t)(files ? files : none)};
+    struct mesh_obj_cache cache = {0};
+    int rc = mesh_obj_parse(s, &cache, &src, "m.obj", text, strlen(text), opt, err, 512);
+    mesh_obj_cache_free(&cache);
+    return rc;
+}
+
+static void expect_error(const char *text, const struct mem_file *files, const char *want)
+{
+    struct scene s = {0};
+    char err[512] = "";
+    cr_assert_eq(parse(text, files, NULL, &s, err), -1, "expected failure for: %s", text);
+    cr_expect(strstr(err, want) != NULL, "error \"%s\" lacks \"%s\"", err, want);
+    scene_free(&s);
+}
+
+static const char quad[] = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n";
+
+Test(mesh_obj, plain_faces_and_default_material)
+{
+    struct scene s = {0};
+    char err[512];
+    char text[256];
+    snprintf(text, sizeof text, "%sf 1 2 3\nf 1 3 4\n", quad);
+    cr_assert_eq(parse(text, NULL, NULL, &s, err), 0, "%s", err);
+    cr_assert_eq(s.num_meshes, 1);
+    struct mesh *m = &s.meshes[0];
+    cr_expect_eq(m->num_vertices, 4);
+    cr_expect_eq(m->num_triangles, 2);
+    cr_expect_null(m->normals);
+    cr_expect_null(m->uvs);
+    cr_expect_str_eq(m->name, "m.obj");
+    uint32_t want[6] = {0, 1, 2, 0, 2, 3};
+    for (int i = 0; i < 6; i++)
+        cr_expect_eq(m->indices[i], want[i]);
+    cr_assert_eq(s.num_materials, 1);
+    cr_expect_eq(m->material_ids[0], 0);
+    cr_expect_float_eq(s.materials[0].albedo.x, 0.8f, 1e-6);
+    cr_expect(v3_is_black(s.materials[0].emission));
+    scene_free(&s);
+}
+
+Test(mesh_obj, all_face_forms)
+{
+    struct scene s = {0};
+    char err[512];
+    const char *text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nvn 0 0 1\n"
+                       "f 1/1/1 2/2/1 3/3/1\n";
+    cr_assert_eq(parse(text, NULL, NULL, &s, err), 0, "%s", err);
+    cr_assert_not_null(s.meshes[0].normals);
+    cr_assert_not_null(s.meshes[0].uvs);
+    cr_expect_float_eq(s.meshes[0].uvs[2], 1.0f, 1e-6);
+    cr_expect_float_eq(s.meshes[0].normals[2], 1.0f, 1e-6);
+    scene_free(&s);
+
+    text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n";
+    cr_assert_eq(parse(text, NULL, NULL, &s, err), 0, "%s", err);
+    cr_expect_null(s.meshes[0].normals);
+    cr_expect_not_null(s.meshes[0].uvs);
+    scene_free(&s);
+
+    text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//1\n";
+    cr_assert_eq(parse(text, NULL, NULL, &s, err), 0, "%s", err);
+    cr_expect_not_null(s.meshes[0].normals);
+    cr_expect_null(s.meshes[0].uvs);
+    scene_free(&s);
+
+    /* Mixed forms: attributes missing at some corner are dropped for the whole mesh. */
+    text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2 3//1\n";
+    cr_assert_eq(parse(text, NULL, NULL, &s, err), 0, "%s", err);
+    cr_expect_null(s.meshes[0].normals);
+    scene_free(&s);
+}
+
+Test(mesh_obj, negative_indices_and_polygons)
+{
+    struct scene s = {0};
+    char err[512];
+    const char *text = "v 0 0 0\nv 1 0 0\nv 2 1 0\nv 1 2 0\nv 0 1 0\nf -5 -4 -3 -2 -1\n";
+    cr_assert_eq(parse(text, NULL, NULL, &s, err), 0, "%s", err);
+    struct mesh *m = &s.meshes[0];
+    cr_assert_eq(m->num_triangles, 3);
+    uint32_t want[9] = {0, 1, 2, 0, 2, 3, 0, 3, 4};
+    for (int i = 0; i < 9; i++)
+        cr_expect_eq(m->indices[i], want[i]);
+    cr_expect_float_eq(m->positions[3 * 2], 2.0f, 1e-6);
+    scene_free(&s);
+
+    /* Relative indices count from the vertices read so far. */
+    text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\nv 5 5 5\nf -4 -3 -1\n";
+    cr_assert_eq(parse(text, NULL, NULL, &s, err), 0, "%s", err);
+    cr_expect_eq(s.meshes[0].num_vertices, 4);
+    cr_expect_float_eq(s.meshes[0].positions[3 * s.meshes[0].indices[5]], 5.0f, 1e-6);
+    scene_free(&s);
+}
+
+Test(mesh_obj, crlf_comments_and_ignored_statements)
+{
+    struct scene s = {0};
+    char err[512];
+    const char *text = "# comment\r\no thing\r\ng group a\r\ns off\r\nv 0 0 0 1\r\nv 1 0 0  # trailing\r\n"
+                       "v 0 1 0\r\nl 1 2\r\n\r\n   \r\nf 1 2 3\r\n";
+    cr_assert_eq(parse(text, NULL, NULL, &s, err), 0, "%s", err);
+    cr_expect_eq(s.meshes[0].num_triangles, 1);
+    scene_free(&s);
+}
+
+Test(mesh_obj, empty_file_gives_no_mesh)
+{
+    struct scene s = {0};
+    char err[512];
+    cr_assert_eq(parse("", NULL, NULL, &s, err), 0);
+    cr_expect_eq(s.num_meshes, 0);
+    cr_expect_eq(s.num_materials, 0);
+    scene_free(&s);
+}
+
+Test(mesh_obj, vertex_sharing)
+{
+    struct scene s = {0};
+    char err[512];
+    /* The same (v, vt) pair is one vertex; the same v with another vt is a second one. */
+    const char *text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 1\nf 1/1 2/1 3/1\nf 1/1 3/1 2/2\n";
+    cr_assert_eq(parse(text, NULL, NULL, &s, err), 0, "%s", err);
+    cr_expect_eq(s.meshes[0].num_vertices, 4);
+    scene_free(&s);
+}
+
+Test(mesh_obj, errors_name_line_and_column)
+{
+    expect_error("v 0 0 0\nv 1 0 x\n", NULL, "m.obj:2:7: malformed number \"x\"");
+    expect_error("v 0 0 0\nv 1 0 1e\n", NULL, "m.obj:2:7: malformed number");
+    expect_error("v 0 0 nan\n", NULL, "m.obj:1:7: malformed number");
+    expect_error("v 0 0 1e999\n", NULL, "m.obj:1:7: number \"1e999\" out of range");
+    expect_error("v 0 0\n", NULL, "m.obj:1:6: v needs at least 3 numbers, got 2");
+    expect_error("v 0 0 0 1 2\n", NULL, "m.obj:1:1: v takes 3, 4 or 6 numbers");
+    expect_error("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n", NULL, "m.obj:4:7: vertex index 4 out of range (3");
+    expect_error("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 -4\n", NULL, "m.obj:4:7: vertex index -4 out of range");
+    expect_error("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n", NULL, "m.obj:4:3: vertex index 0 is invalid");
+    expect_error("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/2 2 3\n", NULL, "m.obj:4:5: texture coordinate index 2 out of range");
+    expect_error("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1//1 2 3\n", NULL, "m.obj:4:6: normal index 1 out of range");
+    expect_error("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/ 2 3\n", NULL, "m.obj:4:3: face corner \"1/\" ends with '/'");
+    expect_error("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/1/1/1 2 3\n", NULL, "m.obj:4:3: face corner");
+    expect_error("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1a 2 3\n", NULL, "m.obj:4:3: malformed vertex index \"1a\"");
+    expect_error("v 0 0 0\nv 1 0 0\nf 1 2\n", NULL, "m.obj:3:6: face needs at least 3 corners, got 2");
+    expect_error("v 0 0 0\nfoo 1 2\n", NULL, "m.obj:2:1: unknown statement \"foo\"");
+    expect_error("v 0 0 0\r\nv 0 \x01 0\r\n", NULL, "m.obj:2:5: unexpected control byte 0x01");
+    /* Columns count characters, not bytes. */
+    expect_error("usemtl \xc3\xa9\x01\n", NULL, "m.obj:1:9: unexpected control byte 0x01");
+}
+
+Test(mesh_obj, materials_from_mtl)
+{
+    static const struct mem_file files[] = {
+        {"m.mtl", "# lib\nnewmtl red\nKa 0 0 0\nKd 1 0 0\nKs 0 0 0\nNs 10\nNi 1.5\nd 1\nillum 2\n"
+                  "map_Kd red.png\nnewmtl glow\nKd 0.5\nKe 4 5 6\nmap_Kd x.png\n"},
+        {NULL, NULL}};
+    struct scene s = {0};
+    char err[512];
+    const char *text = "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nusemtl glow\nf 1 2 3\n"
+                       "usemtl red\nf 1 2 3\n";
+    cr_assert_eq(parse(text, files, NULL, &s, err), 0, "%s", err);
+    cr_assert_eq(s.num_materials, 3);  /* red, glow, then the default for the first face */
+    cr_expect_str_eq(s.materials[0].name, "m.mtl:red");
+    cr_expect_str_eq(s.materials[1].name, "m.mtl:glow");
+    cr_expect_float_eq(s.materials[0].albedo.x, 1.0f, 1e-6);
+    cr_expect_float_eq(s.materials[0].albedo.y, 0.0f, 1e-6);
+    cr_expect_float_eq(s.materials[1].albedo.z, 0.5f, 1e-6);
+    cr_expect_float_eq(s.materials[1].emission.y, 5.0f, 1e-6);
+    const struct mesh *m = &s.meshes[0];
+    cr_expect_eq(m->material_ids[0], 2);
+    cr_expect_eq(m->material_ids[1], 1);
+    cr_expect_eq(m->material_ids[2], 0);
+    scene_free(&s);
+}
+
+Test(mesh_obj, mtl_errors)
+{
+    static const struct mem_file bad_kd[] = {{"m.mtl", "newmtl a\nKd 1.5 0 0\n"}, {NULL, NULL}};
+    static const struct mem_file early[] = {{"m.mtl", "\n  Kd 1 1 1\n"}, {NULL, NULL}};
+    static const struct mem_file twice[] = {{"m.mtl", "newmtl a\nnewmtl a\n"}, {NULL, NULL}};
+    static const struct mem_file bad_num[] = {{"m.mtl", "newmtl a\nKe 1 2 q\n"}, {NULL, NULL}};
+    expect_error("mtllib m.mtl\n", bad_kd, "m.mtl:2:4: Kd components must be in [0, 1]");
+    expect_error("mtllib m.mtl\n", early, "m.mtl:2:3: Kd before any newmtl");
+    expect_error("mtllib m.mtl\n", twice, "m.mtl:2:8: material \"a\" defined twice");
+    expect_error("mtllib m.mtl\n", bad_num, "m.mtl:2:8: malformed number \"q\"");
+    expect_error("mtllib missing.mtl\n", NULL, "m.obj:1:8: cannot read MTL file: missing.mtl: No such file");
+    expect_error("mtllib ../up.mtl\n", NULL, "m.obj:1:8: mtllib \"../up.mtl\"");
+    expect_error("mtllib /etc/passwd\n", NULL, "m.obj:1:8: mtllib \"/etc/passwd\": absolute path");
+    expect_error("mtllib\n", NULL, "m.obj:1:7: mtllib needs a file name");
+    static const struct mem_file ok[] = {{"m.mtl", "newmtl a\n"}, {NULL, NULL}};
+    expect_error("mtllib m.mtl\nusemtl b\n", ok, "m.obj:2:8: unknown material \"b\"");
+    expect_error("usemtl a\n", NULL, "m.obj:1:8: unknown material \"a\"");
+}
+
+Test(mesh_obj, mtllib_relative_to_obj_folder)
+{
+    static const struct mem_file files[] = {
+        {"models/car.obj", "mtllib car.mtl\nusemtl paint\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"},
+        {"models/car.mtl", "newmtl paint\nKd 0 0 1\n"},
+        {NULL, NULL}};
+    struct asset_source src = {mem_read, (void *)(uintptr_t)files};
+    struct mesh_obj_cache cache = {0};
+    struct scene s = {0};
+    char err[512];
+    struct mesh_obj_options opt = mesh_obj_default_options();
+    opt.display_dir = "scenes/x/";
+    cr_assert_eq(mesh_obj_load(&s, &cache, &src, "models/car.obj", &opt, err, sizeof err), 0, "%s", err);
+    /* The same MTL named by a second OBJ is not read twice: its materials are shared. */
+    cr_assert_eq(mesh_obj_load(&s, &cache, &src, "models/car.obj", &opt, err, sizeof err), 0, "%s", err);
+    cr_expect_eq(s.num_materials, 1);
+    cr_expect_str_eq(s.materials[0].name, "models/car.mtl:paint");
+    cr_expect_eq(s.num_meshes, 2);
+    cr_expect_eq(s.meshes[1].material_ids[0], 0);
+    cr_expect_eq(mesh_obj_load(&s, &cache, &src, "models/none.obj", &opt, err, sizeof err), -1);
+    cr_expect(strstr(err, "models/none.obj") != NULL, "%s", err);
+    mesh_obj_cache_free(&cache);
+    scene_free(&s);
+}
+
+Test(mesh_obj, override_skips_mtl)
+{
+    struct scene s = {0};
+    char err[512];
+    struct material white = {.name = "w", .albedo = {1, 1, 1}};
+    scene_add_material(&s, &white);
+    struct mesh_obj_options opt = mesh_obj_default_options();
+    opt.material_override = 0;
+    const char *text = "mtllib nowhere.mtl\nusemtl nothing\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+    cr_assert_eq(parse(text, NULL, &opt, &s, err), 0, "%s", err);
+    cr_expect_eq(s.num_materials, 1);
+    cr_expect_eq(s.meshes[0].material_ids[0], 0);
+    scene_free(&s);
+}
+
+Test(mesh_obj, transform_positions_normals_and_winding)
+{
+    struct scene s = {0};
+    char err[512];
+    struct mesh_obj_options opt = mesh_obj_default_options();
+    /* Scale x by 2, then translate by (10, 20, 30). */
+    struct xform t = {{{2, 0, 0, 10}, {0, 1, 0, 20}, {0, 0, 1, 30}}};
+    opt.transform = t;
+    const char *text = "v 1 0 0\nv 0 1 0\nv 0 0 1\nvn 1 1 0\nf 1//1 2//1 3//1\n";
+    cr_assert_eq(parse(text, NULL, &opt, &s, err), 0, "%s", err);
+    const struct mesh *m = &s.meshes[0];
+    cr_expect_float_eq(m->positions[0], 12.0f, 1e-5);
+    cr_expect_float_eq(m->positions[1], 20.0f, 1e-5);
+    cr_expect_float_eq(m->positions[5], 30.0f, 1e-5);
+    cr_expect_float_eq(m->positions[8], 31.0f, 1e-5);
+    /* Inverse transpose: (1, 1, 0) becomes (0.5, 1, 0), normalised. */
+    float l = sqrtf(1.25f);
+    cr_expect_float_eq(m->normals[0], 0.5f / l, 1e-5);
+    cr_expect_float_eq(m->normals[1], 1.0f / l, 1e-5);
+    cr_expect_eq(m->indices[1], 1);
+    scene_free(&s);
+
+    /* A mirror keeps the geometric normal on the same side by flipping the winding. */
+    struct xform mirror = {{{-1, 0, 0, 0}, {0, 1, 0, 0}, {0, 0, 1, 0}}};
+    opt.transform = mirror;
+    cr_assert_eq(parse(text, NULL, &opt, &s, err), 0, "%s", err);
+    cr_expect_eq(s.meshes[0].indices[1], 2);
+    cr_expect_eq(s.meshes[0].indices[2], 1);
+    cr_expect_float_eq(s.meshes[0].normals[0], -1.0f / sqrtf(2.0f), 1e-5);
+    scene_free(&s);
+}

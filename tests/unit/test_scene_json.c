@@ -1,0 +1,384 @@
+/* Unit tests of the scene file reader (common/scene_json.c): defaults, transforms, every
+ * class of error with the line:col it must name, and the scenes shipped in scenes/
+ * loaded from disk. Most tests read OBJ files from an in-memory asset source. */
+#include <criterion/criterion.h>
+#include <stdio.h>
+#include <string.h>
+#include "scene_json.h"
+
+struct mem_file { const char *path, *data; };
+
+static int mem_read(void *ctx, const char *rel_path, char **data, size_t *size, char *err, size_t errlen)
+{
+    for (const struct mem_file *f = ctx; f->path; f++)
+        if (strcmp(f->path, rel_path) == 0) {
+            *size = strlen(f->data);
+            *data = malloc(*size + 1);
+            memcpy(*data, f->data, *size + 1);
+            return 0;
+        }
+    snprintf(err, errlen, "%s: No such file or directory", rel_path);
+    return -1;
+}
+
+static const struct mem_file g_files[] = {
+    {"tri.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"},
+    {"a/x.obj", "mtllib m.mtl\nusemtl paint\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"},
+    {"a/m.mtl", "newmtl paint\nKd 1 0 0\n"},
+    {"b/x.obj", "mtllib m.mtl\nusemtl paint\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"},
+    {"b/m.mtl", "newmtl paint\nKd 0 1 0\n"},
+    {"bad.obj", "v 0 0 0\nv 1 0 zz\n"},
+    {"big.obj", "v 1e30 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\n"},
+    {NULL, NULL}};
+
+static int load(const char *text, struct scene *s, char *err)
+{
+    struct asset_source src = {mem_read, (void *)(uintptr_t)g_files};
+    memset(s, 0, sizeof *s);
+    return scene_json_parse("scenes/t.json", text, strlen(text), &src, s, err, 512);
+}
+
+/* A valid scene is HEAD + the text given + "}". */
+#define HEAD                                                                        \
+    "{\"version\": 1,\n"                                                            \
+    "\"camera\": {\"position\": [0, 0, -5], \"look_at\": [0, 0, 0], \"fov_y\": 40},\n" \
+    "\"render\": {\"width\": 64, \"height\": 48}"
+
+static void expect_error(const char *text, const char *want)
+{
+    struct scene s;
+    char err[512] = "";
+    cr_assert_eq(load(text, &s, err), -1, "accepted: %s", text);
+    cr_expect(strstr(err, want) != NULL, "error \"%s\" lacks \"%s\"", err, want);
+#ifdef SHOW_POS
+    { unsigned l, c; if (sscanf(err, "scenes/t.json:%u:%u", &l, &c) == 2) { const char *q = text; for (unsigned i = 1; i < l; i++) q = strchr(q, '\n') + 1; unsigned cc = 1; while (cc < c) { q++; if ((*q & 0xC0) != 0x80) cc++; } fprintf(stderr, "POS %-70.70s | %.20s\n", err, q); } }
+#endif
+    cr_expect_null(s.materials);
+    cr_expect_eq(s.num_meshes, 0);
+}
+
+Test(scene_json, defaults)
+{
+    struct scene s;
+    char err[512];
+    cr_assert_eq(load(HEAD "}", &s, err), 0, "%s", err);
+    cr_expect_eq(s.settings.width, 64);
+    cr_expect_eq(s.settings.height, 48);
+    cr_expect_eq(s.settings.spp, 16);
+    cr_expect_eq(s.settings.max_depth, 8);
+    cr_expect_eq(s.settings.seed, 0);
+    cr_expect_eq(s.settings.tile_size, 32);
+    cr_expect_float_eq(s.camera.up.y, 1.0f, 0);
+    cr_expect_float_eq(s.camera.up.x, 0.0f, 0);
+    cr_expect_float_eq(s.camera.aperture_radius, 0.0f, 0);
+    cr_expect_float_eq(s.camera.focus_distance, 0.0f, 0);
+    cr_expect_float_eq(s.camera.fov_y_deg, 40.0f, 0);
+    cr_expect_float_eq(s.camera.position.z, -5.0f, 0);
+    cr_expect_eq(s.num_meshes + s.num_spheres + s.num_lights + s.num_materials, 0);
+    scene_free(&s);
+
+    const char *full = "{\"version\": 1, \"camera\": {\"position\": [0, 0, -5], \"look_at\": [0, 0, 0],"
+                       " \"up\": [0, 1, 1], \"fov_y\": 40, \"aperture\": 0, \"focus_distance\": 3},"
+                       " \"render\": {\"width\": 5, \"height\": 7, \"spp\": 3, \"max_depth\": 2,"
+                       " \"seed\": 12345678901, \"tile_size\": 8}}";
+    cr_assert_eq(load(full, &s, err), 0, "%s", err);
+    cr_expect_eq(s.settings.spp, 3);
+    cr_expect_eq(s.settings.max_depth, 2);
+    cr_expect_eq(s.settings.seed, 12345678901ull);
+    cr_expect_eq(s.settings.tile_size, 8);
+    cr_expect_float_eq(s.camera.up.z, 1.0f, 0);
+    cr_expect_float_eq(s.camera.focus_distance, 3.0f, 0);
+    scene_free(&s);
+}
+
+Test(scene_json, materials_spheres_lights)
+{
+    struct scene s;
+    char err[512];
+    const char *text = HEAD ",\n\"materials\": {\"m\": {\"type\": \"diffuse\", \"albedo\": [0.1, 0.2, 0.3]},"
+                            " \"glow\": {\"type\": \"diffuse\", \"emission\": [1, 2, 3]}},\n"
+                            "\"objects\": [{\"type\": \"sphere\", \"center\": [1, 2, 3], \"radius\": 0.5,"
+                            " \"material\": \"glow\", \"name\": \"ball\"}],\n"
+                            "\"lights\": [{\"type\": \"point\", \"position\": [0, 5, 0], \"intensity\": [4, 4, 4]}]}";
+    cr_assert_eq(load(text, &s, err), 0, "%s", err);
+    cr_assert_eq(s.num_materials, 2);
+    cr_expect_str_eq(s.materials[0].name, "m");
+    cr_expect_float_eq(s.materials[0].albedo.z, 0.3f, 0);
+    cr_expect_float_eq(s.materials[1].albedo.x, 0.8f, 0);  /* default albedo */
+    cr_expect_float_eq(s.materials[1].emission.z, 3.0f, 0);
+    cr_assert_eq(s.num_spheres, 1);
+    cr_expect_eq(s.spheres[0].material_id, 1);
+    cr_expect_str_eq(s.spheres[0].name, "ball");
+    cr_expect_float_eq(s.spheres[0].radius, 0.5f, 0);
+    cr_assert_eq(s.num_lights, 1);
+    cr_expect_eq(s.lights[0].type, LIGHT_POINT);
+    cr_expect_float_eq(s.lights[0].position.y, 5.0f, 0);
+    scene_free(&s);
+}
+
+Test(scene_json, obj_and_transforms)
+{
+    struct scene s;
+    char err[512];
+    /* scale 2, rotate 90 degrees about y, translate (10, 0, 0): (1,0,0) -> (2,0,0) ->
+     * (0,0,-2) -> (10,0,-2). */
+    const char *text = HEAD ",\n\"objects\": [{\"type\": \"obj\", \"file\": \"tri.obj\", \"transform\":"
+                            " {\"scale\": 2, \"rotate\": {\"axis\": [0, 1, 0], \"degrees\": 90},"
+                            " \"translate\": [10, 0, 0]}},\n"
+                            "{\"type\": \"obj\", \"file\": \"tri.obj\", \"transform\": {\"matrix\":"
+                            " [1, 0, 0, 1, 0, 1, 0, 2, 0, 0, 1, 3, 0, 0, 0, 1]}},\n"
+                            "{\"type\": \"obj\", \"file\": \"tri.obj\", \"transform\": {\"scale\": [1, 2, 3],"
+                            " \"rotate\": [{\"axis\": [0, 0, 1], \"degrees\": 90}, {\"axis\": [1, 0, 0],"
+                            " \"degrees\": 90}]}},\n"
+                            "{\"type\": \"sphere\", \"center\": [1, 0, 0], \"radius\": 1, \"material\": \"w\","
+                            " \"transform\": {\"scale\": 3, \"rotate\": {\"axis\": [1, 1, 1], \"degrees\": 30},"
+                            " \"translate\": [0, 1, 0]}}],\n"
+                            "\"materials\": {\"w\": {\"type\": \"diffuse\"}}}";
+    cr_assert_eq(load(text, &s, err), 0, "%s", err);
+    cr_assert_eq(s.num_meshes, 3);
+    const float *p = s.meshes[0].positions;
+    cr_expect_float_eq(p[3], 10.0f, 1e-5);
+    cr_expect_float_eq(p[4], 0.0f, 1e-5);
+    cr_expect_float_eq(p[5], -2.0f, 1e-5);
+    cr_expect_str_eq(s.meshes[0].name, "tri.obj");
+    p = s.meshes[1].positions;
+    cr_expect_float_eq(p[3], 2.0f, 1e-6);
+    cr_expect_float_eq(p[4], 2.0f, 1e-6);
+    cr_expect_float_eq(p[5], 3.0f, 1e-6);
+    /* (0,1,0) scaled to (0,2,0), about z to (-2,0,0), about x stays (-2,0,0). */
+    p = s.meshes[2].positions;
+    cr_expect_float_eq(p[6], -2.0f, 1e-5);
+    cr_expect_float_eq(p[7], 0.0f, 1e-5);
+    cr_expect_float_eq(p[8], 0.0f, 1e-5);
+    /* The default material of faces without usemtl follows the scene's own. */
+    cr_expect_eq(s.num_materials, 2);
+    cr_expect_eq(s.meshes[0].material_ids[0], 1);
+    cr_expect_float_eq(s.spheres[0].radius, 3.0f, 1e-5);
+    cr_expect_float_eq(v3_length(v3_sub(s.spheres[0].center, v3(0, 1, 0))), 3.0f, 1e-5);
+    scene_free(&s);
+}
+
+Test(scene_json, mtl_names_are_namespaced_and_override_wins)
+{
+    struct scene s;
+    char err[512];
+    const char *text = HEAD ",\n\"materials\": {\"gold\": {\"type\": \"diffuse\", \"albedo\": [1, 0.8, 0]}},\n"
+                            "\"objects\": [{\"type\": \"obj\", \"file\": \"a/x.obj\"}, {\"type\": \"obj\","
+                            " \"file\": \"b/x.obj\"}, {\"type\": \"obj\", \"file\": \"a/x.obj\"},"
+                            " {\"type\": \"obj\", \"file\": \"b/x.obj\", \"material\": \"gold\"}]}";
+    cr_assert_eq(load(text, &s, err), 0, "%s", err);
+    cr_assert_eq(s.num_materials, 3);
+    cr_expect_str_eq(s.materials[1].name, "a/m.mtl:paint");
+    cr_expect_str_eq(s.materials[2].name, "b/m.mtl:paint");
+    cr_expect_eq(s.meshes[0].material_ids[0], 1);
+    cr_expect_eq(s.meshes[1].material_ids[0], 2);
+    cr_expect_eq(s.meshes[2].material_ids[0], 1);
+    cr_expect_eq(s.meshes[3].material_ids[0], 0);
+    scene_free(&s);
+}
+
+Test(scene_json, syntax_errors_from_jansson)
+{
+    expect_error("{\"version\": 1,\n  \"camera\" {}}", "scenes/t.json:2:12: ");
+    expect_error("{\"version\": 1,\n\"camera\": {\"fov_y\": 1,\n  \"fov_y\": 2}}",
+                 "scenes/t.json:3:9: duplicate object key");
+    expect_error("", "scenes/t.json:1:1: ");
+    expect_error("[1, 2]", "scenes/t.json:1:1: the scene must be an object");
+    expect_error("{\"version\": 1} x", "scenes/t.json:1:16: end of file expected");
+}
+
+Test(scene_json, unknown_keys_and_wrong_types)
+{
+    expect_error(HEAD ",\n  \"fov\": 3}", "scenes/t.json:4:3: unknown key \"fov\" in the scene");
+    expect_error("{\"version\": 1, \"render\": {\"width\": 1, \"height\": 1},\n\"camera\": {\"position\": [0, 0, -5],\n  \"fovy\": 40}}",
+                 "scenes/t.json:3:3: unknown key \"fovy\" in camera (expected one of: position, look_at");
+    expect_error("{\"version\": 1,\n\"render\": {\"width\": \"64\", \"height\": 1}, \"camera\": {\"position\": [0, 0, -5],"
+                 " \"look_at\": [0, 0, 0], \"fov_y\": 40}}",
+                 "scenes/t.json:2:21: width must be an integer, not a string");
+    expect_error(HEAD ",\n\"objects\": [{\"type\": \"sphere\", \"center\": [0, 0, true], \"radius\": 1,"
+                      " \"material\": \"x\"}]}",
+                 "scenes/t.json:4:49: center must be a number, not a boolean");
+    expect_error(HEAD ",\n\"objects\": {}}", "scenes/t.json:4:12: objects must be an array");
+    expect_error(HEAD ",\n\"objects\": [{\"type\": \"cube\"}]}",
+                 "scenes/t.json:4:22: unknown object type \"cube\"");
+    expect_error(HEAD ",\n\"objects\": [{\"file\": \"tri.obj\"}]}",
+                 "scenes/t.json:4:13: objects[0]: missing key \"type\"");
+    expect_error(HEAD ",\n\"lights\": [{\"type\": \"spot\"}]}", "scenes/t.json:4:21: unknown light type \"spot\"");
+    expect_error(HEAD ",\n\"lights\": [{\"type\": \"point\", \"position\": [0, 0, 0], \"intensity\": [1, 1]}]}",
+                 "scenes/t.json:4:66: intensity must be an array of 3 numbers");
+    expect_error(HEAD ",\n\"materials\": {\"m\": {\"type\": \"diffuse\", \"albedo\": [0.5, 1.5, 0]}}}",
+                 "scenes/t.json:4:56: albedo components must be in [0, 1]");
+    expect_error(HEAD ",\n\"materials\": {\"m\": {\"type\": \"glass\"}}}",
+                 "scenes/t.json:4:29: unknown material type \"glass\"");
+    expect_error(HEAD ",\n\"materials\": {\"m\": {\"kind\": \"diffuse\"}}}",
+                 "scenes/t.json:4:21: unknown key \"kind\" in material \"m\"");
+    /* Keys before the offending one may hold escapes and multi-byte characters: columns
+     * count characters. */
+    expect_error("{\"version\": 1, \"render\": {\"width\": 1, \"height\": 1}, \"camera\": {\"position\": [0, 0, -5],"
+                 " \"look_at\": [0, 0, 0], \"fov_y\": 40}, \"materials\": {\"\xc3\xa9\\u00e9\\\"]{\": {\"type\": \"diffuse\"},"
+                 " \"\xc3\xa9\": {\"type\": \"diffuse\", \"x\": 1}}}",
+                 "scenes/t.json:1:199: unknown key \"x\" in material \"\xc3\xa9\"");
+}
+
+Test(scene_json, missing_and_range_errors)
+{
+    expect_error("{\"camera\": {}}", "scenes/t.json:1:1: scene: missing key \"version\"");
+    expect_error("{\"version\": 2}", "scenes/t.json:1:13: unsupported scene version 2");
+    expect_error("{\"version\": 1, \"render\": {\"width\": 1, \"height\": 1},\n \"camera\": {\"position\": [0, 0, -5], \"look_at\": [0, 0, 0]}}",
+                 "scenes/t.json:2:12: camera: missing key \"fov_y\"");
+    expect_error("{\"version\": 1,\n\"render\": {\"width\": 0, \"height\": 1}, \"camera\": {\"position\": [0, 0, -5],"
+                 " \"look_at\": [0, 0, 0], \"fov_y\": 40}}",
+                 "scenes/t.json:2:21: width 0 out of range 1..16384");
+    expect_error("{\"version\": 1,\n\"render\": {\"width\": 1, \"height\": 16385}, \"camera\": {\"position\": [0, 0,"
+                 " -5], \"look_at\": [0, 0, 0], \"fov_y\": 40}}",
+                 "scenes/t.json:2:34: height 16385 out of range 1..16384");
+    expect_error("{\"version\": 1,\n\"render\": {\"width\": 1, \"height\": 1, \"spp\": 0}, \"camera\": {\"position\":"
+                 " [0, 0, -5], \"look_at\": [0, 0, 0], \"fov_y\": 40}}",
+                 "scenes/t.json:2:44: spp 0 out of range");
+    expect_error("{\"version\": 1, \"render\": {\"width\": 1, \"height\": 1},\n\"camera\": {\"position\": [0, 0, -5],"
+                 " \"look_at\": [0, 0, 0], \"fov_y\": 180}}",
+                 "scenes/t.json:2:67: fov_y must be in (0, 180)");
+    expect_error("{\"version\": 1, \"render\": {\"width\": 1, \"height\": 1},\n\"camera\": {\"position\": [0, 0, -5],"
+                 " \"look_at\": [0, 0, 0], \"fov_y\": 1e300}}",
+                 "scenes/t.json:2:67: fov_y is out of range");
+    expect_error("{\"version\": 1, \"render\": {\"width\": 1, \"height\": 1},\n\"camera\": {\"position\": [0, 0, 0],"
+                 " \"look_at\": [0, 0, 0], \"fov_y\": 40}}",
+                 "scenes/t.json:2:46: look_at must differ from position");
+    expect_error("{\"version\": 1, \"render\": {\"width\": 1, \"height\": 1},\n\"camera\": {\"position\": [0, 0, -5],"
+                 " \"look_at\": [0, 0, 0], \"up\": [0, 0, 2], \"fov_y\": 40}}",
+                 "scenes/t.json:2:64: up must not be zero or parallel");
+    expect_error(HEAD ",\n\"objects\": [{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 0,"
+                      " \"material\": \"x\"}]}",
+                 "scenes/t.json:4:63: radius must be > 0");
+}
+
+Test(scene_json, thin_lens_and_planned_keys)
+{
+    expect_error("{\"version\": 1, \"render\": {\"width\": 1, \"height\": 1},\n\"camera\": {\"position\": [0, 0, -5],"
+                 " \"look_at\": [0, 0, 0], \"fov_y\": 40, \"aperture\": 0.1}}",
+                 "scenes/t.json:2:83: thin lens not implemented yet: aperture must be 0");
+    expect_error(HEAD ",\n\"shutter\": [0, 1]}", "scenes/t.json:4:1: key \"shutter\" in the scene is planned, not yet accepted");
+    expect_error(HEAD ",\n\"objects\": [{\"type\": \"obj\", \"file\": \"tri.obj\", \"keyframes\": []}]}",
+                 "scenes/t.json:4:48: key \"keyframes\" in objects[0] is planned");
+}
+
+Test(scene_json, files_and_materials_by_name)
+{
+    expect_error(HEAD ",\n\"objects\": [{\"type\": \"obj\", \"file\": \"nope.obj\"}]}",
+                 "scenes/t.json:4:37: cannot read OBJ file: nope.obj: No such file");
+    expect_error(HEAD ",\n\"objects\": [{\"type\": \"obj\", \"file\": \"../secret.obj\"}]}",
+                 "scenes/t.json:4:37: file: \"..\" component in path \"../secret.obj\"");
+    expect_error(HEAD ",\n\"objects\": [{\"type\": \"obj\", \"file\": \"/etc/passwd\"}]}",
+                 "scenes/t.json:4:37: file: absolute path \"/etc/passwd\" not allowed");
+    expect_error(HEAD ",\n\"objects\": [{\"type\": \"obj\", \"file\": \"tri.obj\", \"material\": \"nope\"}]}",
+                 "scenes/t.json:4:60: unknown material \"nope\"");
+    expect_error(HEAD ",\n\"objects\": [{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1,"
+                      " \"material\": \"nope\"}]}",
+                 "scenes/t.json:4:78: unknown material \"nope\"");
+    /* Errors inside an OBJ name the OBJ, in the scene's folder, with its own line:col. */
+    expect_error(HEAD ",\n\"objects\": [{\"type\": \"obj\", \"file\": \"bad.obj\"}]}",
+                 "scenes/bad.obj:2:7: malformed number \"zz\"");
+}
+
+Test(scene_json, transform_errors)
+{
+#define OBJ_T(t) HEAD ",\n\"objects\": [{\"type\": \"obj\", \"file\": \"tri.obj\", \"transform\": " t "}]}"
+    expect_error(OBJ_T("{\"scale\": 0}"), "scenes/t.json:4:71: scale must be non-zero");
+    expect_error(OBJ_T("{\"scale\": \"big\"}"), "scenes/t.json:4:71: scale must be a number or an array of 3");
+    expect_error(OBJ_T("{\"rotate\": {\"axis\": [0, 0, 0], \"degrees\": 5}}"),
+                 "scenes/t.json:4:81: rotate axis must be a non-zero vector");
+    expect_error(OBJ_T("{\"rotate\": [{\"axis\": [0, 0, 1]}]}"),
+                 "scenes/t.json:4:73: rotate: missing key \"degrees\"");
+    expect_error(OBJ_T("{\"matrix\": [1, 2, 3]}"), "scenes/t.json:4:72: matrix must be an array of 12 or 16");
+    expect_error(OBJ_T("{\"matrix\": [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 1, 1]}"),
+                 "scenes/t.json:4:72: matrix: last row must be 0 0 0 1");
+    expect_error(OBJ_T("{\"translate\": [1, 1, 1], \"matrix\": [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0]}"),
+                 "scenes/t.json:4:86: matrix cannot be combined");
+    expect_error(OBJ_T("{\"matrix\": [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0]}"),
+                 "scenes/t.json:4:61: transform is singular");
+    expect_error(OBJ_T("{\"skew\": 1}"), "scenes/t.json:4:62: unknown key \"skew\" in transform");
+    expect_error(HEAD ",\n\"materials\": {\"w\": {\"type\": \"diffuse\"}},\n\"objects\": [{\"type\": \"sphere\","
+                      " \"center\": [0, 0, 0], \"radius\": 1, \"material\": \"w\", \"transform\": {\"scale\": [1, 2, 1]}}]}",
+                 "scenes/t.json:5:96: a sphere's transform must scale uniformly");
+#undef OBJ_T
+}
+
+Test(scene_json, validate_runs_last)
+{
+    /* Each number is in range, but the transformed vertex overflows: only scene_validate
+     * sees it, and its message carries the scene name. */
+    expect_error(HEAD ",\n\"objects\": [{\"type\": \"obj\", \"file\": \"big.obj\", \"transform\": {\"scale\": 1e20}}]}",
+                 "scenes/t.json: mesh \"big.obj\": non-finite vertex position");
+}
+
+static int load_file(const char *path, struct scene *s, char *err, size_t errlen)
+{
+    char folder[512];
+    snprintf(folder, sizeof folder, "%s", path);
+    char *slash = strrchr(folder, '/');
+    cr_assert_not_null(slash);
+    *slash = '\0';
+    struct asset_dir dir;
+    cr_assert_eq(asset_dir_init(&dir, folder, err, errlen), 0, "%s", err);
+    struct asset_source src = asset_dir_source(&dir);
+    char *text;
+    size_t size;
+    cr_assert_eq(asset_dir_read(&dir, slash + 1, &text, &size, err, errlen), 0, "%s", err);
+    memset(s, 0, sizeof *s);
+    int rc = scene_json_parse(path, text, size, &src, s, err, errlen);
+    free(text);
+    asset_dir_free(&dir);
+    return rc;
+}
+
+Test(scene_json, cornell_from_disk)
+{
+    struct scene s;
+    char err[1024];
+    cr_assert_eq(load_file("../../scenes/cornell/cornell.json", &s, err, sizeof err), 0, "%s", err);
+    cr_expect_eq(s.settings.width, 512);
+    cr_expect_eq(s.settings.height, 512);
+    cr_expect_eq(s.settings.spp, 64);
+    cr_expect_eq(s.settings.max_depth, 8);
+    cr_expect_float_eq(s.camera.fov_y_deg, 39.3f, 1e-6);
+    cr_expect_float_eq(s.camera.position.z, -800.0f, 0);
+    cr_assert_eq(s.num_meshes, 1);
+    cr_expect_eq(s.meshes[0].num_triangles, 36);  /* 18 quads */
+    cr_expect_eq(s.num_materials, 4);
+    /* Exactly the two light triangles emit, at y = 548.7, facing down. */
+    const struct mesh *m = &s.meshes[0];
+    int emitting = 0;
+    for (uint32_t t = 0; t < m->num_triangles; t++) {
+        if (v3_is_black(s.materials[m->material_ids[t]].emission))
+            continue;
+        emitting++;
+        vec3 p[3];
+        for (int k = 0; k < 3; k++) {
+            const float *q = &m->positions[3 * m->indices[3 * t + k]];
+            p[k] = v3(q[0], q[1], q[2]);
+            cr_expect_float_eq(p[k].y, 548.7f, 1e-3);
+        }
+        vec3 n = v3_cross(v3_sub(p[1], p[0]), v3_sub(p[2], p[0]));
+        cr_expect_lt(n.y, 0.0f);
+    }
+    cr_expect_eq(emitting, 2);
+    scene_free(&s);
+}
+
+Test(scene_json, tiny_from_disk)
+{
+    struct scene s;
+    char err[1024];
+    cr_assert_eq(load_file("../../scenes/tiny/tiny.json", &s, err, sizeof err), 0, "%s", err);
+    cr_expect_eq(s.settings.width, 32);
+    cr_expect_eq(s.settings.height, 24);
+    cr_expect_eq(s.settings.spp, 4);
+    cr_expect_eq(s.num_meshes, 2);
+    cr_expect_eq(s.num_spheres, 1);
+    cr_expect_eq(s.num_lights, 1);
+    cr_expect_eq(s.meshes[0].num_triangles, 14);
+    cr_expect_eq(s.meshes[1].num_triangles, 2);
+    cr_expect_float_eq(s.meshes[1].positions[1], 3.0f, 0);
+    cr_expect_gt(s.materials[s.meshes[1].material_ids[0]].emission.x, 0.0f);
+    scene_free(&s);
+}

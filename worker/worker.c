@@ -1,0 +1,508 @@
+/* Worker loop (see worker.h). The main thread owns the DEALER socket and all protocol
+ * state; render threads only take tile tasks from a locked queue and hand finished
+ * tiles back over an inproc PUSH/PULL pair, so the socket is never shared between
+ * threads. Everything a worker renders is a pure function of the job's blobs and the
+ * tile id, so results are identical on any worker. */
+#include "worker.h"
+#include "asset.h"
+#include "blob.h"
+#include "imgio.h"
+#include "integrator.h"
+#include "log.h"
+#include "net.h"
+#include "proto.h"
+#include "scene_json.h"
+#include <errno.h>
+#include <pthread.h>
+#include <signal.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+#include <zmq.h>
+
+#define FETCH_WINDOW 16         /* blob chunk requests in flight */
+#define TILES_PER_THREAD 2      /* credits: tiles queued or rendering per thread */
+#define HEARTBEAT_MS 1000
+
+struct tile_task { uint64_t job_id; uint32_t frame, tile, attempt; };
+
+struct tile_done {
+    struct tile_task task;
+    struct tile_stats stats;
+    uint8_t *chunk;
+    size_t chunk_size;
+    char err[256];
+    int failed;
+};
+
+struct pool {
+    pthread_mutex_t lock;
+    pthread_cond_t cond;
+    struct tile_task *queue;
+    size_t head, count, cap;
+    int stop;
+    pthread_t *threads;
+    uint32_t num_threads;
+    void *zctx;
+    const struct render_job *rjob;
+    const struct image_desc *desc;
+};
+
+struct fetch {
+    struct blob_recv recv;
+    uint64_t next_offset;   /* next chunk to request */
+    uint32_t in_flight;
+};
+
+struct worker {
+    const struct worker_opts *opts;
+    void *zctx, *sock, *results;
+    struct proto_buf out;
+    struct blob_store cache;
+    struct msg_job job;
+    int have_job, loaded;
+    struct fetch *fetches;
+    size_t num_fetches;
+    struct scene scene;
+    struct render_job rjob;
+    struct image_desc desc;
+    struct pool pool;
+    uint32_t tiles_done;
+};
+
+static volatile sig_atomic_t g_stop;
+static void on_signal(int sig) { (void)sig; g_stop = 1; }
+
+/* ---- render threads ---- */
+
+static void *pool_thread(void *arg)
+{
+    struct pool *p = arg;
+    void *push = zmq_socket(p->zctx, ZMQ_PUSH);
+    net_socket_setup(push);
+    zmq_connect(push, "inproc://results");
+    char err[256];
+    struct imgio_encoder *enc = imgio_encoder_new(p->desc, err, sizeof err);
+    uint32_t tiles_x = imgio_tiles_x(p->desc);
+    float *pixels = mem_alloc(sizeof(float) * p->desc->tile_size * p->desc->tile_size * TILE_NUM_CHANNELS);
+    for (;;) {
+        pthread_mutex_lock(&p->lock);
+        while (!p->stop && p->count == 0)
+            pthread_cond_wait(&p->cond, &p->lock);
+        if (p->stop) {
+            pthread_mutex_unlock(&p->lock);
+            break;
+        }
+        struct tile_task t = p->queue[p->head];
+        p->head = (p->head + 1) % p->cap;
+        p->count--;
+        pthread_mutex_unlock(&p->lock);
+
+        struct tile_done *d = mem_calloc(1, sizeof *d);
+        d->task = t;
+        uint32_t tx = t.tile % tiles_x, ty = t.tile / tiles_x, x0, y0, w, h;
+        imgio_tile_rect(p->desc, tx, ty, &x0, &y0, &w, &h);
+        struct timespec a, b;
+        clock_gettime(CLOCK_MONOTONIC, &a);
+        integrator_render_tile(p->rjob, x0, y0, w, h, pixels, &d->stats);
+        clock_gettime(CLOCK_MONOTONIC, &b);
+        d->stats.render_ns = (uint64_t)(b.tv_sec - a.tv_sec) * 1000000000ull + (uint64_t)b.tv_nsec - (uint64_t)a.tv_nsec;
+        if (!enc) {
+            d->failed = 1;
+            snprintf(d->err, sizeof d->err, "%s", err);
+        } else if (imgio_encode_tile(enc, tx, ty, pixels, &d->chunk, &d->chunk_size, d->err, sizeof d->err) != 0) {
+            d->failed = 1;
+        }
+        zmq_send(push, &d, sizeof d, 0);
+    }
+    free(pixels);
+    imgio_encoder_free(&enc);
+    zmq_close(push);
+    return NULL;
+}
+
+static void pool_start(struct worker *w)
+{
+    struct pool *p = &w->pool;
+    memset(p, 0, sizeof *p);
+    pthread_mutex_init(&p->lock, NULL);
+    pthread_cond_init(&p->cond, NULL);
+    p->cap = (size_t)w->opts->threads * TILES_PER_THREAD + 1;
+    p->queue = mem_alloc(sizeof *p->queue * p->cap);
+    p->zctx = w->zctx;
+    p->rjob = &w->rjob;
+    p->desc = &w->desc;
+    p->num_threads = w->opts->threads;
+    p->threads = mem_alloc(sizeof *p->threads * p->num_threads);
+    for (uint32_t i = 0; i < p->num_threads; i++)
+        CHECK(pthread_create(&p->threads[i], NULL, pool_thread, p) == 0);
+}
+
+static void pool_stop(struct pool *p)
+{
+    if (!p->threads)
+        return;
+    pthread_mutex_lock(&p->lock);
+    p->stop = 1;
+    pthread_cond_broadcast(&p->cond);
+    pthread_mutex_unlock(&p->lock);
+    for (uint32_t i = 0; i < p->num_threads; i++)
+        pthread_join(p->threads[i], NULL);
+    free(p->threads);
+    free(p->queue);
+    pthread_mutex_destroy(&p->lock);
+    pthread_cond_destroy(&p->cond);
+    memset(p, 0, sizeof *p);
+}
+
+/* 0, or -1 when the queue is full (the master sent more than our credits). */
+static int pool_push(struct pool *p, const struct tile_task *t)
+{
+    pthread_mutex_lock(&p->lock);
+    int ok = p->count < p->cap;
+    if (ok) {
+        p->queue[(p->head + p->count) % p->cap] = *t;
+        p->count++;
+        pthread_cond_signal(&p->cond);
+    }
+    pthread_mutex_unlock(&p->lock);
+    return ok ? 0 : -1;
+}
+
+/* ---- job loading ---- */
+
+struct blob_source_ctx { const struct msg_job *job; const struct blob_store *cache; };
+
+static int blob_source_read(void *ctx, const char *rel_path, char **data, size_t *size, char *err, size_t errlen)
+{
+    const struct blob_source_ctx *c = ctx;
+    for (uint32_t i = 0; i < c->job->num_assets; i++) {
+        const struct proto_asset *a = &c->job->assets[i];
+        if (strcmp(a->path, rel_path) != 0)
+            continue;
+        const struct blob_entry *e = blob_store_get(c->cache, &a->hash);
+        if (!e) {
+            str_fmt(err, errlen, "%s: blob not fetched", rel_path);
+            return -1;
+        }
+        *data = mem_alloc(e->size + 1);
+        memcpy(*data, e->data, e->size);
+        (*data)[e->size] = '\0';
+        *size = e->size;
+        return 0;
+    }
+    str_fmt(err, errlen, "%s: not among the job's assets (the master did not publish it)", rel_path);
+    return -1;
+}
+
+static void send_error(struct worker *w, const char *text)
+{
+    struct proto_msg m = {.type = MSG_ERROR};
+    m.u.error.job_id = w->job.job_id;
+    snprintf(m.u.error.text, sizeof m.u.error.text, "%s", text);
+    net_send(w->sock, NULL, 0, &m, &w->out);
+}
+
+static void unload_job(struct worker *w)
+{
+    pool_stop(&w->pool);
+    if (w->loaded) {
+        render_job_free(&w->rjob);
+        scene_free(&w->scene);
+    }
+    w->loaded = 0;
+    for (size_t i = 0; i < w->num_fetches; i++)
+        blob_recv_free(&w->fetches[i].recv);
+    free(w->fetches);
+    w->fetches = NULL;
+    w->num_fetches = 0;
+    if (w->have_job)
+        proto_job_free(&w->job);
+    w->have_job = 0;
+}
+
+/* Builds scene, Embree scene and thread pool once every blob is here; sends READY. */
+static int load_job(struct worker *w)
+{
+    char err[512];
+    struct blob_source_ctx ctx = {&w->job, &w->cache};
+    struct asset_source src = {blob_source_read, &ctx};
+    char *text = NULL;
+    size_t len = 0;
+    if (blob_source_read(&ctx, w->job.scene_path, &text, &len, err, sizeof err) != 0 ||
+        scene_json_parse(w->job.scene_path, text, len, &src, &w->scene, err, sizeof err) != 0) {
+        free(text);
+        send_error(w, err);
+        log_error("%s", err);
+        return -1;
+    }
+    free(text);
+    struct render_settings *rs = &w->scene.settings;
+    rs->width = w->job.width;
+    rs->height = w->job.height;
+    rs->spp = w->job.spp;
+    rs->max_depth = w->job.max_depth;
+    rs->tile_size = w->job.tile_size;
+    rs->seed = w->job.seed;
+    if (scene_validate(&w->scene, err, sizeof err) != 0 ||
+        render_job_init(&w->rjob, &w->scene, w->job.frame, w->opts->threads, err, sizeof err) != 0) {
+        scene_free(&w->scene);
+        send_error(w, err);
+        log_error("%s", err);
+        return -1;
+    }
+    w->loaded = 1;
+    memset(&w->desc, 0, sizeof w->desc);
+    w->desc.width = rs->width;
+    w->desc.height = rs->height;
+    w->desc.tile_size = rs->tile_size;
+    w->desc.num_channels = TILE_NUM_CHANNELS;
+    for (int c = 0; c < TILE_NUM_CHANNELS; c++)
+        snprintf(w->desc.channel_names[c], sizeof w->desc.channel_names[c], "%s", tile_channel_names[c]);
+    w->desc.compression = IMGIO_ZIP;
+    pool_start(w);
+    struct proto_msg m = {.type = MSG_READY};
+    m.u.ready.job_id = w->job.job_id;
+    m.u.ready.credits = w->opts->threads * TILES_PER_THREAD;
+    log_info("job %llu loaded: %ux%u, %u spp, %u threads", (unsigned long long)w->job.job_id, rs->width,
+             rs->height, rs->spp, w->opts->threads);
+    return net_send(w->sock, NULL, 0, &m, &w->out);
+}
+
+static void request_chunks(struct worker *w, struct fetch *f)
+{
+    while (f->in_flight < FETCH_WINDOW && f->next_offset < f->recv.size) {
+        struct proto_msg m = {.type = MSG_BLOB_REQ};
+        m.u.blob_req.hash = f->recv.hash;
+        m.u.blob_req.offset = f->next_offset;
+        uint64_t left = f->recv.size - f->next_offset;
+        m.u.blob_req.length = (uint32_t)(left < BLOB_CHUNK_SIZE ? left : BLOB_CHUNK_SIZE);
+        if (net_send(w->sock, NULL, 0, &m, &w->out) != 0)
+            return;
+        f->next_offset += m.u.blob_req.length;
+        f->in_flight++;
+    }
+}
+
+static int fetches_pending(const struct worker *w)
+{
+    for (size_t i = 0; i < w->num_fetches; i++)
+        if (w->fetches[i].recv.data || !blob_store_get(&w->cache, &w->fetches[i].recv.hash))
+            return 1;
+    return 0;
+}
+
+static int on_job(struct worker *w, struct msg_job *job)
+{
+    unload_job(w);
+    w->job = *job;   /* takes ownership of the asset array */
+    w->have_job = 1;
+    w->fetches = mem_calloc(job->num_assets ? job->num_assets : 1, sizeof *w->fetches);
+    for (uint32_t i = 0; i < job->num_assets; i++) {
+        const struct proto_asset *a = &job->assets[i];
+        if (blob_store_get(&w->cache, &a->hash))
+            continue;
+        int dup = 0;
+        for (size_t k = 0; k < w->num_fetches; k++)
+            dup |= blob_hash_equal(&w->fetches[k].recv.hash, &a->hash);
+        if (dup)
+            continue;
+        char err[256];
+        struct fetch *f = &w->fetches[w->num_fetches];
+        if (blob_recv_init(&f->recv, &a->hash, a->size, err, sizeof err) != 0) {
+            log_error("asset %s: %s", a->path, err);
+            send_error(w, err);
+            return -1;
+        }
+        w->num_fetches++;
+        if (a->size == 0) {
+            uint8_t *data;
+            if (blob_recv_finish(&f->recv, &data, err, sizeof err) != 0) {
+                send_error(w, err);
+                return -1;
+            }
+            blob_store_adopt(&w->cache, &a->hash, data, 0);
+            continue;
+        }
+        request_chunks(w, f);
+    }
+    if (!fetches_pending(w))
+        return load_job(w);
+    return 0;
+}
+
+static int on_blob_data(struct worker *w, const struct msg_blob_data *d)
+{
+    for (size_t i = 0; i < w->num_fetches; i++) {
+        struct fetch *f = &w->fetches[i];
+        if (!f->recv.data || !blob_hash_equal(&f->recv.hash, &d->hash))
+            continue;
+        char err[256];
+        if (d->total_size != f->recv.size ||
+            blob_recv_put(&f->recv, d->offset, d->bytes, d->length, err, sizeof err) != 0) {
+            log_warn("master sent a bad blob chunk (dropped): %s", d->total_size != f->recv.size ? "size differs" : err);
+            return 0;
+        }
+        if (f->in_flight)
+            f->in_flight--;
+        request_chunks(w, f);
+        if (blob_recv_complete(&f->recv)) {
+            uint8_t *data;
+            uint64_t size = f->recv.size;
+            struct blob_hash h = f->recv.hash;
+            if (blob_recv_finish(&f->recv, &data, err, sizeof err) != 0) {
+                log_error("blob: %s", err);
+                send_error(w, err);
+                return -1;
+            }
+            blob_store_adopt(&w->cache, &h, data, size);
+            blob_recv_free(&f->recv);
+            if (!fetches_pending(w))
+                return load_job(w);
+        }
+        return 0;
+    }
+    return 0; /* a chunk we no longer want (e.g. a duplicate): harmless */
+}
+
+static void on_tile(struct worker *w, const struct msg_tile *t)
+{
+    uint32_t ntiles = w->loaded ? imgio_tiles_x(&w->desc) * imgio_tiles_y(&w->desc) : 0;
+    if (!w->loaded || t->job_id != w->job.job_id || t->frame != w->job.frame || t->tile >= ntiles) {
+        log_warn("dropping TILE %u for job %llu frame %u: not part of the loaded job", t->tile,
+                 (unsigned long long)t->job_id, t->frame);
+        return;
+    }
+    struct tile_task task = {t->job_id, t->frame, t->tile, t->attempt};
+    if (pool_push(&w->pool, &task) != 0)
+        log_warn("dropping TILE %u: master exceeded our credits", t->tile);
+}
+
+static void send_result(struct worker *w, struct tile_done *d)
+{
+    if (d->failed) {
+        char text[PROTO_MAX_STRING];
+        snprintf(text, sizeof text, "tile %u: %s", d->task.tile, d->err);
+        log_error("%s", text);
+        send_error(w, text);
+        return;
+    }
+    struct proto_msg m = {.type = MSG_RESULT};
+    m.u.result.job_id = d->task.job_id;
+    m.u.result.frame = d->task.frame;
+    m.u.result.tile = d->task.tile;
+    m.u.result.attempt = d->task.attempt;
+    m.u.result.stats = d->stats;
+    m.u.result.chunk = d->chunk;
+    m.u.result.chunk_size = (uint32_t)d->chunk_size;
+    net_send(w->sock, NULL, 0, &m, &w->out);
+    w->tiles_done++;
+}
+
+int worker_run(const struct worker_opts *opts)
+{
+    struct worker w;
+    memset(&w, 0, sizeof w);
+    w.opts = opts;
+    signal(SIGINT, on_signal);
+    signal(SIGTERM, on_signal);
+    w.zctx = zmq_ctx_new();
+    w.sock = zmq_socket(w.zctx, ZMQ_DEALER);
+    net_socket_setup(w.sock);
+    w.results = zmq_socket(w.zctx, ZMQ_PULL);
+    net_socket_setup(w.results);
+    int rc = 1;
+    if (zmq_bind(w.results, "inproc://results") != 0 || zmq_connect(w.sock, opts->endpoint) != 0) {
+        log_error("cannot connect to %s: %s", opts->endpoint, zmq_strerror(errno));
+        goto done;
+    }
+    char host[256] = "";
+    gethostname(host, sizeof host - 1);
+    struct proto_msg hello = {.type = MSG_HELLO};
+    hello.u.hello.threads = opts->threads;
+    hello.u.hello.pid = (uint32_t)getpid();
+    snprintf(hello.u.hello.host, sizeof hello.u.hello.host, "%s", host);
+    net_send(w.sock, NULL, 0, &hello, &w.out);
+
+    uint64_t last_heard = net_now_ms(), last_beat = net_now_ms();
+    while (!g_stop) {
+        zmq_pollitem_t items[2] = {{w.sock, 0, ZMQ_POLLIN, 0}, {w.results, 0, ZMQ_POLLIN, 0}};
+        int n = zmq_poll(items, 2, 200);
+        if (n < 0 && errno != EINTR) {
+            log_error("poll: %s", zmq_strerror(errno));
+            goto done;
+        }
+        uint64_t now = net_now_ms();
+        if (items[1].revents & ZMQ_POLLIN) {
+            struct tile_done *d;
+            while (zmq_recv(w.results, &d, sizeof d, ZMQ_DONTWAIT) == (int)sizeof d) {
+                send_result(&w, d);
+                free(d->chunk);
+                free(d);
+            }
+        }
+        if (items[0].revents & ZMQ_POLLIN) {
+            struct net_frame f;
+            int got;
+            while ((got = net_recv(w.sock, 0, &f)) != 0) {
+                if (got < 0) {
+                    log_warn("master: malformed envelope dropped");
+                    continue;
+                }
+                last_heard = now;
+                struct proto_msg m;
+                char err[256];
+                if (proto_decode(f.data, f.size, &m, err, sizeof err) != 0) {
+                    log_warn("master: message dropped: %s", err);
+                    net_frame_free(&f);
+                    continue;
+                }
+                int fatal = 0;
+                switch (m.type) {
+                case MSG_JOB:
+                    fatal = on_job(&w, &m.u.job) != 0;
+                    break;
+                case MSG_BLOB_DATA:
+                    fatal = on_blob_data(&w, &m.u.blob_data) != 0;
+                    break;
+                case MSG_TILE:
+                    on_tile(&w, &m.u.tile);
+                    break;
+                case MSG_HEARTBEAT:
+                    break;
+                case MSG_BYE:
+                    rc = 0;
+                    g_stop = 1;
+                    break;
+                default:
+                    log_warn("master: unexpected %s message dropped", proto_type_name(m.type));
+                }
+                net_frame_free(&f);
+                if (fatal)
+                    goto done;
+            }
+        }
+        if (now - last_beat >= HEARTBEAT_MS) {
+            struct proto_msg hb = {.type = MSG_HEARTBEAT};
+            hb.u.heartbeat.job_id = w.have_job ? w.job.job_id : 0;
+            hb.u.heartbeat.tiles_done = w.tiles_done;
+            net_send(w.sock, NULL, 0, &hb, &w.out);
+            last_beat = now;
+        }
+        if (now - last_heard > opts->master_timeout_ms) {
+            log_error("no word from the master at %s for %u ms; giving up", opts->endpoint, opts->master_timeout_ms);
+            goto done;
+        }
+    }
+    if (g_stop && rc != 0)
+        rc = 0; /* stopped by a signal or BYE: a clean exit */
+done:
+    unload_job(&w);
+    blob_store_free(&w.cache);
+    proto_buf_free(&w.out);
+    zmq_close(w.results);
+    zmq_close(w.sock);
+    zmq_ctx_term(w.zctx);
+    return rc;
+}
