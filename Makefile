@@ -5,7 +5,7 @@
 CC      ?= gcc
 SAN     ?=
 BUILD   ?= build
-OPT     ?= -O2
+OPT     ?= -O3
 
 WARN    := -Wall -Wextra -Wpedantic -Wshadow -Wstrict-prototypes -Wmissing-prototypes \
            -Wpointer-arith -Wcast-qual -Wwrite-strings -Wformat=2 -Wundef -Wvla

@@ -25,7 +25,7 @@ int accel_build(struct accel *a, const struct scene *s, uint32_t threads, char *
     rtcSetDeviceErrorFunction(a->device, accel_on_error, NULL);
     a->scene = rtcNewScene(a->device);
     rtcSetSceneBuildQuality(a->scene, RTC_BUILD_QUALITY_HIGH);
-    rtcSetSceneFlags(a->scene, RTC_SCENE_FLAG_ROBUST);
+    rtcSetSceneFlags(a->scene, RTC_SCENE_FLAG_NONE);
 
     for (uint32_t i = 0; i < s->num_meshes; i++) {
         const struct mesh *m = &s->meshes[i];

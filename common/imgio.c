@@ -797,6 +797,12 @@ int imgio_read(const char *path, const char *const *channels, uint32_t num_chann
         goto done;
     }
     for (uint32_t c = 0; c < num_channels; c++) {
+        /* One library channel decodes into one place, so a repeat would stay zero. */
+        for (uint32_t k = 0; k < c; k++)
+            if (channels[c] && channels[k] && strcmp(channels[c], channels[k]) == 0) {
+                set_err(err, errlen, "%s: channel \"%s\" requested twice", path, channels[c]);
+                goto done;
+            }
         const exr_attr_chlist_entry_t *found = NULL;
         for (int i = 0; i < chl->num_channels; i++)
             if (channels[c] && chl->entries[i].name.str && strcmp(chl->entries[i].name.str, channels[c]) == 0)

@@ -466,7 +466,7 @@ static int parse_materials(struct ctx *c, const struct member *mm)
     if (!json_is_object(mm->val))
         return fail(c, &mm->path, AT_VALUE, "materials must be an object (name -> material)");
     static const char *const keys[] = {"type", "albedo", "emission"};
-    const char *name;
+    const char *name = NULL;
     json_t *def;
     uint32_t ordinal = 0;
     json_object_foreach(mm->val, name, def) {
@@ -478,7 +478,7 @@ static int parse_materials(struct ctx *c, const struct member *mm)
         char what[160];
         str_fmt(what, sizeof what, "material \"%s\"", printable(name, nb, sizeof nb));
         struct member m[3];
-        const char *type;
+        const char *type = NULL;
         if (object_members(c, def, &p, what, keys, 3, m) != 0 || require(c, &m[0], &p, what, "type") != 0 ||
             get_string(c, &m[0], "type", &type) != 0)
             return -1;
@@ -507,7 +507,7 @@ static int parse_materials(struct ctx *c, const struct member *mm)
 
 static int find_material(struct ctx *c, const struct member *m, uint32_t *id)
 {
-    const char *name;
+    const char *name = NULL;
     if (get_string(c, m, "material", &name) != 0)
         return -1;
     for (uint32_t i = 0; i < c->num_json_materials; i++)
@@ -612,7 +612,7 @@ static int parse_obj_object(struct ctx *c, json_t *obj, const struct jpath *p, c
         return -1;
     struct mesh_obj_options opt = mesh_obj_default_options();
     opt.display_dir = c->display_dir;
-    const char *file, *name = NULL;
+    const char *file = NULL, *name = NULL;
     char why[1024];
     if (get_string(c, &m[1], "file", &file) != 0)
         return -1;
@@ -691,7 +691,7 @@ static int parse_objects(struct ctx *c, const struct member *om)
         char what[64];
         str_fmt(what, sizeof what, "objects[%zu]", i);
         struct member tm;
-        const char *type;
+        const char *type = NULL;
         if (object_type(c, obj, &p, what, &tm, &type) != 0)
             return -1;
         int rc;
@@ -721,7 +721,7 @@ static int parse_lights(struct ctx *c, const struct member *lm)
         char what[64];
         str_fmt(what, sizeof what, "lights[%zu]", i);
         struct member tm;
-        const char *type;
+        const char *type = NULL;
         if (object_type(c, obj, &p, what, &tm, &type) != 0)
             return -1;
         if (strcmp(type, "point") != 0) {

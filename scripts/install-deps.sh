@@ -10,5 +10,10 @@ echo "installing Debian packages:$missing" >&2
 SUDO=""
 [ "$(id -u)" -ne 0 ] && SUDO="sudo"
 export DEBIAN_FRONTEND=noninteractive
-$SUDO apt-get update -qq >&2 || exit 1
-$SUDO apt-get install -y -qq $missing >&2 || { echo "install-deps: apt-get install failed for:$missing" >&2; exit 1; }
+log=$(mktemp /tmp/brume-apt.XXXXXX)
+if ! { $SUDO apt-get update -qq && $SUDO apt-get install -y -qq $missing; } >"$log" 2>&1; then
+  tail -20 "$log" >&2
+  echo "install-deps: apt-get install failed for:$missing (full log: $log)" >&2
+  exit 1
+fi
+rm -f "$log"

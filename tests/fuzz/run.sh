@@ -1,6 +1,7 @@
 #!/bin/sh
 # Builds every tests/fuzz/fuzz_*.c as a libFuzzer target (clang, ASan + UBSan) and runs
-# each for FUZZ_SECONDS (default 30) on a seed corpus made from the files in scenes/.
+# each for FUZZ_SECONDS (default 30) on a seed corpus made from the files in scenes/
+# (and tests/fuzz/<target>.dict when present).
 # Prints one summary line per target; exits non-zero if any target fails to build or
 # finds a crash (crash inputs are kept in $BUILD/fuzz/<target>/). Run from anywhere.
 set -u
@@ -36,7 +37,9 @@ for src in tests/fuzz/fuzz_*.c; do
         failed=$((failed + 1))
         continue
     fi
-    (cd "$dir" && ./"$name" -max_total_time="$FUZZ_SECONDS" -timeout=10 -rss_limit_mb=2048 \
+    dict=""
+    [ -f "tests/fuzz/$name.dict" ] && dict="-dict=$(pwd)/tests/fuzz/$name.dict"
+    (cd "$dir" && ./"$name" -max_total_time="$FUZZ_SECONDS" -timeout=10 -rss_limit_mb=2048 $dict \
         -artifact_prefix=./ -print_final_stats=1 corpus >run.log 2>&1)
     rc=$?
     execs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$dir/run.log" | grep -o '[0-9]*$')

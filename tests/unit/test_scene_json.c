@@ -44,15 +44,33 @@ static int load(const char *text, struct scene *s, char *err)
     "\"camera\": {\"position\": [0, 0, -5], \"look_at\": [0, 0, 0], \"fov_y\": 40},\n" \
     "\"render\": {\"width\": 64, \"height\": 48}"
 
+/* Built with -DSHOW_POS, prints the text at each reported position: the quickest way to
+ * check a new expectation points at the intended token. */
+static void show_position(const char *text, const char *err)
+{
+#ifdef SHOW_POS
+    unsigned line, col;
+    if (sscanf(err, "scenes/t.json:%u:%u", &line, &col) != 2)
+        return;
+    const char *q = text;
+    for (unsigned i = 1; i < line && strchr(q, '\n'); i++)
+        q = strchr(q, '\n') + 1;
+    for (unsigned c = 1; c < col && *q; c += ((*++q & 0xC0) != 0x80))
+        ;
+    fprintf(stderr, "POS %-70.70s | %.20s\n", err, q);
+#else
+    (void)text;
+    (void)err;
+#endif
+}
+
 static void expect_error(const char *text, const char *want)
 {
     struct scene s;
     char err[512] = "";
     cr_assert_eq(load(text, &s, err), -1, "accepted: %s", text);
     cr_expect(strstr(err, want) != NULL, "error \"%s\" lacks \"%s\"", err, want);
-#ifdef SHOW_POS
-    { unsigned l, c; if (sscanf(err, "scenes/t.json:%u:%u", &l, &c) == 2) { const char *q = text; for (unsigned i = 1; i < l; i++) q = strchr(q, '\n') + 1; unsigned cc = 1; while (cc < c) { q++; if ((*q & 0xC0) != 0x80) cc++; } fprintf(stderr, "POS %-70.70s | %.20s\n", err, q); } }
-#endif
+    show_position(text, err);
     cr_expect_null(s.materials);
     cr_expect_eq(s.num_meshes, 0);
 }

@@ -1,0 +1,89 @@
+#!/bin/sh
+# Benchmark: our time per sample against Embree's own `pathtracer` tutorial on Embree's
+# cornell_box.obj, with the tutorial's camera and point light (cornell_box.ecs), the same
+# resolution, samples per pixel and path length, measured in the same run. Fixed costs
+# (process start, parsing, BVH build) are removed by timing two sample counts and taking
+# the slope. Prints a table, writes bench-out/bench.txt and bench-out/bench.png.
+# Usage: BUILD=build sh scripts/bench.sh   (env: W, H, SPP_LO, SPP_HI, DEPTH, REPS)
+set -eu
+BUILD=${BUILD:-build}
+W=${W:-256}
+H=${H:-256}
+SPP_LO=${SPP_LO:-4}
+SPP_HI=${SPP_HI:-36}
+DEPTH=${DEPTH:-8}
+REPS=${REPS:-3}
+CORES=$(nproc)
+MODELS=/usr/share/doc/embree3/models
+sh scripts/install-deps.sh embree-tools gnuplot-nox bc
+OUT=bench-out
+mkdir -p "$OUT"
+T=$(mktemp -d /tmp/brume-bench.XXXXXX)
+trap 'rm -rf "$T"' EXIT
+cp "$MODELS/cornell_box.obj" "$MODELS/cornell_box.mtl" "$T/"
+# The camera and light of cornell_box.ecs:
+#   -pointlight 213 300 227 100000 100000 100000 ; -vp 278 273 -800 -vi 278 273 0 -vu 0 1 0 -fov 37
+cat >"$T/embree_cornell.json" <<JSON
+{
+  "version": 1,
+  "camera": {"position": [278, 273, -800], "look_at": [278, 273, 0], "up": [0, 1, 0], "fov_y": 37},
+  "render": {"width": $W, "height": $H, "spp": $SPP_LO, "max_depth": $DEPTH, "seed": 1, "tile_size": 32},
+  "objects": [{"type": "obj", "file": "cornell_box.obj"}],
+  "lights": [{"type": "point", "position": [213, 300, 227], "intensity": [100000, 100000, 100000]}]
+}
+JSON
+
+now() { date +%s.%N; }
+# seconds for one run of a command (output kept in $T/last.log)
+timeit() { s=$(now); "$@" >"$T/last.log" 2>&1 || { cat "$T/last.log"; echo "bench: command failed: $*" >&2; exit 1; }; e=$(now); echo "$e - $s" | bc -l; }
+median() { sort -g | awk '{a[NR]=$1} END {print (NR%2) ? a[(NR+1)/2] : (a[NR/2]+a[NR/2+1])/2}'; }
+
+ours() { "$BUILD/master" "$T/embree_cornell.json" -o "$T/ours.exr" --workers "$1" --threads "$2" --spp "$3"; }
+theirs() { pathtracer -c "$MODELS/cornell_box.ecs" -i "$T/cornell_box.obj" --size "$W" "$H" --spp "$1" \
+  --max-path-length "$DEPTH" --threads "$CORES" -o "$T/theirs.ppm"; }
+
+: >"$T/times"
+for r in $(seq "$REPS"); do
+  for spp in "$SPP_LO" "$SPP_HI"; do
+    echo "theirs $spp $(timeit theirs "$spp")" >>"$T/times"
+    echo "ours1 $spp $(timeit ours 1 "$CORES" "$spp")" >>"$T/times"
+    echo "ours2 $spp $(timeit ours "$CORES" 1 "$spp")" >>"$T/times"
+  done
+done
+med() { awk -v k="$1" -v s="$2" '$1==k && $2==s {print $3}' "$T/times" | median; }
+samples=$(echo "($SPP_HI - $SPP_LO) * $W * $H" | bc)
+per_sample() { echo "($(med "$1" "$SPP_HI") - $(med "$1" "$SPP_LO")) / $samples * 1000000000" | bc -l; }
+t_theirs=$(per_sample theirs)
+t_ours1=$(per_sample ours1)
+t_ours2=$(per_sample ours2)
+# Rays per sample of our renderer on this scene (counted), used to estimate theirs (not reported by the tutorial).
+"$BUILD/master" "$T/embree_cornell.json" -o "$T/ours.exr" --workers 1 --threads "$CORES" --spp "$SPP_HI" >"$T/last.log" 2>&1
+rays_per_sample=$(grep "Mrays/s" "$T/last.log" | awk -F'[ ,]+' '{for(i=1;i<=NF;i++){if($(i+1)=="Msamples/s")ms=$i; if($(i+1)=="Mrays/s")mr=$i}} END{print mr/ms}')
+ours_mrays=$(echo "$rays_per_sample * 1000 / $t_ours1" | bc -l)
+theirs_mrays=$(echo "$rays_per_sample * 1000 / $t_theirs" | bc -l)
+{
+  printf 'Embree cornell_box.obj + point light, %sx%s, path length %s, spp %s vs %s, %s cores, median of %s\n' "$W" "$H" "$DEPTH" "$SPP_LO" "$SPP_HI" "$CORES" "$REPS"
+  printf '%-34s %14s %10s %12s\n' "renderer" "ns/sample" "ratio" "Mrays/s"
+  printf '%-34s %14.1f %10.3f %12.2f (est.)\n' "embree pathtracer ($CORES threads)" "$t_theirs" 1 "$theirs_mrays"
+  printf '%-34s %14.1f %10.3f %12.2f\n' "brume, 1 worker x $CORES threads" "$t_ours1" "$(echo "$t_ours1 / $t_theirs" | bc -l)" "$ours_mrays"
+  printf '%-34s %14.1f %10.3f %12.2f\n' "brume, $CORES workers x 1 thread" "$t_ours2" "$(echo "$t_ours2 / $t_theirs" | bc -l)" "$(echo "$rays_per_sample * 1000 / $t_ours2" | bc -l)"
+  printf 'ratio = our time per sample / Embree pathtracer time per sample (target <= 1.0)\n'
+  printf 'rays per sample (ours, counted): %.3f; Embree Mrays/s estimated from it\n' "$rays_per_sample"
+} | tee "$OUT/bench.txt"
+awk '{print $1, $2, $3}' "$T/times" >"$OUT/bench-times.dat"
+if command -v gnuplot >/dev/null 2>&1; then
+  gnuplot <<GP 2>/dev/null && echo "plot: $OUT/bench.png"
+set terminal png size 800,500
+set output "$OUT/bench.png"
+set title "Time per sample against Embree's pathtracer (lower is better)"
+set style data histograms
+set style fill solid 0.8
+set ylabel "ns per sample"
+set yrange [0:*]
+plot "-" using 2:xtic(1) title "ns/sample"
+"embree" $t_theirs
+"brume-1x$CORES" $t_ours1
+"brume-${CORES}x1" $t_ours2
+e
+GP
+fi
