@@ -9,7 +9,7 @@ OPT     ?= -O3
 
 WARN    := -Wall -Wextra -Wpedantic -Wshadow -Wstrict-prototypes -Wmissing-prototypes \
            -Wpointer-arith -Wcast-qual -Wwrite-strings -Wformat=2 -Wundef -Wvla
-CFLAGS  := -std=c11 -D_GNU_SOURCE $(OPT) -g -fno-fast-math -ffp-contract=off $(WARN) -Icommon -pthread
+CFLAGS  := -std=c11 -D_GNU_SOURCE $(OPT) -g -fno-fast-math -ffp-contract=off -fno-math-errno $(WARN) -Icommon -pthread
 LDLIBS  := -lembree3 -lOpenEXRCore-3_1 -lzmq -ljansson -lsodium -lpng -lm -pthread
 ifneq ($(SAN),)
 CFLAGS  += -fsanitize=$(SAN) -fno-omit-frame-pointer -fno-sanitize-recover=undefined

@@ -9,6 +9,7 @@
 #include "material.h"
 #include "sampler.h"
 #include <math.h>
+#include <stdlib.h>
 #include <string.h>
 
 int render_job_init(struct render_job *job, const struct scene *scene, uint32_t frame, uint32_t threads,
@@ -20,12 +21,27 @@ int render_job_init(struct render_job *job, const struct scene *scene, uint32_t 
     if (accel_build(&job->accel, scene, threads, err, errlen) != 0)
         return -1;
     light_table_build(&job->lights, scene);
+    /* Geometric normals once per job rather than a cross product and a square root per hit. */
+    job->face_normals = mem_calloc(scene->num_meshes ? scene->num_meshes : 1, sizeof *job->face_normals);
+    for (uint32_t i = 0; i < scene->num_meshes; i++) {
+        const struct mesh *m = &scene->meshes[i];
+        job->face_normals[i] = mem_alloc(sizeof(vec3) * (m->num_triangles ? m->num_triangles : 1));
+        for (uint32_t t = 0; t < m->num_triangles; t++) {
+            const float *a = &m->positions[3 * m->indices[3 * t]], *b = &m->positions[3 * m->indices[3 * t + 1]],
+                        *c = &m->positions[3 * m->indices[3 * t + 2]];
+            vec3 va = v3(a[0], a[1], a[2]);
+            job->face_normals[i][t] = v3_normalize(v3_cross(v3_sub(v3(b[0], b[1], b[2]), va), v3_sub(v3(c[0], c[1], c[2]), va)));
+        }
+    }
     camera_init(&job->camera, &scene->camera, scene->settings.width, scene->settings.height);
     return 0;
 }
 
 void render_job_free(struct render_job *job)
 {
+    for (uint32_t i = 0; job->face_normals && i < job->scene->num_meshes; i++)
+        free(job->face_normals[i]);
+    free(job->face_normals);
     accel_free(&job->accel);
     light_table_free(&job->lights);
     memset(job, 0, sizeof *job);
@@ -80,7 +96,7 @@ static void surface_from_hit(const struct render_job *job, vec3 org, vec3 dir, c
     float w = 1.0f - h->u - h->v;
     vec3 va = v3(a[0], a[1], a[2]), vb = v3(b[0], b[1], b[2]), vc = v3(c[0], c[1], c[2]);
     s->p = v3_add(v3_add(v3_scale(va, w), v3_scale(vb, h->u)), v3_scale(vc, h->v));
-    s->ng = v3_normalize(v3_cross(v3_sub(vb, va), v3_sub(vc, va)));
+    s->ng = job->face_normals[h->geom][h->prim];
     s->ns = s->ng;
     if (m->normals) {
         const float *na = &m->normals[3 * idx[0]], *nb = &m->normals[3 * idx[1]], *nc = &m->normals[3 * idx[2]];
@@ -187,7 +203,8 @@ vec3 integrator_sample(const struct render_job *job, uint32_t px, uint32_t py, u
             break;
         beta = v3_mul(beta, bs.weight);
         if (vertex >= 3) {
-            float q = fmaxf(0.05f, 1.0f - v3_max_component(beta));
+            float q = 1.0f - v3_max_component(beta);
+            q = q > 0.05f ? q : 0.05f;
             if (sampler_get(&smp, d0 + DIM_RR) < q)
                 break;
             beta = v3_scale(beta, 1.0f / (1.0f - q));

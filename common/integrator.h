@@ -19,6 +19,7 @@ struct render_job {
     struct light_table lights;
     struct camera camera;
     uint32_t frame;
+    vec3 **face_normals;    /* per mesh, per triangle: unit right-handed normal (zero if degenerate) */
 };
 
 int render_job_init(struct render_job *job, const struct scene *scene, uint32_t frame, uint32_t threads,

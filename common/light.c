@@ -177,17 +177,19 @@ void light_sample(const struct light_table *t, const struct scene *s, vec3 ref, 
         vec3 p;
         if (dc <= sp->radius * 1.0001f) {
             /* Inside (or on) the sphere: uniform by area. */
-            float z = 1.0f - 2.0f * u1, r = sqrtf(fmaxf(0.0f, 1.0f - z * z)), phi = 2.0f * (float)M_PI * u2;
-            p = v3_add(sp->center, v3_scale(v3(r * cosf(phi), r * sinf(phi), z), sp->radius));
+            float z = 1.0f - 2.0f * u1, r = sqrtf(fmaxf(0.0f, 1.0f - z * z)), sphi, cphi;
+            sincos_2pi(u2, &sphi, &cphi);
+            p = v3_add(sp->center, v3_scale(v3(r * cphi, r * sphi, z), sp->radius));
         } else {
             float omc = sphere_cone_one_minus_cos(sp->radius, dc);
             float one_minus_cos = u1 * omc;
             float cos_t = 1.0f - one_minus_cos;
             float sin_t = sqrtf(fmaxf(0.0f, one_minus_cos * (2.0f - one_minus_cos)));
-            float phi = 2.0f * (float)M_PI * u2;
+            float sphi, cphi;
+            sincos_2pi(u2, &sphi, &cphi);
             vec3 w = v3_scale(to_c, 1.0f / dc), tx, ty;
             v3_basis(w, &tx, &ty);
-            vec3 dir = v3_add(v3_scale(w, cos_t), v3_add(v3_scale(tx, sin_t * cosf(phi)), v3_scale(ty, sin_t * sinf(phi))));
+            vec3 dir = v3_add(v3_scale(w, cos_t), v3_add(v3_scale(tx, sin_t * cphi), v3_scale(ty, sin_t * sphi)));
             /* Nearest intersection of the sampled direction with the sphere. */
             float disc = sp->radius * sp->radius - dc * dc * sin_t * sin_t;
             float ds = dc * cos_t - sqrtf(fmaxf(0.0f, disc));

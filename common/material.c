@@ -26,11 +26,13 @@ void material_sample(const struct material *m, vec3 n, vec3 wo, float u1, float 
     (void)wo;
     switch (m->type) {
     case MATERIAL_DIFFUSE: {
-        float r = sqrtf(u1), phi = 2.0f * (float)M_PI * u2;
-        float x = r * cosf(phi), y = r * sinf(phi), z = sqrtf(fmaxf(0.0f, 1.0f - u1));
+        float r = sqrtf(u1), sp, cp;
+        sincos_2pi(u2, &sp, &cp);
+        float x = r * cp, y = r * sp, z = sqrtf(1.0f - u1); /* u1 < 1 */
         vec3 t, b;
         v3_basis(n, &t, &b);
-        out->wi = v3_normalize(v3_add(v3_add(v3_scale(t, x), v3_scale(b, y)), v3_scale(n, z)));
+        /* Unit to within rounding: (t, b, n) is orthonormal and x^2 + y^2 + z^2 = 1. */
+        out->wi = v3_add(v3_add(v3_scale(t, x), v3_scale(b, y)), v3_scale(n, z));
         float c = v3_dot(out->wi, n);
         if (c <= 0.0f) {
             out->pdf = 0.0f;

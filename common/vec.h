@@ -23,7 +23,12 @@ static inline vec3 v3_normalize(vec3 a)
     float l = v3_length(a);
     return l > 0.0f ? v3_scale(a, 1.0f / l) : a;
 }
-static inline float v3_max_component(vec3 a) { return fmaxf(a.x, fmaxf(a.y, a.z)); }
+/* Plain comparisons, not fmaxf: inlined, and callers never pass NaN here. */
+static inline float v3_max_component(vec3 a)
+{
+    float m = a.x > a.y ? a.x : a.y;
+    return m > a.z ? m : a.z;
+}
 static inline float v3_max_abs(vec3 a) { return fmaxf(fabsf(a.x), fmaxf(fabsf(a.y), fabsf(a.z))); }
 static inline float v3_luminance(vec3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
 static inline int v3_is_finite(vec3 a) { return isfinite(a.x) && isfinite(a.y) && isfinite(a.z); }
@@ -37,6 +42,25 @@ static inline void v3_basis(vec3 n, vec3 *t, vec3 *b)
     float bb = n.x * n.y * a;
     *t = v3(1.0f + sign * n.x * n.x * a, sign * bb, -sign * n.x);
     *b = v3(bb, sign + n.y * n.y * a, -n.y);
+}
+
+/* sin and cos of 2 pi u for u in [0, 1], by quadrant reduction and short polynomials
+ * (absolute error below 2e-7). Our own arithmetic rather than libm's sincosf: it is
+ * faster in the sampling routines, and its bits do not depend on the C library version
+ * of the machine a worker runs on, so every node renders the same pixels. */
+static inline void sincos_2pi(float u, float *s, float *c)
+{
+    float t = 4.0f * u;
+    int k = (int)(t + 0.5f);
+    float x = (t - (float)k) * 1.57079632679489662f, x2 = x * x;
+    float sx = x * (1.0f + x2 * (-1.0f / 6.0f + x2 * (1.0f / 120.0f + x2 * (-1.0f / 5040.0f + x2 * (1.0f / 362880.0f)))));
+    float cx = 1.0f + x2 * (-0.5f + x2 * (1.0f / 24.0f + x2 * (-1.0f / 720.0f + x2 * (1.0f / 40320.0f))));
+    switch (k & 3) {
+    case 0: *s = sx; *c = cx; break;
+    case 1: *s = cx; *c = -sx; break;
+    case 2: *s = -sx; *c = -cx; break;
+    default: *s = -cx; *c = sx; break;
+    }
 }
 
 /* Row-major 3x4 affine transform: p' = M[:, :3] p + M[:, 3]. */

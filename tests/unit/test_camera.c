@@ -52,3 +52,29 @@ Test(camera, unit_directions_everywhere)
             cr_assert_float_eq(v3_length(d), 1.0f, 1e-5f);
         }
 }
+
+Test(vec, sincos_2pi_accuracy)
+{
+    double worst = 0.0;
+    for (int i = 0; i <= 1 << 20; i++) {
+        float u = (float)i / (float)(1 << 20), s, c;
+        sincos_2pi(u, &s, &c);
+        double a = 2.0 * M_PI * (double)u;
+        worst = fmax(worst, fmax(fabs(s - sin(a)), fabs(c - cos(a))));
+    }
+    cr_assert_lt(worst, 2e-7, "worst error %g", worst);
+}
+
+Test(vec, basis_is_orthonormal)
+{
+    vec3 ns[] = {v3(0, 0, 1), v3(0, 0, -1), v3(1, 0, 0), v3(0.6f, 0.0f, -0.8f), v3(0.577350f, 0.577350f, 0.577350f)};
+    for (size_t i = 0; i < sizeof ns / sizeof ns[0]; i++) {
+        vec3 n = v3_normalize(ns[i]), t, b;
+        v3_basis(n, &t, &b);
+        cr_assert_float_eq(v3_dot(t, t), 1.0f, 1e-6f);
+        cr_assert_float_eq(v3_dot(b, b), 1.0f, 1e-6f);
+        cr_assert_float_eq(v3_dot(t, n), 0.0f, 1e-6f);
+        cr_assert_float_eq(v3_dot(b, n), 0.0f, 1e-6f);
+        cr_assert_float_eq(v3_dot(t, b), 0.0f, 1e-6f);
+    }
+}
