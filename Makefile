@@ -29,7 +29,7 @@ UNIT_SRC   := $(wildcard tests/unit/test_*.c)
 UNIT_OBJ   := $(UNIT_SRC:%.c=$(BUILD)/obj/%.o)
 
 .PHONY: all deps test unit integration demo bench clean fuzz tools
-all: $(BUILD)/master $(BUILD)/worker $(BUILD)/exrtool
+all: $(BUILD)/master $(BUILD)/worker $(BUILD)/exrtool $(BUILD)/junkpeer
 
 # Install what is missing; the stamp makes later builds skip the check.
 $(DEPS_STAMP): scripts/install-deps.sh
@@ -52,6 +52,9 @@ $(BUILD)/worker: $(WORKER_OBJ) $(BUILD)/libbrume.a
 	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
 
 $(BUILD)/exrtool: $(BUILD)/obj/tests/tools/exrtool.o $(BUILD)/libbrume.a
+	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
+
+$(BUILD)/junkpeer: $(BUILD)/obj/tests/tools/junkpeer.o $(BUILD)/libbrume.a
 	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
 
 $(BUILD)/unit_tests: $(UNIT_OBJ) $(BUILD)/libbrume.a
@@ -80,4 +83,4 @@ fuzz:
 clean:
 	rm -rf build build-san
 
--include $(COMMON_OBJ:.o=.d) $(MASTER_OBJ:.o=.d) $(WORKER_OBJ:.o=.d) $(UNIT_OBJ:.o=.d) $(BUILD)/obj/tests/tools/exrtool.d
+-include $(COMMON_OBJ:.o=.d) $(MASTER_OBJ:.o=.d) $(WORKER_OBJ:.o=.d) $(UNIT_OBJ:.o=.d) $(BUILD)/obj/tests/tools/exrtool.d $(BUILD)/obj/tests/tools/junkpeer.d

@@ -13,19 +13,18 @@ static vec3 tri_vertex(const struct mesh *m, uint32_t prim, int k)
     return v3(p[0], p[1], p[2]);
 }
 
-static float emitted_power(const struct light_entry *e, const struct scene *s)
+/* In double: a bright light's power (4 pi I) can overflow float even when I does not. */
+static double emitted_power(const struct light_entry *e)
 {
-    float le = (e->emission.x + e->emission.y + e->emission.z) / 3.0f;
+    double le = ((double)e->emission.x + e->emission.y + e->emission.z) / 3.0;
     switch (e->kind) {
     case LK_POINT:
-        return 4.0f * (float)M_PI * le;
+        return 4.0 * M_PI * le;
     case LK_TRIANGLE:
-        return (float)M_PI * e->area * le;
     case LK_SPHERE:
-        (void)s;
-        return (float)M_PI * e->area * le;
+        return M_PI * (double)e->area * le;
     }
-    return 0.0f;
+    return 0.0;
 }
 
 static void add_entry(struct light_table *t, size_t *cap, struct light_entry e)
@@ -83,13 +82,13 @@ void light_table_build(struct light_table *t, const struct scene *s)
     /* Summed in double so the cdf of many small emitters stays monotone and ends at 1. */
     double total = 0.0;
     for (uint32_t i = 0; i < t->num_entries; i++)
-        total += emitted_power(&t->entries[i], s);
+        total += emitted_power(&t->entries[i]);
     t->cdf = mem_alloc(sizeof(float) * (t->num_entries + 1));
     t->pick_pdf = mem_alloc(sizeof(float) * t->num_entries);
     double acc = 0.0;
     t->cdf[0] = 0.0f;
     for (uint32_t i = 0; i < t->num_entries; i++) {
-        double p = total > 0.0 ? emitted_power(&t->entries[i], s) / total : 1.0 / t->num_entries;
+        double p = total > 0.0 && isfinite(total) ? emitted_power(&t->entries[i]) / total : 1.0 / t->num_entries;
         t->pick_pdf[i] = (float)p;
         acc += p;
         t->cdf[i + 1] = (float)acc;

@@ -50,6 +50,7 @@ struct peer {
     uint32_t credits;
     uint64_t last_heard_ms;
     uint32_t tiles_done;
+    uint32_t dropped;       /* messages of this peer dropped; only the first few are logged */
 };
 
 struct master {
@@ -298,21 +299,33 @@ static int chunk_is_sane(struct master *m, uint32_t tile, const struct msg_resul
     return 1;
 }
 
+/* Logs a dropped message of a peer; after a few, only counts (a peer cannot flood the log). */
+static int peer_should_log_drop(struct peer *p)
+{
+    p->dropped++;
+    if (p->dropped == 6)
+        log_warn("worker %s: further dropped messages are counted, not logged", p->name);
+    return p->dropped <= 5;
+}
+
 static void on_result(struct master *m, int32_t pi, const struct msg_result *r)
 {
     struct peer *p = &m->peers[pi];
     if (p->credits < p->threads * 4)
         p->credits++;
     if (r->job_id != m->job_id || r->frame != 0 || r->tile >= m->num_tiles) {
-        log_warn("worker %s: RESULT for job %llu frame %u tile %u is not ours; dropped", p->name,
-                 (unsigned long long)r->job_id, r->frame, r->tile);
+        if (peer_should_log_drop(p))
+            log_warn("worker %s: RESULT for job %llu frame %u tile %u is not ours; dropped", p->name,
+                     (unsigned long long)r->job_id, r->frame, r->tile);
         m->dropped_results++;
         return;
     }
     struct tile_slot *t = &m->tiles[r->tile];
     if (t->state != TILE_ASSIGNED || t->peer != pi || t->attempt != r->attempt) {
         m->dropped_results++;
-        log_debug("worker %s: stale or duplicate result for tile %u dropped", p->name, r->tile);
+        if (peer_should_log_drop(p))
+            log_warn("worker %s: result for tile %u attempt %u is stale, duplicate or not assigned to it; dropped",
+                     p->name, r->tile, r->attempt);
         return;
     }
     char err[256];
@@ -360,7 +373,8 @@ static void handle_message(struct master *m, struct net_frame *f)
     char err[256];
     int32_t pi = find_peer(m, f->id, f->id_len);
     if (proto_decode(f->data, f->size, &msg, err, sizeof err) != 0) {
-        log_warn("message from %s dropped: %s", pi >= 0 ? m->peers[pi].name : "an unknown peer", err);
+        if (pi < 0 || peer_should_log_drop(&m->peers[pi]))
+            log_warn("message from %s dropped: %s", pi >= 0 ? m->peers[pi].name : "an unknown peer", err);
         return;
     }
     if (msg.type == MSG_HELLO) {
@@ -619,6 +633,8 @@ int master_run(const struct master_opts *o)
             while ((got = net_recv(m.sock, 1, &f)) != 0) {
                 if (got > 0)
                     handle_message(&m, &f);
+                else
+                    log_warn("a message with a malformed envelope (frame count or identity) was dropped");
                 net_frame_free(&f);
             }
         }

@@ -71,5 +71,17 @@ victim=$(pgrep -f "$W --connect ipc://" | head -1)
 wait $! && r=0 || r=1
 if [ $r = 0 ] && $X cmp "$T/c1.exr" "$T/k.exr"; then ok "killed worker: tiles re-queued, identical pixels"; else bad "killed worker: tiles re-queued, identical pixels"; fi
 
+# --- a hostile peer: garbage, wrong versions, results for tiles it never got: dropped, image unchanged ---
+P=$((P + 1))
+run $M scenes/cornell/cornell.json -o "$T/j0.exr" --workers 2 --threads 1 --spp 12 && r0=0 || r0=1
+timeout 60 $M scenes/cornell/cornell.json -o "$T/j.exr" --workers 1 --spp 12 --bind "tcp://127.0.0.1:$P" >"$T/log" 2>&1 &
+mpid=$!
+sleep 0.3
+timeout 20 $BUILD/junkpeer "tcp://127.0.0.1:$P" >/dev/null 2>&1
+wait $mpid && r=0 || r=1
+if [ $r0 = 0 ] && [ $r = 0 ] && $X cmp "$T/j0.exr" "$T/j.exr" && grep -q "version 99" "$T/log" && grep -q "malformed envelope" "$T/log" &&
+  grep -q "junk?peer:1: RESULT for job" "$T/log" && grep -q "further dropped messages are counted" "$T/log" &&
+  ! grep -q "stale or rejected results: 0" "$T/log"; then ok "hostile peer: messages dropped, identical pixels"; else bad "hostile peer: messages dropped, identical pixels"; fi
+
 echo "integration: $pass passed, $fail failed"
 [ $fail = 0 ]

@@ -207,3 +207,28 @@ Test(integrator, huge_coordinates_no_acne)
     cr_assert(fabs(mean - expect) < 4.0 * se + 1e-2 * expect, "mean %.6f expected %.6f", mean, expect);
     scene_free(&s);
 }
+
+Test(integrator, non_finite_samples_counted_and_dropped)
+{
+    /* A point light so bright that I / d^2 overflows float: every such sample is Inf. */
+    struct scene s;
+    memset(&s, 0, sizeof s);
+    uint32_t floor_m = add_mat(&s, v3(0.5f, 0.5f, 0.5f), v3(0, 0, 0));
+    add_quad(&s, v3(-5, 0, -5), v3(-5, 0, 5), v3(5, 0, 5), v3(5, 0, -5), floor_m);
+    struct light l = {LIGHT_POINT, v3(0, 0.01f, 0), v3(3e38f, 3e38f, 3e38f)};
+    scene_add_light(&s, &l);
+    s.camera = (struct camera_desc){v3(0, 1, 0), v3(0, 0, 0), v3(0, 0, 1), 1.0f, 0, 0};
+    settings(&s, 4, 4, 8, 2);
+    struct render_job job;
+    char err[256];
+    cr_assert_eq(render_job_init(&job, &s, 0, 1, err, sizeof err), 0);
+    float px[4 * 4 * TILE_NUM_CHANNELS];
+    struct tile_stats st;
+    integrator_render_tile(&job, 0, 0, 4, 4, px, &st);
+    cr_assert_gt(st.nan_samples, 0);
+    cr_assert_eq(st.samples, 4 * 4 * 8);
+    for (size_t i = 0; i < sizeof px / sizeof px[0]; i++)
+        cr_assert(isfinite(px[i]), "channel value %zu is %g", i, px[i]);
+    render_job_free(&job);
+    scene_free(&s);
+}
