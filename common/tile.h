@@ -4,6 +4,8 @@
 #ifndef BRUME_TILE_H
 #define BRUME_TILE_H
 #include <stdint.h>
+#include "imgio.h"
+#include "scene.h"
 
 /* Mean radiance, coverage, and the variance of the mean per colour channel (the
  * per-pixel noise estimate written next to the image). */
@@ -20,5 +22,9 @@ struct tile_stats {
 };
 
 void tile_stats_add(struct tile_stats *sum, const struct tile_stats *t);
+
+/* The EXR layout of a frame: tiles of the render's tile size, the channels above, ZIP.
+ * Master and workers both derive it from the settings, so their chunks agree. */
+void tile_image_desc(struct image_desc *d, const struct render_settings *rs);
 
 #endif

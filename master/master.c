@@ -176,14 +176,7 @@ static int load_scene(struct master *m)
 static void setup_tiles(struct master *m)
 {
     const struct render_settings *rs = &m->scene.settings;
-    memset(&m->desc, 0, sizeof m->desc);
-    m->desc.width = rs->width;
-    m->desc.height = rs->height;
-    m->desc.tile_size = rs->tile_size;
-    m->desc.num_channels = TILE_NUM_CHANNELS;
-    for (int c = 0; c < TILE_NUM_CHANNELS; c++)
-        snprintf(m->desc.channel_names[c], sizeof m->desc.channel_names[c], "%s", tile_channel_names[c]);
-    m->desc.compression = IMGIO_ZIP;
+    tile_image_desc(&m->desc, rs);
     m->num_tiles = imgio_tiles_x(&m->desc) * imgio_tiles_y(&m->desc);
     m->tiles = mem_calloc(m->num_tiles, sizeof *m->tiles);
     m->queue = mem_alloc(sizeof(uint32_t) * m->num_tiles);

@@ -253,14 +253,7 @@ static int load_job(struct worker *w)
         return -1;
     }
     w->loaded = 1;
-    memset(&w->desc, 0, sizeof w->desc);
-    w->desc.width = rs->width;
-    w->desc.height = rs->height;
-    w->desc.tile_size = rs->tile_size;
-    w->desc.num_channels = TILE_NUM_CHANNELS;
-    for (int c = 0; c < TILE_NUM_CHANNELS; c++)
-        snprintf(w->desc.channel_names[c], sizeof w->desc.channel_names[c], "%s", tile_channel_names[c]);
-    w->desc.compression = IMGIO_ZIP;
+    tile_image_desc(&w->desc, rs);
     pool_start(w);
     struct proto_msg m = {.type = MSG_READY};
     m.u.ready.job_id = w->job.job_id;
