@@ -46,6 +46,10 @@ void proto_job_free(struct msg_job *job)
 
 static int check_job_settings(const struct msg_job *j, char *err, size_t errlen)
 {
+    if (j->sampler >= SAMPLER_COUNT_) {
+        str_fmt(err, errlen, "JOB: sampler %u unknown", j->sampler);
+        return -1;
+    }
     if (!j->width || !j->height || !j->spp || !j->tile_size) {
         str_fmt(err, errlen, "JOB: width %u, height %u, spp %u and tile_size %u must be > 0",
                 j->width, j->height, j->spp, j->tile_size);
@@ -168,6 +172,7 @@ int proto_encode(const struct proto_msg *msg, struct proto_buf *b)
         put_u32(b, m->max_depth);
         put_u32(b, m->tile_size);
         put_u64(b, m->seed);
+        put_u32(b, m->sampler);
         if (put_str(b, m->scene_path) < 0)
             return -1;
         put_u32(b, m->num_assets);
@@ -381,6 +386,7 @@ static void decode_job(struct reader *r, struct msg_job *m)
     m->max_depth = get_u32(r, "max_depth");
     m->tile_size = get_u32(r, "tile_size");
     m->seed = get_u64(r, "seed");
+    m->sampler = get_u32(r, "sampler");
     get_str(r, m->scene_path, "scene_path");
     uint32_t n = get_u32(r, "num_assets");
     if (r->failed)

@@ -51,6 +51,7 @@ struct msg_job {
     /* settings after command-line overrides; the worker applies them over the scene's */
     uint32_t width, height, spp, max_depth, tile_size;
     uint64_t seed;
+    uint32_t sampler;                    /* enum sampler_type, < SAMPLER_COUNT_ */
     char scene_path[PROTO_MAX_STRING];   /* one of the assets: the scene file */
     uint32_t num_assets;                 /* <= PROTO_MAX_ASSETS */
     struct proto_asset *assets;          /* decode allocates; free with proto_job_free */

@@ -54,7 +54,13 @@ struct camera_desc {
     float fov_y_deg;
     float aperture_radius;  /* reserved for the thin lens; 0 = pinhole */
     float focus_distance;   /* reserved for the thin lens; 0 = distance to look_at */
+    /* Shutter interval in frames, relative to the frame's time; open == close means no
+     * motion blur (and no time dimension is consumed). */
+    float shutter_open, shutter_close;
 };
+
+/* How the sample dimensions of a pixel are generated (sampler.h). */
+enum sampler_type { SAMPLER_INDEPENDENT, SAMPLER_STRATIFIED, SAMPLER_SOBOL, SAMPLER_COUNT_ };
 
 struct render_settings {
     uint32_t width, height;
@@ -62,6 +68,7 @@ struct render_settings {
     uint32_t max_depth;     /* path vertices after the camera; 1 = direct light only */
     uint64_t seed;
     uint32_t tile_size;     /* square tiles of tile_size pixels; edge tiles are clipped */
+    enum sampler_type sampler;
 };
 
 struct scene {

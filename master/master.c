@@ -255,6 +255,7 @@ static void on_hello(struct master *m, const struct net_frame *f, const struct m
     j->max_depth = rs->max_depth;
     j->tile_size = rs->tile_size;
     j->seed = rs->seed;
+    j->sampler = rs->sampler;
     snprintf(j->scene_path, sizeof j->scene_path, "%s", m->scene_rel);
     j->num_assets = m->num_manifest;
     j->assets = m->manifest;

@@ -245,6 +245,7 @@ static int load_job(struct worker *w)
     rs->max_depth = w->job.max_depth;
     rs->tile_size = w->job.tile_size;
     rs->seed = w->job.seed;
+    rs->sampler = (enum sampler_type)w->job.sampler;
     if (scene_validate(&w->scene, err, sizeof err) != 0 ||
         render_job_init(&w->rjob, &w->scene, w->job.frame, w->opts->threads, err, sizeof err) != 0) {
         scene_free(&w->scene);

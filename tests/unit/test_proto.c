@@ -50,6 +50,7 @@ static size_t make_samples(struct proto_msg out[MSG_TYPE_MAX_])
     out[n].u.job.max_depth = 0;
     out[n].u.job.tile_size = 32;
     out[n].u.job.seed = 0xdeadbeefcafef00dull;
+    out[n].u.job.sampler = SAMPLER_SOBOL;
     strcpy(out[n].u.job.scene_path, "scene.json");
     out[n].u.job.num_assets = 3;
     out[n].u.job.assets = k_assets;
@@ -135,6 +136,7 @@ static void assert_msg_eq(const struct proto_msg *a, const struct proto_msg *b)
         cr_assert_eq(x->max_depth, y->max_depth);
         cr_assert_eq(x->tile_size, y->tile_size);
         cr_assert_eq(x->seed, y->seed);
+        cr_assert_eq(x->sampler, y->sampler);
         cr_assert_str_eq(x->scene_path, y->scene_path);
         cr_assert_eq(x->num_assets, y->num_assets);
         for (uint32_t i = 0; i < x->num_assets; i++) {
@@ -265,6 +267,7 @@ static void fb_job_prefix(struct fb *b, uint32_t width, uint32_t height, uint32_
     fb_u(b, 5, 4);
     fb_u(b, tile, 4);
     fb_u(b, 1234, 8);
+    fb_u(b, 0, 4); /* sampler */
     fb_u(b, 10, 2);
     fb_bytes(b, "scene.json", 10);
 }
