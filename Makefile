@@ -74,6 +74,8 @@ demo: all
 
 bench: all
 	BUILD=$(BUILD) sh scripts/bench.sh
+	BUILD=$(BUILD) sh scripts/bench_sampling.sh
+	BUILD=$(BUILD) sh scripts/bench_motion.sh
 
 # Fuzz targets (libFuzzer, clang): make fuzz FUZZ_SECONDS=60
 FUZZ_SECONDS ?= 30

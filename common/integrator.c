@@ -7,6 +7,7 @@
 #include "integrator.h"
 #include "log.h"
 #include "material.h"
+#include "motion.h"
 #include "sampler.h"
 #include <math.h>
 #include <stdlib.h>
@@ -18,7 +19,7 @@ int render_job_init(struct render_job *job, const struct scene *scene, uint32_t 
     memset(job, 0, sizeof *job);
     job->scene = scene;
     job->frame = frame;
-    if (accel_build(&job->accel, scene, threads, err, errlen) != 0)
+    if (accel_build(&job->accel, scene, frame, threads, err, errlen) != 0)
         return -1;
     light_table_build(&job->lights, scene);
     /* Geometric normals once per job rather than a cross product and a square root per hit. */
@@ -34,6 +35,7 @@ int render_job_init(struct render_job *job, const struct scene *scene, uint32_t 
         }
     }
     camera_init(&job->camera, &scene->camera, scene->settings.width, scene->settings.height);
+    camera_set_scene_motion(&job->camera, job->accel.has_motion);
     return 0;
 }
 
@@ -58,7 +60,7 @@ static float float_bits_offset(float p, int delta)
 }
 
 /* Moves p off the surface to the side of n (unit). */
-static vec3 offset_ray_origin(vec3 p, vec3 n)
+__attribute__((always_inline)) static inline vec3 offset_ray_origin(vec3 p, vec3 n)
 {
     const float origin = 1.0f / 32.0f, float_scale = 1.0f / 65536.0f, int_scale = 256.0f;
     int ox = (int)(int_scale * n.x), oy = (int)(int_scale * n.y), oz = (int)(int_scale * n.z);
@@ -74,37 +76,85 @@ struct surface {
     vec3 ns;            /* unit shading normal, same side as ng */
     uint32_t material;
     uint32_t light;     /* light entry, or LIGHT_NONE */
+    float p_err;        /* bound on how far p may lie off the true surface; 0 for triangles */
 };
 
+/* Vertex k of a deforming mesh as a ray at time01 sees it: Embree's blend of the two
+ * time steps around time01, by the same formula, so the rebuilt point lies on what was hit. */
+static vec3 step_vertex(const struct accel_motion *mo, uint32_t num_vertices, uint32_t k, float time01)
+{
+    const float *a = &mo->steps[3 * (size_t)k];
+    if (mo->num_steps <= 1)
+        return v3(a[0], a[1], a[2]);
+    float ft = time01 * (float)(mo->num_steps - 1), fi = floorf(ft);
+    fi = fi < 0.0f ? 0.0f : (fi > (float)(mo->num_steps - 2) ? (float)(mo->num_steps - 2) : fi);
+    float f = ft - fi;
+    a += (size_t)fi * 3 * num_vertices;
+    const float *b = a + 3 * (size_t)num_vertices;
+    return v3((1.0f - f) * a[0] + f * b[0], (1.0f - f) * a[1] + f * b[1], (1.0f - f) * a[2] + f * b[2]);
+}
+
+/* The hit as a surface point at the ray's time. Still geometry: barycentrics of the
+ * stored vertices (exact to rounding). Rigid motion: the same in object space, then the
+ * instance transform at time01 (from Embree, so it matches what was intersected), normals
+ * by its cofactor matrix. Deformation: vertices blended at time01, flat normals. */
 static void surface_from_hit(const struct render_job *job, vec3 org, vec3 dir, const struct accel_hit *h,
-                             struct surface *s)
+                             float time01, struct surface *s)
 {
     const struct scene *sc = job->scene;
+    struct xform x;
+    s->p_err = 0.0f;
+    int moving = accel_object_xform(&job->accel, h->geom, h->prim, time01, &x);
     if (h->geom == job->accel.sphere_geom && sc->num_spheres > 0) {
         const struct sphere *sp = &sc->spheres[h->prim];
         vec3 p = v3_add(org, v3_scale(dir, h->t));
-        vec3 n = v3_normalize(v3_sub(p, sp->center));
-        s->p = v3_add(sp->center, v3_scale(n, sp->radius)); /* re-project onto the surface */
-        s->ng = s->ns = n;
+        if (moving) {
+            struct xform xi = motion_xform_inverse(&x);
+            vec3 n = v3_normalize(v3_sub(xform_point(&xi, p), sp->center));
+            s->p = xform_point(&x, v3_add(sp->center, v3_scale(n, sp->radius)));
+            s->ng = s->ns = v3_normalize(motion_xform_normal(&x, n));
+            s->p_err = (v3_max_abs(s->p) + v3_max_abs(sp->center) + sp->radius) * 0x1p-20f;
+        } else {
+            vec3 n = v3_normalize(v3_sub(p, sp->center));
+            s->p = v3_add(sp->center, v3_scale(n, sp->radius)); /* re-project onto the surface */
+            s->ng = s->ns = n;
+            /* center + r n rounds at the scale of |center| and r, not of |p|: a floor made of
+             * a huge sphere needs an offset of that size, or its shadow rays self-hit in rings. */
+            s->p_err = (v3_max_abs(sp->center) + sp->radius) * 0x1p-21f;
+        }
         s->material = sp->material_id;
         s->light = job->lights.sphere_light ? job->lights.sphere_light[h->prim] : LIGHT_NONE;
         return;
     }
     const struct mesh *m = &sc->meshes[h->geom];
     const uint32_t *idx = &m->indices[3 * h->prim];
-    const float *a = &m->positions[3 * idx[0]], *b = &m->positions[3 * idx[1]], *c = &m->positions[3 * idx[2]];
+    const struct accel_motion *mo = job->accel.mesh_motion ? &job->accel.mesh_motion[h->geom] : NULL;
     float w = 1.0f - h->u - h->v;
-    vec3 va = v3(a[0], a[1], a[2]), vb = v3(b[0], b[1], b[2]), vc = v3(c[0], c[1], c[2]);
-    s->p = v3_add(v3_add(v3_scale(va, w), v3_scale(vb, h->u)), v3_scale(vc, h->v));
-    s->ng = job->face_normals[h->geom][h->prim];
-    s->ns = s->ng;
-    if (m->normals) {
-        const float *na = &m->normals[3 * idx[0]], *nb = &m->normals[3 * idx[1]], *nc = &m->normals[3 * idx[2]];
-        vec3 n = v3_add(v3_add(v3_scale(v3(na[0], na[1], na[2]), w), v3_scale(v3(nb[0], nb[1], nb[2]), h->u)),
-                        v3_scale(v3(nc[0], nc[1], nc[2]), h->v));
-        n = v3_normalize(n);
-        if (v3_is_finite(n) && v3_dot(n, n) > 0.5f)
-            s->ns = v3_dot(n, s->ng) < 0.0f ? v3_neg(n) : n;
+    if (mo && mo->num_steps > 0) {
+        vec3 va = step_vertex(mo, m->num_vertices, idx[0], time01), vb = step_vertex(mo, m->num_vertices, idx[1], time01),
+             vc = step_vertex(mo, m->num_vertices, idx[2], time01);
+        s->p = v3_add(v3_add(v3_scale(va, w), v3_scale(vb, h->u)), v3_scale(vc, h->v));
+        s->ng = v3_normalize(v3_cross(v3_sub(vb, va), v3_sub(vc, va)));
+        s->ns = s->ng;
+    } else {
+        const float *a = &m->positions[3 * idx[0]], *b = &m->positions[3 * idx[1]], *c = &m->positions[3 * idx[2]];
+        vec3 va = v3(a[0], a[1], a[2]), vb = v3(b[0], b[1], b[2]), vc = v3(c[0], c[1], c[2]);
+        s->p = v3_add(v3_add(v3_scale(va, w), v3_scale(vb, h->u)), v3_scale(vc, h->v));
+        s->ng = job->face_normals[h->geom][h->prim];
+        s->ns = s->ng;
+        if (m->normals) {
+            const float *na = &m->normals[3 * idx[0]], *nb = &m->normals[3 * idx[1]], *nc = &m->normals[3 * idx[2]];
+            vec3 n = v3_add(v3_add(v3_scale(v3(na[0], na[1], na[2]), w), v3_scale(v3(nb[0], nb[1], nb[2]), h->u)),
+                            v3_scale(v3(nc[0], nc[1], nc[2]), h->v));
+            n = v3_normalize(n);
+            if (v3_is_finite(n) && v3_dot(n, n) > 0.5f)
+                s->ns = v3_dot(n, s->ng) < 0.0f ? v3_neg(n) : n;
+        }
+    }
+    if (moving) {
+        s->p = xform_point(&x, s->p);
+        s->ng = v3_normalize(motion_xform_normal(&x, s->ng));
+        s->ns = v3_normalize(motion_xform_normal(&x, s->ns));
     }
     s->material = m->material_ids[h->prim];
     s->light = job->lights.tri_light && job->lights.tri_light[h->geom] ? job->lights.tri_light[h->geom][h->prim]
@@ -130,11 +180,14 @@ vec3 integrator_sample(const struct render_job *job, uint32_t px, uint32_t py, u
 {
     const struct scene *sc = job->scene;
     const struct render_settings *rs = &sc->settings;
-    struct sampler smp = sampler_start(rs->seed, job->frame, (uint64_t)py * rs->width + px, sample_index);
-    float fx = (float)px + sampler_get(&smp, DIM_PIXEL_X);
-    float fy = (float)py + sampler_get(&smp, DIM_PIXEL_Y);
-    vec3 org, dir;
-    camera_ray(&job->camera, fx, fy, &org, &dir);
+    struct sampler smp = sampler_start_type(rs->sampler, rs->seed, job->frame, (uint64_t)py * rs->width + px,
+                                            sample_index, rs->spp);
+    /* Pixel jitter, lens and shutter time; time01 is the ray's time in [0, 1] across the
+     * shutter (0 when nothing needs time), for motion-blurred geometry. */
+    struct camera_sample cs;
+    camera_generate(&job->camera, &smp, job->frame, px, py, &cs);
+    float time01 = cs.time01;
+    vec3 org = cs.o, dir = cs.d;
 
     vec3 L = v3(0, 0, 0), beta = v3(1, 1, 1);
     float prev_pdf = 0.0f;      /* solid-angle pdf of the BSDF sample that produced dir */
@@ -144,18 +197,21 @@ vec3 integrator_sample(const struct render_job *job, uint32_t px, uint32_t py, u
     for (uint32_t vertex = 1;; vertex++) {
         struct accel_hit h;
         (*rays)++;
-        if (!accel_intersect(&job->accel, org, dir, INFINITY, &h))
+        if (!accel_intersect(&job->accel, org, dir, INFINITY, time01, &h))
             break;
         if (vertex == 1)
             *hit_any = 1;
         struct surface s;
-        surface_from_hit(job, org, dir, &h, &s);
+        surface_from_hit(job, org, dir, &h, time01, &s);
 
-        if (s.light != LIGHT_NONE) {
+        /* Emitters the light table cannot sample (on moving geometry) and emitters seen
+         * after a delta bounce are found only this way: full weight, no MIS. */
+        /* Only emitters in the light table, or any surface when moving emitters exist. */
+        if (s.light != LIGHT_NONE || job->accel.has_motion) {
             vec3 le = emitted(job, &s, dir);
             if (!v3_is_black(le)) {
                 float w = 1.0f;
-                if (!prev_delta) {
+                if (!prev_delta && s.light != LIGHT_NONE) {
                     float lp = light_pdf(&job->lights, sc, s.light, prev_p, s.p, s.ng);
                     w = power_heuristic(prev_pdf, lp);
                 }
@@ -167,17 +223,20 @@ vec3 integrator_sample(const struct render_job *job, uint32_t px, uint32_t py, u
 
         const struct material *mat = &sc->materials[s.material];
         vec3 wo = v3_neg(dir);
-        /* Shade on the side the ray came from: surfaces are two-sided for reflection. */
-        vec3 ng = v3_dot(s.ng, wo) < 0.0f ? v3_neg(s.ng) : s.ng;
+        /* Shade on the side the ray came from: surfaces are two-sided for reflection;
+         * front (wo outside) tells a dielectric which index is on which side. */
+        int front = v3_dot(s.ng, wo) >= 0.0f;
+        vec3 ng = front ? s.ng : v3_neg(s.ng);
         vec3 ns = v3_dot(s.ns, ng) < 0.0f ? v3_neg(s.ns) : s.ns;
-        vec3 p_off = offset_ray_origin(s.p, ng);
+        vec3 p_off = offset_ray_origin(v3_add(s.p, v3_scale(ng, s.p_err)), ng);
         uint32_t d0 = sampler_bounce_dim(vertex - 1, 0);
 
-        /* Next-event estimation. */
-        if (job->lights.num_entries > 0) {
+        /* Next-event estimation; a delta BSDF is zero toward any sampled light point. */
+        if (job->lights.num_entries > 0 && !material_is_delta(mat)) {
             struct light_sample ls;
-            light_sample(&job->lights, sc, s.p, sampler_get(&smp, d0 + DIM_LIGHT_PICK),
-                         sampler_get(&smp, d0 + DIM_LIGHT_U), sampler_get(&smp, d0 + DIM_LIGHT_V), &ls);
+            float lu, lv;
+            sampler_get_2d(&smp, d0 + DIM_LIGHT_U, &lu, &lv);
+            light_sample(&job->lights, sc, s.p, sampler_get(&smp, d0 + DIM_LIGHT_PICK), lu, lv, &ls);
             if (ls.pdf > 0.0f && !v3_is_black(ls.radiance)) {
                 vec3 to = v3_sub(ls.p, s.p);
                 float dist = v3_length(to);
@@ -188,7 +247,7 @@ vec3 integrator_sample(const struct render_job *job, uint32_t px, uint32_t py, u
                     vec3 target = ls.is_delta ? ls.p : offset_ray_origin(ls.p, v3_dot(ls.n, wi) < 0.0f ? ls.n : v3_neg(ls.n));
                     vec3 seg = v3_sub(target, p_off);
                     (*rays)++;
-                    if (!accel_occluded(&job->accel, p_off, seg, 1.0f - 0x1p-12f)) {
+                    if (!accel_occluded(&job->accel, p_off, seg, 1.0f - 0x1p-12f, time01)) {
                         float w = ls.is_delta ? 1.0f : power_heuristic(ls.pdf, bpdf);
                         L = v3_add(L, v3_mul(beta, v3_scale(v3_mul(f, ls.radiance), w / ls.pdf)));
                     }
@@ -198,8 +257,12 @@ vec3 integrator_sample(const struct render_job *job, uint32_t px, uint32_t py, u
 
         /* BSDF sampling for the next vertex (also the MIS partner of the NEE above). */
         struct bsdf_sample bs;
-        material_sample(mat, ns, wo, sampler_get(&smp, d0 + DIM_BSDF_U), sampler_get(&smp, d0 + DIM_BSDF_V), &bs);
-        if (bs.pdf <= 0.0f || v3_dot(bs.wi, ng) <= 0.0f)
+        float bu, bv;
+        sampler_get_2d(&smp, d0 + DIM_BSDF_U, &bu, &bv);
+        material_sample(mat, ns, wo, front, bu, bv, &bs);
+        /* A direction on the wrong side of the true surface (shading normals) ends the path. */
+        float side = v3_dot(bs.wi, ng);
+        if (bs.pdf <= 0.0f || (bs.transmitted ? side >= 0.0f : side <= 0.0f))
             break;
         beta = v3_mul(beta, bs.weight);
         if (vertex >= 3) {
@@ -213,8 +276,9 @@ vec3 integrator_sample(const struct render_job *job, uint32_t px, uint32_t py, u
             break;
         prev_pdf = bs.pdf;
         prev_p = s.p;
-        prev_delta = 0;
-        org = p_off;
+        prev_delta = bs.is_delta;
+        /* A refracted ray leaves from the other side of the surface. */
+        org = bs.transmitted ? offset_ray_origin(v3_sub(s.p, v3_scale(ng, s.p_err)), v3_neg(ng)) : p_off;
         dir = bs.wi;
     }
     return L;

@@ -47,6 +47,8 @@ void light_table_build(struct light_table *t, const struct scene *s)
         t->tri_light = mem_calloc(s->num_meshes, sizeof *t->tri_light);
     for (uint32_t mi = 0; mi < s->num_meshes; mi++) {
         const struct mesh *m = &s->meshes[mi];
+        if (m->num_keys > 0 || m->num_frames > 1)
+            continue; /* moving emitters: found by BSDF sampling only (integrator.c) */
         for (uint32_t p = 0; p < m->num_triangles; p++) {
             vec3 em = s->materials[m->material_ids[p]].emission;
             if (v3_is_black(em))
@@ -66,7 +68,7 @@ void light_table_build(struct light_table *t, const struct scene *s)
     }
     for (uint32_t i = 0; i < s->num_spheres; i++) {
         vec3 em = s->materials[s->spheres[i].material_id].emission;
-        if (v3_is_black(em))
+        if (v3_is_black(em) || s->spheres[i].num_keys > 0)
             continue;
         if (!t->sphere_light) {
             t->sphere_light = mem_alloc(sizeof(uint32_t) * s->num_spheres);

@@ -2,7 +2,9 @@
  * next-event estimation in proportion to emitted power. Built once per job from the flat
  * scene; read-only while rendering. Emitters are one-sided: a triangle emits on the side
  * of its right-handed normal (counter-clockwise winding seen from the front), a sphere
- * outwards. Also answers the pdf of hitting an emitter by chance, for MIS. */
+ * outwards. Also answers the pdf of hitting an emitter by chance, for MIS. Emitters on
+ * moving geometry (keyframes or deformation frames) are left out: their position depends
+ * on the ray time, so the integrator counts them when BSDF sampling hits them. */
 #ifndef BRUME_LIGHT_H
 #define BRUME_LIGHT_H
 #include <stdint.h>

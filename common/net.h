@@ -27,6 +27,26 @@ struct net_frame {
 int net_recv(void *sock, int with_identity, struct net_frame *f);
 void net_frame_free(struct net_frame *f);
 
+/* CurveZMQ keys are 40-character Z85 strings. A key pair file holds the public key on
+ * its first line and the secret key on its second; a public key file (and each line of
+ * an allow-list) holds one public key, optionally followed by a name. Lines starting with
+ * '#' are comments. */
+#define NET_Z85_KEY_LEN 40
+struct net_key { char z85[NET_Z85_KEY_LEN + 1]; };
+int net_key_pair_load(const char *path, struct net_key *public_key, struct net_key *secret_key, char *err, size_t errlen);
+int net_key_public_load(const char *path, struct net_key *public_key, char *err, size_t errlen);
+/* Reads an allow-list; *keys is mem_alloc'd. Returns 0 or -1 (err says which line). */
+int net_key_list_load(const char *path, struct net_key **keys, size_t *count, char *err, size_t errlen);
+/* Writes PATH (key pair, mode 0600) and PATH.pub (public key). 0 or -1. */
+int net_key_pair_write(const char *path, char *err, size_t errlen);
+/* Client side of CurveZMQ: set before zmq_connect. 0 or -1. */
+int net_curve_client(void *sock, const struct net_key *server_public, const struct net_key *our_public,
+                     const struct net_key *our_secret);
+/* Server side: CURVE with ZAP domain "brume"; set before zmq_bind. 0 or -1. */
+int net_curve_server(void *sock, const struct net_key *our_secret);
+/* True for endpoints only this machine can reach (ipc, inproc, tcp on loopback). */
+int net_endpoint_is_local(const char *endpoint);
+
 /* Monotonic milliseconds. */
 uint64_t net_now_ms(void);
 

@@ -235,6 +235,8 @@ int proto_encode(const struct proto_msg *msg, struct proto_buf *b)
     case MSG_HEARTBEAT:
         put_u64(b, msg->u.heartbeat.job_id);
         put_u32(b, msg->u.heartbeat.tiles_done);
+        put_u64(b, msg->u.heartbeat.samples_done);
+        put_u32(b, msg->u.heartbeat.stalled_ms);
         return 0;
     case MSG_BYE:
         return 0;
@@ -516,6 +518,8 @@ int proto_decode(const uint8_t *frame, size_t size, struct proto_msg *msg, char 
     case MSG_HEARTBEAT:
         msg->u.heartbeat.job_id = get_u64(r, "job_id");
         msg->u.heartbeat.tiles_done = get_u32(r, "tiles_done");
+        msg->u.heartbeat.samples_done = get_u64(r, "samples_done");
+        msg->u.heartbeat.stalled_ms = get_u32(r, "stalled_ms");
         break;
     case MSG_BYE:
     case MSG_TYPE_MAX_:

@@ -13,7 +13,7 @@
 #include "tile.h"
 
 #define PROTO_MAGIC 0x4d555242u /* "BRUM" little-endian */
-#define PROTO_VERSION 1
+#define PROTO_VERSION 2 /* 2: HEARTBEAT carries samples_done */
 #define PROTO_MAX_MESSAGE (64u * 1024u * 1024u) /* also ZMQ_MAXMSGSIZE */
 #define PROTO_MAX_STRING 1024
 #define PROTO_MAX_ASSETS 4096
@@ -28,7 +28,7 @@ enum proto_type {
     MSG_TILE = 6,       /* m->w: render this tile (job, frame, tile, attempt) */
     MSG_RESULT = 7,     /* w->m: the tile's EXR chunk and stats; returns one credit */
     MSG_ERROR = 8,      /* w->m: cannot do the job (message says why) */
-    MSG_HEARTBEAT = 9,  /* both ways */
+    MSG_HEARTBEAT = 9,  /* both ways; the worker's proves its render threads progress */
     MSG_BYE = 10,       /* m->w: job over, exit; w->m: I am leaving */
     MSG_TYPE_MAX_ = 11
 };
@@ -98,7 +98,11 @@ struct msg_error {
     char text[PROTO_MAX_STRING];
 };
 
-struct msg_heartbeat { uint64_t job_id; uint32_t tiles_done; };
+/* samples_done: camera samples the worker's render threads finished since it started, a
+ * counter that only grows; stalled_ms: how long the slowest busy render thread has not
+ * finished a row. The master evicts a worker holding tiles whose counter stops moving or
+ * that reports a stalled thread (its main thread may answer while render threads hang). */
+struct msg_heartbeat { uint64_t job_id; uint32_t tiles_done; uint64_t samples_done; uint32_t stalled_ms; };
 
 /* A decoded message. Pointers inside refer to the frame's bytes, which must outlive it. */
 struct proto_msg {

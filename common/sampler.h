@@ -1,47 +1,115 @@
-/* The sample dimensions a camera path consumes, and where each comes from. One fixed
- * layout (pixel, then per bounce a fixed block) so a dimension means the same thing in
- * every pixel, sample and process. Today every dimension is an independent uniform from
- * rng.h; stratified and Sobol samplers plug in here (issue: 5D sampling). */
+/* The sample dimensions a camera path consumes, and the three samplers that fill them.
+ * One fixed layout (pixel 2D, lens 2D, time 1D, then per bounce a fixed block) so a
+ * dimension means the same thing in every pixel, sample and process. Every value is a pure
+ * function of (seed, frame, pixel, sample index, dimension): no state, any call order.
+ * Callers: integrator.c (camera ray and bounce loop), camera.c (lens, time). */
 #ifndef BRUME_SAMPLER_H
 #define BRUME_SAMPLER_H
 #include <stdint.h>
 #include "rng.h"
+#include "scene.h"
 
 enum sampler_dim {
-    DIM_PIXEL_X = 0,
+    DIM_PIXEL_X = 0,  /* 2D pair (x, y) */
     DIM_PIXEL_Y = 1,
-    DIM_LENS_U = 2,   /* reserved: thin lens */
+    DIM_LENS_U = 2,   /* 2D pair (u, v); consumed only when the aperture is open */
     DIM_LENS_V = 3,
-    DIM_TIME = 4,     /* reserved: motion blur */
+    DIM_TIME = 4,     /* 1D; consumed only when the shutter is open and something moves */
     DIM_BOUNCE_BASE = 5,
     /* per bounce, offsets from DIM_BOUNCE_BASE + bounce * DIM_PER_BOUNCE */
-    DIM_LIGHT_PICK = 0,
-    DIM_LIGHT_U = 1,
+    DIM_LIGHT_PICK = 0, /* 1D */
+    DIM_LIGHT_U = 1,    /* 2D pair (u, v) */
     DIM_LIGHT_V = 2,
-    DIM_BSDF_U = 3,
+    DIM_BSDF_U = 3,     /* 2D pair (u, v) */
     DIM_BSDF_V = 4,
-    DIM_RR = 5,
+    DIM_RR = 5,         /* 1D */
     DIM_PER_BOUNCE = 6
 };
 
+/* One sample of one pixel. key drives the independent sampler (and the jitter of the
+ * stratified one); pixel_key seeds the per-pixel permutations and scrambles. */
 struct sampler {
-    uint64_t key;
+    enum sampler_type type;
+    uint32_t index;     /* sample index within the pixel's pass: index < spp */
+    uint32_t spp;       /* points in one pass (>= 1) */
+    uint32_t nx, ny;    /* stratified: 2D grid nx * ny == spp */
+    uint64_t key;       /* rng_key(seed, frame, pixel, sample) */
+    uint64_t pixel_key; /* hash of (seed, frame, pixel, pass) */
 };
 
+/* Names as the scene and command line spell them; returns -1 for an unknown name. */
+int sampler_type_from_name(const char *name, enum sampler_type *out);
+const char *sampler_type_name(enum sampler_type t);
+
+/* Sample `sample` of pixel `pixel` for a render of spp samples per pixel. Sample indices
+ * >= spp are valid too: they start further passes with fresh permutations/scrambles. */
+struct sampler sampler_start_type(enum sampler_type type, uint64_t seed, uint32_t frame, uint64_t pixel,
+                                  uint32_t sample, uint32_t spp);
+
+/* The independent sampler of earlier versions (same bits). */
 static inline struct sampler sampler_start(uint64_t seed, uint32_t frame, uint64_t pixel, uint32_t sample)
 {
-    struct sampler s = {rng_key(seed, frame, pixel, sample)};
-    return s;
+    return sampler_start_type(SAMPLER_INDEPENDENT, seed, frame, pixel, sample, 1);
 }
 
+float sampler_get_slow_(const struct sampler *s, uint32_t dim);
+void sampler_get_2d_slow_(const struct sampler *s, uint32_t dim0, float *u, float *v);
+
+/* One value in [0, 1). For a component of a 2D pair it is that component of the pair's
+ * 2D point, so calling it for both components equals sampler_get_2d (at twice the cost). */
 static inline float sampler_get(const struct sampler *s, uint32_t dim)
 {
-    return rng_uniform(s->key, dim);
+    if (s->type == SAMPLER_INDEPENDENT)
+        return rng_uniform(s->key, dim);
+    return sampler_get_slow_(s, dim);
+}
+
+/* The 2D point of the pair starting at dim0 (DIM_PIXEL_X, DIM_LENS_U, or a bounce's
+ * DIM_LIGHT_U / DIM_BSDF_U). */
+static inline void sampler_get_2d(const struct sampler *s, uint32_t dim0, float *u, float *v)
+{
+    if (s->type == SAMPLER_INDEPENDENT) {
+        *u = rng_uniform(s->key, dim0);
+        *v = rng_uniform(s->key, dim0 + 1);
+        return;
+    }
+    sampler_get_2d_slow_(s, dim0, u, v);
 }
 
 static inline uint32_t sampler_bounce_dim(uint32_t bounce, uint32_t offset)
 {
     return DIM_BOUNCE_BASE + bounce * DIM_PER_BOUNCE + offset;
 }
+
+/* First dimension of the 2D pair holding dim, or dim itself when dim is 1D; *comp gets
+ * the component (0 or 1) and the return of sampler_dim_is_2d says which case. */
+static inline uint32_t sampler_dim_pair(uint32_t dim, uint32_t *comp, int *is_2d)
+{
+    uint32_t off;
+    if (dim < DIM_BOUNCE_BASE) {
+        if (dim == DIM_TIME) {
+            *comp = 0;
+            *is_2d = 0;
+            return dim;
+        }
+        *comp = dim & 1u;
+        *is_2d = 1;
+        return dim & ~1u;
+    }
+    off = (dim - DIM_BOUNCE_BASE) % DIM_PER_BOUNCE;
+    if (off == DIM_LIGHT_PICK || off == DIM_RR) {
+        *comp = 0;
+        *is_2d = 0;
+        return dim;
+    }
+    *comp = (off - 1u) & 1u;
+    *is_2d = 1;
+    return dim - *comp;
+}
+
+/* Building blocks, exposed for tests. */
+uint32_t sampler_permute(uint32_t i, uint32_t n, uint32_t seed);  /* bijection on [0, n) */
+uint32_t sampler_owen_scramble(uint32_t x, uint32_t seed);       /* nested uniform, base 2 */
+uint32_t sampler_sobol_bits(uint32_t index, uint32_t dim);       /* dim 0 or 1 */
 
 #endif

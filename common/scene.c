@@ -1,6 +1,8 @@
 /* Flat scene container: growth helpers, validation and freeing (see scene.h). */
 #include "scene.h"
 #include "log.h"
+#include "motion.h"
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -13,7 +15,12 @@ void scene_free(struct scene *scene)
         free(m->uvs);
         free(m->indices);
         free(m->material_ids);
+        free(m->keys);
+        free(m->frame_positions);
+        free(m->frame_times);
     }
+    for (uint32_t i = 0; i < scene->num_spheres; i++)
+        free(scene->spheres[i].keys);
     free(scene->meshes);
     free(scene->materials);
     free(scene->spheres);
@@ -97,6 +104,10 @@ int scene_validate(const struct scene *s, char *err, size_t errlen)
             str_fmt(err, errlen, "material \"%s\": albedo must be in [0,1] and emission >= 0", m->name);
             return -1;
         }
+        if (m->type == MATERIAL_DIELECTRIC && !(m->ior > 0.0f && isfinite(m->ior))) {
+            str_fmt(err, errlen, "material \"%s\": ior must be > 0 and finite", m->name);
+            return -1;
+        }
     }
     for (uint32_t i = 0; i < s->num_meshes; i++) {
         const struct mesh *m = &s->meshes[i];
@@ -115,12 +126,34 @@ int scene_validate(const struct scene *s, char *err, size_t errlen)
                 str_fmt(err, errlen, "mesh \"%s\": material index out of range", m->name);
                 return -1;
             }
+        if (motion_keys_check(m->keys, m->num_keys) != 0) {
+            str_fmt(err, errlen, "mesh \"%s\": keyframes need increasing finite times, scales > 0 and unit quaternions", m->name);
+            return -1;
+        }
+        if (m->num_frames == 1 || (m->num_frames > 1 && (!m->frame_positions || !m->frame_times))) {
+            str_fmt(err, errlen, "mesh \"%s\": deformation needs at least two frames", m->name);
+            return -1;
+        }
+        for (uint32_t k = 0; k < m->num_frames; k++)
+            if (!isfinite(m->frame_times[k]) || (k > 0 && !(m->frame_times[k] > m->frame_times[k - 1]))) {
+                str_fmt(err, errlen, "mesh \"%s\": frame times must be finite and increasing", m->name);
+                return -1;
+            }
+        for (size_t k = 0; k < 3 * (size_t)m->num_vertices * m->num_frames; k++)
+            if (!isfinite(m->frame_positions[k])) {
+                str_fmt(err, errlen, "mesh \"%s\": non-finite vertex position in a deformation frame", m->name);
+                return -1;
+            }
     }
     for (uint32_t i = 0; i < s->num_spheres; i++) {
         const struct sphere *sp = &s->spheres[i];
         if (!finite3(sp->center) || !(sp->radius > 0.0f) || !isfinite(sp->radius) ||
             sp->material_id >= s->num_materials) {
             str_fmt(err, errlen, "sphere \"%s\": needs a finite center, radius > 0 and a material", sp->name);
+            return -1;
+        }
+        if (motion_keys_check(sp->keys, sp->num_keys) != 0) {
+            str_fmt(err, errlen, "sphere \"%s\": keyframes need increasing finite times, scales > 0 and unit quaternions", sp->name);
             return -1;
         }
     }

@@ -8,6 +8,8 @@
 #include "scene_json.h"
 #include "log.h"
 #include "mesh_obj.h"
+#include "motion.h"
+#include "sampler.h"
 #include <float.h>
 #include <jansson.h>
 #include <math.h>
@@ -465,7 +467,10 @@ static int parse_materials(struct ctx *c, const struct member *mm)
 {
     if (!json_is_object(mm->val))
         return fail(c, &mm->path, AT_VALUE, "materials must be an object (name -> material)");
-    static const char *const keys[] = {"type", "albedo", "emission"};
+    /* One closed list for all types; which keys a type takes is checked below. */
+    static const char *const keys[] = {"type", "albedo", "emission", "reflectance", "ior", "transmittance"};
+    static const char *const type_names[] = {"diffuse", "mirror", "dielectric"};
+    static const char *const type_keys[] = {"albedo", "reflectance", "ior, transmittance"};
     const char *name = NULL;
     json_t *def;
     uint32_t ordinal = 0;
@@ -477,22 +482,47 @@ static int parse_materials(struct ctx *c, const struct member *mm)
             return fail(c, &p, AT_KEY, "material name must be 1 to %d bytes long", SCENE_NAME_MAX - 1);
         char what[160];
         str_fmt(what, sizeof what, "material \"%s\"", printable(name, nb, sizeof nb));
-        struct member m[3];
+        struct member m[6];
         const char *type = NULL;
-        if (object_members(c, def, &p, what, keys, 3, m) != 0 || require(c, &m[0], &p, what, "type") != 0 ||
+        if (object_members(c, def, &p, what, keys, 6, m) != 0 || require(c, &m[0], &p, what, "type") != 0 ||
             get_string(c, &m[0], "type", &type) != 0)
             return -1;
-        if (strcmp(type, "diffuse") != 0) {
+        int ti = 0;
+        while (ti < 3 && strcmp(type, type_names[ti]) != 0)
+            ti++;
+        if (ti == 3) {
             char tb[80];
-            return fail(c, &m[0].path, AT_VALUE, "unknown material type \"%s\" (known: diffuse)",
+            return fail(c, &m[0].path, AT_VALUE, "unknown material type \"%s\" (known: diffuse, mirror, dielectric)",
                         printable(type, tb, sizeof tb));
         }
+        /* Key k (1..5) belongs to: albedo diffuse, emission any, reflectance mirror,
+         * ior and transmittance dielectric. */
+        static const int key_type[6] = {-1, 0, -1, 1, 2, 2};
+        for (int k = 1; k < 6; k++)
+            if (m[k].val && key_type[k] >= 0 && key_type[k] != ti)
+                return fail(c, &m[k].path, AT_KEY, "key \"%s\" does not apply to a %s material (its keys: %s, emission)",
+                            keys[k], type_names[ti], type_keys[ti]);
         struct material mat;
         memset(&mat, 0, sizeof mat);
         memcpy(mat.name, name, n + 1);
-        mat.type = MATERIAL_DIFFUSE;
+        mat.type = ti == 0 ? MATERIAL_DIFFUSE : ti == 1 ? MATERIAL_MIRROR : MATERIAL_DIELECTRIC;
         mat.albedo = v3(0.8f, 0.8f, 0.8f);
         mat.emission = v3(0, 0, 0);
+        mat.reflectance = v3(1, 1, 1);
+        mat.transmittance = v3(1, 1, 1);
+        mat.ior = 1.5f;
+        if (m[3].val && (get_vec3(c, m[3].val, &m[3].path, "reflectance", &mat.reflectance) != 0 ||
+                         check_color(c, &m[3], "reflectance", 0.0f, 1.0f, mat.reflectance) != 0))
+            return -1;
+        if (m[5].val && (get_vec3(c, m[5].val, &m[5].path, "transmittance", &mat.transmittance) != 0 ||
+                         check_color(c, &m[5], "transmittance", 0.0f, 1.0f, mat.transmittance) != 0))
+            return -1;
+        if (m[4].val) {
+            if (get_float(c, m[4].val, &m[4].path, "ior", &mat.ior) != 0)
+                return -1;
+            if (!(mat.ior >= 1.0f / 16.0f && mat.ior <= 16.0f))
+                return fail(c, &m[4].path, AT_VALUE, "ior must be in [0.0625, 16] (inside / outside)");
+        }
         if (m[1].val && (get_vec3(c, m[1].val, &m[1].path, "albedo", &mat.albedo) != 0 ||
                          check_color(c, &m[1], "albedo", 0.0f, 1.0f, mat.albedo) != 0))
             return -1;
@@ -520,51 +550,178 @@ static int find_material(struct ctx *c, const struct member *m, uint32_t *id)
                 printable(name, nb, sizeof nb));
 }
 
+/* One camera keyframe: {time, position, look_at, up?}. */
+static int parse_camera_key(struct ctx *c, json_t *obj, const struct jpath *p, struct camera_keyframe *k)
+{
+    static const char *const keys[] = {"time", "position", "look_at", "up"};
+    struct member m[4];
+    if (object_members(c, obj, p, "camera keyframe", keys, 4, m) != 0)
+        return -1;
+    for (int i = 0; i < 3; i++)
+        if (require(c, &m[i], p, "camera keyframe", keys[i]) != 0)
+            return -1;
+    k->up = v3(0, 1, 0);
+    if (get_float(c, m[0].val, &m[0].path, "time", &k->time) != 0 ||
+        get_vec3(c, m[1].val, &m[1].path, "position", &k->position) != 0 ||
+        get_vec3(c, m[2].val, &m[2].path, "look_at", &k->look_at) != 0 ||
+        (m[3].val && get_vec3(c, m[3].val, &m[3].path, "up", &k->up) != 0))
+        return -1;
+    if (!(fabsf(k->time) <= 1e7f))
+        return fail(c, &m[0].path, AT_VALUE, "time must be within +-1e7 frames");
+    vec3 fwd = v3_sub(k->look_at, k->position);
+    if (!(v3_length(fwd) > 0.0f) || !isfinite(v3_length(fwd)))
+        return fail(c, &m[2].path, AT_VALUE, "look_at must differ from position");
+    if (!(v3_length(v3_cross(v3_normalize(fwd), v3_normalize(k->up))) > 1e-6f))
+        return fail(c, m[3].val ? &m[3].path : p, AT_VALUE, "up must not be zero or parallel to the view direction");
+    return 0;
+}
+
 static int parse_camera(struct ctx *c, const struct member *cm)
 {
-    static const char *const keys[] = {"position", "look_at", "up", "fov_y", "aperture", "focus_distance"};
-    struct member m[6];
-    if (object_members(c, cm->val, &cm->path, "camera", keys, 6, m) != 0)
+    enum { POS, LOOK, UP, FOV, APERTURE, FOCUS_DIST, F_NUMBER, FOCAL_MM, FOCUS_POINT, BLADES, BLADE_ROT, S_OPEN,
+           S_CLOSE, S_CURVE, S_RAMP, KEYS, NKEYS };
+    static const char *const keys[NKEYS] = {"position", "look_at", "up", "fov_y", "aperture", "focus_distance",
+                                            "f_number", "focal_length_mm", "focus_point", "blades",
+                                            "blade_rotation", "shutter_open", "shutter_close", "shutter_curve",
+                                            "shutter_ramp", "keyframes"};
+    struct member m[NKEYS];
+    if (object_members(c, cm->val, &cm->path, "camera", keys, NKEYS, m) != 0)
         return -1;
-    for (int i = 0; i < 4; i++)
-        if (i != 2 && require(c, &m[i], &cm->path, "camera", keys[i]) != 0)
-            return -1;
     struct camera_desc *cd = &c->scene->camera;
-    cd->up = v3(0, 1, 0);
-    if (get_vec3(c, m[0].val, &m[0].path, "position", &cd->position) != 0 ||
-        get_vec3(c, m[1].val, &m[1].path, "look_at", &cd->look_at) != 0 ||
-        (m[2].val && get_vec3(c, m[2].val, &m[2].path, "up", &cd->up) != 0) ||
-        get_float(c, m[3].val, &m[3].path, "fov_y", &cd->fov_y_deg) != 0)
-        return -1;
+    /* Keyframes define the camera's path: position / look_at / up then come from them. */
+    if (m[KEYS].val) {
+        for (int i = POS; i <= UP; i++)
+            if (m[i].val)
+                return fail(c, &m[i].path, AT_KEY, "camera: \"%s\" conflicts with \"keyframes\" (give it per key)",
+                            keys[i]);
+        if (!json_is_array(m[KEYS].val) || json_array_size(m[KEYS].val) < 1 ||
+            json_array_size(m[KEYS].val) > CAMERA_MAX_KEYFRAMES)
+            return fail(c, &m[KEYS].path, AT_VALUE, "keyframes must be an array of 1..%d objects",
+                        CAMERA_MAX_KEYFRAMES);
+        cd->num_keyframes = (uint32_t)json_array_size(m[KEYS].val);
+        for (uint32_t i = 0; i < cd->num_keyframes; i++) {
+            struct jpath kp = jpath_child(&m[KEYS].path, i);
+            if (parse_camera_key(c, json_array_get(m[KEYS].val, i), &kp, &cd->keyframes[i]) != 0)
+                return -1;
+            if (i > 0 && !(cd->keyframes[i].time > cd->keyframes[i - 1].time))
+                return fail(c, &kp, AT_VALUE, "keyframe times must increase");
+        }
+        cd->position = cd->keyframes[0].position;
+        cd->look_at = cd->keyframes[0].look_at;
+        cd->up = cd->keyframes[0].up;
+        if (require(c, &m[FOV], &cm->path, "camera", keys[FOV]) != 0 ||
+            get_float(c, m[FOV].val, &m[FOV].path, "fov_y", &cd->fov_y_deg) != 0)
+            return -1;
+    } else {
+        for (int i = 0; i < 4; i++)
+            if (i != UP && require(c, &m[i], &cm->path, "camera", keys[i]) != 0)
+                return -1;
+        cd->up = v3(0, 1, 0);
+        if (get_vec3(c, m[POS].val, &m[POS].path, "position", &cd->position) != 0 ||
+            get_vec3(c, m[LOOK].val, &m[LOOK].path, "look_at", &cd->look_at) != 0 ||
+            (m[UP].val && get_vec3(c, m[UP].val, &m[UP].path, "up", &cd->up) != 0) ||
+            get_float(c, m[FOV].val, &m[FOV].path, "fov_y", &cd->fov_y_deg) != 0)
+            return -1;
+    }
     if (!(cd->fov_y_deg > 0.0f && cd->fov_y_deg < 180.0f))
-        return fail(c, &m[3].path, AT_VALUE, "fov_y must be in (0, 180) degrees");
+        return fail(c, &m[FOV].path, AT_VALUE, "fov_y must be in (0, 180) degrees");
     vec3 fwd = v3_sub(cd->look_at, cd->position);
     if (!(v3_length(fwd) > 0.0f) || !isfinite(v3_length(fwd)))
-        return fail(c, &m[1].path, AT_VALUE, "look_at must differ from position");
+        return fail(c, &m[LOOK].path, AT_VALUE, "look_at must differ from position");
     float cross = v3_length(v3_cross(v3_normalize(fwd), v3_normalize(cd->up)));
     if (!(cross > 1e-6f))
-        return fail(c, m[2].val ? &m[2].path : &cm->path, AT_VALUE,
+        return fail(c, m[UP].val ? &m[UP].path : &cm->path, AT_VALUE,
                     "up must not be zero or parallel to the view direction");
-    if (m[4].val) {
-        if (get_float(c, m[4].val, &m[4].path, "aperture", &cd->aperture_radius) != 0)
+    /* Lens: a radius, or an f-number with a focal length (scene units taken as metres). */
+    if (m[APERTURE].val && m[F_NUMBER].val)
+        return fail(c, &m[F_NUMBER].path, AT_KEY, "give either \"aperture\" or \"f_number\", not both");
+    if (m[APERTURE].val) {
+        if (get_float(c, m[APERTURE].val, &m[APERTURE].path, "aperture", &cd->aperture_radius) != 0)
             return -1;
-        if (cd->aperture_radius != 0.0f)
-            return fail(c, &m[4].path, AT_VALUE, "thin lens not implemented yet: aperture must be 0");
+        if (!(cd->aperture_radius >= 0.0f && cd->aperture_radius <= 1e6f))
+            return fail(c, &m[APERTURE].path, AT_VALUE, "aperture must be in [0, 1e6] (lens radius, scene units)");
     }
-    if (m[5].val) {
-        if (get_float(c, m[5].val, &m[5].path, "focus_distance", &cd->focus_distance) != 0)
+    if (m[FOCAL_MM].val && !m[F_NUMBER].val)
+        return fail(c, &m[FOCAL_MM].path, AT_KEY, "focal_length_mm is only used with f_number");
+    if (m[F_NUMBER].val) {
+        float fn, fl;
+        if (require(c, &m[FOCAL_MM], &cm->path, "camera (with f_number)", "focal_length_mm") != 0 ||
+            get_float(c, m[F_NUMBER].val, &m[F_NUMBER].path, "f_number", &fn) != 0 ||
+            get_float(c, m[FOCAL_MM].val, &m[FOCAL_MM].path, "focal_length_mm", &fl) != 0)
             return -1;
-        if (!(cd->focus_distance >= 0.0f))
-            return fail(c, &m[5].path, AT_VALUE, "focus_distance must be >= 0 (0 = distance to look_at)");
+        if (!(fn >= 0.1f && fn <= 1e6f))
+            return fail(c, &m[F_NUMBER].path, AT_VALUE, "f_number must be in [0.1, 1e6]");
+        if (!(fl > 0.0f && fl <= 1e6f))
+            return fail(c, &m[FOCAL_MM].path, AT_VALUE, "focal_length_mm must be in (0, 1e6]");
+        cd->aperture_radius = (float)((double)fl * 1e-3 / (2.0 * fn));
+    }
+    if (m[FOCUS_DIST].val && m[FOCUS_POINT].val)
+        return fail(c, &m[FOCUS_POINT].path, AT_KEY, "give either \"focus_distance\" or \"focus_point\", not both");
+    if (m[FOCUS_DIST].val) {
+        if (get_float(c, m[FOCUS_DIST].val, &m[FOCUS_DIST].path, "focus_distance", &cd->focus_distance) != 0)
+            return -1;
+        if (!(cd->focus_distance >= 0.0f && cd->focus_distance <= 1e12f))
+            return fail(c, &m[FOCUS_DIST].path, AT_VALUE,
+                        "focus_distance must be in [0, 1e12] (0 = distance to look_at)");
+    }
+    if (m[FOCUS_POINT].val) {
+        if (get_vec3(c, m[FOCUS_POINT].val, &m[FOCUS_POINT].path, "focus_point", &cd->focus_point) != 0)
+            return -1;
+        cd->has_focus_point = 1;
+    }
+    if (m[BLADES].val) {
+        json_int_t b;
+        if (get_uint(c, &m[BLADES], "blades", 3, CAMERA_MAX_BLADES, &b) != 0)
+            return -1;
+        cd->blades = (uint32_t)b;
+    }
+    if (m[BLADE_ROT].val) {
+        if (!m[BLADES].val)
+            return fail(c, &m[BLADE_ROT].path, AT_KEY, "blade_rotation needs \"blades\"");
+        if (get_float(c, m[BLADE_ROT].val, &m[BLADE_ROT].path, "blade_rotation", &cd->blade_rotation_deg) != 0)
+            return -1;
+        if (!(fabsf(cd->blade_rotation_deg) <= 360.0f))
+            return fail(c, &m[BLADE_ROT].path, AT_VALUE, "blade_rotation must be in [-360, 360] degrees");
+    }
+    /* Shutter, in frames relative to the frame's time. */
+    if ((m[S_OPEN].val && get_float(c, m[S_OPEN].val, &m[S_OPEN].path, "shutter_open", &cd->shutter_open) != 0) ||
+        (m[S_CLOSE].val && get_float(c, m[S_CLOSE].val, &m[S_CLOSE].path, "shutter_close", &cd->shutter_close) != 0))
+        return -1;
+    if (m[S_OPEN].val && !m[S_CLOSE].val)
+        cd->shutter_close = cd->shutter_open;
+    if (!(fabsf(cd->shutter_open) <= 1e6f && fabsf(cd->shutter_close) <= 1e6f))
+        return fail(c, m[S_OPEN].val ? &m[S_OPEN].path : &m[S_CLOSE].path, AT_VALUE,
+                    "shutter_open / shutter_close must be within +-1e6 frames");
+    if (!(cd->shutter_close >= cd->shutter_open))
+        return fail(c, m[S_CLOSE].val ? &m[S_CLOSE].path : &m[S_OPEN].path, AT_VALUE,
+                    "shutter_close must be >= shutter_open");
+    int trapezoid = 0;
+    if (m[S_CURVE].val) {
+        const char *curve = NULL;
+        if (get_string(c, &m[S_CURVE], "shutter_curve", &curve) != 0)
+            return -1;
+        if (strcmp(curve, "trapezoid") == 0)
+            trapezoid = 1;
+        else if (strcmp(curve, "box") != 0)
+            return fail(c, &m[S_CURVE].path, AT_VALUE, "shutter_curve must be \"box\" or \"trapezoid\"");
+    }
+    cd->shutter_ramp = trapezoid ? 0.25f : 0.0f;
+    if (m[S_RAMP].val) {
+        if (!trapezoid)
+            return fail(c, &m[S_RAMP].path, AT_KEY, "shutter_ramp needs \"shutter_curve\": \"trapezoid\"");
+        if (get_float(c, m[S_RAMP].val, &m[S_RAMP].path, "shutter_ramp", &cd->shutter_ramp) != 0)
+            return -1;
+        if (!(cd->shutter_ramp >= 0.0f && cd->shutter_ramp <= 0.5f))
+            return fail(c, &m[S_RAMP].path, AT_VALUE, "shutter_ramp must be in [0, 0.5]");
     }
     return 0;
 }
 
 static int parse_render(struct ctx *c, const struct member *rm)
 {
-    static const char *const keys[] = {"width", "height", "spp", "max_depth", "seed", "tile_size"};
-    struct member m[6];
-    if (object_members(c, rm->val, &rm->path, "render", keys, 6, m) != 0 ||
+    static const char *const keys[] = {"width", "height", "spp", "max_depth", "seed", "tile_size", "sampler"};
+    struct member m[7];
+    if (object_members(c, rm->val, &rm->path, "render", keys, 7, m) != 0 ||
         require(c, &m[0], &rm->path, "render", "width") != 0 ||
         require(c, &m[1], &rm->path, "render", "height") != 0)
         return -1;
@@ -581,6 +738,14 @@ static int parse_render(struct ctx *c, const struct member *rm)
     r->max_depth = (uint32_t)v[3];
     r->seed = (uint64_t)v[4];
     r->tile_size = (uint32_t)v[5];
+    r->sampler = SCENE_DEFAULT_SAMPLER;
+    if (m[6].val) {
+        const char *name = NULL;
+        if (get_string(c, &m[6], "sampler", &name) != 0)
+            return -1;
+        if (sampler_type_from_name(name, &r->sampler) != 0)
+            return fail(c, &m[6].path, AT_VALUE, "sampler must be \"independent\", \"stratified\" or \"sobol\"");
+    }
     return 0;
 }
 
@@ -604,11 +769,190 @@ static int object_type(struct ctx *c, json_t *obj, const struct jpath *p, const 
     return fail(c, p, AT_VALUE, "%s: missing key \"type\"", what);
 }
 
+/* ---- Motion ---- */
+
+#define MAX_KEYFRAMES 4096
+
+/* Hamilton product a * b: the rotation b, then a. */
+static void quat_mul(const double a[4], const double b[4], double out[4])
+{
+    out[0] = a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3];
+    out[1] = a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2];
+    out[2] = a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1];
+    out[3] = a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0];
+}
+
+static int parse_key_rotation(struct ctx *c, json_t *v, const struct jpath *p, double q[4])
+{
+    static const char *const keys[] = {"axis", "degrees"};
+    struct member m[2];
+    vec3 axis;
+    float deg;
+    if (object_members(c, v, p, "rotate", keys, 2, m) != 0 || require(c, &m[0], p, "rotate", "axis") != 0 ||
+        require(c, &m[1], p, "rotate", "degrees") != 0 ||
+        get_vec3(c, m[0].val, &m[0].path, "rotate axis", &axis) != 0 ||
+        get_float(c, m[1].val, &m[1].path, "rotate degrees", &deg) != 0)
+        return -1;
+    double l = sqrt((double)axis.x * axis.x + (double)axis.y * axis.y + (double)axis.z * axis.z);
+    if (!(l > 0.0) || !isfinite(l))
+        return fail(c, &m[0].path, AT_VALUE, "rotate axis must be a non-zero vector");
+    float qf[4];
+    motion_quat_from_axis_angle(v3((float)(axis.x / l), (float)(axis.y / l), (float)(axis.z / l)), deg, qf);
+    for (int k = 0; k < 4; k++)
+        q[k] = qf[k];
+    return 0;
+}
+
+/* "keyframes": [{"time", "translate", "rotate", "scale"}, ...] into *out (caller frees). */
+static int parse_keyframes(struct ctx *c, const struct member *km, struct motion_key **out, uint32_t *num)
+{
+    size_t n = json_is_array(km->val) ? json_array_size(km->val) : 0;
+    if (n == 0 || n > MAX_KEYFRAMES)
+        return fail(c, &km->path, AT_VALUE, "keyframes must be an array of 1 to %d objects", MAX_KEYFRAMES);
+    static const char *const keys[] = {"time", "translate", "rotate", "scale"};
+    struct motion_key *k = mem_calloc(n, sizeof *k);
+    for (size_t i = 0; i < n; i++) {
+        struct jpath p = jpath_child(&km->path, (uint32_t)i);
+        struct member m[4];
+        char what[48];
+        str_fmt(what, sizeof what, "keyframes[%zu]", i);
+        if (object_members(c, json_array_get(km->val, i), &p, what, keys, 4, m) != 0 ||
+            require(c, &m[0], &p, what, "time") != 0 || get_float(c, m[0].val, &m[0].path, "time", &k[i].time) != 0)
+            goto fail;
+        if (i > 0 && !(k[i].time > k[i - 1].time)) {
+            fail(c, &m[0].path, AT_VALUE, "keyframe times must increase (%g after %g)", (double)k[i].time,
+                 (double)k[i - 1].time);
+            goto fail;
+        }
+        k[i].scale = v3(1, 1, 1);
+        if (m[3].val) {
+            if (json_is_number(m[3].val)) {
+                float f;
+                if (get_float(c, m[3].val, &m[3].path, "scale", &f) != 0)
+                    goto fail;
+                k[i].scale = v3(f, f, f);
+            } else if (get_vec3(c, m[3].val, &m[3].path, "scale", &k[i].scale) != 0) {
+                goto fail;
+            }
+            if (!(k[i].scale.x > 0.0f && k[i].scale.y > 0.0f && k[i].scale.z > 0.0f)) {
+                fail(c, &m[3].path, AT_VALUE, "keyframe scale must be > 0 (mirrors belong in \"transform\")");
+                goto fail;
+            }
+        }
+        double q[4] = {1, 0, 0, 0};
+        if (m[2].val) {
+            size_t nr = json_is_array(m[2].val) ? json_array_size(m[2].val) : 1;
+            for (size_t r = 0; r < nr; r++) {
+                struct jpath rp = json_is_array(m[2].val) ? jpath_child(&m[2].path, (uint32_t)r) : m[2].path;
+                json_t *rv = json_is_array(m[2].val) ? json_array_get(m[2].val, r) : m[2].val;
+                double qr[4] = {1, 0, 0, 0}, t[4];
+                if (parse_key_rotation(c, rv, &rp, qr) != 0)
+                    goto fail;
+                quat_mul(qr, q, t); /* later rotations apply after earlier ones */
+                memcpy(q, t, sizeof q);
+            }
+        }
+        double l = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+        for (int j = 0; j < 4; j++)
+            k[i].quat[j] = (float)(q[j] / l);
+        if (m[1].val && get_vec3(c, m[1].val, &m[1].path, "translate", &k[i].translate) != 0)
+            goto fail;
+    }
+    *out = k;
+    *num = (uint32_t)n;
+    return 0;
+fail:
+    free(k);
+    return -1;
+}
+
+/* Deformation: frames 1.. of an OBJ sequence, each with mesh's topology, into mesh. */
+static int parse_frames(struct ctx *c, const struct member *fm, const struct member *tm,
+                        const struct mesh_obj_options *opt, struct mesh *mesh)
+{
+    size_t n = json_array_size(fm->val);
+    if (!tm->val || !json_is_array(tm->val) || json_array_size(tm->val) != n)
+        return fail(c, tm->val ? &tm->path : &fm->path, AT_VALUE,
+                    "frame_times must be an array of %zu numbers, one per frame", n);
+    mesh->frame_times = mem_alloc(sizeof(float) * n);
+    for (size_t i = 0; i < n; i++) {
+        struct jpath ep = jpath_child(&tm->path, (uint32_t)i);
+        if (get_float(c, json_array_get(tm->val, i), &ep, "frame time", &mesh->frame_times[i]) != 0)
+            return -1;
+        if (i > 0 && !(mesh->frame_times[i] > mesh->frame_times[i - 1]))
+            return fail(c, &ep, AT_VALUE, "frame_times must increase");
+    }
+    size_t nf = 3 * (size_t)mesh->num_vertices;
+    mesh->frame_positions = mem_alloc(sizeof(float) * nf * n);
+    memcpy(mesh->frame_positions, mesh->positions, sizeof(float) * nf);
+    mesh->num_frames = (uint32_t)n;
+    for (size_t i = 1; i < n; i++) {
+        struct member em = {json_array_get(fm->val, i), jpath_child(&fm->path, (uint32_t)i)};
+        const char *file = NULL;
+        char why[1024];
+        if (get_string(c, &em, "frame", &file) != 0)
+            return -1;
+        if (asset_path_check(file, why, sizeof why) != 0)
+            return fail(c, &em.path, AT_VALUE, "frames: %s", why);
+        char *data = NULL;
+        size_t size = 0;
+        if (c->src->read(c->src->ctx, file, &data, &size, why, sizeof why) != 0)
+            return fail(c, &em.path, AT_VALUE, "cannot read OBJ file: %s", why);
+        /* Only positions are kept: parse into a scratch scene with one stand-in material
+         * (no MTL files are read for later frames). */
+        struct scene tmp;
+        memset(&tmp, 0, sizeof tmp);
+        struct material dummy;
+        memset(&dummy, 0, sizeof dummy);
+        scene_add_material(&tmp, &dummy);
+        struct mesh_obj_cache cache;
+        memset(&cache, 0, sizeof cache);
+        struct mesh_obj_options o = *opt;
+        o.material_override = 0;
+        int rc = mesh_obj_parse(&tmp, &cache, c->src, file, data, size, &o, c->err, c->errlen);
+        free(data);
+        mesh_obj_cache_free(&cache);
+        if (rc == 0) {
+            const struct mesh *fmsh = tmp.num_meshes == 1 ? &tmp.meshes[0] : NULL;
+            if (!fmsh || fmsh->num_vertices != mesh->num_vertices || fmsh->num_triangles != mesh->num_triangles ||
+                memcmp(fmsh->indices, mesh->indices, 3 * sizeof(uint32_t) * mesh->num_triangles) != 0) {
+                char fb[80], f0[80];
+                rc = fail(c, &em.path, AT_VALUE,
+                          "frame \"%s\" does not have the topology of the first frame \"%s\" "
+                          "(%u vertices, %u triangles; the first has %u, %u)",
+                          printable(file, fb, sizeof fb), printable(mesh->name, f0, sizeof f0),
+                          fmsh ? fmsh->num_vertices : 0, fmsh ? fmsh->num_triangles : 0, mesh->num_vertices,
+                          mesh->num_triangles);
+            } else {
+                memcpy(mesh->frame_positions + i * nf, fmsh->positions, sizeof(float) * nf);
+            }
+        }
+        scene_free(&tmp);
+        if (rc != 0)
+            return -1;
+    }
+    return 0;
+}
+
 static int parse_obj_object(struct ctx *c, json_t *obj, const struct jpath *p, const char *what)
 {
-    static const char *const keys[] = {"type", "file", "material", "transform", "name"};
-    struct member m[5];
-    if (object_members(c, obj, p, what, keys, 5, m) != 0 || require(c, &m[1], p, what, "file") != 0)
+    static const char *const keys[] = {"type", "file", "material", "transform", "name", "keyframes", "frames",
+                                       "frame_times"};
+    struct member m[8];
+    if (object_members(c, obj, p, what, keys, 8, m) != 0)
+        return -1;
+    /* A deforming object names its OBJ sequence in "frames" instead of "file". */
+    if (m[6].val) {
+        if (m[1].val)
+            return fail(c, &m[1].path, AT_KEY, "%s: \"file\" and \"frames\" exclude each other", what);
+        if (!json_is_array(m[6].val) || json_array_size(m[6].val) < 2 || json_array_size(m[6].val) > 1024)
+            return fail(c, &m[6].path, AT_VALUE, "frames must be an array of 2 to 1024 OBJ paths");
+        m[1].val = json_array_get(m[6].val, 0);
+        m[1].path = jpath_child(&m[6].path, 0);
+    } else if (m[7].val) {
+        return fail(c, &m[7].path, AT_KEY, "frame_times needs \"frames\"");
+    }
+    if (require(c, &m[1], p, what, "file") != 0)
         return -1;
     struct mesh_obj_options opt = mesh_obj_default_options();
     opt.display_dir = c->display_dir;
@@ -635,16 +979,26 @@ static int parse_obj_object(struct ctx *c, json_t *obj, const struct jpath *p, c
         return fail(c, &m[1].path, AT_VALUE, "cannot read OBJ file \"%s\": no asset source", file);
     if (c->src->read(c->src->ctx, file, &data, &size, why, sizeof why) != 0)
         return fail(c, &m[1].path, AT_VALUE, "cannot read OBJ file: %s", why);
+    uint32_t before = c->scene->num_meshes;
     int rc = mesh_obj_parse(c->scene, &c->cache, c->src, file, data, size, &opt, c->err, c->errlen);
     free(data);
-    return rc;
+    if (rc != 0 || (!m[5].val && !m[6].val))
+        return rc;
+    if (c->scene->num_meshes != before + 1)
+        return fail(c, &m[1].path, AT_VALUE, "a moving object needs an OBJ file with faces");
+    struct mesh *mesh = &c->scene->meshes[before];
+    if (m[5].val && parse_keyframes(c, &m[5], &mesh->keys, &mesh->num_keys) != 0)
+        return -1;
+    if (m[6].val && parse_frames(c, &m[6], &m[7], &opt, mesh) != 0)
+        return -1;
+    return 0;
 }
 
 static int parse_sphere(struct ctx *c, json_t *obj, const struct jpath *p, const char *what)
 {
-    static const char *const keys[] = {"type", "center", "radius", "material", "transform", "name"};
-    struct member m[6];
-    if (object_members(c, obj, p, what, keys, 6, m) != 0 || require(c, &m[1], p, what, "center") != 0 ||
+    static const char *const keys[] = {"type", "center", "radius", "material", "transform", "name", "keyframes"};
+    struct member m[7];
+    if (object_members(c, obj, p, what, keys, 7, m) != 0 || require(c, &m[1], p, what, "center") != 0 ||
         require(c, &m[2], p, what, "radius") != 0 || require(c, &m[3], p, what, "material") != 0)
         return -1;
     struct sphere sp;
@@ -677,6 +1031,8 @@ static int parse_sphere(struct ctx *c, json_t *obj, const struct jpath *p, const
         str_fmt(sp.name, sizeof sp.name, "%s", name);
     else
         str_fmt(sp.name, sizeof sp.name, "sphere %u", c->scene->num_spheres);
+    if (m[6].val && parse_keyframes(c, &m[6], &sp.keys, &sp.num_keys) != 0)
+        return -1;
     scene_add_sphere(c->scene, &sp);
     return 0;
 }

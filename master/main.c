@@ -4,6 +4,7 @@
 #include "launch.h"
 #include "log.h"
 #include "master.h"
+#include "sampler.h"
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -19,6 +20,7 @@ static void usage(FILE *f)
             "  --seed K               random seed (overrides the scene)\n"
             "  --tile W               tile size in pixels, 8..1024 (overrides the scene)\n"
             "  --max-depth D          maximum path vertices (overrides the scene)\n"
+            "  --sampler NAME         independent, stratified or sobol (overrides the scene)\n"
             "  --bind ENDPOINT        also accept workers at ENDPOINT, e.g. tcp://127.0.0.1:5555\n"
             "  --preview OUT.png      also write a tone-mapped sRGB PNG preview\n"
             "  --worker-exe PATH      worker binary for local workers (default: next to master)\n"
@@ -71,6 +73,14 @@ int main(int argc, char **argv)
             o.output_path = argv[++i];
         } else if (has_arg && !strcmp(a, "--bind")) {
             o.bind = argv[++i];
+        } else if (has_arg && !strcmp(a, "--sampler")) {
+            enum sampler_type st;
+            if (sampler_type_from_name(argv[++i], &st) != 0) {
+                log_error("--sampler: unknown sampler \"%s\" (independent, stratified or sobol)", argv[i]);
+                return 2;
+            }
+            o.sampler = (uint32_t)st;
+            o.have_sampler = 1;
         } else if (has_arg && !strcmp(a, "--preview")) {
             o.preview_path = argv[++i];
         } else if (has_arg && !strcmp(a, "--worker-exe")) {

@@ -136,6 +136,8 @@ static int load_scene(struct master *m)
         rs->tile_size = o->tile;
     if (o->have_depth)
         rs->max_depth = o->depth;
+    if (o->have_sampler)
+        rs->sampler = (enum sampler_type)o->sampler;
     if (scene_validate(&m->scene, err, sizeof err) != 0) {
         log_error("%s: %s", o->scene_path, err);
         return -1;

@@ -16,6 +16,8 @@ struct master_opts {
     uint32_t threads;           /* per local worker */
     uint32_t worker_timeout_ms; /* evict a worker silent this long */
     int have_spp, have_seed, have_tile, have_depth;
+    int have_sampler;
+    uint32_t sampler;           /* enum sampler_type, with have_sampler */
     uint32_t spp, tile, depth;
     uint64_t seed;
 };

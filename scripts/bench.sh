@@ -3,7 +3,8 @@
 # cornell_box.obj, with the tutorial's camera and point light (cornell_box.ecs), the same
 # resolution, samples per pixel and path length, measured in the same run. Fixed costs
 # (process start, parsing, BVH build) are removed by timing two sample counts and taking
-# the slope. Prints a table, writes bench-out/bench.txt and bench-out/bench.png.
+# the slope. Both use independent random samples per dimension (the tutorial's sampler;
+# ours is chosen with "sampler": "independent"), so a sample costs the same work. Prints a table, writes bench-out/bench.txt and bench-out/bench.png.
 # Usage: BUILD=build sh scripts/bench.sh   (env: W, H, SPP_LO, SPP_HI, DEPTH, REPS)
 set -eu
 BUILD=${BUILD:-build}
@@ -27,7 +28,8 @@ cat >"$T/embree_cornell.json" <<JSON
 {
   "version": 1,
   "camera": {"position": [278, 273, -800], "look_at": [278, 273, 0], "up": [0, 1, 0], "fov_y": 37},
-  "render": {"width": $W, "height": $H, "spp": $SPP_LO, "max_depth": $DEPTH, "seed": 1, "tile_size": 32},
+  "render": {"width": $W, "height": $H, "spp": $SPP_LO, "max_depth": $DEPTH, "seed": 1, "tile_size": 32,
+             "sampler": "independent"},
   "objects": [{"type": "obj", "file": "cornell_box.obj"}],
   "lights": [{"type": "point", "position": [213, 300, 227], "intensity": [100000, 100000, 100000]}]
 }

@@ -2,24 +2,53 @@
 #include "cli.h"
 #include "log.h"
 #include "worker.h"
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/prctl.h>
 #include <unistd.h>
 
 static void usage(FILE *f)
 {
     fprintf(f,
             "usage: worker --connect ENDPOINT [--threads T] [--timeout-ms MS] [--verbose]\n"
+            "              [--curve-secret KEYFILE --server-key MASTER.pub]\n"
             "  --connect ENDPOINT  the master's endpoint, e.g. tcp://10.0.0.1:5555 or ipc:///tmp/x.sock\n"
             "  --threads T         render threads (default: all cores)\n"
             "  --timeout-ms MS     give up after MS milliseconds without a word from the master (default 30000)\n"
+            "  --curve-secret F    our CurveZMQ key pair (from brume-keygen); needs --server-key\n"
+            "  --server-key F      the master's public key file (KEYFILE.pub of the master's pair)\n"
+            "  --exit-with-parent  exit when the process that started us dies (local workers)\n"
+            "  --fault KIND[:N]    tests only: hang-after:N, crash-tile:N, garbage, slow:MS\n"
             "  --verbose           debug logging\n");
+}
+
+static int parse_fault(const char *s, struct worker_opts *o)
+{
+    static const struct { const char *name; enum worker_fault f; int needs_n; } kinds[] = {
+        {"hang-after", FAULT_HANG_AFTER, 1}, {"crash-tile", FAULT_CRASH_TILE, 1},
+        {"garbage", FAULT_GARBAGE, 0}, {"slow", FAULT_SLOW, 1}};
+    for (size_t i = 0; i < sizeof kinds / sizeof kinds[0]; i++) {
+        size_t n = strlen(kinds[i].name);
+        if (strncmp(s, kinds[i].name, n) != 0)
+            continue;
+        o->fault = kinds[i].f;
+        if (!kinds[i].needs_n)
+            return s[n] == '\0' ? 0 : -1;
+        uint64_t v;
+        char err[128];
+        if (s[n] != ':' || cli_parse_u64("--fault", s + n + 1, 0, UINT32_MAX, &v, err, sizeof err) != 0)
+            return -1;
+        o->fault_arg = (uint32_t)v;
+        return 0;
+    }
+    return -1;
 }
 
 int main(int argc, char **argv)
 {
-    struct worker_opts o = {NULL, cli_num_cores(), 30000};
+    struct worker_opts o = {NULL, cli_num_cores(), 30000, NULL, NULL, FAULT_NONE, 0};
     char prefix[64];
     snprintf(prefix, sizeof prefix, "worker %d", (int)getpid());
     log_set_prefix(prefix);
@@ -32,8 +61,22 @@ int main(int argc, char **argv)
             return 0;
         } else if (!strcmp(a, "--verbose")) {
             log_set_level(LOG_DEBUG);
+        } else if (!strcmp(a, "--exit-with-parent")) {
+            /* A master killed with SIGKILL cannot stop its local workers: the kernel does. */
+            pid_t parent = getppid();
+            if (prctl(PR_SET_PDEATHSIG, SIGTERM) != 0 || getppid() != parent)
+                return 1;
         } else if (i + 1 < argc && !strcmp(a, "--connect")) {
             o.endpoint = argv[++i];
+        } else if (i + 1 < argc && !strcmp(a, "--curve-secret")) {
+            o.curve_secret = argv[++i];
+        } else if (i + 1 < argc && !strcmp(a, "--server-key")) {
+            o.server_key = argv[++i];
+        } else if (i + 1 < argc && !strcmp(a, "--fault")) {
+            if (parse_fault(argv[++i], &o) != 0) {
+                log_error("--fault: \"%s\" is not hang-after:N, crash-tile:N, garbage or slow:MS", argv[i]);
+                return 2;
+            }
         } else if (i + 1 < argc && !strcmp(a, "--threads")) {
             if (cli_parse_u64(a, argv[++i], 1, 1024, &v, err, sizeof err) != 0) {
                 log_error("%s", err);
@@ -53,6 +96,10 @@ int main(int argc, char **argv)
     }
     if (!o.endpoint) {
         log_error("--connect ENDPOINT is required (see --help)");
+        return 2;
+    }
+    if (!o.curve_secret != !o.server_key) {
+        log_error("--curve-secret and --server-key go together");
         return 2;
     }
     return worker_run(&o);

@@ -2,7 +2,10 @@
  * state; render threads only take tile tasks from a locked queue and hand finished
  * tiles back over an inproc PUSH/PULL pair, so the socket is never shared between
  * threads. Everything a worker renders is a pure function of the job's blobs and the
- * tile id, so results are identical on any worker. */
+ * tile id, so results are identical on any worker. Render threads render a tile row by
+ * row and publish a per-thread progress counter after each row; heartbeats carry their
+ * sum and how long the slowest busy thread has made no progress, so the master can tell
+ * a hung render thread from a slow one. */
 #include "worker.h"
 #include "asset.h"
 #include "blob.h"
@@ -13,8 +16,10 @@
 #include "proto.h"
 #include "scene_json.h"
 #include <errno.h>
+#include <math.h>
 #include <pthread.h>
 #include <signal.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
@@ -36,6 +41,13 @@ struct tile_done {
     int failed;
 };
 
+/* Written by one render thread, read by the main thread for heartbeats. */
+struct thread_progress {
+    _Atomic uint64_t samples;       /* samples finished by this thread, ever */
+    _Atomic uint64_t last_ms;       /* when it last finished a row or took a tile */
+    _Atomic int busy;
+};
+
 struct pool {
     pthread_mutex_t lock;
     pthread_cond_t cond;
@@ -47,6 +59,11 @@ struct pool {
     void *zctx;
     const struct render_job *rjob;
     const struct image_desc *desc;
+    struct thread_progress *progress;   /* per thread; owned by struct worker (outlives pools) */
+    uint32_t next_index;
+    enum worker_fault fault;
+    uint32_t fault_arg;
+    _Atomic uint32_t *tiles_rendered;
 };
 
 struct fetch {
@@ -69,6 +86,8 @@ struct worker {
     struct image_desc desc;
     struct pool pool;
     uint32_t tiles_done;
+    struct thread_progress *progress;
+    _Atomic uint32_t tiles_rendered;
 };
 
 static volatile sig_atomic_t g_stop;
@@ -76,15 +95,50 @@ static void on_signal(int sig) { (void)sig; g_stop = 1; }
 
 /* ---- render threads ---- */
 
+/* Test-only faults (worker --fault): make this worker misbehave in one chosen way. */
+static void fault_before_tile(struct pool *p, const struct tile_task *t)
+{
+    switch (p->fault) {
+    case FAULT_HANG_AFTER:
+        if (atomic_load(p->tiles_rendered) >= p->fault_arg)
+            for (;;) { /* hang without progress until the job is dropped */
+                pthread_mutex_lock(&p->lock);
+                int stop = p->stop;
+                pthread_mutex_unlock(&p->lock);
+                if (stop)
+                    return;
+                struct timespec nap = {0, 50 * 1000000L};
+                nanosleep(&nap, NULL);
+            }
+        break;
+    case FAULT_CRASH_TILE:
+        if (t->tile == p->fault_arg)
+            abort();
+        break;
+    case FAULT_SLOW: {
+        struct timespec nap = {(time_t)(p->fault_arg / 1000), (long)(p->fault_arg % 1000) * 1000000L};
+        nanosleep(&nap, NULL);
+        break;
+    }
+    case FAULT_NONE:
+    case FAULT_GARBAGE:
+        break;
+    }
+}
+
 static void *pool_thread(void *arg)
 {
     struct pool *p = arg;
+    pthread_mutex_lock(&p->lock);
+    struct thread_progress *prog = &p->progress[p->next_index++];
+    pthread_mutex_unlock(&p->lock);
     void *push = zmq_socket(p->zctx, ZMQ_PUSH);
     net_socket_setup(push);
     zmq_connect(push, "inproc://results");
     char err[256];
     struct imgio_encoder *enc = imgio_encoder_new(p->desc, err, sizeof err);
     uint32_t tiles_x = imgio_tiles_x(p->desc);
+    uint32_t spp = p->rjob->scene->settings.spp;
     float *pixels = mem_alloc(sizeof(float) * p->desc->tile_size * p->desc->tile_size * TILE_NUM_CHANNELS);
     for (;;) {
         pthread_mutex_lock(&p->lock);
@@ -98,6 +152,9 @@ static void *pool_thread(void *arg)
         p->head = (p->head + 1) % p->cap;
         p->count--;
         pthread_mutex_unlock(&p->lock);
+        atomic_store(&prog->last_ms, net_now_ms());
+        atomic_store(&prog->busy, 1);
+        fault_before_tile(p, &t);
 
         struct tile_done *d = mem_calloc(1, sizeof *d);
         d->task = t;
@@ -105,15 +162,27 @@ static void *pool_thread(void *arg)
         imgio_tile_rect(p->desc, tx, ty, &x0, &y0, &w, &h);
         struct timespec a, b;
         clock_gettime(CLOCK_MONOTONIC, &a);
-        integrator_render_tile(p->rjob, x0, y0, w, h, pixels, &d->stats);
+        /* Row by row: pixels are pure functions of their coordinates, so this is the same
+         * image, and each row is a proof of progress for the heartbeat. */
+        for (uint32_t y = 0; y < h; y++) {
+            struct tile_stats row;
+            integrator_render_tile(p->rjob, x0, y0 + y, w, 1, pixels + (size_t)y * w * TILE_NUM_CHANNELS, &row);
+            tile_stats_add(&d->stats, &row);
+            atomic_fetch_add(&prog->samples, (uint64_t)w * spp);
+            atomic_store(&prog->last_ms, net_now_ms());
+        }
         clock_gettime(CLOCK_MONOTONIC, &b);
         d->stats.render_ns = (uint64_t)(b.tv_sec - a.tv_sec) * 1000000000ull + (uint64_t)b.tv_nsec - (uint64_t)a.tv_nsec;
+        if (p->fault == FAULT_GARBAGE)
+            pixels[0] = NAN;
         if (!enc) {
             d->failed = 1;
             snprintf(d->err, sizeof d->err, "%s", err);
         } else if (imgio_encode_tile(enc, tx, ty, pixels, &d->chunk, &d->chunk_size, d->err, sizeof d->err) != 0) {
             d->failed = 1;
         }
+        atomic_fetch_add(p->tiles_rendered, 1);
+        atomic_store(&prog->busy, 0);
         zmq_send(push, &d, sizeof d, 0);
     }
     free(pixels);
@@ -134,6 +203,12 @@ static void pool_start(struct worker *w)
     p->rjob = &w->rjob;
     p->desc = &w->desc;
     p->num_threads = w->opts->threads;
+    p->progress = w->progress;
+    p->fault = w->opts->fault;
+    p->fault_arg = w->opts->fault_arg;
+    p->tiles_rendered = &w->tiles_rendered;
+    for (uint32_t i = 0; i < p->num_threads; i++)
+        atomic_store(&p->progress[i].busy, 0);
     p->threads = mem_alloc(sizeof *p->threads * p->num_threads);
     for (uint32_t i = 0; i < p->num_threads; i++)
         CHECK(pthread_create(&p->threads[i], NULL, pool_thread, p) == 0);
@@ -406,7 +481,21 @@ int worker_run(const struct worker_opts *opts)
     net_socket_setup(w.sock);
     w.results = zmq_socket(w.zctx, ZMQ_PULL);
     net_socket_setup(w.results);
+    w.progress = mem_calloc(opts->threads, sizeof *w.progress);
     int rc = 1;
+    if (opts->curve_secret) {
+        struct net_key pub, sec, server;
+        char err[512] = "";
+        if (net_key_pair_load(opts->curve_secret, &pub, &sec, err, sizeof err) != 0 ||
+            net_key_public_load(opts->server_key, &server, err, sizeof err) != 0) {
+            log_error("%s", err);
+            goto done;
+        }
+        if (net_curve_client(w.sock, &server, &pub, &sec) != 0) {
+            log_error("cannot enable CurveZMQ: %s", zmq_strerror(errno));
+            goto done;
+        }
+    }
     if (zmq_bind(w.results, "inproc://results") != 0 || zmq_connect(w.sock, opts->endpoint) != 0) {
         log_error("cannot connect to %s: %s", opts->endpoint, zmq_strerror(errno));
         goto done;
@@ -481,6 +570,14 @@ int worker_run(const struct worker_opts *opts)
             struct proto_msg hb = {.type = MSG_HEARTBEAT};
             hb.u.heartbeat.job_id = w.have_job ? w.job.job_id : 0;
             hb.u.heartbeat.tiles_done = w.tiles_done;
+            uint64_t stalled = 0;
+            for (uint32_t i = 0; i < opts->threads; i++) {
+                hb.u.heartbeat.samples_done += atomic_load(&w.progress[i].samples);
+                uint64_t last = atomic_load(&w.progress[i].last_ms);
+                if (atomic_load(&w.progress[i].busy) && now > last && now - last > stalled)
+                    stalled = now - last;
+            }
+            hb.u.heartbeat.stalled_ms = stalled > UINT32_MAX ? UINT32_MAX : (uint32_t)stalled;
             net_send(w.sock, NULL, 0, &hb, &w.out);
             last_beat = now;
         }
@@ -498,5 +595,6 @@ done:
     zmq_close(w.results);
     zmq_close(w.sock);
     zmq_ctx_term(w.zctx);
+    free(w.progress);
     return rc;
 }

@@ -5,10 +5,23 @@
 #define BRUME_WORKER_H
 #include <stdint.h>
 
+/* Faults a worker can inject on purpose, for the fault-tolerance tests only. */
+enum worker_fault {
+    FAULT_NONE,
+    FAULT_HANG_AFTER,   /* render threads hang (main thread still answers) after N tiles */
+    FAULT_CRASH_TILE,   /* abort() when asked to render tile N */
+    FAULT_GARBAGE,      /* every result carries a NaN pixel (the master must reject it) */
+    FAULT_SLOW          /* sleep N ms before each tile (a straggler) */
+};
+
 struct worker_opts {
     const char *endpoint;
     uint32_t threads;
     uint32_t master_timeout_ms;   /* give up after this long without a word from the master */
+    const char *curve_secret;     /* our key pair file (CurveZMQ), or NULL */
+    const char *server_key;       /* the master's public key file, with curve_secret */
+    enum worker_fault fault;
+    uint32_t fault_arg;
 };
 
 /* Runs until the master says BYE (returns 0) or a fatal error (returns 1, logged). */

@@ -68,7 +68,9 @@ static int msg_eq(const struct proto_msg *a, const struct proto_msg *b)
         return a->u.error.job_id == b->u.error.job_id && strcmp(a->u.error.text, b->u.error.text) == 0;
     case MSG_HEARTBEAT:
         return a->u.heartbeat.job_id == b->u.heartbeat.job_id &&
-               a->u.heartbeat.tiles_done == b->u.heartbeat.tiles_done;
+               a->u.heartbeat.tiles_done == b->u.heartbeat.tiles_done &&
+               a->u.heartbeat.samples_done == b->u.heartbeat.samples_done &&
+               a->u.heartbeat.stalled_ms == b->u.heartbeat.stalled_ms;
     case MSG_BYE:
         return 1;
     case MSG_TYPE_MAX_:

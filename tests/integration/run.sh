@@ -83,5 +83,22 @@ if [ $r0 = 0 ] && [ $r = 0 ] && $X cmp "$T/j0.exr" "$T/j.exr" && grep -q "versio
   grep -q "junk?peer:1: RESULT for job" "$T/log" && grep -q "further dropped messages are counted" "$T/log" &&
   ! grep -q "stale or rejected results: 0" "$T/log"; then ok "hostile peer: messages dropped, identical pixels"; else bad "hostile peer: messages dropped, identical pixels"; fi
 
+# --- depth of field (thin lens, hexagonal aperture): 1 vs 3 workers bit-identical, per sampler ---
+for smp in sobol stratified independent; do
+  run $M scenes/dof/dof.json -o "$T/dof1-$smp.exr" --workers 1 --threads 1 --sampler $smp && r1=0 || r1=1
+  run $M scenes/dof/dof.json -o "$T/dof3-$smp.exr" --workers 3 --threads 2 --tile 8 --sampler $smp && r3=0 || r3=1
+  if [ $r1 = 0 ] && [ $r3 = 0 ] && $X cmp "$T/dof1-$smp.exr" "$T/dof3-$smp.exr"; then
+    ok "dof ($smp): 1 vs 3 workers bit-identical"; else bad "dof ($smp): 1 vs 3 workers bit-identical"; fi
+done
+if ! $X cmp "$T/dof1-sobol.exr" "$T/dof1-stratified.exr" >/dev/null 2>&1; then ok "dof: --sampler changes the pattern"; else bad "dof: --sampler changes the pattern"; fi
+if ! run $M scenes/dof/dof.json -o "$T/x.exr" --sampler halton && grep -q "unknown sampler" "$T/log"; then
+  ok "unknown --sampler is an error"; else bad "unknown --sampler is an error"; fi
+
+# --- object motion (rigid keys, deformation frames, a moving sphere) and a mirror: 1 vs 3 workers bit-identical ---
+run $M scenes/motion/motion.json -o "$T/mo1.exr" --workers 1 --threads 1 && r1=0 || r1=1
+run $M scenes/motion/motion.json -o "$T/mo3.exr" --workers 3 --threads 2 --tile 8 && r3=0 || r3=1
+if [ $r1 = 0 ] && [ $r3 = 0 ] && $X cmp "$T/mo1.exr" "$T/mo3.exr" && grep -q "NaN/Inf samples dropped: 0" "$T/log"; then
+  ok "motion: 1 vs 3 workers bit-identical"; else bad "motion: 1 vs 3 workers bit-identical"; fi
+
 echo "integration: $pass passed, $fail failed"
 [ $fail = 0 ]

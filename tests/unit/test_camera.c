@@ -1,12 +1,21 @@
-/* Pinhole camera rays: centre ray along the view direction, corners at the field of view,
- * handedness (image right = camera right), unit directions. */
+/* Camera rays. Pinhole: centre ray along the view direction, corners at the field of view,
+ * handedness (image right = camera right), unit directions. Thin lens: aperture 0 is the
+ * pinhole bit for bit; the circle of confusion matches the thin-lens formula; polygonal
+ * apertures are inside the polygon and uniform; shutter and keyframed motion; hard cases
+ * (tiny/huge focus, huge aperture, zero shutter, 180-degree turns) stay finite. */
 #include <criterion/criterion.h>
 #include <math.h>
+#include <string.h>
 #include "camera.h"
 
 static struct camera make(float fov, uint32_t w, uint32_t h)
 {
-    struct camera_desc d = {v3(0, 0, 0), v3(0, 0, -1), v3(0, 1, 0), fov, 0, 0};
+    struct camera_desc d;
+    memset(&d, 0, sizeof d);
+    d.position = v3(0, 0, 0);
+    d.look_at = v3(0, 0, -1);
+    d.up = v3(0, 1, 0);
+    d.fov_y_deg = fov;
     struct camera c;
     camera_init(&c, &d, w, h);
     return c;
@@ -77,4 +86,335 @@ Test(vec, basis_is_orthonormal)
         cr_assert_float_eq(v3_dot(b, n), 0.0f, 1e-6f);
         cr_assert_float_eq(v3_dot(t, b), 0.0f, 1e-6f);
     }
+}
+
+static struct camera_desc desc_basic(void)
+{
+    struct camera_desc d;
+    memset(&d, 0, sizeof d);
+    d.position = v3(0, 0, 0);
+    d.look_at = v3(0, 0, -1);
+    d.up = v3(0, 1, 0);
+    d.fov_y_deg = 40.0f;
+    return d;
+}
+
+static int same_bits(vec3 a, vec3 b)
+{
+    return memcmp(&a, &b, sizeof a) == 0;
+}
+
+Test(thin_lens, aperture_zero_is_pinhole_bit_for_bit)
+{
+    struct camera_desc d = desc_basic();
+    d.focus_distance = 3.0f;
+    struct camera c;
+    camera_init(&c, &d, 64, 48);
+    cr_assert_eq(c.uses_lens, 0);
+    cr_assert_eq(c.uses_time, 0);
+    for (int t = 0; t < SAMPLER_COUNT_; t++)
+        for (uint32_t i = 0; i < 64; i++) {
+            uint32_t px = i % 64, py = (i * 7) % 48;
+            struct sampler s = sampler_start_type((enum sampler_type)t, 4, 0, py * 64u + px, i, 16);
+            struct camera_sample cs;
+            camera_generate(&c, &s, 0, px, py, &cs);
+            /* The pre-thin-lens ray generation, verbatim. */
+            vec3 o, dir;
+            camera_ray(&c, (float)px + sampler_get(&s, DIM_PIXEL_X), (float)py + sampler_get(&s, DIM_PIXEL_Y), &o, &dir);
+            cr_assert(same_bits(cs.o, o) && same_bits(cs.d, dir));
+            cr_assert_eq(cs.time01, 0.0f);
+        }
+}
+
+/* The film position (pixels) at which point q is seen through lens sample (lu, lv): the
+ * camera is linear in film position for a fixed lens point, so two rays locate it. */
+static void film_of_point(const struct camera *c, vec3 q, float lu, float lv, double *fx, double *fy)
+{
+    double f[2] = {0, 0};
+    for (int axis = 0; axis < 2; axis++) {
+        double val[2];
+        for (int k = 0; k < 2; k++) {
+            float x = axis == 0 ? 10.0f + 30.0f * k : 32.0f, y = axis == 1 ? 10.0f + 30.0f * k : 32.0f;
+            vec3 o, d;
+            camera_ray_lens(c, &c->still, x, y, lu, lv, &o, &d);
+            double t = ((double)q.z - o.z) / d.z; /* plane z = q.z (camera looks down -z) */
+            val[k] = axis == 0 ? o.x + t * d.x - q.x : o.y + t * d.y - q.y;
+        }
+        /* val is linear in the film coordinate: zero crossing. */
+        f[axis] = 10.0 + 30.0 * val[0] / (val[0] - val[1]);
+    }
+    *fx = f[0];
+    *fy = f[1];
+}
+
+Test(thin_lens, circle_of_confusion_matches_formula)
+{
+    /* Film in tangent units t = s / focus: a point at depth z is seen through lens offset a at
+     * t = a (1/zf - 1/z), so the blur diameter is 2 R |z - zf| / (z zf) tangent units, i.e.
+     * times height / (2 tan(fov/2)) pixels. (The brief's A f |z - zf| / (z (zf - f)) with
+     * film distance f zf / (zf - f) in place of f is the same expression.) */
+    const float R = 0.05f, zf = 4.0f, zs[] = {1.5f, 2.5f, 8.0f, 40.0f};
+    struct camera_desc d = desc_basic();
+    d.aperture_radius = R;
+    d.focus_distance = zf;
+    struct camera c;
+    camera_init(&c, &d, 64, 64);
+    for (size_t k = 0; k < sizeof zs / sizeof *zs; k++) {
+        vec3 q = v3(0, 0, -zs[k]);
+        double lo_x = 1e30, hi_x = -1e30, lo_y = 1e30, hi_y = -1e30;
+        for (uint32_t i = 0; i < 4096; i++) {
+            struct sampler s = sampler_start_type(SAMPLER_SOBOL, 1, 0, 0, i, 4096);
+            float lu, lv;
+            sampler_get_2d(&s, DIM_LENS_U, &lu, &lv);
+            double fx, fy;
+            film_of_point(&c, q, lu, lv, &fx, &fy);
+            lo_x = fmin(lo_x, fx), hi_x = fmax(hi_x, fx), lo_y = fmin(lo_y, fy), hi_y = fmax(hi_y, fy);
+        }
+        double expect = 2.0 * R * fabs(zs[k] - zf) / (zs[k] * zf) * 64.0 / (2.0 * tan(20.0 * M_PI / 180.0));
+        cr_assert(fabs((hi_x - lo_x) - expect) < 0.03 * expect, "z=%g x-diameter %g, expected %g", zs[k], hi_x - lo_x,
+                  expect);
+        cr_assert(fabs((hi_y - lo_y) - expect) < 0.03 * expect, "z=%g y-diameter %g, expected %g", zs[k], hi_y - lo_y,
+                  expect);
+    }
+    /* In focus: every lens point sees it at the same film position. */
+    double fx0, fy0, fx1, fy1;
+    film_of_point(&c, v3(0.3f, -0.2f, -zf), 0.1f, 0.2f, &fx0, &fy0);
+    film_of_point(&c, v3(0.3f, -0.2f, -zf), 0.9f, 0.7f, &fx1, &fy1);
+    cr_assert(fabs(fx0 - fx1) < 1e-3 && fabs(fy0 - fy1) < 1e-3);
+}
+
+static int inside_polygon(const struct camera *c, float x, float y, float eps)
+{
+    for (uint32_t k = 0; k < c->blades; k++) {
+        float ax = c->blade_x[k] * c->lens_radius, ay = c->blade_y[k] * c->lens_radius;
+        float bx = c->blade_x[k + 1] * c->lens_radius, by = c->blade_y[k + 1] * c->lens_radius;
+        if ((bx - ax) * (y - ay) - (by - ay) * (x - ax) < -eps)
+            return 0;
+    }
+    return 1;
+}
+
+/* Chi-square of lens samples over an 8x8 grid on the bounding square, expected counts from
+ * each cell's area inside the aperture (fine sub-grid), cells with < 5 expected merged out. */
+static void check_aperture_uniform(const struct camera *c)
+{
+    enum { G = 8, SUB = 64, N = 200000 };
+    static double area[G * G];
+    static unsigned hist[G * G];
+    memset(hist, 0, sizeof hist);
+    double total = 0.0;
+    for (int cy = 0; cy < G; cy++)
+        for (int cx = 0; cx < G; cx++) {
+            int in = 0;
+            for (int j = 0; j < SUB; j++)
+                for (int i = 0; i < SUB; i++) {
+                    float x = (float)(-1.0 + 2.0 * (cx + (i + 0.5) / SUB) / G) * c->lens_radius;
+                    float y = (float)(-1.0 + 2.0 * (cy + (j + 0.5) / SUB) / G) * c->lens_radius;
+                    in += c->blades ? inside_polygon(c, x, y, 0.0f) : (x * x + y * y <= c->lens_radius * c->lens_radius);
+                }
+            area[cy * G + cx] = in;
+            total += in;
+        }
+    for (uint32_t i = 0; i < N; i++) {
+        float x, y;
+        camera_lens_point(c, rng_uniform(rng_key(3, 0, i, 0), 0), rng_uniform(rng_key(3, 0, i, 0), 1), &x, &y);
+        if (c->blades)
+            cr_assert(inside_polygon(c, x, y, 1e-5f * c->lens_radius), "(%g, %g) outside", x, y);
+        else
+            cr_assert_leq(x * x + y * y, c->lens_radius * c->lens_radius * (1.0f + 1e-5f));
+        int cx = (int)floorf((x / c->lens_radius + 1.0f) * 0.5f * G), cy = (int)floorf((y / c->lens_radius + 1.0f) * 0.5f * G);
+        cx = cx < 0 ? 0 : (cx >= G ? G - 1 : cx);
+        cy = cy < 0 ? 0 : (cy >= G ? G - 1 : cy);
+        hist[cy * G + cx]++;
+    }
+    double chi2 = 0.0;
+    int dof = -1;
+    for (int k = 0; k < G * G; k++) {
+        double e = N * area[k] / total;
+        if (e < 50.0)
+            continue; /* edge slivers: the sub-grid area estimate is too coarse there */
+        chi2 += (hist[k] - e) * (hist[k] - e) / e;
+        dof++;
+    }
+    /* Generous bound (about p = 1e-4 for these dof). */
+    cr_assert_lt(chi2, dof + 5.0 * sqrt(2.0 * dof), "chi2 %g with %d dof", chi2, dof);
+}
+
+Test(thin_lens, polygon_aperture_inside_and_uniform)
+{
+    const uint32_t blades[] = {3, 5, 6, 9};
+    for (size_t k = 0; k < 4; k++) {
+        struct camera_desc d = desc_basic();
+        d.aperture_radius = 0.5f;
+        d.blades = blades[k];
+        d.blade_rotation_deg = 17.0f;
+        struct camera c;
+        camera_init(&c, &d, 16, 16);
+        check_aperture_uniform(&c);
+    }
+    struct camera_desc d = desc_basic();
+    d.aperture_radius = 2.0f;
+    struct camera c;
+    camera_init(&c, &d, 16, 16);
+    check_aperture_uniform(&c); /* circle */
+}
+
+static void all_rays_finite(const struct camera *c, uint32_t frame)
+{
+    for (int t = 0; t < SAMPLER_COUNT_; t++)
+        for (uint32_t i = 0; i < 256; i++) {
+            struct sampler s = sampler_start_type((enum sampler_type)t, 2, frame, i, i, 64);
+            struct camera_sample cs;
+            camera_generate(c, &s, frame, i % 16, (i / 16) % 16, &cs);
+            cr_assert(v3_is_finite(cs.o) && v3_is_finite(cs.d), "non-finite ray");
+            cr_assert(fabsf(v3_length(cs.d) - 1.0f) < 1e-4f, "|d| = %g", v3_length(cs.d));
+            cr_assert(cs.time01 >= 0.0f && cs.time01 <= 1.0f && isfinite(cs.time));
+        }
+}
+
+Test(thin_lens, hard_cases_stay_finite)
+{
+    const float focus[] = {1e-4f, 1e8f, 1.0f};
+    const float aperture[] = {1e-6f, 1.0f, 1e6f};
+    for (int f = 0; f < 3; f++)
+        for (int a = 0; a < 3; a++)
+            for (uint32_t blades = 0; blades < 7; blades += 6) {
+                struct camera_desc d = desc_basic();
+                d.focus_distance = focus[f];
+                d.aperture_radius = aperture[a];
+                d.blades = blades;
+                struct camera c;
+                camera_init(&c, &d, 16, 16);
+                all_rays_finite(&c, 0);
+            }
+    /* A focus point behind the camera falls back to the nearest plane, still finite. */
+    struct camera_desc d = desc_basic();
+    d.aperture_radius = 0.1f;
+    d.has_focus_point = 1;
+    d.focus_point = v3(0, 0, 5);
+    struct camera c;
+    camera_init(&c, &d, 16, 16);
+    all_rays_finite(&c, 0);
+}
+
+Test(shutter, zero_length_consumes_no_time)
+{
+    struct camera_desc d = desc_basic();
+    d.shutter_open = d.shutter_close = 0.25f;
+    d.num_keyframes = 2;
+    d.keyframes[0] = (struct camera_keyframe){0.0f, v3(0, 0, 0), v3(0, 0, -1), v3(0, 1, 0)};
+    d.keyframes[1] = (struct camera_keyframe){1.0f, v3(1, 0, 0), v3(1, 0, -1), v3(0, 1, 0)};
+    struct camera c;
+    camera_init(&c, &d, 16, 16);
+    cr_assert_eq(c.uses_time, 0);
+    camera_set_scene_motion(&c, 1);
+    cr_assert_eq(c.uses_time, 0); /* still no time: the shutter has no length */
+    struct sampler s = sampler_start_type(SAMPLER_SOBOL, 1, 0, 0, 0, 1);
+    struct camera_sample cs;
+    camera_generate(&c, &s, 0, 8, 8, &cs);
+    cr_assert_eq(cs.time01, 0.0f);
+    cr_assert_float_eq(cs.o.x, 0.25f, 1e-6f); /* the pose at frame + shutter_open */
+    all_rays_finite(&c, 0);
+}
+
+Test(shutter, still_scene_consumes_no_time_unless_objects_move)
+{
+    struct camera_desc d = desc_basic();
+    d.shutter_open = 0.0f;
+    d.shutter_close = 0.5f;
+    struct camera c;
+    camera_init(&c, &d, 16, 16);
+    cr_assert_eq(c.uses_time, 0);
+    camera_set_scene_motion(&c, 1);
+    cr_assert_eq(c.uses_time, 1);
+    struct sampler s = sampler_start_type(SAMPLER_STRATIFIED, 1, 3, 0, 1, 4);
+    struct camera_sample cs;
+    camera_generate(&c, &s, 3, 8, 8, &cs);
+    cr_assert_eq(cs.time01, sampler_get(&s, DIM_TIME));
+    cr_assert_float_eq(cs.time, 3.0 + 0.5 * cs.time01, 1e-9);
+}
+
+Test(shutter, trapezoid_warp)
+{
+    struct camera_desc d = desc_basic();
+    d.shutter_close = 1.0f;
+    d.shutter_ramp = 0.25f;
+    struct camera c;
+    camera_init(&c, &d, 16, 16);
+    float prev = 0.0f;
+    for (int i = 0; i <= 1000; i++) {
+        float u = (float)i / 1000.0f, t = camera_shutter_warp(&c, u);
+        cr_assert(t >= prev && t >= 0.0f && t <= 1.0f);
+        prev = t;
+    }
+    cr_assert_float_eq(camera_shutter_warp(&c, 0.5f), 0.5f, 1e-6f);
+    cr_assert_eq(camera_shutter_warp(&c, 0.0f), 0.0f);
+    /* Density: the ramps carry a / 2 each of h = 1 / (1 - r): CDF at r is h r / 2. */
+    double h = 1.0 / 0.75, cdf_r = 0.5 * h * 0.25;
+    cr_assert_float_eq(camera_shutter_warp(&c, (float)cdf_r), 0.25f, 1e-5f);
+    d.shutter_ramp = 0.5f; /* triangle */
+    camera_init(&c, &d, 16, 16);
+    cr_assert_float_eq(camera_shutter_warp(&c, 0.125f), 0.25f, 1e-5f);
+}
+
+Test(camera_motion, keys_at_shutter_open_and_close)
+{
+    struct camera_desc d = desc_basic();
+    d.shutter_open = 0.0f;
+    d.shutter_close = 1.0f;
+    d.num_keyframes = 2;
+    d.keyframes[0] = (struct camera_keyframe){5.0f, v3(0, 0, 0), v3(0, 0, -1), v3(0, 1, 0)};
+    d.keyframes[1] = (struct camera_keyframe){6.0f, v3(2, 0, 0), v3(2, 0, -1), v3(0, 1, 0)};
+    struct camera c;
+    camera_init(&c, &d, 16, 16);
+    cr_assert(c.moving && c.uses_time);
+    struct camera_pose p;
+    camera_pose_at(&c, 5.0, &p);
+    cr_assert_float_eq(p.origin.x, 0.0f, 1e-6f);
+    cr_assert_float_eq(p.forward.z, -1.0f, 1e-6f);
+    camera_pose_at(&c, 6.0, &p);
+    cr_assert_float_eq(p.origin.x, 2.0f, 1e-6f);
+    camera_pose_at(&c, 5.5, &p);
+    cr_assert_float_eq(p.origin.x, 1.0f, 1e-6f);
+    camera_pose_at(&c, 100.0, &p); /* held after the last key */
+    cr_assert_float_eq(p.origin.x, 2.0f, 1e-6f);
+    all_rays_finite(&c, 5);
+    all_rays_finite(&c, 6);
+    /* Frame 5: rays span the shutter, so origins spread over [0, 2]. */
+    float lo = 1e9f, hi = -1e9f;
+    for (uint32_t i = 0; i < 64; i++) {
+        struct sampler s = sampler_start_type(SAMPLER_SOBOL, 1, 5, 0, i, 64);
+        struct camera_sample cs;
+        camera_generate(&c, &s, 5, 8, 8, &cs);
+        lo = fminf(lo, cs.o.x), hi = fmaxf(hi, cs.o.x);
+        cr_assert_float_eq(cs.o.x, 2.0f * cs.time01, 1e-5f);
+    }
+    cr_assert(lo < 0.1f && hi > 1.9f);
+}
+
+Test(camera_motion, half_turn_between_keys)
+{
+    struct camera_desc d = desc_basic();
+    d.shutter_close = 1.0f;
+    d.aperture_radius = 0.01f;
+    d.num_keyframes = 3;
+    d.keyframes[0] = (struct camera_keyframe){0.0f, v3(0, 0, 0), v3(0, 0, -1), v3(0, 1, 0)};
+    d.keyframes[1] = (struct camera_keyframe){0.5f, v3(0, 0, 0), v3(0, 0, 1), v3(0, 1, 0)};  /* 180 about y */
+    d.keyframes[2] = (struct camera_keyframe){1.0f, v3(0, 0, 0), v3(0, 0, 1), v3(0, -1, 0)}; /* 180 roll */
+    struct camera c;
+    camera_init(&c, &d, 16, 16);
+    for (int i = 0; i <= 100; i++) {
+        struct camera_pose p;
+        camera_pose_at(&c, i / 100.0, &p);
+        cr_assert(v3_is_finite(p.forward) && v3_is_finite(p.up) && v3_is_finite(p.right));
+        cr_assert_float_eq(v3_length(p.forward), 1.0f, 1e-5f);
+        cr_assert_float_eq(v3_dot(p.forward, p.up), 0.0f, 1e-5f);
+        cr_assert_float_eq(v3_dot(v3_cross(p.right, p.up), v3_neg(p.forward)), 1.0f, 1e-5f);
+    }
+    struct camera_pose p;
+    camera_pose_at(&c, 0.5, &p);
+    cr_assert_float_eq(p.forward.z, 1.0f, 1e-5f);
+    camera_pose_at(&c, 1.0, &p);
+    cr_assert_float_eq(p.up.y, -1.0f, 1e-5f);
+    all_rays_finite(&c, 0);
 }

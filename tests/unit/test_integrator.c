@@ -79,11 +79,11 @@ static void furnace_sphere(uint32_t depth)
     memset(&s, 0, sizeof s);
     const float rho = 0.7f, R = 2.0f, I = 10.0f;
     uint32_t mat = add_mat(&s, v3(rho, rho, rho), v3(0, 0, 0));
-    struct sphere sp = {"shell", v3(1, 2, 3), R, mat};
+    struct sphere sp = {"shell", v3(1, 2, 3), R, mat, NULL, 0};
     scene_add_sphere(&s, &sp);
     struct light l = {LIGHT_POINT, v3(1, 2, 3), v3(I, I, I)};
     scene_add_light(&s, &l);
-    s.camera = (struct camera_desc){v3(1, 2, 3), v3(1, 2, 4), v3(0, 1, 0), 90.0f, 0, 0};
+    s.camera = (struct camera_desc){.position = v3(1, 2, 3), .look_at = v3(1, 2, 4), .up = v3(0, 1, 0), .fov_y_deg = 90.0f};
     settings(&s, 16, 16, 64, depth);
     double expect = 0.0;
     for (uint32_t k = 0; k < depth && k < 200; k++)
@@ -120,7 +120,7 @@ Test(integrator, floor_under_square_area_light)
     uint32_t light_m = add_mat(&s, v3(0, 0, 0), v3(Le, Le, Le));
     add_quad(&s, v3(-50, 0, -50), v3(-50, 0, 50), v3(50, 0, 50), v3(50, 0, -50), floor_m);
     add_quad(&s, v3(-1, 1, -1), v3(1, 1, -1), v3(1, 1, 1), v3(-1, 1, 1), light_m); /* faces down */
-    s.camera = (struct camera_desc){v3(0, 0.5f, 0), v3(0, 0, 0), v3(0, 0, 1), 0.5f, 0, 0};
+    s.camera = (struct camera_desc){.position = v3(0, 0.5f, 0), .look_at = v3(0, 0, 0), .up = v3(0, 0, 1), .fov_y_deg = 0.5f};
     settings(&s, 8, 8, 256, 1);
     double expect = rho * Le * 4.0 * ff_corner(1, 1, 1);
     double mean, se;
@@ -140,9 +140,9 @@ Test(integrator, floor_under_sphere_light)
     uint32_t floor_m = add_mat(&s, v3(rho, rho, rho), v3(0, 0, 0));
     uint32_t light_m = add_mat(&s, v3(0, 0, 0), v3(Le, Le, Le));
     add_quad(&s, v3(-50, 0, -50), v3(-50, 0, 50), v3(50, 0, 50), v3(50, 0, -50), floor_m);
-    struct sphere sp = {"bulb", v3(0, d, 0), r, light_m};
+    struct sphere sp = {"bulb", v3(0, d, 0), r, light_m, NULL, 0};
     scene_add_sphere(&s, &sp);
-    s.camera = (struct camera_desc){v3(0, 0.5f, 0), v3(0, 0, 0), v3(0, 0, 1), 0.5f, 0, 0};
+    s.camera = (struct camera_desc){.position = v3(0, 0.5f, 0), .look_at = v3(0, 0, 0), .up = v3(0, 0, 1), .fov_y_deg = 0.5f};
     settings(&s, 8, 8, 256, 1);
     double expect = rho * Le * (r * r) / (d * d);
     double mean, se;
@@ -162,9 +162,9 @@ Test(integrator, pixels_do_not_depend_on_tile_split)
     uint32_t light_m = add_mat(&s, v3(0, 0, 0), v3(5, 5, 5));
     add_quad(&s, v3(-5, 0, -5), v3(-5, 0, 5), v3(5, 0, 5), v3(5, 0, -5), floor_m);
     add_quad(&s, v3(-1, 2, -1), v3(1, 2, -1), v3(1, 2, 1), v3(-1, 2, 1), light_m);
-    struct sphere sp = {"ball", v3(0, 0.5f, 0), 0.5f, floor_m};
+    struct sphere sp = {"ball", v3(0, 0.5f, 0), 0.5f, floor_m, NULL, 0};
     scene_add_sphere(&s, &sp);
-    s.camera = (struct camera_desc){v3(0, 1, 4), v3(0, 0.5f, 0), v3(0, 1, 0), 50.0f, 0, 0};
+    s.camera = (struct camera_desc){.position = v3(0, 1, 4), .look_at = v3(0, 0.5f, 0), .up = v3(0, 1, 0), .fov_y_deg = 50.0f};
     settings(&s, 20, 12, 4, 5);
     struct render_job job;
     char err[256];
@@ -198,7 +198,7 @@ Test(integrator, huge_coordinates_no_acne)
     uint32_t light_m = add_mat(&s, v3(0, 0, 0), v3(Le, Le, Le));
     add_quad(&s, v3(X - 50, 0, X - 50), v3(X - 50, 0, X + 50), v3(X + 50, 0, X + 50), v3(X + 50, 0, X - 50), floor_m);
     add_quad(&s, v3(X - 1, 1, X - 1), v3(X + 1, 1, X - 1), v3(X + 1, 1, X + 1), v3(X - 1, 1, X + 1), light_m);
-    s.camera = (struct camera_desc){v3(X, 0.5f, X), v3(X, 0, X), v3(0, 0, 1), 0.5f, 0, 0};
+    s.camera = (struct camera_desc){.position = v3(X, 0.5f, X), .look_at = v3(X, 0, X), .up = v3(0, 0, 1), .fov_y_deg = 0.5f};
     settings(&s, 8, 8, 256, 1);
     double expect = rho * Le * 4.0 * ff_corner(1, 1, 1);
     double mean, se;
@@ -217,7 +217,7 @@ Test(integrator, non_finite_samples_counted_and_dropped)
     add_quad(&s, v3(-5, 0, -5), v3(-5, 0, 5), v3(5, 0, 5), v3(5, 0, -5), floor_m);
     struct light l = {LIGHT_POINT, v3(0, 0.01f, 0), v3(3e38f, 3e38f, 3e38f)};
     scene_add_light(&s, &l);
-    s.camera = (struct camera_desc){v3(0, 1, 0), v3(0, 0, 0), v3(0, 0, 1), 1.0f, 0, 0};
+    s.camera = (struct camera_desc){.position = v3(0, 1, 0), .look_at = v3(0, 0, 0), .up = v3(0, 0, 1), .fov_y_deg = 1.0f};
     settings(&s, 4, 4, 8, 2);
     struct render_job job;
     char err[256];
@@ -230,5 +230,27 @@ Test(integrator, non_finite_samples_counted_and_dropped)
     for (size_t i = 0; i < sizeof px / sizeof px[0]; i++)
         cr_assert(isfinite(px[i]), "channel value %zu is %g", i, px[i]);
     render_job_free(&job);
+    scene_free(&s);
+}
+
+Test(integrator, huge_sphere_floor_no_acne)
+{
+    /* A floor made of a sphere of radius 1e4: the hit point rounds at the scale of the
+     * centre and radius, so without a matching offset shadow rays hit the floor itself. */
+    struct scene s;
+    memset(&s, 0, sizeof s);
+    const float rho = 0.5f, I = 2.0f, R = 1.0e4f;
+    uint32_t floor_m = add_mat(&s, v3(rho, rho, rho), v3(0, 0, 0));
+    struct sphere sp = {"floor", v3(0, -R, 0), R, floor_m, NULL, 0};
+    scene_add_sphere(&s, &sp);
+    struct light l = {LIGHT_POINT, v3(0, 1, 0), v3(I, I, I)};
+    scene_add_light(&s, &l);
+    s.camera = (struct camera_desc){.position = v3(0, 0.5f, 0), .look_at = v3(0, 0, 0), .up = v3(0, 0, 1), .fov_y_deg = 0.5f};
+    settings(&s, 8, 8, 16, 1);
+    double expect = rho / M_PI * I; /* light 1 unit straight above */
+    double mean, se;
+    uint64_t nans;
+    render_mean(&s, &mean, &se, &nans);
+    cr_assert(fabs(mean - expect) < 1e-2 * expect, "mean %.6f expected %.6f", mean, expect);
     scene_free(&s);
 }

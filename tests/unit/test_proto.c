@@ -105,6 +105,8 @@ static size_t make_samples(struct proto_msg out[MSG_TYPE_MAX_])
     out[n].type = MSG_HEARTBEAT;
     out[n].u.heartbeat.job_id = 12;
     out[n].u.heartbeat.tiles_done = 400;
+    out[n].u.heartbeat.samples_done = 0x0102030405060708ull;
+    out[n].u.heartbeat.stalled_ms = 0x0a0b0c0du;
     n++;
 
     out[n].type = MSG_BYE;
@@ -191,6 +193,8 @@ static void assert_msg_eq(const struct proto_msg *a, const struct proto_msg *b)
     case MSG_HEARTBEAT:
         cr_assert_eq(a->u.heartbeat.job_id, b->u.heartbeat.job_id);
         cr_assert_eq(a->u.heartbeat.tiles_done, b->u.heartbeat.tiles_done);
+        cr_assert_eq(a->u.heartbeat.samples_done, b->u.heartbeat.samples_done);
+        cr_assert_eq(a->u.heartbeat.stalled_ms, b->u.heartbeat.stalled_ms);
         break;
     case MSG_BYE:
     case MSG_TYPE_MAX_:
@@ -401,7 +405,7 @@ Test(proto, wrong_magic_and_version)
     b.data[0] ^= 0x20;
     b.data[4] = PROTO_VERSION + 1;
     err = expect_reject(b.data, b.size);
-    cr_assert(strstr(err, "version 2") && strstr(err, "version 1"), "names both versions: %s", err);
+    cr_assert(strstr(err, "version 3") && strstr(err, "speaks version 2"), "names both versions: %s", err);
     b.data[4] = 0;
     b.data[5] = 1;
     err = expect_reject(b.data, b.size);

@@ -273,11 +273,11 @@ Test(scene_json, missing_and_range_errors)
 Test(scene_json, thin_lens_and_planned_keys)
 {
     expect_error("{\"version\": 1, \"render\": {\"width\": 1, \"height\": 1},\n\"camera\": {\"position\": [0, 0, -5],"
-                 " \"look_at\": [0, 0, 0], \"fov_y\": 40, \"aperture\": 0.1}}",
-                 "scenes/t.json:2:83: thin lens not implemented yet: aperture must be 0");
+                 " \"look_at\": [0, 0, 0], \"fov_y\": 40, \"aperture\": -1}}",
+                 "scenes/t.json:2:83: aperture must be in [0, 1e6]");
     expect_error(HEAD ",\n\"shutter\": [0, 1]}", "scenes/t.json:4:1: key \"shutter\" in the scene is planned, not yet accepted");
     expect_error(HEAD ",\n\"objects\": [{\"type\": \"obj\", \"file\": \"tri.obj\", \"keyframes\": []}]}",
-                 "scenes/t.json:4:48: key \"keyframes\" in objects[0] is planned");
+                 "scenes/t.json:4:61: keyframes must be an array of 1 to 4096 objects");
 }
 
 Test(scene_json, files_and_materials_by_name)

@@ -1,0 +1,3 @@
+build-san/obj/common/asset.o: common/asset.c common/asset.h common/log.h
+common/asset.h:
+common/log.h:

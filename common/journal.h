@@ -1,0 +1,41 @@
+/* The master's tile journal: an append-only file next to the output that holds every
+ * accepted tile (ids, statistics, EXR chunk bytes) with a BLAKE2b checksum per record, so a
+ * restarted master resumes without re-rendering them. Invariants: a record is appended
+ * and fdatasync'ed before the tile counts as done; a record whose checksum fails (a torn
+ * write from a crash) ends the journal and is cut off. Called by master/master.c. */
+#ifndef BRUME_JOURNAL_H
+#define BRUME_JOURNAL_H
+#include <stddef.h>
+#include <stdint.h>
+#include "blob.h"
+#include "tile.h"
+
+#define JOURNAL_MAX_CHUNK (48u * 1024u * 1024u)
+
+struct journal {
+    int fd;
+    uint64_t end;           /* bytes of intact records (the next append starts here) */
+    char path[4096];
+};
+
+/* Called for each intact record found when opening; return 0 to keep it, -1 to stop
+ * reading (the record and everything after it are dropped). */
+typedef int (*journal_tile_fn)(void *ctx, uint32_t tile, const struct tile_stats *stats, const uint8_t *chunk,
+                               uint32_t chunk_size);
+
+/* Opens or creates the journal at path for the job identified by key. An existing
+ * journal of the same key is replayed through fn (which may be NULL); one of another key,
+ * or one too short to hold a header, is started afresh (*other_job = 1 in the first
+ * case). *recovered: records replayed; *torn_bytes: bytes cut off the end. 0 or -1. */
+int journal_open(struct journal *j, const char *path, const struct blob_hash *key, uint32_t num_tiles,
+                 journal_tile_fn fn, void *ctx, uint32_t *recovered, uint64_t *torn_bytes, int *other_job,
+                 char *err, size_t errlen);
+/* Appends one record and syncs it to disk. On failure (e.g. a full disk) the journal is
+ * cut back to its last intact record and -1 returned with the reason. */
+int journal_append(struct journal *j, uint32_t tile, const struct tile_stats *stats, const uint8_t *chunk,
+                   uint32_t chunk_size, char *err, size_t errlen);
+void journal_close(struct journal *j);
+/* Closes and deletes the journal (after the output file is safely in place). */
+int journal_remove(struct journal *j);
+
+#endif

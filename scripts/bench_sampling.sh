@@ -1,0 +1,99 @@
+#!/bin/sh
+# Benchmark: error against samples and against time for each sampler on the depth-of-field
+# scene (scenes/dof). RMSE is measured against a converged reference of the same renderer
+# (independent sampler, another seed, REF_SPP spp, cached in bench-out/). Prints a table,
+# the fitted log-log slopes, the equal-time ratio at 64 spp, and writes
+# bench-out/sampling.txt and bench-out/sampling.png. Called by `make bench`.
+# Usage: BUILD=build sh scripts/bench_sampling.sh   (env: REF_SPP, SEEDS)
+set -eu
+BUILD=${BUILD:-build}
+REF_SPP=${REF_SPP:-32768}
+SEEDS=${SEEDS:-"11 12 13"}
+W=${W:-160}
+H=${H:-120}
+CORES=$(nproc)
+sh scripts/install-deps.sh gnuplot-nox bc
+OUT=bench-out
+mkdir -p "$OUT"
+T=$(mktemp -d /tmp/brume-bsamp.XXXXXX)
+trap 'rm -rf "$T"' EXIT
+# The test scene at a bench resolution, so render time dominates process start-up.
+SCENE="$T/dof.json"
+sed "s/\"width\": 64, \"height\": 48/\"width\": $W, \"height\": $H/" scenes/dof/dof.json >"$SCENE"
+grep -q "\"width\": $W," "$SCENE" || { echo "bench_sampling: cannot set the resolution"; exit 1; }
+
+# The reference is keyed by the scene's content and the binary, so a change to either redoes it.
+key=$(cat "$SCENE" "$BUILD/worker" | sha256sum | cut -c1-16)
+REF="$OUT/dof-ref-${W}x$H-$REF_SPP-$key.exr"
+if [ ! -f "$REF" ]; then
+  echo "sampling: rendering the reference ($REF_SPP spp, once)"
+  "$BUILD/master" "$SCENE" -o "$REF" --workers 1 --threads "$CORES" --spp "$REF_SPP" --seed 999 \
+    --sampler independent >"$T/log" 2>&1 || { cat "$T/log"; exit 1; }
+fi
+
+# wall seconds from the master's summary (render only: parsing and start-up are not in it)
+: >"$T/rows"
+for smp in independent stratified sobol; do
+  for spp in 1 4 16 64 256; do
+    mse=0
+    secs=0
+    n=0
+    for seed in $SEEDS; do
+      "$BUILD/master" "$SCENE" -o "$T/img.exr" --workers 1 --threads "$CORES" --spp "$spp" --seed "$seed" \
+        --sampler "$smp" >"$T/log" 2>&1 || { cat "$T/log"; exit 1; }
+      r=$("$BUILD/exrtool" rmse "$T/img.exr" "$REF")
+      w=$(awk '/summary: wall/ {print $3}' "$T/log")
+      mse=$(echo "$mse + $r * $r" | bc -l)
+      secs=$(echo "$secs + $w" | bc -l)
+      n=$((n + 1))
+    done
+    echo "$smp $spp $(echo "sqrt($mse / $n)" | bc -l) $(echo "$secs / $n" | bc -l)" >>"$T/rows"
+  done
+done
+
+{
+  printf 'DOF scene scenes/dof (%sx%s), %s cores, RMSE vs a %s-spp reference, mean over seeds: %s\n' "$W" "$H" "$CORES" "$REF_SPP" "$SEEDS"
+  printf '%-12s %6s %12s %10s\n' sampler spp rmse seconds
+  awk '{printf "%-12s %6d %12.6f %10.4f\n", $1, $2, $3, $4}' "$T/rows"
+  # Least-squares slopes of log(rmse) against log(spp) and against log(time); the
+  # equal-time ratio compares each sampler at 64 spp with independent's time fit.
+  awk '
+    { s=$1; x=log($2); t=log($4); y=log($3); n[s]++; sx[s]+=x; sy[s]+=y; sxx[s]+=x*x; sxy[s]+=x*y;
+      st[s]+=t; stt[s]+=t*t; sty[s]+=t*y; if ($2 == 64) { r64[s]=$3; t64[s]=$4 } }
+    END {
+      for (s in n) {
+        b[s]=(n[s]*sxy[s]-sx[s]*sy[s])/(n[s]*sxx[s]-sx[s]*sx[s]);
+        bt[s]=(n[s]*sty[s]-st[s]*sy[s])/(n[s]*stt[s]-st[s]*st[s]);
+        at[s]=(sy[s]-bt[s]*st[s])/n[s];
+      }
+      split("independent stratified sobol", order, " ");
+      for (k=1; k<=3; k++) {
+        s=order[k]; ind=exp(at["independent"]+bt["independent"]*log(t64[s]));
+        printf "%-12s slope vs spp %6.3f, vs time %6.3f; at 64 spp: rmse %.6f in %.4f s, %.3fx independent at equal time, %.3fx at equal spp\n",
+          s, b[s], bt[s], r64[s], t64[s], r64[s]/ind, r64[s]/r64["independent"];
+      }
+    }' "$T/rows"
+} | tee "$OUT/sampling.txt"
+
+for smp in independent stratified sobol; do
+  awk -v s="$smp" '$1 == s {print $2, $3, $4}' "$T/rows" >"$OUT/sampling-$smp.dat"
+done
+if command -v gnuplot >/dev/null 2>&1; then
+  gnuplot <<GP 2>/dev/null && echo "plot: $OUT/sampling.png"
+set terminal png size 1000,450
+set output "$OUT/sampling.png"
+set multiplot layout 1,2 title "DOF scene: RMSE against a converged reference (log-log)"
+set logscale xy
+set grid
+set xlabel "samples per pixel"
+set ylabel "RMSE"
+plot "$OUT/sampling-independent.dat" using 1:2 with linespoints title "independent", \
+     "$OUT/sampling-stratified.dat" using 1:2 with linespoints title "stratified", \
+     "$OUT/sampling-sobol.dat" using 1:2 with linespoints title "sobol"
+set xlabel "render seconds"
+plot "$OUT/sampling-independent.dat" using 3:2 with linespoints title "independent", \
+     "$OUT/sampling-stratified.dat" using 3:2 with linespoints title "stratified", \
+     "$OUT/sampling-sobol.dat" using 3:2 with linespoints title "sobol"
+unset multiplot
+GP
+fi
