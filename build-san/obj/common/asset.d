@@ -1,3 +1,0 @@
-build-san/obj/common/asset.o: common/asset.c common/asset.h common/log.h
-common/asset.h:
-common/log.h:
