@@ -28,7 +28,7 @@ WORKER_OBJ := $(patsubst %.c,$(BUILD)/obj/%.o,$(wildcard worker/*.c))
 UNIT_SRC   := $(wildcard tests/unit/test_*.c)
 UNIT_OBJ   := $(UNIT_SRC:%.c=$(BUILD)/obj/%.o)
 
-.PHONY: all deps test unit integration demo bench clean fuzz tools
+.PHONY: all deps test unit integration demo bench clean fuzz tools stress
 all: $(BUILD)/master $(BUILD)/worker $(BUILD)/exrtool $(BUILD)/junkpeer
 
 # Install what is missing; the stamp makes later builds skip the check.
@@ -65,6 +65,12 @@ unit: $(BUILD)/unit_tests
 
 integration: all
 	BUILD=$(BUILD) sh tests/integration/run.sh
+	BUILD=$(BUILD) sh tests/integration/faults.sh
+	BUILD=$(BUILD) sh tests/integration/security.sh
+
+# Long fault runs (many master kills); not part of `make test`.
+stress: all
+	BUILD=$(BUILD) TRIALS=100 sh tests/integration/faults.sh
 
 test: unit integration
 

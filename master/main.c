@@ -4,6 +4,7 @@
 #include "launch.h"
 #include "log.h"
 #include "master.h"
+#include "net.h"
 #include "sampler.h"
 #include <stdio.h>
 #include <stdlib.h>
@@ -25,6 +26,13 @@ static void usage(FILE *f)
             "  --preview OUT.png      also write a tone-mapped sRGB PNG preview\n"
             "  --worker-exe PATH      worker binary for local workers (default: next to master)\n"
             "  --worker-timeout-ms MS evict a worker silent for MS milliseconds (default 10000)\n"
+            "  --stall-ms MS          evict a worker whose render threads finish no work for MS ms (default 30000)\n"
+            "  --tiles N[,M..]        render only these tiles (the others are left black); no journal\n"
+            "  --no-journal           do not keep OUT.exr.journal (a killed master then starts over)\n"
+            "  --curve-secret KEYFILE CurveZMQ: the master's key pair (from --keygen); needs --allow\n"
+            "  --allow FILE           public keys of the workers allowed in, one per line\n"
+            "  --insecure             allow --bind on a non-loopback address without CurveZMQ\n"
+            "  --keygen KEYFILE       write a new key pair to KEYFILE and KEYFILE.pub, then exit\n"
             "  --verbose              debug logging\n");
 }
 
@@ -34,7 +42,11 @@ int main(int argc, char **argv)
     memset(&o, 0, sizeof o);
     o.workers = 1;
     o.worker_timeout_ms = 10000;
-    int have_threads = 0;
+    o.stall_ms = 30000;
+    o.argc = argc;
+    o.argv = argv;
+    int have_threads = 0, insecure = 0;
+    static uint32_t only_tiles[4096];
     char worker_exe[4096];
     log_set_prefix("master");
     for (int i = 1; i < argc; i++) {
@@ -68,9 +80,49 @@ int main(int argc, char **argv)
         NUM_OPT("--tile", 8, 1024, o.tile, o.have_tile)
         NUM_OPT("--max-depth", 1, 1024, o.depth, o.have_depth)
         NUM_OPT("--worker-timeout-ms", 100, 86400000, o.worker_timeout_ms, dummy)
+        NUM_OPT("--stall-ms", 100, 86400000, o.stall_ms, dummy)
 #undef NUM_OPT
         if (has_arg && (!strcmp(a, "-o") || !strcmp(a, "--output"))) {
             o.output_path = argv[++i];
+        } else if (!strcmp(a, "--no-journal")) {
+            o.no_journal = 1;
+        } else if (!strcmp(a, "--insecure")) {
+            insecure = 1;
+        } else if (has_arg && !strcmp(a, "--curve-secret")) {
+            o.curve_secret = argv[++i];
+        } else if (has_arg && !strcmp(a, "--allow")) {
+            o.allow_path = argv[++i];
+        } else if (has_arg && !strcmp(a, "--keygen")) {
+            if (net_key_pair_write(argv[++i], err, sizeof err) != 0) {
+                log_error("%s", err);
+                return 1;
+            }
+            printf("wrote %s (key pair, keep private) and %s.pub (public key)\n", argv[i], argv[i]);
+            return 0;
+        } else if (has_arg && !strcmp(a, "--tiles")) {
+            const char *p = argv[++i];
+            o.num_only_tiles = 0;
+            while (*p) {
+                char num[32];
+                size_t n = strcspn(p, ",");
+                if (n == 0 || n >= sizeof num || o.num_only_tiles >= 4096) {
+                    log_error("--tiles: expected N[,M..], got \"%s\"", argv[i]);
+                    return 2;
+                }
+                memcpy(num, p, n);
+                num[n] = '\0';
+                if (cli_parse_u64("--tiles", num, 0, UINT32_MAX - 1, &v, err, sizeof err) != 0) {
+                    log_error("%s", err);
+                    return 2;
+                }
+                only_tiles[o.num_only_tiles++] = (uint32_t)v;
+                p += n + (p[n] == ',');
+            }
+            if (o.num_only_tiles == 0) {
+                log_error("--tiles: expected N[,M..]");
+                return 2;
+            }
+            o.only_tiles = only_tiles;
         } else if (has_arg && !strcmp(a, "--bind")) {
             o.bind = argv[++i];
         } else if (has_arg && !strcmp(a, "--sampler")) {
@@ -95,6 +147,14 @@ int main(int argc, char **argv)
     }
     if (!o.scene_path || !o.output_path) {
         log_error("a scene and -o OUT.exr are required (see --help)");
+        return 2;
+    }
+    if (!o.curve_secret != !o.allow_path) {
+        log_error("--curve-secret and --allow go together");
+        return 2;
+    }
+    if (o.bind && !o.curve_secret && !insecure && !net_endpoint_is_local(o.bind)) {
+        log_error("--bind %s: anyone who can reach it could join; use --curve-secret and --allow, or --insecure", o.bind);
         return 2;
     }
     if (o.workers == 0 && !o.bind) {

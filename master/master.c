@@ -1,12 +1,16 @@
-/* Master loop (see master.h). One thread: zmq_poll on the ROUTER socket drives
- * everything (hello, blob serving, credits, tile assignment, results, liveness), so no
- * state is shared between threads. A result is accepted only from the peer holding the
- * tile's current attempt, only once, and only after its chunk decodes to finite pixels
- * of the right size; anything else is counted and dropped. */
+/* Master loop (see master.h). One thread: zmq_poll on the ROUTER socket (and the ZAP
+ * socket when CurveZMQ is on) drives everything (hello, blob serving, credits, tile
+ * assignment, results, liveness), so no state is shared between threads. A tile has at
+ * most two holders (the second is a straggler copy); a result is accepted only from a
+ * holder with that holder's attempt, only once, only after its chunk decodes to finite
+ * pixels of the right size, and only after it is in the journal; anything else is counted
+ * and dropped. A worker is evicted when silent, when its render threads stop progressing,
+ * or when it dies; its tiles go back to the front of the queue. */
 #include "master.h"
 #include "asset.h"
 #include "blob.h"
 #include "imgio.h"
+#include "journal.h"
 #include "launch.h"
 #include "log.h"
 #include "net.h"
@@ -30,13 +34,21 @@
 #define MAX_PEERS 4096
 #define PROGRESS_PLAIN_MS 5000
 #define PROGRESS_TTY_MS 250
+#define MAX_HOLDERS 2           /* the first holder and one straggler copy */
+#define CRASHES_TO_FAIL 3       /* distinct workers a tile may crash before the job fails */
+#define FAILS_TO_BAN 3          /* invalid results in a row that ban a worker */
 
 enum tile_state { TILE_QUEUED, TILE_ASSIGNED, TILE_DONE };
 
 struct tile_slot {
     enum tile_state state;
-    uint32_t attempt;
-    int32_t peer;
+    uint32_t attempt;               /* last attempt number issued */
+    uint32_t num_holders;
+    int32_t holder[MAX_HOLDERS];
+    uint32_t holder_attempt[MAX_HOLDERS];
+    uint64_t assigned_ms;
+    uint32_t crashes;               /* distinct workers that died holding it */
+    int requeued;                   /* its next assignment is a re-issue */
     uint8_t *chunk;
     size_t chunk_size;
 };
@@ -46,16 +58,33 @@ struct peer {
     size_t id_len;
     char name[300];         /* host:pid for messages */
     uint32_t pid, threads;
-    int ready, gone;
-    uint32_t credits;
+    int ready, gone, banned;
+    uint32_t credits, in_flight;
+    int isolated;           /* holds a suspect tile: gets nothing else meanwhile */
     uint64_t last_heard_ms;
+    uint64_t last_samples, last_progress_ms;
+    uint32_t reported_stall_ms;
     uint32_t tiles_done;
+    uint32_t fail_streak;   /* invalid results in a row */
     uint32_t dropped;       /* messages of this peer dropped; only the first few are logged */
+};
+
+/* What tests read from the summary ("summary: counter NAME VALUE"). */
+#define COUNTERS(X)                                                                                                \
+    X(tiles_assigned) X(tiles_done) X(tiles_from_journal) X(tiles_reissued) X(straggler_copies)                   \
+    X(results_stale) X(results_duplicate) X(results_invalid) X(results_not_ours) X(rejected_decode)               \
+    X(rejected_envelope) X(rejected_unknown_peer) X(rejected_unexpected) X(rejected_wrong_job)                    \
+    X(rejected_blob_req) X(rejected_banned) X(auth_rejects) X(handshake_failures) X(evicted_silent)                \
+    X(evicted_stalled) X(evicted_died) X(evicted_error) X(workers_banned) X(workers_joined)
+struct counters {
+#define X(n) uint64_t n;
+    COUNTERS(X)
+#undef X
 };
 
 struct master {
     const struct master_opts *opts;
-    void *zctx, *sock;
+    void *zctx, *sock, *zap, *monitor;
     struct proto_buf out;
     struct asset_dir assets;
     struct blob_store blobs;
@@ -68,18 +97,26 @@ struct master {
     uint64_t job_id;
     struct tile_slot *tiles;
     uint32_t num_tiles, tiles_done;
-    uint32_t *queue;            /* FIFO of tile indices waiting for a worker */
-    uint32_t q_head, q_count;
+    uint32_t *queue;            /* tile indices waiting for a worker, oldest first */
+    uint32_t q_count;
     struct peer *peers;
     uint32_t num_peers;
     pid_t *local_pids;
     uint32_t num_local, local_alive;
     struct tile_stats stats;
-    uint64_t dropped_results;
+    struct counters c;
     char last_worker_error[PROTO_MAX_STRING];
+    char fatal[2048];           /* set when the job cannot finish: the reason */
     float *decode_scratch;
     char ipc_dir[256];
     char ipc_endpoint[320];
+    struct journal journal;
+    int have_journal;
+    char banned_names[16][300];
+    uint32_t num_banned;
+    uint8_t (*allowed)[32];     /* allowed CURVE public keys, binary */
+    size_t num_allowed;
+    char local_key_path[400], local_pub_path[400];
 };
 
 static volatile sig_atomic_t g_interrupted;
@@ -87,16 +124,21 @@ static void on_signal(int sig) { (void)sig; g_interrupted = 1; }
 
 static void queue_push(struct master *m, uint32_t tile)
 {
-    m->queue[(m->q_head + m->q_count) % m->num_tiles] = tile;
+    m->queue[m->q_count++] = tile;
+}
+
+/* Re-queued tiles go first: they are the ones holding up the end of the frame. */
+static void queue_push_front(struct master *m, uint32_t tile)
+{
+    memmove(m->queue + 1, m->queue, sizeof *m->queue * m->q_count);
+    m->queue[0] = tile;
     m->q_count++;
 }
 
-static uint32_t queue_pop(struct master *m)
+static void queue_remove_at(struct master *m, uint32_t i)
 {
-    uint32_t t = m->queue[m->q_head];
-    m->q_head = (m->q_head + 1) % m->num_tiles;
+    memmove(m->queue + i, m->queue + i + 1, sizeof *m->queue * (m->q_count - i - 1));
     m->q_count--;
-    return t;
 }
 
 /* ---- setup ---- */
@@ -182,11 +224,51 @@ static void setup_tiles(struct master *m)
     m->num_tiles = imgio_tiles_x(&m->desc) * imgio_tiles_y(&m->desc);
     m->tiles = mem_calloc(m->num_tiles, sizeof *m->tiles);
     m->queue = mem_alloc(sizeof(uint32_t) * m->num_tiles);
-    for (uint32_t t = 0; t < m->num_tiles; t++) {
-        m->tiles[t].peer = -1;
+    for (uint32_t t = 0; t < m->num_tiles; t++)
         queue_push(m, t);
-    }
     m->decode_scratch = mem_alloc(sizeof(float) * rs->tile_size * rs->tile_size * TILE_NUM_CHANNELS);
+}
+
+/* --tiles: every other tile is a black, transparent chunk encoded here, so the output is
+ * a complete EXR in which only the chosen tiles were rendered. */
+static int restrict_tiles(struct master *m)
+{
+    const struct master_opts *o = m->opts;
+    for (uint32_t i = 0; i < o->num_only_tiles; i++)
+        if (o->only_tiles[i] >= m->num_tiles) {
+            log_error("--tiles: tile %u does not exist (the frame has tiles 0..%u)", o->only_tiles[i], m->num_tiles - 1);
+            return -1;
+        }
+    char err[256];
+    struct imgio_encoder *enc = imgio_encoder_new(&m->desc, err, sizeof err);
+    if (!enc) {
+        log_error("%s", err);
+        return -1;
+    }
+    size_t n = (size_t)m->scene.settings.tile_size * m->scene.settings.tile_size * TILE_NUM_CHANNELS;
+    float *black = mem_calloc(n, sizeof *black);
+    uint32_t tiles_x = imgio_tiles_x(&m->desc);
+    m->q_count = 0;
+    int rc = 0;
+    for (uint32_t t = 0; t < m->num_tiles && rc == 0; t++) {
+        int wanted = 0;
+        for (uint32_t i = 0; i < o->num_only_tiles; i++)
+            wanted |= o->only_tiles[i] == t;
+        if (wanted) {
+            queue_push(m, t);
+            continue;
+        }
+        if (imgio_encode_tile(enc, t % tiles_x, t / tiles_x, black, &m->tiles[t].chunk, &m->tiles[t].chunk_size, err,
+                              sizeof err) != 0) {
+            log_error("%s", err);
+            rc = -1;
+        }
+        m->tiles[t].state = TILE_DONE;
+        m->tiles_done++;
+    }
+    free(black);
+    imgio_encoder_free(&enc);
+    return rc;
 }
 
 /* ---- peers ---- */
@@ -199,37 +281,138 @@ static int32_t find_peer(const struct master *m, const uint8_t *id, size_t id_le
     return -1;
 }
 
+/* A peer we evicted (its late messages are stale, not strangers'). */
+static int32_t find_gone_peer(const struct master *m, const uint8_t *id, size_t id_len)
+{
+    for (uint32_t i = m->num_peers; i-- > 0;)
+        if (m->peers[i].gone && m->peers[i].id_len == id_len && memcmp(m->peers[i].id, id, id_len) == 0)
+            return (int32_t)i;
+    return -1;
+}
+
 static void send_to(struct master *m, const struct peer *p, const struct proto_msg *msg)
 {
     net_send(m->sock, p->id, p->id_len, msg, &m->out);
 }
 
-/* Puts a peer's unfinished tiles back at the head of the queue and forgets the peer. */
-static void evict_peer(struct master *m, int32_t pi, const char *why)
+/* Removes holder pi from tile t; the tile goes back to the front of the queue when nobody
+ * else holds it. */
+static void tile_drop_holder(struct master *m, uint32_t t, int32_t pi)
+{
+    struct tile_slot *s = &m->tiles[t];
+    for (uint32_t k = 0; k < s->num_holders; k++)
+        if (s->holder[k] == pi) {
+            s->holder[k] = s->holder[s->num_holders - 1];
+            s->holder_attempt[k] = s->holder_attempt[s->num_holders - 1];
+            s->num_holders--;
+            if (m->peers[pi].in_flight)
+                m->peers[pi].in_flight--;
+            break;
+        }
+    if (s->state == TILE_ASSIGNED && s->num_holders == 0) {
+        s->state = TILE_QUEUED;
+        s->requeued = 1;
+        queue_push_front(m, t);
+    }
+}
+
+/* The command that renders tile t alone: our own command line with another output and
+ * --tiles t, so the crash can be reproduced and debugged in isolation. */
+static void tile_command(const struct master *m, uint32_t t, char *out, size_t outlen)
+{
+    const struct master_opts *o = m->opts;
+    size_t n = 0;
+    out[0] = '\0';
+    for (int i = 0; i < o->argc && n < outlen; i++) {
+        const char *a = o->argv[i];
+        if (i > 0 && (!strcmp(a, "-o") || !strcmp(a, "--output") || !strcmp(a, "--tiles")) && i + 1 < o->argc) {
+            i++;
+            continue;
+        }
+        int quote = strpbrk(a, " \t'\"$\\") != NULL;
+        n += (size_t)snprintf(out + n, outlen - n, "%s%s%s%s", n ? " " : "", quote ? "'" : "", a, quote ? "'" : "");
+    }
+    char base[4096];
+    snprintf(base, sizeof base, "%s", o->output_path);
+    char *dot = strrchr(base, '.');
+    if (dot && !strcmp(dot, ".exr"))
+        *dot = '\0';
+    if (n < outlen)
+        snprintf(out + n, outlen - n, " -o %.1000s.tile%u.exr --tiles %u", base, t, t);
+}
+
+enum evict_kind { EVICT_LEFT, EVICT_SILENT, EVICT_STALLED, EVICT_DIED, EVICT_ERROR, EVICT_BANNED };
+
+/* Puts a peer's unfinished tiles back at the front of the queue and forgets the peer. A
+ * worker that died, hung or failed also counts against each tile it held: a tile that
+ * took CRASHES_TO_FAIL different workers down fails the job. */
+static void evict_peer(struct master *m, int32_t pi, enum evict_kind kind, const char *why)
 {
     struct peer *p = &m->peers[pi];
     if (p->gone)
         return;
     uint32_t requeued = 0;
-    for (uint32_t t = 0; t < m->num_tiles; t++)
-        if (m->tiles[t].state == TILE_ASSIGNED && m->tiles[t].peer == pi) {
-            m->tiles[t].state = TILE_QUEUED;
-            m->tiles[t].peer = -1;
-            queue_push(m, t);
-            requeued++;
+    for (uint32_t t = 0; t < m->num_tiles; t++) {
+        struct tile_slot *s = &m->tiles[t];
+        int held = 0;
+        for (uint32_t k = 0; k < s->num_holders; k++)
+            held |= s->holder[k] == pi;
+        if (!held || s->state != TILE_ASSIGNED)
+            continue;
+        if (kind != EVICT_LEFT && kind != EVICT_BANNED && ++s->crashes >= CRASHES_TO_FAIL && !m->fatal[0]) {
+            char cmd[1800];
+            tile_command(m, t, cmd, sizeof cmd);
+            uint32_t tx = t % imgio_tiles_x(&m->desc), ty = t / imgio_tiles_x(&m->desc), x0, y0, w, h;
+            imgio_tile_rect(&m->desc, tx, ty, &x0, &y0, &w, &h);
+            snprintf(m->fatal, sizeof m->fatal,
+                     "tile %u (pixels %u,%u %ux%u) took down %u different workers; render it alone with: %s", t, x0,
+                     y0, w, h, s->crashes, cmd);
         }
+        tile_drop_holder(m, t, pi);
+        requeued += s->state == TILE_QUEUED;
+    }
     p->gone = 1;
+    p->in_flight = 0;
+    switch (kind) {
+    case EVICT_SILENT: m->c.evicted_silent++; break;
+    case EVICT_STALLED: m->c.evicted_stalled++; break;
+    case EVICT_DIED: m->c.evicted_died++; break;
+    case EVICT_ERROR: m->c.evicted_error++; break;
+    case EVICT_BANNED: m->c.workers_banned++; break;
+    case EVICT_LEFT: break;
+    }
     log_warn("worker %s removed (%s); %u tile(s) re-queued", p->name, why, requeued);
     struct proto_msg bye = {.type = MSG_BYE};
     send_to(m, p, &bye);
 }
 
+static int name_is_banned(const struct master *m, const char *name)
+{
+    for (uint32_t i = 0; i < m->num_banned; i++)
+        if (!strcmp(m->banned_names[i], name))
+            return 1;
+    return 0;
+}
+
 static void on_hello(struct master *m, const struct net_frame *f, const struct msg_hello *h)
 {
-    if (find_peer(m, f->id, f->id_len) >= 0)
-        return; /* repeated hello: already known */
+    if (find_peer(m, f->id, f->id_len) >= 0) {
+        m->c.rejected_unexpected++; /* repeated hello: already known */
+        return;
+    }
+    char name[300];
+    snprintf(name, sizeof name, "%.200s:%u", h->host, h->pid);
+    for (char *c = name; *c; c++) /* peer text goes into our log: keep it printable */
+        if (*c < 0x20 || *c == 0x7f)
+            *c = '?';
+    int32_t gone = find_gone_peer(m, f->id, f->id_len);
+    if (name_is_banned(m, name) || (gone >= 0 && m->peers[gone].banned)) {
+        m->c.rejected_banned++;
+        return;
+    }
     if (m->num_peers >= MAX_PEERS) {
-        log_warn("too many workers; ignoring hello from %s", h->host);
+        log_warn("too many workers; ignoring hello from %s", name);
+        m->c.rejected_unexpected++;
         return;
     }
     m->peers = mem_realloc(m->peers, sizeof *m->peers * (m->num_peers + 1));
@@ -238,13 +421,11 @@ static void on_hello(struct master *m, const struct net_frame *f, const struct m
     memcpy(p->id, f->id, f->id_len);
     p->id_len = f->id_len;
     p->pid = h->pid;
-    p->threads = h->threads;
-    p->last_heard_ms = net_now_ms();
-    snprintf(p->name, sizeof p->name, "%.200s:%u", h->host, h->pid);
-    for (char *c = p->name; *c; c++) /* peer text goes into our log: keep it printable */
-        if (*c < 0x20 || *c == 0x7f)
-            *c = '?';
+    p->threads = h->threads ? h->threads : 1;
+    p->last_heard_ms = p->last_progress_ms = net_now_ms();
+    snprintf(p->name, sizeof p->name, "%s", name);
     m->num_peers++;
+    m->c.workers_joined++;
     log_info("worker %s joined with %u thread(s)", p->name, h->threads);
     const struct render_settings *rs = &m->scene.settings;
     struct proto_msg job = {.type = MSG_JOB};
@@ -268,7 +449,9 @@ static void on_blob_req(struct master *m, const struct peer *p, const struct msg
 {
     const struct blob_entry *e = blob_store_get(&m->blobs, &r->hash);
     if (!e || r->offset > e->size || r->length > BLOB_CHUNK_SIZE || r->length > e->size - r->offset) {
-        log_warn("worker %s: BLOB_REQ for an unknown blob or range dropped", p->name);
+        m->c.rejected_blob_req++;
+        if (p->dropped < 5)
+            log_warn("worker %s: BLOB_REQ for an unknown blob or range dropped", p->name);
         return;
     }
     struct proto_msg d = {.type = MSG_BLOB_DATA};
@@ -280,12 +463,13 @@ static void on_blob_req(struct master *m, const struct peer *p, const struct msg
     send_to(m, p, &d);
 }
 
-static int chunk_is_sane(struct master *m, uint32_t tile, const struct msg_result *r, char *err, size_t errlen)
+static int chunk_is_sane(struct master *m, uint32_t tile, const uint8_t *chunk, size_t chunk_size, char *err,
+                         size_t errlen)
 {
     uint32_t tiles_x = imgio_tiles_x(&m->desc);
     uint32_t tx = tile % tiles_x, ty = tile / tiles_x, x0, y0, w, h;
     imgio_tile_rect(&m->desc, tx, ty, &x0, &y0, &w, &h);
-    if (imgio_decode_tile(&m->desc, tx, ty, r->chunk, r->chunk_size, m->decode_scratch, err, errlen) != 0)
+    if (imgio_decode_tile(&m->desc, tx, ty, chunk, chunk_size, m->decode_scratch, err, errlen) != 0)
         return 0;
     for (size_t i = 0; i < (size_t)w * h * TILE_NUM_CHANNELS; i++)
         if (!isfinite(m->decode_scratch[i])) {
@@ -304,63 +488,167 @@ static int peer_should_log_drop(struct peer *p)
     return p->dropped <= 5;
 }
 
+/* Keeps an accepted tile: journal first (synced), then it counts as done. */
+static int tile_accept(struct master *m, uint32_t tile, const struct tile_stats *st, const uint8_t *chunk,
+                       size_t chunk_size)
+{
+    struct tile_slot *t = &m->tiles[tile];
+    if (m->have_journal) {
+        char err[512];
+        if (journal_append(&m->journal, tile, st, chunk, (uint32_t)chunk_size, err, sizeof err) != 0) {
+            snprintf(m->fatal, sizeof m->fatal, "%s", err);
+            return -1;
+        }
+    }
+    t->chunk = mem_alloc(chunk_size ? chunk_size : 1);
+    memcpy(t->chunk, chunk, chunk_size);
+    t->chunk_size = chunk_size;
+    t->state = TILE_DONE;
+    m->tiles_done++;
+    m->c.tiles_done++;
+    tile_stats_add(&m->stats, st);
+    return 0;
+}
+
 static void on_result(struct master *m, int32_t pi, const struct msg_result *r)
 {
     struct peer *p = &m->peers[pi];
     if (p->credits < p->threads * 4)
         p->credits++;
+    p->last_progress_ms = net_now_ms();
     if (r->job_id != m->job_id || r->frame != 0 || r->tile >= m->num_tiles) {
         if (peer_should_log_drop(p))
             log_warn("worker %s: RESULT for job %llu frame %u tile %u is not ours; dropped", p->name,
                      (unsigned long long)r->job_id, r->frame, r->tile);
-        m->dropped_results++;
+        m->c.results_not_ours++;
         return;
     }
     struct tile_slot *t = &m->tiles[r->tile];
-    if (t->state != TILE_ASSIGNED || t->peer != pi || t->attempt != r->attempt) {
-        m->dropped_results++;
-        if (peer_should_log_drop(p))
-            log_warn("worker %s: result for tile %u attempt %u is stale, duplicate or not assigned to it; dropped",
-                     p->name, r->tile, r->attempt);
+    int k = -1;
+    for (uint32_t i = 0; i < t->num_holders; i++)
+        if (t->holder[i] == pi && t->holder_attempt[i] == r->attempt)
+            k = (int)i;
+    if (t->state == TILE_DONE || k < 0) {
+        /* A straggler copy that lost the race is expected; anything else is stale. */
+        int dup = t->state == TILE_DONE && r->attempt <= t->attempt && r->attempt > 0;
+        if (dup)
+            m->c.results_duplicate++;
+        else
+            m->c.results_stale++;
+        if (!dup && peer_should_log_drop(p))
+            log_warn("worker %s: result for tile %u attempt %u is stale or not assigned to it; dropped", p->name,
+                     r->tile, r->attempt);
         return;
     }
     char err[256];
-    if (!chunk_is_sane(m, r->tile, r, err, sizeof err)) {
+    if (!chunk_is_sane(m, r->tile, r->chunk, r->chunk_size, err, sizeof err)) {
         log_warn("worker %s: tile %u rejected: %s; re-queued", p->name, r->tile, err);
-        m->dropped_results++;
-        t->state = TILE_QUEUED;
-        t->peer = -1;
-        queue_push(m, r->tile);
+        m->c.results_invalid++;
+        tile_drop_holder(m, r->tile, pi);
+        p->isolated = 0;
+        if (++p->fail_streak >= FAILS_TO_BAN) {
+            p->banned = 1;
+            if (m->num_banned < sizeof m->banned_names / sizeof m->banned_names[0])
+                snprintf(m->banned_names[m->num_banned++], sizeof m->banned_names[0], "%s", p->name);
+            char why[64];
+            snprintf(why, sizeof why, "banned for the job: %u invalid results in a row", p->fail_streak);
+            evict_peer(m, pi, EVICT_BANNED, why);
+        }
         return;
     }
-    t->chunk = mem_alloc(r->chunk_size);
-    memcpy(t->chunk, r->chunk, r->chunk_size);
-    t->chunk_size = r->chunk_size;
-    t->state = TILE_DONE;
-    m->tiles_done++;
+    p->fail_streak = 0;
+    p->isolated = 0;
+    if (tile_accept(m, r->tile, &r->stats, r->chunk, r->chunk_size) != 0)
+        return;
     p->tiles_done++;
-    tile_stats_add(&m->stats, &r->stats);
+    /* Both holders stop holding it (it is done, so nothing is re-queued): the other
+     * holder's result, if any, will be a duplicate. */
+    while (t->num_holders > 0)
+        tile_drop_holder(m, r->tile, t->holder[0]);
+}
+
+static void tile_give(struct master *m, uint32_t tile, int32_t pi, int straggler)
+{
+    struct peer *p = &m->peers[pi];
+    struct tile_slot *t = &m->tiles[tile];
+    if (p->in_flight == 0)
+        p->last_progress_ms = net_now_ms(); /* idle time is not a stall */
+    t->state = TILE_ASSIGNED;
+    t->attempt++;
+    t->holder[t->num_holders] = pi;
+    t->holder_attempt[t->num_holders] = t->attempt;
+    t->num_holders++;
+    t->assigned_ms = net_now_ms();
+    p->credits--;
+    p->in_flight++;
+    m->c.tiles_assigned++;
+    if (straggler)
+        m->c.straggler_copies++;
+    else if (t->requeued)
+        m->c.tiles_reissued++;
+    t->requeued = 0;
+    if (t->crashes > 0)
+        p->isolated = 1;
+    struct proto_msg msg = {.type = MSG_TILE};
+    msg.u.tile.job_id = m->job_id;
+    msg.u.tile.frame = 0;
+    msg.u.tile.tile = tile;
+    msg.u.tile.attempt = t->attempt;
+    send_to(m, p, &msg);
+}
+
+static int peer_can_take(const struct peer *p)
+{
+    return !p->gone && p->ready && p->credits > 0 && !p->isolated;
 }
 
 static void assign_tiles(struct master *m)
 {
     for (uint32_t i = 0; i < m->num_peers && m->q_count > 0; i++) {
         struct peer *p = &m->peers[i];
-        while (!p->gone && p->ready && p->credits > 0 && m->q_count > 0) {
-            uint32_t tile = queue_pop(m);
-            struct tile_slot *t = &m->tiles[tile];
-            t->state = TILE_ASSIGNED;
-            t->attempt++;
-            t->peer = (int32_t)i;
-            p->credits--;
-            struct proto_msg msg = {.type = MSG_TILE};
-            msg.u.tile.job_id = m->job_id;
-            msg.u.tile.frame = 0;
-            msg.u.tile.tile = tile;
-            msg.u.tile.attempt = t->attempt;
-            send_to(m, p, &msg);
+        uint32_t qi = 0;
+        while (peer_can_take(p) && qi < m->q_count) {
+            uint32_t tile = m->queue[qi];
+            /* A tile that already took a worker down is rendered alone, so that a second
+             * crash is blamed on it and not on its neighbours. */
+            if (m->tiles[tile].crashes > 0 && p->in_flight > 0) {
+                qi++;
+                continue;
+            }
+            queue_remove_at(m, qi);
+            tile_give(m, tile, (int32_t)i, 0);
         }
     }
+    if (m->q_count > 0)
+        return;
+    /* Stragglers: an idle worker also takes the oldest tile still in flight elsewhere;
+     * the first valid result wins (tiles are deterministic, so either will do). */
+    for (uint32_t i = 0; i < m->num_peers; i++) {
+        struct peer *p = &m->peers[i];
+        if (!peer_can_take(p) || p->in_flight > 0)
+            continue;
+        int32_t best = -1;
+        for (uint32_t t = 0; t < m->num_tiles; t++) {
+            const struct tile_slot *s = &m->tiles[t];
+            if (s->state != TILE_ASSIGNED || s->num_holders != 1 || s->holder[0] == (int32_t)i || s->crashes > 0)
+                continue;
+            if (best < 0 || s->assigned_ms < m->tiles[best].assigned_ms)
+                best = (int32_t)t;
+        }
+        if (best < 0)
+            return;
+        tile_give(m, (uint32_t)best, (int32_t)i, 1);
+    }
+}
+
+static void on_heartbeat(struct master *m, struct peer *p, const struct msg_heartbeat *h)
+{
+    if (h->samples_done > p->last_samples) {
+        p->last_samples = h->samples_done;
+        p->last_progress_ms = net_now_ms();
+    }
+    p->reported_stall_ms = h->stalled_ms;
+    (void)m;
 }
 
 static void handle_message(struct master *m, struct net_frame *f)
@@ -369,6 +657,7 @@ static void handle_message(struct master *m, struct net_frame *f)
     char err[256];
     int32_t pi = find_peer(m, f->id, f->id_len);
     if (proto_decode(f->data, f->size, &msg, err, sizeof err) != 0) {
+        m->c.rejected_decode++;
         if (pi < 0 || peer_should_log_drop(&m->peers[pi]))
             log_warn("message from %s dropped: %s", pi >= 0 ? m->peers[pi].name : "an unknown peer", err);
         return;
@@ -378,7 +667,16 @@ static void handle_message(struct master *m, struct net_frame *f)
         return;
     }
     if (pi < 0) {
-        log_debug("%s from an unknown peer dropped", proto_type_name(msg.type));
+        int32_t gone = find_gone_peer(m, f->id, f->id_len);
+        if (gone >= 0 && msg.type == MSG_RESULT) {
+            m->c.results_stale++; /* a late result of an evicted worker (e.g. after SIGCONT) */
+            log_debug("late RESULT for tile %u from evicted worker %s dropped", msg.u.result.tile, m->peers[gone].name);
+        } else if (gone >= 0) {
+            m->c.rejected_unexpected++;
+        } else {
+            m->c.rejected_unknown_peer++;
+            log_debug("%s from an unknown peer dropped", proto_type_name(msg.type));
+        }
         if (msg.type == MSG_JOB)
             proto_job_free(&msg.u.job);
         return;
@@ -390,11 +688,13 @@ static void handle_message(struct master *m, struct net_frame *f)
         on_blob_req(m, p, &msg.u.blob_req);
         break;
     case MSG_READY:
-        if (msg.u.ready.job_id == m->job_id) {
+        if (msg.u.ready.job_id == m->job_id && !p->ready) {
             p->ready = 1;
             p->credits = msg.u.ready.credits < p->threads * 4 ? msg.u.ready.credits : p->threads * 4;
             if (p->credits == 0)
                 p->credits = 1;
+        } else {
+            m->c.rejected_wrong_job++;
         }
         break;
     case MSG_RESULT:
@@ -403,18 +703,75 @@ static void handle_message(struct master *m, struct net_frame *f)
     case MSG_ERROR:
         snprintf(m->last_worker_error, sizeof m->last_worker_error, "%s", msg.u.error.text);
         log_error("worker %s: %s", p->name, msg.u.error.text);
-        evict_peer(m, pi, "it reported an error");
+        evict_peer(m, pi, EVICT_ERROR, "it reported an error");
         break;
     case MSG_HEARTBEAT:
+        on_heartbeat(m, p, &msg.u.heartbeat);
         break;
     case MSG_BYE:
-        evict_peer(m, pi, "it left");
+        evict_peer(m, pi, EVICT_LEFT, "it left");
         break;
     default:
-        log_warn("worker %s: unexpected %s dropped", p->name, proto_type_name(msg.type));
+        m->c.rejected_unexpected++;
+        if (peer_should_log_drop(p))
+            log_warn("worker %s: unexpected %s dropped", p->name, proto_type_name(msg.type));
         if (msg.type == MSG_JOB)
             proto_job_free(&msg.u.job);
     }
+}
+
+/* ---- journal ---- */
+
+struct replay_ctx { struct master *m; };
+
+static int replay_tile(void *ctx, uint32_t tile, const struct tile_stats *st, const uint8_t *chunk, uint32_t size)
+{
+    struct master *m = ((struct replay_ctx *)ctx)->m;
+    char err[256];
+    if (m->tiles[tile].state == TILE_DONE)
+        return 0; /* a tile journaled twice: the first copy is as good */
+    if (!chunk_is_sane(m, tile, chunk, size, err, sizeof err)) {
+        log_warn("journal: tile %u does not decode (%s); the journal is cut there", tile, err);
+        return -1;
+    }
+    struct tile_slot *t = &m->tiles[tile];
+    t->chunk = mem_alloc(size ? size : 1);
+    memcpy(t->chunk, chunk, size);
+    t->chunk_size = size;
+    t->state = TILE_DONE;
+    m->tiles_done++;
+    m->c.tiles_from_journal++;
+    tile_stats_add(&m->stats, st);
+    return 0;
+}
+
+/* The journal belongs to exactly this job: scene and assets (the scene hash covers them
+ * and the settings) plus the layout of tiles and the sampler. */
+static int open_journal(struct master *m)
+{
+    const struct render_settings *rs = &m->scene.settings;
+    char ident[512];
+    int n = snprintf(ident, sizeof ident, "brume-journal-1 %s tile=%u sampler=%u frame=0 tiles=%u", m->scene_hash,
+                     rs->tile_size, (unsigned)rs->sampler, m->num_tiles);
+    struct blob_hash key;
+    blob_hash_compute(ident, (size_t)n, &key);
+    char path[4200], err[512];
+    snprintf(path, sizeof path, "%s.journal", m->opts->output_path);
+    uint32_t recovered;
+    uint64_t torn;
+    int other;
+    struct replay_ctx ctx = {m};
+    if (journal_open(&m->journal, path, &key, m->num_tiles, replay_tile, &ctx, &recovered, &torn, &other, err,
+                     sizeof err) != 0) {
+        log_error("%s", err);
+        return -1;
+    }
+    m->have_journal = 1;
+    if (other)
+        log_warn("%s belonged to another job (scene or settings differ); starting afresh", path);
+    if (recovered || torn)
+        log_info("journal %s: %u tile(s) recovered%s", path, recovered, torn ? ", a torn last record cut off" : "");
+    return 0;
 }
 
 /* ---- output ---- */
@@ -468,6 +825,11 @@ static int write_output(struct master *m, double seconds)
         return -1;
     }
     fsync_dir_of(o->output_path);
+    /* Only now is the journal's content safe elsewhere. */
+    if (m->have_journal) {
+        journal_remove(&m->journal);
+        m->have_journal = 0;
+    }
     if (o->preview_path) {
         const struct render_settings *rs = &m->scene.settings;
         size_t n = (size_t)rs->width * rs->height * TILE_NUM_CHANNELS;
@@ -515,13 +877,170 @@ static void print_summary(struct master *m, double secs)
     printf("summary: wall %.3f s, %.3f Msamples/s, %.3f Mrays/s\n", secs, secs > 0 ? s->samples / secs / 1e6 : 0.0,
            secs > 0 ? s->rays / secs / 1e6 : 0.0);
     printf("summary: NaN/Inf samples dropped: %llu; stale or rejected results: %llu\n",
-           (unsigned long long)s->nan_samples, (unsigned long long)m->dropped_results);
+           (unsigned long long)s->nan_samples,
+           (unsigned long long)(m->c.results_stale + m->c.results_duplicate + m->c.results_invalid +
+                                m->c.results_not_ours));
+    printf("summary: tiles from journal: %llu\n", (unsigned long long)m->c.tiles_from_journal);
     printf("summary: noise: mean relative standard error %.4f over %u lit pixels\n",
            s->rel_stderr_pixels ? s->sum_rel_stderr / s->rel_stderr_pixels : 0.0, s->rel_stderr_pixels);
     for (uint32_t i = 0; i < m->num_peers; i++)
         printf("summary: worker %s: %u tiles\n", m->peers[i].name, m->peers[i].tiles_done);
     printf("summary: scene hash %s\n", m->scene_hash);
     fflush(stdout);
+}
+
+/* Printed on success and on failure, so tests can read what happened either way. */
+static void print_counters(const struct master *m)
+{
+#define X(n) printf("summary: counter %s %llu\n", #n, (unsigned long long)m->c.n);
+    COUNTERS(X)
+#undef X
+    fflush(stdout);
+}
+
+/* ---- keeping strangers out: CurveZMQ with a ZAP handler ---- */
+
+/* The master's own local workers get a fresh key pair in the private (0700) socket folder. */
+static int make_local_keys(struct master *m, struct net_key *local_public)
+{
+    char err[512];
+    snprintf(m->local_key_path, sizeof m->local_key_path, "%s/worker.key", m->ipc_dir);
+    snprintf(m->local_pub_path, sizeof m->local_pub_path, "%s/master.pub", m->ipc_dir);
+    struct net_key sec, pub, master_pub, master_sec;
+    if (net_key_pair_write(m->local_key_path, err, sizeof err) != 0 ||
+        net_key_pair_load(m->local_key_path, &pub, &sec, err, sizeof err) != 0 ||
+        net_key_pair_load(m->opts->curve_secret, &master_pub, &master_sec, err, sizeof err) != 0) {
+        log_error("%s", err);
+        return -1;
+    }
+    FILE *f = fopen(m->local_pub_path, "w");
+    if (!f || fprintf(f, "%s\n", master_pub.z85) < 0 || fclose(f) != 0) {
+        log_error("%s: %s", m->local_pub_path, strerror(errno));
+        return -1;
+    }
+    *local_public = pub;
+    return 0;
+}
+
+static void allow_key(struct master *m, const struct net_key *k)
+{
+    m->allowed = mem_realloc(m->allowed, sizeof *m->allowed * (m->num_allowed + 1));
+    zmq_z85_decode(m->allowed[m->num_allowed++], k->z85);
+}
+
+static int setup_curve(struct master *m)
+{
+    const struct master_opts *o = m->opts;
+    char err[512] = "";
+    struct net_key pub, sec, *keys = NULL;
+    size_t count = 0;
+    if (!zmq_has("curve")) {
+        log_error("--curve-secret: this libzmq has no CurveZMQ");
+        return -1;
+    }
+    if (net_key_pair_load(o->curve_secret, &pub, &sec, err, sizeof err) != 0 ||
+        net_key_list_load(o->allow_path, &keys, &count, err, sizeof err) != 0) {
+        log_error("%s", err);
+        return -1;
+    }
+    for (size_t i = 0; i < count; i++)
+        allow_key(m, &keys[i]);
+    free(keys);
+    /* The handler must be bound before the first peer connects. */
+    m->zap = zmq_socket(m->zctx, ZMQ_REP);
+    int linger = 0;
+    zmq_setsockopt(m->zap, ZMQ_LINGER, &linger, sizeof linger);
+    if (zmq_bind(m->zap, "inproc://zeromq.zap.01") != 0 || net_curve_server(m->sock, &sec) != 0) {
+        log_error("cannot enable CurveZMQ: %s", zmq_strerror(errno));
+        return -1;
+    }
+    /* Handshakes that fail before ZAP (a client without CURVE, a wrong server key) are
+     * counted through the socket monitor. */
+    if (zmq_socket_monitor(m->sock, "inproc://brume-monitor",
+                           ZMQ_EVENT_HANDSHAKE_FAILED_NO_DETAIL | ZMQ_EVENT_HANDSHAKE_FAILED_PROTOCOL |
+                               ZMQ_EVENT_HANDSHAKE_FAILED_AUTH) == 0) {
+        m->monitor = zmq_socket(m->zctx, ZMQ_PAIR);
+        zmq_setsockopt(m->monitor, ZMQ_LINGER, &linger, sizeof linger);
+        zmq_connect(m->monitor, "inproc://brume-monitor");
+    }
+    log_info("CurveZMQ on: %zu allowed worker key(s)", m->num_allowed);
+    return 0;
+}
+
+/* One ZAP request (RFC 27): admit CURVE clients whose public key is allowed. */
+static void zap_handle(struct master *m)
+{
+    zmq_msg_t part[8];
+    int n = 0, more = 1;
+    while (more && n < 8) {
+        zmq_msg_init(&part[n]);
+        if (zmq_msg_recv(&part[n], m->zap, ZMQ_DONTWAIT) < 0) {
+            zmq_msg_close(&part[n]);
+            break;
+        }
+        more = zmq_msg_more(&part[n]);
+        n++;
+    }
+    while (more) { /* a request with too many parts: drain it */
+        zmq_msg_t x;
+        zmq_msg_init(&x);
+        if (zmq_msg_recv(&x, m->zap, ZMQ_DONTWAIT) < 0)
+            more = 0;
+        else
+            more = zmq_msg_more(&x);
+        zmq_msg_close(&x);
+    }
+    if (n < 2) {
+        for (int i = 0; i < n; i++)
+            zmq_msg_close(&part[i]);
+        return; /* no request id to answer */
+    }
+    int ok = n == 7 && zmq_msg_size(&part[5]) == 5 && !memcmp(zmq_msg_data(&part[5]), "CURVE", 5) &&
+             zmq_msg_size(&part[6]) == 32;
+    if (ok) {
+        ok = 0;
+        for (size_t i = 0; i < m->num_allowed && !ok; i++)
+            ok = !memcmp(m->allowed[i], zmq_msg_data(&part[6]), 32);
+    }
+    if (!ok) {
+        m->c.auth_rejects++;
+        if (m->c.auth_rejects <= 5)
+            log_warn("a worker with a key not in the allow-list was refused");
+    }
+    const char *status = ok ? "200" : "400", *text = ok ? "OK" : "key not allowed";
+    zmq_send(m->zap, "1.0", 3, ZMQ_SNDMORE);
+    zmq_send(m->zap, zmq_msg_data(&part[1]), zmq_msg_size(&part[1]), ZMQ_SNDMORE);
+    zmq_send(m->zap, status, 3, ZMQ_SNDMORE);
+    zmq_send(m->zap, text, strlen(text), ZMQ_SNDMORE);
+    zmq_send(m->zap, "", 0, ZMQ_SNDMORE);
+    zmq_send(m->zap, "", 0, 0);
+    for (int i = 0; i < n; i++)
+        zmq_msg_close(&part[i]);
+}
+
+static void monitor_drain(struct master *m)
+{
+    for (;;) {
+        zmq_msg_t ev, addr;
+        zmq_msg_init(&ev);
+        if (zmq_msg_recv(&ev, m->monitor, ZMQ_DONTWAIT) < 0) {
+            zmq_msg_close(&ev);
+            return;
+        }
+        int more = zmq_msg_more(&ev);
+        if (zmq_msg_size(&ev) >= 2) {
+            uint16_t event;
+            memcpy(&event, zmq_msg_data(&ev), 2);
+            if (event != ZMQ_EVENT_HANDSHAKE_FAILED_AUTH) /* those were counted by ZAP */
+                m->c.handshake_failures++;
+        }
+        zmq_msg_close(&ev);
+        if (more) {
+            zmq_msg_init(&addr);
+            zmq_msg_recv(&addr, m->monitor, ZMQ_DONTWAIT);
+            zmq_msg_close(&addr);
+        }
+    }
 }
 
 /* ---- main loop ---- */
@@ -536,6 +1055,12 @@ static int start_local_workers(struct master *m)
         log_error("cannot create a private folder for the local socket: %s", strerror(errno));
         return -1;
     }
+    if (o->curve_secret) {
+        struct net_key local_public;
+        if (make_local_keys(m, &local_public) != 0)
+            return -1;
+        allow_key(m, &local_public);
+    }
     snprintf(m->ipc_endpoint, sizeof m->ipc_endpoint, "ipc://%s/master.sock", m->ipc_dir);
     if (zmq_bind(m->sock, m->ipc_endpoint) != 0) {
         log_error("cannot bind %s: %s", m->ipc_endpoint, zmq_strerror(errno));
@@ -543,7 +1068,8 @@ static int start_local_workers(struct master *m)
     }
     m->local_pids = mem_calloc(o->workers, sizeof *m->local_pids);
     for (uint32_t i = 0; i < o->workers; i++) {
-        pid_t pid = launch_worker(o->worker_exe, m->ipc_endpoint, o->threads);
+        pid_t pid = launch_worker(o->worker_exe, m->ipc_endpoint, o->threads,
+                                  o->curve_secret ? m->local_key_path : NULL, m->local_pub_path);
         if (pid < 0)
             return -1;
         m->local_pids[m->num_local++] = pid;
@@ -569,7 +1095,7 @@ static void reap_local(struct master *m)
                     snprintf(why, sizeof why, "process killed by signal %d", WTERMSIG(status));
                 else
                     snprintf(why, sizeof why, "process exited with status %d", WEXITSTATUS(status));
-                evict_peer(m, (int32_t)i, why);
+                evict_peer(m, (int32_t)i, EVICT_DIED, why);
             }
     }
 }
@@ -580,6 +1106,28 @@ static uint32_t live_peers(const struct master *m)
     for (uint32_t i = 0; i < m->num_peers; i++)
         n += !m->peers[i].gone;
     return n;
+}
+
+static void check_liveness(struct master *m, uint64_t now)
+{
+    const struct master_opts *o = m->opts;
+    for (uint32_t i = 0; i < m->num_peers; i++) {
+        struct peer *p = &m->peers[i];
+        if (p->gone)
+            continue;
+        char why[128];
+        if (now - p->last_heard_ms > o->worker_timeout_ms) {
+            snprintf(why, sizeof why, "no heartbeat for %llu ms", (unsigned long long)(now - p->last_heard_ms));
+            evict_peer(m, (int32_t)i, EVICT_SILENT, why);
+        } else if (p->in_flight > 0 && now - p->last_progress_ms > o->stall_ms) {
+            snprintf(why, sizeof why, "its render threads made no progress for %llu ms",
+                     (unsigned long long)(now - p->last_progress_ms));
+            evict_peer(m, (int32_t)i, EVICT_STALLED, why);
+        } else if (p->in_flight > 0 && p->reported_stall_ms > o->stall_ms) {
+            snprintf(why, sizeof why, "a render thread made no progress for %u ms", p->reported_stall_ms);
+            evict_peer(m, (int32_t)i, EVICT_STALLED, why);
+        }
+    }
 }
 
 int master_run(const struct master_opts *o)
@@ -596,20 +1144,35 @@ int master_run(const struct master_opts *o)
     if (load_scene(&m) != 0)
         goto done;
     setup_tiles(&m);
+    if (o->only_tiles && restrict_tiles(&m) != 0)
+        goto done;
+    /* A --tiles render is a debugging aid: it keeps no journal of its own. */
+    if (!o->no_journal && !o->only_tiles && open_journal(&m) != 0)
+        goto done;
+    if (m.c.tiles_from_journal > 0) {
+        /* Journaled tiles never go out again. */
+        uint32_t k = 0;
+        for (uint32_t i = 0; i < m.q_count; i++)
+            if (m.tiles[m.queue[i]].state != TILE_DONE)
+                m.queue[k++] = m.queue[i];
+        m.q_count = k;
+    }
     m.zctx = zmq_ctx_new();
     m.sock = zmq_socket(m.zctx, ZMQ_ROUTER);
     net_socket_setup(m.sock);
     int mandatory = 1;
     zmq_setsockopt(m.sock, ZMQ_ROUTER_MANDATORY, &mandatory, sizeof mandatory);
+    if (o->curve_secret && setup_curve(&m) != 0)
+        goto done;
     if (o->bind && zmq_bind(m.sock, o->bind) != 0) {
         log_error("cannot bind %s: %s", o->bind, zmq_strerror(errno));
         goto done;
     }
-    if (start_local_workers(&m) != 0)
+    if (m.tiles_done < m.num_tiles && start_local_workers(&m) != 0)
         goto done;
-    log_info("rendering %s: %ux%u, %u spp, %u tiles, %u local worker(s)%s%s", o->scene_path,
-             m.scene.settings.width, m.scene.settings.height, m.scene.settings.spp, m.num_tiles, o->workers,
-             o->bind ? ", accepting workers at " : "", o->bind ? o->bind : "");
+    log_info("rendering %s: %ux%u, %u spp, %u tiles (%u from the journal), %u local worker(s)%s%s", o->scene_path,
+             m.scene.settings.width, m.scene.settings.height, m.scene.settings.spp, m.num_tiles, m.tiles_done,
+             o->workers, o->bind ? ", accepting workers at " : "", o->bind ? o->bind : "");
 
     int tty = isatty(2);
     uint64_t start = net_now_ms(), last_progress = start, last_beat = start;
@@ -618,27 +1181,39 @@ int master_run(const struct master_opts *o)
             log_error("interrupted; %u of %u tiles were finished", m.tiles_done, m.num_tiles);
             goto done;
         }
-        zmq_pollitem_t item = {m.sock, 0, ZMQ_POLLIN, 0};
-        if (zmq_poll(&item, 1, 100) < 0 && errno != EINTR) {
+        if (m.fatal[0]) {
+            log_error("%s", m.fatal);
+            goto done;
+        }
+        zmq_pollitem_t items[3] = {{m.sock, 0, ZMQ_POLLIN, 0}, {m.zap, 0, ZMQ_POLLIN, 0}, {m.monitor, 0, ZMQ_POLLIN, 0}};
+        int nitems = m.monitor ? 3 : m.zap ? 2 : 1;
+        if (zmq_poll(items, nitems, 100) < 0 && errno != EINTR) {
             log_error("poll: %s", zmq_strerror(errno));
             goto done;
         }
-        if (item.revents & ZMQ_POLLIN) {
+        if (nitems > 1 && (items[1].revents & ZMQ_POLLIN))
+            zap_handle(&m);
+        if (nitems > 2 && (items[2].revents & ZMQ_POLLIN))
+            monitor_drain(&m);
+        if (items[0].revents & ZMQ_POLLIN) {
             struct net_frame f;
             int got;
             while ((got = net_recv(m.sock, 1, &f)) != 0) {
-                if (got > 0)
+                if (got > 0) {
                     handle_message(&m, &f);
-                else
-                    log_warn("a message with a malformed envelope (frame count or identity) was dropped");
+                } else {
+                    m.c.rejected_envelope++;
+                    if (m.c.rejected_envelope <= 5)
+                        log_warn("a message with a malformed envelope (frame count or identity) was dropped");
+                }
                 net_frame_free(&f);
             }
         }
         uint64_t now = net_now_ms();
         reap_local(&m);
-        for (uint32_t i = 0; i < m.num_peers; i++)
-            if (!m.peers[i].gone && now - m.peers[i].last_heard_ms > o->worker_timeout_ms)
-                evict_peer(&m, (int32_t)i, "no heartbeat");
+        check_liveness(&m, now);
+        if (m.fatal[0])
+            continue;
         if (!o->bind && m.local_alive == 0 && live_peers(&m) == 0) {
             log_error("every worker has exited; %u of %u tiles were finished%s%s", m.tiles_done, m.num_tiles,
                       m.last_worker_error[0] ? "; last worker error: " : "", m.last_worker_error);
@@ -670,14 +1245,28 @@ int master_run(const struct master_opts *o)
     print_summary(&m, secs);
     rc = 0;
 done:
+    print_counters(&m);
     if (m.num_local)
         launch_stop_all(m.local_pids, m.num_local, 3000);
     if (m.ipc_dir[0]) {
         char sockpath[400];
         snprintf(sockpath, sizeof sockpath, "%s/master.sock", m.ipc_dir);
         unlink(sockpath);
+        if (m.local_key_path[0]) {
+            unlink(m.local_key_path);
+            char pub[420];
+            snprintf(pub, sizeof pub, "%s.pub", m.local_key_path);
+            unlink(pub);
+            unlink(m.local_pub_path);
+        }
         rmdir(m.ipc_dir);
     }
+    if (m.have_journal)
+        journal_close(&m.journal);
+    if (m.monitor)
+        zmq_close(m.monitor);
+    if (m.zap)
+        zmq_close(m.zap);
     if (m.sock)
         zmq_close(m.sock);
     if (m.zctx)
@@ -690,6 +1279,7 @@ done:
     free(m.local_pids);
     free(m.manifest);
     free(m.decode_scratch);
+    free(m.allowed);
     proto_buf_free(&m.out);
     blob_store_free(&m.blobs);
     asset_dir_free(&m.assets);

@@ -15,6 +15,14 @@ struct master_opts {
     uint32_t workers;           /* local workers to start */
     uint32_t threads;           /* per local worker */
     uint32_t worker_timeout_ms; /* evict a worker silent this long */
+    uint32_t stall_ms;          /* evict a worker whose render threads make no progress this long */
+    int no_journal;             /* do not keep OUT.journal (measurements only) */
+    const uint32_t *only_tiles; /* --tiles: render just these (others stay black), or NULL */
+    uint32_t num_only_tiles;
+    const char *curve_secret;   /* CurveZMQ key pair of the master, or NULL */
+    const char *allow_path;     /* allowed worker public keys, with curve_secret */
+    int argc;                   /* the command line, to print the command that re-renders a tile */
+    char **argv;
     int have_spp, have_seed, have_tile, have_depth;
     int have_sampler;
     uint32_t sampler;           /* enum sampler_type, with have_sampler */

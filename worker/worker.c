@@ -219,6 +219,7 @@ static void pool_stop(struct pool *p)
     if (!p->threads)
         return;
     pthread_mutex_lock(&p->lock);
+    p->count = 0; /* tiles not started are dropped; those being rendered are finished */
     p->stop = 1;
     pthread_cond_broadcast(&p->cond);
     pthread_mutex_unlock(&p->lock);
@@ -469,6 +470,19 @@ static void send_result(struct worker *w, struct tile_done *d)
     w->tiles_done++;
 }
 
+/* Leaving: finish the tiles being rendered and send them, so a master that evicted us
+ * (e.g. after SIGSTOP/SIGCONT) still sees them and counts them as late. */
+static void flush_results(struct worker *w)
+{
+    pool_stop(&w->pool);
+    struct tile_done *d;
+    while (zmq_recv(w->results, &d, sizeof d, ZMQ_DONTWAIT) == (int)sizeof d) {
+        send_result(w, d);
+        free(d->chunk);
+        free(d);
+    }
+}
+
 int worker_run(const struct worker_opts *opts)
 {
     struct worker w;
@@ -555,6 +569,7 @@ int worker_run(const struct worker_opts *opts)
                 case MSG_HEARTBEAT:
                     break;
                 case MSG_BYE:
+                    flush_results(&w);
                     rc = 0;
                     g_stop = 1;
                     break;

@@ -36,6 +36,24 @@ int main(int argc, char **argv)
         free(a);
         return 0;
     }
+    if (argc == 8 && !strcmp(argv[1], "cmprect")) {
+        /* cmprect A B X0 Y0 W H: R,G,B,A bit-identical inside the rectangle (a --tiles render). */
+        uint32_t wa, ha, wb, hb;
+        float *a = load(argv[2], &wa, &ha), *b = load(argv[3], &wb, &hb);
+        uint32_t x0 = (uint32_t)atoi(argv[4]), y0 = (uint32_t)atoi(argv[5]), rw = (uint32_t)atoi(argv[6]),
+                 rh = (uint32_t)atoi(argv[7]);
+        if (wa != wb || ha != hb || x0 + rw > wa || y0 + rh > ha) {
+            fprintf(stderr, "exrtool: sizes differ or rectangle outside the image\n");
+            return 1;
+        }
+        size_t diff = 0;
+        for (uint32_t y = y0; y < y0 + rh; y++)
+            diff += memcmp(&a[((size_t)y * wa + x0) * 4], &b[((size_t)y * wa + x0) * 4], sizeof(float) * 4 * rw) != 0;
+        free(a);
+        free(b);
+        printf("%zu rows differ\n", diff);
+        return diff ? 1 : 0;
+    }
     if (argc != 4 || (strcmp(argv[1], "cmp") && strcmp(argv[1], "rmse"))) {
         fprintf(stderr, "usage: exrtool cmp A.exr B.exr | exrtool rmse A.exr REF.exr | exrtool mean A.exr\n");
         return 2;

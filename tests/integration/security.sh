@@ -1,0 +1,55 @@
+#!/bin/sh
+# Keeping strangers out: CurveZMQ with an allow-list. A client without CurveZMQ and a
+# worker with an unlisted key get no message to the master's code and no tile; a listed
+# worker renders the same pixels. Binding a public address without keys is refused.
+# Ends with "integration: N passed, N failed". Usage: BUILD=build sh tests/integration/security.sh
+set -u
+BUILD=${BUILD:-build}
+M=$BUILD/master
+W=$BUILD/worker
+X=$BUILD/exrtool
+T=$(mktemp -d /tmp/brume-sec.XXXXXX)
+trap 'rm -rf "$T"' EXIT
+pass=0
+fail=0
+ok() { pass=$((pass + 1)); echo "ok: $1"; }
+bad() { fail=$((fail + 1)); echo "FAIL: $1"; [ -f "$T/log" ] && sed 's/^/    /' "$T/log" | tail -25; }
+counter() { sed -n "s/^summary: counter $1 //p" "$T/log" | tail -1; }
+P=$((21000 + ($$ % 20000)))
+
+if $M --keygen "$T/master.key" >/dev/null && $M --keygen "$T/good.key" >/dev/null && $M --keygen "$T/stranger.key" >/dev/null &&
+  [ "$(stat -c %a "$T/good.key")" = 600 ] && [ "$(wc -c <"$T/good.key.pub")" = 41 ]; then
+  ok "--keygen writes a private key pair and a public key"; else bad "--keygen writes a private key pair and a public key"; fi
+cp "$T/good.key.pub" "$T/allow"
+
+if ! timeout 10 $M scenes/tiny/tiny.json -o "$T/x.exr" --workers 0 --bind "tcp://0.0.0.0:$P" >"$T/log" 2>&1 &&
+  grep -q "insecure" "$T/log"; then ok "public bind without keys refused"; else bad "public bind without keys refused"; fi
+
+timeout 60 $M scenes/tiny/tiny.json -o "$T/ref.exr" --workers 1 >"$T/log" 2>&1 || bad "reference render"
+timeout 60 $M scenes/tiny/tiny.json -o "$T/s.exr" --workers 0 --bind "tcp://127.0.0.1:$P" \
+  --curve-secret "$T/master.key" --allow "$T/allow" >"$T/log" 2>&1 &
+mpid=$!
+sleep 0.3
+timeout 20 $W --connect "tcp://127.0.0.1:$P" --curve-secret "$T/stranger.key" --server-key "$T/master.key.pub" \
+  --timeout-ms 2500 >/dev/null 2>&1 &
+timeout 20 $BUILD/junkpeer "tcp://127.0.0.1:$P" >/dev/null 2>&1 &
+sleep 1.5
+timeout 60 $W --connect "tcp://127.0.0.1:$P" --curve-secret "$T/good.key" --server-key "$T/master.key.pub" >/dev/null 2>&1
+wait $mpid && r=0 || r=1
+rej=0
+for c in rejected_decode rejected_envelope rejected_unknown_peer rejected_unexpected results_not_ours results_stale; do
+  rej=$((rej + $(counter $c)))
+done
+echo "security: auth rejects $(counter auth_rejects), handshake failures $(counter handshake_failures), workers joined $(counter workers_joined)"
+if [ $r = 0 ] && [ "$(counter workers_joined)" = 1 ] && [ $rej = 0 ] && [ "$(counter auth_rejects)" -ge 1 ] &&
+  [ "$(counter handshake_failures)" -ge 1 ] && ! grep -q "junk" "$T/log" && $X cmp "$T/ref.exr" "$T/s.exr"; then
+  ok "CurveZMQ: strangers get 0 messages in, listed worker renders identical pixels"
+else bad "CurveZMQ: strangers get 0 messages in, listed worker renders identical pixels"; fi
+
+timeout 60 $M scenes/tiny/tiny.json -o "$T/l.exr" --workers 2 --bind "tcp://127.0.0.1:$((P + 1))" \
+  --curve-secret "$T/master.key" --allow "$T/allow" >"$T/log" 2>&1 && r=0 || r=1
+if [ $r = 0 ] && [ "$(counter auth_rejects)" = 0 ] && $X cmp "$T/ref.exr" "$T/l.exr"; then
+  ok "CurveZMQ: local workers get their own key"; else bad "CurveZMQ: local workers get their own key"; fi
+
+echo "integration: $pass passed, $fail failed"
+[ $fail = 0 ]
