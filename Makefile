@@ -64,9 +64,7 @@ unit: $(BUILD)/unit_tests
 	cd tests/unit && ../../$(BUILD)/unit_tests --jobs=2
 
 integration: all
-	BUILD=$(BUILD) sh tests/integration/run.sh
-	BUILD=$(BUILD) sh tests/integration/faults.sh
-	BUILD=$(BUILD) sh tests/integration/security.sh
+	BUILD=$(BUILD) sh tests/integration/all.sh
 
 # Long fault runs (many master kills); not part of `make test`.
 stress: all

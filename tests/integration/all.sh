@@ -1,0 +1,26 @@
+#!/bin/sh
+# Runs every integration script and ends with one line for CI:
+# "integration: N passed, N failed" summed over run.sh, faults.sh and security.sh.
+# Each script's own output (and its closing line, as "part:") is kept.
+# Usage: BUILD=build sh tests/integration/all.sh
+set -u
+pass=0
+fail=0
+rc=0
+for s in run.sh faults.sh security.sh; do
+  out=$(mktemp /tmp/brume-all.XXXXXX)
+  sh "$(dirname "$0")/$s" 2>&1 | tee "$out" | sed 's/^integration: /part '"$s"': /'
+  line=$(grep "^integration: " "$out" | tail -1)
+  p=$(echo "$line" | sed -n 's/^integration: \([0-9]*\) passed, \([0-9]*\) failed.*/\1/p')
+  f=$(echo "$line" | sed -n 's/^integration: \([0-9]*\) passed, \([0-9]*\) failed.*/\2/p')
+  if [ -z "$p" ]; then
+    echo "FAIL: $s ended without its summary line"
+    f=1
+    p=0
+  fi
+  pass=$((pass + p))
+  fail=$((fail + f))
+  rm -f "$out"
+done
+echo "integration: $pass passed, $fail failed"
+[ "$fail" = 0 ]
