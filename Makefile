@@ -29,7 +29,7 @@ UNIT_SRC   := $(wildcard tests/unit/test_*.c)
 UNIT_OBJ   := $(UNIT_SRC:%.c=$(BUILD)/obj/%.o)
 
 .PHONY: all deps test unit integration demo bench clean fuzz tools stress
-all: $(BUILD)/master $(BUILD)/worker $(BUILD)/exrtool $(BUILD)/junkpeer
+all: $(BUILD)/master $(BUILD)/worker $(BUILD)/exrtool $(BUILD)/junkpeer $(BUILD)/replay
 
 # Install what is missing; the stamp makes later builds skip the check.
 $(DEPS_STAMP): scripts/install-deps.sh
@@ -57,6 +57,9 @@ $(BUILD)/exrtool: $(BUILD)/obj/tests/tools/exrtool.o $(BUILD)/libbrume.a
 $(BUILD)/junkpeer: $(BUILD)/obj/tests/tools/junkpeer.o $(BUILD)/libbrume.a
 	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
 
+$(BUILD)/replay: $(BUILD)/obj/tests/tools/replay.o $(BUILD)/libbrume.a
+	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
+
 $(BUILD)/unit_tests: $(UNIT_OBJ) $(BUILD)/libbrume.a
 	$(CC) $(LDFLAGS) -o $@ $^ -lcriterion $(LDLIBS)
 
@@ -68,7 +71,8 @@ integration: all
 
 # Long fault runs (many master kills); not part of `make test`.
 stress: all
-	BUILD=$(BUILD) TRIALS=100 sh tests/integration/faults.sh
+	BUILD=$(BUILD) TRIALS=100 KILL_TRIALS=100 sh tests/integration/faults.sh
+	BUILD=$(BUILD) FRAME_TRIALS=25 sh tests/integration/frames.sh
 
 test: unit integration
 
@@ -89,4 +93,4 @@ fuzz:
 clean:
 	rm -rf build build-san
 
--include $(COMMON_OBJ:.o=.d) $(MASTER_OBJ:.o=.d) $(WORKER_OBJ:.o=.d) $(UNIT_OBJ:.o=.d) $(BUILD)/obj/tests/tools/exrtool.d $(BUILD)/obj/tests/tools/junkpeer.d
+-include $(COMMON_OBJ:.o=.d) $(MASTER_OBJ:.o=.d) $(WORKER_OBJ:.o=.d) $(UNIT_OBJ:.o=.d) $(BUILD)/obj/tests/tools/exrtool.d $(BUILD)/obj/tests/tools/junkpeer.d $(BUILD)/obj/tests/tools/replay.d

@@ -880,6 +880,71 @@ done:
     return ok ? 0 : -1;
 }
 
+int imgio_read_attrs(const char *path, struct image_desc *d, struct image_attrs *a, char *err, size_t errlen)
+{
+    memset(d, 0, sizeof *d);
+    memset(a, 0, sizeof *a);
+    struct imgio_stream s;
+    stream_init(&s);
+    s.fd = open(path, O_RDONLY | O_CLOEXEC);
+    if (s.fd < 0) {
+        set_err(err, errlen, "%s: cannot open: %s", path, strerror(errno));
+        return -1;
+    }
+    exr_context_initializer_t init = stream_initializer(&s);
+    exr_context_t ctx = NULL;
+    char what[300];
+    snprintf(what, sizeof what, "%s: cannot read the EXR header", path);
+    exr_attr_box2i_t dw;
+    memset(&dw, 0, sizeof dw);
+    exr_storage_t storage = EXR_STORAGE_LAST_TYPE;
+    uint32_t tx = 0, ty = 0;
+    int32_t spp = 0, seed_len = 0, hash_len = 0;
+    const char *seed = NULL, *hash = NULL;
+    exr_result_t rv = exr_start_read(&ctx, path, &init);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_get_data_window(ctx, 0, &dw);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_get_storage(ctx, 0, &storage);
+    if (rv == EXR_ERR_SUCCESS && storage == EXR_STORAGE_TILED)
+        rv = exr_get_tile_descriptor(ctx, 0, &tx, &ty, NULL, NULL);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_attr_get_int(ctx, 0, "brume_spp", &spp);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_attr_get_string(ctx, 0, "brume_seed", &seed_len, &seed);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_attr_get_string(ctx, 0, "brume_scene_hash", &hash_len, &hash);
+    int ok = 0;
+    if (rv != EXR_ERR_SUCCESS) {
+        lib_err(err, errlen, &s, rv, what);
+    } else if (dw.max.x < dw.min.x || dw.max.y < dw.min.y || spp < 0 || seed_len <= 0 || seed_len > 20 ||
+               hash_len <= 0 || (size_t)hash_len >= sizeof a->scene_hash) {
+        set_err(err, errlen, "%s: not a header this renderer wrote", path);
+    } else {
+        char seed_s[24];
+        memcpy(seed_s, seed, (size_t)seed_len);
+        seed_s[seed_len] = '\0';
+        char *end;
+        errno = 0;
+        a->seed = strtoull(seed_s, &end, 10);
+        if (errno != 0 || *end != '\0') {
+            set_err(err, errlen, "%s: brume_seed \"%s\" is not a number", path, seed_s);
+        } else {
+            memcpy(a->scene_hash, hash, (size_t)hash_len);
+            a->scene_hash[hash_len] = '\0';
+            a->spp = (uint32_t)spp;
+            d->width = (uint32_t)((int64_t)dw.max.x - dw.min.x + 1);
+            d->height = (uint32_t)((int64_t)dw.max.y - dw.min.y + 1);
+            d->tile_size = tx == ty ? tx : 0;
+            ok = 1;
+        }
+    }
+    if (ctx)
+        exr_finish(&ctx);
+    close(s.fd);
+    return ok ? 0 : -1;
+}
+
 /* ---------------------------------------------------------------------------------------
  * PNG preview */
 

@@ -73,6 +73,12 @@ int imgio_writer_close(struct imgio_writer **w, char *err, size_t errlen);
 int imgio_read(const char *path, const char *const *channels, uint32_t num_channels, float **pixels,
                uint32_t *width, uint32_t *height, char *err, size_t errlen);
 
+/* Reads back what imgio_writer_open wrote into a header: size and tile size into d (0
+ * when not square-tiled; channels are not filled in) and spp, seed and scene hash into a.
+ * The master uses it to skip frames already rendered. 0, or -1 when the file cannot be
+ * read or lacks those attributes. */
+int imgio_read_attrs(const char *path, struct image_desc *d, struct image_attrs *a, char *err, size_t errlen);
+
 /* Writes an 8-bit sRGB PNG of interleaved RGB(A) floats with the given stride, exposure
  * scaled and clamped (a plain preview, not a grade). Written to a temporary file and
  * renamed. Returns 0 or -1. */

@@ -175,13 +175,11 @@ static vec3 emitted(const struct render_job *job, const struct surface *s, vec3 
     return job->scene->materials[s->material].emission;
 }
 
-vec3 integrator_sample(const struct render_job *job, uint32_t px, uint32_t py, uint32_t sample_index,
-                       uint64_t *rays, int *hit_any)
+static vec3 sample_path(const struct render_job *job, uint32_t px, uint32_t py, struct sampler smp, uint64_t *rays,
+                        int *hit_any)
 {
     const struct scene *sc = job->scene;
     const struct render_settings *rs = &sc->settings;
-    struct sampler smp = sampler_start_type(rs->sampler, rs->seed, job->frame, (uint64_t)py * rs->width + px,
-                                            sample_index, rs->spp);
     /* Pixel jitter, lens and shutter time; time01 is the ray's time in [0, 1] across the
      * shutter (0 when nothing needs time), for motion-blurred geometry. */
     struct camera_sample cs;
@@ -284,18 +282,33 @@ vec3 integrator_sample(const struct render_job *job, uint32_t px, uint32_t py, u
     return L;
 }
 
+vec3 integrator_sample(const struct render_job *job, uint32_t px, uint32_t py, uint32_t sample_index,
+                       uint64_t *rays, int *hit_any)
+{
+    const struct render_settings *rs = &job->scene->settings;
+    struct sampler smp = sampler_start_type(rs->sampler, rs->seed, job->frame, (uint64_t)py * rs->width + px,
+                                            sample_index, rs->spp);
+    return sample_path(job, px, py, smp, rays, hit_any);
+}
+
 void integrator_render_tile(const struct render_job *job, uint32_t x0, uint32_t y0, uint32_t w, uint32_t h,
                             float *pixels, struct tile_stats *stats)
 {
-    const uint32_t spp = job->scene->settings.spp;
+    const struct render_settings *rs = &job->scene->settings;
+    const uint32_t spp = rs->spp;
     memset(stats, 0, sizeof *stats);
     for (uint32_t y = 0; y < h; y++)
         for (uint32_t x = 0; x < w; x++) {
             double sum[3] = {0, 0, 0}, sum2[3] = {0, 0, 0}, lum_sum = 0.0, lum_sum2 = 0.0, cover = 0.0;
             uint32_t n = 0;
+            /* The pixel's sampler set-up and seeds are shared by its samples (same values
+             * as integrator_sample, a fraction of the cost). */
+            struct sampler_pixel sp;
+            sampler_pixel_init(&sp, rs->sampler, rs->seed, job->frame, (uint64_t)(y0 + y) * rs->width + (x0 + x),
+                               spp);
             for (uint32_t si = 0; si < spp; si++) {
                 int hit_any;
-                vec3 l = integrator_sample(job, x0 + x, y0 + y, si, &stats->rays, &hit_any);
+                vec3 l = sample_path(job, x0 + x, y0 + y, sampler_start_pixel(&sp, si), &stats->rays, &hit_any);
                 stats->samples++;
                 if (!v3_is_finite(l)) {
                     stats->nan_samples++;

@@ -26,15 +26,44 @@ enum sampler_dim {
     DIM_PER_BOUNCE = 6
 };
 
+/* Seeds of one dimension for one pixel pass: the index permutation, and for sobol the
+ * seed of the hash for the deep digits and the exact flips of the first 6 digits as a
+ * table indexed by the first 5 (byte p of the 4 words: the flips for prefix p). */
+struct sampler_dim_seeds {
+    uint32_t perm, tail;
+    uint64_t flips[4];
+};
+
+enum { SAMPLER_CACHE_DIMS = 64 };
+
+/* What all samples of one pixel share, built once per pixel (sampler_pixel_init) so that
+ * a sample only permutes its index: the square-most grid, masks, the key prefix and,
+ * filled lazily, the per-dimension seeds (a memo: values are the same with or without it).
+ * Per thread, on the stack; never shared. */
+struct sampler_pixel {
+    enum sampler_type type;
+    uint32_t spp;       /* points in one pass (>= 1) */
+    uint32_t perm_mask; /* next power of two >= spp, minus 1: the permutations' domain */
+    uint32_t nx, ny;    /* stratified: 2D grid nx * ny == spp */
+    int log2_spp;       /* log2(spp) when spp is a power of two, else -1 */
+    uint64_t prefix;    /* rng_key's (seed, frame, pixel) part */
+    uint64_t pixel_key; /* hash of (seed, frame, pixel, pass 0) */
+    uint64_t have;      /* bit d: seeds[d] filled */
+    struct sampler_dim_seeds seeds[SAMPLER_CACHE_DIMS];
+};
+
 /* One sample of one pixel. key drives the independent sampler (and the jitter of the
  * stratified one); pixel_key seeds the per-pixel permutations and scrambles. */
 struct sampler {
     enum sampler_type type;
     uint32_t index;     /* sample index within the pixel's pass: index < spp */
-    uint32_t spp;       /* points in one pass (>= 1) */
-    uint32_t nx, ny;    /* stratified: 2D grid nx * ny == spp */
-    uint64_t key;       /* rng_key(seed, frame, pixel, sample) */
+    uint32_t spp;
+    uint32_t perm_mask;
+    uint32_t nx, ny;
+    int log2_spp;
+    uint64_t key;       /* rng_key(seed, frame, pixel, sample); 0 for sobol (unused) */
     uint64_t pixel_key; /* hash of (seed, frame, pixel, pass) */
+    struct sampler_pixel *cache; /* seeds memo of this pixel and pass, or NULL */
 };
 
 /* Names as the scene and command line spell them; returns -1 for an unknown name. */
@@ -45,6 +74,12 @@ const char *sampler_type_name(enum sampler_type t);
  * >= spp are valid too: they start further passes with fresh permutations/scrambles. */
 struct sampler sampler_start_type(enum sampler_type type, uint64_t seed, uint32_t frame, uint64_t pixel,
                                   uint32_t sample, uint32_t spp);
+
+/* The same samples, cheaper for many samples of one pixel: init once per pixel, then start
+ * each sample from it. The sampler keeps a pointer to p (it memoizes seeds there). */
+void sampler_pixel_init(struct sampler_pixel *p, enum sampler_type type, uint64_t seed, uint32_t frame,
+                        uint64_t pixel, uint32_t spp);
+struct sampler sampler_start_pixel(struct sampler_pixel *p, uint32_t sample);
 
 /* The independent sampler of earlier versions (same bits). */
 static inline struct sampler sampler_start(uint64_t seed, uint32_t frame, uint64_t pixel, uint32_t sample)
@@ -108,8 +143,10 @@ static inline uint32_t sampler_dim_pair(uint32_t dim, uint32_t *comp, int *is_2d
 }
 
 /* Building blocks, exposed for tests. */
-uint32_t sampler_permute(uint32_t i, uint32_t n, uint32_t seed);  /* bijection on [0, n) */
-uint32_t sampler_owen_scramble(uint32_t x, uint32_t seed);       /* nested uniform, base 2 */
-uint32_t sampler_sobol_bits(uint32_t index, uint32_t dim);       /* dim 0 or 1 */
+uint32_t sampler_permute(uint32_t i, uint32_t n, uint32_t seed); /* bijection on [0, n) */
+/* Nested uniform scramble, base 2: exact per-node flips from tree on the first 6 digits,
+ * a hash seeded by seed below them. */
+uint32_t sampler_owen_scramble(uint32_t x, uint64_t tree, uint32_t seed);
+uint32_t sampler_sobol_bits(uint32_t index, uint32_t dim);      /* dim 0 or 1 */
 
 #endif

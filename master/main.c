@@ -27,6 +27,9 @@ static void usage(FILE *f)
             "  --worker-exe PATH      worker binary for local workers (default: next to master)\n"
             "  --worker-timeout-ms MS evict a worker silent for MS milliseconds (default 10000)\n"
             "  --stall-ms MS          evict a worker whose render threads finish no work for MS ms (default 30000)\n"
+            "  --frames A:B[:STEP]    render frames A..B (every STEP-th): OUT.exr becomes OUT.0001.exr, ...,\n"
+            "                         or a run of # in the name is replaced by the frame number; frames whose\n"
+            "                         output exists with the same scene and settings are skipped\n"
             "  --tiles N[,M..]        render only these tiles (the others are left black); no journal\n"
             "  --no-journal           do not keep OUT.exr.journal (a killed master then starts over)\n"
             "  --curve-secret KEYFILE CurveZMQ: the master's key pair (from --keygen); needs --allow\n"
@@ -34,6 +37,36 @@ static void usage(FILE *f)
             "  --insecure             allow --bind on a non-loopback address without CurveZMQ\n"
             "  --keygen KEYFILE       write a new key pair to KEYFILE and KEYFILE.pub, then exit\n"
             "  --verbose              debug logging\n");
+}
+
+/* "A:B" or "A:B:STEP"; every number whole, A <= B, STEP >= 1. */
+static int parse_frames(const char *s, struct master_opts *o)
+{
+    uint64_t v[3] = {0, 0, 1};
+    int n = 0;
+    const char *p = s;
+    while (n < 3) {
+        char num[32], err[128];
+        size_t len = strcspn(p, ":");
+        if (len == 0 || len >= sizeof num)
+            return -1;
+        memcpy(num, p, len);
+        num[len] = '\0';
+        if (cli_parse_u64("--frames", num, n == 2 ? 1 : 0, n == 2 ? UINT32_MAX : UINT32_MAX - 1, &v[n], err, sizeof err) != 0)
+            return -1;
+        n++;
+        p += len;
+        if (*p == '\0')
+            break;
+        p++;
+    }
+    if (n < 2 || *p != '\0' || v[0] > v[1])
+        return -1;
+    o->have_frames = 1;
+    o->frame_first = (uint32_t)v[0];
+    o->frame_last = (uint32_t)v[1];
+    o->frame_step = (uint32_t)v[2];
+    return 0;
 }
 
 int main(int argc, char **argv)
@@ -123,6 +156,11 @@ int main(int argc, char **argv)
                 return 2;
             }
             o.only_tiles = only_tiles;
+        } else if (has_arg && !strcmp(a, "--frames")) {
+            if (parse_frames(argv[++i], &o) != 0) {
+                log_error("--frames: expected A:B or A:B:STEP with A <= B and STEP >= 1, got \"%s\"", argv[i]);
+                return 2;
+            }
         } else if (has_arg && !strcmp(a, "--bind")) {
             o.bind = argv[++i];
         } else if (has_arg && !strcmp(a, "--sampler")) {

@@ -75,7 +75,8 @@ struct peer {
     X(results_stale) X(results_duplicate) X(results_invalid) X(results_not_ours) X(rejected_decode)               \
     X(rejected_envelope) X(rejected_unknown_peer) X(rejected_unexpected) X(rejected_wrong_job)                    \
     X(rejected_blob_req) X(rejected_banned) X(auth_rejects) X(handshake_failures) X(evicted_silent)                \
-    X(evicted_stalled) X(evicted_died) X(evicted_error) X(workers_banned) X(workers_joined)
+    X(evicted_stalled) X(evicted_died) X(evicted_error) X(workers_banned) X(workers_joined) X(ready_stale)         \
+    X(frames_done) X(frames_skipped)
 struct counters {
 #define X(n) uint64_t n;
     COUNTERS(X)
@@ -91,10 +92,14 @@ struct master {
     struct proto_asset *manifest;
     uint32_t num_manifest;
     char scene_rel[ASSET_PATH_MAX];
-    char scene_hash[65];
+    char base_hash[65];         /* names, contents and settings: the same for every frame */
+    char scene_hash[65];        /* base_hash and the frame: what the output header records */
     struct scene scene;
     struct image_desc desc;
-    uint64_t job_id;
+    uint64_t job_id;            /* this frame's job: job_base + frames started before it */
+    uint64_t job_base;
+    uint32_t frame;
+    char out_path[4000];        /* this frame's output file */
     struct tile_slot *tiles;
     uint32_t num_tiles, tiles_done;
     uint32_t *queue;            /* tile indices waiting for a worker, oldest first */
@@ -114,6 +119,7 @@ struct master {
     int have_journal;
     char banned_names[16][300];
     uint32_t num_banned;
+    uint32_t stranger_drops_logged;
     uint8_t (*allowed)[32];     /* allowed CURVE public keys, binary */
     size_t num_allowed;
     char local_key_path[400], local_pub_path[400];
@@ -205,16 +211,27 @@ static int load_scene(struct master *m)
         h.size += pl + BLOB_HASH_SIZE;
     }
     char settings[256];
-    int sl = snprintf(settings, sizeof settings, "%ux%u spp=%u depth=%u seed=%llu", rs->width, rs->height, rs->spp,
-                      rs->max_depth, (unsigned long long)rs->seed);
+    int sl = snprintf(settings, sizeof settings, "%ux%u spp=%u depth=%u seed=%llu sampler=%u", rs->width, rs->height,
+                      rs->spp, rs->max_depth, (unsigned long long)rs->seed, (unsigned)rs->sampler);
     mem_grow((void **)&h.data, &h.cap, h.size + (size_t)sl, 1);
     memcpy(h.data + h.size, settings, (size_t)sl);
     h.size += (size_t)sl;
     struct blob_hash sh;
     blob_hash_compute(h.data, h.size, &sh);
-    blob_hash_hex(&sh, m->scene_hash);
+    blob_hash_hex(&sh, m->base_hash);
     proto_buf_free(&h);
     return 0;
+}
+
+/* The frame is part of what fixes the pixels (motion, and every random number), so it
+ * is part of the hash that output headers and journals are matched against. */
+static void frame_hash(struct master *m)
+{
+    char text[128];
+    int n = snprintf(text, sizeof text, "%s frame=%u", m->base_hash, m->frame);
+    struct blob_hash h;
+    blob_hash_compute(text, (size_t)n, &h);
+    blob_hash_hex(&h, m->scene_hash);
 }
 
 static void setup_tiles(struct master *m)
@@ -224,8 +241,6 @@ static void setup_tiles(struct master *m)
     m->num_tiles = imgio_tiles_x(&m->desc) * imgio_tiles_y(&m->desc);
     m->tiles = mem_calloc(m->num_tiles, sizeof *m->tiles);
     m->queue = mem_alloc(sizeof(uint32_t) * m->num_tiles);
-    for (uint32_t t = 0; t < m->num_tiles; t++)
-        queue_push(m, t);
     m->decode_scratch = mem_alloc(sizeof(float) * rs->tile_size * rs->tile_size * TILE_NUM_CHANNELS);
 }
 
@@ -325,7 +340,8 @@ static void tile_command(const struct master *m, uint32_t t, char *out, size_t o
     out[0] = '\0';
     for (int i = 0; i < o->argc && n < outlen; i++) {
         const char *a = o->argv[i];
-        if (i > 0 && (!strcmp(a, "-o") || !strcmp(a, "--output") || !strcmp(a, "--tiles")) && i + 1 < o->argc) {
+        if (i > 0 && (!strcmp(a, "-o") || !strcmp(a, "--output") || !strcmp(a, "--tiles") || !strcmp(a, "--frames")) &&
+            i + 1 < o->argc) {
             i++;
             continue;
         }
@@ -338,7 +354,9 @@ static void tile_command(const struct master *m, uint32_t t, char *out, size_t o
     if (dot && !strcmp(dot, ".exr"))
         *dot = '\0';
     if (n < outlen)
-        snprintf(out + n, outlen - n, " -o %.1000s.tile%u.exr --tiles %u", base, t, t);
+        n += (size_t)snprintf(out + n, outlen - n, " -o %.1000s.tile%u.exr --tiles %u", base, t, t);
+    if (n < outlen && o->have_frames)
+        snprintf(out + n, outlen - n, " --frames %u:%u", m->frame, m->frame);
 }
 
 enum evict_kind { EVICT_LEFT, EVICT_SILENT, EVICT_STALLED, EVICT_DIED, EVICT_ERROR, EVICT_BANNED };
@@ -394,6 +412,8 @@ static int name_is_banned(const struct master *m, const char *name)
     return 0;
 }
 
+static void send_job(struct master *m, const struct peer *p);
+
 static void on_hello(struct master *m, const struct net_frame *f, const struct msg_hello *h)
 {
     if (find_peer(m, f->id, f->id_len) >= 0) {
@@ -427,11 +447,18 @@ static void on_hello(struct master *m, const struct net_frame *f, const struct m
     m->num_peers++;
     m->c.workers_joined++;
     log_info("worker %s joined with %u thread(s)", p->name, h->threads);
+    send_job(m, p);
+}
+
+/* The current frame's job. A worker that has the scene already keeps it and its blobs
+ * and only rebuilds what depends on the frame. */
+static void send_job(struct master *m, const struct peer *p)
+{
     const struct render_settings *rs = &m->scene.settings;
     struct proto_msg job = {.type = MSG_JOB};
     struct msg_job *j = &job.u.job;
     j->job_id = m->job_id;
-    j->frame = 0;
+    j->frame = m->frame;
     j->width = rs->width;
     j->height = rs->height;
     j->spp = rs->spp;
@@ -513,10 +540,16 @@ static int tile_accept(struct master *m, uint32_t tile, const struct tile_stats 
 static void on_result(struct master *m, int32_t pi, const struct msg_result *r)
 {
     struct peer *p = &m->peers[pi];
-    if (p->credits < p->threads * 4)
-        p->credits++;
     p->last_progress_ms = net_now_ms();
-    if (r->job_id != m->job_id || r->frame != 0 || r->tile >= m->num_tiles) {
+    if (r->job_id >= m->job_base && r->job_id < m->job_id) {
+        /* A tile of an earlier frame of this range, finished after that frame was done
+         * (a straggler copy): expected. Its credit went with the old job. */
+        m->c.results_stale++;
+        return;
+    }
+    if (r->job_id == m->job_id && p->credits < p->threads * 4)
+        p->credits++;
+    if (r->job_id != m->job_id || r->frame != m->frame || r->tile >= m->num_tiles) {
         if (peer_should_log_drop(p))
             log_warn("worker %s: RESULT for job %llu frame %u tile %u is not ours; dropped", p->name,
                      (unsigned long long)r->job_id, r->frame, r->tile);
@@ -591,7 +624,7 @@ static void tile_give(struct master *m, uint32_t tile, int32_t pi, int straggler
         p->isolated = 1;
     struct proto_msg msg = {.type = MSG_TILE};
     msg.u.tile.job_id = m->job_id;
-    msg.u.tile.frame = 0;
+    msg.u.tile.frame = m->frame;
     msg.u.tile.tile = tile;
     msg.u.tile.attempt = t->attempt;
     send_to(m, p, &msg);
@@ -658,7 +691,8 @@ static void handle_message(struct master *m, struct net_frame *f)
     int32_t pi = find_peer(m, f->id, f->id_len);
     if (proto_decode(f->data, f->size, &msg, err, sizeof err) != 0) {
         m->c.rejected_decode++;
-        if (pi < 0 || peer_should_log_drop(&m->peers[pi]))
+        /* Strangers share one small log budget, known peers have their own. */
+        if (pi < 0 ? ++m->stranger_drops_logged <= 5 : peer_should_log_drop(&m->peers[pi]))
             log_warn("message from %s dropped: %s", pi >= 0 ? m->peers[pi].name : "an unknown peer", err);
         return;
     }
@@ -693,6 +727,8 @@ static void handle_message(struct master *m, struct net_frame *f)
             p->credits = msg.u.ready.credits < p->threads * 4 ? msg.u.ready.credits : p->threads * 4;
             if (p->credits == 0)
                 p->credits = 1;
+        } else if (msg.u.ready.job_id >= m->job_base && msg.u.ready.job_id < m->job_id) {
+            m->c.ready_stale++; /* it finished loading a frame that is already done: the next JOB is on its way */
         } else {
             m->c.rejected_wrong_job++;
         }
@@ -751,12 +787,12 @@ static int open_journal(struct master *m)
 {
     const struct render_settings *rs = &m->scene.settings;
     char ident[512];
-    int n = snprintf(ident, sizeof ident, "brume-journal-1 %s tile=%u sampler=%u frame=0 tiles=%u", m->scene_hash,
-                     rs->tile_size, (unsigned)rs->sampler, m->num_tiles);
+    int n = snprintf(ident, sizeof ident, "brume-journal-1 %s tile=%u sampler=%u frame=%u tiles=%u", m->scene_hash,
+                     rs->tile_size, (unsigned)rs->sampler, m->frame, m->num_tiles);
     struct blob_hash key;
     blob_hash_compute(ident, (size_t)n, &key);
     char path[4200], err[512];
-    snprintf(path, sizeof path, "%s.journal", m->opts->output_path);
+    snprintf(path, sizeof path, "%s.journal", m->out_path);
     uint32_t recovered;
     uint64_t torn;
     int other;
@@ -792,7 +828,7 @@ static int write_output(struct master *m, double seconds)
 {
     const struct master_opts *o = m->opts;
     char err[512], tmp[4200];
-    snprintf(tmp, sizeof tmp, "%s.tmp.%d", o->output_path, (int)getpid());
+    snprintf(tmp, sizeof tmp, "%s.tmp.%d", m->out_path, (int)getpid());
     struct image_attrs a;
     memset(&a, 0, sizeof a);
     a.spp = m->scene.settings.spp;
@@ -819,12 +855,12 @@ static int write_output(struct master *m, double seconds)
         log_error("%s", err);
         return -1;
     }
-    if (rename(tmp, o->output_path) != 0) {
-        log_error("%s: cannot rename into place: %s", o->output_path, strerror(errno));
+    if (rename(tmp, m->out_path) != 0) {
+        log_error("%s: cannot rename into place: %s", m->out_path, strerror(errno));
         unlink(tmp);
         return -1;
     }
-    fsync_dir_of(o->output_path);
+    fsync_dir_of(m->out_path);
     /* Only now is the journal's content safe elsewhere. */
     if (m->have_journal) {
         journal_remove(&m->journal);
@@ -870,7 +906,7 @@ static void print_progress(struct master *m, uint64_t start_ms, int tty, int fin
 static void print_summary(struct master *m, double secs)
 {
     const struct tile_stats *s = &m->stats;
-    printf("summary: %s -> %s\n", m->opts->scene_path, m->opts->output_path);
+    printf("summary: %s -> %s (frame %u)\n", m->opts->scene_path, m->out_path, m->frame);
     printf("summary: %ux%u, %u spp, %u tiles of %u px, seed %llu\n", m->scene.settings.width,
            m->scene.settings.height, m->scene.settings.spp, m->num_tiles, m->scene.settings.tile_size,
            (unsigned long long)m->scene.settings.seed);
@@ -1130,6 +1166,196 @@ static void check_liveness(struct master *m, uint64_t now)
     }
 }
 
+/* ---- frames ---- */
+
+/* The output file of one frame: the last run of '#' in the name becomes the zero-padded
+ * frame number (as many digits as '#'s, more if needed); without one, ".NNNN" goes in
+ * front of the extension. A single render without --frames writes the name as given. */
+static int frame_output_path(const struct master_opts *o, uint32_t frame, char *out, size_t outlen)
+{
+    const char *pat = o->output_path;
+    if (!o->have_frames)
+        return snprintf(out, outlen, "%s", pat) < (int)outlen ? 0 : -1;
+    const char *hash_end = strrchr(pat, '#');
+    int n;
+    if (hash_end) {
+        const char *hash_start = hash_end;
+        while (hash_start > pat && hash_start[-1] == '#')
+            hash_start--;
+        int digits = (int)(hash_end - hash_start) + 1;
+        n = snprintf(out, outlen, "%.*s%0*u%s", (int)(hash_start - pat), pat, digits, frame, hash_end + 1);
+    } else {
+        const char *slash = strrchr(pat, '/'), *dot = strrchr(pat, '.');
+        const char *base = slash ? slash + 1 : pat;
+        if (dot && dot > base)
+            n = snprintf(out, outlen, "%.*s.%04u%s", (int)(dot - pat), pat, frame, dot);
+        else
+            n = snprintf(out, outlen, "%s.%04u", pat, frame);
+    }
+    return n > 0 && (size_t)n < outlen ? 0 : -1;
+}
+
+/* A frame is done when its output exists and its header says it was rendered from this
+ * scene hash (assets, settings and frame) with the same layout. Output files appear only
+ * by rename after fsync, so one that reads back is complete. */
+static int output_is_done(const struct master *m)
+{
+    struct image_attrs a;
+    struct image_desc d;
+    char err[512];
+    if (access(m->out_path, F_OK) != 0)
+        return 0;
+    if (imgio_read_attrs(m->out_path, &d, &a, err, sizeof err) != 0) {
+        log_warn("%s exists but cannot be read (%s); rendering it again", m->out_path, err);
+        return 0;
+    }
+    const struct render_settings *rs = &m->scene.settings;
+    if (strcmp(a.scene_hash, m->scene_hash) != 0 || a.spp != rs->spp || a.seed != rs->seed ||
+        d.width != m->desc.width || d.height != m->desc.height || d.tile_size != m->desc.tile_size) {
+        log_info("%s exists but was rendered from another scene or other settings; rendering it again", m->out_path);
+        return 0;
+    }
+    return 1;
+}
+
+static int start_local_workers(struct master *m);
+
+/* Starts frame m->frame: fresh tile slots, its journal, and a JOB for every worker
+ * (which keeps its blobs and rebuilds only what depends on the frame). 1 when the frame
+ * is done already (skipped), 0 when it is ready to render, -1 on error. */
+static int frame_begin(struct master *m, uint32_t frames_started)
+{
+    const struct master_opts *o = m->opts;
+    if (frame_output_path(o, m->frame, m->out_path, sizeof m->out_path) != 0) {
+        log_error("-o %s: the output name for frame %u is too long", o->output_path, m->frame);
+        return -1;
+    }
+    frame_hash(m);
+    if (o->have_frames && !o->only_tiles && output_is_done(m)) {
+        char jpath[4300];
+        snprintf(jpath, sizeof jpath, "%s.journal", m->out_path);
+        unlink(jpath); /* left behind by a master killed between rename and cleanup */
+        log_info("frame %u: %s is already rendered with this scene and settings; skipped", m->frame, m->out_path);
+        m->c.frames_skipped++;
+        return 1;
+    }
+    for (uint32_t t = 0; t < m->num_tiles; t++)
+        free(m->tiles[t].chunk);
+    memset(m->tiles, 0, sizeof *m->tiles * m->num_tiles);
+    m->tiles_done = 0;
+    m->q_count = 0;
+    memset(&m->stats, 0, sizeof m->stats);
+    for (uint32_t t = 0; t < m->num_tiles; t++)
+        queue_push(m, t);
+    if (o->only_tiles && restrict_tiles(m) != 0)
+        return -1;
+    if (m->have_journal) {
+        journal_close(&m->journal);
+        m->have_journal = 0;
+    }
+    /* A --tiles render is a debugging aid: it keeps no journal of its own. */
+    uint64_t from_journal = m->c.tiles_from_journal;
+    if (!o->no_journal && !o->only_tiles && open_journal(m) != 0)
+        return -1;
+    if (m->c.tiles_from_journal > from_journal) {
+        /* Journaled tiles never go out again. */
+        uint32_t k = 0;
+        for (uint32_t i = 0; i < m->q_count; i++)
+            if (m->tiles[m->queue[i]].state != TILE_DONE)
+                m->queue[k++] = m->queue[i];
+        m->q_count = k;
+    }
+    m->job_id = m->job_base + frames_started;
+    for (uint32_t i = 0; i < m->num_peers; i++) {
+        struct peer *p = &m->peers[i];
+        p->ready = 0;
+        p->credits = 0;
+        p->in_flight = 0;
+        p->isolated = 0;
+        if (!p->gone && m->tiles_done < m->num_tiles)
+            send_job(m, p);
+    }
+    if (m->tiles_done < m->num_tiles && !m->local_pids && start_local_workers(m) != 0)
+        return -1;
+    log_info("rendering %s frame %u -> %s: %ux%u, %u spp, %u tiles (%u from the journal), %u local worker(s)%s%s",
+             o->scene_path, m->frame, m->out_path, m->scene.settings.width, m->scene.settings.height,
+             m->scene.settings.spp, m->num_tiles, m->tiles_done, o->workers, o->bind ? ", accepting workers at " : "",
+             o->bind ? o->bind : "");
+    return 0;
+}
+
+/* Renders the current frame until every tile is in (0) or the job fails (-1). */
+static int frame_render(struct master *m, uint64_t *last_beat)
+{
+    const struct master_opts *o = m->opts;
+    int tty = isatty(2);
+    uint64_t start = net_now_ms(), last_progress = start;
+    while (m->tiles_done < m->num_tiles) {
+        if (g_interrupted) {
+            log_error("interrupted; %u of %u tiles of frame %u were finished", m->tiles_done, m->num_tiles, m->frame);
+            return -1;
+        }
+        if (m->fatal[0]) {
+            log_error("%s", m->fatal);
+            return -1;
+        }
+        zmq_pollitem_t items[3] = {{m->sock, 0, ZMQ_POLLIN, 0}, {m->zap, 0, ZMQ_POLLIN, 0}, {m->monitor, 0, ZMQ_POLLIN, 0}};
+        int nitems = m->monitor ? 3 : m->zap ? 2 : 1;
+        if (zmq_poll(items, nitems, 100) < 0 && errno != EINTR) {
+            log_error("poll: %s", zmq_strerror(errno));
+            return -1;
+        }
+        if (nitems > 1 && (items[1].revents & ZMQ_POLLIN))
+            zap_handle(m);
+        if (nitems > 2 && (items[2].revents & ZMQ_POLLIN))
+            monitor_drain(m);
+        if (items[0].revents & ZMQ_POLLIN) {
+            struct net_frame f;
+            int got;
+            while ((got = net_recv(m->sock, 1, &f)) != 0) {
+                if (got > 0) {
+                    handle_message(m, &f);
+                } else {
+                    m->c.rejected_envelope++;
+                    if (m->c.rejected_envelope <= 5)
+                        log_warn("a message with a malformed envelope (frame count or identity) was dropped");
+                }
+                net_frame_free(&f);
+            }
+        }
+        uint64_t now = net_now_ms();
+        reap_local(m);
+        check_liveness(m, now);
+        if (m->fatal[0])
+            continue;
+        if (!o->bind && m->local_alive == 0 && live_peers(m) == 0) {
+            log_error("every worker has exited; %u of %u tiles were finished%s%s", m->tiles_done, m->num_tiles,
+                      m->last_worker_error[0] ? "; last worker error: " : "", m->last_worker_error);
+            return -1;
+        }
+        assign_tiles(m);
+        if (now - *last_beat >= 1000) {
+            struct proto_msg hb = {.type = MSG_HEARTBEAT};
+            hb.u.heartbeat.job_id = m->job_id;
+            hb.u.heartbeat.tiles_done = m->tiles_done;
+            for (uint32_t i = 0; i < m->num_peers; i++)
+                if (!m->peers[i].gone)
+                    send_to(m, &m->peers[i], &hb);
+            *last_beat = now;
+        }
+        if (now - last_progress >= (tty ? PROGRESS_TTY_MS : PROGRESS_PLAIN_MS)) {
+            print_progress(m, start, tty, 0);
+            last_progress = now;
+        }
+    }
+    print_progress(m, start, tty, 1);
+    double secs = (double)(net_now_ms() - start) / 1000.0;
+    if (write_output(m, secs) != 0)
+        return -1;
+    print_summary(m, secs);
+    return 0;
+}
+
 int master_run(const struct master_opts *o)
 {
     struct master m;
@@ -1139,24 +1365,15 @@ int master_run(const struct master_opts *o)
     signal(SIGINT, on_signal);
     signal(SIGTERM, on_signal);
     signal(SIGPIPE, SIG_IGN);
-    if (getrandom(&m.job_id, sizeof m.job_id, 0) != sizeof m.job_id)
-        m.job_id = ((uint64_t)getpid() << 32) ^ net_now_ms();
+    /* Job ids of one run are consecutive (one per frame), so a message of an earlier
+     * frame is recognised as late rather than foreign. */
+    if (getrandom(&m.job_base, sizeof m.job_base, 0) != sizeof m.job_base)
+        m.job_base = ((uint64_t)getpid() << 32) ^ net_now_ms();
+    m.job_base &= ~((uint64_t)1 << 63); /* room for every frame's id above it */
+    m.job_id = m.job_base;
     if (load_scene(&m) != 0)
         goto done;
     setup_tiles(&m);
-    if (o->only_tiles && restrict_tiles(&m) != 0)
-        goto done;
-    /* A --tiles render is a debugging aid: it keeps no journal of its own. */
-    if (!o->no_journal && !o->only_tiles && open_journal(&m) != 0)
-        goto done;
-    if (m.c.tiles_from_journal > 0) {
-        /* Journaled tiles never go out again. */
-        uint32_t k = 0;
-        for (uint32_t i = 0; i < m.q_count; i++)
-            if (m.tiles[m.queue[i]].state != TILE_DONE)
-                m.queue[k++] = m.queue[i];
-        m.q_count = k;
-    }
     m.zctx = zmq_ctx_new();
     m.sock = zmq_socket(m.zctx, ZMQ_ROUTER);
     net_socket_setup(m.sock);
@@ -1168,83 +1385,32 @@ int master_run(const struct master_opts *o)
         log_error("cannot bind %s: %s", o->bind, zmq_strerror(errno));
         goto done;
     }
-    if (m.tiles_done < m.num_tiles && start_local_workers(&m) != 0)
-        goto done;
-    log_info("rendering %s: %ux%u, %u spp, %u tiles (%u from the journal), %u local worker(s)%s%s", o->scene_path,
-             m.scene.settings.width, m.scene.settings.height, m.scene.settings.spp, m.num_tiles, m.tiles_done,
-             o->workers, o->bind ? ", accepting workers at " : "", o->bind ? o->bind : "");
-
-    int tty = isatty(2);
-    uint64_t start = net_now_ms(), last_progress = start, last_beat = start;
-    while (m.tiles_done < m.num_tiles) {
-        if (g_interrupted) {
-            log_error("interrupted; %u of %u tiles were finished", m.tiles_done, m.num_tiles);
+    uint32_t first = o->have_frames ? o->frame_first : 0, last = o->have_frames ? o->frame_last : 0;
+    uint32_t step = o->have_frames ? o->frame_step : 1, started = 0;
+    uint64_t last_beat = net_now_ms();
+    for (uint64_t f = first; f <= last; f += step) {
+        m.frame = (uint32_t)f;
+        int b = frame_begin(&m, started);
+        if (b < 0)
             goto done;
-        }
-        if (m.fatal[0]) {
-            log_error("%s", m.fatal);
-            goto done;
-        }
-        zmq_pollitem_t items[3] = {{m.sock, 0, ZMQ_POLLIN, 0}, {m.zap, 0, ZMQ_POLLIN, 0}, {m.monitor, 0, ZMQ_POLLIN, 0}};
-        int nitems = m.monitor ? 3 : m.zap ? 2 : 1;
-        if (zmq_poll(items, nitems, 100) < 0 && errno != EINTR) {
-            log_error("poll: %s", zmq_strerror(errno));
-            goto done;
-        }
-        if (nitems > 1 && (items[1].revents & ZMQ_POLLIN))
-            zap_handle(&m);
-        if (nitems > 2 && (items[2].revents & ZMQ_POLLIN))
-            monitor_drain(&m);
-        if (items[0].revents & ZMQ_POLLIN) {
-            struct net_frame f;
-            int got;
-            while ((got = net_recv(m.sock, 1, &f)) != 0) {
-                if (got > 0) {
-                    handle_message(&m, &f);
-                } else {
-                    m.c.rejected_envelope++;
-                    if (m.c.rejected_envelope <= 5)
-                        log_warn("a message with a malformed envelope (frame count or identity) was dropped");
-                }
-                net_frame_free(&f);
-            }
-        }
-        uint64_t now = net_now_ms();
-        reap_local(&m);
-        check_liveness(&m, now);
-        if (m.fatal[0])
+        started++;
+        if (b > 0)
             continue;
-        if (!o->bind && m.local_alive == 0 && live_peers(&m) == 0) {
-            log_error("every worker has exited; %u of %u tiles were finished%s%s", m.tiles_done, m.num_tiles,
-                      m.last_worker_error[0] ? "; last worker error: " : "", m.last_worker_error);
+        if (frame_render(&m, &last_beat) != 0)
             goto done;
-        }
-        assign_tiles(&m);
-        if (now - last_beat >= 1000) {
-            struct proto_msg hb = {.type = MSG_HEARTBEAT};
-            hb.u.heartbeat.job_id = m.job_id;
-            hb.u.heartbeat.tiles_done = m.tiles_done;
-            for (uint32_t i = 0; i < m.num_peers; i++)
-                if (!m.peers[i].gone)
-                    send_to(&m, &m.peers[i], &hb);
-            last_beat = now;
-        }
-        if (now - last_progress >= (tty ? PROGRESS_TTY_MS : PROGRESS_PLAIN_MS)) {
-            print_progress(&m, start, tty, 0);
-            last_progress = now;
-        }
+        m.c.frames_done++;
     }
-    print_progress(&m, start, tty, 1);
-    double secs = (double)(net_now_ms() - start) / 1000.0;
-    struct proto_msg bye = {.type = MSG_BYE};
-    for (uint32_t i = 0; i < m.num_peers; i++)
-        if (!m.peers[i].gone)
-            send_to(&m, &m.peers[i], &bye);
-    if (write_output(&m, secs) != 0)
-        goto done;
-    print_summary(&m, secs);
+    if (o->have_frames)
+        printf("summary: frames %u:%u:%u: %llu rendered, %llu already done (skipped)\n", first, last, step,
+               (unsigned long long)m.c.frames_done, (unsigned long long)m.c.frames_skipped);
     rc = 0;
 done:
+    {
+        struct proto_msg bye = {.type = MSG_BYE};
+        for (uint32_t i = 0; i < m.num_peers && m.sock; i++)
+            if (!m.peers[i].gone)
+                send_to(&m, &m.peers[i], &bye);
+    }
     print_counters(&m);
     if (m.num_local)
         launch_stop_all(m.local_pids, m.num_local, 3000);

@@ -28,9 +28,12 @@ struct master_opts {
     uint32_t sampler;           /* enum sampler_type, with have_sampler */
     uint32_t spp, tile, depth;
     uint64_t seed;
+    int have_frames;            /* --frames A:B[:STEP]: a range, one numbered output per frame */
+    uint32_t frame_first, frame_last, frame_step;
 };
 
-/* Renders the frame; returns 0 on success, 1 on failure (one line logged). */
+/* Renders the frame (or each frame of the range); returns 0 on success, 1 on failure
+ * (one line logged). */
 int master_run(const struct master_opts *opts);
 
 #endif

@@ -363,8 +363,48 @@ static int fetches_pending(const struct worker *w)
     return 0;
 }
 
+/* Same scene files and settings: only the job id and the frame differ (the next frame of
+ * a range). */
+static int job_same_scene(const struct msg_job *a, const struct msg_job *b)
+{
+    if (a->width != b->width || a->height != b->height || a->spp != b->spp || a->max_depth != b->max_depth ||
+        a->tile_size != b->tile_size || a->seed != b->seed || a->sampler != b->sampler ||
+        strcmp(a->scene_path, b->scene_path) != 0 || a->num_assets != b->num_assets)
+        return 0;
+    for (uint32_t i = 0; i < a->num_assets; i++)
+        if (strcmp(a->assets[i].path, b->assets[i].path) != 0 || !blob_hash_equal(&a->assets[i].hash, &b->assets[i].hash))
+            return 0;
+    return 1;
+}
+
+/* The next frame of the loaded scene: keep the parsed scene, rebuild what depends on the
+ * frame (Embree scene with its motion steps, camera at the frame's time). */
+static int switch_frame(struct worker *w, struct msg_job *job)
+{
+    char err[512];
+    pool_stop(&w->pool); /* tiles being rendered finish and go out under their old job id */
+    render_job_free(&w->rjob);
+    proto_job_free(&w->job);
+    w->job = *job;
+    if (render_job_init(&w->rjob, &w->scene, w->job.frame, w->opts->threads, err, sizeof err) != 0) {
+        scene_free(&w->scene);
+        w->loaded = 0;
+        send_error(w, err);
+        log_error("%s", err);
+        return -1;
+    }
+    pool_start(w);
+    struct proto_msg m = {.type = MSG_READY};
+    m.u.ready.job_id = w->job.job_id;
+    m.u.ready.credits = w->opts->threads * TILES_PER_THREAD;
+    log_info("job %llu: frame %u (scene kept)", (unsigned long long)w->job.job_id, w->job.frame);
+    return net_send(w->sock, NULL, 0, &m, &w->out);
+}
+
 static int on_job(struct worker *w, struct msg_job *job)
 {
+    if (w->loaded && w->have_job && job_same_scene(&w->job, job))
+        return switch_frame(w, job);
     unload_job(w);
     w->job = *job;   /* takes ownership of the asset array */
     w->have_job = 1;

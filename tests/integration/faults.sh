@@ -104,6 +104,37 @@ wait $mpid && r=0 || r=1
 if [ $r = 0 ] && [ "$(counter workers_banned)" = 1 ] && [ "$(counter results_invalid)" -ge 3 ] && grep -q "banned for the job" "$T/log" &&
   $X cmp "$T/ref.exr" "$T/garb.exr"; then ok "garbage worker banned after 3 invalid tiles"; else bad "garbage worker banned after 3 invalid tiles"; fi
 
+# --- SIGKILL K of N local workers at random times: identical pixels, every trial ---
+KILL_TRIALS=${KILL_TRIALS:-20}
+KARGS="--workers 4 --threads 1 --tile 8 --spp 4096"
+timeout 120 $M scenes/tiny/tiny.json -o "$T/kref.exr" $KARGS >"$T/log" 2>&1 || bad "reference render (worker kills)"
+good=0
+landed=0
+killed_total=0
+t0=$(ms)
+i=0
+while [ $i -lt "$KILL_TRIALS" ]; do
+  i=$((i + 1))
+  k=$(( (i % 3) + 1 ))   # K = 1, 2 or 3 of the 4 workers
+  $M scenes/tiny/tiny.json -o "$T/wk.exr" $KARGS >"$T/klog" 2>&1 &
+  mpid=$!
+  echo $mpid >"$T/pids"
+  sleep 0.05
+  for w in $(pgrep -P $mpid | shuf -n $k); do
+    sleep "0.$(( $(od -An -N2 -tu2 /dev/urandom) % 25 ))"
+    kill -9 "$w" 2>/dev/null
+  done
+  wait $mpid && r=0 || r=1
+  died=$(counter evicted_died "$T/klog")
+  if [ $r = 0 ] && $X cmp "$T/kref.exr" "$T/wk.exr" >/dev/null; then
+    good=$((good + 1)); killed_total=$((killed_total + ${died:-0})); [ "${died:-0}" -gt 0 ] && landed=$((landed + 1))
+  else cat "$T/klog" >"$T/log"; echo "trial $i (K=$k): rc $r"; fi
+  rm -f "$T/wk.exr"
+done
+echo "faults: workers killed: $good of $KILL_TRIALS trials identical; $landed trials with kills mid-render, $killed_total workers evicted as dead; $(( $(ms) - t0 )) ms"
+if [ $good = "$KILL_TRIALS" ] && [ $((landed * 2)) -ge "$KILL_TRIALS" ]; then ok "K of 4 workers SIGKILLed at random times: identical pixels in every trial"
+else bad "K of 4 workers SIGKILLed at random times: identical pixels in every trial"; fi
+
 # --- kill -9 the master at random times, restart: no journaled tile re-rendered, identical ---
 good=0
 from_journal_total=0
