@@ -1,6 +1,6 @@
 #!/bin/sh
-# Benchmark: error against samples and against time for each sampler on the depth-of-field
-# scene (scenes/dof). RMSE is measured against a converged reference of the same renderer
+# Benchmark: error against samples and against time for each sampler on a scene with
+# defocus and motion blur (scenes/dof_motion; SCENE=path.json for another). RMSE is measured against a converged reference of the same renderer
 # (independent sampler, another seed, REF_SPP spp, cached in bench-out/). Prints a table,
 # the fitted log-log slopes, the equal-time ratio at 64 spp, and writes
 # bench-out/sampling.txt and bench-out/sampling.png. Called by `make bench`.
@@ -17,14 +17,18 @@ OUT=bench-out
 mkdir -p "$OUT"
 T=$(mktemp -d /tmp/brume-bsamp.XXXXXX)
 trap 'rm -rf "$T"' EXIT
-# The test scene at a bench resolution, so render time dominates process start-up.
-SCENE="$T/dof.json"
-sed "s/\"width\": 64, \"height\": 48/\"width\": $W, \"height\": $H/" scenes/dof/dof.json >"$SCENE"
+# The scene (default: defocus and motion blur together, glass in front of a lit checker
+# wall) at a bench resolution, so render time dominates process start-up.
+SRC=${SCENE:-scenes/dof_motion/dof_motion.json}
+NAME=$(basename "$SRC" .json)
+cp "$(dirname "$SRC")"/* "$T/"
+SCENE="$T/bench-$NAME.json"
+sed "s/\"width\": 64, \"height\": 48/\"width\": $W, \"height\": $H/" "$SRC" >"$SCENE"
 grep -q "\"width\": $W," "$SCENE" || { echo "bench_sampling: cannot set the resolution"; exit 1; }
 
 # The reference is keyed by the scene's content and the binary, so a change to either redoes it.
 key=$(cat "$SCENE" "$BUILD/worker" | sha256sum | cut -c1-16)
-REF="$OUT/dof-ref-${W}x$H-$REF_SPP-$key.exr"
+REF="$OUT/$NAME-ref-${W}x$H-$REF_SPP-$key.exr"
 if [ ! -f "$REF" ]; then
   echo "sampling: rendering the reference ($REF_SPP spp, once)"
   "$BUILD/master" "$SCENE" -o "$REF" --workers 1 --threads "$CORES" --spp "$REF_SPP" --seed 999 \
@@ -52,7 +56,7 @@ for smp in independent stratified sobol; do
 done
 
 {
-  printf 'DOF scene scenes/dof (%sx%s), %s cores, RMSE vs a %s-spp reference, mean over seeds: %s\n' "$W" "$H" "$CORES" "$REF_SPP" "$SEEDS"
+  printf 'scene %s (%sx%s), %s cores, RMSE vs a %s-spp reference, mean over seeds: %s\n' "$SRC" "$W" "$H" "$CORES" "$REF_SPP" "$SEEDS"
   printf '%-12s %6s %12s %10s\n' sampler spp rmse seconds
   awk '{printf "%-12s %6d %12.6f %10.4f\n", $1, $2, $3, $4}' "$T/rows"
   # Least-squares slopes of log(rmse) against log(spp) and against log(time); the
@@ -82,7 +86,7 @@ if command -v gnuplot >/dev/null 2>&1; then
   gnuplot <<GP 2>/dev/null && echo "plot: $OUT/sampling.png"
 set terminal png size 1000,450
 set output "$OUT/sampling.png"
-set multiplot layout 1,2 title "DOF scene: RMSE against a converged reference (log-log)"
+set multiplot layout 1,2 title "$NAME: RMSE against a converged reference (log-log)"
 set logscale xy
 set grid
 set xlabel "samples per pixel"

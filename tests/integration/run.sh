@@ -100,5 +100,11 @@ run $M scenes/motion/motion.json -o "$T/mo3.exr" --workers 3 --threads 2 --tile 
 if [ $r1 = 0 ] && [ $r3 = 0 ] && $X cmp "$T/mo1.exr" "$T/mo3.exr" && grep -q "NaN/Inf samples dropped: 0" "$T/log"; then
   ok "motion: 1 vs 3 workers bit-identical"; else bad "motion: 1 vs 3 workers bit-identical"; fi
 
+# --- defocus and motion blur together (thin lens, trapezoid shutter, moving objects, glass) ---
+run $M scenes/dof_motion/dof_motion.json -o "$T/dm1.exr" --workers 1 --threads 1 && r1=0 || r1=1
+run $M scenes/dof_motion/dof_motion.json -o "$T/dm3.exr" --workers 3 --threads 2 --tile 8 && r3=0 || r3=1
+if [ $r1 = 0 ] && [ $r3 = 0 ] && $X cmp "$T/dm1.exr" "$T/dm3.exr"; then
+  ok "dof + motion: 1 vs 3 workers bit-identical"; else bad "dof + motion: 1 vs 3 workers bit-identical"; fi
+
 echo "integration: $pass passed, $fail failed"
 [ $fail = 0 ]
