@@ -65,11 +65,15 @@ if [ $r = 0 ] && $X cmp "$T/t1.exr" "$T/r.exr"; then ok "remote tcp worker gives
 
 # --- a worker killed mid-render: its tiles are re-queued, the image is unchanged ---
 run $M scenes/cornell/cornell.json -o "$T/k.exr" --workers 3 --threads 1 --spp 4 --tile 16 &
+bg=$!
 sleep 0.5
-victim=$(pgrep -f "$W --connect ipc://" | head -1)
+# Only this render's workers (descendants of $bg), never another run's on this machine.
+descends() { q=$1; while [ "$q" -gt 1 ] 2>/dev/null; do [ "$q" = "$2" ] && return 0; q=$(awk '{print $4}' /proc/$q/stat 2>/dev/null || echo 0); done; return 1; }
+victim=
+for w in $(pgrep -f "$W --connect ipc://"); do if descends "$w" $bg; then victim=$w; break; fi; done
 [ -n "$victim" ] && kill -9 "$victim"
-wait $! && r=0 || r=1
-if [ $r = 0 ] && $X cmp "$T/c1.exr" "$T/k.exr"; then ok "killed worker: tiles re-queued, identical pixels"; else bad "killed worker: tiles re-queued, identical pixels"; fi
+wait $bg && r=0 || r=1
+if [ -n "$victim" ] && [ $r = 0 ] && $X cmp "$T/c1.exr" "$T/k.exr"; then ok "killed worker: tiles re-queued, identical pixels"; else bad "killed worker: tiles re-queued, identical pixels"; fi
 
 # --- a hostile peer: garbage, wrong versions, results for tiles it never got: dropped, image unchanged ---
 P=$((P + 1))
