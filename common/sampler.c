@@ -143,6 +143,18 @@ static inline uint32_t permute_in(uint32_t i, uint32_t n, uint32_t w, uint32_t p
     return n == w + 1 ? (i + p) & w : (i + p) % n;
 }
 
+/* The next power of two >= n, minus 1. */
+static inline uint32_t pow2_mask(uint32_t n)
+{
+    uint32_t w = n ? n - 1 : 0;
+    w |= w >> 1;
+    w |= w >> 2;
+    w |= w >> 4;
+    w |= w >> 8;
+    w |= w >> 16;
+    return w;
+}
+
 uint32_t sampler_permute(uint32_t i, uint32_t n, uint32_t p)
 {
     uint32_t w = n ? n - 1 : 0;
@@ -347,20 +359,27 @@ static inline void get_pair(const struct sampler *s, uint32_t dim0, float *u, fl
     uint32_t j = index_for(s, (uint32_t)pt0);
     switch (s->type) {
     case SAMPLER_STRATIFIED: {
-        /* One hash jitters both components (24 bits each). */
+        /* Correlated multi-jittered (Kensler 2013): sample j takes cell (c, r) of the
+         * nx x ny grid, and inside it the sub-column permute(r) of ny and the sub-row
+         * permute(c) of nx, so each grid cell holds one sample and so does each of the spp
+         * strata of either 1D projection (edges, which are nearly 1D, converge faster).
+         * One hash jitters both components (24 bits each) inside their fine stratum. */
         uint64_t b = rng_bits(s->key, dim0);
         uint32_t mu = (uint32_t)(b >> 40), mv = (uint32_t)(b >> 16) & 0xffffffu;
+        uint32_t p = (uint32_t)pt0;
         if (s->log2_spp >= 0) {
-            int kx = s->log2_spp / 2, ky = s->log2_spp - kx;
+            int kx = s->log2_spp / 2;
+            uint32_t c = j & (s->nx - 1u), r = j >> kx;
             if (u)
-                *u = jitter_cell_pow2(j & (s->nx - 1u), kx, mu);
+                *u = jitter_cell_pow2(c * s->ny + permute_in(r, s->ny, s->ny - 1u, p * 0x63d83595u), s->log2_spp, mu);
             if (v)
-                *v = jitter_cell_pow2(j >> kx, ky, mv);
+                *v = jitter_cell_pow2(r * s->nx + permute_in(c, s->nx, s->nx - 1u, p * 0xa511e9b3u), s->log2_spp, mv);
         } else {
+            uint32_t c = j % s->nx, r = j / s->nx;
             if (u)
-                *u = jitter_cell(j % s->nx, s->nx, mu);
+                *u = jitter_cell(c * s->ny + permute_in(r, s->ny, pow2_mask(s->ny), p * 0x63d83595u), s->spp, mu);
             if (v)
-                *v = jitter_cell(j / s->nx, s->ny, mv);
+                *v = jitter_cell(r * s->nx + permute_in(c, s->nx, pow2_mask(s->nx), p * 0xa511e9b3u), s->spp, mv);
         }
         return;
     }
