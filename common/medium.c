@@ -1,0 +1,209 @@
+/* Media model, validation and the closed forms of homogeneous media (see medium.h).
+ * Exponentials are taken in float from float products, the same expression on every
+ * machine; HG sampling runs in double, where g = +-0.999 loses nothing. */
+#include "medium.h"
+#include "log.h"
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+struct scene_media *media_scene_new(void)
+{
+    struct scene_media *m = mem_calloc(1, sizeof *m);
+    m->fog = MEDIUM_NONE;
+    m->interface_material = UINT32_MAX;
+    m->method = MEDIA_MARCH_BEAM;
+    m->photons = 100000;
+    m->skip_bound = 0.01f;
+    m->max_photon_depth = 16;
+    return m;
+}
+
+void photon_map_free(struct photon_map **pm); /* photonmap.c */
+
+void media_scene_free(struct scene_media **pm)
+{
+    struct scene_media *m = *pm;
+    if (!m)
+        return;
+    free(m->media);
+    free(m->mesh_medium);
+    free(m->sphere_medium);
+    photon_map_free(&m->map);
+    free(m);
+    *pm = NULL;
+}
+
+static void set_idx(uint32_t **arr, uint32_t *n, uint32_t idx, uint32_t medium)
+{
+    if (idx >= *n) {
+        *arr = mem_realloc(*arr, sizeof **arr * ((size_t)idx + 1));
+        for (uint32_t i = *n; i <= idx; i++)
+            (*arr)[i] = MEDIUM_NONE;
+        *n = idx + 1;
+    }
+    (*arr)[idx] = medium;
+}
+
+void media_set_mesh(struct scene_media *m, uint32_t idx, uint32_t medium)
+{
+    set_idx(&m->mesh_medium, &m->num_mesh_medium, idx, medium);
+}
+
+void media_set_sphere(struct scene_media *m, uint32_t idx, uint32_t medium)
+{
+    set_idx(&m->sphere_medium, &m->num_sphere_medium, idx, medium);
+}
+
+uint32_t media_mesh_inside(const struct scene_media *m, uint32_t idx)
+{
+    return m && idx < m->num_mesh_medium ? m->mesh_medium[idx] : MEDIUM_NONE;
+}
+
+uint32_t media_sphere_inside(const struct scene_media *m, uint32_t idx)
+{
+    return m && idx < m->num_sphere_medium ? m->sphere_medium[idx] : MEDIUM_NONE;
+}
+
+static const char *const method_names[MEDIA_METHOD_COUNT_] = {"vpt", "march", "beam"};
+
+const char *media_method_name(enum media_method m)
+{
+    return (unsigned)m < MEDIA_METHOD_COUNT_ ? method_names[m] : "?";
+}
+
+int media_method_from_name(const char *name, enum media_method *out)
+{
+    for (int i = 0; i < MEDIA_METHOD_COUNT_; i++)
+        if (strcmp(name, method_names[i]) == 0) {
+            *out = (enum media_method)i;
+            return 0;
+        }
+    return -1;
+}
+
+static int nonneg3(vec3 v, float hi)
+{
+    return v3_is_finite(v) && v.x >= 0 && v.y >= 0 && v.z >= 0 && v.x <= hi && v.y <= hi && v.z <= hi;
+}
+
+int media_validate(const struct scene *s, char *err, size_t errlen)
+{
+    const struct scene_media *m = s->media;
+    if (!m)
+        return 0;
+    for (uint32_t i = 0; i < m->num_media; i++) {
+        const struct medium *md = &m->media[i];
+        if (!nonneg3(md->sigma_a, 1e30f) || !nonneg3(md->sigma_s, 1e30f) || !nonneg3(md->emission, 1e30f) ||
+            !(md->g > -1.0f && md->g < 1.0f)) {
+            str_fmt(err, errlen, "medium \"%s\": coefficients must be in [0, 1e30] and g in (-1, 1)", md->name);
+            return -1;
+        }
+    }
+    if (m->fog != MEDIUM_NONE && m->fog >= m->num_media) {
+        str_fmt(err, errlen, "fog medium index out of range");
+        return -1;
+    }
+    for (uint32_t i = 0; i < m->num_mesh_medium; i++)
+        if (m->mesh_medium[i] != MEDIUM_NONE && (m->mesh_medium[i] >= m->num_media || i >= s->num_meshes)) {
+            str_fmt(err, errlen, "mesh medium out of range");
+            return -1;
+        }
+    for (uint32_t i = 0; i < m->num_sphere_medium; i++)
+        if (m->sphere_medium[i] != MEDIUM_NONE && (m->sphere_medium[i] >= m->num_media || i >= s->num_spheres)) {
+            str_fmt(err, errlen, "sphere medium out of range");
+            return -1;
+        }
+    if (m->interface_material != UINT32_MAX && m->interface_material >= s->num_materials) {
+        str_fmt(err, errlen, "interface material out of range");
+        return -1;
+    }
+    if ((unsigned)m->method >= MEDIA_METHOD_COUNT_ || !(m->step >= 0.0f) || !isfinite(m->step) ||
+        !(m->radius >= 0.0f) || !isfinite(m->radius) || !(m->skip_bound >= 0.0f && m->skip_bound <= 1.0f) ||
+        m->photons > (1ull << 32) || m->max_photon_depth < 1 || m->max_photon_depth > 1024) {
+        str_fmt(err, errlen, "volume settings out of range");
+        return -1;
+    }
+    return 0;
+}
+
+static float tr1(float sigma_t, float d)
+{
+    if (sigma_t == 0.0f)
+        return 1.0f;
+    return expf(-sigma_t * d); /* d = inf gives 0 */
+}
+
+vec3 medium_transmittance(const struct medium *m, float d)
+{
+    return v3(tr1(m->sigma_t.x, d), tr1(m->sigma_t.y, d), tr1(m->sigma_t.z, d));
+}
+
+static float emit1(float sigma_t, float e, float d)
+{
+    if (e == 0.0f)
+        return 0.0f;
+    if (sigma_t == 0.0f)
+        return isfinite(d) ? e * d : 0.0f;
+    /* (1 - exp(-x)) / sigma_t without cancellation for small x. */
+    float x = sigma_t * d;
+    return e * (-expm1f(-x)) / sigma_t;
+}
+
+vec3 medium_emission_integral(const struct medium *m, float d)
+{
+    return v3(emit1(m->sigma_t.x, m->emission.x, d), emit1(m->sigma_t.y, m->emission.y, d),
+              emit1(m->sigma_t.z, m->emission.z, d));
+}
+
+static float comp(vec3 v, int c) { return c == 0 ? v.x : (c == 1 ? v.y : v.z); }
+
+int medium_sample_distance(const struct medium *m, float tmax, float u_channel, float u, float *t, vec3 *weight)
+{
+    int c = (int)(u_channel * 3.0f);
+    c = c > 2 ? 2 : c;
+    float st = comp(m->sigma_t, c);
+    float ts = INFINITY;
+    if (st > 0.0f)
+        ts = -log1pf(-u) / st; /* u < 1 */
+    if (ts < tmax) {
+        vec3 tr = medium_transmittance(m, ts);
+        float pdf = (m->sigma_t.x * tr.x + m->sigma_t.y * tr.y + m->sigma_t.z * tr.z) / 3.0f;
+        /* pdf >= st (1 - u) / 3 > 0: the chosen channel's own term. */
+        *t = ts;
+        *weight = v3_scale(v3_mul(m->sigma_s, tr), 1.0f / pdf);
+        return 1;
+    }
+    vec3 tr = medium_transmittance(m, tmax);
+    float p = (tr.x + tr.y + tr.z) / 3.0f;
+    *t = tmax;
+    *weight = p > 0.0f ? v3_scale(tr, 1.0f / p) : v3(0, 0, 0);
+    return 0;
+}
+
+float phase_hg(float cos_theta, float g)
+{
+    double gg = g, d = 1.0 + gg * gg - 2.0 * gg * cos_theta;
+    d = d > 1e-300 ? d : 1e-300;
+    return (float)((1.0 - gg * gg) / (4.0 * M_PI * d * sqrt(d)));
+}
+
+float phase_hg_sample_cos(float g, float u)
+{
+    if (fabsf(g) < 1e-3f)
+        return 1.0f - 2.0f * u;
+    double gg = g, s = (1.0 - gg * gg) / (1.0 - gg + 2.0 * gg * u);
+    double c = (1.0 + gg * gg - s * s) / (2.0 * gg);
+    return (float)(c < -1.0 ? -1.0 : (c > 1.0 ? 1.0 : c));
+}
+
+float phase_hg_sample(vec3 d_in, float g, float u1, float u2, vec3 *d_out)
+{
+    float c = phase_hg_sample_cos(g, u1);
+    float s = sqrtf(fmaxf(0.0f, 1.0f - c * c)), sp, cp;
+    sincos_2pi(u2, &sp, &cp);
+    vec3 t, b;
+    v3_basis(d_in, &t, &b);
+    *d_out = v3_normalize(v3_add(v3_scale(d_in, c), v3_add(v3_scale(t, s * cp), v3_scale(b, s * sp))));
+    return phase_hg(c, g);
+}

@@ -1,0 +1,88 @@
+/* Participating media: homogeneous media (absorption, scattering, emission, Henyey-Greenstein
+ * phase), which objects they fill, the scene's fog, and the settings of the volume
+ * renderer. Parsed by scene_json.c into scene.media; read-only while rendering. The
+ * closed-form pieces (transmittance, free-flight sampling, HG phase) live here so that the
+ * path tracer (media_integrator.c), the photon pass (photonmap.c) and the tests share them.
+ * Conventions: directions are directions of travel; the phase function of light travelling
+ * along d_in and leaving along d_out is hg(dot(d_in, d_out), g), so g > 0 is forward. */
+#ifndef BRUME_MEDIUM_H
+#define BRUME_MEDIUM_H
+#include <stddef.h>
+#include <stdint.h>
+#include "scene.h"
+#include "vec.h"
+
+#define MEDIUM_NONE UINT32_MAX
+#define MEDIA_MAX 256
+/* Path of the volume photon map among a job's blobs: absolute, so no scene file can have it. */
+#define MEDIA_PHOTON_ASSET "/volume-photon-map"
+
+struct photon_map;
+
+struct medium {
+    char name[SCENE_NAME_MAX];
+    vec3 sigma_a, sigma_s;  /* per scene unit, each >= 0 */
+    vec3 sigma_t;           /* sigma_a + sigma_s */
+    vec3 emission;          /* emitted radiance per unit length (W / sr / m^3), >= 0 */
+    float g;                /* Henyey-Greenstein asymmetry in (-1, 1) */
+};
+
+/* How camera paths treat media. */
+enum media_method {
+    MEDIA_VPT,          /* volumetric path tracing: free-flight sampling, NEE with transmittance */
+    MEDIA_MARCH_STEPS,  /* Jensen ray marching, a photon-map lookup per step */
+    MEDIA_MARCH_BEAM,   /* Jensen ray marching for single scattering, beam radiance estimate */
+    MEDIA_METHOD_COUNT_
+};
+
+struct scene_media {
+    struct medium *media;
+    uint32_t num_media;
+    uint32_t fog;               /* medium outside every medium object, or MEDIUM_NONE */
+    uint32_t *mesh_medium;      /* per mesh (first num_mesh_medium): medium inside, or MEDIUM_NONE */
+    uint32_t num_mesh_medium;
+    uint32_t *sphere_medium;
+    uint32_t num_sphere_medium;
+    uint32_t interface_material;/* invisible boundary material, or UINT32_MAX */
+    enum media_method method;
+    float step;                 /* ray-marching step in scene units; 0 = 1/200 of the scene's size */
+    uint64_t photons;           /* photons emitted by the photon pass */
+    float radius;               /* gather radius; 0 = 1/100 of the scene's size */
+    float skip_bound;           /* skip the photon pass when multiple scattering is bounded below this */
+    uint32_t max_photon_depth;  /* interactions per photon path */
+    struct photon_map *map;     /* worker: the map from the master's blob; NULL if none */
+};
+
+struct scene_media *media_scene_new(void);
+void media_scene_free(struct scene_media **m);
+/* Records that mesh / sphere idx holds medium (grows the per-object arrays). */
+void media_set_mesh(struct scene_media *m, uint32_t idx, uint32_t medium);
+void media_set_sphere(struct scene_media *m, uint32_t idx, uint32_t medium);
+uint32_t media_mesh_inside(const struct scene_media *m, uint32_t idx);
+uint32_t media_sphere_inside(const struct scene_media *m, uint32_t idx);
+int media_validate(const struct scene *s, char *err, size_t errlen);
+const char *media_method_name(enum media_method m);
+int media_method_from_name(const char *name, enum media_method *out);
+
+/* ---- closed forms for homogeneous media ---- */
+
+/* exp(-sigma_t d) per channel; 1 where sigma_t is 0 (also for d = inf). */
+vec3 medium_transmittance(const struct medium *m, float d);
+/* Integral over [0, d] of exp(-sigma_t t) * emission dt per channel (finite for d = inf
+ * when sigma_t > 0; 0 for channels with sigma_t = 0 and d = inf, which cannot be seen). */
+vec3 medium_emission_integral(const struct medium *m, float d);
+
+/* Free flight in [0, tmax) (tmax may be inf), sampled on one channel chosen by u_channel
+ * and weighted by the one-sample MIS over the three channels. Returns 1 for a scattering
+ * event at *t with *weight = sigma_s Tr(t) / pdf(t), or 0 for passing through to tmax with
+ * *weight = Tr(tmax) / P(pass). Weights are finite for any sigma_t in [0, 1e30]. */
+int medium_sample_distance(const struct medium *m, float tmax, float u_channel, float u, float *t, vec3 *weight);
+
+/* Henyey-Greenstein phase function for cos(d_in, d_out) = cos_theta. */
+float phase_hg(float cos_theta, float g);
+/* Samples d_out for light travelling along d_in (unit); returns the pdf (= the phase value). */
+float phase_hg_sample(vec3 d_in, float g, float u1, float u2, vec3 *d_out);
+/* cos(theta) of the HG sample for (g, u): exposed for the chi-square test. */
+float phase_hg_sample_cos(float g, float u);
+
+#endif
