@@ -149,6 +149,9 @@ vec3 media_shadow_transmittance(const struct render_job *job, vec3 p, vec3 targe
 {
     const struct scene_media *sm = job->scene->media;
     vec3 tr = v3(1, 1, 1);
+    /* Distances run from the exact boundary points, not from the offset ray origins (the
+     * offsets would shorten every segment by a few hundred ulps). */
+    vec3 start = p;
     for (int i = 0; i < MAX_CROSSINGS; i++) {
         vec3 to = v3_sub(target, p);
         float dist = v3_length(to);
@@ -159,7 +162,7 @@ vec3 media_shadow_transmittance(const struct render_job *job, vec3 p, vec3 targe
         (*rays)++;
         if (!accel_intersect(&job->accel, p, dir, dist * (1.0f - 0x1p-12f), time01, &h)) {
             if (medium != MEDIUM_NONE)
-                tr = v3_mul(tr, medium_transmittance(&sm->media[medium], dist));
+                tr = v3_mul(tr, medium_transmittance(&sm->media[medium], v3_length(v3_sub(target, start))));
             return tr;
         }
         struct media_surface s;
@@ -167,12 +170,13 @@ vec3 media_shadow_transmittance(const struct render_job *job, vec3 p, vec3 targe
         if (!media_is_interface(job, s.material))
             return v3(0, 0, 0);
         if (medium != MEDIUM_NONE)
-            tr = v3_mul(tr, medium_transmittance(&sm->media[medium], h.t));
+            tr = v3_mul(tr, medium_transmittance(&sm->media[medium], v3_length(v3_sub(s.p, start))));
         if (v3_is_black(tr))
             return tr;
         medium = media_after_crossing(job, &h, s.ng, dir);
         vec3 n = v3_dot(dir, s.ng) > 0.0f ? s.ng : v3_neg(s.ng);
         p = media_offset_ray_origin(v3_add(s.p, v3_scale(n, s.p_err)), n);
+        start = s.p;
     }
     return v3(0, 0, 0);
 }
@@ -285,6 +289,7 @@ vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, 
     vec3 prev_p = org;
     int prev_delta = 1;
     uint32_t depth = 0, crossings = 0, vertex = 0;
+    vec3 seg_start = org;   /* exact start of the segment (boundary point, not the offset origin) */
     *hit_any = 0;
     for (;;) {
         struct accel_hit h;
@@ -320,6 +325,7 @@ vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, 
                     prev_p = x;
                     prev_delta = 0;
                     org = x;
+                    seg_start = x;
                     dir = nd;
                     vertex++;
                     continue;
@@ -327,7 +333,8 @@ vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, 
             } else {
                 float len = hit ? h.t : exit_distance(mj, org, dir);
                 L = v3_add(L, v3_mul(beta, march_segment(job, &r, vertex, org, dir, len, medium, time01, rays)));
-                beta = v3_mul(beta, medium_transmittance(md, hit ? h.t : INFINITY));
+                float exact = hit ? v3_length(v3_sub(v3_add(org, v3_scale(dir, h.t)), seg_start)) : INFINITY;
+                beta = v3_mul(beta, medium_transmittance(md, exact));
                 if (v3_is_black(beta))
                     break;
             }
@@ -342,6 +349,7 @@ vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, 
             medium = media_after_crossing(job, &h, s.ng, dir);
             vec3 n = v3_dot(dir, s.ng) > 0.0f ? s.ng : v3_neg(s.ng);
             org = media_offset_ray_origin(v3_add(s.p, v3_scale(n, s.p_err)), n);
+            seg_start = s.p;
             continue;
         }
         if (vertex == 0)
@@ -406,6 +414,7 @@ vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, 
             org = p_off;
         }
         dir = bs.wi;
+        seg_start = s.p;
         vertex++;
     }
     return L;

@@ -18,7 +18,10 @@ _Static_assert(sizeof(struct photon) == 20, "photons are 20 bytes on the wire");
 
 #define PM_MAGIC "BVPM0001"
 #define PM_HEADER 48
-#define PM_BLOCK 1024           /* photon indices per work unit */
+#define PM_BLOCK 1024
+/* Kernels use at least this radius and estimates saturate at 1e30, so a gather radius
+ * near 0 cannot turn one photon into an infinite estimate. */
+#define PM_MIN_KERNEL_RADIUS 1e-9           /* photon indices per work unit */
 #define SALT_PHOTON 0x70686f746f6eull
 
 /* ---- encodings ---- */
@@ -540,8 +543,8 @@ vec3 photon_map_gather(const struct photon_map *m, vec3 x, vec3 d_out, float g)
             vec3 pw = photon_rgbe_decode(ph->rgbe);
             acc[0] += (double)p * pw.x, acc[1] += (double)p * pw.y, acc[2] += (double)p * pw.z;
         }
-    double inv_vol = 1.0 / (4.0 / 3.0 * M_PI * (double)r * r * r);
-    return v3((float)(acc[0] * inv_vol), (float)(acc[1] * inv_vol), (float)(acc[2] * inv_vol));
+    double rk = fmax((double)r, PM_MIN_KERNEL_RADIUS), inv_vol = 1.0 / (4.0 / 3.0 * M_PI * rk * rk * rk);
+    return v3((float)fmin(acc[0] * inv_vol, 1e30), (float)fmin(acc[1] * inv_vol, 1e30), (float)fmin(acc[2] * inv_vol, 1e30));
 }
 
 vec3 photon_map_beam(const struct photon_map *m, vec3 o, vec3 d, float t1, const struct medium *md)
@@ -577,8 +580,8 @@ vec3 photon_map_beam(const struct photon_map *m, vec3 o, vec3 d, float t1, const
                 acc[0] += (double)p * pw.x, acc[1] += (double)p * pw.y, acc[2] += (double)p * pw.z;
             }
     }
-    double k2 = 1.0 / (M_PI * (double)r * r);
-    return v3((float)(acc[0] * k2), (float)(acc[1] * k2), (float)(acc[2] * k2));
+    double rk = fmax((double)r, PM_MIN_KERNEL_RADIUS), k2 = 1.0 / (M_PI * rk * rk);
+    return v3((float)fmin(acc[0] * k2, 1e30), (float)fmin(acc[1] * k2, 1e30), (float)fmin(acc[2] * k2, 1e30));
 }
 
 /* ---- the volume blob ---- */
