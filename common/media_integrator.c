@@ -145,10 +145,22 @@ void media_job_free(struct media_job **pmj)
 }
 
 vec3 media_shadow_transmittance(const struct render_job *job, vec3 p, vec3 target, uint32_t medium, float time01,
-                                uint64_t *rays)
+                                uint64_t key, uint64_t *rays)
 {
     const struct scene_media *sm = job->scene->media;
+    const int ratio = sm->method == MEDIA_VPT; /* unbiased ratio tracking; marched for Jensen's methods */
     vec3 tr = v3(1, 1, 1);
+    if (sm->interface_material == UINT32_MAX) {
+        /* No invisible boundaries: any hit blocks, and the medium is the same all along. */
+        (*rays)++;
+        if (accel_occluded(&job->accel, p, v3_sub(target, p), 1.0f - 0x1p-12f, time01))
+            return v3(0, 0, 0);
+        if (medium == MEDIUM_NONE)
+            return tr;
+        vec3 to = v3_sub(target, p);
+        float len = v3_length(to);
+        return len > 0.0f ? medium_tr_segment(&sm->media[medium], p, v3_scale(to, 1.0f / len), len, key, ratio) : tr;
+    }
     /* Distances run from the exact boundary points, not from the offset ray origins (the
      * offsets would shorten every segment by a few hundred ulps). */
     vec3 start = p;
@@ -162,7 +174,8 @@ vec3 media_shadow_transmittance(const struct render_job *job, vec3 p, vec3 targe
         (*rays)++;
         if (!accel_intersect(&job->accel, p, dir, dist * (1.0f - 0x1p-12f), time01, &h)) {
             if (medium != MEDIUM_NONE)
-                tr = v3_mul(tr, medium_transmittance(&sm->media[medium], v3_length(v3_sub(target, start))));
+                tr = v3_mul(tr, medium_tr_segment(&sm->media[medium], start, dir, v3_length(v3_sub(target, start)),
+                                                  rng_mix64(key + (uint64_t)i), ratio));
             return tr;
         }
         struct media_surface s;
@@ -170,7 +183,8 @@ vec3 media_shadow_transmittance(const struct render_job *job, vec3 p, vec3 targe
         if (!media_is_interface(job, s.material))
             return v3(0, 0, 0);
         if (medium != MEDIUM_NONE)
-            tr = v3_mul(tr, medium_transmittance(&sm->media[medium], v3_length(v3_sub(s.p, start))));
+            tr = v3_mul(tr, medium_tr_segment(&sm->media[medium], start, dir, v3_length(v3_sub(s.p, start)),
+                                              rng_mix64(key + (uint64_t)i), ratio));
         if (v3_is_black(tr))
             return tr;
         medium = media_after_crossing(job, &h, s.ng, dir);
@@ -199,7 +213,7 @@ static float rnd(const struct rngs *r, uint32_t vertex, uint32_t k)
 /* Light arriving at x (in `medium`) from one sampled light, times the phase function for
  * light leaving along d_out; *pdf_light gets the sample's pdf for MIS (0 = delta). */
 static vec3 scatter_nee(const struct render_job *job, vec3 x, vec3 d_out, uint32_t medium, float g, float u0,
-                        float u1, float u2, float time01, uint64_t *rays, int mis)
+                        float u1, float u2, float time01, uint64_t key, uint64_t *rays, int mis)
 {
     const struct scene *sc = job->scene;
     if (job->lights.num_entries == 0)
@@ -215,44 +229,86 @@ static vec3 scatter_nee(const struct render_job *job, vec3 x, vec3 d_out, uint32
     vec3 wi = v3_scale(to, 1.0f / dist);
     float ph = phase_hg(v3_dot(v3_neg(wi), d_out), g);
     vec3 target = ls.is_delta ? ls.p : media_offset_ray_origin(ls.p, v3_dot(ls.n, wi) < 0.0f ? ls.n : v3_neg(ls.n));
-    vec3 tr = media_shadow_transmittance(job, x, target, medium, time01, rays);
+    vec3 tr = media_shadow_transmittance(job, x, target, medium, time01, key, rays);
     if (v3_is_black(tr))
         return v3(0, 0, 0);
     float w = (ls.is_delta || !mis) ? 1.0f : power_heuristic(ls.pdf, ph);
     return v3_scale(v3_mul(ls.radiance, tr), ph * w / ls.pdf);
 }
 
-/* Jensen's march along [0, len) of o + t d in homogeneous medium md: emission, single
- * scattering and the photon estimate, each attenuated to the camera (beta outside). */
+/* Jensen's march along [0, len) of o + t d in medium md: emission, single scattering and
+ * the photon estimate, each attenuated to the camera (beta outside); *seg_tr gets the
+ * segment's transmittance. Homogeneous media: closed-form transmittance to each step.
+ * Grids: the optical depth accumulates step by step (a table of it serves the beam). */
+#define TAU_TABLE 4096
 static vec3 march_segment(const struct render_job *job, const struct rngs *r, uint32_t vertex, vec3 o, vec3 d,
-                          float len, uint32_t medium, float time01, uint64_t *rays)
+                          float len, uint32_t medium, float time01, uint64_t *rays, vec3 *seg_tr)
 {
     const struct media_job *mj = job->media;
     const struct medium *md = &mj->sm->media[medium];
-    vec3 L = medium_emission_integral(md, len);
-    if (v3_is_black(md->sigma_s))
+    const int het = md->grid != NULL;
+    vec3 L = het ? v3(0, 0, 0) : medium_emission_integral(md, len);
+    *seg_tr = medium_transmittance(md, len);
+    float c0 = 0.0f, c1 = len;
+    if (het) {
+        *seg_tr = v3(1, 1, 1);
+        if (!medium_clip(md, o, d, len, &c0, &c1))
+            return L; /* empty space: nothing to march */
+    }
+    if (v3_is_black(md->sigma_s) && !het)
         return L;
-    if (mj->sm->method == MEDIA_MARCH_BEAM && mj->map)
-        L = v3_add(L, photon_map_beam(mj->map, o, d, len, md));
-    float dx = mj->step;
-    if (len / dx > (float)MAX_STEPS)
-        dx = len / (float)MAX_STEPS;
+    /* Jittered steps estimate the integral without bias at any dx: after the first vertex
+     * (paths already spread over the hemisphere) four times longer steps cost less for
+     * the same image variance. */
+    float dx = medium_march_step(md, vertex == 0 ? mj->step : 4.0f * mj->step);
+    float span = c1 - c0;
+    if (span / dx > (float)(het ? TAU_TABLE - 2 : MAX_STEPS))
+        dx = span / (float)(het ? TAU_TABLE - 2 : MAX_STEPS);
     float jitter = rnd(r, vertex, 10);
     uint64_t seg_key = rng_mix64(r->key ^ ((uint64_t)(vertex + 1) << 40));
+    float tau_tab[TAU_TABLE];   /* grids: optical depth (per unit sigma_t) at c0 + k dx */
+    uint32_t ntab = 0;
+    float tau = 0.0f;
+    if (het)
+        tau_tab[ntab++] = 0.0f;
     for (uint32_t k = 0;; k++) {
-        float t = ((float)k + jitter) * dx;
-        if (!(t < len))
+        float t = c0 + ((float)k + jitter) * dx;
+        if (!(t < c1))
             break;
         vec3 x = v3_add(o, v3_scale(d, t));
-        vec3 tr = medium_transmittance(md, t);
-        if (v3_max_component(tr) < 1e-6f)
+        float rho = 1.0f;
+        vec3 tr;
+        if (het) {
+            rho = grid_density(md->grid, x);
+            float tau_here = tau + rho * jitter * dx;
+            tr = v3(expf(-md->sigma_t.x * tau_here), expf(-md->sigma_t.y * tau_here), expf(-md->sigma_t.z * tau_here));
+            tau += rho * dx;
+            if (ntab < TAU_TABLE)
+                tau_tab[ntab++] = tau;
+        } else {
+            tr = medium_transmittance(md, t);
+        }
+        if (v3_max_component(tr) < 1e-6f && !het)
             break; /* nothing beyond reaches the camera */
+        if (!(rho > 0.0f))
+            continue;
         vec3 ls = scatter_nee(job, x, v3_neg(d), medium, md->g, rng_uniform(seg_key, 3 * k),
-                              rng_uniform(seg_key, 3 * k + 1), rng_uniform(seg_key, 3 * k + 2), time01, rays, 0);
-        vec3 in = v3_mul(md->sigma_s, ls);
+                              rng_uniform(seg_key, 3 * k + 1), rng_uniform(seg_key, 3 * k + 2), time01,
+                              rng_mix64(seg_key ^ (0x5348ull << 48) ^ k), rays, 0);
+        vec3 in = v3_scale(v3_mul(md->sigma_s, ls), rho);
         if (mj->sm->method == MEDIA_MARCH_STEPS && mj->map)
             in = v3_add(in, photon_map_gather(mj->map, x, v3_neg(d), md->g));
         L = v3_add(L, v3_scale(v3_mul(tr, in), dx));
+    }
+    if (het)
+        *seg_tr = v3(expf(-md->sigma_t.x * tau), expf(-md->sigma_t.y * tau), expf(-md->sigma_t.z * tau));
+    if (mj->sm->method == MEDIA_MARCH_BEAM && mj->map) {
+        if (het) {
+            struct photon_tau tt = {tau_tab, ntab, c0, dx};
+            L = v3_add(L, photon_map_beam(mj->map, o, d, len, md, &tt));
+        } else {
+            L = v3_add(L, photon_map_beam(mj->map, o, d, len, md, NULL));
+        }
     }
     return L;
 }
@@ -303,7 +359,7 @@ vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, 
                 float tmax = hit ? h.t : INFINITY, t;
                 vec3 w;
                 L = v3_add(L, v3_mul(beta, medium_emission_integral(md, tmax)));
-                int scatter = medium_sample_distance(md, tmax, rnd(&r, vertex, 0), rnd(&r, vertex, 1), &t, &w);
+                int scatter = medium_sample_flight(md, org, dir, tmax, rng_mix64(r.key ^ (0x464cull << 48) ^ vertex), &t, &w);
                 beta = v3_mul(beta, w);
                 if (v3_is_black(beta) || !v3_is_finite(beta))
                     break;
@@ -312,7 +368,8 @@ vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, 
                     if (++depth > rs->max_depth)
                         break;
                     L = v3_add(L, v3_mul(beta, scatter_nee(job, x, v3_neg(dir), medium, md->g, rnd(&r, vertex, 2),
-                                                           rnd(&r, vertex, 3), rnd(&r, vertex, 4), time01, rays, 1)));
+                                                           rnd(&r, vertex, 3), rnd(&r, vertex, 4), time01,
+                                                           rng_mix64(r.key ^ (0x5348ull << 48) ^ vertex), rays, 1)));
                     vec3 nd;
                     float ph = phase_hg_sample(dir, md->g, rnd(&r, vertex, 5), rnd(&r, vertex, 6), &nd);
                     if (depth >= 3) {
@@ -332,9 +389,10 @@ vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, 
                 }
             } else {
                 float len = hit ? h.t : exit_distance(mj, org, dir);
-                L = v3_add(L, v3_mul(beta, march_segment(job, &r, vertex, org, dir, len, medium, time01, rays)));
+                vec3 seg_tr;
+                L = v3_add(L, v3_mul(beta, march_segment(job, &r, vertex, org, dir, len, medium, time01, rays, &seg_tr)));
                 float exact = hit ? v3_length(v3_sub(v3_add(org, v3_scale(dir, h.t)), seg_start)) : INFINITY;
-                beta = v3_mul(beta, medium_transmittance(md, exact));
+                beta = v3_mul(beta, md->grid ? seg_tr : medium_transmittance(md, exact));
                 if (v3_is_black(beta))
                     break;
             }
@@ -382,7 +440,8 @@ vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, 
                 vec3 f = v3_dot(wi, ng) > 0.0f ? material_eval(mat, ns, wo, wi, &bpdf) : (bpdf = 0.0f, v3(0, 0, 0));
                 if (!v3_is_black(f)) {
                     vec3 target = ls.is_delta ? ls.p : media_offset_ray_origin(ls.p, v3_dot(ls.n, wi) < 0.0f ? ls.n : v3_neg(ls.n));
-                    vec3 tr = media_shadow_transmittance(job, p_off, target, medium, time01, rays);
+                    vec3 tr = media_shadow_transmittance(job, p_off, target, medium, time01,
+                                                         rng_mix64(r.key ^ (0x5353ull << 48) ^ vertex), rays);
                     if (!v3_is_black(tr)) {
                         float w = ls.is_delta ? 1.0f : power_heuristic(ls.pdf, bpdf);
                         L = v3_add(L, v3_mul(beta, v3_scale(v3_mul(v3_mul(f, ls.radiance), tr), w / ls.pdf)));

@@ -3,6 +3,8 @@
  * machine; HG sampling runs in double, where g = +-0.999 loses nothing. */
 #include "medium.h"
 #include "log.h"
+#include "motion.h"
+#include "rng.h"
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -26,6 +28,8 @@ void media_scene_free(struct scene_media **pm)
     struct scene_media *m = *pm;
     if (!m)
         return;
+    for (uint32_t i = 0; m->media && i < m->num_media; i++)
+        grid_free(&m->media[i].grid);
     free(m->media);
     free(m->mesh_medium);
     free(m->sphere_medium);
@@ -206,4 +210,234 @@ float phase_hg_sample(vec3 d_in, float g, float u1, float u2, vec3 *d_out)
     v3_basis(d_in, &t, &b);
     *d_out = v3_normalize(v3_add(v3_scale(d_in, c), v3_add(v3_scale(t, s * cp), v3_scale(b, s * sp))));
     return phase_hg(c, g);
+}
+
+/* ---- density grids ---- */
+
+static uint32_t rd_u32(const uint8_t *p) { return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24; }
+
+int grid_parse(const uint8_t *data, size_t size, struct density_grid *out, char *err, size_t errlen)
+{
+    memset(out, 0, sizeof *out);
+    if (size < 20 || memcmp(data, GRID_MAGIC, 8) != 0) {
+        str_fmt(err, errlen, "not a density grid (expected the \"%s\" header)", GRID_MAGIC);
+        return -1;
+    }
+    uint32_t nx = rd_u32(data + 8), ny = rd_u32(data + 12), nz = rd_u32(data + 16);
+    if (nx < 1 || ny < 1 || nz < 1 || (uint64_t)nx * ny * nz > GRID_MAX_VOXELS) {
+        str_fmt(err, errlen, "grid size %ux%ux%u out of range (1.. and at most %u voxels)", nx, ny, nz, GRID_MAX_VOXELS);
+        return -1;
+    }
+    uint64_t n = (uint64_t)nx * ny * nz;
+    if (size != 20 + 4 * n) {
+        str_fmt(err, errlen, "grid of %ux%ux%u needs %llu bytes, the file has %zu", nx, ny, nz,
+                (unsigned long long)(20 + 4 * n), size);
+        return -1;
+    }
+    float *v = mem_alloc(sizeof(float) * n);
+    for (uint64_t i = 0; i < n; i++) {
+        uint32_t u = rd_u32(data + 20 + 4 * i);
+        memcpy(&v[i], &u, 4);
+        if (!isfinite(v[i]) || v[i] < 0.0f) {
+            free(v);
+            str_fmt(err, errlen, "voxel %llu: density must be finite and >= 0", (unsigned long long)i);
+            return -1;
+        }
+    }
+    out->nx = nx, out->ny = ny, out->nz = nz;
+    out->data = v;
+    out->scale = 1.0f;
+    out->grid_to_world = out->world_to_grid = xform_identity();
+    return 0;
+}
+
+void grid_finish(struct density_grid *g, const struct xform *grid_to_world, float scale)
+{
+    g->scale = scale;
+    g->grid_to_world = *grid_to_world;
+    g->world_to_grid = motion_xform_inverse(grid_to_world);
+    uint32_t lo[3] = {UINT32_MAX, UINT32_MAX, UINT32_MAX}, hi[3] = {0, 0, 0};
+    float mx = 0.0f;
+    for (uint32_t z = 0; z < g->nz; z++)
+        for (uint32_t y = 0; y < g->ny; y++)
+            for (uint32_t x = 0; x < g->nx; x++) {
+                float v = g->data[((size_t)z * g->ny + y) * g->nx + x];
+                if (!(v > 0.0f))
+                    continue;
+                mx = fmaxf(mx, v);
+                uint32_t c[3] = {x, y, z};
+                for (int k = 0; k < 3; k++) {
+                    lo[k] = c[k] < lo[k] ? c[k] : lo[k];
+                    hi[k] = c[k] > hi[k] ? c[k] : hi[k];
+                }
+            }
+    g->max_density = mx * scale;
+    uint32_t n[3] = {g->nx, g->ny, g->nz};
+    float ol[3], oh[3];
+    for (int k = 0; k < 3; k++) {
+        if (lo[k] == UINT32_MAX) {
+            ol[k] = 1.0f, oh[k] = 0.0f; /* empty */
+            continue;
+        }
+        /* Trilinear support of voxels lo..hi reaches the neighbouring centres. */
+        ol[k] = fmaxf(0.0f, ((float)lo[k] - 0.5f) / (float)n[k]);
+        oh[k] = fminf(1.0f, ((float)hi[k] + 1.5f) / (float)n[k]);
+    }
+    g->occ_lo = v3(ol[0], ol[1], ol[2]);
+    g->occ_hi = v3(oh[0], oh[1], oh[2]);
+    float vw = INFINITY;
+    for (int k = 0; k < 3; k++) {
+        vec3 col = v3(grid_to_world->m[0][k], grid_to_world->m[1][k], grid_to_world->m[2][k]);
+        vw = fminf(vw, v3_length(col) / (float)n[k]);
+    }
+    g->voxel_world = vw;
+}
+
+void grid_free(struct density_grid **pg)
+{
+    if (!*pg)
+        return;
+    free((*pg)->data);
+    free(*pg);
+    *pg = NULL;
+}
+
+float grid_density(const struct density_grid *g, vec3 p)
+{
+    vec3 q = xform_point(&g->world_to_grid, p);
+    if (!(q.x >= 0.0f && q.y >= 0.0f && q.z >= 0.0f && q.x <= 1.0f && q.y <= 1.0f && q.z <= 1.0f))
+        return 0.0f;
+    float u[3] = {q.x * (float)g->nx - 0.5f, q.y * (float)g->ny - 0.5f, q.z * (float)g->nz - 0.5f};
+    int32_t n[3] = {(int32_t)g->nx, (int32_t)g->ny, (int32_t)g->nz}, i0[3], i1[3];
+    float f[3];
+    for (int k = 0; k < 3; k++) {
+        float fl = floorf(u[k]);
+        f[k] = u[k] - fl;
+        int32_t a = (int32_t)fl;
+        i0[k] = a < 0 ? 0 : (a >= n[k] ? n[k] - 1 : a);
+        i1[k] = a + 1 < 0 ? 0 : (a + 1 >= n[k] ? n[k] - 1 : a + 1);
+    }
+#define V(x, y, z) g->data[((size_t)(z) * g->ny + (y)) * g->nx + (x)]
+    float c00 = V(i0[0], i0[1], i0[2]) * (1 - f[0]) + V(i1[0], i0[1], i0[2]) * f[0];
+    float c10 = V(i0[0], i1[1], i0[2]) * (1 - f[0]) + V(i1[0], i1[1], i0[2]) * f[0];
+    float c01 = V(i0[0], i0[1], i1[2]) * (1 - f[0]) + V(i1[0], i0[1], i1[2]) * f[0];
+    float c11 = V(i0[0], i1[1], i1[2]) * (1 - f[0]) + V(i1[0], i1[1], i1[2]) * f[0];
+#undef V
+    float c0 = c00 * (1 - f[1]) + c10 * f[1], c1 = c01 * (1 - f[1]) + c11 * f[1];
+    return (c0 * (1 - f[2]) + c1 * f[2]) * g->scale;
+}
+
+int medium_clip(const struct medium *m, vec3 o, vec3 d, float tmax, float *t0, float *t1)
+{
+    *t0 = 0.0f;
+    *t1 = tmax;
+    if (!m->grid)
+        return tmax > 0.0f;
+    const struct density_grid *g = m->grid;
+    vec3 og = xform_point(&g->world_to_grid, o), dg = xform_vector(&g->world_to_grid, d);
+    float a = 0.0f, b = tmax;
+    float oo[3] = {og.x, og.y, og.z}, dd[3] = {dg.x, dg.y, dg.z};
+    float lo[3] = {g->occ_lo.x, g->occ_lo.y, g->occ_lo.z}, hi[3] = {g->occ_hi.x, g->occ_hi.y, g->occ_hi.z};
+    for (int k = 0; k < 3; k++) {
+        if (!(lo[k] <= hi[k]))
+            return 0;
+        if (dd[k] == 0.0f) {
+            if (oo[k] < lo[k] || oo[k] > hi[k])
+                return 0;
+            continue;
+        }
+        float ta = (lo[k] - oo[k]) / dd[k], tb = (hi[k] - oo[k]) / dd[k];
+        if (ta > tb) {
+            float t = ta;
+            ta = tb, tb = t;
+        }
+        a = fmaxf(a, ta);
+        b = fminf(b, tb);
+    }
+    if (!(a < b))
+        return 0;
+    *t0 = a;
+    *t1 = b;
+    return 1;
+}
+
+float medium_march_step(const struct medium *m, float step)
+{
+    return m->grid ? fminf(step, 0.5f * m->grid->voxel_world) : step;
+}
+
+#define TRACK_MAX 1000000
+
+vec3 medium_tr_segment(const struct medium *m, vec3 o, vec3 d, float len, uint64_t key, int ratio)
+{
+    if (!m->grid)
+        return medium_transmittance(m, len);
+    float c0, c1;
+    if (!medium_clip(m, o, d, len, &c0, &c1))
+        return v3(1, 1, 1);
+    float st_max = v3_max_component(m->sigma_t), mu = st_max * m->grid->max_density;
+    if (!(mu > 0.0f))
+        return v3(1, 1, 1);
+    if (ratio) {
+        vec3 tr = v3(1, 1, 1);
+        float t = c0;
+        for (uint32_t k = 0; k < TRACK_MAX; k++) {
+            t += -log1pf(-rng_uniform(key, k)) / mu;
+            if (!(t < c1))
+                break;
+            float rho = grid_density(m->grid, v3_add(o, v3_scale(d, t)));
+            tr = v3_mul(tr, v3(1.0f - m->sigma_t.x * rho / mu, 1.0f - m->sigma_t.y * rho / mu,
+                               1.0f - m->sigma_t.z * rho / mu));
+            if (v3_max_component(tr) < 1e-7f)
+                return v3(0, 0, 0);
+        }
+        return tr;
+    }
+    /* Jensen: a jittered march of the optical depth at half-voxel steps. */
+    float dx = 0.5f * m->grid->voxel_world;
+    if ((c1 - c0) / dx > 100000.0f)
+        dx = (c1 - c0) / 100000.0f;
+    float tau = 0.0f, u = rng_uniform(key, 0);
+    for (uint32_t k = 0;; k++) {
+        float t = c0 + ((float)k + u) * dx;
+        if (!(t < c1))
+            break;
+        tau += grid_density(m->grid, v3_add(o, v3_scale(d, t))) * dx;
+    }
+    return v3(expf(-m->sigma_t.x * tau), expf(-m->sigma_t.y * tau), expf(-m->sigma_t.z * tau));
+}
+
+int medium_sample_flight(const struct medium *m, vec3 o, vec3 d, float tmax, uint64_t key, float *t, vec3 *weight)
+{
+    if (!m->grid)
+        return medium_sample_distance(m, tmax, rng_uniform(key, 0), rng_uniform(key, 1), t, weight);
+    *t = tmax;
+    *weight = v3(1, 1, 1);
+    float c0, c1;
+    if (!medium_clip(m, o, d, tmax, &c0, &c1))
+        return 0;
+    float mu = v3_max_component(m->sigma_t) * m->grid->max_density;
+    if (!(mu > 0.0f))
+        return 0;
+    /* Weighted delta tracking: a tentative collision is real with probability
+     * avg(sigma_t(x)) / mu; the weights keep every channel unbiased. */
+    vec3 w = v3(1, 1, 1);
+    float tt = c0;
+    for (uint32_t k = 0; k < TRACK_MAX; k++) {
+        tt += -log1pf(-rng_uniform(key, 2 * k)) / mu;
+        if (!(tt < c1))
+            break;
+        float rho = grid_density(m->grid, v3_add(o, v3_scale(d, tt)));
+        vec3 st = v3_scale(m->sigma_t, rho);
+        float avg = (st.x + st.y + st.z) / 3.0f, p = avg / mu;
+        if (rng_uniform(key, 2 * k + 1) < p) {
+            *t = tt;
+            *weight = v3_mul(w, v3_scale(m->sigma_s, rho / avg));
+            return 1;
+        }
+        float q = mu - avg;
+        w = v3_mul(w, v3((mu - st.x) / q, (mu - st.y) / q, (mu - st.z) / q));
+    }
+    *weight = w;
+    return 0;
 }

@@ -223,7 +223,7 @@ static void trace_photon(const struct trace_ctx *tc, uint64_t index, struct phot
             const struct medium *md = &sm->media[medium];
             float t;
             vec3 w;
-            int scatter = medium_sample_distance(md, hit ? h.t : INFINITY, rng_uniform(key, dim), rng_uniform(key, dim + 1), &t, &w);
+            int scatter = medium_sample_flight(md, o, d, hit ? h.t : INFINITY, rng_mix64(key ^ ((uint64_t)dim << 32)), &t, &w);
             vec3 before = power;
             power = v3_mul(power, w);
             if (scatter) {
@@ -331,7 +331,7 @@ double photon_map_indirect_bound(const struct scene *s, float scene_size)
     for (uint32_t i = 0; sm && i < sm->num_media; i++) {
         const struct medium *md = &sm->media[i];
         vec3 st = md->sigma_t, ss = md->sigma_s;
-        double alb = 0.0, smax = v3_max_component(st);
+        double alb = 0.0, smax = (double)v3_max_component(st) * (md->grid ? md->grid->max_density : 1.0f);
         if (st.x > 0) alb = fmax(alb, (double)ss.x / st.x);
         if (st.y > 0) alb = fmax(alb, (double)ss.y / st.y);
         if (st.z > 0) alb = fmax(alb, (double)ss.z / st.z);
@@ -547,24 +547,69 @@ vec3 photon_map_gather(const struct photon_map *m, vec3 x, vec3 d_out, float g)
     return v3((float)fmin(acc[0] * inv_vol, 1e30), (float)fmin(acc[1] * inv_vol, 1e30), (float)fmin(acc[2] * inv_vol, 1e30));
 }
 
-vec3 photon_map_beam(const struct photon_map *m, vec3 o, vec3 d, float t1, const struct medium *md)
+/* Drops repeated bucket ids in place (a small open-addressing set); returns the count. */
+static uint32_t unique_buckets(uint32_t *b, uint32_t n)
+{
+    enum { SET = 2048 };
+    uint32_t set[SET];
+    memset(set, 0xff, sizeof set);
+    uint32_t k = 0;
+    for (uint32_t i = 0; i < n; i++) {
+        uint32_t h = (b[i] * 2654435761u) & (SET - 1);
+        while (set[h] != UINT32_MAX && set[h] != b[i])
+            h = (h + 1) & (SET - 1);
+        if (set[h] == b[i])
+            continue;
+        set[h] = b[i];
+        b[k++] = b[i];
+    }
+    return k;
+}
+
+#define BEAM_CHUNK 16           /* pieces whose buckets are merged before the photons are read */
+
+static vec3 tau_tr(const struct photon_tau *tt, const struct medium *md, float t)
+{
+    float x = (t - tt->t0) / tt->dt, tau;
+    if (!(x > 0.0f))
+        tau = 0.0f;
+    else if (!(x < (float)(tt->n - 1)))
+        tau = tt->tau[tt->n - 1];
+    else {
+        uint32_t i = (uint32_t)x;
+        float f = x - (float)i;
+        tau = tt->tau[i] * (1.0f - f) + tt->tau[i + 1] * f;
+    }
+    return v3(expf(-md->sigma_t.x * tau), expf(-md->sigma_t.y * tau), expf(-md->sigma_t.z * tau));
+}
+
+vec3 photon_map_beam(const struct photon_map *m, vec3 o, vec3 d, float t1, const struct medium *md,
+                     const struct photon_tau *tau)
 {
     if (!m || m->num_photons == 0 || !(t1 > 0.0f))
         return v3(0, 0, 0);
     float r = m->radius, r2 = r * r, seg = m->cell_size;
     vec3 d_out = v3_neg(d);
     double acc[3] = {0, 0, 0};
-    uint32_t buckets[MAX_VISIT];
-    /* The segment in pieces one cell long; a photon counts in the piece holding its
-     * closest-point parameter, so no photon is counted twice. */
+    uint32_t buckets[BEAM_CHUNK * MAX_VISIT];
+    /* The segment in pieces one cell long; the buckets of BEAM_CHUNK pieces are merged
+     * (sorted, duplicates dropped) and a photon counts only if its closest-point parameter
+     * lies in the chunk's interval, so no photon is counted twice. */
     uint64_t pieces = (uint64_t)ceilf(t1 / seg);
-    for (uint64_t k = 0; k < pieces && k < (1u << 24); k++) {
-        float a = (float)k * seg, b = fminf(t1, (float)(k + 1) * seg);
-        vec3 pa = v3_add(o, v3_scale(d, a)), pb = v3_add(o, v3_scale(d, b));
-        vec3 lo = v3(fminf(pa.x, pb.x) - r, fminf(pa.y, pb.y) - r, fminf(pa.z, pb.z) - r);
-        vec3 hi = v3(fmaxf(pa.x, pb.x) + r, fmaxf(pa.y, pb.y) + r, fmaxf(pa.z, pb.z) + r);
-        uint32_t nb = collect_buckets(m, lo, hi, buckets);
-        for (uint32_t bi = 0; bi < nb; bi++)
+    pieces = pieces < (1u << 24) ? pieces : (1u << 24);
+    for (uint64_t k0 = 0; k0 < pieces; k0 += BEAM_CHUNK) {
+        uint32_t nb = 0;
+        uint64_t k1 = k0 + BEAM_CHUNK < pieces ? k0 + BEAM_CHUNK : pieces;
+        for (uint64_t k = k0; k < k1; k++) {
+            float a = (float)k * seg, b = fminf(t1, (float)(k + 1) * seg);
+            vec3 pa = v3_add(o, v3_scale(d, a)), pb = v3_add(o, v3_scale(d, b));
+            vec3 lo = v3(fminf(pa.x, pb.x) - r, fminf(pa.y, pb.y) - r, fminf(pa.z, pb.z) - r);
+            vec3 hi = v3(fmaxf(pa.x, pb.x) + r, fmaxf(pa.y, pb.y) + r, fmaxf(pa.z, pb.z) + r);
+            nb += collect_buckets(m, lo, hi, buckets + nb);
+        }
+        nb = unique_buckets(buckets, nb);
+        float a = (float)k0 * seg, b = k1 == pieces ? t1 : (float)k1 * seg;
+        for (uint32_t bi = 0; bi < nb; bi++) {
             for (uint32_t i = m->bucket_start[buckets[bi]]; i < m->bucket_start[buckets[bi] + 1]; i++) {
                 const struct photon *ph = &m->photons[i];
                 vec3 dp = v3_sub(v3(ph->p[0], ph->p[1], ph->p[2]), o);
@@ -574,11 +619,12 @@ vec3 photon_map_beam(const struct photon_map *m, vec3 o, vec3 d, float t1, const
                 vec3 perp = v3_sub(dp, v3_scale(d, t));
                 if (v3_dot(perp, perp) > r2)
                     continue;
-                vec3 tr = medium_transmittance(md, t);
+                vec3 tr = tau ? tau_tr(tau, md, t) : medium_transmittance(md, t);
                 float p = phase_hg(v3_dot(photon_dir_decode(ph->dir), d_out), md->g);
                 vec3 pw = v3_mul(photon_rgbe_decode(ph->rgbe), tr);
                 acc[0] += (double)p * pw.x, acc[1] += (double)p * pw.y, acc[2] += (double)p * pw.z;
             }
+        }
     }
     double rk = fmax((double)r, PM_MIN_KERNEL_RADIUS), k2 = 1.0 / (M_PI * rk * rk);
     return v3((float)fmin(acc[0] * k2, 1e30), (float)fmin(acc[1] * k2, 1e30), (float)fmin(acc[2] * k2, 1e30));

@@ -62,7 +62,14 @@ vec3 photon_map_gather(const struct photon_map *m, vec3 x, vec3 d_out, float g);
 /* Beam radiance estimate (Jarosz et al. 2008) along o + t d, t in [0, t1), in homogeneous
  * medium md: sum over photons within r of the ray of K(r) Tr(t_i) phase power, K = 1 /
  * (pi r^2). One query for the whole segment. */
-vec3 photon_map_beam(const struct photon_map *m, vec3 o, vec3 d, float t1, const struct medium *md);
+struct photon_tau {
+    const float *tau;   /* optical depth per unit sigma_t at t0 + k dt, k < n */
+    uint32_t n;
+    float t0, dt;
+};
+/* tau: transmittance from a marched table (heterogeneous media), or NULL for the closed form. */
+vec3 photon_map_beam(const struct photon_map *m, vec3 o, vec3 d, float t1, const struct medium *md,
+                     const struct photon_tau *tau);
 
 /* Encodings, exposed for tests. */
 void photon_rgbe_encode(vec3 c, uint8_t out[4]);

@@ -553,6 +553,53 @@ static int find_material(struct ctx *c, const struct member *m, uint32_t *id)
 
 /* ---- Media ---- */
 
+/* "density": {"file", "scale"?, "transform"?}: a dense grid filling the unit cube, which
+ * the transform places in the world. */
+static int parse_density(struct ctx *c, const struct member *dm, struct density_grid **out)
+{
+    static const char *const keys[] = {"file", "scale", "transform"};
+    struct member m[3];
+    if (object_members(c, dm->val, &dm->path, "density", keys, 3, m) != 0 ||
+        require(c, &m[0], &dm->path, "density", "file") != 0)
+        return -1;
+    const char *file = NULL;
+    char why[1024];
+    if (get_string(c, &m[0], "file", &file) != 0)
+        return -1;
+    if (asset_path_check(file, why, sizeof why) != 0)
+        return fail(c, &m[0].path, AT_VALUE, "file: %s", why);
+    float scale = 1.0f;
+    if (m[1].val) {
+        if (get_float(c, m[1].val, &m[1].path, "scale", &scale) != 0)
+            return -1;
+        if (!(scale >= 0.0f && scale <= 1e30f))
+            return fail(c, &m[1].path, AT_VALUE, "scale must be in [0, 1e30]");
+    }
+    struct xform t = xform_identity();
+    if (m[2].val) {
+        double us;
+        bool uniform;
+        if (parse_transform(c, &m[2], &t, &us, &uniform) != 0)
+            return -1;
+    }
+    char *data = NULL;
+    size_t size = 0;
+    if (!c->src || !c->src->read)
+        return fail(c, &m[0].path, AT_VALUE, "cannot read grid \"%s\": no asset source", file);
+    if (c->src->read(c->src->ctx, file, &data, &size, why, sizeof why) != 0)
+        return fail(c, &m[0].path, AT_VALUE, "cannot read grid: %s", why);
+    struct density_grid *g = mem_calloc(1, sizeof *g);
+    int rc = grid_parse((const uint8_t *)data, size, g, why, sizeof why);
+    free(data);
+    if (rc != 0) {
+        free(g);
+        return fail(c, &m[0].path, AT_VALUE, "grid \"%s\": %s", file, why);
+    }
+    grid_finish(g, &t, scale);
+    *out = g;
+    return 0;
+}
+
 static int parse_media(struct ctx *c, const struct member *mm)
 {
     if (!json_is_object(mm->val))
@@ -562,7 +609,7 @@ static int parse_media(struct ctx *c, const struct member *mm)
     c->scene->media = media_scene_new();
     struct scene_media *sm = c->scene->media;
     sm->media = mem_calloc(json_object_size(mm->val) + 1, sizeof *sm->media);
-    static const char *const keys[] = {"sigma_a", "sigma_s", "emission", "g"};
+    static const char *const keys[] = {"sigma_a", "sigma_s", "emission", "g", "density"};
     const char *name;
     json_t *def;
     uint32_t ordinal = 0;
@@ -573,8 +620,8 @@ static int parse_media(struct ctx *c, const struct member *mm)
             return fail(c, &p, AT_KEY, "medium name must be 1 to %d bytes long", SCENE_NAME_MAX - 1);
         char nb[80], what[160];
         str_fmt(what, sizeof what, "medium \"%s\"", printable(name, nb, sizeof nb));
-        struct member m[4];
-        if (object_members(c, def, &p, what, keys, 4, m) != 0)
+        struct member m[5];
+        if (object_members(c, def, &p, what, keys, 5, m) != 0)
             return -1;
         struct medium md;
         memset(&md, 0, sizeof md);
@@ -591,6 +638,10 @@ static int parse_media(struct ctx *c, const struct member *mm)
                 return fail(c, &m[3].path, AT_VALUE, "g must be in (-1, 1)");
         }
         md.sigma_t = v3_add(md.sigma_a, md.sigma_s);
+        if (m[4].val && m[2].val)
+            return fail(c, &m[2].path, AT_KEY, "%s: emission is supported in homogeneous media only (no \"density\")", what);
+        if (m[4].val && parse_density(c, &m[4], &md.grid) != 0)
+            return -1;
         sm->media[sm->num_media++] = md;
     }
     return 0;
