@@ -506,15 +506,29 @@ void photon_map_free(struct photon_map **pm)
 
 /* Visits each bucket of the cells [lo, hi] once (hash collisions would repeat them). */
 #define MAX_VISIT 64
-static uint32_t collect_buckets(const struct photon_map *m, vec3 lo, vec3 hi, uint32_t *out)
+/* seg (optional): o, d, [a, b]: only cells whose centre lies within r + half a cell
+ * diagonal of that segment can hold photons within r of it. */
+struct seg_filter { vec3 o, d; float a, b, reach2; };
+
+static uint32_t collect_buckets(const struct photon_map *m, vec3 lo, vec3 hi, uint32_t *out,
+                                const struct seg_filter *seg)
 {
-    float inv = 1.0f / m->cell_size;
+    float inv = 1.0f / m->cell_size, cs = m->cell_size;
     int32_t x0 = cell_coord(lo.x, inv), y0 = cell_coord(lo.y, inv), z0 = cell_coord(lo.z, inv);
     int32_t x1 = cell_coord(hi.x, inv), y1 = cell_coord(hi.y, inv), z1 = cell_coord(hi.z, inv);
     uint32_t nb = 0;
     for (int32_t z = z0; z <= z1 && z - z0 < 4; z++)
         for (int32_t y = y0; y <= y1 && y - y0 < 4; y++)
             for (int32_t x = x0; x <= x1 && x - x0 < 4; x++) {
+                if (seg) {
+                    vec3 c = v3(((float)x + 0.5f) * cs, ((float)y + 0.5f) * cs, ((float)z + 0.5f) * cs);
+                    vec3 oc = v3_sub(c, seg->o);
+                    float t = v3_dot(oc, seg->d);
+                    t = t < seg->a ? seg->a : (t > seg->b ? seg->b : t);
+                    vec3 q = v3_sub(oc, v3_scale(seg->d, t));
+                    if (v3_dot(q, q) > seg->reach2)
+                        continue;
+                }
                 uint32_t b = bucket_of(x, y, z, m->table_size - 1);
                 int seen = 0;
                 for (uint32_t i = 0; i < nb && !seen; i++)
@@ -531,7 +545,7 @@ vec3 photon_map_gather(const struct photon_map *m, vec3 x, vec3 d_out, float g)
         return v3(0, 0, 0);
     float r = m->radius, r2 = r * r;
     uint32_t buckets[MAX_VISIT];
-    uint32_t nb = collect_buckets(m, v3(x.x - r, x.y - r, x.z - r), v3(x.x + r, x.y + r, x.z + r), buckets);
+    uint32_t nb = collect_buckets(m, v3(x.x - r, x.y - r, x.z - r), v3(x.x + r, x.y + r, x.z + r), buckets, NULL);
     double acc[3] = {0, 0, 0};
     for (uint32_t bi = 0; bi < nb; bi++)
         for (uint32_t i = m->bucket_start[buckets[bi]]; i < m->bucket_start[buckets[bi] + 1]; i++) {
@@ -605,7 +619,9 @@ vec3 photon_map_beam(const struct photon_map *m, vec3 o, vec3 d, float t1, const
             vec3 pa = v3_add(o, v3_scale(d, a)), pb = v3_add(o, v3_scale(d, b));
             vec3 lo = v3(fminf(pa.x, pb.x) - r, fminf(pa.y, pb.y) - r, fminf(pa.z, pb.z) - r);
             vec3 hi = v3(fmaxf(pa.x, pb.x) + r, fmaxf(pa.y, pb.y) + r, fmaxf(pa.z, pb.z) + r);
-            nb += collect_buckets(m, lo, hi, buckets + nb);
+            float reach = r + 0.8660254f * seg;
+            struct seg_filter sf = {o, d, a, b, reach * reach};
+            nb += collect_buckets(m, lo, hi, buckets + nb, &sf);
         }
         nb = unique_buckets(buckets, nb);
         float a = (float)k0 * seg, b = k1 == pieces ? t1 : (float)k1 * seg;
