@@ -93,10 +93,8 @@ struct media_job *media_job_new(const struct render_job *job)
     vec3 lo = v3(b.lower_x, b.lower_y, b.lower_z), hi = v3(b.upper_x, b.upper_y, b.upper_z);
     if (!(lo.x <= hi.x)) /* empty scene */
         lo = hi = sc->camera.position;
-    vec3 pts[1 + 1];
-    pts[0] = sc->camera.position;
     for (uint32_t i = 0; i <= sc->num_lights; i++) {
-        vec3 q = i < sc->num_lights ? sc->lights[i].position : pts[0];
+        vec3 q = i < sc->num_lights ? sc->lights[i].position : sc->camera.position;
         lo = v3(fminf(lo.x, q.x), fminf(lo.y, q.y), fminf(lo.z, q.z));
         hi = v3(fmaxf(hi.x, q.x), fmaxf(hi.y, q.y), fmaxf(hi.z, q.z));
     }
@@ -205,6 +203,53 @@ struct rngs {
     uint64_t key;
 };
 
+/* Equiangular sampling (Kulla and Fajardo 2012) of t in [0, tend) on o + t d toward the
+ * point c: pdf proportional to 1 / distance^2, which cancels a point light's singularity.
+ * pdf 0 when the ray passes through c or the segment is empty. */
+struct equi { float delta, dist, ta, tb; };
+
+static int equi_init(struct equi *e, vec3 o, vec3 d, vec3 c, float tend, float eps)
+{
+    vec3 oc = v3_sub(c, o);
+    e->delta = v3_dot(oc, d);
+    e->dist = v3_length(v3_sub(oc, v3_scale(d, e->delta)));
+    if (!(e->dist > eps) || !(tend > 0.0f) || !isfinite(tend))
+        return 0;
+    e->ta = atan2f(-e->delta, e->dist);
+    e->tb = atan2f(tend - e->delta, e->dist);
+    return e->tb > e->ta;
+}
+
+static float equi_pdf(const struct equi *e, float t)
+{
+    float x = t - e->delta;
+    return e->dist / ((e->tb - e->ta) * (e->dist * e->dist + x * x));
+}
+
+static float equi_sample(const struct equi *e, float u)
+{
+    return e->delta + e->dist * tanf(e->ta + u * (e->tb - e->ta));
+}
+
+static uint32_t pick_light(const struct light_table *t, float u)
+{
+    uint32_t lo = 0, hi = t->num_entries;
+    while (hi - lo > 1) {
+        uint32_t mid = (lo + hi) / 2;
+        if (t->cdf[mid] <= u)
+            lo = mid;
+        else
+            hi = mid;
+    }
+    while (lo + 1 < t->num_entries && t->pick_pdf[lo] == 0.0f)
+        lo++;
+    return lo;
+}
+
+/* The segment a VPT vertex's free flight ran over, for the MIS between free-flight NEE and
+ * equiangular sampling of point lights. */
+struct flight_ctx { vec3 o, d; float tend, t; vec3 chan; const struct medium *md; float eps; };
+
 static float rnd(const struct rngs *r, uint32_t vertex, uint32_t k)
 {
     return rng_uniform(r->key, vertex * DIMS_PER_VERTEX + k);
@@ -213,7 +258,8 @@ static float rnd(const struct rngs *r, uint32_t vertex, uint32_t k)
 /* Light arriving at x (in `medium`) from one sampled light, times the phase function for
  * light leaving along d_out; *pdf_light gets the sample's pdf for MIS (0 = delta). */
 static vec3 scatter_nee(const struct render_job *job, vec3 x, vec3 d_out, uint32_t medium, float g, float u0,
-                        float u1, float u2, float time01, uint64_t key, uint64_t *rays, int mis)
+                        float u1, float u2, float time01, uint64_t key, uint64_t *rays, int mis,
+                        const struct flight_ctx *fc)
 {
     const struct scene *sc = job->scene;
     if (job->lights.num_entries == 0)
@@ -233,6 +279,13 @@ static vec3 scatter_nee(const struct render_job *job, vec3 x, vec3 d_out, uint32
     if (v3_is_black(tr))
         return v3(0, 0, 0);
     float w = (ls.is_delta || !mis) ? 1.0f : power_heuristic(ls.pdf, ph);
+    struct equi e;
+    if (fc && ls.is_delta && equi_init(&e, fc->o, fc->d, ls.p, fc->tend, fc->eps) && fc->t < fc->tend) {
+        /* Balance heuristic against equiangular sampling of the same light (its pick
+         * probability is the same in both strategies and cancels). */
+        float pf = medium_flight_pdf(fc->md, fc->chan, fc->t), pe = equi_pdf(&e, fc->t);
+        w = pf / (pf + pe);
+    }
     return v3_scale(v3_mul(ls.radiance, tr), ph * w / ls.pdf);
 }
 
@@ -294,7 +347,7 @@ static vec3 march_segment(const struct render_job *job, const struct rngs *r, ui
             continue;
         vec3 ls = scatter_nee(job, x, v3_neg(d), medium, md->g, rng_uniform(seg_key, 3 * k),
                               rng_uniform(seg_key, 3 * k + 1), rng_uniform(seg_key, 3 * k + 2), time01,
-                              rng_mix64(seg_key ^ (0x5348ull << 48) ^ k), rays, 0);
+                              rng_mix64(seg_key ^ (0x5348ull << 48) ^ k), rays, 0, NULL);
         vec3 in = v3_scale(v3_mul(md->sigma_s, ls), rho);
         if (mj->sm->method == MEDIA_MARCH_STEPS && mj->map)
             in = v3_add(in, photon_map_gather(mj->map, x, v3_neg(d), md->g));
@@ -328,6 +381,41 @@ static float exit_distance(const struct media_job *mj, vec3 o, vec3 d)
     return t1 > 0.0f ? t1 : 0.0f;
 }
 
+/* Single scattering of one point light (picked as NEE picks) along the segment, sampled
+ * equiangularly and weighted against free-flight NEE; times beta outside. */
+static vec3 equiangular(const struct render_job *job, const struct rngs *r, uint32_t vertex,
+                        const struct flight_ctx *fc, uint32_t medium, float time01, uint64_t *rays)
+{
+    const struct scene *sc = job->scene;
+    uint32_t i = pick_light(&job->lights, rnd(r, vertex, 8));
+    const struct light_entry *e = &job->lights.entries[i];
+    float pick = job->lights.pick_pdf[i];
+    if (e->kind != LK_POINT || !(pick > 0.0f))
+        return v3(0, 0, 0);
+    const struct light *l = &sc->lights[e->index];
+    struct equi q;
+    if (!equi_init(&q, fc->o, fc->d, l->position, fc->tend, fc->eps))
+        return v3(0, 0, 0);
+    float t = equi_sample(&q, rnd(r, vertex, 9));
+    if (!(t >= 0.0f && t < fc->tend))
+        return v3(0, 0, 0);
+    float pe = equi_pdf(&q, t), pf = medium_flight_pdf(fc->md, fc->chan, t);
+    vec3 x = v3_add(fc->o, v3_scale(fc->d, t));
+    vec3 to = v3_sub(l->position, x);
+    float d2 = v3_dot(to, to);
+    if (!(d2 > 0.0f) || !(pe > 0.0f))
+        return v3(0, 0, 0);
+    vec3 li = v3_scale(e->emission, light_spot_falloff(l, v3_neg(to)) / d2);
+    if (v3_is_black(li))
+        return v3(0, 0, 0);
+    /* light travels along -to, then back along -d toward the segment's origin */
+    float ph = phase_hg(v3_dot(v3_scale(to, 1.0f / sqrtf(d2)), fc->d), fc->md->g);
+    vec3 tr = media_shadow_transmittance(job, x, l->position, medium, time01,
+                                         rng_mix64(r->key ^ (0x4551ull << 48) ^ vertex), rays);
+    vec3 f = v3_mul(v3_mul(medium_transmittance(fc->md, t), fc->md->sigma_s), v3_mul(li, tr));
+    return v3_scale(f, ph * (pe / (pe + pf)) / (pick * pe));
+}
+
 vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, uint32_t px, uint32_t py, vec3 org,
                        vec3 dir, float time01, uint64_t *rays, int *hit_any)
 {
@@ -359,7 +447,14 @@ vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, 
                 float tmax = hit ? h.t : INFINITY, t;
                 vec3 w;
                 L = v3_add(L, v3_mul(beta, medium_emission_integral(md, tmax)));
-                int scatter = medium_sample_flight(md, org, dir, tmax, rng_mix64(r.key ^ (0x464cull << 48) ^ vertex), &t, &w);
+                vec3 chan = beta;
+                int scatter = medium_sample_flight(md, org, dir, tmax, chan, rng_mix64(r.key ^ (0x464cull << 48) ^ vertex), &t, &w);
+                /* Homogeneous media: one equiangular sample toward a point light per segment. */
+                struct flight_ctx fc = {org, dir, hit ? h.t : exit_distance(mj, org, dir), t, chan, md,
+                                        1e-7f * mj->scene_size};
+                int equi = !md->grid && !v3_is_black(md->sigma_s) && job->lights.num_entries > 0 && depth < rs->max_depth;
+                if (equi)
+                    L = v3_add(L, v3_mul(beta, equiangular(job, &r, vertex, &fc, medium, time01, rays)));
                 beta = v3_mul(beta, w);
                 if (v3_is_black(beta) || !v3_is_finite(beta))
                     break;
@@ -369,7 +464,8 @@ vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, 
                         break;
                     L = v3_add(L, v3_mul(beta, scatter_nee(job, x, v3_neg(dir), medium, md->g, rnd(&r, vertex, 2),
                                                            rnd(&r, vertex, 3), rnd(&r, vertex, 4), time01,
-                                                           rng_mix64(r.key ^ (0x5348ull << 48) ^ vertex), rays, 1)));
+                                                           rng_mix64(r.key ^ (0x5348ull << 48) ^ vertex), rays, 1,
+                                                           equi ? &fc : NULL)));
                     vec3 nd;
                     float ph = phase_hg_sample(dir, md->g, rnd(&r, vertex, 5), rnd(&r, vertex, 6), &nd);
                     if (depth >= 3) {

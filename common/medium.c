@@ -162,24 +162,42 @@ vec3 medium_emission_integral(const struct medium *m, float d)
 
 static float comp(vec3 v, int c) { return c == 0 ? v.x : (c == 1 ? v.y : v.z); }
 
-int medium_sample_distance(const struct medium *m, float tmax, float u_channel, float u, float *t, vec3 *weight)
+static vec3 channel_probs(vec3 chan)
 {
-    int c = (int)(u_channel * 3.0f);
-    c = c > 2 ? 2 : c;
+    float cs = chan.x + chan.y + chan.z;
+    if (cs > 0.0f && isfinite(cs) && chan.x >= 0 && chan.y >= 0 && chan.z >= 0)
+        return v3_add(v3_scale(chan, 0.9f / cs), v3(0.1f / 3.0f, 0.1f / 3.0f, 0.1f / 3.0f));
+    return v3(1.0f / 3.0f, 1.0f / 3.0f, 1.0f / 3.0f);
+}
+
+float medium_flight_pdf(const struct medium *m, vec3 chan, float t)
+{
+    vec3 pc = channel_probs(chan), tr = medium_transmittance(m, t);
+    return pc.x * m->sigma_t.x * tr.x + pc.y * m->sigma_t.y * tr.y + pc.z * m->sigma_t.z * tr.z;
+}
+
+int medium_sample_distance(const struct medium *m, float tmax, vec3 chan, float u_channel, float u, float *t,
+                           vec3 *weight)
+{
+    /* Channel probabilities: 0.9 in proportion to chan (the path throughput: history-aware
+     * spectral MIS, Kutz et al. 2017) and 0.1 uniform, so every channel keeps a share and
+     * no pdf can underflow; uniform when chan is black or not finite. */
+    vec3 pc = channel_probs(chan);
+    int c = u_channel < pc.x ? 0 : (u_channel < pc.x + pc.y ? 1 : 2);
     float st = comp(m->sigma_t, c);
     float ts = INFINITY;
     if (st > 0.0f)
         ts = -log1pf(-u) / st; /* u < 1 */
     if (ts < tmax) {
         vec3 tr = medium_transmittance(m, ts);
-        float pdf = (m->sigma_t.x * tr.x + m->sigma_t.y * tr.y + m->sigma_t.z * tr.z) / 3.0f;
-        /* pdf >= st (1 - u) / 3 > 0: the chosen channel's own term. */
+        float pdf = pc.x * m->sigma_t.x * tr.x + pc.y * m->sigma_t.y * tr.y + pc.z * m->sigma_t.z * tr.z;
+        /* pdf >= P_c st (1 - u) > 0: the chosen channel's own term. */
         *t = ts;
         *weight = v3_scale(v3_mul(m->sigma_s, tr), 1.0f / pdf);
         return 1;
     }
     vec3 tr = medium_transmittance(m, tmax);
-    float p = (tr.x + tr.y + tr.z) / 3.0f;
+    float p = pc.x * tr.x + pc.y * tr.y + pc.z * tr.z;
     *t = tmax;
     *weight = p > 0.0f ? v3_scale(tr, 1.0f / p) : v3(0, 0, 0);
     return 0;
@@ -407,10 +425,11 @@ vec3 medium_tr_segment(const struct medium *m, vec3 o, vec3 d, float len, uint64
     return v3(expf(-m->sigma_t.x * tau), expf(-m->sigma_t.y * tau), expf(-m->sigma_t.z * tau));
 }
 
-int medium_sample_flight(const struct medium *m, vec3 o, vec3 d, float tmax, uint64_t key, float *t, vec3 *weight)
+int medium_sample_flight(const struct medium *m, vec3 o, vec3 d, float tmax, vec3 chan, uint64_t key, float *t,
+                         vec3 *weight)
 {
     if (!m->grid)
-        return medium_sample_distance(m, tmax, rng_uniform(key, 0), rng_uniform(key, 1), t, weight);
+        return medium_sample_distance(m, tmax, chan, rng_uniform(key, 0), rng_uniform(key, 1), t, weight);
     *t = tmax;
     *weight = v3(1, 1, 1);
     float c0, c1;

@@ -87,10 +87,12 @@ vec3 medium_transmittance(const struct medium *m, float d);
 vec3 medium_emission_integral(const struct medium *m, float d);
 
 /* Free flight in [0, tmax) (tmax may be inf), sampled on one channel chosen by u_channel
- * and weighted by the one-sample MIS over the three channels. Returns 1 for a scattering
+ * with probabilities in proportion to chan (the path throughput; uniform if black) and
+ * weighted by the one-sample MIS over the three channels. Returns 1 for a scattering
  * event at *t with *weight = sigma_s Tr(t) / pdf(t), or 0 for passing through to tmax with
  * *weight = Tr(tmax) / P(pass). Weights are finite for any sigma_t in [0, 1e30]. */
-int medium_sample_distance(const struct medium *m, float tmax, float u_channel, float u, float *t, vec3 *weight);
+int medium_sample_distance(const struct medium *m, float tmax, vec3 chan, float u_channel, float u, float *t,
+                           vec3 *weight);
 
 /* ---- heterogeneous media (density grids) ---- */
 
@@ -118,10 +120,14 @@ int medium_clip(const struct medium *m, vec3 o, vec3 d, float tmax, float *t0, f
  * for grids ratio tracking (unbiased, ratio != 0) or a jittered march (Jensen) using the
  * random numbers of key. */
 vec3 medium_tr_segment(const struct medium *m, vec3 o, vec3 d, float len, uint64_t key, int ratio);
+/* Homogeneous media: the density of a scattering event at t under medium_sample_distance
+ * with the same chan (for MIS). */
+float medium_flight_pdf(const struct medium *m, vec3 chan, float t);
 /* Free flight over [0, tmax) of o + t d: closed form (medium_sample_distance) for
  * homogeneous media, weighted delta tracking against the majorant for grids. Same
  * contract as medium_sample_distance; random numbers from key. */
-int medium_sample_flight(const struct medium *m, vec3 o, vec3 d, float tmax, uint64_t key, float *t, vec3 *weight);
+int medium_sample_flight(const struct medium *m, vec3 o, vec3 d, float tmax, vec3 chan, uint64_t key, float *t,
+                         vec3 *weight);
 /* Ray-marching step for this medium: the settings' step, or half a voxel for grids if smaller. */
 float medium_march_step(const struct medium *m, float step);
 

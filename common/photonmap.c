@@ -223,7 +223,7 @@ static void trace_photon(const struct trace_ctx *tc, uint64_t index, struct phot
             const struct medium *md = &sm->media[medium];
             float t;
             vec3 w;
-            int scatter = medium_sample_flight(md, o, d, hit ? h.t : INFINITY, rng_mix64(key ^ ((uint64_t)dim << 32)), &t, &w);
+            int scatter = medium_sample_flight(md, o, d, hit ? h.t : INFINITY, power, rng_mix64(key ^ ((uint64_t)dim << 32)), &t, &w);
             vec3 before = power;
             power = v3_mul(power, w);
             if (scatter) {
@@ -609,8 +609,8 @@ vec3 photon_map_beam(const struct photon_map *m, vec3 o, vec3 d, float t1, const
     /* The segment in pieces one cell long; the buckets of BEAM_CHUNK pieces are merged
      * (sorted, duplicates dropped) and a photon counts only if its closest-point parameter
      * lies in the chunk's interval, so no photon is counted twice. */
-    uint64_t pieces = (uint64_t)ceilf(t1 / seg);
-    pieces = pieces < (1u << 24) ? pieces : (1u << 24);
+    float np = ceilf(t1 / seg);
+    uint64_t pieces = np < (float)(1u << 24) ? (uint64_t)np : (1u << 24); /* also for inf / NaN */
     for (uint64_t k0 = 0; k0 < pieces; k0 += BEAM_CHUNK) {
         uint32_t nb = 0;
         uint64_t k1 = k0 + BEAM_CHUNK < pieces ? k0 + BEAM_CHUNK : pieces;

@@ -12,7 +12,7 @@
 # Usage: BUILD=build sh scripts/bench_media.sh   (env: REF_SPP, SCENES, SWEEP=0 to skip the sweep)
 set -eu
 BUILD=${BUILD:-build}
-REF_SPP=${REF_SPP:-512}
+REF_SPP=${REF_SPP:-2048}
 SCENES=${SCENES:-"fog_spot smoke cornell_fog"}
 SWEEP=${SWEEP:-1}
 CORES=$(nproc)

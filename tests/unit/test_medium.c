@@ -240,7 +240,7 @@ static void furnace(const char *medium_json, const char *camera, int fog)
     struct render_job job;
     job_ok(&job, &s);
     double s1 = 0.0, s2 = 0.0;
-    const int n = 40000;
+    const int n = 4000;
     uint64_t rays = 0;
     for (int i = 0; i < n; i++) {
         struct sampler smp = sampler_start(5, 0, 0, (uint32_t)i);
