@@ -104,7 +104,57 @@ struct trace_ctx {
     _Atomic uint32_t next_block;
     struct photon **block_photons;
     uint32_t *block_count;
+    int aim;                /* point lights aim most photons at the media's bounding sphere */
+    vec3 aim_center;
+    float aim_radius;
 };
+
+#define AIM_SHARE 0.75f     /* photons of a point light sent into the cone toward the media */
+
+/* Bounding sphere of where media are (grids' occupied boxes, medium spheres and meshes);
+ * 0 when a homogeneous fog fills everything (nothing to aim at). */
+static int media_bounds(const struct render_job *job, vec3 *center, float *radius)
+{
+    const struct scene *sc = job->scene;
+    const struct scene_media *sm = sc->media;
+    vec3 lo = v3(INFINITY, INFINITY, INFINITY), hi = v3(-INFINITY, -INFINITY, -INFINITY);
+#define GROW(q) (lo = v3(fminf(lo.x, (q).x), fminf(lo.y, (q).y), fminf(lo.z, (q).z)), \
+                 hi = v3(fmaxf(hi.x, (q).x), fmaxf(hi.y, (q).y), fmaxf(hi.z, (q).z)))
+    if (sm->fog != MEDIUM_NONE) {
+        const struct density_grid *g = sm->media[sm->fog].grid;
+        if (!g)
+            return 0;
+        if (!(g->occ_lo.x <= g->occ_hi.x && g->occ_lo.y <= g->occ_hi.y && g->occ_lo.z <= g->occ_hi.z))
+            return 0;
+        for (int k = 0; k < 8; k++) {
+            vec3 c = v3(k & 1 ? g->occ_hi.x : g->occ_lo.x, k & 2 ? g->occ_hi.y : g->occ_lo.y, k & 4 ? g->occ_hi.z : g->occ_lo.z);
+            vec3 w = xform_point(&g->grid_to_world, c);
+            GROW(w);
+        }
+    }
+    for (uint32_t i = 0; i < sm->num_sphere_medium && i < sc->num_spheres; i++)
+        if (sm->sphere_medium[i] != MEDIUM_NONE) {
+            const struct sphere *sp = &sc->spheres[i];
+            vec3 rr = v3(sp->radius, sp->radius, sp->radius);
+            vec3 a = v3_sub(sp->center, rr), b = v3_add(sp->center, rr);
+            GROW(a);
+            GROW(b);
+        }
+    for (uint32_t i = 0; i < sm->num_mesh_medium && i < sc->num_meshes; i++)
+        if (sm->mesh_medium[i] != MEDIUM_NONE) {
+            const struct mesh *m = &sc->meshes[i];
+            for (uint32_t k = 0; k < m->num_vertices; k++) {
+                vec3 q = v3(m->positions[3 * k], m->positions[3 * k + 1], m->positions[3 * k + 2]);
+                GROW(q);
+            }
+        }
+#undef GROW
+    if (!(lo.x <= hi.x))
+        return 0;
+    *center = v3_scale(v3_add(lo, hi), 0.5f);
+    *radius = 0.5f * v3_length(v3_sub(hi, lo)) * 1.001f;
+    return 1;
+}
 
 static int outside_bounds(const struct media_job *mj, vec3 p)
 {
@@ -151,16 +201,41 @@ static int emit(const struct trace_ctx *tc, uint64_t key, vec3 *o, vec3 *d, vec3
     *medium = tc->mj->light_medium[i];
     switch (e->kind) {
     case LK_POINT: {
+        /* A mixture: the light's own emission (sphere or spot cone), and, when the light
+         * is outside the media's bounding sphere, the cone toward it with share
+         * AIM_SHARE. Power is divided by the mixture's pdf, so nothing is biased. */
         const struct light *l = &sc->lights[e->index];
         float cos_max = l->type == LIGHT_SPOT ? l->cos_outer : -1.0f;
-        float z = 1.0f - u1 * (1.0f - cos_max), r = sqrtf(fmaxf(0.0f, 1.0f - z * z)), sp, cp;
+        vec3 axis = l->type == LIGHT_SPOT ? l->direction : v3(0, 0, 1);
+        float cos_aim = 2.0f;
+        vec3 aim_axis = axis;
+        if (tc->aim) {
+            vec3 to = v3_sub(tc->aim_center, l->position);
+            float dist = v3_length(to);
+            if (dist > tc->aim_radius) {
+                aim_axis = v3_scale(to, 1.0f / dist);
+                float s2 = (tc->aim_radius / dist) * (tc->aim_radius / dist);
+                cos_aim = sqrtf(fmaxf(0.0f, 1.0f - s2));
+            }
+        }
+        int aimed = cos_aim < 1.0f && rng_uniform(key, 5) < AIM_SHARE;
+        float cm = aimed ? cos_aim : cos_max;
+        vec3 ax = aimed ? aim_axis : axis;
+        float z = 1.0f - u1 * (1.0f - cm), r = sqrtf(fmaxf(0.0f, 1.0f - z * z)), sp, cp;
         sincos_2pi(u2, &sp, &cp);
-        vec3 axis = l->type == LIGHT_SPOT ? l->direction : v3(0, 0, 1), t, b;
-        v3_basis(axis, &t, &b);
-        *d = v3_normalize(v3_add(v3_scale(axis, z), v3_add(v3_scale(t, r * cp), v3_scale(b, r * sp))));
+        vec3 t, b;
+        v3_basis(ax, &t, &b);
+        *d = v3_normalize(v3_add(v3_scale(ax, z), v3_add(v3_scale(t, r * cp), v3_scale(b, r * sp))));
         *o = l->position;
-        float omega = 2.0f * (float)M_PI * (1.0f - cos_max);
-        *power = v3_scale(e->emission, light_spot_falloff(l, *d) * omega / pick * tc->photon_scale);
+        float pdf_own = (l->type != LIGHT_SPOT || v3_dot(*d, axis) >= cos_max) ? 1.0f / (2.0f * (float)M_PI * (1.0f - cos_max)) : 0.0f;
+        float pdf = pdf_own;
+        if (cos_aim < 1.0f) {
+            float pdf_aim = v3_dot(*d, aim_axis) >= cos_aim ? 1.0f / (2.0f * (float)M_PI * (1.0f - cos_aim)) : 0.0f;
+            pdf = AIM_SHARE * pdf_aim + (1.0f - AIM_SHARE) * pdf_own;
+        }
+        if (!(pdf > 0.0f))
+            return 0;
+        *power = v3_scale(e->emission, light_spot_falloff(l, *d) / (pdf * pick) * tc->photon_scale);
         return 1;
     }
     case LK_TRIANGLE: {
@@ -363,6 +438,7 @@ int photon_map_build(const struct render_job *job, uint64_t seed, uint32_t threa
     tc.emitted = job->lights.num_entries > 0 ? sm->photons : 0;
     tc.photon_scale = tc.emitted ? (float)(1.0 / (double)tc.emitted) : 0.0f;
     tc.num_blocks = (uint32_t)((tc.emitted + PM_BLOCK - 1) / PM_BLOCK);
+    tc.aim = media_bounds(job, &tc.aim_center, &tc.aim_radius);
     atomic_init(&tc.next_block, 0);
     tc.block_photons = mem_calloc(tc.num_blocks ? tc.num_blocks : 1, sizeof *tc.block_photons);
     tc.block_count = mem_calloc(tc.num_blocks ? tc.num_blocks : 1, sizeof *tc.block_count);

@@ -490,6 +490,35 @@ Test(medium, photon_map_same_bytes_any_threads)
     scene_free(&s);
 }
 
+/* The volume blob carries the master's settings and map; a worker refuses a damaged one. */
+Test(medium, volume_blob_roundtrip)
+{
+    struct scene s;
+    load_ok(MS_SCENE("beam"), &s);
+    size_t n;
+    uint8_t *map = build_map(&s, 2, &n, 1000);
+    s.media->method = MEDIA_MARCH_STEPS;
+    s.media->step = 0.125f;
+    uint8_t *vb;
+    size_t vbs;
+    volume_blob_make(s.media, map, n, &vb, &vbs);
+    struct scene w;
+    load_ok(MS_SCENE("beam"), &w);
+    char err[256];
+    cr_assert_eq(volume_blob_apply(&w, vb, vbs, err, sizeof err), 0, "%s", err);
+    cr_assert_eq(w.media->method, MEDIA_MARCH_STEPS);
+    cr_assert_eq(w.media->step, 0.125f);
+    cr_assert_not_null(w.media->map);
+    cr_assert_eq(w.media->map->num_photons * sizeof(struct photon) + 48 + 4 * ((size_t)w.media->map->table_size + 1), n);
+    cr_assert_neq(volume_blob_apply(&w, vb, vbs - 4, err, sizeof err), 0);
+    vb[8] = 7; /* method out of range */
+    cr_assert_neq(volume_blob_apply(&w, vb, vbs, err, sizeof err), 0);
+    free(vb);
+    free(map);
+    scene_free(&w);
+    scene_free(&s);
+}
+
 static double render_mean(struct scene *s, uint32_t spp, double *se)
 {
     s->settings.spp = spp;
