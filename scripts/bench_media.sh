@@ -92,7 +92,7 @@ done
 
 if [ "$SWEEP" = 1 ]; then
   s=fog_spot
-  REF=$(ls "$OUT"/$s-ref-$REF_SPP-*.exr | head -1)
+  REF="$OUT/$s-ref-$REF_SPP-$(cat "scenes/$s/$s.json" "$BUILD/worker" | sha256sum | cut -c1-16).exr"
   echo | tee -a "$OUT/media.txt"
   echo "Sweep on $s (beam, 2 spp): photons x gather radius; bias and variance (RMSE units)" | tee -a "$OUT/media.txt"
   printf '%9s %7s %11s %11s %11s %9s\n' photons radius rmse bias var secs | tee -a "$OUT/media.txt"
