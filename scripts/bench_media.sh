@@ -113,7 +113,7 @@ if command -v gnuplot >/dev/null 2>&1; then
   set -- $SCENES
   n=$#
   {
-    echo "set terminal png size $((450 * n)),420"
+    echo "set terminal png size $((450 * n)),420 noenhanced"
     echo "set output \"$OUT/media.png\""
     echo "set multiplot layout 1,$n title \"Media: RMSE against a converged VPT reference vs time (log-log)\""
     echo "set logscale xy; set grid; set xlabel \"seconds (render + photon pass)\"; set ylabel \"RMSE\""

@@ -29,7 +29,8 @@ static int mem_read(void *ctx, const char *rel_path, char **data, size_t *size, 
         if (strcmp(f->path, rel_path) == 0) {
             *size = f->size ? f->size : strlen(f->data);
             *data = malloc(*size + 1);
-            memcpy(*data, f->data, *size + 1);
+            memcpy(*data, f->data, *size);
+            (*data)[*size] = '\0';
             return 0;
         }
     snprintf(err, errlen, "%s: No such file or directory", rel_path);
