@@ -84,6 +84,7 @@ bench: all
 	BUILD=$(BUILD) sh scripts/bench.sh
 	BUILD=$(BUILD) sh scripts/bench_sampling.sh
 	BUILD=$(BUILD) sh scripts/bench_motion.sh
+	BUILD=$(BUILD) sh scripts/bench_media.sh
 
 # Fuzz targets (libFuzzer, clang): make fuzz FUZZ_SECONDS=60
 FUZZ_SECONDS ?= 30

@@ -7,6 +7,7 @@
 #include "integrator.h"
 #include "log.h"
 #include "material.h"
+#include "media_integrator.h"
 #include "motion.h"
 #include "sampler.h"
 #include <math.h>
@@ -36,6 +37,8 @@ int render_job_init(struct render_job *job, const struct scene *scene, uint32_t 
     }
     camera_init(&job->camera, &scene->camera, scene->settings.width, scene->settings.height);
     camera_set_scene_motion(&job->camera, job->accel.has_motion);
+    if (scene->media)
+        job->media = media_job_new(job);
     return 0;
 }
 
@@ -46,6 +49,7 @@ void render_job_free(struct render_job *job)
     free(job->face_normals);
     accel_free(&job->accel);
     light_table_free(&job->lights);
+    media_job_free(&job->media);
     memset(job, 0, sizeof *job);
 }
 
@@ -186,6 +190,8 @@ static vec3 sample_path(const struct render_job *job, uint32_t px, uint32_t py, 
     camera_generate(&job->camera, &smp, job->frame, px, py, &cs);
     float time01 = cs.time01;
     vec3 org = cs.o, dir = cs.d;
+    if (job->media)
+        return media_sample_path(job, &smp, px, py, org, dir, time01, rays, hit_any);
 
     vec3 L = v3(0, 0, 0), beta = v3(1, 1, 1);
     float prev_pdf = 0.0f;      /* solid-angle pdf of the BSDF sample that produced dir */
@@ -345,4 +351,17 @@ void integrator_render_tile(const struct render_job *job, uint32_t x0, uint32_t 
                 stats->rel_stderr_pixels++;
             }
         }
+}
+
+void integrator_media_surface(const struct render_job *job, vec3 org, vec3 dir, const struct accel_hit *h,
+                              float time01, struct media_surface *out)
+{
+    struct surface s;
+    surface_from_hit(job, org, dir, h, time01, &s);
+    out->p = s.p;
+    out->ng = s.ng;
+    out->ns = s.ns;
+    out->material = s.material;
+    out->light = s.light;
+    out->p_err = s.p_err;
 }

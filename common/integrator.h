@@ -13,6 +13,8 @@
 #include "scene.h"
 #include "tile.h"
 
+struct media_job;
+
 struct render_job {
     const struct scene *scene;
     struct accel accel;
@@ -20,6 +22,7 @@ struct render_job {
     struct camera camera;
     uint32_t frame;
     vec3 **face_normals;    /* per mesh, per triangle: unit right-handed normal (zero if degenerate) */
+    struct media_job *media; /* media_integrator.h; NULL when the scene has no media */
 };
 
 int render_job_init(struct render_job *job, const struct scene *scene, uint32_t frame, uint32_t threads,

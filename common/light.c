@@ -7,6 +7,22 @@
 #include <stdlib.h>
 #include <string.h>
 
+float light_spot_falloff(const struct light *l, vec3 dir)
+{
+    if (l->type != LIGHT_SPOT)
+        return 1.0f;
+    float len = v3_length(dir);
+    if (!(len > 0.0f))
+        return 0.0f;
+    float c = v3_dot(l->direction, dir) / len;
+    if (c <= l->cos_outer)
+        return 0.0f;
+    if (c >= l->cos_inner)
+        return 1.0f;
+    float x = (c - l->cos_outer) / (l->cos_inner - l->cos_outer);
+    return x * x * (3.0f - 2.0f * x);
+}
+
 static vec3 tri_vertex(const struct mesh *m, uint32_t prim, int k)
 {
     const float *p = &m->positions[3 * m->indices[3 * prim + k]];
@@ -19,7 +35,7 @@ static double emitted_power(const struct light_entry *e)
     double le = ((double)e->emission.x + e->emission.y + e->emission.z) / 3.0;
     switch (e->kind) {
     case LK_POINT:
-        return 4.0 * M_PI * le;
+        return (double)e->area * le; /* area: the solid angle it emits into (4 pi, or a spot's cone) */
     case LK_TRIANGLE:
     case LK_SPHERE:
         return M_PI * (double)e->area * le;
@@ -38,7 +54,9 @@ void light_table_build(struct light_table *t, const struct scene *s)
     memset(t, 0, sizeof *t);
     size_t cap = 0;
     for (uint32_t i = 0; i < s->num_lights; i++) {
-        struct light_entry e = {LK_POINT, i, 0, s->lights[i].intensity, 0.0f};
+        const struct light *l = &s->lights[i];
+        float omega = l->type == LIGHT_SPOT ? 2.0f * (float)M_PI * (1.0f - l->cos_outer) : 4.0f * (float)M_PI;
+        struct light_entry e = {LK_POINT, i, 0, l->intensity, omega};
         if (!v3_is_black(e.emission))
             add_entry(t, &cap, e);
     }
@@ -153,7 +171,7 @@ void light_sample(const struct light_table *t, const struct scene *s, vec3 ref, 
         if (!(d2 > 0.0f))
             return;
         out->p = p;
-        out->radiance = v3_scale(e->emission, 1.0f / d2);
+        out->radiance = v3_scale(e->emission, light_spot_falloff(&s->lights[e->index], v3_neg(d)) / d2);
         out->pdf = pick_pdf;
         out->is_delta = 1;
         return;

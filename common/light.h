@@ -41,6 +41,10 @@ struct light_sample {
     int is_delta;
 };
 
+/* A spot light's falloff toward dir (from the light, any length): 0 outside the outer cone,
+ * 1 inside the inner one, smoothstep in cos between; 1 for point lights. */
+float light_spot_falloff(const struct light *l, vec3 dir);
+
 void light_table_build(struct light_table *t, const struct scene *s);
 void light_table_free(struct light_table *t);
 

@@ -1,6 +1,7 @@
 /* Flat scene container: growth helpers, validation and freeing (see scene.h). */
 #include "scene.h"
 #include "log.h"
+#include "medium.h"
 #include "motion.h"
 #include <math.h>
 #include <stdlib.h>
@@ -25,6 +26,7 @@ void scene_free(struct scene *scene)
     free(scene->materials);
     free(scene->spheres);
     free(scene->lights);
+    media_scene_free(&scene->media);
     memset(scene, 0, sizeof *scene);
 }
 
@@ -164,6 +166,11 @@ int scene_validate(const struct scene *s, char *err, size_t errlen)
             str_fmt(err, errlen, "light %u: needs a finite position and intensity >= 0", i);
             return -1;
         }
+        if (l->type == LIGHT_SPOT && (!finite3(l->direction) || fabsf(v3_length(l->direction) - 1.0f) > 1e-3f ||
+                                      !(l->cos_outer >= -1.0f && l->cos_outer < l->cos_inner && l->cos_inner <= 1.0f))) {
+            str_fmt(err, errlen, "light %u: a spot needs a unit direction and cos_outer < cos_inner", i);
+            return -1;
+        }
     }
-    return 0;
+    return media_validate(s, err, errlen);
 }

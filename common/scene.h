@@ -13,6 +13,8 @@
 #define SCENE_MAX_DEPTH 1024
 #define SCENE_NAME_MAX 128
 
+struct scene_media;
+
 /* Diffuse is the only non-delta BSDF; mirror and dielectric scatter into single
  * directions (delta BSDFs: no light sampling at their vertices, see integrator.c). */
 enum material_type { MATERIAL_DIFFUSE, MATERIAL_MIRROR, MATERIAL_DIELECTRIC };
@@ -67,12 +69,15 @@ struct sphere {
     uint32_t num_keys;
 };
 
-enum light_type { LIGHT_POINT };
+enum light_type { LIGHT_POINT, LIGHT_SPOT };
 
 struct light {
     enum light_type type;
     vec3 position;
-    vec3 intensity; /* radiant intensity (W / sr) per channel */
+    vec3 intensity; /* radiant intensity (W / sr) per channel; a spot's on its axis */
+    vec3 direction; /* spot: unit axis */
+    float cos_outer, cos_inner; /* spot: no light beyond the outer cone, full inside the inner
+                                 * one, a smoothstep in between (light.c) */
 };
 
 #define CAMERA_MAX_KEYFRAMES 64
@@ -129,6 +134,7 @@ struct scene {
     uint32_t num_spheres;
     struct light *lights;
     uint32_t num_lights;
+    struct scene_media *media;  /* participating media (medium.h); NULL when the scene has none */
 };
 
 /* Frees everything the scene owns and zeroes it. Safe on a zeroed scene. */

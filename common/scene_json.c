@@ -7,6 +7,7 @@
  * reported on first occurrence. Called by the master and by workers. */
 #include "scene_json.h"
 #include "log.h"
+#include "medium.h"
 #include "mesh_obj.h"
 #include "motion.h"
 #include "sampler.h"
@@ -550,6 +551,188 @@ static int find_material(struct ctx *c, const struct member *m, uint32_t *id)
                 printable(name, nb, sizeof nb));
 }
 
+/* ---- Media ---- */
+
+/* "density": {"file", "scale"?, "transform"?}: a dense grid filling the unit cube, which
+ * the transform places in the world. */
+static int parse_density(struct ctx *c, const struct member *dm, struct density_grid **out)
+{
+    static const char *const keys[] = {"file", "scale", "transform"};
+    struct member m[3];
+    if (object_members(c, dm->val, &dm->path, "density", keys, 3, m) != 0 ||
+        require(c, &m[0], &dm->path, "density", "file") != 0)
+        return -1;
+    const char *file = NULL;
+    char why[1024];
+    if (get_string(c, &m[0], "file", &file) != 0)
+        return -1;
+    if (asset_path_check(file, why, sizeof why) != 0)
+        return fail(c, &m[0].path, AT_VALUE, "file: %s", why);
+    float scale = 1.0f;
+    if (m[1].val) {
+        if (get_float(c, m[1].val, &m[1].path, "scale", &scale) != 0)
+            return -1;
+        if (!(scale >= 0.0f && scale <= 1e30f))
+            return fail(c, &m[1].path, AT_VALUE, "scale must be in [0, 1e30]");
+    }
+    struct xform t = xform_identity();
+    if (m[2].val) {
+        double us;
+        bool uniform;
+        if (parse_transform(c, &m[2], &t, &us, &uniform) != 0)
+            return -1;
+    }
+    char *data = NULL;
+    size_t size = 0;
+    if (!c->src || !c->src->read)
+        return fail(c, &m[0].path, AT_VALUE, "cannot read grid \"%s\": no asset source", file);
+    if (c->src->read(c->src->ctx, file, &data, &size, why, sizeof why) != 0)
+        return fail(c, &m[0].path, AT_VALUE, "cannot read grid: %s", why);
+    struct density_grid *g = mem_calloc(1, sizeof *g);
+    int rc = grid_parse((const uint8_t *)data, size, g, why, sizeof why);
+    free(data);
+    if (rc != 0) {
+        free(g);
+        return fail(c, &m[0].path, AT_VALUE, "grid \"%s\": %s", file, why);
+    }
+    grid_finish(g, &t, scale);
+    *out = g;
+    return 0;
+}
+
+static int parse_media(struct ctx *c, const struct member *mm)
+{
+    if (!json_is_object(mm->val))
+        return fail(c, &mm->path, AT_VALUE, "media must be an object (name -> medium)");
+    if (json_object_size(mm->val) > MEDIA_MAX)
+        return fail(c, &mm->path, AT_VALUE, "at most %d media", MEDIA_MAX);
+    c->scene->media = media_scene_new();
+    struct scene_media *sm = c->scene->media;
+    sm->media = mem_calloc(json_object_size(mm->val) + 1, sizeof *sm->media);
+    static const char *const keys[] = {"sigma_a", "sigma_s", "emission", "g", "density"};
+    const char *name;
+    json_t *def;
+    uint32_t ordinal = 0;
+    json_object_foreach(mm->val, name, def) {
+        struct jpath p = jpath_child(&mm->path, ordinal++);
+        size_t n = strlen(name);
+        if (n == 0 || n >= SCENE_NAME_MAX)
+            return fail(c, &p, AT_KEY, "medium name must be 1 to %d bytes long", SCENE_NAME_MAX - 1);
+        char nb[80], what[160];
+        str_fmt(what, sizeof what, "medium \"%s\"", printable(name, nb, sizeof nb));
+        struct member m[5];
+        if (object_members(c, def, &p, what, keys, 5, m) != 0)
+            return -1;
+        struct medium md;
+        memset(&md, 0, sizeof md);
+        memcpy(md.name, name, n + 1);
+        vec3 *dst[3] = {&md.sigma_a, &md.sigma_s, &md.emission};
+        for (int k = 0; k < 3; k++)
+            if (m[k].val && (get_vec3(c, m[k].val, &m[k].path, keys[k], dst[k]) != 0 ||
+                             check_color(c, &m[k], keys[k], 0.0f, 1e30f, *dst[k]) != 0))
+                return -1;
+        if (m[3].val) {
+            if (get_float(c, m[3].val, &m[3].path, "g", &md.g) != 0)
+                return -1;
+            if (!(md.g > -1.0f && md.g < 1.0f))
+                return fail(c, &m[3].path, AT_VALUE, "g must be in (-1, 1)");
+        }
+        md.sigma_t = v3_add(md.sigma_a, md.sigma_s);
+        if (m[4].val && m[2].val)
+            return fail(c, &m[2].path, AT_KEY, "%s: emission is supported in homogeneous media only (no \"density\")", what);
+        if (m[4].val && parse_density(c, &m[4], &md.grid) != 0)
+            return -1;
+        sm->media[sm->num_media++] = md;
+    }
+    return 0;
+}
+
+static int find_medium(struct ctx *c, const struct member *m, uint32_t *id)
+{
+    const char *name = NULL;
+    if (get_string(c, m, "medium", &name) != 0)
+        return -1;
+    const struct scene_media *sm = c->scene->media;
+    for (uint32_t i = 0; sm && i < sm->num_media; i++)
+        if (strcmp(sm->media[i].name, name) == 0) {
+            *id = i;
+            return 0;
+        }
+    char nb[80];
+    return fail(c, &m->path, AT_VALUE, "unknown medium \"%s\" (not in \"media\")", printable(name, nb, sizeof nb));
+}
+
+/* The invisible boundary of a medium object: an index-matched dielectric (ior 1, no tint),
+ * which the media integrator crosses without counting a bounce. Made once per scene. */
+static uint32_t interface_material(struct ctx *c)
+{
+    struct scene_media *sm = c->scene->media;
+    if (sm->interface_material == UINT32_MAX) {
+        struct material mat;
+        memset(&mat, 0, sizeof mat);
+        str_fmt(mat.name, sizeof mat.name, "@medium boundary");
+        mat.type = MATERIAL_DIELECTRIC;
+        mat.ior = 1.0f;
+        mat.transmittance = v3(1, 1, 1);
+        mat.reflectance = v3(1, 1, 1);
+        sm->interface_material = scene_add_material(c->scene, &mat);
+    }
+    return sm->interface_material;
+}
+
+static int parse_volume(struct ctx *c, const struct member *vm)
+{
+    static const char *const keys[] = {"method", "fog", "step", "photons", "radius", "skip_bound", "max_photon_depth"};
+    struct member m[7];
+    if (object_members(c, vm->val, &vm->path, "volume", keys, 7, m) != 0)
+        return -1;
+    struct scene_media *sm = c->scene->media;
+    if (m[0].val) {
+        const char *name = NULL;
+        if (get_string(c, &m[0], "method", &name) != 0)
+            return -1;
+        if (media_method_from_name(name, &sm->method) != 0)
+            return fail(c, &m[0].path, AT_VALUE, "method must be \"vpt\", \"march\" or \"beam\"");
+    }
+    if (m[1].val && find_medium(c, &m[1], &sm->fog) != 0)
+        return -1;
+    float f;
+    if (m[2].val) {
+        if (get_float(c, m[2].val, &m[2].path, "step", &f) != 0)
+            return -1;
+        if (!(f > 0.0f))
+            return fail(c, &m[2].path, AT_VALUE, "step must be > 0 (scene units)");
+        sm->step = f;
+    }
+    if (m[3].val) {
+        json_int_t n;
+        if (get_uint(c, &m[3], "photons", 0, (json_int_t)1 << 32, &n) != 0)
+            return -1;
+        sm->photons = (uint64_t)n;
+    }
+    if (m[4].val) {
+        if (get_float(c, m[4].val, &m[4].path, "radius", &f) != 0)
+            return -1;
+        if (!(f > 0.0f))
+            return fail(c, &m[4].path, AT_VALUE, "radius must be > 0 (scene units)");
+        sm->radius = f;
+    }
+    if (m[5].val) {
+        if (get_float(c, m[5].val, &m[5].path, "skip_bound", &f) != 0)
+            return -1;
+        if (!(f >= 0.0f && f <= 1.0f))
+            return fail(c, &m[5].path, AT_VALUE, "skip_bound must be in [0, 1]");
+        sm->skip_bound = f;
+    }
+    if (m[6].val) {
+        json_int_t n;
+        if (get_uint(c, &m[6], "max_photon_depth", 1, 1024, &n) != 0)
+            return -1;
+        sm->max_photon_depth = (uint32_t)n;
+    }
+    return 0;
+}
+
 /* One camera keyframe: {time, position, look_at, up?}. */
 static int parse_camera_key(struct ctx *c, json_t *obj, const struct jpath *p, struct camera_keyframe *k)
 {
@@ -937,9 +1120,12 @@ static int parse_frames(struct ctx *c, const struct member *fm, const struct mem
 static int parse_obj_object(struct ctx *c, json_t *obj, const struct jpath *p, const char *what)
 {
     static const char *const keys[] = {"type", "file", "material", "transform", "name", "keyframes", "frames",
-                                       "frame_times"};
-    struct member m[8];
-    if (object_members(c, obj, p, what, keys, 8, m) != 0)
+                                       "frame_times", "medium"};
+    struct member m[9];
+    if (object_members(c, obj, p, what, keys, 9, m) != 0)
+        return -1;
+    uint32_t inside = MEDIUM_NONE;
+    if (m[8].val && find_medium(c, &m[8], &inside) != 0)
         return -1;
     /* A deforming object names its OBJ sequence in "frames" instead of "file". */
     if (m[6].val) {
@@ -964,6 +1150,8 @@ static int parse_obj_object(struct ctx *c, json_t *obj, const struct jpath *p, c
         return fail(c, &m[1].path, AT_VALUE, "file: %s", why);
     if (m[2].val && find_material(c, &m[2], &opt.material_override) != 0)
         return -1;
+    if (m[8].val && !m[2].val)
+        opt.material_override = interface_material(c);
     if (m[3].val) {
         double s;
         bool uniform;
@@ -982,6 +1170,8 @@ static int parse_obj_object(struct ctx *c, json_t *obj, const struct jpath *p, c
     uint32_t before = c->scene->num_meshes;
     int rc = mesh_obj_parse(c->scene, &c->cache, c->src, file, data, size, &opt, c->err, c->errlen);
     free(data);
+    for (uint32_t i = before; rc == 0 && m[8].val && i < c->scene->num_meshes; i++)
+        media_set_mesh(c->scene->media, i, inside);
     if (rc != 0 || (!m[5].val && !m[6].val))
         return rc;
     if (c->scene->num_meshes != before + 1)
@@ -996,10 +1186,14 @@ static int parse_obj_object(struct ctx *c, json_t *obj, const struct jpath *p, c
 
 static int parse_sphere(struct ctx *c, json_t *obj, const struct jpath *p, const char *what)
 {
-    static const char *const keys[] = {"type", "center", "radius", "material", "transform", "name", "keyframes"};
-    struct member m[7];
-    if (object_members(c, obj, p, what, keys, 7, m) != 0 || require(c, &m[1], p, what, "center") != 0 ||
-        require(c, &m[2], p, what, "radius") != 0 || require(c, &m[3], p, what, "material") != 0)
+    static const char *const keys[] = {"type", "center", "radius", "material", "transform", "name", "keyframes",
+                                       "medium"};
+    struct member m[8];
+    if (object_members(c, obj, p, what, keys, 8, m) != 0 || require(c, &m[1], p, what, "center") != 0 ||
+        require(c, &m[2], p, what, "radius") != 0 || (!m[7].val && require(c, &m[3], p, what, "material") != 0))
+        return -1;
+    uint32_t inside = MEDIUM_NONE;
+    if (m[7].val && find_medium(c, &m[7], &inside) != 0)
         return -1;
     struct sphere sp;
     memset(&sp, 0, sizeof sp);
@@ -1008,7 +1202,7 @@ static int parse_sphere(struct ctx *c, json_t *obj, const struct jpath *p, const
         return -1;
     if (!(sp.radius > 0.0f))
         return fail(c, &m[2].path, AT_VALUE, "radius must be > 0");
-    if (find_material(c, &m[3], &sp.material_id) != 0)
+    if (m[3].val ? find_material(c, &m[3], &sp.material_id) != 0 : (sp.material_id = interface_material(c), 0))
         return -1;
     if (m[4].val) {
         struct xform t;
@@ -1033,7 +1227,13 @@ static int parse_sphere(struct ctx *c, json_t *obj, const struct jpath *p, const
         str_fmt(sp.name, sizeof sp.name, "sphere %u", c->scene->num_spheres);
     if (m[6].val && parse_keyframes(c, &m[6], &sp.keys, &sp.num_keys) != 0)
         return -1;
-    scene_add_sphere(c->scene, &sp);
+    if (m[7].val && sp.num_keys > 0) {
+        free(sp.keys);
+        return fail(c, &m[7].path, AT_KEY, "a medium cannot fill a moving sphere");
+    }
+    uint32_t si = scene_add_sphere(c->scene, &sp);
+    if (m[7].val)
+        media_set_sphere(c->scene->media, si, inside);
     return 0;
 }
 
@@ -1066,11 +1266,62 @@ static int parse_objects(struct ctx *c, const struct member *om)
     return 0;
 }
 
+static int parse_spot(struct ctx *c, json_t *obj, const struct jpath *p, const char *what,
+                      const char *const *keys)
+{
+    struct member m[7];
+    struct light l;
+    memset(&l, 0, sizeof l);
+    l.type = LIGHT_SPOT;
+    if (object_members(c, obj, p, what, keys, 7, m) != 0 || require(c, &m[1], p, what, "position") != 0 ||
+        require(c, &m[2], p, what, "intensity") != 0 || require(c, &m[5], p, what, "angle") != 0 ||
+        get_vec3(c, m[1].val, &m[1].path, "position", &l.position) != 0 ||
+        get_vec3(c, m[2].val, &m[2].path, "intensity", &l.intensity) != 0 ||
+        check_color(c, &m[2], "intensity", 0.0f, FLT_MAX, l.intensity) != 0)
+        return -1;
+    if (!!m[3].val == !!m[4].val)
+        return fail(c, m[4].val ? &m[4].path : p, m[4].val ? AT_KEY : AT_VALUE,
+                    "%s: give exactly one of \"direction\" and \"look_at\"", what);
+    vec3 d;
+    if (m[3].val && get_vec3(c, m[3].val, &m[3].path, "direction", &d) != 0)
+        return -1;
+    if (m[4].val) {
+        vec3 at;
+        if (get_vec3(c, m[4].val, &m[4].path, "look_at", &at) != 0)
+            return -1;
+        d = v3_sub(at, l.position);
+    }
+    const struct member *dm = m[3].val ? &m[3] : &m[4];
+    if (!(v3_length(d) > 0.0f) || !isfinite(v3_length(d)))
+        return fail(c, &dm->path, AT_VALUE, "spot direction must be a non-zero vector");
+    l.direction = v3_normalize(d);
+    float angle, falloff = 0.0f;
+    if (get_float(c, m[5].val, &m[5].path, "angle", &angle) != 0)
+        return -1;
+    if (!(angle > 0.0f && angle <= 180.0f))
+        return fail(c, &m[5].path, AT_VALUE, "angle (half-angle of the cone, degrees) must be in (0, 180]");
+    if (m[6].val) {
+        if (get_float(c, m[6].val, &m[6].path, "falloff", &falloff) != 0)
+            return -1;
+        if (!(falloff >= 0.0f && falloff <= angle))
+            return fail(c, &m[6].path, AT_VALUE, "falloff must be in [0, angle] degrees");
+    }
+    double outer = (double)angle * M_PI / 180.0, inner = (double)(angle - falloff) * M_PI / 180.0;
+    l.cos_outer = (float)cos(outer);
+    l.cos_inner = (float)cos(inner);
+    if (!(l.cos_inner > l.cos_outer))
+        l.cos_inner = nextafterf(l.cos_outer, 2.0f);
+    scene_add_light(c->scene, &l);
+    return 0;
+}
+
 static int parse_lights(struct ctx *c, const struct member *lm)
 {
     if (!json_is_array(lm->val))
         return fail(c, &lm->path, AT_VALUE, "lights must be an array");
     static const char *const keys[] = {"type", "position", "intensity"};
+    static const char *const spot_keys[] = {"type", "position", "intensity", "direction", "look_at", "angle",
+                                            "falloff"};
     for (size_t i = 0; i < json_array_size(lm->val); i++) {
         struct jpath p = jpath_child(&lm->path, (uint32_t)i);
         json_t *obj = json_array_get(lm->val, i);
@@ -1080,10 +1331,15 @@ static int parse_lights(struct ctx *c, const struct member *lm)
         const char *type = NULL;
         if (object_type(c, obj, &p, what, &tm, &type) != 0)
             return -1;
+        if (strcmp(type, "spot") == 0) {
+            if (parse_spot(c, obj, &p, what, spot_keys) != 0)
+                return -1;
+            continue;
+        }
         if (strcmp(type, "point") != 0) {
             char tb[80];
             return fail(c, &tm.path, AT_VALUE,
-                        "unknown light type \"%s\" (known: point; area lights are emissive materials)",
+                        "unknown light type \"%s\" (known: point, spot; area lights are emissive materials)",
                         printable(type, tb, sizeof tb));
         }
         struct member m[3];
@@ -1103,10 +1359,11 @@ static int parse_lights(struct ctx *c, const struct member *lm)
 
 static int parse_root(struct ctx *c, json_t *root)
 {
-    static const char *const keys[] = {"version", "camera", "render", "materials", "objects", "lights"};
+    static const char *const keys[] = {"version", "camera", "render", "materials", "objects", "lights", "media",
+                                       "volume"};
     struct jpath rp = {0, {0}};
-    struct member m[6];
-    if (object_members(c, root, &rp, "the scene", keys, 6, m) != 0 ||
+    struct member m[8];
+    if (object_members(c, root, &rp, "the scene", keys, 8, m) != 0 ||
         require(c, &m[0], &rp, "scene", "version") != 0)
         return -1;
     if (!json_is_integer(m[0].val))
@@ -1118,6 +1375,13 @@ static int parse_root(struct ctx *c, json_t *root)
         return -1;
     /* Materials first: objects refer to them by name wherever they appear in the file. */
     if (m[3].val && parse_materials(c, &m[3]) != 0)
+        return -1;
+    /* Media before objects (which name them); the volume settings name the fog. */
+    if (m[6].val && parse_media(c, &m[6]) != 0)
+        return -1;
+    if (m[7].val && !m[6].val)
+        return fail(c, &m[7].path, AT_KEY, "\"volume\" needs \"media\"");
+    if (m[7].val && parse_volume(c, &m[7]) != 0)
         return -1;
     if (parse_camera(c, &m[1]) != 0 || parse_render(c, &m[2]) != 0)
         return -1;

@@ -4,6 +4,7 @@
 #include "launch.h"
 #include "log.h"
 #include "master.h"
+#include "medium.h"
 #include "net.h"
 #include "sampler.h"
 #include <stdio.h>
@@ -36,6 +37,11 @@ static void usage(FILE *f)
             "  --allow FILE           public keys of the workers allowed in, one per line\n"
             "  --insecure             allow --bind on a non-loopback address without CurveZMQ\n"
             "  --keygen KEYFILE       write a new key pair to KEYFILE and KEYFILE.pub, then exit\n"
+            "  --media-method NAME    vpt, march or beam: how media are rendered (overrides the scene)\n"
+            "  --photons N            photons the photon pass emits (overrides the scene)\n"
+            "  --gather-radius R      photon gather radius in scene units (overrides the scene)\n"
+            "  --march-step R         ray-marching step in scene units (overrides the scene)\n"
+            "  --photon-threads T     threads of the photon pass (default: cores); the map is the same for any T\n"
             "  --verbose              debug logging\n");
 }
 
@@ -114,7 +120,36 @@ int main(int argc, char **argv)
         NUM_OPT("--max-depth", 1, 1024, o.depth, o.have_depth)
         NUM_OPT("--worker-timeout-ms", 100, 86400000, o.worker_timeout_ms, dummy)
         NUM_OPT("--stall-ms", 100, 86400000, o.stall_ms, dummy)
+        NUM_OPT("--photon-threads", 1, 1024, o.photon_threads, dummy)
+        NUM_OPT("--photons", 0, 1ull << 32, o.photons, o.have_photons)
 #undef NUM_OPT
+        if (has_arg && (!strcmp(a, "--gather-radius") || !strcmp(a, "--march-step"))) {
+            char *end;
+            const char *t = argv[++i];
+            float f = strtof(t, &end);
+            if (!*t || *end || !(f > 0.0f) || !(f < 1e30f)) {
+                log_error("%s: \"%s\" is not a number > 0", a, t);
+                return 2;
+            }
+            if (!strcmp(a, "--gather-radius")) {
+                o.gather_radius = f;
+                o.have_gather_radius = 1;
+            } else {
+                o.march_step = f;
+                o.have_march_step = 1;
+            }
+            continue;
+        }
+        if (has_arg && !strcmp(a, "--media-method")) {
+            enum media_method mm;
+            if (media_method_from_name(argv[++i], &mm) != 0) {
+                log_error("--media-method: \"%s\" is not vpt, march or beam", argv[i]);
+                return 2;
+            }
+            o.media_method = (uint32_t)mm;
+            o.have_media_method = 1;
+            continue;
+        }
         if (has_arg && (!strcmp(a, "-o") || !strcmp(a, "--output"))) {
             o.output_path = argv[++i];
         } else if (!strcmp(a, "--no-journal")) {
@@ -199,6 +234,8 @@ int main(int argc, char **argv)
         log_error("--workers 0 needs --bind ENDPOINT, or nobody could render");
         return 2;
     }
+    if (!o.photon_threads)
+        o.photon_threads = cli_num_cores();
     if (!have_threads) {
         uint32_t cores = cli_num_cores();
         o.threads = o.workers > 0 && cores / o.workers > 0 ? cores / o.workers : 1;

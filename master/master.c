@@ -15,6 +15,7 @@
 #include "log.h"
 #include "net.h"
 #include "proto.h"
+#include "photons.h"
 #include "scene_json.h"
 #include "tile.h"
 #include <errno.h>
@@ -190,6 +191,8 @@ static int load_scene(struct master *m)
         log_error("%s: %s", o->scene_path, err);
         return -1;
     }
+    if (master_media_prepare(&m->scene, o, o->have_frames ? o->frame_first : 0, &m->assets) != 0)
+        return -1;
     /* Publish every file the parse read; the scene hash covers names, contents and settings. */
     m->num_manifest = (uint32_t)m->assets.num_files;
     if (m->num_manifest > PROTO_MAX_ASSETS) {

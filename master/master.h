@@ -30,6 +30,12 @@ struct master_opts {
     uint64_t seed;
     int have_frames;            /* --frames A:B[:STEP]: a range, one numbered output per frame */
     uint32_t frame_first, frame_last, frame_step;
+    /* Media (photons.c): overrides of the scene's "volume" block, photon-pass threads. */
+    uint32_t photon_threads;
+    int have_media_method, have_photons, have_gather_radius, have_march_step;
+    uint32_t media_method;
+    uint64_t photons;
+    float gather_radius, march_step;
 };
 
 /* Renders the frame (or each frame of the range); returns 0 on success, 1 on failure

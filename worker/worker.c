@@ -12,7 +12,9 @@
 #include "imgio.h"
 #include "integrator.h"
 #include "log.h"
+#include "medium.h"
 #include "net.h"
+#include "photonmap.h"
 #include "proto.h"
 #include "scene_json.h"
 #include <errno.h>
@@ -314,6 +316,21 @@ static int load_job(struct worker *w)
         return -1;
     }
     free(text);
+    /* Media scenes render only with the master's volume blob (settings and photon map). */
+    if (w->scene.media) {
+        char *vb = NULL;
+        size_t vbs = 0;
+        int rc = blob_source_read(&ctx, MEDIA_PHOTON_ASSET, &vb, &vbs, err, sizeof err);
+        if (rc == 0)
+            rc = volume_blob_apply(&w->scene, (const uint8_t *)vb, vbs, err, sizeof err);
+        free(vb);
+        if (rc != 0) {
+            scene_free(&w->scene);
+            send_error(w, err);
+            log_error("%s", err);
+            return -1;
+        }
+    }
     struct render_settings *rs = &w->scene.settings;
     rs->width = w->job.width;
     rs->height = w->job.height;

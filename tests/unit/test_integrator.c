@@ -81,7 +81,7 @@ static void furnace_sphere(uint32_t depth)
     uint32_t mat = add_mat(&s, v3(rho, rho, rho), v3(0, 0, 0));
     struct sphere sp = {"shell", v3(1, 2, 3), R, mat, NULL, 0};
     scene_add_sphere(&s, &sp);
-    struct light l = {LIGHT_POINT, v3(1, 2, 3), v3(I, I, I)};
+    struct light l = {.type = LIGHT_POINT, .position = v3(1, 2, 3), .intensity = v3(I, I, I)};
     scene_add_light(&s, &l);
     s.camera = (struct camera_desc){.position = v3(1, 2, 3), .look_at = v3(1, 2, 4), .up = v3(0, 1, 0), .fov_y_deg = 90.0f};
     settings(&s, 16, 16, 64, depth);
@@ -215,7 +215,7 @@ Test(integrator, non_finite_samples_counted_and_dropped)
     memset(&s, 0, sizeof s);
     uint32_t floor_m = add_mat(&s, v3(0.5f, 0.5f, 0.5f), v3(0, 0, 0));
     add_quad(&s, v3(-5, 0, -5), v3(-5, 0, 5), v3(5, 0, 5), v3(5, 0, -5), floor_m);
-    struct light l = {LIGHT_POINT, v3(0, 0.01f, 0), v3(3e38f, 3e38f, 3e38f)};
+    struct light l = {.type = LIGHT_POINT, .position = v3(0, 0.01f, 0), .intensity = v3(3e38f, 3e38f, 3e38f)};
     scene_add_light(&s, &l);
     s.camera = (struct camera_desc){.position = v3(0, 1, 0), .look_at = v3(0, 0, 0), .up = v3(0, 0, 1), .fov_y_deg = 1.0f};
     settings(&s, 4, 4, 8, 2);
@@ -243,7 +243,7 @@ Test(integrator, huge_sphere_floor_no_acne)
     uint32_t floor_m = add_mat(&s, v3(rho, rho, rho), v3(0, 0, 0));
     struct sphere sp = {"floor", v3(0, -R, 0), R, floor_m, NULL, 0};
     scene_add_sphere(&s, &sp);
-    struct light l = {LIGHT_POINT, v3(0, 1, 0), v3(I, I, I)};
+    struct light l = {.type = LIGHT_POINT, .position = v3(0, 1, 0), .intensity = v3(I, I, I)};
     scene_add_light(&s, &l);
     s.camera = (struct camera_desc){.position = v3(0, 0.5f, 0), .look_at = v3(0, 0, 0), .up = v3(0, 0, 1), .fov_y_deg = 0.5f};
     settings(&s, 8, 8, 16, 1);

@@ -221,7 +221,7 @@ Test(scene_json, unknown_keys_and_wrong_types)
                  "scenes/t.json:4:22: unknown object type \"cube\"");
     expect_error(HEAD ",\n\"objects\": [{\"file\": \"tri.obj\"}]}",
                  "scenes/t.json:4:13: objects[0]: missing key \"type\"");
-    expect_error(HEAD ",\n\"lights\": [{\"type\": \"spot\"}]}", "scenes/t.json:4:21: unknown light type \"spot\"");
+    expect_error(HEAD ",\n\"lights\": [{\"type\": \"area\"}]}", "scenes/t.json:4:21: unknown light type \"area\"");
     expect_error(HEAD ",\n\"lights\": [{\"type\": \"point\", \"position\": [0, 0, 0], \"intensity\": [1, 1]}]}",
                  "scenes/t.json:4:66: intensity must be an array of 3 numbers");
     expect_error(HEAD ",\n\"materials\": {\"m\": {\"type\": \"diffuse\", \"albedo\": [0.5, 1.5, 0]}}}",

@@ -1,0 +1,74 @@
+#!/bin/sh
+# Participating media end to end: the master's photon pass gives the same map (and scene
+# hash) for 1 and 2 photon threads; images are bit-identical for 1 and 3 workers with the
+# beam estimate, per-step lookups and the volumetric path tracer; a late tcp worker gets the
+# map too; a scene error in the media keys names file:line:col.
+# Ends with "integration: N passed, N failed". Usage: BUILD=build sh tests/integration/media.sh
+set -u
+BUILD=${BUILD:-build}
+M=$BUILD/master
+W=$BUILD/worker
+X=$BUILD/exrtool
+T=$(mktemp -d /tmp/brume-media.XXXXXX)
+trap 'rm -rf "$T"' EXIT
+pass=0
+fail=0
+ok() { pass=$((pass + 1)); echo "ok: $1"; }
+bad() { fail=$((fail + 1)); echo "FAIL: $1"; [ -f "$T/log" ] && sed 's/^/    /' "$T/log" | tail -20; }
+run() { timeout "${TMO:-120}" "$@" >"$T/log" 2>&1; }
+maphash() { sed -n 's/.*photon pass: .* map \([0-9a-f]*\).*/\1/p' "$1" | head -1; }
+scenehash() { sed -n 's/^summary: scene hash //p' "$1" | head -1; }
+S=scenes/fog_spot/fog_spot.json
+A="--spp 1 --no-journal"
+
+run $M $S -o "$T/p1.exr" $A --workers 1 --threads 2 --photon-threads 1 && r1=0 || r1=1
+cp "$T/log" "$T/p1.log"
+run $M $S -o "$T/p2.exr" $A --workers 3 --threads 1 --photon-threads 2 --tile 16 && r2=0 || r2=1
+cp "$T/log" "$T/p2.log"
+h1=$(maphash "$T/p1.log")
+h2=$(maphash "$T/p2.log")
+if [ $r1 = 0 ] && [ $r2 = 0 ] && [ -n "$h1" ] && [ "$h1" = "$h2" ] && [ "$(scenehash "$T/p1.log")" = "$(scenehash "$T/p2.log")" ]; then
+  ok "photon map hash identical for 1 and 2 photon threads ($h1)"; else bad "photon map hash identical for 1 and 2 photon threads"; fi
+if [ $r1 = 0 ] && [ $r2 = 0 ] && $X cmp "$T/p1.exr" "$T/p2.exr" && grep -q "NaN/Inf samples dropped: 0" "$T/p2.log"; then
+  ok "beam: 1 vs 3 workers bit-identical"; else bad "beam: 1 vs 3 workers bit-identical"; fi
+
+for meth in march vpt; do
+  run $M $S -o "$T/${meth}1.exr" $A --workers 1 --threads 1 --media-method $meth && r1=0 || r1=1
+  run $M $S -o "$T/${meth}3.exr" $A --workers 3 --threads 1 --media-method $meth --tile 8 && r3=0 || r3=1
+  if [ $r1 = 0 ] && [ $r3 = 0 ] && $X cmp "$T/${meth}1.exr" "$T/${meth}3.exr"; then
+    ok "$meth: 1 vs 3 workers bit-identical"; else bad "$meth: 1 vs 3 workers bit-identical"; fi
+done
+if grep -q "volumetric path tracing, no photon pass" "$T/log"; then ok "vpt: no photon pass"; else bad "vpt: no photon pass"; fi
+if ! $X cmp "$T/p1.exr" "$T/vpt1.exr" >/dev/null 2>&1; then ok "methods differ in noise"; else bad "methods differ in noise"; fi
+
+# A scene without media has no photon pass and no volume blob.
+run $M scenes/tiny/tiny.json -o "$T/tiny.exr" --workers 1 && r=0 || r=1
+if [ $r = 0 ] && ! grep -q "media:" "$T/log"; then ok "no media, no photon pass"; else bad "no media, no photon pass"; fi
+
+# Thin dark fog and black walls: the pass is skipped and the log states the bound.
+mkdir -p "$T/thin"
+sed -e 's/"sigma_a": \[0.02, 0.02, 0.02\], "sigma_s": \[0.25, 0.25, 0.25\]/"sigma_a": [0.5, 0.5, 0.5], "sigma_s": [0.0005, 0.0005, 0.0005]/' \
+    -e 's/"albedo": \[0.6, 0.6, 0.6\]/"albedo": [0, 0, 0]/' -e 's/"albedo": \[0.8, 0.3, 0.2\]/"albedo": [0, 0, 0]/' $S >"$T/thin/thin.json"
+cp scenes/fog_spot/room.obj "$T/thin/"
+run $M "$T/thin/thin.json" -o "$T/thin.exr" $A --workers 1 && r=0 || r=1
+if [ $r = 0 ] && grep -q "photon pass skipped: multiple scattering is bounded by" "$T/log"; then
+  ok "photon pass skipped below the bound, bound logged"; else bad "photon pass skipped below the bound, bound logged"; fi
+
+# A worker joining over tcp after the start also fetches the volume blob and renders the same pixels.
+P=$((21000 + ($$ % 20000)))
+timeout 120 $M $S -o "$T/late.exr" $A --workers 1 --threads 1 --bind "tcp://127.0.0.1:$P" >"$T/log" 2>&1 &
+mpid=$!
+sleep 1
+timeout 120 $W --connect "tcp://127.0.0.1:$P" --threads 1 >"$T/wlog" 2>&1
+wait $mpid && r=0 || r=1
+if [ $r = 0 ] && $X cmp "$T/p1.exr" "$T/late.exr"; then ok "extra tcp worker: fetches the volume blob, identical pixels"; else bad "extra tcp worker: fetches the volume blob, identical pixels"; fi
+
+# Media key errors name file:line:col.
+mkdir -p "$T/bad"
+sed 's/"sigma_s"/"sigma_z"/' $S >"$T/bad/bad.json"
+cp scenes/fog_spot/room.obj "$T/bad/"
+if ! run $M "$T/bad/bad.json" -o "$T/bad.exr" && grep -qE "bad.json:1[0-9]:[0-9]+: unknown key \"sigma_z\" in medium \"fog\"" "$T/log"; then
+  ok "media key error as file:line:col"; else bad "media key error as file:line:col"; fi
+
+echo "integration: $pass passed, $fail failed"
+[ $fail = 0 ]
