@@ -112,7 +112,7 @@ static int start_fresh(struct journal *j, const struct blob_hash *key, uint32_t 
         return -1;
     }
     fsync_parent(j->path);
-    j->end = HEADER_SIZE;
+    j->end = j->synced = HEADER_SIZE;
     return 0;
 }
 
@@ -190,12 +190,12 @@ int journal_open(struct journal *j, const char *path, const struct blob_hash *ke
         journal_close(j);
         return -1;
     }
-    j->end = pos;
+    j->end = j->synced = pos;
     return 0;
 }
 
-int journal_append(struct journal *j, uint32_t tile, const struct tile_stats *st, const uint8_t *chunk,
-                   uint32_t chunk_size, char *err, size_t errlen)
+int journal_write(struct journal *j, uint32_t tile, const struct tile_stats *st, const uint8_t *chunk,
+                  uint32_t chunk_size, char *err, size_t errlen)
 {
     if (chunk_size > JOURNAL_MAX_CHUNK) {
         str_fmt(err, errlen, "%s: tile %u chunk of %u bytes is too large", j->path, tile, chunk_size);
@@ -220,8 +220,6 @@ int journal_append(struct journal *j, uint32_t tile, const struct tile_stats *st
     blob_hash_compute(r, REC_HEAD + chunk_size, &sum);
     memcpy(r + REC_HEAD + chunk_size, sum.bytes, BLOB_HASH_SIZE);
     int rc = write_all(j->fd, r, n);
-    if (rc == 0)
-        rc = fdatasync(j->fd);
     free(r);
     if (rc != 0) {
         str_fmt(err, errlen, "%s: cannot append tile %u to the journal: %s", j->path, tile, strerror(errno));
@@ -232,6 +230,26 @@ int journal_append(struct journal *j, uint32_t tile, const struct tile_stats *st
     }
     j->end += n;
     return 0;
+}
+
+int journal_sync(struct journal *j, char *err, size_t errlen)
+{
+    if (j->synced == j->end)
+        return 0;
+    if (fdatasync(j->fd) != 0) {
+        str_fmt(err, errlen, "%s: cannot sync the journal: %s", j->path, strerror(errno));
+        return -1;
+    }
+    j->synced = j->end;
+    return 0;
+}
+
+int journal_append(struct journal *j, uint32_t tile, const struct tile_stats *st, const uint8_t *chunk,
+                   uint32_t chunk_size, char *err, size_t errlen)
+{
+    if (journal_write(j, tile, st, chunk, chunk_size, err, errlen) != 0)
+        return -1;
+    return journal_sync(j, err, errlen);
 }
 
 void journal_close(struct journal *j)

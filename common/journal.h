@@ -14,7 +14,8 @@
 
 struct journal {
     int fd;
-    uint64_t end;           /* bytes of intact records (the next append starts here) */
+    uint64_t end;           /* bytes of intact records written (the next append starts here) */
+    uint64_t synced;        /* bytes known to be on disk */
     char path[4096];
 };
 
@@ -34,6 +35,13 @@ int journal_open(struct journal *j, const char *path, const struct blob_hash *ke
  * cut back to its last intact record and -1 returned with the reason. */
 int journal_append(struct journal *j, uint32_t tile, const struct tile_stats *stats, const uint8_t *chunk,
                    uint32_t chunk_size, char *err, size_t errlen);
+/* Group commit: journal_write appends a record without syncing; journal_sync then makes
+ * every record written so far durable with one fdatasync (a no-op when nothing is
+ * pending). A record counts as safe only after journal_sync returned 0. Same failure
+ * handling as journal_append. */
+int journal_write(struct journal *j, uint32_t tile, const struct tile_stats *stats, const uint8_t *chunk,
+                  uint32_t chunk_size, char *err, size_t errlen);
+int journal_sync(struct journal *j, char *err, size_t errlen);
 void journal_close(struct journal *j);
 /* Closes and deletes the journal (after the output file is safely in place). */
 int journal_remove(struct journal *j);
