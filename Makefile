@@ -81,6 +81,12 @@ fuzz-ci: $(DEPS_STAMP)
 
 test: unit integration fuzz-ci
 
+# Need root and daemons or namespaces; not part of `make test` (see README).
+test-slurm: all
+	BUILD=$(BUILD) sh tests/slurm/run.sh
+test-netns: all
+	BUILD=$(BUILD) sh tests/netns/run.sh
+
 demo: all
 	@mkdir -p out
 	$(BUILD)/master scenes/cornell/cornell.json -o out/cornell.exr --workers 2 --preview out/cornell.png
