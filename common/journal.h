@@ -1,7 +1,8 @@
 /* The master's tile journal: an append-only file next to the output that holds every
  * accepted tile (ids, statistics, EXR chunk bytes) with a BLAKE2b checksum per record, so a
  * restarted master resumes without re-rendering them. Invariants: a record is appended
- * and fdatasync'ed before the tile counts as done; a record whose checksum fails (a torn
+ * and fdatasync'ed before the worker that sent the tile is told to forget it (many
+ * records may share one sync: group commit); a record whose checksum fails (a torn
  * write from a crash) ends the journal and is cut off. Called by master/master.c. */
 #ifndef BRUME_JOURNAL_H
 #define BRUME_JOURNAL_H
