@@ -234,14 +234,121 @@ int journal_write(struct journal *j, uint32_t tile, const struct tile_stats *st,
 
 int journal_sync(struct journal *j, char *err, size_t errlen)
 {
-    if (j->synced == j->end)
+    if (!j->syncer_on) {
+        if (j->synced == j->end)
+            return 0;
+        j->syncs++;
+        if (fdatasync(j->fd) != 0) {
+            str_fmt(err, errlen, "%s: cannot sync the journal: %s", j->path, strerror(errno));
+            return -1;
+        }
+        j->synced = j->end;
         return 0;
-    if (fdatasync(j->fd) != 0) {
-        str_fmt(err, errlen, "%s: cannot sync the journal: %s", j->path, strerror(errno));
+    }
+    /* With a syncer: sync here too (fdatasync may run in two threads at once). */
+    uint64_t target = j->end;
+    pthread_mutex_lock(&j->lock);
+    int done = j->synced >= target, e = j->sync_errno;
+    if (!done && !e)
+        j->syncs++;
+    pthread_mutex_unlock(&j->lock);
+    if (!done && !e && fdatasync(j->fd) != 0)
+        e = errno;
+    pthread_mutex_lock(&j->lock);
+    if (e && !j->sync_errno)
+        j->sync_errno = e;
+    else if (!e && j->synced < target)
+        j->synced = target;
+    pthread_mutex_unlock(&j->lock);
+    if (e) {
+        str_fmt(err, errlen, "%s: cannot sync the journal: %s", j->path, strerror(e));
         return -1;
     }
-    j->synced = j->end;
     return 0;
+}
+
+static void *syncer_main(void *arg)
+{
+    struct journal *j = arg;
+    pthread_mutex_lock(&j->lock);
+    for (;;) {
+        while (!j->syncer_stop && (j->sync_errno || j->sync_want <= j->synced))
+            pthread_cond_wait(&j->cond, &j->lock);
+        if (j->syncer_stop)
+            break;
+        uint64_t target = j->sync_want;
+        j->syncs++;
+        pthread_mutex_unlock(&j->lock);
+        int rc = fdatasync(j->fd), e = errno;
+        pthread_mutex_lock(&j->lock);
+        if (rc != 0)
+            j->sync_errno = e;
+        else if (j->synced < target)
+            j->synced = target;
+    }
+    pthread_mutex_unlock(&j->lock);
+    return NULL;
+}
+
+int journal_syncer_start(struct journal *j, char *err, size_t errlen)
+{
+    if (j->syncer_on)
+        return 0;
+    pthread_mutex_init(&j->lock, NULL);
+    pthread_cond_init(&j->cond, NULL);
+    j->syncer_stop = 0;
+    j->sync_errno = 0;
+    j->sync_want = j->synced;
+    int rc = pthread_create(&j->syncer, NULL, syncer_main, j);
+    if (rc != 0) {
+        pthread_mutex_destroy(&j->lock);
+        pthread_cond_destroy(&j->cond);
+        str_fmt(err, errlen, "%s: cannot start the journal's sync thread: %s", j->path, strerror(rc));
+        return -1;
+    }
+    j->syncer_on = 1;
+    return 0;
+}
+
+void journal_sync_async(struct journal *j)
+{
+    if (!j->syncer_on)
+        return;
+    pthread_mutex_lock(&j->lock);
+    if (j->sync_want < j->end) {
+        j->sync_want = j->end;
+        pthread_cond_signal(&j->cond);
+    }
+    pthread_mutex_unlock(&j->lock);
+}
+
+int64_t journal_durable(struct journal *j, char *err, size_t errlen)
+{
+    if (!j->syncer_on)
+        return (int64_t)j->synced;
+    pthread_mutex_lock(&j->lock);
+    uint64_t synced = j->synced;
+    int e = j->sync_errno;
+    pthread_mutex_unlock(&j->lock);
+    if (e) {
+        str_fmt(err, errlen, "%s: cannot sync the journal: %s", j->path, strerror(e));
+        return -1;
+    }
+    return (int64_t)synced;
+}
+
+static void syncer_stop(struct journal *j)
+{
+    if (!j->syncer_on)
+        return;
+    pthread_mutex_lock(&j->lock);
+    j->syncer_stop = 1;
+    pthread_cond_signal(&j->cond);
+    pthread_mutex_unlock(&j->lock);
+    pthread_join(j->syncer, NULL);
+    pthread_mutex_destroy(&j->lock);
+    pthread_cond_destroy(&j->cond);
+    j->syncer_on = 0;
 }
 
 int journal_append(struct journal *j, uint32_t tile, const struct tile_stats *st, const uint8_t *chunk,
@@ -254,6 +361,7 @@ int journal_append(struct journal *j, uint32_t tile, const struct tile_stats *st
 
 void journal_close(struct journal *j)
 {
+    syncer_stop(j);
     if (j->fd >= 0)
         close(j->fd);
     j->fd = -1;

@@ -6,6 +6,7 @@
  * write from a crash) ends the journal and is cut off. Called by master/master.c. */
 #ifndef BRUME_JOURNAL_H
 #define BRUME_JOURNAL_H
+#include <pthread.h>
 #include <stddef.h>
 #include <stdint.h>
 #include "blob.h"
@@ -16,8 +17,15 @@
 struct journal {
     int fd;
     uint64_t end;           /* bytes of intact records written (the next append starts here) */
-    uint64_t synced;        /* bytes known to be on disk */
+    uint64_t synced;        /* bytes known to be on disk (under lock while a syncer runs) */
     char path[4096];
+    /* the background syncer (journal_syncer_start) */
+    int syncer_on, syncer_stop, sync_errno;
+    uint64_t sync_want;     /* sync at least this far */
+    uint64_t syncs;         /* fdatasync calls made */
+    pthread_t syncer;
+    pthread_mutex_t lock;
+    pthread_cond_t cond;
 };
 
 /* Called for each intact record found when opening; return 0 to keep it, -1 to stop
@@ -43,6 +51,15 @@ int journal_append(struct journal *j, uint32_t tile, const struct tile_stats *st
 int journal_write(struct journal *j, uint32_t tile, const struct tile_stats *stats, const uint8_t *chunk,
                   uint32_t chunk_size, char *err, size_t errlen);
 int journal_sync(struct journal *j, char *err, size_t errlen);
+/* Group commit that does not block the caller: a thread runs fdatasync whenever
+ * journal_sync_async asked for more than is on disk, so the caller keeps working (and
+ * handing out tiles) while the disk catches up. journal_durable returns the bytes known
+ * to be on disk, or -1 with the reason once a sync failed. journal_sync (blocking) works
+ * alongside; journal_close stops the thread. 0, or -1 when no thread can start (then
+ * the caller syncs with journal_sync). */
+int journal_syncer_start(struct journal *j, char *err, size_t errlen);
+void journal_sync_async(struct journal *j);
+int64_t journal_durable(struct journal *j, char *err, size_t errlen);
 void journal_close(struct journal *j);
 /* Closes and deletes the journal (after the output file is safely in place). */
 int journal_remove(struct journal *j);

@@ -83,8 +83,8 @@ struct counters {
 #undef X
 };
 
-/* A tile a worker may forget once the journal holding it is on disk. */
-struct pending_ack { int32_t peer; uint64_t job_id; uint32_t frame, tile; };
+/* A tile a worker may forget once the journal is on disk up to byte `need`. */
+struct pending_ack { int32_t peer; uint64_t job_id; uint32_t frame, tile; uint64_t need; };
 
 struct master {
     const struct master_opts *opts;
@@ -534,25 +534,41 @@ static void ack_push(struct master *m, int32_t pi, uint64_t job_id, uint32_t fra
         m->cap_acks = m->cap_acks ? m->cap_acks * 2 : 64;
         m->acks = mem_realloc(m->acks, sizeof *m->acks * m->cap_acks);
     }
-    m->acks[m->num_acks++] = (struct pending_ack){pi, job_id, frame, tile};
+    /* Everything written so far must be on disk: also the record of a tile that this
+     * result duplicates, which may still wait for its sync. */
+    m->acks[m->num_acks++] = (struct pending_ack){pi, job_id, frame, tile, m->have_journal ? m->journal.end : 0};
 }
 
-/* Group commit: one fdatasync for every record written since the last one (the results
- * read in one pass over the socket), then the ACKs, one message per worker and job. A
- * worker forgets a tile only after this, so a master killed before the sync loses
- * nothing: the worker still has the tile for the master that comes back. */
-static void commit_and_ack(struct master *m)
+/* Group commit: the journal's sync thread makes every record written so far durable with
+ * one fdatasync (the results read in one pass over the socket, and more while a sync is
+ * running), and the ACKs of the tiles now on disk go out, one message per worker and job.
+ * The loop never waits for the disk (wait = 0), except at the end of a frame. A worker
+ * forgets a tile only after this, so a master killed before the sync loses nothing: the
+ * worker still has the tile for the master that comes back. */
+static void commit_and_ack(struct master *m, int wait)
 {
-    if (m->have_journal && m->journal.synced != m->journal.end) {
+    uint64_t durable = UINT64_MAX;
+    if (m->have_journal) {
         char err[512];
-        if (journal_sync(&m->journal, err, sizeof err) != 0) {
+        if (wait && journal_sync(&m->journal, err, sizeof err) != 0) {
             snprintf(m->fatal, sizeof m->fatal, "%s", err);
             return;
         }
-        m->c.journal_syncs++;
+        journal_sync_async(&m->journal);
+        int64_t d = journal_durable(&m->journal, err, sizeof err);
+        if (d < 0) {
+            snprintf(m->fatal, sizeof m->fatal, "%s", err);
+            return;
+        }
+        durable = (uint64_t)d;
     }
-    while (m->num_acks > 0) {
-        struct pending_ack first = m->acks[0];
+    for (;;) {
+        uint32_t f = 0;
+        while (f < m->num_acks && m->acks[f].need > durable)
+            f++;
+        if (f == m->num_acks)
+            break;
+        struct pending_ack first = m->acks[f];
         struct proto_msg msg = {.type = MSG_ACK};
         msg.u.ack.job_id = first.job_id;
         msg.u.ack.frame = first.frame;
@@ -560,7 +576,7 @@ static void commit_and_ack(struct master *m)
         for (uint32_t i = 0; i < m->num_acks; i++) {
             const struct pending_ack *a = &m->acks[i];
             if (a->peer == first.peer && a->job_id == first.job_id && a->frame == first.frame &&
-                msg.u.ack.count < PROTO_MAX_ACK_TILES)
+                a->need <= durable && msg.u.ack.count < PROTO_MAX_ACK_TILES)
                 msg.u.ack.tiles[msg.u.ack.count++] = a->tile;
             else
                 m->acks[k++] = *a;
@@ -923,6 +939,8 @@ static int open_journal(struct master *m)
         return -1;
     }
     m->have_journal = 1;
+    if (journal_syncer_start(&m->journal, err, sizeof err) != 0)
+        log_warn("%s; syncing in the main loop instead", err);
     if (other)
         log_warn("%s belonged to another job (scene or settings differ); starting afresh", path);
     if (recovered || torn)
@@ -984,6 +1002,7 @@ static int write_output(struct master *m, double seconds)
     /* Only now is the journal's content safe elsewhere. */
     if (m->have_journal) {
         journal_remove(&m->journal);
+        m->c.journal_syncs += m->journal.syncs;
         m->have_journal = 0;
     }
     if (o->preview_path) {
@@ -1372,6 +1391,7 @@ static int frame_begin(struct master *m, uint32_t frames_started)
         return -1;
     if (m->have_journal) {
         journal_close(&m->journal);
+        m->c.journal_syncs += m->journal.syncs;
         m->have_journal = 0;
     }
     /* A --tiles render is a debugging aid: it keeps no journal of its own. */
@@ -1422,7 +1442,8 @@ static int frame_render(struct master *m, uint64_t *last_beat)
         }
         zmq_pollitem_t items[3] = {{m->sock, 0, ZMQ_POLLIN, 0}, {m->zap, 0, ZMQ_POLLIN, 0}, {m->monitor, 0, ZMQ_POLLIN, 0}};
         int nitems = m->monitor ? 3 : m->zap ? 2 : 1;
-        if (zmq_poll(items, nitems, 100) < 0 && errno != EINTR) {
+        /* ACKs waiting for the sync thread: look again soon */
+        if (zmq_poll(items, nitems, m->num_acks ? 2 : 100) < 0 && errno != EINTR) {
             log_error("poll: %s", zmq_strerror(errno));
             return -1;
         }
@@ -1454,8 +1475,8 @@ static int frame_render(struct master *m, uint64_t *last_beat)
                       m->last_worker_error[0] ? "; last worker error: " : "", m->last_worker_error);
             return -1;
         }
-        assign_tiles(m); /* workers get new tiles before we wait for the disk */
-        commit_and_ack(m);
+        assign_tiles(m);
+        commit_and_ack(m, 0);
         if (now - *last_beat >= 1000) {
             struct proto_msg hb = {.type = MSG_HEARTBEAT};
             hb.u.heartbeat.job_id = m->job_id;
@@ -1470,6 +1491,7 @@ static int frame_render(struct master *m, uint64_t *last_beat)
             last_progress = now;
         }
     }
+    commit_and_ack(m, 1); /* the frame's last records on disk, every worker told */
     if (m->fatal[0]) { /* e.g. the last journal sync failed */
         log_error("%s", m->fatal);
         return -1;
@@ -1553,8 +1575,10 @@ done:
         }
         rmdir(m.ipc_dir);
     }
-    if (m.have_journal)
+    if (m.have_journal) {
         journal_close(&m.journal);
+        m.c.journal_syncs += m.journal.syncs;
+    }
     if (m.monitor)
         zmq_close(m.monitor);
     if (m.zap)
