@@ -13,9 +13,12 @@ S=scripts/ssh-workers.sh
 T=$(mktemp -d /tmp/brume-ssh.XXXXXX)
 pass=0
 fail=0
+ours() { tr '\0' ' ' 2>/dev/null <"/proc/$1/cmdline" | grep -q "$T"; }
 cleanup() {
   [ -f "$T/sshd.pid" ] && kill "$(cat "$T/sshd.pid")" 2>/dev/null
-  for p in $(cat "$T/pids" 2>/dev/null); do kill -9 "$p" 2>/dev/null; done
+  # only processes of this test (their command lines name $T): a pid that exited may
+  # have been reused by someone else's process by now
+  for p in $(cat "$T/pids" 2>/dev/null); do ours "$p" && kill -9 "$p" 2>/dev/null; done
   rm -rf "$T"
 }
 trap cleanup EXIT

@@ -22,8 +22,11 @@ skip() { echo "skip: network namespace test: $1"; echo "integration: 0 passed, 0
 [ "$(id -u)" = 0 ] || skip "not root (ip netns needs it)"
 command -v ip >/dev/null 2>&1 || skip "ip (iproute2) not installed"
 ip netns add $NM 2>"$T/err" || skip "cannot create a network namespace: $(cat "$T/err")"
+ours() { tr '\0' ' ' 2>/dev/null <"/proc/$1/cmdline" | grep -q "$T"; }
 cleanup() {
-  for p in $(cat "$T/pids" 2>/dev/null); do kill -9 "$p" 2>/dev/null; done
+  # only processes of this test (their command lines name $T): a pid that exited may
+  # have been reused by someone else's process by now
+  for p in $(cat "$T/pids" 2>/dev/null); do ours "$p" && kill -9 "$p" 2>/dev/null; done
   for n in $NM $N1 $N2; do ip netns del $n 2>/dev/null; done
   rm -rf "$T"
 }
@@ -54,7 +57,7 @@ timeout 300 $M $SCENE -o "$T/ref.exr" --workers 2 --threads 1 $ARGS >"$T/log" 2>
 $M --keygen "$T/m.key" >/dev/null && $M --keygen "$T/w.key" >/dev/null && cp "$T/w.key.pub" "$T/allow"
 P=$((21000 + (id % 20000)))
 ip netns exec $NM $M $SCENE -o "$T/net.exr" $ARGS --workers 0 --bind "tcp://0.0.0.0:$P" --curve-secret "$T/m.key" \
-  --allow "$T/allow" --worker-timeout-ms 2000 >"$T/log" 2>&1 &
+  --allow "$T/allow" --worker-timeout-ms 3000 >"$T/log" 2>&1 &
 mpid=$!
 ip netns exec $N1 $W --connect "tcp://10.77.1.1:$P" --threads 1 --curve-secret "$T/w.key" --server-key "$T/m.key.pub" \
   --timeout-ms 60000 >"$T/w1.log" 2>&1 &
