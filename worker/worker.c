@@ -120,6 +120,21 @@ struct worker {
 static volatile sig_atomic_t g_stop;
 static void on_signal(int sig) { (void)sig; g_stop = 1; }
 
+/* Sends without ever blocking: a message that cannot even be queued (no connection left,
+ * or its queue full) means the master is out of reach, so the worker reconnects; what
+ * mattered in it comes again (kept tiles are offered, READY follows the next JOB). */
+static int worker_send(struct worker *w, const struct proto_msg *m)
+{
+    if (net_send(w->sock, NULL, 0, m, &w->out) == 0)
+        return 0;
+    if (!w->lost) {
+        log_warn("cannot send %s to the master (%s); reconnecting", proto_type_name(m->type), zmq_strerror(errno));
+        w->lost = 1;
+        w->backoff_ms = 0; /* at once, then with back-off */
+    }
+    return -1;
+}
+
 /* ---- render threads ---- */
 
 /* Test-only faults (worker --fault): make this worker misbehave in one chosen way. */
@@ -304,7 +319,7 @@ static void send_error(struct worker *w, const char *text)
     struct proto_msg m = {.type = MSG_ERROR};
     m.u.error.job_id = w->job.job_id;
     snprintf(m.u.error.text, sizeof m.u.error.text, "%s", text);
-    net_send(w->sock, NULL, 0, &m, &w->out);
+    worker_send(w, &m);
 }
 
 static void unload_job(struct worker *w)
@@ -364,7 +379,8 @@ static int load_job(struct worker *w)
     m.u.ready.credits = w->opts->threads * TILES_PER_THREAD;
     log_info("job %llu loaded: %ux%u, %u spp, %u threads", (unsigned long long)w->job.job_id, rs->width,
              rs->height, rs->spp, w->opts->threads);
-    return net_send(w->sock, NULL, 0, &m, &w->out);
+    worker_send(w, &m);
+    return 0;
 }
 
 static void request_chunks(struct worker *w, struct fetch *f)
@@ -375,7 +391,7 @@ static void request_chunks(struct worker *w, struct fetch *f)
         m.u.blob_req.offset = f->next_offset;
         uint64_t left = f->recv.size - f->next_offset;
         m.u.blob_req.length = (uint32_t)(left < BLOB_CHUNK_SIZE ? left : BLOB_CHUNK_SIZE);
-        if (net_send(w->sock, NULL, 0, &m, &w->out) != 0)
+        if (worker_send(w, &m) != 0)
             return;
         f->next_offset += m.u.blob_req.length;
         f->in_flight++;
@@ -429,7 +445,8 @@ static int switch_frame(struct worker *w, struct msg_job *job, int same_conn, ui
     m.u.ready.job_id = w->job.job_id;
     m.u.ready.credits = w->opts->threads * TILES_PER_THREAD;
     log_info("job %llu: frame %u (scene kept)", (unsigned long long)w->job.job_id, w->job.frame);
-    return net_send(w->sock, NULL, 0, &m, &w->out);
+    worker_send(w, &m);
+    return 0;
 }
 
 static int on_job(struct worker *w, struct msg_job *job)
@@ -547,7 +564,7 @@ static void send_kept(struct worker *w, struct kept_tile *k)
     m.u.kept.stats = k->stats;
     m.u.kept.chunk = k->chunk;
     m.u.kept.chunk_size = (uint32_t)k->chunk_size;
-    net_send(w->sock, NULL, 0, &m, &w->out);
+    worker_send(w, &m);
     w->kept_delivered++;
 }
 
@@ -596,7 +613,7 @@ static void send_result(struct worker *w, struct tile_done *d)
         m.u.result.stats = k->stats;
         m.u.result.chunk = k->chunk;
         m.u.result.chunk_size = (uint32_t)k->chunk_size;
-        net_send(w->sock, NULL, 0, &m, &w->out);
+        worker_send(w, &m);
     } else if (kept_matches_job(w, k)) {
         send_kept(w, k);
     }
@@ -680,7 +697,7 @@ static int connect_master(struct worker *w)
     hello.u.hello.threads = w->opts->threads;
     hello.u.hello.pid = (uint32_t)getpid();
     snprintf(hello.u.hello.host, sizeof hello.u.hello.host, "%s", host);
-    net_send(w->sock, NULL, 0, &hello, &w->out);
+    worker_send(w, &hello);
     return 0;
 }
 
@@ -780,7 +797,8 @@ int worker_run(const struct worker_opts *opts)
             if (connect_master(&w) != 0)
                 goto done;
         } else if (w.lost && now - w.conn_at_ms >= w.backoff_ms) {
-            w.backoff_ms = w.backoff_ms * 2 > BACKOFF_MAX_MS ? BACKOFF_MAX_MS : w.backoff_ms * 2;
+            w.backoff_ms = w.backoff_ms == 0 ? BACKOFF_FIRST_MS
+                           : w.backoff_ms * 2 > BACKOFF_MAX_MS ? BACKOFF_MAX_MS : w.backoff_ms * 2;
             w.reconnects++;
             if (connect_master(&w) != 0)
                 goto done;
@@ -797,7 +815,7 @@ int worker_run(const struct worker_opts *opts)
                     stalled = now - last;
             }
             hb.u.heartbeat.stalled_ms = stalled > UINT32_MAX ? UINT32_MAX : (uint32_t)stalled;
-            net_send(w.sock, NULL, 0, &hb, &w.out);
+            worker_send(&w, &hb);
             last_beat = now;
         }
         if (now - last_heard > opts->master_timeout_ms) {

@@ -85,7 +85,7 @@ trial "--seed 2" "other"
 if [ $r = 0 ] && [ $wr = 0 ] && [ -n "$kept" ] && [ "$kept" -ge 1 ] && [ "$fk" = 0 ] && [ "$kd" = 0 ] &&
   ! grep -q "finished tile(s) kept for this job" "$T/wlog" && $X cmp "$T/ref2.exr" "$T/other.exr" >/dev/null; then
   ok "a master restarted on another job gets none of the kept tiles; its image is its own"
-else bad "a master restarted on another job gets none of the kept tiles; its image is its own"; fi
+else bad "a master restarted on another job gets none of the kept tiles; its image is its own (master rc $r, worker rc $wr)"; fi
 
 echo "integration: $pass passed, $fail failed"
 [ $fail = 0 ]
