@@ -27,7 +27,7 @@ cleanup() {
 }
 trap cleanup EXIT
 ok() { pass=$((pass + 1)); echo "ok: $1"; }
-bad() { fail=$((fail + 1)); echo "FAIL: $1"; for f in "$@"; do :; done; for f in "$T"/job*.out "$T/slurmctld.log" "$T/slurmd.log"; do [ -s "$f" ] && { echo "  $f:"; tail -12 "$f" | sed 's/^/    /'; }; done; }
+bad() { fail=$((fail + 1)); echo "FAIL: $1"; for f in "$T"/job*.out "$T/slurmctld.log" "$T/slurmd.log"; do [ -s "$f" ] && { echo "  $f:"; tail -12 "$f" | sed 's/^/    /'; }; done; }
 skip() {
   echo "skip: SLURM test: $1"
   if [ "${SLURM_REQUIRED:-0}" = 1 ]; then echo "integration: 0 passed, 1 failed"; exit 1; fi
