@@ -708,6 +708,7 @@ int worker_run(const struct worker_opts *opts)
     w.opts = opts;
     signal(SIGINT, on_signal);
     signal(SIGTERM, on_signal);
+    signal(SIGPIPE, SIG_IGN); /* a master that vanished is noticed by silence, not a signal */
     w.zctx = zmq_ctx_new();
     w.results = zmq_socket(w.zctx, ZMQ_PULL);
     net_socket_setup(w.results);
