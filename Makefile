@@ -18,7 +18,7 @@ BUILD   := build-san
 endif
 
 DEB_PKGS := gcc make pkg-config libembree-dev libopenexr-dev openexr libzmq3-dev libjansson-dev \
-            libsodium-dev libpng-dev libcriterion-dev embree-tools python3
+            libsodium-dev libpng-dev libcriterion-dev embree-tools python3 clang
 DEPS_STAMP := $(BUILD)/.deps-ok
 
 COMMON_SRC := $(wildcard common/*.c)
@@ -28,7 +28,7 @@ WORKER_OBJ := $(patsubst %.c,$(BUILD)/obj/%.o,$(wildcard worker/*.c))
 UNIT_SRC   := $(wildcard tests/unit/test_*.c)
 UNIT_OBJ   := $(UNIT_SRC:%.c=$(BUILD)/obj/%.o)
 
-.PHONY: all deps test unit integration demo bench clean fuzz tools stress
+.PHONY: all deps test unit integration demo bench clean fuzz fuzz-ci tools stress test-slurm test-netns
 all: $(BUILD)/master $(BUILD)/worker $(BUILD)/exrtool $(BUILD)/junkpeer $(BUILD)/replay
 
 # Install what is missing; the stamp makes later builds skip the check.
@@ -74,7 +74,18 @@ stress: all
 	BUILD=$(BUILD) TRIALS=100 KILL_TRIALS=100 sh tests/integration/faults.sh
 	BUILD=$(BUILD) FRAME_TRIALS=25 sh tests/integration/frames.sh
 
-test: unit integration
+# The protocol decoder under libFuzzer for a few seconds (clang, ASan + UBSan).
+FUZZ_CI_SECONDS ?= 5
+fuzz-ci: $(DEPS_STAMP)
+	BUILD=$(BUILD) CC=$(CC) FUZZ_CI_SECONDS=$(FUZZ_CI_SECONDS) sh tests/fuzz/ci.sh
+
+test: unit integration fuzz-ci
+
+# Need root and daemons or namespaces; not part of `make test` (see README).
+test-slurm: all
+	BUILD=$(BUILD) sh tests/slurm/run.sh
+test-netns: all
+	BUILD=$(BUILD) sh tests/netns/run.sh
 
 demo: all
 	@mkdir -p out

@@ -112,7 +112,7 @@ static int start_fresh(struct journal *j, const struct blob_hash *key, uint32_t 
         return -1;
     }
     fsync_parent(j->path);
-    j->end = HEADER_SIZE;
+    j->end = j->synced = HEADER_SIZE;
     return 0;
 }
 
@@ -190,12 +190,12 @@ int journal_open(struct journal *j, const char *path, const struct blob_hash *ke
         journal_close(j);
         return -1;
     }
-    j->end = pos;
+    j->end = j->synced = pos;
     return 0;
 }
 
-int journal_append(struct journal *j, uint32_t tile, const struct tile_stats *st, const uint8_t *chunk,
-                   uint32_t chunk_size, char *err, size_t errlen)
+int journal_write(struct journal *j, uint32_t tile, const struct tile_stats *st, const uint8_t *chunk,
+                  uint32_t chunk_size, char *err, size_t errlen)
 {
     if (chunk_size > JOURNAL_MAX_CHUNK) {
         str_fmt(err, errlen, "%s: tile %u chunk of %u bytes is too large", j->path, tile, chunk_size);
@@ -220,8 +220,6 @@ int journal_append(struct journal *j, uint32_t tile, const struct tile_stats *st
     blob_hash_compute(r, REC_HEAD + chunk_size, &sum);
     memcpy(r + REC_HEAD + chunk_size, sum.bytes, BLOB_HASH_SIZE);
     int rc = write_all(j->fd, r, n);
-    if (rc == 0)
-        rc = fdatasync(j->fd);
     free(r);
     if (rc != 0) {
         str_fmt(err, errlen, "%s: cannot append tile %u to the journal: %s", j->path, tile, strerror(errno));
@@ -234,8 +232,136 @@ int journal_append(struct journal *j, uint32_t tile, const struct tile_stats *st
     return 0;
 }
 
+int journal_sync(struct journal *j, char *err, size_t errlen)
+{
+    if (!j->syncer_on) {
+        if (j->synced == j->end)
+            return 0;
+        j->syncs++;
+        if (fdatasync(j->fd) != 0) {
+            str_fmt(err, errlen, "%s: cannot sync the journal: %s", j->path, strerror(errno));
+            return -1;
+        }
+        j->synced = j->end;
+        return 0;
+    }
+    /* With a syncer: sync here too (fdatasync may run in two threads at once). */
+    uint64_t target = j->end;
+    pthread_mutex_lock(&j->lock);
+    int done = j->synced >= target, e = j->sync_errno;
+    if (!done && !e)
+        j->syncs++;
+    pthread_mutex_unlock(&j->lock);
+    if (!done && !e && fdatasync(j->fd) != 0)
+        e = errno;
+    pthread_mutex_lock(&j->lock);
+    if (e && !j->sync_errno)
+        j->sync_errno = e;
+    else if (!e && j->synced < target)
+        j->synced = target;
+    pthread_mutex_unlock(&j->lock);
+    if (e) {
+        str_fmt(err, errlen, "%s: cannot sync the journal: %s", j->path, strerror(e));
+        return -1;
+    }
+    return 0;
+}
+
+static void *syncer_main(void *arg)
+{
+    struct journal *j = arg;
+    pthread_mutex_lock(&j->lock);
+    for (;;) {
+        while (!j->syncer_stop && (j->sync_errno || j->sync_want <= j->synced))
+            pthread_cond_wait(&j->cond, &j->lock);
+        if (j->syncer_stop)
+            break;
+        uint64_t target = j->sync_want;
+        j->syncs++;
+        pthread_mutex_unlock(&j->lock);
+        int rc = fdatasync(j->fd), e = errno;
+        pthread_mutex_lock(&j->lock);
+        if (rc != 0)
+            j->sync_errno = e;
+        else if (j->synced < target)
+            j->synced = target;
+    }
+    pthread_mutex_unlock(&j->lock);
+    return NULL;
+}
+
+int journal_syncer_start(struct journal *j, char *err, size_t errlen)
+{
+    if (j->syncer_on)
+        return 0;
+    pthread_mutex_init(&j->lock, NULL);
+    pthread_cond_init(&j->cond, NULL);
+    j->syncer_stop = 0;
+    j->sync_errno = 0;
+    j->sync_want = j->synced;
+    int rc = pthread_create(&j->syncer, NULL, syncer_main, j);
+    if (rc != 0) {
+        pthread_mutex_destroy(&j->lock);
+        pthread_cond_destroy(&j->cond);
+        str_fmt(err, errlen, "%s: cannot start the journal's sync thread: %s", j->path, strerror(rc));
+        return -1;
+    }
+    j->syncer_on = 1;
+    return 0;
+}
+
+void journal_sync_async(struct journal *j)
+{
+    if (!j->syncer_on)
+        return;
+    pthread_mutex_lock(&j->lock);
+    if (j->sync_want < j->end) {
+        j->sync_want = j->end;
+        pthread_cond_signal(&j->cond);
+    }
+    pthread_mutex_unlock(&j->lock);
+}
+
+int64_t journal_durable(struct journal *j, char *err, size_t errlen)
+{
+    if (!j->syncer_on)
+        return (int64_t)j->synced;
+    pthread_mutex_lock(&j->lock);
+    uint64_t synced = j->synced;
+    int e = j->sync_errno;
+    pthread_mutex_unlock(&j->lock);
+    if (e) {
+        str_fmt(err, errlen, "%s: cannot sync the journal: %s", j->path, strerror(e));
+        return -1;
+    }
+    return (int64_t)synced;
+}
+
+static void syncer_stop(struct journal *j)
+{
+    if (!j->syncer_on)
+        return;
+    pthread_mutex_lock(&j->lock);
+    j->syncer_stop = 1;
+    pthread_cond_signal(&j->cond);
+    pthread_mutex_unlock(&j->lock);
+    pthread_join(j->syncer, NULL);
+    pthread_mutex_destroy(&j->lock);
+    pthread_cond_destroy(&j->cond);
+    j->syncer_on = 0;
+}
+
+int journal_append(struct journal *j, uint32_t tile, const struct tile_stats *st, const uint8_t *chunk,
+                   uint32_t chunk_size, char *err, size_t errlen)
+{
+    if (journal_write(j, tile, st, chunk, chunk_size, err, errlen) != 0)
+        return -1;
+    return journal_sync(j, err, errlen);
+}
+
 void journal_close(struct journal *j)
 {
+    syncer_stop(j);
     if (j->fd >= 0)
         close(j->fd);
     j->fd = -1;

@@ -31,8 +31,10 @@ int net_send(void *sock, const uint8_t *id, size_t id_len, const struct proto_ms
         log_debug("send identity: %s", zmq_strerror(errno));
         return -1;
     }
-    if (zmq_send(sock, scratch->data, scratch->size, id_len > 0 ? ZMQ_DONTWAIT : 0) < 0) {
-        log_debug("send %s: %s", proto_type_name(msg->type), zmq_strerror(errno));
+    if (zmq_send(sock, scratch->data, scratch->size, ZMQ_DONTWAIT) < 0) {
+        int e = errno;
+        log_debug("send %s: %s", proto_type_name(msg->type), zmq_strerror(e));
+        errno = e;
         return -1;
     }
     return 0;

@@ -11,7 +11,8 @@
 #define NET_MAX_IDENTITY 256
 
 void net_socket_setup(void *sock);
-/* Encodes and sends msg (preceded by identity when id_len > 0). 0 or -1 (logged). */
+/* Encodes and sends msg (preceded by identity when id_len > 0) without blocking: -1
+ * (logged at debug level, errno set) when it cannot be queued (no peer, queue full). */
 int net_send(void *sock, const uint8_t *id, size_t id_len, const struct proto_msg *msg, struct proto_buf *scratch);
 
 /* One received message: identity (ROUTER only) and the payload frame. */

@@ -30,6 +30,8 @@ const char *proto_type_name(enum proto_type t)
     case MSG_ERROR: return "ERROR";
     case MSG_HEARTBEAT: return "HEARTBEAT";
     case MSG_BYE: return "BYE";
+    case MSG_ACK: return "ACK";
+    case MSG_KEPT: return "KEPT";
     case MSG_TYPE_MAX_: break;
     }
     return "UNKNOWN";
@@ -165,6 +167,7 @@ int proto_encode(const struct proto_msg *msg, struct proto_buf *b)
             (m->num_assets && !m->assets))
             return -1;
         put_u64(b, m->job_id);
+        put_hash(b, &m->job_key);
         put_u32(b, m->frame);
         put_u32(b, m->width);
         put_u32(b, m->height);
@@ -240,6 +243,33 @@ int proto_encode(const struct proto_msg *msg, struct proto_buf *b)
         return 0;
     case MSG_BYE:
         return 0;
+    case MSG_ACK: {
+        const struct msg_ack *m = &msg->u.ack;
+        if (m->count > PROTO_MAX_ACK_TILES)
+            return -1;
+        put_u64(b, m->job_id);
+        put_u32(b, m->frame);
+        put_u32(b, m->count);
+        for (uint32_t i = 0; i < m->count; i++)
+            put_u32(b, m->tiles[i]);
+        return 0;
+    }
+    case MSG_KEPT: {
+        const struct msg_kept *m = &msg->u.kept;
+        if (m->chunk_size > PROTO_MAX_CHUNK || !isfinite(m->stats.sum_rel_stderr))
+            return -1;
+        put_u64(b, m->job_id);
+        put_hash(b, &m->job_key);
+        put_u32(b, m->frame);
+        put_u32(b, m->tile);
+        put_u64(b, m->stats.samples);
+        put_u64(b, m->stats.rays);
+        put_u64(b, m->stats.nan_samples);
+        put_u64(b, m->stats.render_ns);
+        put_f64(b, m->stats.sum_rel_stderr);
+        put_u32(b, m->stats.rel_stderr_pixels);
+        return put_payload(b, m->chunk, m->chunk_size);
+    }
     case MSG_TYPE_MAX_:
         break;
     }
@@ -378,9 +408,23 @@ static const uint8_t *get_payload(struct reader *r, uint32_t *len, uint32_t max,
     return q;
 }
 
+/* Tile statistics of RESULT and KEPT; a non-finite error sum is refused. */
+static void get_stats(struct reader *r, struct tile_stats *st)
+{
+    st->samples = get_u64(r, "samples");
+    st->rays = get_u64(r, "rays");
+    st->nan_samples = get_u64(r, "nan_samples");
+    st->render_ns = get_u64(r, "render_ns");
+    st->sum_rel_stderr = get_f64(r, "sum_rel_stderr");
+    st->rel_stderr_pixels = get_u32(r, "rel_stderr_pixels");
+    if (!r->failed && !isfinite(st->sum_rel_stderr))
+        fail(r, "sum_rel_stderr is not finite");
+}
+
 static void decode_job(struct reader *r, struct msg_job *m)
 {
     m->job_id = get_u64(r, "job_id");
+    get_hash(r, &m->job_key, "job_key");
     m->frame = get_u32(r, "frame");
     m->width = get_u32(r, "width");
     m->height = get_u32(r, "height");
@@ -498,17 +542,34 @@ int proto_decode(const uint8_t *frame, size_t size, struct proto_msg *msg, char 
         m->frame = get_u32(r, "frame");
         m->tile = get_u32(r, "tile");
         m->attempt = get_u32(r, "attempt");
-        m->stats.samples = get_u64(r, "samples");
-        m->stats.rays = get_u64(r, "rays");
-        m->stats.nan_samples = get_u64(r, "nan_samples");
-        m->stats.render_ns = get_u64(r, "render_ns");
-        m->stats.sum_rel_stderr = get_f64(r, "sum_rel_stderr");
-        m->stats.rel_stderr_pixels = get_u32(r, "rel_stderr_pixels");
-        if (!r->failed && !isfinite(m->stats.sum_rel_stderr)) {
-            str_fmt(err, errlen, "RESULT: sum_rel_stderr is not finite");
-            r->failed = 1;
-        }
+        get_stats(r, &m->stats);
         m->chunk = get_payload(r, &m->chunk_size, PROTO_MAX_CHUNK, "chunk");
+        break;
+    }
+    case MSG_KEPT: {
+        struct msg_kept *m = &msg->u.kept;
+        m->job_id = get_u64(r, "job_id");
+        get_hash(r, &m->job_key, "job_key");
+        m->frame = get_u32(r, "frame");
+        m->tile = get_u32(r, "tile");
+        get_stats(r, &m->stats);
+        m->chunk = get_payload(r, &m->chunk_size, PROTO_MAX_CHUNK, "chunk");
+        break;
+    }
+    case MSG_ACK: {
+        struct msg_ack *m = &msg->u.ack;
+        m->job_id = get_u64(r, "job_id");
+        m->frame = get_u32(r, "frame");
+        uint32_t n = get_u32(r, "count");
+        if (r->failed)
+            break;
+        if (n > PROTO_MAX_ACK_TILES) {
+            fail(r, "count %u exceeds the limit of %d", n, PROTO_MAX_ACK_TILES);
+            break;
+        }
+        m->count = n;
+        for (uint32_t i = 0; i < n && !r->failed; i++)
+            m->tiles[i] = get_u32(r, "tiles");
         break;
     }
     case MSG_ERROR:

@@ -13,11 +13,12 @@
 #include "tile.h"
 
 #define PROTO_MAGIC 0x4d555242u /* "BRUM" little-endian */
-#define PROTO_VERSION 2 /* 2: HEARTBEAT carries samples_done */
+#define PROTO_VERSION 3 /* 2: HEARTBEAT carries samples_done; 3: JOB carries job_key, ACK, KEPT */
 #define PROTO_MAX_MESSAGE (64u * 1024u * 1024u) /* also ZMQ_MAXMSGSIZE */
 #define PROTO_MAX_STRING 1024
 #define PROTO_MAX_ASSETS 4096
 #define PROTO_MAX_CHUNK (48u * 1024u * 1024u)   /* an EXR tile chunk */
+#define PROTO_MAX_ACK_TILES 256                  /* tiles one ACK may list (more: several ACKs) */
 
 enum proto_type {
     MSG_HELLO = 1,      /* w->m: I exist; my threads */
@@ -30,7 +31,9 @@ enum proto_type {
     MSG_ERROR = 8,      /* w->m: cannot do the job (message says why) */
     MSG_HEARTBEAT = 9,  /* both ways; the worker's proves its render threads progress */
     MSG_BYE = 10,       /* m->w: job over, exit; w->m: I am leaving */
-    MSG_TYPE_MAX_ = 11
+    MSG_ACK = 11,       /* m->w: these tiles of (job, frame) are safe (journal synced): forget them */
+    MSG_KEPT = 12,      /* w->m: a finished tile kept for a job of this job_key (a master that came back) */
+    MSG_TYPE_MAX_ = 13
 };
 
 struct msg_hello {
@@ -47,6 +50,10 @@ struct proto_asset {
 
 struct msg_job {
     uint64_t job_id;
+    /* What fixes the frame's pixels (scene, assets, settings, frame, tile layout): the same
+     * for a master restarted on the same job, whose job_id differs. Kept tiles are matched
+     * against it. */
+    struct blob_hash job_key;
     uint32_t frame;
     /* settings after command-line overrides; the worker applies them over the scene's */
     uint32_t width, height, spp, max_depth, tile_size;
@@ -93,6 +100,29 @@ struct msg_result {
     uint32_t chunk_size;    /* <= PROTO_MAX_CHUNK */
 };
 
+/* The master has synced these tiles of (job_id, frame) to its journal (or has them done
+ * already): the worker may drop its copies. */
+struct msg_ack {
+    uint64_t job_id;
+    uint32_t frame;
+    uint32_t count;                         /* <= PROTO_MAX_ACK_TILES */
+    uint32_t tiles[PROTO_MAX_ACK_TILES];
+};
+
+/* A finished tile the worker kept (not acknowledged by the master it rendered it for),
+ * offered to the master now connected: job_id is the current master's JOB, job_key the
+ * key of the job the tile was rendered for. The master accepts it only when job_key is
+ * its own. */
+struct msg_kept {
+    uint64_t job_id;
+    struct blob_hash job_key;
+    uint32_t frame;
+    uint32_t tile;
+    struct tile_stats stats;
+    const uint8_t *chunk;   /* points into the decoded frame */
+    uint32_t chunk_size;    /* <= PROTO_MAX_CHUNK */
+};
+
 struct msg_error {
     uint64_t job_id;
     char text[PROTO_MAX_STRING];
@@ -117,6 +147,8 @@ struct proto_msg {
         struct msg_result result;
         struct msg_error error;
         struct msg_heartbeat heartbeat;
+        struct msg_ack ack;
+        struct msg_kept kept;
     } u;
 };
 

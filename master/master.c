@@ -77,12 +77,15 @@ struct peer {
     X(rejected_envelope) X(rejected_unknown_peer) X(rejected_unexpected) X(rejected_wrong_job)                    \
     X(rejected_blob_req) X(rejected_banned) X(auth_rejects) X(handshake_failures) X(evicted_silent)                \
     X(evicted_stalled) X(evicted_died) X(evicted_error) X(workers_banned) X(workers_joined) X(ready_stale)         \
-    X(frames_done) X(frames_skipped)
+    X(frames_done) X(frames_skipped) X(tiles_from_kept) X(kept_duplicate) X(acks_sent) X(journal_syncs)
 struct counters {
 #define X(n) uint64_t n;
     COUNTERS(X)
 #undef X
 };
+
+/* A tile a worker may forget once the journal is on disk up to byte `need`. */
+struct pending_ack { int32_t peer; uint64_t job_id; uint32_t frame, tile; uint64_t need; };
 
 struct master {
     const struct master_opts *opts;
@@ -99,6 +102,7 @@ struct master {
     struct image_desc desc;
     uint64_t job_id;            /* this frame's job: job_base + frames started before it */
     uint64_t job_base;
+    struct blob_hash job_key;   /* what fixes this frame's pixels; the same after a restart */
     uint32_t frame;
     char out_path[4000];        /* this frame's output file */
     struct tile_slot *tiles;
@@ -121,6 +125,8 @@ struct master {
     char banned_names[16][300];
     uint32_t num_banned;
     uint32_t stranger_drops_logged;
+    struct pending_ack *acks;   /* tiles to acknowledge once the journal is synced */
+    uint32_t num_acks, cap_acks;
     uint8_t (*allowed)[32];     /* allowed CURVE public keys, binary */
     size_t num_allowed;
     char local_key_path[400], local_pub_path[400];
@@ -433,6 +439,11 @@ static void on_hello(struct master *m, const struct net_frame *f, const struct m
         m->c.rejected_banned++;
         return;
     }
+    /* The same worker process on a new connection (it lost us and reconnected): its old
+     * connection is dead; its tiles go back to the queue without counting as a crash. */
+    for (uint32_t i = 0; i < m->num_peers; i++)
+        if (!m->peers[i].gone && !strcmp(m->peers[i].name, name))
+            evict_peer(m, (int32_t)i, EVICT_LEFT, "it reconnected");
     if (m->num_peers >= MAX_PEERS) {
         log_warn("too many workers; ignoring hello from %s", name);
         m->c.rejected_unexpected++;
@@ -461,6 +472,7 @@ static void send_job(struct master *m, const struct peer *p)
     struct proto_msg job = {.type = MSG_JOB};
     struct msg_job *j = &job.u.job;
     j->job_id = m->job_id;
+    j->job_key = m->job_key;
     j->frame = m->frame;
     j->width = rs->width;
     j->height = rs->height;
@@ -518,14 +530,77 @@ static int peer_should_log_drop(struct peer *p)
     return p->dropped <= 5;
 }
 
-/* Keeps an accepted tile: journal first (synced), then it counts as done. */
+/* Acknowledges tile of (job_id, frame) to peer pi after the next journal sync. */
+static void ack_push(struct master *m, int32_t pi, uint64_t job_id, uint32_t frame, uint32_t tile)
+{
+    if (m->num_acks == m->cap_acks) {
+        m->cap_acks = m->cap_acks ? m->cap_acks * 2 : 64;
+        m->acks = mem_realloc(m->acks, sizeof *m->acks * m->cap_acks);
+    }
+    /* Everything written so far must be on disk: also the record of a tile that this
+     * result duplicates, which may still wait for its sync. */
+    m->acks[m->num_acks++] = (struct pending_ack){pi, job_id, frame, tile, m->have_journal ? m->journal.end : 0};
+}
+
+/* Group commit: the journal's sync thread makes every record written so far durable with
+ * one fdatasync (the results read in one pass over the socket, and more while a sync is
+ * running), and the ACKs of the tiles now on disk go out, one message per worker and job.
+ * The loop never waits for the disk (wait = 0), except at the end of a frame. A worker
+ * forgets a tile only after this, so a master killed before the sync loses nothing: the
+ * worker still has the tile for the master that comes back. */
+static void commit_and_ack(struct master *m, int wait)
+{
+    uint64_t durable = UINT64_MAX;
+    if (m->have_journal) {
+        char err[512];
+        if (wait && journal_sync(&m->journal, err, sizeof err) != 0) {
+            snprintf(m->fatal, sizeof m->fatal, "%s", err);
+            return;
+        }
+        journal_sync_async(&m->journal);
+        int64_t d = journal_durable(&m->journal, err, sizeof err);
+        if (d < 0) {
+            snprintf(m->fatal, sizeof m->fatal, "%s", err);
+            return;
+        }
+        durable = (uint64_t)d;
+    }
+    for (;;) {
+        uint32_t f = 0;
+        while (f < m->num_acks && m->acks[f].need > durable)
+            f++;
+        if (f == m->num_acks)
+            break;
+        struct pending_ack first = m->acks[f];
+        struct proto_msg msg = {.type = MSG_ACK};
+        msg.u.ack.job_id = first.job_id;
+        msg.u.ack.frame = first.frame;
+        uint32_t k = 0;
+        for (uint32_t i = 0; i < m->num_acks; i++) {
+            const struct pending_ack *a = &m->acks[i];
+            if (a->peer == first.peer && a->job_id == first.job_id && a->frame == first.frame &&
+                a->need <= durable && msg.u.ack.count < PROTO_MAX_ACK_TILES)
+                msg.u.ack.tiles[msg.u.ack.count++] = a->tile;
+            else
+                m->acks[k++] = *a;
+        }
+        m->num_acks = k;
+        if (!m->peers[first.peer].gone) {
+            send_to(m, &m->peers[first.peer], &msg);
+            m->c.acks_sent++;
+        }
+    }
+}
+
+/* Keeps an accepted tile: journal first (written here, synced by commit_and_ack before
+ * anyone is told), then it counts as done. */
 static int tile_accept(struct master *m, uint32_t tile, const struct tile_stats *st, const uint8_t *chunk,
                        size_t chunk_size)
 {
     struct tile_slot *t = &m->tiles[tile];
     if (m->have_journal) {
         char err[512];
-        if (journal_append(&m->journal, tile, st, chunk, (uint32_t)chunk_size, err, sizeof err) != 0) {
+        if (journal_write(&m->journal, tile, st, chunk, (uint32_t)chunk_size, err, sizeof err) != 0) {
             snprintf(m->fatal, sizeof m->fatal, "%s", err);
             return -1;
         }
@@ -540,14 +615,73 @@ static int tile_accept(struct master *m, uint32_t tile, const struct tile_stats 
     return 0;
 }
 
+/* An invalid tile from peer pi: counted; FAILS_TO_BAN in a row ban it for the job. */
+static void peer_sent_invalid(struct master *m, int32_t pi)
+{
+    struct peer *p = &m->peers[pi];
+    m->c.results_invalid++;
+    if (++p->fail_streak >= FAILS_TO_BAN) {
+        p->banned = 1;
+        if (m->num_banned < sizeof m->banned_names / sizeof m->banned_names[0])
+            snprintf(m->banned_names[m->num_banned++], sizeof m->banned_names[0], "%s", p->name);
+        char why[64];
+        snprintf(why, sizeof why, "banned for the job: %u invalid results in a row", p->fail_streak);
+        evict_peer(m, pi, EVICT_BANNED, why);
+    }
+}
+
+/* A tile a worker kept for a master that went away, offered to us: accepted only for this
+ * very job (the key covers scene, assets, settings, frame and tile layout) and only after
+ * the same checks as a RESULT. It need not be assigned: it is a finished tile we lack. */
+static void on_kept(struct master *m, int32_t pi, const struct msg_kept *k)
+{
+    struct peer *p = &m->peers[pi];
+    p->last_progress_ms = net_now_ms();
+    if (k->job_id != m->job_id || !blob_hash_equal(&k->job_key, &m->job_key) || k->frame != m->frame ||
+        k->tile >= m->num_tiles) {
+        if (peer_should_log_drop(p))
+            log_warn("worker %s: kept tile %u (frame %u) was rendered for another job; dropped", p->name, k->tile,
+                     k->frame);
+        m->c.results_not_ours++;
+        return;
+    }
+    struct tile_slot *t = &m->tiles[k->tile];
+    if (t->state == TILE_DONE) {
+        m->c.kept_duplicate++;
+        ack_push(m, pi, k->job_id, k->frame, k->tile);
+        return;
+    }
+    char err[256];
+    if (!chunk_is_sane(m, k->tile, k->chunk, k->chunk_size, err, sizeof err)) {
+        log_warn("worker %s: kept tile %u rejected: %s", p->name, k->tile, err);
+        peer_sent_invalid(m, pi);
+        return;
+    }
+    p->fail_streak = 0;
+    if (tile_accept(m, k->tile, &k->stats, k->chunk, k->chunk_size) != 0)
+        return;
+    ack_push(m, pi, k->job_id, k->frame, k->tile);
+    m->c.tiles_from_kept++;
+    p->tiles_done++;
+    for (uint32_t i = 0; i < m->q_count; i++)
+        if (m->queue[i] == k->tile) {
+            queue_remove_at(m, i);
+            break;
+        }
+    while (t->num_holders > 0) /* copies in flight elsewhere will be duplicates */
+        tile_drop_holder(m, k->tile, t->holder[0]);
+}
+
 static void on_result(struct master *m, int32_t pi, const struct msg_result *r)
 {
     struct peer *p = &m->peers[pi];
     p->last_progress_ms = net_now_ms();
     if (r->job_id >= m->job_base && r->job_id < m->job_id) {
         /* A tile of an earlier frame of this range, finished after that frame was done
-         * (a straggler copy): expected. Its credit went with the old job. */
+         * (a straggler copy): expected. Its credit went with the old job; the frame is
+         * safe on disk, so the worker may forget the tile. */
         m->c.results_stale++;
+        ack_push(m, pi, r->job_id, r->frame, r->tile);
         return;
     }
     if (r->job_id == m->job_id && p->credits < p->threads * 4)
@@ -571,6 +705,8 @@ static void on_result(struct master *m, int32_t pi, const struct msg_result *r)
             m->c.results_duplicate++;
         else
             m->c.results_stale++;
+        if (t->state == TILE_DONE) /* we have it: the worker need not keep its copy */
+            ack_push(m, pi, r->job_id, r->frame, r->tile);
         if (!dup && peer_should_log_drop(p))
             log_warn("worker %s: result for tile %u attempt %u is stale or not assigned to it; dropped", p->name,
                      r->tile, r->attempt);
@@ -579,23 +715,16 @@ static void on_result(struct master *m, int32_t pi, const struct msg_result *r)
     char err[256];
     if (!chunk_is_sane(m, r->tile, r->chunk, r->chunk_size, err, sizeof err)) {
         log_warn("worker %s: tile %u rejected: %s; re-queued", p->name, r->tile, err);
-        m->c.results_invalid++;
         tile_drop_holder(m, r->tile, pi);
         p->isolated = 0;
-        if (++p->fail_streak >= FAILS_TO_BAN) {
-            p->banned = 1;
-            if (m->num_banned < sizeof m->banned_names / sizeof m->banned_names[0])
-                snprintf(m->banned_names[m->num_banned++], sizeof m->banned_names[0], "%s", p->name);
-            char why[64];
-            snprintf(why, sizeof why, "banned for the job: %u invalid results in a row", p->fail_streak);
-            evict_peer(m, pi, EVICT_BANNED, why);
-        }
+        peer_sent_invalid(m, pi);
         return;
     }
     p->fail_streak = 0;
     p->isolated = 0;
     if (tile_accept(m, r->tile, &r->stats, r->chunk, r->chunk_size) != 0)
         return;
+    ack_push(m, pi, r->job_id, r->frame, r->tile);
     p->tiles_done++;
     /* Both holders stop holding it (it is done, so nothing is re-queued): the other
      * holder's result, if any, will be a duplicate. */
@@ -739,6 +868,9 @@ static void handle_message(struct master *m, struct net_frame *f)
     case MSG_RESULT:
         on_result(m, pi, &msg.u.result);
         break;
+    case MSG_KEPT:
+        on_kept(m, pi, &msg.u.kept);
+        break;
     case MSG_ERROR:
         snprintf(m->last_worker_error, sizeof m->last_worker_error, "%s", msg.u.error.text);
         log_error("worker %s: %s", p->name, msg.u.error.text);
@@ -786,14 +918,18 @@ static int replay_tile(void *ctx, uint32_t tile, const struct tile_stats *st, co
 
 /* The journal belongs to exactly this job: scene and assets (the scene hash covers them
  * and the settings) plus the layout of tiles and the sampler. */
-static int open_journal(struct master *m)
+static void compute_job_key(struct master *m)
 {
     const struct render_settings *rs = &m->scene.settings;
     char ident[512];
     int n = snprintf(ident, sizeof ident, "brume-journal-1 %s tile=%u sampler=%u frame=%u tiles=%u", m->scene_hash,
                      rs->tile_size, (unsigned)rs->sampler, m->frame, m->num_tiles);
-    struct blob_hash key;
-    blob_hash_compute(ident, (size_t)n, &key);
+    blob_hash_compute(ident, (size_t)n, &m->job_key);
+}
+
+static int open_journal(struct master *m)
+{
+    const struct blob_hash key = m->job_key;
     char path[4200], err[512];
     snprintf(path, sizeof path, "%s.journal", m->out_path);
     uint32_t recovered;
@@ -806,6 +942,8 @@ static int open_journal(struct master *m)
         return -1;
     }
     m->have_journal = 1;
+    if (journal_syncer_start(&m->journal, err, sizeof err) != 0)
+        log_warn("%s; syncing in the main loop instead", err);
     if (other)
         log_warn("%s belonged to another job (scene or settings differ); starting afresh", path);
     if (recovered || torn)
@@ -867,6 +1005,7 @@ static int write_output(struct master *m, double seconds)
     /* Only now is the journal's content safe elsewhere. */
     if (m->have_journal) {
         journal_remove(&m->journal);
+        m->c.journal_syncs += m->journal.syncs;
         m->have_journal = 0;
     }
     if (o->preview_path) {
@@ -1234,6 +1373,7 @@ static int frame_begin(struct master *m, uint32_t frames_started)
         return -1;
     }
     frame_hash(m);
+    compute_job_key(m);
     if (o->have_frames && !o->only_tiles && output_is_done(m)) {
         char jpath[4300];
         snprintf(jpath, sizeof jpath, "%s.journal", m->out_path);
@@ -1254,6 +1394,7 @@ static int frame_begin(struct master *m, uint32_t frames_started)
         return -1;
     if (m->have_journal) {
         journal_close(&m->journal);
+        m->c.journal_syncs += m->journal.syncs;
         m->have_journal = 0;
     }
     /* A --tiles render is a debugging aid: it keeps no journal of its own. */
@@ -1304,7 +1445,8 @@ static int frame_render(struct master *m, uint64_t *last_beat)
         }
         zmq_pollitem_t items[3] = {{m->sock, 0, ZMQ_POLLIN, 0}, {m->zap, 0, ZMQ_POLLIN, 0}, {m->monitor, 0, ZMQ_POLLIN, 0}};
         int nitems = m->monitor ? 3 : m->zap ? 2 : 1;
-        if (zmq_poll(items, nitems, 100) < 0 && errno != EINTR) {
+        /* ACKs waiting for the sync thread: look again soon */
+        if (zmq_poll(items, nitems, m->num_acks ? 2 : 100) < 0 && errno != EINTR) {
             log_error("poll: %s", zmq_strerror(errno));
             return -1;
         }
@@ -1337,6 +1479,7 @@ static int frame_render(struct master *m, uint64_t *last_beat)
             return -1;
         }
         assign_tiles(m);
+        commit_and_ack(m, 0);
         if (now - *last_beat >= 1000) {
             struct proto_msg hb = {.type = MSG_HEARTBEAT};
             hb.u.heartbeat.job_id = m->job_id;
@@ -1350,6 +1493,11 @@ static int frame_render(struct master *m, uint64_t *last_beat)
             print_progress(m, start, tty, 0);
             last_progress = now;
         }
+    }
+    commit_and_ack(m, 1); /* the frame's last records on disk, every worker told */
+    if (m->fatal[0]) { /* e.g. the last journal sync failed */
+        log_error("%s", m->fatal);
+        return -1;
     }
     print_progress(m, start, tty, 1);
     double secs = (double)(net_now_ms() - start) / 1000.0;
@@ -1430,8 +1578,10 @@ done:
         }
         rmdir(m.ipc_dir);
     }
-    if (m.have_journal)
+    if (m.have_journal) {
         journal_close(&m.journal);
+        m.c.journal_syncs += m.journal.syncs;
+    }
     if (m.monitor)
         zmq_close(m.monitor);
     if (m.zap)
@@ -1449,6 +1599,7 @@ done:
     free(m.manifest);
     free(m.decode_scratch);
     free(m.allowed);
+    free(m.acks);
     proto_buf_free(&m.out);
     blob_store_free(&m.blobs);
     asset_dir_free(&m.assets);

@@ -5,7 +5,10 @@
  * tile id, so results are identical on any worker. Render threads render a tile row by
  * row and publish a per-thread progress counter after each row; heartbeats carry their
  * sum and how long the slowest busy thread has made no progress, so the master can tell
- * a hung render thread from a slow one. */
+ * a hung render thread from a slow one. A finished tile is kept until the master
+ * acknowledges it (ACK, sent after its journal sync); when the master goes silent the
+ * worker reconnects with back-off on a fresh socket, and a master that comes back on the
+ * same job (same job key) gets the kept tiles as KEPT messages. */
 #include "worker.h"
 #include "asset.h"
 #include "blob.h"
@@ -31,8 +34,23 @@
 #define FETCH_WINDOW 16         /* blob chunk requests in flight */
 #define TILES_PER_THREAD 2      /* credits: tiles queued or rendering per thread */
 #define HEARTBEAT_MS 1000
+#define MASTER_LOST_MS 4000     /* no word from the master this long: reconnect */
+#define BACKOFF_FIRST_MS 1000   /* then a fresh attempt after 1, 2, 4, 8, 8, ... s */
+#define BACKOFF_MAX_MS 8000
+#define KEPT_MAX_TILES 4096     /* kept tiles beyond these (oldest first) are dropped */
+#define KEPT_MAX_BYTES (1024ull * 1024 * 1024)
 
-struct tile_task { uint64_t job_id; uint32_t frame, tile, attempt; };
+/* job_key and conn: the job the tile belongs to (survives a master restart) and the
+ * connection it came on (a RESULT goes only to the master that assigned the tile). */
+struct tile_task { uint64_t job_id; uint32_t frame, tile, attempt; struct blob_hash job_key; uint32_t conn; };
+
+/* A finished tile the master has not acknowledged yet. */
+struct kept_tile {
+    struct tile_task task;  /* job_id is rewritten when offered to a master that came back */
+    struct tile_stats stats;
+    uint8_t *chunk;
+    size_t chunk_size;
+};
 
 struct tile_done {
     struct tile_task task;
@@ -90,10 +108,34 @@ struct worker {
     uint32_t tiles_done;
     struct thread_progress *progress;
     _Atomic uint32_t tiles_rendered;
+    struct net_key curve_pub, curve_sec, curve_server;
+    uint32_t conn;              /* connection number: a fresh socket and HELLO each */
+    uint32_t job_conn;          /* the connection the current JOB came on */
+    int lost;                   /* the master is silent: reconnecting */
+    uint64_t conn_at_ms;        /* last connection attempt */
+    uint32_t backoff_ms;
+    struct kept_tile *kept;
+    size_t num_kept, cap_kept, kept_bytes;
+    uint32_t kept_delivered, reconnects;
 };
 
 static volatile sig_atomic_t g_stop;
 static void on_signal(int sig) { (void)sig; g_stop = 1; }
+
+/* Sends without ever blocking: a message that cannot even be queued (no connection left,
+ * or its queue full) means the master is out of reach, so the worker reconnects; what
+ * mattered in it comes again (kept tiles are offered, READY follows the next JOB). */
+static int worker_send(struct worker *w, const struct proto_msg *m)
+{
+    if (net_send(w->sock, NULL, 0, m, &w->out) == 0)
+        return 0;
+    if (!w->lost) {
+        log_warn("cannot send %s to the master (%s); reconnecting", proto_type_name(m->type), zmq_strerror(errno));
+        w->lost = 1;
+        w->backoff_ms = 0; /* at once, then with back-off */
+    }
+    return -1;
+}
 
 /* ---- render threads ---- */
 
@@ -279,7 +321,7 @@ static void send_error(struct worker *w, const char *text)
     struct proto_msg m = {.type = MSG_ERROR};
     m.u.error.job_id = w->job.job_id;
     snprintf(m.u.error.text, sizeof m.u.error.text, "%s", text);
-    net_send(w->sock, NULL, 0, &m, &w->out);
+    worker_send(w, &m);
 }
 
 static void unload_job(struct worker *w)
@@ -354,7 +396,8 @@ static int load_job(struct worker *w)
     m.u.ready.credits = w->opts->threads * TILES_PER_THREAD;
     log_info("job %llu loaded: %ux%u, %u spp, %u threads", (unsigned long long)w->job.job_id, rs->width,
              rs->height, rs->spp, w->opts->threads);
-    return net_send(w->sock, NULL, 0, &m, &w->out);
+    worker_send(w, &m);
+    return 0;
 }
 
 static void request_chunks(struct worker *w, struct fetch *f)
@@ -365,7 +408,7 @@ static void request_chunks(struct worker *w, struct fetch *f)
         m.u.blob_req.offset = f->next_offset;
         uint64_t left = f->recv.size - f->next_offset;
         m.u.blob_req.length = (uint32_t)(left < BLOB_CHUNK_SIZE ? left : BLOB_CHUNK_SIZE);
-        if (net_send(w->sock, NULL, 0, &m, &w->out) != 0)
+        if (worker_send(w, &m) != 0)
             return;
         f->next_offset += m.u.blob_req.length;
         f->in_flight++;
@@ -394,15 +437,19 @@ static int job_same_scene(const struct msg_job *a, const struct msg_job *b)
     return 1;
 }
 
+static void offer_kept(struct worker *w, int new_job_same_conn, uint64_t old_job_id);
+
 /* The next frame of the loaded scene: keep the parsed scene, rebuild what depends on the
  * frame (Embree scene with its motion steps, camera at the frame's time). */
-static int switch_frame(struct worker *w, struct msg_job *job)
+static int switch_frame(struct worker *w, struct msg_job *job, int same_conn, uint64_t old_job)
 {
     char err[512];
     pool_stop(&w->pool); /* tiles being rendered finish and go out under their old job id */
     render_job_free(&w->rjob);
     proto_job_free(&w->job);
     w->job = *job;
+    /* Kept tiles go before READY: the master must not hand them out meanwhile. */
+    offer_kept(w, same_conn, old_job);
     if (render_job_init(&w->rjob, &w->scene, w->job.frame, w->opts->threads, err, sizeof err) != 0) {
         scene_free(&w->scene);
         w->loaded = 0;
@@ -415,16 +462,22 @@ static int switch_frame(struct worker *w, struct msg_job *job)
     m.u.ready.job_id = w->job.job_id;
     m.u.ready.credits = w->opts->threads * TILES_PER_THREAD;
     log_info("job %llu: frame %u (scene kept)", (unsigned long long)w->job.job_id, w->job.frame);
-    return net_send(w->sock, NULL, 0, &m, &w->out);
+    worker_send(w, &m);
+    return 0;
 }
 
 static int on_job(struct worker *w, struct msg_job *job)
 {
+    /* A new job on the connection that brought the last one: that frame is done. */
+    int same_conn = w->have_job && w->job_conn == w->conn && job->job_id != w->job.job_id;
+    uint64_t old_job = w->have_job ? w->job.job_id : 0;
+    w->job_conn = w->conn;
     if (w->loaded && w->have_job && job_same_scene(&w->job, job))
-        return switch_frame(w, job);
+        return switch_frame(w, job, same_conn, old_job);
     unload_job(w);
     w->job = *job;   /* takes ownership of the asset array */
     w->have_job = 1;
+    offer_kept(w, same_conn, old_job);
     w->fetches = mem_calloc(job->num_assets ? job->num_assets : 1, sizeof *w->fetches);
     for (uint32_t i = 0; i < job->num_assets; i++) {
         const struct proto_asset *a = &job->assets[i];
@@ -501,30 +554,132 @@ static void on_tile(struct worker *w, const struct msg_tile *t)
                  (unsigned long long)t->job_id, t->frame);
         return;
     }
-    struct tile_task task = {t->job_id, t->frame, t->tile, t->attempt};
+    struct tile_task task = {t->job_id, t->frame, t->tile, t->attempt, w->job.job_key, w->conn};
     if (pool_push(&w->pool, &task) != 0)
         log_warn("dropping TILE %u: master exceeded our credits", t->tile);
 }
 
+static void kept_free_at(struct worker *w, size_t i)
+{
+    w->kept_bytes -= w->kept[i].chunk_size;
+    free(w->kept[i].chunk);
+    memmove(&w->kept[i], &w->kept[i + 1], sizeof *w->kept * (w->num_kept - i - 1)); /* oldest stay first */
+    w->num_kept--;
+}
+
+/* Offers kept tile k to the master of the current job as KEPT (it was rendered for this
+ * job key, under another connection). */
+static void send_kept(struct worker *w, struct kept_tile *k)
+{
+    k->task.job_id = w->job.job_id; /* the ACK will name the current job */
+    k->task.conn = w->conn;
+    struct proto_msg m = {.type = MSG_KEPT};
+    m.u.kept.job_id = w->job.job_id;
+    m.u.kept.job_key = k->task.job_key;
+    m.u.kept.frame = k->task.frame;
+    m.u.kept.tile = k->task.tile;
+    m.u.kept.stats = k->stats;
+    m.u.kept.chunk = k->chunk;
+    m.u.kept.chunk_size = (uint32_t)k->chunk_size;
+    worker_send(w, &m);
+    w->kept_delivered++;
+}
+
+/* A job of this connection whose key the tile was rendered for. */
+static int kept_matches_job(const struct worker *w, const struct kept_tile *k)
+{
+    return w->have_job && w->job_conn == w->conn && !w->lost && blob_hash_equal(&k->task.job_key, &w->job.job_key) &&
+           k->task.frame == w->job.frame;
+}
+
+/* A finished tile: kept until acknowledged, sent as RESULT to the master that assigned
+ * it, or as KEPT when that master is gone and the one now connected runs the same job. */
 static void send_result(struct worker *w, struct tile_done *d)
 {
     if (d->failed) {
         char text[PROTO_MAX_STRING];
         snprintf(text, sizeof text, "tile %u: %s", d->task.tile, d->err);
         log_error("%s", text);
-        send_error(w, text);
+        if (d->task.conn == w->conn)
+            send_error(w, text);
         return;
     }
-    struct proto_msg m = {.type = MSG_RESULT};
-    m.u.result.job_id = d->task.job_id;
-    m.u.result.frame = d->task.frame;
-    m.u.result.tile = d->task.tile;
-    m.u.result.attempt = d->task.attempt;
-    m.u.result.stats = d->stats;
-    m.u.result.chunk = d->chunk;
-    m.u.result.chunk_size = (uint32_t)d->chunk_size;
-    net_send(w->sock, NULL, 0, &m, &w->out);
+    while (w->num_kept > 0 && (w->num_kept >= KEPT_MAX_TILES || w->kept_bytes + d->chunk_size > KEPT_MAX_BYTES)) {
+        log_warn("too many unacknowledged tiles; dropping tile %u of frame %u", w->kept[0].task.tile,
+                 w->kept[0].task.frame);
+        kept_free_at(w, 0);
+    }
+    if (w->num_kept == w->cap_kept) {
+        w->cap_kept = w->cap_kept ? w->cap_kept * 2 : 16;
+        w->kept = mem_realloc(w->kept, sizeof *w->kept * w->cap_kept);
+    }
+    struct kept_tile *k = &w->kept[w->num_kept++];
+    k->task = d->task;
+    k->stats = d->stats;
+    k->chunk = d->chunk; /* the kept tile owns the chunk now */
+    k->chunk_size = d->chunk_size;
+    w->kept_bytes += d->chunk_size;
+    d->chunk = NULL;
     w->tiles_done++;
+    if (k->task.conn == w->conn && !w->lost) {
+        struct proto_msg m = {.type = MSG_RESULT};
+        m.u.result.job_id = k->task.job_id;
+        m.u.result.frame = k->task.frame;
+        m.u.result.tile = k->task.tile;
+        m.u.result.attempt = k->task.attempt;
+        m.u.result.stats = k->stats;
+        m.u.result.chunk = k->chunk;
+        m.u.result.chunk_size = (uint32_t)k->chunk_size;
+        worker_send(w, &m);
+    } else if (kept_matches_job(w, k)) {
+        send_kept(w, k);
+    }
+}
+
+static void on_ack(struct worker *w, const struct msg_ack *a)
+{
+    for (uint32_t i = 0; i < a->count; i++)
+        for (size_t k = 0; k < w->num_kept; k++) {
+            const struct tile_task *t = &w->kept[k].task;
+            if (t->job_id == a->job_id && t->frame == a->frame && t->tile == a->tiles[i]) {
+                kept_free_at(w, k);
+                break;
+            }
+        }
+}
+
+/* Finished tiles waiting in the results socket go to the kept list (and out). */
+static void drain_results(struct worker *w)
+{
+    struct tile_done *d;
+    while (zmq_recv(w->results, &d, sizeof d, ZMQ_DONTWAIT) == (int)sizeof d) {
+        send_result(w, d);
+        free(d->chunk);
+        free(d);
+    }
+}
+
+/* After a JOB: tiles kept for this job key (a master that came back on the same job)
+ * are offered to it; tiles of earlier jobs of this same connection are dropped, since a
+ * master moves to the next frame only after the last one is safely written. */
+static void offer_kept(struct worker *w, int new_job_same_conn, uint64_t old_job_id)
+{
+    drain_results(w);
+    uint32_t offered = 0;
+    for (size_t i = 0; i < w->num_kept;) {
+        struct kept_tile *k = &w->kept[i];
+        if (new_job_same_conn && k->task.conn == w->conn && k->task.job_id == old_job_id) {
+            kept_free_at(w, i);
+            continue;
+        }
+        if (kept_matches_job(w, k) && (k->task.conn != w->conn || k->task.job_id != w->job.job_id)) {
+            send_kept(w, k);
+            offered++;
+        }
+        i++;
+    }
+    if (offered)
+        log_info("offered %u finished tile(s) kept for this job to the master", offered);
 }
 
 /* Leaving: finish the tiles being rendered and send them, so a master that evicted us
@@ -532,12 +687,35 @@ static void send_result(struct worker *w, struct tile_done *d)
 static void flush_results(struct worker *w)
 {
     pool_stop(&w->pool);
-    struct tile_done *d;
-    while (zmq_recv(w->results, &d, sizeof d, ZMQ_DONTWAIT) == (int)sizeof d) {
-        send_result(w, d);
-        free(d->chunk);
-        free(d);
+    drain_results(w);
+}
+
+/* A fresh socket and HELLO: a restarted master does not know our old connection, and
+ * what was queued for the old one must not reach it. */
+static int connect_master(struct worker *w)
+{
+    if (w->sock)
+        zmq_close(w->sock);
+    w->sock = zmq_socket(w->zctx, ZMQ_DEALER);
+    net_socket_setup(w->sock);
+    if (w->opts->curve_secret && net_curve_client(w->sock, &w->curve_server, &w->curve_pub, &w->curve_sec) != 0) {
+        log_error("cannot enable CurveZMQ: %s", zmq_strerror(errno));
+        return -1;
     }
+    if (zmq_connect(w->sock, w->opts->endpoint) != 0) {
+        log_error("cannot connect to %s: %s", w->opts->endpoint, zmq_strerror(errno));
+        return -1;
+    }
+    w->conn++;
+    w->conn_at_ms = net_now_ms();
+    char host[256] = "";
+    gethostname(host, sizeof host - 1);
+    struct proto_msg hello = {.type = MSG_HELLO};
+    hello.u.hello.threads = w->opts->threads;
+    hello.u.hello.pid = (uint32_t)getpid();
+    snprintf(hello.u.hello.host, sizeof hello.u.hello.host, "%s", host);
+    worker_send(w, &hello);
+    return 0;
 }
 
 int worker_run(const struct worker_opts *opts)
@@ -547,37 +725,26 @@ int worker_run(const struct worker_opts *opts)
     w.opts = opts;
     signal(SIGINT, on_signal);
     signal(SIGTERM, on_signal);
+    signal(SIGPIPE, SIG_IGN); /* a master that vanished is noticed by silence, not a signal */
     w.zctx = zmq_ctx_new();
-    w.sock = zmq_socket(w.zctx, ZMQ_DEALER);
-    net_socket_setup(w.sock);
     w.results = zmq_socket(w.zctx, ZMQ_PULL);
     net_socket_setup(w.results);
     w.progress = mem_calloc(opts->threads, sizeof *w.progress);
     int rc = 1;
     if (opts->curve_secret) {
-        struct net_key pub, sec, server;
         char err[512] = "";
-        if (net_key_pair_load(opts->curve_secret, &pub, &sec, err, sizeof err) != 0 ||
-            net_key_public_load(opts->server_key, &server, err, sizeof err) != 0) {
+        if (net_key_pair_load(opts->curve_secret, &w.curve_pub, &w.curve_sec, err, sizeof err) != 0 ||
+            net_key_public_load(opts->server_key, &w.curve_server, err, sizeof err) != 0) {
             log_error("%s", err);
             goto done;
         }
-        if (net_curve_client(w.sock, &server, &pub, &sec) != 0) {
-            log_error("cannot enable CurveZMQ: %s", zmq_strerror(errno));
-            goto done;
-        }
     }
-    if (zmq_bind(w.results, "inproc://results") != 0 || zmq_connect(w.sock, opts->endpoint) != 0) {
-        log_error("cannot connect to %s: %s", opts->endpoint, zmq_strerror(errno));
+    if (zmq_bind(w.results, "inproc://results") != 0) {
+        log_error("cannot bind the results socket: %s", zmq_strerror(errno));
         goto done;
     }
-    char host[256] = "";
-    gethostname(host, sizeof host - 1);
-    struct proto_msg hello = {.type = MSG_HELLO};
-    hello.u.hello.threads = opts->threads;
-    hello.u.hello.pid = (uint32_t)getpid();
-    snprintf(hello.u.hello.host, sizeof hello.u.hello.host, "%s", host);
-    net_send(w.sock, NULL, 0, &hello, &w.out);
+    if (connect_master(&w) != 0)
+        goto done;
 
     uint64_t last_heard = net_now_ms(), last_beat = net_now_ms();
     while (!g_stop) {
@@ -588,14 +755,8 @@ int worker_run(const struct worker_opts *opts)
             goto done;
         }
         uint64_t now = net_now_ms();
-        if (items[1].revents & ZMQ_POLLIN) {
-            struct tile_done *d;
-            while (zmq_recv(w.results, &d, sizeof d, ZMQ_DONTWAIT) == (int)sizeof d) {
-                send_result(&w, d);
-                free(d->chunk);
-                free(d);
-            }
-        }
+        if (items[1].revents & ZMQ_POLLIN)
+            drain_results(&w);
         if (items[0].revents & ZMQ_POLLIN) {
             struct net_frame f;
             int got;
@@ -604,7 +765,6 @@ int worker_run(const struct worker_opts *opts)
                     log_warn("master: malformed envelope dropped");
                     continue;
                 }
-                last_heard = now;
                 struct proto_msg m;
                 char err[256];
                 if (proto_decode(f.data, f.size, &m, err, sizeof err) != 0) {
@@ -612,10 +772,18 @@ int worker_run(const struct worker_opts *opts)
                     net_frame_free(&f);
                     continue;
                 }
+                last_heard = now;
+                if (w.lost) {
+                    log_info("the master at %s answers again", opts->endpoint);
+                    w.lost = 0;
+                }
                 int fatal = 0;
                 switch (m.type) {
                 case MSG_JOB:
                     fatal = on_job(&w, &m.u.job) != 0;
+                    break;
+                case MSG_ACK:
+                    on_ack(&w, &m.u.ack);
                     break;
                 case MSG_BLOB_DATA:
                     fatal = on_blob_data(&w, &m.u.blob_data) != 0;
@@ -638,7 +806,22 @@ int worker_run(const struct worker_opts *opts)
                     goto done;
             }
         }
-        if (now - last_beat >= HEARTBEAT_MS) {
+        if (!w.lost && now - last_heard > MASTER_LOST_MS && now - w.conn_at_ms > MASTER_LOST_MS) {
+            log_warn("no word from the master at %s for %llu ms; reconnecting (%zu finished tile(s) kept)",
+                     opts->endpoint, (unsigned long long)(now - last_heard), w.num_kept);
+            w.lost = 1;
+            w.backoff_ms = BACKOFF_FIRST_MS;
+            w.reconnects++;
+            if (connect_master(&w) != 0)
+                goto done;
+        } else if (w.lost && now - w.conn_at_ms >= w.backoff_ms) {
+            w.backoff_ms = w.backoff_ms == 0 ? BACKOFF_FIRST_MS
+                           : w.backoff_ms * 2 > BACKOFF_MAX_MS ? BACKOFF_MAX_MS : w.backoff_ms * 2;
+            w.reconnects++;
+            if (connect_master(&w) != 0)
+                goto done;
+        }
+        if (!w.lost && now - last_beat >= HEARTBEAT_MS) {
             struct proto_msg hb = {.type = MSG_HEARTBEAT};
             hb.u.heartbeat.job_id = w.have_job ? w.job.job_id : 0;
             hb.u.heartbeat.tiles_done = w.tiles_done;
@@ -650,7 +833,7 @@ int worker_run(const struct worker_opts *opts)
                     stalled = now - last;
             }
             hb.u.heartbeat.stalled_ms = stalled > UINT32_MAX ? UINT32_MAX : (uint32_t)stalled;
-            net_send(w.sock, NULL, 0, &hb, &w.out);
+            worker_send(&w, &hb);
             last_beat = now;
         }
         if (now - last_heard > opts->master_timeout_ms) {
@@ -661,11 +844,17 @@ int worker_run(const struct worker_opts *opts)
     if (g_stop && rc != 0)
         rc = 0; /* stopped by a signal or BYE: a clean exit */
 done:
+    log_info("rendered %u tile(s); %u offered again to a master that came back; %u reconnection(s)",
+             atomic_load(&w.tiles_rendered), w.kept_delivered, w.reconnects);
     unload_job(&w);
+    while (w.num_kept > 0)
+        kept_free_at(&w, w.num_kept - 1);
+    free(w.kept);
     blob_store_free(&w.cache);
     proto_buf_free(&w.out);
     zmq_close(w.results);
-    zmq_close(w.sock);
+    if (w.sock)
+        zmq_close(w.sock);
     zmq_ctx_term(w.zctx);
     free(w.progress);
     return rc;

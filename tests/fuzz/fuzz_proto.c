@@ -29,7 +29,7 @@ static int msg_eq(const struct proto_msg *a, const struct proto_msg *b)
                strcmp(a->u.hello.host, b->u.hello.host) == 0;
     case MSG_JOB: {
         const struct msg_job *x = &a->u.job, *y = &b->u.job;
-        if (x->job_id != y->job_id || x->frame != y->frame || x->width != y->width ||
+        if (x->job_id != y->job_id || !hash_eq(&x->job_key, &y->job_key) || x->frame != y->frame || x->width != y->width ||
             x->height != y->height || x->spp != y->spp || x->max_depth != y->max_depth ||
             x->tile_size != y->tile_size || x->seed != y->seed ||
             strcmp(x->scene_path, y->scene_path) != 0 || x->num_assets != y->num_assets)
@@ -73,6 +73,22 @@ static int msg_eq(const struct proto_msg *a, const struct proto_msg *b)
                a->u.heartbeat.stalled_ms == b->u.heartbeat.stalled_ms;
     case MSG_BYE:
         return 1;
+    case MSG_ACK:
+        if (a->u.ack.job_id != b->u.ack.job_id || a->u.ack.frame != b->u.ack.frame || a->u.ack.count != b->u.ack.count)
+            return 0;
+        for (uint32_t i = 0; i < a->u.ack.count; i++)
+            if (a->u.ack.tiles[i] != b->u.ack.tiles[i])
+                return 0;
+        return 1;
+    case MSG_KEPT: {
+        const struct msg_kept *x = &a->u.kept, *y = &b->u.kept;
+        return x->job_id == y->job_id && hash_eq(&x->job_key, &y->job_key) && x->frame == y->frame &&
+               x->tile == y->tile && x->stats.samples == y->stats.samples && x->stats.rays == y->stats.rays &&
+               x->stats.nan_samples == y->stats.nan_samples && x->stats.render_ns == y->stats.render_ns &&
+               memcmp(&x->stats.sum_rel_stderr, &y->stats.sum_rel_stderr, sizeof(double)) == 0 &&
+               x->stats.rel_stderr_pixels == y->stats.rel_stderr_pixels && x->chunk_size == y->chunk_size &&
+               bytes_eq(x->chunk, y->chunk, x->chunk_size);
+    }
     case MSG_TYPE_MAX_:
         break;
     }

@@ -13,8 +13,11 @@ X=$BUILD/exrtool
 T=$(mktemp -d /tmp/brume-faults.XXXXXX)
 pass=0
 fail=0
+ours() { tr '\0' ' ' 2>/dev/null <"/proc/$1/cmdline" | grep -q "$T"; }
 cleanup() {
-  for p in $(cat "$T/pids" 2>/dev/null); do kill -9 "$p" 2>/dev/null; done
+  # only processes of this test (their command lines name $T): a pid that exited may
+  # have been reused by someone else's process by now
+  for p in $(cat "$T/pids" 2>/dev/null); do ours "$p" && kill -9 "$p" 2>/dev/null; done
   mountpoint -q "$T/full" 2>/dev/null && umount "$T/full"
   rm -rf "$T"
 }

@@ -7,7 +7,8 @@
  * magic, versions and types, length fields that lie, random mutations, a second HELLO,
  * messages only a master sends (TILE, JOB, BLOB_DATA), READY for another job, BLOB_REQ
  * for unknown hashes and bad ranges, and RESULTs with foreign ids or for tiles never
- * assigned. Every generated frame is classified here with proto_decode first, so the
+ * assigned, ACKs (only a master sends them) and KEPT tiles for another job key, frame,
+ * job id or tile. Every generated frame is classified here with proto_decode first, so the
  * expected master counter of each is exact; the tool prints the sums as
  * "replay: expect COUNTER N" lines for the test to compare with the master's summary.
  * It ends with a BYE (so the master has read everything before it) and then sends one
@@ -131,6 +132,19 @@ static void sample(enum proto_type t, uint64_t job_id, uint32_t variant, struct 
         break;
     case MSG_HEARTBEAT:
         m->u.heartbeat.job_id = job_id;
+        break;
+    case MSG_ACK:
+        m->u.ack.job_id = job_id;
+        m->u.ack.count = 1 + variant % 3;
+        for (uint32_t i = 0; i < m->u.ack.count; i++)
+            m->u.ack.tiles[i] = variant + i;
+        break;
+    case MSG_KEPT:
+        m->u.kept.job_id = job_id;
+        m->u.kept.job_key.bytes[0] = (uint8_t)(0xa0 + variant);
+        m->u.kept.tile = variant;
+        m->u.kept.chunk = g_chunk;
+        m->u.kept.chunk_size = sizeof g_chunk;
         break;
     case MSG_BYE:
     case MSG_TYPE_MAX_:
@@ -316,8 +330,8 @@ int main(int argc, char **argv)
         sample(MSG_HELLO, 0, v, &m);
         send_msg(&m, EX_UNEXPECTED);
     }
-    for (uint32_t v = 0; v < 10; v++) { /* what only a master sends */
-        sample(v % 3 == 0 ? MSG_TILE : v % 3 == 1 ? MSG_JOB : MSG_BLOB_DATA, job.job_id, v, &m);
+    for (uint32_t v = 0; v < 12; v++) { /* what only a master sends */
+        sample(v % 4 == 0 ? MSG_TILE : v % 4 == 1 ? MSG_JOB : v % 4 == 2 ? MSG_BLOB_DATA : MSG_ACK, job.job_id, v, &m);
         send_msg(&m, EX_UNEXPECTED);
     }
     for (uint32_t v = 0; v < 10; v++) { /* READY for another job */
@@ -346,6 +360,20 @@ int main(int argc, char **argv)
         send_msg(&m, EX_NOT_OURS);
         sample(MSG_RESULT, job.job_id, num_tiles + v * 977, &m);
         m.u.result.frame = job.frame;
+        send_msg(&m, EX_NOT_OURS);
+    }
+    for (uint32_t v = 0; v < 10; v++) { /* kept tiles of another job (key), frame, job id or tile */
+        sample(MSG_KEPT, job.job_id, v % num_tiles, &m);
+        m.u.kept.frame = job.frame;
+        send_msg(&m, EX_NOT_OURS); /* a key that is not the job's */
+        m.u.kept.job_key = job.job_key;
+        m.u.kept.frame = job.frame + 1 + v;
+        send_msg(&m, EX_NOT_OURS);
+        m.u.kept.frame = job.frame;
+        m.u.kept.job_id = job.job_id + 1 + v;
+        send_msg(&m, EX_NOT_OURS);
+        m.u.kept.job_id = job.job_id;
+        m.u.kept.tile = num_tiles + v * 977;
         send_msg(&m, EX_NOT_OURS);
     }
     for (uint32_t v = 0; v < 10; v++) { /* a RESULT for a tile never given to us (attempt 0: never issued) */

@@ -81,6 +81,43 @@ Test(journal, records_survive_reopen)
     cr_assert_neq(access(path, F_OK), 0);
 }
 
+/* Group commit: records written without a sync are pending until one journal_sync makes
+ * all of them durable; they read back like appended ones. */
+Test(journal, group_commit_syncs_a_batch)
+{
+    char path[256];
+    tmp_path(path, sizeof path);
+    struct journal j;
+    uint32_t rec;
+    uint64_t torn;
+    int other;
+    char err[256];
+    struct blob_hash k = key_of("job");
+    cr_assert_eq(journal_open(&j, path, &k, 16, NULL, NULL, &rec, &torn, &other, err, sizeof err), 0, "%s", err);
+    cr_assert_eq(j.synced, j.end);
+    uint8_t chunk[64];
+    for (uint32_t i = 0; i < 4; i++) {
+        memset(chunk, (int)i, sizeof chunk);
+        struct tile_stats st = {.samples = i, .sum_rel_stderr = 0.25 * i};
+        cr_assert_eq(journal_write(&j, i + 3, &st, chunk, 10 + i, err, sizeof err), 0, "%s", err);
+        cr_assert_lt(j.synced, j.end, "a written record is pending until the sync");
+    }
+    cr_assert_eq(journal_sync(&j, err, sizeof err), 0, "%s", err);
+    cr_assert_eq(j.synced, j.end);
+    cr_assert_eq(journal_sync(&j, err, sizeof err), 0, "nothing pending: a no-op");
+    journal_close(&j);
+    struct seen s = {0};
+    cr_assert_eq(journal_open(&j, path, &k, 16, on_tile, &s, &rec, &torn, &other, err, sizeof err), 0);
+    cr_assert_eq(rec, 4);
+    cr_assert_eq(torn, 0);
+    for (uint32_t i = 0; i < 4; i++) {
+        cr_assert_eq(s.tiles[i], i + 3);
+        cr_assert_eq(s.sizes[i], 10 + i);
+        cr_assert_eq(s.first[i], (uint8_t)i);
+    }
+    cr_assert_eq(journal_remove(&j), 0);
+}
+
 Test(journal, cut_at_every_byte_recovers_whole_records, .timeout = 60)
 {
     char path[256];

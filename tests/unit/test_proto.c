@@ -43,6 +43,7 @@ static size_t make_samples(struct proto_msg out[MSG_TYPE_MAX_])
     }
     out[n].type = MSG_JOB;
     out[n].u.job.job_id = 0x1122334455667788ull;
+    out[n].u.job.job_key = make_hash(77);
     out[n].u.job.frame = 42;
     out[n].u.job.width = 1920;
     out[n].u.job.height = 1080;
@@ -111,6 +112,30 @@ static size_t make_samples(struct proto_msg out[MSG_TYPE_MAX_])
 
     out[n].type = MSG_BYE;
     n++;
+
+    out[n].type = MSG_ACK;
+    out[n].u.ack.job_id = 0x0102030405060708ull;
+    out[n].u.ack.frame = 6;
+    out[n].u.ack.count = 3;
+    out[n].u.ack.tiles[0] = 0;
+    out[n].u.ack.tiles[1] = 0x01020304u;
+    out[n].u.ack.tiles[2] = 1023;
+    n++;
+
+    out[n].type = MSG_KEPT;
+    out[n].u.kept.job_id = 0x8877665544332211ull;
+    out[n].u.kept.job_key = make_hash(78);
+    out[n].u.kept.frame = 7;
+    out[n].u.kept.tile = 0x0a0b0c0du;
+    out[n].u.kept.stats.samples = 5;
+    out[n].u.kept.stats.rays = 0x0123456789abcdefull;
+    out[n].u.kept.stats.nan_samples = 1;
+    out[n].u.kept.stats.render_ns = 987654321;
+    out[n].u.kept.stats.sum_rel_stderr = -0.5;
+    out[n].u.kept.stats.rel_stderr_pixels = 3;
+    out[n].u.kept.chunk = k_chunk_bytes;
+    out[n].u.kept.chunk_size = sizeof k_chunk_bytes;
+    n++;
     return n;
 }
 
@@ -131,6 +156,7 @@ static void assert_msg_eq(const struct proto_msg *a, const struct proto_msg *b)
     case MSG_JOB: {
         const struct msg_job *x = &a->u.job, *y = &b->u.job;
         cr_assert_eq(x->job_id, y->job_id);
+        assert_hash_eq(&x->job_key, &y->job_key);
         cr_assert_eq(x->frame, y->frame);
         cr_assert_eq(x->width, y->width);
         cr_assert_eq(x->height, y->height);
@@ -196,6 +222,29 @@ static void assert_msg_eq(const struct proto_msg *a, const struct proto_msg *b)
         cr_assert_eq(a->u.heartbeat.samples_done, b->u.heartbeat.samples_done);
         cr_assert_eq(a->u.heartbeat.stalled_ms, b->u.heartbeat.stalled_ms);
         break;
+    case MSG_ACK:
+        cr_assert_eq(a->u.ack.job_id, b->u.ack.job_id);
+        cr_assert_eq(a->u.ack.frame, b->u.ack.frame);
+        cr_assert_eq(a->u.ack.count, b->u.ack.count);
+        for (uint32_t i = 0; i < a->u.ack.count; i++)
+            cr_assert_eq(a->u.ack.tiles[i], b->u.ack.tiles[i]);
+        break;
+    case MSG_KEPT: {
+        const struct msg_kept *x = &a->u.kept, *y = &b->u.kept;
+        cr_assert_eq(x->job_id, y->job_id);
+        assert_hash_eq(&x->job_key, &y->job_key);
+        cr_assert_eq(x->frame, y->frame);
+        cr_assert_eq(x->tile, y->tile);
+        cr_assert_eq(x->stats.samples, y->stats.samples);
+        cr_assert_eq(x->stats.rays, y->stats.rays);
+        cr_assert_eq(x->stats.nan_samples, y->stats.nan_samples);
+        cr_assert_eq(x->stats.render_ns, y->stats.render_ns);
+        cr_assert(memcmp(&x->stats.sum_rel_stderr, &y->stats.sum_rel_stderr, sizeof(double)) == 0);
+        cr_assert_eq(x->stats.rel_stderr_pixels, y->stats.rel_stderr_pixels);
+        cr_assert_eq(x->chunk_size, y->chunk_size);
+        cr_assert(memcmp(x->chunk, y->chunk, x->chunk_size) == 0);
+        break;
+    }
     case MSG_BYE:
     case MSG_TYPE_MAX_:
         break;
@@ -264,6 +313,7 @@ static void fb_job_prefix(struct fb *b, uint32_t width, uint32_t height, uint32_
 {
     fb_header(b, MSG_JOB);
     fb_u(b, 1, 8);
+    fb_fill(b, 0x5a, BLOB_HASH_SIZE); /* job_key */
     fb_u(b, 0, 4);
     fb_u(b, width, 4);
     fb_u(b, height, 4);
@@ -405,7 +455,10 @@ Test(proto, wrong_magic_and_version)
     b.data[0] ^= 0x20;
     b.data[4] = PROTO_VERSION + 1;
     err = expect_reject(b.data, b.size);
-    cr_assert(strstr(err, "version 3") && strstr(err, "speaks version 2"), "names both versions: %s", err);
+    char want_theirs[32], want_ours[48];
+    snprintf(want_theirs, sizeof want_theirs, "version %d", PROTO_VERSION + 1);
+    snprintf(want_ours, sizeof want_ours, "speaks version %d", PROTO_VERSION);
+    cr_assert(strstr(err, want_theirs) && strstr(err, want_ours), "names both versions: %s", err);
     b.data[4] = 0;
     b.data[5] = 1;
     err = expect_reject(b.data, b.size);
@@ -437,6 +490,8 @@ Test(proto, type_names)
     cr_assert_str_eq(proto_type_name(MSG_ERROR), "ERROR");
     cr_assert_str_eq(proto_type_name(MSG_HEARTBEAT), "HEARTBEAT");
     cr_assert_str_eq(proto_type_name(MSG_BYE), "BYE");
+    cr_assert_str_eq(proto_type_name(MSG_ACK), "ACK");
+    cr_assert_str_eq(proto_type_name(MSG_KEPT), "KEPT");
     cr_assert_str_eq(proto_type_name(MSG_TYPE_MAX_), "UNKNOWN");
     cr_assert_str_eq(proto_type_name((enum proto_type)0), "UNKNOWN");
 }
@@ -650,6 +705,41 @@ Test(proto, result_limits)
         r->u.result.stats.sum_rel_stderr = bad[i];
         cr_assert_eq(proto_encode(r, &b), -1);
     }
+    proto_buf_free(&b);
+}
+
+Test(proto, ack_and_kept_limits)
+{
+    struct fb f = {0};
+    fb_header(&f, MSG_ACK);
+    fb_u(&f, 1, 8);
+    fb_u(&f, 0, 4);
+    fb_u(&f, PROTO_MAX_ACK_TILES + 1, 4);
+    fb_fill(&f, 0, 4 * (PROTO_MAX_ACK_TILES + 1));
+    const char *err = expect_reject(f.d, f.n);
+    cr_assert(strstr(err, "count") && strstr(err, "limit"), "%s", err);
+    /* A count the frame does not hold is a truncation. */
+    fb_header(&f, MSG_ACK);
+    fb_u(&f, 1, 8);
+    fb_u(&f, 0, 4);
+    fb_u(&f, 3, 4);
+    fb_u(&f, 7, 4);
+    err = expect_reject(f.d, f.n);
+    cr_assert(strstr(err, "truncated"), "%s", err);
+    fb_header(&f, MSG_KEPT);
+    fb_fill(&f, 0, 8 + BLOB_HASH_SIZE + 4 * 2 + 8 * 4 + 8 + 4);
+    fb_u(&f, PROTO_MAX_CHUNK + 1, 4);
+    err = expect_reject(f.d, f.n);
+    cr_assert(strstr(err, "chunk") && strstr(err, "limit"), "%s", err);
+    free(f.d);
+
+    struct proto_msg m = {.type = MSG_ACK};
+    struct proto_buf b = {0};
+    m.u.ack.count = PROTO_MAX_ACK_TILES + 1;
+    cr_assert_eq(proto_encode(&m, &b), -1);
+    m.u.ack.count = PROTO_MAX_ACK_TILES;
+    cr_assert_eq(proto_encode(&m, &b), 0);
+    cr_assert_eq(b.size, 8 + 8 + 4 + 4 + 4 * PROTO_MAX_ACK_TILES);
     proto_buf_free(&b);
 }
 

@@ -1,0 +1,44 @@
+#!/bin/sh
+# The protocol decoder's libFuzzer target, briefly, for `make test`: built with clang
+# (-fsanitize=fuzzer,address,undefined) from the decoder's own sources only, seeded with
+# one valid message of every type (tests/fuzz/proto_seeds.c), run for FUZZ_CI_SECONDS
+# (default 5). The target checks that every rejection has a reason and that whatever
+# decodes re-encodes to the same bytes. A crash fails the test; its input is kept in
+# $BUILD/fuzz-ci/. `make fuzz` runs every target longer. Ends with "fuzz: ..." lines.
+set -u
+cd "$(dirname "$0")/../.." || exit 2
+BUILD=${BUILD:-build}
+SECONDS_TO_RUN=${FUZZ_CI_SECONDS:-5}
+CC_FUZZ=${CC_FUZZ:-clang}
+OUT="$BUILD/fuzz-ci"
+mkdir -p "$OUT"
+if ! command -v "$CC_FUZZ" >/dev/null 2>&1; then
+  echo "fuzz: FAILED: $CC_FUZZ not found (scripts/install-deps.sh installs clang)"
+  exit 1
+fi
+SRC="tests/fuzz/fuzz_proto.c common/proto.c common/log.c"
+BIN="$OUT/fuzz_proto"
+# rebuilt only when a source changed
+if [ ! -x "$BIN" ] || [ -n "$(find $SRC common/proto.h common/log.h -newer "$BIN" 2>/dev/null)" ]; then
+  if ! $CC_FUZZ -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined -std=c11 -D_GNU_SOURCE \
+      -Icommon $SRC -o "$BIN" -lm -pthread >"$OUT/build.log" 2>&1; then
+    echo "fuzz: FAILED: fuzz_proto does not build (see $OUT/build.log)"; tail -5 "$OUT/build.log"; exit 1
+  fi
+fi
+rm -rf "$OUT/corpus"
+mkdir -p "$OUT/corpus"
+if ! ${CC:-cc} -std=c11 -D_GNU_SOURCE -Icommon tests/fuzz/proto_seeds.c common/proto.c common/log.c -o "$OUT/proto_seeds" -lm -pthread >"$OUT/seeds.log" 2>&1 ||
+  ! "$OUT/proto_seeds" "$OUT/corpus"; then
+  echo "fuzz: FAILED: cannot make the seed corpus (see $OUT/seeds.log)"; exit 1
+fi
+(cd "$OUT" && ./fuzz_proto -max_total_time="$SECONDS_TO_RUN" -timeout=10 -rss_limit_mb=2048 -artifact_prefix=./ \
+  -print_final_stats=1 corpus >run.log 2>&1)
+rc=$?
+execs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$OUT/run.log" | grep -o '[0-9]*$')
+cov=$(grep -o 'cov: [0-9]*' "$OUT/run.log" | tail -n 1 | grep -o '[0-9]*')
+if [ $rc -ne 0 ]; then
+  echo "fuzz: fuzz_proto FAILED (rc $rc) after ${execs:-?} runs; input: $(ls "$OUT"/crash-* "$OUT"/leak-* "$OUT"/timeout-* 2>/dev/null | head -1); log: $OUT/run.log"
+  tail -20 "$OUT/run.log"
+  exit 1
+fi
+echo "fuzz: fuzz_proto (protocol decoder, ASan + UBSan): ${execs:-?} inputs in ${SECONDS_TO_RUN} s, coverage ${cov:-?}, no crash"

@@ -1,0 +1,91 @@
+#!/bin/sh
+# Workers keep finished tiles until the master acknowledges them (after its journal sync)
+# and reconnect when the master goes away. The master is frozen (SIGSTOP) so the worker
+# finishes tiles nobody acknowledges, then killed (SIGKILL) and restarted on the same job:
+# the worker reconnects, offers the kept tiles, the master takes them, the image is
+# identical to an uninterrupted render, and no tile is rendered twice (the worker, which
+# lives through both masters, rendered exactly as many tiles as the frame has). A master
+# restarted on another job (other seed) gets none of them.
+# Ends with "integration: N passed, N failed". Usage: BUILD=build TRIALS=2 sh tests/integration/reconnect.sh
+set -u
+BUILD=${BUILD:-build}
+TRIALS=${RECONNECT_TRIALS:-2}
+M=$BUILD/master
+W=$BUILD/worker
+X=$BUILD/exrtool
+T=$(mktemp -d /tmp/brume-reconnect.XXXXXX)
+pass=0
+fail=0
+ours() { tr '\0' ' ' 2>/dev/null <"/proc/$1/cmdline" | grep -q "$T"; }
+cleanup() {
+  # only processes of this test (their command lines name $T): a pid that exited may
+  # have been reused by someone else's process by now
+  for p in $(cat "$T/pids" 2>/dev/null); do ours "$p" && { kill -CONT "$p"; kill -9 "$p"; } 2>/dev/null; done
+  [ -n "${KEEP_T:-}" ] && return; rm -rf "$T"
+}
+trap cleanup EXIT
+ok() { pass=$((pass + 1)); echo "ok: $1"; }
+bad() { fail=$((fail + 1)); echo "FAIL: $1"; for f in "$T/log1" "$T/log" "$T/wlog"; do [ -f "$f" ] && { echo "  $f:"; sed 's/^/    /' "$f" | tail -15; }; done; }
+counter() { sed -n "s/^summary: counter $1 //p" "${2:-$T/log}" | tail -1; }
+# waits up to $2 tenths of a second for pattern $1 in file $3
+wait_for() { n=0; while ! grep -q "$1" "$3" 2>/dev/null && [ $n -lt "$2" ]; do sleep 0.1; n=$((n + 1)); done; grep -q "$1" "$3" 2>/dev/null; }
+SCENE=scenes/cornell/cornell.json
+ARGS="--spp 32 --tile 32"
+NT=256
+
+timeout 120 $M $SCENE -o "$T/ref.exr" --workers 1 --threads 1 $ARGS >"$T/log" 2>&1 || bad "reference render"
+
+# One trial: $1 = extra arguments of the restarted master, $2 = output name.
+trial() {
+  out="$T/$2.exr"
+  for f in log1 log wlog; do [ -f "$T/$f" ] && mv "$T/$f" "$T/prev.$f"; done
+  rm -f "$out" "$out.journal"
+  $M $SCENE -o "$out" --workers 0 --bind "ipc://$T/k.sock" $ARGS --worker-timeout-ms 30000 >"$T/log1" 2>&1 &
+  mpid=$!
+  $W --connect "ipc://$T/k.sock" --threads 1 --timeout-ms 60000 >"$T/wlog" 2>&1 &
+  wpid=$!
+  echo "$mpid $wpid" >"$T/pids"
+  wait_for "joined" 100 "$T/log1"
+  sleep "0.$(( $(od -An -N2 -tu2 /dev/urandom) % 8 + 2 ))"
+  kill -STOP $mpid            # results now go unacknowledged
+  sleep 1                     # the worker finishes the tiles it had queued
+  kill -9 $mpid
+  wait $mpid 2>/dev/null
+  timeout 120 $M $SCENE -o "$out" --workers 0 --bind "ipc://$T/k.sock" $ARGS $1 --worker-timeout-ms 30000 >"$T/log" 2>&1
+  r=$?
+  wait $wpid
+  wr=$?
+  kept=$(sed -n 's/.*reconnecting (\([0-9]*\) finished tile(s) kept).*/\1/p' "$T/wlog" | head -1)
+  rendered=$(sed -n 's/.*rendered \([0-9]*\) tile(s); .*/\1/p' "$T/wlog" | tail -1)
+  fj=$(counter tiles_from_journal); fk=$(counter tiles_from_kept); kd=$(counter kept_duplicate)
+  as=$(counter tiles_assigned); sc=$(counter straggler_copies)
+}
+
+good=0
+kept_total=0
+i=0
+while [ $i -lt "$TRIALS" ]; do
+  i=$((i + 1))
+  trial "" "same$i"
+  echo "reconnect: trial $i: kept by the worker ${kept:-?}, taken from it $fk (already journaled $kd), from the journal $fj, assigned $as; the worker rendered ${rendered:-?} tiles in all"
+  if [ $r = 0 ] && [ $wr = 0 ] && [ -n "$kept" ] && [ "$kept" -ge 1 ] && [ "$fk" -ge 1 ] && [ $((fk + kd)) = "$kept" ] &&
+    [ $((fj + fk + as - sc)) = $NT ] && [ "$rendered" = $NT ] && [ "$(counter results_not_ours)" = 0 ] &&
+    grep -q "offered $kept finished tile(s) kept for this job" "$T/wlog" && [ ! -e "$T/same$i.exr.journal" ] &&
+    $X cmp "$T/ref.exr" "$T/same$i.exr" >/dev/null; then
+    good=$((good + 1)); kept_total=$((kept_total + fk))
+  else bad "trial $i: master rc $r, worker rc $wr"; fi
+done
+if [ $good = "$TRIALS" ]; then
+  ok "master frozen, killed and restarted: the worker reconnects, delivers $kept_total kept tiles, none rendered twice, identical pixels"
+else bad "master frozen, killed and restarted: kept tiles delivered, none rendered twice, identical pixels"; fi
+
+# The restarted master renders another job (another seed): the kept tiles are not its own.
+timeout 120 $M $SCENE -o "$T/ref2.exr" --workers 1 --threads 1 $ARGS --seed 2 >"$T/log" 2>&1 || bad "reference render (seed 2)"
+trial "--seed 2" "other"
+if [ $r = 0 ] && [ $wr = 0 ] && [ -n "$kept" ] && [ "$kept" -ge 1 ] && [ "$fk" = 0 ] && [ "$kd" = 0 ] &&
+  ! grep -q "finished tile(s) kept for this job" "$T/wlog" && $X cmp "$T/ref2.exr" "$T/other.exr" >/dev/null; then
+  ok "a master restarted on another job gets none of the kept tiles; its image is its own"
+else bad "a master restarted on another job gets none of the kept tiles; its image is its own (master rc $r, worker rc $wr)"; fi
+
+echo "integration: $pass passed, $fail failed"
+[ $fail = 0 ]
