@@ -9,6 +9,7 @@
 #include "material.h"
 #include "motion.h"
 #include "sampler.h"
+#include "texshade.h"
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -36,6 +37,7 @@ int render_job_init(struct render_job *job, const struct scene *scene, uint32_t 
     }
     camera_init(&job->camera, &scene->camera, scene->settings.width, scene->settings.height);
     camera_set_scene_motion(&job->camera, job->accel.has_motion);
+    job->mips = texshade_build(scene, &job->textured);
     return 0;
 }
 
@@ -44,6 +46,7 @@ void render_job_free(struct render_job *job)
     for (uint32_t i = 0; job->face_normals && i < job->scene->num_meshes; i++)
         free(job->face_normals[i]);
     free(job->face_normals);
+    texshade_free(job->mips, job->scene);
     accel_free(&job->accel);
     light_table_free(&job->lights);
     memset(job, 0, sizeof *job);
@@ -186,6 +189,9 @@ static vec3 sample_path(const struct render_job *job, uint32_t px, uint32_t py, 
     camera_generate(&job->camera, &smp, job->frame, px, py, &cs);
     float time01 = cs.time01;
     vec3 org = cs.o, dir = cs.d;
+    struct raydiff rd;          /* texture footprints, only when a material has a texture */
+    if (job->textured)
+        texshade_camera(job, &cs, &rd);
 
     vec3 L = v3(0, 0, 0), beta = v3(1, 1, 1);
     float prev_pdf = 0.0f;      /* solid-angle pdf of the BSDF sample that produced dir */
@@ -220,6 +226,12 @@ static vec3 sample_path(const struct render_job *job, uint32_t px, uint32_t py, 
             break;
 
         const struct material *mat = &sc->materials[s.material];
+        struct material tex_mat;
+        struct raydiff_hit dh;
+        if (job->textured) {
+            texshade_hit(job, org, dir, &h, time01, &rd, &dh);
+            mat = texshade_material(job, mat, &dh, &tex_mat);
+        }
         vec3 wo = v3_neg(dir);
         /* Shade on the side the ray came from: surfaces are two-sided for reflection;
          * front (wo outside) tells a dielectric which index is on which side. */
@@ -272,6 +284,8 @@ static vec3 sample_path(const struct render_job *job, uint32_t px, uint32_t py, 
         }
         if (v3_is_black(beta))
             break;
+        if (job->textured)
+            texshade_scatter(&rd, mat, &bs, front, dir, ns, &dh);
         prev_pdf = bs.pdf;
         prev_p = s.p;
         prev_delta = bs.is_delta;

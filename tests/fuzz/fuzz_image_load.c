@@ -1,0 +1,42 @@
+/* libFuzzer target for texture image decoding (common/image_load.c): arbitrary bytes,
+ * with the first byte choosing a format's magic to prepend (so every decoder sees them),
+ * must decode to a checked image or fail with a message; a decoded image then builds its
+ * MIP pyramid and answers one lookup of every filter. Built and run by tests/fuzz/run.sh. */
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+#include "image_load.h"
+#include "log.h"
+#include "mip.h"
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
+{
+    static const char *const magic[] = {"", "\x89PNG\r\n\x1a\n", "\xff\xd8\xff", "#?RADIANCE\n", "\x76\x2f\x31\x01"};
+    if (size == 0)
+        return 0;
+    const char *mg = magic[data[0] % 5];
+    size_t mn = strlen(mg);
+    uint8_t *buf = mem_alloc(mn + size);
+    memcpy(buf, mg, mn);
+    memcpy(buf + mn, data + 1, size - 1);
+    struct tex_image img;
+    char err[512];
+    if (image_load_memory("f.img", buf, mn + size - 1, data[0] & 8, &img, err, sizeof err) == 0) {
+        if (tex_image_bytes(img.width, img.height, img.channels, img.format) == 0)
+            abort();
+        if ((uint64_t)img.width * img.height <= (1u << 20)) {
+            struct mip m;
+            mip_build(&m, &img, TEXWRAP_REPEAT);
+            for (int f = 0; f < TEXFILTER_COUNT_; f++)
+                (void)mip_lookup(&m, (enum texture_filter)f, 8.0f, 0.3f, 0.7f, 0.01f, 0.002f, -0.001f, 0.05f);
+            mip_free(&m);
+        }
+        tex_image_free(&img);
+    } else if (strncmp(err, "f.img", 5) != 0) {
+        abort(); /* every message names the file */
+    }
+    free(buf);
+    return 0;
+}
