@@ -29,7 +29,7 @@ UNIT_SRC   := $(wildcard tests/unit/test_*.c)
 UNIT_OBJ   := $(UNIT_SRC:%.c=$(BUILD)/obj/%.o)
 
 .PHONY: all deps test unit integration demo bench clean fuzz tools stress
-all: $(BUILD)/master $(BUILD)/worker $(BUILD)/exrtool $(BUILD)/junkpeer $(BUILD)/replay $(BUILD)/maketex
+all: $(BUILD)/master $(BUILD)/worker $(BUILD)/exrtool $(BUILD)/junkpeer $(BUILD)/replay $(BUILD)/maketex $(BUILD)/texbench
 
 # Install what is missing; the stamp makes later builds skip the check.
 $(DEPS_STAMP): scripts/install-deps.sh
@@ -63,6 +63,9 @@ $(BUILD)/replay: $(BUILD)/obj/tests/tools/replay.o $(BUILD)/libbrume.a
 $(BUILD)/maketex: $(BUILD)/obj/tests/tools/maketex.o $(BUILD)/libbrume.a
 	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
 
+$(BUILD)/texbench: $(BUILD)/obj/tests/tools/texbench.o $(BUILD)/libbrume.a
+	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
+
 $(BUILD)/unit_tests: $(UNIT_OBJ) $(BUILD)/libbrume.a
 	$(CC) $(LDFLAGS) -o $@ $^ -lcriterion $(LDLIBS)
 
@@ -87,6 +90,7 @@ bench: all
 	BUILD=$(BUILD) sh scripts/bench.sh
 	BUILD=$(BUILD) sh scripts/bench_sampling.sh
 	BUILD=$(BUILD) sh scripts/bench_motion.sh
+	BUILD=$(BUILD) sh scripts/bench_textures.sh
 
 # Fuzz targets (libFuzzer, clang): make fuzz FUZZ_SECONDS=60
 FUZZ_SECONDS ?= 30
@@ -96,4 +100,4 @@ fuzz:
 clean:
 	rm -rf build build-san
 
--include $(COMMON_OBJ:.o=.d) $(MASTER_OBJ:.o=.d) $(WORKER_OBJ:.o=.d) $(UNIT_OBJ:.o=.d) $(BUILD)/obj/tests/tools/exrtool.d $(BUILD)/obj/tests/tools/junkpeer.d $(BUILD)/obj/tests/tools/replay.d $(BUILD)/obj/tests/tools/maketex.d
+-include $(COMMON_OBJ:.o=.d) $(MASTER_OBJ:.o=.d) $(WORKER_OBJ:.o=.d) $(UNIT_OBJ:.o=.d) $(BUILD)/obj/tests/tools/exrtool.d $(BUILD)/obj/tests/tools/junkpeer.d $(BUILD)/obj/tests/tools/replay.d $(BUILD)/obj/tests/tools/maketex.d $(BUILD)/obj/tests/tools/texbench.d

@@ -1,13 +1,13 @@
 #!/bin/sh
 # Runs every integration script and ends with one line for CI:
-# "integration: N passed, N failed" summed over run.sh, faults.sh, frames.sh and security.sh.
+# "integration: N passed, N failed" summed over run.sh, faults.sh, frames.sh, security.sh and textures.sh.
 # Each script's own output (and its closing line, as "part:") is kept.
 # Usage: BUILD=build sh tests/integration/all.sh
 set -u
 pass=0
 fail=0
 rc=0
-for s in run.sh faults.sh frames.sh security.sh; do
+for s in run.sh faults.sh frames.sh security.sh textures.sh; do
   out=$(mktemp /tmp/brume-all.XXXXXX)
   sh "$(dirname "$0")/$s" 2>&1 | tee "$out" | sed 's/^integration: /part '"$s"': /'
   line=$(grep "^integration: " "$out" | tail -1)

@@ -807,3 +807,144 @@ Test(texture_render, huge_texture_thin_lens_degenerate_uvs_no_nan, .timeout = 12
     }
     scene_free(&s);
 }
+
+/* ---- scene files: the "textures" section, albedo_texture and MTL map_Kd ---- */
+
+#include "scene_json.h"
+
+struct bin_file {
+    const char *path;
+    const uint8_t *data;
+    size_t size;
+};
+
+static int bin_read(void *ctx, const char *rel_path, char **data, size_t *size, char *err, size_t errlen)
+{
+    for (const struct bin_file *f = ctx; f->path; f++)
+        if (strcmp(f->path, rel_path) == 0) {
+            *size = f->size;
+            *data = mem_alloc(f->size + 1);
+            memcpy(*data, f->data, f->size);
+            (*data)[f->size] = '\0';
+            return 0;
+        }
+    snprintf(err, errlen, "%s: No such file or directory", rel_path);
+    return -1;
+}
+
+#define TXT(p, s) {p, (const uint8_t *)(s), sizeof(s) - 1}
+#define SCENE_HEAD                                                                      \
+    "{\"version\": 1,\n"                                                                \
+    "\"camera\": {\"position\": [0, 0, -5], \"look_at\": [0, 0, 0], \"fov_y\": 40},\n" \
+    "\"render\": {\"width\": 16, \"height\": 16},\n"
+
+static int load_scene(const char *text, struct scene *s, char *err)
+{
+    static uint8_t png[4 * 2 * 3];
+    for (size_t i = 0; i < sizeof png; i++)
+        png[i] = (uint8_t)(i * 20);
+    static struct membuf enc;
+    if (!enc.p)
+        enc = encode("png", 4, 2, 3, png);
+    const struct bin_file files[] = {
+        {"tex/a.png", enc.p, enc.n},
+        {"m/b.png", enc.p, enc.n},
+        TXT("quad.obj", "mtllib m/q.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nusemtl p\nf 1/1 2/2 3/3\n"),
+        TXT("m/q.mtl", "newmtl p\nmap_Kd -s 2 3 -o 0.5 0 -clamp on b.png\nnewmtl q\nmap_Kd -bm 1 b.png\n"
+                       "newmtl r\nKd 0.5 0.25 1\nmap_Kd b.png\n"),
+        TXT("nofile.obj", "mtllib m/n.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl p\nf 1 2 3\n"),
+        TXT("m/n.mtl", "newmtl p\nmap_Kd -s 2 2\n"),
+        TXT("gone.obj", "mtllib m/g.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl p\nf 1 2 3\n"),
+        TXT("m/g.mtl", "newmtl p\nmap_Kd   gone.png\n"),
+        {NULL, NULL, 0}};
+    struct asset_source src = {bin_read, (void *)(uintptr_t)files};
+    memset(s, 0, sizeof *s);
+    return scene_json_parse("scenes/t.json", text, strlen(text), &src, s, err, 512);
+}
+
+Test(texture_scene, textures_section_and_albedo_texture)
+{
+    log_set_level(LOG_ERROR);
+    struct scene s;
+    char err[512];
+    const char *text = SCENE_HEAD
+        "\"textures\": {\"c\": {\"type\": \"checker\", \"scale\": [4, 8], \"color0\": [1, 0, 0], \"filter\": \"trilinear\"},\n"
+        "  \"img\": {\"type\": \"image\", \"file\": \"tex/a.png\", \"max_anisotropy\": 4, \"offset\": [0.5, 0.25],"
+        " \"wrap\": \"clamp\", \"srgb\": false}},\n"
+        "\"materials\": {\"m\": {\"type\": \"diffuse\", \"albedo_texture\": \"img\"},\n"
+        "  \"n\": {\"type\": \"diffuse\", \"albedo_texture\": \"c\", \"albedo\": [0.5, 0.5, 0.5]}},\n"
+        "\"objects\": [{\"type\": \"obj\", \"file\": \"quad.obj\"}]\n}";
+    cr_assert_eq(load_scene(text, &s, err), 0, "%s", err);
+    cr_assert_eq(s.num_textures, 4); /* c, img, and map_Kd of p and r (q's is skipped) */
+    cr_expect_eq(s.textures[0].type, TEXTURE_CHECKER);
+    cr_expect_eq(s.textures[0].filter, TEXFILTER_TRILINEAR);
+    cr_expect_float_eq(s.textures[0].scale[1], 8.0f, 0);
+    cr_expect_float_eq(s.textures[0].color0.x, 1.0f, 0);
+    cr_expect_eq(s.textures[1].filter, TEXFILTER_EWA);
+    cr_expect_float_eq(s.textures[1].max_aniso, 4.0f, 0);
+    cr_expect_eq(s.textures[1].wrap, TEXWRAP_CLAMP);
+    cr_expect_eq(s.textures[1].image.format, TEXEL_U8_LINEAR);
+    cr_expect(s.textures[1].image.width == 4 && s.textures[1].image.height == 2);
+    cr_expect_eq(s.materials[0].albedo_tex, 2);
+    cr_expect_float_eq(s.materials[0].albedo.y, 1.0f, 0);
+    cr_expect_eq(s.materials[1].albedo_tex, 1);
+    cr_expect_float_eq(s.materials[1].albedo.y, 0.5f, 0);
+    /* MTL: map_Kd with -s, -o and -clamp, relative to the MTL's folder; no Kd -> white. */
+    const struct material *p = NULL, *q = NULL, *r = NULL;
+    for (uint32_t i = 0; i < s.num_materials; i++) {
+        if (!strcmp(s.materials[i].name, "m/q.mtl:p"))
+            p = &s.materials[i];
+        if (!strcmp(s.materials[i].name, "m/q.mtl:q"))
+            q = &s.materials[i];
+        if (!strcmp(s.materials[i].name, "m/q.mtl:r"))
+            r = &s.materials[i];
+    }
+    cr_assert(p && q && r);
+    cr_assert(p->albedo_tex > 0);
+    const struct texture *t = &s.textures[p->albedo_tex - 1];
+    cr_expect(t->scale[0] == 2 && t->scale[1] == 3 && t->offset[0] == 0.5f && t->wrap == TEXWRAP_CLAMP);
+    cr_expect_float_eq(p->albedo.x, 1.0f, 0);
+    cr_expect_eq(q->albedo_tex, 0); /* an unsupported option: the map is skipped with a warning */
+    cr_expect(r->albedo_tex > 0 && r->albedo.y == 0.25f); /* Kd multiplies the map */
+    cr_expect(s.meshes[0].uvs != NULL);
+    scene_free(&s);
+}
+
+static void expect_scene_error(const char *text, const char *want)
+{
+    struct scene s;
+    char err[512];
+    cr_expect_eq(load_scene(text, &s, err), -1, "accepted: %s", text);
+    cr_expect(strstr(err, want) != NULL, "got \"%s\", want \"%s\"", err, want);
+}
+
+Test(texture_scene, errors_name_line_and_column)
+{
+    log_set_level(LOG_ERROR);
+    expect_scene_error(SCENE_HEAD "\"textures\": {\"c\": {\"type\": \"checker\", \"filter\": \"box\"}}}",
+                       "scenes/t.json:4:49: unknown filter \"box\"");
+    expect_scene_error(SCENE_HEAD "\"textures\": {\"c\": {\"type\": \"checker\", \"file\": \"a.png\"}}}",
+                       "scenes/t.json:4:39: key \"file\" applies to image textures only");
+    expect_scene_error(SCENE_HEAD "\"textures\": {\"c\": {\"type\": \"image\"}}}", "missing key \"file\"");
+    expect_scene_error(SCENE_HEAD "\"textures\": {\"c\": {\"type\": \"image\", \"file\": \"x.png\"}}}",
+                       "scenes/t.json:4:45: cannot load image: x.png: No such file");
+    expect_scene_error(SCENE_HEAD "\"textures\": {\"c\": {\"type\": \"image\", \"file\": \"../x.png\"}}}",
+                       "scenes/t.json:4:45: file: \"..\" component");
+    expect_scene_error(SCENE_HEAD "\"textures\": {\"c\": {\"type\": \"image\", \"file\": \"quad.obj\"}}}",
+                       "quad.obj: not a PNG, JPEG, Radiance HDR or OpenEXR image");
+    expect_scene_error(SCENE_HEAD "\"textures\": {\"c\": {\"type\": \"checker\", \"max_anisotropy\": 0}}}",
+                       "scenes/t.json:4:57: max_anisotropy must be in [1, 64]");
+    expect_scene_error(SCENE_HEAD "\"textures\": {\"c\": {\"type\": \"checker\", \"scale\": [1, 0]}}}",
+                       "scenes/t.json:4:52: scale components must be");
+    expect_scene_error(SCENE_HEAD "\"textures\": {\"c\": {\"type\": \"wood\"}}}",
+                       "scenes/t.json:4:28: unknown texture type \"wood\"");
+    expect_scene_error(SCENE_HEAD "\"materials\": {\"m\": {\"type\": \"diffuse\", \"albedo_texture\": \"nope\"}}}",
+                       "scenes/t.json:4:58: unknown texture \"nope\"");
+    expect_scene_error(SCENE_HEAD "\"textures\": {\"c\": {\"type\": \"checker\"}},\n"
+                                  "\"materials\": {\"m\": {\"type\": \"mirror\", \"albedo_texture\": \"c\"}}}",
+                       "scenes/t.json:5:39: albedo_texture applies to diffuse materials only");
+    expect_scene_error(SCENE_HEAD "\"objects\": [{\"type\": \"obj\", \"file\": \"nofile.obj\"}]}",
+                       "scenes/m/n.mtl:2:14: map_Kd needs a file name");
+    expect_scene_error(SCENE_HEAD "\"objects\": [{\"type\": \"obj\", \"file\": \"gone.obj\"}]}",
+                       "scenes/m/g.mtl:2:10: map_Kd: m/gone.png: No such file");
+}
