@@ -266,29 +266,45 @@ vec3 mip_ewa_level(const struct mip *m, uint32_t level, float s, float t, float 
     const float max_half = 4096.0f;
     if (!(fs1 - fs0 <= 2 * max_half && ft1 - ft0 <= 2 * max_half) || !isfinite(s) || !isfinite(t))
         return bilinear(m, level, (s + 0.5f) / w, (t + 0.5f) / h);
-    int64_t s0 = (int64_t)fs0, s1 = (int64_t)fs1, t0 = (int64_t)ft0, t1 = (int64_t)ft1;
+    int64_t t0 = (int64_t)ft0, t1 = (int64_t)ft1;
+    (void)fs0, (void)fs1;
     vec3 sum = v3(0, 0, 0);
     float sum_w = 0.0f;
+    const int64_t iw = (int64_t)im->width;
     for (int64_t it = t0; it <= t1; it++) {
         float tt = (float)it - t;
+        /* Only the span of this row inside the ellipse: A ss^2 + (B tt) ss + (C tt^2 - 1) < 0. */
+        float qb = B * tt, qc = C * tt * tt - 1.0f, disc = qb * qb - 4.0f * A * qc;
+        if (!(disc > 0.0f))
+            continue;
+        float root = sqrtf(disc), inv2a = 0.5f / A;
+        int64_t s0 = (int64_t)ceilf(s + (-qb - root) * inv2a), s1 = (int64_t)floorf(s + (-qb + root) * inv2a);
+        if (s1 < s0)
+            continue;
+        int64_t y = wrap_coord(it, im->height, m->wrap), x = wrap_coord(s0, im->width, m->wrap);
         for (int64_t is = s0; is <= s1; is++) {
             float ss = (float)is - s;
             float r2 = A * ss * ss + B * ss * tt + C * tt * tt;
-            if (r2 < 1.0f) {
+            if (r2 < 1.0f && r2 >= 0.0f) {
                 int li = (int)(r2 * (float)(MIP_EWA_LUT_SIZE - 1));
                 float wgt = ewa_lut[li < MIP_EWA_LUT_SIZE ? li : MIP_EWA_LUT_SIZE - 1];
-                if (wgt <= 0.0f)
-                    continue;
-                sum = v3_add(sum, v3_scale(mip_texel(m, level, is, it), wgt));
-                sum_w += wgt;
-                if (rec && rec->count < rec->cap) {
-                    rec->x[rec->count] = is;
-                    rec->y[rec->count] = it;
-                    rec->w[rec->count] = wgt;
+                if (wgt > 0.0f) {
+                    sum = v3_add(sum, v3_scale(texel_at(im, (size_t)x, (size_t)y), wgt));
+                    sum_w += wgt;
+                    if (rec && rec->count < rec->cap) {
+                        rec->x[rec->count] = is;
+                        rec->y[rec->count] = it;
+                        rec->w[rec->count] = wgt;
+                    }
+                    if (rec)
+                        rec->count++;
                 }
-                if (rec)
-                    rec->count++;
             }
+            /* The next texel of the row after wrapping, without a division per texel. */
+            if (m->wrap == TEXWRAP_REPEAT)
+                x = x + 1 == iw ? 0 : x + 1;
+            else
+                x = is + 1 < 0 ? 0 : (is + 1 >= iw ? iw - 1 : is + 1);
         }
     }
     if (!(sum_w > 0.0f))
