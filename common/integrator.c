@@ -238,6 +238,8 @@ static vec3 sample_path(const struct render_job *job, uint32_t px, uint32_t py, 
         int front = v3_dot(s.ng, wo) >= 0.0f;
         vec3 ng = front ? s.ng : v3_neg(s.ng);
         vec3 ns = v3_dot(s.ns, ng) < 0.0f ? v3_neg(s.ns) : s.ns;
+        if (job->textured)
+            ns = texshade_bump(sc, job->mips, mat, &dh, ng, ns);
         vec3 p_off = offset_ray_origin(v3_add(s.p, v3_scale(ng, s.p_err)), ng);
         uint32_t d0 = sampler_bounce_dim(vertex - 1, 0);
 

@@ -257,13 +257,17 @@ static const char *const mtl_ignored[] = {"Ka", "Ks", "Ns", "Ni", "d", "Tr", "Tf
 
 /* map_Kd [-s u v [w]] [-o u v [w]] [-clamp on|off] file: an image texture for the
  * diffuse albedo, relative to the MTL's folder (the albedo Kd then multiplies it; a
- * material with map_Kd and no Kd gets Kd 1). Returns 0, 1 when the statement was skipped
+ * material with map_Kd and no Kd gets Kd 1). With bump (map_Bump, map_bump, bump; also
+ * -bm mult): a height map, read as linear values, scaled by mult (default 1) in scene
+ * units. Returns 0, 1 when the statement was skipped
  * (an option we do not support: warned), -1 on an error (in r->err). */
 static int mtl_map_kd(struct reader *r, struct scene *scene, const struct asset_source *src, const char *mtl_path,
-                      const char *display_dir, uint32_t cur, const struct token *kw, bool *kd_given)
+                      const char *display_dir, uint32_t cur, const struct token *kw, bool *kd_given, bool bump)
 {
+    const char *what = bump ? "bump map" : "map_Kd";
+    float bm = 1.0f;
     if (cur == UINT32_MAX)
-        return reader_fail(r, kw->p, "map_Kd before any newmtl");
+        return reader_fail(r, kw->p, "%s before any newmtl", what);
     struct texture t;
     texture_init(&t, TEXTURE_IMAGE, NULL);
     str_fmt(t.name, sizeof t.name, "%s", scene->materials[cur].name);
@@ -274,7 +278,7 @@ static int mtl_map_kd(struct reader *r, struct scene *scene, const struct asset_
         if (k < 0)
             return -1;
         if (k == 0)
-            return reader_fail(r, r->text + r->cur, "map_Kd needs a file name");
+            return reader_fail(r, r->text + r->cur, "%s needs a file name", what);
         if (o.n < 2 || o.p[0] != '-') {
             r->cur = save;
             break;
@@ -304,6 +308,12 @@ static int mtl_map_kd(struct reader *r, struct scene *scene, const struct asset_
                 return reader_fail(r, o.p, "-o components must be in [-1e6, 1e6]");
             continue;
         }
+        if (bump && token_is(&o, "-bm")) {
+            struct token v;
+            if (reader_token(r, &v) != 1 || token_float(r, &v, &bm) != 0 || !(fabsf(bm) <= 1e6f))
+                return reader_fail(r, o.p, "-bm needs a number in [-1e6, 1e6]");
+            continue;
+        }
         if (token_is(&o, "-clamp")) {
             struct token v;
             if (reader_token(r, &v) != 1 || !(token_is(&v, "on") || token_is(&v, "off")))
@@ -311,13 +321,13 @@ static int mtl_map_kd(struct reader *r, struct scene *scene, const struct asset_
             t.wrap = token_is(&v, "on") ? TEXWRAP_CLAMP : TEXWRAP_REPEAT;
             continue;
         }
-        log_warn("%s:%u:%u: map_Kd option \"%.*s\" not supported: map_Kd ignored", r->file, r->line,
-                 reader_col(r, o.p), (int)(o.n > 16 ? 16 : o.n), o.p);
+        log_warn("%s:%u:%u: %s option \"%.*s\" not supported: %s ignored", r->file, r->line, reader_col(r, o.p),
+                 what, (int)(o.n > 16 ? 16 : o.n), o.p, what);
         r->cur = r->line_end;
         return 1;
     }
     struct token file;
-    if (reader_rest(r, &file, "map_Kd") != 0)
+    if (reader_rest(r, &file, what) != 0)
         return -1;
     char rel[ASSET_PATH_MAX], dir[ASSET_PATH_MAX], name[NAME_LEN_MAX + 1], why[1024];
     const char *slash = strrchr(mtl_path, '/');
@@ -327,18 +337,25 @@ static int mtl_map_kd(struct reader *r, struct scene *scene, const struct asset_
     memcpy(name, file.p, file.n);
     name[file.n] = '\0';
     if (asset_path_join(dir, name, rel, sizeof rel, why, sizeof why) != 0)
-        return reader_fail(r, file.p, "map_Kd: %s", why);
+        return reader_fail(r, file.p, "%s: %s", what, why);
     char display[ASSET_PATH_MAX + 1024];
     str_fmt(display, sizeof display, "%s%s", display_dir ? display_dir : "", rel);
     if (!src || !src->read)
-        return reader_fail(r, file.p, "map_Kd: no asset source to read \"%s\" from", rel);
-    if (image_load_asset(src, rel, display, 1, &t.image, why, sizeof why) != 0)
-        return reader_fail(r, file.p, "map_Kd: %s", why);
+        return reader_fail(r, file.p, "%s: no asset source to read \"%s\" from", what, rel);
+    /* Heights are data, not colours: a bump map's bytes are read as linear. */
+    if (image_load_asset(src, rel, display, !bump, &t.image, why, sizeof why) != 0)
+        return reader_fail(r, file.p, "%s: %s", what, why);
     if (scene->num_textures >= 65536) {
         texture_free(&t);
         return reader_fail(r, kw->p, "too many textures (at most 65536)");
     }
-    scene->materials[cur].albedo_tex = scene_add_texture(scene, &t) + 1;
+    uint32_t id = scene_add_texture(scene, &t) + 1;
+    if (bump) {
+        scene->materials[cur].bump_tex = id;
+        scene->materials[cur].bump_scale = bm;
+        return 0;
+    }
+    scene->materials[cur].albedo_tex = id;
     if (!*kd_given)
         scene->materials[cur].albedo = v3(1, 1, 1);
     return 0;
@@ -425,8 +442,8 @@ static int mtl_parse(struct scene *scene, struct mesh_obj_mtl *mtl, const char *
             r.cur = r.line_end;  /* parameters of ignored statements are not interpreted */
             continue;
         }
-        if (token_is(&kw, "map_Kd")) {
-            if (mtl_map_kd(&r, scene, src, mtl->path, display_dir, cur, &kw, &kd_given) < 0)
+        if (token_is(&kw, "map_Kd") || token_is(&kw, "map_Bump") || token_is(&kw, "map_bump") || token_is(&kw, "bump")) {
+            if (mtl_map_kd(&r, scene, src, mtl->path, display_dir, cur, &kw, &kd_given, !token_is(&kw, "map_Kd")) < 0)
                 return -1;
             continue;
         }

@@ -82,9 +82,18 @@ void raydiff_triangle(const vec3 p[3], const float (*uv)[2], const vec3 *nrm, fl
     solve2(e1, e2, out->dpdy, &b1y, &b2y);
     float b0 = 1.0f - b1 - b2;
     struct tex_coord *tc = &out->tc;
+    out->dpdu = e1, out->dpdv = e2, out->has_dpduv = 1;
     if (uv) {
         float du1 = uv[1][0] - uv[0][0], dv1 = uv[1][1] - uv[0][1];
         float du2 = uv[2][0] - uv[0][0], dv2 = uv[2][1] - uv[0][1];
+        /* dp/d(u, v) = [e1 e2] [[du1 du2] [dv1 dv2]]^-1, when the uv triangle has area. */
+        float det = du1 * dv2 - du2 * dv1, scale = fmaxf(fabsf(du1 * dv2), fabsf(du2 * dv1));
+        if (fabsf(det) > 1e-6f * scale && isfinite(det)) {
+            out->dpdu = sane(v3_scale(v3_sub(v3_scale(e1, dv2), v3_scale(e2, dv1)), 1.0f / det));
+            out->dpdv = sane(v3_scale(v3_sub(v3_scale(e2, du1), v3_scale(e1, du2)), 1.0f / det));
+        } else {
+            out->has_dpduv = 0;
+        }
         tc->u = b0 * uv[0][0] + b1 * uv[1][0] + b2 * uv[2][0];
         tc->v = b0 * uv[0][1] + b1 * uv[1][1] + b2 * uv[2][1];
         tc->dudx = clampf(du1 * b1x + du2 * b2x);
@@ -134,6 +143,7 @@ void raydiff_sphere(vec3 center, float radius, vec3 p, const struct raydiff *rd,
     float sp = rho > 0.0f ? q.x / rho : 0.0f, cp = rho > 0.0f ? q.z / rho : 1.0f;
     vec3 dpdu = v3_scale(v3(q.z, 0.0f, -q.x), (float)(2.0 * M_PI));
     vec3 dpdv = v3_scale(v3(q.y * sp, -rho, q.y * cp), (float)-M_PI);
+    out->dpdu = dpdu, out->dpdv = dpdv, out->has_dpduv = rho > 1e-6f * radius;
     solve2(dpdu, dpdv, out->dpdx, &out->tc.dudx, &out->tc.dvdx);
     solve2(dpdu, dpdv, out->dpdy, &out->tc.dudy, &out->tc.dvdy);
     float inv_r = radius > 0.0f ? 1.0f / radius : 0.0f;

@@ -30,6 +30,8 @@ struct raydiff_hit {
     struct tex_coord tc;
     vec3 n;             /* the interpolated (unflipped) shading normal */
     vec3 dndx, dndy;
+    vec3 dpdu, dpdv;    /* position derivatives along u and v (bump mapping) */
+    int has_dpduv;      /* 0 when the uv mapping is degenerate there */
 };
 
 /* Scale of camera differentials for spp samples per pixel. */

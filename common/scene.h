@@ -27,6 +27,8 @@ struct material {
     float ior;          /* dielectric: index of refraction inside / outside (the side the
                          * geometric normal points to is outside) */
     uint32_t albedo_tex; /* diffuse: 1 + index into scene.textures (albedo multiplies it); 0 = none */
+    uint32_t bump_tex;   /* any type: 1 + index of a height texture perturbing the shading normal; 0 = none */
+    float bump_scale;    /* height units per texture value (in scene units) */
 };
 
 /* One key of rigid motion, in frames. The key's transform is T R S (scale, then rotation,

@@ -593,7 +593,7 @@ static int parse_materials(struct ctx *c, const struct member *mm)
         return fail(c, &mm->path, AT_VALUE, "materials must be an object (name -> material)");
     /* One closed list for all types; which keys a type takes is checked below. */
     static const char *const keys[] = {"type", "albedo", "emission", "reflectance", "ior", "transmittance",
-                                       "albedo_texture"};
+                                       "albedo_texture", "bump_texture", "bump_scale"};
     static const char *const type_names[] = {"diffuse", "mirror", "dielectric"};
     static const char *const type_keys[] = {"albedo", "reflectance", "ior, transmittance"};
     const char *name = NULL;
@@ -607,9 +607,9 @@ static int parse_materials(struct ctx *c, const struct member *mm)
             return fail(c, &p, AT_KEY, "material name must be 1 to %d bytes long", SCENE_NAME_MAX - 1);
         char what[160];
         str_fmt(what, sizeof what, "material \"%s\"", printable(name, nb, sizeof nb));
-        struct member m[7];
+        struct member m[9];
         const char *type = NULL;
-        if (object_members(c, def, &p, what, keys, 7, m) != 0 || require(c, &m[0], &p, what, "type") != 0 ||
+        if (object_members(c, def, &p, what, keys, 9, m) != 0 || require(c, &m[0], &p, what, "type") != 0 ||
             get_string(c, &m[0], "type", &type) != 0)
             return -1;
         int ti = 0;
@@ -663,6 +663,28 @@ static int parse_materials(struct ctx *c, const struct member *mm)
                             printable(tname, tb, sizeof tb));
             }
             mat.albedo = v3(1, 1, 1);
+        }
+        mat.bump_scale = 1.0f;
+        if (m[7].val) { /* a height map for any material type */
+            const char *tname = NULL;
+            if (get_string(c, &m[7], "bump_texture", &tname) != 0)
+                return -1;
+            for (uint32_t t = 0; t < c->scene->num_textures && !mat.bump_tex; t++)
+                if (strcmp(c->scene->textures[t].name, tname) == 0)
+                    mat.bump_tex = t + 1;
+            if (!mat.bump_tex) {
+                char tb[80];
+                return fail(c, &m[7].path, AT_VALUE, "unknown texture \"%s\" (not in \"textures\")",
+                            printable(tname, tb, sizeof tb));
+            }
+        }
+        if (m[8].val) {
+            if (!m[7].val)
+                return fail(c, &m[8].path, AT_KEY, "bump_scale needs \"bump_texture\"");
+            if (get_float(c, m[8].val, &m[8].path, "bump_scale", &mat.bump_scale) != 0)
+                return -1;
+            if (!(fabsf(mat.bump_scale) <= 1e6f))
+                return fail(c, &m[8].path, AT_VALUE, "bump_scale must be in [-1e6, 1e6]");
         }
         if (m[1].val && (get_vec3(c, m[1].val, &m[1].path, "albedo", &mat.albedo) != 0 ||
                          check_color(c, &m[1], "albedo", 0.0f, 1.0f, mat.albedo) != 0))

@@ -851,7 +851,7 @@ static int load_scene(const char *text, struct scene *s, char *err)
         {"m/b.png", enc.p, enc.n},
         TXT("quad.obj", "mtllib m/q.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nusemtl p\nf 1/1 2/2 3/3\n"),
         TXT("m/q.mtl", "newmtl p\nmap_Kd -s 2 3 -o 0.5 0 -clamp on b.png\nnewmtl q\nmap_Kd -bm 1 b.png\n"
-                       "newmtl r\nKd 0.5 0.25 1\nmap_Kd b.png\n"),
+                       "newmtl r\nKd 0.5 0.25 1\nmap_Kd b.png\nmap_Bump -bm 0.2 b.png\n"),
         TXT("nofile.obj", "mtllib m/n.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl p\nf 1 2 3\n"),
         TXT("m/n.mtl", "newmtl p\nmap_Kd -s 2 2\n"),
         TXT("gone.obj", "mtllib m/g.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl p\nf 1 2 3\n"),
@@ -872,10 +872,11 @@ Test(texture_scene, textures_section_and_albedo_texture)
         "  \"img\": {\"type\": \"image\", \"file\": \"tex/a.png\", \"max_anisotropy\": 4, \"offset\": [0.5, 0.25],"
         " \"wrap\": \"clamp\", \"srgb\": false}},\n"
         "\"materials\": {\"m\": {\"type\": \"diffuse\", \"albedo_texture\": \"img\"},\n"
-        "  \"n\": {\"type\": \"diffuse\", \"albedo_texture\": \"c\", \"albedo\": [0.5, 0.5, 0.5]}},\n"
+        "  \"n\": {\"type\": \"diffuse\", \"albedo_texture\": \"c\", \"albedo\": [0.5, 0.5, 0.5]},\n"
+        "  \"g\": {\"type\": \"dielectric\", \"bump_texture\": \"img\", \"bump_scale\": -0.05}},\n"
         "\"objects\": [{\"type\": \"obj\", \"file\": \"quad.obj\"}]\n}";
     cr_assert_eq(load_scene(text, &s, err), 0, "%s", err);
-    cr_assert_eq(s.num_textures, 4); /* c, img, and map_Kd of p and r (q's is skipped) */
+    cr_assert_eq(s.num_textures, 5); /* c, img, map_Kd of p and r (q's is skipped), r's bump */
     cr_expect_eq(s.textures[0].type, TEXTURE_CHECKER);
     cr_expect_eq(s.textures[0].filter, TEXFILTER_TRILINEAR);
     cr_expect_float_eq(s.textures[0].scale[1], 8.0f, 0);
@@ -889,6 +890,8 @@ Test(texture_scene, textures_section_and_albedo_texture)
     cr_expect_float_eq(s.materials[0].albedo.y, 1.0f, 0);
     cr_expect_eq(s.materials[1].albedo_tex, 1);
     cr_expect_float_eq(s.materials[1].albedo.y, 0.5f, 0);
+    cr_expect_eq(s.materials[2].bump_tex, 2);
+    cr_expect_float_eq(s.materials[2].bump_scale, -0.05f, 0);
     /* MTL: map_Kd with -s, -o and -clamp, relative to the MTL's folder; no Kd -> white. */
     const struct material *p = NULL, *q = NULL, *r = NULL;
     for (uint32_t i = 0; i < s.num_materials; i++) {
@@ -906,6 +909,10 @@ Test(texture_scene, textures_section_and_albedo_texture)
     cr_expect_float_eq(p->albedo.x, 1.0f, 0);
     cr_expect_eq(q->albedo_tex, 0); /* an unsupported option: the map is skipped with a warning */
     cr_expect(r->albedo_tex > 0 && r->albedo.y == 0.25f); /* Kd multiplies the map */
+    cr_assert(r->bump_tex > 0);
+    cr_expect_float_eq(r->bump_scale, 0.2f, 0);
+    cr_expect_eq(s.textures[r->bump_tex - 1].image.format, TEXEL_U8_LINEAR); /* heights are data */
+    cr_expect_eq(s.materials[0].bump_tex, 0);
     cr_expect(s.meshes[0].uvs != NULL);
     scene_free(&s);
 }
@@ -943,8 +950,65 @@ Test(texture_scene, errors_name_line_and_column)
     expect_scene_error(SCENE_HEAD "\"textures\": {\"c\": {\"type\": \"checker\"}},\n"
                                   "\"materials\": {\"m\": {\"type\": \"mirror\", \"albedo_texture\": \"c\"}}}",
                        "scenes/t.json:5:39: albedo_texture applies to diffuse materials only");
+    expect_scene_error(SCENE_HEAD "\"materials\": {\"m\": {\"type\": \"mirror\", \"bump_scale\": 2}}}",
+                       "scenes/t.json:4:39: bump_scale needs \"bump_texture\"");
+    expect_scene_error(SCENE_HEAD "\"materials\": {\"m\": {\"type\": \"mirror\", \"bump_texture\": \"x\"}}}",
+                       "scenes/t.json:4:55: unknown texture \"x\"");
     expect_scene_error(SCENE_HEAD "\"objects\": [{\"type\": \"obj\", \"file\": \"nofile.obj\"}]}",
                        "scenes/m/n.mtl:2:14: map_Kd needs a file name");
     expect_scene_error(SCENE_HEAD "\"objects\": [{\"type\": \"obj\", \"file\": \"gone.obj\"}]}",
                        "scenes/m/g.mtl:2:10: map_Kd: m/gone.png: No such file");
+}
+
+/* ---- bump mapping ---- */
+
+#include "texshade.h"
+
+Test(bump, height_ramp_tilts_the_normal_as_computed_by_hand)
+{
+    struct scene s;
+    memset(&s, 0, sizeof s);
+    struct texture t;
+    texture_init(&t, TEXTURE_IMAGE, "h");
+    t.filter = TEXFILTER_BILINEAR;
+    t.wrap = TEXWRAP_CLAMP;
+    cr_assert_eq(tex_image_alloc(&t.image, 64, 4, 1, TEXEL_F32), 0);
+    for (uint32_t y = 0; y < 4; y++)
+        for (uint32_t x = 0; x < 64; x++)
+            ((float *)t.image.data)[y * 64 + x] = ((float)x + 0.5f) / 64.0f; /* h(u) = u, bilinear: exact inside */
+    scene_add_texture(&s, &t);
+    struct mip m;
+    mip_build(&m, &s.textures[0].image, TEXWRAP_CLAMP);
+    struct material mat;
+    memset(&mat, 0, sizeof mat);
+    mat.type = MATERIAL_DIFFUSE;
+    mat.bump_tex = 1;
+    mat.bump_scale = 0.5f;
+    vec3 p[3] = {v3(0, 0, 0), v3(2, 0, 0), v3(0, 2, 0)};
+    const float uv[3][2] = {{0, 0}, {1, 0}, {0, 1}};
+    struct raydiff cam = {v3(0, 0, 0), v3(0, 0, 0), v3(0.001f, 0, 0), v3(0, 0.001f, 0)};
+    struct raydiff_hit dh;
+    raydiff_triangle(p, uv, NULL, 0.3f, 0.3f, v3(0, 0, 1), &cam, v3(0, 0, -1), 5.0f, &dh);
+    cr_assert(dh.has_dpduv);
+    expect_vec_near(dh.dpdu, v3(2, 0, 0), 1e-5f, "dp/du");
+    expect_vec_near(dh.dpdv, v3(0, 2, 0), 1e-5f, "dp/dv");
+    vec3 n = texshade_bump(&s, &m, &mat, &dh, v3(0, 0, 1), v3(0, 0, 1));
+    /* dh/du = 0.5: dp/du' = (2, 0, 0.5), dp/dv' = (0, 2, 0): n = normalize(-1, 0, 4). */
+    expect_vec_near(n, v3_normalize(v3(-1, 0, 4)), 2e-3f, "bumped normal");
+    /* Seen from below (ns = -z): the same displaced surface, so its other side's normal. */
+    vec3 nb = texshade_bump(&s, &m, &mat, &dh, v3(0, 0, -1), v3(0, 0, -1));
+    expect_vec_near(nb, v3_normalize(v3(1, 0, -4)), 2e-3f, "from below");
+    /* Degenerate uvs: no change. */
+    const float same[3][2] = {{0.5f, 0.5f}, {0.5f, 0.5f}, {0.5f, 0.5f}};
+    raydiff_triangle(p, same, NULL, 0.3f, 0.3f, v3(0, 0, 1), &cam, v3(0, 0, -1), 5.0f, &dh);
+    cr_expect(!dh.has_dpduv);
+    n = texshade_bump(&s, &m, &mat, &dh, v3(0, 0, 1), v3(0, 0, 1));
+    cr_expect(n.x == 0 && n.y == 0 && n.z == 1);
+    /* A huge scale would tip the normal under the surface: kept finite and on the ng side. */
+    mat.bump_scale = 1e6f;
+    raydiff_triangle(p, uv, NULL, 0.3f, 0.3f, v3(0, 0, 1), &cam, v3(0, 0, -1), 5.0f, &dh);
+    n = texshade_bump(&s, &m, &mat, &dh, v3(0, 0, 1), v3(0, 0, 1));
+    cr_expect(v3_is_finite(n) && n.z > 0.0f);
+    mip_free(&m);
+    scene_free(&s);
 }
