@@ -259,12 +259,17 @@ static const char *const mtl_ignored[] = {"Ka", "Ks", "Ns", "Ni", "d", "Tr", "Tf
  * diffuse albedo, relative to the MTL's folder (the albedo Kd then multiplies it; a
  * material with map_Kd and no Kd gets Kd 1). With bump (map_Bump, map_bump, bump; also
  * -bm mult): a height map, read as linear values, scaled by mult (default 1) in scene
- * units. Returns 0, 1 when the statement was skipped
+ * units. With norm: a tangent-space normal map (linear values). Returns 0, 1 when the
+ * statement was skipped
  * (an option we do not support: warned), -1 on an error (in r->err). */
+enum mtl_map { MTL_MAP_KD, MTL_MAP_BUMP, MTL_MAP_NORM };
+
 static int mtl_map_kd(struct reader *r, struct scene *scene, const struct asset_source *src, const char *mtl_path,
-                      const char *display_dir, uint32_t cur, const struct token *kw, bool *kd_given, bool bump)
+                      const char *display_dir, uint32_t cur, const struct token *kw, bool *kd_given,
+                      enum mtl_map kind)
 {
-    const char *what = bump ? "bump map" : "map_Kd";
+    const bool bump = kind == MTL_MAP_BUMP;
+    const char *what = kind == MTL_MAP_KD ? "map_Kd" : (bump ? "bump map" : "normal map");
     float bm = 1.0f;
     if (cur == UINT32_MAX)
         return reader_fail(r, kw->p, "%s before any newmtl", what);
@@ -343,13 +348,17 @@ static int mtl_map_kd(struct reader *r, struct scene *scene, const struct asset_
     if (!src || !src->read)
         return reader_fail(r, file.p, "%s: no asset source to read \"%s\" from", what, rel);
     /* Heights are data, not colours: a bump map's bytes are read as linear. */
-    if (image_load_asset(src, rel, display, !bump, &t.image, why, sizeof why) != 0)
+    if (image_load_asset(src, rel, display, kind == MTL_MAP_KD, &t.image, why, sizeof why) != 0)
         return reader_fail(r, file.p, "%s: %s", what, why);
     if (scene->num_textures >= 65536) {
         texture_free(&t);
         return reader_fail(r, kw->p, "too many textures (at most 65536)");
     }
     uint32_t id = scene_add_texture(scene, &t) + 1;
+    if (kind == MTL_MAP_NORM) {
+        scene->materials[cur].normal_tex = id;
+        return 0;
+    }
     if (bump) {
         scene->materials[cur].bump_tex = id;
         scene->materials[cur].bump_scale = bm;
@@ -442,8 +451,10 @@ static int mtl_parse(struct scene *scene, struct mesh_obj_mtl *mtl, const char *
             r.cur = r.line_end;  /* parameters of ignored statements are not interpreted */
             continue;
         }
-        if (token_is(&kw, "map_Kd") || token_is(&kw, "map_Bump") || token_is(&kw, "map_bump") || token_is(&kw, "bump")) {
-            if (mtl_map_kd(&r, scene, src, mtl->path, display_dir, cur, &kw, &kd_given, !token_is(&kw, "map_Kd")) < 0)
+        if (token_is(&kw, "map_Kd") || token_is(&kw, "map_Bump") || token_is(&kw, "map_bump") || token_is(&kw, "bump") ||
+            token_is(&kw, "norm")) {
+            enum mtl_map kind = token_is(&kw, "map_Kd") ? MTL_MAP_KD : (token_is(&kw, "norm") ? MTL_MAP_NORM : MTL_MAP_BUMP);
+            if (mtl_map_kd(&r, scene, src, mtl->path, display_dir, cur, &kw, &kd_given, kind) < 0)
                 return -1;
             continue;
         }

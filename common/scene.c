@@ -126,7 +126,8 @@ int scene_validate(const struct scene *s, char *err, size_t errlen)
             str_fmt(err, errlen, "material \"%s\": albedo must be in [0,1] and emission >= 0", m->name);
             return -1;
         }
-        if (m->albedo_tex > s->num_textures || m->bump_tex > s->num_textures || !isfinite(m->bump_scale)) {
+        if (m->albedo_tex > s->num_textures || m->bump_tex > s->num_textures || m->normal_tex > s->num_textures ||
+            !isfinite(m->bump_scale)) {
             str_fmt(err, errlen, "material \"%s\": texture index out of range", m->name);
             return -1;
         }

@@ -29,6 +29,7 @@ struct material {
     uint32_t albedo_tex; /* diffuse: 1 + index into scene.textures (albedo multiplies it); 0 = none */
     uint32_t bump_tex;   /* any type: 1 + index of a height texture perturbing the shading normal; 0 = none */
     float bump_scale;    /* height units per texture value (in scene units) */
+    uint32_t normal_tex; /* any type: 1 + index of a tangent-space normal map (RGB = 2 n - 1); 0 = none */
 };
 
 /* One key of rigid motion, in frames. The key's transform is T R S (scale, then rotation,

@@ -593,7 +593,7 @@ static int parse_materials(struct ctx *c, const struct member *mm)
         return fail(c, &mm->path, AT_VALUE, "materials must be an object (name -> material)");
     /* One closed list for all types; which keys a type takes is checked below. */
     static const char *const keys[] = {"type", "albedo", "emission", "reflectance", "ior", "transmittance",
-                                       "albedo_texture", "bump_texture", "bump_scale"};
+                                       "albedo_texture", "bump_texture", "bump_scale", "normal_texture"};
     static const char *const type_names[] = {"diffuse", "mirror", "dielectric"};
     static const char *const type_keys[] = {"albedo", "reflectance", "ior, transmittance"};
     const char *name = NULL;
@@ -607,9 +607,9 @@ static int parse_materials(struct ctx *c, const struct member *mm)
             return fail(c, &p, AT_KEY, "material name must be 1 to %d bytes long", SCENE_NAME_MAX - 1);
         char what[160];
         str_fmt(what, sizeof what, "material \"%s\"", printable(name, nb, sizeof nb));
-        struct member m[9];
+        struct member m[10];
         const char *type = NULL;
-        if (object_members(c, def, &p, what, keys, 9, m) != 0 || require(c, &m[0], &p, what, "type") != 0 ||
+        if (object_members(c, def, &p, what, keys, 10, m) != 0 || require(c, &m[0], &p, what, "type") != 0 ||
             get_string(c, &m[0], "type", &type) != 0)
             return -1;
         int ti = 0;
@@ -665,16 +665,19 @@ static int parse_materials(struct ctx *c, const struct member *mm)
             mat.albedo = v3(1, 1, 1);
         }
         mat.bump_scale = 1.0f;
-        if (m[7].val) { /* a height map for any material type */
+        for (int k = 7; k <= 9; k += 2) { /* a height map or a normal map, for any material type */
+            if (!m[k].val)
+                continue;
             const char *tname = NULL;
-            if (get_string(c, &m[7], "bump_texture", &tname) != 0)
+            uint32_t *slot = k == 7 ? &mat.bump_tex : &mat.normal_tex;
+            if (get_string(c, &m[k], keys[k], &tname) != 0)
                 return -1;
-            for (uint32_t t = 0; t < c->scene->num_textures && !mat.bump_tex; t++)
+            for (uint32_t t = 0; t < c->scene->num_textures && !*slot; t++)
                 if (strcmp(c->scene->textures[t].name, tname) == 0)
-                    mat.bump_tex = t + 1;
-            if (!mat.bump_tex) {
+                    *slot = t + 1;
+            if (!*slot) {
                 char tb[80];
-                return fail(c, &m[7].path, AT_VALUE, "unknown texture \"%s\" (not in \"textures\")",
+                return fail(c, &m[k].path, AT_VALUE, "unknown texture \"%s\" (not in \"textures\")",
                             printable(tname, tb, sizeof tb));
             }
         }

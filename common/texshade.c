@@ -13,7 +13,7 @@ struct mip *texshade_build(const struct scene *scene, int *textured)
 {
     *textured = 0;
     for (uint32_t i = 0; i < scene->num_materials; i++)
-        if (scene->materials[i].albedo_tex || scene->materials[i].bump_tex)
+        if (scene->materials[i].albedo_tex || scene->materials[i].bump_tex || scene->materials[i].normal_tex)
             *textured = 1;
     if (!*textured || scene->num_textures == 0)
         return NULL;
@@ -122,29 +122,46 @@ static float height_at(const struct texture *t, const struct mip *m, struct tex_
     return (c.x + c.y + c.z) * (1.0f / 3.0f);
 }
 
+/* A tangent-space normal map: RGB in [0, 1] is 2 n - 1 in the frame (dp/du made
+ * orthogonal, its completion, the normal), z along the normal. */
+static vec3 normal_map(const struct scene *scene, const struct mip *mips, const struct material *mat,
+                       const struct raydiff_hit *dh, vec3 N)
+{
+    uint32_t ti = mat->normal_tex - 1;
+    vec3 c = texture_eval(&scene->textures[ti], mips ? &mips[ti] : NULL, &dh->tc);
+    vec3 mt = v3(2.0f * c.x - 1.0f, 2.0f * c.y - 1.0f, 2.0f * c.z - 1.0f);
+    vec3 T = v3_normalize(v3_sub(dh->dpdu, v3_scale(N, v3_dot(N, dh->dpdu))));
+    vec3 B = v3_cross(N, T);
+    return v3_normalize(v3_add(v3_add(v3_scale(T, mt.x), v3_scale(B, mt.y)), v3_scale(N, mt.z)));
+}
+
 vec3 texshade_bump(const struct scene *scene, const struct mip *mips, const struct material *mat,
                    const struct raydiff_hit *dh, vec3 ng, vec3 ns)
 {
-    if (!mat->bump_tex || !dh->has_dpduv)
+    if ((!mat->bump_tex && !mat->normal_tex) || !dh->has_dpduv)
         return ns;
-    uint32_t ti = mat->bump_tex - 1;
-    const struct texture *t = &scene->textures[ti];
-    const struct mip *m = mips ? &mips[ti] : NULL;
-    /* Differences over half the footprint (a small fixed step when there is none). */
-    float du = 0.5f * (fabsf(dh->tc.dudx) + fabsf(dh->tc.dudy)), dv = 0.5f * (fabsf(dh->tc.dvdx) + fabsf(dh->tc.dvdy));
-    du = du > 0.0f ? du : 0.0005f;
-    dv = dv > 0.0f ? dv : 0.0005f;
-    struct tex_coord tc = dh->tc, tu = dh->tc, tv = dh->tc;
-    tu.u += du;
-    tv.v += dv;
-    float h0 = height_at(t, m, tc);
-    float dhdu = mat->bump_scale * (height_at(t, m, tu) - h0) / du;
-    float dhdv = mat->bump_scale * (height_at(t, m, tv) - h0) / dv;
-    /* Displace along the normal on the side dp/du x dp/dv points to. */
+    /* Perturb on the side dp/du x dp/dv points to, then face ns's side again. */
     vec3 c = v3_cross(dh->dpdu, dh->dpdv);
-    vec3 N = v3_dot(c, ns) >= 0.0f ? ns : v3_neg(ns);
-    vec3 pu = v3_add(dh->dpdu, v3_scale(N, dhdu)), pv = v3_add(dh->dpdv, v3_scale(N, dhdv));
-    vec3 nb = v3_normalize(v3_cross(pu, pv));
+    vec3 N = v3_dot(c, ns) >= 0.0f ? ns : v3_neg(ns), nb;
+    if (mat->normal_tex) {
+        nb = normal_map(scene, mips, mat, dh, N);
+    } else {
+        uint32_t ti = mat->bump_tex - 1;
+        const struct texture *t = &scene->textures[ti];
+        const struct mip *m = mips ? &mips[ti] : NULL;
+        /* Differences over half the footprint (a small fixed step when there is none). */
+        float du = 0.5f * (fabsf(dh->tc.dudx) + fabsf(dh->tc.dudy)), dv = 0.5f * (fabsf(dh->tc.dvdx) + fabsf(dh->tc.dvdy));
+        du = du > 0.0f ? du : 0.0005f;
+        dv = dv > 0.0f ? dv : 0.0005f;
+        struct tex_coord tc = dh->tc, tu = dh->tc, tv = dh->tc;
+        tu.u += du;
+        tv.v += dv;
+        float h0 = height_at(t, m, tc);
+        float dhdu = mat->bump_scale * (height_at(t, m, tu) - h0) / du;
+        float dhdv = mat->bump_scale * (height_at(t, m, tv) - h0) / dv;
+        vec3 pu = v3_add(dh->dpdu, v3_scale(N, dhdu)), pv = v3_add(dh->dpdv, v3_scale(N, dhdv));
+        nb = v3_normalize(v3_cross(pu, pv));
+    }
     if (v3_dot(nb, ns) < 0.0f)
         nb = v3_neg(nb);
     if (!v3_is_finite(nb) || !(v3_dot(nb, nb) > 0.5f) || !(v3_dot(nb, ng) > 0.0f))

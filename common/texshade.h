@@ -24,10 +24,10 @@ void texshade_hit(const struct render_job *job, vec3 org, vec3 dir, const struct
 /* The material with its albedo texture looked up (a copy in *buf), or mat itself. */
 const struct material *texshade_material(const struct render_job *job, const struct material *mat,
                                          const struct raydiff_hit *dh, struct material *buf);
-/* The shading normal ns (unit, on the side of ng) perturbed by the material's bump map
- * (height differences over the footprint's uv extent, as pbrt's BumpMap); ns itself when
- * the material has none, the mapping is degenerate, or the result would face away from
- * ng. mips: the job's pyramids (texshade_build). */
+/* The shading normal ns (unit, on the side of ng) perturbed by the material's normal map
+ * (tangent space) or else its bump map (height differences over the footprint's uv
+ * extent, as pbrt's BumpMap); ns itself when the material has neither, the mapping is
+ * degenerate, or the result would face away from ng. mips: the job's pyramids. */
 vec3 texshade_bump(const struct scene *scene, const struct mip *mips, const struct material *mat,
                    const struct raydiff_hit *dh, vec3 ng, vec3 ns);
 /* Carries rd over a scattering at the hit: exact for delta bounces, a cone otherwise.

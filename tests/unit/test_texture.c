@@ -851,7 +851,7 @@ static int load_scene(const char *text, struct scene *s, char *err)
         {"m/b.png", enc.p, enc.n},
         TXT("quad.obj", "mtllib m/q.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nusemtl p\nf 1/1 2/2 3/3\n"),
         TXT("m/q.mtl", "newmtl p\nmap_Kd -s 2 3 -o 0.5 0 -clamp on b.png\nnewmtl q\nmap_Kd -bm 1 b.png\n"
-                       "newmtl r\nKd 0.5 0.25 1\nmap_Kd b.png\nmap_Bump -bm 0.2 b.png\n"),
+                       "newmtl r\nKd 0.5 0.25 1\nmap_Kd b.png\nmap_Bump -bm 0.2 b.png\nnorm -s 2 2 b.png\n"),
         TXT("nofile.obj", "mtllib m/n.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl p\nf 1 2 3\n"),
         TXT("m/n.mtl", "newmtl p\nmap_Kd -s 2 2\n"),
         TXT("gone.obj", "mtllib m/g.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl p\nf 1 2 3\n"),
@@ -873,10 +873,11 @@ Test(texture_scene, textures_section_and_albedo_texture)
         " \"wrap\": \"clamp\", \"srgb\": false}},\n"
         "\"materials\": {\"m\": {\"type\": \"diffuse\", \"albedo_texture\": \"img\"},\n"
         "  \"n\": {\"type\": \"diffuse\", \"albedo_texture\": \"c\", \"albedo\": [0.5, 0.5, 0.5]},\n"
-        "  \"g\": {\"type\": \"dielectric\", \"bump_texture\": \"img\", \"bump_scale\": -0.05}},\n"
+        "  \"g\": {\"type\": \"dielectric\", \"bump_texture\": \"img\", \"bump_scale\": -0.05},\n"
+        "  \"k\": {\"type\": \"mirror\", \"normal_texture\": \"img\"}},\n"
         "\"objects\": [{\"type\": \"obj\", \"file\": \"quad.obj\"}]\n}";
     cr_assert_eq(load_scene(text, &s, err), 0, "%s", err);
-    cr_assert_eq(s.num_textures, 5); /* c, img, map_Kd of p and r (q's is skipped), r's bump */
+    cr_assert_eq(s.num_textures, 6); /* c, img, map_Kd of p and r (q's is skipped), r's bump and norm */
     cr_expect_eq(s.textures[0].type, TEXTURE_CHECKER);
     cr_expect_eq(s.textures[0].filter, TEXFILTER_TRILINEAR);
     cr_expect_float_eq(s.textures[0].scale[1], 8.0f, 0);
@@ -892,6 +893,7 @@ Test(texture_scene, textures_section_and_albedo_texture)
     cr_expect_float_eq(s.materials[1].albedo.y, 0.5f, 0);
     cr_expect_eq(s.materials[2].bump_tex, 2);
     cr_expect_float_eq(s.materials[2].bump_scale, -0.05f, 0);
+    cr_expect_eq(s.materials[3].normal_tex, 2);
     /* MTL: map_Kd with -s, -o and -clamp, relative to the MTL's folder; no Kd -> white. */
     const struct material *p = NULL, *q = NULL, *r = NULL;
     for (uint32_t i = 0; i < s.num_materials; i++) {
@@ -913,6 +915,9 @@ Test(texture_scene, textures_section_and_albedo_texture)
     cr_expect_float_eq(r->bump_scale, 0.2f, 0);
     cr_expect_eq(s.textures[r->bump_tex - 1].image.format, TEXEL_U8_LINEAR); /* heights are data */
     cr_expect_eq(s.materials[0].bump_tex, 0);
+    cr_assert(r->normal_tex > 0);
+    cr_expect_eq(s.textures[r->normal_tex - 1].image.format, TEXEL_U8_LINEAR);
+    cr_expect_float_eq(s.textures[r->normal_tex - 1].scale[0], 2.0f, 0);
     cr_expect(s.meshes[0].uvs != NULL);
     scene_free(&s);
 }
@@ -1146,4 +1151,50 @@ Test(texture_render, ewa_through_glass_filters_like_direct_view, .timeout = 120)
     cr_expect(e_ewa < 0.7 * e_near, "ewa %g vs nearest %g", e_ewa, e_near); /* 0.58; 0.87 without refraction */
     for (int i = 0; i < 3; i++)
         free(img[i]);
+}
+
+Test(bump, tangent_space_normal_map)
+{
+    struct scene s;
+    memset(&s, 0, sizeof s);
+    struct texture t;
+    texture_init(&t, TEXTURE_IMAGE, "n");
+    t.filter = TEXFILTER_BILINEAR;
+    cr_assert_eq(tex_image_alloc(&t.image, 4, 4, 3, TEXEL_F32), 0);
+    for (int i = 0; i < 16; i++) { /* n = (0.5, 0, 0.866) in tangent space */
+        float *px = &((float *)t.image.data)[3 * i];
+        px[0] = 0.75f, px[1] = 0.5f, px[2] = 0.5f + 0.5f * 0.8660254f;
+    }
+    scene_add_texture(&s, &t);
+    struct mip m;
+    mip_build(&m, &s.textures[0].image, TEXWRAP_REPEAT);
+    struct material mat;
+    memset(&mat, 0, sizeof mat);
+    mat.type = MATERIAL_MIRROR;
+    mat.normal_tex = 1;
+    /* u along +y on this triangle: the tangent T is +y, B = N x T = -x. */
+    vec3 p[3] = {v3(0, 0, 0), v3(0, 2, 0), v3(-2, 0, 0)};
+    const float uv[3][2] = {{0, 0}, {1, 0}, {0, 1}};
+    struct raydiff cam = {v3(0, 0, 0), v3(0, 0, 0), v3(0.001f, 0, 0), v3(0, 0.001f, 0)};
+    struct raydiff_hit dh;
+    raydiff_triangle(p, uv, NULL, 0.3f, 0.3f, v3(0, 0, 1), &cam, v3(0, 0, -1), 5.0f, &dh);
+    vec3 n = texshade_bump(&s, &m, &mat, &dh, v3(0, 0, 1), v3(0, 0, 1));
+    expect_vec_near(n, v3(0, 0.5f, 0.8660254f), 1e-4f, "normal-mapped");
+    /* The flat value (0.5, 0.5, 1) leaves the normal alone. */
+    float *px = s.textures[0].image.data;
+    for (int i = 0; i < 16; i++)
+        px[3 * i] = 0.5f, px[3 * i + 1] = 0.5f, px[3 * i + 2] = 1.0f;
+    mip_free(&m);
+    mip_build(&m, &s.textures[0].image, TEXWRAP_REPEAT);
+    n = texshade_bump(&s, &m, &mat, &dh, v3(0, 0, 1), v3(0, 0, 1));
+    expect_vec_near(n, v3(0, 0, 1), 1e-5f, "flat map");
+    /* A map pointing into the surface: the shading normal is kept. */
+    for (int i = 0; i < 16; i++)
+        px[3 * i] = 0.5f, px[3 * i + 1] = 0.5f, px[3 * i + 2] = 0.0f;
+    mip_free(&m);
+    mip_build(&m, &s.textures[0].image, TEXWRAP_REPEAT);
+    n = texshade_bump(&s, &m, &mat, &dh, v3(0, 0, 1), v3(0, 0, 1));
+    cr_expect(n.x == 0 && n.y == 0 && n.z == 1);
+    mip_free(&m);
+    scene_free(&s);
 }
