@@ -10,7 +10,7 @@ OPT     ?= -O3
 WARN    := -Wall -Wextra -Wpedantic -Wshadow -Wstrict-prototypes -Wmissing-prototypes \
            -Wpointer-arith -Wcast-qual -Wwrite-strings -Wformat=2 -Wundef -Wvla
 CFLAGS  := -std=c11 -D_GNU_SOURCE $(OPT) -g -fno-fast-math -ffp-contract=off -fno-math-errno $(WARN) -Icommon -pthread
-LDLIBS  := -lembree3 -lOpenEXRCore-3_1 -lzmq -ljansson -lsodium -lpng -lm -pthread
+LDLIBS  := -lembree3 -lOpenEXRCore-3_1 -lzmq -ljansson -lsodium -lpng -lstb -lm -pthread
 ifneq ($(SAN),)
 CFLAGS  += -fsanitize=$(SAN) -fno-omit-frame-pointer -fno-sanitize-recover=undefined
 LDFLAGS += -fsanitize=$(SAN)
@@ -18,7 +18,7 @@ BUILD   := build-san
 endif
 
 DEB_PKGS := gcc make pkg-config libembree-dev libopenexr-dev openexr libzmq3-dev libjansson-dev \
-            libsodium-dev libpng-dev libcriterion-dev embree-tools python3 clang
+            libsodium-dev libpng-dev libstb-dev libcriterion-dev embree-tools gnuplot-nox python3 clang
 DEPS_STAMP := $(BUILD)/.deps-ok
 
 COMMON_SRC := $(wildcard common/*.c)
@@ -29,7 +29,7 @@ UNIT_SRC   := $(wildcard tests/unit/test_*.c)
 UNIT_OBJ   := $(UNIT_SRC:%.c=$(BUILD)/obj/%.o)
 
 .PHONY: all deps test unit integration demo bench clean fuzz fuzz-ci tools stress test-slurm test-netns
-all: $(BUILD)/master $(BUILD)/worker $(BUILD)/exrtool $(BUILD)/junkpeer $(BUILD)/replay
+all: $(BUILD)/master $(BUILD)/worker $(BUILD)/exrtool $(BUILD)/junkpeer $(BUILD)/replay $(BUILD)/maketex $(BUILD)/texbench
 
 # Install what is missing; the stamp makes later builds skip the check.
 $(DEPS_STAMP): scripts/install-deps.sh
@@ -58,6 +58,12 @@ $(BUILD)/junkpeer: $(BUILD)/obj/tests/tools/junkpeer.o $(BUILD)/libbrume.a
 	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
 
 $(BUILD)/replay: $(BUILD)/obj/tests/tools/replay.o $(BUILD)/libbrume.a
+	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
+
+$(BUILD)/maketex: $(BUILD)/obj/tests/tools/maketex.o $(BUILD)/libbrume.a
+	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
+
+$(BUILD)/texbench: $(BUILD)/obj/tests/tools/texbench.o $(BUILD)/libbrume.a
 	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
 
 $(BUILD)/unit_tests: $(UNIT_OBJ) $(BUILD)/libbrume.a
@@ -96,6 +102,7 @@ bench: all
 	BUILD=$(BUILD) sh scripts/bench_sampling.sh
 	BUILD=$(BUILD) sh scripts/bench_motion.sh
 	BUILD=$(BUILD) sh scripts/bench_media.sh
+	BUILD=$(BUILD) sh scripts/bench_textures.sh
 
 # Fuzz targets (libFuzzer, clang): make fuzz FUZZ_SECONDS=60
 FUZZ_SECONDS ?= 30
@@ -105,4 +112,4 @@ fuzz:
 clean:
 	rm -rf build build-san
 
--include $(COMMON_OBJ:.o=.d) $(MASTER_OBJ:.o=.d) $(WORKER_OBJ:.o=.d) $(UNIT_OBJ:.o=.d) $(BUILD)/obj/tests/tools/exrtool.d $(BUILD)/obj/tests/tools/junkpeer.d $(BUILD)/obj/tests/tools/replay.d
+-include $(COMMON_OBJ:.o=.d) $(MASTER_OBJ:.o=.d) $(WORKER_OBJ:.o=.d) $(UNIT_OBJ:.o=.d) $(BUILD)/obj/tests/tools/exrtool.d $(BUILD)/obj/tests/tools/junkpeer.d $(BUILD)/obj/tests/tools/replay.d $(BUILD)/obj/tests/tools/maketex.d $(BUILD)/obj/tests/tools/texbench.d

@@ -748,6 +748,10 @@ int imgio_writer_close(struct imgio_writer **wp, char *err, size_t errlen)
 /* ---------------------------------------------------------------------------------------
  * Reading any EXR */
 
+static int read_stream(struct imgio_stream *sp, const char *path, const char *const *channels,
+                       uint32_t num_channels, float **pixels, uint32_t *width, uint32_t *height, char *err,
+                       size_t errlen);
+
 int imgio_read(const char *path, const char *const *channels, uint32_t num_channels, float **pixels,
                uint32_t *width, uint32_t *height, char *err, size_t errlen)
 {
@@ -764,7 +768,33 @@ int imgio_read(const char *path, const char *const *channels, uint32_t num_chann
         set_err(err, errlen, "%s: cannot open: %s", path, strerror(errno));
         return -1;
     }
-    exr_context_initializer_t init = stream_initializer(&s);
+    int rc = read_stream(&s, path, channels, num_channels, pixels, width, height, err, errlen);
+    close(s.fd);
+    return rc;
+}
+
+int imgio_read_memory(const char *name, const uint8_t *data, size_t size, const char *const *channels,
+                      uint32_t num_channels, float **pixels, uint32_t *width, uint32_t *height, char *err,
+                      size_t errlen)
+{
+    *pixels = NULL;
+    *width = *height = 0;
+    if (!name || !channels || num_channels == 0) {
+        set_err(err, errlen, "imgio: read: no name or no channels requested");
+        return -1;
+    }
+    struct imgio_stream s;
+    stream_init(&s);
+    s.src = data;
+    s.src_len = size;
+    return read_stream(&s, name, channels, num_channels, pixels, width, height, err, errlen);
+}
+
+static int read_stream(struct imgio_stream *sp, const char *path, const char *const *channels,
+                       uint32_t num_channels, float **pixels, uint32_t *width, uint32_t *height, char *err,
+                       size_t errlen)
+{
+    exr_context_initializer_t init = stream_initializer(sp);
     exr_context_t ctx = NULL;
     float *out = NULL;
     char what[300];
@@ -783,7 +813,7 @@ int imgio_read(const char *path, const char *const *channels, uint32_t num_chann
     if (rv == EXR_ERR_SUCCESS)
         rv = exr_get_channels(ctx, 0, &chl);
     if (rv != EXR_ERR_SUCCESS) {
-        lib_err(err, errlen, &s, rv, what);
+        lib_err(err, errlen, sp, rv, what);
         goto done;
     }
     if (storage != EXR_STORAGE_SCANLINE && storage != EXR_STORAGE_TILED) {
@@ -864,7 +894,7 @@ int imgio_read(const char *path, const char *const *channels, uint32_t num_chann
             }
     }
     if (rv != EXR_ERR_SUCCESS) {
-        lib_err(err, errlen, &s, rv, what);
+        lib_err(err, errlen, sp, rv, what);
         goto done;
     }
     *pixels = out;
@@ -876,7 +906,6 @@ done:
     free(out);
     if (ctx)
         exr_finish(&ctx);
-    close(s.fd);
     return ok ? 0 : -1;
 }
 

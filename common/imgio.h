@@ -73,6 +73,11 @@ int imgio_writer_close(struct imgio_writer **w, char *err, size_t errlen);
 int imgio_read(const char *path, const char *const *channels, uint32_t num_channels, float **pixels,
                uint32_t *width, uint32_t *height, char *err, size_t errlen);
 
+/* The same on an EXR file in memory (size bytes); name is used in messages. */
+int imgio_read_memory(const char *name, const uint8_t *data, size_t size, const char *const *channels,
+                      uint32_t num_channels, float **pixels, uint32_t *width, uint32_t *height, char *err,
+                      size_t errlen);
+
 /* Reads back what imgio_writer_open wrote into a header: size and tile size into d (0
  * when not square-tiled; channels are not filled in) and spp, seed and scene hash into a.
  * The master uses it to skip frames already rendered. 0, or -1 when the file cannot be

@@ -10,6 +10,7 @@
 #include "media_integrator.h"
 #include "motion.h"
 #include "sampler.h"
+#include "texshade.h"
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -39,6 +40,7 @@ int render_job_init(struct render_job *job, const struct scene *scene, uint32_t 
     camera_set_scene_motion(&job->camera, job->accel.has_motion);
     if (scene->media)
         job->media = media_job_new(job);
+    job->mips = texshade_build(scene, &job->textured);
     return 0;
 }
 
@@ -47,6 +49,7 @@ void render_job_free(struct render_job *job)
     for (uint32_t i = 0; job->face_normals && i < job->scene->num_meshes; i++)
         free(job->face_normals[i]);
     free(job->face_normals);
+    texshade_free(job->mips, job->scene);
     accel_free(&job->accel);
     light_table_free(&job->lights);
     media_job_free(&job->media);
@@ -192,6 +195,9 @@ static vec3 sample_path(const struct render_job *job, uint32_t px, uint32_t py, 
     vec3 org = cs.o, dir = cs.d;
     if (job->media)
         return media_sample_path(job, &smp, px, py, org, dir, time01, rays, hit_any);
+    struct raydiff rd;          /* texture footprints, only when a material has a texture */
+    if (job->textured)
+        texshade_camera(job, &cs, &rd);
 
     vec3 L = v3(0, 0, 0), beta = v3(1, 1, 1);
     float prev_pdf = 0.0f;      /* solid-angle pdf of the BSDF sample that produced dir */
@@ -226,12 +232,20 @@ static vec3 sample_path(const struct render_job *job, uint32_t px, uint32_t py, 
             break;
 
         const struct material *mat = &sc->materials[s.material];
+        struct material tex_mat;
+        struct raydiff_hit dh;
+        if (job->textured) {
+            texshade_hit(job, org, dir, &h, time01, &rd, &dh);
+            mat = texshade_material(job, mat, &dh, &tex_mat);
+        }
         vec3 wo = v3_neg(dir);
         /* Shade on the side the ray came from: surfaces are two-sided for reflection;
          * front (wo outside) tells a dielectric which index is on which side. */
         int front = v3_dot(s.ng, wo) >= 0.0f;
         vec3 ng = front ? s.ng : v3_neg(s.ng);
         vec3 ns = v3_dot(s.ns, ng) < 0.0f ? v3_neg(s.ns) : s.ns;
+        if (job->textured)
+            ns = texshade_bump(sc, job->mips, mat, &dh, ng, ns);
         vec3 p_off = offset_ray_origin(v3_add(s.p, v3_scale(ng, s.p_err)), ng);
         uint32_t d0 = sampler_bounce_dim(vertex - 1, 0);
 
@@ -278,6 +292,8 @@ static vec3 sample_path(const struct render_job *job, uint32_t px, uint32_t py, 
         }
         if (v3_is_black(beta))
             break;
+        if (job->textured)
+            texshade_scatter(&rd, mat, &bs, front, dir, ns, &dh);
         prev_pdf = bs.pdf;
         prev_p = s.p;
         prev_delta = bs.is_delta;

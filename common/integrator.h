@@ -23,6 +23,8 @@ struct render_job {
     uint32_t frame;
     vec3 **face_normals;    /* per mesh, per triangle: unit right-handed normal (zero if degenerate) */
     struct media_job *media; /* media_integrator.h; NULL when the scene has no media */
+    struct mip *mips;       /* per scene texture (texshade.c), NULL when no material has one */
+    int textured;           /* a material uses a texture: rays carry differentials */
 };
 
 int render_job_init(struct render_job *job, const struct scene *scene, uint32_t frame, uint32_t threads,

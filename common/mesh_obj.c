@@ -5,8 +5,11 @@
  * separate v/vt/vn spaces; corners are deduplicated into shared mesh vertices at the end.
  * Called by scene_json.c; fuzzed directly. */
 #include "mesh_obj.h"
+#include "image_load.h"
 #include "log.h"
+#include "texture.h"
 #include <float.h>
+#include <math.h>
 #include <stdarg.h>
 #include <stdbool.h>
 #include <stdio.h>
@@ -252,14 +255,130 @@ static const char *const map_keywords[] = {"map_Kd", "map_Ka", "map_Ks", "map_Ke
 static const char *const mtl_ignored[] = {"Ka", "Ks", "Ns", "Ni", "d", "Tr", "Tf", "illum",
                                           "sharpness", "Pr", "Pm", "Ps", "Pc", "Pcr", "aniso", "anisor"};
 
+/* map_Kd [-s u v [w]] [-o u v [w]] [-clamp on|off] file: an image texture for the
+ * diffuse albedo, relative to the MTL's folder (the albedo Kd then multiplies it; a
+ * material with map_Kd and no Kd gets Kd 1). With bump (map_Bump, map_bump, bump; also
+ * -bm mult): a height map, read as linear values, scaled by mult (default 1) in scene
+ * units. With norm: a tangent-space normal map (linear values). Returns 0, 1 when the
+ * statement was skipped
+ * (an option we do not support: warned), -1 on an error (in r->err). */
+enum mtl_map { MTL_MAP_KD, MTL_MAP_BUMP, MTL_MAP_NORM };
+
+static int mtl_map_kd(struct reader *r, struct scene *scene, const struct asset_source *src, const char *mtl_path,
+                      const char *display_dir, uint32_t cur, const struct token *kw, bool *kd_given,
+                      enum mtl_map kind)
+{
+    const bool bump = kind == MTL_MAP_BUMP;
+    const char *what = kind == MTL_MAP_KD ? "map_Kd" : (bump ? "bump map" : "normal map");
+    float bm = 1.0f;
+    if (cur == UINT32_MAX)
+        return reader_fail(r, kw->p, "%s before any newmtl", what);
+    struct texture t;
+    texture_init(&t, TEXTURE_IMAGE, NULL);
+    str_fmt(t.name, sizeof t.name, "%s", scene->materials[cur].name);
+    for (;;) {
+        size_t save = r->cur;
+        struct token o;
+        int k = reader_token(r, &o);
+        if (k < 0)
+            return -1;
+        if (k == 0)
+            return reader_fail(r, r->text + r->cur, "%s needs a file name", what);
+        if (o.n < 2 || o.p[0] != '-') {
+            r->cur = save;
+            break;
+        }
+        if (token_is(&o, "-s") || token_is(&o, "-o")) {
+            float v[3] = {0, 0, 0};
+            int n = 0;
+            for (; n < 3; n++) { /* two or three numbers; stop at the first non-number */
+                size_t at = r->cur;
+                struct token nt;
+                if (reader_token(r, &nt) != 1 || !number_syntax_ok(nt.p, nt.n)) {
+                    r->cur = at;
+                    break;
+                }
+                if (token_float(r, &nt, &v[n]) != 0)
+                    return -1;
+            }
+            if (n < 2)
+                return reader_fail(r, o.p, "%.*s needs 2 or 3 numbers", (int)o.n, o.p);
+            float *dst = o.p[1] == 's' ? t.scale : t.offset;
+            dst[0] = v[0];
+            dst[1] = v[1];
+            if (o.p[1] == 's' && !(fabsf(v[0]) >= 1e-6f && fabsf(v[1]) >= 1e-6f && fabsf(v[0]) <= 1e6f &&
+                                   fabsf(v[1]) <= 1e6f))
+                return reader_fail(r, o.p, "-s components must be in [1e-6, 1e6] in magnitude");
+            if (o.p[1] == 'o' && !(fabsf(v[0]) <= 1e6f && fabsf(v[1]) <= 1e6f))
+                return reader_fail(r, o.p, "-o components must be in [-1e6, 1e6]");
+            continue;
+        }
+        if (bump && token_is(&o, "-bm")) {
+            struct token v;
+            if (reader_token(r, &v) != 1 || token_float(r, &v, &bm) != 0 || !(fabsf(bm) <= 1e6f))
+                return reader_fail(r, o.p, "-bm needs a number in [-1e6, 1e6]");
+            continue;
+        }
+        if (token_is(&o, "-clamp")) {
+            struct token v;
+            if (reader_token(r, &v) != 1 || !(token_is(&v, "on") || token_is(&v, "off")))
+                return reader_fail(r, o.p, "-clamp needs on or off");
+            t.wrap = token_is(&v, "on") ? TEXWRAP_CLAMP : TEXWRAP_REPEAT;
+            continue;
+        }
+        log_warn("%s:%u:%u: %s option \"%.*s\" not supported: %s ignored", r->file, r->line, reader_col(r, o.p),
+                 what, (int)(o.n > 16 ? 16 : o.n), o.p, what);
+        r->cur = r->line_end;
+        return 1;
+    }
+    struct token file;
+    if (reader_rest(r, &file, what) != 0)
+        return -1;
+    char rel[ASSET_PATH_MAX], dir[ASSET_PATH_MAX], name[NAME_LEN_MAX + 1], why[1024];
+    const char *slash = strrchr(mtl_path, '/');
+    size_t dl = slash ? (size_t)(slash - mtl_path) : 0;
+    memcpy(dir, mtl_path, dl);
+    dir[dl] = '\0';
+    memcpy(name, file.p, file.n);
+    name[file.n] = '\0';
+    if (asset_path_join(dir, name, rel, sizeof rel, why, sizeof why) != 0)
+        return reader_fail(r, file.p, "%s: %s", what, why);
+    char display[ASSET_PATH_MAX + 1024];
+    str_fmt(display, sizeof display, "%s%s", display_dir ? display_dir : "", rel);
+    if (!src || !src->read)
+        return reader_fail(r, file.p, "%s: no asset source to read \"%s\" from", what, rel);
+    /* Heights are data, not colours: a bump map's bytes are read as linear. */
+    if (image_load_asset(src, rel, display, kind == MTL_MAP_KD, &t.image, why, sizeof why) != 0)
+        return reader_fail(r, file.p, "%s: %s", what, why);
+    if (scene->num_textures >= 65536) {
+        texture_free(&t);
+        return reader_fail(r, kw->p, "too many textures (at most 65536)");
+    }
+    uint32_t id = scene_add_texture(scene, &t) + 1;
+    if (kind == MTL_MAP_NORM) {
+        scene->materials[cur].normal_tex = id;
+        return 0;
+    }
+    if (bump) {
+        scene->materials[cur].bump_tex = id;
+        scene->materials[cur].bump_scale = bm;
+        return 0;
+    }
+    scene->materials[cur].albedo_tex = id;
+    if (!*kd_given)
+        scene->materials[cur].albedo = v3(1, 1, 1);
+    return 0;
+}
+
 static int mtl_parse(struct scene *scene, struct mesh_obj_mtl *mtl, const char *display_dir, const char *text,
-                     size_t len, char *err, size_t errlen)
+                     size_t len, const struct asset_source *src, char *err, size_t errlen)
 {
     struct reader r;
     reader_init(&r, display_dir, mtl->path, text, len, err, errlen);
     uint32_t warned_maps = 0;
     bool warned_unknown = false;
     uint32_t cur = UINT32_MAX;  /* scene id of the material being defined */
+    bool kd_given = false;      /* of the current material */
     while (reader_next_line(&r)) {
         struct token kw;
         int k = reader_token(&r, &kw);
@@ -283,6 +402,7 @@ static int mtl_parse(struct scene *scene, struct mesh_obj_mtl *mtl, const char *
             m.albedo = v3(DEFAULT_ALBEDO, DEFAULT_ALBEDO, DEFAULT_ALBEDO);
             m.emission = v3(0, 0, 0);
             cur = scene_add_material(scene, &m);
+            kd_given = false;
             size_t cap = mtl->cap;
             mem_grow((void **)&mtl->names, &cap, mtl->num + 1, sizeof *mtl->names);
             cap = mtl->cap;
@@ -320,6 +440,7 @@ static int mtl_parse(struct scene *scene, struct mesh_obj_mtl *mtl, const char *
                 scene->materials[cur].albedo = v3(c[0], c[1], c[2]);
             else
                 scene->materials[cur].emission = v3(c[0], c[1], c[2]);
+            kd_given = kd_given || is_kd;
             continue;
         }
         bool known = false;
@@ -328,6 +449,13 @@ static int mtl_parse(struct scene *scene, struct mesh_obj_mtl *mtl, const char *
                 known = true;
         if (known) {
             r.cur = r.line_end;  /* parameters of ignored statements are not interpreted */
+            continue;
+        }
+        if (token_is(&kw, "map_Kd") || token_is(&kw, "map_Bump") || token_is(&kw, "map_bump") || token_is(&kw, "bump") ||
+            token_is(&kw, "norm")) {
+            enum mtl_map kind = token_is(&kw, "map_Kd") ? MTL_MAP_KD : (token_is(&kw, "norm") ? MTL_MAP_NORM : MTL_MAP_BUMP);
+            if (mtl_map_kd(&r, scene, src, mtl->path, display_dir, cur, &kw, &kd_given, kind) < 0)
+                return -1;
             continue;
         }
         size_t map = SIZE_MAX;
@@ -377,7 +505,7 @@ static int mtl_get(struct scene *scene, struct mesh_obj_cache *cache, const stru
     struct mesh_obj_mtl *m = &cache->mtls[cache->num_mtls++];
     memset(m, 0, sizeof *m);
     memcpy(m->path, mtl_path, strlen(mtl_path) + 1);
-    int rc = mtl_parse(scene, m, display_dir, data, size, err, errlen);
+    int rc = mtl_parse(scene, m, display_dir, data, size, src, err, errlen);
     free(data);
     *index = cache->num_mtls - 1;
     return rc == 0 ? 0 : -2;

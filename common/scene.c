@@ -3,6 +3,7 @@
 #include "log.h"
 #include "medium.h"
 #include "motion.h"
+#include "texture.h"
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -27,6 +28,9 @@ void scene_free(struct scene *scene)
     free(scene->spheres);
     free(scene->lights);
     media_scene_free(&scene->media);
+    for (uint32_t i = 0; i < scene->num_textures; i++)
+        texture_free(&scene->textures[i]);
+    free(scene->textures);
     memset(scene, 0, sizeof *scene);
 }
 
@@ -57,6 +61,13 @@ uint32_t scene_add_sphere(struct scene *s, const struct sphere *sp)
     s->spheres = grow(s->spheres, s->num_spheres, sizeof *sp);
     s->spheres[s->num_spheres] = *sp;
     return s->num_spheres++;
+}
+
+uint32_t scene_add_texture(struct scene *s, const struct texture *t)
+{
+    s->textures = grow(s->textures, s->num_textures, sizeof *t);
+    s->textures[s->num_textures] = *t;
+    return s->num_textures++;
 }
 
 uint32_t scene_add_light(struct scene *s, const struct light *l)
@@ -98,12 +109,28 @@ int scene_validate(const struct scene *s, char *err, size_t errlen)
         str_fmt(err, errlen, "camera: look_at equals position or up is parallel to the view direction");
         return -1;
     }
+    for (uint32_t i = 0; i < s->num_textures; i++) {
+        const struct texture *t = &s->textures[i];
+        if (!(t->max_aniso >= 1.0f && t->max_aniso <= TEXTURE_MAX_ANISO) || !isfinite(t->scale[0]) ||
+            !isfinite(t->scale[1]) || !isfinite(t->offset[0]) || !isfinite(t->offset[1]) ||
+            (unsigned)t->filter >= TEXFILTER_COUNT_ || !finite3(t->color0) || !finite3(t->color1) ||
+            (t->type == TEXTURE_IMAGE &&
+             tex_image_bytes(t->image.width, t->image.height, t->image.channels, t->image.format) == 0)) {
+            str_fmt(err, errlen, "texture \"%s\": invalid parameters or image", t->name);
+            return -1;
+        }
+    }
     for (uint32_t i = 0; i < s->num_materials; i++) {
         const struct material *m = &s->materials[i];
         if (!finite3(m->albedo) || !finite3(m->emission) || m->albedo.x < 0 || m->albedo.y < 0 ||
             m->albedo.z < 0 || m->albedo.x > 1 || m->albedo.y > 1 || m->albedo.z > 1 ||
             m->emission.x < 0 || m->emission.y < 0 || m->emission.z < 0) {
             str_fmt(err, errlen, "material \"%s\": albedo must be in [0,1] and emission >= 0", m->name);
+            return -1;
+        }
+        if (m->albedo_tex > s->num_textures || m->bump_tex > s->num_textures || m->normal_tex > s->num_textures ||
+            !isfinite(m->bump_scale)) {
+            str_fmt(err, errlen, "material \"%s\": texture index out of range", m->name);
             return -1;
         }
         if (m->type == MATERIAL_DIELECTRIC && !(m->ior > 0.0f && isfinite(m->ior))) {
@@ -172,5 +199,12 @@ int scene_validate(const struct scene *s, char *err, size_t errlen)
             return -1;
         }
     }
+    /* The media integrator shades surfaces without textures: refuse rather than ignore. */
+    for (uint32_t i = 0; s->media && i < s->num_materials; i++)
+        if (s->materials[i].albedo_tex || s->materials[i].bump_tex || s->materials[i].normal_tex) {
+            str_fmt(err, errlen, "material \"%s\": textures in a scene with participating media are not supported yet",
+                    s->materials[i].name);
+            return -1;
+        }
     return media_validate(s, err, errlen);
 }

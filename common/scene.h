@@ -28,6 +28,10 @@ struct material {
     vec3 transmittance; /* dielectric: tint of refracted light per channel in [0, 1] */
     float ior;          /* dielectric: index of refraction inside / outside (the side the
                          * geometric normal points to is outside) */
+    uint32_t albedo_tex; /* diffuse: 1 + index into scene.textures (albedo multiplies it); 0 = none */
+    uint32_t bump_tex;   /* any type: 1 + index of a height texture perturbing the shading normal; 0 = none */
+    float bump_scale;    /* height units per texture value (in scene units) */
+    uint32_t normal_tex; /* any type: 1 + index of a tangent-space normal map (RGB = 2 n - 1); 0 = none */
 };
 
 /* One key of rigid motion, in frames. The key's transform is T R S (scale, then rotation,
@@ -123,6 +127,8 @@ struct render_settings {
     enum sampler_type sampler;
 };
 
+struct texture; /* texture.h */
+
 struct scene {
     struct camera_desc camera;
     struct render_settings settings;
@@ -135,6 +141,8 @@ struct scene {
     struct light *lights;
     uint32_t num_lights;
     struct scene_media *media;  /* participating media (medium.h); NULL when the scene has none */
+    struct texture *textures;   /* texture.h; referenced by materials */
+    uint32_t num_textures;
 };
 
 /* Frees everything the scene owns and zeroes it. Safe on a zeroed scene. */
@@ -146,6 +154,8 @@ uint32_t scene_add_material(struct scene *scene, const struct material *m);
 uint32_t scene_add_mesh(struct scene *scene, const struct mesh *m);
 uint32_t scene_add_sphere(struct scene *scene, const struct sphere *s);
 uint32_t scene_add_light(struct scene *scene, const struct light *l);
+/* Takes ownership of the texture's image. */
+uint32_t scene_add_texture(struct scene *scene, const struct texture *t);
 
 /* Checks invariants (indices in range, finite numbers, sizes within limits); on failure
  * writes one line into err and returns -1. Run on every scene before rendering. */

@@ -11,6 +11,8 @@
 #include "mesh_obj.h"
 #include "motion.h"
 #include "sampler.h"
+#include "image_load.h"
+#include "texture.h"
 #include <float.h>
 #include <jansson.h>
 #include <math.h>
@@ -464,12 +466,135 @@ static int parse_transform(struct ctx *c, const struct member *tm, struct xform 
 
 /* ---- Sections ---- */
 
+/* "textures": name -> {type: image | checker, ...}; see docs/scene-format.md. */
+static int parse_textures(struct ctx *c, const struct member *tm)
+{
+    if (!json_is_object(tm->val))
+        return fail(c, &tm->path, AT_VALUE, "textures must be an object (name -> texture)");
+    enum { K_TYPE, K_FILE, K_FILTER, K_ANISO, K_SCALE, K_OFFSET, K_WRAP, K_SRGB, K_COLOR0, K_COLOR1, K_N };
+    static const char *const keys[K_N] = {"type", "file", "filter", "max_anisotropy", "scale", "offset",
+                                          "wrap", "srgb", "color0", "color1"};
+    const char *name = NULL;
+    json_t *def;
+    uint32_t ordinal = 0;
+    json_object_foreach(tm->val, name, def) {
+        struct jpath p = jpath_child(&tm->path, ordinal++);
+        char nb[80], what[160], why[1024];
+        size_t n = strlen(name);
+        if (n == 0 || n >= SCENE_NAME_MAX)
+            return fail(c, &p, AT_KEY, "texture name must be 1 to %d bytes long", SCENE_NAME_MAX - 1);
+        if (c->scene->num_textures >= 65536)
+            return fail(c, &p, AT_KEY, "too many textures (at most 65536)");
+        str_fmt(what, sizeof what, "texture \"%s\"", printable(name, nb, sizeof nb));
+        struct member m[K_N];
+        const char *type = NULL;
+        if (object_members(c, def, &p, what, keys, K_N, m) != 0 || require(c, &m[K_TYPE], &p, what, "type") != 0 ||
+            get_string(c, &m[K_TYPE], "type", &type) != 0)
+            return -1;
+        int is_image = strcmp(type, "image") == 0;
+        if (!is_image && strcmp(type, "checker") != 0) {
+            char tb[80];
+            return fail(c, &m[K_TYPE].path, AT_VALUE, "unknown texture type \"%s\" (known: image, checker)",
+                        printable(type, tb, sizeof tb));
+        }
+        static const int image_only[] = {K_FILE, K_WRAP, K_SRGB}, checker_only[] = {K_COLOR0, K_COLOR1};
+        for (size_t k = 0; k < 3; k++)
+            if (!is_image && m[image_only[k]].val)
+                return fail(c, &m[image_only[k]].path, AT_KEY, "key \"%s\" applies to image textures only",
+                            keys[image_only[k]]);
+        for (size_t k = 0; k < 2; k++)
+            if (is_image && m[checker_only[k]].val)
+                return fail(c, &m[checker_only[k]].path, AT_KEY, "key \"%s\" applies to checker textures only",
+                            keys[checker_only[k]]);
+        struct texture t;
+        texture_init(&t, is_image ? TEXTURE_IMAGE : TEXTURE_CHECKER, name);
+        if (m[K_FILTER].val) {
+            const char *f = NULL;
+            if (get_string(c, &m[K_FILTER], "filter", &f) != 0)
+                return -1;
+            if (texture_filter_from_name(f, &t.filter) != 0) {
+                char fb[80];
+                return fail(c, &m[K_FILTER].path, AT_VALUE,
+                            "unknown filter \"%s\" (known: nearest, bilinear, trilinear, ewa)",
+                            printable(f, fb, sizeof fb));
+            }
+        }
+        if (m[K_ANISO].val) {
+            if (get_float(c, m[K_ANISO].val, &m[K_ANISO].path, "max_anisotropy", &t.max_aniso) != 0)
+                return -1;
+            if (!(t.max_aniso >= 1.0f && t.max_aniso <= TEXTURE_MAX_ANISO))
+                return fail(c, &m[K_ANISO].path, AT_VALUE, "max_anisotropy must be in [1, %g]",
+                            (double)TEXTURE_MAX_ANISO);
+        }
+        const int pair_keys[2] = {K_SCALE, K_OFFSET};
+        for (int k = 0; k < 2; k++) {
+            const struct member *pm = &m[pair_keys[k]];
+            if (!pm->val)
+                continue;
+            if (!json_is_array(pm->val) || json_array_size(pm->val) != 2)
+                return fail(c, &pm->path, AT_VALUE, "%s must be an array of 2 numbers", keys[pair_keys[k]]);
+            float *dst = k == 0 ? t.scale : t.offset;
+            for (uint32_t i = 0; i < 2; i++) {
+                struct jpath ep = jpath_child(&pm->path, i);
+                if (get_float(c, json_array_get(pm->val, i), &ep, keys[pair_keys[k]], &dst[i]) != 0)
+                    return -1;
+                if (k == 0 && !(fabsf(dst[i]) >= 1e-6f && fabsf(dst[i]) <= 1e6f))
+                    return fail(c, &ep, AT_VALUE, "scale components must be in [1e-6, 1e6] in magnitude");
+                if (k == 1 && !(fabsf(dst[i]) <= 1e6f))
+                    return fail(c, &ep, AT_VALUE, "offset components must be in [-1e6, 1e6]");
+            }
+        }
+        if (m[K_COLOR0].val && (get_vec3(c, m[K_COLOR0].val, &m[K_COLOR0].path, "color0", &t.color0) != 0 ||
+                                check_color(c, &m[K_COLOR0], "color0", 0.0f, 1.0f, t.color0) != 0))
+            return -1;
+        if (m[K_COLOR1].val && (get_vec3(c, m[K_COLOR1].val, &m[K_COLOR1].path, "color1", &t.color1) != 0 ||
+                                check_color(c, &m[K_COLOR1], "color1", 0.0f, 1.0f, t.color1) != 0))
+            return -1;
+        if (!is_image) {
+            scene_add_texture(c->scene, &t);
+            continue;
+        }
+        if (m[K_WRAP].val) {
+            const char *w = NULL;
+            if (get_string(c, &m[K_WRAP], "wrap", &w) != 0)
+                return -1;
+            if (strcmp(w, "repeat") == 0)
+                t.wrap = TEXWRAP_REPEAT;
+            else if (strcmp(w, "clamp") == 0)
+                t.wrap = TEXWRAP_CLAMP;
+            else
+                return fail(c, &m[K_WRAP].path, AT_VALUE, "wrap must be \"repeat\" or \"clamp\"");
+        }
+        int srgb = 1;
+        if (m[K_SRGB].val) {
+            if (!json_is_boolean(m[K_SRGB].val))
+                return fail(c, &m[K_SRGB].path, AT_VALUE, "srgb must be true or false, not %s",
+                            type_name(m[K_SRGB].val));
+            srgb = json_is_true(m[K_SRGB].val);
+        }
+        const char *file = NULL;
+        if (require(c, &m[K_FILE], &p, what, "file") != 0 || get_string(c, &m[K_FILE], "file", &file) != 0)
+            return -1;
+        if (asset_path_check(file, why, sizeof why) != 0)
+            return fail(c, &m[K_FILE].path, AT_VALUE, "file: %s", why);
+        if (!c->src || !c->src->read)
+            return fail(c, &m[K_FILE].path, AT_VALUE, "cannot read image \"%s\": no asset source", file);
+        char display[2048];
+        str_fmt(display, sizeof display, "%s%s", c->display_dir, file);
+        if (image_load_asset(c->src, file, display, srgb, &t.image, why, sizeof why) != 0)
+            return fail(c, &m[K_FILE].path, AT_VALUE, "cannot load image: %s", why);
+        scene_add_texture(c->scene, &t);
+    }
+    return 0;
+}
+
 static int parse_materials(struct ctx *c, const struct member *mm)
 {
     if (!json_is_object(mm->val))
         return fail(c, &mm->path, AT_VALUE, "materials must be an object (name -> material)");
     /* One closed list for all types; which keys a type takes is checked below. */
-    static const char *const keys[] = {"type", "albedo", "emission", "reflectance", "ior", "transmittance"};
+    static const char *const keys[] = {"type", "albedo", "emission", "reflectance", "ior", "transmittance",
+                                       "albedo_texture", "bump_texture", "bump_scale", "normal_texture"};
     static const char *const type_names[] = {"diffuse", "mirror", "dielectric"};
     static const char *const type_keys[] = {"albedo", "reflectance", "ior, transmittance"};
     const char *name = NULL;
@@ -483,9 +608,9 @@ static int parse_materials(struct ctx *c, const struct member *mm)
             return fail(c, &p, AT_KEY, "material name must be 1 to %d bytes long", SCENE_NAME_MAX - 1);
         char what[160];
         str_fmt(what, sizeof what, "material \"%s\"", printable(name, nb, sizeof nb));
-        struct member m[6];
+        struct member m[10];
         const char *type = NULL;
-        if (object_members(c, def, &p, what, keys, 6, m) != 0 || require(c, &m[0], &p, what, "type") != 0 ||
+        if (object_members(c, def, &p, what, keys, 10, m) != 0 || require(c, &m[0], &p, what, "type") != 0 ||
             get_string(c, &m[0], "type", &type) != 0)
             return -1;
         int ti = 0;
@@ -523,6 +648,47 @@ static int parse_materials(struct ctx *c, const struct member *mm)
                 return -1;
             if (!(mat.ior >= 1.0f / 16.0f && mat.ior <= 16.0f))
                 return fail(c, &m[4].path, AT_VALUE, "ior must be in [0.0625, 16] (inside / outside)");
+        }
+        if (m[6].val) { /* a texture's albedo is multiplied by "albedo" (default white) */
+            if (ti != 0)
+                return fail(c, &m[6].path, AT_KEY, "albedo_texture applies to diffuse materials only");
+            const char *tname = NULL;
+            if (get_string(c, &m[6], "albedo_texture", &tname) != 0)
+                return -1;
+            for (uint32_t t = 0; t < c->scene->num_textures && !mat.albedo_tex; t++)
+                if (strcmp(c->scene->textures[t].name, tname) == 0)
+                    mat.albedo_tex = t + 1;
+            if (!mat.albedo_tex) {
+                char tb[80];
+                return fail(c, &m[6].path, AT_VALUE, "unknown texture \"%s\" (not in \"textures\")",
+                            printable(tname, tb, sizeof tb));
+            }
+            mat.albedo = v3(1, 1, 1);
+        }
+        mat.bump_scale = 1.0f;
+        for (int k = 7; k <= 9; k += 2) { /* a height map or a normal map, for any material type */
+            if (!m[k].val)
+                continue;
+            const char *tname = NULL;
+            uint32_t *slot = k == 7 ? &mat.bump_tex : &mat.normal_tex;
+            if (get_string(c, &m[k], keys[k], &tname) != 0)
+                return -1;
+            for (uint32_t t = 0; t < c->scene->num_textures && !*slot; t++)
+                if (strcmp(c->scene->textures[t].name, tname) == 0)
+                    *slot = t + 1;
+            if (!*slot) {
+                char tb[80];
+                return fail(c, &m[k].path, AT_VALUE, "unknown texture \"%s\" (not in \"textures\")",
+                            printable(tname, tb, sizeof tb));
+            }
+        }
+        if (m[8].val) {
+            if (!m[7].val)
+                return fail(c, &m[8].path, AT_KEY, "bump_scale needs \"bump_texture\"");
+            if (get_float(c, m[8].val, &m[8].path, "bump_scale", &mat.bump_scale) != 0)
+                return -1;
+            if (!(fabsf(mat.bump_scale) <= 1e6f))
+                return fail(c, &m[8].path, AT_VALUE, "bump_scale must be in [-1e6, 1e6]");
         }
         if (m[1].val && (get_vec3(c, m[1].val, &m[1].path, "albedo", &mat.albedo) != 0 ||
                          check_color(c, &m[1], "albedo", 0.0f, 1.0f, mat.albedo) != 0))
@@ -1360,10 +1526,10 @@ static int parse_lights(struct ctx *c, const struct member *lm)
 static int parse_root(struct ctx *c, json_t *root)
 {
     static const char *const keys[] = {"version", "camera", "render", "materials", "objects", "lights", "media",
-                                       "volume"};
+                                       "volume", "textures"};
     struct jpath rp = {0, {0}};
-    struct member m[8];
-    if (object_members(c, root, &rp, "the scene", keys, 8, m) != 0 ||
+    struct member m[9];
+    if (object_members(c, root, &rp, "the scene", keys, 9, m) != 0 ||
         require(c, &m[0], &rp, "scene", "version") != 0)
         return -1;
     if (!json_is_integer(m[0].val))
@@ -1373,7 +1539,10 @@ static int parse_root(struct ctx *c, json_t *root)
                     (long long)json_integer_value(m[0].val), SCENE_VERSION);
     if (require(c, &m[1], &rp, "scene", "camera") != 0 || require(c, &m[2], &rp, "scene", "render") != 0)
         return -1;
-    /* Materials first: objects refer to them by name wherever they appear in the file. */
+    /* Textures, then materials: objects refer to materials (and materials to textures) by
+     * name wherever they appear in the file. */
+    if (m[8].val && parse_textures(c, &m[8]) != 0)
+        return -1;
     if (m[3].val && parse_materials(c, &m[3]) != 0)
         return -1;
     /* Media before objects (which name them); the volume settings name the fog. */

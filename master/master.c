@@ -368,11 +368,13 @@ static void tile_command(const struct master *m, uint32_t t, char *out, size_t o
         snprintf(out + n, outlen - n, " --frames %u:%u", m->frame, m->frame);
 }
 
-enum evict_kind { EVICT_LEFT, EVICT_SILENT, EVICT_STALLED, EVICT_DIED, EVICT_ERROR, EVICT_BANNED };
+/* EVICT_KILLED: a local worker ended by SIGKILL, which a tile cannot cause by itself (an
+ * operator, a test, the OOM killer): it died, but its tiles are not blamed. */
+enum evict_kind { EVICT_LEFT, EVICT_SILENT, EVICT_STALLED, EVICT_DIED, EVICT_KILLED, EVICT_ERROR, EVICT_BANNED };
 
 /* Puts a peer's unfinished tiles back at the front of the queue and forgets the peer. A
- * worker that died, hung or failed also counts against each tile it held: a tile that
- * took CRASHES_TO_FAIL different workers down fails the job. */
+ * worker that died (other than by SIGKILL), hung or failed also counts against each tile
+ * it held: a tile that took CRASHES_TO_FAIL different workers down fails the job. */
 static void evict_peer(struct master *m, int32_t pi, enum evict_kind kind, const char *why)
 {
     struct peer *p = &m->peers[pi];
@@ -386,7 +388,8 @@ static void evict_peer(struct master *m, int32_t pi, enum evict_kind kind, const
             held |= s->holder[k] == pi;
         if (!held || s->state != TILE_ASSIGNED)
             continue;
-        if (kind != EVICT_LEFT && kind != EVICT_BANNED && ++s->crashes >= CRASHES_TO_FAIL && !m->fatal[0]) {
+        if (kind != EVICT_LEFT && kind != EVICT_BANNED && kind != EVICT_KILLED && ++s->crashes >= CRASHES_TO_FAIL &&
+            !m->fatal[0]) {
             char cmd[1800];
             tile_command(m, t, cmd, sizeof cmd);
             uint32_t tx = t % imgio_tiles_x(&m->desc), ty = t / imgio_tiles_x(&m->desc), x0, y0, w, h;
@@ -403,7 +406,8 @@ static void evict_peer(struct master *m, int32_t pi, enum evict_kind kind, const
     switch (kind) {
     case EVICT_SILENT: m->c.evicted_silent++; break;
     case EVICT_STALLED: m->c.evicted_stalled++; break;
-    case EVICT_DIED: m->c.evicted_died++; break;
+    case EVICT_DIED:
+    case EVICT_KILLED: m->c.evicted_died++; break;
     case EVICT_ERROR: m->c.evicted_error++; break;
     case EVICT_BANNED: m->c.workers_banned++; break;
     case EVICT_LEFT: break;
@@ -1273,7 +1277,8 @@ static void reap_local(struct master *m)
                     snprintf(why, sizeof why, "process killed by signal %d", WTERMSIG(status));
                 else
                     snprintf(why, sizeof why, "process exited with status %d", WEXITSTATUS(status));
-                evict_peer(m, (int32_t)i, EVICT_DIED, why);
+                evict_peer(m, (int32_t)i, WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL ? EVICT_KILLED : EVICT_DIED,
+                           why);
             }
     }
 }

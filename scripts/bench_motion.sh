@@ -15,7 +15,7 @@ REPS=${REPS:-5}
 sh scripts/install-deps.sh time
 T=$(mktemp -d /tmp/brume-bench-motion.XXXXXX)
 trap 'rm -rf "$T"' EXIT
-cp scenes/motion/*.obj scenes/motion/motion.json "$T/"
+cp scenes/motion/*.obj scenes/motion/*.png scenes/motion/motion.json "$T/"
 # The still variant: shutter_close = shutter_open.
 sed 's/"shutter_close": [0-9.]*/"shutter_close": 0/' scenes/motion/motion.json >"$T/still.json"
 grep -q '"shutter_close": 0}' "$T/still.json" || { echo "bench_motion: cannot make the still variant" >&2; exit 1; }

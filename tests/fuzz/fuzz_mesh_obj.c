@@ -15,7 +15,7 @@ struct input { const uint8_t *data; size_t size; };
 static int fuzz_read(void *ctx, const char *rel_path, char **out, size_t *size, char *err, size_t errlen)
 {
     const struct input *in = ctx;
-    static const char fixed[] = "newmtl a\nKd 0.5 0.5 0.5\nnewmtl light\nKe 1 1 1\nmap_Kd t.png\n";
+    static const char fixed[] = "newmtl a\nKd 0.5 0.5 0.5\nnewmtl light\nKe 1 1 1\nmap_Ks t.png\n";
     const void *src;
     size_t n;
     if (strcmp(rel_path, "a.mtl") == 0) {

@@ -11,14 +11,14 @@ BUILD=${BUILD:-build}
 CC_FUZZ=${CC_FUZZ:-clang}
 OUT="$BUILD/fuzz"
 mkdir -p "$OUT"
-LIBS="-lembree3 -lOpenEXRCore-3_1 -lzmq -ljansson -lsodium -lpng -lm -pthread"
+LIBS="-lembree3 -lOpenEXRCore-3_1 -lzmq -ljansson -lsodium -lpng -lstb -lm -pthread"
 CFLAGS_FUZZ="-g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined -std=c11 -D_GNU_SOURCE -Icommon"
 
 seed_dir="$OUT/seed"
 rm -rf "$seed_dir"
 mkdir -p "$seed_dir"
 n=0
-for f in $(find scenes -type f \( -name '*.json' -o -name '*.obj' -o -name '*.mtl' \) 2>/dev/null); do
+for f in $(find scenes -type f \( -name '*.json' -o -name '*.obj' -o -name '*.mtl' -o -name '*.png' -o -name '*.jpg' -o -name '*.hdr' -o -name '*.exr' \) 2>/dev/null); do
     n=$((n + 1))
     cp "$f" "$seed_dir/seed_${n}_$(basename "$f")"
 done

@@ -181,7 +181,7 @@ Test(mesh_obj, materials_from_mtl)
 {
     static const struct mem_file files[] = {
         {"m.mtl", "# lib\nnewmtl red\nKa 0 0 0\nKd 1 0 0\nKs 0 0 0\nNs 10\nNi 1.5\nd 1\nillum 2\n"
-                  "map_Kd red.png\nnewmtl glow\nKd 0.5\nKe 4 5 6\nmap_Kd x.png\n"},
+                  "map_Ks red.png\nnewmtl glow\nKd 0.5\nKe 4 5 6\nmap_Ks x.png\n"},
         {NULL, NULL}};
     struct scene s = {0};
     char err[512];

@@ -329,6 +329,18 @@ Test(scene_json, validate_runs_last)
                  "scenes/t.json: mesh \"big.obj\": non-finite vertex position");
 }
 
+Test(scene_json, textures_with_media_refused)
+{
+    /* The media integrator does not apply textures: a clear error, not a silently
+     * untextured image. */
+    expect_error(HEAD ",\n\"textures\": {\"c\": {\"type\": \"checker\"}},\n"
+                      "\"materials\": {\"m\": {\"type\": \"diffuse\", \"albedo_texture\": \"c\"}},\n"
+                      "\"media\": {\"fog\": {\"sigma_a\": [0.1, 0.1, 0.1], \"sigma_s\": [0.1, 0.1, 0.1]}},\n"
+                      "\"volume\": {\"fog\": \"fog\"},\n"
+                      "\"objects\": [{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1, \"material\": \"m\"}]}",
+                 "material \"m\": textures in a scene with participating media are not supported yet");
+}
+
 static int load_file(const char *path, struct scene *s, char *err, size_t errlen)
 {
     char folder[512];
