@@ -14,7 +14,10 @@
 #include "material.h"
 #include "photonmap.h"
 #include <math.h>
+#include <pthread.h>
+#include <stdatomic.h>
 #include <stdlib.h>
+#include <unistd.h>
 #include <string.h>
 
 #define MAX_CROSSINGS 256
@@ -82,6 +85,83 @@ uint32_t media_at(const struct render_job *job, vec3 p)
     return sm->fog;
 }
 
+/* Shadow transmittance caches of Jensen's methods: one per (point light, grid medium),
+ * filled by the first thread that needs it (under a lock, on all cores) and read-only
+ * after; the values are a pure function of the scene, so pixels do not depend on which
+ * thread filled it, or when. */
+#define SHADOW_CACHES_MAX 64
+struct shadow_cache {
+    vec3 light;
+    uint32_t medium;
+    struct tr_cache c;
+    atomic_int ready;
+};
+struct shadow_caches {
+    pthread_mutex_t lock;
+    uint32_t n, threads;
+    struct shadow_cache e[SHADOW_CACHES_MAX];
+};
+
+static struct shadow_caches *shadow_caches_new(const struct render_job *job)
+{
+    const struct scene *sc = job->scene;
+    const struct scene_media *sm = sc->media;
+    if (sm->method == MEDIA_VPT || !sm->shadow_cache)
+        return NULL;
+    struct shadow_caches *s = mem_calloc(1, sizeof *s);
+    pthread_mutex_init(&s->lock, NULL);
+    long cores = sysconf(_SC_NPROCESSORS_ONLN);
+    s->threads = cores < 1 ? 1u : (cores > 64 ? 64u : (uint32_t)cores);
+    for (uint32_t m = 0; m < sm->num_media; m++) {
+        if (!sm->media[m].grid)
+            continue;
+        for (uint32_t i = 0; i < job->lights.num_entries && s->n < SHADOW_CACHES_MAX; i++) {
+            const struct light_entry *e = &job->lights.entries[i];
+            if (e->kind != LK_POINT)
+                continue;
+            struct shadow_cache *c = &s->e[s->n++];
+            c->light = sc->lights[e->index].position;
+            c->medium = m;
+            atomic_init(&c->ready, 0);
+        }
+    }
+    return s;
+}
+
+static void shadow_caches_free(struct shadow_caches **ps)
+{
+    struct shadow_caches *s = *ps;
+    if (!s)
+        return;
+    for (uint32_t i = 0; i < s->n; i++)
+        tr_cache_free(&s->e[i].c);
+    pthread_mutex_destroy(&s->lock);
+    free(s);
+    *ps = NULL;
+}
+
+static const struct tr_cache *shadow_cache_get(const struct render_job *job, vec3 light, uint32_t medium)
+{
+    struct shadow_caches *s = job->media->shadow;
+    if (!s)
+        return NULL;
+    for (uint32_t i = 0; i < s->n; i++) {
+        struct shadow_cache *c = &s->e[i];
+        if (c->medium != medium || memcmp(&c->light, &light, sizeof light) != 0)
+            continue;
+        if (!atomic_load_explicit(&c->ready, memory_order_acquire)) {
+            pthread_mutex_lock(&s->lock);
+            if (!atomic_load_explicit(&c->ready, memory_order_relaxed)) {
+                tr_cache_build(&c->c, &job->scene->media->media[medium], light, s->threads);
+                atomic_store_explicit(&c->ready, 1, memory_order_release);
+            }
+            pthread_mutex_unlock(&s->lock);
+        }
+        return c->c.tau ? &c->c : NULL;
+    }
+    return NULL;
+}
+
 struct media_job *media_job_new(const struct render_job *job)
 {
     const struct scene *sc = job->scene;
@@ -130,6 +210,7 @@ struct media_job *media_job_new(const struct render_job *job)
         mj->light_medium[i] = media_at(job, p);
     }
     mj->map = sm->method != MEDIA_VPT ? sm->map : NULL;
+    mj->shadow = shadow_caches_new(job);
     return mj;
 }
 
@@ -138,6 +219,7 @@ void media_job_free(struct media_job **pmj)
     if (!*pmj)
         return;
     free((*pmj)->light_medium);
+    shadow_caches_free(&(*pmj)->shadow);
     free(*pmj);
     *pmj = NULL;
 }
@@ -155,6 +237,14 @@ vec3 media_shadow_transmittance(const struct render_job *job, vec3 p, vec3 targe
             return v3(0, 0, 0);
         if (medium == MEDIUM_NONE)
             return tr;
+        const struct medium *md = &sm->media[medium];
+        if (!ratio && md->grid) {
+            /* Jensen's methods: the cached optical depth toward a point light, where cached. */
+            const struct tr_cache *c = shadow_cache_get(job, target, medium);
+            float tau;
+            if (c && tr_cache_tau(c, p, &tau))
+                return v3(expf(-md->sigma_t.x * tau), expf(-md->sigma_t.y * tau), expf(-md->sigma_t.z * tau));
+        }
         vec3 to = v3_sub(target, p);
         float len = v3_length(to);
         return len > 0.0f ? medium_tr_segment(&sm->media[medium], p, v3_scale(to, 1.0f / len), len, key, ratio) : tr;
@@ -357,8 +447,27 @@ static vec3 march_segment(const struct render_job *job, const struct rngs *r, ui
         *seg_tr = v3(expf(-md->sigma_t.x * tau), expf(-md->sigma_t.y * tau), expf(-md->sigma_t.z * tau));
     if (mj->sm->method == MEDIA_MARCH_BEAM && mj->map) {
         if (het) {
-            struct photon_tau tt = {tau_tab, ntab, c0, dx};
-            L = v3_add(L, photon_map_beam(mj->map, o, d, len, md, &tt));
+            /* Photons lie in the occupied box (stored only where the density is non-zero):
+             * the beam need only walk the part of the ray within r of its world box. */
+            vec3 blo, bhi;
+            grid_world_box(md->grid, &blo, &bhi);
+            float rad = mj->map->radius, e0 = 0.0f, e1 = len;
+            float oo[3] = {o.x, o.y, o.z}, dd[3] = {d.x, d.y, d.z};
+            float lo3[3] = {blo.x - rad, blo.y - rad, blo.z - rad}, hi3[3] = {bhi.x + rad, bhi.y + rad, bhi.z + rad};
+            for (int a = 0; a < 3; a++) {
+                if (dd[a] == 0.0f) {
+                    if (oo[a] < lo3[a] || oo[a] > hi3[a])
+                        e1 = -1.0f;
+                    continue;
+                }
+                float ta = (lo3[a] - oo[a]) / dd[a], tb = (hi3[a] - oo[a]) / dd[a];
+                e0 = fmaxf(e0, fminf(ta, tb));
+                e1 = fminf(e1, fmaxf(ta, tb));
+            }
+            if (e0 < e1) {
+                struct photon_tau tt = {tau_tab, ntab, c0 - e0, dx};
+                L = v3_add(L, photon_map_beam(mj->map, v3_add(o, v3_scale(d, e0)), d, e1 - e0, md, &tt));
+            }
         } else {
             L = v3_add(L, photon_map_beam(mj->map, o, d, len, md, NULL));
         }
