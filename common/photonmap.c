@@ -637,6 +637,94 @@ vec3 photon_map_gather(const struct photon_map *m, vec3 x, vec3 d_out, float g)
     return v3((float)fmin(acc[0] * inv_vol, 1e30), (float)fmin(acc[1] * inv_vol, 1e30), (float)fmin(acc[2] * inv_vol, 1e30));
 }
 
+/* Max-heap on squared distance (the root is the farthest of the k kept). */
+struct knn_item { float d2; uint32_t i; };
+
+static void heap_sift_down(struct knn_item *h, uint32_t n, uint32_t i)
+{
+    for (;;) {
+        uint32_t l = 2 * i + 1, r = l + 1, m = i;
+        if (l < n && (h[l].d2 > h[m].d2 || (h[l].d2 == h[m].d2 && h[l].i > h[m].i)))
+            m = l;
+        if (r < n && (h[r].d2 > h[m].d2 || (h[r].d2 == h[m].d2 && h[r].i > h[m].i)))
+            m = r;
+        if (m == i)
+            return;
+        struct knn_item t = h[i];
+        h[i] = h[m], h[m] = t;
+        i = m;
+    }
+}
+
+static void heap_sift_up(struct knn_item *h, uint32_t i)
+{
+    while (i > 0) {
+        uint32_t p = (i - 1) / 2;
+        if (!(h[i].d2 > h[p].d2 || (h[i].d2 == h[p].d2 && h[i].i > h[p].i)))
+            return;
+        struct knn_item t = h[i];
+        h[i] = h[p], h[p] = t;
+        i = p;
+    }
+}
+
+uint32_t photon_map_knn(const struct photon_map *m, vec3 x, uint32_t k, float rmax, uint32_t *idx, float *r2_out)
+{
+    *r2_out = 0.0f;
+    if (!m || m->num_photons == 0 || k == 0)
+        return 0;
+    if (k > PM_KNN_MAX)
+        k = PM_KNN_MAX;
+    /* The hash grid's cells are 2 r wide and collect_buckets visits at most 4 per axis. */
+    rmax = fminf(rmax, 1.5f * m->cell_size);
+    if (!(rmax > 0.0f))
+        return 0;
+    float r2max = rmax * rmax;
+    uint32_t buckets[MAX_VISIT];
+    uint32_t nb = collect_buckets(m, v3(x.x - rmax, x.y - rmax, x.z - rmax), v3(x.x + rmax, x.y + rmax, x.z + rmax),
+                                  buckets, NULL);
+    struct knn_item h[PM_KNN_MAX];
+    uint32_t n = 0;
+    for (uint32_t bi = 0; bi < nb; bi++)
+        for (uint32_t i = m->bucket_start[buckets[bi]]; i < m->bucket_start[buckets[bi] + 1]; i++) {
+            const struct photon *ph = &m->photons[i];
+            vec3 dp = v3_sub(v3(ph->p[0], ph->p[1], ph->p[2]), x);
+            float d2 = v3_dot(dp, dp);
+            if (!(d2 <= r2max))
+                continue;
+            if (n < k) {
+                h[n] = (struct knn_item){d2, i};
+                heap_sift_up(h, n++);
+            } else if (d2 < h[0].d2 || (d2 == h[0].d2 && i < h[0].i)) {
+                h[0] = (struct knn_item){d2, i};
+                heap_sift_down(h, n, 0);
+            }
+        }
+    for (uint32_t j = 0; j < n; j++)
+        idx[j] = h[j].i;
+    /* Fewer than k within rmax: the estimate's sphere is the maximum radius. */
+    *r2_out = n == k ? h[0].d2 : r2max;
+    return n;
+}
+
+vec3 photon_map_gather_knn(const struct photon_map *m, vec3 x, vec3 d_out, float g, uint32_t k, float rmax)
+{
+    uint32_t idx[PM_KNN_MAX];
+    float r2;
+    uint32_t n = photon_map_knn(m, x, k, rmax, idx, &r2);
+    if (n == 0)
+        return v3(0, 0, 0);
+    double acc[3] = {0, 0, 0};
+    for (uint32_t j = 0; j < n; j++) {
+        const struct photon *ph = &m->photons[idx[j]];
+        float p = phase_hg(v3_dot(photon_dir_decode(ph->dir), d_out), g);
+        vec3 pw = photon_rgbe_decode(ph->rgbe);
+        acc[0] += (double)p * pw.x, acc[1] += (double)p * pw.y, acc[2] += (double)p * pw.z;
+    }
+    double rk = fmax(sqrt((double)r2), PM_MIN_KERNEL_RADIUS), inv_vol = 1.0 / (4.0 / 3.0 * M_PI * rk * rk * rk);
+    return v3((float)fmin(acc[0] * inv_vol, 1e30), (float)fmin(acc[1] * inv_vol, 1e30), (float)fmin(acc[2] * inv_vol, 1e30));
+}
+
 /* Drops repeated bucket ids in place (a small open-addressing set); returns the count. */
 static uint32_t unique_buckets(uint32_t *b, uint32_t n)
 {

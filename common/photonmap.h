@@ -59,6 +59,15 @@ double photon_map_indirect_bound(const struct scene *s, float scene_size);
  * sum of phase x power / (4/3 pi r^3) over photons within r; this is sigma_s times the
  * in-scattered radiance, so a march step adds it times dx. */
 vec3 photon_map_gather(const struct photon_map *m, vec3 x, vec3 d_out, float g);
+/* Jensen's k-nearest query: the (at most) k photons nearest to x within rmax (rmax is
+ * capped at 1.5 hash-grid cells, 3 gather radii), indices into m->photons in idx (room
+ * for min(k, PM_KNN_MAX)); *r2 gets the squared radius of the estimate's sphere: the k-th
+ * distance when k were found, else rmax^2. Ties broken by index: deterministic. */
+#define PM_KNN_MAX 1024u
+uint32_t photon_map_knn(const struct photon_map *m, vec3 x, uint32_t k, float rmax, uint32_t *idx, float *r2);
+/* Jensen's per-step estimate with the k nearest photons (adaptive radius, at most rmax):
+ * sum of phase x power / (4/3 pi r_k^3). */
+vec3 photon_map_gather_knn(const struct photon_map *m, vec3 x, vec3 d_out, float g, uint32_t k, float rmax);
 /* Beam radiance estimate (Jarosz et al. 2008) along o + t d, t in [0, t1), in homogeneous
  * medium md: sum over photons within r of the ray of K(r) Tr(t_i) phase power, K = 1 /
  * (pi r^2). One query for the whole segment. */
