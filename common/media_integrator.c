@@ -379,6 +379,45 @@ static vec3 scatter_nee(const struct render_job *job, vec3 x, vec3 d_out, uint32
     return v3_scale(v3_mul(ls.radiance, tr), ph * w / ls.pdf);
 }
 
+#define MARCH_ALL_LIGHTS 4
+/* Jensen's methods sample every light when the scene has at most MARCH_ALL_LIGHTS, all
+ * point or spot lights. */
+static int march_all_points(const struct render_job *job)
+{
+    if (job->lights.num_entries == 0 || job->lights.num_entries > MARCH_ALL_LIGHTS)
+        return 0;
+    for (uint32_t i = 0; i < job->lights.num_entries; i++)
+        if (job->lights.entries[i].kind != LK_POINT)
+            return 0;
+    return 1;
+}
+
+/* Single scattering toward every light of a table of point lights at x (light leaving
+ * along d_out): sum of I falloff / d^2 x phase x shadow transmittance. */
+static vec3 point_lights_all(const struct render_job *job, vec3 x, vec3 d_out, uint32_t medium, float g, float time01,
+                             uint64_t key, uint64_t *rays)
+{
+    const struct scene *sc = job->scene;
+    vec3 sum = v3(0, 0, 0);
+    for (uint32_t i = 0; i < job->lights.num_entries; i++) {
+        const struct light_entry *e = &job->lights.entries[i];
+        if (e->kind != LK_POINT)
+            continue;
+        const struct light *l = &sc->lights[e->index];
+        vec3 to = v3_sub(l->position, x);
+        float d2 = v3_dot(to, to);
+        if (!(d2 > 0.0f))
+            continue;
+        vec3 li = v3_scale(e->emission, light_spot_falloff(l, v3_neg(to)) / d2);
+        if (v3_is_black(li))
+            continue;
+        float ph = phase_hg(v3_dot(v3_scale(to, -1.0f / sqrtf(d2)), d_out), g);
+        vec3 tr = media_shadow_transmittance(job, x, l->position, medium, time01, rng_mix64(key + i), rays);
+        sum = v3_add(sum, v3_scale(v3_mul(li, tr), ph));
+    }
+    return sum;
+}
+
 /* Jensen's march along [0, len) of o + t d in medium md: emission, single scattering and
  * the photon estimate, each attenuated to the camera (beta outside); *seg_tr gets the
  * segment's transmittance. Homogeneous media: closed-form transmittance to each step.
@@ -408,6 +447,9 @@ static vec3 march_segment(const struct render_job *job, const struct rngs *r, ui
     if (span / dx > (float)(het ? TAU_TABLE - 2 : MAX_STEPS))
         dx = span / (float)(het ? TAU_TABLE - 2 : MAX_STEPS);
     float jitter = rnd(r, vertex, 10);
+    /* A few point lights: every one at every step (no pick noise; the shadow cache makes
+     * each cheap). Otherwise one light picked in proportion to power. */
+    const int all_points = march_all_points(job);
     uint64_t seg_key = rng_mix64(r->key ^ ((uint64_t)(vertex + 1) << 40));
     float tau_tab[TAU_TABLE];   /* grids: optical depth (per unit sigma_t) at c0 + k dx */
     uint32_t ntab = 0;
@@ -435,9 +477,11 @@ static vec3 march_segment(const struct render_job *job, const struct rngs *r, ui
             break; /* nothing beyond reaches the camera */
         if (!(rho > 0.0f))
             continue;
-        vec3 ls = scatter_nee(job, x, v3_neg(d), medium, md->g, rng_uniform(seg_key, 3 * k),
-                              rng_uniform(seg_key, 3 * k + 1), rng_uniform(seg_key, 3 * k + 2), time01,
-                              rng_mix64(seg_key ^ (0x5348ull << 48) ^ k), rays, 0, NULL);
+        vec3 ls = all_points ? point_lights_all(job, x, v3_neg(d), medium, md->g, time01,
+                                                rng_mix64(seg_key ^ (0x5348ull << 48) ^ k), rays)
+                             : scatter_nee(job, x, v3_neg(d), medium, md->g, rng_uniform(seg_key, 3 * k),
+                                           rng_uniform(seg_key, 3 * k + 1), rng_uniform(seg_key, 3 * k + 2), time01,
+                                           rng_mix64(seg_key ^ (0x5348ull << 48) ^ k), rays, 0, NULL);
         vec3 in = v3_scale(v3_mul(md->sigma_s, ls), rho);
         if (mj->sm->method == MEDIA_MARCH_STEPS && mj->map)
             in = v3_add(in, photon_map_gather_knn(mj->map, x, v3_neg(d), md->g, mj->sm->knn, 2.0f * mj->map->radius));
@@ -536,6 +580,7 @@ vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, 
     uint64_t pixel = (uint64_t)py * rs->width + px;
     r.key = rng_mix64(smp->key ^ rng_mix64(smp->pixel_key ^ rng_key(rs->seed ^ 0x6d65646961ull, job->frame, pixel, smp->index)));
     const int vpt = sm->method == MEDIA_VPT;
+    const int few_points = march_all_points(job);
     uint32_t medium = mj->camera_medium;
     vec3 L = v3(0, 0, 0), beta = v3(1, 1, 1);
     float prev_pdf = 0.0f;
@@ -634,7 +679,25 @@ vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, 
         vec3 ng = front ? s.ng : v3_neg(s.ng);
         vec3 ns = v3_dot(s.ns, ng) < 0.0f ? v3_neg(s.ns) : s.ns;
         vec3 p_off = media_offset_ray_origin(v3_add(s.p, v3_scale(ng, s.p_err)), ng);
-        if (job->lights.num_entries > 0 && !material_is_delta(mat)) {
+        if (!vpt && few_points && !material_is_delta(mat)) {
+            /* Jensen's methods, a few point lights: every one (no pick noise). */
+            for (uint32_t li = 0; li < job->lights.num_entries; li++) {
+                const struct light *l = &sc->lights[job->lights.entries[li].index];
+                vec3 to = v3_sub(l->position, s.p);
+                float d2 = v3_dot(to, to);
+                if (!(d2 > 0.0f))
+                    continue;
+                vec3 wi = v3_scale(to, 1.0f / sqrtf(d2));
+                float bpdf;
+                vec3 f = v3_dot(wi, ng) > 0.0f ? material_eval(mat, ns, wo, wi, &bpdf) : v3(0, 0, 0);
+                vec3 rad = v3_scale(job->lights.entries[li].emission, light_spot_falloff(l, v3_neg(to)) / d2);
+                if (v3_is_black(f) || v3_is_black(rad))
+                    continue;
+                vec3 tr = media_shadow_transmittance(job, p_off, l->position, medium, time01,
+                                                     rng_mix64(r.key ^ (0x5353ull << 48) ^ vertex ^ ((uint64_t)li << 32)), rays);
+                L = v3_add(L, v3_mul(beta, v3_mul(v3_mul(f, rad), tr)));
+            }
+        } else if (job->lights.num_entries > 0 && !material_is_delta(mat)) {
             struct light_sample ls;
             light_sample(&job->lights, sc, s.p, rnd(&r, vertex, 2), rnd(&r, vertex, 3), rnd(&r, vertex, 4), &ls);
             if (ls.pdf > 0.0f && !v3_is_black(ls.radiance)) {

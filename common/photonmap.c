@@ -758,7 +758,10 @@ static vec3 tau_tr(const struct photon_tau *tt, const struct medium *md, float t
         float f = x - (float)i;
         tau = tt->tau[i] * (1.0f - f) + tt->tau[i + 1] * f;
     }
-    return v3(expf(-md->sigma_t.x * tau), expf(-md->sigma_t.y * tau), expf(-md->sigma_t.z * tau));
+    float ex = expf(-md->sigma_t.x * tau);
+    if (md->sigma_t.y == md->sigma_t.x && md->sigma_t.z == md->sigma_t.x)
+        return v3(ex, ex, ex); /* grey: the same value, one exponential */
+    return v3(ex, expf(-md->sigma_t.y * tau), expf(-md->sigma_t.z * tau));
 }
 
 vec3 photon_map_beam(const struct photon_map *m, vec3 o, vec3 d, float t1, const struct medium *md,
