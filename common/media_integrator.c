@@ -23,6 +23,8 @@
 #define MAX_CROSSINGS 256
 #define MAX_STEPS 100000
 #define DIMS_PER_VERTEX 16
+/* Jensen's per-step estimate: maximum radius of the k-nearest query, in gather radii. */
+#define KNN_RADIUS_FACTOR 4.0f
 
 static float float_bits_offset(float p, int delta)
 {
@@ -484,7 +486,8 @@ static vec3 march_segment(const struct render_job *job, const struct rngs *r, ui
                                            rng_mix64(seg_key ^ (0x5348ull << 48) ^ k), rays, 0, NULL);
         vec3 in = v3_scale(v3_mul(md->sigma_s, ls), rho);
         if (mj->sm->method == MEDIA_MARCH_STEPS && mj->map)
-            in = v3_add(in, photon_map_gather_knn(mj->map, x, v3_neg(d), md->g, mj->sm->knn, 2.0f * mj->map->radius));
+            in = v3_add(in, photon_map_gather_knn(mj->map, x, v3_neg(d), md->g, mj->sm->knn,
+                                                             KNN_RADIUS_FACTOR * mj->map->radius));
         L = v3_add(L, v3_scale(v3_mul(tr, in), dx));
     }
     if (het)

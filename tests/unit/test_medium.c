@@ -621,8 +621,11 @@ Test(medium, gather_radius_near_zero)
     m.cell_size = 2e-30f;
     m.photons = &ph;
     m.bucket_start = start;
+    m.decoded = NULL;
     vec3 g = photon_map_gather(&m, v3(0, 0, 0), v3(0, 0, 1), 0.5f);
     cr_assert(v3_is_finite(g) && g.x > 0.0f);
+    vec3 gk = photon_map_gather_knn(&m, v3(0, 0, 0), v3(0, 0, 1), 0.5f, 50, 2e-30f);
+    cr_assert(v3_is_finite(gk) && gk.x > 0.0f);
     struct medium md;
     memset(&md, 0, sizeof md);
     md.sigma_t = v3(1, 1, 1);
@@ -795,7 +798,7 @@ Test(medium, knn_matches_brute_force, .timeout = 60)
         if (q < 20) /* some queries on photons themselves */
             x = v3(m->photons[q * 37].p[0], m->photons[q * 37].p[1], m->photons[q * 37].p[2]);
         uint32_t k = ks[q % 4];
-        float rmax = 2.0f * m->radius, r2;
+        float rmax = (q % 3 == 0 ? 6.0f : 2.0f) * m->radius, r2; /* several rings of cells, or few */
         uint32_t n = photon_map_knn(m, x, k, rmax, idx, &r2);
         uint32_t nb = 0;
         for (uint32_t i = 0; i < m->num_photons; i++) {
