@@ -60,9 +60,10 @@ void photon_map_free(struct photon_map **pm);
  * D the scene's diagonal. The photon pass is skipped when it is below skip_bound. */
 double photon_map_indirect_bound(const struct scene *s, float scene_size);
 
-/* Jensen's volume radiance estimate at x toward the viewer (light leaves along d_out):
- * sum of phase x power / (4/3 pi r^3) over photons within r; this is sigma_s times the
- * in-scattered radiance, so a march step adds it times dx. */
+/* Fixed-radius volume radiance estimate at x toward the viewer (light leaves along d_out):
+ * sum of phase x power / (4/3 pi r^3) over photons within the map's radius; this is
+ * sigma_s times the in-scattered radiance, so a march step adds it times dx. (The march
+ * uses the k-nearest form below, Jensen's; this one stays for tests and tools.) */
 vec3 photon_map_gather(const struct photon_map *m, vec3 x, vec3 d_out, float g);
 /* Jensen's k-nearest query: the (at most) k photons nearest to x within rmax (capped at 8
  * hash-grid cells, 16 gather radii), searched in rings of cells around x's cell until the
