@@ -665,7 +665,7 @@ Test(medium, scene_keys)
     struct scene s;
     load_ok(H ",\n\"media\": {\"fog\": {\"sigma_a\": [0.1, 0.2, 0.3], \"sigma_s\": [1, 1, 1], \"emission\": [0, 0, 1], \"g\": 0.4}},\n"
               "\"volume\": {\"method\": \"vpt\", \"fog\": \"fog\", \"photons\": 5, \"radius\": 0.5, \"step\": 0.1, "
-              "\"skip_bound\": 0.2, \"max_photon_depth\": 7},\n"
+              "\"skip_bound\": 0.2, \"max_photon_depth\": 7, \"knn\": 20, \"shadow_cache\": false},\n"
               "\"objects\": [{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1, \"medium\": \"fog\"}],\n"
               "\"lights\": [{\"type\": \"spot\", \"position\": [0, 1, 0], \"look_at\": [0, 0, 0], \"intensity\": [1, 1, 1], \"angle\": 30, \"falloff\": 10}]}",
             &s);
@@ -674,6 +674,8 @@ Test(medium, scene_keys)
     cr_assert_eq(s.media->method, MEDIA_VPT);
     cr_assert_eq(s.media->photons, 5u);
     cr_assert_eq(s.media->max_photon_depth, 7u);
+    cr_assert_eq(s.media->knn, 20u);
+    cr_assert_eq(s.media->shadow_cache, 0);
     cr_assert_eq(media_sphere_inside(s.media, 0), 0u);
     cr_assert_eq(s.spheres[0].material_id, s.media->interface_material);
     cr_assert_eq(s.lights[0].type, LIGHT_SPOT);
@@ -691,6 +693,8 @@ Test(medium, scene_keys)
     expect_error(H ",\n\"media\": {\"fog\": {}},\n\"volume\": {\"method\": \"fast\"}}", "scenes/t.json:5:22: method must be");
     expect_error(H ",\n\"media\": {\"fog\": {}},\n\"volume\": {\"fog\": \"smoke\"}}", "scenes/t.json:5:19: unknown medium \"smoke\"");
     expect_error(H ",\n\"media\": {\"fog\": {}},\n\"volume\": {\"photons\": 1.5}}", "scenes/t.json:5:23: photons must be an integer");
+    expect_error(H ",\n\"media\": {\"fog\": {}},\n\"volume\": {\"knn\": 0}}", "scenes/t.json:5:19: knn 0 out of range 1..1024");
+    expect_error(H ",\n\"media\": {\"fog\": {}},\n\"volume\": {\"shadow_cache\": 1}}", "scenes/t.json:5:28: shadow_cache must be true or false");
     expect_error(H ",\n\"volume\": {}}", "scenes/t.json:4:1: \"volume\" needs \"media\"");
     expect_error(H ",\n\"objects\": [{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1, \"medium\": \"x\"}]}",
                  "scenes/t.json:4:76: unknown medium \"x\"");
