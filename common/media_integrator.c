@@ -3,10 +3,14 @@
  *   over channels), next-event estimation at medium and surface vertices with shadow
  *   transmittance through boundaries, MIS against phase / BSDF sampling for area lights.
  * - March (Jensen 1998): along every segment in a medium, steps of dx from a jittered start:
- *   single scattering (one light sample, shadow transmittance) + the photon estimate, each
- *   weighted by the closed-form transmittance to the step; surfaces are path traced as in
- *   VPT but the camera path never scatters in a medium (the photons carry that light).
- * - Beam: as march for single scattering, the photon part by one beam query per segment.
+ *   single scattering (every light when there are at most MARCH_ALL_LIGHTS point lights,
+ *   else one sampled light; shadow transmittance, in grids read from a per-light cache) +
+ *   Jensen's k-nearest photon estimate, each weighted by the transmittance to the step;
+ *   surfaces are path traced as in VPT (with the same all-lights rule for their direct
+ *   light) but the camera path never scatters in a medium (the photons carry that light).
+ * - Beam: as march for single scattering, the photon part by one beam query per segment
+ *   (in grids only over the part of the segment near the occupied box).
+ * VPT is untouched by these: unbiased ratio tracking, one sampled light.
  * Random numbers: one key per (seed, frame, pixel, sample, pass) and a fixed layout of
  * dimensions per vertex, so pixels do not depend on threads, tiles or workers. */
 #include "media_integrator.h"
@@ -14,12 +18,17 @@
 #include "material.h"
 #include "photonmap.h"
 #include <math.h>
+#include <pthread.h>
+#include <stdatomic.h>
 #include <stdlib.h>
+#include <unistd.h>
 #include <string.h>
 
 #define MAX_CROSSINGS 256
 #define MAX_STEPS 100000
 #define DIMS_PER_VERTEX 16
+/* Jensen's per-step estimate: maximum radius of the k-nearest query, in gather radii. */
+#define KNN_RADIUS_FACTOR 4.0f
 
 static float float_bits_offset(float p, int delta)
 {
@@ -82,6 +91,83 @@ uint32_t media_at(const struct render_job *job, vec3 p)
     return sm->fog;
 }
 
+/* Shadow transmittance caches of Jensen's methods: one per (point light, grid medium),
+ * filled by the first thread that needs it (under a lock, on all cores) and read-only
+ * after; the values are a pure function of the scene, so pixels do not depend on which
+ * thread filled it, or when. */
+#define SHADOW_CACHES_MAX 64
+struct shadow_cache {
+    vec3 light;
+    uint32_t medium;
+    struct tr_cache c;
+    atomic_int ready;
+};
+struct shadow_caches {
+    pthread_mutex_t lock;
+    uint32_t n, threads;
+    struct shadow_cache e[SHADOW_CACHES_MAX];
+};
+
+static struct shadow_caches *shadow_caches_new(const struct render_job *job)
+{
+    const struct scene *sc = job->scene;
+    const struct scene_media *sm = sc->media;
+    if (sm->method == MEDIA_VPT || !sm->shadow_cache)
+        return NULL;
+    struct shadow_caches *s = mem_calloc(1, sizeof *s);
+    pthread_mutex_init(&s->lock, NULL);
+    long cores = sysconf(_SC_NPROCESSORS_ONLN);
+    s->threads = cores < 1 ? 1u : (cores > 64 ? 64u : (uint32_t)cores);
+    for (uint32_t m = 0; m < sm->num_media; m++) {
+        if (!sm->media[m].grid)
+            continue;
+        for (uint32_t i = 0; i < job->lights.num_entries && s->n < SHADOW_CACHES_MAX; i++) {
+            const struct light_entry *e = &job->lights.entries[i];
+            if (e->kind != LK_POINT)
+                continue;
+            struct shadow_cache *c = &s->e[s->n++];
+            c->light = sc->lights[e->index].position;
+            c->medium = m;
+            atomic_init(&c->ready, 0);
+        }
+    }
+    return s;
+}
+
+static void shadow_caches_free(struct shadow_caches **ps)
+{
+    struct shadow_caches *s = *ps;
+    if (!s)
+        return;
+    for (uint32_t i = 0; i < s->n; i++)
+        tr_cache_free(&s->e[i].c);
+    pthread_mutex_destroy(&s->lock);
+    free(s);
+    *ps = NULL;
+}
+
+static const struct tr_cache *shadow_cache_get(const struct render_job *job, vec3 light, uint32_t medium)
+{
+    struct shadow_caches *s = job->media->shadow;
+    if (!s)
+        return NULL;
+    for (uint32_t i = 0; i < s->n; i++) {
+        struct shadow_cache *c = &s->e[i];
+        if (c->medium != medium || memcmp(&c->light, &light, sizeof light) != 0)
+            continue;
+        if (!atomic_load_explicit(&c->ready, memory_order_acquire)) {
+            pthread_mutex_lock(&s->lock);
+            if (!atomic_load_explicit(&c->ready, memory_order_relaxed)) {
+                tr_cache_build(&c->c, &job->scene->media->media[medium], light, s->threads);
+                atomic_store_explicit(&c->ready, 1, memory_order_release);
+            }
+            pthread_mutex_unlock(&s->lock);
+        }
+        return c->c.tau ? &c->c : NULL;
+    }
+    return NULL;
+}
+
 struct media_job *media_job_new(const struct render_job *job)
 {
     const struct scene *sc = job->scene;
@@ -130,6 +216,7 @@ struct media_job *media_job_new(const struct render_job *job)
         mj->light_medium[i] = media_at(job, p);
     }
     mj->map = sm->method != MEDIA_VPT ? sm->map : NULL;
+    mj->shadow = shadow_caches_new(job);
     return mj;
 }
 
@@ -138,6 +225,7 @@ void media_job_free(struct media_job **pmj)
     if (!*pmj)
         return;
     free((*pmj)->light_medium);
+    shadow_caches_free(&(*pmj)->shadow);
     free(*pmj);
     *pmj = NULL;
 }
@@ -155,6 +243,14 @@ vec3 media_shadow_transmittance(const struct render_job *job, vec3 p, vec3 targe
             return v3(0, 0, 0);
         if (medium == MEDIUM_NONE)
             return tr;
+        const struct medium *md = &sm->media[medium];
+        if (!ratio && md->grid) {
+            /* Jensen's methods: the cached optical depth toward a point light, where cached. */
+            const struct tr_cache *c = shadow_cache_get(job, target, medium);
+            float tau;
+            if (c && tr_cache_tau(c, p, &tau))
+                return v3(expf(-md->sigma_t.x * tau), expf(-md->sigma_t.y * tau), expf(-md->sigma_t.z * tau));
+        }
         vec3 to = v3_sub(target, p);
         float len = v3_length(to);
         return len > 0.0f ? medium_tr_segment(&sm->media[medium], p, v3_scale(to, 1.0f / len), len, key, ratio) : tr;
@@ -289,6 +385,45 @@ static vec3 scatter_nee(const struct render_job *job, vec3 x, vec3 d_out, uint32
     return v3_scale(v3_mul(ls.radiance, tr), ph * w / ls.pdf);
 }
 
+#define MARCH_ALL_LIGHTS 4
+/* Jensen's methods sample every light when the scene has at most MARCH_ALL_LIGHTS, all
+ * point or spot lights. */
+static int march_all_points(const struct render_job *job)
+{
+    if (job->lights.num_entries == 0 || job->lights.num_entries > MARCH_ALL_LIGHTS)
+        return 0;
+    for (uint32_t i = 0; i < job->lights.num_entries; i++)
+        if (job->lights.entries[i].kind != LK_POINT)
+            return 0;
+    return 1;
+}
+
+/* Single scattering toward every light of a table of point lights at x (light leaving
+ * along d_out): sum of I falloff / d^2 x phase x shadow transmittance. */
+static vec3 point_lights_all(const struct render_job *job, vec3 x, vec3 d_out, uint32_t medium, float g, float time01,
+                             uint64_t key, uint64_t *rays)
+{
+    const struct scene *sc = job->scene;
+    vec3 sum = v3(0, 0, 0);
+    for (uint32_t i = 0; i < job->lights.num_entries; i++) {
+        const struct light_entry *e = &job->lights.entries[i];
+        if (e->kind != LK_POINT)
+            continue;
+        const struct light *l = &sc->lights[e->index];
+        vec3 to = v3_sub(l->position, x);
+        float d2 = v3_dot(to, to);
+        if (!(d2 > 0.0f))
+            continue;
+        vec3 li = v3_scale(e->emission, light_spot_falloff(l, v3_neg(to)) / d2);
+        if (v3_is_black(li))
+            continue;
+        float ph = phase_hg(v3_dot(v3_scale(to, -1.0f / sqrtf(d2)), d_out), g);
+        vec3 tr = media_shadow_transmittance(job, x, l->position, medium, time01, rng_mix64(key + i), rays);
+        sum = v3_add(sum, v3_scale(v3_mul(li, tr), ph));
+    }
+    return sum;
+}
+
 /* Jensen's march along [0, len) of o + t d in medium md: emission, single scattering and
  * the photon estimate, each attenuated to the camera (beta outside); *seg_tr gets the
  * segment's transmittance. Homogeneous media: closed-form transmittance to each step.
@@ -318,6 +453,9 @@ static vec3 march_segment(const struct render_job *job, const struct rngs *r, ui
     if (span / dx > (float)(het ? TAU_TABLE - 2 : MAX_STEPS))
         dx = span / (float)(het ? TAU_TABLE - 2 : MAX_STEPS);
     float jitter = rnd(r, vertex, 10);
+    /* A few point lights: every one at every step (no pick noise; the shadow cache makes
+     * each cheap). Otherwise one light picked in proportion to power. */
+    const int all_points = march_all_points(job);
     uint64_t seg_key = rng_mix64(r->key ^ ((uint64_t)(vertex + 1) << 40));
     float tau_tab[TAU_TABLE];   /* grids: optical depth (per unit sigma_t) at c0 + k dx */
     uint32_t ntab = 0;
@@ -345,20 +483,42 @@ static vec3 march_segment(const struct render_job *job, const struct rngs *r, ui
             break; /* nothing beyond reaches the camera */
         if (!(rho > 0.0f))
             continue;
-        vec3 ls = scatter_nee(job, x, v3_neg(d), medium, md->g, rng_uniform(seg_key, 3 * k),
-                              rng_uniform(seg_key, 3 * k + 1), rng_uniform(seg_key, 3 * k + 2), time01,
-                              rng_mix64(seg_key ^ (0x5348ull << 48) ^ k), rays, 0, NULL);
+        vec3 ls = all_points ? point_lights_all(job, x, v3_neg(d), medium, md->g, time01,
+                                                rng_mix64(seg_key ^ (0x5348ull << 48) ^ k), rays)
+                             : scatter_nee(job, x, v3_neg(d), medium, md->g, rng_uniform(seg_key, 3 * k),
+                                           rng_uniform(seg_key, 3 * k + 1), rng_uniform(seg_key, 3 * k + 2), time01,
+                                           rng_mix64(seg_key ^ (0x5348ull << 48) ^ k), rays, 0, NULL);
         vec3 in = v3_scale(v3_mul(md->sigma_s, ls), rho);
         if (mj->sm->method == MEDIA_MARCH_STEPS && mj->map)
-            in = v3_add(in, photon_map_gather(mj->map, x, v3_neg(d), md->g));
+            in = v3_add(in, photon_map_gather_knn(mj->map, x, v3_neg(d), md->g, mj->sm->knn,
+                                                             KNN_RADIUS_FACTOR * mj->map->radius));
         L = v3_add(L, v3_scale(v3_mul(tr, in), dx));
     }
     if (het)
         *seg_tr = v3(expf(-md->sigma_t.x * tau), expf(-md->sigma_t.y * tau), expf(-md->sigma_t.z * tau));
     if (mj->sm->method == MEDIA_MARCH_BEAM && mj->map) {
         if (het) {
-            struct photon_tau tt = {tau_tab, ntab, c0, dx};
-            L = v3_add(L, photon_map_beam(mj->map, o, d, len, md, &tt));
+            /* Photons lie in the occupied box (stored only where the density is non-zero):
+             * the beam need only walk the part of the ray within r of its world box. */
+            vec3 blo, bhi;
+            grid_world_box(md->grid, &blo, &bhi);
+            float rad = mj->map->radius, e0 = 0.0f, e1 = len;
+            float oo[3] = {o.x, o.y, o.z}, dd[3] = {d.x, d.y, d.z};
+            float lo3[3] = {blo.x - rad, blo.y - rad, blo.z - rad}, hi3[3] = {bhi.x + rad, bhi.y + rad, bhi.z + rad};
+            for (int a = 0; a < 3; a++) {
+                if (dd[a] == 0.0f) {
+                    if (oo[a] < lo3[a] || oo[a] > hi3[a])
+                        e1 = -1.0f;
+                    continue;
+                }
+                float ta = (lo3[a] - oo[a]) / dd[a], tb = (hi3[a] - oo[a]) / dd[a];
+                e0 = fmaxf(e0, fminf(ta, tb));
+                e1 = fminf(e1, fmaxf(ta, tb));
+            }
+            if (e0 < e1) {
+                struct photon_tau tt = {tau_tab, ntab, c0 - e0, dx};
+                L = v3_add(L, photon_map_beam(mj->map, v3_add(o, v3_scale(d, e0)), d, e1 - e0, md, &tt));
+            }
         } else {
             L = v3_add(L, photon_map_beam(mj->map, o, d, len, md, NULL));
         }
@@ -427,6 +587,7 @@ vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, 
     uint64_t pixel = (uint64_t)py * rs->width + px;
     r.key = rng_mix64(smp->key ^ rng_mix64(smp->pixel_key ^ rng_key(rs->seed ^ 0x6d65646961ull, job->frame, pixel, smp->index)));
     const int vpt = sm->method == MEDIA_VPT;
+    const int few_points = march_all_points(job);
     uint32_t medium = mj->camera_medium;
     vec3 L = v3(0, 0, 0), beta = v3(1, 1, 1);
     float prev_pdf = 0.0f;
@@ -525,7 +686,25 @@ vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, 
         vec3 ng = front ? s.ng : v3_neg(s.ng);
         vec3 ns = v3_dot(s.ns, ng) < 0.0f ? v3_neg(s.ns) : s.ns;
         vec3 p_off = media_offset_ray_origin(v3_add(s.p, v3_scale(ng, s.p_err)), ng);
-        if (job->lights.num_entries > 0 && !material_is_delta(mat)) {
+        if (!vpt && few_points && !material_is_delta(mat)) {
+            /* Jensen's methods, a few point lights: every one (no pick noise). */
+            for (uint32_t li = 0; li < job->lights.num_entries; li++) {
+                const struct light *l = &sc->lights[job->lights.entries[li].index];
+                vec3 to = v3_sub(l->position, s.p);
+                float d2 = v3_dot(to, to);
+                if (!(d2 > 0.0f))
+                    continue;
+                vec3 wi = v3_scale(to, 1.0f / sqrtf(d2));
+                float bpdf;
+                vec3 f = v3_dot(wi, ng) > 0.0f ? material_eval(mat, ns, wo, wi, &bpdf) : v3(0, 0, 0);
+                vec3 rad = v3_scale(job->lights.entries[li].emission, light_spot_falloff(l, v3_neg(to)) / d2);
+                if (v3_is_black(f) || v3_is_black(rad))
+                    continue;
+                vec3 tr = media_shadow_transmittance(job, p_off, l->position, medium, time01,
+                                                     rng_mix64(r.key ^ (0x5353ull << 48) ^ vertex ^ ((uint64_t)li << 32)), rays);
+                L = v3_add(L, v3_mul(beta, v3_mul(v3_mul(f, rad), tr)));
+            }
+        } else if (job->lights.num_entries > 0 && !material_is_delta(mat)) {
             struct light_sample ls;
             light_sample(&job->lights, sc, s.p, rnd(&r, vertex, 2), rnd(&r, vertex, 3), rnd(&r, vertex, 4), &ls);
             if (ls.pdf > 0.0f && !v3_is_black(ls.radiance)) {

@@ -21,6 +21,7 @@ struct media_job {
     float step;                 /* marching step used */
     float radius;               /* gather radius used */
     const struct photon_map *map; /* NULL: single scattering only (skipped, or VPT) */
+    struct shadow_caches *shadow; /* march / beam: per (point light, grid medium) tr_cache, filled on first use */
 };
 
 /* A hit as the media code sees it (integrator.c's surface, copied out). */

@@ -6,6 +6,7 @@
 #include "motion.h"
 #include "rng.h"
 #include <math.h>
+#include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -17,6 +18,8 @@ struct scene_media *media_scene_new(void)
     m->method = MEDIA_MARCH_BEAM;
     m->photons = 100000;
     m->skip_bound = 0.01f;
+    m->knn = 50;
+    m->shadow_cache = 1;
     m->max_photon_depth = 16;
     return m;
 }
@@ -459,4 +462,130 @@ int medium_sample_flight(const struct medium *m, vec3 o, vec3 d, float tmax, vec
     }
     *weight = w;
     return 0;
+}
+
+/* ---- shadow transmittance cache (Jensen's methods in grids) ---- */
+
+void grid_world_box(const struct density_grid *g, vec3 *lo, vec3 *hi)
+{
+    *lo = v3(INFINITY, INFINITY, INFINITY);
+    *hi = v3(-INFINITY, -INFINITY, -INFINITY);
+    for (int k = 0; k < 8; k++) {
+        vec3 q = v3(k & 1 ? g->occ_hi.x : g->occ_lo.x, k & 2 ? g->occ_hi.y : g->occ_lo.y, k & 4 ? g->occ_hi.z : g->occ_lo.z);
+        vec3 w = xform_point(&g->grid_to_world, q);
+        *lo = v3(fminf(lo->x, w.x), fminf(lo->y, w.y), fminf(lo->z, w.z));
+        *hi = v3(fmaxf(hi->x, w.x), fmaxf(hi->y, w.y), fmaxf(hi->z, w.z));
+    }
+}
+
+float grid_optical_depth(const struct medium *m, vec3 a, vec3 b)
+{
+    if (!m->grid)
+        return 0.0f;
+    vec3 ab = v3_sub(b, a);
+    float len = v3_length(ab);
+    if (!(len > 0.0f))
+        return 0.0f;
+    vec3 d = v3_scale(ab, 1.0f / len);
+    float c0, c1;
+    if (!medium_clip(m, a, d, len, &c0, &c1))
+        return 0.0f;
+    /* Midpoint rule at steps of at most half a voxel: deterministic, no random number. */
+    float span = c1 - c0, steps = ceilf(span / (0.5f * m->grid->voxel_world));
+    uint32_t n = steps < 1.0f ? 1u : (steps > 100000.0f ? 100000u : (uint32_t)steps);
+    float dx = span / (float)n;
+    double tau = 0.0;
+    for (uint32_t k = 0; k < n; k++)
+        tau += grid_density(m->grid, v3_add(a, v3_scale(d, c0 + ((float)k + 0.5f) * dx)));
+    return (float)(tau * dx);
+}
+
+struct tr_fill { struct tr_cache *c; const struct medium *m; uint32_t threads, id; };
+
+static void *tr_cache_fill(void *arg)
+{
+    const struct tr_fill *f = arg;
+    struct tr_cache *c = f->c;
+    for (uint32_t z = f->id; z < c->n[2]; z += f->threads)
+        for (uint32_t y = 0; y < c->n[1]; y++)
+            for (uint32_t x = 0; x < c->n[0]; x++) {
+                vec3 p = v3(c->lo.x + (float)x * c->cell.x, c->lo.y + (float)y * c->cell.y, c->lo.z + (float)z * c->cell.z);
+                c->tau[((size_t)z * c->n[1] + y) * c->n[0] + x] = grid_optical_depth(f->m, p, c->light);
+            }
+    return NULL;
+}
+
+int tr_cache_build(struct tr_cache *c, const struct medium *m, vec3 light, uint32_t threads)
+{
+    memset(c, 0, sizeof *c);
+    const struct density_grid *g = m->grid;
+    if (!g || !(g->occ_lo.x <= g->occ_hi.x && g->occ_lo.y <= g->occ_hi.y && g->occ_lo.z <= g->occ_hi.z))
+        return 0;
+    /* World box of the occupied grid box: every point where a march step can land. */
+    vec3 lo, hi;
+    grid_world_box(g, &lo, &hi);
+    float ext[3] = {hi.x - lo.x, hi.y - lo.y, hi.z - lo.z}, cell[3];
+    if (!(g->voxel_world > 0.0f) || !isfinite(ext[0] + ext[1] + ext[2]))
+        return 0;
+    for (int k = 0; k < 3; k++) {
+        /* One vertex per voxel, at most TR_CACHE_MAX_N per axis. */
+        float nv = ceilf(ext[k] / (TR_CACHE_SPACING * g->voxel_world));
+        nv = nv < 1.0f ? 1.0f : (nv > (float)(TR_CACHE_MAX_N - 1) ? (float)(TR_CACHE_MAX_N - 1) : nv);
+        c->n[k] = (uint32_t)nv + 1;
+        cell[k] = ext[k] > 0.0f ? ext[k] / nv : 1.0f;
+    }
+    c->lo = lo;
+    c->hi = hi;
+    c->cell = v3(cell[0], cell[1], cell[2]);
+    c->inv_cell = v3(1.0f / cell[0], 1.0f / cell[1], 1.0f / cell[2]);
+    c->light = light;
+    c->tau = mem_alloc(sizeof *c->tau * c->n[0] * c->n[1] * c->n[2]);
+    threads = threads < 1 ? 1 : (threads > 64 ? 64 : threads);
+    pthread_t th[64];
+    struct tr_fill f[64];
+    int started[64] = {0};
+    for (uint32_t i = 0; i < threads; i++)
+        f[i] = (struct tr_fill){c, m, threads, i};
+    for (uint32_t i = 1; i < threads; i++)
+        started[i] = pthread_create(&th[i], NULL, tr_cache_fill, &f[i]) == 0;
+    tr_cache_fill(&f[0]);
+    for (uint32_t i = 1; i < threads; i++) {
+        if (started[i])
+            pthread_join(th[i], NULL);
+        else
+            tr_cache_fill(&f[i]); /* no thread: fill its slices here (same values) */
+    }
+    return 1;
+}
+
+void tr_cache_free(struct tr_cache *c)
+{
+    free(c->tau);
+    c->tau = NULL;
+}
+
+int tr_cache_tau(const struct tr_cache *c, vec3 p, float *tau)
+{
+    if (!c->tau)
+        return 0;
+    float u[3] = {(p.x - c->lo.x) * c->inv_cell.x, (p.y - c->lo.y) * c->inv_cell.y, (p.z - c->lo.z) * c->inv_cell.z};
+    uint32_t i[3];
+    float f[3];
+    for (int k = 0; k < 3; k++) {
+        if (!(u[k] >= 0.0f && u[k] <= (float)(c->n[k] - 1)))
+            return 0;
+        float fl = floorf(u[k]);
+        i[k] = (uint32_t)fl;
+        if (i[k] >= c->n[k] - 1)
+            i[k] = c->n[k] >= 2 ? c->n[k] - 2 : 0;
+        f[k] = c->n[k] >= 2 ? u[k] - (float)i[k] : 0.0f;
+    }
+    uint32_t sx = c->n[0] >= 2 ? 1 : 0, sy = c->n[1] >= 2 ? c->n[0] : 0,
+             sz = c->n[2] >= 2 ? c->n[0] * c->n[1] : 0;
+    const float *v = c->tau + ((size_t)i[2] * c->n[1] + i[1]) * c->n[0] + i[0];
+    float c00 = v[0] * (1 - f[0]) + v[sx] * f[0], c10 = v[sy] * (1 - f[0]) + v[sy + sx] * f[0];
+    float c01 = v[sz] * (1 - f[0]) + v[sz + sx] * f[0], c11 = v[sz + sy] * (1 - f[0]) + v[sz + sy + sx] * f[0];
+    float c0 = c00 * (1 - f[1]) + c10 * f[1], c1 = c01 * (1 - f[1]) + c11 * f[1];
+    *tau = c0 * (1 - f[2]) + c1 * f[2];
+    return 1;
 }

@@ -62,6 +62,8 @@ struct scene_media {
     float step;                 /* ray-marching step in scene units; 0 = 1/200 of the scene's size */
     uint64_t photons;           /* photons emitted by the photon pass */
     float radius;               /* gather radius; 0 = 1/100 of the scene's size */
+    uint32_t knn;               /* per-step estimate: photons of Jensen's k-nearest query (default 50) */
+    int shadow_cache;           /* march / beam in grids: cached shadow transmittance (default 1) */
     float skip_bound;           /* skip the photon pass when multiple scattering is bounded below this */
     uint32_t max_photon_depth;  /* interactions per photon path */
     struct photon_map *map;     /* worker: the map from the master's blob; NULL if none */
@@ -130,6 +132,33 @@ int medium_sample_flight(const struct medium *m, vec3 o, vec3 d, float tmax, vec
                          vec3 *weight);
 /* Ray-marching step for this medium: the settings' step, or half a voxel for grids if smaller. */
 float medium_march_step(const struct medium *m, float step);
+
+/* ---- shadow transmittance cache (Jensen's methods in grids, never VPT) ---- */
+
+/* World-space bounding box of the grid's occupied box (empty: lo > hi). */
+void grid_world_box(const struct density_grid *g, vec3 *lo, vec3 *hi);
+/* Optical depth per unit sigma_t of m's grid along the segment a -> b: the midpoint rule
+ * at steps of at most half a voxel over the part inside the occupied box. Deterministic. */
+float grid_optical_depth(const struct medium *m, vec3 a, vec3 b);
+
+/* Optical depth from the vertices of a lattice over the world box of a grid's occupied box
+ * to one point light, by grid_optical_depth (one vertex per TR_CACHE_SPACING voxels, at
+ * most TR_CACHE_MAX_N per axis); trilinear lookups. The march's shadow rays read it
+ * instead of marching: filled once per job (values do not depend on threads). Its error
+ * against the exact march is what trilinear interpolation of a smooth function over one
+ * voxel leaves (test_medium.c states the bound it checks). */
+#define TR_CACHE_SPACING 1.0f
+#define TR_CACHE_MAX_N 129u
+struct tr_cache {
+    vec3 light, lo, hi, cell, inv_cell;
+    uint32_t n[3];
+    float *tau;     /* n[0] n[1] n[2] values, x fastest; NULL = empty */
+};
+/* Returns 1 if a cache was filled (m has a grid with a non-empty occupied box), else 0. */
+int tr_cache_build(struct tr_cache *c, const struct medium *m, vec3 light, uint32_t threads);
+void tr_cache_free(struct tr_cache *c);
+/* Interpolated optical depth from p to the light; 0 when p is outside the lattice. */
+int tr_cache_tau(const struct tr_cache *c, vec3 p, float *tau);
 
 /* Henyey-Greenstein phase function for cos(d_in, d_out) = cos_theta. */
 float phase_hg(float cos_theta, float g);

@@ -564,6 +564,13 @@ int photon_map_decode(const uint8_t *data, size_t size, struct photon_map **out,
         photon_map_free(&m);
         return -1;
     }
+    /* Decoded direction and power per photon (reader side only, never serialised): the
+     * lookups read them for the photons they accept. */
+    m->decoded = mem_alloc(sizeof *m->decoded * (n ? n : 1));
+    for (uint32_t i = 0; i < n; i++) {
+        vec3 dd = photon_dir_decode(m->photons[i].dir), pw = photon_rgbe_decode(m->photons[i].rgbe);
+        m->decoded[i] = (struct photon_decoded){{dd.x, dd.y, dd.z}, {pw.x, pw.y, pw.z}};
+    }
     *out = m;
     return 0;
 }
@@ -572,6 +579,7 @@ void photon_map_free(struct photon_map **pm)
 {
     if (!*pm)
         return;
+    free((*pm)->decoded);
     free((*pm)->photons);
     free((*pm)->bucket_start);
     free(*pm);
@@ -579,6 +587,27 @@ void photon_map_free(struct photon_map **pm)
 }
 
 /* ---- lookups ---- */
+
+/* Henyey-Greenstein in float for the lookups' inner loops (the photons' directions carry
+ * 8-bit precision; g is bounded away from +-1 by the scene's validation). */
+static inline float phase_hg_fast(float cos_theta, float g)
+{
+    float d = 1.0f + g * g - 2.0f * g * cos_theta;
+    d = d > 1e-30f ? d : 1e-30f;
+    return (1.0f - g * g) / (4.0f * (float)M_PI * d * sqrtf(d));
+}
+
+/* phase x power of photon i for light leaving along d_out. */
+static inline vec3 photon_contrib(const struct photon_map *m, uint32_t i, vec3 d_out, float g)
+{
+    if (m->decoded) {
+        const struct photon_decoded *pd = &m->decoded[i];
+        float p = phase_hg_fast(pd->dir[0] * d_out.x + pd->dir[1] * d_out.y + pd->dir[2] * d_out.z, g);
+        return v3(p * pd->power[0], p * pd->power[1], p * pd->power[2]);
+    }
+    const struct photon *ph = &m->photons[i];
+    return v3_scale(photon_rgbe_decode(ph->rgbe), phase_hg(v3_dot(photon_dir_decode(ph->dir), d_out), g));
+}
 
 /* Visits each bucket of the cells [lo, hi] once (hash collisions would repeat them). */
 #define MAX_VISIT 64
@@ -637,6 +666,125 @@ vec3 photon_map_gather(const struct photon_map *m, vec3 x, vec3 d_out, float g)
     return v3((float)fmin(acc[0] * inv_vol, 1e30), (float)fmin(acc[1] * inv_vol, 1e30), (float)fmin(acc[2] * inv_vol, 1e30));
 }
 
+/* Max-heap on squared distance (the root is the farthest of the k kept). */
+struct knn_item { float d2; uint32_t i; };
+
+static void heap_sift_down(struct knn_item *h, uint32_t n, uint32_t i)
+{
+    for (;;) {
+        uint32_t l = 2 * i + 1, r = l + 1, m = i;
+        if (l < n && (h[l].d2 > h[m].d2 || (h[l].d2 == h[m].d2 && h[l].i > h[m].i)))
+            m = l;
+        if (r < n && (h[r].d2 > h[m].d2 || (h[r].d2 == h[m].d2 && h[r].i > h[m].i)))
+            m = r;
+        if (m == i)
+            return;
+        struct knn_item t = h[i];
+        h[i] = h[m], h[m] = t;
+        i = m;
+    }
+}
+
+static void heap_sift_up(struct knn_item *h, uint32_t i)
+{
+    while (i > 0) {
+        uint32_t p = (i - 1) / 2;
+        if (!(h[i].d2 > h[p].d2 || (h[i].d2 == h[p].d2 && h[i].i > h[p].i)))
+            return;
+        struct knn_item t = h[i];
+        h[i] = h[p], h[p] = t;
+        i = p;
+    }
+}
+
+/* Offers the photons of bucket b to the heap of the k nearest within r2max. */
+static void knn_bucket(const struct photon_map *m, uint32_t b, vec3 x, uint32_t k, float r2max, struct knn_item *h,
+                       uint32_t *n)
+{
+    for (uint32_t i = m->bucket_start[b]; i < m->bucket_start[b + 1]; i++) {
+        const struct photon *ph = &m->photons[i];
+        vec3 dp = v3_sub(v3(ph->p[0], ph->p[1], ph->p[2]), x);
+        float d2 = v3_dot(dp, dp);
+        if (!(d2 <= r2max))
+            continue;
+        if (*n < k) {
+            h[*n] = (struct knn_item){d2, i};
+            heap_sift_up(h, (*n)++);
+        } else if (d2 < h[0].d2 || (d2 == h[0].d2 && i < h[0].i)) {
+            h[0] = (struct knn_item){d2, i};
+            heap_sift_down(h, *n, 0);
+        }
+    }
+}
+
+#define KNN_MAX_RING 8          /* cells searched around x's cell: rmax is capped at 8 cells */
+#define KNN_SEEN 8192           /* buckets remembered per query (hash collisions repeat them) */
+
+uint32_t photon_map_knn(const struct photon_map *m, vec3 x, uint32_t k, float rmax, uint32_t *idx, float *r2_out)
+{
+    *r2_out = 0.0f;
+    if (!m || m->num_photons == 0 || k == 0)
+        return 0;
+    if (k > PM_KNN_MAX)
+        k = PM_KNN_MAX;
+    float cs = m->cell_size, inv = 1.0f / cs;
+    rmax = fminf(rmax, (float)KNN_MAX_RING * cs);
+    if (!(rmax > 0.0f) || !isfinite(x.x + x.y + x.z))
+        return 0;
+    float r2max = rmax * rmax;
+    int32_t cx = cell_coord(x.x, inv), cy = cell_coord(x.y, inv), cz = cell_coord(x.z, inv);
+    int32_t rings = (int32_t)ceilf(rmax * inv);
+    if (rings > KNN_MAX_RING)
+        rings = KNN_MAX_RING;
+    struct knn_item h[PM_KNN_MAX];
+    uint32_t n = 0, mask = m->table_size - 1, seen[KNN_SEEN], side = 2 * (uint32_t)rings + 1, set = 64;
+    while (set < 2 * side * side * side && set < KNN_SEEN)
+        set *= 2;
+    memset(seen, 0xff, sizeof *seen * set);
+    /* Rings of cells at Chebyshev distance s from x's cell hold only photons at least
+     * (s - 1) cells away: stop once the k-th nearest is closer than that. */
+    for (int32_t sr = 0; sr <= rings; sr++) {
+        float gap = (float)(sr - 1) * cs;
+        if (sr >= 1 && (gap > rmax || (n == k && h[0].d2 <= gap * gap)))
+            break;
+        for (int32_t dz = -sr; dz <= sr; dz++)
+            for (int32_t dy = -sr; dy <= sr; dy++)
+                for (int32_t dx = -sr; dx <= sr; dx++) {
+                    if (abs(dx) != sr && abs(dy) != sr && abs(dz) != sr)
+                        continue; /* inner cells: an earlier ring */
+                    uint32_t b = bucket_of(cx + dx, cy + dy, cz + dz, mask);
+                    uint32_t hs = (b * 2654435761u) & (set - 1);
+                    while (seen[hs] != UINT32_MAX && seen[hs] != b)
+                        hs = (hs + 1) & (set - 1);
+                    if (seen[hs] == b)
+                        continue;
+                    seen[hs] = b;
+                    knn_bucket(m, b, x, k, r2max, h, &n);
+                }
+    }
+    for (uint32_t j = 0; j < n; j++)
+        idx[j] = h[j].i;
+    /* Fewer than k within rmax: the estimate's sphere is the maximum radius. */
+    *r2_out = n == k ? h[0].d2 : r2max;
+    return n;
+}
+
+vec3 photon_map_gather_knn(const struct photon_map *m, vec3 x, vec3 d_out, float g, uint32_t k, float rmax)
+{
+    uint32_t idx[PM_KNN_MAX];
+    float r2;
+    uint32_t n = photon_map_knn(m, x, k, rmax, idx, &r2);
+    if (n == 0)
+        return v3(0, 0, 0);
+    double acc[3] = {0, 0, 0};
+    for (uint32_t j = 0; j < n; j++) {
+        vec3 c = photon_contrib(m, idx[j], d_out, g);
+        acc[0] += c.x, acc[1] += c.y, acc[2] += c.z;
+    }
+    double rk = fmax(sqrt((double)r2), PM_MIN_KERNEL_RADIUS), inv_vol = 1.0 / (4.0 / 3.0 * M_PI * rk * rk * rk);
+    return v3((float)fmin(acc[0] * inv_vol, 1e30), (float)fmin(acc[1] * inv_vol, 1e30), (float)fmin(acc[2] * inv_vol, 1e30));
+}
+
 /* Drops repeated bucket ids in place (a small open-addressing set); returns the count. */
 static uint32_t unique_buckets(uint32_t *b, uint32_t n)
 {
@@ -670,7 +818,10 @@ static vec3 tau_tr(const struct photon_tau *tt, const struct medium *md, float t
         float f = x - (float)i;
         tau = tt->tau[i] * (1.0f - f) + tt->tau[i + 1] * f;
     }
-    return v3(expf(-md->sigma_t.x * tau), expf(-md->sigma_t.y * tau), expf(-md->sigma_t.z * tau));
+    float ex = expf(-md->sigma_t.x * tau);
+    if (md->sigma_t.y == md->sigma_t.x && md->sigma_t.z == md->sigma_t.x)
+        return v3(ex, ex, ex); /* grey: the same value, one exponential */
+    return v3(ex, expf(-md->sigma_t.y * tau), expf(-md->sigma_t.z * tau));
 }
 
 vec3 photon_map_beam(const struct photon_map *m, vec3 o, vec3 d, float t1, const struct medium *md,
@@ -712,9 +863,8 @@ vec3 photon_map_beam(const struct photon_map *m, vec3 o, vec3 d, float t1, const
                 if (v3_dot(perp, perp) > r2)
                     continue;
                 vec3 tr = tau ? tau_tr(tau, md, t) : medium_transmittance(md, t);
-                float p = phase_hg(v3_dot(photon_dir_decode(ph->dir), d_out), md->g);
-                vec3 pw = v3_mul(photon_rgbe_decode(ph->rgbe), tr);
-                acc[0] += (double)p * pw.x, acc[1] += (double)p * pw.y, acc[2] += (double)p * pw.z;
+                vec3 c = v3_mul(photon_contrib(m, i, d_out, md->g), tr);
+                acc[0] += c.x, acc[1] += c.y, acc[2] += c.z;
             }
         }
     }

@@ -26,6 +26,10 @@ struct photon {
     uint16_t reserved;  /* 0 */
 };
 
+struct photon_decoded {
+    float dir[3], power[3];
+};
+
 struct photon_map {
     uint32_t num_photons;
     uint32_t table_size;        /* buckets, a power of two */
@@ -33,6 +37,7 @@ struct photon_map {
     float radius, cell_size;
     struct photon *photons;     /* sorted by bucket */
     uint32_t *bucket_start;     /* table_size + 1 */
+    struct photon_decoded *decoded; /* per photon, filled by photon_map_decode; NULL: decode on the fly */
 };
 
 struct photon_pass_stats {
@@ -55,10 +60,21 @@ void photon_map_free(struct photon_map **pm);
  * D the scene's diagonal. The photon pass is skipped when it is below skip_bound. */
 double photon_map_indirect_bound(const struct scene *s, float scene_size);
 
-/* Jensen's volume radiance estimate at x toward the viewer (light leaves along d_out):
- * sum of phase x power / (4/3 pi r^3) over photons within r; this is sigma_s times the
- * in-scattered radiance, so a march step adds it times dx. */
+/* Fixed-radius volume radiance estimate at x toward the viewer (light leaves along d_out):
+ * sum of phase x power / (4/3 pi r^3) over photons within the map's radius; this is
+ * sigma_s times the in-scattered radiance, so a march step adds it times dx. (The march
+ * uses the k-nearest form below, Jensen's; this one stays for tests and tools.) */
 vec3 photon_map_gather(const struct photon_map *m, vec3 x, vec3 d_out, float g);
+/* Jensen's k-nearest query: the (at most) k photons nearest to x within rmax (capped at 8
+ * hash-grid cells, 16 gather radii), searched in rings of cells around x's cell until the
+ * k-th distance is below the next ring's; indices into m->photons in idx (room for
+ * min(k, PM_KNN_MAX)); *r2 gets the squared radius of the estimate's sphere: the k-th
+ * distance when k were found, else rmax^2. Ties broken by index: deterministic. */
+#define PM_KNN_MAX 1024u
+uint32_t photon_map_knn(const struct photon_map *m, vec3 x, uint32_t k, float rmax, uint32_t *idx, float *r2);
+/* Jensen's per-step estimate with the k nearest photons (adaptive radius, at most rmax):
+ * sum of phase x power / (4/3 pi r_k^3). */
+vec3 photon_map_gather_knn(const struct photon_map *m, vec3 x, vec3 d_out, float g, uint32_t k, float rmax);
 /* Beam radiance estimate (Jarosz et al. 2008) along o + t d, t in [0, t1), in homogeneous
  * medium md: sum over photons within r of the ray of K(r) Tr(t_i) phase power, K = 1 /
  * (pi r^2). One query for the whole segment. */

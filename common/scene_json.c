@@ -848,9 +848,10 @@ static uint32_t interface_material(struct ctx *c)
 
 static int parse_volume(struct ctx *c, const struct member *vm)
 {
-    static const char *const keys[] = {"method", "fog", "step", "photons", "radius", "skip_bound", "max_photon_depth"};
-    struct member m[7];
-    if (object_members(c, vm->val, &vm->path, "volume", keys, 7, m) != 0)
+    static const char *const keys[] = {"method", "fog", "step", "photons", "radius", "skip_bound", "max_photon_depth",
+                                       "knn", "shadow_cache"};
+    struct member m[9];
+    if (object_members(c, vm->val, &vm->path, "volume", keys, 9, m) != 0)
         return -1;
     struct scene_media *sm = c->scene->media;
     if (m[0].val) {
@@ -895,6 +896,17 @@ static int parse_volume(struct ctx *c, const struct member *vm)
         if (get_uint(c, &m[6], "max_photon_depth", 1, 1024, &n) != 0)
             return -1;
         sm->max_photon_depth = (uint32_t)n;
+    }
+    if (m[7].val) {
+        json_int_t n;
+        if (get_uint(c, &m[7], "knn", 1, 1024, &n) != 0)
+            return -1;
+        sm->knn = (uint32_t)n;
+    }
+    if (m[8].val) {
+        if (!json_is_boolean(m[8].val))
+            return fail(c, &m[8].path, AT_VALUE, "shadow_cache must be true or false");
+        sm->shadow_cache = json_is_true(m[8].val);
     }
     return 0;
 }

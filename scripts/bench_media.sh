@@ -7,7 +7,8 @@
 # converged VPT reference (REF_SPP spp, cached in bench-out/ by scene and binary), time,
 # efficiency 1 / (MSE x time), the photon pass (time, photons/s, bytes/photon, share of the
 # render), and on fog_spot a sweep of photon count and gather radius with bias and variance
-# split (variance from two seeds: E|A - B|^2 = 2 var; bias^2 = MSE - var). Writes
+# split (variance from two seeds: E|A - B|^2 = 2 var; bias^2 = MSE - var), and on smoke the
+# shadow transmittance cache against exact marched shadow rays. Writes
 # bench-out/media.txt and bench-out/media.png. Timings are measurements, never assertions.
 # Usage: BUILD=build sh scripts/bench_media.sh   (env: REF_SPP, SCENES, SWEEP=0 to skip the sweep)
 set -eu
@@ -81,6 +82,22 @@ for s in $SCENES; do
     awk -v s="$s" -v m="$m" '$1 == s && $2 == m { mse=($4*$4+$5*$5)/2; print ($7+$8)/2+$9, sqrt(mse) }' "$T/rows" >"$OUT/media-$s-$m.dat"
   done
 done
+
+# Shadow transmittance cache against exact marched shadow rays (grid scenes: smoke), beam at
+# 1 spp, same seed: the RMSE between the two images is the cache's bias plus the marched
+# shadows' own noise.
+if echo " $SCENES " | grep -q " smoke "; then
+  mkdir -p "$T/exact"
+  cp scenes/smoke/* "$T/exact/"
+  sed 's/"volume": {/"volume": {"shadow_cache": false, /' scenes/smoke/smoke.json >"$T/exact/smoke.json"
+  "$M" scenes/smoke/smoke.json -o "$T/c.exr" --workers 1 --threads "$CORES" --no-journal --spp 1 --seed 11 >"$T/log" 2>&1 || { cat "$T/log"; exit 1; }
+  wc_=$(wall "$T/log")
+  "$M" "$T/exact/smoke.json" -o "$T/e.exr" --workers 1 --threads "$CORES" --no-journal --spp 1 --seed 11 >"$T/log" 2>&1 || { cat "$T/log"; exit 1; }
+  we_=$(wall "$T/log")
+  REF="$OUT/smoke-ref-$REF_SPP-$(cat scenes/smoke/smoke.json "$BUILD/worker" | sha256sum | cut -c1-16).exr"
+  printf 'smoke beam 1 spp: shadow cache %.3f s rmse %s; exact marched shadows %.3f s rmse %s; cached vs exact %s\n' \
+    "$wc_" "$("$X" rmse "$T/c.exr" "$REF")" "$we_" "$("$X" rmse "$T/e.exr" "$REF")" "$("$X" rmse "$T/c.exr" "$T/e.exr")" | tee -a "$OUT/media.txt"
+fi
 
 # Default-settings share: photon pass against the render at the scene's own spp.
 for s in $SCENES; do

@@ -1,7 +1,8 @@
 #!/bin/sh
 # Participating media end to end: the master's photon pass gives the same map (and scene
 # hash) for 1 and 2 photon threads; images are bit-identical for 1 and 3 workers with the
-# beam estimate, per-step lookups and the volumetric path tracer; a late tcp worker gets the
+# beam estimate, per-step lookups and the volumetric path tracer, and on the smoke grid for
+# march and beam (shadow transmittance cache); a late tcp worker gets the
 # map too; a scene error in the media keys names file:line:col.
 # Ends with "integration: N passed, N failed". Usage: BUILD=build sh tests/integration/media.sh
 set -u
@@ -38,6 +39,15 @@ for meth in march vpt; do
   if [ $r1 = 0 ] && [ $r3 = 0 ] && $X cmp "$T/${meth}1.exr" "$T/${meth}3.exr"; then
     ok "$meth: 1 vs 3 workers bit-identical"; else bad "$meth: 1 vs 3 workers bit-identical"; fi
 done
+# A grid (the smoke): march (k-nearest lookups) and beam read the shadow transmittance cache,
+# filled by whichever thread needs it first; pixels must not depend on that.
+for meth in march beam; do
+  run $M scenes/smoke/smoke.json -o "$T/s${meth}1.exr" --spp 1 --no-journal --workers 1 --threads 1 --media-method $meth && r1=0 || r1=1
+  run $M scenes/smoke/smoke.json -o "$T/s${meth}3.exr" --spp 1 --no-journal --workers 3 --threads 2 --media-method $meth --tile 16 && r3=0 || r3=1
+  if [ $r1 = 0 ] && [ $r3 = 0 ] && $X cmp "$T/s${meth}1.exr" "$T/s${meth}3.exr"; then
+    ok "smoke $meth (shadow cache): 1 vs 3 workers bit-identical"; else bad "smoke $meth (shadow cache): 1 vs 3 workers bit-identical"; fi
+done
+run $M $S -o "$T/vpt1.exr" $A --workers 1 --threads 1 --media-method vpt
 if grep -q "volumetric path tracing, no photon pass" "$T/log"; then ok "vpt: no photon pass"; else bad "vpt: no photon pass"; fi
 if ! $X cmp "$T/p1.exr" "$T/vpt1.exr" >/dev/null 2>&1; then ok "methods differ in noise"; else bad "methods differ in noise"; fi
 
