@@ -33,7 +33,8 @@ timeout 120 $M $SCENE -o "$T/ref.exr" --workers 1 $ARGS >"$T/log" 2>&1 || bad "r
 timeout 120 $M $SCENE -o "$T/ref16.exr" --workers 1 --spp 16 --tile 32 >"$T/log" 2>&1 || bad "reference render"
 
 # --- SIGSTOP a worker mid-render: evicted, tiles re-issued within 5 s, late results dropped ---
-timeout 120 $M $SCENE -o "$T/stop.exr" --workers 0 --bind "ipc://$T/stop.sock" --spp 24 --tile 32 \
+# (64 spp: the render must outlast the 2.5 s timeout plus the stop, even on an idle machine)
+timeout 120 $M $SCENE -o "$T/stop.exr" --workers 0 --bind "ipc://$T/stop.sock" --spp 64 --tile 32 \
   --worker-timeout-ms 2500 >"$T/log" 2>&1 &
 mpid=$!
 # (no `timeout` wrapper: the signals must reach the worker itself)
@@ -58,7 +59,7 @@ sleep 0.3
 kill -CONT $w1
 wait $mpid && r=0 || r=1
 wait $w1 $w2 2>/dev/null
-timeout 120 $M $SCENE -o "$T/ref24.exr" --workers 1 --spp 24 --tile 32 >"$T/log24" 2>&1
+timeout 120 $M $SCENE -o "$T/ref24.exr" --workers 1 --spp 64 --tile 32 >"$T/log24" 2>&1
 echo "faults: SIGSTOP: re-queued ${lat:-never} ms after SIGSTOP; late results dropped: $(counter results_stale)"
 if [ $r = 0 ] && [ -n "$lat" ] && [ "$lat" -lt 5000 ] && [ "$(counter evicted_silent)" -ge 1 ] &&
   [ "$(counter tiles_reissued)" -ge 1 ] && [ "$(counter results_stale)" -ge 1 ] && $X cmp "$T/ref24.exr" "$T/stop.exr"; then
