@@ -628,7 +628,7 @@ static void horizon_scene(struct scene *s, float R, uint32_t tex)
     memcpy(me.indices, idx, sizeof idx);
     me.material_ids = mem_calloc(2, sizeof(uint32_t));
     scene_add_mesh(s, &me);
-    struct light l = {LIGHT_POINT, v3(0, 1e4f, 0), v3(1e8f, 1e8f, 1e8f)};
+    struct light l = {.type = LIGHT_POINT, .position = v3(0, 1e4f, 0), .intensity = v3(1e8f, 1e8f, 1e8f)};
     scene_add_light(s, &l);
     s->camera.position = v3(0, 1, -R * 0.99f);
     s->camera.look_at = v3(0, 0.3f, 0);
