@@ -70,7 +70,7 @@ $(BUILD)/unit_tests: $(UNIT_OBJ) $(BUILD)/libbrume.a
 	$(CC) $(LDFLAGS) -o $@ $^ -lcriterion $(LDLIBS)
 
 unit: $(BUILD)/unit_tests
-	cd tests/unit && ../../$(BUILD)/unit_tests --jobs=2
+	cd tests/unit && LSAN_OPTIONS=suppressions=lsan.supp ../../$(BUILD)/unit_tests --jobs=2
 
 integration: all
 	BUILD=$(BUILD) sh tests/integration/all.sh

@@ -128,7 +128,7 @@ void light_table_free(struct light_table *t)
     memset(t, 0, sizeof *t);
 }
 
-static uint32_t pick(const struct light_table *t, float u)
+uint32_t light_pick(const struct light_table *t, float u)
 {
     uint32_t lo = 0, hi = t->num_entries; /* find i with cdf[i] <= u < cdf[i+1] */
     while (hi - lo > 1) {
@@ -158,7 +158,7 @@ void light_sample(const struct light_table *t, const struct scene *s, vec3 ref, 
     memset(out, 0, sizeof *out);
     if (t->num_entries == 0)
         return;
-    uint32_t i = pick(t, u_pick);
+    uint32_t i = light_pick(t, u_pick);
     const struct light_entry *e = &t->entries[i];
     float pick_pdf = t->pick_pdf[i];
     if (pick_pdf <= 0.0f)

@@ -57,4 +57,8 @@ void light_sample(const struct light_table *t, const struct scene *s, vec3 ref, 
 float light_pdf(const struct light_table *t, const struct scene *s, uint32_t entry, vec3 ref, vec3 p_light,
                 vec3 n_light);
 
+/* The entry whose CDF interval holds u in [0, 1) (never one of probability zero), for
+ * callers that pick a light themselves (the media integrator, the photon pass). */
+uint32_t light_pick(const struct light_table *t, float u);
+
 #endif

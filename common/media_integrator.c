@@ -327,21 +327,6 @@ static float equi_sample(const struct equi *e, float u)
     return e->delta + e->dist * tanf(e->ta + u * (e->tb - e->ta));
 }
 
-static uint32_t pick_light(const struct light_table *t, float u)
-{
-    uint32_t lo = 0, hi = t->num_entries;
-    while (hi - lo > 1) {
-        uint32_t mid = (lo + hi) / 2;
-        if (t->cdf[mid] <= u)
-            lo = mid;
-        else
-            hi = mid;
-    }
-    while (lo + 1 < t->num_entries && t->pick_pdf[lo] == 0.0f)
-        lo++;
-    return lo;
-}
-
 /* The segment a VPT vertex's free flight ran over, for the MIS between free-flight NEE and
  * equiangular sampling of point lights. */
 struct flight_ctx { vec3 o, d; float tend, t; vec3 chan; const struct medium *md; float eps; };
@@ -547,7 +532,7 @@ static vec3 equiangular(const struct render_job *job, const struct rngs *r, uint
                         const struct flight_ctx *fc, uint32_t medium, float time01, uint64_t *rays)
 {
     const struct scene *sc = job->scene;
-    uint32_t i = pick_light(&job->lights, rnd(r, vertex, 8));
+    uint32_t i = light_pick(&job->lights, rnd(r, vertex, 8));
     const struct light_entry *e = &job->lights.entries[i];
     float pick = job->lights.pick_pdf[i];
     if (e->kind != LK_POINT || !(pick > 0.0f))

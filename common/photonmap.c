@@ -162,21 +162,6 @@ static int outside_bounds(const struct media_job *mj, vec3 p)
              p.y <= mj->bounds_hi.y && p.z <= mj->bounds_hi.z);
 }
 
-static uint32_t pick_entry(const struct light_table *t, float u)
-{
-    uint32_t lo = 0, hi = t->num_entries;
-    while (hi - lo > 1) {
-        uint32_t mid = (lo + hi) / 2;
-        if (t->cdf[mid] <= u)
-            lo = mid;
-        else
-            hi = mid;
-    }
-    while (lo + 1 < t->num_entries && t->pick_pdf[lo] == 0.0f)
-        lo++;
-    return lo;
-}
-
 static vec3 cosine_dir(vec3 n, float u1, float u2)
 {
     float r = sqrtf(u1), sp, cp;
@@ -192,7 +177,7 @@ static int emit(const struct trace_ctx *tc, uint64_t key, vec3 *o, vec3 *d, vec3
     const struct render_job *job = tc->job;
     const struct scene *sc = job->scene;
     const struct light_table *lt = &job->lights;
-    uint32_t i = pick_entry(lt, rng_uniform(key, 0));
+    uint32_t i = light_pick(lt, rng_uniform(key, 0));
     const struct light_entry *e = &lt->entries[i];
     float pick = lt->pick_pdf[i];
     if (!(pick > 0.0f))

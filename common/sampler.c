@@ -157,13 +157,7 @@ static inline uint32_t pow2_mask(uint32_t n)
 
 uint32_t sampler_permute(uint32_t i, uint32_t n, uint32_t p)
 {
-    uint32_t w = n ? n - 1 : 0;
-    w |= w >> 1;
-    w |= w >> 2;
-    w |= w >> 4;
-    w |= w >> 8;
-    w |= w >> 16;
-    return permute_in(i, n, w, p);
+    return permute_in(i, n, pow2_mask(n), p);
 }
 
 static inline uint32_t reverse_bits(uint32_t x)
