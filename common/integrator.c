@@ -56,27 +56,6 @@ void render_job_free(struct render_job *job)
     memset(job, 0, sizeof *job);
 }
 
-static float float_bits_offset(float p, int delta)
-{
-    int32_t i;
-    memcpy(&i, &p, sizeof i);
-    i += (p < 0.0f) ? -delta : delta;
-    float r;
-    memcpy(&r, &i, sizeof r);
-    return r;
-}
-
-/* Moves p off the surface to the side of n (unit). */
-__attribute__((always_inline)) static inline vec3 offset_ray_origin(vec3 p, vec3 n)
-{
-    const float origin = 1.0f / 32.0f, float_scale = 1.0f / 65536.0f, int_scale = 256.0f;
-    int ox = (int)(int_scale * n.x), oy = (int)(int_scale * n.y), oz = (int)(int_scale * n.z);
-    vec3 pi = v3(float_bits_offset(p.x, ox), float_bits_offset(p.y, oy), float_bits_offset(p.z, oz));
-    return v3(fabsf(p.x) < origin ? p.x + float_scale * n.x : pi.x,
-              fabsf(p.y) < origin ? p.y + float_scale * n.y : pi.y,
-              fabsf(p.z) < origin ? p.z + float_scale * n.z : pi.z);
-}
-
 struct surface {
     vec3 p;
     vec3 ng;            /* unit geometric normal as the geometry defines it (emission side) */

@@ -30,25 +30,10 @@
 /* Jensen's per-step estimate: maximum radius of the k-nearest query, in gather radii. */
 #define KNN_RADIUS_FACTOR 4.0f
 
-static float float_bits_offset(float p, int delta)
-{
-    int32_t i;
-    memcpy(&i, &p, sizeof i);
-    i += (p < 0.0f) ? -delta : delta;
-    float r;
-    memcpy(&r, &i, sizeof r);
-    return r;
-}
-
-/* The same offsets as integrator.c (Waechter and Binder). */
+/* The path tracer's offsets (vec.h), for the media code and the photon pass. */
 vec3 media_offset_ray_origin(vec3 p, vec3 n)
 {
-    const float origin = 1.0f / 32.0f, float_scale = 1.0f / 65536.0f, int_scale = 256.0f;
-    int ox = (int)(int_scale * n.x), oy = (int)(int_scale * n.y), oz = (int)(int_scale * n.z);
-    vec3 pi = v3(float_bits_offset(p.x, ox), float_bits_offset(p.y, oy), float_bits_offset(p.z, oz));
-    return v3(fabsf(p.x) < origin ? p.x + float_scale * n.x : pi.x,
-              fabsf(p.y) < origin ? p.y + float_scale * n.y : pi.y,
-              fabsf(p.z) < origin ? p.z + float_scale * n.z : pi.z);
+    return offset_ray_origin(p, n);
 }
 
 int media_is_interface(const struct render_job *job, uint32_t material)
