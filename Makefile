@@ -18,7 +18,8 @@ BUILD   := build-san
 endif
 
 DEB_PKGS := gcc make pkg-config libembree-dev libopenexr-dev openexr libzmq3-dev libjansson-dev \
-            libsodium-dev libpng-dev libstb-dev libcriterion-dev embree-tools gnuplot-nox python3 clang
+            libsodium-dev libpng-dev libstb-dev libcriterion-dev embree-tools gnuplot-nox python3 clang \
+            procps openssh-client openssh-server
 DEPS_STAMP := $(BUILD)/.deps-ok
 
 COMMON_SRC := $(wildcard common/*.c)
