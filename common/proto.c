@@ -121,6 +121,17 @@ static void put_f64(struct proto_buf *b, double v)
     put_u64(b, bits);
 }
 
+/* A tile's statistics, as RESULT and KEPT carry them (get_stats reads them back). */
+static void put_stats(struct proto_buf *b, const struct tile_stats *st)
+{
+    put_u64(b, st->samples);
+    put_u64(b, st->rays);
+    put_u64(b, st->nan_samples);
+    put_u64(b, st->render_ns);
+    put_f64(b, st->sum_rel_stderr);
+    put_u32(b, st->rel_stderr_pixels);
+}
+
 static void put_hash(struct proto_buf *b, const struct blob_hash *h)
 {
     put_bytes(b, h->bytes, BLOB_HASH_SIZE);
@@ -224,12 +235,7 @@ int proto_encode(const struct proto_msg *msg, struct proto_buf *b)
         put_u32(b, m->frame);
         put_u32(b, m->tile);
         put_u32(b, m->attempt);
-        put_u64(b, m->stats.samples);
-        put_u64(b, m->stats.rays);
-        put_u64(b, m->stats.nan_samples);
-        put_u64(b, m->stats.render_ns);
-        put_f64(b, m->stats.sum_rel_stderr);
-        put_u32(b, m->stats.rel_stderr_pixels);
+        put_stats(b, &m->stats);
         return put_payload(b, m->chunk, m->chunk_size);
     }
     case MSG_ERROR:
@@ -262,12 +268,7 @@ int proto_encode(const struct proto_msg *msg, struct proto_buf *b)
         put_hash(b, &m->job_key);
         put_u32(b, m->frame);
         put_u32(b, m->tile);
-        put_u64(b, m->stats.samples);
-        put_u64(b, m->stats.rays);
-        put_u64(b, m->stats.nan_samples);
-        put_u64(b, m->stats.render_ns);
-        put_f64(b, m->stats.sum_rel_stderr);
-        put_u32(b, m->stats.rel_stderr_pixels);
+        put_stats(b, &m->stats);
         return put_payload(b, m->chunk, m->chunk_size);
     }
     case MSG_TYPE_MAX_:
