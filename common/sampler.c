@@ -34,18 +34,24 @@ static uint64_t key_prefix(uint64_t seed, uint32_t frame, uint64_t pixel)
     return rng_mix64(rng_mix64(rng_mix64(seed ^ 0x6272756d65ull) ^ frame) ^ pixel);
 }
 
-/* The grid and masks for spp, worked out once per pixel so that drawing a value needs no
- * sqrt and, for powers of two, no division. */
-static void setup_grid(uint32_t spp, enum sampler_type type, uint32_t *perm_mask, uint32_t *nx, uint32_t *ny,
-                       int *log2_spp)
+/* The next power of two >= n, minus 1. */
+static inline uint32_t pow2_mask(uint32_t n)
 {
-    uint32_t w = spp - 1;
+    uint32_t w = n ? n - 1 : 0;
     w |= w >> 1;
     w |= w >> 2;
     w |= w >> 4;
     w |= w >> 8;
     w |= w >> 16;
-    *perm_mask = w;
+    return w;
+}
+
+/* The grid and masks for spp, worked out once per pixel so that drawing a value needs no
+ * sqrt and, for powers of two, no division. */
+static void setup_grid(uint32_t spp, enum sampler_type type, uint32_t *perm_mask, uint32_t *nx, uint32_t *ny,
+                       int *log2_spp)
+{
+    *perm_mask = pow2_mask(spp);
     *nx = *ny = 1;
     *log2_spp = -1;
     if ((spp & (spp - 1)) == 0) {
@@ -141,18 +147,6 @@ static inline uint32_t permute_in(uint32_t i, uint32_t n, uint32_t w, uint32_t p
         i ^= i >> 5;
     } while (i >= n);
     return n == w + 1 ? (i + p) & w : (i + p) % n;
-}
-
-/* The next power of two >= n, minus 1. */
-static inline uint32_t pow2_mask(uint32_t n)
-{
-    uint32_t w = n ? n - 1 : 0;
-    w |= w >> 1;
-    w |= w >> 2;
-    w |= w >> 4;
-    w |= w >> 8;
-    w |= w >> 16;
-    return w;
 }
 
 uint32_t sampler_permute(uint32_t i, uint32_t n, uint32_t p)
