@@ -252,6 +252,7 @@ void camera_generate(const struct camera *cam, const struct sampler *smp, uint32
     float ju, jv;
     sampler_get_2d(smp, DIM_PIXEL_X, &ju, &jv);
     float fx = (float)px + ju, fy = (float)py + jv;
+    out->jx = ju, out->jy = jv;
     out->time01 = cam->uses_time ? camera_shutter_warp(cam, sampler_get(smp, DIM_TIME)) : 0.0f;
     out->time = (double)frame + cam->shutter_open + (double)out->time01 * (cam->shutter_close - cam->shutter_open);
     if (!cam->uses_lens && !cam->moving) {

@@ -47,6 +47,7 @@ struct camera_sample {
     vec3 o, d;
     float time01;
     double time;
+    float jx, jy;   /* the sample's position in its pixel, [0, 1)^2 (pixel jitter) */
 };
 
 void camera_init(struct camera *cam, const struct camera_desc *desc, uint32_t width, uint32_t height);

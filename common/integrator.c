@@ -176,7 +176,7 @@ static vec3 sample_path(const struct render_job *job, uint32_t px, uint32_t py, 
         return media_sample_path(job, &smp, px, py, org, dir, time01, rays, hit_any);
     struct raydiff rd;          /* texture footprints, only when a material has a texture */
     if (job->textured)
-        texshade_camera(job, &cs, &rd);
+        texshade_camera(job, &cs, &smp, &rd);
 
     vec3 L = v3(0, 0, 0), beta = v3(1, 1, 1);
     float prev_pdf = 0.0f;      /* solid-angle pdf of the BSDF sample that produced dir */

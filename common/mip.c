@@ -11,6 +11,7 @@
 
 static float srgb_lut[256], linear_lut[256];
 static float ewa_lut[MIP_EWA_LUT_SIZE];
+static float ewa_box_scale;
 static pthread_once_t tables_once = PTHREAD_ONCE_INIT;
 
 float mip_srgb_to_linear(float c)
@@ -35,6 +36,22 @@ static void tables_init(void)
         float r2 = (float)i / (float)(MIP_EWA_LUT_SIZE - 1);
         ewa_lut[i] = expf(-alpha * r2) - expf(-alpha);
     }
+    /* The ellipse's scale that gives the weights the variance of a box over the footprint
+     * (1/12 per axis), so a footprint of one pixel filters like the pixel itself: the
+     * per-axis variance of w(r) over the unit disc is (1/2) int r^3 w / int r w. */
+    double num = 0.0, den = 0.0;
+    for (int i = 0; i < 4096; i++) {
+        double r = (i + 0.5) / 4096.0, w = exp(-alpha * r * r) - exp(-alpha);
+        num += r * r * r * w;
+        den += r * w;
+    }
+    ewa_box_scale = (float)(sqrt(1.0 / 12.0) / sqrt(0.5 * num / den));
+}
+
+float mip_ewa_box_scale(void)
+{
+    pthread_once(&tables_once, tables_init);
+    return ewa_box_scale;
 }
 
 size_t tex_image_bytes(uint32_t width, uint32_t height, uint32_t channels, enum texel_format format)
@@ -366,6 +383,8 @@ vec3 mip_lookup(const struct mip *m, enum texture_filter filter, float max_aniso
     case TEXFILTER_COUNT_:
         break;
     }
+    const float k = mip_ewa_box_scale();
+    dsdx *= k, dtdx *= k, dsdy *= k, dtdy *= k;
     float level = mip_ewa_select(m, max_aniso, &dsdx, &dtdx, &dsdy, &dtdy);
     if (level < 0.0f)
         return bilinear(m, 0, s, t);

@@ -55,9 +55,15 @@ vec3 mip_texel(const struct mip *m, uint32_t level, int64_t x, int64_t y);
 
 /* A filtered lookup at (s, t) with the footprint's derivative vectors (ds/dx, dt/dx) and
  * (ds/dy, dt/dy) in (s, t) units. max_aniso >= 1 (EWA only). Non-finite derivatives
- * count as zero (a point lookup); a non-finite (s, t) gives black. */
+ * count as zero (a point lookup); a non-finite (s, t) gives black. EWA scales the
+ * derivatives by mip_ewa_box_scale() first. */
 vec3 mip_lookup(const struct mip *m, enum texture_filter filter, float max_aniso, float s, float t, float dsdx,
                 float dtdx, float dsdy, float dtdy);
+
+/* The factor (about 0.78) EWA scales the footprint's axes by so that its Gaussian weights
+ * have the variance of a box over the footprint: the 1-pixel footprint of a 1-spp lookup
+ * then filters as the pixel's own box does, neither blurrier nor sharper. */
+float mip_ewa_box_scale(void);
 
 /* The continuous level a footprint `width` (in (s, t) units) maps to: log2 of the width
  * in level-0 texels of the larger dimension, clamped to [0, num_levels - 1]. */

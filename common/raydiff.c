@@ -27,6 +27,12 @@ float raydiff_spp_scale(uint32_t spp)
     return s > 0.125f ? s : 0.125f;
 }
 
+float raydiff_cell_scale(uint32_t n)
+{
+    float s = n > 0 ? 1.0f / (float)n : 1.0f;
+    return s > 0.125f ? s : 0.125f;
+}
+
 void raydiff_camera(const struct camera *cam, const struct camera_pose *pose, vec3 d, float scale,
                     struct raydiff *rd)
 {
@@ -37,8 +43,26 @@ void raydiff_camera(const struct camera *cam, const struct camera_pose *pose, ve
     vec3 dDx = v3_scale(pose->right, kx), dDy = v3_scale(pose->up, ky);
     float c = v3_dot(d, pose->forward) * scale;
     rd->dodx = rd->dody = v3(0, 0, 0);
+    rd->cx = rd->cy = 0.0f;
     rd->dddx = sane(v3_scale(v3_sub(dDx, v3_scale(d, v3_dot(d, dDx))), c));
     rd->dddy = sane(v3_scale(v3_sub(dDy, v3_scale(d, v3_dot(d, dDy))), c));
+}
+
+void raydiff_set_center(struct raydiff *rd, float jx, float jy, uint32_t nx, uint32_t ny, float sx, float sy)
+{
+    rd->cx = rd->cy = 0.0f;
+    if (nx == 0 || ny == 0 || !(sx > 0.0f) || !(sy > 0.0f) || !(jx >= 0.0f && jx < 1.0f) ||
+        !(jy >= 0.0f && jy < 1.0f))
+        return;
+    float fx = (float)nx, fy = (float)ny;
+    rd->cx = ((floorf(jx * fx) + 0.5f) / fx - jx) / sx;
+    rd->cy = ((floorf(jy * fy) + 0.5f) / fy - jy) / sy;
+}
+
+void raydiff_center(const struct raydiff *rd, struct tex_coord *tc)
+{
+    tc->cx = rd->cx;
+    tc->cy = rd->cy;
 }
 
 void raydiff_transfer(const struct raydiff *rd, vec3 d, float t, vec3 n, vec3 *dpdx, vec3 *dpdy)
@@ -82,6 +106,7 @@ void raydiff_triangle(const vec3 p[3], const float (*uv)[2], const vec3 *nrm, fl
     solve2(e1, e2, out->dpdy, &b1y, &b2y);
     float b0 = 1.0f - b1 - b2;
     struct tex_coord *tc = &out->tc;
+    tc->cx = tc->cy = 0.0f;
     out->dpdu = e1, out->dpdv = e2, out->has_dpduv = 1;
     if (uv) {
         float du1 = uv[1][0] - uv[0][0], dv1 = uv[1][1] - uv[0][1];
@@ -139,6 +164,7 @@ void raydiff_sphere(vec3 center, float radius, vec3 p, const struct raydiff *rd,
     out->n = v3_normalize(q);
     raydiff_transfer(rd, d, t, out->n, &out->dpdx, &out->dpdy);
     raydiff_sphere_uv(center, p, &out->tc.u, &out->tc.v);
+    out->tc.cx = out->tc.cy = 0.0f;
     float rho = sqrtf(q.x * q.x + q.z * q.z);
     float sp = rho > 0.0f ? q.x / rho : 0.0f, cp = rho > 0.0f ? q.z / rho : 1.0f;
     vec3 dpdu = v3_scale(v3(q.z, 0.0f, -q.x), (float)(2.0 * M_PI));
@@ -198,4 +224,5 @@ void raydiff_diffuse(struct raydiff *rd, vec3 d_out, vec3 dpdx, vec3 dpdy)
     rd->dody = dpdy;
     rd->dddx = sane(v3_scale(t, spread));
     rd->dddy = sane(v3_scale(b, spread));
+    rd->cx = rd->cy = 0.0f; /* the cone no longer maps film offsets */
 }

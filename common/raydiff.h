@@ -21,6 +21,11 @@
 struct raydiff {
     vec3 dodx, dody;    /* origin derivatives */
     vec3 dddx, dddy;    /* unit-direction derivatives */
+    /* Offset from the sample's film position to the centre of its pixel cell, in
+     * differential steps (0: none). Lookups are centred there, so a footprint covers the
+     * cell the sample stands for, not one shifted by the sample's jitter. Kept through
+     * specular bounces, zeroed by a diffuse one. */
+    float cx, cy;
 };
 
 /* What a hit gives the footprint: position, texture coordinate and shading normal
@@ -34,12 +39,21 @@ struct raydiff_hit {
     int has_dpduv;      /* 0 when the uv mapping is degenerate there */
 };
 
-/* Scale of camera differentials for spp samples per pixel. */
+/* Gives tc rd's centring offset (the footprint filters apply it: tex_coord_centre). */
+void raydiff_center(const struct raydiff *rd, struct tex_coord *tc);
+
+/* Scale of camera differentials for spp samples per pixel: 1/sqrt(spp), at least 1/8. */
 float raydiff_spp_scale(uint32_t spp);
+/* The same for n cells along one axis of a sample's pixel grid: 1/n, at least 1/8. */
+float raydiff_cell_scale(uint32_t n);
 /* Camera ray with unit direction d at pose: origin derivatives 0 (same lens point),
- * direction derivatives of the normalized film direction, times scale. */
+ * direction derivatives of the normalized film direction, times scale; no centring offset. */
 void raydiff_camera(const struct camera *cam, const struct camera_pose *pose, vec3 d, float scale,
                     struct raydiff *rd);
+/* The centring offset of a sample at (jx, jy) in its pixel ([0, 1)^2) whose pixel holds one
+ * sample per cell of an nx x ny grid (sampler_pixel_cells; nx or ny 0: none), for camera
+ * differentials of scale (sx, sy) pixels along x and y. */
+void raydiff_set_center(struct raydiff *rd, float jx, float jy, uint32_t nx, uint32_t ny, float sx, float sy);
 
 /* Transfer to the plane through the hit with normal n (any length, the geometric one):
  * dP = dO + t dD + dt D with dt from dP . n = 0. */

@@ -111,6 +111,23 @@ static inline void sampler_get_2d(const struct sampler *s, uint32_t dim0, float 
     sampler_get_2d_slow_(s, dim0, u, v);
 }
 
+/* 1 with the grid (*nx cells along x, *ny along y) when every sample of a pass over s's
+ * pixel lies alone in its own cell of that grid over the pixel (the DIM_PIXEL pair), else
+ * 0: 1 x 1 at 1 spp (any sampler); stratified at any spp; sobol when spp is a power of
+ * two (its first 2^k points form a (0, k, 2)-net, scrambling included, so every
+ * elementary box of area 1/spp holds one). Texture footprints are that cell
+ * (texshade_camera). */
+static inline int sampler_pixel_cells(const struct sampler *s, uint32_t *nx, uint32_t *ny)
+{
+    *nx = *ny = 1;
+    if (s->spp == 1)
+        return 1;
+    if (s->type == SAMPLER_INDEPENDENT || s->nx * s->ny != s->spp)
+        return 0;
+    *nx = s->nx, *ny = s->ny;
+    return 1;
+}
+
 static inline uint32_t sampler_bounce_dim(uint32_t bounce, uint32_t offset)
 {
     return DIM_BOUNCE_BASE + bounce * DIM_PER_BOUNCE + offset;

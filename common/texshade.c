@@ -33,11 +33,23 @@ void texshade_free(struct mip *mips, const struct scene *scene)
     free(mips);
 }
 
-void texshade_camera(const struct render_job *job, const struct camera_sample *cs, struct raydiff *rd)
+void texshade_camera(const struct render_job *job, const struct camera_sample *cs, const struct sampler *smp,
+                     struct raydiff *rd)
 {
     struct camera_pose pose;
     camera_pose_at(&job->camera, cs->time, &pose);
-    raydiff_camera(&job->camera, &pose, cs->d, raydiff_spp_scale(job->scene->settings.spp), rd);
+    uint32_t nx, ny;
+    if (!sampler_pixel_cells(smp, &nx, &ny)) {
+        /* No grid: an isotropic footprint of the pixel's area over spp, at the sample. */
+        raydiff_camera(&job->camera, &pose, cs->d, raydiff_spp_scale(job->scene->settings.spp), rd);
+        return;
+    }
+    /* The footprint is the sample's cell of the grid, centred on it. */
+    float sx = raydiff_cell_scale(nx), sy = raydiff_cell_scale(ny);
+    raydiff_camera(&job->camera, &pose, cs->d, 1.0f, rd);
+    rd->dddx = v3_scale(rd->dddx, sx);
+    rd->dddy = v3_scale(rd->dddy, sy);
+    raydiff_set_center(rd, cs->jx, cs->jy, nx, ny, sx, sy);
 }
 
 static vec3 vertex_at(const struct accel_motion *mo, const float *pos, uint32_t nv, uint32_t k, float time01)
@@ -53,8 +65,8 @@ static vec3 vertex_at(const struct accel_motion *mo, const float *pos, uint32_t 
     return v3((1.0f - f) * a[0] + f * b[0], (1.0f - f) * a[1] + f * b[1], (1.0f - f) * a[2] + f * b[2]);
 }
 
-void texshade_hit(const struct render_job *job, vec3 org, vec3 dir, const struct accel_hit *h, float time01,
-                  const struct raydiff *rd, struct raydiff_hit *out)
+static void hit_footprint(const struct render_job *job, vec3 org, vec3 dir, const struct accel_hit *h,
+                          float time01, const struct raydiff *rd, struct raydiff_hit *out)
 {
     const struct scene *sc = job->scene;
     struct xform x;
@@ -99,6 +111,13 @@ void texshade_hit(const struct render_job *job, vec3 org, vec3 dir, const struct
     vec3 ng = v3_cross(v3_sub(p[1], p[0]), v3_sub(p[2], p[0]));
     raydiff_triangle(p, m->uvs ? (const float(*)[2])uv : NULL, smooth ? nrm : NULL, h->u, h->v, ng, rd, dir, h->t,
                      out);
+}
+
+void texshade_hit(const struct render_job *job, vec3 org, vec3 dir, const struct accel_hit *h, float time01,
+                  const struct raydiff *rd, struct raydiff_hit *out)
+{
+    hit_footprint(job, org, dir, h, time01, rd, out);
+    raydiff_center(rd, &out->tc);
 }
 
 const struct material *texshade_material(const struct render_job *job, const struct material *mat,

@@ -8,6 +8,7 @@
 #include "camera.h"
 #include "material.h"
 #include "raydiff.h"
+#include "sampler.h"
 #include "scene.h"
 
 struct render_job;
@@ -16,9 +17,14 @@ struct render_job;
 struct mip *texshade_build(const struct scene *scene, int *textured);
 void texshade_free(struct mip *mips, const struct scene *scene);
 
-/* Differentials of the camera ray cs (pose at its time, lens point fixed). */
-void texshade_camera(const struct render_job *job, const struct camera_sample *cs, struct raydiff *rd);
-/* Differential geometry of hit h of the ray (org, dir) at time01. */
+/* Differentials of the camera ray cs (pose at its time, lens point fixed) of sample smp:
+ * where the sampler puts one sample per cell of a grid over the pixel
+ * (sampler_pixel_cells), the footprint is the sample's cell, centred on it; otherwise an
+ * isotropic footprint of 1/spp of the pixel's area at the sample. */
+void texshade_camera(const struct render_job *job, const struct camera_sample *cs, const struct sampler *smp,
+                     struct raydiff *rd);
+/* Differential geometry of hit h of the ray (org, dir) at time01, with rd's centring
+ * offset for the footprint filters. */
 void texshade_hit(const struct render_job *job, vec3 org, vec3 dir, const struct accel_hit *h, float time01,
                   const struct raydiff *rd, struct raydiff_hit *out);
 /* The material with its albedo texture looked up (a copy in *buf), or mat itself. */

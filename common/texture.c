@@ -78,9 +78,21 @@ vec3 texture_checker_box(float s, float t, float ds, float dt, vec3 c0, vec3 c1)
     return v3_add(v3_scale(c0, 1.0f - odd), v3_scale(c1, odd));
 }
 
+void tex_coord_centre(const struct tex_coord *tc, float *u, float *v)
+{
+    float cu = tc->u + tc->dudx * tc->cx + tc->dudy * tc->cy;
+    float cv = tc->v + tc->dvdx * tc->cx + tc->dvdy * tc->cy;
+    int ok = isfinite(cu) && isfinite(cv);
+    *u = ok ? cu : tc->u;
+    *v = ok ? cv : tc->v;
+}
+
 vec3 texture_eval(const struct texture *t, const struct mip *m, const struct tex_coord *tc)
 {
-    float s = tc->u * t->scale[0] + t->offset[0], tt = tc->v * t->scale[1] + t->offset[1];
+    float u = tc->u, v = tc->v;
+    if (t->filter != TEXFILTER_NEAREST && t->filter != TEXFILTER_BILINEAR)
+        tex_coord_centre(tc, &u, &v);
+    float s = u * t->scale[0] + t->offset[0], tt = v * t->scale[1] + t->offset[1];
     float dsdx = tc->dudx * t->scale[0], dsdy = tc->dudy * t->scale[0];
     float dtdx = tc->dvdx * t->scale[1], dtdy = tc->dvdy * t->scale[1];
     if (t->type == TEXTURE_CHECKER) {

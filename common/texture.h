@@ -28,11 +28,20 @@ struct texture {
     struct tex_image image;     /* TEXTURE_IMAGE: level 0 (owned) */
 };
 
-/* A texture coordinate and its derivatives per pixel step in x and y. */
+/* A texture coordinate and its derivatives per pixel step in x and y, and the offset
+ * (cx, cy), in those steps, from the sample to the centre of the pixel cell it stands for
+ * (raydiff_center; 0 when none). Filters that integrate over the footprint (EWA,
+ * trilinear, the checker's box) centre it there (tex_coord_centre); point lookups
+ * (nearest, bilinear) stay at the sample, whose jitter then integrates the texture. */
 struct tex_coord {
     float u, v;
     float dudx, dvdx, dudy, dvdy;
+    float cx, cy;
 };
+
+/* (u, v) moved by the centring offset: u + cx dudx + cy dudy (and v); (u, v) itself when
+ * that is not finite. */
+void tex_coord_centre(const struct tex_coord *tc, float *u, float *v);
 
 /* Defaults: EWA, max anisotropy 8, repeat, identity transform, white/black checker. */
 void texture_init(struct texture *t, enum texture_type type, const char *name);

@@ -230,3 +230,27 @@ Test(sampler, dimensions_do_not_overlap)
     cr_assert_eq(sampler_dim_pair(sampler_bounce_dim(4, DIM_RR), &comp, &is2), sampler_bounce_dim(4, DIM_RR));
     cr_assert(!is2);
 }
+
+/* sampler_pixel_cells claims a grid only where the pixel pair really holds one
+ * sample per cell (texture lookups centre on that cell), and no grid otherwise. */
+Test(sampler, pixel_cells_only_where_the_grid_holds)
+{
+    static const uint32_t spps[] = {1, 2, 4, 8, 9, 12, 16, 25, 64, 256};
+    for (int t = 0; t < 3; t++)
+        for (size_t k = 0; k < sizeof spps / sizeof *spps; k++) {
+            uint32_t spp = spps[k];
+            struct sampler s0 = sampler_start_type(all_types[t], 5, 0, 3, 0, spp);
+            uint32_t nx, ny;
+            int grid = sampler_pixel_cells(&s0, &nx, &ny);
+            const char *name = sampler_type_name(all_types[t]);
+            if (spp == 1)
+                cr_expect(grid && nx == 1 && ny == 1, "%s: one sample is alone in its pixel", name);
+            else if (all_types[t] == SAMPLER_INDEPENDENT || (all_types[t] == SAMPLER_SOBOL && (spp & (spp - 1)) != 0))
+                cr_expect(!grid, "%s spp %u: no grid", name, spp);
+            else
+                cr_expect(grid && nx * ny == spp && nx <= ny && ny <= 2 * nx + 2, "%s spp %u: grid %ux%u", name, spp, nx, ny);
+            if (grid && spp > 1)
+                for (uint64_t px = 0; px < 3; px++)
+                    check_strata(all_types[t], spp, nx, ny, DIM_PIXEL_X, px);
+        }
+}

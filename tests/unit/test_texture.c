@@ -271,7 +271,7 @@ static vec3 mirror_z(vec3 v, float z0, int point)
 Test(raydiff, flat_mirror_equals_unfolded_camera)
 {
     vec3 o = v3(0.3f, 1.0f, -4.0f), d = v3_normalize(v3(0.2f, -0.1f, 1.0f));
-    struct raydiff rd = {v3(0, 0, 0), v3(0, 0, 0), v3(0.01f, 0.002f, -0.001f), v3(-0.001f, 0.012f, 0.0005f)};
+    struct raydiff rd = {v3(0, 0, 0), v3(0, 0, 0), v3(0.01f, 0.002f, -0.001f), v3(-0.001f, 0.012f, 0.0005f), 0.0f, 0.0f};
     /* Mirror: the plane z = 2 facing the camera (normal -z). */
     vec3 nm = v3(0, 0, -1), p, dpx, dpy;
     plane_hit(o, d, nm, -2.0f, &rd, &p, &dpx, &dpy);
@@ -306,6 +306,118 @@ static vec3 slab_trace(vec3 o, vec3 d, float a, float h, float n, float zt)
     return v3_add(p2, v3_scale(t2, (zt - p2.z) / t2.z));
 }
 
+/* A 1-spp (or one-per-cell) lookup is centred on its cell: through a pinhole onto a plane
+ * parallel to the film, where texture coordinates are affine in the film position, the
+ * centred coordinates of a jittered ray equal those of the ray through the cell's centre,
+ * also after a flat mirror; a diffuse bounce drops the offset. */
+Test(raydiff, lookups_are_centred_on_the_sample_cell)
+{
+    struct camera_desc cd;
+    memset(&cd, 0, sizeof cd);
+    cd.position = v3(0.2f, 0.1f, 0);
+    cd.look_at = v3(0.2f, 0.1f, 1);
+    cd.up = v3(0, 1, 0);
+    cd.fov_y_deg = 40;
+    struct camera cam;
+    camera_init(&cam, &cd, 64, 48);
+    const float a = 3.7f; /* u = a x, v = a y on the plane z = zp (seen directly or folded) */
+    static const uint32_t cells[][2] = {{1, 1}, {2, 2}, {4, 4}, {2, 4}, {16, 16}};
+    for (int mirror = 0; mirror < 2; mirror++)
+        for (size_t ci = 0; ci < sizeof cells / sizeof *cells; ci++) {
+            uint32_t nx = cells[ci][0], ny = cells[ci][1];
+            float sx = raydiff_cell_scale(nx), sy = raydiff_cell_scale(ny), jx = 0.93f, jy = 0.08f;
+            float cxp = (floorf(jx * nx) + 0.5f) / nx, cyp = (floorf(jy * ny) + 0.5f) / ny;
+            struct tex_coord tcs[2];
+            for (int centre = 0; centre < 2; centre++) {
+                float fx = 21.0f + (centre ? cxp : jx), fy = 30.0f + (centre ? cyp : jy);
+                vec3 o, d, p, dpx, dpy;
+                camera_ray(&cam, fx, fy, &o, &d);
+                struct raydiff rd;
+                raydiff_camera(&cam, &cam.still, d, 1.0f, &rd);
+                rd.dddx = v3_scale(rd.dddx, sx);
+                rd.dddy = v3_scale(rd.dddy, sy);
+                raydiff_set_center(&rd, centre ? 0.5f : jx, centre ? 0.5f : jy, centre ? 0 : nx, ny, sx, sy);
+                if (mirror) { /* the mirror z = 2 folds the ray back onto the plane z = -1 */
+                    plane_hit(o, d, v3(0, 0, -1), -2.0f, &rd, &p, &dpx, &dpy);
+                    vec3 r = v3(d.x, d.y, -d.z);
+                    raydiff_reflect(&rd, d, r, v3(0, 0, -1), v3(0, 0, 0), v3(0, 0, 0), dpx, dpy);
+                    plane_hit(p, r, v3(0, 0, 1), -1.0f, &rd, &p, &dpx, &dpy);
+                } else {
+                    plane_hit(o, d, v3(0, 0, -1), -5.0f, &rd, &p, &dpx, &dpy);
+                }
+                struct tex_coord tc = {a * p.x, a * p.y, a * dpx.x, a * dpx.y, a * dpy.x, a * dpy.y, 0.0f, 0.0f};
+                raydiff_center(&rd, &tc);
+                tex_coord_centre(&tc, &tc.u, &tc.v);
+                tcs[centre] = tc;
+                cr_expect(centre || fabsf(rd.cx) > 0.01f, "a jittered sample has an offset");
+            }
+            cr_expect(fabsf(tcs[0].u - tcs[1].u) < 2e-5f && fabsf(tcs[0].v - tcs[1].v) < 2e-5f,
+                      "mirror %d cells %ux%u: centred (%g %g) vs cell centre (%g %g)", mirror, nx, ny, tcs[0].u, tcs[0].v,
+                      tcs[1].u, tcs[1].v);
+        }
+    struct raydiff rd = {v3(0, 0, 0), v3(0, 0, 0), v3(0.01f, 0, 0), v3(0, 0.01f, 0), 0.3f, -0.2f};
+    raydiff_diffuse(&rd, v3(0, 0, 1), v3(0.01f, 0, 0), v3(0, 0.01f, 0));
+    cr_expect(rd.cx == 0.0f && rd.cy == 0.0f, "a diffuse bounce drops the offset");
+    raydiff_set_center(&rd, NAN, 0.5f, 1, 1, 1.0f, 1.0f);
+    cr_expect(rd.cx == 0.0f && rd.cy == 0.0f, "no offset from a bad jitter");
+}
+
+/* The centring offset moves the footprint filters' lookups only: a point lookup (nearest,
+ * bilinear) stays at the sample, so that jittered samples still integrate the texture. */
+Test(texture, centring_moves_footprint_filters_only)
+{
+    struct texture t;
+    texture_init(&t, TEXTURE_IMAGE, "ramp");
+    f32_image(&t.image, 64, 4, 1);
+    for (uint32_t y = 0; y < 4; y++)
+        for (uint32_t x = 0; x < 64; x++)
+            texels(&t.image)[y * 64 + x] = (float)x / 64.0f;
+    struct mip m;
+    mip_build(&m, &t.image, TEXWRAP_CLAMP);
+    /* A footprint of 1/4 texel (level 0) moved 4 texels along u: cx * dudx = 4 / 64. */
+    struct tex_coord tc = {0.3f, 0.5f, 0.25f / 64.0f, 0.0f, 0.0f, 0.25f / 4.0f, 16.0f, 0.0f};
+    float expect[TEXFILTER_COUNT_];
+    expect[TEXFILTER_NEAREST] = 19.0f / 64.0f;            /* texel floor(0.3 * 64) = 19 */
+    expect[TEXFILTER_BILINEAR] = (0.3f * 64.0f - 0.5f) / 64.0f;
+    expect[TEXFILTER_TRILINEAR] = ((0.3f + 4.0f / 64.0f) * 64.0f - 0.5f) / 64.0f;
+    expect[TEXFILTER_EWA] = expect[TEXFILTER_TRILINEAR];
+    for (int f = 0; f < TEXFILTER_COUNT_; f++) {
+        t.filter = (enum texture_filter)f;
+        vec3 c = texture_eval(&t, &m, &tc);
+        cr_expect(fabsf(c.x - expect[f]) < 2e-3f, "%s: %g, expected %g", texture_filter_name(t.filter), c.x, expect[f]);
+    }
+    mip_free(&m);
+    texture_free(&t);
+}
+
+/* EWA's weights for a footprint of w texels have the variance of a box w wide (w^2 / 12),
+ * as mip_ewa_box_scale promises: a 1-pixel footprint filters like the pixel. */
+Test(mip, ewa_weights_have_the_variance_of_a_box_over_the_footprint)
+{
+    struct tex_image im;
+    f32_image(&im, 512, 512, 1);
+    struct mip m;
+    mip_build(&m, &im, TEXWRAP_REPEAT);
+    enum { CAP = 16384 };
+    static int64_t xs[CAP], ys[CAP];
+    static float ws[CAP];
+    struct mip_ewa_record rec = {xs, ys, ws, CAP, 0};
+    const float w = 60.0f, k = mip_ewa_box_scale();
+    cr_expect(k > 0.7f && k < 0.85f, "scale %g", k);
+    float s = 200.5f / 512.0f, t = 300.5f / 512.0f;
+    mip_ewa_level(&m, 0, s, t, k * w / 512.0f, 0.0f, 0.0f, k * w / 512.0f, &rec);
+    cr_assert(rec.count > 100 && rec.count <= CAP, "count %zu", rec.count);
+    double vx = 0, vy = 0;
+    for (size_t i = 0; i < rec.count; i++) {
+        vx += ws[i] * ((double)xs[i] + 0.5 - 200.5) * ((double)xs[i] + 0.5 - 200.5);
+        vy += ws[i] * ((double)ys[i] + 0.5 - 300.5) * ((double)ys[i] + 0.5 - 300.5);
+    }
+    double box = (double)w * w / 12.0;
+    cr_expect(fabs(vx / box - 1.0) < 0.03 && fabs(vy / box - 1.0) < 0.03, "variance %g %g vs box %g", vx, vy, box);
+    mip_free(&m);
+    tex_image_free(&im);
+}
+
 Test(raydiff, glass_slab_matches_analytic_refraction)
 {
     const float a = 2.0f, h = 0.5f, n = 1.5f, zt = 6.0f;
@@ -316,7 +428,7 @@ Test(raydiff, glass_slab_matches_analytic_refraction)
         vec3 d = oblique ? v3_normalize(v3(0.5f, 0.2f, 1.0f)) : v3(0, 0, 1);
         vec3 ex = v3_normalize(v3_cross(d, v3(0, 1, 0))), ey = v3_cross(ex, d);
         const float k = 0.01f;
-        struct raydiff rd = {v3(0, 0, 0), v3(0, 0, 0), v3_scale(ex, k), v3_scale(ey, k)};
+        struct raydiff rd = {v3(0, 0, 0), v3(0, 0, 0), v3_scale(ex, k), v3_scale(ey, k), 0.0f, 0.0f};
         vec3 nz = v3(0, 0, -1), p1, d1x, d1y, p2, d2x, d2y, p3, d3x, d3y;
         plane_hit(o, d, nz, -a, &rd, &p1, &d1x, &d1y);
         vec3 t1, t2;
@@ -352,7 +464,7 @@ Test(raydiff, sphere_and_triangle_texture_derivatives)
     vec3 o = v3(0.2f, 0.3f, -3.0f);
     vec3 target = v3_add(c, v3_scale(v3_normalize(v3(0.3f, 0.4f, -1.0f)), r));
     vec3 d = v3_normalize(v3_sub(target, o));
-    struct raydiff rd = {v3(0, 0, 0), v3(0, 0, 0), v3(1e-3f, 0, 0), v3(0, 1e-3f, 2e-4f)};
+    struct raydiff rd = {v3(0, 0, 0), v3(0, 0, 0), v3(1e-3f, 0, 0), v3(0, 1e-3f, 2e-4f), 0.0f, 0.0f};
     struct raydiff_hit hh;
     float t = v3_length(v3_sub(target, o));
     raydiff_sphere(c, r, target, &rd, d, t, &hh);
@@ -370,7 +482,7 @@ Test(raydiff, sphere_and_triangle_texture_derivatives)
     /* Triangle with a uv map scaled by 3 along u: du/dx = 3 dp.x / edge. */
     vec3 p[3] = {v3(0, 0, 5), v3(2, 0, 5), v3(0, 2, 5)};
     const float uv[3][2] = {{0, 0}, {3, 0}, {0, 1}};
-    struct raydiff cam = {v3(0, 0, 0), v3(0, 0, 0), v3(0.01f, 0, 0), v3(0, 0.01f, 0)};
+    struct raydiff cam = {v3(0, 0, 0), v3(0, 0, 0), v3(0.01f, 0, 0), v3(0, 0.01f, 0), 0.0f, 0.0f};
     raydiff_triangle(p, uv, NULL, 0.25f, 0.25f, v3(0, 0, -1), &cam, v3(0, 0, 1), 5.0f, &hh);
     cr_expect_float_eq(hh.dpdx.x, 0.05f, 1e-6);
     cr_expect_float_eq(hh.tc.dudx, 0.05f * 3 / 2, 1e-6);
@@ -392,7 +504,7 @@ Test(raydiff, sphere_and_triangle_texture_derivatives)
 
 Test(raydiff, grazing_angles_stay_finite_and_bounded)
 {
-    struct raydiff rd = {v3(0, 0, 0), v3(0, 0, 0), v3(1e-3f, 0, 0), v3(0, 1e-3f, 0)};
+    struct raydiff rd = {v3(0, 0, 0), v3(0, 0, 0), v3(1e-3f, 0, 0), v3(0, 1e-3f, 0), 0.0f, 0.0f};
     vec3 dpx, dpy;
     for (int k = 0; k < 5; k++) {
         float cz = k == 4 ? 0.0f : powf(10.0f, -2.0f * (float)k - 2.0f);
@@ -401,7 +513,7 @@ Test(raydiff, grazing_angles_stay_finite_and_bounded)
         cr_expect(v3_is_finite(dpx) && v3_is_finite(dpy));
         cr_expect(v3_max_abs(dpy) <= RAYDIFF_MAX);
     }
-    struct raydiff big = {v3(1e30f, 0, 0), v3(0, 0, 0), v3(INFINITY, 0, 0), v3(NAN, 0, 0)};
+    struct raydiff big = {v3(1e30f, 0, 0), v3(0, 0, 0), v3(INFINITY, 0, 0), v3(NAN, 0, 0), 0.0f, 0.0f};
     raydiff_transfer(&big, v3(0, 0, 1), 1.0f, v3(0, 0, -1), &dpx, &dpy);
     cr_expect(v3_is_finite(dpx) && v3_is_finite(dpy));
     /* Refraction at the critical angle: finite. */
@@ -411,7 +523,7 @@ Test(raydiff, grazing_angles_stay_finite_and_bounded)
         cr_expect(v3_is_finite(rd.dddx) && v3_is_finite(rd.dddy));
     }
     /* Diffuse: the spread never shrinks. */
-    struct raydiff wide = {v3(0, 0, 0), v3(0, 0, 0), v3(0.5f, 0, 0), v3(0, 0.5f, 0)};
+    struct raydiff wide = {v3(0, 0, 0), v3(0, 0, 0), v3(0.5f, 0, 0), v3(0, 0.5f, 0), 0.0f, 0.0f};
     raydiff_diffuse(&wide, v3(0, 0, 1), v3(1, 0, 0), v3(0, 1, 0));
     cr_expect(v3_length(wide.dddx) >= 0.5f - 1e-6f && v3_length(wide.dddy) >= 0.5f - 1e-6f);
     raydiff_diffuse(&rd, v3(0, 0, 1), v3(1, 0, 0), v3(0, 1, 0));
@@ -991,7 +1103,7 @@ Test(bump, height_ramp_tilts_the_normal_as_computed_by_hand)
     mat.bump_scale = 0.5f;
     vec3 p[3] = {v3(0, 0, 0), v3(2, 0, 0), v3(0, 2, 0)};
     const float uv[3][2] = {{0, 0}, {1, 0}, {0, 1}};
-    struct raydiff cam = {v3(0, 0, 0), v3(0, 0, 0), v3(0.001f, 0, 0), v3(0, 0.001f, 0)};
+    struct raydiff cam = {v3(0, 0, 0), v3(0, 0, 0), v3(0.001f, 0, 0), v3(0, 0.001f, 0), 0.0f, 0.0f};
     struct raydiff_hit dh;
     raydiff_triangle(p, uv, NULL, 0.3f, 0.3f, v3(0, 0, 1), &cam, v3(0, 0, -1), 5.0f, &dh);
     cr_assert(dh.has_dpduv);
@@ -1175,7 +1287,7 @@ Test(bump, tangent_space_normal_map)
     /* u along +y on this triangle: the tangent T is +y, B = N x T = -x. */
     vec3 p[3] = {v3(0, 0, 0), v3(0, 2, 0), v3(-2, 0, 0)};
     const float uv[3][2] = {{0, 0}, {1, 0}, {0, 1}};
-    struct raydiff cam = {v3(0, 0, 0), v3(0, 0, 0), v3(0.001f, 0, 0), v3(0, 0.001f, 0)};
+    struct raydiff cam = {v3(0, 0, 0), v3(0, 0, 0), v3(0.001f, 0, 0), v3(0, 0.001f, 0), 0.0f, 0.0f};
     struct raydiff_hit dh;
     raydiff_triangle(p, uv, NULL, 0.3f, 0.3f, v3(0, 0, 1), &cam, v3(0, 0, -1), 5.0f, &dh);
     vec3 n = texshade_bump(&s, &m, &mat, &dh, v3(0, 0, 1), v3(0, 0, 1));
