@@ -233,7 +233,7 @@ vec3 media_shadow_transmittance(const struct render_job *job, vec3 p, vec3 targe
             /* Jensen's methods: the cached optical depth toward a point light, where cached. */
             const struct tr_cache *c = shadow_cache_get(job, target, medium);
             float tau;
-            if (c && tr_cache_tau(c, p, &tau))
+            if (c && tr_cache_tau_from(c, p, &tau))
                 return v3(expf(-md->sigma_t.x * tau), expf(-md->sigma_t.y * tau), expf(-md->sigma_t.z * tau));
         }
         vec3 to = v3_sub(target, p);

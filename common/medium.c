@@ -564,6 +564,38 @@ void tr_cache_free(struct tr_cache *c)
     c->tau = NULL;
 }
 
+int tr_cache_tau_from(const struct tr_cache *c, vec3 p, float *tau)
+{
+    if (!c->tau || !v3_is_finite(p))
+        return 0;
+    if (tr_cache_tau(c, p, tau))
+        return 1;
+    /* Slab test of p + t (light - p), t in [0, 1], against the lattice's box. */
+    float o[3] = {p.x, p.y, p.z}, d[3] = {c->light.x - p.x, c->light.y - p.y, c->light.z - p.z};
+    float lo[3] = {c->lo.x, c->lo.y, c->lo.z}, hi[3] = {c->hi.x, c->hi.y, c->hi.z};
+    float t0 = 0.0f, t1 = 1.0f;
+    for (int k = 0; k < 3; k++) {
+        if (d[k] == 0.0f) {
+            if (o[k] < lo[k] || o[k] > hi[k])
+                t1 = -1.0f;
+            continue;
+        }
+        float ta = (lo[k] - o[k]) / d[k], tb = (hi[k] - o[k]) / d[k];
+        t0 = fmaxf(t0, fminf(ta, tb));
+        t1 = fminf(t1, fmaxf(ta, tb));
+    }
+    *tau = 0.0f;
+    if (!(t0 <= t1))
+        return 1; /* the segment never enters the box: no density on it */
+    /* The entry point, clamped onto the box against rounding. */
+    float q[3];
+    for (int k = 0; k < 3; k++)
+        q[k] = fminf(fmaxf(o[k] + t0 * d[k], lo[k]), hi[k]);
+    if (!tr_cache_tau(c, v3(q[0], q[1], q[2]), tau))
+        *tau = 0.0f;
+    return 1;
+}
+
 int tr_cache_tau(const struct tr_cache *c, vec3 p, float *tau)
 {
     if (!c->tau)

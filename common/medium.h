@@ -159,6 +159,11 @@ int tr_cache_build(struct tr_cache *c, const struct medium *m, vec3 light, uint3
 void tr_cache_free(struct tr_cache *c);
 /* Interpolated optical depth from p to the light; 0 when p is outside the lattice. */
 int tr_cache_tau(const struct tr_cache *c, vec3 p, float *tau);
+/* The same from any point p: outside the lattice (where the density is zero) the segment
+ * to the light is clipped to the lattice's box; *tau is the value at the entry point, or 0
+ * when the segment misses the box. Returns 0 only when there is no cache or p is not
+ * finite. */
+int tr_cache_tau_from(const struct tr_cache *c, vec3 p, float *tau);
 
 /* Henyey-Greenstein phase function for cos(d_in, d_out) = cos_theta. */
 float phase_hg(float cos_theta, float g);

@@ -756,6 +756,24 @@ Test(medium, shadow_cache_vs_exact, .timeout = 60)
             sum += e;
             count++;
         }
+        /* From points outside the lattice (zero density there): the value where the segment
+         * enters the box, within the same bound; 0 when it misses the box. */
+        double worst_out = 0.0;
+        for (int i = 0; i < 200; i++) {
+            vec3 dir = v3_normalize(v3(rng_uniform(78, 3 * (uint32_t)i) - 0.5f, rng_uniform(78, 3 * (uint32_t)i + 1) - 0.5f,
+                                       rng_uniform(78, 3 * (uint32_t)i + 2) - 0.5f));
+            vec3 p = v3_add(v3_scale(v3_add(c1.lo, c1.hi), 0.5f), v3_scale(dir, 2.0f * v3_length(v3_sub(c1.hi, c1.lo))));
+            cr_assert_eq(tr_cache_tau(&c1, p, &tau), 0);
+            cr_assert_eq(tr_cache_tau_from(&c1, p, &tau), 1);
+            worst_out = fmax(worst_out, fabs(exp(-2.5 * tau) - exp(-2.5 * tau_reference(md, p, lights[l]))));
+        }
+        cr_log_info("shadow cache from outside: worst |dTr| %.4f", worst_out);
+        cr_assert(worst_out < 0.3, "cache from outside: worst %g", worst_out);
+        vec3 far = v3_add(c1.hi, v3(10, 10, 10)), light = c1.light;
+        c1.light = v3_add(far, v3(1, 0, 0)); /* a segment beside the box */
+        cr_assert(tr_cache_tau_from(&c1, far, &tau) == 1 && tau == 0.0f, "a segment that misses the box");
+        c1.light = light;
+        cr_assert_eq(tr_cache_tau_from(&c1, v3(NAN, 0, 0), &tau), 0);
         tr_cache_free(&c1);
         tr_cache_free(&c3);
         cr_assert_null(c1.tau);
