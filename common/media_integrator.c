@@ -656,6 +656,10 @@ vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, 
         vec3 ng = front ? s.ng : v3_neg(s.ng);
         vec3 ns = v3_dot(s.ns, ng) < 0.0f ? v3_neg(s.ns) : s.ns;
         vec3 p_off = media_offset_ray_origin(v3_add(s.p, v3_scale(ng, s.p_err)), ng);
+        /* Jensen's methods with a surface photon map: a diffuse surface's indirect light is
+         * the map's estimate and the path ends here, so its direct light is next-event
+         * estimation's alone (full weight, no MIS partner). */
+        const int surface_map = !vpt && mj->map && mj->map->surface && mat->type == MATERIAL_DIFFUSE;
         if (!vpt && few_points && !material_is_delta(mat)) {
             /* Jensen's methods, a few point lights: every one (no pick noise). */
             for (uint32_t li = 0; li < job->lights.num_entries; li++) {
@@ -688,11 +692,16 @@ vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, 
                     vec3 tr = media_shadow_transmittance(job, p_off, target, medium, time01,
                                                          rng_mix64(r.key ^ (0x5353ull << 48) ^ vertex), rays);
                     if (!v3_is_black(tr)) {
-                        float w = ls.is_delta ? 1.0f : power_heuristic(ls.pdf, bpdf);
+                        float w = ls.is_delta || surface_map ? 1.0f : power_heuristic(ls.pdf, bpdf);
                         L = v3_add(L, v3_mul(beta, v3_scale(v3_mul(v3_mul(f, ls.radiance), tr), w / ls.pdf)));
                     }
                 }
             }
+        }
+        if (surface_map) {
+            vec3 e = photon_map_surface(mj->map, s.p, ng);
+            L = v3_add(L, v3_mul(beta, v3_mul(mat->albedo, v3_scale(e, (float)(1.0 / M_PI)))));
+            break;
         }
         struct bsdf_sample bs;
         material_sample(mat, ns, wo, front, rnd(&r, vertex, 5), rnd(&r, vertex, 6), &bs);

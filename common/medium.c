@@ -20,6 +20,7 @@ struct scene_media *media_scene_new(void)
     m->skip_bound = 0.01f;
     m->knn = 50;
     m->shadow_cache = 1;
+    m->surface_photons = 1;
     m->max_photon_depth = 16;
     return m;
 }

@@ -64,6 +64,7 @@ struct scene_media {
     float radius;               /* gather radius; 0 = 1/100 of the scene's size */
     uint32_t knn;               /* per-step estimate: photons of Jensen's k-nearest query (default 50) */
     int shadow_cache;           /* march / beam in grids: cached shadow transmittance (default 1) */
+    int surface_photons;        /* march / beam: a surface photon map for diffuse surfaces' indirect light (default 1) */
     float skip_bound;           /* skip the photon pass when multiple scattering is bounded below this */
     uint32_t max_photon_depth;  /* interactions per photon path */
     struct photon_map *map;     /* worker: the map from the master's blob; NULL if none */

@@ -104,6 +104,8 @@ struct trace_ctx {
     _Atomic uint32_t next_block;
     struct photon **block_photons;
     uint32_t *block_count;
+    struct photon **block_surface;  /* surface photons per block (NULL: none kept) */
+    uint32_t *block_surface_count;
     int aim;                /* point lights aim most photons at the media's bounding sphere */
     vec3 aim_center;
     float aim_radius;
@@ -263,7 +265,10 @@ static void store(struct photon **arr, uint32_t *n, size_t *cap, vec3 p, vec3 d,
     ph->reserved = 0;
 }
 
-static void trace_photon(const struct trace_ctx *tc, uint64_t index, struct photon **arr, uint32_t *n, size_t *cap)
+/* Traces photon `index`: volume photons into (arr, n, cap); when surf is non-NULL, photons
+ * arriving at diffuse surfaces after any interaction into (surf, sn, scap). */
+static void trace_photon(const struct trace_ctx *tc, uint64_t index, struct photon **arr, uint32_t *n, size_t *cap,
+                         struct photon **surf, uint32_t *sn, size_t *scap)
 {
     const struct render_job *job = tc->job;
     const struct scene *sc = job->scene;
@@ -319,6 +324,10 @@ static void trace_photon(const struct trace_ctx *tc, uint64_t index, struct phot
             continue;
         }
         const struct material *mat = &sc->materials[s.material];
+        /* Light reaching a diffuse surface after an interaction: its indirect light (what
+         * arrives straight from a light, next-event estimation computes). */
+        if (surf && indirect && mat->type == MATERIAL_DIFFUSE && !v3_is_black(mat->albedo))
+            store(surf, sn, scap, s.p, d, power);
         vec3 wo = v3_neg(d);
         int front = v3_dot(s.ng, wo) >= 0.0f;
         vec3 ng = front ? s.ng : v3_neg(s.ng);
@@ -355,9 +364,11 @@ static void *trace_thread(void *arg)
             break;
         uint64_t first = (uint64_t)b * PM_BLOCK, last = first + PM_BLOCK;
         last = last < tc->emitted ? last : tc->emitted;
-        size_t cap = 0;
+        size_t cap = 0, scap = 0;
         for (uint64_t i = first; i < last; i++)
-            trace_photon(tc, i, &tc->block_photons[b], &tc->block_count[b], &cap);
+            trace_photon(tc, i, &tc->block_photons[b], &tc->block_count[b], &cap,
+                         tc->block_surface ? &tc->block_surface[b] : NULL,
+                         tc->block_surface ? &tc->block_surface_count[b] : NULL, &scap);
     }
     return NULL;
 }
@@ -400,6 +411,67 @@ double photon_map_indirect_bound(const struct scene *s, float scene_size)
     return fmax(surf, med);
 }
 
+/* Joins the blocks' photons in index order (freeing them), sorts them stably by hash-grid
+ * bucket and writes one map (header, photons, bucket starts). NULL when too many. */
+static uint8_t *serialise(struct photon **blocks, const uint32_t *counts, uint32_t num_blocks, float radius,
+                          uint64_t emitted, size_t *bytes_out, uint32_t *n_out)
+{
+    uint64_t total = 0;
+    for (uint32_t b = 0; b < num_blocks; b++)
+        total += counts[b];
+    if (total > UINT32_MAX / 2) {
+        for (uint32_t b = 0; b < num_blocks; b++)
+            free(blocks[b]);
+        return NULL;
+    }
+    uint32_t n = (uint32_t)total;
+    uint32_t table = 1;
+    while (table < n / 2)
+        table <<= 1;
+    float cell = 2.0f * radius, inv = 1.0f / cell;
+    struct photon *all = mem_alloc(sizeof *all * (n ? n : 1)), *sorted = mem_alloc(sizeof *all * (n ? n : 1));
+    uint32_t k = 0;
+    for (uint32_t b = 0; b < num_blocks; b++) {
+        if (counts[b])
+            memcpy(all + k, blocks[b], sizeof *all * counts[b]);
+        k += counts[b];
+        free(blocks[b]);
+    }
+    uint32_t *start = mem_calloc((size_t)table + 1, sizeof *start), *bk = mem_alloc(sizeof *bk * (n ? n : 1));
+    for (uint32_t i = 0; i < n; i++) {
+        bk[i] = bucket_of(cell_coord(all[i].p[0], inv), cell_coord(all[i].p[1], inv), cell_coord(all[i].p[2], inv),
+                          table - 1);
+        start[bk[i] + 1]++;
+    }
+    for (uint32_t i = 0; i < table; i++)
+        start[i + 1] += start[i];
+    uint32_t *fill = mem_alloc(sizeof *fill * table);
+    memcpy(fill, start, sizeof *fill * table);
+    for (uint32_t i = 0; i < n; i++)
+        sorted[fill[bk[i]]++] = all[i];
+    free(fill);
+    free(bk);
+    free(all);
+    size_t bytes = PM_HEADER + sizeof(struct photon) * (size_t)n + 4 * ((size_t)table + 1);
+    uint8_t *out = mem_calloc(bytes, 1);
+    memcpy(out, PM_MAGIC, 8);
+    put_u32(out + 8, n);
+    put_u32(out + 12, table);
+    put_u64(out + 16, emitted);
+    put_f32(out + 24, radius);
+    put_f32(out + 28, cell);
+    if (n)
+        memcpy(out + PM_HEADER, sorted, sizeof(struct photon) * (size_t)n);
+    uint8_t *sp = out + PM_HEADER + sizeof(struct photon) * (size_t)n;
+    for (uint32_t i = 0; i <= table; i++)
+        put_u32(sp + 4 * (size_t)i, start[i]);
+    free(sorted);
+    free(start);
+    *bytes_out = bytes;
+    *n_out = n;
+    return out;
+}
+
 int photon_map_build(const struct render_job *job, uint64_t seed, uint32_t threads, uint8_t **blob, size_t *size,
                      struct photon_pass_stats *stats, char *err, size_t errlen)
 {
@@ -427,6 +499,10 @@ int photon_map_build(const struct render_job *job, uint64_t seed, uint32_t threa
     atomic_init(&tc.next_block, 0);
     tc.block_photons = mem_calloc(tc.num_blocks ? tc.num_blocks : 1, sizeof *tc.block_photons);
     tc.block_count = mem_calloc(tc.num_blocks ? tc.num_blocks : 1, sizeof *tc.block_count);
+    if (sm->surface_photons) {
+        tc.block_surface = mem_calloc(tc.num_blocks ? tc.num_blocks : 1, sizeof *tc.block_surface);
+        tc.block_surface_count = mem_calloc(tc.num_blocks ? tc.num_blocks : 1, sizeof *tc.block_surface_count);
+    }
     threads = threads < 1 ? 1 : (threads > 256 ? 256 : threads);
     pthread_t *th = mem_alloc(sizeof *th * threads);
     uint32_t started = 0;
@@ -439,63 +515,33 @@ int photon_map_build(const struct render_job *job, uint64_t seed, uint32_t threa
     for (uint32_t i = 1; i <= started; i++)
         pthread_join(th[i], NULL);
     free(th);
-    /* Join the blocks in index order, then a stable counting sort by bucket. */
-    uint64_t total = 0;
-    for (uint32_t b = 0; b < tc.num_blocks; b++)
-        total += tc.block_count[b];
-    if (total > UINT32_MAX / 2) {
-        str_fmt(err, errlen, "photon pass: %llu photons stored, too many", (unsigned long long)total);
-        for (uint32_t b = 0; b < tc.num_blocks; b++)
-            free(tc.block_photons[b]);
-        free(tc.block_photons);
-        free(tc.block_count);
-        return -1;
-    }
-    uint32_t n = (uint32_t)total;
-    uint32_t table = 1;
-    while (table < n / 2)
-        table <<= 1;
-    float radius = job->media->radius, cell = 2.0f * radius, inv = 1.0f / cell;
-    struct photon *all = mem_alloc(sizeof *all * (n ? n : 1)), *sorted = mem_alloc(sizeof *all * (n ? n : 1));
-    uint32_t k = 0;
-    for (uint32_t b = 0; b < tc.num_blocks; b++) {
-        if (tc.block_count[b])
-            memcpy(all + k, tc.block_photons[b], sizeof *all * tc.block_count[b]);
-        k += tc.block_count[b];
-        free(tc.block_photons[b]);
-    }
+    float radius = job->media->radius;
+    size_t vbytes = 0, sbytes = 0;
+    uint32_t vn = 0, sn = 0;
+    uint8_t *vmap = serialise(tc.block_photons, tc.block_count, tc.num_blocks, radius, tc.emitted, &vbytes, &vn);
+    uint8_t *smap = tc.block_surface ? serialise(tc.block_surface, tc.block_surface_count, tc.num_blocks, radius,
+                                                 tc.emitted, &sbytes, &sn)
+                                     : NULL;
     free(tc.block_photons);
     free(tc.block_count);
-    uint32_t *start = mem_calloc((size_t)table + 1, sizeof *start), *bk = mem_alloc(sizeof *bk * (n ? n : 1));
-    for (uint32_t i = 0; i < n; i++) {
-        bk[i] = bucket_of(cell_coord(all[i].p[0], inv), cell_coord(all[i].p[1], inv), cell_coord(all[i].p[2], inv),
-                          table - 1);
-        start[bk[i] + 1]++;
+    free(tc.block_surface);
+    free(tc.block_surface_count);
+    if (!vmap || (tc.block_surface && !smap)) {
+        str_fmt(err, errlen, "photon pass: too many photons stored");
+        free(vmap);
+        free(smap);
+        return -1;
     }
-    for (uint32_t i = 0; i < table; i++)
-        start[i + 1] += start[i];
-    uint32_t *fill = mem_alloc(sizeof *fill * table);
-    memcpy(fill, start, sizeof *fill * table);
-    for (uint32_t i = 0; i < n; i++)
-        sorted[fill[bk[i]]++] = all[i];
-    free(fill);
-    free(bk);
-    free(all);
-    size_t bytes = PM_HEADER + sizeof(struct photon) * (size_t)n + 4 * ((size_t)table + 1);
-    uint8_t *out = mem_calloc(bytes, 1);
-    memcpy(out, PM_MAGIC, 8);
-    put_u32(out + 8, n);
-    put_u32(out + 12, table);
-    put_u64(out + 16, tc.emitted);
-    put_f32(out + 24, radius);
-    put_f32(out + 28, cell);
-    if (n)
-        memcpy(out + PM_HEADER, sorted, sizeof(struct photon) * (size_t)n);
-    uint8_t *sp = out + PM_HEADER + sizeof(struct photon) * (size_t)n;
-    for (uint32_t i = 0; i <= table; i++)
-        put_u32(sp + 4 * (size_t)i, start[i]);
-    free(sorted);
-    free(start);
+    /* The volume map, then the surface map when there is one. */
+    size_t bytes = vbytes + sbytes;
+    uint8_t *out = mem_alloc(bytes);
+    memcpy(out, vmap, vbytes);
+    if (smap)
+        memcpy(out + vbytes, smap, sbytes);
+    free(vmap);
+    free(smap);
+    uint32_t n = vn + sn;
+    stats->stored_surface = sn;
     *blob = out;
     *size = bytes;
     clock_gettime(CLOCK_MONOTONIC, &t1);
@@ -506,7 +552,9 @@ int photon_map_build(const struct render_job *job, uint64_t seed, uint32_t threa
     return 0;
 }
 
-int photon_map_decode(const uint8_t *data, size_t size, struct photon_map **out, char *err, size_t errlen)
+/* One map at the start of data: its size (from its header) goes to *used. */
+static int decode_one(const uint8_t *data, size_t size, size_t *used, struct photon_map **out, char *err,
+                      size_t errlen)
 {
     *out = NULL;
     if (size < PM_HEADER || memcmp(data, PM_MAGIC, 8) != 0) {
@@ -522,10 +570,11 @@ int photon_map_decode(const uint8_t *data, size_t size, struct photon_map **out,
     float radius = get_f32(data + 24), cell = get_f32(data + 28);
     if (table == 0 || (table & (table - 1)) != 0 || table > (1u << 30) || n > UINT32_MAX / 2 ||
         !(radius > 0.0f) || !isfinite(radius) || cell != 2.0f * radius ||
-        size != PM_HEADER + sizeof(struct photon) * (uint64_t)n + 4 * ((uint64_t)table + 1)) {
+        size < PM_HEADER + sizeof(struct photon) * (uint64_t)n + 4 * ((uint64_t)table + 1)) {
         str_fmt(err, errlen, "photon map: inconsistent sizes in the header");
         return -1;
     }
+    *used = PM_HEADER + sizeof(struct photon) * (size_t)n + 4 * ((size_t)table + 1);
     struct photon_map *m = mem_calloc(1, sizeof *m);
     m->num_photons = n;
     m->table_size = table;
@@ -560,10 +609,32 @@ int photon_map_decode(const uint8_t *data, size_t size, struct photon_map **out,
     return 0;
 }
 
+int photon_map_decode(const uint8_t *data, size_t size, struct photon_map **out, char *err, size_t errlen)
+{
+    size_t used = 0, used2 = 0;
+    if (decode_one(data, size, &used, out, err, errlen) != 0)
+        return -1;
+    if (used == size)
+        return 0;
+    /* A surface map follows: exactly one more map, with the same radius and photon count. */
+    struct photon_map *s = NULL;
+    if (decode_one(data + used, size - used, &used2, &s, err, errlen) != 0 || used2 != size - used ||
+        s->radius != (*out)->radius || s->num_emitted != (*out)->num_emitted) {
+        if (s || used2)
+            str_fmt(err, errlen, "photon map: the surface map does not fit the blob or the volume map");
+        photon_map_free(&s);
+        photon_map_free(out);
+        return -1;
+    }
+    (*out)->surface = s;
+    return 0;
+}
+
 void photon_map_free(struct photon_map **pm)
 {
     if (!*pm)
         return;
+    photon_map_free(&(*pm)->surface);
     free((*pm)->decoded);
     free((*pm)->photons);
     free((*pm)->bucket_start);
@@ -649,6 +720,33 @@ vec3 photon_map_gather(const struct photon_map *m, vec3 x, vec3 d_out, float g)
         }
     double rk = fmax((double)r, PM_MIN_KERNEL_RADIUS), inv_vol = 1.0 / (4.0 / 3.0 * M_PI * rk * rk * rk);
     return v3((float)fmin(acc[0] * inv_vol, 1e30), (float)fmin(acc[1] * inv_vol, 1e30), (float)fmin(acc[2] * inv_vol, 1e30));
+}
+
+vec3 photon_map_surface(const struct photon_map *vm, vec3 x, vec3 n)
+{
+    const struct photon_map *m = vm ? vm->surface : NULL;
+    if (!m || m->num_photons == 0)
+        return v3(0, 0, 0);
+    float r = m->radius, r2 = r * r, slab = 0.25f * r;
+    uint32_t buckets[MAX_VISIT];
+    uint32_t nb = collect_buckets(m, v3(x.x - r, x.y - r, x.z - r), v3(x.x + r, x.y + r, x.z + r), buckets, NULL);
+    double acc[3] = {0, 0, 0};
+    for (uint32_t bi = 0; bi < nb; bi++)
+        for (uint32_t i = m->bucket_start[buckets[bi]]; i < m->bucket_start[buckets[bi] + 1]; i++) {
+            const struct photon *ph = &m->photons[i];
+            vec3 dp = v3_sub(v3(ph->p[0], ph->p[1], ph->p[2]), x);
+            if (v3_dot(dp, dp) > r2 || fabsf(v3_dot(dp, n)) > slab)
+                continue;
+            const struct photon_decoded *pd = m->decoded ? &m->decoded[i] : NULL;
+            vec3 dir = pd ? v3(pd->dir[0], pd->dir[1], pd->dir[2]) : photon_dir_decode(ph->dir);
+            if (v3_dot(dir, n) >= 0.0f)
+                continue; /* arrived on the other side */
+            vec3 pw = pd ? v3(pd->power[0], pd->power[1], pd->power[2]) : photon_rgbe_decode(ph->rgbe);
+            acc[0] += pw.x, acc[1] += pw.y, acc[2] += pw.z;
+        }
+    double rk = fmax((double)r, PM_MIN_KERNEL_RADIUS), inv_area = 1.0 / (M_PI * rk * rk);
+    return v3((float)fmin(acc[0] * inv_area, 1e30), (float)fmin(acc[1] * inv_area, 1e30),
+              (float)fmin(acc[2] * inv_area, 1e30));
 }
 
 /* Max-heap on squared distance (the root is the farthest of the k kept). */

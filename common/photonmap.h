@@ -7,6 +7,10 @@
  *   same for any thread count.
  * - A photon is stored at each scattering event in a medium except events on its first
  *   flight straight from the light (ray marching computes that single scattering).
+ * - With the media setting surface_photons, a second map of the same format (following
+ *   the volume map in the blob) holds photons arriving at diffuse surfaces after any
+ *   interaction: the surfaces' indirect light (Jensen's global map without the direct part,
+ *   which next-event estimation computes), read by photon_map_surface.
  * - Storage: 20-byte photons (position, RGBE power, octahedral direction) sorted by the
  *   cell of a hash grid with cells of twice the gather radius, plus the start of each
  *   bucket: two flat arrays, serialised as one copy behind a 48-byte header. */
@@ -38,11 +42,13 @@ struct photon_map {
     struct photon *photons;     /* sorted by bucket */
     uint32_t *bucket_start;     /* table_size + 1 */
     struct photon_decoded *decoded; /* per photon, filled by photon_map_decode; NULL: decode on the fly */
+    struct photon_map *surface; /* the volume map's companion: photons on diffuse surfaces, or NULL */
 };
 
 struct photon_pass_stats {
     double seconds;
-    uint64_t emitted, stored;
+    uint64_t emitted, stored;  /* stored: volume and surface photons */
+    uint64_t stored_surface;
     size_t bytes;
 };
 
@@ -65,6 +71,11 @@ double photon_map_indirect_bound(const struct scene *s, float scene_size);
  * sigma_s times the in-scattered radiance, so a march step adds it times dx. (The march
  * uses the k-nearest form below, Jensen's; this one stays for tests and tools.) */
 vec3 photon_map_gather(const struct photon_map *m, vec3 x, vec3 d_out, float g);
+/* Flux density of indirect light at x on a surface with unit normal n (on the side light
+ * arrives from): sum of the power of the surface photons within the map's radius of x,
+ * near the tangent plane (|(p - x) . n| <= r / 4) and arriving from n's side, over pi r^2.
+ * A diffuse surface of albedo a reflects a / pi times it. 0 without a surface map. */
+vec3 photon_map_surface(const struct photon_map *m, vec3 x, vec3 n);
 /* Jensen's k-nearest query: the (at most) k photons nearest to x within rmax (capped at 8
  * hash-grid cells, 16 gather radii), searched in rings of cells around x's cell until the
  * k-th distance is below the next ring's; indices into m->photons in idx (room for

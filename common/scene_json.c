@@ -849,9 +849,9 @@ static uint32_t interface_material(struct ctx *c)
 static int parse_volume(struct ctx *c, const struct member *vm)
 {
     static const char *const keys[] = {"method", "fog", "step", "photons", "radius", "skip_bound", "max_photon_depth",
-                                       "knn", "shadow_cache"};
-    struct member m[9];
-    if (object_members(c, vm->val, &vm->path, "volume", keys, 9, m) != 0)
+                                       "knn", "shadow_cache", "surface_photons"};
+    struct member m[10];
+    if (object_members(c, vm->val, &vm->path, "volume", keys, 10, m) != 0)
         return -1;
     struct scene_media *sm = c->scene->media;
     if (m[0].val) {
@@ -907,6 +907,11 @@ static int parse_volume(struct ctx *c, const struct member *vm)
         if (!json_is_boolean(m[8].val))
             return fail(c, &m[8].path, AT_VALUE, "shadow_cache must be true or false");
         sm->shadow_cache = json_is_true(m[8].val);
+    }
+    if (m[9].val) {
+        if (!json_is_boolean(m[9].val))
+            return fail(c, &m[9].path, AT_VALUE, "surface_photons must be true or false");
+        sm->surface_photons = json_is_true(m[9].val);
     }
     return 0;
 }

@@ -66,9 +66,11 @@ int master_media_prepare(struct scene *scene, const struct master_opts *o, uint3
             char hex[65];
             blob_hash_compute(map, map_size, &h);
             blob_hash_hex(&h, hex);
-            log_info("media: photon pass: %llu emitted, %llu stored in %.3f s on %u thread(s) (%.3g photons/s), "
-                     "%zu bytes (%.1f bytes/photon), radius %g, multiple-scattering bound %.3g, map %.16s",
-                     (unsigned long long)st.emitted, (unsigned long long)st.stored, st.seconds, threads,
+            log_info("media: photon pass: %llu emitted, %llu stored (%llu on surfaces) in %.3f s on %u thread(s) "
+                     "(%.3g photons/s), %zu bytes (%.1f bytes/photon), radius %g, multiple-scattering bound %.3g, "
+                     "map %.16s",
+                     (unsigned long long)st.emitted, (unsigned long long)st.stored,
+                     (unsigned long long)st.stored_surface, st.seconds, threads,
                      st.seconds > 0 ? (double)st.emitted / st.seconds : 0.0, st.bytes,
                      st.stored ? (double)st.bytes / (double)st.stored : 0.0, (double)job.media->radius, bound, hex);
         }
