@@ -89,6 +89,8 @@ static int32_t cell_coord(float x, float inv_cell)
 {
     float f = floorf(x * inv_cell);
     f = f < -1e9f ? -1e9f : (f > 1e9f ? 1e9f : f);
+    if (!(f == f))
+        f = 0.0f; /* NaN (an infinite inverse times 0): any cell; callers check distances */
     return (int32_t)f;
 }
 
@@ -569,7 +571,7 @@ static int decode_one(const uint8_t *data, size_t size, size_t *used, struct pho
     uint64_t emitted = get_u64(data + 16);
     float radius = get_f32(data + 24), cell = get_f32(data + 28);
     if (table == 0 || (table & (table - 1)) != 0 || table > (1u << 30) || n > UINT32_MAX / 2 ||
-        !(radius > 0.0f) || !isfinite(radius) || cell != 2.0f * radius ||
+        !(radius > 0.0f) || !isfinite(radius) || cell != 2.0f * radius || !isfinite(1.0f / cell) ||
         size < PM_HEADER + sizeof(struct photon) * (uint64_t)n + 4 * ((uint64_t)table + 1)) {
         str_fmt(err, errlen, "photon map: inconsistent sizes in the header");
         return -1;

@@ -1,0 +1,70 @@
+/* libFuzzer target for the photon map decoder (common/photonmap.c), which reads the volume
+ * blob a worker fetches from the master. The input picks the first map's photon count
+ * (byte 0) and table size (byte 1, a power of two) and supplies its photons and bucket
+ * table, so the header fits and the decoder's deeper checks (bucket order, positions) are
+ * reached; whatever input is left follows as a second map (the surface map) behind a
+ * "BVPM0001" magic. The raw input is also decoded as it is. A decoded map then answers
+ * every lookup at a few points. Built and run by tests/fuzz/run.sh. */
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+#include "log.h"
+#include "photonmap.h"
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
+
+static void put_u32(uint8_t *p, uint32_t v)
+{
+    for (int i = 0; i < 4; i++)
+        p[i] = (uint8_t)(v >> (8 * i));
+}
+
+static void exercise(const uint8_t *blob, size_t n)
+{
+    struct photon_map *m = NULL;
+    char err[256];
+    if (photon_map_decode(blob, n, &m, err, sizeof err) != 0)
+        return;
+    static const float pts[4][3] = {{0, 0, 0}, {0.3f, -0.2f, 0.9f}, {1e6f, 0, 0}, {-0.5f, 0.5f, 0.25f}};
+    struct medium md;
+    memset(&md, 0, sizeof md);
+    md.sigma_a = v3(0.1f, 0.1f, 0.1f);
+    md.sigma_s = v3(1, 1, 1);
+    md.sigma_t = v3_add(md.sigma_a, md.sigma_s);
+    for (int i = 0; i < 4; i++) {
+        vec3 x = v3(pts[i][0], pts[i][1], pts[i][2]);
+        (void)photon_map_gather(m, x, v3(0, 0, 1), 0.3f);
+        (void)photon_map_gather_knn(m, x, v3(0, 1, 0), -0.2f, 8, 4.0f * m->radius);
+        (void)photon_map_beam(m, x, v3(0, 0, 1), 2.0f, &md, NULL);
+        (void)photon_map_surface(m, x, v3(0, 1, 0));
+    }
+    photon_map_free(&m);
+}
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
+{
+    exercise(data, size);
+    if (size < 2)
+        return 0;
+    uint32_t n = data[0], table = 1u << (data[1] % 8);
+    size_t body = sizeof(struct photon) * n + 4 * ((size_t)table + 1);
+    size_t avail = size - 2, take = avail < body ? avail : body;
+    size_t rest = avail - take, total = 48 + body + (rest ? 8 + rest : 0);
+    uint8_t *b = mem_calloc(total, 1);
+    memcpy(b, "BVPM0001", 8);
+    put_u32(b + 8, n);
+    put_u32(b + 12, table);
+    b[16] = 100; /* photons emitted */
+    float r = 0.25f, c = 0.5f;
+    memcpy(b + 24, &r, 4);
+    memcpy(b + 28, &c, 4);
+    memcpy(b + 48, data + 2, take);
+    if (rest) {
+        memcpy(b + 48 + body, "BVPM0001", 8);
+        memcpy(b + 48 + body + 8, data + 2 + take, rest);
+    }
+    exercise(b, total);
+    free(b);
+    return 0;
+}
