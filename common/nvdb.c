@@ -62,6 +62,8 @@ static uint16_t rd16(const uint8_t *p) { return (uint16_t)(p[0] | p[1] << 8); }
 static uint32_t rd32(const uint8_t *p) { return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24; }
 static uint64_t rd64(const uint8_t *p) { return (uint64_t)rd32(p) | (uint64_t)rd32(p + 4) << 32; }
 
+uint64_t nvdb_max_voxels = GRID_MAX_VOXELS;
+
 int nvdb_is_nvdb(const uint8_t *data, size_t size)
 {
     return size >= 8 && memcmp(data, "NanoVDB", 7) == 0;
@@ -374,13 +376,14 @@ static int read_grid(const uint8_t *gd, uint64_t gsize, const struct grid_rec *r
         }
         n[k] = (uint64_t)((int64_t)hi[k] - lo[k] + 3); /* active box plus one voxel each side */
         total *= n[k]; /* <= (2^27 + 1) * 2^33: no overflow */
-        if (total > GRID_MAX_VOXELS)
+        if (total > nvdb_max_voxels || total > GRID_MAX_VOXELS)
             total = (uint64_t)GRID_MAX_VOXELS + 1;
     }
     if (total > GRID_MAX_VOXELS) {
+        uint64_t most = nvdb_max_voxels < GRID_MAX_VOXELS ? nvdb_max_voxels : GRID_MAX_VOXELS;
         str_fmt(err, errlen, "grid \"%s\": active box [%d %d %d]..[%d %d %d] needs %llux%llux%llu dense voxels "
-                "(with a border of 1), more than %u", name, lo[0], lo[1], lo[2], hi[0], hi[1], hi[2],
-                (unsigned long long)n[0], (unsigned long long)n[1], (unsigned long long)n[2], GRID_MAX_VOXELS);
+                "(with a border of 1), more than %llu", name, lo[0], lo[1], lo[2], hi[0], hi[1], hi[2],
+                (unsigned long long)n[0], (unsigned long long)n[1], (unsigned long long)n[2], (unsigned long long)most);
         return -1;
     }
     if (oob) {

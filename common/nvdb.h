@@ -11,6 +11,9 @@
 #include "medium.h"
 #include "vec.h"
 
+/* Largest dense grid nvdb_parse makes (GRID_MAX_VOXELS; the fuzz target lowers it to stay fast). */
+extern uint64_t nvdb_max_voxels;
+
 /* 1 if data starts like a NanoVDB file or grid buffer ("NanoVDB" and a version letter). */
 int nvdb_is_nvdb(const uint8_t *data, size_t size);
 
