@@ -4,11 +4,14 @@
 // implementation, never against itself. Every density is a closed-form function of the
 // integer index (ball_value etc., repeated in test_nvdb.c), exact in float.
 // Usage: make_nvdb OUTDIR   (built by the Makefile with g++; ZIP and BLOSC for the refusals)
+//        make_nvdb --from-grid IN.grid OUT.nvdb   (a dense BRGRID01 grid as a NanoVDB fog
+//        volume whose map puts voxel centres where the dense grid has them in its unit cube)
 #include <nanovdb/util/GridBuilder.h>
 #include <nanovdb/util/IO.h>
 
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <limits>
 #include <string>
 #include <vector>
@@ -86,10 +89,47 @@ static std::vector<GridHandle<HostBuffer>> one(GridHandle<HostBuffer> &&h)
     return v;
 }
 
+// BRGRID01 (common/medium.h): magic, nx ny nz (uint32 LE), nx*ny*nz float32 LE, x fastest.
+static int from_grid(const char *in, const char *out)
+{
+    std::FILE *f = std::fopen(in, "rb");
+    if (!f) {
+        std::fprintf(stderr, "make_nvdb: cannot open %s\n", in);
+        return 1;
+    }
+    char magic[8];
+    uint32_t n[3];
+    if (std::fread(magic, 1, 8, f) != 8 || std::memcmp(magic, "BRGRID01", 8) != 0 || std::fread(n, 4, 3, f) != 3 ||
+        (uint64_t)n[0] * n[1] * n[2] > (1u << 27) || !n[0] || !n[1] || !n[2]) {
+        std::fprintf(stderr, "make_nvdb: %s is not a BRGRID01 grid\n", in);
+        std::fclose(f);
+        return 1;
+    }
+    std::vector<float> v((size_t)n[0] * n[1] * n[2]);
+    bool ok = std::fread(v.data(), 4, v.size(), f) == v.size();
+    std::fclose(f);
+    if (!ok) {
+        std::fprintf(stderr, "make_nvdb: %s is truncated\n", in);
+        return 1;
+    }
+    nanovdb::GridBuilder<float> b(0.0f, GridClass::FogVolume);
+    b([&](const Coord &c) { return v[((size_t)c[2] * n[1] + (size_t)c[1]) * n[0] + (size_t)c[0]]; },
+      CoordBBox(Coord(0), Coord((int)n[0] - 1, (int)n[1] - 1, (int)n[2] - 1)));
+    // Index i's centre at (i + 0.5) / n in the unit cube, as in the dense grid.
+    const double m[3][3] = {{1.0 / n[0], 0.0, 0.0}, {0.0, 1.0 / n[1], 0.0}, {0.0, 0.0, 1.0 / n[2]}};
+    const double inv[3][3] = {{(double)n[0], 0.0, 0.0}, {0.0, (double)n[1], 0.0}, {0.0, 0.0, (double)n[2]}};
+    const double t[3] = {0.5 / n[0], 0.5 / n[1], 0.5 / n[2]};
+    Map map;
+    map.set(m, inv, t, 1.0);
+    return write(out, one(b.getHandle(map, "density"))) ? 0 : 1;
+}
+
 int main(int argc, char **argv)
 {
+    if (argc == 4 && std::strcmp(argv[1], "--from-grid") == 0)
+        return from_grid(argv[2], argv[3]);
     if (argc != 2) {
-        std::fprintf(stderr, "usage: make_nvdb OUTDIR\n");
+        std::fprintf(stderr, "usage: make_nvdb OUTDIR | make_nvdb --from-grid IN.grid OUT.nvdb\n");
         return 2;
     }
     const std::string d = std::string(argv[1]) + "/";
