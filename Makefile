@@ -114,10 +114,11 @@ bench: all
 	BUILD=$(BUILD) sh scripts/bench_media.sh
 	BUILD=$(BUILD) sh scripts/bench_textures.sh
 
-# Fuzz targets (libFuzzer, clang): make fuzz FUZZ_SECONDS=60
+# Fuzz targets (libFuzzer, clang): make fuzz FUZZ_SECONDS=60 [FUZZ_ONLY="fuzz_nvdb ..."]
 FUZZ_SECONDS ?= 30
-fuzz:
-	BUILD=$(BUILD) FUZZ_SECONDS=$(FUZZ_SECONDS) sh tests/fuzz/run.sh
+FUZZ_ONLY ?=
+fuzz: $(BUILD)/make_nvdb
+	BUILD=$(BUILD) FUZZ_SECONDS=$(FUZZ_SECONDS) FUZZ_ONLY="$(FUZZ_ONLY)" sh tests/fuzz/run.sh
 
 clean:
 	rm -rf build build-san

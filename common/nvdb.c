@@ -112,7 +112,7 @@ static int64_t list_grids(const uint8_t *d, size_t size, struct grid_rec **recs,
         if (size - pos < FILE_HEADER_SIZE) {
             str_fmt(err, errlen, "truncated: %zu bytes after the last grid, a segment header needs %u", size - pos,
                     FILE_HEADER_SIZE);
-            return -1;
+            goto fail;
         }
         const uint8_t *h = d + pos;
         uint64_t magic = rd64(h);
@@ -122,23 +122,23 @@ static int64_t list_grids(const uint8_t *d, size_t size, struct grid_rec **recs,
                         "(magic \"NanoVDB0\")", (const char *)h, pos);
             else
                 str_fmt(err, errlen, "not a NanoVDB file: no \"NanoVDB0\" segment header at byte %zu", pos);
-            return -1;
+            goto fail;
         }
         uint32_t version = rd32(h + 8);
         uint16_t count = rd16(h + 12), codec = rd16(h + 14);
         if (pnanovdb_version_get_major(version) != PNANOVDB_MAJOR_VERSION_NUMBER) {
             str_fmt(err, errlen, "NanoVDB version %u.%u.%u: this reader reads major version %u", pnanovdb_version_get_major(version),
                     pnanovdb_version_get_minor(version), pnanovdb_version_get_patch(version), PNANOVDB_MAJOR_VERSION_NUMBER);
-            return -1;
+            goto fail;
         }
         if (codec != 0) {
             str_fmt(err, errlen, "grids compressed with %s are not supported: write the file uncompressed (codec NONE)",
                     codec == 1 ? "ZIP" : codec == 2 ? "BLOSC" : "an unknown codec");
-            return -1;
+            goto fail;
         }
         if (count == 0) {
             str_fmt(err, errlen, "segment at byte %zu holds no grids", pos);
-            return -1;
+            goto fail;
         }
         pos += FILE_HEADER_SIZE;
         size_t first = (size_t)n;

@@ -237,6 +237,20 @@ Test(nvdb, first_float_grid_and_by_name)
     cr_assert(strstr(err, "no grid named \"smoke\" (grids in the file: \"velocity\" (vec3f), \"density\" (float), "
                           "\"temperature\" (float))") != NULL, "%s", err);
 
+    /* Two segments (files written one after the other): grids of the second are found too. */
+    size_t n1, n2;
+    uint8_t *a = read_testdata("negative.nvdb", &n1), *b = read_testdata("multi.nvdb", &n2);
+    a = realloc(a, n1 + n2);
+    memcpy(a + n1, b, n2);
+    cr_assert_eq(nvdb_parse(a, n1 + n2, "temperature", &g, &x, &neg, err, sizeof err), 0, "%s", err);
+    cr_assert_eq(dense_at(&g, tlo, 3, 2, 1), temperature_value(3, 2, 1));
+    free(g.data);
+    cr_assert_eq(nvdb_parse(a, n1 + n2, NULL, &g, &x, &neg, err, sizeof err), 0, "%s", err);
+    cr_assert(g.nx == 5 && neg == 1); /* the first float grid: negative.nvdb's */
+    free(g.data);
+    free(a);
+    free(b);
+
     /* In a scene: "grid" picks by name; a bad name is reported at the file key. */
     size_t n;
     uint8_t *d = read_testdata("multi.nvdb", &n);
@@ -478,6 +492,18 @@ Test(nvdb, truncated_and_corrupted, .timeout = 120)
         cr_assert_neq(try_bytes(d, n, err, sizeof err), 0, "case %zu loaded", c);
         cr_assert(strstr(err, f[c].want) != NULL, "case %zu: %s", c, err);
     }
+    /* Bytes after the last grid: a bad or short second segment header (nothing leaks). */
+    d = realloc(d, n + 40);
+    memcpy(d, orig, n);
+    memset(d + n, 'x', 40);
+    cr_assert_neq(try_bytes(d, n + 40, err, sizeof err), 0);
+    cr_assert(strstr(err, "not a NanoVDB file: no \"NanoVDB0\" segment header at byte") != NULL, "%s", err);
+    cr_assert_neq(try_bytes(d, n + 5, err, sizeof err), 0);
+    cr_assert(strstr(err, "truncated: 5 bytes after the last grid") != NULL, "%s", err);
+    memcpy(d + n, orig, 16);
+    put32(d + n + 8, 33u << 21);
+    cr_assert_neq(try_bytes(d, n + 16, err, sizeof err), 0);
+    cr_assert(strstr(err, "NanoVDB version 33.0.0") != NULL, "%s", err);
     free(orig);
     /* The single-grid file: fields of the grid buffer (after 16 + 176 + 8 bytes "density\0"). */
     orig = read_testdata("ball.nvdb", &n);
