@@ -321,6 +321,11 @@ static int read_grid(const uint8_t *gd, uint64_t gsize, const struct grid_rec *r
                 name, (unsigned long long)pnanovdb_grid_get_grid_size(buf, grid), (unsigned long long)gsize, gindex, gcount);
         return -1;
     }
+    if (!(pnanovdb_grid_get_flags(buf, grid) & PNANOVDB_GRID_FLAGS_HAS_BBOX)) {
+        str_fmt(err, errlen, "grid \"%s\" was written without its bounding box (statistics off): write it with "
+                "statistics", name);
+        return -1;
+    }
     /* Index-to-world map: world = A ijk + b (row-major A), in double. */
     pnanovdb_map_handle_t map = pnanovdb_grid_get_map(buf, grid);
     double A[3][3], b[3];

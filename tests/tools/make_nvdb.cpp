@@ -177,6 +177,10 @@ int main(int argc, char **argv)
         ok &= write(d + "background.nvdb",
                     one(float_grid([](const Coord &) { return 1.0f; }, CoordBBox(Coord(0), Coord(2)), unit, "density",
                                    GridClass::FogVolume, 0.5f)));
+        nanovdb::GridBuilder<float> nb(0.0f, GridClass::FogVolume);
+        nb([](const Coord &) { return 1.0f; }, CoordBBox(Coord(0), Coord(2)));
+        nb.setStats(nanovdb::StatsMode::Disable);
+        ok &= write(d + "nobbox.nvdb", one(nb.getHandle(unit, "density")));
         nanovdb::GridBuilder<double> db(0.0, GridClass::FogVolume);
         db([](const Coord &) { return 1.0; }, CoordBBox(Coord(0), Coord(2)));
         ok &= write(d + "double.nvdb", one(db.getHandle(unit, "density")));

@@ -408,6 +408,7 @@ Test(nvdb, refusals)
         {"levelset.nvdb", "grid \"surface\" is a level set grid: densities need a fog volume"},
         {"background.nvdb", "background value 0.5: a density grid's background must be 0"},
         {"double.nvdb", "no float grid (grids in the file: \"density\" (double))"},
+        {"nobbox.nvdb", "grid \"density\" was written without its bounding box (statistics off)"},
     };
     for (size_t c = 0; c < sizeof cases / sizeof cases[0]; c++) {
         struct density_grid g;
