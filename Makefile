@@ -19,7 +19,7 @@ endif
 
 DEB_PKGS := gcc make pkg-config libembree-dev libopenexr-dev openexr libzmq3-dev libjansson-dev \
             libsodium-dev libpng-dev libstb-dev libcriterion-dev embree-tools gnuplot-nox python3 clang \
-            procps openssh-client openssh-server
+            procps openssh-client openssh-server libnanovdb-dev g++ zlib1g-dev libblosc-dev
 DEPS_STAMP := $(BUILD)/.deps-ok
 
 COMMON_SRC := $(wildcard common/*.c)
@@ -70,10 +70,19 @@ $(BUILD)/texbench: $(BUILD)/obj/tests/tools/texbench.o $(BUILD)/libbrume.a
 $(BUILD)/unit_tests: $(UNIT_OBJ) $(BUILD)/libbrume.a
 	$(CC) $(LDFLAGS) -o $@ $^ -lcriterion $(LDLIBS)
 
-unit: $(BUILD)/unit_tests
-	cd tests/unit && LSAN_OPTIONS=suppressions=lsan.supp ../../$(BUILD)/unit_tests --jobs=2
+# NanoVDB test files, written by NanoVDB's own C++ writer (never committed; see make_nvdb.cpp).
+# Plain g++ even under SAN=: it is a generator, not code under test.
+$(BUILD)/make_nvdb: tests/tools/make_nvdb.cpp $(DEPS_STAMP)
+	$(CXX) -std=c++17 -O1 -DNANOVDB_USE_ZIP -DNANOVDB_USE_BLOSC $< -o $@ -lz -lblosc -pthread
+$(BUILD)/testdata/.stamp: $(BUILD)/make_nvdb
+	@mkdir -p $(BUILD)/testdata
+	$(BUILD)/make_nvdb $(BUILD)/testdata
+	@touch $@
 
-integration: all
+unit: $(BUILD)/unit_tests $(BUILD)/testdata/.stamp
+	cd tests/unit && LSAN_OPTIONS=suppressions=lsan.supp BRUME_TESTDATA=../../$(BUILD)/testdata ../../$(BUILD)/unit_tests --jobs=2
+
+integration: all $(BUILD)/make_nvdb
 	BUILD=$(BUILD) sh tests/integration/all.sh
 
 # Long fault runs (many master kills); not part of `make test`.
@@ -105,10 +114,11 @@ bench: all
 	BUILD=$(BUILD) sh scripts/bench_media.sh
 	BUILD=$(BUILD) sh scripts/bench_textures.sh
 
-# Fuzz targets (libFuzzer, clang): make fuzz FUZZ_SECONDS=60
+# Fuzz targets (libFuzzer, clang): make fuzz FUZZ_SECONDS=60 [FUZZ_ONLY="fuzz_nvdb ..."]
 FUZZ_SECONDS ?= 30
-fuzz:
-	BUILD=$(BUILD) FUZZ_SECONDS=$(FUZZ_SECONDS) sh tests/fuzz/run.sh
+FUZZ_ONLY ?=
+fuzz: $(BUILD)/make_nvdb
+	BUILD=$(BUILD) FUZZ_SECONDS=$(FUZZ_SECONDS) FUZZ_ONLY="$(FUZZ_ONLY)" sh tests/fuzz/run.sh
 
 clean:
 	rm -rf build build-san

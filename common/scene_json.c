@@ -8,6 +8,7 @@
 #include "scene_json.h"
 #include "log.h"
 #include "medium.h"
+#include "nvdb.h"
 #include "mesh_obj.h"
 #include "motion.h"
 #include "sampler.h"
@@ -719,16 +720,17 @@ static int find_material(struct ctx *c, const struct member *m, uint32_t *id)
 
 /* ---- Media ---- */
 
-/* "density": {"file", "scale"?, "transform"?}: a dense grid filling the unit cube, which
- * the transform places in the world. */
+/* "density": {"file", "scale"?, "transform"?, "grid"?}: a dense grid filling the unit cube,
+ * which the transform places in the world, or a NanoVDB file (chosen by its magic, not its
+ * name), whose own index-to-world map comes first and the transform after it. */
 static int parse_density(struct ctx *c, const struct member *dm, struct density_grid **out)
 {
-    static const char *const keys[] = {"file", "scale", "transform"};
-    struct member m[3];
-    if (object_members(c, dm->val, &dm->path, "density", keys, 3, m) != 0 ||
+    static const char *const keys[] = {"file", "scale", "transform", "grid"};
+    struct member m[4];
+    if (object_members(c, dm->val, &dm->path, "density", keys, 4, m) != 0 ||
         require(c, &m[0], &dm->path, "density", "file") != 0)
         return -1;
-    const char *file = NULL;
+    const char *file = NULL, *grid_name = NULL;
     char why[1024];
     if (get_string(c, &m[0], "file", &file) != 0)
         return -1;
@@ -748,6 +750,12 @@ static int parse_density(struct ctx *c, const struct member *dm, struct density_
         if (parse_transform(c, &m[2], &t, &us, &uniform) != 0)
             return -1;
     }
+    if (m[3].val) {
+        if (get_string(c, &m[3], "grid", &grid_name) != 0)
+            return -1;
+        if (grid_name[0] == '\0')
+            return fail(c, &m[3].path, AT_VALUE, "grid must name a grid of the NanoVDB file");
+    }
     char *data = NULL;
     size_t size = 0;
     if (!c->src || !c->src->read)
@@ -755,10 +763,37 @@ static int parse_density(struct ctx *c, const struct member *dm, struct density_
     if (c->src->read(c->src->ctx, file, &data, &size, why, sizeof why) != 0)
         return fail(c, &m[0].path, AT_VALUE, "cannot read grid: %s", why);
     struct density_grid *g = mem_calloc(1, sizeof *g);
-    int rc = grid_parse((const uint8_t *)data, size, g, why, sizeof why);
+    const uint8_t *bytes = (const uint8_t *)data;
+    int rc;
+    if (nvdb_is_nvdb(bytes, size)) {
+        struct xform file_to_world;
+        uint64_t negatives;
+        rc = nvdb_parse(bytes, size, grid_name, g, &file_to_world, &negatives, why, sizeof why);
+        if (rc == 0) {
+            t = xform_then(&file_to_world, &t);
+            double det = (double)t.m[0][0] * ((double)t.m[1][1] * t.m[2][2] - (double)t.m[1][2] * t.m[2][1]) -
+                         (double)t.m[0][1] * ((double)t.m[1][0] * t.m[2][2] - (double)t.m[1][2] * t.m[2][0]) +
+                         (double)t.m[0][2] * ((double)t.m[1][0] * t.m[2][1] - (double)t.m[1][1] * t.m[2][0]);
+            bool finite = isfinite(det) && det != 0.0;
+            for (int i = 0; i < 3; i++)
+                for (int j = 0; j < 4; j++)
+                    finite = finite && isfinite(t.m[i][j]);
+            if (!finite) {
+                str_fmt(why, sizeof why, "the grid's map and the transform together are singular or not finite");
+                rc = -1;
+            }
+        }
+    } else {
+        if (grid_name) {
+            free(data);
+            free(g);
+            return fail(c, &m[3].path, AT_KEY, "grid: \"%s\" is not a NanoVDB file (only those hold named grids)", file);
+        }
+        rc = grid_parse(bytes, size, g, why, sizeof why);
+    }
     free(data);
     if (rc != 0) {
-        free(g);
+        grid_free(&g);
         return fail(c, &m[0].path, AT_VALUE, "grid \"%s\": %s", file, why);
     }
     grid_finish(g, &t, scale);

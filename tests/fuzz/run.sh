@@ -1,7 +1,8 @@
 #!/bin/sh
 # Builds every tests/fuzz/fuzz_*.c as a libFuzzer target (clang, ASan + UBSan) and runs
 # each for FUZZ_SECONDS (default 30) on a seed corpus made from the files in scenes/
-# (and tests/fuzz/<target>.dict when present).
+# (and tests/fuzz/<target>.dict when present; fuzz_nvdb also gets build/make_nvdb's files).
+# FUZZ_ONLY=fuzz_nvdb (a space-separated list of names) runs only those targets.
 # Prints one summary line per target; exits non-zero if any target fails to build or
 # finds a crash (crash inputs are kept in $BUILD/fuzz/<target>/). Run from anywhere.
 set -u
@@ -23,15 +24,31 @@ for f in $(find scenes -type f \( -name '*.json' -o -name '*.obj' -o -name '*.mt
     cp "$f" "$seed_dir/seed_${n}_$(basename "$f")"
 done
 
+# NanoVDB seeds for fuzz_nvdb, written by NanoVDB's own writer (the Makefile builds make_nvdb);
+# the small files only (a few hundred KiB each), so that one input stays fast.
+nvdb_seeds="$OUT/nvdb-seed"
+rm -rf "$nvdb_seeds"
+mkdir -p "$nvdb_seeds"
+if [ -x "$BUILD/make_nvdb" ] && "$BUILD/make_nvdb" "$nvdb_seeds" >/dev/null 2>&1; then
+    "$BUILD/make_nvdb" --from-grid scenes/smoke/smoke.grid "$nvdb_seeds/smoke.nvdb" >/dev/null 2>&1
+    find "$nvdb_seeds" -name '*.nvdb' -size +1000k -exec rm -f {} +
+else
+    echo "fuzz: warning: $BUILD/make_nvdb missing, fuzz_nvdb starts without NanoVDB seeds"
+fi
+
 failed=0
 total=0
 for src in tests/fuzz/fuzz_*.c; do
     [ -e "$src" ] || continue
-    total=$((total + 1))
     name=$(basename "$src" .c)
+    if [ -n "${FUZZ_ONLY:-}" ]; then
+        case " $FUZZ_ONLY " in *" $name "*) ;; *) continue ;; esac
+    fi
+    total=$((total + 1))
     dir="$OUT/$name"
     mkdir -p "$dir/corpus"
     cp "$seed_dir"/* "$dir/corpus/" 2>/dev/null
+    [ "$name" = fuzz_nvdb ] && cp "$nvdb_seeds"/*.nvdb "$dir/corpus/" 2>/dev/null
     if ! $CC_FUZZ $CFLAGS_FUZZ "$src" common/*.c -o "$dir/$name" $LIBS >"$dir/build.log" 2>&1; then
         echo "fuzz: $name: BUILD FAILED (see $dir/build.log)"
         failed=$((failed + 1))
