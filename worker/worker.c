@@ -117,6 +117,8 @@ struct worker {
     struct kept_tile *kept;
     size_t num_kept, cap_kept, kept_bytes;
     uint32_t kept_delivered, reconnects;
+    uint64_t job_at_ms;         /* when the current JOB arrived */
+    uint64_t fetch_bytes;       /* bytes of its blobs fetched (not already cached) */
 };
 
 static volatile sig_atomic_t g_stop;
@@ -394,8 +396,9 @@ static int load_job(struct worker *w)
     struct proto_msg m = {.type = MSG_READY};
     m.u.ready.job_id = w->job.job_id;
     m.u.ready.credits = w->opts->threads * TILES_PER_THREAD;
-    log_info("job %llu loaded: %ux%u, %u spp, %u threads", (unsigned long long)w->job.job_id, rs->width,
-             rs->height, rs->spp, w->opts->threads);
+    log_info("job %llu loaded: %ux%u, %u spp, %u threads; %llu bytes of assets fetched and the scene built in %.3f s",
+             (unsigned long long)w->job.job_id, rs->width, rs->height, rs->spp, w->opts->threads,
+             (unsigned long long)w->fetch_bytes, (double)(net_now_ms() - w->job_at_ms) * 1e-3);
     worker_send(w, &m);
     return 0;
 }
@@ -477,6 +480,8 @@ static int on_job(struct worker *w, struct msg_job *job)
     unload_job(w);
     w->job = *job;   /* takes ownership of the asset array */
     w->have_job = 1;
+    w->job_at_ms = net_now_ms();
+    w->fetch_bytes = 0;
     offer_kept(w, same_conn, old_job);
     w->fetches = mem_calloc(job->num_assets ? job->num_assets : 1, sizeof *w->fetches);
     for (uint32_t i = 0; i < job->num_assets; i++) {
@@ -496,6 +501,7 @@ static int on_job(struct worker *w, struct msg_job *job)
             return -1;
         }
         w->num_fetches++;
+        w->fetch_bytes += a->size;
         if (a->size == 0) {
             uint8_t *data;
             if (blob_recv_finish(&f->recv, &data, err, sizeof err) != 0) {
