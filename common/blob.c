@@ -176,6 +176,16 @@ const struct blob_entry *blob_store_put(struct blob_store *s, const void *data, 
     return blob_store_adopt(s, &h, copy, size);
 }
 
+void blob_store_drop(struct blob_store *s, const struct blob_hash *hash)
+{
+    for (size_t i = 0; i < s->count; i++)
+        if (blob_hash_equal(&s->entries[i].hash, hash)) {
+            free(s->entries[i].data);
+            s->entries[i] = s->entries[--s->count];
+            return;
+        }
+}
+
 void blob_store_free(struct blob_store *s)
 {
     for (size_t i = 0; i < s->count; i++)

@@ -49,6 +49,8 @@ const struct blob_entry *blob_store_put(struct blob_store *s, const void *data, 
 /* Takes ownership of data (already hashed as *hash). */
 const struct blob_entry *blob_store_adopt(struct blob_store *s, const struct blob_hash *hash, uint8_t *data, uint64_t size);
 const struct blob_entry *blob_store_get(const struct blob_store *s, const struct blob_hash *hash);
+/* Removes the entry with that hash, if any (entries returned before may move). */
+void blob_store_drop(struct blob_store *s, const struct blob_hash *hash);
 void blob_store_free(struct blob_store *s);
 
 #endif

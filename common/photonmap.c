@@ -282,10 +282,13 @@ static void trace_photon(const struct trace_ctx *tc, uint64_t index, struct phot
         return;
     int indirect = 0;           /* any interaction since the light */
     uint32_t crossings = 0;
+    /* Moving geometry: each photon lives at one time of the frame's shutter, drawn as the
+     * camera draws its rays' times, so the map averages the shutter as the image does. */
+    const float time01 = job->accel.has_motion ? camera_shutter_warp(&job->camera, rng_uniform(key, 6)) : 0.0f;
     for (uint32_t depth = 0; depth < sm->max_photon_depth;) {
         uint32_t dim = 8 + 8 * depth;
         struct accel_hit h;
-        int hit = accel_intersect(&job->accel, o, d, INFINITY, 0.0f, &h);
+        int hit = accel_intersect(&job->accel, o, d, INFINITY, time01, &h);
         if (medium != MEDIUM_NONE) {
             const struct medium *md = &sm->media[medium];
             float t;
@@ -316,7 +319,7 @@ static void trace_photon(const struct trace_ctx *tc, uint64_t index, struct phot
         if (!hit || v3_is_black(power))
             return;
         struct media_surface s;
-        integrator_media_surface(job, o, d, &h, 0.0f, &s);
+        integrator_media_surface(job, o, d, &h, time01, &s);
         if (media_is_interface(job, s.material)) {
             if (++crossings > 256)
                 return;

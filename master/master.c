@@ -16,6 +16,7 @@
 #include "net.h"
 #include "proto.h"
 #include "photons.h"
+#include "media_integrator.h"
 #include "scene_json.h"
 #include "tile.h"
 #include <errno.h>
@@ -96,7 +97,9 @@ struct master {
     struct proto_asset *manifest;
     uint32_t num_manifest;
     char scene_rel[ASSET_PATH_MAX];
-    char base_hash[65];         /* names, contents and settings: the same for every frame */
+    char base_hash[65];         /* names, contents and settings (a per-frame photon map: that frame's) */
+    int map_per_frame;          /* the photon map depends on the frame (master_media_per_frame) */
+    uint32_t map_frame;         /* the frame the published photon map was built for */
     char scene_hash[65];        /* base_hash and the frame: what the output header records */
     struct scene scene;
     struct image_desc desc;
@@ -156,6 +159,8 @@ static void queue_remove_at(struct master *m, uint32_t i)
 
 /* ---- setup ---- */
 
+static int publish_manifest(struct master *m);
+
 static int load_scene(struct master *m)
 {
     const struct master_opts *o = m->opts;
@@ -197,9 +202,21 @@ static int load_scene(struct master *m)
         log_error("%s: %s", o->scene_path, err);
         return -1;
     }
-    if (master_media_prepare(&m->scene, o, o->have_frames ? o->frame_first : 0, &m->assets) != 0)
+    m->map_frame = o->have_frames ? o->frame_first : 0;
+    if (master_media_prepare(&m->scene, o, m->map_frame, &m->assets) != 0)
         return -1;
-    /* Publish every file the parse read; the scene hash covers names, contents and settings. */
+    m->map_per_frame = master_media_per_frame(&m->scene);
+    return publish_manifest(m);
+}
+
+/* Publishes every file the parse read (and the volume blob) as blobs and the job's
+ * manifest; the base hash covers names, contents and settings. */
+static int publish_manifest(struct master *m)
+{
+    const struct master_opts *o = m->opts;
+    const struct render_settings *rs = &m->scene.settings;
+    free(m->manifest);
+    m->manifest = NULL;
     m->num_manifest = (uint32_t)m->assets.num_files;
     if (m->num_manifest > PROTO_MAX_ASSETS) {
         log_error("%s: %u files, more than the %u a job can carry", o->scene_path, m->num_manifest, PROTO_MAX_ASSETS);
@@ -1376,6 +1393,20 @@ static int frame_begin(struct master *m, uint32_t frames_started)
     if (frame_output_path(o, m->frame, m->out_path, sizeof m->out_path) != 0) {
         log_error("-o %s: the output name for frame %u is too long", o->output_path, m->frame);
         return -1;
+    }
+    if (m->map_per_frame && m->frame != m->map_frame) {
+        /* Geometry moves: this frame's photon map, published in place of the last one
+         * (workers fetch it with the JOB; the base hash changes with it). */
+        struct blob_hash old;
+        for (uint32_t i = 0; i < m->num_manifest; i++)
+            if (strcmp(m->manifest[i].path, MEDIA_PHOTON_ASSET) == 0)
+                old = m->manifest[i].hash;
+        if (master_media_prepare(&m->scene, o, m->frame, &m->assets) != 0)
+            return -1;
+        blob_store_drop(&m->blobs, &old);
+        if (publish_manifest(m) != 0)
+            return -1;
+        m->map_frame = m->frame;
     }
     frame_hash(m);
     compute_job_key(m);

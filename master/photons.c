@@ -10,14 +10,37 @@
 #include <stdio.h>
 #include <string.h>
 
+/* Adds the volume blob to the job's files, or replaces the one there (a new frame's). */
 static void publish(struct asset_dir *assets, uint8_t *data, size_t size)
 {
-    mem_grow((void **)&assets->files, &assets->cap_files, assets->num_files + 1, sizeof *assets->files);
-    struct asset_file *f = &assets->files[assets->num_files++];
+    struct asset_file *f = NULL;
+    for (size_t i = 0; i < assets->num_files && !f; i++)
+        if (strcmp(assets->files[i].path, MEDIA_PHOTON_ASSET) == 0)
+            f = &assets->files[i];
+    if (f) {
+        free(f->data);
+    } else {
+        mem_grow((void **)&assets->files, &assets->cap_files, assets->num_files + 1, sizeof *assets->files);
+        f = &assets->files[assets->num_files++];
+    }
     memset(f, 0, sizeof *f);
     snprintf(f->path, sizeof f->path, "%s", MEDIA_PHOTON_ASSET);
     f->data = (char *)data;
     f->size = size;
+}
+
+int master_media_per_frame(const struct scene *scene)
+{
+    const struct scene_media *sm = scene->media;
+    if (!sm || sm->method == MEDIA_VPT)
+        return 0;
+    for (uint32_t i = 0; i < scene->num_meshes; i++)
+        if (scene->meshes[i].num_keys > 1 || scene->meshes[i].num_frames >= 2)
+            return 1;
+    for (uint32_t i = 0; i < scene->num_spheres; i++)
+        if (scene->spheres[i].num_keys > 1)
+            return 1;
+    return 0;
 }
 
 int master_media_prepare(struct scene *scene, const struct master_opts *o, uint32_t frame, struct asset_dir *assets)

@@ -2,14 +2,20 @@
  * photon pass when the scene needs one (or logs why not, with the bound used) and
  * publishes the volume blob (settings + photon map) among the job's files, so that it
  * travels to every worker, late joiners included, and enters the scene hash. Called by
- * master.c's load_scene, once per job. */
+ * master.c's load_scene for the first frame, and again for each frame of a range when
+ * master_media_per_frame says the map depends on the frame. */
 #ifndef BRUME_MASTER_PHOTONS_H
 #define BRUME_MASTER_PHOTONS_H
 #include "asset.h"
 #include "master.h"
 #include "scene.h"
 
-/* 0 on success (also when the scene has no media: nothing is done), -1 logged. */
+/* 1 when the photon map depends on the frame: the scene has a photon pass and geometry
+ * that moves (rigid keys or deformation frames), so each frame gets its own map. A still
+ * scene's map is the same for every frame: built once, reused. */
+int master_media_per_frame(const struct scene *scene);
+/* 0 on success (also when the scene has no media: nothing is done), -1 logged. A second
+ * call replaces the volume blob among the files. */
 int master_media_prepare(struct scene *scene, const struct master_opts *o, uint32_t frame, struct asset_dir *assets);
 
 #endif

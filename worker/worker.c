@@ -442,6 +442,23 @@ static int job_same_scene(const struct msg_job *a, const struct msg_job *b)
 
 static void offer_kept(struct worker *w, int new_job_same_conn, uint64_t old_job_id);
 
+/* Keeps only the blobs the job names: a frame range whose photon map changes every frame
+ * would otherwise pile up a map per frame. */
+static void cache_keep_only(struct blob_store *c, const struct msg_job *job)
+{
+    for (size_t i = 0; i < c->count;) {
+        int used = 0;
+        for (uint32_t k = 0; k < job->num_assets && !used; k++)
+            used = blob_hash_equal(&c->entries[i].hash, &job->assets[k].hash);
+        if (used) {
+            i++;
+        } else {
+            struct blob_hash h = c->entries[i].hash;
+            blob_store_drop(c, &h); /* the last entry moves to i */
+        }
+    }
+}
+
 /* The next frame of the loaded scene: keep the parsed scene, rebuild what depends on the
  * frame (Embree scene with its motion steps, camera at the frame's time). */
 static int switch_frame(struct worker *w, struct msg_job *job, int same_conn, uint64_t old_job)
@@ -480,6 +497,7 @@ static int on_job(struct worker *w, struct msg_job *job)
     unload_job(w);
     w->job = *job;   /* takes ownership of the asset array */
     w->have_job = 1;
+    cache_keep_only(&w->cache, &w->job);
     w->job_at_ms = net_now_ms();
     w->fetch_bytes = 0;
     offer_kept(w, same_conn, old_job);

@@ -3,7 +3,8 @@
 # hash) for 1 and 2 photon threads; images are bit-identical for 1 and 3 workers with the
 # beam estimate, per-step lookups and the volumetric path tracer, and on the smoke grid for
 # march and beam (shadow transmittance cache); a late tcp worker gets the
-# map too; the smoke as a NanoVDB file (1 vs 3 workers, against the dense grid); a scene
+# map too; the smoke as a NanoVDB file (1 vs 3 workers, against the dense grid); a map per
+# frame when geometry moves, one for the range when not; a scene
 # error in the media keys or a compressed .nvdb names file:line:col.
 # Ends with "integration: N passed, N failed". Usage: BUILD=build sh tests/integration/media.sh
 set -u
@@ -102,6 +103,32 @@ cp scenes/smoke/floor.obj "$T/nvz/"
 sed 's/"smoke.grid"/"ball_zip.nvdb"/' scenes/smoke/smoke.json >"$T/nvz/z.json"
 if ! run $M "$T/nvz/z.json" -o "$T/z.exr" && grep -qE "z.json:[0-9]+:[0-9]+: grid \"ball_zip.nvdb\": grids compressed with ZIP are not supported" "$T/log"; then
   ok "compressed nvdb refused at file:line:col"; else bad "compressed nvdb refused at file:line:col"; fi
+
+# A frame range whose geometry moves gets a photon map per frame (each frame's hash
+# differs, and frames are bit-identical for 1 and 3 workers, a worker fetching each new
+# map); the same range with the ball still builds one map and reuses it.
+mkdir -p "$T/anim"
+cp scenes/fog_spot/room.obj "$T/anim/"
+sed 's|"radius": 0.3, "material": "ball"}|"radius": 0.3, "material": "ball", "keyframes": [{"time": 0}, {"time": 2, "translate": [-0.8, -0.9, 0]}]}|' \
+  $S >"$T/anim/anim.json"
+cp $S "$T/anim/still.json"
+FR="--spp 1 --no-journal --frames 0:2"
+run $M "$T/anim/anim.json" -o "$T/anim1.####.exr" $FR --workers 1 --threads 2 && r1=0 || r1=1
+cp "$T/log" "$T/anim1.log"
+run $M "$T/anim/anim.json" -o "$T/anim3.####.exr" $FR --workers 3 --threads 1 --tile 16 && r3=0 || r3=1
+cp "$T/log" "$T/anim3.log"
+maps1=$(sed -n 's/.*photon pass: .* map \([0-9a-f]*\).*/\1/p' "$T/anim1.log" | tr '\n' ' ')
+maps3=$(sed -n 's/.*photon pass: .* map \([0-9a-f]*\).*/\1/p' "$T/anim3.log" | tr '\n' ' ')
+nuniq=$(echo $maps1 | tr ' ' '\n' | sort -u | wc -l)
+same=1
+for f in 0000 0001 0002; do $X cmp "$T/anim1.$f.exr" "$T/anim3.$f.exr" >/dev/null || same=0; done
+if [ $r1 = 0 ] && [ $r3 = 0 ] && [ "$nuniq" = 3 ] && [ "$maps1" = "$maps3" ] && [ $same = 1 ]; then
+  ok "moving geometry: a photon map per frame ($maps1), frames 1 vs 3 workers bit-identical"
+else bad "moving geometry: a photon map per frame (maps: $maps1 / $maps3, rc $r1 $r3, same $same)"; fi
+run $M "$T/anim/still.json" -o "$T/still.####.exr" $FR --workers 2 --threads 1 && rs=0 || rs=1
+np=$(grep -c "photon pass:" "$T/log")
+if [ $rs = 0 ] && [ "$np" = 1 ] && ! $X cmp "$T/anim1.0002.exr" "$T/still.0002.exr" >/dev/null 2>&1; then
+  ok "still geometry: one photon map for the range"; else bad "still geometry: one photon map for the range ($np passes)"; fi
 
 # Media key errors name file:line:col.
 mkdir -p "$T/bad"
