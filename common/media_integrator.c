@@ -169,6 +169,17 @@ struct media_job *media_job_new(const struct render_job *job)
         lo = v3(fminf(lo.x, q.x), fminf(lo.y, q.y), fminf(lo.z, q.z));
         hi = v3(fmaxf(hi.x, q.x), fmaxf(hi.y, q.y), fmaxf(hi.z, q.z));
     }
+    /* Grids may reach beyond the geometry (a cloud in an open sky): rays march them all. */
+    for (uint32_t i = 0; i < sm->num_media; i++) {
+        vec3 glo, ghi;
+        if (!sm->media[i].grid)
+            continue;
+        grid_world_box(sm->media[i].grid, &glo, &ghi);
+        if (!(glo.x <= ghi.x && glo.y <= ghi.y && glo.z <= ghi.z))
+            continue;
+        lo = v3(fminf(lo.x, glo.x), fminf(lo.y, glo.y), fminf(lo.z, glo.z));
+        hi = v3(fmaxf(hi.x, ghi.x), fmaxf(hi.y, ghi.y), fmaxf(hi.z, ghi.z));
+    }
     float size = v3_length(v3_sub(hi, lo));
     size = size > 0.0f && isfinite(size) ? size : 1.0f;
     vec3 pad = v3(1e-3f * size, 1e-3f * size, 1e-3f * size);
@@ -446,6 +457,8 @@ static vec3 march_segment(const struct render_job *job, const struct rngs *r, ui
             tau += rho * dx;
             if (ntab < TAU_TABLE)
                 tau_tab[ntab++] = tau;
+            /* Emission, e times the density (homogeneous media: closed form above). */
+            L = v3_add(L, v3_scale(v3_mul(tr, md->emission), rho * dx));
         } else {
             tr = medium_transmittance(md, t);
         }
@@ -577,7 +590,8 @@ vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, 
             if (vpt) {
                 float tmax = hit ? h.t : INFINITY, t;
                 vec3 w;
-                L = v3_add(L, v3_mul(beta, medium_emission_integral(md, tmax)));
+                L = v3_add(L, v3_mul(beta, medium_emission_segment(md, org, dir, tmax,
+                                                                   rng_mix64(r.key ^ (0x454dull << 48) ^ vertex))));
                 vec3 chan = beta;
                 int scatter = medium_sample_flight(md, org, dir, tmax, chan, rng_mix64(r.key ^ (0x464cull << 48) ^ vertex), &t, &w);
                 /* Homogeneous media: one equiangular sample toward a point light per segment. */

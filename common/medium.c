@@ -429,6 +429,23 @@ vec3 medium_tr_segment(const struct medium *m, vec3 o, vec3 d, float len, uint64
     return v3(expf(-m->sigma_t.x * tau), expf(-m->sigma_t.y * tau), expf(-m->sigma_t.z * tau));
 }
 
+vec3 medium_emission_segment(const struct medium *m, vec3 o, vec3 d, float len, uint64_t key)
+{
+    if (!m->grid)
+        return medium_emission_integral(m, len);
+    float c0, c1;
+    if (v3_is_black(m->emission) || !medium_clip(m, o, d, len, &c0, &c1))
+        return v3(0, 0, 0);
+    float span = c1 - c0, t = c0 + rng_uniform(key, 0) * span;
+    if (!(span > 0.0f) || !isfinite(span) || !(t < c1))
+        return v3(0, 0, 0);
+    float rho = grid_density(m->grid, v3_add(o, v3_scale(d, t)));
+    if (!(rho > 0.0f))
+        return v3(0, 0, 0);
+    vec3 tr = medium_tr_segment(m, o, d, t, rng_mix64(key ^ 0x454d4954ull), 1);
+    return v3_scale(v3_mul(tr, m->emission), rho * span);
+}
+
 int medium_sample_flight(const struct medium *m, vec3 o, vec3 d, float tmax, vec3 chan, uint64_t key, float *t,
                          vec3 *weight)
 {

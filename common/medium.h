@@ -126,6 +126,11 @@ vec3 medium_tr_segment(const struct medium *m, vec3 o, vec3 d, float len, uint64
 /* Homogeneous media: the density of a scattering event at t under medium_sample_distance
  * with the same chan (for MIS). */
 float medium_flight_pdf(const struct medium *m, vec3 chan, float t);
+/* Emission reaching o from [0, len) of o + t d (d unit): the integral of Tr(t) e rho(t),
+ * closed form for homogeneous media (rho = 1); for grids an unbiased one-sample estimate,
+ * a uniform point of the occupied span with its transmittance by ratio tracking (random
+ * numbers from key). */
+vec3 medium_emission_segment(const struct medium *m, vec3 o, vec3 d, float len, uint64_t key);
 /* Free flight over [0, tmax) of o + t d: closed form (medium_sample_distance) for
  * homogeneous media, weighted delta tracking against the majorant for grids. Same
  * contract as medium_sample_distance; random numbers from key. */

@@ -839,8 +839,6 @@ static int parse_media(struct ctx *c, const struct member *mm)
                 return fail(c, &m[3].path, AT_VALUE, "g must be in (-1, 1)");
         }
         md.sigma_t = v3_add(md.sigma_a, md.sigma_s);
-        if (m[4].val && m[2].val)
-            return fail(c, &m[2].path, AT_KEY, "%s: emission is supported in homogeneous media only (no \"density\")", what);
         if (m[4].val && parse_density(c, &m[4], &md.grid) != 0)
             return -1;
         sm->media[sm->num_media++] = md;
