@@ -72,7 +72,7 @@ $(BUILD)/unit_tests: $(UNIT_OBJ) $(BUILD)/libbrume.a
 
 # NanoVDB test files, written by NanoVDB's own C++ writer (never committed; see make_nvdb.cpp).
 # Plain g++ even under SAN=: it is a generator, not code under test.
-$(BUILD)/make_nvdb: tests/tools/make_nvdb.cpp $(DEPS_STAMP)
+$(BUILD)/make_nvdb: tests/tools/make_nvdb.cpp tests/tools/nvdb_values.h $(DEPS_STAMP)
 	$(CXX) -std=c++17 -O1 -DNANOVDB_USE_ZIP -DNANOVDB_USE_BLOSC $< -o $@ -lz -lblosc -pthread
 $(BUILD)/testdata/.stamp: $(BUILD)/make_nvdb
 	@mkdir -p $(BUILD)/testdata

@@ -705,13 +705,25 @@ static uint32_t collect_buckets(const struct photon_map *m, vec3 lo, vec3 hi, ui
     return nb;
 }
 
+/* The buckets of the cells the sphere of radius r around x touches. */
+static uint32_t sphere_buckets(const struct photon_map *m, vec3 x, float r, uint32_t *buckets)
+{
+    return collect_buckets(m, v3(x.x - r, x.y - r, x.z - r), v3(x.x + r, x.y + r, x.z + r), buckets, NULL);
+}
+
+/* acc times k, saturated at 1e30 (a near-zero kernel radius cannot give infinity). */
+static vec3 scaled(const double acc[3], double k)
+{
+    return v3((float)fmin(acc[0] * k, 1e30), (float)fmin(acc[1] * k, 1e30), (float)fmin(acc[2] * k, 1e30));
+}
+
 vec3 photon_map_gather(const struct photon_map *m, vec3 x, vec3 d_out, float g)
 {
     if (!m || m->num_photons == 0)
         return v3(0, 0, 0);
     float r = m->radius, r2 = r * r;
     uint32_t buckets[MAX_VISIT];
-    uint32_t nb = collect_buckets(m, v3(x.x - r, x.y - r, x.z - r), v3(x.x + r, x.y + r, x.z + r), buckets, NULL);
+    uint32_t nb = sphere_buckets(m, x, r, buckets);
     double acc[3] = {0, 0, 0};
     for (uint32_t bi = 0; bi < nb; bi++)
         for (uint32_t i = m->bucket_start[buckets[bi]]; i < m->bucket_start[buckets[bi] + 1]; i++) {
@@ -723,8 +735,8 @@ vec3 photon_map_gather(const struct photon_map *m, vec3 x, vec3 d_out, float g)
             vec3 pw = photon_rgbe_decode(ph->rgbe);
             acc[0] += (double)p * pw.x, acc[1] += (double)p * pw.y, acc[2] += (double)p * pw.z;
         }
-    double rk = fmax((double)r, PM_MIN_KERNEL_RADIUS), inv_vol = 1.0 / (4.0 / 3.0 * M_PI * rk * rk * rk);
-    return v3((float)fmin(acc[0] * inv_vol, 1e30), (float)fmin(acc[1] * inv_vol, 1e30), (float)fmin(acc[2] * inv_vol, 1e30));
+    double rk = fmax((double)r, PM_MIN_KERNEL_RADIUS);
+    return scaled(acc, 1.0 / (4.0 / 3.0 * M_PI * rk * rk * rk));
 }
 
 vec3 photon_map_surface(const struct photon_map *vm, vec3 x, vec3 n)
@@ -734,7 +746,7 @@ vec3 photon_map_surface(const struct photon_map *vm, vec3 x, vec3 n)
         return v3(0, 0, 0);
     float r = m->radius, r2 = r * r, slab = 0.25f * r;
     uint32_t buckets[MAX_VISIT];
-    uint32_t nb = collect_buckets(m, v3(x.x - r, x.y - r, x.z - r), v3(x.x + r, x.y + r, x.z + r), buckets, NULL);
+    uint32_t nb = sphere_buckets(m, x, r, buckets);
     double acc[3] = {0, 0, 0};
     for (uint32_t bi = 0; bi < nb; bi++)
         for (uint32_t i = m->bucket_start[buckets[bi]]; i < m->bucket_start[buckets[bi] + 1]; i++) {
@@ -749,9 +761,8 @@ vec3 photon_map_surface(const struct photon_map *vm, vec3 x, vec3 n)
             vec3 pw = pd ? v3(pd->power[0], pd->power[1], pd->power[2]) : photon_rgbe_decode(ph->rgbe);
             acc[0] += pw.x, acc[1] += pw.y, acc[2] += pw.z;
         }
-    double rk = fmax((double)r, PM_MIN_KERNEL_RADIUS), inv_area = 1.0 / (M_PI * rk * rk);
-    return v3((float)fmin(acc[0] * inv_area, 1e30), (float)fmin(acc[1] * inv_area, 1e30),
-              (float)fmin(acc[2] * inv_area, 1e30));
+    double rk = fmax((double)r, PM_MIN_KERNEL_RADIUS);
+    return scaled(acc, 1.0 / (M_PI * rk * rk));
 }
 
 /* Max-heap on squared distance (the root is the farthest of the k kept). */
@@ -869,8 +880,8 @@ vec3 photon_map_gather_knn(const struct photon_map *m, vec3 x, vec3 d_out, float
         vec3 c = photon_contrib(m, idx[j], d_out, g);
         acc[0] += c.x, acc[1] += c.y, acc[2] += c.z;
     }
-    double rk = fmax(sqrt((double)r2), PM_MIN_KERNEL_RADIUS), inv_vol = 1.0 / (4.0 / 3.0 * M_PI * rk * rk * rk);
-    return v3((float)fmin(acc[0] * inv_vol, 1e30), (float)fmin(acc[1] * inv_vol, 1e30), (float)fmin(acc[2] * inv_vol, 1e30));
+    double rk = fmax(sqrt((double)r2), PM_MIN_KERNEL_RADIUS);
+    return scaled(acc, 1.0 / (4.0 / 3.0 * M_PI * rk * rk * rk));
 }
 
 /* Drops repeated bucket ids in place (a small open-addressing set); returns the count. */
@@ -956,8 +967,8 @@ vec3 photon_map_beam(const struct photon_map *m, vec3 o, vec3 d, float t1, const
             }
         }
     }
-    double rk = fmax((double)r, PM_MIN_KERNEL_RADIUS), k2 = 1.0 / (M_PI * rk * rk);
-    return v3((float)fmin(acc[0] * k2, 1e30), (float)fmin(acc[1] * k2, 1e30), (float)fmin(acc[2] * k2, 1e30));
+    double rk = fmax((double)r, PM_MIN_KERNEL_RADIUS);
+    return scaled(acc, 1.0 / (M_PI * rk * rk));
 }
 
 /* ---- the volume blob ---- */

@@ -2,7 +2,7 @@
 // NanoVDB's own C++ writer (nanovdb/util/GridBuilder.h, nanovdb/util/IO.h from Debian's
 // libnanovdb-dev), so the C reader (common/nvdb.c) is tested against the reference
 // implementation, never against itself. Every density is a closed-form function of the
-// integer index (ball_value etc., repeated in test_nvdb.c), exact in float.
+// integer index (ball_value etc., in nvdb_values.h, shared with test_nvdb.c), exact in float.
 // Usage: make_nvdb OUTDIR   (built by the Makefile with g++; ZIP and BLOSC for the refusals)
 //        make_nvdb --from-grid IN.grid OUT.nvdb   (a dense BRGRID01 grid as a NanoVDB fog
 //        volume whose map puts voxel centres where the dense grid has them in its unit cube)
@@ -23,30 +23,7 @@ using nanovdb::GridHandle;
 using nanovdb::HostBuffer;
 using nanovdb::Map;
 
-// The test grid: box [-6,9]x[-4,7]x[-5,5] of index space, zeros (inactive) inside too.
-static float ball_value(int i, int j, int k)
-{
-    if (i < -6 || i > 9 || j < -4 || j > 7 || k < -5 || k > 5)
-        return 0.0f;
-    return (float)((i * i + 3 * j + 5 * k + 200) % 13) / 8.0f;
-}
-
-static float temperature_value(int i, int j, int k)
-{
-    if (i < -2 || i > 3 || j < 0 || j > 2 || k < -1 || k > 1)
-        return 0.0f;
-    return (float)(1 + (i + 2) + 6 * j) * 0.5f;
-}
-
-// Two blocks far apart: across a lower node (128) and two root tiles (k < 0 and k >= 0).
-static float sparse_value(int i, int j, int k)
-{
-    if (i >= -3 && i <= 2 && j >= 0 && j <= 3 && k >= 0 && k <= 2)
-        return (float)(1 + ((i + 3) * 7 + j * 3 + k) % 11) * 0.25f;
-    if (i >= 125 && i <= 131 && j >= 1 && j <= 4 && k >= -130 && k <= -126)
-        return (float)(2 + (i + j + k + 1000) % 5) * 0.5f;
-    return 0.0f;
-}
+#include "nvdb_values.h"
 
 // The ball's index-to-world map: a shear, so that a transposed matrix shows.
 // world = A ijk + t with A = [[1/8, 0, 1/16], [0, 1/4, 0], [0, 0, 1/8]], t = (-1, 0.5, -0.75).

@@ -20,29 +20,7 @@
 #include "rng.h"
 #include "scene_json.h"
 
-/* The analytic densities of make_nvdb.cpp. */
-static float ball_value(int i, int j, int k)
-{
-    if (i < -6 || i > 9 || j < -4 || j > 7 || k < -5 || k > 5)
-        return 0.0f;
-    return (float)((i * i + 3 * j + 5 * k + 200) % 13) / 8.0f;
-}
-
-static float temperature_value(int i, int j, int k)
-{
-    if (i < -2 || i > 3 || j < 0 || j > 2 || k < -1 || k > 1)
-        return 0.0f;
-    return (float)(1 + (i + 2) + 6 * j) * 0.5f;
-}
-
-static float sparse_value(int i, int j, int k)
-{
-    if (i >= -3 && i <= 2 && j >= 0 && j <= 3 && k >= 0 && k <= 2)
-        return (float)(1 + ((i + 3) * 7 + j * 3 + k) % 11) * 0.25f;
-    if (i >= 125 && i <= 131 && j >= 1 && j <= 4 && k >= -130 && k <= -126)
-        return (float)(2 + (i + j + k + 1000) % 5) * 0.5f;
-    return 0.0f;
-}
+#include "../tools/nvdb_values.h" /* the analytic densities of make_nvdb.cpp */
 
 /* The ball's map, world = A ijk + t (make_nvdb.cpp). */
 static const double BALL_A[3][3] = {{0.125, 0.0, 0.0625}, {0.0, 0.25, 0.0}, {0.0, 0.0, 0.125}};
