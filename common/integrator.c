@@ -44,6 +44,23 @@ int render_job_init(struct render_job *job, const struct scene *scene, uint32_t 
     return 0;
 }
 
+int render_job_reframe(struct render_job *job, uint32_t frame, uint32_t threads, char *err, size_t errlen)
+{
+    const struct scene *scene = job->scene;
+    accel_free(&job->accel);
+    media_job_free(&job->media);
+    job->frame = frame;
+    if (accel_build(&job->accel, scene, frame, threads, err, errlen) != 0) {
+        render_job_free(job);
+        return -1;
+    }
+    camera_init(&job->camera, &scene->camera, scene->settings.width, scene->settings.height);
+    camera_set_scene_motion(&job->camera, job->accel.has_motion);
+    if (scene->media)
+        job->media = media_job_new(job);
+    return 0;
+}
+
 void render_job_free(struct render_job *job)
 {
     for (uint32_t i = 0; job->face_normals && i < job->scene->num_meshes; i++)

@@ -30,6 +30,11 @@ struct render_job {
 int render_job_init(struct render_job *job, const struct scene *scene, uint32_t frame, uint32_t threads,
                     char *err, size_t errlen);
 void render_job_free(struct render_job *job);
+/* The same job moved to another frame of its scene: rebuilds what depends on the frame
+ * (Embree scene and its motion steps, camera, media state) and keeps the rest (texture
+ * pyramids, light table, face normals). Pixels equal a fresh render_job_init's. On
+ * failure the job is freed. */
+int render_job_reframe(struct render_job *job, uint32_t frame, uint32_t threads, char *err, size_t errlen);
 
 /* Radiance along one camera sample of pixel (px, py); *hit_any = 1 if the camera ray hit
  * geometry. May return NaN or Inf on a numerical failure (the caller counts and drops). */

@@ -465,12 +465,12 @@ static int switch_frame(struct worker *w, struct msg_job *job, int same_conn, ui
 {
     char err[512];
     pool_stop(&w->pool); /* tiles being rendered finish and go out under their old job id */
-    render_job_free(&w->rjob);
     proto_job_free(&w->job);
     w->job = *job;
     /* Kept tiles go before READY: the master must not hand them out meanwhile. */
     offer_kept(w, same_conn, old_job);
-    if (render_job_init(&w->rjob, &w->scene, w->job.frame, w->opts->threads, err, sizeof err) != 0) {
+    /* Texture pyramids and the light table stay; the frame's geometry and camera are new. */
+    if (render_job_reframe(&w->rjob, w->job.frame, w->opts->threads, err, sizeof err) != 0) {
         scene_free(&w->scene);
         w->loaded = 0;
         send_error(w, err);

@@ -11,6 +11,7 @@
 #include "log.h"
 #include "motion.h"
 #include "scene_json.h"
+#include "texture.h"
 
 static uint32_t add_mat(struct scene *s, vec3 emission)
 {
@@ -398,4 +399,59 @@ Test(motion, scene_keys_for_motion_and_materials)
     expect_error("{\"version\": 1,\n\"camera\": {\"position\": [0, 0, -5], \"look_at\": [0, 0, 0], \"fov_y\": 40},\n"
                  "\"render\": {\"width\": 8, \"height\": 8},\n\"materials\": {\"x\": {\"type\": \"mirror\", \"reflectance\": [1, 2, 0]}}}",
                  "scenes/t.json:4:58: reflectance components must be in [0, 1]");
+}
+
+/* The next frame of a kept scene (render_job_reframe, as a worker does between frames)
+ * gives the pixels of a fresh job for that frame, and keeps the texture pyramids. */
+Test(motion, reframed_job_equals_a_fresh_one)
+{
+    struct scene s;
+    memset(&s, 0, sizeof s);
+    uint32_t lamp = add_mat(&s, v3(2, 2, 2));
+    struct mesh q = quad_mesh(-10, 0, -10, 10, lamp);
+    q.keys = keys2(key(0, v3(-1, 0, 0), v3(0, 0, 1), 0), key(3, v3(1, 0, 0), v3(0, 0, 1), 30));
+    q.num_keys = 2;
+    scene_add_mesh(&s, &q);
+    /* A still image-textured wall behind, lit by the moving lamp: the job has pyramids. */
+    s.textures = mem_calloc(1, sizeof *s.textures);
+    s.num_textures = 1;
+    texture_init(&s.textures[0], TEXTURE_IMAGE, "ramp");
+    cr_assert_eq(tex_image_alloc(&s.textures[0].image, 8, 8, 1, TEXEL_F32), 0);
+    for (int i = 0; i < 64; i++)
+        ((float *)s.textures[0].image.data)[i] = (float)(i % 7) / 7.0f;
+    struct material wm;
+    memset(&wm, 0, sizeof wm);
+    wm.type = MATERIAL_DIFFUSE;
+    wm.albedo = v3(1, 1, 1);
+    wm.albedo_tex = 1;
+    struct mesh wall = quad_mesh(-20, 20, -20, 20, scene_add_material(&s, &wm));
+    for (int k = 0; k < 4; k++)
+        wall.positions[3 * k + 2] = -1.0f;
+    scene_add_mesh(&s, &wall);
+    ramp_camera(&s, 32, 4);
+    s.settings.max_depth = 2;
+    struct render_job a, b;
+    char err[256];
+    cr_assert_eq(render_job_init(&a, &s, 0, 2, err, sizeof err), 0, "%s", err);
+    const struct mip *mips = a.mips;
+    cr_assert_eq(render_job_reframe(&a, 2, 2, err, sizeof err), 0, "%s", err);
+    cr_assert(mips && a.mips == mips && a.textured, "pyramids kept");
+    cr_assert_eq(a.frame, 2u);
+    cr_assert_eq(render_job_init(&b, &s, 2, 2, err, sizeof err), 0, "%s", err);
+    uint32_t w = s.settings.width, h = s.settings.height;
+    float *pa = mem_alloc(sizeof(float) * w * h * TILE_NUM_CHANNELS), *pb = mem_alloc(sizeof(float) * w * h * TILE_NUM_CHANNELS);
+    struct tile_stats sa, sb;
+    integrator_render_tile(&a, 0, 0, w, h, pa, &sa);
+    integrator_render_tile(&b, 0, 0, w, h, pb, &sb);
+    cr_assert(memcmp(pa, pb, sizeof(float) * w * h * TILE_NUM_CHANNELS) == 0, "reframed pixels differ from a fresh job's");
+    /* And the frame matters: frame 0 differs. */
+    render_job_free(&b);
+    cr_assert_eq(render_job_init(&b, &s, 0, 2, err, sizeof err), 0, "%s", err);
+    integrator_render_tile(&b, 0, 0, w, h, pb, &sb);
+    cr_assert(memcmp(pa, pb, sizeof(float) * w * h * TILE_NUM_CHANNELS) != 0, "frames 0 and 2 render the same");
+    free(pa);
+    free(pb);
+    render_job_free(&a);
+    render_job_free(&b);
+    scene_free(&s);
 }
