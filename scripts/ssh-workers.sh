@@ -88,18 +88,19 @@ build_cmd() {
   return 0
 }
 
+# First every line is checked, so that a typo starts nothing (and leaves no log folder).
+lineno=0 errors=0 valid=0
+while IFS= read -r line || [ -n "$line" ]; do
+  lineno=$((lineno + 1))
+  build_cmd "$line" "$lineno"
+  case $? in 0) valid=$((valid + 1)) ;; 2) errors=$((errors + 1)) ;; esac
+done <"$hosts"
+[ $errors = 0 ] || die "$errors bad line(s) in $hosts; nothing started"
+[ $valid -gt 0 ] || die "$hosts: no hosts"
 if [ $dry = 0 ]; then
   [ -n "$log_dir" ] || log_dir=$(mktemp -d /tmp/brume-ssh.XXXXXX)
   mkdir -p "$log_dir" || die "$log_dir: cannot create the log folder"
 fi
-# First every line is checked, so that a typo starts nothing.
-lineno=0 errors=0
-while IFS= read -r line || [ -n "$line" ]; do
-  lineno=$((lineno + 1))
-  build_cmd "$line" "$lineno"
-  [ $? = 2 ] && errors=$((errors + 1))
-done <"$hosts"
-[ $errors = 0 ] || die "$errors bad line(s) in $hosts; nothing started"
 pids="" n=0 lineno=0
 while IFS= read -r line || [ -n "$line" ]; do
   lineno=$((lineno + 1))

@@ -4,27 +4,14 @@
 # random times and restarted (journal), a torn journal, a full disk. Every image must be
 # bit-identical to an uninterrupted render. Ends with "integration: N passed, N failed".
 # Usage: BUILD=build TRIALS=10 sh tests/integration/faults.sh
-set -u
-BUILD=${BUILD:-build}
+. "$(dirname "$0")/lib.sh"
+lib_init faults
 TRIALS=${TRIALS:-10}
-M=$BUILD/master
-W=$BUILD/worker
-X=$BUILD/exrtool
-T=$(mktemp -d /tmp/brume-faults.XXXXXX)
-pass=0
-fail=0
-ours() { tr '\0' ' ' 2>/dev/null <"/proc/$1/cmdline" | grep -q "$T"; }
 cleanup() {
-  # only processes of this test (their command lines name $T): a pid that exited may
-  # have been reused by someone else's process by now
-  for p in $(cat "$T/pids" 2>/dev/null); do ours "$p" && kill -9 "$p" 2>/dev/null; done
+  kill_ours
   mountpoint -q "$T/full" 2>/dev/null && umount "$T/full"
-  rm -rf "$T"
+  lib_cleanup
 }
-trap cleanup EXIT
-ok() { pass=$((pass + 1)); echo "ok: $1"; }
-bad() { fail=$((fail + 1)); echo "FAIL: $1"; [ -f "$T/log" ] && sed 's/^/    /' "$T/log" | tail -25; }
-counter() { sed -n "s/^summary: counter $1 //p" "${2:-$T/log}" | tail -1; }
 ms() { date +%s%3N; }
 SCENE=scenes/cornell/cornell.json
 ARGS="--spp 4 --tile 32"
@@ -180,5 +167,4 @@ else
   echo "skip: full disk test (cannot mount a tmpfs here)"
 fi
 
-echo "integration: $pass passed, $fail failed"
-[ $fail = 0 ]
+finish

@@ -5,25 +5,9 @@
 # killed along the way (after a worker was killed too) and restarted skips the frames it
 # finished, resumes the half-done one from its journal and ends with the same files.
 # Ends with "integration: N passed, N failed". Usage: BUILD=build TRIALS=4 sh tests/integration/frames.sh
-set -u
-BUILD=${BUILD:-build}
+. "$(dirname "$0")/lib.sh"
+lib_init frames
 FRAME_TRIALS=${FRAME_TRIALS:-4}
-M=$BUILD/master
-X=$BUILD/exrtool
-T=$(mktemp -d /tmp/brume-frames.XXXXXX)
-pass=0
-fail=0
-ours() { tr '\0' ' ' 2>/dev/null <"/proc/$1/cmdline" | grep -q "$T"; }
-cleanup() {
-  # only processes of this test (their command lines name $T): a pid that exited may
-  # have been reused by someone else's process by now
-  for p in $(cat "$T/pids" 2>/dev/null); do ours "$p" && kill -9 "$p" 2>/dev/null; done
-  rm -rf "$T"
-}
-trap cleanup EXIT
-ok() { pass=$((pass + 1)); echo "ok: $1"; }
-bad() { fail=$((fail + 1)); echo "FAIL: $1"; [ -f "$T/log" ] && sed 's/^/    /' "$T/log" | tail -25; }
-counter() { sed -n "s/^summary: counter $1 //p" "${2:-$T/log}" | tail -1; }
 rnd() { echo $(( $(od -An -N2 -tu2 /dev/urandom) % $1 )); }
 SCENE=scenes/motion/motion.json
 ARGS="--spp 512 --tile 8"
@@ -99,5 +83,4 @@ echo "frames: master killed mid-range: $good of $FRAME_TRIALS trials exact; $ski
 if [ $good = "$FRAME_TRIALS" ]; then ok "range with a worker and the master killed: exactly the requested frames, identical"
 else bad "range with a worker and the master killed: exactly the requested frames, identical"; fi
 
-echo "integration: $pass passed, $fail failed"
-[ $fail = 0 ]
+finish

@@ -7,18 +7,8 @@
 # frame when geometry moves, one for the range when not; a scene
 # error in the media keys or a compressed .nvdb names file:line:col.
 # Ends with "integration: N passed, N failed". Usage: BUILD=build sh tests/integration/media.sh
-set -u
-BUILD=${BUILD:-build}
-M=$BUILD/master
-W=$BUILD/worker
-X=$BUILD/exrtool
-T=$(mktemp -d /tmp/brume-media.XXXXXX)
-trap 'rm -rf "$T"' EXIT
-pass=0
-fail=0
-ok() { pass=$((pass + 1)); echo "ok: $1"; }
-bad() { fail=$((fail + 1)); echo "FAIL: $1"; [ -f "$T/log" ] && sed 's/^/    /' "$T/log" | tail -20; }
-run() { timeout "${TMO:-120}" "$@" >"$T/log" 2>&1; }
+. "$(dirname "$0")/lib.sh"
+lib_init media
 maphash() { sed -n 's/.*photon pass: .* map \([0-9a-f]*\).*/\1/p' "$1" | head -1; }
 scenehash() { sed -n 's/^summary: scene hash //p' "$1" | head -1; }
 S=scenes/fog_spot/fog_spot.json
@@ -137,5 +127,4 @@ cp scenes/fog_spot/room.obj "$T/bad/"
 if ! run $M "$T/bad/bad.json" -o "$T/bad.exr" && grep -qE "bad.json:1[0-9]:[0-9]+: unknown key \"sigma_z\" in medium \"fog\"" "$T/log"; then
   ok "media key error as file:line:col"; else bad "media key error as file:line:col"; fi
 
-echo "integration: $pass passed, $fail failed"
-[ $fail = 0 ]
+finish

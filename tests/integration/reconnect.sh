@@ -7,26 +7,11 @@
 # lives through both masters, rendered exactly as many tiles as the frame has). A master
 # restarted on another job (other seed) gets none of them.
 # Ends with "integration: N passed, N failed". Usage: BUILD=build TRIALS=2 sh tests/integration/reconnect.sh
-set -u
-BUILD=${BUILD:-build}
+. "$(dirname "$0")/lib.sh"
+lib_init reconnect
 TRIALS=${RECONNECT_TRIALS:-2}
-M=$BUILD/master
-W=$BUILD/worker
-X=$BUILD/exrtool
-T=$(mktemp -d /tmp/brume-reconnect.XXXXXX)
-pass=0
-fail=0
-ours() { tr '\0' ' ' 2>/dev/null <"/proc/$1/cmdline" | grep -q "$T"; }
-cleanup() {
-  # only processes of this test (their command lines name $T): a pid that exited may
-  # have been reused by someone else's process by now
-  for p in $(cat "$T/pids" 2>/dev/null); do ours "$p" && { kill -CONT "$p"; kill -9 "$p"; } 2>/dev/null; done
-  [ -n "${KEEP_T:-}" ] && return; rm -rf "$T"
-}
-trap cleanup EXIT
-ok() { pass=$((pass + 1)); echo "ok: $1"; }
-bad() { fail=$((fail + 1)); echo "FAIL: $1"; for f in "$T/log1" "$T/log" "$T/wlog"; do [ -f "$f" ] && { echo "  $f:"; sed 's/^/    /' "$f" | tail -15; }; done; }
-counter() { sed -n "s/^summary: counter $1 //p" "${2:-$T/log}" | tail -1; }
+BAD_LOGS="log1 log wlog"
+BAD_TAIL=15
 # waits up to $2 tenths of a second for pattern $1 in file $3
 wait_for() { n=0; while ! grep -q "$1" "$3" 2>/dev/null && [ $n -lt "$2" ]; do sleep 0.1; n=$((n + 1)); done; grep -q "$1" "$3" 2>/dev/null; }
 SCENE=scenes/cornell/cornell.json
@@ -87,5 +72,4 @@ if [ $r = 0 ] && [ $wr = 0 ] && [ -n "$kept" ] && [ "$kept" -ge 1 ] && [ "$fk" =
   ok "a master restarted on another job gets none of the kept tiles; its image is its own"
 else bad "a master restarted on another job gets none of the kept tiles; its image is its own (master rc $r, worker rc $wr)"; fi
 
-echo "integration: $pass passed, $fail failed"
-[ $fail = 0 ]
+finish

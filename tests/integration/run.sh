@@ -2,18 +2,8 @@
 # Multi-process integration tests: a master and workers on this machine (ipc and tcp
 # loopback), each step bounded by a timeout. Ends with "integration: N passed, N failed".
 # Usage: BUILD=build sh tests/integration/run.sh
-set -u
-BUILD=${BUILD:-build}
-M=$BUILD/master
-W=$BUILD/worker
-X=$BUILD/exrtool
-T=$(mktemp -d /tmp/brume-it.XXXXXX)
-trap 'rm -rf "$T"' EXIT
-pass=0
-fail=0
-ok() { pass=$((pass + 1)); echo "ok: $1"; }
-bad() { fail=$((fail + 1)); echo "FAIL: $1"; [ -f "$T/log" ] && sed 's/^/    /' "$T/log" | tail -20; }
-run() { timeout "${TMO:-120}" "$@" >"$T/log" 2>&1; }
+. "$(dirname "$0")/lib.sh"
+lib_init it
 port() { echo $((20000 + ($$ % 20000))); }
 
 # --- help and command-line errors ---
@@ -110,5 +100,4 @@ run $M scenes/dof_motion/dof_motion.json -o "$T/dm3.exr" --workers 3 --threads 2
 if [ $r1 = 0 ] && [ $r3 = 0 ] && $X cmp "$T/dm1.exr" "$T/dm3.exr"; then
   ok "dof + motion: 1 vs 3 workers bit-identical"; else bad "dof + motion: 1 vs 3 workers bit-identical"; fi
 
-echo "integration: $pass passed, $fail failed"
-[ $fail = 0 ]
+finish

@@ -3,18 +3,8 @@
 # worker with an unlisted key get no message to the master's code and no tile; a listed
 # worker renders the same pixels. Binding a public address without keys is refused.
 # Ends with "integration: N passed, N failed". Usage: BUILD=build sh tests/integration/security.sh
-set -u
-BUILD=${BUILD:-build}
-M=$BUILD/master
-W=$BUILD/worker
-X=$BUILD/exrtool
-T=$(mktemp -d /tmp/brume-sec.XXXXXX)
-trap 'rm -rf "$T"' EXIT
-pass=0
-fail=0
-ok() { pass=$((pass + 1)); echo "ok: $1"; }
-bad() { fail=$((fail + 1)); echo "FAIL: $1"; [ -f "$T/log" ] && sed 's/^/    /' "$T/log" | tail -25; }
-counter() { sed -n "s/^summary: counter $1 //p" "$T/log" | tail -1; }
+. "$(dirname "$0")/lib.sh"
+lib_init sec
 P=$((21000 + ($$ % 20000)))
 
 if $M --keygen "$T/master.key" >/dev/null && $M --keygen "$T/good.key" >/dev/null && $M --keygen "$T/stranger.key" >/dev/null &&
@@ -79,5 +69,4 @@ if [ $rr = 0 ] && [ $r = 0 ] && [ -n "$sent" ] && [ "$sent" -ge 1000 ] && [ $agr
   ok "malformed corpus: every message rejected with its reason, render identical"
 else cat "$T/replay" >>"$T/log"; bad "malformed corpus: every message rejected with its reason, render identical"; fi
 
-echo "integration: $pass passed, $fail failed"
-[ $fail = 0 ]
+finish

@@ -5,26 +5,15 @@
 # and client key accepts the launcher's two workers, which render (with CurveZMQ) the
 # same pixels as a local worker. Without sshd that part is skipped, saying why.
 # Ends with "integration: N passed, N failed". Usage: BUILD=build sh tests/integration/ssh.sh
-set -u
-BUILD=${BUILD:-build}
-M=$BUILD/master
-X=$BUILD/exrtool
+. "$(dirname "$0")/lib.sh"
+lib_init ssh
 S=scripts/ssh-workers.sh
-T=$(mktemp -d /tmp/brume-ssh.XXXXXX)
-pass=0
-fail=0
-ours() { tr '\0' ' ' 2>/dev/null <"/proc/$1/cmdline" | grep -q "$T"; }
+BAD_LOGS="log launch sshd.log"
+BAD_TAIL=15
 cleanup() {
   [ -f "$T/sshd.pid" ] && kill "$(cat "$T/sshd.pid")" 2>/dev/null
-  # only processes of this test (their command lines name $T): a pid that exited may
-  # have been reused by someone else's process by now
-  for p in $(cat "$T/pids" 2>/dev/null); do ours "$p" && kill -9 "$p" 2>/dev/null; done
-  rm -rf "$T"
+  lib_cleanup
 }
-trap cleanup EXIT
-ok() { pass=$((pass + 1)); echo "ok: $1"; }
-bad() { fail=$((fail + 1)); echo "FAIL: $1"; for f in "$T/log" "$T/launch" "$T/sshd.log"; do [ -s "$f" ] && sed 's/^/    /' "$f" | tail -15; done; }
-counter() { sed -n "s/^summary: counter $1 //p" "$T/log" | tail -1; }
 # long enough (a few seconds) for both workers to join before the frame is done
 SCENE=scenes/cornell/cornell.json
 ARGS="--spp 8 --tile 32"
@@ -115,5 +104,4 @@ else
   else cat "$T"/wlogs/* >>"$T/launch" 2>/dev/null; bad "ssh-workers.sh against a live sshd: 2 workers over ssh with CurveZMQ, identical pixels"; fi
 fi
 
-echo "integration: $pass passed, $fail failed"
-[ $fail = 0 ]
+finish

@@ -4,19 +4,12 @@
 # workers and any tile size, no NaN, a changed texture changes the image, and a missing or
 # damaged image is an error naming the scene's file:line:col and the image.
 # Ends with "integration: N passed, N failed". Usage: BUILD=build sh tests/integration/textures.sh
-set -u
-BUILD=${BUILD:-build}
+. "$(dirname "$0")/lib.sh"
+lib_init tex
 ROOT=$(pwd)
 M=$ROOT/$BUILD/master
 W=$ROOT/$BUILD/worker
 X=$ROOT/$BUILD/exrtool
-T=$(mktemp -d /tmp/brume-tex.XXXXXX)
-trap 'rm -rf "$T"' EXIT
-pass=0
-fail=0
-ok() { pass=$((pass + 1)); echo "ok: $1"; }
-bad() { fail=$((fail + 1)); echo "FAIL: $1"; [ -f "$T/log" ] && sed 's/^/    /' "$T/log" | tail -20; }
-run() { timeout "${TMO:-120}" "$@" >"$T/log" 2>&1; }
 S=scenes/textured/textured.json
 
 # --- 1 vs 3 workers, other threads and tiles: identical pixels, no NaN ---
@@ -60,5 +53,4 @@ cp scenes/textured/tiles.exr "$T/bad/tiles.exr"
 if ! run $M "$T/bad/textured.json" -o "$T/x.exr" && grep -q "sky.hdr: scanline 0: run past the end of a scanline" "$T/log"; then
   ok "damaged HDR: named with the reason"; else bad "damaged HDR: named with the reason"; fi
 
-echo "integration: $pass passed, $fail failed"
-[ $fail = 0 ]
+finish

@@ -1,0 +1,44 @@
+# The integration scripts' shared set-up, sourced by each: the binaries, a private temp
+# folder, pass / fail counting and the helpers they all use.
+#   lib_init NAME   T = a new /tmp/brume-NAME.XXXXXX; on exit `cleanup` runs: it kills
+#                   this script's own processes (pids in $T/pids whose command lines name
+#                   $T, so a pid reused by someone else's process is never hit) and
+#                   removes $T (kept when KEEP_T is set). A script may redefine cleanup,
+#                   calling lib_cleanup at its end (kill_ours kills without removing).
+#   ok / bad MSG    count a check; bad prints the tails of $BAD_LOGS (files in $T).
+#   run CMD...      CMD with a timeout (TMO, default 120 s), output in $T/log.
+#   counter NAME [LOG]  a master summary counter.
+#   finish          the closing line "integration: N passed, N failed"; fails if any did.
+set -u
+BUILD=${BUILD:-build}
+M=$BUILD/master
+W=$BUILD/worker
+X=$BUILD/exrtool
+pass=0
+fail=0
+BAD_LOGS=log
+BAD_TAIL=25
+ok() { pass=$((pass + 1)); echo "ok: $1"; }
+bad() {
+  fail=$((fail + 1))
+  echo "FAIL: $1"
+  for f in $BAD_LOGS; do [ -s "$T/$f" ] && { echo "  $f:"; sed 's/^/    /' "$T/$f" | tail -"$BAD_TAIL"; }; done
+  return 0
+}
+run() { timeout "${TMO:-120}" "$@" >"$T/log" 2>&1; }
+counter() { sed -n "s/^summary: counter $1 //p" "${2:-$T/log}" | tail -1; }
+ours() { tr '\0' ' ' 2>/dev/null <"/proc/$1/cmdline" | grep -q "$T"; }
+kill_ours() { for p in $(cat "$T/pids" 2>/dev/null); do ours "$p" && { kill -CONT "$p"; kill -9 "$p"; } 2>/dev/null; done; }
+lib_cleanup() {
+  kill_ours
+  [ -n "${KEEP_T:-}" ] || rm -rf "$T"
+}
+cleanup() { lib_cleanup; }
+lib_init() {
+  T=$(mktemp -d "/tmp/brume-$1.XXXXXX")
+  trap cleanup EXIT
+}
+finish() {
+  echo "integration: $pass passed, $fail failed"
+  [ "$fail" = 0 ]
+}
