@@ -1249,9 +1249,14 @@ static int start_local_workers(struct master *m)
     const struct master_opts *o = m->opts;
     if (o->workers == 0)
         return 0;
-    snprintf(m->ipc_dir, sizeof m->ipc_dir, "/tmp/brume-XXXXXX");
+    /* In $TMPDIR when it is set (absolute and short enough for a socket path: 108 bytes
+     * in all), so a master that is killed leaves its folder where its caller cleans up. */
+    const char *tmp = getenv("TMPDIR");
+    if (!tmp || tmp[0] != '/' || strlen(tmp) > 64)
+        tmp = "/tmp";
+    snprintf(m->ipc_dir, sizeof m->ipc_dir, "%s/brume-XXXXXX", tmp);
     if (!mkdtemp(m->ipc_dir)) {
-        log_error("cannot create a private folder for the local socket: %s", strerror(errno));
+        log_error("cannot create a private folder for the local socket in %s: %s", tmp, strerror(errno));
         return -1;
     }
     if (o->curve_secret) {

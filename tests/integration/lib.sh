@@ -37,6 +37,9 @@ cleanup() { lib_cleanup; }
 lib_init() {
   T=$(mktemp -d "/tmp/brume-$1.XXXXXX")
   trap cleanup EXIT
+  # Masters put their local socket folders in $TMPDIR: a killed one leaves it inside $T.
+  TMPDIR=$T
+  export TMPDIR
 }
 finish() {
   echo "integration: $pass passed, $fail failed"
