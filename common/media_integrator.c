@@ -415,7 +415,7 @@ static vec3 march_segment(const struct render_job *job, const struct rngs *r, ui
 {
     const struct media_job *mj = job->media;
     const struct medium *md = &mj->sm->media[medium];
-    const int het = md->grid != NULL;
+    const int het = md->grid != NULL, emissive = !v3_is_black(md->emission);
     vec3 L = het ? v3(0, 0, 0) : medium_emission_integral(md, len);
     *seg_tr = medium_transmittance(md, len);
     float c0 = 0.0f, c1 = len;
@@ -458,7 +458,8 @@ static vec3 march_segment(const struct render_job *job, const struct rngs *r, ui
             if (ntab < TAU_TABLE)
                 tau_tab[ntab++] = tau;
             /* Emission, e times the density (homogeneous media: closed form above). */
-            L = v3_add(L, v3_scale(v3_mul(tr, md->emission), rho * dx));
+            if (emissive)
+                L = v3_add(L, v3_scale(v3_mul(tr, md->emission), rho * dx));
         } else {
             tr = medium_transmittance(md, t);
         }
