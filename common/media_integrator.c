@@ -487,19 +487,8 @@ static vec3 march_segment(const struct render_job *job, const struct rngs *r, ui
             vec3 blo, bhi;
             grid_world_box(md->grid, &blo, &bhi);
             float rad = mj->map->radius, e0 = 0.0f, e1 = len;
-            float oo[3] = {o.x, o.y, o.z}, dd[3] = {d.x, d.y, d.z};
-            float lo3[3] = {blo.x - rad, blo.y - rad, blo.z - rad}, hi3[3] = {bhi.x + rad, bhi.y + rad, bhi.z + rad};
-            for (int a = 0; a < 3; a++) {
-                if (dd[a] == 0.0f) {
-                    if (oo[a] < lo3[a] || oo[a] > hi3[a])
-                        e1 = -1.0f;
-                    continue;
-                }
-                float ta = (lo3[a] - oo[a]) / dd[a], tb = (hi3[a] - oo[a]) / dd[a];
-                e0 = fmaxf(e0, fminf(ta, tb));
-                e1 = fminf(e1, fmaxf(ta, tb));
-            }
-            if (e0 < e1) {
+            vec3 pad = v3(rad, rad, rad);
+            if (v3_clip_box(o, d, v3_sub(blo, pad), v3_add(bhi, pad), &e0, &e1) && e0 < e1) {
                 struct photon_tau tt = {tau_tab, ntab, c0 - e0, dx};
                 L = v3_add(L, photon_map_beam(mj->map, v3_add(o, v3_scale(d, e0)), d, e1 - e0, md, &tt));
             }

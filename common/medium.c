@@ -358,25 +358,7 @@ int medium_clip(const struct medium *m, vec3 o, vec3 d, float tmax, float *t0, f
     const struct density_grid *g = m->grid;
     vec3 og = xform_point(&g->world_to_grid, o), dg = xform_vector(&g->world_to_grid, d);
     float a = 0.0f, b = tmax;
-    float oo[3] = {og.x, og.y, og.z}, dd[3] = {dg.x, dg.y, dg.z};
-    float lo[3] = {g->occ_lo.x, g->occ_lo.y, g->occ_lo.z}, hi[3] = {g->occ_hi.x, g->occ_hi.y, g->occ_hi.z};
-    for (int k = 0; k < 3; k++) {
-        if (!(lo[k] <= hi[k]))
-            return 0;
-        if (dd[k] == 0.0f) {
-            if (oo[k] < lo[k] || oo[k] > hi[k])
-                return 0;
-            continue;
-        }
-        float ta = (lo[k] - oo[k]) / dd[k], tb = (hi[k] - oo[k]) / dd[k];
-        if (ta > tb) {
-            float t = ta;
-            ta = tb, tb = t;
-        }
-        a = fmaxf(a, ta);
-        b = fminf(b, tb);
-    }
-    if (!(a < b))
+    if (!v3_clip_box(og, dg, g->occ_lo, g->occ_hi, &a, &b) || !(a < b))
         return 0;
     *t0 = a;
     *t1 = b;
@@ -588,28 +570,16 @@ int tr_cache_tau_from(const struct tr_cache *c, vec3 p, float *tau)
         return 0;
     if (tr_cache_tau(c, p, tau))
         return 1;
-    /* Slab test of p + t (light - p), t in [0, 1], against the lattice's box. */
-    float o[3] = {p.x, p.y, p.z}, d[3] = {c->light.x - p.x, c->light.y - p.y, c->light.z - p.z};
-    float lo[3] = {c->lo.x, c->lo.y, c->lo.z}, hi[3] = {c->hi.x, c->hi.y, c->hi.z};
+    /* The part of p + t (light - p), t in [0, 1], inside the lattice's box. */
+    vec3 d = v3_sub(c->light, p);
     float t0 = 0.0f, t1 = 1.0f;
-    for (int k = 0; k < 3; k++) {
-        if (d[k] == 0.0f) {
-            if (o[k] < lo[k] || o[k] > hi[k])
-                t1 = -1.0f;
-            continue;
-        }
-        float ta = (lo[k] - o[k]) / d[k], tb = (hi[k] - o[k]) / d[k];
-        t0 = fmaxf(t0, fminf(ta, tb));
-        t1 = fminf(t1, fmaxf(ta, tb));
-    }
     *tau = 0.0f;
-    if (!(t0 <= t1))
+    if (!v3_clip_box(p, d, c->lo, c->hi, &t0, &t1))
         return 1; /* the segment never enters the box: no density on it */
     /* The entry point, clamped onto the box against rounding. */
-    float q[3];
-    for (int k = 0; k < 3; k++)
-        q[k] = fminf(fmaxf(o[k] + t0 * d[k], lo[k]), hi[k]);
-    if (!tr_cache_tau(c, v3(q[0], q[1], q[2]), tau))
+    vec3 q = v3_add(p, v3_scale(d, t0));
+    q = v3(fminf(fmaxf(q.x, c->lo.x), c->hi.x), fminf(fmaxf(q.y, c->lo.y), c->hi.y), fminf(fmaxf(q.z, c->lo.z), c->hi.z));
+    if (!tr_cache_tau(c, q, tau))
         *tau = 0.0f;
     return 1;
 }

@@ -121,4 +121,25 @@ __attribute__((always_inline)) static inline vec3 offset_ray_origin(vec3 p, vec3
               fabsf(p.z) < origin ? p.z + float_scale * n.z : pi.z);
 }
 
+/* Narrows [*t0, *t1] to the part of o + t d inside the box [lo, hi] (slab test; d need
+ * not be unit, a zero component keeps or drops the whole line); returns 1 if any of it is
+ * left (*t0 <= *t1), 0 when none is or the box is empty. */
+static inline int v3_clip_box(vec3 o, vec3 d, vec3 lo, vec3 hi, float *t0, float *t1)
+{
+    const float oo[3] = {o.x, o.y, o.z}, dd[3] = {d.x, d.y, d.z}, l[3] = {lo.x, lo.y, lo.z}, h[3] = {hi.x, hi.y, hi.z};
+    for (int k = 0; k < 3; k++) {
+        if (!(l[k] <= h[k]))
+            return 0;
+        if (dd[k] == 0.0f) {
+            if (oo[k] < l[k] || oo[k] > h[k])
+                return 0;
+            continue;
+        }
+        float ta = (l[k] - oo[k]) / dd[k], tb = (h[k] - oo[k]) / dd[k];
+        *t0 = fmaxf(*t0, fminf(ta, tb));
+        *t1 = fminf(*t1, fmaxf(ta, tb));
+    }
+    return *t0 <= *t1;
+}
+
 #endif
