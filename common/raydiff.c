@@ -59,12 +59,6 @@ void raydiff_set_center(struct raydiff *rd, float jx, float jy, uint32_t nx, uin
     rd->cy = ((floorf(jy * fy) + 0.5f) / fy - jy) / sy;
 }
 
-void raydiff_center(const struct raydiff *rd, struct tex_coord *tc)
-{
-    tc->cx = rd->cx;
-    tc->cy = rd->cy;
-}
-
 void raydiff_transfer(const struct raydiff *rd, vec3 d, float t, vec3 n, vec3 *dpdx, vec3 *dpdy)
 {
     float dn = v3_dot(d, n), nl = v3_length(n), lim = RAYDIFF_MIN_COS * nl;
@@ -106,7 +100,7 @@ void raydiff_triangle(const vec3 p[3], const float (*uv)[2], const vec3 *nrm, fl
     solve2(e1, e2, out->dpdy, &b1y, &b2y);
     float b0 = 1.0f - b1 - b2;
     struct tex_coord *tc = &out->tc;
-    tc->cx = tc->cy = 0.0f;
+    tc->cx = rd->cx, tc->cy = rd->cy;
     out->dpdu = e1, out->dpdv = e2, out->has_dpduv = 1;
     if (uv) {
         float du1 = uv[1][0] - uv[0][0], dv1 = uv[1][1] - uv[0][1];
@@ -164,7 +158,7 @@ void raydiff_sphere(vec3 center, float radius, vec3 p, const struct raydiff *rd,
     out->n = v3_normalize(q);
     raydiff_transfer(rd, d, t, out->n, &out->dpdx, &out->dpdy);
     raydiff_sphere_uv(center, p, &out->tc.u, &out->tc.v);
-    out->tc.cx = out->tc.cy = 0.0f;
+    out->tc.cx = rd->cx, out->tc.cy = rd->cy;
     float rho = sqrtf(q.x * q.x + q.z * q.z);
     float sp = rho > 0.0f ? q.x / rho : 0.0f, cp = rho > 0.0f ? q.z / rho : 1.0f;
     vec3 dpdu = v3_scale(v3(q.z, 0.0f, -q.x), (float)(2.0 * M_PI));

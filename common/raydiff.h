@@ -39,9 +39,6 @@ struct raydiff_hit {
     int has_dpduv;      /* 0 when the uv mapping is degenerate there */
 };
 
-/* Gives tc rd's centring offset (the footprint filters apply it: tex_coord_centre). */
-void raydiff_center(const struct raydiff *rd, struct tex_coord *tc);
-
 /* Scale of camera differentials for spp samples per pixel: 1/sqrt(spp), at least 1/8. */
 float raydiff_spp_scale(uint32_t spp);
 /* The same for n cells along one axis of a sample's pixel grid: 1/n, at least 1/8. */
@@ -61,7 +58,8 @@ void raydiff_transfer(const struct raydiff *rd, vec3 d, float t, vec3 n, vec3 *d
 
 /* A triangle hit: world vertices p[3], optional per-vertex uv[3][2] (NULL: the
  * barycentrics are the uvs) and unit world normals nrm[3] (NULL: flat), barycentrics
- * (b1, b2), geometric normal ng, the ray (d, t) and its differentials. */
+ * (b1, b2), geometric normal ng, the ray (d, t) and its differentials. The hit's texture
+ * coordinate carries rd's centring offset (as does a sphere hit's). */
 void raydiff_triangle(const vec3 p[3], const float (*uv)[2], const vec3 *nrm, float b1, float b2, vec3 ng,
                       const struct raydiff *rd, vec3 d, float t, struct raydiff_hit *out);
 /* A sphere hit at p (on the surface): uv from the pole along +y (u = longitude from +z

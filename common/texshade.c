@@ -65,8 +65,8 @@ static vec3 vertex_at(const struct accel_motion *mo, const float *pos, uint32_t 
     return v3((1.0f - f) * a[0] + f * b[0], (1.0f - f) * a[1] + f * b[1], (1.0f - f) * a[2] + f * b[2]);
 }
 
-static void hit_footprint(const struct render_job *job, vec3 org, vec3 dir, const struct accel_hit *h,
-                          float time01, const struct raydiff *rd, struct raydiff_hit *out)
+void texshade_hit(const struct render_job *job, vec3 org, vec3 dir, const struct accel_hit *h, float time01,
+                  const struct raydiff *rd, struct raydiff_hit *out)
 {
     const struct scene *sc = job->scene;
     struct xform x;
@@ -111,13 +111,6 @@ static void hit_footprint(const struct render_job *job, vec3 org, vec3 dir, cons
     vec3 ng = v3_cross(v3_sub(p[1], p[0]), v3_sub(p[2], p[0]));
     raydiff_triangle(p, m->uvs ? (const float(*)[2])uv : NULL, smooth ? nrm : NULL, h->u, h->v, ng, rd, dir, h->t,
                      out);
-}
-
-void texshade_hit(const struct render_job *job, vec3 org, vec3 dir, const struct accel_hit *h, float time01,
-                  const struct raydiff *rd, struct raydiff_hit *out)
-{
-    hit_footprint(job, org, dir, h, time01, rd, out);
-    raydiff_center(rd, &out->tc);
 }
 
 const struct material *texshade_material(const struct render_job *job, const struct material *mat,

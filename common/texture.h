@@ -30,7 +30,7 @@ struct texture {
 
 /* A texture coordinate and its derivatives per pixel step in x and y, and the offset
  * (cx, cy), in those steps, from the sample to the centre of the pixel cell it stands for
- * (raydiff_center; 0 when none). Filters that integrate over the footprint (EWA,
+ * (raydiff_set_center, carried by the hit functions; 0 when none). Filters that integrate over the footprint (EWA,
  * trilinear, the checker's box) centre it there (tex_coord_centre); point lookups
  * (nearest, bilinear) stay at the sample, whose jitter then integrates the texture. */
 struct tex_coord {

@@ -337,16 +337,23 @@ Test(raydiff, lookups_are_centred_on_the_sample_cell)
                 rd.dddx = v3_scale(rd.dddx, sx);
                 rd.dddy = v3_scale(rd.dddy, sy);
                 raydiff_set_center(&rd, centre ? 0.5f : jx, centre ? 0.5f : jy, centre ? 0 : nx, ny, sx, sy);
+                float t, zp = mirror ? -1.0f : 5.0f;
                 if (mirror) { /* the mirror z = 2 folds the ray back onto the plane z = -1 */
                     plane_hit(o, d, v3(0, 0, -1), -2.0f, &rd, &p, &dpx, &dpy);
                     vec3 r = v3(d.x, d.y, -d.z);
                     raydiff_reflect(&rd, d, r, v3(0, 0, -1), v3(0, 0, 0), v3(0, 0, 0), dpx, dpy);
-                    plane_hit(p, r, v3(0, 0, 1), -1.0f, &rd, &p, &dpx, &dpy);
+                    t = plane_hit(p, r, v3(0, 0, 1), -1.0f, &rd, &p, &dpx, &dpy);
+                    o = v3_sub(p, v3_scale(r, t)), d = r;
                 } else {
-                    plane_hit(o, d, v3(0, 0, -1), -5.0f, &rd, &p, &dpx, &dpy);
+                    t = plane_hit(o, d, v3(0, 0, -1), -5.0f, &rd, &p, &dpx, &dpy);
                 }
-                struct tex_coord tc = {a * p.x, a * p.y, a * dpx.x, a * dpx.y, a * dpy.x, a * dpy.y, 0.0f, 0.0f};
-                raydiff_center(&rd, &tc);
+                /* The hit on a big triangle of that plane whose uv is a x its (x, y). */
+                const vec3 tri[3] = {v3(-50, -50, zp), v3(50, -50, zp), v3(-50, 50, zp)};
+                const float uv[3][2] = {{-50 * a, -50 * a}, {50 * a, -50 * a}, {-50 * a, 50 * a}};
+                struct raydiff_hit hit;
+                raydiff_triangle(tri, uv, NULL, (p.x + 50) / 100, (p.y + 50) / 100, v3(0, 0, 1), &rd, d, t, &hit);
+                struct tex_coord tc = hit.tc;
+                cr_expect(tc.cx == rd.cx && tc.cy == rd.cy, "the hit carries the ray's offset");
                 tex_coord_centre(&tc, &tc.u, &tc.v);
                 tcs[centre] = tc;
                 cr_expect(centre || fabsf(rd.cx) > 0.01f, "a jittered sample has an offset");
