@@ -31,11 +31,6 @@
 #define KNN_RADIUS_FACTOR 4.0f
 
 /* The path tracer's offsets (vec.h), for the media code and the photon pass. */
-vec3 media_offset_ray_origin(vec3 p, vec3 n)
-{
-    return offset_ray_origin(p, n);
-}
-
 int media_is_interface(const struct render_job *job, uint32_t material)
 {
     const struct scene_media *sm = job->scene->media;
@@ -71,7 +66,7 @@ uint32_t media_at(const struct render_job *job, vec3 p)
         if (in != MEDIUM_NONE)
             return v3_dot(dir, s.ng) > 0.0f ? in : sm->fog; /* leaving it: we were inside */
         vec3 n = v3_dot(dir, s.ng) > 0.0f ? s.ng : v3_neg(s.ng);
-        o = media_offset_ray_origin(v3_add(s.p, v3_scale(n, s.p_err)), n);
+        o = offset_ray_origin(v3_add(s.p, v3_scale(n, s.p_err)), n);
     }
     return sm->fog;
 }
@@ -204,7 +199,7 @@ struct media_job *media_job_new(const struct render_job *job)
             for (int k = 0; k < 3; k++)
                 v[k] = v3(m->positions[3 * idx[k]], m->positions[3 * idx[k] + 1], m->positions[3 * idx[k] + 2]);
             vec3 n = v3_normalize(v3_cross(v3_sub(v[1], v[0]), v3_sub(v[2], v[0])));
-            p = media_offset_ray_origin(v3_scale(v3_add(v3_add(v[0], v[1]), v[2]), 1.0f / 3.0f), n);
+            p = offset_ray_origin(v3_scale(v3_add(v3_add(v[0], v[1]), v[2]), 1.0f / 3.0f), n);
         } else {
             const struct sphere *s = &sc->spheres[e->index];
             p = v3_add(s->center, v3(0, s->radius * 1.001f, 0));
@@ -279,7 +274,7 @@ vec3 media_shadow_transmittance(const struct render_job *job, vec3 p, vec3 targe
             return tr;
         medium = media_after_crossing(job, &h, s.ng, dir);
         vec3 n = v3_dot(dir, s.ng) > 0.0f ? s.ng : v3_neg(s.ng);
-        p = media_offset_ray_origin(v3_add(s.p, v3_scale(n, s.p_err)), n);
+        p = offset_ray_origin(v3_add(s.p, v3_scale(n, s.p_err)), n);
         start = s.p;
     }
     return v3(0, 0, 0);
@@ -351,7 +346,7 @@ static vec3 scatter_nee(const struct render_job *job, vec3 x, vec3 d_out, uint32
         return v3(0, 0, 0);
     vec3 wi = v3_scale(to, 1.0f / dist);
     float ph = phase_hg(v3_dot(v3_neg(wi), d_out), g);
-    vec3 target = ls.is_delta ? ls.p : media_offset_ray_origin(ls.p, v3_dot(ls.n, wi) < 0.0f ? ls.n : v3_neg(ls.n));
+    vec3 target = ls.is_delta ? ls.p : offset_ray_origin(ls.p, v3_dot(ls.n, wi) < 0.0f ? ls.n : v3_neg(ls.n));
     vec3 tr = media_shadow_transmittance(job, x, target, medium, time01, key, rays);
     if (v3_is_black(tr))
         return v3(0, 0, 0);
@@ -637,7 +632,7 @@ vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, 
                 break;
             medium = media_after_crossing(job, &h, s.ng, dir);
             vec3 n = v3_dot(dir, s.ng) > 0.0f ? s.ng : v3_neg(s.ng);
-            org = media_offset_ray_origin(v3_add(s.p, v3_scale(n, s.p_err)), n);
+            org = offset_ray_origin(v3_add(s.p, v3_scale(n, s.p_err)), n);
             seg_start = s.p;
             continue;
         }
@@ -659,7 +654,7 @@ vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, 
         int front = v3_dot(s.ng, wo) >= 0.0f;
         vec3 ng = front ? s.ng : v3_neg(s.ng);
         vec3 ns = v3_dot(s.ns, ng) < 0.0f ? v3_neg(s.ns) : s.ns;
-        vec3 p_off = media_offset_ray_origin(v3_add(s.p, v3_scale(ng, s.p_err)), ng);
+        vec3 p_off = offset_ray_origin(v3_add(s.p, v3_scale(ng, s.p_err)), ng);
         /* Jensen's methods with a surface photon map: a diffuse surface's indirect light is
          * the map's estimate and the path ends here, so its direct light is next-event
          * estimation's alone (full weight, no MIS partner). */
@@ -692,7 +687,7 @@ vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, 
                 float bpdf;
                 vec3 f = v3_dot(wi, ng) > 0.0f ? material_eval(mat, ns, wo, wi, &bpdf) : (bpdf = 0.0f, v3(0, 0, 0));
                 if (!v3_is_black(f)) {
-                    vec3 target = ls.is_delta ? ls.p : media_offset_ray_origin(ls.p, v3_dot(ls.n, wi) < 0.0f ? ls.n : v3_neg(ls.n));
+                    vec3 target = ls.is_delta ? ls.p : offset_ray_origin(ls.p, v3_dot(ls.n, wi) < 0.0f ? ls.n : v3_neg(ls.n));
                     vec3 tr = media_shadow_transmittance(job, p_off, target, medium, time01,
                                                          rng_mix64(r.key ^ (0x5353ull << 48) ^ vertex), rays);
                     if (!v3_is_black(tr)) {
@@ -726,7 +721,7 @@ vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, 
         prev_delta = bs.is_delta;
         if (bs.transmitted) {
             medium = media_after_crossing(job, &h, s.ng, dir);
-            org = media_offset_ray_origin(v3_sub(s.p, v3_scale(ng, s.p_err)), v3_neg(ng));
+            org = offset_ray_origin(v3_sub(s.p, v3_scale(ng, s.p_err)), v3_neg(ng));
         } else {
             org = p_off;
         }

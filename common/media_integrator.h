@@ -45,7 +45,6 @@ int media_is_interface(const struct render_job *job, uint32_t material);
  * crossed; any other surface blocks: 0). */
 vec3 media_shadow_transmittance(const struct render_job *job, vec3 p, vec3 target, uint32_t medium, float time01,
                                 uint64_t key, uint64_t *rays);
-vec3 media_offset_ray_origin(vec3 p, vec3 n);
 
 /* integrator.c: its surface reconstruction, for this module. */
 void integrator_media_surface(const struct render_job *job, vec3 org, vec3 dir, const struct accel_hit *h,

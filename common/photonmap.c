@@ -235,7 +235,7 @@ static int emit(const struct trace_ctx *tc, uint64_t key, vec3 *o, vec3 *d, vec3
         float su = sqrtf(u1), b0 = 1.0f - su, b1 = u2 * su;
         vec3 p = v3_add(v3_add(v3_scale(a, b0), v3_scale(bb, b1)), v3_scale(c, 1.0f - b0 - b1));
         vec3 n = v3_normalize(v3_cross(v3_sub(bb, a), v3_sub(c, a)));
-        *o = media_offset_ray_origin(p, n);
+        *o = offset_ray_origin(p, n);
         *d = cosine_dir(n, u3, u4);
         *power = v3_scale(e->emission, (float)M_PI * e->area / pick * tc->photon_scale);
         return 1;
@@ -246,7 +246,7 @@ static int emit(const struct trace_ctx *tc, uint64_t key, vec3 *o, vec3 *d, vec3
         sincos_2pi(u2, &s, &co);
         vec3 n = v3(r * co, r * s, z);
         vec3 p = v3_add(sp->center, v3_scale(n, sp->radius));
-        *o = media_offset_ray_origin(v3_add(p, v3_scale(n, (v3_max_abs(sp->center) + sp->radius) * 0x1p-21f)), n);
+        *o = offset_ray_origin(v3_add(p, v3_scale(n, (v3_max_abs(sp->center) + sp->radius) * 0x1p-21f)), n);
         *d = cosine_dir(n, u3, u4);
         *power = v3_scale(e->emission, (float)M_PI * e->area / pick * tc->photon_scale);
         return 1;
@@ -325,7 +325,7 @@ static void trace_photon(const struct trace_ctx *tc, uint64_t index, struct phot
                 return;
             medium = media_after_crossing(job, &h, s.ng, d);
             vec3 nn = v3_dot(s.ng, d) > 0.0f ? s.ng : v3_neg(s.ng);
-            o = media_offset_ray_origin(v3_add(s.p, v3_scale(nn, s.p_err)), nn);
+            o = offset_ray_origin(v3_add(s.p, v3_scale(nn, s.p_err)), nn);
             continue;
         }
         const struct material *mat = &sc->materials[s.material];
@@ -350,9 +350,9 @@ static void trace_photon(const struct trace_ctx *tc, uint64_t index, struct phot
         power = v3_scale(v3_mul(power, w), 1.0f / q);
         if (bs.transmitted) {
             medium = media_after_crossing(job, &h, s.ng, d);
-            o = media_offset_ray_origin(v3_sub(s.p, v3_scale(ng, s.p_err)), v3_neg(ng));
+            o = offset_ray_origin(v3_sub(s.p, v3_scale(ng, s.p_err)), v3_neg(ng));
         } else {
-            o = media_offset_ray_origin(v3_add(s.p, v3_scale(ng, s.p_err)), ng);
+            o = offset_ray_origin(v3_add(s.p, v3_scale(ng, s.p_err)), ng);
         }
         d = bs.wi;
         indirect = 1;
