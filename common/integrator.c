@@ -44,6 +44,23 @@ int render_job_init(struct render_job *job, const struct scene *scene, uint32_t 
     return 0;
 }
 
+int nee_prepare(const struct render_job *job, const struct material *mat, vec3 p, vec3 ns, vec3 ng, vec3 wo,
+                float pick, float u, float v, struct nee_sample *n)
+{
+    light_sample(&job->lights, job->scene, p, pick, u, v, &n->ls);
+    if (!(n->ls.pdf > 0.0f) || v3_is_black(n->ls.radiance))
+        return 0;
+    vec3 to = v3_sub(n->ls.p, p);
+    vec3 wi = v3_scale(to, 1.0f / v3_length(to));
+    n->bsdf_pdf = 0.0f;
+    n->f = v3_dot(wi, ng) > 0.0f ? material_eval(mat, ns, wo, wi, &n->bsdf_pdf) : v3(0, 0, 0);
+    if (v3_is_black(n->f))
+        return 0;
+    const struct light_sample *ls = &n->ls;
+    n->target = ls->is_delta ? ls->p : offset_ray_origin(ls->p, v3_dot(ls->n, wi) < 0.0f ? ls->n : v3_neg(ls->n));
+    return 1;
+}
+
 int render_job_reframe(struct render_job *job, uint32_t frame, uint32_t threads, char *err, size_t errlen)
 {
     const struct scene *scene = job->scene;
@@ -247,24 +264,14 @@ static vec3 sample_path(const struct render_job *job, uint32_t px, uint32_t py, 
 
         /* Next-event estimation; a delta BSDF is zero toward any sampled light point. */
         if (job->lights.num_entries > 0 && !material_is_delta(mat)) {
-            struct light_sample ls;
             float lu, lv;
             sampler_get_2d(&smp, d0 + DIM_LIGHT_U, &lu, &lv);
-            light_sample(&job->lights, sc, s.p, sampler_get(&smp, d0 + DIM_LIGHT_PICK), lu, lv, &ls);
-            if (ls.pdf > 0.0f && !v3_is_black(ls.radiance)) {
-                vec3 to = v3_sub(ls.p, s.p);
-                float dist = v3_length(to);
-                vec3 wi = v3_scale(to, 1.0f / dist);
-                float bpdf;
-                vec3 f = v3_dot(wi, ng) > 0.0f ? material_eval(mat, ns, wo, wi, &bpdf) : (bpdf = 0.0f, v3(0, 0, 0));
-                if (!v3_is_black(f)) {
-                    vec3 target = ls.is_delta ? ls.p : offset_ray_origin(ls.p, v3_dot(ls.n, wi) < 0.0f ? ls.n : v3_neg(ls.n));
-                    vec3 seg = v3_sub(target, p_off);
-                    (*rays)++;
-                    if (!accel_occluded(&job->accel, p_off, seg, 1.0f - 0x1p-12f, time01)) {
-                        float w = ls.is_delta ? 1.0f : power_heuristic(ls.pdf, bpdf);
-                        L = v3_add(L, v3_mul(beta, v3_scale(v3_mul(f, ls.radiance), w / ls.pdf)));
-                    }
+            struct nee_sample n;
+            if (nee_prepare(job, mat, s.p, ns, ng, wo, sampler_get(&smp, d0 + DIM_LIGHT_PICK), lu, lv, &n)) {
+                (*rays)++;
+                if (!accel_occluded(&job->accel, p_off, v3_sub(n.target, p_off), 1.0f - 0x1p-12f, time01)) {
+                    float w = n.ls.is_delta ? 1.0f : power_heuristic(n.ls.pdf, n.bsdf_pdf);
+                    L = v3_add(L, v3_mul(beta, v3_scale(v3_mul(n.f, n.ls.radiance), w / n.ls.pdf)));
                 }
             }
         }

@@ -30,6 +30,19 @@ struct render_job {
 int render_job_init(struct render_job *job, const struct scene *scene, uint32_t frame, uint32_t threads,
                     char *err, size_t errlen);
 void render_job_free(struct render_job *job);
+/* Next-event estimation toward one light point sampled with (pick, u, v) from surface point
+ * p (material mat, shading normal ns and geometric normal ng on wo's side): the sample, the
+ * BSDF value f toward it (cosine included) and its pdf, and the point a shadow ray aims at
+ * (off an area light's surface). 0 when no light can arrive that way. Visibility is the
+ * caller's: an occlusion ray (integrator.c) or transmittance (media_integrator.c). */
+struct nee_sample {
+    struct light_sample ls;
+    vec3 f, target;
+    float bsdf_pdf;
+};
+int nee_prepare(const struct render_job *job, const struct material *mat, vec3 p, vec3 ns, vec3 ng, vec3 wo,
+                float pick, float u, float v, struct nee_sample *n);
+
 /* The same job moved to another frame of its scene: rebuilds what depends on the frame
  * (Embree scene and its motion steps, camera, media state) and keeps the rest (texture
  * pyramids, light table, face normals). Pixels equal a fresh render_job_init's. On

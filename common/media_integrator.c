@@ -678,22 +678,13 @@ vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, 
                 L = v3_add(L, v3_mul(beta, v3_mul(v3_mul(f, rad), tr)));
             }
         } else if (job->lights.num_entries > 0 && !material_is_delta(mat)) {
-            struct light_sample ls;
-            light_sample(&job->lights, sc, s.p, rnd(&r, vertex, 2), rnd(&r, vertex, 3), rnd(&r, vertex, 4), &ls);
-            if (ls.pdf > 0.0f && !v3_is_black(ls.radiance)) {
-                vec3 to = v3_sub(ls.p, s.p);
-                float dist = v3_length(to);
-                vec3 wi = v3_scale(to, 1.0f / dist);
-                float bpdf;
-                vec3 f = v3_dot(wi, ng) > 0.0f ? material_eval(mat, ns, wo, wi, &bpdf) : (bpdf = 0.0f, v3(0, 0, 0));
-                if (!v3_is_black(f)) {
-                    vec3 target = ls.is_delta ? ls.p : offset_ray_origin(ls.p, v3_dot(ls.n, wi) < 0.0f ? ls.n : v3_neg(ls.n));
-                    vec3 tr = media_shadow_transmittance(job, p_off, target, medium, time01,
-                                                         rng_mix64(r.key ^ (0x5353ull << 48) ^ vertex), rays);
-                    if (!v3_is_black(tr)) {
-                        float w = ls.is_delta || surface_map ? 1.0f : power_heuristic(ls.pdf, bpdf);
-                        L = v3_add(L, v3_mul(beta, v3_scale(v3_mul(v3_mul(f, ls.radiance), tr), w / ls.pdf)));
-                    }
+            struct nee_sample n;
+            if (nee_prepare(job, mat, s.p, ns, ng, wo, rnd(&r, vertex, 2), rnd(&r, vertex, 3), rnd(&r, vertex, 4), &n)) {
+                vec3 tr = media_shadow_transmittance(job, p_off, n.target, medium, time01,
+                                                     rng_mix64(r.key ^ (0x5353ull << 48) ^ vertex), rays);
+                if (!v3_is_black(tr)) {
+                    float w = n.ls.is_delta || surface_map ? 1.0f : power_heuristic(n.ls.pdf, n.bsdf_pdf);
+                    L = v3_add(L, v3_mul(beta, v3_scale(v3_mul(v3_mul(n.f, n.ls.radiance), tr), w / n.ls.pdf)));
                 }
             }
         }
