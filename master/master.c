@@ -1403,6 +1403,7 @@ static int frame_begin(struct master *m, uint32_t frames_started)
         /* Geometry moves: this frame's photon map, published in place of the last one
          * (workers fetch it with the JOB; the base hash changes with it). */
         struct blob_hash old;
+        memset(&old, 0, sizeof old);
         for (uint32_t i = 0; i < m->num_manifest; i++)
             if (strcmp(m->manifest[i].path, MEDIA_PHOTON_ASSET) == 0)
                 old = m->manifest[i].hash;

@@ -275,6 +275,14 @@ Test(medium, white_furnace_vpt)
 #define GRID_MEDIUM "{\"sigma_a\": [1, 0.5, 2], \"sigma_s\": [0.5, 0.5, 0.5], \"density\": {\"file\": \"g.grid\", " \
                     "\"scale\": 0.1, \"transform\": {\"scale\": 2, \"translate\": [-1, -1, -1]}}}"
 
+/* Three rays through the test grid (along an axis, oblique, nearly along another axis). */
+static void grid_test_rays(vec3 orig[3], vec3 dirs[3])
+{
+    orig[0] = v3(-2, 0.3f, 0.1f), dirs[0] = v3(1, 0, 0);
+    orig[1] = v3(-2, -0.4f, 0.5f), dirs[1] = v3_normalize(v3(1, 0.3f, -0.2f));
+    orig[2] = v3(0.3f, -2, -0.7f), dirs[2] = v3_normalize(v3(0.2f, 1, 0.4f));
+}
+
 /* Transmittance through the grid against numerical integration of its density: ratio
  * tracking (unbiased) within 4 standard errors, the jittered march within 1 %. */
 Test(medium, grid_transmittance)
@@ -286,8 +294,8 @@ Test(medium, grid_transmittance)
     cr_assert_not_null(md->grid);
     cr_assert(fabsf(md->grid->max_density - 0.1f * 21.5f) < 1e-4f, "%g", (double)md->grid->max_density); /* voxel (5,5,5) */
     cr_assert(fabsf(md->grid->voxel_world - 0.25f) < 1e-6f);
-    vec3 dirs[3] = {v3(1, 0, 0), v3_normalize(v3(1, 0.3f, -0.2f)), v3_normalize(v3(0.2f, 1, 0.4f))};
-    vec3 orig[3] = {v3(-2, 0.3f, 0.1f), v3(-2, -0.4f, 0.5f), v3(0.3f, -2, -0.7f)};
+    vec3 dirs[3], orig[3];
+    grid_test_rays(orig, dirs);
     for (int r = 0; r < 3; r++) {
         double tau = 0.0;
         const int n = 200000;
@@ -376,8 +384,8 @@ Test(medium, grid_emission, .timeout = 60)
     load_ok(HEAD("\"position\": [-5, 0.05, 0.1], \"look_at\": [0, 0.05, 0.1]", 1, 1, 1, 1)
             ",\n\"media\": {\"m\": " EMIT_MEDIUM "},\n\"volume\": {\"fog\": \"m\", \"method\": \"march\", \"step\": 0.01}}", &s);
     const struct medium *md = &s.media->media[0];
-    vec3 dirs[3] = {v3(1, 0, 0), v3_normalize(v3(1, 0.3f, -0.2f)), v3_normalize(v3(0.2f, 1, 0.4f))};
-    vec3 orig[3] = {v3(-2, 0.3f, 0.1f), v3(-2, -0.4f, 0.5f), v3(0.3f, -2, -0.7f)};
+    vec3 dirs[3], orig[3];
+    grid_test_rays(orig, dirs);
     for (int r = 0; r < 3; r++) {
         double s1[3] = {0, 0, 0}, s2[3] = {0, 0, 0};
         const int m = 40000;
