@@ -96,6 +96,13 @@ static int32_t cell_coord(float x, float inv_cell)
 
 /* ---- tracing ---- */
 
+/* Photons one block of indices stored, in index order. */
+struct photon_list {
+    struct photon *a;
+    uint32_t n;
+    size_t cap;
+};
+
 struct trace_ctx {
     const struct render_job *job;
     const struct media_job *mj;
@@ -104,10 +111,8 @@ struct trace_ctx {
     float photon_scale;     /* 1 / emitted */
     uint32_t num_blocks;
     _Atomic uint32_t next_block;
-    struct photon **block_photons;
-    uint32_t *block_count;
-    struct photon **block_surface;  /* surface photons per block (NULL: none kept) */
-    uint32_t *block_surface_count;
+    struct photon_list *blocks;     /* volume photons per block of indices */
+    struct photon_list *surface;    /* surface photons per block (NULL: none kept) */
     int aim;                /* point lights aim most photons at the media's bounding sphere */
     vec3 aim_center;
     float aim_radius;
@@ -255,22 +260,22 @@ static int emit(const struct trace_ctx *tc, uint64_t key, vec3 *o, vec3 *d, vec3
     return 0;
 }
 
-static void store(struct photon **arr, uint32_t *n, size_t *cap, vec3 p, vec3 d, vec3 power)
+static void store(struct photon_list *l, vec3 p, vec3 d, vec3 power)
 {
     if (!v3_is_finite(power) || v3_is_black(power))
         return;
-    mem_grow((void **)arr, cap, (size_t)*n + 1, sizeof **arr);
-    struct photon *ph = &(*arr)[(*n)++];
+    mem_grow((void **)&l->a, &l->cap, (size_t)l->n + 1, sizeof *l->a);
+    struct photon *ph = &l->a[l->n++];
     ph->p[0] = p.x, ph->p[1] = p.y, ph->p[2] = p.z;
     photon_rgbe_encode(power, ph->rgbe);
     ph->dir = photon_dir_encode(d);
     ph->reserved = 0;
 }
 
-/* Traces photon `index`: volume photons into (arr, n, cap); when surf is non-NULL, photons
- * arriving at diffuse surfaces after any interaction into (surf, sn, scap). */
-static void trace_photon(const struct trace_ctx *tc, uint64_t index, struct photon **arr, uint32_t *n, size_t *cap,
-                         struct photon **surf, uint32_t *sn, size_t *scap)
+/* Traces photon `index`: volume photons into vol; when surf is non-NULL, photons arriving
+ * at diffuse surfaces after any interaction into surf. */
+static void trace_photon(const struct trace_ctx *tc, uint64_t index, struct photon_list *vol,
+                         struct photon_list *surf)
 {
     const struct render_job *job = tc->job;
     const struct scene *sc = job->scene;
@@ -301,7 +306,7 @@ static void trace_photon(const struct trace_ctx *tc, uint64_t index, struct phot
                 if (outside_bounds(tc->mj, x))
                     return;
                 if (indirect)
-                    store(arr, n, cap, x, d, power);
+                    store(vol, x, d, power);
                 /* Russian roulette keeps the power of survivors near what it was. */
                 float q = fminf(1.0f, v3_max_component(power) / fmaxf(v3_max_component(before), 1e-30f));
                 if (!(q > 0.0f) || rng_uniform(key, dim + 2) >= q)
@@ -332,7 +337,7 @@ static void trace_photon(const struct trace_ctx *tc, uint64_t index, struct phot
         /* Light reaching a diffuse surface after an interaction: its indirect light (what
          * arrives straight from a light, next-event estimation computes). */
         if (surf && indirect && mat->type == MATERIAL_DIFFUSE && !v3_is_black(mat->albedo))
-            store(surf, sn, scap, s.p, d, power);
+            store(surf, s.p, d, power);
         vec3 wo = v3_neg(d);
         int front = v3_dot(s.ng, wo) >= 0.0f;
         vec3 ng = front ? s.ng : v3_neg(s.ng);
@@ -369,11 +374,8 @@ static void *trace_thread(void *arg)
             break;
         uint64_t first = (uint64_t)b * PM_BLOCK, last = first + PM_BLOCK;
         last = last < tc->emitted ? last : tc->emitted;
-        size_t cap = 0, scap = 0;
         for (uint64_t i = first; i < last; i++)
-            trace_photon(tc, i, &tc->block_photons[b], &tc->block_count[b], &cap,
-                         tc->block_surface ? &tc->block_surface[b] : NULL,
-                         tc->block_surface ? &tc->block_surface_count[b] : NULL, &scap);
+            trace_photon(tc, i, &tc->blocks[b], tc->surface ? &tc->surface[b] : NULL);
     }
     return NULL;
 }
@@ -418,15 +420,15 @@ double photon_map_indirect_bound(const struct scene *s, float scene_size)
 
 /* Joins the blocks' photons in index order (freeing them), sorts them stably by hash-grid
  * bucket and writes one map (header, photons, bucket starts). NULL when too many. */
-static uint8_t *serialise(struct photon **blocks, const uint32_t *counts, uint32_t num_blocks, float radius,
-                          uint64_t emitted, size_t *bytes_out, uint32_t *n_out)
+static uint8_t *serialise(struct photon_list *blocks, uint32_t num_blocks, float radius, uint64_t emitted,
+                          size_t *bytes_out, uint32_t *n_out)
 {
     uint64_t total = 0;
     for (uint32_t b = 0; b < num_blocks; b++)
-        total += counts[b];
+        total += blocks[b].n;
     if (total > UINT32_MAX / 2) {
         for (uint32_t b = 0; b < num_blocks; b++)
-            free(blocks[b]);
+            free(blocks[b].a);
         return NULL;
     }
     uint32_t n = (uint32_t)total;
@@ -437,10 +439,10 @@ static uint8_t *serialise(struct photon **blocks, const uint32_t *counts, uint32
     struct photon *all = mem_alloc(sizeof *all * (n ? n : 1)), *sorted = mem_alloc(sizeof *all * (n ? n : 1));
     uint32_t k = 0;
     for (uint32_t b = 0; b < num_blocks; b++) {
-        if (counts[b])
-            memcpy(all + k, blocks[b], sizeof *all * counts[b]);
-        k += counts[b];
-        free(blocks[b]);
+        if (blocks[b].n)
+            memcpy(all + k, blocks[b].a, sizeof *all * blocks[b].n);
+        k += blocks[b].n;
+        free(blocks[b].a);
     }
     uint32_t *start = mem_calloc((size_t)table + 1, sizeof *start), *bk = mem_alloc(sizeof *bk * (n ? n : 1));
     for (uint32_t i = 0; i < n; i++) {
@@ -502,12 +504,9 @@ int photon_map_build(const struct render_job *job, uint64_t seed, uint32_t threa
     tc.num_blocks = (uint32_t)((tc.emitted + PM_BLOCK - 1) / PM_BLOCK);
     tc.aim = media_bounds(job, &tc.aim_center, &tc.aim_radius);
     atomic_init(&tc.next_block, 0);
-    tc.block_photons = mem_calloc(tc.num_blocks ? tc.num_blocks : 1, sizeof *tc.block_photons);
-    tc.block_count = mem_calloc(tc.num_blocks ? tc.num_blocks : 1, sizeof *tc.block_count);
-    if (sm->surface_photons) {
-        tc.block_surface = mem_calloc(tc.num_blocks ? tc.num_blocks : 1, sizeof *tc.block_surface);
-        tc.block_surface_count = mem_calloc(tc.num_blocks ? tc.num_blocks : 1, sizeof *tc.block_surface_count);
-    }
+    tc.blocks = mem_calloc(tc.num_blocks ? tc.num_blocks : 1, sizeof *tc.blocks);
+    if (sm->surface_photons)
+        tc.surface = mem_calloc(tc.num_blocks ? tc.num_blocks : 1, sizeof *tc.surface);
     threads = threads < 1 ? 1 : (threads > 256 ? 256 : threads);
     pthread_t *th = mem_alloc(sizeof *th * threads);
     uint32_t started = 0;
@@ -523,15 +522,14 @@ int photon_map_build(const struct render_job *job, uint64_t seed, uint32_t threa
     float radius = job->media->radius;
     size_t vbytes = 0, sbytes = 0;
     uint32_t vn = 0, sn = 0;
-    uint8_t *vmap = serialise(tc.block_photons, tc.block_count, tc.num_blocks, radius, tc.emitted, &vbytes, &vn);
-    uint8_t *smap = tc.block_surface ? serialise(tc.block_surface, tc.block_surface_count, tc.num_blocks, radius,
+    uint8_t *vmap = serialise(tc.blocks, tc.num_blocks, radius, tc.emitted, &vbytes, &vn);
+    uint8_t *smap = tc.surface ? serialise(tc.surface, tc.num_blocks, radius,
                                                  tc.emitted, &sbytes, &sn)
                                      : NULL;
-    free(tc.block_photons);
-    free(tc.block_count);
-    free(tc.block_surface);
-    free(tc.block_surface_count);
-    if (!vmap || (tc.block_surface && !smap)) {
+    free(tc.blocks);
+    int want_surface = tc.surface != NULL;
+    free(tc.surface);
+    if (!vmap || (want_surface && !smap)) {
         str_fmt(err, errlen, "photon pass: too many photons stored");
         free(vmap);
         free(smap);
