@@ -32,7 +32,7 @@ static void publish(struct asset_dir *assets, uint8_t *data, size_t size)
 int master_media_per_frame(const struct scene *scene)
 {
     const struct scene_media *sm = scene->media;
-    if (!sm || sm->method == MEDIA_VPT)
+    if (!sm || sm->method == MEDIA_VPT || sm->photons == 0)
         return 0;
     for (uint32_t i = 0; i < scene->num_meshes; i++)
         if (scene->meshes[i].num_keys > 1 || scene->meshes[i].num_frames >= 2)
