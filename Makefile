@@ -9,7 +9,7 @@ OPT     ?= -O3
 
 WARN    := -Wall -Wextra -Wpedantic -Wshadow -Wstrict-prototypes -Wmissing-prototypes \
            -Wpointer-arith -Wcast-qual -Wwrite-strings -Wformat=2 -Wundef -Wvla
-CFLAGS  := -std=c11 -D_GNU_SOURCE $(OPT) -g -fno-fast-math -ffp-contract=off -fno-math-errno $(WARN) -Icommon -pthread
+CFLAGS  := -std=c11 -D_GNU_SOURCE $(OPT) -g -fno-fast-math -ffp-contract=off -fno-math-errno $(WARN) -Icommon -I. -pthread
 LDLIBS  := -lembree3 -lOpenEXRCore-3_1 -lzmq -ljansson -lsodium -lpng -lstb -lm -pthread
 ifneq ($(SAN),)
 CFLAGS  += -fsanitize=$(SAN) -fno-omit-frame-pointer -fno-sanitize-recover=undefined
@@ -22,9 +22,12 @@ DEB_PKGS := gcc make pkg-config libembree-dev libopenexr-dev openexr libzmq3-dev
             procps openssh-client openssh-server libnanovdb-dev g++ zlib1g-dev libblosc-dev
 DEPS_STAMP := $(BUILD)/.deps-ok
 
-COMMON_SRC := $(wildcard common/*.c)
+# One folder per layer under common/ (see README, "Tour of the source"); sources by pattern.
+LAYERS     := base image scene render wire
+COMMON_SRC := $(foreach l,$(LAYERS),$(wildcard common/$(l)/*.c))
 COMMON_OBJ := $(COMMON_SRC:%.c=$(BUILD)/obj/%.o)
 MASTER_OBJ := $(patsubst %.c,$(BUILD)/obj/%.o,$(wildcard master/*.c))
+MASTER_LIB_OBJ := $(filter-out %/main.o,$(MASTER_OBJ))
 WORKER_OBJ := $(patsubst %.c,$(BUILD)/obj/%.o,$(wildcard worker/*.c))
 UNIT_SRC   := $(wildcard tests/unit/test_*.c)
 UNIT_OBJ   := $(UNIT_SRC:%.c=$(BUILD)/obj/%.o)
@@ -44,6 +47,10 @@ $(BUILD)/obj/%.o: %.c $(DEPS_STAMP)
 	$(CC) $(CFLAGS) -MMD -MP -c $< -o $@
 
 $(BUILD)/libbrume.a: $(COMMON_OBJ)
+	ar rcs $@ $^
+
+# The master's modules without main(), for unit tests of the journal and the scheduler.
+$(BUILD)/libmaster.a: $(MASTER_LIB_OBJ)
 	ar rcs $@ $^
 
 $(BUILD)/master: $(MASTER_OBJ) $(BUILD)/libbrume.a
@@ -67,7 +74,7 @@ $(BUILD)/maketex: $(BUILD)/obj/tests/tools/maketex.o $(BUILD)/libbrume.a
 $(BUILD)/texbench: $(BUILD)/obj/tests/tools/texbench.o $(BUILD)/libbrume.a
 	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
 
-$(BUILD)/unit_tests: $(UNIT_OBJ) $(BUILD)/libbrume.a
+$(BUILD)/unit_tests: $(UNIT_OBJ) $(BUILD)/libmaster.a $(BUILD)/libbrume.a
 	$(CC) $(LDFLAGS) -o $@ $^ -lcriterion $(LDLIBS)
 
 # NanoVDB test files, written by NanoVDB's own C++ writer (never committed; see make_nvdb.cpp).

@@ -1,7 +1,7 @@
 /* Local worker processes (see launch.h). Workers inherit stderr so their log lines reach
  * the user; stdin and stdout are detached. */
 #include "launch.h"
-#include "log.h"
+#include "base/log.h"
 #include <errno.h>
 #include <fcntl.h>
 #include <libgen.h>

@@ -1,12 +1,12 @@
 /* master: renders a scene with local and/or remote workers. Parses the command line and
  * runs master_run(). */
-#include "cli.h"
+#include "base/cli.h"
 #include "launch.h"
-#include "log.h"
+#include "base/log.h"
 #include "master.h"
-#include "medium.h"
-#include "net.h"
-#include "sampler.h"
+#include "scene/medium.h"
+#include "wire/net.h"
+#include "scene/sampler.h"
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>

@@ -7,18 +7,18 @@
  * and dropped. A worker is evicted when silent, when its render threads stop progressing,
  * or when it dies; its tiles go back to the front of the queue. */
 #include "master.h"
-#include "asset.h"
-#include "blob.h"
-#include "imgio.h"
+#include "base/asset.h"
+#include "wire/blob.h"
+#include "image/imgio.h"
 #include "journal.h"
 #include "launch.h"
-#include "log.h"
-#include "net.h"
-#include "proto.h"
+#include "base/log.h"
+#include "wire/net.h"
+#include "wire/proto.h"
 #include "photons.h"
-#include "media_integrator.h"
-#include "scene_json.h"
-#include "tile.h"
+#include "render/media_integrator.h"
+#include "scene/scene_json.h"
+#include "render/tile.h"
 #include <errno.h>
 #include <fcntl.h>
 #include <libgen.h>

@@ -1,11 +1,11 @@
 /* Photon pass on the master and publication of the volume blob (see photons.h). */
 #include "photons.h"
-#include "blob.h"
-#include "integrator.h"
-#include "log.h"
-#include "media_integrator.h"
-#include "medium.h"
-#include "photonmap.h"
+#include "wire/blob.h"
+#include "render/integrator.h"
+#include "base/log.h"
+#include "render/media_integrator.h"
+#include "scene/medium.h"
+#include "render/photonmap.h"
 #include <stdlib.h>
 #include <stdio.h>
 #include <string.h>

@@ -6,9 +6,9 @@
  * master_media_per_frame says the map depends on the frame. */
 #ifndef BRUME_MASTER_PHOTONS_H
 #define BRUME_MASTER_PHOTONS_H
-#include "asset.h"
+#include "base/asset.h"
 #include "master.h"
-#include "scene.h"
+#include "scene/scene.h"
 
 /* 1 when the photon map depends on the frame: the scene has a photon pass and geometry
  * that moves (rigid keys or deformation frames), so each frame gets its own map. A still

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Writes a smoke-cloud density grid in Brume's dense grid format (common/medium.h:
+"""Writes a smoke-cloud density grid in Brume's dense grid format (common/scene/medium.h:
 "BRGRID01", uint32 nx ny nz little-endian, then nx*ny*nz float32, x fastest).
 The cloud is a few overlapping soft blobs rising in a plume, eroded by fractal value
 noise: deterministic (its own integer hash), so the bytes are the same everywhere.

@@ -1,6 +1,6 @@
 /* worker: renders tiles for a master. Parses the command line and runs worker_run(). */
-#include "cli.h"
-#include "log.h"
+#include "base/cli.h"
+#include "base/log.h"
 #include "worker.h"
 #include <signal.h>
 #include <stdio.h>

@@ -10,16 +10,16 @@
  * worker reconnects with back-off on a fresh socket, and a master that comes back on the
  * same job (same job key) gets the kept tiles as KEPT messages. */
 #include "worker.h"
-#include "asset.h"
-#include "blob.h"
-#include "imgio.h"
-#include "integrator.h"
-#include "log.h"
-#include "medium.h"
-#include "net.h"
-#include "photonmap.h"
-#include "proto.h"
-#include "scene_json.h"
+#include "base/asset.h"
+#include "wire/blob.h"
+#include "image/imgio.h"
+#include "render/integrator.h"
+#include "base/log.h"
+#include "scene/medium.h"
+#include "wire/net.h"
+#include "render/photonmap.h"
+#include "wire/proto.h"
+#include "scene/scene_json.h"
 #include <errno.h>
 #include <math.h>
 #include <pthread.h>

@@ -16,10 +16,10 @@ if ! command -v "$CC_FUZZ" >/dev/null 2>&1; then
   echo "fuzz: FAILED: $CC_FUZZ not found (scripts/install-deps.sh installs clang)"
   exit 1
 fi
-SRC="tests/fuzz/fuzz_proto.c common/proto.c common/log.c"
+SRC="tests/fuzz/fuzz_proto.c common/wire/proto.c common/base/log.c"
 BIN="$OUT/fuzz_proto"
 # rebuilt only when a source changed
-if [ ! -x "$BIN" ] || [ -n "$(find $SRC common/proto.h common/log.h -newer "$BIN" 2>/dev/null)" ]; then
+if [ ! -x "$BIN" ] || [ -n "$(find $SRC common/wire/proto.h common/base/log.h -newer "$BIN" 2>/dev/null)" ]; then
   if ! $CC_FUZZ -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined -std=c11 -D_GNU_SOURCE \
       -Icommon $SRC -o "$BIN" -lm -pthread >"$OUT/build.log" 2>&1; then
     echo "fuzz: FAILED: fuzz_proto does not build (see $OUT/build.log)"; tail -5 "$OUT/build.log"; exit 1
@@ -27,7 +27,7 @@ if [ ! -x "$BIN" ] || [ -n "$(find $SRC common/proto.h common/log.h -newer "$BIN
 fi
 rm -rf "$OUT/corpus"
 mkdir -p "$OUT/corpus"
-if ! ${CC:-cc} -std=c11 -D_GNU_SOURCE -Icommon tests/fuzz/proto_seeds.c common/proto.c common/log.c -o "$OUT/proto_seeds" -lm -pthread >"$OUT/seeds.log" 2>&1 ||
+if ! ${CC:-cc} -std=c11 -D_GNU_SOURCE -Icommon tests/fuzz/proto_seeds.c common/wire/proto.c common/base/log.c -o "$OUT/proto_seeds" -lm -pthread >"$OUT/seeds.log" 2>&1 ||
   ! "$OUT/proto_seeds" "$OUT/corpus"; then
   echo "fuzz: FAILED: cannot make the seed corpus (see $OUT/seeds.log)"; exit 1
 fi

@@ -1,4 +1,4 @@
-/* libFuzzer target for texture image decoding (common/image_load.c): inputs that start
+/* libFuzzer target for texture image decoding (common/image/image_load.c): inputs that start
  * with a format's magic are decoded as they are (the seeds are the scenes' images); any
  * other input gets a magic chosen by its first byte prepended (so every decoder sees it),
  * must decode to a checked image or fail with a message; a decoded image then builds its
@@ -6,9 +6,9 @@
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
-#include "image_load.h"
-#include "log.h"
-#include "mip.h"
+#include "image/image_load.h"
+#include "base/log.h"
+#include "image/mip.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 

@@ -5,8 +5,8 @@
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
-#include "log.h"
-#include "mesh_obj.h"
+#include "base/log.h"
+#include "scene/mesh_obj.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 

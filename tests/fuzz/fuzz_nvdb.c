@@ -1,4 +1,4 @@
-/* libFuzzer target for NanoVDB density grids (common/nvdb.c): any bytes, with the grid
+/* libFuzzer target for NanoVDB density grids (common/scene/nvdb.c): any bytes, with the grid
  * chosen by size (the first float grid, "density" or "temperature"), must load as a sane
  * dense grid (finite densities >= 0, within the voxel limit) or fail with a message; a
  * loaded grid is then placed and looked up. The voxel limit is lowered so that a changed
@@ -8,9 +8,9 @@
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
-#include "log.h"
-#include "medium.h"
-#include "nvdb.h"
+#include "base/log.h"
+#include "scene/medium.h"
+#include "scene/nvdb.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 

@@ -1,4 +1,4 @@
-/* libFuzzer target for the photon map decoder (common/photonmap.c), which reads the volume
+/* libFuzzer target for the photon map decoder (common/render/photonmap.c), which reads the volume
  * blob a worker fetches from the master. The input picks the first map's photon count
  * (byte 0) and table size (byte 1, a power of two) and supplies its photons and bucket
  * table, so the header fits and the decoder's deeper checks (bucket order, positions) are
@@ -9,8 +9,8 @@
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
-#include "log.h"
-#include "photonmap.h"
+#include "base/log.h"
+#include "render/photonmap.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 

@@ -1,11 +1,11 @@
-/* libFuzzer target for the wire decoder (common/proto.c): arbitrary bytes must never crash
+/* libFuzzer target for the wire decoder (common/wire/proto.c): arbitrary bytes must never crash
  * or read out of bounds, and whatever decodes must re-encode to the very same bytes and
  * decode again to equal fields (the format has exactly one encoding per message).
  * Built and run by tests/fuzz/run.sh; by hand: see the clang line in that script. */
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
-#include "proto.h"
+#include "wire/proto.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 

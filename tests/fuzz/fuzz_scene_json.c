@@ -5,8 +5,8 @@
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
-#include "log.h"
-#include "scene_json.h"
+#include "base/log.h"
+#include "scene/scene_json.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 

@@ -3,7 +3,7 @@
  * get past the header and explores the fields. Used by tests/fuzz/ci.sh. */
 #include <stdio.h>
 #include <string.h>
-#include "proto.h"
+#include "wire/proto.h"
 
 int main(int argc, char **argv)
 {

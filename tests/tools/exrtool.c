@@ -3,8 +3,8 @@
  *   exrtool rmse A.exr REF.exr   prints the RMSE of R,G,B against REF
  *   exrtool mean A.exr           prints the mean of R,G,B,A
  * Reads files through imgio_read (OpenEXRCore). */
-#include "imgio.h"
-#include "log.h"
+#include "image/imgio.h"
+#include "base/log.h"
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>

@@ -3,8 +3,8 @@
  * another protocol version, a multi-frame envelope, an oversized frame, and (after a valid
  * HELLO) results for tiles it was never given. The master must log and drop all of it.
  *   junkpeer ENDPOINT */
-#include "proto.h"
-#include "net.h"
+#include "wire/proto.h"
+#include "wire/net.h"
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>

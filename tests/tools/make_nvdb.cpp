@@ -1,6 +1,6 @@
 // Writes the NanoVDB test files of tests/unit/test_nvdb.c and tests/integration/media.sh with
 // NanoVDB's own C++ writer (nanovdb/util/GridBuilder.h, nanovdb/util/IO.h from Debian's
-// libnanovdb-dev), so the C reader (common/nvdb.c) is tested against the reference
+// libnanovdb-dev), so the C reader (common/scene/nvdb.c) is tested against the reference
 // implementation, never against itself. Every density is a closed-form function of the
 // integer index (ball_value etc., in nvdb_values.h, shared with test_nvdb.c), exact in float.
 // Usage: make_nvdb OUTDIR   (built by the Makefile with g++; ZIP and BLOSC for the refusals)
@@ -66,7 +66,7 @@ static std::vector<GridHandle<HostBuffer>> one(GridHandle<HostBuffer> &&h)
     return v;
 }
 
-// BRGRID01 (common/medium.h): magic, nx ny nz (uint32 LE), nx*ny*nz float32 LE, x fastest.
+// BRGRID01 (common/scene/medium.h): magic, nx ny nz (uint32 LE), nx*ny*nz float32 LE, x fastest.
 static int from_grid(const char *in, const char *out)
 {
     std::FILE *f = std::fopen(in, "rb");

@@ -3,9 +3,9 @@
  *   maketex DIR    writes DIR/checker.png, DIR/globe.png, DIR/bricks.jpg, DIR/sky.hdr,
  *                  DIR/tiles.exr
  * PNG, JPEG and HDR through stb_image_write (libstb), EXR through imgio (OpenEXRCore). */
-#include "imgio.h"
-#include "log.h"
-#include "mip.h"
+#include "image/imgio.h"
+#include "base/log.h"
+#include "image/mip.h"
 #include <math.h>
 #include <stb/stb_image_write.h>
 #include <stdio.h>

@@ -13,8 +13,8 @@
  * "replay: expect COUNTER N" lines for the test to compare with the master's summary.
  * It ends with a BYE (so the master has read everything before it) and then sends one
  * frame over ZMQ_MAXMSGSIZE on a separate connection, which libzmq must refuse. */
-#include "net.h"
-#include "proto.h"
+#include "wire/net.h"
+#include "wire/proto.h"
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>

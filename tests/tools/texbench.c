@@ -4,9 +4,9 @@
  *                  (a minor axis of 0.25 to 4 texels, anisotropy 1 to 30), max anisotropy 16.
  * Prints "filter ns_per_lookup checksum" lines. The footprints are a fixed pseudo-random
  * sequence, the same for every filter. */
-#include "log.h"
-#include "mip.h"
-#include "texture.h"
+#include "base/log.h"
+#include "image/mip.h"
+#include "scene/texture.h"
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>

@@ -1,4 +1,4 @@
-/* Unit tests of scene asset access (common/asset.c): the lexical path rules, joining,
+/* Unit tests of scene asset access (common/base/asset.c): the lexical path rules, joining,
  * and the on-disk source (containment after realpath, so escaping symlinks are refused;
  * each file recorded once). Uses a fresh temporary folder per test. */
 #include <criterion/criterion.h>
@@ -7,7 +7,7 @@
 #include <string.h>
 #include <sys/stat.h>
 #include <unistd.h>
-#include "asset.h"
+#include "base/asset.h"
 
 static void expect_bad(const char *path, const char *why)
 {

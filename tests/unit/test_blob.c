@@ -1,4 +1,4 @@
-/* Unit tests for content-addressed blobs (common/blob.c): the BLAKE2b-256 vectors, chunked
+/* Unit tests for content-addressed blobs (common/wire/blob.c): the BLAKE2b-256 vectors, chunked
  * receive in any order with duplicates, rejection of misplaced or mis-sized chunks and of
  * oversize announcements before allocation, hash mismatches, and the store.
  * Run by `make unit` with every other tests/unit/test_*.c. */
@@ -7,7 +7,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include "blob.h"
+#include "wire/blob.h"
 
 static void assert_hex(const struct blob_hash *h, const char *want)
 {

@@ -6,7 +6,7 @@
 #include <criterion/criterion.h>
 #include <math.h>
 #include <string.h>
-#include "camera.h"
+#include "scene/camera.h"
 
 static struct camera make(float fov, uint32_t w, uint32_t h)
 {

@@ -1,4 +1,4 @@
-/* Unit tests for image I/O (common/imgio.c): tile grid math, bit-exact encode/decode of
+/* Unit tests for image I/O (common/image/imgio.c): tile grid math, bit-exact encode/decode of
  * tile chunks for every compression (interior and clipped edge tiles, channels given out
  * of alphabetical order), rejection of malformed chunks, a whole tiled file assembled from
  * shuffled tiles and read back, reading a scanline HALF file, and PNG previews.
@@ -12,7 +12,7 @@
 #include <string.h>
 #include <sys/stat.h>
 #include <unistd.h>
-#include "imgio.h"
+#include "image/imgio.h"
 
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wpedantic"

@@ -7,8 +7,8 @@
 #include <criterion/criterion.h>
 #include <math.h>
 #include <string.h>
-#include "integrator.h"
-#include "log.h"
+#include "render/integrator.h"
+#include "base/log.h"
 
 static uint32_t add_mat(struct scene *s, vec3 albedo, vec3 emission)
 {

@@ -1,4 +1,4 @@
-/* Unit tests for the tile journal (common/journal.c): records survive a reopen with their
+/* Unit tests for the tile journal (master/journal.c): records survive a reopen with their
  * bytes and statistics; a journal cut at every byte recovers exactly the whole records
  * before the cut and appends after them; a flipped byte ends the journal there; another
  * job's journal is started afresh. Run by `make unit`. */
@@ -7,7 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
-#include "journal.h"
+#include "master/journal.h"
 
 struct seen { uint32_t count; uint32_t tiles[64]; uint32_t sizes[64]; uint8_t first[64]; double err[64]; };
 

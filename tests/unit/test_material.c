@@ -6,9 +6,9 @@
 #include <criterion/criterion.h>
 #include <math.h>
 #include <string.h>
-#include "integrator.h"
-#include "log.h"
-#include "material.h"
+#include "render/integrator.h"
+#include "base/log.h"
+#include "scene/material.h"
 
 Test(material, fresnel_normal_incidence)
 {

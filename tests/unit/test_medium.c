@@ -12,14 +12,14 @@
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
-#include "blob.h"
-#include "integrator.h"
-#include "log.h"
-#include "media_integrator.h"
-#include "medium.h"
-#include "photonmap.h"
-#include "rng.h"
-#include "scene_json.h"
+#include "wire/blob.h"
+#include "render/integrator.h"
+#include "base/log.h"
+#include "render/media_integrator.h"
+#include "scene/medium.h"
+#include "render/photonmap.h"
+#include "base/rng.h"
+#include "scene/scene_json.h"
 
 struct mem_file { const char *path, *data; size_t size; /* 0: strlen(data) */ };
 

@@ -1,10 +1,10 @@
-/* Unit tests of the OBJ/MTL reader (common/mesh_obj.c): every face form, relative
+/* Unit tests of the OBJ/MTL reader (common/scene/mesh_obj.c): every face form, relative
  * indices, polygons, CRLF, transforms, materials, and that each error names the right
  * file:line:col. Files come from an in-memory asset source. */
 #include <criterion/criterion.h>
 #include <stdio.h>
 #include <string.h>
-#include "mesh_obj.h"
+#include "scene/mesh_obj.h"
 
 struct mem_file { const char *path, *data; };
 

@@ -7,11 +7,11 @@
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
-#include "integrator.h"
-#include "log.h"
-#include "motion.h"
-#include "scene_json.h"
-#include "texture.h"
+#include "render/integrator.h"
+#include "base/log.h"
+#include "scene/motion.h"
+#include "scene/scene_json.h"
+#include "scene/texture.h"
 
 static uint32_t add_mat(struct scene *s, vec3 emission)
 {

@@ -1,4 +1,4 @@
-/* NanoVDB density grids (common/nvdb.c) against files written by NanoVDB's own C++ writer
+/* NanoVDB density grids (common/scene/nvdb.c) against files written by NanoVDB's own C++ writer
  * (tests/tools/make_nvdb.cpp, run by `make unit` into $BRUME_TESTDATA):
  * - the dense copy holds the analytic values exactly, placed by the grid's map (a shear)
  *   and the scene's transform on top; lookups at voxel centres give those values;
@@ -12,13 +12,13 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include "integrator.h"
-#include "log.h"
-#include "media_integrator.h"
-#include "medium.h"
-#include "nvdb.h"
-#include "rng.h"
-#include "scene_json.h"
+#include "render/integrator.h"
+#include "base/log.h"
+#include "render/media_integrator.h"
+#include "scene/medium.h"
+#include "scene/nvdb.h"
+#include "base/rng.h"
+#include "scene/scene_json.h"
 
 #include "../tools/nvdb_values.h" /* the analytic densities of make_nvdb.cpp */
 

@@ -1,4 +1,4 @@
-/* Unit tests for the wire protocol (common/proto.c): round trips of every message type,
+/* Unit tests for the wire protocol (common/wire/proto.c): round trips of every message type,
  * the exact byte layout, and rejection of every malformed frame the network can deliver
  * (truncations, oversized counts, wrong magic or version, trailing bytes, bit flips).
  * Run by `make unit` with every other tests/unit/test_*.c. */
@@ -8,7 +8,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include "proto.h"
+#include "wire/proto.h"
 
 static const uint8_t k_blob_bytes[] = {1, 2, 3, 4, 5, 0, 255, 7};
 static const uint8_t k_chunk_bytes[] = "not really an EXR chunk";

@@ -3,8 +3,8 @@
  * on them are tested in test_sampler.c. */
 #include <criterion/criterion.h>
 #include <math.h>
-#include "rng.h"
-#include "sampler.h"
+#include "base/rng.h"
+#include "scene/sampler.h"
 
 Test(rng, pure_function_of_coordinates)
 {

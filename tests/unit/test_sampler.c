@@ -5,7 +5,7 @@
 #include <criterion/criterion.h>
 #include <math.h>
 #include <string.h>
-#include "sampler.h"
+#include "scene/sampler.h"
 
 static const enum sampler_type all_types[] = {SAMPLER_INDEPENDENT, SAMPLER_STRATIFIED, SAMPLER_SOBOL};
 

@@ -1,10 +1,10 @@
-/* Unit tests of the scene file reader (common/scene_json.c): defaults, transforms, every
+/* Unit tests of the scene file reader (common/scene/scene_json.c): defaults, transforms, every
  * class of error with the line:col it must name, and the scenes shipped in scenes/
  * loaded from disk. Most tests read OBJ files from an in-memory asset source. */
 #include <criterion/criterion.h>
 #include <stdio.h>
 #include <string.h>
-#include "scene_json.h"
+#include "scene/scene_json.h"
 
 struct mem_file { const char *path, *data; };
 

@@ -16,14 +16,14 @@
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
-#include "image_load.h"
-#include "imgio.h"
-#include "integrator.h"
-#include "log.h"
-#include "material.h"
-#include "mip.h"
-#include "raydiff.h"
-#include "texture.h"
+#include "image/image_load.h"
+#include "image/imgio.h"
+#include "render/integrator.h"
+#include "base/log.h"
+#include "scene/material.h"
+#include "image/mip.h"
+#include "render/raydiff.h"
+#include "scene/texture.h"
 
 /* ---- helpers ---- */
 
@@ -929,7 +929,7 @@ Test(texture_render, huge_texture_thin_lens_degenerate_uvs_no_nan, .timeout = 12
 
 /* ---- scene files: the "textures" section, albedo_texture and MTL map_Kd ---- */
 
-#include "scene_json.h"
+#include "scene/scene_json.h"
 
 struct bin_file {
     const char *path;
@@ -1086,7 +1086,7 @@ Test(texture_scene, errors_name_line_and_column)
 
 /* ---- bump mapping ---- */
 
-#include "texshade.h"
+#include "render/texshade.h"
 
 Test(bump, height_ramp_tilts_the_normal_as_computed_by_hand)
 {

@@ -1,0 +1,1087 @@
+/* Image I/O through OpenEXRCore and libpng (see imgio.h). Invariants: every OpenEXRCore
+ * context gets a struct imgio_stream as user data, so its I/O goes through our functions
+ * (memory or our own fd, never a library-opened file) and its error messages are captured
+ * for the caller's err buffer instead of being printed. Callers: the worker encodes tiles,
+ * the master decode-checks them and assembles the file, tests and tools read files back. */
+#include "image/imgio.h"
+#include "base/log.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stdbool.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wpedantic"
+#pragma GCC diagnostic ignored "-Wstrict-prototypes"
+#include <OpenEXR/openexr.h>
+#include <png.h>
+#pragma GCC diagnostic pop
+
+/* Chunk leader of a single-part tiled file: tile x, y, level x, level y, data size. */
+#define TILE_LEADER_BYTES 20
+
+/* ---------------------------------------------------------------------------------------
+ * Error strings */
+
+static void set_err(char *err, size_t errlen, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
+static void set_err(char *err, size_t errlen, const char *fmt, ...)
+{
+    if (!err || errlen == 0)
+        return;
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(err, errlen, fmt, ap);
+    va_end(ap);
+}
+
+/* ---------------------------------------------------------------------------------------
+ * Streams: the user data of every context. Memory-backed reading serves the decode check,
+ * memory capture serves header bytes, fd-backed I/O lets us fsync and report errno. */
+
+struct imgio_stream {
+    int fd; /* >= 0: file-backed */
+    int io_errno;
+    const uint8_t *src; /* memory-backed reading */
+    size_t src_len;
+    bool capture; /* memory-backed writing: keep bytes (else discard) */
+    uint8_t *dst;
+    size_t dst_len, dst_cap;
+    char lib_msg[256]; /* first OpenEXRCore message since the last reset */
+};
+
+static void stream_init(struct imgio_stream *s)
+{
+    memset(s, 0, sizeof *s);
+    s->fd = -1;
+}
+
+static void on_exr_error(exr_const_context_t ctxt, exr_result_t code, const char *msg)
+{
+    void *ud = NULL;
+    struct imgio_stream *s = NULL;
+    if (ctxt && exr_get_user_data(ctxt, &ud) == EXR_ERR_SUCCESS)
+        s = ud;
+    if (!msg)
+        msg = exr_get_default_error_message(code);
+    /* Errors are expected while decode-checking untrusted chunks, so the caller decides
+     * whether to log; only keep a trace at debug level. */
+    log_debug("openexr: %s (%s)", msg, exr_get_error_code_as_string(code));
+    if (s && s->lib_msg[0] == '\0')
+        snprintf(s->lib_msg, sizeof s->lib_msg, "%s", msg);
+    else if (!s)
+        log_error("openexr: %s", msg);
+}
+
+static int64_t stream_read(exr_const_context_t ctxt, void *userdata, void *buffer, uint64_t sz,
+                           uint64_t offset, exr_stream_error_func_ptr_t error_cb)
+{
+    (void)ctxt;
+    (void)error_cb;
+    struct imgio_stream *s = userdata;
+    if (s->fd < 0) {
+        if (offset >= s->src_len)
+            return 0;
+        uint64_t n = s->src_len - offset;
+        if (n > sz)
+            n = sz;
+        memcpy(buffer, s->src + offset, (size_t)n);
+        return (int64_t)n;
+    }
+    uint64_t done = 0;
+    while (done < sz) {
+        ssize_t r = pread(s->fd, (uint8_t *)buffer + done, (size_t)(sz - done), (off_t)(offset + done));
+        if (r < 0 && errno == EINTR)
+            continue;
+        if (r < 0) {
+            s->io_errno = errno;
+            return -1;
+        }
+        if (r == 0)
+            break;
+        done += (uint64_t)r;
+    }
+    return (int64_t)done;
+}
+
+static int64_t stream_size(exr_const_context_t ctxt, void *userdata)
+{
+    (void)ctxt;
+    struct imgio_stream *s = userdata;
+    if (s->fd < 0)
+        return (int64_t)s->src_len;
+    struct stat st;
+    if (fstat(s->fd, &st) != 0)
+        return -1;
+    return (int64_t)st.st_size;
+}
+
+static int64_t stream_write(exr_const_context_t ctxt, void *userdata, const void *buffer, uint64_t sz,
+                            uint64_t offset, exr_stream_error_func_ptr_t error_cb)
+{
+    (void)ctxt;
+    (void)error_cb;
+    struct imgio_stream *s = userdata;
+    if (s->fd < 0) {
+        if (!s->capture)
+            return (int64_t)sz;
+        size_t end = (size_t)(offset + sz);
+        mem_grow((void **)&s->dst, &s->dst_cap, end, 1);
+        if (offset > s->dst_len)
+            memset(s->dst + s->dst_len, 0, (size_t)offset - s->dst_len);
+        memcpy(s->dst + offset, buffer, (size_t)sz);
+        if (end > s->dst_len)
+            s->dst_len = end;
+        return (int64_t)sz;
+    }
+    uint64_t done = 0;
+    while (done < sz) {
+        ssize_t r = pwrite(s->fd, (const uint8_t *)buffer + done, (size_t)(sz - done), (off_t)(offset + done));
+        if (r < 0 && errno == EINTR)
+            continue;
+        if (r <= 0) {
+            s->io_errno = r < 0 ? errno : ENOSPC;
+            return -1;
+        }
+        done += (uint64_t)r;
+    }
+    return (int64_t)done;
+}
+
+static exr_context_initializer_t stream_initializer(struct imgio_stream *s)
+{
+    exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
+    init.error_handler_fn = on_exr_error;
+    init.user_data = s;
+    init.read_fn = stream_read;
+    init.size_fn = stream_size;
+    init.write_fn = stream_write;
+    /* A missing or damaged chunk must be an error, never a silent scan of the file. */
+    init.flags = EXR_CONTEXT_FLAG_DISABLE_CHUNK_RECONSTRUCTION;
+    return init;
+}
+
+/* "what: library message" (or errno / the generic message when the library said nothing). */
+static void lib_err(char *err, size_t errlen, const struct imgio_stream *s, exr_result_t rv, const char *what)
+{
+    if (s && s->io_errno)
+        set_err(err, errlen, "%s: %s", what, strerror(s->io_errno));
+    else if (s && s->lib_msg[0])
+        set_err(err, errlen, "%s: %s", what, s->lib_msg);
+    else
+        set_err(err, errlen, "%s: %s", what, exr_get_default_error_message(rv));
+}
+
+/* ---------------------------------------------------------------------------------------
+ * Tile grid */
+
+uint32_t imgio_tiles_x(const struct image_desc *d)
+{
+    return d->tile_size ? (uint32_t)(((uint64_t)d->width + d->tile_size - 1) / d->tile_size) : 0;
+}
+
+uint32_t imgio_tiles_y(const struct image_desc *d)
+{
+    return d->tile_size ? (uint32_t)(((uint64_t)d->height + d->tile_size - 1) / d->tile_size) : 0;
+}
+
+void imgio_tile_rect(const struct image_desc *d, uint32_t tx, uint32_t ty, uint32_t *x0, uint32_t *y0,
+                     uint32_t *w, uint32_t *h)
+{
+    uint64_t x = (uint64_t)tx * d->tile_size, y = (uint64_t)ty * d->tile_size;
+    /* Out-of-grid tiles get an empty rectangle rather than wrapped arithmetic. */
+    uint64_t xe = x + d->tile_size < d->width ? x + d->tile_size : d->width;
+    uint64_t ye = y + d->tile_size < d->height ? y + d->tile_size : d->height;
+    *x0 = x < d->width ? (uint32_t)x : d->width;
+    *y0 = y < d->height ? (uint32_t)y : d->height;
+    *w = xe > x ? (uint32_t)(xe - x) : 0;
+    *h = ye > y ? (uint32_t)(ye - y) : 0;
+}
+
+/* ---------------------------------------------------------------------------------------
+ * Header definition shared by encoder, decode check and writer */
+
+static int desc_check(const struct image_desc *d, char *err, size_t errlen)
+{
+    if (!d) {
+        set_err(err, errlen, "imgio: no image description");
+        return -1;
+    }
+    /* OpenEXR boxes are int32; keep headroom so w*h*channels*4 never overflows size_t. */
+    if (d->width == 0 || d->height == 0 || d->width > (1u << 20) || d->height > (1u << 20)) {
+        set_err(err, errlen, "imgio: bad image size %ux%u", d->width, d->height);
+        return -1;
+    }
+    if (d->tile_size == 0 || d->tile_size > 4096) {
+        set_err(err, errlen, "imgio: bad tile size %u", d->tile_size);
+        return -1;
+    }
+    if (d->num_channels == 0 || d->num_channels > IMGIO_MAX_CHANNELS) {
+        set_err(err, errlen, "imgio: bad channel count %u", d->num_channels);
+        return -1;
+    }
+    if (d->compression != IMGIO_NONE && d->compression != IMGIO_ZIP && d->compression != IMGIO_PIZ) {
+        set_err(err, errlen, "imgio: bad compression %d", (int)d->compression);
+        return -1;
+    }
+    for (uint32_t c = 0; c < d->num_channels; c++) {
+        size_t n = strnlen(d->channel_names[c], sizeof d->channel_names[c]);
+        if (n == 0 || n == sizeof d->channel_names[c]) {
+            set_err(err, errlen, "imgio: channel %u has an empty or unterminated name", c);
+            return -1;
+        }
+        for (uint32_t k = 0; k < c; k++)
+            if (strcmp(d->channel_names[c], d->channel_names[k]) == 0) {
+                set_err(err, errlen, "imgio: duplicate channel name \"%s\"", d->channel_names[c]);
+                return -1;
+            }
+    }
+    return 0;
+}
+
+static exr_compression_t to_exr_compression(enum imgio_compression c)
+{
+    switch (c) {
+    case IMGIO_ZIP:
+        return EXR_COMPRESSION_ZIP;
+    case IMGIO_PIZ:
+        return EXR_COMPRESSION_PIZ;
+    case IMGIO_NONE:
+    default:
+        return EXR_COMPRESSION_NONE;
+    }
+}
+
+/* Defines the one tiled part. width/height are passed separately so the decode check can
+ * describe a one-tile image with the same tile size and channels. */
+static exr_result_t define_part(exr_context_t ctx, const struct image_desc *d, uint32_t width, uint32_t height)
+{
+    int part = -1;
+    exr_result_t rv = exr_add_part(ctx, NULL, EXR_STORAGE_TILED, &part);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_initialize_required_attr_simple(ctx, part, (int32_t)width, (int32_t)height,
+                                                 to_exr_compression(d->compression));
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_set_lineorder(ctx, part, EXR_LINEORDER_RANDOM_Y);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_set_tile_descriptor(ctx, part, d->tile_size, d->tile_size, EXR_TILE_ONE_LEVEL,
+                                     EXR_TILE_ROUND_DOWN);
+    for (uint32_t c = 0; rv == EXR_ERR_SUCCESS && c < d->num_channels; c++)
+        rv = exr_add_channel(ctx, part, d->channel_names[c], EXR_PIXEL_FLOAT, EXR_PERCEPTUALLY_LOGARITHMIC, 1, 1);
+    return rv;
+}
+
+/* Renderer channel index of a channel named by the library (channel lists are sorted). */
+static int desc_channel_index(const struct image_desc *d, const char *name)
+{
+    for (uint32_t c = 0; c < d->num_channels; c++)
+        if (name && strcmp(d->channel_names[c], name) == 0)
+            return (int)c;
+    return -1;
+}
+
+/* ---------------------------------------------------------------------------------------
+ * Encoder */
+
+struct imgio_encoder {
+    struct image_desc desc;
+    struct imgio_stream stream; /* discards everything: the context never writes a chunk */
+    exr_context_t ctx;
+};
+
+struct chunk_capture {
+    uint8_t *bytes;
+    size_t size;
+};
+
+/* Replaces the pipeline's default write: takes the same buffer and byte count that the
+ * default would pass to exr_write_tile_chunk (compressed_buffer, which the pipeline points
+ * at the packed bytes when nothing was compressed), so the master can write it unchanged. */
+static exr_result_t capture_chunk(exr_encode_pipeline_t *p)
+{
+    struct chunk_capture *cap = p->encoding_user_data;
+    if (!cap || !p->compressed_buffer || p->compressed_bytes == 0)
+        return EXR_ERR_INVALID_ARGUMENT;
+    cap->bytes = mem_alloc(p->compressed_bytes);
+    memcpy(cap->bytes, p->compressed_buffer, p->compressed_bytes);
+    cap->size = p->compressed_bytes;
+    return EXR_ERR_SUCCESS;
+}
+
+struct imgio_encoder *imgio_encoder_new(const struct image_desc *d, char *err, size_t errlen)
+{
+    if (desc_check(d, err, errlen) != 0)
+        return NULL;
+    struct imgio_encoder *e = mem_calloc(1, sizeof *e);
+    e->desc = *d;
+    stream_init(&e->stream);
+    exr_context_initializer_t init = stream_initializer(&e->stream);
+    exr_result_t rv = exr_start_write(&e->ctx, "<tile encoder>", EXR_WRITE_FILE_DIRECTLY, &init);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = define_part(e->ctx, d, d->width, d->height);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_write_header(e->ctx);
+    if (rv != EXR_ERR_SUCCESS) {
+        lib_err(err, errlen, &e->stream, rv, "imgio: cannot set up tile encoder");
+        imgio_encoder_free(&e);
+        return NULL;
+    }
+    return e;
+}
+
+int imgio_encode_tile(struct imgio_encoder *e, uint32_t tx, uint32_t ty, const float *pixels,
+                      uint8_t **chunk, size_t *chunk_size, char *err, size_t errlen)
+{
+    *chunk = NULL;
+    *chunk_size = 0;
+    if (!e) {
+        set_err(err, errlen, "imgio: encode: no encoder");
+        return -1;
+    }
+    const struct image_desc *d = &e->desc;
+    if (tx >= imgio_tiles_x(d) || ty >= imgio_tiles_y(d) || !pixels) {
+        set_err(err, errlen, "imgio: encode: tile (%u,%u) outside %ux%u grid or no pixels", tx, ty,
+                imgio_tiles_x(d), imgio_tiles_y(d));
+        return -1;
+    }
+    uint32_t x0, y0, w, h;
+    imgio_tile_rect(d, tx, ty, &x0, &y0, &w, &h);
+    e->stream.lib_msg[0] = '\0';
+
+    exr_chunk_info_t cinfo;
+    exr_encode_pipeline_t enc = EXR_ENCODE_PIPELINE_INITIALIZER;
+    struct chunk_capture cap = {NULL, 0};
+    bool pipe_ok = false;
+    exr_result_t rv = exr_write_tile_chunk_info(e->ctx, 0, (int)tx, (int)ty, 0, 0, &cinfo);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_encoding_initialize(e->ctx, 0, &cinfo, &enc);
+    if (rv == EXR_ERR_SUCCESS) {
+        pipe_ok = true;
+        if (cinfo.width != (int32_t)w || cinfo.height != (int32_t)h)
+            rv = EXR_ERR_INCORRECT_CHUNK;
+    }
+    for (int16_t i = 0; rv == EXR_ERR_SUCCESS && i < enc.channel_count; i++) {
+        exr_coding_channel_info_t *ch = &enc.channels[i];
+        int c = desc_channel_index(d, ch->channel_name);
+        if (c < 0) {
+            rv = EXR_ERR_INVALID_ARGUMENT;
+            break;
+        }
+        /* Read straight from the interleaved tile: no deinterleaving copy. */
+        ch->user_bytes_per_element = 4;
+        ch->user_data_type = EXR_PIXEL_FLOAT;
+        ch->user_pixel_stride = (int32_t)(d->num_channels * sizeof(float));
+        ch->user_line_stride = (int32_t)((size_t)w * d->num_channels * sizeof(float));
+        ch->encode_from_ptr = (const uint8_t *)(pixels + c);
+    }
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_encoding_choose_default_routines(e->ctx, 0, &enc);
+    if (rv == EXR_ERR_SUCCESS) {
+        enc.encoding_user_data = &cap;
+        enc.write_fn = capture_chunk;
+        /* The default yield checks write ordering of a real file; nothing is written here. */
+        enc.yield_until_ready_fn = NULL;
+        rv = exr_encoding_run(e->ctx, 0, &enc);
+    }
+    if (pipe_ok)
+        exr_encoding_destroy(e->ctx, &enc);
+    if (rv != EXR_ERR_SUCCESS || !cap.bytes) {
+        free(cap.bytes);
+        char what[96];
+        snprintf(what, sizeof what, "imgio: encode tile (%u,%u)", tx, ty);
+        lib_err(err, errlen, &e->stream, rv != EXR_ERR_SUCCESS ? rv : EXR_ERR_UNKNOWN, what);
+        return -1;
+    }
+    *chunk = cap.bytes;
+    *chunk_size = cap.size;
+    return 0;
+}
+
+void imgio_encoder_free(struct imgio_encoder **e)
+{
+    if (!e || !*e)
+        return;
+    if ((*e)->ctx)
+        exr_finish(&(*e)->ctx); /* its offset table goes to the discarding stream */
+    free(*e);
+    *e = NULL;
+}
+
+/* ---------------------------------------------------------------------------------------
+ * Decode check. The chunk's bytes depend only on the tile's clipped size, the channels and
+ * the compression, not on where the tile sits. So the check builds, in memory, a complete
+ * one-tile file (w x h image, same tile size and channels): header bytes captured from a
+ * write context, a one-entry offset table, the chunk leader for tile (0,0) and the chunk.
+ * That is O(1) per call whatever the image size, and it runs the library's own reader with
+ * its bounds checks over bytes we fully control. */
+
+/* Captures the header of a one-tile image; returns 0 or -1. *hdr is mem_alloc'd. */
+static int capture_tile_header(const struct image_desc *d, uint32_t w, uint32_t h, uint8_t **hdr, size_t *hdr_len,
+                               char *err, size_t errlen)
+{
+    struct imgio_stream s;
+    stream_init(&s);
+    s.capture = true;
+    exr_context_initializer_t init = stream_initializer(&s);
+    exr_context_t ctx = NULL;
+    exr_result_t rv = exr_start_write(&ctx, "<decode check>", EXR_WRITE_FILE_DIRECTLY, &init);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = define_part(ctx, d, w, h);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_write_header(ctx);
+    s.capture = false; /* the offset table written at finish is ours to build */
+    if (rv != EXR_ERR_SUCCESS)
+        lib_err(err, errlen, &s, rv, "imgio: decode check: cannot build header");
+    if (ctx)
+        exr_finish(&ctx);
+    if (rv != EXR_ERR_SUCCESS) {
+        free(s.dst);
+        return -1;
+    }
+    *hdr = s.dst;
+    *hdr_len = s.dst_len;
+    return 0;
+}
+
+static void put_le32(uint8_t *p, uint32_t v)
+{
+    for (int i = 0; i < 4; i++)
+        p[i] = (uint8_t)(v >> (8 * i));
+}
+
+static void put_le64(uint8_t *p, uint64_t v)
+{
+    for (int i = 0; i < 8; i++)
+        p[i] = (uint8_t)(v >> (8 * i));
+}
+
+/* Decodes chunk k of an open read context into interleaved floats for the requested
+ * channels (want[i] names output channel i; NULL-terminated list of nc names). The
+ * rectangle (ox, oy, w, h) in the output image of stride out_w receives the chunk. */
+struct decode_target {
+    float *pixels;
+    size_t out_w;        /* pixels per output row */
+    uint32_t nc;         /* output channels, interleaved */
+    const char *const *names;
+};
+
+static exr_result_t decode_chunk(exr_context_t ctx, const exr_chunk_info_t *cinfo, const struct decode_target *t,
+                                 size_t ox, size_t oy)
+{
+    exr_decode_pipeline_t dec = EXR_DECODE_PIPELINE_INITIALIZER;
+    exr_result_t rv = exr_decoding_initialize(ctx, 0, cinfo, &dec);
+    if (rv != EXR_ERR_SUCCESS)
+        return rv;
+    int used = 0;
+    for (int16_t i = 0; i < dec.channel_count; i++) {
+        exr_coding_channel_info_t *ch = &dec.channels[i];
+        ch->decode_to_ptr = NULL; /* channels nobody asked for are skipped */
+        for (uint32_t c = 0; c < t->nc; c++) {
+            if (!ch->channel_name || strcmp(ch->channel_name, t->names[c]) != 0)
+                continue;
+            ch->user_bytes_per_element = 4;
+            ch->user_data_type = EXR_PIXEL_FLOAT;
+            ch->user_pixel_stride = (int32_t)(t->nc * sizeof(float));
+            ch->user_line_stride = (int32_t)(t->out_w * t->nc * sizeof(float));
+            ch->decode_to_ptr = (uint8_t *)(t->pixels + (oy * t->out_w + ox) * t->nc + c);
+            used++;
+        }
+    }
+    if (used == 0) {
+        exr_decoding_destroy(ctx, &dec);
+        return EXR_ERR_INVALID_ARGUMENT;
+    }
+    rv = exr_decoding_choose_default_routines(ctx, 0, &dec);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_decoding_run(ctx, 0, &dec);
+    exr_decoding_destroy(ctx, &dec);
+    return rv;
+}
+
+int imgio_decode_tile(const struct image_desc *d, uint32_t tx, uint32_t ty, const uint8_t *chunk,
+                      size_t chunk_size, float *pixels, char *err, size_t errlen)
+{
+    if (desc_check(d, err, errlen) != 0)
+        return -1;
+    if (tx >= imgio_tiles_x(d) || ty >= imgio_tiles_y(d)) {
+        set_err(err, errlen, "imgio: decode: tile (%u,%u) outside %ux%u grid", tx, ty, imgio_tiles_x(d),
+                imgio_tiles_y(d));
+        return -1;
+    }
+    if (!pixels) {
+        set_err(err, errlen, "imgio: decode: no output buffer");
+        return -1;
+    }
+    uint32_t x0, y0, w, h;
+    imgio_tile_rect(d, tx, ty, &x0, &y0, &w, &h);
+    size_t raw = (size_t)w * h * d->num_channels * sizeof(float);
+    /* A chunk never exceeds its raw size (OpenEXR stores raw bytes when compression would
+     * grow them), and uncompressed chunks are exactly that size. */
+    if (!chunk || chunk_size == 0 || chunk_size > raw || (d->compression == IMGIO_NONE && chunk_size != raw)) {
+        set_err(err, errlen, "imgio: decode tile (%u,%u): chunk of %zu bytes, expected %s%zu", tx, ty,
+                chunk ? chunk_size : 0, d->compression == IMGIO_NONE ? "" : "1 to ", raw);
+        return -1;
+    }
+
+    uint8_t *file = NULL;
+    size_t hdr_len = 0;
+    if (capture_tile_header(d, w, h, &file, &hdr_len, err, errlen) != 0)
+        return -1;
+    size_t file_len = hdr_len + 8 + TILE_LEADER_BYTES + chunk_size;
+    file = mem_realloc(file, file_len);
+    uint8_t *p = file + hdr_len;
+    put_le64(p, hdr_len + 8);
+    p += 8;
+    put_le32(p, 0);  /* tile x */
+    put_le32(p + 4, 0);  /* tile y */
+    put_le32(p + 8, 0);  /* level x */
+    put_le32(p + 12, 0); /* level y */
+    put_le32(p + 16, (uint32_t)chunk_size);
+    memcpy(p + TILE_LEADER_BYTES, chunk, chunk_size);
+
+    struct imgio_stream s;
+    stream_init(&s);
+    s.src = file;
+    s.src_len = file_len;
+    exr_context_initializer_t init = stream_initializer(&s);
+    exr_context_t ctx = NULL;
+    exr_chunk_info_t cinfo;
+    exr_result_t rv = exr_start_read(&ctx, "<decode check>", &init);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_read_tile_chunk_info(ctx, 0, 0, 0, 0, 0, &cinfo);
+    if (rv == EXR_ERR_SUCCESS && (cinfo.width != (int32_t)w || cinfo.height != (int32_t)h ||
+                                  cinfo.packed_size != chunk_size || cinfo.unpacked_size != raw))
+        rv = EXR_ERR_CORRUPT_CHUNK;
+    if (rv == EXR_ERR_SUCCESS) {
+        const char *names[IMGIO_MAX_CHANNELS];
+        for (uint32_t c = 0; c < d->num_channels; c++)
+            names[c] = d->channel_names[c];
+        struct decode_target t = {pixels, w, d->num_channels, names};
+        rv = decode_chunk(ctx, &cinfo, &t, 0, 0);
+    }
+    if (rv != EXR_ERR_SUCCESS) {
+        char what[96];
+        snprintf(what, sizeof what, "imgio: decode tile (%u,%u) of %zu bytes", tx, ty, chunk_size);
+        lib_err(err, errlen, &s, rv, what);
+    }
+    if (ctx)
+        exr_finish(&ctx);
+    free(file);
+    return rv == EXR_ERR_SUCCESS ? 0 : -1;
+}
+
+/* ---------------------------------------------------------------------------------------
+ * Writer */
+
+struct imgio_writer {
+    struct image_desc desc;
+    struct imgio_stream stream; /* our fd, so close can fsync it */
+    exr_context_t ctx;
+    char *path;
+    bool unlink_on_failure; /* only a regular file we opened, never e.g. a device node */
+    /* OpenEXRCore counts chunk writes and stops accepting any once it has seen as many
+     * as the file has tiles, so a duplicate would lock out a missing tile: track them. */
+    uint8_t *written;
+    uint32_t num_written, num_tiles;
+};
+
+static void writer_discard(struct imgio_writer *w)
+{
+    if (w->ctx)
+        exr_finish(&w->ctx);
+    if (w->stream.fd >= 0) {
+        close(w->stream.fd);
+        /* A half-written file is useless; the caller renames only on success. */
+        if (w->unlink_on_failure)
+            unlink(w->path);
+    }
+    free(w->written);
+    free(w->path);
+    free(w);
+}
+
+struct imgio_writer *imgio_writer_open(const char *path, const struct image_desc *d,
+                                       const struct image_attrs *a, char *err, size_t errlen)
+{
+    if (desc_check(d, err, errlen) != 0)
+        return NULL;
+    if (!path || !a) {
+        set_err(err, errlen, "imgio: writer needs a path and attributes");
+        return NULL;
+    }
+    if (a->spp > INT32_MAX) {
+        set_err(err, errlen, "%s: spp %u does not fit the int attribute", path, a->spp);
+        return NULL;
+    }
+    struct imgio_writer *w = mem_calloc(1, sizeof *w);
+    w->desc = *d;
+    w->path = mem_strdup(path);
+    w->num_tiles = imgio_tiles_x(d) * imgio_tiles_y(d);
+    w->written = mem_calloc(w->num_tiles, 1);
+    stream_init(&w->stream);
+    w->stream.fd = open(path, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+    if (w->stream.fd < 0) {
+        set_err(err, errlen, "%s: cannot create: %s", path, strerror(errno));
+        writer_discard(w);
+        return NULL;
+    }
+    struct stat st;
+    w->unlink_on_failure = fstat(w->stream.fd, &st) == 0 && S_ISREG(st.st_mode);
+    exr_context_initializer_t init = stream_initializer(&w->stream);
+    exr_result_t rv = exr_start_write(&w->ctx, path, EXR_WRITE_FILE_DIRECTLY, &init);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = define_part(w->ctx, d, d->width, d->height);
+    char seed[24], hash[sizeof a->scene_hash], sw[sizeof a->software];
+    snprintf(seed, sizeof seed, "%llu", (unsigned long long)a->seed);
+    snprintf(hash, sizeof hash, "%s", a->scene_hash); /* terminate even if the caller did not */
+    snprintf(sw, sizeof sw, "%s", a->software);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_attr_set_int(w->ctx, 0, "brume_spp", (int32_t)a->spp);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_attr_set_string(w->ctx, 0, "brume_seed", seed);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_attr_set_double(w->ctx, 0, "brume_render_seconds", a->render_seconds);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_attr_set_string(w->ctx, 0, "brume_scene_hash", hash);
+    if (rv == EXR_ERR_SUCCESS && sw[0])
+        rv = exr_attr_set_string(w->ctx, 0, "software", sw);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_write_header(w->ctx);
+    if (rv != EXR_ERR_SUCCESS) {
+        char what[300];
+        snprintf(what, sizeof what, "%s: cannot write EXR header", path);
+        lib_err(err, errlen, &w->stream, rv, what);
+        writer_discard(w);
+        return NULL;
+    }
+    return w;
+}
+
+int imgio_writer_put_tile(struct imgio_writer *w, uint32_t tx, uint32_t ty, const uint8_t *chunk,
+                          size_t chunk_size, char *err, size_t errlen)
+{
+    if (!w) {
+        set_err(err, errlen, "imgio: put tile: no writer");
+        return -1;
+    }
+    const struct image_desc *d = &w->desc;
+    if (tx >= imgio_tiles_x(d) || ty >= imgio_tiles_y(d)) {
+        set_err(err, errlen, "%s: tile (%u,%u) outside %ux%u grid", w->path, tx, ty, imgio_tiles_x(d),
+                imgio_tiles_y(d));
+        return -1;
+    }
+    uint32_t x0, y0, tw, th;
+    imgio_tile_rect(d, tx, ty, &x0, &y0, &tw, &th);
+    size_t raw = (size_t)tw * th * d->num_channels * sizeof(float);
+    if (!chunk || chunk_size == 0 || chunk_size > raw) {
+        set_err(err, errlen, "%s: tile (%u,%u): chunk of %zu bytes, at most %zu allowed", w->path, tx, ty,
+                chunk ? chunk_size : 0, raw);
+        return -1;
+    }
+    /* Re-issued tiles are bit-identical (deterministic rendering), so the first one wins. */
+    size_t k = (size_t)ty * imgio_tiles_x(d) + tx;
+    if (w->written[k]) {
+        log_debug("%s: tile (%u,%u) already written; duplicate skipped", w->path, tx, ty);
+        return 0;
+    }
+    w->stream.lib_msg[0] = '\0';
+    exr_result_t rv = exr_write_tile_chunk(w->ctx, 0, (int)tx, (int)ty, 0, 0, chunk, chunk_size);
+    if (rv != EXR_ERR_SUCCESS) {
+        char what[300];
+        snprintf(what, sizeof what, "%s: cannot write tile (%u,%u)", w->path, tx, ty);
+        lib_err(err, errlen, &w->stream, rv, what);
+        return -1;
+    }
+    w->written[k] = 1;
+    w->num_written++;
+    return 0;
+}
+
+int imgio_writer_close(struct imgio_writer **wp, char *err, size_t errlen)
+{
+    if (!wp || !*wp)
+        return 0;
+    struct imgio_writer *w = *wp;
+    *wp = NULL;
+    if (w->num_written != w->num_tiles) {
+        /* The offset table would point at nothing: never leave such a file behind. */
+        set_err(err, errlen, "%s: %u of %u tiles missing", w->path, w->num_tiles - w->num_written, w->num_tiles);
+        writer_discard(w);
+        return -1;
+    }
+    w->stream.lib_msg[0] = '\0';
+    exr_result_t rv = exr_finish(&w->ctx); /* writes the offset table through our stream */
+    w->ctx = NULL;
+    if (rv != EXR_ERR_SUCCESS || w->stream.io_errno) {
+        char what[300];
+        snprintf(what, sizeof what, "%s: cannot finish EXR", w->path);
+        lib_err(err, errlen, &w->stream, rv != EXR_ERR_SUCCESS ? rv : EXR_ERR_WRITE_IO, what);
+        writer_discard(w);
+        return -1;
+    }
+    /* Durable before the caller renames it into place. */
+    if (fsync(w->stream.fd) != 0) {
+        set_err(err, errlen, "%s: fsync: %s", w->path, strerror(errno));
+        writer_discard(w);
+        return -1;
+    }
+    int fd = w->stream.fd;
+    w->stream.fd = -1;
+    if (close(fd) != 0) {
+        set_err(err, errlen, "%s: close: %s", w->path, strerror(errno));
+        if (w->unlink_on_failure)
+            unlink(w->path);
+        writer_discard(w);
+        return -1;
+    }
+    writer_discard(w);
+    return 0;
+}
+
+/* ---------------------------------------------------------------------------------------
+ * Reading any EXR */
+
+static int read_stream(struct imgio_stream *sp, const char *path, const char *const *channels,
+                       uint32_t num_channels, float **pixels, uint32_t *width, uint32_t *height, char *err,
+                       size_t errlen);
+
+int imgio_read(const char *path, const char *const *channels, uint32_t num_channels, float **pixels,
+               uint32_t *width, uint32_t *height, char *err, size_t errlen)
+{
+    *pixels = NULL;
+    *width = *height = 0;
+    if (!path || !channels || num_channels == 0) {
+        set_err(err, errlen, "imgio: read: no path or no channels requested");
+        return -1;
+    }
+    struct imgio_stream s;
+    stream_init(&s);
+    s.fd = open(path, O_RDONLY | O_CLOEXEC);
+    if (s.fd < 0) {
+        set_err(err, errlen, "%s: cannot open: %s", path, strerror(errno));
+        return -1;
+    }
+    int rc = read_stream(&s, path, channels, num_channels, pixels, width, height, err, errlen);
+    close(s.fd);
+    return rc;
+}
+
+int imgio_read_memory(const char *name, const uint8_t *data, size_t size, const char *const *channels,
+                      uint32_t num_channels, float **pixels, uint32_t *width, uint32_t *height, char *err,
+                      size_t errlen)
+{
+    *pixels = NULL;
+    *width = *height = 0;
+    if (!name || !channels || num_channels == 0) {
+        set_err(err, errlen, "imgio: read: no name or no channels requested");
+        return -1;
+    }
+    struct imgio_stream s;
+    stream_init(&s);
+    s.src = data;
+    s.src_len = size;
+    return read_stream(&s, name, channels, num_channels, pixels, width, height, err, errlen);
+}
+
+static int read_stream(struct imgio_stream *sp, const char *path, const char *const *channels,
+                       uint32_t num_channels, float **pixels, uint32_t *width, uint32_t *height, char *err,
+                       size_t errlen)
+{
+    exr_context_initializer_t init = stream_initializer(sp);
+    exr_context_t ctx = NULL;
+    float *out = NULL;
+    char what[300];
+    snprintf(what, sizeof what, "%s: cannot read EXR", path);
+    int ok = 0;
+
+    exr_result_t rv = exr_start_read(&ctx, path, &init);
+    exr_storage_t storage = EXR_STORAGE_LAST_TYPE;
+    exr_attr_box2i_t dw;
+    memset(&dw, 0, sizeof dw);
+    const exr_attr_chlist_t *chl = NULL;
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_get_storage(ctx, 0, &storage);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_get_data_window(ctx, 0, &dw);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_get_channels(ctx, 0, &chl);
+    if (rv != EXR_ERR_SUCCESS) {
+        lib_err(err, errlen, sp, rv, what);
+        goto done;
+    }
+    if (storage != EXR_STORAGE_SCANLINE && storage != EXR_STORAGE_TILED) {
+        set_err(err, errlen, "%s: deep images are not supported", path);
+        goto done;
+    }
+    int64_t iw = (int64_t)dw.max.x - dw.min.x + 1, ih = (int64_t)dw.max.y - dw.min.y + 1;
+    if (iw <= 0 || ih <= 0 || iw > (1 << 20) || ih > (1 << 20) ||
+        (uint64_t)iw * (uint64_t)ih * num_channels > ((uint64_t)1 << 32)) {
+        set_err(err, errlen, "%s: unsupported data window %lldx%lld", path, (long long)iw, (long long)ih);
+        goto done;
+    }
+    for (uint32_t c = 0; c < num_channels; c++) {
+        /* One library channel decodes into one place, so a repeat would stay zero. */
+        for (uint32_t k = 0; k < c; k++)
+            if (channels[c] && channels[k] && strcmp(channels[c], channels[k]) == 0) {
+                set_err(err, errlen, "%s: channel \"%s\" requested twice", path, channels[c]);
+                goto done;
+            }
+        const exr_attr_chlist_entry_t *found = NULL;
+        for (int i = 0; i < chl->num_channels; i++)
+            if (channels[c] && chl->entries[i].name.str && strcmp(chl->entries[i].name.str, channels[c]) == 0)
+                found = &chl->entries[i];
+        if (!found) {
+            set_err(err, errlen, "%s: no channel \"%s\"", path, channels[c] ? channels[c] : "(null)");
+            goto done;
+        }
+        if (found->pixel_type != EXR_PIXEL_HALF && found->pixel_type != EXR_PIXEL_FLOAT) {
+            set_err(err, errlen, "%s: channel \"%s\" is not HALF or FLOAT", path, channels[c]);
+            goto done;
+        }
+        if (found->x_sampling != 1 || found->y_sampling != 1) {
+            set_err(err, errlen, "%s: channel \"%s\" is subsampled", path, channels[c]);
+            goto done;
+        }
+    }
+    out = mem_calloc((size_t)iw * (size_t)ih * num_channels, sizeof(float));
+    struct decode_target t = {out, (size_t)iw, num_channels, channels};
+    exr_chunk_info_t cinfo;
+    if (storage == EXR_STORAGE_SCANLINE) {
+        int32_t lines = 0;
+        rv = exr_get_scanlines_per_chunk(ctx, 0, &lines);
+        if (rv == EXR_ERR_SUCCESS && lines <= 0)
+            rv = EXR_ERR_FILE_BAD_HEADER;
+        for (int64_t y = dw.min.y; rv == EXR_ERR_SUCCESS && y <= dw.max.y; y += lines) {
+            rv = exr_read_scanline_chunk_info(ctx, 0, (int)y, &cinfo);
+            if (rv != EXR_ERR_SUCCESS)
+                break;
+            int64_t cy = (int64_t)cinfo.start_y - dw.min.y;
+            if (cy < 0 || cinfo.height <= 0 || cy + cinfo.height > ih || cinfo.width != iw) {
+                rv = EXR_ERR_CORRUPT_CHUNK;
+                break;
+            }
+            rv = decode_chunk(ctx, &cinfo, &t, 0, (size_t)cy);
+        }
+    } else {
+        int32_t tw = 0, th = 0, lw = 0, lh = 0, cx = 0, cy = 0;
+        rv = exr_get_tile_sizes(ctx, 0, 0, 0, &tw, &th);
+        if (rv == EXR_ERR_SUCCESS)
+            rv = exr_get_level_sizes(ctx, 0, 0, 0, &lw, &lh);
+        if (rv == EXR_ERR_SUCCESS && (tw <= 0 || th <= 0 || lw != iw || lh != ih))
+            rv = EXR_ERR_FILE_BAD_HEADER;
+        if (rv == EXR_ERR_SUCCESS) {
+            cx = (int32_t)((lw + (int64_t)tw - 1) / tw);
+            cy = (int32_t)((lh + (int64_t)th - 1) / th);
+        }
+        for (int32_t ty = 0; rv == EXR_ERR_SUCCESS && ty < cy; ty++)
+            for (int32_t tx = 0; rv == EXR_ERR_SUCCESS && tx < cx; tx++) {
+                rv = exr_read_tile_chunk_info(ctx, 0, tx, ty, 0, 0, &cinfo);
+                if (rv != EXR_ERR_SUCCESS)
+                    break;
+                int64_t px = (int64_t)tx * tw, py = (int64_t)ty * th;
+                if (cinfo.width <= 0 || cinfo.height <= 0 || px + cinfo.width > iw || py + cinfo.height > ih) {
+                    rv = EXR_ERR_CORRUPT_CHUNK;
+                    break;
+                }
+                rv = decode_chunk(ctx, &cinfo, &t, (size_t)px, (size_t)py);
+            }
+    }
+    if (rv != EXR_ERR_SUCCESS) {
+        lib_err(err, errlen, sp, rv, what);
+        goto done;
+    }
+    *pixels = out;
+    out = NULL;
+    *width = (uint32_t)iw;
+    *height = (uint32_t)ih;
+    ok = 1;
+done:
+    free(out);
+    if (ctx)
+        exr_finish(&ctx);
+    return ok ? 0 : -1;
+}
+
+int imgio_read_attrs(const char *path, struct image_desc *d, struct image_attrs *a, char *err, size_t errlen)
+{
+    memset(d, 0, sizeof *d);
+    memset(a, 0, sizeof *a);
+    struct imgio_stream s;
+    stream_init(&s);
+    s.fd = open(path, O_RDONLY | O_CLOEXEC);
+    if (s.fd < 0) {
+        set_err(err, errlen, "%s: cannot open: %s", path, strerror(errno));
+        return -1;
+    }
+    exr_context_initializer_t init = stream_initializer(&s);
+    exr_context_t ctx = NULL;
+    char what[300];
+    snprintf(what, sizeof what, "%s: cannot read the EXR header", path);
+    exr_attr_box2i_t dw;
+    memset(&dw, 0, sizeof dw);
+    exr_storage_t storage = EXR_STORAGE_LAST_TYPE;
+    uint32_t tx = 0, ty = 0;
+    int32_t spp = 0, seed_len = 0, hash_len = 0;
+    const char *seed = NULL, *hash = NULL;
+    exr_result_t rv = exr_start_read(&ctx, path, &init);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_get_data_window(ctx, 0, &dw);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_get_storage(ctx, 0, &storage);
+    if (rv == EXR_ERR_SUCCESS && storage == EXR_STORAGE_TILED)
+        rv = exr_get_tile_descriptor(ctx, 0, &tx, &ty, NULL, NULL);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_attr_get_int(ctx, 0, "brume_spp", &spp);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_attr_get_string(ctx, 0, "brume_seed", &seed_len, &seed);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_attr_get_string(ctx, 0, "brume_scene_hash", &hash_len, &hash);
+    int ok = 0;
+    if (rv != EXR_ERR_SUCCESS) {
+        lib_err(err, errlen, &s, rv, what);
+    } else if (dw.max.x < dw.min.x || dw.max.y < dw.min.y || spp < 0 || seed_len <= 0 || seed_len > 20 ||
+               hash_len <= 0 || (size_t)hash_len >= sizeof a->scene_hash) {
+        set_err(err, errlen, "%s: not a header this renderer wrote", path);
+    } else {
+        char seed_s[24];
+        memcpy(seed_s, seed, (size_t)seed_len);
+        seed_s[seed_len] = '\0';
+        char *end;
+        errno = 0;
+        a->seed = strtoull(seed_s, &end, 10);
+        if (errno != 0 || *end != '\0') {
+            set_err(err, errlen, "%s: brume_seed \"%s\" is not a number", path, seed_s);
+        } else {
+            memcpy(a->scene_hash, hash, (size_t)hash_len);
+            a->scene_hash[hash_len] = '\0';
+            a->spp = (uint32_t)spp;
+            d->width = (uint32_t)((int64_t)dw.max.x - dw.min.x + 1);
+            d->height = (uint32_t)((int64_t)dw.max.y - dw.min.y + 1);
+            d->tile_size = tx == ty ? tx : 0;
+            ok = 1;
+        }
+    }
+    if (ctx)
+        exr_finish(&ctx);
+    close(s.fd);
+    return ok ? 0 : -1;
+}
+
+/* ---------------------------------------------------------------------------------------
+ * PNG preview */
+
+struct png_failure {
+    char msg[200];
+};
+
+static void on_png_error(png_structp png, png_const_charp msg)
+{
+    struct png_failure *f = png_get_error_ptr(png);
+    if (f)
+        snprintf(f->msg, sizeof f->msg, "%s", msg ? msg : "libpng error");
+    png_longjmp(png, 1);
+}
+
+static void on_png_warning(png_structp png, png_const_charp msg)
+{
+    (void)png;
+    log_debug("libpng: %s", msg ? msg : "");
+}
+
+static uint8_t srgb_byte(float v, float exposure)
+{
+    float x = v * exposure;
+    if (!(x > 0.0f)) /* also catches NaN */
+        return 0;
+    if (x >= 1.0f)
+        return 255;
+    double s = x <= 0.0031308f ? 12.92 * x : 1.055 * pow(x, 1.0 / 2.4) - 0.055;
+    long b = lround(s * 255.0);
+    return (uint8_t)(b < 0 ? 0 : b > 255 ? 255 : b);
+}
+
+int imgio_write_png(const char *path, const float *pixels, uint32_t width, uint32_t height,
+                    uint32_t stride, float exposure, char *err, size_t errlen)
+{
+    if (!path || !pixels || width == 0 || height == 0 || stride < 3 || width > (1u << 20) ||
+        height > (1u << 20)) {
+        set_err(err, errlen, "%s: bad PNG request (%ux%u, stride %u)", path ? path : "(null)", width, height,
+                stride);
+        return -1;
+    }
+    size_t plen = strlen(path);
+    char *tmp = mem_alloc(plen + 5);
+    memcpy(tmp, path, plen);
+    memcpy(tmp + plen, ".tmp", 5);
+    FILE *fp = fopen(tmp, "wb");
+    if (!fp) {
+        set_err(err, errlen, "%s: cannot create: %s", tmp, strerror(errno));
+        free(tmp);
+        return -1;
+    }
+    struct stat st;
+    bool tmp_is_file = fstat(fileno(fp), &st) == 0 && S_ISREG(st.st_mode);
+    /* Everything setjmp's error path touches is set before setjmp and never changed after,
+     * so none of it needs to be volatile. */
+    uint8_t *row = mem_alloc((size_t)width * 3);
+    struct png_failure fail = {""};
+    png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &fail, on_png_error, on_png_warning);
+    png_infop info = png ? png_create_info_struct(png) : NULL;
+    if (!png || !info) {
+        set_err(err, errlen, "%s: cannot initialise libpng", path);
+        png_destroy_write_struct(png ? &png : NULL, NULL);
+        goto fail_file;
+    }
+    if (setjmp(png_jmpbuf(png))) {
+        set_err(err, errlen, "%s: PNG write failed: %s", path, fail.msg);
+        png_destroy_write_struct(&png, &info);
+        goto fail_file;
+    }
+    png_init_io(png, fp);
+    png_set_IHDR(png, info, width, height, 8, PNG_COLOR_TYPE_RGB, PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT,
+                 PNG_FILTER_TYPE_DEFAULT);
+    png_set_sRGB_gAMA_and_cHRM(png, info, PNG_sRGB_INTENT_PERCEPTUAL);
+    png_write_info(png, info);
+    for (uint32_t y = 0; y < height; y++) {
+        const float *src = pixels + (size_t)y * width * stride;
+        for (uint32_t x = 0; x < width; x++)
+            for (int c = 0; c < 3; c++)
+                row[(size_t)x * 3 + (size_t)c] = srgb_byte(src[(size_t)x * stride + (size_t)c], exposure);
+        png_write_row(png, row);
+    }
+    png_write_end(png, info);
+    png_destroy_write_struct(&png, &info);
+    if (fflush(fp) != 0 || fsync(fileno(fp)) != 0) {
+        set_err(err, errlen, "%s: cannot write: %s", tmp, strerror(errno));
+        goto fail_file;
+    }
+    if (fclose(fp) != 0) {
+        fp = NULL;
+        set_err(err, errlen, "%s: cannot close: %s", tmp, strerror(errno));
+        goto fail_file;
+    }
+    fp = NULL;
+    if (rename(tmp, path) != 0) {
+        set_err(err, errlen, "%s: cannot rename from %s: %s", path, tmp, strerror(errno));
+        goto fail_file;
+    }
+    free(row);
+    free(tmp);
+    return 0;
+
+fail_file:
+    if (fp)
+        fclose(fp);
+    if (tmp_is_file)
+        unlink(tmp);
+    free(row);
+    free(tmp);
+    return -1;
+}

@@ -1,0 +1,315 @@
+/* Embree 3 scene building and ray queries (see accel.h). Embree errors go into the
+ * project log through the device error callback. Scenes are built with high quality: the
+ * BVH is built once per frame and traced by millions of rays. Motion is resampled into
+ * uniform Embree time steps over the shutter (motion.c); still geometry never gets any,
+ * because time steps cost Embree throughput on every ray. */
+#include "render/accel.h"
+#include "base/log.h"
+#include "scene/motion.h"
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static void accel_on_error(void *user, enum RTCError code, const char *str)
+{
+    (void)user;
+    log_error("embree: error %d: %s", (int)code, str ? str : "(no message)");
+}
+
+/* A triangle geometry for mesh m: its own positions, or num_steps vertex sets in steps. */
+static RTCGeometry new_triangles(struct accel *a, const struct mesh *m, const float *steps, uint32_t num_steps)
+{
+    RTCGeometry g = rtcNewGeometry(a->device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    unsigned *ib = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned),
+                                           m->num_triangles);
+    if (!ib) {
+        rtcReleaseGeometry(g);
+        return NULL;
+    }
+    memcpy(ib, m->indices, 3 * sizeof(unsigned) * m->num_triangles);
+    if (!steps) {
+        /* Embree allocates padded buffers itself (it may read 16 bytes past the last vertex). */
+        float *vb = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),
+                                            m->num_vertices);
+        if (!vb) {
+            rtcReleaseGeometry(g);
+            return NULL;
+        }
+        memcpy(vb, m->positions, 3 * sizeof(float) * m->num_vertices);
+    } else {
+        size_t nf = 3 * (size_t)m->num_vertices;
+        if (num_steps > 1)
+            rtcSetGeometryTimeStepCount(g, num_steps);
+        for (uint32_t k = 0; k < num_steps; k++)
+            rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, k, RTC_FORMAT_FLOAT3, steps,
+                                       k * nf * sizeof(float), 3 * sizeof(float), m->num_vertices);
+    }
+    rtcCommitGeometry(g);
+    return g;
+}
+
+/* A child scene holding g (released here), instanced with the keys over [t0, t1]. */
+static void add_instance(struct accel *a, struct accel_motion *mo, RTCGeometry g, const struct motion_key *keys,
+                         uint32_t num_keys, double t0, double t1)
+{
+    mo->child = rtcNewScene(a->device);
+    rtcSetSceneBuildQuality(mo->child, RTC_BUILD_QUALITY_HIGH);
+    rtcAttachGeometry(mo->child, g);
+    rtcReleaseGeometry(g);
+    rtcCommitScene(mo->child);
+    RTCGeometry inst = rtcNewGeometry(a->device, RTC_GEOMETRY_TYPE_INSTANCE);
+    rtcSetGeometryInstancedScene(inst, mo->child);
+    int still = motion_keys_still(keys, num_keys, t0, t1);
+    uint32_t steps = still ? 1 : motion_step_count(&keys[0].time, sizeof *keys, num_keys, t0, t1);
+    if (steps > 1) {
+        rtcSetGeometryTimeStepCount(inst, steps);
+        a->has_motion = 1;
+    }
+    for (uint32_t k = 0; k < steps; k++) {
+        struct motion_key key;
+        motion_key_at(keys, num_keys, steps > 1 ? t0 + (t1 - t0) * k / (steps - 1) : t0, &key);
+        struct RTCQuaternionDecomposition qd;
+        rtcInitQuaternionDecomposition(&qd);
+        rtcQuaternionDecompositionSetScale(&qd, key.scale.x, key.scale.y, key.scale.z);
+        rtcQuaternionDecompositionSetQuaternion(&qd, key.quat[0], key.quat[1], key.quat[2], key.quat[3]);
+        rtcQuaternionDecompositionSetTranslation(&qd, key.translate.x, key.translate.y, key.translate.z);
+        rtcSetGeometryTransformQuaternion(inst, k, &qd);
+    }
+    rtcCommitGeometry(inst);
+    mo->instance = inst; /* our reference, for transforms at hit time */
+}
+
+static unsigned attach_top(struct accel *a, RTCGeometry g, uint32_t mesh, uint32_t sphere)
+{
+    unsigned id = rtcAttachGeometry(a->scene, g);
+    CHECK(id == a->num_top);
+    a->top_mesh[id] = mesh;
+    a->top_sphere[id] = sphere;
+    a->num_top++;
+    return id;
+}
+
+static int build_meshes(struct accel *a, const struct scene *s, double t0, double t1, char *err, size_t errlen)
+{
+    for (uint32_t i = 0; i < s->num_meshes; i++) {
+        const struct mesh *m = &s->meshes[i];
+        struct accel_motion *mo = a->mesh_motion ? &a->mesh_motion[i] : NULL;
+        const float *steps = NULL;
+        uint32_t num_steps = 0;
+        if (m->num_frames >= 2) {
+            size_t nf = 3 * (size_t)m->num_vertices;
+            num_steps = motion_frames_still(m, t0, t1)
+                            ? 1
+                            : motion_step_count(m->frame_times, sizeof(float), m->num_frames, t0, t1);
+            mo->steps = mem_alloc(sizeof(float) * (nf * num_steps + 4)); /* Embree reads 16 bytes past */
+            memset(mo->steps + nf * num_steps, 0, 4 * sizeof(float));
+            for (uint32_t k = 0; k < num_steps; k++)
+                motion_frames_at(m, num_steps > 1 ? t0 + (t1 - t0) * k / (num_steps - 1) : t0, mo->steps + k * nf);
+            mo->num_steps = num_steps;
+            steps = mo->steps;
+            a->has_motion |= num_steps > 1;
+        }
+        RTCGeometry g = new_triangles(a, m, steps, num_steps);
+        if (!g) {
+            str_fmt(err, errlen, "embree: cannot allocate buffers for mesh \"%s\"", m->name);
+            return -1;
+        }
+        if (m->num_keys > 0) {
+            add_instance(a, mo, g, m->keys, m->num_keys, t0, t1);
+            attach_top(a, mo->instance, i, UINT32_MAX);
+        } else {
+            attach_top(a, g, i, UINT32_MAX);
+            rtcReleaseGeometry(g);
+        }
+    }
+    return 0;
+}
+
+static RTCGeometry new_spheres(struct accel *a, const struct scene *s, const uint32_t *which, uint32_t n)
+{
+    RTCGeometry g = rtcNewGeometry(a->device, RTC_GEOMETRY_TYPE_SPHERE_POINT);
+    float *vb = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4, 4 * sizeof(float), n);
+    if (!vb) {
+        rtcReleaseGeometry(g);
+        return NULL;
+    }
+    for (uint32_t k = 0; k < n; k++) {
+        const struct sphere *sp = &s->spheres[which[k]];
+        vb[4 * k + 0] = sp->center.x;
+        vb[4 * k + 1] = sp->center.y;
+        vb[4 * k + 2] = sp->center.z;
+        vb[4 * k + 3] = sp->radius;
+    }
+    rtcCommitGeometry(g);
+    return g;
+}
+
+static int build_spheres(struct accel *a, const struct scene *s, double t0, double t1, char *err, size_t errlen)
+{
+    uint32_t n_still = 0;
+    a->still_sphere = mem_alloc(sizeof(uint32_t) * (s->num_spheres ? s->num_spheres : 1));
+    for (uint32_t i = 0; i < s->num_spheres; i++)
+        if (s->spheres[i].num_keys == 0)
+            a->still_sphere[n_still++] = i;
+    if (n_still > 0) {
+        RTCGeometry g = new_spheres(a, s, a->still_sphere, n_still);
+        if (!g) {
+            str_fmt(err, errlen, "embree: cannot allocate the sphere buffer");
+            return -1;
+        }
+        attach_top(a, g, a->sphere_geom, UINT32_MAX);
+        rtcReleaseGeometry(g);
+    }
+    for (uint32_t i = 0; i < s->num_spheres; i++) {
+        if (s->spheres[i].num_keys == 0)
+            continue;
+        RTCGeometry g = new_spheres(a, s, &i, 1);
+        if (!g) {
+            str_fmt(err, errlen, "embree: cannot allocate the buffer of sphere \"%s\"", s->spheres[i].name);
+            return -1;
+        }
+        struct accel_motion *mo = &a->sphere_motion[i];
+        add_instance(a, mo, g, s->spheres[i].keys, s->spheres[i].num_keys, t0, t1);
+        attach_top(a, mo->instance, a->sphere_geom, i);
+    }
+    return 0;
+}
+
+int accel_build(struct accel *a, const struct scene *s, uint32_t frame, uint32_t threads, char *err,
+                size_t errlen)
+{
+    memset(a, 0, sizeof *a);
+    char config[64];
+    snprintf(config, sizeof config, "threads=%u", threads);
+    a->device = rtcNewDevice(config);
+    if (!a->device) {
+        str_fmt(err, errlen, "embree: cannot create device (error %d)", (int)rtcGetDeviceError(NULL));
+        return -1;
+    }
+    rtcSetDeviceErrorFunction(a->device, accel_on_error, NULL);
+    a->scene = rtcNewScene(a->device);
+    rtcSetSceneBuildQuality(a->scene, RTC_BUILD_QUALITY_HIGH);
+    rtcSetSceneFlags(a->scene, RTC_SCENE_FLAG_NONE);
+    a->sphere_geom = s->num_meshes;
+    a->num_spheres = s->num_spheres;
+    size_t max_top = (size_t)s->num_meshes + s->num_spheres + 1;
+    a->top_mesh = mem_alloc(sizeof(uint32_t) * max_top);
+    a->top_sphere = mem_alloc(sizeof(uint32_t) * max_top);
+    for (uint32_t i = 0; i < s->num_meshes; i++)
+        if (s->meshes[i].num_keys > 0 || s->meshes[i].num_frames >= 2) {
+            a->mesh_motion = mem_calloc(s->num_meshes, sizeof *a->mesh_motion);
+            break;
+        }
+    for (uint32_t i = 0; i < s->num_spheres; i++)
+        if (s->spheres[i].num_keys > 0) {
+            a->sphere_motion = mem_calloc(s->num_spheres, sizeof *a->sphere_motion);
+            break;
+        }
+    /* The shutter of this frame; an empty or inverted one freezes everything at its open. */
+    double t0 = (double)frame + s->camera.shutter_open, t1 = (double)frame + s->camera.shutter_close;
+    if (!(t1 > t0))
+        t1 = t0;
+    if (build_meshes(a, s, t0, t1, err, errlen) != 0 || build_spheres(a, s, t0, t1, err, errlen) != 0) {
+        accel_free(a);
+        return -1;
+    }
+    rtcCommitScene(a->scene);
+    enum RTCError e = rtcGetDeviceError(a->device);
+    if (e != RTC_ERROR_NONE) {
+        str_fmt(err, errlen, "embree: scene build failed (error %d)", (int)e);
+        accel_free(a);
+        return -1;
+    }
+    return 0;
+}
+
+static void free_motion(struct accel_motion *mo, uint32_t n)
+{
+    for (uint32_t i = 0; mo && i < n; i++) {
+        if (mo[i].instance)
+            rtcReleaseGeometry(mo[i].instance);
+        if (mo[i].child)
+            rtcReleaseScene(mo[i].child);
+        free(mo[i].steps);
+    }
+    free(mo);
+}
+
+void accel_free(struct accel *a)
+{
+    /* The top-level scene first: it references the instances and their scenes. */
+    if (a->scene)
+        rtcReleaseScene(a->scene);
+    free_motion(a->mesh_motion, a->sphere_geom);
+    free_motion(a->sphere_motion, a->num_spheres);
+    if (a->device)
+        rtcReleaseDevice(a->device);
+    free(a->top_mesh);
+    free(a->top_sphere);
+    free(a->still_sphere);
+    memset(a, 0, sizeof *a);
+}
+
+int accel_intersect(const struct accel *a, vec3 o, vec3 d, float tmax, float time01, struct accel_hit *hit)
+{
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    struct RTCRayHit rh;
+    rh.ray.org_x = o.x, rh.ray.org_y = o.y, rh.ray.org_z = o.z;
+    rh.ray.dir_x = d.x, rh.ray.dir_y = d.y, rh.ray.dir_z = d.z;
+    rh.ray.tnear = 0.0f;
+    rh.ray.tfar = tmax;
+    rh.ray.time = time01;
+    rh.ray.mask = 0xffffffffu;
+    rh.ray.id = 0;
+    rh.ray.flags = 0;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(a->scene, &ctx, &rh);
+    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID)
+        return 0;
+    unsigned top = rh.hit.instID[0] != RTC_INVALID_GEOMETRY_ID ? rh.hit.instID[0] : rh.hit.geomID;
+    hit->t = rh.ray.tfar;
+    hit->geom = a->top_mesh[top];
+    hit->prim = rh.hit.primID;
+    if (hit->geom == a->sphere_geom)
+        hit->prim = a->top_sphere[top] != UINT32_MAX ? a->top_sphere[top] : a->still_sphere[rh.hit.primID];
+    hit->u = rh.hit.u;
+    hit->v = rh.hit.v;
+    hit->ng = v3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z);
+    return 1;
+}
+
+int accel_occluded(const struct accel *a, vec3 o, vec3 d, float tmax, float time01)
+{
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    struct RTCRay r;
+    r.org_x = o.x, r.org_y = o.y, r.org_z = o.z;
+    r.dir_x = d.x, r.dir_y = d.y, r.dir_z = d.z;
+    r.tnear = 0.0f;
+    r.tfar = tmax;
+    r.time = time01;
+    r.mask = 0xffffffffu;
+    r.id = 0;
+    r.flags = 0;
+    rtcOccluded1(a->scene, &ctx, &r);
+    return r.tfar < 0.0f;
+}
+
+int accel_object_xform(const struct accel *a, uint32_t geom, uint32_t prim, float time01, struct xform *out)
+{
+    const struct accel_motion *mo = NULL;
+    if (!a->has_motion)
+        return 0; /* still scenes: no lookup per hit */
+    if (geom == a->sphere_geom)
+        mo = a->sphere_motion ? &a->sphere_motion[prim] : NULL;
+    else
+        mo = a->mesh_motion ? &a->mesh_motion[geom] : NULL;
+    if (!mo || !mo->instance)
+        return 0;
+    float m[12];
+    rtcGetGeometryTransform(mo->instance, time01, RTC_FORMAT_FLOAT3X4_ROW_MAJOR, m);
+    memcpy(out->m, m, sizeof m);
+    return 1;
+}

@@ -1,0 +1,60 @@
+/* Ray queries through Embree 3: one device and one top-level scene per job and frame,
+ * committed once and then shared read-only by every render thread. Still geometry lives
+ * directly in the top-level scene without time steps (meshes as triangle geometries,
+ * still spheres in one sphere-point geometry); only what moves during this frame's
+ * shutter gets time steps: deformation as triangle vertex steps, rigid keyframes as an
+ * instance with quaternion-decomposed transforms per step. A scene where nothing moves
+ * has has_motion == 0 and costs nothing extra. Hits are reported per scene mesh / sphere. */
+#ifndef BRUME_ACCEL_H
+#define BRUME_ACCEL_H
+#include <stddef.h>
+#include <stdint.h>
+#include <embree3/rtcore.h>
+#include "scene/scene.h"
+#include "base/vec.h"
+
+/* How one mesh or sphere with motion data is represented this frame. */
+struct accel_motion {
+    RTCScene child;         /* instanced scene (rigid keyframes), or NULL */
+    RTCGeometry instance;   /* retained instance geometry, or NULL */
+    uint32_t num_steps;     /* deformation: vertex sets in steps (1 = frozen this frame); 0 = none */
+    float *steps;           /* num_steps * 3 * num_vertices (+ padding), shared with Embree */
+};
+
+struct accel {
+    RTCDevice device;
+    RTCScene scene;
+    uint32_t sphere_geom;   /* the accel_hit.geom of spheres: == num_meshes */
+    uint32_t num_spheres;
+    int has_motion;         /* something has time steps: rays must carry their time */
+    uint32_t num_top;       /* top-level geometries */
+    uint32_t *top_mesh;     /* per top-level geometry: mesh index, or sphere_geom for the still spheres */
+    uint32_t *top_sphere;   /* per top-level geometry: the sphere of a rigid sphere instance, or UINT32_MAX */
+    uint32_t *still_sphere; /* primitive of the still-sphere geometry -> sphere index */
+    struct accel_motion *mesh_motion;   /* per mesh, NULL when no mesh has motion data */
+    struct accel_motion *sphere_motion; /* per sphere, NULL when no sphere has keys */
+};
+
+struct accel_hit {
+    float t;
+    uint32_t geom, prim;    /* mesh and triangle, or sphere_geom and sphere index */
+    float u, v;     /* barycentrics for triangles */
+    vec3 ng;        /* geometric normal, unnormalised, as Embree reports it (object space in instances) */
+};
+
+/* Builds the scene for frame `frame` (its shutter is frame + camera.shutter_open .. close).
+ * threads: Embree's build threads (0 = all cores). Returns 0 or -1 with err. */
+int accel_build(struct accel *a, const struct scene *scene, uint32_t frame, uint32_t threads, char *err,
+                size_t errlen);
+void accel_free(struct accel *a);
+
+/* Closest hit in (0, tmax) at time01 in [0, 1] across the shutter; returns 1 on a hit. */
+int accel_intersect(const struct accel *a, vec3 org, vec3 dir, float tmax, float time01, struct accel_hit *hit);
+/* 1 if anything blocks the segment (0, tmax) at time01. */
+int accel_occluded(const struct accel *a, vec3 org, vec3 dir, float tmax, float time01);
+
+/* Object to world transform of a rigidly moving mesh or sphere (geom, prim as in a hit) at
+ * time01; returns 0 (and leaves out alone) for geometry without an instance. */
+int accel_object_xform(const struct accel *a, uint32_t geom, uint32_t prim, float time01, struct xform *out);
+
+#endif

@@ -1,0 +1,724 @@
+/* Camera paths through participating media (see media_integrator.h).
+ * - VPT: free-flight sampling per segment (closed form, one channel picked, one-sample MIS
+ *   over channels), next-event estimation at medium and surface vertices with shadow
+ *   transmittance through boundaries, MIS against phase / BSDF sampling for area lights.
+ * - March (Jensen 1998): along every segment in a medium, steps of dx from a jittered start:
+ *   single scattering (every light when there are at most MARCH_ALL_LIGHTS point lights,
+ *   else one sampled light; shadow transmittance, in grids read from a per-light cache) +
+ *   Jensen's k-nearest photon estimate, each weighted by the transmittance to the step;
+ *   surfaces are path traced as in VPT (with the same all-lights rule for their direct
+ *   light) but the camera path never scatters in a medium (the photons carry that light).
+ * - Beam: as march for single scattering, the photon part by one beam query per segment
+ *   (in grids only over the part of the segment near the occupied box).
+ * VPT is untouched by these: unbiased ratio tracking, one sampled light.
+ * Random numbers: one key per (seed, frame, pixel, sample, pass) and a fixed layout of
+ * dimensions per vertex, so pixels do not depend on threads, tiles or workers. */
+#include "render/media_integrator.h"
+#include "base/log.h"
+#include "scene/material.h"
+#include "render/photonmap.h"
+#include <math.h>
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <unistd.h>
+#include <string.h>
+
+#define MAX_CROSSINGS 256
+#define MAX_STEPS 100000
+#define DIMS_PER_VERTEX 16
+/* Jensen's per-step estimate: maximum radius of the k-nearest query, in gather radii. */
+#define KNN_RADIUS_FACTOR 4.0f
+
+/* The path tracer's offsets (vec.h), for the media code and the photon pass. */
+int media_is_interface(const struct render_job *job, uint32_t material)
+{
+    const struct scene_media *sm = job->scene->media;
+    return sm && material == sm->interface_material;
+}
+
+static uint32_t inside_of(const struct render_job *job, const struct accel_hit *h)
+{
+    const struct scene_media *sm = job->scene->media;
+    if (h->geom == job->accel.sphere_geom)
+        return media_sphere_inside(sm, h->prim);
+    return media_mesh_inside(sm, h->geom);
+}
+
+uint32_t media_after_crossing(const struct render_job *job, const struct accel_hit *h, vec3 ng, vec3 dir)
+{
+    /* ng points outside the object: travelling against it enters. */
+    return v3_dot(dir, ng) < 0.0f ? inside_of(job, h) : job->scene->media->fog;
+}
+
+uint32_t media_at(const struct render_job *job, vec3 p)
+{
+    const struct scene_media *sm = job->scene->media;
+    vec3 dir = v3_normalize(v3(0.5377f, 0.6211f, 0.5703f));
+    vec3 o = p;
+    for (int i = 0; i < 64; i++) {
+        struct accel_hit h;
+        if (!accel_intersect(&job->accel, o, dir, INFINITY, 0.0f, &h))
+            break;
+        struct media_surface s;
+        integrator_media_surface(job, o, dir, &h, 0.0f, &s);
+        uint32_t in = inside_of(job, &h);
+        if (in != MEDIUM_NONE)
+            return v3_dot(dir, s.ng) > 0.0f ? in : sm->fog; /* leaving it: we were inside */
+        vec3 n = v3_dot(dir, s.ng) > 0.0f ? s.ng : v3_neg(s.ng);
+        o = offset_ray_origin(v3_add(s.p, v3_scale(n, s.p_err)), n);
+    }
+    return sm->fog;
+}
+
+/* Shadow transmittance caches of Jensen's methods: one per (point light, grid medium),
+ * filled by the first thread that needs it (under a lock, on all cores) and read-only
+ * after; the values are a pure function of the scene, so pixels do not depend on which
+ * thread filled it, or when. */
+#define SHADOW_CACHES_MAX 64
+struct shadow_cache {
+    vec3 light;
+    uint32_t medium;
+    struct tr_cache c;
+    atomic_int ready;
+};
+struct shadow_caches {
+    pthread_mutex_t lock;
+    uint32_t n, threads;
+    struct shadow_cache e[SHADOW_CACHES_MAX];
+};
+
+static struct shadow_caches *shadow_caches_new(const struct render_job *job)
+{
+    const struct scene *sc = job->scene;
+    const struct scene_media *sm = sc->media;
+    if (sm->method == MEDIA_VPT || !sm->shadow_cache)
+        return NULL;
+    struct shadow_caches *s = mem_calloc(1, sizeof *s);
+    pthread_mutex_init(&s->lock, NULL);
+    long cores = sysconf(_SC_NPROCESSORS_ONLN);
+    s->threads = cores < 1 ? 1u : (cores > 64 ? 64u : (uint32_t)cores);
+    for (uint32_t m = 0; m < sm->num_media; m++) {
+        if (!sm->media[m].grid)
+            continue;
+        for (uint32_t i = 0; i < job->lights.num_entries && s->n < SHADOW_CACHES_MAX; i++) {
+            const struct light_entry *e = &job->lights.entries[i];
+            if (e->kind != LK_POINT)
+                continue;
+            struct shadow_cache *c = &s->e[s->n++];
+            c->light = sc->lights[e->index].position;
+            c->medium = m;
+            atomic_init(&c->ready, 0);
+        }
+    }
+    return s;
+}
+
+static void shadow_caches_free(struct shadow_caches **ps)
+{
+    struct shadow_caches *s = *ps;
+    if (!s)
+        return;
+    for (uint32_t i = 0; i < s->n; i++)
+        tr_cache_free(&s->e[i].c);
+    pthread_mutex_destroy(&s->lock);
+    free(s);
+    *ps = NULL;
+}
+
+static const struct tr_cache *shadow_cache_get(const struct render_job *job, vec3 light, uint32_t medium)
+{
+    struct shadow_caches *s = job->media->shadow;
+    if (!s)
+        return NULL;
+    for (uint32_t i = 0; i < s->n; i++) {
+        struct shadow_cache *c = &s->e[i];
+        if (c->medium != medium || memcmp(&c->light, &light, sizeof light) != 0)
+            continue;
+        if (!atomic_load_explicit(&c->ready, memory_order_acquire)) {
+            pthread_mutex_lock(&s->lock);
+            if (!atomic_load_explicit(&c->ready, memory_order_relaxed)) {
+                tr_cache_build(&c->c, &job->scene->media->media[medium], light, s->threads);
+                atomic_store_explicit(&c->ready, 1, memory_order_release);
+            }
+            pthread_mutex_unlock(&s->lock);
+        }
+        return c->c.tau ? &c->c : NULL;
+    }
+    return NULL;
+}
+
+struct media_job *media_job_new(const struct render_job *job)
+{
+    const struct scene *sc = job->scene;
+    const struct scene_media *sm = sc->media;
+    struct media_job *mj = mem_calloc(1, sizeof *mj);
+    mj->sm = sm;
+    struct RTCBounds b;
+    rtcGetSceneBounds(job->accel.scene, &b);
+    vec3 lo = v3(b.lower_x, b.lower_y, b.lower_z), hi = v3(b.upper_x, b.upper_y, b.upper_z);
+    if (!(lo.x <= hi.x)) /* empty scene */
+        lo = hi = sc->camera.position;
+    for (uint32_t i = 0; i <= sc->num_lights; i++) {
+        vec3 q = i < sc->num_lights ? sc->lights[i].position : sc->camera.position;
+        lo = v3(fminf(lo.x, q.x), fminf(lo.y, q.y), fminf(lo.z, q.z));
+        hi = v3(fmaxf(hi.x, q.x), fmaxf(hi.y, q.y), fmaxf(hi.z, q.z));
+    }
+    /* Grids may reach beyond the geometry (a cloud in an open sky): rays march them all. */
+    for (uint32_t i = 0; i < sm->num_media; i++) {
+        vec3 glo, ghi;
+        if (!sm->media[i].grid)
+            continue;
+        grid_world_box(sm->media[i].grid, &glo, &ghi);
+        if (!(glo.x <= ghi.x && glo.y <= ghi.y && glo.z <= ghi.z))
+            continue;
+        lo = v3(fminf(lo.x, glo.x), fminf(lo.y, glo.y), fminf(lo.z, glo.z));
+        hi = v3(fmaxf(hi.x, ghi.x), fmaxf(hi.y, ghi.y), fmaxf(hi.z, ghi.z));
+    }
+    float size = v3_length(v3_sub(hi, lo));
+    size = size > 0.0f && isfinite(size) ? size : 1.0f;
+    vec3 pad = v3(1e-3f * size, 1e-3f * size, 1e-3f * size);
+    mj->bounds_lo = v3_sub(lo, pad);
+    mj->bounds_hi = v3_add(hi, pad);
+    mj->scene_size = size;
+    mj->step = sm->step > 0.0f ? sm->step : size / 200.0f;
+    mj->step = fmaxf(mj->step, size * 1e-6f);
+    mj->radius = sm->radius > 0.0f ? sm->radius : size / 100.0f;
+    mj->radius = fmaxf(mj->radius, size * 1e-5f); /* bounds the cells a beam query walks */
+    mj->camera_medium = media_at(job, sc->camera.position);
+    mj->light_medium = mem_alloc(sizeof *mj->light_medium * (job->lights.num_entries + 1));
+    for (uint32_t i = 0; i < job->lights.num_entries; i++) {
+        const struct light_entry *e = &job->lights.entries[i];
+        vec3 p;
+        if (e->kind == LK_POINT) {
+            p = sc->lights[e->index].position;
+        } else if (e->kind == LK_TRIANGLE) {
+            const struct mesh *m = &sc->meshes[e->index];
+            const uint32_t *idx = &m->indices[3 * e->prim];
+            vec3 v[3];
+            for (int k = 0; k < 3; k++)
+                v[k] = v3(m->positions[3 * idx[k]], m->positions[3 * idx[k] + 1], m->positions[3 * idx[k] + 2]);
+            vec3 n = v3_normalize(v3_cross(v3_sub(v[1], v[0]), v3_sub(v[2], v[0])));
+            p = offset_ray_origin(v3_scale(v3_add(v3_add(v[0], v[1]), v[2]), 1.0f / 3.0f), n);
+        } else {
+            const struct sphere *s = &sc->spheres[e->index];
+            p = v3_add(s->center, v3(0, s->radius * 1.001f, 0));
+        }
+        mj->light_medium[i] = media_at(job, p);
+    }
+    mj->map = sm->method != MEDIA_VPT ? sm->map : NULL;
+    mj->shadow = shadow_caches_new(job);
+    return mj;
+}
+
+void media_job_free(struct media_job **pmj)
+{
+    if (!*pmj)
+        return;
+    free((*pmj)->light_medium);
+    shadow_caches_free(&(*pmj)->shadow);
+    free(*pmj);
+    *pmj = NULL;
+}
+
+vec3 media_shadow_transmittance(const struct render_job *job, vec3 p, vec3 target, uint32_t medium, float time01,
+                                uint64_t key, uint64_t *rays)
+{
+    const struct scene_media *sm = job->scene->media;
+    const int ratio = sm->method == MEDIA_VPT; /* unbiased ratio tracking; marched for Jensen's methods */
+    vec3 tr = v3(1, 1, 1);
+    if (sm->interface_material == UINT32_MAX) {
+        /* No invisible boundaries: any hit blocks, and the medium is the same all along. */
+        (*rays)++;
+        if (accel_occluded(&job->accel, p, v3_sub(target, p), 1.0f - 0x1p-12f, time01))
+            return v3(0, 0, 0);
+        if (medium == MEDIUM_NONE)
+            return tr;
+        const struct medium *md = &sm->media[medium];
+        if (!ratio && md->grid) {
+            /* Jensen's methods: the cached optical depth toward a point light, where cached. */
+            const struct tr_cache *c = shadow_cache_get(job, target, medium);
+            float tau;
+            if (c && tr_cache_tau_from(c, p, &tau))
+                return v3(expf(-md->sigma_t.x * tau), expf(-md->sigma_t.y * tau), expf(-md->sigma_t.z * tau));
+        }
+        vec3 to = v3_sub(target, p);
+        float len = v3_length(to);
+        return len > 0.0f ? medium_tr_segment(&sm->media[medium], p, v3_scale(to, 1.0f / len), len, key, ratio) : tr;
+    }
+    /* Distances run from the exact boundary points, not from the offset ray origins (the
+     * offsets would shorten every segment by a few hundred ulps). */
+    vec3 start = p;
+    for (int i = 0; i < MAX_CROSSINGS; i++) {
+        vec3 to = v3_sub(target, p);
+        float dist = v3_length(to);
+        if (!(dist > 0.0f))
+            return tr;
+        vec3 dir = v3_scale(to, 1.0f / dist);
+        struct accel_hit h;
+        (*rays)++;
+        if (!accel_intersect(&job->accel, p, dir, dist * (1.0f - 0x1p-12f), time01, &h)) {
+            if (medium != MEDIUM_NONE)
+                tr = v3_mul(tr, medium_tr_segment(&sm->media[medium], start, dir, v3_length(v3_sub(target, start)),
+                                                  rng_mix64(key + (uint64_t)i), ratio));
+            return tr;
+        }
+        struct media_surface s;
+        integrator_media_surface(job, p, dir, &h, time01, &s);
+        if (!media_is_interface(job, s.material))
+            return v3(0, 0, 0);
+        if (medium != MEDIUM_NONE)
+            tr = v3_mul(tr, medium_tr_segment(&sm->media[medium], start, dir, v3_length(v3_sub(s.p, start)),
+                                              rng_mix64(key + (uint64_t)i), ratio));
+        if (v3_is_black(tr))
+            return tr;
+        medium = media_after_crossing(job, &h, s.ng, dir);
+        vec3 n = v3_dot(dir, s.ng) > 0.0f ? s.ng : v3_neg(s.ng);
+        p = offset_ray_origin(v3_add(s.p, v3_scale(n, s.p_err)), n);
+        start = s.p;
+    }
+    return v3(0, 0, 0);
+}
+
+static float power_heuristic(float a, float b)
+{
+    float a2 = a * a, b2 = b * b;
+    return a2 + b2 > 0.0f ? a2 / (a2 + b2) : 0.0f;
+}
+
+struct rngs {
+    uint64_t key;
+};
+
+/* Equiangular sampling (Kulla and Fajardo 2012) of t in [0, tend) on o + t d toward the
+ * point c: pdf proportional to 1 / distance^2, which cancels a point light's singularity.
+ * pdf 0 when the ray passes through c or the segment is empty. */
+struct equi { float delta, dist, ta, tb; };
+
+static int equi_init(struct equi *e, vec3 o, vec3 d, vec3 c, float tend, float eps)
+{
+    vec3 oc = v3_sub(c, o);
+    e->delta = v3_dot(oc, d);
+    e->dist = v3_length(v3_sub(oc, v3_scale(d, e->delta)));
+    if (!(e->dist > eps) || !(tend > 0.0f) || !isfinite(tend))
+        return 0;
+    e->ta = atan2f(-e->delta, e->dist);
+    e->tb = atan2f(tend - e->delta, e->dist);
+    return e->tb > e->ta;
+}
+
+static float equi_pdf(const struct equi *e, float t)
+{
+    float x = t - e->delta;
+    return e->dist / ((e->tb - e->ta) * (e->dist * e->dist + x * x));
+}
+
+static float equi_sample(const struct equi *e, float u)
+{
+    return e->delta + e->dist * tanf(e->ta + u * (e->tb - e->ta));
+}
+
+/* The segment a VPT vertex's free flight ran over, for the MIS between free-flight NEE and
+ * equiangular sampling of point lights. */
+struct flight_ctx { vec3 o, d; float tend, t; vec3 chan; const struct medium *md; float eps; };
+
+static float rnd(const struct rngs *r, uint32_t vertex, uint32_t k)
+{
+    return rng_uniform(r->key, vertex * DIMS_PER_VERTEX + k);
+}
+
+/* Light arriving at x (in `medium`) from one sampled light, times the phase function for
+ * light leaving along d_out; *pdf_light gets the sample's pdf for MIS (0 = delta). */
+static vec3 scatter_nee(const struct render_job *job, vec3 x, vec3 d_out, uint32_t medium, float g, float u0,
+                        float u1, float u2, float time01, uint64_t key, uint64_t *rays, int mis,
+                        const struct flight_ctx *fc)
+{
+    const struct scene *sc = job->scene;
+    if (job->lights.num_entries == 0)
+        return v3(0, 0, 0);
+    struct light_sample ls;
+    light_sample(&job->lights, sc, x, u0, u1, u2, &ls);
+    if (!(ls.pdf > 0.0f) || v3_is_black(ls.radiance))
+        return v3(0, 0, 0);
+    vec3 to = v3_sub(ls.p, x);
+    float dist = v3_length(to);
+    if (!(dist > 0.0f))
+        return v3(0, 0, 0);
+    vec3 wi = v3_scale(to, 1.0f / dist);
+    float ph = phase_hg(v3_dot(v3_neg(wi), d_out), g);
+    vec3 target = ls.is_delta ? ls.p : offset_ray_origin(ls.p, v3_dot(ls.n, wi) < 0.0f ? ls.n : v3_neg(ls.n));
+    vec3 tr = media_shadow_transmittance(job, x, target, medium, time01, key, rays);
+    if (v3_is_black(tr))
+        return v3(0, 0, 0);
+    float w = (ls.is_delta || !mis) ? 1.0f : power_heuristic(ls.pdf, ph);
+    struct equi e;
+    if (fc && ls.is_delta && equi_init(&e, fc->o, fc->d, ls.p, fc->tend, fc->eps) && fc->t < fc->tend) {
+        /* Balance heuristic against equiangular sampling of the same light (its pick
+         * probability is the same in both strategies and cancels). */
+        float pf = medium_flight_pdf(fc->md, fc->chan, fc->t), pe = equi_pdf(&e, fc->t);
+        w = pf / (pf + pe);
+    }
+    return v3_scale(v3_mul(ls.radiance, tr), ph * w / ls.pdf);
+}
+
+#define MARCH_ALL_LIGHTS 4
+/* Jensen's methods sample every light when the scene has at most MARCH_ALL_LIGHTS, all
+ * point or spot lights. */
+static int march_all_points(const struct render_job *job)
+{
+    if (job->lights.num_entries == 0 || job->lights.num_entries > MARCH_ALL_LIGHTS)
+        return 0;
+    for (uint32_t i = 0; i < job->lights.num_entries; i++)
+        if (job->lights.entries[i].kind != LK_POINT)
+            return 0;
+    return 1;
+}
+
+/* Single scattering toward every light of a table of point lights at x (light leaving
+ * along d_out): sum of I falloff / d^2 x phase x shadow transmittance. */
+static vec3 point_lights_all(const struct render_job *job, vec3 x, vec3 d_out, uint32_t medium, float g, float time01,
+                             uint64_t key, uint64_t *rays)
+{
+    const struct scene *sc = job->scene;
+    vec3 sum = v3(0, 0, 0);
+    for (uint32_t i = 0; i < job->lights.num_entries; i++) {
+        const struct light_entry *e = &job->lights.entries[i];
+        if (e->kind != LK_POINT)
+            continue;
+        const struct light *l = &sc->lights[e->index];
+        vec3 to = v3_sub(l->position, x);
+        float d2 = v3_dot(to, to);
+        if (!(d2 > 0.0f))
+            continue;
+        vec3 li = v3_scale(e->emission, light_spot_falloff(l, v3_neg(to)) / d2);
+        if (v3_is_black(li))
+            continue;
+        float ph = phase_hg(v3_dot(v3_scale(to, -1.0f / sqrtf(d2)), d_out), g);
+        vec3 tr = media_shadow_transmittance(job, x, l->position, medium, time01, rng_mix64(key + i), rays);
+        sum = v3_add(sum, v3_scale(v3_mul(li, tr), ph));
+    }
+    return sum;
+}
+
+/* Jensen's march along [0, len) of o + t d in medium md: emission, single scattering and
+ * the photon estimate, each attenuated to the camera (beta outside); *seg_tr gets the
+ * segment's transmittance. Homogeneous media: closed-form transmittance to each step.
+ * Grids: the optical depth accumulates step by step (a table of it serves the beam). */
+#define TAU_TABLE 4096
+static vec3 march_segment(const struct render_job *job, const struct rngs *r, uint32_t vertex, vec3 o, vec3 d,
+                          float len, uint32_t medium, float time01, uint64_t *rays, vec3 *seg_tr)
+{
+    const struct media_job *mj = job->media;
+    const struct medium *md = &mj->sm->media[medium];
+    const int het = md->grid != NULL, emissive = !v3_is_black(md->emission);
+    vec3 L = het ? v3(0, 0, 0) : medium_emission_integral(md, len);
+    *seg_tr = medium_transmittance(md, len);
+    float c0 = 0.0f, c1 = len;
+    if (het) {
+        *seg_tr = v3(1, 1, 1);
+        if (!medium_clip(md, o, d, len, &c0, &c1))
+            return L; /* empty space: nothing to march */
+    }
+    if (v3_is_black(md->sigma_s) && !het)
+        return L;
+    /* Jittered steps estimate the integral without bias at any dx: after the first vertex
+     * (paths already spread over the hemisphere) four times longer steps cost less for
+     * the same image variance. */
+    float dx = medium_march_step(md, vertex == 0 ? mj->step : 4.0f * mj->step);
+    float span = c1 - c0;
+    if (span / dx > (float)(het ? TAU_TABLE - 2 : MAX_STEPS))
+        dx = span / (float)(het ? TAU_TABLE - 2 : MAX_STEPS);
+    float jitter = rnd(r, vertex, 10);
+    /* A few point lights: every one at every step (no pick noise; the shadow cache makes
+     * each cheap). Otherwise one light picked in proportion to power. */
+    const int all_points = march_all_points(job);
+    uint64_t seg_key = rng_mix64(r->key ^ ((uint64_t)(vertex + 1) << 40));
+    float tau_tab[TAU_TABLE];   /* grids: optical depth (per unit sigma_t) at c0 + k dx */
+    uint32_t ntab = 0;
+    float tau = 0.0f;
+    if (het)
+        tau_tab[ntab++] = 0.0f;
+    for (uint32_t k = 0;; k++) {
+        float t = c0 + ((float)k + jitter) * dx;
+        if (!(t < c1))
+            break;
+        vec3 x = v3_add(o, v3_scale(d, t));
+        float rho = 1.0f;
+        vec3 tr;
+        if (het) {
+            rho = grid_density(md->grid, x);
+            float tau_here = tau + rho * jitter * dx;
+            tr = v3(expf(-md->sigma_t.x * tau_here), expf(-md->sigma_t.y * tau_here), expf(-md->sigma_t.z * tau_here));
+            tau += rho * dx;
+            if (ntab < TAU_TABLE)
+                tau_tab[ntab++] = tau;
+            /* Emission, e times the density (homogeneous media: closed form above). */
+            if (emissive)
+                L = v3_add(L, v3_scale(v3_mul(tr, md->emission), rho * dx));
+        } else {
+            tr = medium_transmittance(md, t);
+        }
+        if (v3_max_component(tr) < 1e-6f && !het)
+            break; /* nothing beyond reaches the camera */
+        if (!(rho > 0.0f))
+            continue;
+        vec3 ls = all_points ? point_lights_all(job, x, v3_neg(d), medium, md->g, time01,
+                                                rng_mix64(seg_key ^ (0x5348ull << 48) ^ k), rays)
+                             : scatter_nee(job, x, v3_neg(d), medium, md->g, rng_uniform(seg_key, 3 * k),
+                                           rng_uniform(seg_key, 3 * k + 1), rng_uniform(seg_key, 3 * k + 2), time01,
+                                           rng_mix64(seg_key ^ (0x5348ull << 48) ^ k), rays, 0, NULL);
+        vec3 in = v3_scale(v3_mul(md->sigma_s, ls), rho);
+        if (mj->sm->method == MEDIA_MARCH_STEPS && mj->map)
+            in = v3_add(in, photon_map_gather_knn(mj->map, x, v3_neg(d), md->g, mj->sm->knn,
+                                                             KNN_RADIUS_FACTOR * mj->map->radius));
+        L = v3_add(L, v3_scale(v3_mul(tr, in), dx));
+    }
+    if (het)
+        *seg_tr = v3(expf(-md->sigma_t.x * tau), expf(-md->sigma_t.y * tau), expf(-md->sigma_t.z * tau));
+    if (mj->sm->method == MEDIA_MARCH_BEAM && mj->map) {
+        if (het) {
+            /* Photons lie in the occupied box (stored only where the density is non-zero):
+             * the beam need only walk the part of the ray within r of its world box. */
+            vec3 blo, bhi;
+            grid_world_box(md->grid, &blo, &bhi);
+            float rad = mj->map->radius, e0 = 0.0f, e1 = len;
+            vec3 pad = v3(rad, rad, rad);
+            if (v3_clip_box(o, d, v3_sub(blo, pad), v3_add(bhi, pad), &e0, &e1) && e0 < e1) {
+                struct photon_tau tt = {tau_tab, ntab, c0 - e0, dx};
+                L = v3_add(L, photon_map_beam(mj->map, v3_add(o, v3_scale(d, e0)), d, e1 - e0, md, &tt));
+            }
+        } else {
+            L = v3_add(L, photon_map_beam(mj->map, o, d, len, md, NULL));
+        }
+    }
+    return L;
+}
+
+/* Where a ray that hits nothing stops being marched: the exit from the scene's bounds. */
+static float exit_distance(const struct media_job *mj, vec3 o, vec3 d)
+{
+    float t1 = INFINITY;
+    float oo[3] = {o.x, o.y, o.z}, dd[3] = {d.x, d.y, d.z};
+    float lo[3] = {mj->bounds_lo.x, mj->bounds_lo.y, mj->bounds_lo.z}, hi[3] = {mj->bounds_hi.x, mj->bounds_hi.y, mj->bounds_hi.z};
+    for (int a = 0; a < 3; a++) {
+        if (dd[a] == 0.0f)
+            continue;
+        float t = ((dd[a] > 0.0f ? hi[a] : lo[a]) - oo[a]) / dd[a];
+        t1 = fminf(t1, t);
+    }
+    return t1 > 0.0f ? t1 : 0.0f;
+}
+
+/* Single scattering of one point light (picked as NEE picks) along the segment, sampled
+ * equiangularly and weighted against free-flight NEE; times beta outside. */
+static vec3 equiangular(const struct render_job *job, const struct rngs *r, uint32_t vertex,
+                        const struct flight_ctx *fc, uint32_t medium, float time01, uint64_t *rays)
+{
+    const struct scene *sc = job->scene;
+    uint32_t i = light_pick(&job->lights, rnd(r, vertex, 8));
+    const struct light_entry *e = &job->lights.entries[i];
+    float pick = job->lights.pick_pdf[i];
+    if (e->kind != LK_POINT || !(pick > 0.0f))
+        return v3(0, 0, 0);
+    const struct light *l = &sc->lights[e->index];
+    struct equi q;
+    if (!equi_init(&q, fc->o, fc->d, l->position, fc->tend, fc->eps))
+        return v3(0, 0, 0);
+    float t = equi_sample(&q, rnd(r, vertex, 9));
+    if (!(t >= 0.0f && t < fc->tend))
+        return v3(0, 0, 0);
+    float pe = equi_pdf(&q, t), pf = medium_flight_pdf(fc->md, fc->chan, t);
+    vec3 x = v3_add(fc->o, v3_scale(fc->d, t));
+    vec3 to = v3_sub(l->position, x);
+    float d2 = v3_dot(to, to);
+    if (!(d2 > 0.0f) || !(pe > 0.0f))
+        return v3(0, 0, 0);
+    vec3 li = v3_scale(e->emission, light_spot_falloff(l, v3_neg(to)) / d2);
+    if (v3_is_black(li))
+        return v3(0, 0, 0);
+    /* light travels along -to, then back along -d toward the segment's origin */
+    float ph = phase_hg(v3_dot(v3_scale(to, 1.0f / sqrtf(d2)), fc->d), fc->md->g);
+    vec3 tr = media_shadow_transmittance(job, x, l->position, medium, time01,
+                                         rng_mix64(r->key ^ (0x4551ull << 48) ^ vertex), rays);
+    vec3 f = v3_mul(v3_mul(medium_transmittance(fc->md, t), fc->md->sigma_s), v3_mul(li, tr));
+    return v3_scale(f, ph * (pe / (pe + pf)) / (pick * pe));
+}
+
+vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, uint32_t px, uint32_t py, vec3 org,
+                       vec3 dir, float time01, uint64_t *rays, int *hit_any)
+{
+    const struct scene *sc = job->scene;
+    const struct media_job *mj = job->media;
+    const struct scene_media *sm = mj->sm;
+    const struct render_settings *rs = &sc->settings;
+    struct rngs r;
+    uint64_t pixel = (uint64_t)py * rs->width + px;
+    r.key = rng_mix64(smp->key ^ rng_mix64(smp->pixel_key ^ rng_key(rs->seed ^ 0x6d65646961ull, job->frame, pixel, smp->index)));
+    const int vpt = sm->method == MEDIA_VPT;
+    const int few_points = march_all_points(job);
+    uint32_t medium = mj->camera_medium;
+    vec3 L = v3(0, 0, 0), beta = v3(1, 1, 1);
+    float prev_pdf = 0.0f;
+    vec3 prev_p = org;
+    int prev_delta = 1;
+    uint32_t depth = 0, crossings = 0, vertex = 0;
+    vec3 seg_start = org;   /* exact start of the segment (boundary point, not the offset origin) */
+    *hit_any = 0;
+    for (;;) {
+        struct accel_hit h;
+        (*rays)++;
+        int hit = accel_intersect(&job->accel, org, dir, INFINITY, time01, &h);
+        if (hit && vertex == 0 && crossings == 0)
+            *hit_any = 1;
+        if (medium != MEDIUM_NONE) {
+            const struct medium *md = &sm->media[medium];
+            if (vpt) {
+                float tmax = hit ? h.t : INFINITY, t;
+                vec3 w;
+                L = v3_add(L, v3_mul(beta, medium_emission_segment(md, org, dir, tmax,
+                                                                   rng_mix64(r.key ^ (0x454dull << 48) ^ vertex))));
+                vec3 chan = beta;
+                int scatter = medium_sample_flight(md, org, dir, tmax, chan, rng_mix64(r.key ^ (0x464cull << 48) ^ vertex), &t, &w);
+                /* Homogeneous media: one equiangular sample toward a point light per segment. */
+                struct flight_ctx fc = {org, dir, hit ? h.t : exit_distance(mj, org, dir), t, chan, md,
+                                        1e-7f * mj->scene_size};
+                int equi = !md->grid && !v3_is_black(md->sigma_s) && job->lights.num_entries > 0 && depth < rs->max_depth;
+                if (equi)
+                    L = v3_add(L, v3_mul(beta, equiangular(job, &r, vertex, &fc, medium, time01, rays)));
+                beta = v3_mul(beta, w);
+                if (v3_is_black(beta) || !v3_is_finite(beta))
+                    break;
+                if (scatter) {
+                    vec3 x = v3_add(org, v3_scale(dir, t));
+                    if (++depth > rs->max_depth)
+                        break;
+                    L = v3_add(L, v3_mul(beta, scatter_nee(job, x, v3_neg(dir), medium, md->g, rnd(&r, vertex, 2),
+                                                           rnd(&r, vertex, 3), rnd(&r, vertex, 4), time01,
+                                                           rng_mix64(r.key ^ (0x5348ull << 48) ^ vertex), rays, 1,
+                                                           equi ? &fc : NULL)));
+                    vec3 nd;
+                    float ph = phase_hg_sample(dir, md->g, rnd(&r, vertex, 5), rnd(&r, vertex, 6), &nd);
+                    if (depth >= 3) {
+                        float q = fmaxf(0.05f, 1.0f - v3_max_component(beta));
+                        if (rnd(&r, vertex, 7) < q)
+                            break;
+                        beta = v3_scale(beta, 1.0f / (1.0f - q));
+                    }
+                    prev_pdf = ph;
+                    prev_p = x;
+                    prev_delta = 0;
+                    org = x;
+                    seg_start = x;
+                    dir = nd;
+                    vertex++;
+                    continue;
+                }
+            } else {
+                float len = hit ? h.t : exit_distance(mj, org, dir);
+                vec3 seg_tr;
+                L = v3_add(L, v3_mul(beta, march_segment(job, &r, vertex, org, dir, len, medium, time01, rays, &seg_tr)));
+                float exact = hit ? v3_length(v3_sub(v3_add(org, v3_scale(dir, h.t)), seg_start)) : INFINITY;
+                beta = v3_mul(beta, md->grid ? seg_tr : medium_transmittance(md, exact));
+                if (v3_is_black(beta))
+                    break;
+            }
+        }
+        if (!hit)
+            break;
+        struct media_surface s;
+        integrator_media_surface(job, org, dir, &h, time01, &s);
+        if (media_is_interface(job, s.material)) {
+            if (++crossings > MAX_CROSSINGS)
+                break;
+            medium = media_after_crossing(job, &h, s.ng, dir);
+            vec3 n = v3_dot(dir, s.ng) > 0.0f ? s.ng : v3_neg(s.ng);
+            org = offset_ray_origin(v3_add(s.p, v3_scale(n, s.p_err)), n);
+            seg_start = s.p;
+            continue;
+        }
+        if (vertex == 0)
+            *hit_any = 1;
+        if (s.light != LIGHT_NONE && v3_dot(s.ng, dir) < 0.0f) {
+            vec3 le = sc->materials[s.material].emission;
+            float w = 1.0f;
+            if (!prev_delta) {
+                float lp = light_pdf(&job->lights, sc, s.light, prev_p, s.p, s.ng);
+                w = power_heuristic(prev_pdf, lp);
+            }
+            L = v3_add(L, v3_mul(beta, v3_scale(le, w)));
+        }
+        if (++depth > rs->max_depth)
+            break;
+        const struct material *mat = &sc->materials[s.material];
+        vec3 wo = v3_neg(dir);
+        int front = v3_dot(s.ng, wo) >= 0.0f;
+        vec3 ng = front ? s.ng : v3_neg(s.ng);
+        vec3 ns = v3_dot(s.ns, ng) < 0.0f ? v3_neg(s.ns) : s.ns;
+        vec3 p_off = offset_ray_origin(v3_add(s.p, v3_scale(ng, s.p_err)), ng);
+        /* Jensen's methods with a surface photon map: a diffuse surface's indirect light is
+         * the map's estimate and the path ends here, so its direct light is next-event
+         * estimation's alone (full weight, no MIS partner). */
+        const int surface_map = !vpt && mj->map && mj->map->surface && mat->type == MATERIAL_DIFFUSE;
+        if (!vpt && few_points && !material_is_delta(mat)) {
+            /* Jensen's methods, a few point lights: every one (no pick noise). */
+            for (uint32_t li = 0; li < job->lights.num_entries; li++) {
+                const struct light *l = &sc->lights[job->lights.entries[li].index];
+                vec3 to = v3_sub(l->position, s.p);
+                float d2 = v3_dot(to, to);
+                if (!(d2 > 0.0f))
+                    continue;
+                vec3 wi = v3_scale(to, 1.0f / sqrtf(d2));
+                float bpdf;
+                vec3 f = v3_dot(wi, ng) > 0.0f ? material_eval(mat, ns, wo, wi, &bpdf) : v3(0, 0, 0);
+                vec3 rad = v3_scale(job->lights.entries[li].emission, light_spot_falloff(l, v3_neg(to)) / d2);
+                if (v3_is_black(f) || v3_is_black(rad))
+                    continue;
+                vec3 tr = media_shadow_transmittance(job, p_off, l->position, medium, time01,
+                                                     rng_mix64(r.key ^ (0x5353ull << 48) ^ vertex ^ ((uint64_t)li << 32)), rays);
+                L = v3_add(L, v3_mul(beta, v3_mul(v3_mul(f, rad), tr)));
+            }
+        } else if (job->lights.num_entries > 0 && !material_is_delta(mat)) {
+            struct nee_sample n;
+            if (nee_prepare(job, mat, s.p, ns, ng, wo, rnd(&r, vertex, 2), rnd(&r, vertex, 3), rnd(&r, vertex, 4), &n)) {
+                vec3 tr = media_shadow_transmittance(job, p_off, n.target, medium, time01,
+                                                     rng_mix64(r.key ^ (0x5353ull << 48) ^ vertex), rays);
+                if (!v3_is_black(tr)) {
+                    float w = n.ls.is_delta || surface_map ? 1.0f : power_heuristic(n.ls.pdf, n.bsdf_pdf);
+                    L = v3_add(L, v3_mul(beta, v3_scale(v3_mul(v3_mul(n.f, n.ls.radiance), tr), w / n.ls.pdf)));
+                }
+            }
+        }
+        if (surface_map) {
+            vec3 e = photon_map_surface(mj->map, s.p, ng);
+            L = v3_add(L, v3_mul(beta, v3_mul(mat->albedo, v3_scale(e, (float)(1.0 / M_PI)))));
+            break;
+        }
+        struct bsdf_sample bs;
+        material_sample(mat, ns, wo, front, rnd(&r, vertex, 5), rnd(&r, vertex, 6), &bs);
+        float side = v3_dot(bs.wi, ng);
+        if (bs.pdf <= 0.0f || (bs.transmitted ? side >= 0.0f : side <= 0.0f))
+            break;
+        beta = v3_mul(beta, bs.weight);
+        if (depth >= 3) {
+            float q = fmaxf(0.05f, 1.0f - v3_max_component(beta));
+            if (rnd(&r, vertex, 7) < q)
+                break;
+            beta = v3_scale(beta, 1.0f / (1.0f - q));
+        }
+        if (v3_is_black(beta))
+            break;
+        prev_pdf = bs.pdf;
+        prev_p = s.p;
+        prev_delta = bs.is_delta;
+        if (bs.transmitted) {
+            medium = media_after_crossing(job, &h, s.ng, dir);
+            org = offset_ray_origin(v3_sub(s.p, v3_scale(ng, s.p_err)), v3_neg(ng));
+        } else {
+            org = p_off;
+        }
+        dir = bs.wi;
+        seg_start = s.p;
+        vertex++;
+    }
+    return L;
+}

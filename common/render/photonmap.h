@@ -1,0 +1,116 @@
+/* The volume photon map (Jensen and Christensen 1998): built by the master, shipped to
+ * every worker as one content-addressed blob, read-only while rendering.
+ * - Photons leave the lights in proportion to their power and are traced through media
+ *   and off surfaces; photon i uses only random numbers keyed by (seed, i), so the map is
+ *   a pure function of the scene. Threads take fixed blocks of photon indices and the
+ *   blocks are joined in index order, then sorted (stably) by grid cell: the bytes are the
+ *   same for any thread count.
+ * - A photon is stored at each scattering event in a medium except events on its first
+ *   flight straight from the light (ray marching computes that single scattering).
+ * - With the media setting surface_photons, a second map of the same format (following
+ *   the volume map in the blob) holds photons arriving at diffuse surfaces after any
+ *   interaction: the surfaces' indirect light (Jensen's global map without the direct part,
+ *   which next-event estimation computes), read by photon_map_surface.
+ * - Storage: 20-byte photons (position, RGBE power, octahedral direction) sorted by the
+ *   cell of a hash grid with cells of twice the gather radius, plus the start of each
+ *   bucket: two flat arrays, serialised as one copy behind a 48-byte header. */
+#ifndef BRUME_PHOTONMAP_H
+#define BRUME_PHOTONMAP_H
+#include <stddef.h>
+#include <stdint.h>
+#include "scene/medium.h"
+#include "base/vec.h"
+
+struct render_job;
+
+struct photon {
+    float p[3];
+    uint8_t rgbe[4];    /* power (W), shared exponent */
+    uint16_t dir;       /* direction of travel, octahedral 8+8 bits */
+    uint16_t reserved;  /* 0 */
+};
+
+struct photon_decoded {
+    float dir[3], power[3];
+};
+
+struct photon_map {
+    uint32_t num_photons;
+    uint32_t table_size;        /* buckets, a power of two */
+    uint64_t num_emitted;
+    float radius, cell_size;
+    struct photon *photons;     /* sorted by bucket */
+    uint32_t *bucket_start;     /* table_size + 1 */
+    struct photon_decoded *decoded; /* per photon, filled by photon_map_decode; NULL: decode on the fly */
+    struct photon_map *surface; /* the volume map's companion: photons on diffuse surfaces, or NULL */
+};
+
+struct photon_pass_stats {
+    double seconds;
+    uint64_t emitted, stored;  /* stored: volume and surface photons */
+    uint64_t stored_surface;
+    size_t bytes;
+};
+
+/* Traces job's photons (scene media settings: count, radius, depth) on `threads` threads
+ * and returns the serialised map in *blob (caller frees). The job must be a media job
+ * (render_job_init of a scene with media). 0 or -1 with err. */
+int photon_map_build(const struct render_job *job, uint64_t seed, uint32_t threads, uint8_t **blob, size_t *size,
+                     struct photon_pass_stats *stats, char *err, size_t errlen);
+/* Checks and decodes a blob (every size and index is checked before use). */
+int photon_map_decode(const uint8_t *data, size_t size, struct photon_map **out, char *err, size_t errlen);
+void photon_map_free(struct photon_map **pm);
+
+/* Upper bound on the share of in-scattered light that comes from more than one bounce:
+ * max(largest surface reflectance, largest medium albedo x (1 - exp(-sigma_t,max D))),
+ * D the scene's diagonal. The photon pass is skipped when it is below skip_bound. */
+double photon_map_indirect_bound(const struct scene *s, float scene_size);
+
+/* Fixed-radius volume radiance estimate at x toward the viewer (light leaves along d_out):
+ * sum of phase x power / (4/3 pi r^3) over photons within the map's radius; this is
+ * sigma_s times the in-scattered radiance, so a march step adds it times dx. (The march
+ * uses the k-nearest form below, Jensen's; this one stays for tests and tools.) */
+vec3 photon_map_gather(const struct photon_map *m, vec3 x, vec3 d_out, float g);
+/* Flux density of indirect light at x on a surface with unit normal n (on the side light
+ * arrives from): sum of the power of the surface photons within the map's radius of x,
+ * near the tangent plane (|(p - x) . n| <= r / 4) and arriving from n's side, over pi r^2.
+ * A diffuse surface of albedo a reflects a / pi times it. 0 without a surface map. */
+vec3 photon_map_surface(const struct photon_map *m, vec3 x, vec3 n);
+/* Jensen's k-nearest query: the (at most) k photons nearest to x within rmax (capped at 8
+ * hash-grid cells, 16 gather radii), searched in rings of cells around x's cell until the
+ * k-th distance is below the next ring's; indices into m->photons in idx (room for
+ * min(k, PM_KNN_MAX)); *r2 gets the squared radius of the estimate's sphere: the k-th
+ * distance when k were found, else rmax^2. Ties broken by index: deterministic. */
+#define PM_KNN_MAX 1024u
+uint32_t photon_map_knn(const struct photon_map *m, vec3 x, uint32_t k, float rmax, uint32_t *idx, float *r2);
+/* Jensen's per-step estimate with the k nearest photons (adaptive radius, at most rmax):
+ * sum of phase x power / (4/3 pi r_k^3). */
+vec3 photon_map_gather_knn(const struct photon_map *m, vec3 x, vec3 d_out, float g, uint32_t k, float rmax);
+/* Beam radiance estimate (Jarosz et al. 2008) along o + t d, t in [0, t1), in homogeneous
+ * medium md: sum over photons within r of the ray of K(r) Tr(t_i) phase power, K = 1 /
+ * (pi r^2). One query for the whole segment. */
+struct photon_tau {
+    const float *tau;   /* optical depth per unit sigma_t at t0 + k dt, k < n */
+    uint32_t n;
+    float t0, dt;
+};
+/* tau: transmittance from a marched table (heterogeneous media), or NULL for the closed form. */
+vec3 photon_map_beam(const struct photon_map *m, vec3 o, vec3 d, float t1, const struct medium *md,
+                     const struct photon_tau *tau);
+
+/* Encodings, exposed for tests. */
+void photon_rgbe_encode(vec3 c, uint8_t out[4]);
+vec3 photon_rgbe_decode(const uint8_t in[4]);
+uint16_t photon_dir_encode(vec3 d);
+vec3 photon_dir_decode(uint16_t e);
+
+
+
+/* The volume blob of a job (path MEDIA_PHOTON_ASSET): the media settings the master
+ * settled on (command-line overrides included) and the photon map, if one was built.
+ * Every worker renders with exactly these; the blob is content-addressed like any asset. */
+int volume_blob_make(const struct scene_media *sm, const uint8_t *map, size_t map_size, uint8_t **out,
+                     size_t *out_size);
+/* Applies a volume blob to a freshly parsed scene (settings, decoded map). 0 or -1 with err. */
+int volume_blob_apply(struct scene *s, const uint8_t *data, size_t size, char *err, size_t errlen);
+#endif

@@ -1,0 +1,45 @@
+/* Textures in the path tracer: the glue between a render_job and the ray differential
+ * maths (raydiff.c) and texture lookups (texture.c, mip.c). Only scenes whose materials
+ * use a texture pay for it (render_job.textured); others never call in here, so their
+ * images are unchanged bit for bit. Callers: integrator.c. */
+#ifndef BRUME_TEXSHADE_H
+#define BRUME_TEXSHADE_H
+#include "render/accel.h"
+#include "scene/camera.h"
+#include "scene/material.h"
+#include "render/raydiff.h"
+#include "scene/sampler.h"
+#include "scene/scene.h"
+
+struct render_job;
+
+/* MIP pyramids of the scene's image textures, once per job (NULL entries for checkers). */
+struct mip *texshade_build(const struct scene *scene, int *textured);
+void texshade_free(struct mip *mips, const struct scene *scene);
+
+/* Differentials of the camera ray cs (pose at its time, lens point fixed) of sample smp:
+ * where the sampler puts one sample per cell of a grid over the pixel
+ * (sampler_pixel_cells), the footprint is the sample's cell, centred on it; otherwise an
+ * isotropic footprint of 1/spp of the pixel's area at the sample. */
+void texshade_camera(const struct render_job *job, const struct camera_sample *cs, const struct sampler *smp,
+                     struct raydiff *rd);
+/* Differential geometry of hit h of the ray (org, dir) at time01, with rd's centring
+ * offset for the footprint filters. */
+void texshade_hit(const struct render_job *job, vec3 org, vec3 dir, const struct accel_hit *h, float time01,
+                  const struct raydiff *rd, struct raydiff_hit *out);
+/* The material with its albedo texture looked up (a copy in *buf), or mat itself. */
+const struct material *texshade_material(const struct render_job *job, const struct material *mat,
+                                         const struct raydiff_hit *dh, struct material *buf);
+/* The shading normal ns (unit, on the side of ng) perturbed by the material's normal map
+ * (tangent space) or else its bump map (height differences over the footprint's uv
+ * extent, as pbrt's BumpMap); ns itself when the material has neither, the mapping is
+ * degenerate, or the result would face away from ng. mips: the job's pyramids. */
+vec3 texshade_bump(const struct scene *scene, const struct mip *mips, const struct material *mat,
+                   const struct raydiff_hit *dh, vec3 ng, vec3 ns);
+/* Carries rd over a scattering at the hit: exact for delta bounces, a cone otherwise.
+ * ns: the shading normal used (on the side of the incoming ray); front as for
+ * material_sample. */
+void texshade_scatter(struct raydiff *rd, const struct material *mat, const struct bsdf_sample *bs, int front,
+                      vec3 dir, vec3 ns, const struct raydiff_hit *dh);
+
+#endif

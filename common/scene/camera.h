@@ -1,0 +1,75 @@
+/* Thin-lens camera with a shutter and keyframed motion: turns a continuous film position
+ * (pixels, origin top-left, y down), a lens sample and a time sample into a world-space
+ * ray. Built once per job from the scene's camera_desc; read-only afterwards. Aperture 0
+ * is exactly the pinhole camera and consumes no lens dimensions; a closed shutter or a
+ * still scene consumes no time dimension. Callers: integrator.c, tests. */
+#ifndef BRUME_CAMERA_H
+#define BRUME_CAMERA_H
+#include "scene/sampler.h"
+#include "scene/scene.h"
+#include "base/vec.h"
+
+/* Camera frame at one time. focus: distance of the focal plane along forward. */
+struct camera_pose {
+    vec3 origin;
+    vec3 forward, right, up;   /* orthonormal; right-handed with forward into the scene */
+    float focus;
+};
+
+struct camera {
+    struct camera_pose still;  /* the pose when there are no keyframes */
+    vec3 origin;               /* == still.origin (kept for older callers) */
+    vec3 forward, right, up;
+    float tan_half_fov_y;
+    float aspect;              /* width / height */
+    float width, height;
+    float lens_radius;         /* 0 = pinhole */
+    uint32_t blades;           /* 0 = circular aperture */
+    float blade_x[CAMERA_MAX_BLADES + 1], blade_y[CAMERA_MAX_BLADES + 1]; /* unit polygon, closed */
+    int has_focus_point;
+    vec3 focus_point;
+    float focus_distance;      /* as given (0 = distance to look_at) */
+    float shutter_open, shutter_close, shutter_ramp;
+    int uses_lens;             /* lens dimensions are consumed */
+    int moving;                /* keyframes that differ: pose depends on time */
+    int uses_time;             /* the time dimension is consumed */
+    uint32_t num_keys;
+    float key_time[CAMERA_MAX_KEYFRAMES];
+    vec3 key_pos[CAMERA_MAX_KEYFRAMES];
+    float key_rot[CAMERA_MAX_KEYFRAMES][4];   /* unit quaternion (x, y, z, w) of (right, up, -forward) */
+    float key_dist[CAMERA_MAX_KEYFRAMES];     /* |look_at - position| */
+};
+
+/* What a camera ray carries: origin, unit direction, and its time, both as a fraction of
+ * the shutter interval (after the shutter curve; give it to motion-blurred geometry) and
+ * as an absolute time in frames. */
+struct camera_sample {
+    vec3 o, d;
+    float time01;
+    double time;
+    float jx, jy;   /* the sample's position in its pixel, [0, 1)^2 (pixel jitter) */
+};
+
+void camera_init(struct camera *cam, const struct camera_desc *desc, uint32_t width, uint32_t height);
+/* Objects move: the time dimension is then consumed whenever the shutter is open. Call
+ * after camera_init when the scene has moving geometry. */
+void camera_set_scene_motion(struct camera *cam, int objects_move);
+
+/* Pinhole ray of the still pose through film point (fx, fy) in pixels; direction normalised. */
+void camera_ray(const struct camera *cam, float fx, float fy, vec3 *origin, vec3 *dir);
+/* Thin-lens ray at a pose; (lu, lv) in [0,1)^2 is the lens sample (ignored at aperture 0). */
+void camera_ray_lens(const struct camera *cam, const struct camera_pose *pose, float fx, float fy, float lu, float lv,
+                     vec3 *origin, vec3 *dir);
+/* Point on the aperture (in lens-plane units, scene units) for a sample in [0,1)^2. */
+void camera_lens_point(const struct camera *cam, float lu, float lv, float *x, float *y);
+/* Pose at absolute time t (frames). */
+void camera_pose_at(const struct camera *cam, double t, struct camera_pose *pose);
+/* Shutter curve: maps a uniform u to time01 in [0, 1]. */
+float camera_shutter_warp(const struct camera *cam, float u);
+
+/* The camera ray for sample smp of pixel (px, py) in frame `frame`: pixel jitter, lens and
+ * time from the sampler's fixed dimensions. */
+void camera_generate(const struct camera *cam, const struct sampler *smp, uint32_t frame, uint32_t px, uint32_t py,
+                     struct camera_sample *out);
+
+#endif

@@ -1,0 +1,260 @@
+/* Light table, light sampling and light pdfs (see light.h). Triangles are sampled
+ * uniformly by area; spheres by the cone of directions they subtend (uniform by area
+ * when the shading point is inside), which is what light_pdf mirrors. */
+#include "scene/light.h"
+#include "base/log.h"
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+float light_spot_falloff(const struct light *l, vec3 dir)
+{
+    if (l->type != LIGHT_SPOT)
+        return 1.0f;
+    float len = v3_length(dir);
+    if (!(len > 0.0f))
+        return 0.0f;
+    float c = v3_dot(l->direction, dir) / len;
+    if (c <= l->cos_outer)
+        return 0.0f;
+    if (c >= l->cos_inner)
+        return 1.0f;
+    float x = (c - l->cos_outer) / (l->cos_inner - l->cos_outer);
+    return x * x * (3.0f - 2.0f * x);
+}
+
+static vec3 tri_vertex(const struct mesh *m, uint32_t prim, int k)
+{
+    const float *p = &m->positions[3 * m->indices[3 * prim + k]];
+    return v3(p[0], p[1], p[2]);
+}
+
+/* In double: a bright light's power (4 pi I) can overflow float even when I does not. */
+static double emitted_power(const struct light_entry *e)
+{
+    double le = ((double)e->emission.x + e->emission.y + e->emission.z) / 3.0;
+    switch (e->kind) {
+    case LK_POINT:
+        return (double)e->area * le; /* area: the solid angle it emits into (4 pi, or a spot's cone) */
+    case LK_TRIANGLE:
+    case LK_SPHERE:
+        return M_PI * (double)e->area * le;
+    }
+    return 0.0;
+}
+
+static void add_entry(struct light_table *t, size_t *cap, struct light_entry e)
+{
+    mem_grow((void **)&t->entries, cap, t->num_entries + 1, sizeof e);
+    t->entries[t->num_entries++] = e;
+}
+
+void light_table_build(struct light_table *t, const struct scene *s)
+{
+    memset(t, 0, sizeof *t);
+    size_t cap = 0;
+    for (uint32_t i = 0; i < s->num_lights; i++) {
+        const struct light *l = &s->lights[i];
+        float omega = l->type == LIGHT_SPOT ? 2.0f * (float)M_PI * (1.0f - l->cos_outer) : 4.0f * (float)M_PI;
+        struct light_entry e = {LK_POINT, i, 0, l->intensity, omega};
+        if (!v3_is_black(e.emission))
+            add_entry(t, &cap, e);
+    }
+    t->num_meshes = s->num_meshes;
+    if (s->num_meshes)
+        t->tri_light = mem_calloc(s->num_meshes, sizeof *t->tri_light);
+    for (uint32_t mi = 0; mi < s->num_meshes; mi++) {
+        const struct mesh *m = &s->meshes[mi];
+        if (m->num_keys > 0 || m->num_frames > 1)
+            continue; /* moving emitters: found by BSDF sampling only (integrator.c) */
+        for (uint32_t p = 0; p < m->num_triangles; p++) {
+            vec3 em = s->materials[m->material_ids[p]].emission;
+            if (v3_is_black(em))
+                continue;
+            vec3 a = tri_vertex(m, p, 0), b = tri_vertex(m, p, 1), c = tri_vertex(m, p, 2);
+            float area = 0.5f * v3_length(v3_cross(v3_sub(b, a), v3_sub(c, a)));
+            if (!(area > 0.0f))
+                continue; /* degenerate: can neither be hit nor sampled */
+            if (!t->tri_light[mi]) {
+                t->tri_light[mi] = mem_alloc(sizeof(uint32_t) * m->num_triangles);
+                for (uint32_t k = 0; k < m->num_triangles; k++)
+                    t->tri_light[mi][k] = LIGHT_NONE;
+            }
+            t->tri_light[mi][p] = t->num_entries;
+            add_entry(t, &cap, (struct light_entry){LK_TRIANGLE, mi, p, em, area});
+        }
+    }
+    for (uint32_t i = 0; i < s->num_spheres; i++) {
+        vec3 em = s->materials[s->spheres[i].material_id].emission;
+        if (v3_is_black(em) || s->spheres[i].num_keys > 0)
+            continue;
+        if (!t->sphere_light) {
+            t->sphere_light = mem_alloc(sizeof(uint32_t) * s->num_spheres);
+            for (uint32_t k = 0; k < s->num_spheres; k++)
+                t->sphere_light[k] = LIGHT_NONE;
+        }
+        float r = s->spheres[i].radius;
+        t->sphere_light[i] = t->num_entries;
+        add_entry(t, &cap, (struct light_entry){LK_SPHERE, i, 0, em, 4.0f * (float)M_PI * r * r});
+    }
+    if (t->num_entries == 0)
+        return;
+    /* Summed in double so the cdf of many small emitters stays monotone and ends at 1. */
+    double total = 0.0;
+    for (uint32_t i = 0; i < t->num_entries; i++)
+        total += emitted_power(&t->entries[i]);
+    t->cdf = mem_alloc(sizeof(float) * (t->num_entries + 1));
+    t->pick_pdf = mem_alloc(sizeof(float) * t->num_entries);
+    double acc = 0.0;
+    t->cdf[0] = 0.0f;
+    for (uint32_t i = 0; i < t->num_entries; i++) {
+        double p = total > 0.0 && isfinite(total) ? emitted_power(&t->entries[i]) / total : 1.0 / t->num_entries;
+        t->pick_pdf[i] = (float)p;
+        acc += p;
+        t->cdf[i + 1] = (float)acc;
+    }
+    t->cdf[t->num_entries] = 1.0f;
+}
+
+void light_table_free(struct light_table *t)
+{
+    free(t->entries);
+    free(t->cdf);
+    free(t->pick_pdf);
+    for (uint32_t i = 0; t->tri_light && i < t->num_meshes; i++)
+        free(t->tri_light[i]);
+    free(t->tri_light);
+    free(t->sphere_light);
+    memset(t, 0, sizeof *t);
+}
+
+uint32_t light_pick(const struct light_table *t, float u)
+{
+    uint32_t lo = 0, hi = t->num_entries; /* find i with cdf[i] <= u < cdf[i+1] */
+    while (hi - lo > 1) {
+        uint32_t mid = (lo + hi) / 2;
+        if (t->cdf[mid] <= u)
+            lo = mid;
+        else
+            hi = mid;
+    }
+    /* Skip zero-probability entries that float rounding could land on. */
+    while (lo + 1 < t->num_entries && t->pick_pdf[lo] == 0.0f)
+        lo++;
+    return lo;
+}
+
+/* 1 - cos(theta_max) of the cone a sphere subtends, without cancellation for far spheres. */
+static float sphere_cone_one_minus_cos(float r, float dist)
+{
+    float sin2 = (r * r) / (dist * dist);
+    float cos_max = sqrtf(fmaxf(0.0f, 1.0f - sin2));
+    return sin2 / (1.0f + cos_max);
+}
+
+void light_sample(const struct light_table *t, const struct scene *s, vec3 ref, float u_pick, float u1,
+                  float u2, struct light_sample *out)
+{
+    memset(out, 0, sizeof *out);
+    if (t->num_entries == 0)
+        return;
+    uint32_t i = light_pick(t, u_pick);
+    const struct light_entry *e = &t->entries[i];
+    float pick_pdf = t->pick_pdf[i];
+    if (pick_pdf <= 0.0f)
+        return;
+    switch (e->kind) {
+    case LK_POINT: {
+        vec3 p = s->lights[e->index].position;
+        vec3 d = v3_sub(p, ref);
+        float d2 = v3_dot(d, d);
+        if (!(d2 > 0.0f))
+            return;
+        out->p = p;
+        out->radiance = v3_scale(e->emission, light_spot_falloff(&s->lights[e->index], v3_neg(d)) / d2);
+        out->pdf = pick_pdf;
+        out->is_delta = 1;
+        return;
+    }
+    case LK_TRIANGLE: {
+        const struct mesh *m = &s->meshes[e->index];
+        vec3 a = tri_vertex(m, e->prim, 0), b = tri_vertex(m, e->prim, 1), c = tri_vertex(m, e->prim, 2);
+        float su = sqrtf(u1);
+        float b0 = 1.0f - su, b1 = u2 * su;
+        vec3 p = v3_add(v3_add(v3_scale(a, b0), v3_scale(b, b1)), v3_scale(c, 1.0f - b0 - b1));
+        vec3 n = v3_normalize(v3_cross(v3_sub(b, a), v3_sub(c, a)));
+        out->p = p;
+        out->n = n;
+        out->pdf = light_pdf(t, s, i, ref, p, n);
+        out->radiance = out->pdf > 0.0f ? e->emission : v3(0, 0, 0);
+        return;
+    }
+    case LK_SPHERE: {
+        const struct sphere *sp = &s->spheres[e->index];
+        vec3 to_c = v3_sub(sp->center, ref);
+        float dc = v3_length(to_c);
+        vec3 p;
+        if (dc <= sp->radius * 1.0001f) {
+            /* Inside (or on) the sphere: uniform by area. */
+            float z = 1.0f - 2.0f * u1, r = sqrtf(fmaxf(0.0f, 1.0f - z * z)), sphi, cphi;
+            sincos_2pi(u2, &sphi, &cphi);
+            p = v3_add(sp->center, v3_scale(v3(r * cphi, r * sphi, z), sp->radius));
+        } else {
+            float omc = sphere_cone_one_minus_cos(sp->radius, dc);
+            float one_minus_cos = u1 * omc;
+            float cos_t = 1.0f - one_minus_cos;
+            float sin_t = sqrtf(fmaxf(0.0f, one_minus_cos * (2.0f - one_minus_cos)));
+            float sphi, cphi;
+            sincos_2pi(u2, &sphi, &cphi);
+            vec3 w = v3_scale(to_c, 1.0f / dc), tx, ty;
+            v3_basis(w, &tx, &ty);
+            vec3 dir = v3_add(v3_scale(w, cos_t), v3_add(v3_scale(tx, sin_t * cphi), v3_scale(ty, sin_t * sphi)));
+            /* Nearest intersection of the sampled direction with the sphere. */
+            float disc = sp->radius * sp->radius - dc * dc * sin_t * sin_t;
+            float ds = dc * cos_t - sqrtf(fmaxf(0.0f, disc));
+            p = v3_add(ref, v3_scale(dir, ds));
+        }
+        vec3 n = v3_normalize(v3_sub(p, sp->center));
+        out->p = p;
+        out->n = n;
+        out->pdf = light_pdf(t, s, i, ref, p, n);
+        out->radiance = out->pdf > 0.0f ? e->emission : v3(0, 0, 0);
+        return;
+    }
+    }
+}
+
+float light_pdf(const struct light_table *t, const struct scene *s, uint32_t entry, vec3 ref, vec3 p_light,
+                vec3 n_light)
+{
+    if (entry >= t->num_entries)
+        return 0.0f;
+    const struct light_entry *e = &t->entries[entry];
+    float pick_pdf = t->pick_pdf[entry];
+    vec3 d = v3_sub(p_light, ref);
+    float d2 = v3_dot(d, d);
+    if (!(d2 > 0.0f))
+        return 0.0f;
+    float cos_l = -v3_dot(n_light, d) / sqrtf(d2);
+    switch (e->kind) {
+    case LK_POINT:
+        return 0.0f; /* cannot be hit by chance */
+    case LK_TRIANGLE:
+        if (cos_l <= 0.0f)
+            return 0.0f; /* back side emits nothing */
+        return pick_pdf * d2 / (cos_l * e->area);
+    case LK_SPHERE: {
+        const struct sphere *sp = &s->spheres[e->index];
+        float dc = v3_length(v3_sub(sp->center, ref));
+        if (dc <= sp->radius * 1.0001f) {
+            if (cos_l <= 0.0f)
+                return 0.0f;
+            return pick_pdf * d2 / (cos_l * e->area);
+        }
+        if (cos_l <= 0.0f)
+            return 0.0f;
+        return pick_pdf / (2.0f * (float)M_PI * sphere_cone_one_minus_cos(sp->radius, dc));
+    }
+    }
+    return 0.0f;
+}

@@ -1,0 +1,64 @@
+/* Light table of a job: point lights and every emissive triangle and sphere, chosen for
+ * next-event estimation in proportion to emitted power. Built once per job from the flat
+ * scene; read-only while rendering. Emitters are one-sided: a triangle emits on the side
+ * of its right-handed normal (counter-clockwise winding seen from the front), a sphere
+ * outwards. Also answers the pdf of hitting an emitter by chance, for MIS. Emitters on
+ * moving geometry (keyframes or deformation frames) are left out: their position depends
+ * on the ray time, so the integrator counts them when BSDF sampling hits them. */
+#ifndef BRUME_LIGHT_H
+#define BRUME_LIGHT_H
+#include <stdint.h>
+#include "scene/scene.h"
+#include "base/vec.h"
+
+#define LIGHT_NONE UINT32_MAX
+
+enum light_kind { LK_POINT, LK_TRIANGLE, LK_SPHERE };
+
+struct light_entry {
+    enum light_kind kind;
+    uint32_t index;     /* scene light, mesh, or sphere index */
+    uint32_t prim;      /* triangle index within the mesh */
+    vec3 emission;      /* radiance (area lights) or intensity (point lights) */
+    float area;
+};
+
+struct light_table {
+    struct light_entry *entries;
+    float *cdf;                 /* num_entries + 1, cdf[0] = 0, cdf[n] = 1 */
+    float *pick_pdf;            /* per entry */
+    uint32_t num_entries;
+    uint32_t **tri_light;       /* per mesh: per triangle entry index or LIGHT_NONE; NULL if none */
+    uint32_t num_meshes;
+    uint32_t *sphere_light;     /* per sphere, or NULL */
+};
+
+struct light_sample {
+    vec3 p;             /* point on the light (position for point lights) */
+    vec3 n;             /* light's normal there (zero for point lights) */
+    vec3 radiance;      /* emitted radiance toward the shading point, or I / d^2 for points */
+    float pdf;          /* solid-angle pdf including the pick probability; 0 = no sample */
+    int is_delta;
+};
+
+/* A spot light's falloff toward dir (from the light, any length): 0 outside the outer cone,
+ * 1 inside the inner one, smoothstep in cos between; 1 for point lights. */
+float light_spot_falloff(const struct light *l, vec3 dir);
+
+void light_table_build(struct light_table *t, const struct scene *s);
+void light_table_free(struct light_table *t);
+
+/* Samples one light for shading point ref with three uniforms. */
+void light_sample(const struct light_table *t, const struct scene *s, vec3 ref, float u_pick, float u1,
+                  float u2, struct light_sample *out);
+
+/* Solid-angle pdf (pick included) that light_sample would have produced point p_light
+ * with light normal n_light on emitter `entry`, seen from ref. */
+float light_pdf(const struct light_table *t, const struct scene *s, uint32_t entry, vec3 ref, vec3 p_light,
+                vec3 n_light);
+
+/* The entry whose CDF interval holds u in [0, 1) (never one of probability zero), for
+ * callers that pick a light themselves (the media integrator, the photon pass). */
+uint32_t light_pick(const struct light_table *t, float u);
+
+#endif

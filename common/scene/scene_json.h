@@ -1,0 +1,18 @@
+/* Scene file (version 1, JSON) to flat scene. Syntax errors come from jansson with line
+ * and column; semantic errors (unknown key, wrong type, value out of range, missing OBJ)
+ * name the line and column of the offending key or value: "scenes/x.json:12:7: ...".
+ * Format documented in docs/scene-format.md. Called by the master and by workers (which
+ * read the same bytes from blobs, so both build the same scene). */
+#ifndef BRUME_SCENE_JSON_H
+#define BRUME_SCENE_JSON_H
+#include <stddef.h>
+#include "base/asset.h"
+#include "scene/scene.h"
+
+/* Parses text (len bytes) named `name` in messages; OBJ/MTL files are read through src,
+ * relative to the scene's folder. On success fills *out (which must be zeroed) and
+ * returns 0; on failure returns -1, leaves *out freed and writes one line into err. */
+int scene_json_parse(const char *name, const char *text, size_t len, const struct asset_source *src,
+                     struct scene *out, char *err, size_t errlen);
+
+#endif

@@ -1,0 +1,196 @@
+/* Content-addressed blobs (see blob.h): hashing, chunked receive and an in-memory store.
+ * Invariants: a blob_recv never allocates before the announced size passed its limit,
+ * stores only whole, aligned chunks, and hands out data only after the hash matched.
+ * Called by the master (publishing scene files and the photon map) and by workers
+ * (fetching and caching them). */
+#include "wire/blob.h"
+#include "base/log.h"
+#include <pthread.h>
+#include <sodium.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+static pthread_once_t g_sodium_once = PTHREAD_ONCE_INIT;
+
+static void sodium_init_once(void)
+{
+    /* Hashing works without sodium_init(), but the library asks for it before any use;
+     * a failure means no usable RNG, which the hash does not need, so it is not fatal. */
+    if (sodium_init() < 0)
+        log_warn("sodium_init failed");
+}
+
+void blob_hash_compute(const void *data, size_t size, struct blob_hash *out)
+{
+    static const uint8_t empty[1] = {0};
+    pthread_once(&g_sodium_once, sodium_init_once);
+    /* libsodium wants a valid pointer even for zero bytes. */
+    const void *in = size ? data : empty;
+    crypto_generichash(out->bytes, BLOB_HASH_SIZE, in, size, NULL, 0);
+}
+
+void blob_hash_hex(const struct blob_hash *h, char hex[65])
+{
+    static const char digits[] = "0123456789abcdef";
+    for (int i = 0; i < BLOB_HASH_SIZE; i++) {
+        hex[2 * i] = digits[h->bytes[i] >> 4];
+        hex[2 * i + 1] = digits[h->bytes[i] & 15];
+    }
+    hex[64] = '\0';
+}
+
+int blob_hash_equal(const struct blob_hash *a, const struct blob_hash *b)
+{
+    return memcmp(a->bytes, b->bytes, BLOB_HASH_SIZE) == 0;
+}
+
+/* ---- chunked receive ---- */
+
+int blob_recv_init(struct blob_recv *r, const struct blob_hash *hash, uint64_t size, char *err, size_t errlen)
+{
+    memset(r, 0, sizeof *r);
+    /* The size comes from the peer: check it before it becomes an allocation. */
+    if (size > BLOB_MAX_SIZE || size > SIZE_MAX) {
+        str_fmt(err, errlen, "blob size %llu exceeds the limit of %llu bytes",
+                (unsigned long long)size, (unsigned long long)BLOB_MAX_SIZE);
+        return -1;
+    }
+    r->hash = *hash;
+    r->size = size;
+    r->num_chunks = (size + BLOB_CHUNK_SIZE - 1) / BLOB_CHUNK_SIZE;
+    r->data = mem_alloc((size_t)size);
+    r->have = mem_calloc((size_t)r->num_chunks, 1);
+    r->chunks_have = 0;
+    return 0;
+}
+
+int blob_recv_put(struct blob_recv *r, uint64_t offset, const uint8_t *bytes, size_t len, char *err, size_t errlen)
+{
+    if (!r->data) {
+        str_fmt(err, errlen, "blob chunk for a blob not being received");
+        return -1;
+    }
+    if (offset % BLOB_CHUNK_SIZE != 0 || offset >= r->size) {
+        str_fmt(err, errlen, "blob chunk offset %llu invalid (size %llu, chunks of %u)",
+                (unsigned long long)offset, (unsigned long long)r->size, BLOB_CHUNK_SIZE);
+        return -1;
+    }
+    uint64_t left = r->size - offset;
+    uint64_t expect = left < BLOB_CHUNK_SIZE ? left : BLOB_CHUNK_SIZE;
+    if ((uint64_t)len != expect) {
+        str_fmt(err, errlen, "blob chunk at offset %llu has %zu bytes, expected %llu",
+                (unsigned long long)offset, len, (unsigned long long)expect);
+        return -1;
+    }
+    uint64_t idx = offset / BLOB_CHUNK_SIZE;
+    /* A duplicate (a re-sent request) overwrites with what must be the same bytes; if a
+     * peer lied, the hash check in blob_recv_finish catches it either way. */
+    memcpy(r->data + offset, bytes, len);
+    if (!r->have[idx]) {
+        r->have[idx] = 1;
+        r->chunks_have++;
+    }
+    return 0;
+}
+
+int blob_recv_complete(const struct blob_recv *r)
+{
+    return r->data != NULL && r->chunks_have == r->num_chunks;
+}
+
+int blob_recv_finish(struct blob_recv *r, uint8_t **data, char *err, size_t errlen)
+{
+    if (!blob_recv_complete(r)) {
+        str_fmt(err, errlen, "blob incomplete: %llu of %llu chunks",
+                (unsigned long long)r->chunks_have, (unsigned long long)r->num_chunks);
+        return -1;
+    }
+    struct blob_hash got;
+    blob_hash_compute(r->data, (size_t)r->size, &got);
+    if (!blob_hash_equal(&got, &r->hash)) {
+        char want_hex[65], got_hex[65];
+        blob_hash_hex(&r->hash, want_hex);
+        blob_hash_hex(&got, got_hex);
+        str_fmt(err, errlen, "hash mismatch: expected %s got %s", want_hex, got_hex);
+        return -1;
+    }
+    *data = r->data;
+    r->data = NULL;
+    free(r->have);
+    r->have = NULL;
+    return 0;
+}
+
+void blob_recv_free(struct blob_recv *r)
+{
+    free(r->data);
+    free(r->have);
+    r->data = NULL;
+    r->have = NULL;
+    r->num_chunks = r->chunks_have = 0;
+}
+
+/* ---- store ---- */
+
+const struct blob_entry *blob_store_get(const struct blob_store *s, const struct blob_hash *hash)
+{
+    /* A few hundred entries at most (a scene's files and a photon map per frame), so a
+     * linear scan costs nothing next to one network round trip. */
+    for (size_t i = 0; i < s->count; i++)
+        if (blob_hash_equal(&s->entries[i].hash, hash))
+            return &s->entries[i];
+    return NULL;
+}
+
+const struct blob_entry *blob_store_adopt(struct blob_store *s, const struct blob_hash *hash, uint8_t *data, uint64_t size)
+{
+    const struct blob_entry *have = blob_store_get(s, hash);
+    if (have) {
+        free(data);   /* ownership was handed over; the stored copy is identical */
+        return have;
+    }
+    if (s->count == s->cap) {
+        size_t cap = s->cap ? s->cap * 2 : 16;
+        s->entries = mem_realloc(s->entries, cap * sizeof *s->entries);
+        s->cap = cap;
+    }
+    struct blob_entry *e = &s->entries[s->count++];
+    e->hash = *hash;
+    e->data = data;
+    e->size = size;
+    return e;
+}
+
+const struct blob_entry *blob_store_put(struct blob_store *s, const void *data, uint64_t size)
+{
+    CHECK(size <= SIZE_MAX);
+    struct blob_hash h;
+    blob_hash_compute(data, (size_t)size, &h);
+    const struct blob_entry *have = blob_store_get(s, &h);
+    if (have)
+        return have;
+    uint8_t *copy = mem_alloc((size_t)size);
+    if (size)
+        memcpy(copy, data, (size_t)size);
+    return blob_store_adopt(s, &h, copy, size);
+}
+
+void blob_store_drop(struct blob_store *s, const struct blob_hash *hash)
+{
+    for (size_t i = 0; i < s->count; i++)
+        if (blob_hash_equal(&s->entries[i].hash, hash)) {
+            free(s->entries[i].data);
+            s->entries[i] = s->entries[--s->count];
+            return;
+        }
+}
+
+void blob_store_free(struct blob_store *s)
+{
+    for (size_t i = 0; i < s->count; i++)
+        free(s->entries[i].data);
+    free(s->entries);
+    s->entries = NULL;
+    s->count = s->cap = 0;
+}

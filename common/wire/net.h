@@ -1,0 +1,54 @@
+/* ZeroMQ plumbing shared by master and worker: socket options every socket gets
+ * (ZMQ_MAXMSGSIZE, LINGER 0), and sending / receiving one protocol message with an
+ * optional ROUTER identity frame. Receiving never trusts a frame: the caller decodes it
+ * with proto_decode() and drops what fails. */
+#ifndef BRUME_NET_H
+#define BRUME_NET_H
+#include <stddef.h>
+#include <stdint.h>
+#include "wire/proto.h"
+
+#define NET_MAX_IDENTITY 256
+
+void net_socket_setup(void *sock);
+/* Encodes and sends msg (preceded by identity when id_len > 0) without blocking: -1
+ * (logged at debug level, errno set) when it cannot be queued (no peer, queue full). */
+int net_send(void *sock, const uint8_t *id, size_t id_len, const struct proto_msg *msg, struct proto_buf *scratch);
+
+/* One received message: identity (ROUTER only) and the payload frame. */
+struct net_frame {
+    uint8_t id[NET_MAX_IDENTITY];
+    size_t id_len;
+    uint8_t *data;      /* mem_alloc'd copy of the payload, freed by net_frame_free */
+    size_t size;
+};
+/* Receives one message without blocking (call after zmq_poll said POLLIN). with_identity:
+ * expect an identity frame first (ROUTER). Returns 1 on a well-formed envelope, 0 when
+ * nothing was there, -1 on a malformed envelope (wrong frame count: drained and dropped). */
+int net_recv(void *sock, int with_identity, struct net_frame *f);
+void net_frame_free(struct net_frame *f);
+
+/* CurveZMQ keys are 40-character Z85 strings. A key pair file holds the public key on
+ * its first line and the secret key on its second; a public key file (and each line of
+ * an allow-list) holds one public key, optionally followed by a name. Lines starting with
+ * '#' are comments. */
+#define NET_Z85_KEY_LEN 40
+struct net_key { char z85[NET_Z85_KEY_LEN + 1]; };
+int net_key_pair_load(const char *path, struct net_key *public_key, struct net_key *secret_key, char *err, size_t errlen);
+int net_key_public_load(const char *path, struct net_key *public_key, char *err, size_t errlen);
+/* Reads an allow-list; *keys is mem_alloc'd. Returns 0 or -1 (err says which line). */
+int net_key_list_load(const char *path, struct net_key **keys, size_t *count, char *err, size_t errlen);
+/* Writes PATH (key pair, mode 0600) and PATH.pub (public key). 0 or -1. */
+int net_key_pair_write(const char *path, char *err, size_t errlen);
+/* Client side of CurveZMQ: set before zmq_connect. 0 or -1. */
+int net_curve_client(void *sock, const struct net_key *server_public, const struct net_key *our_public,
+                     const struct net_key *our_secret);
+/* Server side: CURVE with ZAP domain "brume"; set before zmq_bind. 0 or -1. */
+int net_curve_server(void *sock, const struct net_key *our_secret);
+/* True for endpoints only this machine can reach (ipc, inproc, tcp on loopback). */
+int net_endpoint_is_local(const char *endpoint);
+
+/* Monotonic milliseconds. */
+uint64_t net_now_ms(void);
+
+#endif

@@ -1,0 +1,170 @@
+/* Wire protocol between master (ROUTER) and workers (DEALER). One ZeroMQ frame per
+ * message (after the ROUTER's identity frame), little-endian, starting with a header:
+ *   u32 magic "BRUM", u16 version, u16 type
+ * then the message's fields. Everything is decoded with bounds checks; strings carry a
+ * u16 length and must be valid (no NUL, within limits); counts and sizes are checked
+ * against limits before anything is allocated from them. A frame that fails to decode
+ * yields -1 and a reason; the caller logs it with the peer and drops it. */
+#ifndef BRUME_PROTO_H
+#define BRUME_PROTO_H
+#include <stddef.h>
+#include <stdint.h>
+#include "wire/blob.h"
+#include "render/tile.h"
+
+#define PROTO_MAGIC 0x4d555242u /* "BRUM" little-endian */
+#define PROTO_VERSION 3 /* 2: HEARTBEAT carries samples_done; 3: JOB carries job_key, ACK, KEPT */
+#define PROTO_MAX_MESSAGE (64u * 1024u * 1024u) /* also ZMQ_MAXMSGSIZE */
+#define PROTO_MAX_STRING 1024
+#define PROTO_MAX_ASSETS 4096
+#define PROTO_MAX_CHUNK (48u * 1024u * 1024u)   /* an EXR tile chunk */
+#define PROTO_MAX_ACK_TILES 256                  /* tiles one ACK may list (more: several ACKs) */
+
+enum proto_type {
+    MSG_HELLO = 1,      /* w->m: I exist; my threads */
+    MSG_JOB = 2,        /* m->w: what to render: settings and the blobs that describe it */
+    MSG_BLOB_REQ = 3,   /* w->m: send me bytes [offset, offset+len) of blob hash */
+    MSG_BLOB_DATA = 4,  /* m->w: those bytes */
+    MSG_READY = 5,      /* w->m: job loaded; I can take `credits` more tiles */
+    MSG_TILE = 6,       /* m->w: render this tile (job, frame, tile, attempt) */
+    MSG_RESULT = 7,     /* w->m: the tile's EXR chunk and stats; returns one credit */
+    MSG_ERROR = 8,      /* w->m: cannot do the job (message says why) */
+    MSG_HEARTBEAT = 9,  /* both ways; the worker's proves its render threads progress */
+    MSG_BYE = 10,       /* m->w: job over, exit; w->m: I am leaving */
+    MSG_ACK = 11,       /* m->w: these tiles of (job, frame) are safe (journal synced): forget them */
+    MSG_KEPT = 12,      /* w->m: a finished tile kept for a job of this job_key (a master that came back) */
+    MSG_TYPE_MAX_ = 13
+};
+
+struct msg_hello {
+    uint32_t threads;
+    uint32_t pid;
+    char host[PROTO_MAX_STRING];
+};
+
+struct proto_asset {
+    char path[PROTO_MAX_STRING];   /* relative to the scene folder */
+    struct blob_hash hash;
+    uint64_t size;
+};
+
+struct msg_job {
+    uint64_t job_id;
+    /* What fixes the frame's pixels (scene, assets, settings, frame, tile layout): the same
+     * for a master restarted on the same job, whose job_id differs. Kept tiles are matched
+     * against it. */
+    struct blob_hash job_key;
+    uint32_t frame;
+    /* settings after command-line overrides; the worker applies them over the scene's */
+    uint32_t width, height, spp, max_depth, tile_size;
+    uint64_t seed;
+    uint32_t sampler;                    /* enum sampler_type, < SAMPLER_COUNT_ */
+    char scene_path[PROTO_MAX_STRING];   /* one of the assets: the scene file */
+    uint32_t num_assets;                 /* <= PROTO_MAX_ASSETS */
+    struct proto_asset *assets;          /* decode allocates; free with proto_job_free */
+};
+
+struct msg_blob_req {
+    struct blob_hash hash;
+    uint64_t offset;
+    uint32_t length;
+};
+
+struct msg_blob_data {
+    struct blob_hash hash;
+    uint64_t offset;
+    uint64_t total_size;
+    const uint8_t *bytes;   /* points into the decoded frame */
+    uint32_t length;
+};
+
+struct msg_ready {
+    uint64_t job_id;
+    uint32_t credits;
+};
+
+struct msg_tile {
+    uint64_t job_id;
+    uint32_t frame;
+    uint32_t tile;      /* index: ty * tiles_x + tx */
+    uint32_t attempt;
+};
+
+struct msg_result {
+    uint64_t job_id;
+    uint32_t frame;
+    uint32_t tile;
+    uint32_t attempt;
+    struct tile_stats stats;
+    const uint8_t *chunk;   /* points into the decoded frame */
+    uint32_t chunk_size;    /* <= PROTO_MAX_CHUNK */
+};
+
+/* The master has synced these tiles of (job_id, frame) to its journal (or has them done
+ * already): the worker may drop its copies. */
+struct msg_ack {
+    uint64_t job_id;
+    uint32_t frame;
+    uint32_t count;                         /* <= PROTO_MAX_ACK_TILES */
+    uint32_t tiles[PROTO_MAX_ACK_TILES];
+};
+
+/* A finished tile the worker kept (not acknowledged by the master it rendered it for),
+ * offered to the master now connected: job_id is the current master's JOB, job_key the
+ * key of the job the tile was rendered for. The master accepts it only when job_key is
+ * its own. */
+struct msg_kept {
+    uint64_t job_id;
+    struct blob_hash job_key;
+    uint32_t frame;
+    uint32_t tile;
+    struct tile_stats stats;
+    const uint8_t *chunk;   /* points into the decoded frame */
+    uint32_t chunk_size;    /* <= PROTO_MAX_CHUNK */
+};
+
+struct msg_error {
+    uint64_t job_id;
+    char text[PROTO_MAX_STRING];
+};
+
+/* samples_done: camera samples the worker's render threads finished since it started, a
+ * counter that only grows; stalled_ms: how long the slowest busy render thread has not
+ * finished a row. The master evicts a worker holding tiles whose counter stops moving or
+ * that reports a stalled thread (its main thread may answer while render threads hang). */
+struct msg_heartbeat { uint64_t job_id; uint32_t tiles_done; uint64_t samples_done; uint32_t stalled_ms; };
+
+/* A decoded message. Pointers inside refer to the frame's bytes, which must outlive it. */
+struct proto_msg {
+    enum proto_type type;
+    union {
+        struct msg_hello hello;
+        struct msg_job job;
+        struct msg_blob_req blob_req;
+        struct msg_blob_data blob_data;
+        struct msg_ready ready;
+        struct msg_tile tile;
+        struct msg_result result;
+        struct msg_error error;
+        struct msg_heartbeat heartbeat;
+        struct msg_ack ack;
+        struct msg_kept kept;
+    } u;
+};
+
+/* A growable output buffer for encoding. */
+struct proto_buf { uint8_t *data; size_t size, cap; };
+void proto_buf_free(struct proto_buf *b);
+
+/* Encodes msg into b (b->size reset first). Returns 0, or -1 if a field is out of its
+ * limits (e.g. a string too long), in which case nothing should be sent. */
+int proto_encode(const struct proto_msg *msg, struct proto_buf *b);
+
+/* Decodes one frame. Checks magic, version, type, every length and that the frame has no
+ * trailing bytes. Returns 0, or -1 with the reason in err. On success with MSG_JOB the
+ * caller frees with proto_job_free. */
+int proto_decode(const uint8_t *frame, size_t size, struct proto_msg *msg, char *err, size_t errlen);
+void proto_job_free(struct msg_job *job);
+const char *proto_type_name(enum proto_type t);
+
+#endif

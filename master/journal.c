@@ -1,0 +1,378 @@
+/* Tile journal (see journal.h). Layout, little-endian:
+ *   header: "BRUMJNL1", key (32 bytes), u32 num_tiles, BLAKE2b-256 of those 44 bytes
+ *   record: u32 "TREC", u32 tile, u32 chunk_size, stats (4 x u64, f64, u32), chunk bytes,
+ *           BLAKE2b-256 of everything before it in the record
+ * A reader trusts nothing: sizes are checked against the file before use. */
+#include "journal.h"
+#include "base/log.h"
+#include <errno.h>
+#include <fcntl.h>
+#include <libgen.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#define HEADER_BODY (8 + BLOB_HASH_SIZE + 4)
+#define HEADER_SIZE (HEADER_BODY + BLOB_HASH_SIZE)
+#define REC_HEAD (4 + 4 + 4 + 4 * 8 + 8 + 4)
+#define REC_MAGIC 0x43455254u /* "TREC" */
+static const char k_magic[8] = {'B', 'R', 'U', 'M', 'J', 'N', 'L', '1'};
+
+static void put32(uint8_t *p, uint32_t v)
+{
+    for (int i = 0; i < 4; i++)
+        p[i] = (uint8_t)(v >> (8 * i));
+}
+
+static void put64(uint8_t *p, uint64_t v)
+{
+    for (int i = 0; i < 8; i++)
+        p[i] = (uint8_t)(v >> (8 * i));
+}
+
+static uint32_t get32(const uint8_t *p)
+{
+    uint32_t v = 0;
+    for (int i = 0; i < 4; i++)
+        v |= (uint32_t)p[i] << (8 * i);
+    return v;
+}
+
+static uint64_t get64(const uint8_t *p)
+{
+    uint64_t v = 0;
+    for (int i = 0; i < 8; i++)
+        v |= (uint64_t)p[i] << (8 * i);
+    return v;
+}
+
+static int write_all(int fd, const void *data, size_t n)
+{
+    const uint8_t *p = data;
+    while (n > 0) {
+        ssize_t w = write(fd, p, n);
+        if (w < 0 && errno == EINTR)
+            continue;
+        if (w <= 0) {
+            if (w == 0)
+                errno = ENOSPC;
+            return -1;
+        }
+        p += w;
+        n -= (size_t)w;
+    }
+    return 0;
+}
+
+static int read_file(int fd, uint8_t **data, size_t *size)
+{
+    struct stat st;
+    if (fstat(fd, &st) != 0)
+        return -1;
+    size_t n = (size_t)st.st_size, got = 0;
+    *data = mem_alloc(n ? n : 1);
+    while (got < n) {
+        ssize_t r = pread(fd, *data + got, n - got, (off_t)got);
+        if (r < 0 && errno == EINTR)
+            continue;
+        if (r <= 0)
+            break;
+        got += (size_t)r;
+    }
+    *size = got;
+    return 0;
+}
+
+static void fsync_parent(const char *path)
+{
+    char buf[4096];
+    snprintf(buf, sizeof buf, "%s", path);
+    int fd = open(dirname(buf), O_RDONLY | O_DIRECTORY);
+    if (fd >= 0) {
+        fsync(fd);
+        close(fd);
+    }
+}
+
+static int start_fresh(struct journal *j, const struct blob_hash *key, uint32_t num_tiles, char *err, size_t errlen)
+{
+    uint8_t h[HEADER_SIZE];
+    memcpy(h, k_magic, 8);
+    memcpy(h + 8, key->bytes, BLOB_HASH_SIZE);
+    put32(h + 8 + BLOB_HASH_SIZE, num_tiles);
+    struct blob_hash sum;
+    blob_hash_compute(h, HEADER_BODY, &sum);
+    memcpy(h + HEADER_BODY, sum.bytes, BLOB_HASH_SIZE);
+    if (ftruncate(j->fd, 0) != 0 || lseek(j->fd, 0, SEEK_SET) != 0 || write_all(j->fd, h, sizeof h) != 0 ||
+        fdatasync(j->fd) != 0) {
+        str_fmt(err, errlen, "%s: cannot write the journal header: %s", j->path, strerror(errno));
+        return -1;
+    }
+    fsync_parent(j->path);
+    j->end = j->synced = HEADER_SIZE;
+    return 0;
+}
+
+int journal_open(struct journal *j, const char *path, const struct blob_hash *key, uint32_t num_tiles,
+                 journal_tile_fn fn, void *ctx, uint32_t *recovered, uint64_t *torn_bytes, int *other_job,
+                 char *err, size_t errlen)
+{
+    memset(j, 0, sizeof *j);
+    j->fd = -1;
+    *recovered = 0;
+    *torn_bytes = 0;
+    *other_job = 0;
+    snprintf(j->path, sizeof j->path, "%s", path);
+    j->fd = open(path, O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    if (j->fd < 0) {
+        str_fmt(err, errlen, "%s: cannot open the journal: %s", path, strerror(errno));
+        return -1;
+    }
+    uint8_t *data = NULL;
+    size_t size = 0;
+    if (read_file(j->fd, &data, &size) != 0) {
+        str_fmt(err, errlen, "%s: cannot read the journal: %s", path, strerror(errno));
+        free(data);
+        journal_close(j);
+        return -1;
+    }
+    struct blob_hash sum;
+    int header_ok = 0;
+    if (size >= HEADER_SIZE && memcmp(data, k_magic, 8) == 0) {
+        blob_hash_compute(data, HEADER_BODY, &sum);
+        header_ok = memcmp(sum.bytes, data + HEADER_BODY, BLOB_HASH_SIZE) == 0;
+    }
+    if (!header_ok || memcmp(data + 8, key->bytes, BLOB_HASH_SIZE) != 0 ||
+        get32(data + 8 + BLOB_HASH_SIZE) != num_tiles) {
+        *other_job = header_ok;
+        free(data);
+        if (start_fresh(j, key, num_tiles, err, errlen) != 0) {
+            journal_close(j);
+            return -1;
+        }
+        return 0;
+    }
+    size_t pos = HEADER_SIZE;
+    while (size - pos >= REC_HEAD + BLOB_HASH_SIZE) {
+        const uint8_t *r = data + pos;
+        uint32_t tile = get32(r + 4), chunk_size = get32(r + 8);
+        if (get32(r) != REC_MAGIC || tile >= num_tiles || chunk_size > JOURNAL_MAX_CHUNK ||
+            chunk_size > size - pos - REC_HEAD - BLOB_HASH_SIZE)
+            break;
+        size_t body = REC_HEAD + chunk_size;
+        blob_hash_compute(r, body, &sum);
+        if (memcmp(sum.bytes, r + body, BLOB_HASH_SIZE) != 0)
+            break;
+        struct tile_stats st;
+        st.samples = get64(r + 12);
+        st.rays = get64(r + 20);
+        st.nan_samples = get64(r + 28);
+        st.render_ns = get64(r + 36);
+        uint64_t bits = get64(r + 44);
+        memcpy(&st.sum_rel_stderr, &bits, sizeof bits);
+        st.rel_stderr_pixels = get32(r + 52);
+        if (!isfinite(st.sum_rel_stderr))
+            break;
+        if (fn && fn(ctx, tile, &st, r + REC_HEAD, chunk_size) != 0)
+            break;
+        (*recovered)++;
+        pos += body + BLOB_HASH_SIZE;
+    }
+    free(data);
+    *torn_bytes = size - pos;
+    /* Cut a torn tail so the next record follows the last intact one. */
+    if ((*torn_bytes && (ftruncate(j->fd, (off_t)pos) != 0 || fdatasync(j->fd) != 0)) ||
+        lseek(j->fd, (off_t)pos, SEEK_SET) < 0) {
+        str_fmt(err, errlen, "%s: cannot cut the torn end of the journal: %s", path, strerror(errno));
+        journal_close(j);
+        return -1;
+    }
+    j->end = j->synced = pos;
+    return 0;
+}
+
+int journal_write(struct journal *j, uint32_t tile, const struct tile_stats *st, const uint8_t *chunk,
+                  uint32_t chunk_size, char *err, size_t errlen)
+{
+    if (chunk_size > JOURNAL_MAX_CHUNK) {
+        str_fmt(err, errlen, "%s: tile %u chunk of %u bytes is too large", j->path, tile, chunk_size);
+        return -1;
+    }
+    size_t n = REC_HEAD + chunk_size + BLOB_HASH_SIZE;
+    uint8_t *r = mem_alloc(n);
+    put32(r, REC_MAGIC);
+    put32(r + 4, tile);
+    put32(r + 8, chunk_size);
+    put64(r + 12, st->samples);
+    put64(r + 20, st->rays);
+    put64(r + 28, st->nan_samples);
+    put64(r + 36, st->render_ns);
+    uint64_t bits;
+    memcpy(&bits, &st->sum_rel_stderr, sizeof bits);
+    put64(r + 44, bits);
+    put32(r + 52, st->rel_stderr_pixels);
+    if (chunk_size)
+        memcpy(r + REC_HEAD, chunk, chunk_size);
+    struct blob_hash sum;
+    blob_hash_compute(r, REC_HEAD + chunk_size, &sum);
+    memcpy(r + REC_HEAD + chunk_size, sum.bytes, BLOB_HASH_SIZE);
+    int rc = write_all(j->fd, r, n);
+    free(r);
+    if (rc != 0) {
+        str_fmt(err, errlen, "%s: cannot append tile %u to the journal: %s", j->path, tile, strerror(errno));
+        /* Leave no half record for the next append to follow. */
+        if (ftruncate(j->fd, (off_t)j->end) == 0)
+            lseek(j->fd, (off_t)j->end, SEEK_SET);
+        return -1;
+    }
+    j->end += n;
+    return 0;
+}
+
+int journal_sync(struct journal *j, char *err, size_t errlen)
+{
+    if (!j->syncer_on) {
+        if (j->synced == j->end)
+            return 0;
+        j->syncs++;
+        if (fdatasync(j->fd) != 0) {
+            str_fmt(err, errlen, "%s: cannot sync the journal: %s", j->path, strerror(errno));
+            return -1;
+        }
+        j->synced = j->end;
+        return 0;
+    }
+    /* With a syncer: sync here too (fdatasync may run in two threads at once). */
+    uint64_t target = j->end;
+    pthread_mutex_lock(&j->lock);
+    int done = j->synced >= target, e = j->sync_errno;
+    if (!done && !e)
+        j->syncs++;
+    pthread_mutex_unlock(&j->lock);
+    if (!done && !e && fdatasync(j->fd) != 0)
+        e = errno;
+    pthread_mutex_lock(&j->lock);
+    if (e && !j->sync_errno)
+        j->sync_errno = e;
+    else if (!e && j->synced < target)
+        j->synced = target;
+    pthread_mutex_unlock(&j->lock);
+    if (e) {
+        str_fmt(err, errlen, "%s: cannot sync the journal: %s", j->path, strerror(e));
+        return -1;
+    }
+    return 0;
+}
+
+static void *syncer_main(void *arg)
+{
+    struct journal *j = arg;
+    pthread_mutex_lock(&j->lock);
+    for (;;) {
+        while (!j->syncer_stop && (j->sync_errno || j->sync_want <= j->synced))
+            pthread_cond_wait(&j->cond, &j->lock);
+        if (j->syncer_stop)
+            break;
+        uint64_t target = j->sync_want;
+        j->syncs++;
+        pthread_mutex_unlock(&j->lock);
+        int rc = fdatasync(j->fd), e = errno;
+        pthread_mutex_lock(&j->lock);
+        if (rc != 0)
+            j->sync_errno = e;
+        else if (j->synced < target)
+            j->synced = target;
+    }
+    pthread_mutex_unlock(&j->lock);
+    return NULL;
+}
+
+int journal_syncer_start(struct journal *j, char *err, size_t errlen)
+{
+    if (j->syncer_on)
+        return 0;
+    pthread_mutex_init(&j->lock, NULL);
+    pthread_cond_init(&j->cond, NULL);
+    j->syncer_stop = 0;
+    j->sync_errno = 0;
+    j->sync_want = j->synced;
+    int rc = pthread_create(&j->syncer, NULL, syncer_main, j);
+    if (rc != 0) {
+        pthread_mutex_destroy(&j->lock);
+        pthread_cond_destroy(&j->cond);
+        str_fmt(err, errlen, "%s: cannot start the journal's sync thread: %s", j->path, strerror(rc));
+        return -1;
+    }
+    j->syncer_on = 1;
+    return 0;
+}
+
+void journal_sync_async(struct journal *j)
+{
+    if (!j->syncer_on)
+        return;
+    pthread_mutex_lock(&j->lock);
+    if (j->sync_want < j->end) {
+        j->sync_want = j->end;
+        pthread_cond_signal(&j->cond);
+    }
+    pthread_mutex_unlock(&j->lock);
+}
+
+int64_t journal_durable(struct journal *j, char *err, size_t errlen)
+{
+    if (!j->syncer_on)
+        return (int64_t)j->synced;
+    pthread_mutex_lock(&j->lock);
+    uint64_t synced = j->synced;
+    int e = j->sync_errno;
+    pthread_mutex_unlock(&j->lock);
+    if (e) {
+        str_fmt(err, errlen, "%s: cannot sync the journal: %s", j->path, strerror(e));
+        return -1;
+    }
+    return (int64_t)synced;
+}
+
+static void syncer_stop(struct journal *j)
+{
+    if (!j->syncer_on)
+        return;
+    pthread_mutex_lock(&j->lock);
+    j->syncer_stop = 1;
+    pthread_cond_signal(&j->cond);
+    pthread_mutex_unlock(&j->lock);
+    pthread_join(j->syncer, NULL);
+    pthread_mutex_destroy(&j->lock);
+    pthread_cond_destroy(&j->cond);
+    j->syncer_on = 0;
+}
+
+int journal_append(struct journal *j, uint32_t tile, const struct tile_stats *st, const uint8_t *chunk,
+                   uint32_t chunk_size, char *err, size_t errlen)
+{
+    if (journal_write(j, tile, st, chunk, chunk_size, err, errlen) != 0)
+        return -1;
+    return journal_sync(j, err, errlen);
+}
+
+void journal_close(struct journal *j)
+{
+    syncer_stop(j);
+    if (j->fd >= 0)
+        close(j->fd);
+    j->fd = -1;
+}
+
+int journal_remove(struct journal *j)
+{
+    journal_close(j);
+    if (!j->path[0])
+        return 0;
+    int rc = unlink(j->path);
+    fsync_parent(j->path);
+    return rc;
+}

@@ -1,0 +1,67 @@
+/* The master's tile journal: an append-only file next to the output that holds every
+ * accepted tile (ids, statistics, EXR chunk bytes) with a BLAKE2b checksum per record, so a
+ * restarted master resumes without re-rendering them. Invariants: a record is appended
+ * and fdatasync'ed before the worker that sent the tile is told to forget it (many
+ * records may share one sync: group commit); a record whose checksum fails (a torn
+ * write from a crash) ends the journal and is cut off. Called by master/master.c. */
+#ifndef BRUME_JOURNAL_H
+#define BRUME_JOURNAL_H
+#include <pthread.h>
+#include <stddef.h>
+#include <stdint.h>
+#include "wire/blob.h"
+#include "render/tile.h"
+
+#define JOURNAL_MAX_CHUNK (48u * 1024u * 1024u)
+
+struct journal {
+    int fd;
+    uint64_t end;           /* bytes of intact records written (the next append starts here) */
+    uint64_t synced;        /* bytes known to be on disk (under lock while a syncer runs) */
+    char path[4096];
+    /* the background syncer (journal_syncer_start) */
+    int syncer_on, syncer_stop, sync_errno;
+    uint64_t sync_want;     /* sync at least this far */
+    uint64_t syncs;         /* fdatasync calls made */
+    pthread_t syncer;
+    pthread_mutex_t lock;
+    pthread_cond_t cond;
+};
+
+/* Called for each intact record found when opening; return 0 to keep it, -1 to stop
+ * reading (the record and everything after it are dropped). */
+typedef int (*journal_tile_fn)(void *ctx, uint32_t tile, const struct tile_stats *stats, const uint8_t *chunk,
+                               uint32_t chunk_size);
+
+/* Opens or creates the journal at path for the job identified by key. An existing
+ * journal of the same key is replayed through fn (which may be NULL); one of another key,
+ * or one too short to hold a header, is started afresh (*other_job = 1 in the first
+ * case). *recovered: records replayed; *torn_bytes: bytes cut off the end. 0 or -1. */
+int journal_open(struct journal *j, const char *path, const struct blob_hash *key, uint32_t num_tiles,
+                 journal_tile_fn fn, void *ctx, uint32_t *recovered, uint64_t *torn_bytes, int *other_job,
+                 char *err, size_t errlen);
+/* Appends one record and syncs it to disk. On failure (e.g. a full disk) the journal is
+ * cut back to its last intact record and -1 returned with the reason. */
+int journal_append(struct journal *j, uint32_t tile, const struct tile_stats *stats, const uint8_t *chunk,
+                   uint32_t chunk_size, char *err, size_t errlen);
+/* Group commit: journal_write appends a record without syncing; journal_sync then makes
+ * every record written so far durable with one fdatasync (a no-op when nothing is
+ * pending). A record counts as safe only after journal_sync returned 0. Same failure
+ * handling as journal_append. */
+int journal_write(struct journal *j, uint32_t tile, const struct tile_stats *stats, const uint8_t *chunk,
+                  uint32_t chunk_size, char *err, size_t errlen);
+int journal_sync(struct journal *j, char *err, size_t errlen);
+/* Group commit that does not block the caller: a thread runs fdatasync whenever
+ * journal_sync_async asked for more than is on disk, so the caller keeps working (and
+ * handing out tiles) while the disk catches up. journal_durable returns the bytes known
+ * to be on disk, or -1 with the reason once a sync failed. journal_sync (blocking) works
+ * alongside; journal_close stops the thread. 0, or -1 when no thread can start (then
+ * the caller syncs with journal_sync). */
+int journal_syncer_start(struct journal *j, char *err, size_t errlen);
+void journal_sync_async(struct journal *j);
+int64_t journal_durable(struct journal *j, char *err, size_t errlen);
+void journal_close(struct journal *j);
+/* Closes and deletes the journal (after the output file is safely in place). */
+int journal_remove(struct journal *j);
+
+#endif
