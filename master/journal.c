@@ -4,6 +4,7 @@
  *           BLAKE2b-256 of everything before it in the record
  * A reader trusts nothing: sizes are checked against the file before use. */
 #include "journal.h"
+#include "base/bytes.h"
 #include "base/log.h"
 #include <errno.h>
 #include <fcntl.h>
@@ -20,34 +21,6 @@
 #define REC_HEAD (4 + 4 + 4 + 4 * 8 + 8 + 4)
 #define REC_MAGIC 0x43455254u /* "TREC" */
 static const char k_magic[8] = {'B', 'R', 'U', 'M', 'J', 'N', 'L', '1'};
-
-static void put32(uint8_t *p, uint32_t v)
-{
-    for (int i = 0; i < 4; i++)
-        p[i] = (uint8_t)(v >> (8 * i));
-}
-
-static void put64(uint8_t *p, uint64_t v)
-{
-    for (int i = 0; i < 8; i++)
-        p[i] = (uint8_t)(v >> (8 * i));
-}
-
-static uint32_t get32(const uint8_t *p)
-{
-    uint32_t v = 0;
-    for (int i = 0; i < 4; i++)
-        v |= (uint32_t)p[i] << (8 * i);
-    return v;
-}
-
-static uint64_t get64(const uint8_t *p)
-{
-    uint64_t v = 0;
-    for (int i = 0; i < 8; i++)
-        v |= (uint64_t)p[i] << (8 * i);
-    return v;
-}
 
 static int write_all(int fd, const void *data, size_t n)
 {
@@ -102,7 +75,7 @@ static int start_fresh(struct journal *j, const struct blob_hash *key, uint32_t 
     uint8_t h[HEADER_SIZE];
     memcpy(h, k_magic, 8);
     memcpy(h + 8, key->bytes, BLOB_HASH_SIZE);
-    put32(h + 8 + BLOB_HASH_SIZE, num_tiles);
+    bytes_put_u32(h + 8 + BLOB_HASH_SIZE, num_tiles);
     struct blob_hash sum;
     blob_hash_compute(h, HEADER_BODY, &sum);
     memcpy(h + HEADER_BODY, sum.bytes, BLOB_HASH_SIZE);
@@ -146,7 +119,7 @@ int journal_open(struct journal *j, const char *path, const struct blob_hash *ke
         header_ok = memcmp(sum.bytes, data + HEADER_BODY, BLOB_HASH_SIZE) == 0;
     }
     if (!header_ok || memcmp(data + 8, key->bytes, BLOB_HASH_SIZE) != 0 ||
-        get32(data + 8 + BLOB_HASH_SIZE) != num_tiles) {
+        bytes_get_u32(data + 8 + BLOB_HASH_SIZE) != num_tiles) {
         *other_job = header_ok;
         free(data);
         if (start_fresh(j, key, num_tiles, err, errlen) != 0) {
@@ -158,8 +131,8 @@ int journal_open(struct journal *j, const char *path, const struct blob_hash *ke
     size_t pos = HEADER_SIZE;
     while (size - pos >= REC_HEAD + BLOB_HASH_SIZE) {
         const uint8_t *r = data + pos;
-        uint32_t tile = get32(r + 4), chunk_size = get32(r + 8);
-        if (get32(r) != REC_MAGIC || tile >= num_tiles || chunk_size > JOURNAL_MAX_CHUNK ||
+        uint32_t tile = bytes_get_u32(r + 4), chunk_size = bytes_get_u32(r + 8);
+        if (bytes_get_u32(r) != REC_MAGIC || tile >= num_tiles || chunk_size > JOURNAL_MAX_CHUNK ||
             chunk_size > size - pos - REC_HEAD - BLOB_HASH_SIZE)
             break;
         size_t body = REC_HEAD + chunk_size;
@@ -167,13 +140,13 @@ int journal_open(struct journal *j, const char *path, const struct blob_hash *ke
         if (memcmp(sum.bytes, r + body, BLOB_HASH_SIZE) != 0)
             break;
         struct tile_stats st;
-        st.samples = get64(r + 12);
-        st.rays = get64(r + 20);
-        st.nan_samples = get64(r + 28);
-        st.render_ns = get64(r + 36);
-        uint64_t bits = get64(r + 44);
+        st.samples = bytes_get_u64(r + 12);
+        st.rays = bytes_get_u64(r + 20);
+        st.nan_samples = bytes_get_u64(r + 28);
+        st.render_ns = bytes_get_u64(r + 36);
+        uint64_t bits = bytes_get_u64(r + 44);
         memcpy(&st.sum_rel_stderr, &bits, sizeof bits);
-        st.rel_stderr_pixels = get32(r + 52);
+        st.rel_stderr_pixels = bytes_get_u32(r + 52);
         if (!isfinite(st.sum_rel_stderr))
             break;
         if (fn && fn(ctx, tile, &st, r + REC_HEAD, chunk_size) != 0)
@@ -203,17 +176,17 @@ int journal_write(struct journal *j, uint32_t tile, const struct tile_stats *st,
     }
     size_t n = REC_HEAD + chunk_size + BLOB_HASH_SIZE;
     uint8_t *r = mem_alloc(n);
-    put32(r, REC_MAGIC);
-    put32(r + 4, tile);
-    put32(r + 8, chunk_size);
-    put64(r + 12, st->samples);
-    put64(r + 20, st->rays);
-    put64(r + 28, st->nan_samples);
-    put64(r + 36, st->render_ns);
+    bytes_put_u32(r, REC_MAGIC);
+    bytes_put_u32(r + 4, tile);
+    bytes_put_u32(r + 8, chunk_size);
+    bytes_put_u64(r + 12, st->samples);
+    bytes_put_u64(r + 20, st->rays);
+    bytes_put_u64(r + 28, st->nan_samples);
+    bytes_put_u64(r + 36, st->render_ns);
     uint64_t bits;
     memcpy(&bits, &st->sum_rel_stderr, sizeof bits);
-    put64(r + 44, bits);
-    put32(r + 52, st->rel_stderr_pixels);
+    bytes_put_u64(r + 44, bits);
+    bytes_put_u32(r + 52, st->rel_stderr_pixels);
     if (chunk_size)
         memcpy(r + REC_HEAD, chunk, chunk_size);
     struct blob_hash sum;

@@ -4,6 +4,7 @@
  * for the caller's err buffer instead of being printed. Callers: the worker encodes tiles,
  * the master decode-checks them and assembles the file, tests and tools read files back. */
 #include "image/imgio.h"
+#include "base/bytes.h"
 #include "base/log.h"
 
 #include <errno.h>
@@ -450,18 +451,6 @@ static int capture_tile_header(const struct image_desc *d, uint32_t w, uint32_t 
     return 0;
 }
 
-static void put_le32(uint8_t *p, uint32_t v)
-{
-    for (int i = 0; i < 4; i++)
-        p[i] = (uint8_t)(v >> (8 * i));
-}
-
-static void put_le64(uint8_t *p, uint64_t v)
-{
-    for (int i = 0; i < 8; i++)
-        p[i] = (uint8_t)(v >> (8 * i));
-}
-
 /* Decodes chunk k of an open read context into interleaved floats for the requested
  * channels (want[i] names output channel i; NULL-terminated list of nc names). The
  * rectangle (ox, oy, w, h) in the output image of stride out_w receives the chunk. */
@@ -537,13 +526,13 @@ int imgio_decode_tile(const struct image_desc *d, uint32_t tx, uint32_t ty, cons
     size_t file_len = hdr_len + 8 + TILE_LEADER_BYTES + chunk_size;
     file = mem_realloc(file, file_len);
     uint8_t *p = file + hdr_len;
-    put_le64(p, hdr_len + 8);
+    bytes_put_u64(p, hdr_len + 8);
     p += 8;
-    put_le32(p, 0);  /* tile x */
-    put_le32(p + 4, 0);  /* tile y */
-    put_le32(p + 8, 0);  /* level x */
-    put_le32(p + 12, 0); /* level y */
-    put_le32(p + 16, (uint32_t)chunk_size);
+    bytes_put_u32(p, 0);  /* tile x */
+    bytes_put_u32(p + 4, 0);  /* tile y */
+    bytes_put_u32(p + 8, 0);  /* level x */
+    bytes_put_u32(p + 12, 0); /* level y */
+    bytes_put_u32(p + 16, (uint32_t)chunk_size);
     memcpy(p + TILE_LEADER_BYTES, chunk, chunk_size);
 
     struct imgio_stream s;

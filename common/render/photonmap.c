@@ -1,6 +1,7 @@
 /* Volume photon map: tracing, serialisation, decoding and the two radiance estimates (see
  * photonmap.h). Called by the master (build) and by workers (decode, lookups). */
 #include "render/photonmap.h"
+#include "base/bytes.h"
 #include "render/integrator.h"
 #include "base/log.h"
 #include "scene/material.h"
@@ -380,12 +381,6 @@ static void *trace_thread(void *arg)
     return NULL;
 }
 
-static void put_u32(uint8_t *p, uint32_t v) { for (int i = 0; i < 4; i++) p[i] = (uint8_t)(v >> (8 * i)); }
-static void put_u64(uint8_t *p, uint64_t v) { for (int i = 0; i < 8; i++) p[i] = (uint8_t)(v >> (8 * i)); }
-static uint32_t get_u32(const uint8_t *p) { uint32_t v = 0; for (int i = 0; i < 4; i++) v |= (uint32_t)p[i] << (8 * i); return v; }
-static uint64_t get_u64(const uint8_t *p) { uint64_t v = 0; for (int i = 0; i < 8; i++) v |= (uint64_t)p[i] << (8 * i); return v; }
-static void put_f32(uint8_t *p, float f) { uint32_t u; memcpy(&u, &f, 4); put_u32(p, u); }
-static float get_f32(const uint8_t *p) { uint32_t u = get_u32(p); float f; memcpy(&f, &u, 4); return f; }
 
 static int host_little_endian(void)
 {
@@ -462,16 +457,16 @@ static uint8_t *serialise(struct photon_list *blocks, uint32_t num_blocks, float
     size_t bytes = PM_HEADER + sizeof(struct photon) * (size_t)n + 4 * ((size_t)table + 1);
     uint8_t *out = mem_calloc(bytes, 1);
     memcpy(out, PM_MAGIC, 8);
-    put_u32(out + 8, n);
-    put_u32(out + 12, table);
-    put_u64(out + 16, emitted);
-    put_f32(out + 24, radius);
-    put_f32(out + 28, cell);
+    bytes_put_u32(out + 8, n);
+    bytes_put_u32(out + 12, table);
+    bytes_put_u64(out + 16, emitted);
+    bytes_put_f32(out + 24, radius);
+    bytes_put_f32(out + 28, cell);
     if (n)
         memcpy(out + PM_HEADER, sorted, sizeof(struct photon) * (size_t)n);
     uint8_t *sp = out + PM_HEADER + sizeof(struct photon) * (size_t)n;
     for (uint32_t i = 0; i <= table; i++)
-        put_u32(sp + 4 * (size_t)i, start[i]);
+        bytes_put_u32(sp + 4 * (size_t)i, start[i]);
     free(sorted);
     free(start);
     *bytes_out = bytes;
@@ -568,9 +563,9 @@ static int decode_one(const uint8_t *data, size_t size, size_t *used, struct pho
         str_fmt(err, errlen, "photon map: big-endian hosts are not supported");
         return -1;
     }
-    uint32_t n = get_u32(data + 8), table = get_u32(data + 12);
-    uint64_t emitted = get_u64(data + 16);
-    float radius = get_f32(data + 24), cell = get_f32(data + 28);
+    uint32_t n = bytes_get_u32(data + 8), table = bytes_get_u32(data + 12);
+    uint64_t emitted = bytes_get_u64(data + 16);
+    float radius = bytes_get_f32(data + 24), cell = bytes_get_f32(data + 28);
     if (table == 0 || (table & (table - 1)) != 0 || table > (1u << 30) || n > UINT32_MAX / 2 ||
         !(radius > 0.0f) || !isfinite(radius) || cell != 2.0f * radius || !isfinite(1.0f / cell) ||
         size < PM_HEADER + sizeof(struct photon) * (uint64_t)n + 4 * ((uint64_t)table + 1)) {
@@ -590,7 +585,7 @@ static int decode_one(const uint8_t *data, size_t size, size_t *used, struct pho
     m->bucket_start = mem_alloc(sizeof *m->bucket_start * ((size_t)table + 1));
     const uint8_t *sp = data + PM_HEADER + sizeof(struct photon) * (size_t)n;
     for (uint32_t i = 0; i <= table; i++)
-        m->bucket_start[i] = get_u32(sp + 4 * (size_t)i);
+        m->bucket_start[i] = bytes_get_u32(sp + 4 * (size_t)i);
     int ok = m->bucket_start[0] == 0 && m->bucket_start[table] == n;
     for (uint32_t i = 0; ok && i < table; i++)
         ok = m->bucket_start[i] <= m->bucket_start[i + 1];
@@ -980,11 +975,11 @@ int volume_blob_make(const struct scene_media *sm, const uint8_t *map, size_t ma
     size_t n = VB_HEADER + (map ? map_size : 0);
     uint8_t *b = mem_calloc(n, 1);
     memcpy(b, VB_MAGIC, 8);
-    put_u32(b + 8, (uint32_t)sm->method);
-    put_f32(b + 12, sm->step);
-    put_f32(b + 16, sm->radius);
-    put_u32(b + 20, map ? 1u : 0u);
-    put_u64(b + 24, sm->photons);
+    bytes_put_u32(b + 8, (uint32_t)sm->method);
+    bytes_put_f32(b + 12, sm->step);
+    bytes_put_f32(b + 16, sm->radius);
+    bytes_put_u32(b + 20, map ? 1u : 0u);
+    bytes_put_u64(b + 24, sm->photons);
     if (map)
         memcpy(b + VB_HEADER, map, map_size);
     *out = b;
@@ -999,8 +994,8 @@ int volume_blob_apply(struct scene *s, const uint8_t *data, size_t size, char *e
         str_fmt(err, errlen, "volume blob: bad header or a scene without media");
         return -1;
     }
-    uint32_t method = get_u32(data + 8), has_map = get_u32(data + 20);
-    float step = get_f32(data + 12), radius = get_f32(data + 16);
+    uint32_t method = bytes_get_u32(data + 8), has_map = bytes_get_u32(data + 20);
+    float step = bytes_get_f32(data + 12), radius = bytes_get_f32(data + 16);
     if (method >= MEDIA_METHOD_COUNT_ || !(step >= 0.0f) || !isfinite(step) || !(radius >= 0.0f) ||
         !isfinite(radius) || has_map > 1 || (!has_map && size != VB_HEADER)) {
         str_fmt(err, errlen, "volume blob: settings out of range");
@@ -1009,7 +1004,7 @@ int volume_blob_apply(struct scene *s, const uint8_t *data, size_t size, char *e
     sm->method = (enum media_method)method;
     sm->step = step;
     sm->radius = radius;
-    sm->photons = get_u64(data + 24);
+    sm->photons = bytes_get_u64(data + 24);
     photon_map_free(&sm->map);
     if (has_map && photon_map_decode(data + VB_HEADER, size - VB_HEADER, &sm->map, err, errlen) != 0)
         return -1;

@@ -2,6 +2,7 @@
  * Exponentials are taken in float from float products, the same expression on every
  * machine; HG sampling runs in double, where g = +-0.999 loses nothing. */
 #include "scene/medium.h"
+#include "base/bytes.h"
 #include "base/log.h"
 #include "scene/motion.h"
 #include "base/rng.h"
@@ -236,7 +237,6 @@ float phase_hg_sample(vec3 d_in, float g, float u1, float u2, vec3 *d_out)
 
 /* ---- density grids ---- */
 
-static uint32_t rd_u32(const uint8_t *p) { return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24; }
 
 int grid_parse(const uint8_t *data, size_t size, struct density_grid *out, char *err, size_t errlen)
 {
@@ -245,7 +245,7 @@ int grid_parse(const uint8_t *data, size_t size, struct density_grid *out, char 
         str_fmt(err, errlen, "not a density grid (expected the \"%s\" header)", GRID_MAGIC);
         return -1;
     }
-    uint32_t nx = rd_u32(data + 8), ny = rd_u32(data + 12), nz = rd_u32(data + 16);
+    uint32_t nx = bytes_get_u32(data + 8), ny = bytes_get_u32(data + 12), nz = bytes_get_u32(data + 16);
     if (nx < 1 || ny < 1 || nz < 1 || (uint64_t)nx * ny * nz > GRID_MAX_VOXELS) {
         str_fmt(err, errlen, "grid size %ux%ux%u out of range (1.. and at most %u voxels)", nx, ny, nz, GRID_MAX_VOXELS);
         return -1;
@@ -258,7 +258,7 @@ int grid_parse(const uint8_t *data, size_t size, struct density_grid *out, char 
     }
     float *v = mem_alloc(sizeof(float) * n);
     for (uint64_t i = 0; i < n; i++) {
-        uint32_t u = rd_u32(data + 20 + 4 * i);
+        uint32_t u = bytes_get_u32(data + 20 + 4 * i);
         memcpy(&v[i], &u, 4);
         if (!isfinite(v[i]) || v[i] < 0.0f) {
             free(v);

@@ -5,6 +5,7 @@
  * level's tile search is ours (sorted keys, binary search), so a file with many root tiles
  * cannot make each lookup linear; below the root PNanoVDB walks upper, lower and leaf nodes. */
 #include "scene/nvdb.h"
+#include "base/bytes.h"
 #include "base/log.h"
 #include <math.h>
 #include <stdlib.h>
@@ -58,9 +59,6 @@ typedef uint32_t pnanovdb_grid_type_t;
 #define META_SIZE 176u
 #define NAME_MAX_BYTES 4096u
 
-static uint16_t rd16(const uint8_t *p) { return (uint16_t)(p[0] | p[1] << 8); }
-static uint32_t rd32(const uint8_t *p) { return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24; }
-static uint64_t rd64(const uint8_t *p) { return (uint64_t)rd32(p) | (uint64_t)rd32(p + 4) << 32; }
 
 uint64_t nvdb_max_voxels = GRID_MAX_VOXELS;
 
@@ -115,7 +113,7 @@ static int64_t list_grids(const uint8_t *d, size_t size, struct grid_rec **recs,
             goto fail;
         }
         const uint8_t *h = d + pos;
-        uint64_t magic = rd64(h);
+        uint64_t magic = bytes_get_u64(h);
         if (magic != PNANOVDB_MAGIC_NUMBER) {
             if (memcmp(h, "NanoVDB", 7) == 0)
                 str_fmt(err, errlen, "NanoVDB magic \"%.8s\" at byte %zu: this reader reads files of NanoVDB 32.x "
@@ -124,8 +122,8 @@ static int64_t list_grids(const uint8_t *d, size_t size, struct grid_rec **recs,
                 str_fmt(err, errlen, "not a NanoVDB file: no \"NanoVDB0\" segment header at byte %zu", pos);
             goto fail;
         }
-        uint32_t version = rd32(h + 8);
-        uint16_t count = rd16(h + 12), codec = rd16(h + 14);
+        uint32_t version = bytes_get_u32(h + 8);
+        uint16_t count = bytes_get_u16(h + 12), codec = bytes_get_u16(h + 14);
         if (pnanovdb_version_get_major(version) != PNANOVDB_MAJOR_VERSION_NUMBER) {
             str_fmt(err, errlen, "NanoVDB version %u.%u.%u: this reader reads major version %u", pnanovdb_version_get_major(version),
                     pnanovdb_version_get_minor(version), pnanovdb_version_get_patch(version), PNANOVDB_MAJOR_VERSION_NUMBER);
@@ -148,9 +146,9 @@ static int64_t list_grids(const uint8_t *d, size_t size, struct grid_rec **recs,
                 goto fail;
             }
             const uint8_t *m = d + pos;
-            uint64_t grid_size = rd64(m), file_size = rd64(m + 8);
-            uint32_t name_size = rd32(m + 136);
-            uint16_t mcodec = rd16(m + 168);
+            uint64_t grid_size = bytes_get_u64(m), file_size = bytes_get_u64(m + 8);
+            uint32_t name_size = bytes_get_u32(m + 136);
+            uint16_t mcodec = bytes_get_u16(m + 168);
             if (name_size < 1 || name_size > NAME_MAX_BYTES || size - pos - META_SIZE < name_size) {
                 str_fmt(err, errlen, "grid %lld: name of %u bytes %s", (long long)n, name_size,
                         name_size < 1 || name_size > NAME_MAX_BYTES ? "out of range (1..4096)" : "runs past the end of the file");
@@ -169,8 +167,8 @@ static int64_t list_grids(const uint8_t *d, size_t size, struct grid_rec **recs,
             mem_grow((void **)recs, &cap, (size_t)n + 1, sizeof **recs);
             (*recs)[n].name = (const char *)m + META_SIZE;
             (*recs)[n].size = grid_size;
-            (*recs)[n].type = rd32(m + 32);
-            (*recs)[n].cls = rd32(m + 36);
+            (*recs)[n].type = bytes_get_u32(m + 32);
+            (*recs)[n].cls = bytes_get_u32(m + 36);
             n++;
             pos += META_SIZE + name_size;
         }

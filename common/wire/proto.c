@@ -3,6 +3,7 @@
  * accept exactly the same set of messages, so every decodable frame re-encodes to the
  * same bytes (the fuzz target checks this). Called by the master and worker loops. */
 #include "wire/proto.h"
+#include "base/bytes.h"
 #include "base/log.h"
 #include <math.h>
 #include <stdarg.h>
@@ -94,31 +95,30 @@ static void put_bytes(struct proto_buf *b, const void *p, size_t n)
 
 static void put_u16(struct proto_buf *b, uint16_t v)
 {
-    uint8_t x[2] = {(uint8_t)v, (uint8_t)(v >> 8)};
+    uint8_t x[2];
+    bytes_put_u16(x, v);
     put_bytes(b, x, 2);
 }
 
 static void put_u32(struct proto_buf *b, uint32_t v)
 {
     uint8_t x[4];
-    for (int i = 0; i < 4; i++)
-        x[i] = (uint8_t)(v >> (8 * i));
+    bytes_put_u32(x, v);
     put_bytes(b, x, 4);
 }
 
 static void put_u64(struct proto_buf *b, uint64_t v)
 {
     uint8_t x[8];
-    for (int i = 0; i < 8; i++)
-        x[i] = (uint8_t)(v >> (8 * i));
+    bytes_put_u64(x, v);
     put_bytes(b, x, 8);
 }
 
 static void put_f64(struct proto_buf *b, double v)
 {
-    uint64_t bits;
-    memcpy(&bits, &v, sizeof bits);
-    put_u64(b, bits);
+    uint8_t x[8];
+    bytes_put_f64(x, v);
+    put_bytes(b, x, 8);
 }
 
 /* A tile's statistics, as RESULT and KEPT carry them (get_stats reads them back). */
@@ -303,45 +303,37 @@ static int need(struct reader *r, size_t n, const char *field)
     return 0;
 }
 
+/* Each reads its width if the message holds it (need() records the failure), else 0. */
 static uint16_t get_u16(struct reader *r, const char *field)
 {
     if (need(r, 2, field) < 0)
         return 0;
-    const uint8_t *q = r->p + r->pos;
     r->pos += 2;
-    return (uint16_t)(q[0] | (uint16_t)q[1] << 8);
+    return bytes_get_u16(r->p + r->pos - 2);
 }
 
 static uint32_t get_u32(struct reader *r, const char *field)
 {
     if (need(r, 4, field) < 0)
         return 0;
-    const uint8_t *q = r->p + r->pos;
     r->pos += 4;
-    uint32_t v = 0;
-    for (int i = 0; i < 4; i++)
-        v |= (uint32_t)q[i] << (8 * i);
-    return v;
+    return bytes_get_u32(r->p + r->pos - 4);
 }
 
 static uint64_t get_u64(struct reader *r, const char *field)
 {
     if (need(r, 8, field) < 0)
         return 0;
-    const uint8_t *q = r->p + r->pos;
     r->pos += 8;
-    uint64_t v = 0;
-    for (int i = 0; i < 8; i++)
-        v |= (uint64_t)q[i] << (8 * i);
-    return v;
+    return bytes_get_u64(r->p + r->pos - 8);
 }
 
 static double get_f64(struct reader *r, const char *field)
 {
-    uint64_t bits = get_u64(r, field);
-    double v;
-    memcpy(&v, &bits, sizeof v);
-    return v;
+    if (need(r, 8, field) < 0)
+        return 0;
+    r->pos += 8;
+    return bytes_get_f64(r->p + r->pos - 8);
 }
 
 static void get_hash(struct reader *r, struct blob_hash *h, const char *field)
