@@ -123,8 +123,7 @@ struct master {
     float *decode_scratch;
     char ipc_dir[256];
     char ipc_endpoint[320];
-    struct journal journal;
-    int have_journal;
+    struct journal *journal;    /* this frame's, or NULL (--no-journal, --tiles, after the output is in place) */
     char banned_names[16][300];
     uint32_t num_banned;
     uint32_t stranger_drops_logged;
@@ -560,7 +559,7 @@ static void ack_push(struct master *m, int32_t pi, uint64_t job_id, uint32_t fra
     }
     /* Everything written so far must be on disk: also the record of a tile that this
      * result duplicates, which may still wait for its sync. */
-    m->acks[m->num_acks++] = (struct pending_ack){pi, job_id, frame, tile, m->have_journal ? m->journal.end : 0};
+    m->acks[m->num_acks++] = (struct pending_ack){pi, job_id, frame, tile, m->journal ? m->journal->end : 0};
 }
 
 /* Group commit: the journal's sync thread makes every record written so far durable with
@@ -572,14 +571,14 @@ static void ack_push(struct master *m, int32_t pi, uint64_t job_id, uint32_t fra
 static void commit_and_ack(struct master *m, int wait)
 {
     uint64_t durable = UINT64_MAX;
-    if (m->have_journal) {
+    if (m->journal) {
         char err[512];
-        if (wait && journal_sync(&m->journal, err, sizeof err) != 0) {
+        if (wait && journal_sync(m->journal, err, sizeof err) != 0) {
             snprintf(m->fatal, sizeof m->fatal, "%s", err);
             return;
         }
-        journal_sync_async(&m->journal);
-        int64_t d = journal_durable(&m->journal, err, sizeof err);
+        journal_sync_async(m->journal);
+        int64_t d = journal_durable(m->journal, err, sizeof err);
         if (d < 0) {
             snprintf(m->fatal, sizeof m->fatal, "%s", err);
             return;
@@ -619,9 +618,9 @@ static int tile_accept(struct master *m, uint32_t tile, const struct tile_stats 
                        size_t chunk_size)
 {
     struct tile_slot *t = &m->tiles[tile];
-    if (m->have_journal) {
+    if (m->journal) {
         char err[512];
-        if (journal_write(&m->journal, tile, st, chunk, (uint32_t)chunk_size, err, sizeof err) != 0) {
+        if (journal_write(m->journal, tile, st, chunk, (uint32_t)chunk_size, err, sizeof err) != 0) {
             snprintf(m->fatal, sizeof m->fatal, "%s", err);
             return -1;
         }
@@ -957,13 +956,12 @@ static int open_journal(struct master *m)
     uint64_t torn;
     int other;
     struct replay_ctx ctx = {m};
-    if (journal_open(&m->journal, path, &key, m->num_tiles, replay_tile, &ctx, &recovered, &torn, &other, err,
-                     sizeof err) != 0) {
+    m->journal = journal_open(path, &key, m->num_tiles, replay_tile, &ctx, &recovered, &torn, &other, err, sizeof err);
+    if (!m->journal) {
         log_error("%s", err);
         return -1;
     }
-    m->have_journal = 1;
-    if (journal_syncer_start(&m->journal, err, sizeof err) != 0)
+    if (journal_syncer_start(m->journal, err, sizeof err) != 0)
         log_warn("%s; syncing in the main loop instead", err);
     if (other)
         log_warn("%s belonged to another job (scene or settings differ); starting afresh", path);
@@ -1024,10 +1022,9 @@ static int write_output(struct master *m, double seconds)
     }
     fsync_dir_of(m->out_path);
     /* Only now is the journal's content safe elsewhere. */
-    if (m->have_journal) {
+    if (m->journal) {
+        m->c.journal_syncs += m->journal->syncs;
         journal_remove(&m->journal);
-        m->c.journal_syncs += m->journal.syncs;
-        m->have_journal = 0;
     }
     if (o->preview_path) {
         const struct render_settings *rs = &m->scene.settings;
@@ -1434,10 +1431,9 @@ static int frame_begin(struct master *m, uint32_t frames_started)
         queue_push(m, t);
     if (o->only_tiles && restrict_tiles(m) != 0)
         return -1;
-    if (m->have_journal) {
-        journal_close(&m->journal);
-        m->c.journal_syncs += m->journal.syncs;
-        m->have_journal = 0;
+    if (m->journal) {
+        m->c.journal_syncs += m->journal->syncs;
+        journal_free(&m->journal);
     }
     /* A --tiles render is a debugging aid: it keeps no journal of its own. */
     uint64_t from_journal = m->c.tiles_from_journal;
@@ -1620,9 +1616,9 @@ done:
         }
         rmdir(m.ipc_dir);
     }
-    if (m.have_journal) {
-        journal_close(&m.journal);
-        m.c.journal_syncs += m.journal.syncs;
+    if (m.journal) {
+        m.c.journal_syncs += m.journal->syncs;
+        journal_free(&m.journal);
     }
     if (m.monitor)
         zmq_close(m.monitor);
