@@ -16,6 +16,7 @@
 #include "wire/net.h"
 #include "wire/proto.h"
 #include "photons.h"
+#include "sched.h"
 #include "render/media_integrator.h"
 #include "scene/scene_json.h"
 #include "render/tile.h"
@@ -36,38 +37,18 @@
 #define MAX_PEERS 4096
 #define PROGRESS_PLAIN_MS 5000
 #define PROGRESS_TTY_MS 250
-#define MAX_HOLDERS 2           /* the first holder and one straggler copy */
-#define CRASHES_TO_FAIL 3       /* distinct workers a tile may crash before the job fails */
-#define FAILS_TO_BAN 3          /* invalid results in a row that ban a worker */
-
-enum tile_state { TILE_QUEUED, TILE_ASSIGNED, TILE_DONE };
-
-struct tile_slot {
-    enum tile_state state;
-    uint32_t attempt;               /* last attempt number issued */
-    uint32_t num_holders;
-    int32_t holder[MAX_HOLDERS];
-    uint32_t holder_attempt[MAX_HOLDERS];
-    uint64_t assigned_ms;
-    uint32_t crashes;               /* distinct workers that died holding it */
-    int requeued;                   /* its next assignment is a re-issue */
-    uint8_t *chunk;
-    size_t chunk_size;
+/* A finished tile's EXR chunk, kept until the frame's output is written. */
+struct tile_chunk {
+    uint8_t *data;
+    size_t size;
 };
 
+/* Who a worker is; its scheduling state is m->sched->workers[same index]. */
 struct peer {
     uint8_t id[NET_MAX_IDENTITY];
     size_t id_len;
     char name[300];         /* host:pid for messages */
-    uint32_t pid, threads;
-    int ready, gone, banned;
-    uint32_t credits, in_flight;
-    int isolated;           /* holds a suspect tile: gets nothing else meanwhile */
-    uint64_t last_heard_ms;
-    uint64_t last_samples, last_progress_ms;
-    uint32_t reported_stall_ms;
-    uint32_t tiles_done;
-    uint32_t fail_streak;   /* invalid results in a row */
+    uint32_t pid;
     uint32_t dropped;       /* messages of this peer dropped; only the first few are logged */
 };
 
@@ -108,10 +89,9 @@ struct master {
     struct blob_hash job_key;   /* what fixes this frame's pixels; the same after a restart */
     uint32_t frame;
     char out_path[4000];        /* this frame's output file */
-    struct tile_slot *tiles;
-    uint32_t num_tiles, tiles_done;
-    uint32_t *queue;            /* tile indices waiting for a worker, oldest first */
-    uint32_t q_count;
+    struct sched *sched;        /* tiles, attempts, holders, blame, bans (sched.h) */
+    struct tile_chunk *chunks;  /* per tile, once done */
+    uint32_t num_tiles;
     struct peer *peers;
     uint32_t num_peers;
     pid_t *local_pids;
@@ -136,25 +116,6 @@ struct master {
 
 static volatile sig_atomic_t g_interrupted;
 static void on_signal(int sig) { (void)sig; g_interrupted = 1; }
-
-static void queue_push(struct master *m, uint32_t tile)
-{
-    m->queue[m->q_count++] = tile;
-}
-
-/* Re-queued tiles go first: they are the ones holding up the end of the frame. */
-static void queue_push_front(struct master *m, uint32_t tile)
-{
-    memmove(m->queue + 1, m->queue, sizeof *m->queue * m->q_count);
-    m->queue[0] = tile;
-    m->q_count++;
-}
-
-static void queue_remove_at(struct master *m, uint32_t i)
-{
-    memmove(m->queue + i, m->queue + i + 1, sizeof *m->queue * (m->q_count - i - 1));
-    m->q_count--;
-}
 
 /* ---- setup ---- */
 
@@ -264,8 +225,8 @@ static void setup_tiles(struct master *m)
     const struct render_settings *rs = &m->scene.settings;
     tile_image_desc(&m->desc, rs);
     m->num_tiles = imgio_tiles_x(&m->desc) * imgio_tiles_y(&m->desc);
-    m->tiles = mem_calloc(m->num_tiles, sizeof *m->tiles);
-    m->queue = mem_alloc(sizeof(uint32_t) * m->num_tiles);
+    m->sched = sched_new(m->num_tiles);
+    m->chunks = mem_calloc(m->num_tiles, sizeof *m->chunks);
     m->decode_scratch = mem_alloc(sizeof(float) * rs->tile_size * rs->tile_size * TILE_NUM_CHANNELS);
 }
 
@@ -288,23 +249,19 @@ static int restrict_tiles(struct master *m)
     size_t n = (size_t)m->scene.settings.tile_size * m->scene.settings.tile_size * TILE_NUM_CHANNELS;
     float *black = mem_calloc(n, sizeof *black);
     uint32_t tiles_x = imgio_tiles_x(&m->desc);
-    m->q_count = 0;
     int rc = 0;
     for (uint32_t t = 0; t < m->num_tiles && rc == 0; t++) {
         int wanted = 0;
         for (uint32_t i = 0; i < o->num_only_tiles; i++)
             wanted |= o->only_tiles[i] == t;
-        if (wanted) {
-            queue_push(m, t);
+        if (wanted)
             continue;
-        }
-        if (imgio_encode_tile(enc, t % tiles_x, t / tiles_x, black, &m->tiles[t].chunk, &m->tiles[t].chunk_size, err,
+        if (imgio_encode_tile(enc, t % tiles_x, t / tiles_x, black, &m->chunks[t].data, &m->chunks[t].size, err,
                               sizeof err) != 0) {
             log_error("%s", err);
             rc = -1;
         }
-        m->tiles[t].state = TILE_DONE;
-        m->tiles_done++;
+        sched_tile_set_done(m->sched, t);
     }
     free(black);
     imgio_encoder_free(&enc);
@@ -316,7 +273,7 @@ static int restrict_tiles(struct master *m)
 static int32_t find_peer(const struct master *m, const uint8_t *id, size_t id_len)
 {
     for (uint32_t i = 0; i < m->num_peers; i++)
-        if (!m->peers[i].gone && m->peers[i].id_len == id_len && memcmp(m->peers[i].id, id, id_len) == 0)
+        if (!m->sched->workers[i].gone && m->peers[i].id_len == id_len && memcmp(m->peers[i].id, id, id_len) == 0)
             return (int32_t)i;
     return -1;
 }
@@ -325,7 +282,7 @@ static int32_t find_peer(const struct master *m, const uint8_t *id, size_t id_le
 static int32_t find_gone_peer(const struct master *m, const uint8_t *id, size_t id_len)
 {
     for (uint32_t i = m->num_peers; i-- > 0;)
-        if (m->peers[i].gone && m->peers[i].id_len == id_len && memcmp(m->peers[i].id, id, id_len) == 0)
+        if (m->sched->workers[i].gone && m->peers[i].id_len == id_len && memcmp(m->peers[i].id, id, id_len) == 0)
             return (int32_t)i;
     return -1;
 }
@@ -333,27 +290,6 @@ static int32_t find_gone_peer(const struct master *m, const uint8_t *id, size_t 
 static void send_to(struct master *m, const struct peer *p, const struct proto_msg *msg)
 {
     net_send(m->sock, p->id, p->id_len, msg, &m->out);
-}
-
-/* Removes holder pi from tile t; the tile goes back to the front of the queue when nobody
- * else holds it. */
-static void tile_drop_holder(struct master *m, uint32_t t, int32_t pi)
-{
-    struct tile_slot *s = &m->tiles[t];
-    for (uint32_t k = 0; k < s->num_holders; k++)
-        if (s->holder[k] == pi) {
-            s->holder[k] = s->holder[s->num_holders - 1];
-            s->holder_attempt[k] = s->holder_attempt[s->num_holders - 1];
-            s->num_holders--;
-            if (m->peers[pi].in_flight)
-                m->peers[pi].in_flight--;
-            break;
-        }
-    if (s->state == TILE_ASSIGNED && s->num_holders == 0) {
-        s->state = TILE_QUEUED;
-        s->requeued = 1;
-        queue_push_front(m, t);
-    }
 }
 
 /* The command that renders tile t alone: our own command line with another output and
@@ -384,53 +320,43 @@ static void tile_command(const struct master *m, uint32_t t, char *out, size_t o
         snprintf(out + n, outlen - n, " --frames %u:%u", m->frame, m->frame);
 }
 
-/* EVICT_KILLED: a local worker ended by SIGKILL, which a tile cannot cause by itself (an
- * operator, a test, the OOM killer): it died, but its tiles are not blamed. */
-enum evict_kind { EVICT_LEFT, EVICT_SILENT, EVICT_STALLED, EVICT_DIED, EVICT_KILLED, EVICT_ERROR, EVICT_BANNED };
-
-/* Puts a peer's unfinished tiles back at the front of the queue and forgets the peer. A
- * worker that died (other than by SIGKILL), hung or failed also counts against each tile
- * it held: a tile that took CRASHES_TO_FAIL different workers down fails the job. */
-static void evict_peer(struct master *m, int32_t pi, enum evict_kind kind, const char *why)
+/* Maps an eviction onto the fatal reason, counters, the log and a BYE. A tile that took
+ * SCHED_CRASHES_TO_FAIL different workers down fails the job. */
+static void peer_evicted(struct master *m, int32_t pi, enum sched_evict_kind kind, const struct sched_eviction *ev,
+                         const char *why)
 {
     struct peer *p = &m->peers[pi];
-    if (p->gone)
-        return;
-    uint32_t requeued = 0;
-    for (uint32_t t = 0; t < m->num_tiles; t++) {
-        struct tile_slot *s = &m->tiles[t];
-        int held = 0;
-        for (uint32_t k = 0; k < s->num_holders; k++)
-            held |= s->holder[k] == pi;
-        if (!held || s->state != TILE_ASSIGNED)
-            continue;
-        if (kind != EVICT_LEFT && kind != EVICT_BANNED && kind != EVICT_KILLED && ++s->crashes >= CRASHES_TO_FAIL &&
-            !m->fatal[0]) {
-            char cmd[1800];
-            tile_command(m, t, cmd, sizeof cmd);
-            uint32_t tx = t % imgio_tiles_x(&m->desc), ty = t / imgio_tiles_x(&m->desc), x0, y0, w, h;
-            imgio_tile_rect(&m->desc, tx, ty, &x0, &y0, &w, &h);
-            snprintf(m->fatal, sizeof m->fatal,
-                     "tile %u (pixels %u,%u %ux%u) took down %u different workers; render it alone with: %s", t, x0,
-                     y0, w, h, s->crashes, cmd);
-        }
-        tile_drop_holder(m, t, pi);
-        requeued += s->state == TILE_QUEUED;
+    if (ev->blamed_tile >= 0 && !m->fatal[0]) {
+        uint32_t t = (uint32_t)ev->blamed_tile;
+        char cmd[1800];
+        tile_command(m, t, cmd, sizeof cmd);
+        uint32_t tx = t % imgio_tiles_x(&m->desc), ty = t / imgio_tiles_x(&m->desc), x0, y0, w, h;
+        imgio_tile_rect(&m->desc, tx, ty, &x0, &y0, &w, &h);
+        snprintf(m->fatal, sizeof m->fatal,
+                 "tile %u (pixels %u,%u %ux%u) took down %u different workers; render it alone with: %s", t, x0, y0,
+                 w, h, m->sched->tiles[t].crashes, cmd);
     }
-    p->gone = 1;
-    p->in_flight = 0;
     switch (kind) {
-    case EVICT_SILENT: m->c.evicted_silent++; break;
-    case EVICT_STALLED: m->c.evicted_stalled++; break;
-    case EVICT_DIED:
-    case EVICT_KILLED: m->c.evicted_died++; break;
-    case EVICT_ERROR: m->c.evicted_error++; break;
-    case EVICT_BANNED: m->c.workers_banned++; break;
-    case EVICT_LEFT: break;
+    case SCHED_SILENT: m->c.evicted_silent++; break;
+    case SCHED_STALLED: m->c.evicted_stalled++; break;
+    case SCHED_DIED:
+    case SCHED_KILLED: m->c.evicted_died++; break;
+    case SCHED_ERROR: m->c.evicted_error++; break;
+    case SCHED_BANNED: m->c.workers_banned++; break;
+    case SCHED_LEFT: break;
     }
-    log_warn("worker %s removed (%s); %u tile(s) re-queued", p->name, why, requeued);
+    log_warn("worker %s removed (%s); %u tile(s) re-queued", p->name, why, ev->requeued);
     struct proto_msg bye = {.type = MSG_BYE};
     send_to(m, p, &bye);
+}
+
+static void evict_peer(struct master *m, int32_t pi, enum sched_evict_kind kind, const char *why)
+{
+    if (m->sched->workers[pi].gone)
+        return;
+    struct sched_eviction ev;
+    sched_evict(m->sched, pi, kind, &ev);
+    peer_evicted(m, pi, kind, &ev, why);
 }
 
 static int name_is_banned(const struct master *m, const char *name)
@@ -455,15 +381,15 @@ static void on_hello(struct master *m, const struct net_frame *f, const struct m
         if (*c < 0x20 || *c == 0x7f)
             *c = '?';
     int32_t gone = find_gone_peer(m, f->id, f->id_len);
-    if (name_is_banned(m, name) || (gone >= 0 && m->peers[gone].banned)) {
+    if (name_is_banned(m, name) || (gone >= 0 && m->sched->workers[gone].banned)) {
         m->c.rejected_banned++;
         return;
     }
     /* The same worker process on a new connection (it lost us and reconnected): its old
      * connection is dead; its tiles go back to the queue without counting as a crash. */
     for (uint32_t i = 0; i < m->num_peers; i++)
-        if (!m->peers[i].gone && !strcmp(m->peers[i].name, name))
-            evict_peer(m, (int32_t)i, EVICT_LEFT, "it reconnected");
+        if (!m->sched->workers[i].gone && !strcmp(m->peers[i].name, name))
+            evict_peer(m, (int32_t)i, SCHED_LEFT, "it reconnected");
     if (m->num_peers >= MAX_PEERS) {
         log_warn("too many workers; ignoring hello from %s", name);
         m->c.rejected_unexpected++;
@@ -475,9 +401,8 @@ static void on_hello(struct master *m, const struct net_frame *f, const struct m
     memcpy(p->id, f->id, f->id_len);
     p->id_len = f->id_len;
     p->pid = h->pid;
-    p->threads = h->threads ? h->threads : 1;
-    p->last_heard_ms = p->last_progress_ms = net_now_ms();
     snprintf(p->name, sizeof p->name, "%s", name);
+    sched_worker_join(m->sched, h->threads, net_now_ms());
     m->num_peers++;
     m->c.workers_joined++;
     log_info("worker %s joined with %u thread(s)", p->name, h->threads);
@@ -605,7 +530,7 @@ static void commit_and_ack(struct master *m, int wait)
                 m->acks[k++] = *a;
         }
         m->num_acks = k;
-        if (!m->peers[first.peer].gone) {
+        if (!m->sched->workers[first.peer].gone) {
             send_to(m, &m->peers[first.peer], &msg);
             m->c.acks_sent++;
         }
@@ -613,11 +538,10 @@ static void commit_and_ack(struct master *m, int wait)
 }
 
 /* Keeps an accepted tile: journal first (written here, synced by commit_and_ack before
- * anyone is told), then it counts as done. */
+ * anyone is told), then the caller marks it done in the scheduler. */
 static int tile_accept(struct master *m, uint32_t tile, const struct tile_stats *st, const uint8_t *chunk,
                        size_t chunk_size)
 {
-    struct tile_slot *t = &m->tiles[tile];
     if (m->journal) {
         char err[512];
         if (journal_write(m->journal, tile, st, chunk, (uint32_t)chunk_size, err, sizeof err) != 0) {
@@ -625,29 +549,27 @@ static int tile_accept(struct master *m, uint32_t tile, const struct tile_stats 
             return -1;
         }
     }
-    t->chunk = mem_alloc(chunk_size ? chunk_size : 1);
-    memcpy(t->chunk, chunk, chunk_size);
-    t->chunk_size = chunk_size;
-    t->state = TILE_DONE;
-    m->tiles_done++;
+    m->chunks[tile].data = mem_alloc(chunk_size ? chunk_size : 1);
+    memcpy(m->chunks[tile].data, chunk, chunk_size);
+    m->chunks[tile].size = chunk_size;
     m->c.tiles_done++;
     tile_stats_add(&m->stats, st);
     return 0;
 }
 
-/* An invalid tile from peer pi: counted; FAILS_TO_BAN in a row ban it for the job. */
-static void peer_sent_invalid(struct master *m, int32_t pi)
+/* An invalid tile from peer pi was counted by the scheduler; a ban (SCHED_FAILS_TO_BAN in
+ * a row) is remembered by name and the worker is told to go. */
+static void peer_sent_invalid(struct master *m, int32_t pi, int banned, const struct sched_eviction *ev)
 {
     struct peer *p = &m->peers[pi];
     m->c.results_invalid++;
-    if (++p->fail_streak >= FAILS_TO_BAN) {
-        p->banned = 1;
-        if (m->num_banned < sizeof m->banned_names / sizeof m->banned_names[0])
-            snprintf(m->banned_names[m->num_banned++], sizeof m->banned_names[0], "%s", p->name);
-        char why[64];
-        snprintf(why, sizeof why, "banned for the job: %u invalid results in a row", p->fail_streak);
-        evict_peer(m, pi, EVICT_BANNED, why);
-    }
+    if (!banned)
+        return;
+    if (m->num_banned < sizeof m->banned_names / sizeof m->banned_names[0])
+        snprintf(m->banned_names[m->num_banned++], sizeof m->banned_names[0], "%s", p->name);
+    char why[64];
+    snprintf(why, sizeof why, "banned for the job: %u invalid results in a row", m->sched->workers[pi].fail_streak);
+    peer_evicted(m, pi, SCHED_BANNED, ev, why);
 }
 
 /* A tile a worker kept for a master that went away, offered to us: accepted only for this
@@ -656,7 +578,7 @@ static void peer_sent_invalid(struct master *m, int32_t pi)
 static void on_kept(struct master *m, int32_t pi, const struct msg_kept *k)
 {
     struct peer *p = &m->peers[pi];
-    p->last_progress_ms = net_now_ms();
+    sched_worker_progress(m->sched, pi, net_now_ms());
     if (k->job_id != m->job_id || !blob_hash_equal(&k->job_key, &m->job_key) || k->frame != m->frame ||
         k->tile >= m->num_tiles) {
         if (peer_should_log_drop(p))
@@ -665,8 +587,7 @@ static void on_kept(struct master *m, int32_t pi, const struct msg_kept *k)
         m->c.results_not_ours++;
         return;
     }
-    struct tile_slot *t = &m->tiles[k->tile];
-    if (t->state == TILE_DONE) {
+    if (sched_kept(m->sched, k->tile)) {
         m->c.kept_duplicate++;
         ack_push(m, pi, k->job_id, k->frame, k->tile);
         return;
@@ -674,28 +595,22 @@ static void on_kept(struct master *m, int32_t pi, const struct msg_kept *k)
     char err[256];
     if (!chunk_is_sane(m, k->tile, k->chunk, k->chunk_size, err, sizeof err)) {
         log_warn("worker %s: kept tile %u rejected: %s", p->name, k->tile, err);
-        peer_sent_invalid(m, pi);
+        struct sched_eviction ev;
+        int banned = sched_kept_invalid(m->sched, pi, &ev);
+        peer_sent_invalid(m, pi, banned, &ev);
         return;
     }
-    p->fail_streak = 0;
     if (tile_accept(m, k->tile, &k->stats, k->chunk, k->chunk_size) != 0)
         return;
+    sched_kept_valid(m->sched, pi, k->tile);
     ack_push(m, pi, k->job_id, k->frame, k->tile);
     m->c.tiles_from_kept++;
-    p->tiles_done++;
-    for (uint32_t i = 0; i < m->q_count; i++)
-        if (m->queue[i] == k->tile) {
-            queue_remove_at(m, i);
-            break;
-        }
-    while (t->num_holders > 0) /* copies in flight elsewhere will be duplicates */
-        tile_drop_holder(m, k->tile, t->holder[0]);
 }
 
 static void on_result(struct master *m, int32_t pi, const struct msg_result *r)
 {
     struct peer *p = &m->peers[pi];
-    p->last_progress_ms = net_now_ms();
+    sched_worker_progress(m->sched, pi, net_now_ms());
     if (r->job_id >= m->job_base && r->job_id < m->job_id) {
         /* A tile of an earlier frame of this range, finished after that frame was done
          * (a straggler copy): expected. Its credit went with the old job; the frame is
@@ -704,8 +619,8 @@ static void on_result(struct master *m, int32_t pi, const struct msg_result *r)
         ack_push(m, pi, r->job_id, r->frame, r->tile);
         return;
     }
-    if (r->job_id == m->job_id && p->credits < p->threads * 4)
-        p->credits++;
+    if (r->job_id == m->job_id)
+        sched_worker_credit(m->sched, pi);
     if (r->job_id != m->job_id || r->frame != m->frame || r->tile >= m->num_tiles) {
         if (peer_should_log_drop(p))
             log_warn("worker %s: RESULT for job %llu frame %u tile %u is not ours; dropped", p->name,
@@ -713,21 +628,15 @@ static void on_result(struct master *m, int32_t pi, const struct msg_result *r)
         m->c.results_not_ours++;
         return;
     }
-    struct tile_slot *t = &m->tiles[r->tile];
-    int k = -1;
-    for (uint32_t i = 0; i < t->num_holders; i++)
-        if (t->holder[i] == pi && t->holder_attempt[i] == r->attempt)
-            k = (int)i;
-    if (t->state == TILE_DONE || k < 0) {
-        /* A straggler copy that lost the race is expected; anything else is stale. */
-        int dup = t->state == TILE_DONE && r->attempt <= t->attempt && r->attempt > 0;
-        if (dup)
+    enum sched_result_verdict v = sched_result(m->sched, pi, r->tile, r->attempt);
+    if (v != SCHED_RESULT_CHECK) {
+        if (v == SCHED_RESULT_DUPLICATE)
             m->c.results_duplicate++;
         else
             m->c.results_stale++;
-        if (t->state == TILE_DONE) /* we have it: the worker need not keep its copy */
+        if (m->sched->tiles[r->tile].state == SCHED_DONE) /* we have it: the worker need not keep its copy */
             ack_push(m, pi, r->job_id, r->frame, r->tile);
-        if (!dup && peer_should_log_drop(p))
+        if (v == SCHED_RESULT_STALE && peer_should_log_drop(p))
             log_warn("worker %s: result for tile %u attempt %u is stale or not assigned to it; dropped", p->name,
                      r->tile, r->attempt);
         return;
@@ -735,105 +644,32 @@ static void on_result(struct master *m, int32_t pi, const struct msg_result *r)
     char err[256];
     if (!chunk_is_sane(m, r->tile, r->chunk, r->chunk_size, err, sizeof err)) {
         log_warn("worker %s: tile %u rejected: %s; re-queued", p->name, r->tile, err);
-        tile_drop_holder(m, r->tile, pi);
-        p->isolated = 0;
-        peer_sent_invalid(m, pi);
+        struct sched_eviction ev;
+        int banned = sched_result_invalid(m->sched, pi, r->tile, &ev);
+        peer_sent_invalid(m, pi, banned, &ev);
         return;
     }
-    p->fail_streak = 0;
-    p->isolated = 0;
     if (tile_accept(m, r->tile, &r->stats, r->chunk, r->chunk_size) != 0)
         return;
+    sched_result_valid(m->sched, pi, r->tile);
     ack_push(m, pi, r->job_id, r->frame, r->tile);
-    p->tiles_done++;
-    /* Both holders stop holding it (it is done, so nothing is re-queued): the other
-     * holder's result, if any, will be a duplicate. */
-    while (t->num_holders > 0)
-        tile_drop_holder(m, r->tile, t->holder[0]);
 }
 
-static void tile_give(struct master *m, uint32_t tile, int32_t pi, int straggler)
-{
-    struct peer *p = &m->peers[pi];
-    struct tile_slot *t = &m->tiles[tile];
-    if (p->in_flight == 0)
-        p->last_progress_ms = net_now_ms(); /* idle time is not a stall */
-    t->state = TILE_ASSIGNED;
-    t->attempt++;
-    t->holder[t->num_holders] = pi;
-    t->holder_attempt[t->num_holders] = t->attempt;
-    t->num_holders++;
-    t->assigned_ms = net_now_ms();
-    p->credits--;
-    p->in_flight++;
-    m->c.tiles_assigned++;
-    if (straggler)
-        m->c.straggler_copies++;
-    else if (t->requeued)
-        m->c.tiles_reissued++;
-    t->requeued = 0;
-    if (t->crashes > 0)
-        p->isolated = 1;
-    struct proto_msg msg = {.type = MSG_TILE};
-    msg.u.tile.job_id = m->job_id;
-    msg.u.tile.frame = m->frame;
-    msg.u.tile.tile = tile;
-    msg.u.tile.attempt = t->attempt;
-    send_to(m, p, &msg);
-}
-
-static int peer_can_take(const struct peer *p)
-{
-    return !p->gone && p->ready && p->credits > 0 && !p->isolated;
-}
-
+/* Sends every tile the scheduler hands out now. */
 static void assign_tiles(struct master *m)
 {
-    for (uint32_t i = 0; i < m->num_peers && m->q_count > 0; i++) {
-        struct peer *p = &m->peers[i];
-        uint32_t qi = 0;
-        while (peer_can_take(p) && qi < m->q_count) {
-            uint32_t tile = m->queue[qi];
-            /* A tile that already took a worker down is rendered alone, so that a second
-             * crash is blamed on it and not on its neighbours. */
-            if (m->tiles[tile].crashes > 0 && p->in_flight > 0) {
-                qi++;
-                continue;
-            }
-            queue_remove_at(m, qi);
-            tile_give(m, tile, (int32_t)i, 0);
-        }
+    struct sched_assignment a;
+    while (sched_assign_next(m->sched, net_now_ms(), &a)) {
+        m->c.tiles_assigned++;
+        m->c.straggler_copies += a.straggler != 0;
+        m->c.tiles_reissued += a.reissue != 0;
+        struct proto_msg msg = {.type = MSG_TILE};
+        msg.u.tile.job_id = m->job_id;
+        msg.u.tile.frame = m->frame;
+        msg.u.tile.tile = a.tile;
+        msg.u.tile.attempt = a.attempt;
+        send_to(m, &m->peers[a.worker], &msg);
     }
-    if (m->q_count > 0)
-        return;
-    /* Stragglers: an idle worker also takes the oldest tile still in flight elsewhere;
-     * the first valid result wins (tiles are deterministic, so either will do). */
-    for (uint32_t i = 0; i < m->num_peers; i++) {
-        struct peer *p = &m->peers[i];
-        if (!peer_can_take(p) || p->in_flight > 0)
-            continue;
-        int32_t best = -1;
-        for (uint32_t t = 0; t < m->num_tiles; t++) {
-            const struct tile_slot *s = &m->tiles[t];
-            if (s->state != TILE_ASSIGNED || s->num_holders != 1 || s->holder[0] == (int32_t)i || s->crashes > 0)
-                continue;
-            if (best < 0 || s->assigned_ms < m->tiles[best].assigned_ms)
-                best = (int32_t)t;
-        }
-        if (best < 0)
-            return;
-        tile_give(m, (uint32_t)best, (int32_t)i, 1);
-    }
-}
-
-static void on_heartbeat(struct master *m, struct peer *p, const struct msg_heartbeat *h)
-{
-    if (h->samples_done > p->last_samples) {
-        p->last_samples = h->samples_done;
-        p->last_progress_ms = net_now_ms();
-    }
-    p->reported_stall_ms = h->stalled_ms;
-    (void)m;
 }
 
 static void handle_message(struct master *m, struct net_frame *f)
@@ -868,17 +704,14 @@ static void handle_message(struct master *m, struct net_frame *f)
         return;
     }
     struct peer *p = &m->peers[pi];
-    p->last_heard_ms = net_now_ms();
+    sched_worker_heard(m->sched, pi, net_now_ms());
     switch (msg.type) {
     case MSG_BLOB_REQ:
         on_blob_req(m, p, &msg.u.blob_req);
         break;
     case MSG_READY:
-        if (msg.u.ready.job_id == m->job_id && !p->ready) {
-            p->ready = 1;
-            p->credits = msg.u.ready.credits < p->threads * 4 ? msg.u.ready.credits : p->threads * 4;
-            if (p->credits == 0)
-                p->credits = 1;
+        if (msg.u.ready.job_id == m->job_id && sched_worker_ready(m->sched, pi, msg.u.ready.credits) == 0) {
+            /* credits set */
         } else if (msg.u.ready.job_id >= m->job_base && msg.u.ready.job_id < m->job_id) {
             m->c.ready_stale++; /* it finished loading a frame that is already done: the next JOB is on its way */
         } else {
@@ -894,13 +727,13 @@ static void handle_message(struct master *m, struct net_frame *f)
     case MSG_ERROR:
         snprintf(m->last_worker_error, sizeof m->last_worker_error, "%s", msg.u.error.text);
         log_error("worker %s: %s", p->name, msg.u.error.text);
-        evict_peer(m, pi, EVICT_ERROR, "it reported an error");
+        evict_peer(m, pi, SCHED_ERROR, "it reported an error");
         break;
     case MSG_HEARTBEAT:
-        on_heartbeat(m, p, &msg.u.heartbeat);
+        sched_worker_heartbeat(m->sched, pi, msg.u.heartbeat.samples_done, msg.u.heartbeat.stalled_ms, net_now_ms());
         break;
     case MSG_BYE:
-        evict_peer(m, pi, EVICT_LEFT, "it left");
+        evict_peer(m, pi, SCHED_LEFT, "it left");
         break;
     default:
         m->c.rejected_unexpected++;
@@ -919,18 +752,16 @@ static int replay_tile(void *ctx, uint32_t tile, const struct tile_stats *st, co
 {
     struct master *m = ((struct replay_ctx *)ctx)->m;
     char err[256];
-    if (m->tiles[tile].state == TILE_DONE)
+    if (m->sched->tiles[tile].state == SCHED_DONE)
         return 0; /* a tile journaled twice: the first copy is as good */
     if (!chunk_is_sane(m, tile, chunk, size, err, sizeof err)) {
         log_warn("journal: tile %u does not decode (%s); the journal is cut there", tile, err);
         return -1;
     }
-    struct tile_slot *t = &m->tiles[tile];
-    t->chunk = mem_alloc(size ? size : 1);
-    memcpy(t->chunk, chunk, size);
-    t->chunk_size = size;
-    t->state = TILE_DONE;
-    m->tiles_done++;
+    m->chunks[tile].data = mem_alloc(size ? size : 1);
+    memcpy(m->chunks[tile].data, chunk, size);
+    m->chunks[tile].size = size;
+    sched_tile_set_done(m->sched, tile);
     m->c.tiles_from_journal++;
     tile_stats_add(&m->stats, st);
     return 0;
@@ -1003,7 +834,7 @@ static int write_output(struct master *m, double seconds)
     }
     uint32_t tiles_x = imgio_tiles_x(&m->desc);
     for (uint32_t t = 0; t < m->num_tiles; t++)
-        if (imgio_writer_put_tile(w, t % tiles_x, t / tiles_x, m->tiles[t].chunk, m->tiles[t].chunk_size, err,
+        if (imgio_writer_put_tile(w, t % tiles_x, t / tiles_x, m->chunks[t].data, m->chunks[t].size, err,
                                   sizeof err) != 0) {
             imgio_writer_close(&w, err, sizeof err);
             unlink(tmp);
@@ -1033,7 +864,7 @@ static int write_output(struct master *m, double seconds)
         for (uint32_t t = 0; t < m->num_tiles; t++) {
             uint32_t tx = t % tiles_x, ty = t / tiles_x, x0, y0, tw, th;
             imgio_tile_rect(&m->desc, tx, ty, &x0, &y0, &tw, &th);
-            if (imgio_decode_tile(&m->desc, tx, ty, m->tiles[t].chunk, m->tiles[t].chunk_size, m->decode_scratch,
+            if (imgio_decode_tile(&m->desc, tx, ty, m->chunks[t].data, m->chunks[t].size, m->decode_scratch,
                                   err, sizeof err) != 0)
                 continue;
             for (uint32_t y = 0; y < th; y++)
@@ -1053,12 +884,12 @@ static void print_progress(struct master *m, uint64_t start_ms, int tty, int fin
 {
     double secs = (double)(net_now_ms() - start_ms) / 1000.0;
     double rate = secs > 0 ? (double)m->stats.samples / secs : 0.0;
-    double left = m->tiles_done > 0 ? secs * (m->num_tiles - m->tiles_done) / m->tiles_done : 0.0;
+    double left = m->sched->tiles_done > 0 ? secs * (m->num_tiles - m->sched->tiles_done) / m->sched->tiles_done : 0.0;
     if (tty)
-        fprintf(stderr, "\rmaster: tiles %u/%u  %.2f Msamples/s  ETA %.0fs   %s", m->tiles_done, m->num_tiles,
+        fprintf(stderr, "\rmaster: tiles %u/%u  %.2f Msamples/s  ETA %.0fs   %s", m->sched->tiles_done, m->num_tiles,
                 rate / 1e6, left, final ? "\n" : "");
     else
-        fprintf(stderr, "master: progress: tiles %u/%u, %.2f Msamples/s, ETA %.0fs\n", m->tiles_done, m->num_tiles,
+        fprintf(stderr, "master: progress: tiles %u/%u, %.2f Msamples/s, ETA %.0fs\n", m->sched->tiles_done, m->num_tiles,
                 rate / 1e6, left);
     fflush(stderr);
 }
@@ -1080,7 +911,7 @@ static void print_summary(struct master *m, double secs)
     printf("summary: noise: mean relative standard error %.4f over %u lit pixels\n",
            s->rel_stderr_pixels ? s->sum_rel_stderr / s->rel_stderr_pixels : 0.0, s->rel_stderr_pixels);
     for (uint32_t i = 0; i < m->num_peers; i++)
-        printf("summary: worker %s: %u tiles\n", m->peers[i].name, m->peers[i].tiles_done);
+        printf("summary: worker %s: %u tiles\n", m->peers[i].name, m->sched->workers[i].tiles_done);
     printf("summary: scene hash %s\n", m->scene_hash);
     fflush(stdout);
 }
@@ -1290,44 +1121,38 @@ static void reap_local(struct master *m)
                 m->local_alive--;
             }
         for (uint32_t i = 0; i < m->num_peers; i++)
-            if (!m->peers[i].gone && m->peers[i].pid == (uint32_t)pid && m->num_local > 0) {
+            if (!m->sched->workers[i].gone && m->peers[i].pid == (uint32_t)pid && m->num_local > 0) {
                 char why[64];
                 if (WIFSIGNALED(status))
                     snprintf(why, sizeof why, "process killed by signal %d", WTERMSIG(status));
                 else
                     snprintf(why, sizeof why, "process exited with status %d", WEXITSTATUS(status));
-                evict_peer(m, (int32_t)i, WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL ? EVICT_KILLED : EVICT_DIED,
-                           why);
+                evict_peer(m, (int32_t)i, sched_death_kind(WIFSIGNALED(status), WTERMSIG(status)), why);
             }
     }
-}
-
-static uint32_t live_peers(const struct master *m)
-{
-    uint32_t n = 0;
-    for (uint32_t i = 0; i < m->num_peers; i++)
-        n += !m->peers[i].gone;
-    return n;
 }
 
 static void check_liveness(struct master *m, uint64_t now)
 {
     const struct master_opts *o = m->opts;
     for (uint32_t i = 0; i < m->num_peers; i++) {
-        struct peer *p = &m->peers[i];
-        if (p->gone)
-            continue;
         char why[128];
-        if (now - p->last_heard_ms > o->worker_timeout_ms) {
-            snprintf(why, sizeof why, "no heartbeat for %llu ms", (unsigned long long)(now - p->last_heard_ms));
-            evict_peer(m, (int32_t)i, EVICT_SILENT, why);
-        } else if (p->in_flight > 0 && now - p->last_progress_ms > o->stall_ms) {
-            snprintf(why, sizeof why, "its render threads made no progress for %llu ms",
-                     (unsigned long long)(now - p->last_progress_ms));
-            evict_peer(m, (int32_t)i, EVICT_STALLED, why);
-        } else if (p->in_flight > 0 && p->reported_stall_ms > o->stall_ms) {
-            snprintf(why, sizeof why, "a render thread made no progress for %u ms", p->reported_stall_ms);
-            evict_peer(m, (int32_t)i, EVICT_STALLED, why);
+        uint64_t for_ms;
+        switch (sched_worker_health(m->sched, (int32_t)i, now, o->worker_timeout_ms, o->stall_ms, &for_ms)) {
+        case SCHED_HEALTHY:
+            break;
+        case SCHED_HEALTH_SILENT:
+            snprintf(why, sizeof why, "no heartbeat for %llu ms", (unsigned long long)for_ms);
+            evict_peer(m, (int32_t)i, SCHED_SILENT, why);
+            break;
+        case SCHED_HEALTH_STALLED:
+            snprintf(why, sizeof why, "its render threads made no progress for %llu ms", (unsigned long long)for_ms);
+            evict_peer(m, (int32_t)i, SCHED_STALLED, why);
+            break;
+        case SCHED_HEALTH_STALL_REPORTED:
+            snprintf(why, sizeof why, "a render thread made no progress for %llu ms", (unsigned long long)for_ms);
+            evict_peer(m, (int32_t)i, SCHED_STALLED, why);
+            break;
         }
     }
 }
@@ -1422,46 +1247,29 @@ static int frame_begin(struct master *m, uint32_t frames_started)
         return 1;
     }
     for (uint32_t t = 0; t < m->num_tiles; t++)
-        free(m->tiles[t].chunk);
-    memset(m->tiles, 0, sizeof *m->tiles * m->num_tiles);
-    m->tiles_done = 0;
-    m->q_count = 0;
+        free(m->chunks[t].data);
+    memset(m->chunks, 0, sizeof *m->chunks * m->num_tiles);
+    sched_frame_begin(m->sched);
     memset(&m->stats, 0, sizeof m->stats);
-    for (uint32_t t = 0; t < m->num_tiles; t++)
-        queue_push(m, t);
     if (o->only_tiles && restrict_tiles(m) != 0)
         return -1;
     if (m->journal) {
         m->c.journal_syncs += m->journal->syncs;
         journal_free(&m->journal);
     }
-    /* A --tiles render is a debugging aid: it keeps no journal of its own. */
-    uint64_t from_journal = m->c.tiles_from_journal;
+    /* A --tiles render is a debugging aid: it keeps no journal of its own. Journaled
+     * tiles are done in the scheduler, so they never go out again. */
     if (!o->no_journal && !o->only_tiles && open_journal(m) != 0)
         return -1;
-    if (m->c.tiles_from_journal > from_journal) {
-        /* Journaled tiles never go out again. */
-        uint32_t k = 0;
-        for (uint32_t i = 0; i < m->q_count; i++)
-            if (m->tiles[m->queue[i]].state != TILE_DONE)
-                m->queue[k++] = m->queue[i];
-        m->q_count = k;
-    }
     m->job_id = m->job_base + frames_started;
-    for (uint32_t i = 0; i < m->num_peers; i++) {
-        struct peer *p = &m->peers[i];
-        p->ready = 0;
-        p->credits = 0;
-        p->in_flight = 0;
-        p->isolated = 0;
-        if (!p->gone && m->tiles_done < m->num_tiles)
-            send_job(m, p);
-    }
-    if (m->tiles_done < m->num_tiles && !m->local_pids && start_local_workers(m) != 0)
+    for (uint32_t i = 0; i < m->num_peers; i++)
+        if (!m->sched->workers[i].gone && m->sched->tiles_done < m->num_tiles)
+            send_job(m, &m->peers[i]);
+    if (m->sched->tiles_done < m->num_tiles && !m->local_pids && start_local_workers(m) != 0)
         return -1;
     log_info("rendering %s frame %u -> %s: %ux%u, %u spp, %u tiles (%u from the journal), %u local worker(s)%s%s",
              o->scene_path, m->frame, m->out_path, m->scene.settings.width, m->scene.settings.height,
-             m->scene.settings.spp, m->num_tiles, m->tiles_done, o->workers, o->bind ? ", accepting workers at " : "",
+             m->scene.settings.spp, m->num_tiles, m->sched->tiles_done, o->workers, o->bind ? ", accepting workers at " : "",
              o->bind ? o->bind : "");
     return 0;
 }
@@ -1472,9 +1280,9 @@ static int frame_render(struct master *m, uint64_t *last_beat)
     const struct master_opts *o = m->opts;
     int tty = isatty(2);
     uint64_t start = net_now_ms(), last_progress = start;
-    while (m->tiles_done < m->num_tiles) {
+    while (m->sched->tiles_done < m->num_tiles) {
         if (g_interrupted) {
-            log_error("interrupted; %u of %u tiles of frame %u were finished", m->tiles_done, m->num_tiles, m->frame);
+            log_error("interrupted; %u of %u tiles of frame %u were finished", m->sched->tiles_done, m->num_tiles, m->frame);
             return -1;
         }
         if (m->fatal[0]) {
@@ -1511,8 +1319,8 @@ static int frame_render(struct master *m, uint64_t *last_beat)
         check_liveness(m, now);
         if (m->fatal[0])
             continue;
-        if (!o->bind && m->local_alive == 0 && live_peers(m) == 0) {
-            log_error("every worker has exited; %u of %u tiles were finished%s%s", m->tiles_done, m->num_tiles,
+        if (!o->bind && m->local_alive == 0 && sched_live_workers(m->sched) == 0) {
+            log_error("every worker has exited; %u of %u tiles were finished%s%s", m->sched->tiles_done, m->num_tiles,
                       m->last_worker_error[0] ? "; last worker error: " : "", m->last_worker_error);
             return -1;
         }
@@ -1521,9 +1329,9 @@ static int frame_render(struct master *m, uint64_t *last_beat)
         if (now - *last_beat >= 1000) {
             struct proto_msg hb = {.type = MSG_HEARTBEAT};
             hb.u.heartbeat.job_id = m->job_id;
-            hb.u.heartbeat.tiles_done = m->tiles_done;
+            hb.u.heartbeat.tiles_done = m->sched->tiles_done;
             for (uint32_t i = 0; i < m->num_peers; i++)
-                if (!m->peers[i].gone)
+                if (!m->sched->workers[i].gone)
                     send_to(m, &m->peers[i], &hb);
             *last_beat = now;
         }
@@ -1597,7 +1405,7 @@ done:
     {
         struct proto_msg bye = {.type = MSG_BYE};
         for (uint32_t i = 0; i < m.num_peers && m.sock; i++)
-            if (!m.peers[i].gone)
+            if (!m.sched->workers[i].gone)
                 send_to(&m, &m.peers[i], &bye);
     }
     print_counters(&m);
@@ -1628,10 +1436,10 @@ done:
         zmq_close(m.sock);
     if (m.zctx)
         zmq_ctx_term(m.zctx);
-    for (uint32_t t = 0; t < m.num_tiles; t++)
-        free(m.tiles[t].chunk);
-    free(m.tiles);
-    free(m.queue);
+    for (uint32_t t = 0; t < m.num_tiles && m.chunks; t++)
+        free(m.chunks[t].data);
+    free(m.chunks);
+    sched_free(&m.sched);
     free(m.peers);
     free(m.local_pids);
     free(m.manifest);
