@@ -15,6 +15,8 @@
 #include "base/log.h"
 #include "wire/net.h"
 #include "wire/proto.h"
+#include "zap.h"
+#include "output.h"
 #include "photons.h"
 #include "sched.h"
 #include "render/media_integrator.h"
@@ -37,12 +39,6 @@
 #define MAX_PEERS 4096
 #define PROGRESS_PLAIN_MS 5000
 #define PROGRESS_TTY_MS 250
-/* A finished tile's EXR chunk, kept until the frame's output is written. */
-struct tile_chunk {
-    uint8_t *data;
-    size_t size;
-};
-
 /* Who a worker is; its scheduling state is m->sched->workers[same index]. */
 struct peer {
     uint8_t id[NET_MAX_IDENTITY];
@@ -71,7 +67,8 @@ struct pending_ack { int32_t peer; uint64_t job_id; uint32_t frame, tile; uint64
 
 struct master {
     const struct master_opts *opts;
-    void *zctx, *sock, *zap, *monitor;
+    void *zctx, *sock;
+    struct zap *zap;            /* CurveZMQ admission, or NULL */
     struct proto_buf out;
     struct asset_dir assets;
     struct blob_store blobs;
@@ -90,7 +87,7 @@ struct master {
     uint32_t frame;
     char out_path[4000];        /* this frame's output file */
     struct sched *sched;        /* tiles, attempts, holders, blame, bans (sched.h) */
-    struct tile_chunk *chunks;  /* per tile, once done */
+    struct output_chunk *chunks;  /* per tile, once done */
     uint32_t num_tiles;
     struct peer *peers;
     uint32_t num_peers;
@@ -109,8 +106,6 @@ struct master {
     uint32_t stranger_drops_logged;
     struct pending_ack *acks;   /* tiles to acknowledge once the journal is synced */
     uint32_t num_acks, cap_acks;
-    uint8_t (*allowed)[32];     /* allowed CURVE public keys, binary */
-    size_t num_allowed;
     char local_key_path[400], local_pub_path[400];
 };
 
@@ -803,23 +798,10 @@ static int open_journal(struct master *m)
 
 /* ---- output ---- */
 
-static int fsync_dir_of(const char *path)
-{
-    char buf[4096];
-    snprintf(buf, sizeof buf, "%s", path);
-    int fd = open(dirname(buf), O_RDONLY | O_DIRECTORY);
-    if (fd < 0)
-        return -1;
-    int rc = fsync(fd);
-    close(fd);
-    return rc;
-}
-
 static int write_output(struct master *m, double seconds)
 {
     const struct master_opts *o = m->opts;
-    char err[512], tmp[4200];
-    snprintf(tmp, sizeof tmp, "%s.tmp.%d", m->out_path, (int)getpid());
+    char err[512];
     struct image_attrs a;
     memset(&a, 0, sizeof a);
     a.spp = m->scene.settings.spp;
@@ -827,54 +809,17 @@ static int write_output(struct master *m, double seconds)
     a.render_seconds = seconds;
     snprintf(a.scene_hash, sizeof a.scene_hash, "%s", m->scene_hash);
     snprintf(a.software, sizeof a.software, "brume 0.1");
-    struct imgio_writer *w = imgio_writer_open(tmp, &m->desc, &a, err, sizeof err);
-    if (!w) {
+    if (output_write_exr(m->out_path, &m->desc, &a, m->chunks, err, sizeof err) != 0) {
         log_error("%s", err);
         return -1;
     }
-    uint32_t tiles_x = imgio_tiles_x(&m->desc);
-    for (uint32_t t = 0; t < m->num_tiles; t++)
-        if (imgio_writer_put_tile(w, t % tiles_x, t / tiles_x, m->chunks[t].data, m->chunks[t].size, err,
-                                  sizeof err) != 0) {
-            imgio_writer_close(&w, err, sizeof err);
-            unlink(tmp);
-            log_error("%s", err);
-            return -1;
-        }
-    if (imgio_writer_close(&w, err, sizeof err) != 0) {
-        unlink(tmp);
-        log_error("%s", err);
-        return -1;
-    }
-    if (rename(tmp, m->out_path) != 0) {
-        log_error("%s: cannot rename into place: %s", m->out_path, strerror(errno));
-        unlink(tmp);
-        return -1;
-    }
-    fsync_dir_of(m->out_path);
     /* Only now is the journal's content safe elsewhere. */
     if (m->journal) {
         m->c.journal_syncs += m->journal->syncs;
         journal_remove(&m->journal);
     }
-    if (o->preview_path) {
-        const struct render_settings *rs = &m->scene.settings;
-        size_t n = (size_t)rs->width * rs->height * TILE_NUM_CHANNELS;
-        float *img = mem_alloc(sizeof(float) * n);
-        for (uint32_t t = 0; t < m->num_tiles; t++) {
-            uint32_t tx = t % tiles_x, ty = t / tiles_x, x0, y0, tw, th;
-            imgio_tile_rect(&m->desc, tx, ty, &x0, &y0, &tw, &th);
-            if (imgio_decode_tile(&m->desc, tx, ty, m->chunks[t].data, m->chunks[t].size, m->decode_scratch,
-                                  err, sizeof err) != 0)
-                continue;
-            for (uint32_t y = 0; y < th; y++)
-                memcpy(&img[((size_t)(y0 + y) * rs->width + x0) * TILE_NUM_CHANNELS],
-                       &m->decode_scratch[(size_t)y * tw * TILE_NUM_CHANNELS], sizeof(float) * tw * TILE_NUM_CHANNELS);
-        }
-        if (imgio_write_png(o->preview_path, img, rs->width, rs->height, TILE_NUM_CHANNELS, 1.0f, err, sizeof err) != 0)
-            log_warn("preview: %s", err);
-        free(img);
-    }
+    if (o->preview_path && output_write_preview(o->preview_path, &m->desc, m->chunks, err, sizeof err) != 0)
+        log_warn("preview: %s", err);
     return 0;
 }
 
@@ -925,151 +870,6 @@ static void print_counters(const struct master *m)
     fflush(stdout);
 }
 
-/* ---- keeping strangers out: CurveZMQ with a ZAP handler ---- */
-
-/* The master's own local workers get a fresh key pair in the private (0700) socket folder. */
-static int make_local_keys(struct master *m, struct net_key *local_public)
-{
-    char err[512];
-    snprintf(m->local_key_path, sizeof m->local_key_path, "%s/worker.key", m->ipc_dir);
-    snprintf(m->local_pub_path, sizeof m->local_pub_path, "%s/master.pub", m->ipc_dir);
-    struct net_key sec, pub, master_pub, master_sec;
-    if (net_key_pair_write(m->local_key_path, err, sizeof err) != 0 ||
-        net_key_pair_load(m->local_key_path, &pub, &sec, err, sizeof err) != 0 ||
-        net_key_pair_load(m->opts->curve_secret, &master_pub, &master_sec, err, sizeof err) != 0) {
-        log_error("%s", err);
-        return -1;
-    }
-    FILE *f = fopen(m->local_pub_path, "w");
-    if (!f || fprintf(f, "%s\n", master_pub.z85) < 0 || fclose(f) != 0) {
-        log_error("%s: %s", m->local_pub_path, strerror(errno));
-        return -1;
-    }
-    *local_public = pub;
-    return 0;
-}
-
-static void allow_key(struct master *m, const struct net_key *k)
-{
-    m->allowed = mem_realloc(m->allowed, sizeof *m->allowed * (m->num_allowed + 1));
-    zmq_z85_decode(m->allowed[m->num_allowed++], k->z85);
-}
-
-static int setup_curve(struct master *m)
-{
-    const struct master_opts *o = m->opts;
-    char err[512] = "";
-    struct net_key pub, sec, *keys = NULL;
-    size_t count = 0;
-    if (!zmq_has("curve")) {
-        log_error("--curve-secret: this libzmq has no CurveZMQ");
-        return -1;
-    }
-    if (net_key_pair_load(o->curve_secret, &pub, &sec, err, sizeof err) != 0 ||
-        net_key_list_load(o->allow_path, &keys, &count, err, sizeof err) != 0) {
-        log_error("%s", err);
-        return -1;
-    }
-    for (size_t i = 0; i < count; i++)
-        allow_key(m, &keys[i]);
-    free(keys);
-    /* The handler must be bound before the first peer connects. */
-    m->zap = zmq_socket(m->zctx, ZMQ_REP);
-    int linger = 0;
-    zmq_setsockopt(m->zap, ZMQ_LINGER, &linger, sizeof linger);
-    if (zmq_bind(m->zap, "inproc://zeromq.zap.01") != 0 || net_curve_server(m->sock, &sec) != 0) {
-        log_error("cannot enable CurveZMQ: %s", zmq_strerror(errno));
-        return -1;
-    }
-    /* Handshakes that fail before ZAP (a client without CURVE, a wrong server key) are
-     * counted through the socket monitor. */
-    if (zmq_socket_monitor(m->sock, "inproc://brume-monitor",
-                           ZMQ_EVENT_HANDSHAKE_FAILED_NO_DETAIL | ZMQ_EVENT_HANDSHAKE_FAILED_PROTOCOL |
-                               ZMQ_EVENT_HANDSHAKE_FAILED_AUTH) == 0) {
-        m->monitor = zmq_socket(m->zctx, ZMQ_PAIR);
-        zmq_setsockopt(m->monitor, ZMQ_LINGER, &linger, sizeof linger);
-        zmq_connect(m->monitor, "inproc://brume-monitor");
-    }
-    log_info("CurveZMQ on: %zu allowed worker key(s)", m->num_allowed);
-    return 0;
-}
-
-/* One ZAP request (RFC 27): admit CURVE clients whose public key is allowed. */
-static void zap_handle(struct master *m)
-{
-    zmq_msg_t part[8];
-    int n = 0, more = 1;
-    while (more && n < 8) {
-        zmq_msg_init(&part[n]);
-        if (zmq_msg_recv(&part[n], m->zap, ZMQ_DONTWAIT) < 0) {
-            zmq_msg_close(&part[n]);
-            break;
-        }
-        more = zmq_msg_more(&part[n]);
-        n++;
-    }
-    while (more) { /* a request with too many parts: drain it */
-        zmq_msg_t x;
-        zmq_msg_init(&x);
-        if (zmq_msg_recv(&x, m->zap, ZMQ_DONTWAIT) < 0)
-            more = 0;
-        else
-            more = zmq_msg_more(&x);
-        zmq_msg_close(&x);
-    }
-    if (n < 2) {
-        for (int i = 0; i < n; i++)
-            zmq_msg_close(&part[i]);
-        return; /* no request id to answer */
-    }
-    int ok = n == 7 && zmq_msg_size(&part[5]) == 5 && !memcmp(zmq_msg_data(&part[5]), "CURVE", 5) &&
-             zmq_msg_size(&part[6]) == 32;
-    if (ok) {
-        ok = 0;
-        for (size_t i = 0; i < m->num_allowed && !ok; i++)
-            ok = !memcmp(m->allowed[i], zmq_msg_data(&part[6]), 32);
-    }
-    if (!ok) {
-        m->c.auth_rejects++;
-        if (m->c.auth_rejects <= 5)
-            log_warn("a worker with a key not in the allow-list was refused");
-    }
-    const char *status = ok ? "200" : "400", *text = ok ? "OK" : "key not allowed";
-    zmq_send(m->zap, "1.0", 3, ZMQ_SNDMORE);
-    zmq_send(m->zap, zmq_msg_data(&part[1]), zmq_msg_size(&part[1]), ZMQ_SNDMORE);
-    zmq_send(m->zap, status, 3, ZMQ_SNDMORE);
-    zmq_send(m->zap, text, strlen(text), ZMQ_SNDMORE);
-    zmq_send(m->zap, "", 0, ZMQ_SNDMORE);
-    zmq_send(m->zap, "", 0, 0);
-    for (int i = 0; i < n; i++)
-        zmq_msg_close(&part[i]);
-}
-
-static void monitor_drain(struct master *m)
-{
-    for (;;) {
-        zmq_msg_t ev, addr;
-        zmq_msg_init(&ev);
-        if (zmq_msg_recv(&ev, m->monitor, ZMQ_DONTWAIT) < 0) {
-            zmq_msg_close(&ev);
-            return;
-        }
-        int more = zmq_msg_more(&ev);
-        if (zmq_msg_size(&ev) >= 2) {
-            uint16_t event;
-            memcpy(&event, zmq_msg_data(&ev), 2);
-            if (event != ZMQ_EVENT_HANDSHAKE_FAILED_AUTH) /* those were counted by ZAP */
-                m->c.handshake_failures++;
-        }
-        zmq_msg_close(&ev);
-        if (more) {
-            zmq_msg_init(&addr);
-            zmq_msg_recv(&addr, m->monitor, ZMQ_DONTWAIT);
-            zmq_msg_close(&addr);
-        }
-    }
-}
-
 /* ---- main loop ---- */
 
 static int start_local_workers(struct master *m)
@@ -1088,10 +888,17 @@ static int start_local_workers(struct master *m)
         return -1;
     }
     if (o->curve_secret) {
+        /* The master's own local workers get a fresh key pair in the private (0700) folder. */
+        char err[512];
         struct net_key local_public;
-        if (make_local_keys(m, &local_public) != 0)
+        snprintf(m->local_key_path, sizeof m->local_key_path, "%s/worker.key", m->ipc_dir);
+        snprintf(m->local_pub_path, sizeof m->local_pub_path, "%s/master.pub", m->ipc_dir);
+        if (zap_write_local_keys(m->local_key_path, m->local_pub_path, o->curve_secret, &local_public, err,
+                                 sizeof err) != 0) {
+            log_error("%s", err);
             return -1;
-        allow_key(m, &local_public);
+        }
+        zap_allow_key(m->zap, &local_public);
     }
     snprintf(m->ipc_endpoint, sizeof m->ipc_endpoint, "ipc://%s/master.sock", m->ipc_dir);
     if (zmq_bind(m->sock, m->ipc_endpoint) != 0) {
@@ -1159,56 +966,6 @@ static void check_liveness(struct master *m, uint64_t now)
 
 /* ---- frames ---- */
 
-/* The output file of one frame: the last run of '#' in the name becomes the zero-padded
- * frame number (as many digits as '#'s, more if needed); without one, ".NNNN" goes in
- * front of the extension. A single render without --frames writes the name as given. */
-static int frame_output_path(const struct master_opts *o, uint32_t frame, char *out, size_t outlen)
-{
-    const char *pat = o->output_path;
-    if (!o->have_frames)
-        return snprintf(out, outlen, "%s", pat) < (int)outlen ? 0 : -1;
-    const char *hash_end = strrchr(pat, '#');
-    int n;
-    if (hash_end) {
-        const char *hash_start = hash_end;
-        while (hash_start > pat && hash_start[-1] == '#')
-            hash_start--;
-        int digits = (int)(hash_end - hash_start) + 1;
-        n = snprintf(out, outlen, "%.*s%0*u%s", (int)(hash_start - pat), pat, digits, frame, hash_end + 1);
-    } else {
-        const char *slash = strrchr(pat, '/'), *dot = strrchr(pat, '.');
-        const char *base = slash ? slash + 1 : pat;
-        if (dot && dot > base)
-            n = snprintf(out, outlen, "%.*s.%04u%s", (int)(dot - pat), pat, frame, dot);
-        else
-            n = snprintf(out, outlen, "%s.%04u", pat, frame);
-    }
-    return n > 0 && (size_t)n < outlen ? 0 : -1;
-}
-
-/* A frame is done when its output exists and its header says it was rendered from this
- * scene hash (assets, settings and frame) with the same layout. Output files appear only
- * by rename after fsync, so one that reads back is complete. */
-static int output_is_done(const struct master *m)
-{
-    struct image_attrs a;
-    struct image_desc d;
-    char err[512];
-    if (access(m->out_path, F_OK) != 0)
-        return 0;
-    if (imgio_read_attrs(m->out_path, &d, &a, err, sizeof err) != 0) {
-        log_warn("%s exists but cannot be read (%s); rendering it again", m->out_path, err);
-        return 0;
-    }
-    const struct render_settings *rs = &m->scene.settings;
-    if (strcmp(a.scene_hash, m->scene_hash) != 0 || a.spp != rs->spp || a.seed != rs->seed ||
-        d.width != m->desc.width || d.height != m->desc.height || d.tile_size != m->desc.tile_size) {
-        log_info("%s exists but was rendered from another scene or other settings; rendering it again", m->out_path);
-        return 0;
-    }
-    return 1;
-}
-
 static int start_local_workers(struct master *m);
 
 /* Starts frame m->frame: fresh tile slots, its journal, and a JOB for every worker
@@ -1217,7 +974,7 @@ static int start_local_workers(struct master *m);
 static int frame_begin(struct master *m, uint32_t frames_started)
 {
     const struct master_opts *o = m->opts;
-    if (frame_output_path(o, m->frame, m->out_path, sizeof m->out_path) != 0) {
+    if (output_frame_path(o->output_path, o->have_frames, m->frame, m->out_path, sizeof m->out_path) != 0) {
         log_error("-o %s: the output name for frame %u is too long", o->output_path, m->frame);
         return -1;
     }
@@ -1238,7 +995,8 @@ static int frame_begin(struct master *m, uint32_t frames_started)
     }
     frame_hash(m);
     compute_job_key(m);
-    if (o->have_frames && !o->only_tiles && output_is_done(m)) {
+    if (o->have_frames && !o->only_tiles &&
+        output_is_done(m->out_path, m->scene_hash, m->scene.settings.spp, m->scene.settings.seed, &m->desc)) {
         char jpath[4300];
         snprintf(jpath, sizeof jpath, "%s.journal", m->out_path);
         unlink(jpath); /* left behind by a master killed between rename and cleanup */
@@ -1289,17 +1047,18 @@ static int frame_render(struct master *m, uint64_t *last_beat)
             log_error("%s", m->fatal);
             return -1;
         }
-        zmq_pollitem_t items[3] = {{m->sock, 0, ZMQ_POLLIN, 0}, {m->zap, 0, ZMQ_POLLIN, 0}, {m->monitor, 0, ZMQ_POLLIN, 0}};
-        int nitems = m->monitor ? 3 : m->zap ? 2 : 1;
+        void *zap_sock = m->zap ? zap_socket(m->zap) : NULL, *mon = m->zap ? zap_monitor_socket(m->zap) : NULL;
+        zmq_pollitem_t items[3] = {{m->sock, 0, ZMQ_POLLIN, 0}, {zap_sock, 0, ZMQ_POLLIN, 0}, {mon, 0, ZMQ_POLLIN, 0}};
+        int nitems = mon ? 3 : zap_sock ? 2 : 1;
         /* ACKs waiting for the sync thread: look again soon */
         if (zmq_poll(items, nitems, m->num_acks ? 2 : 100) < 0 && errno != EINTR) {
             log_error("poll: %s", zmq_strerror(errno));
             return -1;
         }
         if (nitems > 1 && (items[1].revents & ZMQ_POLLIN))
-            zap_handle(m);
+            m->c.auth_rejects += (uint64_t)zap_handle(m->zap);
         if (nitems > 2 && (items[2].revents & ZMQ_POLLIN))
-            monitor_drain(m);
+            m->c.handshake_failures += zap_monitor_drain(m->zap);
         if (items[0].revents & ZMQ_POLLIN) {
             struct net_frame f;
             int got;
@@ -1376,8 +1135,15 @@ int master_run(const struct master_opts *o)
     net_socket_setup(m.sock);
     int mandatory = 1;
     zmq_setsockopt(m.sock, ZMQ_ROUTER_MANDATORY, &mandatory, sizeof mandatory);
-    if (o->curve_secret && setup_curve(&m) != 0)
-        goto done;
+    if (o->curve_secret) {
+        char err[512];
+        m.zap = zap_new(m.zctx, m.sock, o->curve_secret, o->allow_path, err, sizeof err);
+        if (!m.zap) {
+            log_error("%s", err);
+            goto done;
+        }
+        log_info("CurveZMQ on: %zu allowed worker key(s)", zap_num_allowed(m.zap));
+    }
     if (o->bind && zmq_bind(m.sock, o->bind) != 0) {
         log_error("cannot bind %s: %s", o->bind, zmq_strerror(errno));
         goto done;
@@ -1428,10 +1194,7 @@ done:
         m.c.journal_syncs += m.journal->syncs;
         journal_free(&m.journal);
     }
-    if (m.monitor)
-        zmq_close(m.monitor);
-    if (m.zap)
-        zmq_close(m.zap);
+    zap_free(&m.zap);
     if (m.sock)
         zmq_close(m.sock);
     if (m.zctx)
@@ -1444,7 +1207,6 @@ done:
     free(m.local_pids);
     free(m.manifest);
     free(m.decode_scratch);
-    free(m.allowed);
     free(m.acks);
     proto_buf_free(&m.out);
     blob_store_free(&m.blobs);
