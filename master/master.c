@@ -48,7 +48,8 @@ struct peer {
     uint32_t dropped;       /* messages of this peer dropped; only the first few are logged */
 };
 
-/* What tests read from the summary ("summary: counter NAME VALUE"). */
+/* What happened, for tests and operators: OUT.stats.json ("counters"), and with
+ * --verbose "summary: counter NAME VALUE" lines. */
 #define COUNTERS(X)                                                                                                \
     X(tiles_assigned) X(tiles_done) X(tiles_from_journal) X(tiles_reissued) X(straggler_copies)                   \
     X(results_stale) X(results_duplicate) X(results_invalid) X(results_not_ours) X(rejected_decode)               \
@@ -96,7 +97,8 @@ struct master {
     struct tile_stats stats;
     struct counters c;
     char last_worker_error[PROTO_MAX_STRING];
-    char fatal[2048];           /* set when the job cannot finish: the reason */
+    char fatal[2048];           /* set when the job cannot finish: the reason, printed last */
+    double wall_seconds;        /* of the frames rendered */
     float *decode_scratch;
     char ipc_dir[256];
     char ipc_endpoint[320];
@@ -861,13 +863,55 @@ static void print_summary(struct master *m, double secs)
     fflush(stdout);
 }
 
-/* Printed on success and on failure, so tests can read what happened either way. */
+/* With --verbose: every counter, as tests of old read them. */
 static void print_counters(const struct master *m)
 {
 #define X(n) printf("summary: counter %s %llu\n", #n, (unsigned long long)m->c.n);
     COUNTERS(X)
 #undef X
     fflush(stdout);
+}
+
+/* OUT.stats.json: the run's outcome and counters, machine-readable; written on failure
+ * too, so tests and scripts read what happened either way. */
+static int write_stats(const struct master *m, int ok, char *err, size_t errlen)
+{
+    const struct master_opts *o = m->opts;
+    const struct tile_stats *st = &m->stats;
+    json_t *root = json_object(), *counters = json_object(), *workers = json_array();
+    json_object_set_new(root, "format", json_string("brume-stats-1"));
+    json_object_set_new(root, "ok", json_boolean(ok));
+    json_object_set_new(root, "error", !ok && m->fatal[0] ? json_string(m->fatal) : json_null());
+    json_object_set_new(root, "scene", json_string(o->scene_path));
+    json_object_set_new(root, "output", json_string(o->output_path));
+    json_object_set_new(root, "last_frame_output", json_string(m->out_path));
+    json_object_set_new(root, "width", json_integer(m->scene.settings.width));
+    json_object_set_new(root, "height", json_integer(m->scene.settings.height));
+    json_object_set_new(root, "spp", json_integer(m->scene.settings.spp));
+    json_object_set_new(root, "tiles", json_integer(m->num_tiles));
+    json_object_set_new(root, "scene_hash", json_string(m->scene_hash));
+    json_object_set_new(root, "wall_seconds", json_real(m->wall_seconds));
+    json_object_set_new(root, "samples", json_integer((json_int_t)st->samples));
+    json_object_set_new(root, "rays", json_integer((json_int_t)st->rays));
+    json_object_set_new(root, "nan_samples", json_integer((json_int_t)st->nan_samples));
+    json_object_set_new(root, "mean_rel_stderr",
+                        json_real(st->rel_stderr_pixels ? st->sum_rel_stderr / st->rel_stderr_pixels : 0.0));
+    for (uint32_t i = 0; i < m->num_peers; i++) {
+        json_t *w = json_object();
+        json_object_set_new(w, "name", json_string(m->peers[i].name));
+        json_object_set_new(w, "tiles", json_integer(m->sched->workers[i].tiles_done));
+        json_array_append_new(workers, w);
+    }
+    json_object_set_new(root, "workers", workers);
+#define X(n) json_object_set_new(counters, #n, json_integer((json_int_t)m->c.n));
+    COUNTERS(X)
+#undef X
+    json_object_set_new(root, "counters", counters);
+    char path[4200];
+    snprintf(path, sizeof path, "%s.stats.json", o->output_path);
+    int rc = output_write_json(path, root, err, errlen);
+    json_decref(root);
+    return rc;
 }
 
 /* ---- main loop ---- */
@@ -1040,19 +1084,18 @@ static int frame_render(struct master *m, uint64_t *last_beat)
     uint64_t start = net_now_ms(), last_progress = start;
     while (m->sched->tiles_done < m->num_tiles) {
         if (g_interrupted) {
-            log_error("interrupted; %u of %u tiles of frame %u were finished", m->sched->tiles_done, m->num_tiles, m->frame);
+            snprintf(m->fatal, sizeof m->fatal, "interrupted; %u of %u tiles of frame %u were finished",
+                     m->sched->tiles_done, m->num_tiles, m->frame);
             return -1;
         }
-        if (m->fatal[0]) {
-            log_error("%s", m->fatal);
+        if (m->fatal[0])
             return -1;
-        }
         void *zap_sock = m->zap ? zap_socket(m->zap) : NULL, *mon = m->zap ? zap_monitor_socket(m->zap) : NULL;
         zmq_pollitem_t items[3] = {{m->sock, 0, ZMQ_POLLIN, 0}, {zap_sock, 0, ZMQ_POLLIN, 0}, {mon, 0, ZMQ_POLLIN, 0}};
         int nitems = mon ? 3 : zap_sock ? 2 : 1;
         /* ACKs waiting for the sync thread: look again soon */
         if (zmq_poll(items, nitems, m->num_acks ? 2 : 100) < 0 && errno != EINTR) {
-            log_error("poll: %s", zmq_strerror(errno));
+            snprintf(m->fatal, sizeof m->fatal, "poll: %s", zmq_strerror(errno));
             return -1;
         }
         if (nitems > 1 && (items[1].revents & ZMQ_POLLIN))
@@ -1079,8 +1122,9 @@ static int frame_render(struct master *m, uint64_t *last_beat)
         if (m->fatal[0])
             continue;
         if (!o->bind && m->local_alive == 0 && sched_live_workers(m->sched) == 0) {
-            log_error("every worker has exited; %u of %u tiles were finished%s%s", m->sched->tiles_done, m->num_tiles,
-                      m->last_worker_error[0] ? "; last worker error: " : "", m->last_worker_error);
+            snprintf(m->fatal, sizeof m->fatal, "every worker has exited; %u of %u tiles were finished%s%.1000s",
+                     m->sched->tiles_done, m->num_tiles, m->last_worker_error[0] ? "; last worker error: " : "",
+                     m->last_worker_error);
             return -1;
         }
         assign_tiles(m);
@@ -1100,12 +1144,11 @@ static int frame_render(struct master *m, uint64_t *last_beat)
         }
     }
     commit_and_ack(m, 1); /* the frame's last records on disk, every worker told */
-    if (m->fatal[0]) { /* e.g. the last journal sync failed */
-        log_error("%s", m->fatal);
+    if (m->fatal[0]) /* e.g. the last journal sync failed */
         return -1;
-    }
     print_progress(m, start, tty, 1);
     double secs = (double)(net_now_ms() - start) / 1000.0;
+    m->wall_seconds += secs;
     if (write_output(m, secs) != 0)
         return -1;
     print_summary(m, secs);
@@ -1174,7 +1217,6 @@ done:
             if (!m.sched->workers[i].gone)
                 send_to(&m, &m.peers[i], &bye);
     }
-    print_counters(&m);
     if (m.num_local)
         launch_stop_all(m.local_pids, m.num_local, 3000);
     if (m.ipc_dir[0]) {
@@ -1199,6 +1241,15 @@ done:
         zmq_close(m.sock);
     if (m.zctx)
         zmq_ctx_term(m.zctx);
+    /* Last: the stats file, the counters with --verbose, and on failure the one error line
+     * (a reason from the render loop; set-up errors were logged where they happened). */
+    char err[512];
+    if (write_stats(&m, rc == 0, err, sizeof err) != 0 && rc == 0)
+        log_warn("stats: %s", err);
+    if (o->verbose)
+        print_counters(&m);
+    if (rc != 0 && m.fatal[0])
+        log_error("%s", m.fatal);
     for (uint32_t t = 0; t < m.num_tiles && m.chunks; t++)
         free(m.chunks[t].data);
     free(m.chunks);

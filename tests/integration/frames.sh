@@ -29,13 +29,13 @@ timeout 60 $M $SCENE -o "$T/range/f.exr" --frames 0:2 --workers 2 --threads 1 $A
 same=0
 for f in 0000 0001 0002; do $X cmp "$T/ref/f.$f.exr" "$T/range/f.$f.exr" >/dev/null && same=$((same + 1)); done
 if [ $r = 0 ] && [ $same = 3 ] && [ "$(ls "$T/range" | tr '\n' ' ')" = "f.0000.exr f.0001.exr f.0002.exr " ] &&
-  [ "$(counter frames_done)" = 3 ] && [ "$(grep -c 'scene kept' "$T/log")" = 4 ]; then
+  [ "$(counter frames_done "$T/range/f.exr")" = 3 ] && [ "$(grep -c 'scene kept' "$T/log")" = 4 ]; then
   ok "--frames 0:2: exactly 3 files, each identical to its frame alone; workers kept the scene"
 else bad "--frames 0:2: exactly 3 files, each identical to its frame alone; workers kept the scene"; fi
 
 # Run again: everything is done already.
 timeout 60 $M $SCENE -o "$T/range/f.exr" --frames 0:2 --workers 2 --threads 1 $ARGS >"$T/log" 2>&1 && r=0 || r=1
-if [ $r = 0 ] && [ "$(counter frames_skipped)" = 3 ] && [ "$(counter tiles_assigned)" = 0 ] &&
+if [ $r = 0 ] && [ "$(counter frames_skipped "$T/range/f.exr")" = 3 ] && [ "$(counter tiles_assigned "$T/range/f.exr")" = 0 ] &&
   [ "$(grep -c 'already rendered with this scene and settings; skipped' "$T/log")" = 3 ]; then
   ok "finished frames are skipped, and the master says so"; else bad "finished frames are skipped, and the master says so"; fi
 
@@ -72,8 +72,8 @@ while [ $i -lt "$FRAME_TRIALS" ]; do
   same=0
   for f in 0000 0001 0002; do $X cmp "$T/ref/f.$f.exr" "$d/f.$f.exr" >/dev/null 2>&1 && same=$((same + 1)); done
   if [ $r = 0 ] && [ $same = 3 ] && [ "$(ls "$d" | tr '\n' ' ')" = "f.0000.exr f.0001.exr f.0002.exr " ] &&
-    [ "$(counter frames_skipped)" = "$before" ] && [ "$(counter frames_done)" = $((3 - before)) ]; then
-    good=$((good + 1)); journaled=$((journaled + $(counter tiles_from_journal))); skipped=$((skipped + before))
+    [ "$(counter frames_skipped "$d/f.exr")" = "$before" ] && [ "$(counter frames_done "$d/f.exr")" = $((3 - before)) ]; then
+    good=$((good + 1)); journaled=$((journaled + $(counter tiles_from_journal "$d/f.exr"))); skipped=$((skipped + before))
   else
     echo "trial $i: rc $r, $same identical, $before done before the restart, files: $(ls "$d" | tr '\n' ' ')"
     cat "$T/klog" >>"$T/log"
