@@ -1,11 +1,10 @@
 /* Master loop (see master.h). One thread: zmq_poll on the ROUTER socket (and the ZAP
- * socket when CurveZMQ is on) drives everything (hello, blob serving, credits, tile
- * assignment, results, liveness), so no state is shared between threads. A tile has at
- * most two holders (the second is a straggler copy); a result is accepted only from a
- * holder with that holder's attempt, only once, only after its chunk decodes to finite
- * pixels of the right size, and only after it is in the journal; anything else is counted
- * and dropped. A worker is evicted when silent, when its render threads stop progressing,
- * or when it dies; its tiles go back to the front of the queue. */
+ * socket when CurveZMQ is on) drives everything (hello, blob serving, credits, results,
+ * liveness), so no state is shared between threads. Who gets which tile, which result
+ * counts, blame and bans are decided by the pure scheduler (sched.h); this file turns
+ * messages and the clock into its events and its decisions into messages, logs and
+ * counters. A result the scheduler takes is kept only after its chunk decodes to finite
+ * pixels of the right size and after it is in the journal. Frame files: output.h. */
 #include "master.h"
 #include "base/asset.h"
 #include "wire/blob.h"
