@@ -9,7 +9,6 @@
 #   run CMD...      CMD with a timeout (TMO, default 120 s), output in $T/log.
 #   counter NAME OUT    a master counter, from OUT.stats.json (OUT as given to -o);
 #                   empty when the file or the counter is missing.
-#   stats_json OUT  OUT.stats.json parsed, or the script fails (checks it is valid JSON).
 #   finish          the closing line "integration: N passed, N failed"; fails if any did.
 set -u
 BUILD=${BUILD:-build}
