@@ -89,11 +89,11 @@ static int start_fresh(struct journal *j, const struct blob_hash *key, uint32_t 
     return 0;
 }
 
-int journal_open(struct journal *j, const char *path, const struct blob_hash *key, uint32_t num_tiles,
-                 journal_tile_fn fn, void *ctx, uint32_t *recovered, uint64_t *torn_bytes, int *other_job,
-                 char *err, size_t errlen)
+struct journal *journal_open(const char *path, const struct blob_hash *key, uint32_t num_tiles, journal_tile_fn fn,
+                             void *ctx, uint32_t *recovered, uint64_t *torn_bytes, int *other_job, char *err,
+                             size_t errlen)
 {
-    memset(j, 0, sizeof *j);
+    struct journal *j = mem_calloc(1, sizeof *j);
     j->fd = -1;
     *recovered = 0;
     *torn_bytes = 0;
@@ -102,15 +102,16 @@ int journal_open(struct journal *j, const char *path, const struct blob_hash *ke
     j->fd = open(path, O_RDWR | O_CREAT | O_CLOEXEC, 0644);
     if (j->fd < 0) {
         str_fmt(err, errlen, "%s: cannot open the journal: %s", path, strerror(errno));
-        return -1;
+        journal_free(&j);
+        return NULL;
     }
     uint8_t *data = NULL;
     size_t size = 0;
     if (read_file(j->fd, &data, &size) != 0) {
         str_fmt(err, errlen, "%s: cannot read the journal: %s", path, strerror(errno));
         free(data);
-        journal_close(j);
-        return -1;
+        journal_free(&j);
+        return NULL;
     }
     struct blob_hash sum;
     int header_ok = 0;
@@ -123,10 +124,10 @@ int journal_open(struct journal *j, const char *path, const struct blob_hash *ke
         *other_job = header_ok;
         free(data);
         if (start_fresh(j, key, num_tiles, err, errlen) != 0) {
-            journal_close(j);
-            return -1;
+            journal_free(&j);
+            return NULL;
         }
-        return 0;
+        return j;
     }
     size_t pos = HEADER_SIZE;
     while (size - pos >= REC_HEAD + BLOB_HASH_SIZE) {
@@ -160,11 +161,11 @@ int journal_open(struct journal *j, const char *path, const struct blob_hash *ke
     if ((*torn_bytes && (ftruncate(j->fd, (off_t)pos) != 0 || fdatasync(j->fd) != 0)) ||
         lseek(j->fd, (off_t)pos, SEEK_SET) < 0) {
         str_fmt(err, errlen, "%s: cannot cut the torn end of the journal: %s", path, strerror(errno));
-        journal_close(j);
-        return -1;
+        journal_free(&j);
+        return NULL;
     }
     j->end = j->synced = pos;
-    return 0;
+    return j;
 }
 
 int journal_write(struct journal *j, uint32_t tile, const struct tile_stats *st, const uint8_t *chunk,
@@ -332,20 +333,29 @@ int journal_append(struct journal *j, uint32_t tile, const struct tile_stats *st
     return journal_sync(j, err, errlen);
 }
 
-void journal_close(struct journal *j)
+void journal_free(struct journal **jp)
 {
+    struct journal *j = *jp;
+    if (!j)
+        return;
     syncer_stop(j);
     if (j->fd >= 0)
         close(j->fd);
-    j->fd = -1;
+    free(j);
+    *jp = NULL;
 }
 
-int journal_remove(struct journal *j)
+int journal_remove(struct journal **jp)
 {
-    journal_close(j);
-    if (!j->path[0])
+    struct journal *j = *jp;
+    if (!j)
         return 0;
-    int rc = unlink(j->path);
-    fsync_parent(j->path);
+    char path[sizeof j->path];
+    snprintf(path, sizeof path, "%s", j->path);
+    journal_free(jp);
+    if (!path[0])
+        return 0;
+    int rc = unlink(path);
+    fsync_parent(path);
     return rc;
 }

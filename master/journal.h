@@ -33,13 +33,14 @@ struct journal {
 typedef int (*journal_tile_fn)(void *ctx, uint32_t tile, const struct tile_stats *stats, const uint8_t *chunk,
                                uint32_t chunk_size);
 
-/* Opens or creates the journal at path for the job identified by key. An existing
- * journal of the same key is replayed through fn (which may be NULL); one of another key,
- * or one too short to hold a header, is started afresh (*other_job = 1 in the first
- * case). *recovered: records replayed; *torn_bytes: bytes cut off the end. 0 or -1. */
-int journal_open(struct journal *j, const char *path, const struct blob_hash *key, uint32_t num_tiles,
-                 journal_tile_fn fn, void *ctx, uint32_t *recovered, uint64_t *torn_bytes, int *other_job,
-                 char *err, size_t errlen);
+/* Opens or creates the journal at path for the job identified by key (the constructor:
+ * it can fail, so it is not called journal_new). An existing journal of the same key is
+ * replayed through fn (which may be NULL); one of another key, or one too short to hold a
+ * header, is started afresh (*other_job = 1 in the first case). *recovered: records
+ * replayed; *torn_bytes: bytes cut off the end. The journal, or NULL with the reason. */
+struct journal *journal_open(const char *path, const struct blob_hash *key, uint32_t num_tiles, journal_tile_fn fn,
+                             void *ctx, uint32_t *recovered, uint64_t *torn_bytes, int *other_job, char *err,
+                             size_t errlen);
 /* Appends one record and syncs it to disk. On failure (e.g. a full disk) the journal is
  * cut back to its last intact record and -1 returned with the reason. */
 int journal_append(struct journal *j, uint32_t tile, const struct tile_stats *stats, const uint8_t *chunk,
@@ -55,13 +56,15 @@ int journal_sync(struct journal *j, char *err, size_t errlen);
  * journal_sync_async asked for more than is on disk, so the caller keeps working (and
  * handing out tiles) while the disk catches up. journal_durable returns the bytes known
  * to be on disk, or -1 with the reason once a sync failed. journal_sync (blocking) works
- * alongside; journal_close stops the thread. 0, or -1 when no thread can start (then
+ * alongside; journal_free stops the thread. 0, or -1 when no thread can start (then
  * the caller syncs with journal_sync). */
 int journal_syncer_start(struct journal *j, char *err, size_t errlen);
 void journal_sync_async(struct journal *j);
 int64_t journal_durable(struct journal *j, char *err, size_t errlen);
-void journal_close(struct journal *j);
-/* Closes and deletes the journal (after the output file is safely in place). */
-int journal_remove(struct journal *j);
+/* Stops the syncer, closes the file and frees the journal; *jp becomes NULL (NULL is
+ * fine). The file stays for the next master. */
+void journal_free(struct journal **jp);
+/* journal_free, then deletes the file (after the output file is safely in place). */
+int journal_remove(struct journal **jp);
 
 #endif

@@ -42,7 +42,7 @@ static void usage(FILE *f)
             "  --gather-radius R      photon gather radius in scene units (overrides the scene)\n"
             "  --march-step R         ray-marching step in scene units (overrides the scene)\n"
             "  --photon-threads T     threads of the photon pass (default: cores); the map is the same for any T\n"
-            "  --verbose              debug logging\n");
+            "  --verbose              debug logging, and every counter at the end (always in OUT.stats.json)\n");
 }
 
 /* "A:B" or "A:B:STEP"; every number whole, A <= B, STEP >= 1. */
@@ -110,6 +110,7 @@ int main(int argc, char **argv)
         }
         if (!strcmp(a, "--verbose")) {
             log_set_level(LOG_DEBUG);
+            o.verbose = 1;
             continue;
         }
         NUM_OPT("--workers", 0, 256, o.workers, dummy)

@@ -1,11 +1,10 @@
 /* Master loop (see master.h). One thread: zmq_poll on the ROUTER socket (and the ZAP
- * socket when CurveZMQ is on) drives everything (hello, blob serving, credits, tile
- * assignment, results, liveness), so no state is shared between threads. A tile has at
- * most two holders (the second is a straggler copy); a result is accepted only from a
- * holder with that holder's attempt, only once, only after its chunk decodes to finite
- * pixels of the right size, and only after it is in the journal; anything else is counted
- * and dropped. A worker is evicted when silent, when its render threads stop progressing,
- * or when it dies; its tiles go back to the front of the queue. */
+ * socket when CurveZMQ is on) drives everything (hello, blob serving, credits, results,
+ * liveness), so no state is shared between threads. Who gets which tile, which result
+ * counts, blame and bans are decided by the pure scheduler (sched.h); this file turns
+ * messages and the clock into its events and its decisions into messages, logs and
+ * counters. A result the scheduler takes is kept only after its chunk decodes to finite
+ * pixels of the right size and after it is in the journal. Frame files: output.h. */
 #include "master.h"
 #include "base/asset.h"
 #include "wire/blob.h"
@@ -15,7 +14,10 @@
 #include "base/log.h"
 #include "wire/net.h"
 #include "wire/proto.h"
+#include "zap.h"
+#include "output.h"
 #include "photons.h"
+#include "sched.h"
 #include "render/media_integrator.h"
 #include "scene/scene_json.h"
 #include "render/tile.h"
@@ -36,42 +38,17 @@
 #define MAX_PEERS 4096
 #define PROGRESS_PLAIN_MS 5000
 #define PROGRESS_TTY_MS 250
-#define MAX_HOLDERS 2           /* the first holder and one straggler copy */
-#define CRASHES_TO_FAIL 3       /* distinct workers a tile may crash before the job fails */
-#define FAILS_TO_BAN 3          /* invalid results in a row that ban a worker */
-
-enum tile_state { TILE_QUEUED, TILE_ASSIGNED, TILE_DONE };
-
-struct tile_slot {
-    enum tile_state state;
-    uint32_t attempt;               /* last attempt number issued */
-    uint32_t num_holders;
-    int32_t holder[MAX_HOLDERS];
-    uint32_t holder_attempt[MAX_HOLDERS];
-    uint64_t assigned_ms;
-    uint32_t crashes;               /* distinct workers that died holding it */
-    int requeued;                   /* its next assignment is a re-issue */
-    uint8_t *chunk;
-    size_t chunk_size;
-};
-
+/* Who a worker is; its scheduling state is m->sched->workers[same index]. */
 struct peer {
     uint8_t id[NET_MAX_IDENTITY];
     size_t id_len;
     char name[300];         /* host:pid for messages */
-    uint32_t pid, threads;
-    int ready, gone, banned;
-    uint32_t credits, in_flight;
-    int isolated;           /* holds a suspect tile: gets nothing else meanwhile */
-    uint64_t last_heard_ms;
-    uint64_t last_samples, last_progress_ms;
-    uint32_t reported_stall_ms;
-    uint32_t tiles_done;
-    uint32_t fail_streak;   /* invalid results in a row */
+    uint32_t pid;
     uint32_t dropped;       /* messages of this peer dropped; only the first few are logged */
 };
 
-/* What tests read from the summary ("summary: counter NAME VALUE"). */
+/* What happened, for tests and operators: OUT.stats.json ("counters"), and with
+ * --verbose "summary: counter NAME VALUE" lines. */
 #define COUNTERS(X)                                                                                                \
     X(tiles_assigned) X(tiles_done) X(tiles_from_journal) X(tiles_reissued) X(straggler_copies)                   \
     X(results_stale) X(results_duplicate) X(results_invalid) X(results_not_ours) X(rejected_decode)               \
@@ -90,7 +67,8 @@ struct pending_ack { int32_t peer; uint64_t job_id; uint32_t frame, tile; uint64
 
 struct master {
     const struct master_opts *opts;
-    void *zctx, *sock, *zap, *monitor;
+    void *zctx, *sock;
+    struct zap *zap;            /* CurveZMQ admission, or NULL */
     struct proto_buf out;
     struct asset_dir assets;
     struct blob_store blobs;
@@ -108,10 +86,9 @@ struct master {
     struct blob_hash job_key;   /* what fixes this frame's pixels; the same after a restart */
     uint32_t frame;
     char out_path[4000];        /* this frame's output file */
-    struct tile_slot *tiles;
-    uint32_t num_tiles, tiles_done;
-    uint32_t *queue;            /* tile indices waiting for a worker, oldest first */
-    uint32_t q_count;
+    struct sched *sched;        /* tiles, attempts, holders, blame, bans (sched.h) */
+    struct output_chunk *chunks;  /* per tile, once done */
+    uint32_t num_tiles;
     struct peer *peers;
     uint32_t num_peers;
     pid_t *local_pids;
@@ -119,43 +96,22 @@ struct master {
     struct tile_stats stats;
     struct counters c;
     char last_worker_error[PROTO_MAX_STRING];
-    char fatal[2048];           /* set when the job cannot finish: the reason */
+    char fatal[2048];           /* set when the job cannot finish: the reason, printed last */
+    double wall_seconds;        /* of the frames rendered */
     float *decode_scratch;
     char ipc_dir[256];
     char ipc_endpoint[320];
-    struct journal journal;
-    int have_journal;
+    struct journal *journal;    /* this frame's, or NULL (--no-journal, --tiles, after the output is in place) */
     char banned_names[16][300];
     uint32_t num_banned;
     uint32_t stranger_drops_logged;
     struct pending_ack *acks;   /* tiles to acknowledge once the journal is synced */
     uint32_t num_acks, cap_acks;
-    uint8_t (*allowed)[32];     /* allowed CURVE public keys, binary */
-    size_t num_allowed;
     char local_key_path[400], local_pub_path[400];
 };
 
 static volatile sig_atomic_t g_interrupted;
 static void on_signal(int sig) { (void)sig; g_interrupted = 1; }
-
-static void queue_push(struct master *m, uint32_t tile)
-{
-    m->queue[m->q_count++] = tile;
-}
-
-/* Re-queued tiles go first: they are the ones holding up the end of the frame. */
-static void queue_push_front(struct master *m, uint32_t tile)
-{
-    memmove(m->queue + 1, m->queue, sizeof *m->queue * m->q_count);
-    m->queue[0] = tile;
-    m->q_count++;
-}
-
-static void queue_remove_at(struct master *m, uint32_t i)
-{
-    memmove(m->queue + i, m->queue + i + 1, sizeof *m->queue * (m->q_count - i - 1));
-    m->q_count--;
-}
 
 /* ---- setup ---- */
 
@@ -265,8 +221,8 @@ static void setup_tiles(struct master *m)
     const struct render_settings *rs = &m->scene.settings;
     tile_image_desc(&m->desc, rs);
     m->num_tiles = imgio_tiles_x(&m->desc) * imgio_tiles_y(&m->desc);
-    m->tiles = mem_calloc(m->num_tiles, sizeof *m->tiles);
-    m->queue = mem_alloc(sizeof(uint32_t) * m->num_tiles);
+    m->sched = sched_new(m->num_tiles);
+    m->chunks = mem_calloc(m->num_tiles, sizeof *m->chunks);
     m->decode_scratch = mem_alloc(sizeof(float) * rs->tile_size * rs->tile_size * TILE_NUM_CHANNELS);
 }
 
@@ -289,23 +245,19 @@ static int restrict_tiles(struct master *m)
     size_t n = (size_t)m->scene.settings.tile_size * m->scene.settings.tile_size * TILE_NUM_CHANNELS;
     float *black = mem_calloc(n, sizeof *black);
     uint32_t tiles_x = imgio_tiles_x(&m->desc);
-    m->q_count = 0;
     int rc = 0;
     for (uint32_t t = 0; t < m->num_tiles && rc == 0; t++) {
         int wanted = 0;
         for (uint32_t i = 0; i < o->num_only_tiles; i++)
             wanted |= o->only_tiles[i] == t;
-        if (wanted) {
-            queue_push(m, t);
+        if (wanted)
             continue;
-        }
-        if (imgio_encode_tile(enc, t % tiles_x, t / tiles_x, black, &m->tiles[t].chunk, &m->tiles[t].chunk_size, err,
+        if (imgio_encode_tile(enc, t % tiles_x, t / tiles_x, black, &m->chunks[t].data, &m->chunks[t].size, err,
                               sizeof err) != 0) {
             log_error("%s", err);
             rc = -1;
         }
-        m->tiles[t].state = TILE_DONE;
-        m->tiles_done++;
+        sched_tile_set_done(m->sched, t);
     }
     free(black);
     imgio_encoder_free(&enc);
@@ -317,7 +269,7 @@ static int restrict_tiles(struct master *m)
 static int32_t find_peer(const struct master *m, const uint8_t *id, size_t id_len)
 {
     for (uint32_t i = 0; i < m->num_peers; i++)
-        if (!m->peers[i].gone && m->peers[i].id_len == id_len && memcmp(m->peers[i].id, id, id_len) == 0)
+        if (!m->sched->workers[i].gone && m->peers[i].id_len == id_len && memcmp(m->peers[i].id, id, id_len) == 0)
             return (int32_t)i;
     return -1;
 }
@@ -326,7 +278,7 @@ static int32_t find_peer(const struct master *m, const uint8_t *id, size_t id_le
 static int32_t find_gone_peer(const struct master *m, const uint8_t *id, size_t id_len)
 {
     for (uint32_t i = m->num_peers; i-- > 0;)
-        if (m->peers[i].gone && m->peers[i].id_len == id_len && memcmp(m->peers[i].id, id, id_len) == 0)
+        if (m->sched->workers[i].gone && m->peers[i].id_len == id_len && memcmp(m->peers[i].id, id, id_len) == 0)
             return (int32_t)i;
     return -1;
 }
@@ -334,27 +286,6 @@ static int32_t find_gone_peer(const struct master *m, const uint8_t *id, size_t 
 static void send_to(struct master *m, const struct peer *p, const struct proto_msg *msg)
 {
     net_send(m->sock, p->id, p->id_len, msg, &m->out);
-}
-
-/* Removes holder pi from tile t; the tile goes back to the front of the queue when nobody
- * else holds it. */
-static void tile_drop_holder(struct master *m, uint32_t t, int32_t pi)
-{
-    struct tile_slot *s = &m->tiles[t];
-    for (uint32_t k = 0; k < s->num_holders; k++)
-        if (s->holder[k] == pi) {
-            s->holder[k] = s->holder[s->num_holders - 1];
-            s->holder_attempt[k] = s->holder_attempt[s->num_holders - 1];
-            s->num_holders--;
-            if (m->peers[pi].in_flight)
-                m->peers[pi].in_flight--;
-            break;
-        }
-    if (s->state == TILE_ASSIGNED && s->num_holders == 0) {
-        s->state = TILE_QUEUED;
-        s->requeued = 1;
-        queue_push_front(m, t);
-    }
 }
 
 /* The command that renders tile t alone: our own command line with another output and
@@ -385,53 +316,43 @@ static void tile_command(const struct master *m, uint32_t t, char *out, size_t o
         snprintf(out + n, outlen - n, " --frames %u:%u", m->frame, m->frame);
 }
 
-/* EVICT_KILLED: a local worker ended by SIGKILL, which a tile cannot cause by itself (an
- * operator, a test, the OOM killer): it died, but its tiles are not blamed. */
-enum evict_kind { EVICT_LEFT, EVICT_SILENT, EVICT_STALLED, EVICT_DIED, EVICT_KILLED, EVICT_ERROR, EVICT_BANNED };
-
-/* Puts a peer's unfinished tiles back at the front of the queue and forgets the peer. A
- * worker that died (other than by SIGKILL), hung or failed also counts against each tile
- * it held: a tile that took CRASHES_TO_FAIL different workers down fails the job. */
-static void evict_peer(struct master *m, int32_t pi, enum evict_kind kind, const char *why)
+/* Maps an eviction onto the fatal reason, counters, the log and a BYE. A tile that took
+ * SCHED_CRASHES_TO_FAIL different workers down fails the job. */
+static void peer_evicted(struct master *m, int32_t pi, enum sched_evict_kind kind, const struct sched_eviction *ev,
+                         const char *why)
 {
     struct peer *p = &m->peers[pi];
-    if (p->gone)
-        return;
-    uint32_t requeued = 0;
-    for (uint32_t t = 0; t < m->num_tiles; t++) {
-        struct tile_slot *s = &m->tiles[t];
-        int held = 0;
-        for (uint32_t k = 0; k < s->num_holders; k++)
-            held |= s->holder[k] == pi;
-        if (!held || s->state != TILE_ASSIGNED)
-            continue;
-        if (kind != EVICT_LEFT && kind != EVICT_BANNED && kind != EVICT_KILLED && ++s->crashes >= CRASHES_TO_FAIL &&
-            !m->fatal[0]) {
-            char cmd[1800];
-            tile_command(m, t, cmd, sizeof cmd);
-            uint32_t tx = t % imgio_tiles_x(&m->desc), ty = t / imgio_tiles_x(&m->desc), x0, y0, w, h;
-            imgio_tile_rect(&m->desc, tx, ty, &x0, &y0, &w, &h);
-            snprintf(m->fatal, sizeof m->fatal,
-                     "tile %u (pixels %u,%u %ux%u) took down %u different workers; render it alone with: %s", t, x0,
-                     y0, w, h, s->crashes, cmd);
-        }
-        tile_drop_holder(m, t, pi);
-        requeued += s->state == TILE_QUEUED;
+    if (ev->blamed_tile >= 0 && !m->fatal[0]) {
+        uint32_t t = (uint32_t)ev->blamed_tile;
+        char cmd[1800];
+        tile_command(m, t, cmd, sizeof cmd);
+        uint32_t tx = t % imgio_tiles_x(&m->desc), ty = t / imgio_tiles_x(&m->desc), x0, y0, w, h;
+        imgio_tile_rect(&m->desc, tx, ty, &x0, &y0, &w, &h);
+        snprintf(m->fatal, sizeof m->fatal,
+                 "tile %u (pixels %u,%u %ux%u) took down %u different workers; render it alone with: %s", t, x0, y0,
+                 w, h, m->sched->tiles[t].crashes, cmd);
     }
-    p->gone = 1;
-    p->in_flight = 0;
     switch (kind) {
-    case EVICT_SILENT: m->c.evicted_silent++; break;
-    case EVICT_STALLED: m->c.evicted_stalled++; break;
-    case EVICT_DIED:
-    case EVICT_KILLED: m->c.evicted_died++; break;
-    case EVICT_ERROR: m->c.evicted_error++; break;
-    case EVICT_BANNED: m->c.workers_banned++; break;
-    case EVICT_LEFT: break;
+    case SCHED_SILENT: m->c.evicted_silent++; break;
+    case SCHED_STALLED: m->c.evicted_stalled++; break;
+    case SCHED_DIED:
+    case SCHED_KILLED: m->c.evicted_died++; break;
+    case SCHED_ERROR: m->c.evicted_error++; break;
+    case SCHED_BANNED: m->c.workers_banned++; break;
+    case SCHED_LEFT: break;
     }
-    log_warn("worker %s removed (%s); %u tile(s) re-queued", p->name, why, requeued);
+    log_warn("worker %s removed (%s); %u tile(s) re-queued", p->name, why, ev->requeued);
     struct proto_msg bye = {.type = MSG_BYE};
     send_to(m, p, &bye);
+}
+
+static void evict_peer(struct master *m, int32_t pi, enum sched_evict_kind kind, const char *why)
+{
+    if (m->sched->workers[pi].gone)
+        return;
+    struct sched_eviction ev;
+    sched_evict(m->sched, pi, kind, &ev);
+    peer_evicted(m, pi, kind, &ev, why);
 }
 
 static int name_is_banned(const struct master *m, const char *name)
@@ -456,15 +377,15 @@ static void on_hello(struct master *m, const struct net_frame *f, const struct m
         if (*c < 0x20 || *c == 0x7f)
             *c = '?';
     int32_t gone = find_gone_peer(m, f->id, f->id_len);
-    if (name_is_banned(m, name) || (gone >= 0 && m->peers[gone].banned)) {
+    if (name_is_banned(m, name) || (gone >= 0 && m->sched->workers[gone].banned)) {
         m->c.rejected_banned++;
         return;
     }
     /* The same worker process on a new connection (it lost us and reconnected): its old
      * connection is dead; its tiles go back to the queue without counting as a crash. */
     for (uint32_t i = 0; i < m->num_peers; i++)
-        if (!m->peers[i].gone && !strcmp(m->peers[i].name, name))
-            evict_peer(m, (int32_t)i, EVICT_LEFT, "it reconnected");
+        if (!m->sched->workers[i].gone && !strcmp(m->peers[i].name, name))
+            evict_peer(m, (int32_t)i, SCHED_LEFT, "it reconnected");
     if (m->num_peers >= MAX_PEERS) {
         log_warn("too many workers; ignoring hello from %s", name);
         m->c.rejected_unexpected++;
@@ -476,9 +397,8 @@ static void on_hello(struct master *m, const struct net_frame *f, const struct m
     memcpy(p->id, f->id, f->id_len);
     p->id_len = f->id_len;
     p->pid = h->pid;
-    p->threads = h->threads ? h->threads : 1;
-    p->last_heard_ms = p->last_progress_ms = net_now_ms();
     snprintf(p->name, sizeof p->name, "%s", name);
+    sched_worker_join(m->sched, h->threads, net_now_ms());
     m->num_peers++;
     m->c.workers_joined++;
     log_info("worker %s joined with %u thread(s)", p->name, h->threads);
@@ -560,7 +480,7 @@ static void ack_push(struct master *m, int32_t pi, uint64_t job_id, uint32_t fra
     }
     /* Everything written so far must be on disk: also the record of a tile that this
      * result duplicates, which may still wait for its sync. */
-    m->acks[m->num_acks++] = (struct pending_ack){pi, job_id, frame, tile, m->have_journal ? m->journal.end : 0};
+    m->acks[m->num_acks++] = (struct pending_ack){pi, job_id, frame, tile, m->journal ? m->journal->end : 0};
 }
 
 /* Group commit: the journal's sync thread makes every record written so far durable with
@@ -572,14 +492,14 @@ static void ack_push(struct master *m, int32_t pi, uint64_t job_id, uint32_t fra
 static void commit_and_ack(struct master *m, int wait)
 {
     uint64_t durable = UINT64_MAX;
-    if (m->have_journal) {
+    if (m->journal) {
         char err[512];
-        if (wait && journal_sync(&m->journal, err, sizeof err) != 0) {
+        if (wait && journal_sync(m->journal, err, sizeof err) != 0) {
             snprintf(m->fatal, sizeof m->fatal, "%s", err);
             return;
         }
-        journal_sync_async(&m->journal);
-        int64_t d = journal_durable(&m->journal, err, sizeof err);
+        journal_sync_async(m->journal);
+        int64_t d = journal_durable(m->journal, err, sizeof err);
         if (d < 0) {
             snprintf(m->fatal, sizeof m->fatal, "%s", err);
             return;
@@ -606,7 +526,7 @@ static void commit_and_ack(struct master *m, int wait)
                 m->acks[k++] = *a;
         }
         m->num_acks = k;
-        if (!m->peers[first.peer].gone) {
+        if (!m->sched->workers[first.peer].gone) {
             send_to(m, &m->peers[first.peer], &msg);
             m->c.acks_sent++;
         }
@@ -614,41 +534,38 @@ static void commit_and_ack(struct master *m, int wait)
 }
 
 /* Keeps an accepted tile: journal first (written here, synced by commit_and_ack before
- * anyone is told), then it counts as done. */
+ * anyone is told), then the caller marks it done in the scheduler. */
 static int tile_accept(struct master *m, uint32_t tile, const struct tile_stats *st, const uint8_t *chunk,
                        size_t chunk_size)
 {
-    struct tile_slot *t = &m->tiles[tile];
-    if (m->have_journal) {
+    if (m->journal) {
         char err[512];
-        if (journal_write(&m->journal, tile, st, chunk, (uint32_t)chunk_size, err, sizeof err) != 0) {
+        if (journal_write(m->journal, tile, st, chunk, (uint32_t)chunk_size, err, sizeof err) != 0) {
             snprintf(m->fatal, sizeof m->fatal, "%s", err);
             return -1;
         }
     }
-    t->chunk = mem_alloc(chunk_size ? chunk_size : 1);
-    memcpy(t->chunk, chunk, chunk_size);
-    t->chunk_size = chunk_size;
-    t->state = TILE_DONE;
-    m->tiles_done++;
+    m->chunks[tile].data = mem_alloc(chunk_size ? chunk_size : 1);
+    memcpy(m->chunks[tile].data, chunk, chunk_size);
+    m->chunks[tile].size = chunk_size;
     m->c.tiles_done++;
     tile_stats_add(&m->stats, st);
     return 0;
 }
 
-/* An invalid tile from peer pi: counted; FAILS_TO_BAN in a row ban it for the job. */
-static void peer_sent_invalid(struct master *m, int32_t pi)
+/* An invalid tile from peer pi was counted by the scheduler; a ban (SCHED_FAILS_TO_BAN in
+ * a row) is remembered by name and the worker is told to go. */
+static void peer_sent_invalid(struct master *m, int32_t pi, int banned, const struct sched_eviction *ev)
 {
     struct peer *p = &m->peers[pi];
     m->c.results_invalid++;
-    if (++p->fail_streak >= FAILS_TO_BAN) {
-        p->banned = 1;
-        if (m->num_banned < sizeof m->banned_names / sizeof m->banned_names[0])
-            snprintf(m->banned_names[m->num_banned++], sizeof m->banned_names[0], "%s", p->name);
-        char why[64];
-        snprintf(why, sizeof why, "banned for the job: %u invalid results in a row", p->fail_streak);
-        evict_peer(m, pi, EVICT_BANNED, why);
-    }
+    if (!banned)
+        return;
+    if (m->num_banned < sizeof m->banned_names / sizeof m->banned_names[0])
+        snprintf(m->banned_names[m->num_banned++], sizeof m->banned_names[0], "%s", p->name);
+    char why[64];
+    snprintf(why, sizeof why, "banned for the job: %u invalid results in a row", m->sched->workers[pi].fail_streak);
+    peer_evicted(m, pi, SCHED_BANNED, ev, why);
 }
 
 /* A tile a worker kept for a master that went away, offered to us: accepted only for this
@@ -657,7 +574,7 @@ static void peer_sent_invalid(struct master *m, int32_t pi)
 static void on_kept(struct master *m, int32_t pi, const struct msg_kept *k)
 {
     struct peer *p = &m->peers[pi];
-    p->last_progress_ms = net_now_ms();
+    sched_worker_progress(m->sched, pi, net_now_ms());
     if (k->job_id != m->job_id || !blob_hash_equal(&k->job_key, &m->job_key) || k->frame != m->frame ||
         k->tile >= m->num_tiles) {
         if (peer_should_log_drop(p))
@@ -666,8 +583,7 @@ static void on_kept(struct master *m, int32_t pi, const struct msg_kept *k)
         m->c.results_not_ours++;
         return;
     }
-    struct tile_slot *t = &m->tiles[k->tile];
-    if (t->state == TILE_DONE) {
+    if (sched_kept(m->sched, k->tile)) {
         m->c.kept_duplicate++;
         ack_push(m, pi, k->job_id, k->frame, k->tile);
         return;
@@ -675,28 +591,22 @@ static void on_kept(struct master *m, int32_t pi, const struct msg_kept *k)
     char err[256];
     if (!chunk_is_sane(m, k->tile, k->chunk, k->chunk_size, err, sizeof err)) {
         log_warn("worker %s: kept tile %u rejected: %s", p->name, k->tile, err);
-        peer_sent_invalid(m, pi);
+        struct sched_eviction ev;
+        int banned = sched_kept_invalid(m->sched, pi, &ev);
+        peer_sent_invalid(m, pi, banned, &ev);
         return;
     }
-    p->fail_streak = 0;
     if (tile_accept(m, k->tile, &k->stats, k->chunk, k->chunk_size) != 0)
         return;
+    sched_kept_valid(m->sched, pi, k->tile);
     ack_push(m, pi, k->job_id, k->frame, k->tile);
     m->c.tiles_from_kept++;
-    p->tiles_done++;
-    for (uint32_t i = 0; i < m->q_count; i++)
-        if (m->queue[i] == k->tile) {
-            queue_remove_at(m, i);
-            break;
-        }
-    while (t->num_holders > 0) /* copies in flight elsewhere will be duplicates */
-        tile_drop_holder(m, k->tile, t->holder[0]);
 }
 
 static void on_result(struct master *m, int32_t pi, const struct msg_result *r)
 {
     struct peer *p = &m->peers[pi];
-    p->last_progress_ms = net_now_ms();
+    sched_worker_progress(m->sched, pi, net_now_ms());
     if (r->job_id >= m->job_base && r->job_id < m->job_id) {
         /* A tile of an earlier frame of this range, finished after that frame was done
          * (a straggler copy): expected. Its credit went with the old job; the frame is
@@ -705,8 +615,8 @@ static void on_result(struct master *m, int32_t pi, const struct msg_result *r)
         ack_push(m, pi, r->job_id, r->frame, r->tile);
         return;
     }
-    if (r->job_id == m->job_id && p->credits < p->threads * 4)
-        p->credits++;
+    if (r->job_id == m->job_id)
+        sched_worker_credit(m->sched, pi);
     if (r->job_id != m->job_id || r->frame != m->frame || r->tile >= m->num_tiles) {
         if (peer_should_log_drop(p))
             log_warn("worker %s: RESULT for job %llu frame %u tile %u is not ours; dropped", p->name,
@@ -714,21 +624,15 @@ static void on_result(struct master *m, int32_t pi, const struct msg_result *r)
         m->c.results_not_ours++;
         return;
     }
-    struct tile_slot *t = &m->tiles[r->tile];
-    int k = -1;
-    for (uint32_t i = 0; i < t->num_holders; i++)
-        if (t->holder[i] == pi && t->holder_attempt[i] == r->attempt)
-            k = (int)i;
-    if (t->state == TILE_DONE || k < 0) {
-        /* A straggler copy that lost the race is expected; anything else is stale. */
-        int dup = t->state == TILE_DONE && r->attempt <= t->attempt && r->attempt > 0;
-        if (dup)
+    enum sched_result_verdict v = sched_result(m->sched, pi, r->tile, r->attempt);
+    if (v != SCHED_RESULT_CHECK) {
+        if (v == SCHED_RESULT_DUPLICATE)
             m->c.results_duplicate++;
         else
             m->c.results_stale++;
-        if (t->state == TILE_DONE) /* we have it: the worker need not keep its copy */
+        if (m->sched->tiles[r->tile].state == SCHED_DONE) /* we have it: the worker need not keep its copy */
             ack_push(m, pi, r->job_id, r->frame, r->tile);
-        if (!dup && peer_should_log_drop(p))
+        if (v == SCHED_RESULT_STALE && peer_should_log_drop(p))
             log_warn("worker %s: result for tile %u attempt %u is stale or not assigned to it; dropped", p->name,
                      r->tile, r->attempt);
         return;
@@ -736,105 +640,32 @@ static void on_result(struct master *m, int32_t pi, const struct msg_result *r)
     char err[256];
     if (!chunk_is_sane(m, r->tile, r->chunk, r->chunk_size, err, sizeof err)) {
         log_warn("worker %s: tile %u rejected: %s; re-queued", p->name, r->tile, err);
-        tile_drop_holder(m, r->tile, pi);
-        p->isolated = 0;
-        peer_sent_invalid(m, pi);
+        struct sched_eviction ev;
+        int banned = sched_result_invalid(m->sched, pi, r->tile, &ev);
+        peer_sent_invalid(m, pi, banned, &ev);
         return;
     }
-    p->fail_streak = 0;
-    p->isolated = 0;
     if (tile_accept(m, r->tile, &r->stats, r->chunk, r->chunk_size) != 0)
         return;
+    sched_result_valid(m->sched, pi, r->tile);
     ack_push(m, pi, r->job_id, r->frame, r->tile);
-    p->tiles_done++;
-    /* Both holders stop holding it (it is done, so nothing is re-queued): the other
-     * holder's result, if any, will be a duplicate. */
-    while (t->num_holders > 0)
-        tile_drop_holder(m, r->tile, t->holder[0]);
 }
 
-static void tile_give(struct master *m, uint32_t tile, int32_t pi, int straggler)
-{
-    struct peer *p = &m->peers[pi];
-    struct tile_slot *t = &m->tiles[tile];
-    if (p->in_flight == 0)
-        p->last_progress_ms = net_now_ms(); /* idle time is not a stall */
-    t->state = TILE_ASSIGNED;
-    t->attempt++;
-    t->holder[t->num_holders] = pi;
-    t->holder_attempt[t->num_holders] = t->attempt;
-    t->num_holders++;
-    t->assigned_ms = net_now_ms();
-    p->credits--;
-    p->in_flight++;
-    m->c.tiles_assigned++;
-    if (straggler)
-        m->c.straggler_copies++;
-    else if (t->requeued)
-        m->c.tiles_reissued++;
-    t->requeued = 0;
-    if (t->crashes > 0)
-        p->isolated = 1;
-    struct proto_msg msg = {.type = MSG_TILE};
-    msg.u.tile.job_id = m->job_id;
-    msg.u.tile.frame = m->frame;
-    msg.u.tile.tile = tile;
-    msg.u.tile.attempt = t->attempt;
-    send_to(m, p, &msg);
-}
-
-static int peer_can_take(const struct peer *p)
-{
-    return !p->gone && p->ready && p->credits > 0 && !p->isolated;
-}
-
+/* Sends every tile the scheduler hands out now. */
 static void assign_tiles(struct master *m)
 {
-    for (uint32_t i = 0; i < m->num_peers && m->q_count > 0; i++) {
-        struct peer *p = &m->peers[i];
-        uint32_t qi = 0;
-        while (peer_can_take(p) && qi < m->q_count) {
-            uint32_t tile = m->queue[qi];
-            /* A tile that already took a worker down is rendered alone, so that a second
-             * crash is blamed on it and not on its neighbours. */
-            if (m->tiles[tile].crashes > 0 && p->in_flight > 0) {
-                qi++;
-                continue;
-            }
-            queue_remove_at(m, qi);
-            tile_give(m, tile, (int32_t)i, 0);
-        }
+    struct sched_assignment a;
+    while (sched_assign_next(m->sched, net_now_ms(), &a)) {
+        m->c.tiles_assigned++;
+        m->c.straggler_copies += a.straggler != 0;
+        m->c.tiles_reissued += a.reissue != 0;
+        struct proto_msg msg = {.type = MSG_TILE};
+        msg.u.tile.job_id = m->job_id;
+        msg.u.tile.frame = m->frame;
+        msg.u.tile.tile = a.tile;
+        msg.u.tile.attempt = a.attempt;
+        send_to(m, &m->peers[a.worker], &msg);
     }
-    if (m->q_count > 0)
-        return;
-    /* Stragglers: an idle worker also takes the oldest tile still in flight elsewhere;
-     * the first valid result wins (tiles are deterministic, so either will do). */
-    for (uint32_t i = 0; i < m->num_peers; i++) {
-        struct peer *p = &m->peers[i];
-        if (!peer_can_take(p) || p->in_flight > 0)
-            continue;
-        int32_t best = -1;
-        for (uint32_t t = 0; t < m->num_tiles; t++) {
-            const struct tile_slot *s = &m->tiles[t];
-            if (s->state != TILE_ASSIGNED || s->num_holders != 1 || s->holder[0] == (int32_t)i || s->crashes > 0)
-                continue;
-            if (best < 0 || s->assigned_ms < m->tiles[best].assigned_ms)
-                best = (int32_t)t;
-        }
-        if (best < 0)
-            return;
-        tile_give(m, (uint32_t)best, (int32_t)i, 1);
-    }
-}
-
-static void on_heartbeat(struct master *m, struct peer *p, const struct msg_heartbeat *h)
-{
-    if (h->samples_done > p->last_samples) {
-        p->last_samples = h->samples_done;
-        p->last_progress_ms = net_now_ms();
-    }
-    p->reported_stall_ms = h->stalled_ms;
-    (void)m;
 }
 
 static void handle_message(struct master *m, struct net_frame *f)
@@ -869,17 +700,14 @@ static void handle_message(struct master *m, struct net_frame *f)
         return;
     }
     struct peer *p = &m->peers[pi];
-    p->last_heard_ms = net_now_ms();
+    sched_worker_heard(m->sched, pi, net_now_ms());
     switch (msg.type) {
     case MSG_BLOB_REQ:
         on_blob_req(m, p, &msg.u.blob_req);
         break;
     case MSG_READY:
-        if (msg.u.ready.job_id == m->job_id && !p->ready) {
-            p->ready = 1;
-            p->credits = msg.u.ready.credits < p->threads * 4 ? msg.u.ready.credits : p->threads * 4;
-            if (p->credits == 0)
-                p->credits = 1;
+        if (msg.u.ready.job_id == m->job_id && sched_worker_ready(m->sched, pi, msg.u.ready.credits) == 0) {
+            /* credits set */
         } else if (msg.u.ready.job_id >= m->job_base && msg.u.ready.job_id < m->job_id) {
             m->c.ready_stale++; /* it finished loading a frame that is already done: the next JOB is on its way */
         } else {
@@ -895,13 +723,13 @@ static void handle_message(struct master *m, struct net_frame *f)
     case MSG_ERROR:
         snprintf(m->last_worker_error, sizeof m->last_worker_error, "%s", msg.u.error.text);
         log_error("worker %s: %s", p->name, msg.u.error.text);
-        evict_peer(m, pi, EVICT_ERROR, "it reported an error");
+        evict_peer(m, pi, SCHED_ERROR, "it reported an error");
         break;
     case MSG_HEARTBEAT:
-        on_heartbeat(m, p, &msg.u.heartbeat);
+        sched_worker_heartbeat(m->sched, pi, msg.u.heartbeat.samples_done, msg.u.heartbeat.stalled_ms, net_now_ms());
         break;
     case MSG_BYE:
-        evict_peer(m, pi, EVICT_LEFT, "it left");
+        evict_peer(m, pi, SCHED_LEFT, "it left");
         break;
     default:
         m->c.rejected_unexpected++;
@@ -920,18 +748,16 @@ static int replay_tile(void *ctx, uint32_t tile, const struct tile_stats *st, co
 {
     struct master *m = ((struct replay_ctx *)ctx)->m;
     char err[256];
-    if (m->tiles[tile].state == TILE_DONE)
+    if (m->sched->tiles[tile].state == SCHED_DONE)
         return 0; /* a tile journaled twice: the first copy is as good */
     if (!chunk_is_sane(m, tile, chunk, size, err, sizeof err)) {
         log_warn("journal: tile %u does not decode (%s); the journal is cut there", tile, err);
         return -1;
     }
-    struct tile_slot *t = &m->tiles[tile];
-    t->chunk = mem_alloc(size ? size : 1);
-    memcpy(t->chunk, chunk, size);
-    t->chunk_size = size;
-    t->state = TILE_DONE;
-    m->tiles_done++;
+    m->chunks[tile].data = mem_alloc(size ? size : 1);
+    memcpy(m->chunks[tile].data, chunk, size);
+    m->chunks[tile].size = size;
+    sched_tile_set_done(m->sched, tile);
     m->c.tiles_from_journal++;
     tile_stats_add(&m->stats, st);
     return 0;
@@ -957,13 +783,12 @@ static int open_journal(struct master *m)
     uint64_t torn;
     int other;
     struct replay_ctx ctx = {m};
-    if (journal_open(&m->journal, path, &key, m->num_tiles, replay_tile, &ctx, &recovered, &torn, &other, err,
-                     sizeof err) != 0) {
+    m->journal = journal_open(path, &key, m->num_tiles, replay_tile, &ctx, &recovered, &torn, &other, err, sizeof err);
+    if (!m->journal) {
         log_error("%s", err);
         return -1;
     }
-    m->have_journal = 1;
-    if (journal_syncer_start(&m->journal, err, sizeof err) != 0)
+    if (journal_syncer_start(m->journal, err, sizeof err) != 0)
         log_warn("%s; syncing in the main loop instead", err);
     if (other)
         log_warn("%s belonged to another job (scene or settings differ); starting afresh", path);
@@ -974,23 +799,10 @@ static int open_journal(struct master *m)
 
 /* ---- output ---- */
 
-static int fsync_dir_of(const char *path)
-{
-    char buf[4096];
-    snprintf(buf, sizeof buf, "%s", path);
-    int fd = open(dirname(buf), O_RDONLY | O_DIRECTORY);
-    if (fd < 0)
-        return -1;
-    int rc = fsync(fd);
-    close(fd);
-    return rc;
-}
-
 static int write_output(struct master *m, double seconds)
 {
     const struct master_opts *o = m->opts;
-    char err[512], tmp[4200];
-    snprintf(tmp, sizeof tmp, "%s.tmp.%d", m->out_path, (int)getpid());
+    char err[512];
     struct image_attrs a;
     memset(&a, 0, sizeof a);
     a.spp = m->scene.settings.spp;
@@ -998,55 +810,17 @@ static int write_output(struct master *m, double seconds)
     a.render_seconds = seconds;
     snprintf(a.scene_hash, sizeof a.scene_hash, "%s", m->scene_hash);
     snprintf(a.software, sizeof a.software, "brume 0.1");
-    struct imgio_writer *w = imgio_writer_open(tmp, &m->desc, &a, err, sizeof err);
-    if (!w) {
+    if (output_write_exr(m->out_path, &m->desc, &a, m->chunks, err, sizeof err) != 0) {
         log_error("%s", err);
         return -1;
     }
-    uint32_t tiles_x = imgio_tiles_x(&m->desc);
-    for (uint32_t t = 0; t < m->num_tiles; t++)
-        if (imgio_writer_put_tile(w, t % tiles_x, t / tiles_x, m->tiles[t].chunk, m->tiles[t].chunk_size, err,
-                                  sizeof err) != 0) {
-            imgio_writer_close(&w, err, sizeof err);
-            unlink(tmp);
-            log_error("%s", err);
-            return -1;
-        }
-    if (imgio_writer_close(&w, err, sizeof err) != 0) {
-        unlink(tmp);
-        log_error("%s", err);
-        return -1;
-    }
-    if (rename(tmp, m->out_path) != 0) {
-        log_error("%s: cannot rename into place: %s", m->out_path, strerror(errno));
-        unlink(tmp);
-        return -1;
-    }
-    fsync_dir_of(m->out_path);
     /* Only now is the journal's content safe elsewhere. */
-    if (m->have_journal) {
+    if (m->journal) {
+        m->c.journal_syncs += m->journal->syncs;
         journal_remove(&m->journal);
-        m->c.journal_syncs += m->journal.syncs;
-        m->have_journal = 0;
     }
-    if (o->preview_path) {
-        const struct render_settings *rs = &m->scene.settings;
-        size_t n = (size_t)rs->width * rs->height * TILE_NUM_CHANNELS;
-        float *img = mem_alloc(sizeof(float) * n);
-        for (uint32_t t = 0; t < m->num_tiles; t++) {
-            uint32_t tx = t % tiles_x, ty = t / tiles_x, x0, y0, tw, th;
-            imgio_tile_rect(&m->desc, tx, ty, &x0, &y0, &tw, &th);
-            if (imgio_decode_tile(&m->desc, tx, ty, m->tiles[t].chunk, m->tiles[t].chunk_size, m->decode_scratch,
-                                  err, sizeof err) != 0)
-                continue;
-            for (uint32_t y = 0; y < th; y++)
-                memcpy(&img[((size_t)(y0 + y) * rs->width + x0) * TILE_NUM_CHANNELS],
-                       &m->decode_scratch[(size_t)y * tw * TILE_NUM_CHANNELS], sizeof(float) * tw * TILE_NUM_CHANNELS);
-        }
-        if (imgio_write_png(o->preview_path, img, rs->width, rs->height, TILE_NUM_CHANNELS, 1.0f, err, sizeof err) != 0)
-            log_warn("preview: %s", err);
-        free(img);
-    }
+    if (o->preview_path && output_write_preview(o->preview_path, &m->desc, m->chunks, err, sizeof err) != 0)
+        log_warn("preview: %s", err);
     return 0;
 }
 
@@ -1056,12 +830,12 @@ static void print_progress(struct master *m, uint64_t start_ms, int tty, int fin
 {
     double secs = (double)(net_now_ms() - start_ms) / 1000.0;
     double rate = secs > 0 ? (double)m->stats.samples / secs : 0.0;
-    double left = m->tiles_done > 0 ? secs * (m->num_tiles - m->tiles_done) / m->tiles_done : 0.0;
+    double left = m->sched->tiles_done > 0 ? secs * (m->num_tiles - m->sched->tiles_done) / m->sched->tiles_done : 0.0;
     if (tty)
-        fprintf(stderr, "\rmaster: tiles %u/%u  %.2f Msamples/s  ETA %.0fs   %s", m->tiles_done, m->num_tiles,
+        fprintf(stderr, "\rmaster: tiles %u/%u  %.2f Msamples/s  ETA %.0fs   %s", m->sched->tiles_done, m->num_tiles,
                 rate / 1e6, left, final ? "\n" : "");
     else
-        fprintf(stderr, "master: progress: tiles %u/%u, %.2f Msamples/s, ETA %.0fs\n", m->tiles_done, m->num_tiles,
+        fprintf(stderr, "master: progress: tiles %u/%u, %.2f Msamples/s, ETA %.0fs\n", m->sched->tiles_done, m->num_tiles,
                 rate / 1e6, left);
     fflush(stderr);
 }
@@ -1083,12 +857,12 @@ static void print_summary(struct master *m, double secs)
     printf("summary: noise: mean relative standard error %.4f over %u lit pixels\n",
            s->rel_stderr_pixels ? s->sum_rel_stderr / s->rel_stderr_pixels : 0.0, s->rel_stderr_pixels);
     for (uint32_t i = 0; i < m->num_peers; i++)
-        printf("summary: worker %s: %u tiles\n", m->peers[i].name, m->peers[i].tiles_done);
+        printf("summary: worker %s: %u tiles\n", m->peers[i].name, m->sched->workers[i].tiles_done);
     printf("summary: scene hash %s\n", m->scene_hash);
     fflush(stdout);
 }
 
-/* Printed on success and on failure, so tests can read what happened either way. */
+/* With --verbose: every counter, as tests of old read them. */
 static void print_counters(const struct master *m)
 {
 #define X(n) printf("summary: counter %s %llu\n", #n, (unsigned long long)m->c.n);
@@ -1097,149 +871,46 @@ static void print_counters(const struct master *m)
     fflush(stdout);
 }
 
-/* ---- keeping strangers out: CurveZMQ with a ZAP handler ---- */
-
-/* The master's own local workers get a fresh key pair in the private (0700) socket folder. */
-static int make_local_keys(struct master *m, struct net_key *local_public)
-{
-    char err[512];
-    snprintf(m->local_key_path, sizeof m->local_key_path, "%s/worker.key", m->ipc_dir);
-    snprintf(m->local_pub_path, sizeof m->local_pub_path, "%s/master.pub", m->ipc_dir);
-    struct net_key sec, pub, master_pub, master_sec;
-    if (net_key_pair_write(m->local_key_path, err, sizeof err) != 0 ||
-        net_key_pair_load(m->local_key_path, &pub, &sec, err, sizeof err) != 0 ||
-        net_key_pair_load(m->opts->curve_secret, &master_pub, &master_sec, err, sizeof err) != 0) {
-        log_error("%s", err);
-        return -1;
-    }
-    FILE *f = fopen(m->local_pub_path, "w");
-    if (!f || fprintf(f, "%s\n", master_pub.z85) < 0 || fclose(f) != 0) {
-        log_error("%s: %s", m->local_pub_path, strerror(errno));
-        return -1;
-    }
-    *local_public = pub;
-    return 0;
-}
-
-static void allow_key(struct master *m, const struct net_key *k)
-{
-    m->allowed = mem_realloc(m->allowed, sizeof *m->allowed * (m->num_allowed + 1));
-    zmq_z85_decode(m->allowed[m->num_allowed++], k->z85);
-}
-
-static int setup_curve(struct master *m)
+/* OUT.stats.json: the run's outcome and counters, machine-readable; written on failure
+ * too, so tests and scripts read what happened either way. */
+static int write_stats(const struct master *m, int ok, char *err, size_t errlen)
 {
     const struct master_opts *o = m->opts;
-    char err[512] = "";
-    struct net_key pub, sec, *keys = NULL;
-    size_t count = 0;
-    if (!zmq_has("curve")) {
-        log_error("--curve-secret: this libzmq has no CurveZMQ");
-        return -1;
+    const struct tile_stats *st = &m->stats;
+    json_t *root = json_object(), *counters = json_object(), *workers = json_array();
+    json_object_set_new(root, "format", json_string("brume-stats-1"));
+    json_object_set_new(root, "ok", json_boolean(ok));
+    json_object_set_new(root, "error", !ok && m->fatal[0] ? json_string(m->fatal) : json_null());
+    json_object_set_new(root, "scene", json_string(o->scene_path));
+    json_object_set_new(root, "output", json_string(o->output_path));
+    json_object_set_new(root, "last_frame_output", json_string(m->out_path));
+    json_object_set_new(root, "width", json_integer(m->scene.settings.width));
+    json_object_set_new(root, "height", json_integer(m->scene.settings.height));
+    json_object_set_new(root, "spp", json_integer(m->scene.settings.spp));
+    json_object_set_new(root, "tiles", json_integer(m->num_tiles));
+    json_object_set_new(root, "scene_hash", json_string(m->scene_hash));
+    json_object_set_new(root, "wall_seconds", json_real(m->wall_seconds));
+    json_object_set_new(root, "samples", json_integer((json_int_t)st->samples));
+    json_object_set_new(root, "rays", json_integer((json_int_t)st->rays));
+    json_object_set_new(root, "nan_samples", json_integer((json_int_t)st->nan_samples));
+    json_object_set_new(root, "mean_rel_stderr",
+                        json_real(st->rel_stderr_pixels ? st->sum_rel_stderr / st->rel_stderr_pixels : 0.0));
+    for (uint32_t i = 0; i < m->num_peers; i++) {
+        json_t *w = json_object();
+        json_object_set_new(w, "name", json_string(m->peers[i].name));
+        json_object_set_new(w, "tiles", json_integer(m->sched->workers[i].tiles_done));
+        json_array_append_new(workers, w);
     }
-    if (net_key_pair_load(o->curve_secret, &pub, &sec, err, sizeof err) != 0 ||
-        net_key_list_load(o->allow_path, &keys, &count, err, sizeof err) != 0) {
-        log_error("%s", err);
-        return -1;
-    }
-    for (size_t i = 0; i < count; i++)
-        allow_key(m, &keys[i]);
-    free(keys);
-    /* The handler must be bound before the first peer connects. */
-    m->zap = zmq_socket(m->zctx, ZMQ_REP);
-    int linger = 0;
-    zmq_setsockopt(m->zap, ZMQ_LINGER, &linger, sizeof linger);
-    if (zmq_bind(m->zap, "inproc://zeromq.zap.01") != 0 || net_curve_server(m->sock, &sec) != 0) {
-        log_error("cannot enable CurveZMQ: %s", zmq_strerror(errno));
-        return -1;
-    }
-    /* Handshakes that fail before ZAP (a client without CURVE, a wrong server key) are
-     * counted through the socket monitor. */
-    if (zmq_socket_monitor(m->sock, "inproc://brume-monitor",
-                           ZMQ_EVENT_HANDSHAKE_FAILED_NO_DETAIL | ZMQ_EVENT_HANDSHAKE_FAILED_PROTOCOL |
-                               ZMQ_EVENT_HANDSHAKE_FAILED_AUTH) == 0) {
-        m->monitor = zmq_socket(m->zctx, ZMQ_PAIR);
-        zmq_setsockopt(m->monitor, ZMQ_LINGER, &linger, sizeof linger);
-        zmq_connect(m->monitor, "inproc://brume-monitor");
-    }
-    log_info("CurveZMQ on: %zu allowed worker key(s)", m->num_allowed);
-    return 0;
-}
-
-/* One ZAP request (RFC 27): admit CURVE clients whose public key is allowed. */
-static void zap_handle(struct master *m)
-{
-    zmq_msg_t part[8];
-    int n = 0, more = 1;
-    while (more && n < 8) {
-        zmq_msg_init(&part[n]);
-        if (zmq_msg_recv(&part[n], m->zap, ZMQ_DONTWAIT) < 0) {
-            zmq_msg_close(&part[n]);
-            break;
-        }
-        more = zmq_msg_more(&part[n]);
-        n++;
-    }
-    while (more) { /* a request with too many parts: drain it */
-        zmq_msg_t x;
-        zmq_msg_init(&x);
-        if (zmq_msg_recv(&x, m->zap, ZMQ_DONTWAIT) < 0)
-            more = 0;
-        else
-            more = zmq_msg_more(&x);
-        zmq_msg_close(&x);
-    }
-    if (n < 2) {
-        for (int i = 0; i < n; i++)
-            zmq_msg_close(&part[i]);
-        return; /* no request id to answer */
-    }
-    int ok = n == 7 && zmq_msg_size(&part[5]) == 5 && !memcmp(zmq_msg_data(&part[5]), "CURVE", 5) &&
-             zmq_msg_size(&part[6]) == 32;
-    if (ok) {
-        ok = 0;
-        for (size_t i = 0; i < m->num_allowed && !ok; i++)
-            ok = !memcmp(m->allowed[i], zmq_msg_data(&part[6]), 32);
-    }
-    if (!ok) {
-        m->c.auth_rejects++;
-        if (m->c.auth_rejects <= 5)
-            log_warn("a worker with a key not in the allow-list was refused");
-    }
-    const char *status = ok ? "200" : "400", *text = ok ? "OK" : "key not allowed";
-    zmq_send(m->zap, "1.0", 3, ZMQ_SNDMORE);
-    zmq_send(m->zap, zmq_msg_data(&part[1]), zmq_msg_size(&part[1]), ZMQ_SNDMORE);
-    zmq_send(m->zap, status, 3, ZMQ_SNDMORE);
-    zmq_send(m->zap, text, strlen(text), ZMQ_SNDMORE);
-    zmq_send(m->zap, "", 0, ZMQ_SNDMORE);
-    zmq_send(m->zap, "", 0, 0);
-    for (int i = 0; i < n; i++)
-        zmq_msg_close(&part[i]);
-}
-
-static void monitor_drain(struct master *m)
-{
-    for (;;) {
-        zmq_msg_t ev, addr;
-        zmq_msg_init(&ev);
-        if (zmq_msg_recv(&ev, m->monitor, ZMQ_DONTWAIT) < 0) {
-            zmq_msg_close(&ev);
-            return;
-        }
-        int more = zmq_msg_more(&ev);
-        if (zmq_msg_size(&ev) >= 2) {
-            uint16_t event;
-            memcpy(&event, zmq_msg_data(&ev), 2);
-            if (event != ZMQ_EVENT_HANDSHAKE_FAILED_AUTH) /* those were counted by ZAP */
-                m->c.handshake_failures++;
-        }
-        zmq_msg_close(&ev);
-        if (more) {
-            zmq_msg_init(&addr);
-            zmq_msg_recv(&addr, m->monitor, ZMQ_DONTWAIT);
-            zmq_msg_close(&addr);
-        }
-    }
+    json_object_set_new(root, "workers", workers);
+#define X(n) json_object_set_new(counters, #n, json_integer((json_int_t)m->c.n));
+    COUNTERS(X)
+#undef X
+    json_object_set_new(root, "counters", counters);
+    char path[4200];
+    snprintf(path, sizeof path, "%s.stats.json", o->output_path);
+    int rc = output_write_json(path, root, err, errlen);
+    json_decref(root);
+    return rc;
 }
 
 /* ---- main loop ---- */
@@ -1260,10 +931,17 @@ static int start_local_workers(struct master *m)
         return -1;
     }
     if (o->curve_secret) {
+        /* The master's own local workers get a fresh key pair in the private (0700) folder. */
+        char err[512];
         struct net_key local_public;
-        if (make_local_keys(m, &local_public) != 0)
+        snprintf(m->local_key_path, sizeof m->local_key_path, "%s/worker.key", m->ipc_dir);
+        snprintf(m->local_pub_path, sizeof m->local_pub_path, "%s/master.pub", m->ipc_dir);
+        if (zap_write_local_keys(m->local_key_path, m->local_pub_path, o->curve_secret, &local_public, err,
+                                 sizeof err) != 0) {
+            log_error("%s", err);
             return -1;
-        allow_key(m, &local_public);
+        }
+        zap_allow_key(m->zap, &local_public);
     }
     snprintf(m->ipc_endpoint, sizeof m->ipc_endpoint, "ipc://%s/master.sock", m->ipc_dir);
     if (zmq_bind(m->sock, m->ipc_endpoint) != 0) {
@@ -1293,99 +971,43 @@ static void reap_local(struct master *m)
                 m->local_alive--;
             }
         for (uint32_t i = 0; i < m->num_peers; i++)
-            if (!m->peers[i].gone && m->peers[i].pid == (uint32_t)pid && m->num_local > 0) {
+            if (!m->sched->workers[i].gone && m->peers[i].pid == (uint32_t)pid && m->num_local > 0) {
                 char why[64];
                 if (WIFSIGNALED(status))
                     snprintf(why, sizeof why, "process killed by signal %d", WTERMSIG(status));
                 else
                     snprintf(why, sizeof why, "process exited with status %d", WEXITSTATUS(status));
-                evict_peer(m, (int32_t)i, WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL ? EVICT_KILLED : EVICT_DIED,
-                           why);
+                evict_peer(m, (int32_t)i, sched_death_kind(WIFSIGNALED(status), WTERMSIG(status)), why);
             }
     }
-}
-
-static uint32_t live_peers(const struct master *m)
-{
-    uint32_t n = 0;
-    for (uint32_t i = 0; i < m->num_peers; i++)
-        n += !m->peers[i].gone;
-    return n;
 }
 
 static void check_liveness(struct master *m, uint64_t now)
 {
     const struct master_opts *o = m->opts;
     for (uint32_t i = 0; i < m->num_peers; i++) {
-        struct peer *p = &m->peers[i];
-        if (p->gone)
-            continue;
         char why[128];
-        if (now - p->last_heard_ms > o->worker_timeout_ms) {
-            snprintf(why, sizeof why, "no heartbeat for %llu ms", (unsigned long long)(now - p->last_heard_ms));
-            evict_peer(m, (int32_t)i, EVICT_SILENT, why);
-        } else if (p->in_flight > 0 && now - p->last_progress_ms > o->stall_ms) {
-            snprintf(why, sizeof why, "its render threads made no progress for %llu ms",
-                     (unsigned long long)(now - p->last_progress_ms));
-            evict_peer(m, (int32_t)i, EVICT_STALLED, why);
-        } else if (p->in_flight > 0 && p->reported_stall_ms > o->stall_ms) {
-            snprintf(why, sizeof why, "a render thread made no progress for %u ms", p->reported_stall_ms);
-            evict_peer(m, (int32_t)i, EVICT_STALLED, why);
+        uint64_t for_ms;
+        switch (sched_worker_health(m->sched, (int32_t)i, now, o->worker_timeout_ms, o->stall_ms, &for_ms)) {
+        case SCHED_HEALTHY:
+            break;
+        case SCHED_HEALTH_SILENT:
+            snprintf(why, sizeof why, "no heartbeat for %llu ms", (unsigned long long)for_ms);
+            evict_peer(m, (int32_t)i, SCHED_SILENT, why);
+            break;
+        case SCHED_HEALTH_STALLED:
+            snprintf(why, sizeof why, "its render threads made no progress for %llu ms", (unsigned long long)for_ms);
+            evict_peer(m, (int32_t)i, SCHED_STALLED, why);
+            break;
+        case SCHED_HEALTH_STALL_REPORTED:
+            snprintf(why, sizeof why, "a render thread made no progress for %llu ms", (unsigned long long)for_ms);
+            evict_peer(m, (int32_t)i, SCHED_STALLED, why);
+            break;
         }
     }
 }
 
 /* ---- frames ---- */
-
-/* The output file of one frame: the last run of '#' in the name becomes the zero-padded
- * frame number (as many digits as '#'s, more if needed); without one, ".NNNN" goes in
- * front of the extension. A single render without --frames writes the name as given. */
-static int frame_output_path(const struct master_opts *o, uint32_t frame, char *out, size_t outlen)
-{
-    const char *pat = o->output_path;
-    if (!o->have_frames)
-        return snprintf(out, outlen, "%s", pat) < (int)outlen ? 0 : -1;
-    const char *hash_end = strrchr(pat, '#');
-    int n;
-    if (hash_end) {
-        const char *hash_start = hash_end;
-        while (hash_start > pat && hash_start[-1] == '#')
-            hash_start--;
-        int digits = (int)(hash_end - hash_start) + 1;
-        n = snprintf(out, outlen, "%.*s%0*u%s", (int)(hash_start - pat), pat, digits, frame, hash_end + 1);
-    } else {
-        const char *slash = strrchr(pat, '/'), *dot = strrchr(pat, '.');
-        const char *base = slash ? slash + 1 : pat;
-        if (dot && dot > base)
-            n = snprintf(out, outlen, "%.*s.%04u%s", (int)(dot - pat), pat, frame, dot);
-        else
-            n = snprintf(out, outlen, "%s.%04u", pat, frame);
-    }
-    return n > 0 && (size_t)n < outlen ? 0 : -1;
-}
-
-/* A frame is done when its output exists and its header says it was rendered from this
- * scene hash (assets, settings and frame) with the same layout. Output files appear only
- * by rename after fsync, so one that reads back is complete. */
-static int output_is_done(const struct master *m)
-{
-    struct image_attrs a;
-    struct image_desc d;
-    char err[512];
-    if (access(m->out_path, F_OK) != 0)
-        return 0;
-    if (imgio_read_attrs(m->out_path, &d, &a, err, sizeof err) != 0) {
-        log_warn("%s exists but cannot be read (%s); rendering it again", m->out_path, err);
-        return 0;
-    }
-    const struct render_settings *rs = &m->scene.settings;
-    if (strcmp(a.scene_hash, m->scene_hash) != 0 || a.spp != rs->spp || a.seed != rs->seed ||
-        d.width != m->desc.width || d.height != m->desc.height || d.tile_size != m->desc.tile_size) {
-        log_info("%s exists but was rendered from another scene or other settings; rendering it again", m->out_path);
-        return 0;
-    }
-    return 1;
-}
 
 static int start_local_workers(struct master *m);
 
@@ -1395,7 +1017,7 @@ static int start_local_workers(struct master *m);
 static int frame_begin(struct master *m, uint32_t frames_started)
 {
     const struct master_opts *o = m->opts;
-    if (frame_output_path(o, m->frame, m->out_path, sizeof m->out_path) != 0) {
+    if (output_frame_path(o->output_path, o->have_frames, m->frame, m->out_path, sizeof m->out_path) != 0) {
         log_error("-o %s: the output name for frame %u is too long", o->output_path, m->frame);
         return -1;
     }
@@ -1416,7 +1038,8 @@ static int frame_begin(struct master *m, uint32_t frames_started)
     }
     frame_hash(m);
     compute_job_key(m);
-    if (o->have_frames && !o->only_tiles && output_is_done(m)) {
+    if (o->have_frames && !o->only_tiles &&
+        output_is_done(m->out_path, m->scene_hash, m->scene.settings.spp, m->scene.settings.seed, &m->desc)) {
         char jpath[4300];
         snprintf(jpath, sizeof jpath, "%s.journal", m->out_path);
         unlink(jpath); /* left behind by a master killed between rename and cleanup */
@@ -1425,47 +1048,29 @@ static int frame_begin(struct master *m, uint32_t frames_started)
         return 1;
     }
     for (uint32_t t = 0; t < m->num_tiles; t++)
-        free(m->tiles[t].chunk);
-    memset(m->tiles, 0, sizeof *m->tiles * m->num_tiles);
-    m->tiles_done = 0;
-    m->q_count = 0;
+        free(m->chunks[t].data);
+    memset(m->chunks, 0, sizeof *m->chunks * m->num_tiles);
+    sched_frame_begin(m->sched);
     memset(&m->stats, 0, sizeof m->stats);
-    for (uint32_t t = 0; t < m->num_tiles; t++)
-        queue_push(m, t);
     if (o->only_tiles && restrict_tiles(m) != 0)
         return -1;
-    if (m->have_journal) {
-        journal_close(&m->journal);
-        m->c.journal_syncs += m->journal.syncs;
-        m->have_journal = 0;
+    if (m->journal) {
+        m->c.journal_syncs += m->journal->syncs;
+        journal_free(&m->journal);
     }
-    /* A --tiles render is a debugging aid: it keeps no journal of its own. */
-    uint64_t from_journal = m->c.tiles_from_journal;
+    /* A --tiles render is a debugging aid: it keeps no journal of its own. Journaled
+     * tiles are done in the scheduler, so they never go out again. */
     if (!o->no_journal && !o->only_tiles && open_journal(m) != 0)
         return -1;
-    if (m->c.tiles_from_journal > from_journal) {
-        /* Journaled tiles never go out again. */
-        uint32_t k = 0;
-        for (uint32_t i = 0; i < m->q_count; i++)
-            if (m->tiles[m->queue[i]].state != TILE_DONE)
-                m->queue[k++] = m->queue[i];
-        m->q_count = k;
-    }
     m->job_id = m->job_base + frames_started;
-    for (uint32_t i = 0; i < m->num_peers; i++) {
-        struct peer *p = &m->peers[i];
-        p->ready = 0;
-        p->credits = 0;
-        p->in_flight = 0;
-        p->isolated = 0;
-        if (!p->gone && m->tiles_done < m->num_tiles)
-            send_job(m, p);
-    }
-    if (m->tiles_done < m->num_tiles && !m->local_pids && start_local_workers(m) != 0)
+    for (uint32_t i = 0; i < m->num_peers; i++)
+        if (!m->sched->workers[i].gone && m->sched->tiles_done < m->num_tiles)
+            send_job(m, &m->peers[i]);
+    if (m->sched->tiles_done < m->num_tiles && !m->local_pids && start_local_workers(m) != 0)
         return -1;
     log_info("rendering %s frame %u -> %s: %ux%u, %u spp, %u tiles (%u from the journal), %u local worker(s)%s%s",
              o->scene_path, m->frame, m->out_path, m->scene.settings.width, m->scene.settings.height,
-             m->scene.settings.spp, m->num_tiles, m->tiles_done, o->workers, o->bind ? ", accepting workers at " : "",
+             m->scene.settings.spp, m->num_tiles, m->sched->tiles_done, o->workers, o->bind ? ", accepting workers at " : "",
              o->bind ? o->bind : "");
     return 0;
 }
@@ -1476,26 +1081,26 @@ static int frame_render(struct master *m, uint64_t *last_beat)
     const struct master_opts *o = m->opts;
     int tty = isatty(2);
     uint64_t start = net_now_ms(), last_progress = start;
-    while (m->tiles_done < m->num_tiles) {
+    while (m->sched->tiles_done < m->num_tiles) {
         if (g_interrupted) {
-            log_error("interrupted; %u of %u tiles of frame %u were finished", m->tiles_done, m->num_tiles, m->frame);
+            snprintf(m->fatal, sizeof m->fatal, "interrupted; %u of %u tiles of frame %u were finished",
+                     m->sched->tiles_done, m->num_tiles, m->frame);
             return -1;
         }
-        if (m->fatal[0]) {
-            log_error("%s", m->fatal);
+        if (m->fatal[0])
             return -1;
-        }
-        zmq_pollitem_t items[3] = {{m->sock, 0, ZMQ_POLLIN, 0}, {m->zap, 0, ZMQ_POLLIN, 0}, {m->monitor, 0, ZMQ_POLLIN, 0}};
-        int nitems = m->monitor ? 3 : m->zap ? 2 : 1;
+        void *zap_sock = m->zap ? zap_socket(m->zap) : NULL, *mon = m->zap ? zap_monitor_socket(m->zap) : NULL;
+        zmq_pollitem_t items[3] = {{m->sock, 0, ZMQ_POLLIN, 0}, {zap_sock, 0, ZMQ_POLLIN, 0}, {mon, 0, ZMQ_POLLIN, 0}};
+        int nitems = mon ? 3 : zap_sock ? 2 : 1;
         /* ACKs waiting for the sync thread: look again soon */
         if (zmq_poll(items, nitems, m->num_acks ? 2 : 100) < 0 && errno != EINTR) {
-            log_error("poll: %s", zmq_strerror(errno));
+            snprintf(m->fatal, sizeof m->fatal, "poll: %s", zmq_strerror(errno));
             return -1;
         }
         if (nitems > 1 && (items[1].revents & ZMQ_POLLIN))
-            zap_handle(m);
+            m->c.auth_rejects += (uint64_t)zap_handle(m->zap);
         if (nitems > 2 && (items[2].revents & ZMQ_POLLIN))
-            monitor_drain(m);
+            m->c.handshake_failures += zap_monitor_drain(m->zap);
         if (items[0].revents & ZMQ_POLLIN) {
             struct net_frame f;
             int got;
@@ -1515,9 +1120,10 @@ static int frame_render(struct master *m, uint64_t *last_beat)
         check_liveness(m, now);
         if (m->fatal[0])
             continue;
-        if (!o->bind && m->local_alive == 0 && live_peers(m) == 0) {
-            log_error("every worker has exited; %u of %u tiles were finished%s%s", m->tiles_done, m->num_tiles,
-                      m->last_worker_error[0] ? "; last worker error: " : "", m->last_worker_error);
+        if (!o->bind && m->local_alive == 0 && sched_live_workers(m->sched) == 0) {
+            snprintf(m->fatal, sizeof m->fatal, "every worker has exited; %u of %u tiles were finished%s%.1000s",
+                     m->sched->tiles_done, m->num_tiles, m->last_worker_error[0] ? "; last worker error: " : "",
+                     m->last_worker_error);
             return -1;
         }
         assign_tiles(m);
@@ -1525,9 +1131,9 @@ static int frame_render(struct master *m, uint64_t *last_beat)
         if (now - *last_beat >= 1000) {
             struct proto_msg hb = {.type = MSG_HEARTBEAT};
             hb.u.heartbeat.job_id = m->job_id;
-            hb.u.heartbeat.tiles_done = m->tiles_done;
+            hb.u.heartbeat.tiles_done = m->sched->tiles_done;
             for (uint32_t i = 0; i < m->num_peers; i++)
-                if (!m->peers[i].gone)
+                if (!m->sched->workers[i].gone)
                     send_to(m, &m->peers[i], &hb);
             *last_beat = now;
         }
@@ -1537,12 +1143,11 @@ static int frame_render(struct master *m, uint64_t *last_beat)
         }
     }
     commit_and_ack(m, 1); /* the frame's last records on disk, every worker told */
-    if (m->fatal[0]) { /* e.g. the last journal sync failed */
-        log_error("%s", m->fatal);
+    if (m->fatal[0]) /* e.g. the last journal sync failed */
         return -1;
-    }
     print_progress(m, start, tty, 1);
     double secs = (double)(net_now_ms() - start) / 1000.0;
+    m->wall_seconds += secs;
     if (write_output(m, secs) != 0)
         return -1;
     print_summary(m, secs);
@@ -1572,8 +1177,15 @@ int master_run(const struct master_opts *o)
     net_socket_setup(m.sock);
     int mandatory = 1;
     zmq_setsockopt(m.sock, ZMQ_ROUTER_MANDATORY, &mandatory, sizeof mandatory);
-    if (o->curve_secret && setup_curve(&m) != 0)
-        goto done;
+    if (o->curve_secret) {
+        char err[512];
+        m.zap = zap_new(m.zctx, m.sock, o->curve_secret, o->allow_path, err, sizeof err);
+        if (!m.zap) {
+            log_error("%s", err);
+            goto done;
+        }
+        log_info("CurveZMQ on: %zu allowed worker key(s)", zap_num_allowed(m.zap));
+    }
     if (o->bind && zmq_bind(m.sock, o->bind) != 0) {
         log_error("cannot bind %s: %s", o->bind, zmq_strerror(errno));
         goto done;
@@ -1601,10 +1213,9 @@ done:
     {
         struct proto_msg bye = {.type = MSG_BYE};
         for (uint32_t i = 0; i < m.num_peers && m.sock; i++)
-            if (!m.peers[i].gone)
+            if (!m.sched->workers[i].gone)
                 send_to(&m, &m.peers[i], &bye);
     }
-    print_counters(&m);
     if (m.num_local)
         launch_stop_all(m.local_pids, m.num_local, 3000);
     if (m.ipc_dir[0]) {
@@ -1620,27 +1231,32 @@ done:
         }
         rmdir(m.ipc_dir);
     }
-    if (m.have_journal) {
-        journal_close(&m.journal);
-        m.c.journal_syncs += m.journal.syncs;
+    if (m.journal) {
+        m.c.journal_syncs += m.journal->syncs;
+        journal_free(&m.journal);
     }
-    if (m.monitor)
-        zmq_close(m.monitor);
-    if (m.zap)
-        zmq_close(m.zap);
+    zap_free(&m.zap);
     if (m.sock)
         zmq_close(m.sock);
     if (m.zctx)
         zmq_ctx_term(m.zctx);
-    for (uint32_t t = 0; t < m.num_tiles; t++)
-        free(m.tiles[t].chunk);
-    free(m.tiles);
-    free(m.queue);
+    /* Last: the stats file, the counters with --verbose, and on failure the one error line
+     * (a reason from the render loop; set-up errors were logged where they happened). */
+    char err[512];
+    if (write_stats(&m, rc == 0, err, sizeof err) != 0 && rc == 0)
+        log_warn("stats: %s", err);
+    if (o->verbose)
+        print_counters(&m);
+    if (rc != 0 && m.fatal[0])
+        log_error("%s", m.fatal);
+    for (uint32_t t = 0; t < m.num_tiles && m.chunks; t++)
+        free(m.chunks[t].data);
+    free(m.chunks);
+    sched_free(&m.sched);
     free(m.peers);
     free(m.local_pids);
     free(m.manifest);
     free(m.decode_scratch);
-    free(m.allowed);
     free(m.acks);
     proto_buf_free(&m.out);
     blob_store_free(&m.blobs);

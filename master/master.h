@@ -17,6 +17,7 @@ struct master_opts {
     uint32_t worker_timeout_ms; /* evict a worker silent this long */
     uint32_t stall_ms;          /* evict a worker whose render threads make no progress this long */
     int no_journal;             /* do not keep OUT.journal (measurements only) */
+    int verbose;                /* also print every counter (they always go to OUT.stats.json) */
     const uint32_t *only_tiles; /* --tiles: render just these (others stay black), or NULL */
     uint32_t num_only_tiles;
     const char *curve_secret;   /* CurveZMQ key pair of the master, or NULL */
@@ -38,8 +39,9 @@ struct master_opts {
     float gather_radius, march_step;
 };
 
-/* Renders the frame (or each frame of the range); returns 0 on success, 1 on failure
- * (one line logged). */
+/* Renders the frame (or each frame of the range) and writes the run's counters to
+ * OUT.stats.json (OUT as given to -o), on failure too; returns 0 on success, 1 on failure
+ * (one error line, the last thing the master prints). */
 int master_run(const struct master_opts *opts);
 
 #endif

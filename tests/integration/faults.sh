@@ -47,9 +47,9 @@ kill -CONT $w1
 wait $mpid && r=0 || r=1
 wait $w1 $w2 2>/dev/null
 timeout 120 $M $SCENE -o "$T/ref24.exr" --workers 1 --spp 64 --tile 32 >"$T/log24" 2>&1
-echo "faults: SIGSTOP: re-queued ${lat:-never} ms after SIGSTOP; late results dropped: $(counter results_stale)"
-if [ $r = 0 ] && [ -n "$lat" ] && [ "$lat" -lt 5000 ] && [ "$(counter evicted_silent)" -ge 1 ] &&
-  [ "$(counter tiles_reissued)" -ge 1 ] && [ "$(counter results_stale)" -ge 1 ] && $X cmp "$T/ref24.exr" "$T/stop.exr"; then
+echo "faults: SIGSTOP: re-queued ${lat:-never} ms after SIGSTOP; late results dropped: $(counter results_stale "$T/stop.exr")"
+if [ $r = 0 ] && [ -n "$lat" ] && [ "$lat" -lt 5000 ] && [ "$(counter evicted_silent "$T/stop.exr")" -ge 1 ] &&
+  [ "$(counter tiles_reissued "$T/stop.exr")" -ge 1 ] && [ "$(counter results_stale "$T/stop.exr")" -ge 1 ] && $X cmp "$T/ref24.exr" "$T/stop.exr"; then
   ok "SIGSTOP: re-issued within 5 s, late results dropped, identical pixels"; else bad "SIGSTOP: re-issued within 5 s, late results dropped, identical pixels"; fi
 
 # --- render threads hang while the worker's main thread still answers: evicted for no progress ---
@@ -58,7 +58,7 @@ mpid=$!
 timeout 120 $W --connect "ipc://$T/hang.sock" --threads 1 --fault hang-after:2 >/dev/null 2>&1 &
 echo "$!" >"$T/pids"
 wait $mpid && r=0 || r=1
-if [ $r = 0 ] && [ "$(counter evicted_stalled)" = 1 ] && [ "$(counter evicted_silent)" = 0 ] && grep -q "no progress" "$T/log" &&
+if [ $r = 0 ] && [ "$(counter evicted_stalled "$T/hang.exr")" = 1 ] && [ "$(counter evicted_silent "$T/hang.exr")" = 0 ] && grep -q "no progress" "$T/log" &&
   $X cmp "$T/ref16.exr" "$T/hang.exr"; then ok "hung render threads detected by progress heartbeats"; else bad "hung render threads detected by progress heartbeats"; fi
 
 # --- a straggler: an idle worker takes a second attempt; the first result wins ---
@@ -67,7 +67,7 @@ mpid=$!
 timeout 120 $W --connect "ipc://$T/slow.sock" --threads 1 --fault slow:4000 >/dev/null 2>&1 &
 echo "$!" >"$T/pids"
 wait $mpid && r=0 || r=1
-if [ $r = 0 ] && [ "$(counter straggler_copies)" -ge 1 ] && $X cmp "$T/ref.exr" "$T/slow.exr"; then
+if [ $r = 0 ] && [ "$(counter straggler_copies "$T/slow.exr")" -ge 1 ] && $X cmp "$T/ref.exr" "$T/slow.exr"; then
   ok "straggler copies issued, identical pixels"; else bad "straggler copies issued, identical pixels"; fi
 
 # --- a tile that crashes every worker fails the job, naming the tile and the command for it ---
@@ -96,7 +96,7 @@ mpid=$!
 timeout 60 $W --connect "ipc://$T/garb.sock" --threads 1 --fault garbage >/dev/null 2>&1 &
 echo "$!" >"$T/pids"
 wait $mpid && r=0 || r=1
-if [ $r = 0 ] && [ "$(counter workers_banned)" = 1 ] && [ "$(counter results_invalid)" -ge 3 ] && grep -q "banned for the job" "$T/log" &&
+if [ $r = 0 ] && [ "$(counter workers_banned "$T/garb.exr")" = 1 ] && [ "$(counter results_invalid "$T/garb.exr")" -ge 3 ] && grep -q "banned for the job" "$T/log" &&
   $X cmp "$T/ref.exr" "$T/garb.exr"; then ok "garbage worker banned after 3 invalid tiles"; else bad "garbage worker banned after 3 invalid tiles"; fi
 
 # --- SIGKILL K of N local workers at random times: identical pixels, every trial ---
@@ -120,7 +120,7 @@ while [ $i -lt "$KILL_TRIALS" ]; do
     kill -9 "$w" 2>/dev/null
   done
   wait $mpid && r=0 || r=1
-  died=$(counter evicted_died "$T/klog")
+  died=$(counter evicted_died "$T/wk.exr")
   if [ $r = 0 ] && $X cmp "$T/kref.exr" "$T/wk.exr" >/dev/null; then
     good=$((good + 1)); killed_total=$((killed_total + ${died:-0})); [ "${died:-0}" -gt 0 ] && landed=$((landed + 1))
   else cat "$T/klog" >"$T/log"; echo "trial $i (K=$k): rc $r"; fi
@@ -146,7 +146,7 @@ while [ $i -lt "$TRIALS" ]; do
     sz=$(stat -c %s "$out.journal"); cut=$(( $(od -An -N4 -tu4 /dev/urandom) % sz ));
     truncate -s "$cut" "$out.journal"; }   # a torn journal, cut at a random byte
   timeout 120 $M $SCENE -o "$out" --workers 2 --threads 1 $ARGS >"$T/log" 2>&1 && r=0 || r=1
-  fj=$(counter tiles_from_journal); as=$(counter tiles_assigned); sc=$(counter straggler_copies)
+  fj=$(counter tiles_from_journal "$out"); as=$(counter tiles_assigned "$out"); sc=$(counter straggler_copies "$out")
   # every tile not from the journal was assigned exactly once (plus straggler copies)
   nt=$(sed -n "s/^summary: .* spp, \([0-9]*\) tiles.*/\1/p" "$T/log")
   if [ $r = 0 ] && [ -n "$nt" ] && [ $((fj + as - sc)) = "$nt" ] && [ ! -e "$out.journal" ] && $X cmp "$T/ref.exr" "$out" >/dev/null; then

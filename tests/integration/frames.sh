@@ -18,7 +18,7 @@ r=0
 for f in 0 1 2; do
   timeout 60 $M $SCENE -o "$T/ref/f.exr" --frames $f:$f --workers 1 $ARGS >"$T/log" 2>&1 || r=1
 done
-if [ $r = 0 ] && [ "$(ls "$T/ref" | tr '\n' ' ')" = "f.0000.exr f.0001.exr f.0002.exr " ] &&
+if [ $r = 0 ] && [ "$(ls "$T/ref" | grep -v "\.stats\.json$" | tr '\n' ' ')" = "f.0000.exr f.0001.exr f.0002.exr " ] &&
   ! $X cmp "$T/ref/f.0000.exr" "$T/ref/f.0001.exr" >/dev/null 2>&1 &&
   ! $X cmp "$T/ref/f.0001.exr" "$T/ref/f.0002.exr" >/dev/null 2>&1; then
   ok "one job per frame (--frames F:F) writes f.000F.exr; frames differ"; else bad "one job per frame (--frames F:F) writes f.000F.exr; frames differ"; fi
@@ -28,14 +28,14 @@ mkdir -p "$T/range"
 timeout 60 $M $SCENE -o "$T/range/f.exr" --frames 0:2 --workers 2 --threads 1 $ARGS >"$T/log" 2>&1 && r=0 || r=1
 same=0
 for f in 0000 0001 0002; do $X cmp "$T/ref/f.$f.exr" "$T/range/f.$f.exr" >/dev/null && same=$((same + 1)); done
-if [ $r = 0 ] && [ $same = 3 ] && [ "$(ls "$T/range" | tr '\n' ' ')" = "f.0000.exr f.0001.exr f.0002.exr " ] &&
-  [ "$(counter frames_done)" = 3 ] && [ "$(grep -c 'scene kept' "$T/log")" = 4 ]; then
+if [ $r = 0 ] && [ $same = 3 ] && [ "$(ls "$T/range" | grep -v "\.stats\.json$" | tr '\n' ' ')" = "f.0000.exr f.0001.exr f.0002.exr " ] &&
+  [ -s "$T/range/f.exr.stats.json" ] && [ "$(counter frames_done "$T/range/f.exr")" = 3 ] && [ "$(grep -c 'scene kept' "$T/log")" = 4 ]; then
   ok "--frames 0:2: exactly 3 files, each identical to its frame alone; workers kept the scene"
 else bad "--frames 0:2: exactly 3 files, each identical to its frame alone; workers kept the scene"; fi
 
 # Run again: everything is done already.
 timeout 60 $M $SCENE -o "$T/range/f.exr" --frames 0:2 --workers 2 --threads 1 $ARGS >"$T/log" 2>&1 && r=0 || r=1
-if [ $r = 0 ] && [ "$(counter frames_skipped)" = 3 ] && [ "$(counter tiles_assigned)" = 0 ] &&
+if [ $r = 0 ] && [ "$(counter frames_skipped "$T/range/f.exr")" = 3 ] && [ "$(counter tiles_assigned "$T/range/f.exr")" = 0 ] &&
   [ "$(grep -c 'already rendered with this scene and settings; skipped' "$T/log")" = 3 ]; then
   ok "finished frames are skipped, and the master says so"; else bad "finished frames are skipped, and the master says so"; fi
 
@@ -44,8 +44,8 @@ mkdir -p "$T/hash"
 timeout 60 $M $SCENE -o "$T/hash/shot_######_v1.exr" --frames 0:2:2 --workers 1 $ARGS >"$T/log" 2>&1 && r=0 || r=1
 $X cmp "$T/ref/f.0000.exr" "$T/hash/shot_000000_v1.exr" >/dev/null && $X cmp "$T/ref/f.0002.exr" "$T/hash/shot_000002_v1.exr" >/dev/null || r=1
 timeout 60 $M $SCENE -o "$T/hash/shot_######_v1.exr" --frames 0:2:2 --workers 1 --spp 4 --tile 8 >"$T/log2" 2>&1 || r=1
-if [ $r = 0 ] && [ "$(ls "$T/hash" | tr '\n' ' ')" = "shot_000000_v1.exr shot_000002_v1.exr " ] &&
-  [ "$(counter frames_skipped "$T/log2")" = 0 ] && [ "$(counter frames_done "$T/log2")" = 2 ] &&
+if [ $r = 0 ] && [ "$(ls "$T/hash" | grep -v "\.stats\.json$" | tr '\n' ' ')" = "shot_000000_v1.exr shot_000002_v1.exr " ] &&
+  [ "$(counter frames_skipped "$T/hash/shot_######_v1.exr")" = 0 ] && [ "$(counter frames_done "$T/hash/shot_######_v1.exr")" = 2 ] &&
   ! $X cmp "$T/ref/f.0002.exr" "$T/hash/shot_000002_v1.exr" >/dev/null 2>&1; then
   ok "'######' takes the zero-padded frame, STEP 2; other settings re-render"; else bad "'######' takes the zero-padded frame, STEP 2; other settings re-render"; fi
 
@@ -71,9 +71,9 @@ while [ $i -lt "$FRAME_TRIALS" ]; do
   timeout 60 $M $SCENE -o "$d/f.exr" --frames 0:2 --workers 2 --threads 1 $ARGS >"$T/log" 2>&1 && r=0 || r=1
   same=0
   for f in 0000 0001 0002; do $X cmp "$T/ref/f.$f.exr" "$d/f.$f.exr" >/dev/null 2>&1 && same=$((same + 1)); done
-  if [ $r = 0 ] && [ $same = 3 ] && [ "$(ls "$d" | tr '\n' ' ')" = "f.0000.exr f.0001.exr f.0002.exr " ] &&
-    [ "$(counter frames_skipped)" = "$before" ] && [ "$(counter frames_done)" = $((3 - before)) ]; then
-    good=$((good + 1)); journaled=$((journaled + $(counter tiles_from_journal))); skipped=$((skipped + before))
+  if [ $r = 0 ] && [ $same = 3 ] && [ "$(ls "$d" | grep -v "\.stats\.json$" | tr '\n' ' ')" = "f.0000.exr f.0001.exr f.0002.exr " ] &&
+    [ "$(counter frames_skipped "$d/f.exr")" = "$before" ] && [ "$(counter frames_done "$d/f.exr")" = $((3 - before)) ]; then
+    good=$((good + 1)); journaled=$((journaled + $(counter tiles_from_journal "$d/f.exr"))); skipped=$((skipped + before))
   else
     echo "trial $i: rc $r, $same identical, $before done before the restart, files: $(ls "$d" | tr '\n' ' ')"
     cat "$T/klog" >>"$T/log"

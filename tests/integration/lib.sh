@@ -7,7 +7,8 @@
 #                   calling lib_cleanup at its end (kill_ours kills without removing).
 #   ok / bad MSG    count a check; bad prints the tails of $BAD_LOGS (files in $T).
 #   run CMD...      CMD with a timeout (TMO, default 120 s), output in $T/log.
-#   counter NAME [LOG]  a master summary counter.
+#   counter NAME OUT    a master counter, from OUT.stats.json (OUT as given to -o);
+#                   empty when the file or the counter is missing.
 #   finish          the closing line "integration: N passed, N failed"; fails if any did.
 set -u
 BUILD=${BUILD:-build}
@@ -26,7 +27,11 @@ bad() {
   return 0
 }
 run() { timeout "${TMO:-120}" "$@" >"$T/log" 2>&1; }
-counter() { sed -n "s/^summary: counter $1 //p" "${2:-$T/log}" | tail -1; }
+counter() {
+  python3 -c 'import json, sys
+try: print(json.load(open(sys.argv[1] + ".stats.json"))["counters"][sys.argv[2]])
+except (OSError, ValueError, KeyError): pass' "$2" "$1"
+}
 ours() { tr '\0' ' ' 2>/dev/null <"/proc/$1/cmdline" | grep -q "$T"; }
 kill_ours() { for p in $(cat "$T/pids" 2>/dev/null); do ours "$p" && { kill -CONT "$p"; kill -9 "$p"; } 2>/dev/null; done; }
 lib_cleanup() {

@@ -42,8 +42,8 @@ trial() {
   wr=$?
   kept=$(sed -n 's/.*reconnecting (\([0-9]*\) finished tile(s) kept).*/\1/p' "$T/wlog" | head -1)
   rendered=$(sed -n 's/.*rendered \([0-9]*\) tile(s); .*/\1/p' "$T/wlog" | tail -1)
-  fj=$(counter tiles_from_journal); fk=$(counter tiles_from_kept); kd=$(counter kept_duplicate)
-  as=$(counter tiles_assigned); sc=$(counter straggler_copies)
+  fj=$(counter tiles_from_journal "$out"); fk=$(counter tiles_from_kept "$out"); kd=$(counter kept_duplicate "$out")
+  as=$(counter tiles_assigned "$out"); sc=$(counter straggler_copies "$out")
 }
 
 good=0
@@ -54,7 +54,7 @@ while [ $i -lt "$TRIALS" ]; do
   trial "" "same$i"
   echo "reconnect: trial $i: kept by the worker ${kept:-?}, taken from it $fk (already journaled $kd), from the journal $fj, assigned $as; the worker rendered ${rendered:-?} tiles in all"
   if [ $r = 0 ] && [ $wr = 0 ] && [ -n "$kept" ] && [ "$kept" -ge 1 ] && [ "$fk" -ge 1 ] && [ $((fk + kd)) = "$kept" ] &&
-    [ $((fj + fk + as - sc)) = $NT ] && [ "$rendered" = $NT ] && [ "$(counter results_not_ours)" = 0 ] &&
+    [ $((fj + fk + as - sc)) = $NT ] && [ "$rendered" = $NT ] && [ "$(counter results_not_ours "$out")" = 0 ] &&
     grep -q "offered $kept finished tile(s) kept for this job" "$T/wlog" && [ ! -e "$T/same$i.exr.journal" ] &&
     $X cmp "$T/ref.exr" "$T/same$i.exr" >/dev/null; then
     good=$((good + 1)); kept_total=$((kept_total + fk))

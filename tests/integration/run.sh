@@ -20,6 +20,17 @@ printf '{\n  "version": 1,\n  "camera": {"position": [0,0,5], "look_at": [0,0,0]
 if ! run $M "$T/bad/bad.json" -o "$T/bad.exr" && grep -qE "bad.json:3:[0-9]+: .*fov_yy" "$T/log"; then
   ok "unknown key reported as file:line:col"; else bad "unknown key reported as file:line:col"; fi
 
+# --- a failed run ends with its one error line: all of stderr, nothing after it, nothing on
+# stdout; its stats file says it failed ---
+printf '{\n  "version": 1,\n  "camera": {"position": [0,0,5],, "fov": 40}\n}\n' >"$T/bad/syntax.json"
+for sc in syntax bad; do
+  timeout 60 $M "$T/bad/$sc.json" -o "$T/$sc.exr" --workers 1 >"$T/out" 2>"$T/err" && r=0 || r=1
+  cp "$T/err" "$T/log"
+  if [ $r = 1 ] && [ "$(wc -l <"$T/err")" = 1 ] && grep -qE "^master: error: .*$sc\.json:3:[0-9]+: " "$T/err" &&
+    [ ! -s "$T/out" ] && python3 -c 'import json, sys; sys.exit(json.load(open(sys.argv[1]))["ok"] is not False)' "$T/$sc.exr.stats.json"; then
+    ok "$sc.json: one error line (file:line:col), last, nothing else"; else bad "$sc.json: one error line (file:line:col), last, nothing else"; fi
+done
+
 # --- tiny scene: 1 worker vs 3 workers, other threads and tile sizes: identical pixels ---
 run $M scenes/tiny/tiny.json -o "$T/t1.exr" --workers 1 --threads 1 && r1=0 || r1=1
 run $M scenes/tiny/tiny.json -o "$T/t3.exr" --workers 3 --threads 2 && r3=0 || r3=1
@@ -42,6 +53,23 @@ fi
 if head -c 8 "$T/c1.png" | od -An -c | grep -q "P   N   G"; then ok "PNG preview written"; else bad "PNG preview written"; fi
 if grep -q "summary: wall" "$T/c1.log" && grep -q "Mrays/s" "$T/c1.log" && grep -q "NaN/Inf samples dropped: 0" "$T/c1.log" &&
   grep -q "relative standard error" "$T/c1.log"; then ok "summary reports speed, NaNs and noise"; else cp "$T/c1.log" "$T/log"; bad "summary reports speed, NaNs and noise"; fi
+
+# --- counters: not on screen by default; in OUT.stats.json, valid JSON that matches the
+# "summary: counter" lines of --verbose and what the run did ---
+run $M scenes/tiny/tiny.json -o "$T/v.exr" --workers 2 --threads 1 --verbose && r=0 || r=1
+if [ $r = 0 ] && ! grep -q "summary: counter" "$T/c1.log" && python3 - "$T/v.exr.stats.json" "$T/log" <<'EOF'
+import json, re, sys
+st = json.load(open(sys.argv[1]))
+shown = dict(re.findall(r"^summary: counter (\w+) (\d+)$", open(sys.argv[2]).read(), re.M))
+c = st["counters"]
+assert st["ok"] is True and st["error"] is None and st["output"].endswith("v.exr")
+assert len(shown) >= 30 and {k: str(v) for k, v in c.items()} == shown, (c, shown)
+assert st["tiles"] > 0 and c["tiles_done"] == st["tiles"] and c["tiles_assigned"] >= st["tiles"]
+assert sum(w["tiles"] for w in st["workers"]) == st["tiles"] and c["workers_joined"] == len(st["workers"]) >= 1
+assert st["samples"] > 0 and "wall_seconds" in st and "mean_rel_stderr" in st and st["nan_samples"] == 0
+EOF
+then ok "stats JSON written, counters match --verbose and the run; none on screen by default"
+else bad "stats JSON written, counters match --verbose and the run; none on screen by default"; fi
 ls "$T" | grep -q "\.tmp\." && bad "no temporary files left" || ok "no temporary files left"
 
 # --- a remote worker over tcp loopback (master starts none) gives the same pixels ---

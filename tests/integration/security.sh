@@ -28,17 +28,17 @@ timeout 60 $W --connect "tcp://127.0.0.1:$P" --curve-secret "$T/good.key" --serv
 wait $mpid && r=0 || r=1
 rej=0
 for c in rejected_decode rejected_envelope rejected_unknown_peer rejected_unexpected results_not_ours results_stale; do
-  rej=$((rej + $(counter $c)))
+  rej=$((rej + $(counter $c "$T/s.exr")))
 done
-echo "security: auth rejects $(counter auth_rejects), handshake failures $(counter handshake_failures), workers joined $(counter workers_joined)"
-if [ $r = 0 ] && [ "$(counter workers_joined)" = 1 ] && [ $rej = 0 ] && [ "$(counter auth_rejects)" -ge 1 ] &&
-  [ "$(counter handshake_failures)" -ge 1 ] && ! grep -q "junk" "$T/log" && $X cmp "$T/ref.exr" "$T/s.exr"; then
+echo "security: auth rejects $(counter auth_rejects "$T/s.exr"), handshake failures $(counter handshake_failures "$T/s.exr"), workers joined $(counter workers_joined "$T/s.exr")"
+if [ $r = 0 ] && [ "$(counter workers_joined "$T/s.exr")" = 1 ] && [ $rej = 0 ] && [ "$(counter auth_rejects "$T/s.exr")" -ge 1 ] &&
+  [ "$(counter handshake_failures "$T/s.exr")" -ge 1 ] && ! grep -q "junk" "$T/log" && $X cmp "$T/ref.exr" "$T/s.exr"; then
   ok "CurveZMQ: strangers get 0 messages in, listed worker renders identical pixels"
 else bad "CurveZMQ: strangers get 0 messages in, listed worker renders identical pixels"; fi
 
 timeout 60 $M scenes/tiny/tiny.json -o "$T/l.exr" --workers 2 --bind "tcp://127.0.0.1:$((P + 1))" \
   --curve-secret "$T/master.key" --allow "$T/allow" >"$T/log" 2>&1 && r=0 || r=1
-if [ $r = 0 ] && [ "$(counter auth_rejects)" = 0 ] && $X cmp "$T/ref.exr" "$T/l.exr"; then
+if [ $r = 0 ] && [ "$(counter auth_rejects "$T/l.exr")" = 0 ] && $X cmp "$T/ref.exr" "$T/l.exr"; then
   ok "CurveZMQ: local workers get their own key"; else bad "CurveZMQ: local workers get their own key"; fi
 
 # A corpus of malformed and out-of-order messages from one peer, then a real worker: the
@@ -59,13 +59,13 @@ agree=0
 sum=0
 for c in $(sed -n 's/^replay: expect \([a-z_]*\) .*/\1/p' "$T/replay"); do
   want=$(sed -n "s/^replay: expect $c //p" "$T/replay")
-  got=$(counter $c)
+  got=$(counter $c "$T/c.exr")
   sum=$((sum + ${got:-0}))
   if [ "$want" = "$got" ]; then agree=$((agree + 1)); else echo "security: $c: expected $want, master counted ${got:-nothing}"; fi
 done
 echo "security: corpus of ${sent:-?} malformed or out-of-order messages; master rejected $sum; $(sed -n 's/^replay: expect //p' "$T/replay" | tr '\n' ',')"
 if [ $rr = 0 ] && [ $r = 0 ] && [ -n "$sent" ] && [ "$sent" -ge 1000 ] && [ $agree = 8 ] && [ $sum = "$sent" ] &&
-  [ "$(counter workers_joined)" = 2 ] && $X cmp "$T/ref.exr" "$T/c.exr"; then
+  [ "$(counter workers_joined "$T/c.exr")" = 2 ] && $X cmp "$T/ref.exr" "$T/c.exr"; then
   ok "malformed corpus: every message rejected with its reason, render identical"
 else cat "$T/replay" >>"$T/log"; bad "malformed corpus: every message rejected with its reason, render identical"; fi
 

@@ -97,8 +97,8 @@ else
     --ssh-opt "-o StrictHostKeyChecking=no" --ssh-opt "-o UserKnownHostsFile=/dev/null" --ssh-opt "-o LogLevel=ERROR" >"$T/launch" 2>&1
   sr=$?
   wait $mpid && r=0 || r=1
-  echo "ssh: 2 workers over ssh to 127.0.0.1:$SP; workers joined $(counter workers_joined); tiles per worker: $(grep -c 'summary: worker' "$T/log") workers listed"
-  if [ $r = 0 ] && [ $sr = 0 ] && [ "$(counter workers_joined)" = 2 ] && [ "$(counter auth_rejects)" = 0 ] &&
+  echo "ssh: 2 workers over ssh to 127.0.0.1:$SP; workers joined $(counter workers_joined "$T/ssh.exr"); tiles per worker: $(grep -c 'summary: worker' "$T/log") workers listed"
+  if [ $r = 0 ] && [ $sr = 0 ] && [ "$(counter workers_joined "$T/ssh.exr")" = 2 ] && [ "$(counter auth_rejects "$T/ssh.exr")" = 0 ] &&
     grep -q "2 worker(s) done, 0 failed" "$T/launch" && $X cmp "$T/ref.exr" "$T/ssh.exr" >/dev/null; then
     ok "ssh-workers.sh against a live sshd: 2 workers over ssh with CurveZMQ, identical pixels"
   else cat "$T"/wlogs/* >>"$T/launch" 2>/dev/null; bad "ssh-workers.sh against a live sshd: 2 workers over ssh with CurveZMQ, identical pixels"; fi

@@ -37,21 +37,23 @@ static struct blob_hash key_of(const char *s)
 /* Writes n records (tile i, i*7+1 bytes of value i) and returns the file size after each. */
 static void write_records(const char *path, uint32_t n, long *ends)
 {
-    struct journal j;
+    struct journal *j;
     uint32_t rec;
     uint64_t torn;
     int other;
     char err[256];
     struct blob_hash k = key_of("job");
-    cr_assert_eq(journal_open(&j, path, &k, 16, NULL, NULL, &rec, &torn, &other, err, sizeof err), 0, "%s", err);
+    cr_assert_eq((j = journal_open(path, &k, 16, NULL, NULL, &rec, &torn, &other, err, sizeof err)) != NULL, 1, "%s", err);
     uint8_t chunk[200];
     for (uint32_t i = 0; i < n; i++) {
         memset(chunk, (int)i, sizeof chunk);
         struct tile_stats st = {.samples = i, .rays = 2 * i, .sum_rel_stderr = 0.5 * i, .rel_stderr_pixels = i};
-        cr_assert_eq(journal_append(&j, i, &st, chunk, i * 7 + 1, err, sizeof err), 0, "%s", err);
-        ends[i] = (long)j.end;
+        cr_assert_eq(journal_append(j, i, &st, chunk, i * 7 + 1, err, sizeof err), 0, "%s", err);
+        ends[i] = (long)j->end;
     }
-    journal_close(&j);
+    journal_free(&j);
+    cr_assert_null(j, "journal_free nulls the caller's pointer");
+    journal_free(&j); /* and a second call is harmless */
 }
 
 Test(journal, records_survive_reopen)
@@ -60,14 +62,14 @@ Test(journal, records_survive_reopen)
     tmp_path(path, sizeof path);
     long ends[5];
     write_records(path, 5, ends);
-    struct journal j;
+    struct journal *j;
     struct seen s = {0};
     uint32_t rec;
     uint64_t torn;
     int other;
     char err[256];
     struct blob_hash k = key_of("job");
-    cr_assert_eq(journal_open(&j, path, &k, 16, on_tile, &s, &rec, &torn, &other, err, sizeof err), 0);
+    cr_assert_eq((j = journal_open(path, &k, 16, on_tile, &s, &rec, &torn, &other, err, sizeof err)) != NULL, 1);
     cr_assert_eq(rec, 5);
     cr_assert_eq(torn, 0);
     cr_assert_eq(other, 0);
@@ -87,27 +89,27 @@ Test(journal, group_commit_syncs_a_batch)
 {
     char path[256];
     tmp_path(path, sizeof path);
-    struct journal j;
+    struct journal *j;
     uint32_t rec;
     uint64_t torn;
     int other;
     char err[256];
     struct blob_hash k = key_of("job");
-    cr_assert_eq(journal_open(&j, path, &k, 16, NULL, NULL, &rec, &torn, &other, err, sizeof err), 0, "%s", err);
-    cr_assert_eq(j.synced, j.end);
+    cr_assert_eq((j = journal_open(path, &k, 16, NULL, NULL, &rec, &torn, &other, err, sizeof err)) != NULL, 1, "%s", err);
+    cr_assert_eq(j->synced, j->end);
     uint8_t chunk[64];
     for (uint32_t i = 0; i < 4; i++) {
         memset(chunk, (int)i, sizeof chunk);
         struct tile_stats st = {.samples = i, .sum_rel_stderr = 0.25 * i};
-        cr_assert_eq(journal_write(&j, i + 3, &st, chunk, 10 + i, err, sizeof err), 0, "%s", err);
-        cr_assert_lt(j.synced, j.end, "a written record is pending until the sync");
+        cr_assert_eq(journal_write(j, i + 3, &st, chunk, 10 + i, err, sizeof err), 0, "%s", err);
+        cr_assert_lt(j->synced, j->end, "a written record is pending until the sync");
     }
-    cr_assert_eq(journal_sync(&j, err, sizeof err), 0, "%s", err);
-    cr_assert_eq(j.synced, j.end);
-    cr_assert_eq(journal_sync(&j, err, sizeof err), 0, "nothing pending: a no-op");
-    journal_close(&j);
+    cr_assert_eq(journal_sync(j, err, sizeof err), 0, "%s", err);
+    cr_assert_eq(j->synced, j->end);
+    cr_assert_eq(journal_sync(j, err, sizeof err), 0, "nothing pending: a no-op");
+    journal_free(&j);
     struct seen s = {0};
-    cr_assert_eq(journal_open(&j, path, &k, 16, on_tile, &s, &rec, &torn, &other, err, sizeof err), 0);
+    cr_assert_eq((j = journal_open(path, &k, 16, on_tile, &s, &rec, &torn, &other, err, sizeof err)) != NULL, 1);
     cr_assert_eq(rec, 4);
     cr_assert_eq(torn, 0);
     for (uint32_t i = 0; i < 4; i++) {
@@ -137,25 +139,25 @@ Test(journal, cut_at_every_byte_recovers_whole_records, .timeout = 60)
         uint32_t want = 0;
         while (want < 4 && ends[want] <= (long)cut)
             want++;
-        struct journal j;
+        struct journal *j;
         struct seen s = {0};
         uint32_t rec;
         uint64_t torn;
         int other;
         char err[256];
-        cr_assert_eq(journal_open(&j, path, &k, 16, on_tile, &s, &rec, &torn, &other, err, sizeof err), 0);
+        cr_assert_eq((j = journal_open(path, &k, 16, on_tile, &s, &rec, &torn, &other, err, sizeof err)) != NULL, 1);
         cr_assert_eq(rec, want, "cut at %zu: %u records, want %u", cut, rec, want);
         /* Appending after recovery gives a journal with want + 1 records. */
         uint8_t c[3] = {9, 9, 9};
         struct tile_stats st = {0};
-        cr_assert_eq(journal_append(&j, 9, &st, c, 3, err, sizeof err), 0);
-        journal_close(&j);
+        cr_assert_eq(journal_append(j, 9, &st, c, 3, err, sizeof err), 0);
+        journal_free(&j);
         struct seen s2 = {0};
-        cr_assert_eq(journal_open(&j, path, &k, 16, on_tile, &s2, &rec, &torn, &other, err, sizeof err), 0);
+        cr_assert_eq((j = journal_open(path, &k, 16, on_tile, &s2, &rec, &torn, &other, err, sizeof err)) != NULL, 1);
         cr_assert_eq(rec, want + 1, "cut at %zu", cut);
         cr_assert_eq(s2.tiles[want], 9);
         cr_assert_eq(torn, 0);
-        journal_close(&j);
+        journal_free(&j);
     }
     unlink(path);
 }
@@ -170,13 +172,13 @@ Test(journal, flipped_byte_ends_the_journal)
     fseek(f, ends[1] + 20, SEEK_SET); /* inside record 2 */
     fputc(0x5a, f);
     fclose(f);
-    struct journal j;
+    struct journal *j;
     uint32_t rec;
     uint64_t torn;
     int other;
     char err[256];
     struct blob_hash k = key_of("job");
-    cr_assert_eq(journal_open(&j, path, &k, 16, NULL, NULL, &rec, &torn, &other, err, sizeof err), 0);
+    cr_assert_eq((j = journal_open(path, &k, 16, NULL, NULL, &rec, &torn, &other, err, sizeof err)) != NULL, 1);
     cr_assert_eq(rec, 2);
     cr_assert_eq(torn, (uint64_t)(ends[3] - ends[1]));
     journal_remove(&j);
@@ -188,18 +190,18 @@ Test(journal, another_job_starts_afresh)
     tmp_path(path, sizeof path);
     long ends[3];
     write_records(path, 3, ends);
-    struct journal j;
+    struct journal *j;
     uint32_t rec;
     uint64_t torn;
     int other;
     char err[256];
     struct blob_hash k = key_of("another job");
-    cr_assert_eq(journal_open(&j, path, &k, 16, NULL, NULL, &rec, &torn, &other, err, sizeof err), 0);
+    cr_assert_eq((j = journal_open(path, &k, 16, NULL, NULL, &rec, &torn, &other, err, sizeof err)) != NULL, 1);
     cr_assert_eq(rec, 0);
     cr_assert_eq(other, 1);
-    journal_close(&j);
+    journal_free(&j);
     k = key_of("job"); /* the old records are gone for good */
-    cr_assert_eq(journal_open(&j, path, &k, 16, NULL, NULL, &rec, &torn, &other, err, sizeof err), 0);
+    cr_assert_eq((j = journal_open(path, &k, 16, NULL, NULL, &rec, &torn, &other, err, sizeof err)) != NULL, 1);
     cr_assert_eq(rec, 0);
     cr_assert_eq(other, 1);
     journal_remove(&j);
@@ -211,14 +213,14 @@ Test(journal, tile_out_of_range_is_not_replayed)
     tmp_path(path, sizeof path);
     long ends[5];
     write_records(path, 5, ends); /* tiles 0..4 of 16 */
-    struct journal j;
+    struct journal *j;
     uint32_t rec;
     uint64_t torn;
     int other;
     char err[256];
     struct blob_hash k = key_of("job");
     /* Same key but fewer tiles: the header differs, so nothing is trusted. */
-    cr_assert_eq(journal_open(&j, path, &k, 3, NULL, NULL, &rec, &torn, &other, err, sizeof err), 0);
+    cr_assert_eq((j = journal_open(path, &k, 3, NULL, NULL, &rec, &torn, &other, err, sizeof err)) != NULL, 1);
     cr_assert_eq(rec, 0);
     journal_remove(&j);
 }

@@ -1,0 +1,149 @@
+/* A frame's files (see output.h). Everything is written under a temporary name in the
+ * destination folder, fsync'ed, renamed into place and the folder fsync'ed, so a reader
+ * (or a restarted master deciding to skip a frame) never sees half a file. Called by
+ * master/master.c. */
+#include "output.h"
+#include "base/log.h"
+#include <errno.h>
+#include <fcntl.h>
+#include <libgen.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+int output_frame_path(const char *pat, int have_frames, uint32_t frame, char *out, size_t outlen)
+{
+    if (!have_frames)
+        return snprintf(out, outlen, "%s", pat) < (int)outlen ? 0 : -1;
+    const char *hash_end = strrchr(pat, '#');
+    int n;
+    if (hash_end) {
+        const char *hash_start = hash_end;
+        while (hash_start > pat && hash_start[-1] == '#')
+            hash_start--;
+        int digits = (int)(hash_end - hash_start) + 1;
+        n = snprintf(out, outlen, "%.*s%0*u%s", (int)(hash_start - pat), pat, digits, frame, hash_end + 1);
+    } else {
+        const char *slash = strrchr(pat, '/'), *dot = strrchr(pat, '.');
+        const char *base = slash ? slash + 1 : pat;
+        if (dot && dot > base)
+            n = snprintf(out, outlen, "%.*s.%04u%s", (int)(dot - pat), pat, frame, dot);
+        else
+            n = snprintf(out, outlen, "%s.%04u", pat, frame);
+    }
+    return n > 0 && (size_t)n < outlen ? 0 : -1;
+}
+
+int output_is_done(const char *path, const char *scene_hash, uint32_t spp, uint64_t seed,
+                   const struct image_desc *desc)
+{
+    struct image_attrs a;
+    struct image_desc d;
+    char err[512];
+    if (access(path, F_OK) != 0)
+        return 0;
+    if (imgio_read_attrs(path, &d, &a, err, sizeof err) != 0) {
+        log_warn("%s exists but cannot be read (%s); rendering it again", path, err);
+        return 0;
+    }
+    if (strcmp(a.scene_hash, scene_hash) != 0 || a.spp != spp || a.seed != seed || d.width != desc->width ||
+        d.height != desc->height || d.tile_size != desc->tile_size) {
+        log_info("%s exists but was rendered from another scene or other settings; rendering it again", path);
+        return 0;
+    }
+    return 1;
+}
+
+static int fsync_dir_of(const char *path)
+{
+    char buf[4096];
+    snprintf(buf, sizeof buf, "%s", path);
+    int fd = open(dirname(buf), O_RDONLY | O_DIRECTORY);
+    if (fd < 0)
+        return -1;
+    int rc = fsync(fd);
+    close(fd);
+    return rc;
+}
+
+/* The temporary file is renamed into place; the folder is synced so the rename lasts. */
+static int publish(const char *tmp, const char *path, char *err, size_t errlen)
+{
+    if (rename(tmp, path) != 0) {
+        str_fmt(err, errlen, "%s: cannot rename into place: %s", path, strerror(errno));
+        unlink(tmp);
+        return -1;
+    }
+    fsync_dir_of(path);
+    return 0;
+}
+
+int output_write_exr(const char *path, const struct image_desc *desc, const struct image_attrs *attrs,
+                     const struct output_chunk *chunks, char *err, size_t errlen)
+{
+    char tmp[4200];
+    snprintf(tmp, sizeof tmp, "%s.tmp.%d", path, (int)getpid());
+    struct imgio_writer *w = imgio_writer_open(tmp, desc, attrs, err, errlen);
+    if (!w)
+        return -1;
+    uint32_t tiles_x = imgio_tiles_x(desc), num_tiles = tiles_x * imgio_tiles_y(desc);
+    for (uint32_t t = 0; t < num_tiles; t++)
+        if (imgio_writer_put_tile(w, t % tiles_x, t / tiles_x, chunks[t].data, chunks[t].size, err, errlen) != 0) {
+            char ignored[64];
+            imgio_writer_close(&w, ignored, sizeof ignored);
+            unlink(tmp);
+            return -1;
+        }
+    if (imgio_writer_close(&w, err, errlen) != 0) {
+        unlink(tmp);
+        return -1;
+    }
+    return publish(tmp, path, err, errlen);
+}
+
+int output_write_preview(const char *path, const struct image_desc *desc, const struct output_chunk *chunks,
+                         char *err, size_t errlen)
+{
+    uint32_t nc = desc->num_channels, tiles_x = imgio_tiles_x(desc), num_tiles = tiles_x * imgio_tiles_y(desc);
+    float *img = mem_alloc(sizeof(float) * desc->width * desc->height * nc);
+    float *tile = mem_alloc(sizeof(float) * desc->tile_size * desc->tile_size * nc);
+    char terr[256];
+    for (uint32_t t = 0; t < num_tiles; t++) {
+        uint32_t tx = t % tiles_x, ty = t / tiles_x, x0, y0, tw, th;
+        imgio_tile_rect(desc, tx, ty, &x0, &y0, &tw, &th);
+        if (imgio_decode_tile(desc, tx, ty, chunks[t].data, chunks[t].size, tile, terr, sizeof terr) != 0)
+            continue;
+        for (uint32_t y = 0; y < th; y++)
+            memcpy(&img[((size_t)(y0 + y) * desc->width + x0) * nc], &tile[(size_t)y * tw * nc],
+                   sizeof(float) * tw * nc);
+    }
+    int rc = imgio_write_png(path, img, desc->width, desc->height, nc, 1.0f, err, errlen);
+    free(tile);
+    free(img);
+    return rc;
+}
+
+int output_write_json(const char *path, const json_t *root, char *err, size_t errlen)
+{
+    char tmp[4200];
+    snprintf(tmp, sizeof tmp, "%s.tmp.%d", path, (int)getpid());
+    FILE *f = fopen(tmp, "w");
+    if (!f) {
+        str_fmt(err, errlen, "%s: %s", tmp, strerror(errno));
+        return -1;
+    }
+    int bad = json_dumpf(root, f, JSON_INDENT(2) | JSON_PRESERVE_ORDER) != 0 || fputc('\n', f) == EOF ||
+              fflush(f) != 0 || fsync(fileno(f)) != 0;
+    int saved = errno;
+    if (fclose(f) != 0 && !bad) {
+        bad = 1;
+        saved = errno;
+    }
+    if (bad) {
+        str_fmt(err, errlen, "%s: cannot write: %s", tmp, strerror(saved));
+        unlink(tmp);
+        return -1;
+    }
+    return publish(tmp, path, err, errlen);
+}

@@ -1,0 +1,37 @@
+/* A frame's files: the output name of each frame of a range, whether a frame is already
+ * rendered, the tiled EXR assembled from the workers' chunks, the PNG preview and the run's
+ * stats JSON. Invariant: every file appears whole or not at all (temporary name, fsync,
+ * rename, fsync of the folder). Called by master/master.c; no sockets, no scheduling. */
+#ifndef BRUME_OUTPUT_H
+#define BRUME_OUTPUT_H
+#include <jansson.h>
+#include <stddef.h>
+#include <stdint.h>
+#include "image/imgio.h"
+
+/* A finished tile's EXR chunk as the worker encoded it (the master never re-encodes). */
+struct output_chunk {
+    uint8_t *data;
+    size_t size;
+};
+
+/* The output file of one frame: the last run of '#' in pattern becomes the zero-padded
+ * frame number (as many digits as '#'s, more if needed); without one, ".NNNN" goes in
+ * front of the extension. Without a range (have_frames 0) the name is pattern. 0, or -1
+ * when it does not fit. */
+int output_frame_path(const char *pattern, int have_frames, uint32_t frame, char *out, size_t outlen);
+/* 1 when path exists and its header says it was rendered from scene_hash with this spp,
+ * seed and layout (files appear only by rename after fsync, so one that reads back is
+ * complete); 0 otherwise, with an info or warning line saying why it is rendered again. */
+int output_is_done(const char *path, const char *scene_hash, uint32_t spp, uint64_t seed,
+                   const struct image_desc *desc);
+/* Writes the tiled EXR of desc from one chunk per tile (row-major) atomically. 0 or -1. */
+int output_write_exr(const char *path, const struct image_desc *desc, const struct image_attrs *attrs,
+                     const struct output_chunk *chunks, char *err, size_t errlen);
+/* A tone-mapped sRGB PNG of the decoded chunks (a tile that does not decode stays black). */
+int output_write_preview(const char *path, const struct image_desc *desc, const struct output_chunk *chunks,
+                         char *err, size_t errlen);
+/* Writes root as indented JSON to path atomically. 0 or -1. */
+int output_write_json(const char *path, const json_t *root, char *err, size_t errlen);
+
+#endif

@@ -1,0 +1,359 @@
+/* The tile scheduler (see sched.h): pure state, no I/O, no clock, so every fault-tolerance
+ * rule can be driven event by event in unit tests. Invariant kept by every function: a
+ * worker's in_flight equals the number of tiles that list it as a holder (zero once it is
+ * gone), and a queued tile has no holders. Called by master/master.c. */
+#include "sched.h"
+#include "base/log.h"
+#include <signal.h>
+#include <stdlib.h>
+#include <string.h>
+
+struct sched *sched_new(uint32_t num_tiles)
+{
+    struct sched *s = mem_calloc(1, sizeof *s);
+    s->num_tiles = num_tiles;
+    s->tiles = mem_calloc(num_tiles ? num_tiles : 1, sizeof *s->tiles);
+    s->queue = mem_calloc(num_tiles ? num_tiles : 1, sizeof *s->queue);
+    s->failed_tile = -1;
+    return s;
+}
+
+void sched_free(struct sched **sp)
+{
+    struct sched *s = *sp;
+    if (!s)
+        return;
+    free(s->tiles);
+    free(s->queue);
+    free(s->workers);
+    free(s);
+    *sp = NULL;
+}
+
+void sched_frame_begin(struct sched *s)
+{
+    memset(s->tiles, 0, sizeof *s->tiles * s->num_tiles);
+    s->tiles_done = 0;
+    s->failed_tile = -1;
+    s->q_count = 0;
+    for (uint32_t t = 0; t < s->num_tiles; t++)
+        s->queue[s->q_count++] = t;
+    for (uint32_t i = 0; i < s->num_workers; i++) {
+        struct sched_worker *w = &s->workers[i];
+        w->ready = 0;
+        w->credits = 0;
+        w->in_flight = 0;
+        w->isolated = 0;
+    }
+}
+
+static void queue_remove_at(struct sched *s, uint32_t i)
+{
+    memmove(s->queue + i, s->queue + i + 1, sizeof *s->queue * (s->q_count - i - 1));
+    s->q_count--;
+}
+
+static void queue_remove(struct sched *s, uint32_t tile)
+{
+    for (uint32_t i = 0; i < s->q_count; i++)
+        if (s->queue[i] == tile) {
+            queue_remove_at(s, i);
+            return;
+        }
+}
+
+/* Re-queued tiles go first: they are the ones holding up the end of the frame. */
+static void queue_push_front(struct sched *s, uint32_t tile)
+{
+    memmove(s->queue + 1, s->queue, sizeof *s->queue * s->q_count);
+    s->queue[0] = tile;
+    s->q_count++;
+}
+
+static void mark_done(struct sched *s, uint32_t tile)
+{
+    s->tiles[tile].state = SCHED_DONE;
+    s->tiles_done++;
+}
+
+int sched_tile_set_done(struct sched *s, uint32_t tile)
+{
+    if (s->tiles[tile].state == SCHED_DONE)
+        return -1;
+    queue_remove(s, tile);
+    mark_done(s, tile);
+    return 0;
+}
+
+/* Removes holder w from the tile; it goes back to the front of the queue when nobody
+ * else holds it and it is not done. */
+static void drop_holder(struct sched *s, uint32_t tile, int32_t w)
+{
+    struct sched_tile *t = &s->tiles[tile];
+    for (uint32_t k = 0; k < t->num_holders; k++)
+        if (t->holder[k] == w) {
+            t->holder[k] = t->holder[t->num_holders - 1];
+            t->holder_attempt[k] = t->holder_attempt[t->num_holders - 1];
+            t->num_holders--;
+            if (s->workers[w].in_flight)
+                s->workers[w].in_flight--;
+            break;
+        }
+    if (t->state == SCHED_ASSIGNED && t->num_holders == 0) {
+        t->state = SCHED_QUEUED;
+        t->requeued = 1;
+        queue_push_front(s, tile);
+    }
+}
+
+static void drop_all_holders(struct sched *s, uint32_t tile)
+{
+    while (s->tiles[tile].num_holders > 0)
+        drop_holder(s, tile, s->tiles[tile].holder[0]);
+}
+
+int32_t sched_worker_join(struct sched *s, uint32_t threads, uint64_t now_ms)
+{
+    s->workers = mem_realloc(s->workers, sizeof *s->workers * (s->num_workers + 1));
+    struct sched_worker *w = &s->workers[s->num_workers];
+    memset(w, 0, sizeof *w);
+    w->threads = threads ? threads : 1;
+    w->last_heard_ms = w->last_progress_ms = now_ms;
+    return (int32_t)s->num_workers++;
+}
+
+int sched_worker_ready(struct sched *s, int32_t wi, uint32_t credits)
+{
+    struct sched_worker *w = &s->workers[wi];
+    if (w->ready)
+        return -1;
+    w->ready = 1;
+    w->credits = credits < w->threads * 4 ? credits : w->threads * 4;
+    if (w->credits == 0)
+        w->credits = 1;
+    return 0;
+}
+
+void sched_worker_heard(struct sched *s, int32_t w, uint64_t now_ms)
+{
+    s->workers[w].last_heard_ms = now_ms;
+}
+
+void sched_worker_progress(struct sched *s, int32_t w, uint64_t now_ms)
+{
+    s->workers[w].last_progress_ms = now_ms;
+}
+
+void sched_worker_credit(struct sched *s, int32_t wi)
+{
+    struct sched_worker *w = &s->workers[wi];
+    if (w->credits < w->threads * 4)
+        w->credits++;
+}
+
+void sched_worker_heartbeat(struct sched *s, int32_t wi, uint64_t samples_done, uint32_t stalled_ms, uint64_t now_ms)
+{
+    struct sched_worker *w = &s->workers[wi];
+    if (samples_done > w->last_samples) {
+        w->last_samples = samples_done;
+        w->last_progress_ms = now_ms;
+    }
+    w->reported_stall_ms = stalled_ms;
+}
+
+enum sched_health sched_worker_health(const struct sched *s, int32_t wi, uint64_t now_ms, uint32_t timeout_ms,
+                                      uint32_t stall_ms, uint64_t *for_ms)
+{
+    const struct sched_worker *w = &s->workers[wi];
+    *for_ms = 0;
+    if (w->gone)
+        return SCHED_HEALTHY;
+    if (now_ms - w->last_heard_ms > timeout_ms) {
+        *for_ms = now_ms - w->last_heard_ms;
+        return SCHED_HEALTH_SILENT;
+    }
+    /* Only a worker with tiles can stall: idle time is not a stall. */
+    if (w->in_flight > 0 && now_ms - w->last_progress_ms > stall_ms) {
+        *for_ms = now_ms - w->last_progress_ms;
+        return SCHED_HEALTH_STALLED;
+    }
+    if (w->in_flight > 0 && w->reported_stall_ms > stall_ms) {
+        *for_ms = w->reported_stall_ms;
+        return SCHED_HEALTH_STALL_REPORTED;
+    }
+    return SCHED_HEALTHY;
+}
+
+enum sched_evict_kind sched_death_kind(int signaled, int signo)
+{
+    return signaled && signo == SIGKILL ? SCHED_KILLED : SCHED_DIED;
+}
+
+void sched_evict(struct sched *s, int32_t wi, enum sched_evict_kind kind, struct sched_eviction *ev)
+{
+    struct sched_worker *w = &s->workers[wi];
+    ev->requeued = 0;
+    ev->blamed_tile = -1;
+    if (w->gone)
+        return;
+    int blames = kind != SCHED_LEFT && kind != SCHED_BANNED && kind != SCHED_KILLED;
+    for (uint32_t tile = 0; tile < s->num_tiles; tile++) {
+        struct sched_tile *t = &s->tiles[tile];
+        int held = 0;
+        for (uint32_t k = 0; k < t->num_holders; k++)
+            held |= t->holder[k] == wi;
+        if (!held || t->state != SCHED_ASSIGNED)
+            continue;
+        if (blames && ++t->crashes >= SCHED_CRASHES_TO_FAIL && s->failed_tile < 0) {
+            s->failed_tile = (int32_t)tile;
+            ev->blamed_tile = (int32_t)tile;
+        }
+        drop_holder(s, tile, wi);
+        ev->requeued += t->state == SCHED_QUEUED;
+    }
+    w->gone = 1;
+    w->in_flight = 0;
+}
+
+uint32_t sched_live_workers(const struct sched *s)
+{
+    uint32_t n = 0;
+    for (uint32_t i = 0; i < s->num_workers; i++)
+        n += !s->workers[i].gone;
+    return n;
+}
+
+static int can_take(const struct sched_worker *w)
+{
+    return !w->gone && w->ready && w->credits > 0 && !w->isolated;
+}
+
+static void give(struct sched *s, uint32_t tile, int32_t wi, int straggler, uint64_t now_ms,
+                 struct sched_assignment *a)
+{
+    struct sched_worker *w = &s->workers[wi];
+    struct sched_tile *t = &s->tiles[tile];
+    if (w->in_flight == 0)
+        w->last_progress_ms = now_ms; /* idle time is not a stall */
+    t->state = SCHED_ASSIGNED;
+    t->attempt++;
+    t->holder[t->num_holders] = wi;
+    t->holder_attempt[t->num_holders] = t->attempt;
+    t->num_holders++;
+    t->assigned_ms = now_ms;
+    w->credits--;
+    w->in_flight++;
+    a->tile = tile;
+    a->attempt = t->attempt;
+    a->worker = wi;
+    a->straggler = straggler;
+    a->reissue = !straggler && t->requeued;
+    t->requeued = 0;
+    /* A tile that already took a worker down is rendered alone, so that a second crash
+     * is blamed on it and not on its neighbours. */
+    if (t->crashes > 0)
+        w->isolated = 1;
+}
+
+int sched_assign_next(struct sched *s, uint64_t now_ms, struct sched_assignment *a)
+{
+    for (uint32_t i = 0; i < s->num_workers && s->q_count > 0; i++) {
+        const struct sched_worker *w = &s->workers[i];
+        if (!can_take(w))
+            continue;
+        for (uint32_t qi = 0; qi < s->q_count; qi++) {
+            uint32_t tile = s->queue[qi];
+            if (s->tiles[tile].crashes > 0 && w->in_flight > 0)
+                continue;
+            queue_remove_at(s, qi);
+            give(s, tile, (int32_t)i, 0, now_ms, a);
+            return 1;
+        }
+    }
+    if (s->q_count > 0)
+        return 0;
+    /* Stragglers: an idle worker also takes the oldest tile still in flight elsewhere;
+     * the first valid result wins (tiles are deterministic, so either will do). */
+    for (uint32_t i = 0; i < s->num_workers; i++) {
+        const struct sched_worker *w = &s->workers[i];
+        if (!can_take(w) || w->in_flight > 0)
+            continue;
+        int32_t best = -1;
+        for (uint32_t tile = 0; tile < s->num_tiles; tile++) {
+            const struct sched_tile *t = &s->tiles[tile];
+            if (t->state != SCHED_ASSIGNED || t->num_holders != 1 || t->holder[0] == (int32_t)i || t->crashes > 0)
+                continue;
+            if (best < 0 || t->assigned_ms < s->tiles[best].assigned_ms)
+                best = (int32_t)tile;
+        }
+        if (best < 0)
+            return 0;
+        give(s, (uint32_t)best, (int32_t)i, 1, now_ms, a);
+        return 1;
+    }
+    return 0;
+}
+
+enum sched_result_verdict sched_result(const struct sched *s, int32_t w, uint32_t tile, uint32_t attempt)
+{
+    const struct sched_tile *t = &s->tiles[tile];
+    int holder = 0;
+    for (uint32_t i = 0; i < t->num_holders; i++)
+        holder |= t->holder[i] == w && t->holder_attempt[i] == attempt;
+    if (t->state != SCHED_DONE && holder)
+        return SCHED_RESULT_CHECK;
+    /* A straggler copy that lost the race is expected; anything else is stale. */
+    if (t->state == SCHED_DONE && attempt <= t->attempt && attempt > 0)
+        return SCHED_RESULT_DUPLICATE;
+    return SCHED_RESULT_STALE;
+}
+
+void sched_result_valid(struct sched *s, int32_t wi, uint32_t tile)
+{
+    struct sched_worker *w = &s->workers[wi];
+    w->fail_streak = 0;
+    w->isolated = 0;
+    w->tiles_done++;
+    mark_done(s, tile);
+    /* Both holders stop holding it (it is done, so nothing is re-queued). */
+    drop_all_holders(s, tile);
+}
+
+static int sent_invalid(struct sched *s, int32_t wi, struct sched_eviction *ev)
+{
+    struct sched_worker *w = &s->workers[wi];
+    ev->requeued = 0;
+    ev->blamed_tile = -1;
+    if (++w->fail_streak < SCHED_FAILS_TO_BAN)
+        return 0;
+    w->banned = 1;
+    sched_evict(s, wi, SCHED_BANNED, ev);
+    return 1;
+}
+
+int sched_result_invalid(struct sched *s, int32_t wi, uint32_t tile, struct sched_eviction *ev)
+{
+    drop_holder(s, tile, wi);
+    s->workers[wi].isolated = 0;
+    return sent_invalid(s, wi, ev);
+}
+
+int sched_kept(const struct sched *s, uint32_t tile)
+{
+    return s->tiles[tile].state == SCHED_DONE;
+}
+
+void sched_kept_valid(struct sched *s, int32_t wi, uint32_t tile)
+{
+    struct sched_worker *w = &s->workers[wi];
+    w->fail_streak = 0;
+    w->tiles_done++;
+    mark_done(s, tile);
+    queue_remove(s, tile);
+    drop_all_holders(s, tile); /* copies in flight elsewhere will be duplicates */
+}
+
+int sched_kept_invalid(struct sched *s, int32_t wi, struct sched_eviction *ev)
+{
+    return sent_invalid(s, wi, ev);
+}

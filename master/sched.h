@@ -1,0 +1,151 @@
+/* The master's tile scheduler as a pure state machine: the tile table, attempts, holders,
+ * crash blame, bans and straggler copies. It does no I/O and reads no clock (callers pass
+ * now_ms); it takes events and returns decisions, which master/master.c maps onto
+ * messages, logs and counters. Invariants: a tile has at most SCHED_MAX_HOLDERS holders,
+ * each with its own attempt; a result is taken only from a holder with its attempt and
+ * only while the tile is not done; a tile is done exactly once. Tested by test_sched.c.
+ *
+ * A tile's life (per frame):
+ *
+ *              sched_frame_begin
+ *                     |
+ *                     v            give (oldest first; a re-issue to the front)
+ *   +----------->  QUEUED  -----------------------------------+
+ *   |                 |                                        |
+ *   | last holder     | sched_tile_set_done (journal, --tiles) v
+ *   | evicted or its  |  or sched_kept_valid              ASSIGNED <--+ straggler copy: an
+ *   | result invalid  v                                   |  |  |    | idle worker, empty
+ *   +------------  DONE  <----- first valid result ------+  |  +----+ queue, oldest in
+ *   (blame +1 per        ^      (a later one: duplicate)     |         flight, 2nd holder
+ *    crash; 3 distinct   +--- sched_kept_valid --------------+
+ *    workers fail the job)
+ */
+#ifndef BRUME_SCHED_H
+#define BRUME_SCHED_H
+#include <stdint.h>
+
+#define SCHED_MAX_HOLDERS 2     /* the first holder and one straggler copy */
+#define SCHED_CRASHES_TO_FAIL 3 /* distinct workers a tile may take down before the job fails */
+#define SCHED_FAILS_TO_BAN 3    /* invalid results in a row that ban a worker */
+
+enum sched_tile_state { SCHED_QUEUED, SCHED_ASSIGNED, SCHED_DONE };
+
+struct sched_tile {
+    enum sched_tile_state state;
+    uint32_t attempt;               /* last attempt number issued */
+    uint32_t num_holders;
+    int32_t holder[SCHED_MAX_HOLDERS];
+    uint32_t holder_attempt[SCHED_MAX_HOLDERS];
+    uint64_t assigned_ms;
+    uint32_t crashes;               /* distinct workers that died holding it */
+    int requeued;                   /* its next assignment is a re-issue */
+};
+
+struct sched_worker {
+    int gone, banned, ready;
+    uint32_t threads, credits, in_flight;
+    int isolated;                   /* holds a suspect tile: gets nothing else meanwhile */
+    uint64_t last_heard_ms, last_progress_ms, last_samples;
+    uint32_t reported_stall_ms;
+    uint32_t tiles_done;
+    uint32_t fail_streak;           /* invalid results in a row */
+};
+
+/* Callers read these fields; only sched_* functions change them. */
+struct sched {
+    struct sched_tile *tiles;
+    uint32_t num_tiles, tiles_done;
+    uint32_t *queue;                /* tiles waiting for a worker, in the order they go out */
+    uint32_t q_count;
+    struct sched_worker *workers;   /* index = the caller's peer index; never removed */
+    uint32_t num_workers;
+    int32_t failed_tile;            /* the first tile blamed by SCHED_CRASHES_TO_FAIL workers, or -1 */
+};
+
+/* Why a worker leaves. Only a death a tile could cause blames its tiles: not leaving, a
+ * ban, or SIGKILL (an operator, a test, the OOM killer). */
+enum sched_evict_kind { SCHED_LEFT, SCHED_SILENT, SCHED_STALLED, SCHED_DIED, SCHED_KILLED, SCHED_ERROR, SCHED_BANNED };
+
+/* What an eviction did: tiles that went back to the queue, and the tile that has now taken
+ * down SCHED_CRASHES_TO_FAIL workers (the job fails; -1 if none, reported once per frame). */
+struct sched_eviction {
+    uint32_t requeued;
+    int32_t blamed_tile;
+};
+
+/* One assignment to send: TILE (tile, attempt) to worker. */
+struct sched_assignment {
+    uint32_t tile, attempt;
+    int32_t worker;
+    int straggler;                  /* a second copy of a tile in flight elsewhere */
+    int reissue;                    /* the tile was given out before and came back */
+};
+
+/* The verdict on a RESULT before its chunk is checked. */
+enum sched_result_verdict {
+    SCHED_RESULT_CHECK,             /* from a holder with its attempt: check the chunk, then _valid or _invalid */
+    SCHED_RESULT_DUPLICATE,         /* a straggler copy that lost the race (tile done, attempt issued) */
+    SCHED_RESULT_STALE              /* an old attempt, or a tile the worker does not hold */
+};
+
+/* Why a worker should go, from sched_worker_health. */
+enum sched_health { SCHED_HEALTHY, SCHED_HEALTH_SILENT, SCHED_HEALTH_STALLED, SCHED_HEALTH_STALL_REPORTED };
+
+/* ---- lifetime and frames ---- */
+struct sched *sched_new(uint32_t num_tiles);
+void sched_free(struct sched **sp);
+/* A new frame: every tile queued in order, blame cleared; workers keep their ban, streak
+ * and counts but must send READY again. */
+void sched_frame_begin(struct sched *s);
+/* A tile finished without a worker (from the journal, or black outside --tiles): done and
+ * out of the queue. 0, or -1 when it was done already (nothing changes). */
+int sched_tile_set_done(struct sched *s, uint32_t tile);
+
+/* ---- workers ---- */
+/* A worker joined; its index (the next one). */
+int32_t sched_worker_join(struct sched *s, uint32_t threads, uint64_t now_ms);
+/* READY for the current job: credits capped at 4 per thread, at least 1. -1 when the
+ * worker was ready already (nothing changes). */
+int sched_worker_ready(struct sched *s, int32_t w, uint32_t credits);
+void sched_worker_heard(struct sched *s, int32_t w, uint64_t now_ms);
+/* Render progress: a result or kept tile arrived. */
+void sched_worker_progress(struct sched *s, int32_t w, uint64_t now_ms);
+/* A result of the current job returns its credit (up to the cap). */
+void sched_worker_credit(struct sched *s, int32_t w);
+/* A heartbeat: samples done so far (progress when it grows) and the worker's own longest
+ * render-thread stall. */
+void sched_worker_heartbeat(struct sched *s, int32_t w, uint64_t samples_done, uint32_t stalled_ms,
+                            uint64_t now_ms);
+/* Whether worker w should be evicted now; *for_ms is how long it was silent or stalled. */
+enum sched_health sched_worker_health(const struct sched *s, int32_t w, uint64_t now_ms, uint32_t timeout_ms,
+                                      uint32_t stall_ms, uint64_t *for_ms);
+/* The eviction kind of a local worker that ended (WIFSIGNALED, WTERMSIG). */
+enum sched_evict_kind sched_death_kind(int signaled, int signo);
+/* Puts w's unfinished tiles back at the front of the queue and forgets w; a blaming kind
+ * counts one crash against each tile w held. A gone worker: nothing happens. */
+void sched_evict(struct sched *s, int32_t w, enum sched_evict_kind kind, struct sched_eviction *ev);
+uint32_t sched_live_workers(const struct sched *s);
+
+/* ---- tiles ---- */
+/* The next tile to send, or 0 when none goes out now. Queued tiles go first, in queue
+ * order, to workers in index order with credits; a tile that already took a worker down
+ * goes only to an idle worker, which then gets nothing else. With the queue empty, an idle
+ * worker gets a copy of the oldest tile in flight elsewhere (never a suspect one). */
+int sched_assign_next(struct sched *s, uint64_t now_ms, struct sched_assignment *a);
+/* A RESULT for (tile, attempt) from w (tile < num_tiles: the caller checks). */
+enum sched_result_verdict sched_result(const struct sched *s, int32_t w, uint32_t tile, uint32_t attempt);
+/* After SCHED_RESULT_CHECK: the chunk is good (and journaled): the tile is done, its
+ * other holder's result will be a duplicate. */
+void sched_result_valid(struct sched *s, int32_t w, uint32_t tile);
+/* After SCHED_RESULT_CHECK: the chunk is bad: the tile goes back to the queue; 1 when
+ * this was the worker's SCHED_FAILS_TO_BAN-th in a row (it is banned and evicted, *ev
+ * says what that did), else 0. */
+int sched_result_invalid(struct sched *s, int32_t w, uint32_t tile, struct sched_eviction *ev);
+/* A tile a worker kept for an earlier master, for this job: 1 if it is done already (a
+ * duplicate), else 0 (check the chunk, then _valid or _invalid). */
+int sched_kept(const struct sched *s, uint32_t tile);
+void sched_kept_valid(struct sched *s, int32_t w, uint32_t tile);
+/* A bad kept chunk counts towards a ban like a bad result (same return and *ev). */
+int sched_kept_invalid(struct sched *s, int32_t w, struct sched_eviction *ev);
+
+#endif
