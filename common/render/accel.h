@@ -33,6 +33,10 @@ struct accel {
     uint32_t *still_sphere; /* primitive of the still-sphere geometry -> sphere index */
     struct accel_motion *mesh_motion;   /* per mesh, NULL when no mesh has motion data */
     struct accel_motion *sphere_motion; /* per sphere, NULL when no sphere has keys */
+    const struct scene *desc;   /* the scene description built from (outlives the accel) */
+    vec3 **face_normals;        /* per mesh, per triangle: unit right-handed normal of the
+                                 * stored vertices (zero if degenerate); hits read it rather
+                                 * than a cross product and a square root each */
 };
 
 struct accel_hit {

@@ -10,7 +10,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include "base/log.h"
-#include "render/photonmap.h"
+#include "render/photon_map.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
