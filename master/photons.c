@@ -1,4 +1,5 @@
-/* Photon pass on the master and publication of the volume blob (see photons.h). */
+/* Photon pass on the master and publication of the volume blob (see photons.h). The
+ * photon map it builds is a pure function of the scene and frame (photon_trace.c). */
 #include "photons.h"
 #include "wire/blob.h"
 #include "base/log.h"

@@ -133,15 +133,6 @@ static vec3 sample_path(const struct render_job *job, uint32_t px, uint32_t py, 
     return L;
 }
 
-vec3 integrator_sample(const struct render_job *job, uint32_t px, uint32_t py, uint32_t sample_index,
-                       uint64_t *rays, int *hit_any)
-{
-    const struct render_settings *rs = &job->scene->settings;
-    struct sampler smp = sampler_start_type(rs->sampler, rs->seed, job->frame, (uint64_t)py * rs->width + px,
-                                            sample_index, rs->spp);
-    return sample_path(job, px, py, smp, rays, hit_any);
-}
-
 void integrator_render_tile(const struct render_job *job, uint32_t x0, uint32_t y0, uint32_t w, uint32_t h,
                             float *pixels, struct tile_stats *stats)
 {
@@ -152,8 +143,8 @@ void integrator_render_tile(const struct render_job *job, uint32_t x0, uint32_t 
         for (uint32_t x = 0; x < w; x++) {
             double sum[3] = {0, 0, 0}, sum2[3] = {0, 0, 0}, lum_sum = 0.0, lum_sum2 = 0.0, cover = 0.0;
             uint32_t n = 0;
-            /* The pixel's sampler set-up and seeds are shared by its samples (same values
-             * as integrator_sample, a fraction of the cost). */
+            /* The pixel's sampler set-up and seeds are shared by its samples (the values
+             * of sampler_start_type per sample, a fraction of the cost). */
             struct sampler_pixel sp;
             sampler_pixel_init(&sp, rs->sampler, rs->seed, job->frame, (uint64_t)(y0 + y) * rs->width + (x0 + x),
                                spp);

@@ -9,11 +9,6 @@
 #include "render/render_job.h"
 #include "render/tile.h"
 
-/* Radiance along one camera sample of pixel (px, py); *hit_any = 1 if the camera ray hit
- * geometry. May return NaN or Inf on a numerical failure (the caller counts and drops). */
-vec3 integrator_sample(const struct render_job *job, uint32_t px, uint32_t py, uint32_t sample_index,
-                       uint64_t *rays, int *hit_any);
-
 /* Renders the pixel rectangle [x0, x0+w) x [y0, y0+h) into pixels (w*h*TILE_NUM_CHANNELS
  * floats). Fills stats (render_ns excluded: the caller times). */
 void integrator_render_tile(const struct render_job *job, uint32_t x0, uint32_t y0, uint32_t w, uint32_t h,

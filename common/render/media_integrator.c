@@ -1,17 +1,8 @@
-/* Camera paths through participating media (see media_integrator.h).
- * - VPT: free-flight sampling per segment (closed form, one channel picked, one-sample MIS
- *   over channels), next-event estimation at medium and surface vertices with shadow
- *   transmittance through boundaries, MIS against phase / BSDF sampling for area lights.
- * - March (Jensen 1998): along every segment in a medium, steps of dx from a jittered start:
- *   single scattering (every light when there are at most MARCH_ALL_LIGHTS point lights,
- *   else one sampled light; shadow transmittance, in grids read from a per-light cache) +
- *   Jensen's k-nearest photon estimate, each weighted by the transmittance to the step;
- *   surfaces are path traced as in VPT (with the same all-lights rule for their direct
- *   light) but the camera path never scatters in a medium (the photons carry that light).
- * - Beam: as march for single scattering, the photon part by one beam query per segment
- *   (in grids only over the part of the segment near the occupied box).
- * VPT is untouched by these: unbiased ratio tracking, one sampled light.
- * Random numbers: one key per (seed, frame, pixel, sample, pass) and a fixed layout of
+/* Camera paths through media (see media_integrator.h). VPT: closed-form or tracked free
+ * flight, NEE with shadow transmittance and MIS (equiangular for point lights). March
+ * (Jensen): jittered steps, single scattering to every light when there are at most
+ * MARCH_ALL_LIGHTS point lights + the k-nearest photon estimate; beam: one beam query per
+ * segment. Random numbers: one key per (seed, frame, pixel, sample) and a fixed layout of
  * dimensions per vertex, so pixels do not depend on threads, tiles or workers. */
 #include "render/media_integrator.h"
 #include "render/media_track.h"

@@ -103,7 +103,7 @@ static void shadow_caches_free(struct shadow_caches **ps)
     if (!s)
         return;
     for (uint32_t i = 0; i < s->n; i++)
-        tr_cache_free(&s->e[i].c);
+        tr_cache_fini(&s->e[i].c);
     pthread_mutex_destroy(&s->lock);
     free(s);
     *ps = NULL;
@@ -121,7 +121,7 @@ static const struct tr_cache *shadow_cache_get(const struct media_job *mj, vec3 
         if (!atomic_load_explicit(&c->ready, memory_order_acquire)) {
             pthread_mutex_lock(&s->lock);
             if (!atomic_load_explicit(&c->ready, memory_order_relaxed)) {
-                tr_cache_build(&c->c, &mj->sm->media[medium], light, s->threads);
+                tr_cache_init(&c->c, &mj->sm->media[medium], light, s->threads);
                 atomic_store_explicit(&c->ready, 1, memory_order_release);
             }
             pthread_mutex_unlock(&s->lock);

@@ -317,28 +317,6 @@ static vec3 scaled(const double acc[3], double k)
     return v3((float)fmin(acc[0] * k, 1e30), (float)fmin(acc[1] * k, 1e30), (float)fmin(acc[2] * k, 1e30));
 }
 
-vec3 photon_map_gather(const struct photon_map *m, vec3 x, vec3 d_out, float g)
-{
-    if (!m || m->num_photons == 0)
-        return v3(0, 0, 0);
-    float r = m->radius, r2 = r * r;
-    uint32_t buckets[MAX_VISIT];
-    uint32_t nb = sphere_buckets(m, x, r, buckets);
-    double acc[3] = {0, 0, 0};
-    for (uint32_t bi = 0; bi < nb; bi++)
-        for (uint32_t i = m->bucket_start[buckets[bi]]; i < m->bucket_start[buckets[bi] + 1]; i++) {
-            const struct photon *ph = &m->photons[i];
-            vec3 dp = v3_sub(v3(ph->p[0], ph->p[1], ph->p[2]), x);
-            if (v3_dot(dp, dp) > r2)
-                continue;
-            float p = phase_hg(v3_dot(photon_dir_decode(ph->dir), d_out), g);
-            vec3 pw = photon_rgbe_decode(ph->rgbe);
-            acc[0] += (double)p * pw.x, acc[1] += (double)p * pw.y, acc[2] += (double)p * pw.z;
-        }
-    double rk = fmax((double)r, PM_MIN_KERNEL_RADIUS);
-    return scaled(acc, 1.0 / (4.0 / 3.0 * M_PI * rk * rk * rk));
-}
-
 vec3 photon_map_surface(const struct photon_map *vm, vec3 x, vec3 n)
 {
     const struct photon_map *m = vm ? vm->surface : NULL;

@@ -49,11 +49,6 @@ int photon_map_serialise(struct photon_list *blocks, uint32_t num_blocks, float 
 int photon_map_decode(const uint8_t *data, size_t size, struct photon_map **out, char *err, size_t errlen);
 void photon_map_free(struct photon_map **pm);
 
-/* Fixed-radius volume radiance estimate at x toward the viewer (light leaves along d_out):
- * sum of phase x power / (4/3 pi r^3) over photons within the map's radius; this is
- * sigma_s times the in-scattered radiance, so a march step adds it times dx. (The march
- * uses the k-nearest form below, Jensen's; this one stays for tests and tools.) */
-vec3 photon_map_gather(const struct photon_map *m, vec3 x, vec3 d_out, float g);
 /* Flux density of indirect light at x on a surface with unit normal n (on the side light
  * arrives from): sum of the power of the surface photons within the map's radius of x,
  * near the tangent plane (|(p - x) . n| <= r / 4) and arriving from n's side, over pi r^2.

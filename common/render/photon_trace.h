@@ -1,10 +1,9 @@
-/* Photon tracing for the photon map (Jensen and Christensen 1998), on the master.
- * - Photons leave the lights in proportion to their power and are traced through media
- *   and off surfaces; threads take fixed blocks of photon indices, joined in index order
- *   and sorted stably by grid cell: the bytes are the same for any thread count.
- * - A photon is stored at each scattering event in a medium except on its first flight
- *   from the light (ray marching computes single scattering); with surface_photons, also
- *   on arriving at a diffuse surface after any interaction (its indirect light). */
+/* Photon tracing for the photon map (Jensen and Christensen 1998), on the master: photons
+ * leave the lights in proportion to their power, are traced through media and off
+ * surfaces, and are stored at each scattering in a medium except on their first flight
+ * (marching computes single scattering) and, with surface_photons, on diffuse surfaces
+ * after any interaction. Fixed blocks of photon indices per thread, joined in index
+ * order: the bytes are the same for any thread count. */
 #ifndef BRUME_PHOTON_TRACE_H
 #define BRUME_PHOTON_TRACE_H
 #include <stddef.h>

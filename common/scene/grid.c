@@ -1,6 +1,6 @@
 /* Density grids and tracking through them (see grid.h). Lookups and tracking are pure
  * functions of (grid, ray, key): no state, so any thread may call them. The shadow cache
- * is filled once by tr_cache_build (threads over z slices, same values for any count). */
+ * is filled once by tr_cache_init (threads over z slices, same values for any count). */
 #include "scene/grid.h"
 #include "base/bytes.h"
 #include "base/log.h"
@@ -279,7 +279,7 @@ static void *tr_cache_fill(void *arg)
     return NULL;
 }
 
-int tr_cache_build(struct tr_cache *c, const struct medium *m, vec3 light, uint32_t threads)
+int tr_cache_init(struct tr_cache *c, const struct medium *m, vec3 light, uint32_t threads)
 {
     memset(c, 0, sizeof *c);
     const struct density_grid *g = m->grid;
@@ -322,7 +322,7 @@ int tr_cache_build(struct tr_cache *c, const struct medium *m, vec3 light, uint3
     return 1;
 }
 
-void tr_cache_free(struct tr_cache *c)
+void tr_cache_fini(struct tr_cache *c)
 {
     free(c->tau);
     c->tau = NULL;

@@ -63,8 +63,8 @@ struct tr_cache {
     float *tau;     /* n[0] n[1] n[2] values, x fastest; NULL = empty */
 };
 /* Returns 1 if a cache was filled (m has a grid with a non-empty occupied box), else 0. */
-int tr_cache_build(struct tr_cache *c, const struct medium *m, vec3 light, uint32_t threads);
-void tr_cache_free(struct tr_cache *c);
+int tr_cache_init(struct tr_cache *c, const struct medium *m, vec3 light, uint32_t threads);
+void tr_cache_fini(struct tr_cache *c);
 /* Interpolated optical depth from p to the light; 0 when p is outside the lattice. */
 int tr_cache_tau(const struct tr_cache *c, vec3 p, float *tau);
 /* The same from any point p: outside the lattice (where the density is zero) the segment

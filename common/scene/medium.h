@@ -1,10 +1,8 @@
-/* Participating media: homogeneous media (absorption, scattering, emission, Henyey-Greenstein
- * phase), which objects they fill, the scene's fog, and the settings of the volume
- * renderer. Parsed by scene_json.c into scene.media; read-only while rendering; holds
- * nothing built at render time (the photon map is the render job's). The closed forms
- * (transmittance, free flight, HG phase) are shared by render/ and tests; grids: grid.h.
- * Conventions: directions are directions of travel; the phase function of light travelling
- * along d_in and leaving along d_out is hg(dot(d_in, d_out), g), so g > 0 is forward. */
+/* Participating media: homogeneous media (absorption, scattering, emission, HG phase; g > 0
+ * forward, directions are of travel), which objects they fill, the fog, and the volume
+ * renderer's settings. Parsed by scene_json.c into scene.media, read-only while rendering;
+ * holds nothing built at render time (the photon map is the render job's). The closed
+ * forms (transmittance, free flight, phase) are shared by render/ and tests; grids: grid.h. */
 #ifndef BRUME_MEDIUM_H
 #define BRUME_MEDIUM_H
 #include <stddef.h>
