@@ -1,11 +1,13 @@
-/* Photon pass on the master and publication of the volume blob (see photons.h). */
+/* Photon pass on the master and publication of the volume blob (see photons.h). The
+ * photon map it builds is a pure function of the scene and frame (photon_trace.c). */
 #include "photons.h"
 #include "wire/blob.h"
-#include "render/integrator.h"
 #include "base/log.h"
-#include "render/media_integrator.h"
+#include "render/media_track.h"
+#include "render/photon_map.h"
+#include "render/photon_trace.h"
+#include "render/render_job.h"
 #include "scene/medium.h"
-#include "render/photonmap.h"
 #include <stdlib.h>
 #include <stdio.h>
 #include <string.h>
@@ -73,14 +75,14 @@ int master_media_prepare(struct scene *scene, const struct master_opts *o, uint3
             log_error("photon pass: %s", err);
             return -1;
         }
-        double bound = photon_map_indirect_bound(scene, job.media->scene_size);
+        double bound = photon_trace_indirect_bound(scene, job.media->scene_size);
         if (bound < sm->skip_bound) {
             log_info("media: photon pass skipped: multiple scattering is bounded by %.3g < skip_bound %.3g "
                      "(max(surface reflectance, medium albedo x (1 - exp(-sigma_t,max x %.3g))))",
                      bound, (double)sm->skip_bound, (double)job.media->scene_size);
         } else {
             struct photon_pass_stats st;
-            if (photon_map_build(&job, scene->settings.seed, threads, &map, &map_size, &st, err, sizeof err) != 0) {
+            if (photon_trace_map(&job, scene->settings.seed, threads, &map, &map_size, &st, err, sizeof err) != 0) {
                 render_job_free(&job);
                 log_error("%s", err);
                 return -1;

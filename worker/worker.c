@@ -17,7 +17,7 @@
 #include "base/log.h"
 #include "scene/medium.h"
 #include "wire/net.h"
-#include "render/photonmap.h"
+#include "render/photon_map.h"
 #include "wire/proto.h"
 #include "scene/scene_json.h"
 #include <errno.h>
@@ -360,13 +360,15 @@ static int load_job(struct worker *w)
         return -1;
     }
     free(text);
-    /* Media scenes render only with the master's volume blob (settings and photon map). */
+    /* Media scenes render only with the master's volume blob (settings and photon map);
+     * the decoded map goes to the render job, which owns it. */
+    struct photon_map *map = NULL;
     if (w->scene.media) {
         char *vb = NULL;
         size_t vbs = 0;
         int rc = blob_source_read(&ctx, MEDIA_PHOTON_ASSET, &vb, &vbs, err, sizeof err);
         if (rc == 0)
-            rc = volume_blob_apply(&w->scene, (const uint8_t *)vb, vbs, err, sizeof err);
+            rc = volume_blob_apply(&w->scene, (const uint8_t *)vb, vbs, &map, err, sizeof err);
         free(vb);
         if (rc != 0) {
             scene_free(&w->scene);
@@ -385,11 +387,13 @@ static int load_job(struct worker *w)
     rs->sampler = (enum sampler_type)w->job.sampler;
     if (scene_validate(&w->scene, err, sizeof err) != 0 ||
         render_job_init(&w->rjob, &w->scene, w->job.frame, w->opts->threads, err, sizeof err) != 0) {
+        photon_map_free(&map);
         scene_free(&w->scene);
         send_error(w, err);
         log_error("%s", err);
         return -1;
     }
+    render_job_set_photon_map(&w->rjob, &map);
     w->loaded = 1;
     tile_image_desc(&w->desc, rs);
     pool_start(w);

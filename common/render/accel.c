@@ -220,6 +220,19 @@ int accel_build(struct accel *a, const struct scene *s, uint32_t frame, uint32_t
         accel_free(a);
         return -1;
     }
+    a->desc = s;
+    a->face_normals = mem_calloc(s->num_meshes ? s->num_meshes : 1, sizeof *a->face_normals);
+    for (uint32_t i = 0; i < s->num_meshes; i++) {
+        const struct mesh *m = &s->meshes[i];
+        a->face_normals[i] = mem_alloc(sizeof(vec3) * (m->num_triangles ? m->num_triangles : 1));
+        for (uint32_t t = 0; t < m->num_triangles; t++) {
+            const float *pa = &m->positions[3 * m->indices[3 * t]], *pb = &m->positions[3 * m->indices[3 * t + 1]],
+                        *pc = &m->positions[3 * m->indices[3 * t + 2]];
+            vec3 va = v3(pa[0], pa[1], pa[2]);
+            a->face_normals[i][t] =
+                v3_normalize(v3_cross(v3_sub(v3(pb[0], pb[1], pb[2]), va), v3_sub(v3(pc[0], pc[1], pc[2]), va)));
+        }
+    }
     return 0;
 }
 
@@ -247,6 +260,9 @@ void accel_free(struct accel *a)
     free(a->top_mesh);
     free(a->top_sphere);
     free(a->still_sphere);
+    for (uint32_t i = 0; a->face_normals && i < a->sphere_geom; i++)
+        free(a->face_normals[i]);
+    free(a->face_normals);
     memset(a, 0, sizeof *a);
 }
 

@@ -1,10 +1,9 @@
-/* Ray queries through Embree 3: one device and one top-level scene per job and frame,
- * committed once and then shared read-only by every render thread. Still geometry lives
- * directly in the top-level scene without time steps (meshes as triangle geometries,
- * still spheres in one sphere-point geometry); only what moves during this frame's
- * shutter gets time steps: deformation as triangle vertex steps, rigid keyframes as an
- * instance with quaternion-decomposed transforms per step. A scene where nothing moves
- * has has_motion == 0 and costs nothing extra. Hits are reported per scene mesh / sphere. */
+/* Ray queries through Embree 3: one device and top-level scene per job and frame, shared
+ * read-only by the render threads. Still geometry has no time steps; only what moves in
+ * this frame's shutter gets them (deformation as vertex steps, rigid keys as instances).
+ * Also the frame's geometry as hits need it (scene description, face normals). A scene
+ * where nothing moves has has_motion == 0 and costs nothing extra. Hits are reported per
+ * scene mesh / sphere. Built by render_job.c; read by everything that traces rays. */
 #ifndef BRUME_ACCEL_H
 #define BRUME_ACCEL_H
 #include <stddef.h>
@@ -33,6 +32,10 @@ struct accel {
     uint32_t *still_sphere; /* primitive of the still-sphere geometry -> sphere index */
     struct accel_motion *mesh_motion;   /* per mesh, NULL when no mesh has motion data */
     struct accel_motion *sphere_motion; /* per sphere, NULL when no sphere has keys */
+    const struct scene *desc;   /* the scene description built from (outlives the accel) */
+    vec3 **face_normals;        /* per mesh, per triangle: unit right-handed normal of the
+                                 * stored vertices (zero if degenerate); hits read it rather
+                                 * than a cross product and a square root each */
 };
 
 struct accel_hit {

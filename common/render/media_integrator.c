@@ -1,290 +1,23 @@
-/* Camera paths through participating media (see media_integrator.h).
- * - VPT: free-flight sampling per segment (closed form, one channel picked, one-sample MIS
- *   over channels), next-event estimation at medium and surface vertices with shadow
- *   transmittance through boundaries, MIS against phase / BSDF sampling for area lights.
- * - March (Jensen 1998): along every segment in a medium, steps of dx from a jittered start:
- *   single scattering (every light when there are at most MARCH_ALL_LIGHTS point lights,
- *   else one sampled light; shadow transmittance, in grids read from a per-light cache) +
- *   Jensen's k-nearest photon estimate, each weighted by the transmittance to the step;
- *   surfaces are path traced as in VPT (with the same all-lights rule for their direct
- *   light) but the camera path never scatters in a medium (the photons carry that light).
- * - Beam: as march for single scattering, the photon part by one beam query per segment
- *   (in grids only over the part of the segment near the occupied box).
- * VPT is untouched by these: unbiased ratio tracking, one sampled light.
- * Random numbers: one key per (seed, frame, pixel, sample, pass) and a fixed layout of
+/* Camera paths through media (see media_integrator.h). VPT: closed-form or tracked free
+ * flight, NEE with shadow transmittance and MIS (equiangular for point lights). March
+ * (Jensen): jittered steps, single scattering to every light when there are at most
+ * MARCH_ALL_LIGHTS point lights + the k-nearest photon estimate; beam: one beam query per
+ * segment. Random numbers: one key per (seed, frame, pixel, sample) and a fixed layout of
  * dimensions per vertex, so pixels do not depend on threads, tiles or workers. */
 #include "render/media_integrator.h"
-#include "base/log.h"
+#include "render/media_track.h"
+#include "render/photon_map.h"
+#include "render/surface.h"
+#include "base/rng.h"
+#include "scene/grid.h"
 #include "scene/material.h"
-#include "render/photonmap.h"
 #include <math.h>
-#include <pthread.h>
-#include <stdatomic.h>
-#include <stdlib.h>
-#include <unistd.h>
-#include <string.h>
 
 #define MAX_CROSSINGS 256
 #define MAX_STEPS 100000
 #define DIMS_PER_VERTEX 16
 /* Jensen's per-step estimate: maximum radius of the k-nearest query, in gather radii. */
 #define KNN_RADIUS_FACTOR 4.0f
-
-/* The path tracer's offsets (vec.h), for the media code and the photon pass. */
-int media_is_interface(const struct render_job *job, uint32_t material)
-{
-    const struct scene_media *sm = job->scene->media;
-    return sm && material == sm->interface_material;
-}
-
-static uint32_t inside_of(const struct render_job *job, const struct accel_hit *h)
-{
-    const struct scene_media *sm = job->scene->media;
-    if (h->geom == job->accel.sphere_geom)
-        return media_sphere_inside(sm, h->prim);
-    return media_mesh_inside(sm, h->geom);
-}
-
-uint32_t media_after_crossing(const struct render_job *job, const struct accel_hit *h, vec3 ng, vec3 dir)
-{
-    /* ng points outside the object: travelling against it enters. */
-    return v3_dot(dir, ng) < 0.0f ? inside_of(job, h) : job->scene->media->fog;
-}
-
-uint32_t media_at(const struct render_job *job, vec3 p)
-{
-    const struct scene_media *sm = job->scene->media;
-    vec3 dir = v3_normalize(v3(0.5377f, 0.6211f, 0.5703f));
-    vec3 o = p;
-    for (int i = 0; i < 64; i++) {
-        struct accel_hit h;
-        if (!accel_intersect(&job->accel, o, dir, INFINITY, 0.0f, &h))
-            break;
-        struct media_surface s;
-        integrator_media_surface(job, o, dir, &h, 0.0f, &s);
-        uint32_t in = inside_of(job, &h);
-        if (in != MEDIUM_NONE)
-            return v3_dot(dir, s.ng) > 0.0f ? in : sm->fog; /* leaving it: we were inside */
-        vec3 n = v3_dot(dir, s.ng) > 0.0f ? s.ng : v3_neg(s.ng);
-        o = offset_ray_origin(v3_add(s.p, v3_scale(n, s.p_err)), n);
-    }
-    return sm->fog;
-}
-
-/* Shadow transmittance caches of Jensen's methods: one per (point light, grid medium),
- * filled by the first thread that needs it (under a lock, on all cores) and read-only
- * after; the values are a pure function of the scene, so pixels do not depend on which
- * thread filled it, or when. */
-#define SHADOW_CACHES_MAX 64
-struct shadow_cache {
-    vec3 light;
-    uint32_t medium;
-    struct tr_cache c;
-    atomic_int ready;
-};
-struct shadow_caches {
-    pthread_mutex_t lock;
-    uint32_t n, threads;
-    struct shadow_cache e[SHADOW_CACHES_MAX];
-};
-
-static struct shadow_caches *shadow_caches_new(const struct render_job *job)
-{
-    const struct scene *sc = job->scene;
-    const struct scene_media *sm = sc->media;
-    if (sm->method == MEDIA_VPT || !sm->shadow_cache)
-        return NULL;
-    struct shadow_caches *s = mem_calloc(1, sizeof *s);
-    pthread_mutex_init(&s->lock, NULL);
-    long cores = sysconf(_SC_NPROCESSORS_ONLN);
-    s->threads = cores < 1 ? 1u : (cores > 64 ? 64u : (uint32_t)cores);
-    for (uint32_t m = 0; m < sm->num_media; m++) {
-        if (!sm->media[m].grid)
-            continue;
-        for (uint32_t i = 0; i < job->lights.num_entries && s->n < SHADOW_CACHES_MAX; i++) {
-            const struct light_entry *e = &job->lights.entries[i];
-            if (e->kind != LK_POINT)
-                continue;
-            struct shadow_cache *c = &s->e[s->n++];
-            c->light = sc->lights[e->index].position;
-            c->medium = m;
-            atomic_init(&c->ready, 0);
-        }
-    }
-    return s;
-}
-
-static void shadow_caches_free(struct shadow_caches **ps)
-{
-    struct shadow_caches *s = *ps;
-    if (!s)
-        return;
-    for (uint32_t i = 0; i < s->n; i++)
-        tr_cache_free(&s->e[i].c);
-    pthread_mutex_destroy(&s->lock);
-    free(s);
-    *ps = NULL;
-}
-
-static const struct tr_cache *shadow_cache_get(const struct render_job *job, vec3 light, uint32_t medium)
-{
-    struct shadow_caches *s = job->media->shadow;
-    if (!s)
-        return NULL;
-    for (uint32_t i = 0; i < s->n; i++) {
-        struct shadow_cache *c = &s->e[i];
-        if (c->medium != medium || memcmp(&c->light, &light, sizeof light) != 0)
-            continue;
-        if (!atomic_load_explicit(&c->ready, memory_order_acquire)) {
-            pthread_mutex_lock(&s->lock);
-            if (!atomic_load_explicit(&c->ready, memory_order_relaxed)) {
-                tr_cache_build(&c->c, &job->scene->media->media[medium], light, s->threads);
-                atomic_store_explicit(&c->ready, 1, memory_order_release);
-            }
-            pthread_mutex_unlock(&s->lock);
-        }
-        return c->c.tau ? &c->c : NULL;
-    }
-    return NULL;
-}
-
-struct media_job *media_job_new(const struct render_job *job)
-{
-    const struct scene *sc = job->scene;
-    const struct scene_media *sm = sc->media;
-    struct media_job *mj = mem_calloc(1, sizeof *mj);
-    mj->sm = sm;
-    struct RTCBounds b;
-    rtcGetSceneBounds(job->accel.scene, &b);
-    vec3 lo = v3(b.lower_x, b.lower_y, b.lower_z), hi = v3(b.upper_x, b.upper_y, b.upper_z);
-    if (!(lo.x <= hi.x)) /* empty scene */
-        lo = hi = sc->camera.position;
-    for (uint32_t i = 0; i <= sc->num_lights; i++) {
-        vec3 q = i < sc->num_lights ? sc->lights[i].position : sc->camera.position;
-        lo = v3(fminf(lo.x, q.x), fminf(lo.y, q.y), fminf(lo.z, q.z));
-        hi = v3(fmaxf(hi.x, q.x), fmaxf(hi.y, q.y), fmaxf(hi.z, q.z));
-    }
-    /* Grids may reach beyond the geometry (a cloud in an open sky): rays march them all. */
-    for (uint32_t i = 0; i < sm->num_media; i++) {
-        vec3 glo, ghi;
-        if (!sm->media[i].grid)
-            continue;
-        grid_world_box(sm->media[i].grid, &glo, &ghi);
-        if (!(glo.x <= ghi.x && glo.y <= ghi.y && glo.z <= ghi.z))
-            continue;
-        lo = v3(fminf(lo.x, glo.x), fminf(lo.y, glo.y), fminf(lo.z, glo.z));
-        hi = v3(fmaxf(hi.x, ghi.x), fmaxf(hi.y, ghi.y), fmaxf(hi.z, ghi.z));
-    }
-    float size = v3_length(v3_sub(hi, lo));
-    size = size > 0.0f && isfinite(size) ? size : 1.0f;
-    vec3 pad = v3(1e-3f * size, 1e-3f * size, 1e-3f * size);
-    mj->bounds_lo = v3_sub(lo, pad);
-    mj->bounds_hi = v3_add(hi, pad);
-    mj->scene_size = size;
-    mj->step = sm->step > 0.0f ? sm->step : size / 200.0f;
-    mj->step = fmaxf(mj->step, size * 1e-6f);
-    mj->radius = sm->radius > 0.0f ? sm->radius : size / 100.0f;
-    mj->radius = fmaxf(mj->radius, size * 1e-5f); /* bounds the cells a beam query walks */
-    mj->camera_medium = media_at(job, sc->camera.position);
-    mj->light_medium = mem_alloc(sizeof *mj->light_medium * (job->lights.num_entries + 1));
-    for (uint32_t i = 0; i < job->lights.num_entries; i++) {
-        const struct light_entry *e = &job->lights.entries[i];
-        vec3 p;
-        if (e->kind == LK_POINT) {
-            p = sc->lights[e->index].position;
-        } else if (e->kind == LK_TRIANGLE) {
-            const struct mesh *m = &sc->meshes[e->index];
-            const uint32_t *idx = &m->indices[3 * e->prim];
-            vec3 v[3];
-            for (int k = 0; k < 3; k++)
-                v[k] = v3(m->positions[3 * idx[k]], m->positions[3 * idx[k] + 1], m->positions[3 * idx[k] + 2]);
-            vec3 n = v3_normalize(v3_cross(v3_sub(v[1], v[0]), v3_sub(v[2], v[0])));
-            p = offset_ray_origin(v3_scale(v3_add(v3_add(v[0], v[1]), v[2]), 1.0f / 3.0f), n);
-        } else {
-            const struct sphere *s = &sc->spheres[e->index];
-            p = v3_add(s->center, v3(0, s->radius * 1.001f, 0));
-        }
-        mj->light_medium[i] = media_at(job, p);
-    }
-    mj->map = sm->method != MEDIA_VPT ? sm->map : NULL;
-    mj->shadow = shadow_caches_new(job);
-    return mj;
-}
-
-void media_job_free(struct media_job **pmj)
-{
-    if (!*pmj)
-        return;
-    free((*pmj)->light_medium);
-    shadow_caches_free(&(*pmj)->shadow);
-    free(*pmj);
-    *pmj = NULL;
-}
-
-vec3 media_shadow_transmittance(const struct render_job *job, vec3 p, vec3 target, uint32_t medium, float time01,
-                                uint64_t key, uint64_t *rays)
-{
-    const struct scene_media *sm = job->scene->media;
-    const int ratio = sm->method == MEDIA_VPT; /* unbiased ratio tracking; marched for Jensen's methods */
-    vec3 tr = v3(1, 1, 1);
-    if (sm->interface_material == UINT32_MAX) {
-        /* No invisible boundaries: any hit blocks, and the medium is the same all along. */
-        (*rays)++;
-        if (accel_occluded(&job->accel, p, v3_sub(target, p), 1.0f - 0x1p-12f, time01))
-            return v3(0, 0, 0);
-        if (medium == MEDIUM_NONE)
-            return tr;
-        const struct medium *md = &sm->media[medium];
-        if (!ratio && md->grid) {
-            /* Jensen's methods: the cached optical depth toward a point light, where cached. */
-            const struct tr_cache *c = shadow_cache_get(job, target, medium);
-            float tau;
-            if (c && tr_cache_tau_from(c, p, &tau))
-                return v3(expf(-md->sigma_t.x * tau), expf(-md->sigma_t.y * tau), expf(-md->sigma_t.z * tau));
-        }
-        vec3 to = v3_sub(target, p);
-        float len = v3_length(to);
-        return len > 0.0f ? medium_tr_segment(&sm->media[medium], p, v3_scale(to, 1.0f / len), len, key, ratio) : tr;
-    }
-    /* Distances run from the exact boundary points, not from the offset ray origins (the
-     * offsets would shorten every segment by a few hundred ulps). */
-    vec3 start = p;
-    for (int i = 0; i < MAX_CROSSINGS; i++) {
-        vec3 to = v3_sub(target, p);
-        float dist = v3_length(to);
-        if (!(dist > 0.0f))
-            return tr;
-        vec3 dir = v3_scale(to, 1.0f / dist);
-        struct accel_hit h;
-        (*rays)++;
-        if (!accel_intersect(&job->accel, p, dir, dist * (1.0f - 0x1p-12f), time01, &h)) {
-            if (medium != MEDIUM_NONE)
-                tr = v3_mul(tr, medium_tr_segment(&sm->media[medium], start, dir, v3_length(v3_sub(target, start)),
-                                                  rng_mix64(key + (uint64_t)i), ratio));
-            return tr;
-        }
-        struct media_surface s;
-        integrator_media_surface(job, p, dir, &h, time01, &s);
-        if (!media_is_interface(job, s.material))
-            return v3(0, 0, 0);
-        if (medium != MEDIUM_NONE)
-            tr = v3_mul(tr, medium_tr_segment(&sm->media[medium], start, dir, v3_length(v3_sub(s.p, start)),
-                                              rng_mix64(key + (uint64_t)i), ratio));
-        if (v3_is_black(tr))
-            return tr;
-        medium = media_after_crossing(job, &h, s.ng, dir);
-        vec3 n = v3_dot(dir, s.ng) > 0.0f ? s.ng : v3_neg(s.ng);
-        p = offset_ray_origin(v3_add(s.p, v3_scale(n, s.p_err)), n);
-        start = s.p;
-    }
-    return v3(0, 0, 0);
-}
-
-static float power_heuristic(float a, float b)
-{
-    float a2 = a * a, b2 = b * b;
-    return a2 + b2 > 0.0f ? a2 / (a2 + b2) : 0.0f;
-}
 
 struct rngs {
     uint64_t key;
@@ -347,7 +80,7 @@ static vec3 scatter_nee(const struct render_job *job, vec3 x, vec3 d_out, uint32
     vec3 wi = v3_scale(to, 1.0f / dist);
     float ph = phase_hg(v3_dot(v3_neg(wi), d_out), g);
     vec3 target = ls.is_delta ? ls.p : offset_ray_origin(ls.p, v3_dot(ls.n, wi) < 0.0f ? ls.n : v3_neg(ls.n));
-    vec3 tr = media_shadow_transmittance(job, x, target, medium, time01, key, rays);
+    vec3 tr = media_shadow_transmittance(job->media, x, target, medium, time01, key, rays);
     if (v3_is_black(tr))
         return v3(0, 0, 0);
     float w = (ls.is_delta || !mis) ? 1.0f : power_heuristic(ls.pdf, ph);
@@ -394,7 +127,7 @@ static vec3 point_lights_all(const struct render_job *job, vec3 x, vec3 d_out, u
         if (v3_is_black(li))
             continue;
         float ph = phase_hg(v3_dot(v3_scale(to, -1.0f / sqrtf(d2)), d_out), g);
-        vec3 tr = media_shadow_transmittance(job, x, l->position, medium, time01, rng_mix64(key + i), rays);
+        vec3 tr = media_shadow_transmittance(job->media, x, l->position, medium, time01, rng_mix64(key + i), rays);
         sum = v3_add(sum, v3_scale(v3_mul(li, tr), ph));
     }
     return sum;
@@ -538,7 +271,7 @@ static vec3 equiangular(const struct render_job *job, const struct rngs *r, uint
         return v3(0, 0, 0);
     /* light travels along -to, then back along -d toward the segment's origin */
     float ph = phase_hg(v3_dot(v3_scale(to, 1.0f / sqrtf(d2)), fc->d), fc->md->g);
-    vec3 tr = media_shadow_transmittance(job, x, l->position, medium, time01,
+    vec3 tr = media_shadow_transmittance(job->media, x, l->position, medium, time01,
                                          rng_mix64(r->key ^ (0x4551ull << 48) ^ vertex), rays);
     vec3 f = v3_mul(v3_mul(medium_transmittance(fc->md, t), fc->md->sigma_s), v3_mul(li, tr));
     return v3_scale(f, ph * (pe / (pe + pf)) / (pick * pe));
@@ -625,12 +358,12 @@ vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, 
         }
         if (!hit)
             break;
-        struct media_surface s;
-        integrator_media_surface(job, org, dir, &h, time01, &s);
-        if (media_is_interface(job, s.material)) {
+        struct surface s;
+        surface_from_hit(&job->accel, &job->lights, org, dir, &h, time01, &s);
+        if (media_is_interface(job->media, s.material)) {
             if (++crossings > MAX_CROSSINGS)
                 break;
-            medium = media_after_crossing(job, &h, s.ng, dir);
+            medium = media_after_crossing(job->media, &h, s.ng, dir);
             vec3 n = v3_dot(dir, s.ng) > 0.0f ? s.ng : v3_neg(s.ng);
             org = offset_ray_origin(v3_add(s.p, v3_scale(n, s.p_err)), n);
             seg_start = s.p;
@@ -673,14 +406,14 @@ vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, 
                 vec3 rad = v3_scale(job->lights.entries[li].emission, light_spot_falloff(l, v3_neg(to)) / d2);
                 if (v3_is_black(f) || v3_is_black(rad))
                     continue;
-                vec3 tr = media_shadow_transmittance(job, p_off, l->position, medium, time01,
+                vec3 tr = media_shadow_transmittance(job->media, p_off, l->position, medium, time01,
                                                      rng_mix64(r.key ^ (0x5353ull << 48) ^ vertex ^ ((uint64_t)li << 32)), rays);
                 L = v3_add(L, v3_mul(beta, v3_mul(v3_mul(f, rad), tr)));
             }
         } else if (job->lights.num_entries > 0 && !material_is_delta(mat)) {
             struct nee_sample n;
-            if (nee_prepare(job, mat, s.p, ns, ng, wo, rnd(&r, vertex, 2), rnd(&r, vertex, 3), rnd(&r, vertex, 4), &n)) {
-                vec3 tr = media_shadow_transmittance(job, p_off, n.target, medium, time01,
+            if (nee_prepare(&job->lights, sc, mat, s.p, ns, ng, wo, rnd(&r, vertex, 2), rnd(&r, vertex, 3), rnd(&r, vertex, 4), &n)) {
+                vec3 tr = media_shadow_transmittance(job->media, p_off, n.target, medium, time01,
                                                      rng_mix64(r.key ^ (0x5353ull << 48) ^ vertex), rays);
                 if (!v3_is_black(tr)) {
                     float w = n.ls.is_delta || surface_map ? 1.0f : power_heuristic(n.ls.pdf, n.bsdf_pdf);
@@ -711,7 +444,7 @@ vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, 
         prev_p = s.p;
         prev_delta = bs.is_delta;
         if (bs.transmitted) {
-            medium = media_after_crossing(job, &h, s.ng, dir);
+            medium = media_after_crossing(job->media, &h, s.ng, dir);
             org = offset_ray_origin(v3_sub(s.p, v3_scale(ng, s.p_err)), v3_neg(ng));
         } else {
             org = p_off;

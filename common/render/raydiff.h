@@ -1,12 +1,9 @@
-/* Ray differentials (Igehy, "Tracing Ray Differentials", SIGGRAPH 1999): how a ray's
- * origin and unit direction change per pixel step in x and y, carried along a path to
- * give every texture lookup its footprint. Camera rays (pinhole and thin lens: the offset
- * rays pass through the same lens point) start them, scaled by max(1/8, 1/sqrt(spp));
- * at a hit they transfer to the tangent plane, give the texture coordinate and shading
- * normal derivatives per primitive (triangles with shading normals, spheres), and
- * propagate through perfect reflection and refraction exactly; after a diffuse bounce a
- * conservative cone keeps the footprint from shrinking. Every result is finite: clamped,
- * non-finite parts dropped (a point lookup). Callers: integrator.c, tests. */
+/* Ray differentials (Igehy, SIGGRAPH 1999): how a ray's origin and direction change per
+ * pixel step, carried along a path to give every texture lookup its footprint. Camera
+ * rays start them (scaled by max(1/8, 1/sqrt(spp))); hits transfer them to the tangent
+ * plane; perfect reflection and refraction carry them exactly, a diffuse bounce as a
+ * conservative cone. Every result is finite (clamped; non-finite parts give a point
+ * lookup). Callers: texshade.c, tests. */
 #ifndef BRUME_RAYDIFF_H
 #define BRUME_RAYDIFF_H
 #include <stdint.h>

@@ -2,36 +2,11 @@
  * from the scene data as surface_from_hit does (rigid instances through Embree's
  * transform at the ray's time, deforming meshes from the blended time steps). */
 #include "render/texshade.h"
-#include "render/integrator.h"
 #include "base/log.h"
 #include "scene/motion.h"
 #include "scene/texture.h"
 #include <math.h>
 #include <stdlib.h>
-
-struct mip *texshade_build(const struct scene *scene, int *textured)
-{
-    *textured = 0;
-    for (uint32_t i = 0; i < scene->num_materials; i++)
-        if (scene->materials[i].albedo_tex || scene->materials[i].bump_tex || scene->materials[i].normal_tex)
-            *textured = 1;
-    if (!*textured || scene->num_textures == 0)
-        return NULL;
-    struct mip *mips = mem_calloc(scene->num_textures, sizeof *mips);
-    for (uint32_t i = 0; i < scene->num_textures; i++) {
-        const struct texture *t = &scene->textures[i];
-        if (t->type == TEXTURE_IMAGE)
-            mip_build(&mips[i], &t->image, t->wrap);
-    }
-    return mips;
-}
-
-void texshade_free(struct mip *mips, const struct scene *scene)
-{
-    for (uint32_t i = 0; mips && i < scene->num_textures; i++)
-        mip_free(&mips[i]);
-    free(mips);
-}
 
 void texshade_camera(const struct render_job *job, const struct camera_sample *cs, const struct sampler *smp,
                      struct raydiff *rd)

@@ -1,21 +1,13 @@
 /* Textures in the path tracer: the glue between a render_job and the ray differential
- * maths (raydiff.c) and texture lookups (texture.c, mip.c). Only scenes whose materials
- * use a texture pay for it (render_job.textured); others never call in here, so their
- * images are unchanged bit for bit. Callers: integrator.c. */
+ * maths (raydiff.c) and texture lookups (texture.c) in the job's MIP pyramids (built by
+ * render_job.c). Only scenes whose materials use a texture pay for it (render_job.textured);
+ * others never call in here, so their images are unchanged bit for bit. Callers: integrator.c. */
 #ifndef BRUME_TEXSHADE_H
 #define BRUME_TEXSHADE_H
-#include "render/accel.h"
-#include "scene/camera.h"
-#include "scene/material.h"
 #include "render/raydiff.h"
+#include "render/render_job.h"
+#include "scene/material.h"
 #include "scene/sampler.h"
-#include "scene/scene.h"
-
-struct render_job;
-
-/* MIP pyramids of the scene's image textures, once per job (NULL entries for checkers). */
-struct mip *texshade_build(const struct scene *scene, int *textured);
-void texshade_free(struct mip *mips, const struct scene *scene);
 
 /* Differentials of the camera ray cs (pose at its time, lens point fixed) of sample smp:
  * where the sampler puts one sample per cell of a grid over the pixel

@@ -1,4 +1,5 @@
-/* Tile channel names and statistics (see tile.h). */
+/* Tile channel names and statistics (see tile.h): the one table of channel order that
+ * the worker writes and the master assembles by. */
 #include "render/tile.h"
 #include <stdio.h>
 #include <string.h>

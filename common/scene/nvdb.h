@@ -8,7 +8,7 @@
 #define BRUME_NVDB_H
 #include <stddef.h>
 #include <stdint.h>
-#include "scene/medium.h"
+#include "scene/grid.h"
 #include "base/vec.h"
 
 /* Largest dense grid nvdb_parse makes (GRID_MAX_VOXELS; the fuzz target lowers it to stay fast). */

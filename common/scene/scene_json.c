@@ -8,6 +8,7 @@
 #include "scene/scene_json.h"
 #include "base/log.h"
 #include "scene/medium.h"
+#include "scene/grid.h"
 #include "scene/nvdb.h"
 #include "scene/mesh_obj.h"
 #include "scene/motion.h"

@@ -17,7 +17,10 @@
 #include "base/log.h"
 #include "render/media_integrator.h"
 #include "scene/medium.h"
-#include "render/photonmap.h"
+#include "render/photon_map.h"
+#include "render/photon_trace.h"
+#include "render/media_track.h"
+#include "scene/grid.h"
 #include "base/rng.h"
 #include "scene/scene_json.h"
 
@@ -142,7 +145,7 @@ Test(medium, beer_lambert_slab)
         job_ok(&job, &s);
         uint64_t rays = 0;
         float expect = expf(-sig[i] * 2.0f);
-        vec3 tr = media_shadow_transmittance(&job, v3(-5, 0.1f, 0), v3(5, 0.2f, 0), MEDIUM_NONE, 0.0f, 1, &rays);
+        vec3 tr = media_shadow_transmittance(job.media, v3(-5, 0.1f, 0), v3(5, 0.2f, 0), MEDIUM_NONE, 0.0f, 1, &rays);
         /* The slanted shadow ray crosses 2 |d| / |d.x| of the slab, d = (10, 0.1, 0). */
         float slant = 2.0f * sqrtf(100.0f + 0.01f) / 10.0f;
         float es = expf(-sig[i] * slant), es_y = expf(-0.5f * sig[i] * slant);
@@ -362,7 +365,7 @@ Test(medium, grid_errors)
 /* Emission in a grid (e times the density, absorbing): the unbiased one-sample estimate
  * (VPT) within 4 standard errors of a fine integration of Tr(t) e rho(t) along three rays,
  * and renders of a thin ray through the grid (march and VPT) within 1 % and 2 %. */
-static double render_mean(struct scene *s, uint32_t spp, double *se);
+static double render_mean(struct scene *s, struct photon_map *map, uint32_t spp, double *se);
 #define EMIT_MEDIUM "{\"sigma_a\": [1, 0.5, 2], \"emission\": [1, 2, 0.5], \"density\": {\"file\": \"g.grid\", " \
                     "\"scale\": 0.1, \"transform\": {\"scale\": 2, \"translate\": [-1, -1, -1]}}}"
 static double emission_reference(const struct medium *md, vec3 o, vec3 d, float len, int ch)
@@ -407,9 +410,9 @@ Test(medium, grid_emission, .timeout = 60)
     /* Camera rays: a 1x1 image with a tiny field of view looks along +x through the grid. */
     s.camera.fov_y_deg = 0.01f;
     double ref = emission_reference(md, v3(-5, 0.05f, 0.1f), v3(1, 0, 0), 10.0f, 0), se;
-    double march = render_mean(&s, 64, &se);
+    double march = render_mean(&s, NULL, 64, &se);
     s.media->method = MEDIA_VPT;
-    double se_v, vpt = render_mean(&s, 4096, &se_v);
+    double se_v, vpt = render_mean(&s, NULL, 4096, &se_v);
     fprintf(stderr, "grid emission: reference %g, march %g, vpt %g +- %g\n", ref, march, vpt, se_v);
     cr_assert(fabs(march / ref - 1.0) < 0.01, "march %g vs %g", march, ref);
     cr_assert(fabs(vpt / ref - 1.0) < 0.02, "vpt %g vs %g", vpt, ref);
@@ -522,7 +525,7 @@ static uint8_t *build_map(const struct scene *s, uint32_t threads, size_t *size,
     uint8_t *blob = NULL;
     struct photon_pass_stats st;
     char err[256];
-    cr_assert_eq(photon_map_build(&job, 1, threads, &blob, size, &st, err, sizeof err), 0, "%s", err);
+    cr_assert_eq(photon_trace_map(&job, 1, threads, &blob, size, &st, err, sizeof err), 0, "%s", err);
     cr_assert(st.stored >= min_stored, "stored %llu", (unsigned long long)st.stored);
     cr_assert(st.bytes <= 26 * st.stored + 4096, "bytes/photon %g", (double)st.bytes / st.stored);
     render_job_free(&job);
@@ -569,31 +572,36 @@ Test(medium, volume_blob_roundtrip)
     struct scene w;
     load_ok(MS_SCENE("beam"), &w);
     char err[256];
-    cr_assert_eq(volume_blob_apply(&w, vb, vbs, err, sizeof err), 0, "%s", err);
+    struct photon_map *wm = NULL, *bad = NULL;
+    cr_assert_eq(volume_blob_apply(&w, vb, vbs, &wm, err, sizeof err), 0, "%s", err);
     cr_assert_eq(w.media->method, MEDIA_MARCH_STEPS);
     cr_assert_eq(w.media->step, 0.125f);
-    cr_assert_not_null(w.media->map);
+    cr_assert_not_null(wm);
     /* The volume map, then the surface map (the black box keeps none, but the map is there). */
-    const struct photon_map *vm = w.media->map, *sm = vm->surface;
+    const struct photon_map *vm = wm, *sm = vm->surface;
     cr_assert_not_null(sm);
     cr_assert_eq(sm->num_photons, 0u);
     cr_assert_eq(vm->num_photons * sizeof(struct photon) + 48 + 4 * ((size_t)vm->table_size + 1) +
                      sm->num_photons * sizeof(struct photon) + 48 + 4 * ((size_t)sm->table_size + 1),
                  n);
-    cr_assert_neq(volume_blob_apply(&w, vb, vbs - 4, err, sizeof err), 0);
+    cr_assert_neq(volume_blob_apply(&w, vb, vbs - 4, &bad, err, sizeof err), 0);
     vb[8] = 7; /* method out of range */
-    cr_assert_neq(volume_blob_apply(&w, vb, vbs, err, sizeof err), 0);
+    cr_assert_neq(volume_blob_apply(&w, vb, vbs, &bad, err, sizeof err), 0);
+    cr_assert_null(bad);
+    photon_map_free(&wm);
     free(vb);
     free(map);
     scene_free(&w);
     scene_free(&s);
 }
 
-static double render_mean(struct scene *s, uint32_t spp, double *se)
+/* map (or NULL): lent to the job for the render, still the caller's after. */
+static double render_mean(struct scene *s, struct photon_map *map, uint32_t spp, double *se)
 {
     s->settings.spp = spp;
     struct render_job job;
     job_ok(&job, s);
+    render_job_set_photon_map(&job, &map);
     uint32_t w = s->settings.width, h = s->settings.height;
     float *px = malloc(sizeof(float) * w * h * TILE_NUM_CHANNELS);
     struct tile_stats st;
@@ -607,17 +615,21 @@ static double render_mean(struct scene *s, uint32_t spp, double *se)
     cr_assert_eq(st.nan_samples, 0);
     *se = sqrt(var) / (w * h);
     free(px);
+    job.photons = NULL; /* the caller's */
     render_job_free(&job);
     return sum / (w * h);
 }
 
-static void attach_map(struct scene *s, uint64_t min_stored)
+/* The scene's photon map, decoded as a worker does (the caller frees). */
+static struct photon_map *decode_map(struct scene *s, uint64_t min_stored)
 {
     size_t n;
     uint8_t *blob = build_map(s, 2, &n, min_stored);
     char err[256];
-    cr_assert_eq(photon_map_decode(blob, n, &s->media->map, err, sizeof err), 0, "%s", err);
+    struct photon_map *m = NULL;
+    cr_assert_eq(photon_map_decode(blob, n, &m, err, sizeof err), 0, "%s", err);
     free(blob);
+    return m;
 }
 
 /* Stated bias: the photon-map image mean is within 10 % of the path tracer's. */
@@ -625,19 +637,19 @@ Test(medium, photon_map_matches_vpt, .timeout = 120)
 {
     struct scene s;
     load_ok(MS_SCENE("vpt"), &s);
-    double se_ref, ref = render_mean(&s, 256, &se_ref);
+    double se_ref, ref = render_mean(&s, NULL, 256, &se_ref);
     cr_assert(ref > 0.0);
     s.media->method = MEDIA_MARCH_BEAM;
-    attach_map(&s, 1000);
-    double se_b, beam = render_mean(&s, 4, &se_b);
+    struct photon_map *map = decode_map(&s, 1000);
+    double se_b, beam = render_mean(&s, map, 4, &se_b);
     s.media->method = MEDIA_MARCH_STEPS;
-    double se_m, march = render_mean(&s, 4, &se_m);
+    double se_m, march = render_mean(&s, map, 4, &se_m);
     fprintf(stderr, "photon map vs vpt: beam %g per-step %g vpt %g +- %g\n", beam, march, ref, se_ref);
     cr_assert(fabs(beam / ref - 1.0) < 0.10, "beam %g vs vpt %g (+- %g)", beam, ref, se_ref);
     cr_assert(fabs(march / ref - 1.0) < 0.10, "per-step %g vs vpt %g (+- %g)", march, ref, se_ref);
     /* Without the map (single scattering only) the image is clearly darker: the map matters. */
-    photon_map_free(&s.media->map);
-    double se_s, single = render_mean(&s, 4, &se_s);
+    photon_map_free(&map);
+    double se_s, single = render_mean(&s, NULL, 4, &se_s);
     cr_assert(single < 0.8 * ref, "single %g vs vpt %g", single, ref);
     scene_free(&s);
 }
@@ -664,12 +676,12 @@ Test(medium, surface_photon_map_matches_vpt, .timeout = 120)
 {
     struct scene s;
     load_ok(FLOOR_SCENE("vpt", "true"), &s);
-    double se_ref, ref = render_mean(&s, 256, &se_ref);
+    double se_ref, ref = render_mean(&s, NULL, 256, &se_ref);
     scene_free(&s);
     load_ok(FLOOR_SCENE("beam", "false"), &s);
-    attach_map(&s, 1000);
-    cr_assert_null(s.media->map->surface);
-    double se_p, path = render_mean(&s, 16, &se_p);
+    struct photon_map *map = decode_map(&s, 1000);
+    cr_assert_null(map->surface);
+    double se_p, path = render_mean(&s, map, 16, &se_p);
     scene_free(&s);
     load_ok(FLOOR_SCENE("beam", "true"), &s);
     size_t n1, n2;
@@ -677,19 +689,21 @@ Test(medium, surface_photon_map_matches_vpt, .timeout = 120)
     cr_assert(n1 == n2 && memcmp(a, b, n1) == 0, "the map depends on the thread count");
     free(a);
     free(b);
-    attach_map(&s, 1000);
-    const struct photon_map *sm = s.media->map->surface;
+    photon_map_free(&map);
+    map = decode_map(&s, 1000);
+    const struct photon_map *sm = map->surface;
     cr_assert(sm && sm->num_photons > 1000, "surface photons: %u", sm ? sm->num_photons : 0);
     for (uint32_t i = 0; i < sm->num_photons; i++)
         cr_assert(fabsf(sm->photons[i].p[1] + 1.2f) < 1e-3f, "a surface photon off the floor at y %g", sm->photons[i].p[1]);
-    double se_s, surf = render_mean(&s, 4, &se_s);
-    s.media->map->surface->num_photons = 0;
-    double se_n, none = render_mean(&s, 4, &se_n);
+    double se_s, surf = render_mean(&s, map, 4, &se_s);
+    map->surface->num_photons = 0;
+    double se_n, none = render_mean(&s, map, 4, &se_n);
     fprintf(stderr, "surface map: beam+surface %g, beam+paths %g, vpt %g +- %g, without its photons %g\n", surf, path,
             ref, se_ref, none);
     cr_assert(fabs(surf / ref - 1.0) < 0.10, "beam+surface %g vs vpt %g", surf, ref);
     cr_assert(fabs(surf / path - 1.0) < 0.05, "beam+surface %g vs beam+paths %g", surf, path);
     cr_assert(none < 0.97 * surf, "without surface photons %g vs %g", none, surf);
+    photon_map_free(&map);
     scene_free(&s);
 }
 
@@ -719,10 +733,10 @@ Test(medium, hard_cases_finite, .timeout = 120)
                          inside ? "-1.5" : "-5", coeffs[c], methods[mth]);
                 struct scene s;
                 load_ok(text, &s);
-                if (mth > 0)
-                    attach_map(&s, 0);
-                double se, mean = render_mean(&s, 2, &se);
+                struct photon_map *map = mth > 0 ? decode_map(&s, 0) : NULL;
+                double se, mean = render_mean(&s, map, 2, &se);
                 cr_assert(isfinite(mean) && mean >= 0.0, "%s %s: mean %g", coeffs[c], methods[mth], mean);
+                photon_map_free(&map);
                 scene_free(&s);
             }
 }
@@ -742,8 +756,6 @@ Test(medium, gather_radius_near_zero)
     m.photons = &ph;
     m.bucket_start = start;
     m.decoded = NULL;
-    vec3 g = photon_map_gather(&m, v3(0, 0, 0), v3(0, 0, 1), 0.5f);
-    cr_assert(v3_is_finite(g) && g.x > 0.0f);
     vec3 gk = photon_map_gather_knn(&m, v3(0, 0, 0), v3(0, 0, 1), 0.5f, 50, 2e-30f);
     cr_assert(v3_is_finite(gk) && gk.x > 0.0f);
     struct medium md;
@@ -855,8 +867,8 @@ Test(medium, shadow_cache_vs_exact, .timeout = 60)
     int count = 0;
     for (int l = 0; l < 2; l++) {
         struct tr_cache c1, c3;
-        cr_assert_eq(tr_cache_build(&c1, md, lights[l], 1), 1);
-        cr_assert_eq(tr_cache_build(&c3, md, lights[l], 3), 1);
+        cr_assert_eq(tr_cache_init(&c1, md, lights[l], 1), 1);
+        cr_assert_eq(tr_cache_init(&c3, md, lights[l], 3), 1);
         size_t nv = (size_t)c1.n[0] * c1.n[1] * c1.n[2];
         cr_assert(nv > 8 && memcmp(&c1.n, &c3.n, sizeof c1.n) == 0);
         cr_assert(memcmp(c1.tau, c3.tau, nv * sizeof *c1.tau) == 0, "cache depends on the thread count");
@@ -894,8 +906,8 @@ Test(medium, shadow_cache_vs_exact, .timeout = 60)
         cr_assert(tr_cache_tau_from(&c1, far, &tau) == 1 && tau == 0.0f, "a segment that misses the box");
         c1.light = light;
         cr_assert_eq(tr_cache_tau_from(&c1, v3(NAN, 0, 0), &tau), 0);
-        tr_cache_free(&c1);
-        tr_cache_free(&c3);
+        tr_cache_fini(&c1);
+        tr_cache_fini(&c3);
         cr_assert_null(c1.tau);
     }
     cr_log_info("shadow cache: worst |dTr| %.4f, mean %.5f; exact entries worst |dTr| %.5f", worst, sum / count,
@@ -907,7 +919,7 @@ Test(medium, shadow_cache_vs_exact, .timeout = 60)
     struct medium hom;
     memset(&hom, 0, sizeof hom);
     struct tr_cache ch;
-    cr_assert_eq(tr_cache_build(&ch, &hom, v3(0, 0, 0), 2), 0);
+    cr_assert_eq(tr_cache_init(&ch, &hom, v3(0, 0, 0), 2), 0);
     cr_assert_null(ch.tau);
     scene_free(&s);
 }
@@ -928,8 +940,8 @@ Test(medium, knn_matches_brute_force, .timeout = 60)
             "\n\"media\": {\"m\": " GRID_MEDIUM "},\n\"volume\": {\"fog\": \"m\", \"photons\": 20000, \"radius\": 0.08},"
             "\n\"objects\": [{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 3, \"material\": \"w\"}],"
             "\n\"lights\": [{\"type\": \"point\", \"position\": [0.2, 0.1, -0.3], \"intensity\": [5, 5, 5]}]}", &s);
-    attach_map(&s, 2000);
-    const struct photon_map *m = s.media->map;
+    struct photon_map *map = decode_map(&s, 2000);
+    const struct photon_map *m = map;
     float (*all)[2] = malloc(sizeof *all * m->num_photons);
     uint32_t idx[PM_KNN_MAX];
     uint32_t ks[4] = {1, 8, 50, 300};
@@ -976,6 +988,7 @@ Test(medium, knn_matches_brute_force, .timeout = 60)
     }
     cr_assert(full > 20 && partial > 5, "queries too easy: %d full, %d partial", full, partial);
     free(all);
+    photon_map_free(&map);
     scene_free(&s);
 }
 
@@ -996,7 +1009,7 @@ Test(medium, march_shadow_cache_image_bias, .timeout = 120)
         struct scene s;
         load_ok(text[c], &s);
         cr_assert_eq(s.media->shadow_cache, c);
-        mean[c] = render_mean(&s, 16, &se[c]);
+        mean[c] = render_mean(&s, NULL, 16, &se[c]);
         scene_free(&s);
     }
     cr_log_info("march: exact shadows %g +- %g, cached %g +- %g", mean[0], se[0], mean[1], se[1]);

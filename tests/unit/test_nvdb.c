@@ -15,7 +15,7 @@
 #include "render/integrator.h"
 #include "base/log.h"
 #include "render/media_integrator.h"
-#include "scene/medium.h"
+#include "scene/grid.h"
 #include "scene/nvdb.h"
 #include "base/rng.h"
 #include "scene/scene_json.h"

@@ -1,27 +1,15 @@
-/* The volume photon map (Jensen and Christensen 1998): built by the master, shipped to
- * every worker as one content-addressed blob, read-only while rendering.
- * - Photons leave the lights in proportion to their power and are traced through media
- *   and off surfaces; photon i uses only random numbers keyed by (seed, i), so the map is
- *   a pure function of the scene. Threads take fixed blocks of photon indices and the
- *   blocks are joined in index order, then sorted (stably) by grid cell: the bytes are the
- *   same for any thread count.
- * - A photon is stored at each scattering event in a medium except events on its first
- *   flight straight from the light (ray marching computes that single scattering).
- * - With the media setting surface_photons, a second map of the same format (following
- *   the volume map in the blob) holds photons arriving at diffuse surfaces after any
- *   interaction: the surfaces' indirect light (Jensen's global map without the direct part,
- *   which next-event estimation computes), read by photon_map_surface.
- * - Storage: 20-byte photons (position, RGBE power, octahedral direction) sorted by the
- *   cell of a hash grid with cells of twice the gather radius, plus the start of each
- *   bucket: two flat arrays, serialised as one copy behind a 48-byte header. */
-#ifndef BRUME_PHOTONMAP_H
-#define BRUME_PHOTONMAP_H
+/* The photon map (Jensen and Christensen 1998): 20-byte photons (position, RGBE power,
+ * octahedral direction) sorted by the cell of a hash grid with cells of twice the gather
+ * radius, plus each bucket's start: two flat arrays, serialised behind a 48-byte header;
+ * a surface map of the same format may follow the volume map. Written by the master
+ * (photon_trace.c), decoded with bounds checks by workers and owned by the render job;
+ * read-only while rendering. Also the job's volume blob (media settings + map). */
+#ifndef BRUME_PHOTON_MAP_H
+#define BRUME_PHOTON_MAP_H
 #include <stddef.h>
 #include <stdint.h>
 #include "scene/medium.h"
 #include "base/vec.h"
-
-struct render_job;
 
 struct photon {
     float p[3];
@@ -45,32 +33,22 @@ struct photon_map {
     struct photon_map *surface; /* the volume map's companion: photons on diffuse surfaces, or NULL */
 };
 
-struct photon_pass_stats {
-    double seconds;
-    uint64_t emitted, stored;  /* stored: volume and surface photons */
-    uint64_t stored_surface;
-    size_t bytes;
+/* Photons one block of photon indices stored, in index order (photon_trace.c fills them). */
+struct photon_list {
+    struct photon *a;
+    uint32_t n;
+    size_t cap;
 };
 
-/* Traces job's photons (scene media settings: count, radius, depth) on `threads` threads
- * and returns the serialised map in *blob (caller frees). The job must be a media job
- * (render_job_init of a scene with media). 0 or -1 with err. */
-int photon_map_build(const struct render_job *job, uint64_t seed, uint32_t threads, uint8_t **blob, size_t *size,
-                     struct photon_pass_stats *stats, char *err, size_t errlen);
+/* Joins the blocks' photons in index order (freeing them), sorts them stably by hash-grid
+ * bucket (cells of 2 radius) and writes one map (header, photons, bucket starts) to
+ * *map (caller frees). 0, or -1 with err (too many photons, big-endian host). */
+int photon_map_serialise(struct photon_list *blocks, uint32_t num_blocks, float radius, uint64_t emitted,
+                         uint8_t **map, size_t *bytes, uint32_t *count, char *err, size_t errlen);
 /* Checks and decodes a blob (every size and index is checked before use). */
 int photon_map_decode(const uint8_t *data, size_t size, struct photon_map **out, char *err, size_t errlen);
 void photon_map_free(struct photon_map **pm);
 
-/* Upper bound on the share of in-scattered light that comes from more than one bounce:
- * max(largest surface reflectance, largest medium albedo x (1 - exp(-sigma_t,max D))),
- * D the scene's diagonal. The photon pass is skipped when it is below skip_bound. */
-double photon_map_indirect_bound(const struct scene *s, float scene_size);
-
-/* Fixed-radius volume radiance estimate at x toward the viewer (light leaves along d_out):
- * sum of phase x power / (4/3 pi r^3) over photons within the map's radius; this is
- * sigma_s times the in-scattered radiance, so a march step adds it times dx. (The march
- * uses the k-nearest form below, Jensen's; this one stays for tests and tools.) */
-vec3 photon_map_gather(const struct photon_map *m, vec3 x, vec3 d_out, float g);
 /* Flux density of indirect light at x on a surface with unit normal n (on the side light
  * arrives from): sum of the power of the surface photons within the map's radius of x,
  * near the tangent plane (|(p - x) . n| <= r / 4) and arriving from n's side, over pi r^2.
@@ -104,13 +82,13 @@ vec3 photon_rgbe_decode(const uint8_t in[4]);
 uint16_t photon_dir_encode(vec3 d);
 vec3 photon_dir_decode(uint16_t e);
 
-
-
 /* The volume blob of a job (path MEDIA_PHOTON_ASSET): the media settings the master
  * settled on (command-line overrides included) and the photon map, if one was built.
  * Every worker renders with exactly these; the blob is content-addressed like any asset. */
 int volume_blob_make(const struct scene_media *sm, const uint8_t *map, size_t map_size, uint8_t **out,
                      size_t *out_size);
-/* Applies a volume blob to a freshly parsed scene (settings, decoded map). 0 or -1 with err. */
-int volume_blob_apply(struct scene *s, const uint8_t *data, size_t size, char *err, size_t errlen);
+/* Applies a volume blob to a freshly parsed scene (its settings) and decodes its map into
+ * *map (NULL when the blob has none; the caller hands it to its render job). 0 or -1 with err. */
+int volume_blob_apply(struct scene *s, const uint8_t *data, size_t size, struct photon_map **map, char *err,
+                      size_t errlen);
 #endif

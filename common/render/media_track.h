@@ -1,0 +1,45 @@
+/* Media tracking: the frame's media state (which medium the camera and each light sit in,
+ * the scene's bounds, step and gather radius, the photon map to use, shadow caches), which
+ * medium a point is in, the medium after a boundary crossing, and shadow transmittance
+ * through boundaries. Media do not nest: outside every medium object is the fog, or vacuum.
+ * Built by render_job_init for scenes with media (before the job is complete, so it reads
+ * the accel and light table, not the job); read by the media estimators and photon tracing. */
+#ifndef BRUME_MEDIA_TRACK_H
+#define BRUME_MEDIA_TRACK_H
+#include <stdint.h>
+#include "render/surface.h"
+#include "scene/medium.h"
+
+struct photon_map;
+struct shadow_caches;
+
+struct media_job {
+    const struct scene_media *sm;
+    const struct accel *accel;      /* the job's: the job must not move while this lives */
+    const struct light_table *lights;
+    uint32_t camera_medium;
+    uint32_t *light_medium;     /* per light-table entry: the medium it emits into */
+    vec3 bounds_lo, bounds_hi;  /* geometry, lights and camera */
+    float scene_size;           /* diagonal of the bounds */
+    float step;                 /* marching step used */
+    float radius;               /* gather radius used */
+    const struct photon_map *map; /* the job's map for Jensen's methods; NULL: single scattering only (skipped, or VPT) */
+    struct shadow_caches *shadow; /* march / beam: per (point light, grid medium) tr_cache, filled on first use */
+};
+
+/* a, lt: the render job's (outlive the result); map: the job's photon map or NULL. */
+struct media_job *media_job_new(const struct accel *a, const struct light_table *lt, const struct photon_map *map);
+void media_job_free(struct media_job **mj);
+
+/* The medium at point p (a ray toward a fixed direction finds the medium object it is
+ * inside, if any), or the fog. */
+uint32_t media_at(const struct media_job *mj, vec3 p);
+/* Medium on the far side after a ray travelling along dir crosses the boundary hit h. */
+uint32_t media_after_crossing(const struct media_job *mj, const struct accel_hit *h, vec3 ng, vec3 dir);
+int media_is_interface(const struct media_job *mj, uint32_t material);
+/* Transmittance from p to target through boundaries (invisible medium boundaries are
+ * crossed; any other surface blocks: 0). */
+vec3 media_shadow_transmittance(const struct media_job *mj, vec3 p, vec3 target, uint32_t medium, float time01,
+                                uint64_t key, uint64_t *rays);
+
+#endif

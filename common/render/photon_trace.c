@@ -1,0 +1,394 @@
+/* Photon tracing (see photon_trace.h): photons leave the lights, are traced through media
+ * (media_track.c for boundaries) and off surfaces (surface.c), and are stored in per-block
+ * lists that photon_map.c serialises. Photon i draws only from random numbers keyed by
+ * (seed, frame, i), so the map is a pure function of the scene. Called by the master. */
+#include "render/photon_trace.h"
+#include "base/log.h"
+#include "base/rng.h"
+#include "render/media_track.h"
+#include "render/photon_map.h"
+#include "render/render_job.h"
+#include "render/surface.h"
+#include "scene/grid.h"
+#include "scene/material.h"
+#include <math.h>
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#define PM_BLOCK 1024           /* photon indices per work unit */
+#define SALT_PHOTON 0x70686f746f6eull
+
+struct trace_ctx {
+    const struct render_job *job;
+    const struct media_job *mj;
+    uint64_t seed;
+    uint64_t emitted;
+    float photon_scale;     /* 1 / emitted */
+    uint32_t num_blocks;
+    _Atomic uint32_t next_block;
+    struct photon_list *blocks;     /* volume photons per block of indices */
+    struct photon_list *surface;    /* surface photons per block (NULL: none kept) */
+    int aim;                /* point lights aim most photons at the media's bounding sphere */
+    vec3 aim_center;
+    float aim_radius;
+};
+
+#define AIM_SHARE 0.75f     /* photons of a point light sent into the cone toward the media */
+
+/* Bounding sphere of where media are (grids' occupied boxes, medium spheres and meshes);
+ * 0 when a homogeneous fog fills everything (nothing to aim at). */
+static int media_bounds(const struct render_job *job, vec3 *center, float *radius)
+{
+    const struct scene *sc = job->scene;
+    const struct scene_media *sm = sc->media;
+    vec3 lo = v3(INFINITY, INFINITY, INFINITY), hi = v3(-INFINITY, -INFINITY, -INFINITY);
+#define GROW(q) (lo = v3(fminf(lo.x, (q).x), fminf(lo.y, (q).y), fminf(lo.z, (q).z)), \
+                 hi = v3(fmaxf(hi.x, (q).x), fmaxf(hi.y, (q).y), fmaxf(hi.z, (q).z)))
+    if (sm->fog != MEDIUM_NONE) {
+        const struct density_grid *g = sm->media[sm->fog].grid;
+        if (!g)
+            return 0;
+        if (!(g->occ_lo.x <= g->occ_hi.x && g->occ_lo.y <= g->occ_hi.y && g->occ_lo.z <= g->occ_hi.z))
+            return 0;
+        for (int k = 0; k < 8; k++) {
+            vec3 c = v3(k & 1 ? g->occ_hi.x : g->occ_lo.x, k & 2 ? g->occ_hi.y : g->occ_lo.y, k & 4 ? g->occ_hi.z : g->occ_lo.z);
+            vec3 w = xform_point(&g->grid_to_world, c);
+            GROW(w);
+        }
+    }
+    for (uint32_t i = 0; i < sm->num_sphere_medium && i < sc->num_spheres; i++)
+        if (sm->sphere_medium[i] != MEDIUM_NONE) {
+            const struct sphere *sp = &sc->spheres[i];
+            vec3 rr = v3(sp->radius, sp->radius, sp->radius);
+            vec3 a = v3_sub(sp->center, rr), b = v3_add(sp->center, rr);
+            GROW(a);
+            GROW(b);
+        }
+    for (uint32_t i = 0; i < sm->num_mesh_medium && i < sc->num_meshes; i++)
+        if (sm->mesh_medium[i] != MEDIUM_NONE) {
+            const struct mesh *m = &sc->meshes[i];
+            for (uint32_t k = 0; k < m->num_vertices; k++) {
+                vec3 q = v3(m->positions[3 * k], m->positions[3 * k + 1], m->positions[3 * k + 2]);
+                GROW(q);
+            }
+        }
+#undef GROW
+    if (!(lo.x <= hi.x))
+        return 0;
+    *center = v3_scale(v3_add(lo, hi), 0.5f);
+    *radius = 0.5f * v3_length(v3_sub(hi, lo)) * 1.001f;
+    return 1;
+}
+
+static int outside_bounds(const struct media_job *mj, vec3 p)
+{
+    return !(p.x >= mj->bounds_lo.x && p.y >= mj->bounds_lo.y && p.z >= mj->bounds_lo.z && p.x <= mj->bounds_hi.x &&
+             p.y <= mj->bounds_hi.y && p.z <= mj->bounds_hi.z);
+}
+
+static vec3 cosine_dir(vec3 n, float u1, float u2)
+{
+    float r = sqrtf(u1), sp, cp;
+    sincos_2pi(u2, &sp, &cp);
+    vec3 t, b;
+    v3_basis(n, &t, &b);
+    return v3_normalize(v3_add(v3_add(v3_scale(t, r * cp), v3_scale(b, r * sp)), v3_scale(n, sqrtf(fmaxf(0.0f, 1.0f - u1)))));
+}
+
+/* Emits photon `index`: origin, direction, power and the medium it starts in. 0 = none. */
+static int emit(const struct trace_ctx *tc, uint64_t key, vec3 *o, vec3 *d, vec3 *power, uint32_t *medium)
+{
+    const struct render_job *job = tc->job;
+    const struct scene *sc = job->scene;
+    const struct light_table *lt = &job->lights;
+    uint32_t i = light_pick(lt, rng_uniform(key, 0));
+    const struct light_entry *e = &lt->entries[i];
+    float pick = lt->pick_pdf[i];
+    if (!(pick > 0.0f))
+        return 0;
+    float u1 = rng_uniform(key, 1), u2 = rng_uniform(key, 2), u3 = rng_uniform(key, 3), u4 = rng_uniform(key, 4);
+    *medium = tc->mj->light_medium[i];
+    switch (e->kind) {
+    case LK_POINT: {
+        /* A mixture: the light's own emission (sphere or spot cone), and, when the light
+         * is outside the media's bounding sphere, the cone toward it with share
+         * AIM_SHARE. Power is divided by the mixture's pdf, so nothing is biased. */
+        const struct light *l = &sc->lights[e->index];
+        float cos_max = l->type == LIGHT_SPOT ? l->cos_outer : -1.0f;
+        vec3 axis = l->type == LIGHT_SPOT ? l->direction : v3(0, 0, 1);
+        float cos_aim = 2.0f;
+        vec3 aim_axis = axis;
+        if (tc->aim) {
+            vec3 to = v3_sub(tc->aim_center, l->position);
+            float dist = v3_length(to);
+            if (dist > tc->aim_radius) {
+                aim_axis = v3_scale(to, 1.0f / dist);
+                float s2 = (tc->aim_radius / dist) * (tc->aim_radius / dist);
+                cos_aim = sqrtf(fmaxf(0.0f, 1.0f - s2));
+            }
+        }
+        int aimed = cos_aim < 1.0f && rng_uniform(key, 5) < AIM_SHARE;
+        float cm = aimed ? cos_aim : cos_max;
+        vec3 ax = aimed ? aim_axis : axis;
+        float z = 1.0f - u1 * (1.0f - cm), r = sqrtf(fmaxf(0.0f, 1.0f - z * z)), sp, cp;
+        sincos_2pi(u2, &sp, &cp);
+        vec3 t, b;
+        v3_basis(ax, &t, &b);
+        *d = v3_normalize(v3_add(v3_scale(ax, z), v3_add(v3_scale(t, r * cp), v3_scale(b, r * sp))));
+        *o = l->position;
+        float pdf_own = (l->type != LIGHT_SPOT || v3_dot(*d, axis) >= cos_max) ? 1.0f / (2.0f * (float)M_PI * (1.0f - cos_max)) : 0.0f;
+        float pdf = pdf_own;
+        if (cos_aim < 1.0f) {
+            float pdf_aim = v3_dot(*d, aim_axis) >= cos_aim ? 1.0f / (2.0f * (float)M_PI * (1.0f - cos_aim)) : 0.0f;
+            pdf = AIM_SHARE * pdf_aim + (1.0f - AIM_SHARE) * pdf_own;
+        }
+        if (!(pdf > 0.0f))
+            return 0;
+        *power = v3_scale(e->emission, light_spot_falloff(l, *d) / (pdf * pick) * tc->photon_scale);
+        return 1;
+    }
+    case LK_TRIANGLE: {
+        const struct mesh *m = &sc->meshes[e->index];
+        const uint32_t *idx = &m->indices[3 * e->prim];
+        const float *pa = &m->positions[3 * idx[0]], *pb = &m->positions[3 * idx[1]], *pc = &m->positions[3 * idx[2]];
+        vec3 a = v3(pa[0], pa[1], pa[2]), bb = v3(pb[0], pb[1], pb[2]), c = v3(pc[0], pc[1], pc[2]);
+        float su = sqrtf(u1), b0 = 1.0f - su, b1 = u2 * su;
+        vec3 p = v3_add(v3_add(v3_scale(a, b0), v3_scale(bb, b1)), v3_scale(c, 1.0f - b0 - b1));
+        vec3 n = v3_normalize(v3_cross(v3_sub(bb, a), v3_sub(c, a)));
+        *o = offset_ray_origin(p, n);
+        *d = cosine_dir(n, u3, u4);
+        *power = v3_scale(e->emission, (float)M_PI * e->area / pick * tc->photon_scale);
+        return 1;
+    }
+    case LK_SPHERE: {
+        const struct sphere *sp = &sc->spheres[e->index];
+        float z = 1.0f - 2.0f * u1, r = sqrtf(fmaxf(0.0f, 1.0f - z * z)), s, co;
+        sincos_2pi(u2, &s, &co);
+        vec3 n = v3(r * co, r * s, z);
+        vec3 p = v3_add(sp->center, v3_scale(n, sp->radius));
+        *o = offset_ray_origin(v3_add(p, v3_scale(n, (v3_max_abs(sp->center) + sp->radius) * 0x1p-21f)), n);
+        *d = cosine_dir(n, u3, u4);
+        *power = v3_scale(e->emission, (float)M_PI * e->area / pick * tc->photon_scale);
+        return 1;
+    }
+    }
+    return 0;
+}
+
+static void store(struct photon_list *l, vec3 p, vec3 d, vec3 power)
+{
+    if (!v3_is_finite(power) || v3_is_black(power))
+        return;
+    mem_grow((void **)&l->a, &l->cap, (size_t)l->n + 1, sizeof *l->a);
+    struct photon *ph = &l->a[l->n++];
+    ph->p[0] = p.x, ph->p[1] = p.y, ph->p[2] = p.z;
+    photon_rgbe_encode(power, ph->rgbe);
+    ph->dir = photon_dir_encode(d);
+    ph->reserved = 0;
+}
+
+/* Traces photon `index`: volume photons into vol; when surf is non-NULL, photons arriving
+ * at diffuse surfaces after any interaction into surf. */
+static void trace_photon(const struct trace_ctx *tc, uint64_t index, struct photon_list *vol,
+                         struct photon_list *surf)
+{
+    const struct render_job *job = tc->job;
+    const struct scene *sc = job->scene;
+    const struct scene_media *sm = sc->media;
+    uint64_t key = rng_mix64(rng_key(tc->seed ^ SALT_PHOTON, job->frame, index, 0));
+    vec3 o, d, power;
+    uint32_t medium;
+    if (!emit(tc, key, &o, &d, &power, &medium) || v3_is_black(power))
+        return;
+    int indirect = 0;           /* any interaction since the light */
+    uint32_t crossings = 0;
+    /* Moving geometry: each photon lives at one time of the frame's shutter, drawn as the
+     * camera draws its rays' times, so the map averages the shutter as the image does. */
+    const float time01 = job->accel.has_motion ? camera_shutter_warp(&job->camera, rng_uniform(key, 6)) : 0.0f;
+    for (uint32_t depth = 0; depth < sm->max_photon_depth;) {
+        uint32_t dim = 8 + 8 * depth;
+        struct accel_hit h;
+        int hit = accel_intersect(&job->accel, o, d, INFINITY, time01, &h);
+        if (medium != MEDIUM_NONE) {
+            const struct medium *md = &sm->media[medium];
+            float t;
+            vec3 w;
+            int scatter = medium_sample_flight(md, o, d, hit ? h.t : INFINITY, power, rng_mix64(key ^ ((uint64_t)dim << 32)), &t, &w);
+            vec3 before = power;
+            power = v3_mul(power, w);
+            if (scatter) {
+                vec3 x = v3_add(o, v3_scale(d, t));
+                if (outside_bounds(tc->mj, x))
+                    return;
+                if (indirect)
+                    store(vol, x, d, power);
+                /* Russian roulette keeps the power of survivors near what it was. */
+                float q = fminf(1.0f, v3_max_component(power) / fmaxf(v3_max_component(before), 1e-30f));
+                if (!(q > 0.0f) || rng_uniform(key, dim + 2) >= q)
+                    return;
+                power = v3_scale(power, 1.0f / q);
+                vec3 nd;
+                phase_hg_sample(d, md->g, rng_uniform(key, dim + 3), rng_uniform(key, dim + 4), &nd);
+                o = x;
+                d = nd;
+                indirect = 1;
+                depth++;
+                continue;
+            }
+        }
+        if (!hit || v3_is_black(power))
+            return;
+        struct surface s;
+        surface_from_hit(&job->accel, &job->lights, o, d, &h, time01, &s);
+        if (media_is_interface(tc->mj, s.material)) {
+            if (++crossings > 256)
+                return;
+            medium = media_after_crossing(tc->mj, &h, s.ng, d);
+            vec3 nn = v3_dot(s.ng, d) > 0.0f ? s.ng : v3_neg(s.ng);
+            o = offset_ray_origin(v3_add(s.p, v3_scale(nn, s.p_err)), nn);
+            continue;
+        }
+        const struct material *mat = &sc->materials[s.material];
+        /* Light reaching a diffuse surface after an interaction: its indirect light (what
+         * arrives straight from a light, next-event estimation computes). */
+        if (surf && indirect && mat->type == MATERIAL_DIFFUSE && !v3_is_black(mat->albedo))
+            store(surf, s.p, d, power);
+        vec3 wo = v3_neg(d);
+        int front = v3_dot(s.ng, wo) >= 0.0f;
+        vec3 ng = front ? s.ng : v3_neg(s.ng);
+        vec3 ns = v3_dot(s.ns, ng) < 0.0f ? v3_neg(s.ns) : s.ns;
+        struct bsdf_sample bs;
+        material_sample(mat, ns, wo, front, rng_uniform(key, dim + 5), rng_uniform(key, dim + 6), &bs);
+        float side = v3_dot(bs.wi, ng);
+        if (bs.pdf <= 0.0f || (bs.transmitted ? side >= 0.0f : side <= 0.0f))
+            return;
+        /* Flux crosses an index change unscaled (the 1/eta^2 of bs.weight is for radiance). */
+        vec3 w = bs.transmitted ? mat->transmittance : bs.weight;
+        float q = fminf(1.0f, v3_max_component(w));
+        if (!(q > 0.0f) || rng_uniform(key, dim + 7) >= q)
+            return;
+        power = v3_scale(v3_mul(power, w), 1.0f / q);
+        if (bs.transmitted) {
+            medium = media_after_crossing(tc->mj, &h, s.ng, d);
+            o = offset_ray_origin(v3_sub(s.p, v3_scale(ng, s.p_err)), v3_neg(ng));
+        } else {
+            o = offset_ray_origin(v3_add(s.p, v3_scale(ng, s.p_err)), ng);
+        }
+        d = bs.wi;
+        indirect = 1;
+        depth++;
+    }
+}
+
+static void *trace_thread(void *arg)
+{
+    struct trace_ctx *tc = arg;
+    for (;;) {
+        uint32_t b = atomic_fetch_add(&tc->next_block, 1);
+        if (b >= tc->num_blocks)
+            break;
+        uint64_t first = (uint64_t)b * PM_BLOCK, last = first + PM_BLOCK;
+        last = last < tc->emitted ? last : tc->emitted;
+        for (uint64_t i = first; i < last; i++)
+            trace_photon(tc, i, &tc->blocks[b], tc->surface ? &tc->surface[b] : NULL);
+    }
+    return NULL;
+}
+
+
+double photon_trace_indirect_bound(const struct scene *s, float scene_size)
+{
+    double surf = 0.0, med = 0.0;
+    const struct scene_media *sm = s->media;
+    for (uint32_t i = 0; i < s->num_materials; i++) {
+        const struct material *m = &s->materials[i];
+        if (sm && i == sm->interface_material)
+            continue;
+        vec3 r = m->type == MATERIAL_DIFFUSE ? m->albedo : (m->type == MATERIAL_MIRROR ? m->reflectance : v3(1, 1, 1));
+        surf = fmax(surf, (double)v3_max_component(r));
+    }
+    for (uint32_t i = 0; sm && i < sm->num_media; i++) {
+        const struct medium *md = &sm->media[i];
+        vec3 st = md->sigma_t, ss = md->sigma_s;
+        double alb = 0.0, smax = (double)v3_max_component(st) * (md->grid ? md->grid->max_density : 1.0f);
+        if (st.x > 0) alb = fmax(alb, (double)ss.x / st.x);
+        if (st.y > 0) alb = fmax(alb, (double)ss.y / st.y);
+        if (st.z > 0) alb = fmax(alb, (double)ss.z / st.z);
+        med = fmax(med, alb * -expm1(-smax * (double)scene_size));
+    }
+    return fmax(surf, med);
+}
+
+int photon_trace_map(const struct render_job *job, uint64_t seed, uint32_t threads, uint8_t **blob, size_t *size,
+                     struct photon_pass_stats *stats, char *err, size_t errlen)
+{
+    struct timespec t0, t1;
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    memset(stats, 0, sizeof *stats);
+    const struct scene_media *sm = job->scene->media;
+    if (!job->media || !sm) {
+        str_fmt(err, errlen, "photon pass: the scene has no media");
+        return -1;
+    }
+    struct trace_ctx tc;
+    memset(&tc, 0, sizeof tc);
+    tc.job = job;
+    tc.mj = job->media;
+    tc.seed = seed;
+    tc.emitted = job->lights.num_entries > 0 ? sm->photons : 0;
+    tc.photon_scale = tc.emitted ? (float)(1.0 / (double)tc.emitted) : 0.0f;
+    tc.num_blocks = (uint32_t)((tc.emitted + PM_BLOCK - 1) / PM_BLOCK);
+    tc.aim = media_bounds(job, &tc.aim_center, &tc.aim_radius);
+    atomic_init(&tc.next_block, 0);
+    tc.blocks = mem_calloc(tc.num_blocks ? tc.num_blocks : 1, sizeof *tc.blocks);
+    if (sm->surface_photons)
+        tc.surface = mem_calloc(tc.num_blocks ? tc.num_blocks : 1, sizeof *tc.surface);
+    threads = threads < 1 ? 1 : (threads > 256 ? 256 : threads);
+    pthread_t *th = mem_alloc(sizeof *th * threads);
+    uint32_t started = 0;
+    for (uint32_t i = 1; i < threads; i++)
+        if (pthread_create(&th[i], NULL, trace_thread, &tc) == 0)
+            started = i;
+        else
+            break;
+    trace_thread(&tc);
+    for (uint32_t i = 1; i <= started; i++)
+        pthread_join(th[i], NULL);
+    free(th);
+    float radius = job->media->radius;
+    size_t vbytes = 0, sbytes = 0;
+    uint32_t vn = 0, sn = 0;
+    uint8_t *vmap = NULL, *smap = NULL;
+    int rc = photon_map_serialise(tc.blocks, tc.num_blocks, radius, tc.emitted, &vmap, &vbytes, &vn, err, errlen);
+    if (tc.surface)
+        rc |= photon_map_serialise(tc.surface, tc.num_blocks, radius, tc.emitted, &smap, &sbytes, &sn, err, errlen);
+    free(tc.blocks);
+    free(tc.surface);
+    if (rc != 0) {
+        free(vmap);
+        free(smap);
+        return -1;
+    }
+    /* The volume map, then the surface map when there is one. */
+    size_t bytes = vbytes + sbytes;
+    uint8_t *out = mem_alloc(bytes);
+    memcpy(out, vmap, vbytes);
+    if (smap)
+        memcpy(out + vbytes, smap, sbytes);
+    free(vmap);
+    free(smap);
+    uint32_t n = vn + sn;
+    stats->stored_surface = sn;
+    *blob = out;
+    *size = bytes;
+    clock_gettime(CLOCK_MONOTONIC, &t1);
+    stats->seconds = (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec);
+    stats->emitted = tc.emitted;
+    stats->stored = n;
+    stats->bytes = bytes;
+    return 0;
+}
+

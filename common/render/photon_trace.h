@@ -1,0 +1,32 @@
+/* Photon tracing for the photon map (Jensen and Christensen 1998), on the master: photons
+ * leave the lights in proportion to their power, are traced through media and off
+ * surfaces, and are stored at each scattering in a medium except on their first flight
+ * (marching computes single scattering) and, with surface_photons, on diffuse surfaces
+ * after any interaction. Fixed blocks of photon indices per thread, joined in index
+ * order: the bytes are the same for any thread count. */
+#ifndef BRUME_PHOTON_TRACE_H
+#define BRUME_PHOTON_TRACE_H
+#include <stddef.h>
+#include <stdint.h>
+
+struct render_job;
+struct scene;
+
+struct photon_pass_stats {
+    double seconds;
+    uint64_t emitted, stored;  /* stored: volume and surface photons */
+    uint64_t stored_surface;
+    size_t bytes;
+};
+
+/* Traces job's photons (scene media settings: count, radius, depth) on `threads` threads
+ * and returns the serialised map in *blob (caller frees). The job must be a media job
+ * (render_job_init of a scene with media). 0 or -1 with err. */
+int photon_trace_map(const struct render_job *job, uint64_t seed, uint32_t threads, uint8_t **blob, size_t *size,
+                     struct photon_pass_stats *stats, char *err, size_t errlen);
+/* Upper bound on the share of in-scattered light that comes from more than one bounce:
+ * max(largest surface reflectance, largest medium albedo x (1 - exp(-sigma_t,max D))),
+ * D the scene's diagonal. The photon pass is skipped when it is below skip_bound. */
+double photon_trace_indirect_bound(const struct scene *s, float scene_size);
+
+#endif

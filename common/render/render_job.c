@@ -1,0 +1,98 @@
+/* The frame context (see render_job.h). Texture pyramids, the light table and the photon
+ * map depend only on the scene and are kept across frames; the Embree scene, camera and
+ * media state are rebuilt per frame. */
+#include "render/render_job.h"
+#include "base/log.h"
+#include "image/mip.h"
+#include "render/media_track.h"
+#include "render/photon_map.h"
+#include "scene/texture.h"
+#include <stdlib.h>
+#include <string.h>
+
+/* MIP pyramids of the scene's image textures, once per job, only when a material uses a
+ * texture (others never look one up, so their images are unchanged bit for bit). */
+static void mips_init(struct render_job *job)
+{
+    const struct scene *scene = job->scene;
+    job->textured = 0;
+    for (uint32_t i = 0; i < scene->num_materials; i++)
+        if (scene->materials[i].albedo_tex || scene->materials[i].bump_tex || scene->materials[i].normal_tex)
+            job->textured = 1;
+    if (!job->textured || scene->num_textures == 0)
+        return;
+    job->mips = mem_calloc(scene->num_textures, sizeof *job->mips);
+    for (uint32_t i = 0; i < scene->num_textures; i++) {
+        const struct texture *t = &scene->textures[i];
+        if (t->type == TEXTURE_IMAGE)
+            mip_build(&job->mips[i], &t->image, t->wrap);
+    }
+}
+
+static void mips_fini(struct render_job *job)
+{
+    for (uint32_t i = 0; job->mips && i < job->scene->num_textures; i++)
+        mip_free(&job->mips[i]);
+    free(job->mips);
+    job->mips = NULL;
+}
+
+/* What depends on the frame: Embree scene, camera at the frame's time, media state. */
+static int frame_init(struct render_job *job, uint32_t frame, uint32_t threads, char *err, size_t errlen)
+{
+    const struct scene *scene = job->scene;
+    job->frame = frame;
+    if (accel_build(&job->accel, scene, frame, threads, err, errlen) != 0)
+        return -1;
+    camera_init(&job->camera, &scene->camera, scene->settings.width, scene->settings.height);
+    camera_set_scene_motion(&job->camera, job->accel.has_motion);
+    if (scene->media)
+        job->media = media_job_new(&job->accel, &job->lights, job->photons);
+    return 0;
+}
+
+int render_job_init(struct render_job *job, const struct scene *scene, uint32_t frame, uint32_t threads,
+                    char *err, size_t errlen)
+{
+    memset(job, 0, sizeof *job);
+    job->scene = scene;
+    light_table_build(&job->lights, scene);
+    if (frame_init(job, frame, threads, err, errlen) != 0) {
+        light_table_free(&job->lights);
+        return -1;
+    }
+    mips_init(job);
+    return 0;
+}
+
+int render_job_reframe(struct render_job *job, uint32_t frame, uint32_t threads, char *err, size_t errlen)
+{
+    accel_free(&job->accel);
+    media_job_free(&job->media);
+    if (frame_init(job, frame, threads, err, errlen) != 0) {
+        render_job_free(job);
+        return -1;
+    }
+    return 0;
+}
+
+void render_job_set_photon_map(struct render_job *job, struct photon_map **map)
+{
+    photon_map_free(&job->photons);
+    job->photons = *map;
+    *map = NULL;
+    if (job->media)
+        job->media->map = job->media->sm->method != MEDIA_VPT ? job->photons : NULL;
+}
+
+void render_job_free(struct render_job *job)
+{
+    if (!job->scene)
+        return;
+    mips_fini(job);
+    accel_free(&job->accel);
+    light_table_free(&job->lights);
+    media_job_free(&job->media);
+    photon_map_free(&job->photons);
+    memset(job, 0, sizeof *job);
+}

@@ -1,0 +1,44 @@
+/* The frame context: what every tile of a frame reads (scene, Embree scene, light table,
+ * camera, media state, texture pyramids, the decoded photon map). Built once per frame by
+ * render_job_init and shared read-only by the render threads; it owns everything built at
+ * render time, the photon map included (the scene description owns none of it). It must
+ * not move in memory once built (the media state points into it). Used by the worker, the
+ * master's photon pass and tests; everything in render/ that shades reads it. */
+#ifndef BRUME_RENDER_JOB_H
+#define BRUME_RENDER_JOB_H
+#include <stddef.h>
+#include <stdint.h>
+#include "render/accel.h"
+#include "scene/camera.h"
+#include "scene/light.h"
+
+struct media_job;
+struct mip;
+struct photon_map;
+
+struct render_job {
+    const struct scene *scene;
+    struct accel accel;
+    struct light_table lights;
+    struct camera camera;
+    uint32_t frame;
+    struct media_job *media; /* media_track.h; NULL when the scene has no media */
+    struct mip *mips;       /* per scene texture (NULL entries for checkers), NULL when no material has one */
+    int textured;           /* a material uses a texture: rays carry differentials */
+    struct photon_map *photons; /* owned: the master's photon map, or NULL */
+};
+
+int render_job_init(struct render_job *job, const struct scene *scene, uint32_t frame, uint32_t threads,
+                    char *err, size_t errlen);
+/* The same job moved to another frame of its scene: rebuilds what depends on the frame
+ * (Embree scene and its motion steps, camera, media state) and keeps the rest (texture
+ * pyramids, light table, photon map). Pixels equal a fresh render_job_init's. On failure
+ * the job is freed. */
+int render_job_reframe(struct render_job *job, uint32_t frame, uint32_t threads, char *err, size_t errlen);
+/* Takes ownership of *map (set to NULL), replacing the job's photon map. */
+void render_job_set_photon_map(struct render_job *job, struct photon_map **map);
+/* Frees what the job built and owns (not the scene). Named _free for its callers outside
+ * render/ (test_motion.c); the job itself is the caller's storage. */
+void render_job_free(struct render_job *job);
+
+#endif

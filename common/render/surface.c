@@ -1,0 +1,105 @@
+/* The surface interaction and next-event set-up (see surface.h). Hit points are rebuilt
+ * from barycentrics of the stored vertices (exact to rounding), not from o + t d, so the
+ * integer-ULP ray offsets of vec.h stay acne-free at any coordinate magnitude. */
+#include "render/surface.h"
+#include "scene/material.h"
+#include "scene/motion.h"
+#include <math.h>
+
+/* Vertex k of a deforming mesh as a ray at time01 sees it: Embree's blend of the two
+ * time steps around time01, by the same formula, so the rebuilt point lies on what was hit. */
+static vec3 step_vertex(const struct accel_motion *mo, uint32_t num_vertices, uint32_t k, float time01)
+{
+    const float *a = &mo->steps[3 * (size_t)k];
+    if (mo->num_steps <= 1)
+        return v3(a[0], a[1], a[2]);
+    float ft = time01 * (float)(mo->num_steps - 1), fi = floorf(ft);
+    fi = fi < 0.0f ? 0.0f : (fi > (float)(mo->num_steps - 2) ? (float)(mo->num_steps - 2) : fi);
+    float f = ft - fi;
+    a += (size_t)fi * 3 * num_vertices;
+    const float *b = a + 3 * (size_t)num_vertices;
+    return v3((1.0f - f) * a[0] + f * b[0], (1.0f - f) * a[1] + f * b[1], (1.0f - f) * a[2] + f * b[2]);
+}
+
+/* The hit as a surface point at the ray's time. Still geometry: barycentrics of the
+ * stored vertices (exact to rounding). Rigid motion: the same in object space, then the
+ * instance transform at time01 (from Embree, so it matches what was intersected), normals
+ * by its cofactor matrix. Deformation: vertices blended at time01, flat normals. */
+void surface_from_hit(const struct accel *acc, const struct light_table *lt, vec3 org, vec3 dir,
+                      const struct accel_hit *h, float time01, struct surface *s)
+{
+    const struct scene *sc = acc->desc;
+    struct xform x;
+    s->p_err = 0.0f;
+    int moving = accel_object_xform(acc, h->geom, h->prim, time01, &x);
+    if (h->geom == acc->sphere_geom && sc->num_spheres > 0) {
+        const struct sphere *sp = &sc->spheres[h->prim];
+        vec3 p = v3_add(org, v3_scale(dir, h->t));
+        if (moving) {
+            struct xform xi = motion_xform_inverse(&x);
+            vec3 n = v3_normalize(v3_sub(xform_point(&xi, p), sp->center));
+            s->p = xform_point(&x, v3_add(sp->center, v3_scale(n, sp->radius)));
+            s->ng = s->ns = v3_normalize(motion_xform_normal(&x, n));
+            s->p_err = (v3_max_abs(s->p) + v3_max_abs(sp->center) + sp->radius) * 0x1p-20f;
+        } else {
+            vec3 n = v3_normalize(v3_sub(p, sp->center));
+            s->p = v3_add(sp->center, v3_scale(n, sp->radius)); /* re-project onto the surface */
+            s->ng = s->ns = n;
+            /* center + r n rounds at the scale of |center| and r, not of |p|: a floor made of
+             * a huge sphere needs an offset of that size, or its shadow rays self-hit in rings. */
+            s->p_err = (v3_max_abs(sp->center) + sp->radius) * 0x1p-21f;
+        }
+        s->material = sp->material_id;
+        s->light = lt->sphere_light ? lt->sphere_light[h->prim] : LIGHT_NONE;
+        return;
+    }
+    const struct mesh *m = &sc->meshes[h->geom];
+    const uint32_t *idx = &m->indices[3 * h->prim];
+    const struct accel_motion *mo = acc->mesh_motion ? &acc->mesh_motion[h->geom] : NULL;
+    float w = 1.0f - h->u - h->v;
+    if (mo && mo->num_steps > 0) {
+        vec3 va = step_vertex(mo, m->num_vertices, idx[0], time01), vb = step_vertex(mo, m->num_vertices, idx[1], time01),
+             vc = step_vertex(mo, m->num_vertices, idx[2], time01);
+        s->p = v3_add(v3_add(v3_scale(va, w), v3_scale(vb, h->u)), v3_scale(vc, h->v));
+        s->ng = v3_normalize(v3_cross(v3_sub(vb, va), v3_sub(vc, va)));
+        s->ns = s->ng;
+    } else {
+        const float *a = &m->positions[3 * idx[0]], *b = &m->positions[3 * idx[1]], *c = &m->positions[3 * idx[2]];
+        vec3 va = v3(a[0], a[1], a[2]), vb = v3(b[0], b[1], b[2]), vc = v3(c[0], c[1], c[2]);
+        s->p = v3_add(v3_add(v3_scale(va, w), v3_scale(vb, h->u)), v3_scale(vc, h->v));
+        s->ng = acc->face_normals[h->geom][h->prim];
+        s->ns = s->ng;
+        if (m->normals) {
+            const float *na = &m->normals[3 * idx[0]], *nb = &m->normals[3 * idx[1]], *nc = &m->normals[3 * idx[2]];
+            vec3 n = v3_add(v3_add(v3_scale(v3(na[0], na[1], na[2]), w), v3_scale(v3(nb[0], nb[1], nb[2]), h->u)),
+                            v3_scale(v3(nc[0], nc[1], nc[2]), h->v));
+            n = v3_normalize(n);
+            if (v3_is_finite(n) && v3_dot(n, n) > 0.5f)
+                s->ns = v3_dot(n, s->ng) < 0.0f ? v3_neg(n) : n;
+        }
+    }
+    if (moving) {
+        s->p = xform_point(&x, s->p);
+        s->ng = v3_normalize(motion_xform_normal(&x, s->ng));
+        s->ns = v3_normalize(motion_xform_normal(&x, s->ns));
+    }
+    s->material = m->material_ids[h->prim];
+    s->light = lt->tri_light && lt->tri_light[h->geom] ? lt->tri_light[h->geom][h->prim] : LIGHT_NONE;
+}
+
+int nee_prepare(const struct light_table *lt, const struct scene *sc, const struct material *mat, vec3 p, vec3 ns,
+                vec3 ng, vec3 wo, float pick, float u, float v, struct nee_sample *n)
+{
+    light_sample(lt, sc, p, pick, u, v, &n->ls);
+    if (!(n->ls.pdf > 0.0f) || v3_is_black(n->ls.radiance))
+        return 0;
+    vec3 to = v3_sub(n->ls.p, p);
+    vec3 wi = v3_scale(to, 1.0f / v3_length(to));
+    n->bsdf_pdf = 0.0f;
+    n->f = v3_dot(wi, ng) > 0.0f ? material_eval(mat, ns, wo, wi, &n->bsdf_pdf) : v3(0, 0, 0);
+    if (v3_is_black(n->f))
+        return 0;
+    const struct light_sample *ls = &n->ls;
+    n->target = ls->is_delta ? ls->p : offset_ray_origin(ls->p, v3_dot(ls->n, wi) < 0.0f ? ls->n : v3_neg(ls->n));
+    return 1;
+}

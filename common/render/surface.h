@@ -1,0 +1,48 @@
+/* The surface interaction: a ray's hit rebuilt as a surface point (position, normals,
+ * material, emitter) at the ray's time, and next-event set-up toward one light sample.
+ * It reads only the frame's geometry (accel) and light table, so everything that shades
+ * a hit (path tracer, media tracking and estimators, photon tracing) sits above it and the
+ * render job can use it while it is being built. */
+#ifndef BRUME_SURFACE_H
+#define BRUME_SURFACE_H
+#include <stdint.h>
+#include "render/accel.h"
+#include "scene/light.h"
+
+struct material;
+
+struct surface {
+    vec3 p;
+    vec3 ng;            /* unit geometric normal as the geometry defines it (emission side) */
+    vec3 ns;            /* unit shading normal, same side as ng */
+    uint32_t material;
+    uint32_t light;     /* light entry, or LIGHT_NONE */
+    float p_err;        /* bound on how far p may lie off the true surface; 0 for triangles */
+};
+
+/* Hit h of the ray (org, dir) at time01 of accel acc as a surface point; lt gives the
+ * emitter entry of the hit primitive. */
+void surface_from_hit(const struct accel *acc, const struct light_table *lt, vec3 org, vec3 dir,
+                      const struct accel_hit *h, float time01, struct surface *s);
+
+/* Next-event estimation toward one light point sampled with (pick, u, v) from surface point
+ * p (material mat, shading normal ns and geometric normal ng on wo's side): the sample, the
+ * BSDF value f toward it (cosine included) and its pdf, and the point a shadow ray aims at
+ * (off an area light's surface). 0 when no light can arrive that way. Visibility is the
+ * caller's: an occlusion ray (integrator.c) or transmittance (media_integrator.c). */
+struct nee_sample {
+    struct light_sample ls;
+    vec3 f, target;
+    float bsdf_pdf;
+};
+int nee_prepare(const struct light_table *lt, const struct scene *sc, const struct material *mat, vec3 p, vec3 ns,
+                vec3 ng, vec3 wo, float pick, float u, float v, struct nee_sample *n);
+
+/* Power heuristic (beta = 2) of MIS between the strategies with pdfs a (the one taken) and b. */
+static inline float power_heuristic(float a, float b)
+{
+    float a2 = a * a, b2 = b * b;
+    return a2 + b2 > 0.0f ? a2 / (a2 + b2) : 0.0f;
+}
+
+#endif
