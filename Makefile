@@ -47,11 +47,11 @@ $(BUILD)/obj/%.o: %.c $(DEPS_STAMP)
 	$(CC) $(CFLAGS) -MMD -MP -c $< -o $@
 
 $(BUILD)/libbrume.a: $(COMMON_OBJ)
-	ar rcs $@ $^
+	rm -f $@ && ar rcs $@ $^
 
 # The master's modules without main(), for unit tests of the journal and the scheduler.
 $(BUILD)/libmaster.a: $(MASTER_LIB_OBJ)
-	ar rcs $@ $^
+	rm -f $@ && ar rcs $@ $^
 
 $(BUILD)/master: $(MASTER_OBJ) $(BUILD)/libbrume.a
 	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
