@@ -29,7 +29,7 @@ COMMON_OBJ := $(COMMON_SRC:%.c=$(BUILD)/obj/%.o)
 MASTER_OBJ := $(patsubst %.c,$(BUILD)/obj/%.o,$(wildcard master/*.c))
 MASTER_LIB_OBJ := $(filter-out %/main.o,$(MASTER_OBJ))
 WORKER_OBJ := $(patsubst %.c,$(BUILD)/obj/%.o,$(wildcard worker/*.c))
-UNIT_SRC   := $(wildcard tests/unit/test_*.c)
+UNIT_SRC   := $(wildcard tests/unit/test_*.c) tests/unit/helpers.c
 UNIT_OBJ   := $(UNIT_SRC:%.c=$(BUILD)/obj/%.o)
 
 .PHONY: all deps test unit integration demo bench clean fuzz fuzz-ci tools stress test-slurm test-netns

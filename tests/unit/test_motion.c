@@ -12,6 +12,7 @@
 #include "scene/motion.h"
 #include "scene/scene_json.h"
 #include "scene/texture.h"
+#include "helpers.h"
 
 static uint32_t add_mat(struct scene *s, vec3 emission)
 {
@@ -25,19 +26,7 @@ static uint32_t add_mat(struct scene *s, vec3 emission)
 /* Quad in the plane z = 0 over [x0, x1] x [y0, y1], facing +z (toward the camera). */
 static struct mesh quad_mesh(float x0, float x1, float y0, float y1, uint32_t mat)
 {
-    struct mesh m;
-    memset(&m, 0, sizeof m);
-    m.num_vertices = 4;
-    m.num_triangles = 2;
-    m.positions = mem_alloc(sizeof(float) * 12);
-    const float v[12] = {x0, y0, 0, x1, y0, 0, x1, y1, 0, x0, y1, 0};
-    memcpy(m.positions, v, sizeof v);
-    static const uint32_t idx[6] = {0, 1, 2, 0, 2, 3};
-    m.indices = mem_alloc(sizeof idx);
-    memcpy(m.indices, idx, sizeof idx);
-    m.material_ids = mem_alloc(sizeof(uint32_t) * 2);
-    m.material_ids[0] = m.material_ids[1] = mat;
-    return m;
+    return test_quad(v3(x0, y0, 0), v3(x1, y0, 0), v3(x1, y1, 0), v3(x0, y1, 0), mat, 0);
 }
 
 static struct motion_key key(float t, vec3 translate, vec3 axis, float degrees)
@@ -88,13 +77,9 @@ static int scene_has_motion(const struct scene *s, uint32_t frame)
 /* Renders s and returns each column's mean alpha (coverage) and R over the rows. */
 static void render_columns(const struct scene *s, double *alpha, double *red, uint64_t *nans)
 {
-    struct render_job job;
-    char err[256];
-    cr_assert_eq(render_job_init(&job, s, 0, 2, err, sizeof err), 0, "%s", err);
-    uint32_t w = s->settings.width, h = s->settings.height;
-    float *px = mem_alloc(sizeof(float) * w * h * TILE_NUM_CHANNELS);
     struct tile_stats st;
-    integrator_render_tile(&job, 0, 0, w, h, px, &st);
+    float *px = test_render(s, 2, &st);
+    uint32_t w = s->settings.width, h = s->settings.height;
     for (uint32_t x = 0; x < w; x++) {
         alpha[x] = red[x] = 0.0;
         for (uint32_t y = 0; y < h; y++) {
@@ -104,7 +89,6 @@ static void render_columns(const struct scene *s, double *alpha, double *red, ui
     }
     *nans = st.nan_samples;
     free(px);
-    render_job_free(&job);
 }
 
 /* The right edge sweeps x = -1 -> 1 uniformly over the shutter, so a point x is covered
@@ -311,26 +295,11 @@ Test(motion, rebuilt_hits_lie_on_the_ray)
 
 /* ---- Scene keys ---- */
 
-struct mem_file { const char *path, *data; };
-
-static int mem_read(void *ctx, const char *rel_path, char **data, size_t *size, char *err, size_t errlen)
-{
-    for (const struct mem_file *f = ctx; f->path; f++)
-        if (strcmp(f->path, rel_path) == 0) {
-            *size = strlen(f->data);
-            *data = mem_alloc(*size + 1);
-            memcpy(*data, f->data, *size + 1);
-            return 0;
-        }
-    snprintf(err, errlen, "%s: No such file or directory", rel_path);
-    return -1;
-}
-
 static const struct mem_file g_files[] = {
-    {"a.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"},
-    {"b.obj", "v 0 0 1\nv 1 0 1\nv 0 1 1\nf 1 2 3\n"},
-    {"quad.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n"},
-    {NULL, NULL}};
+    {"a.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", 0},
+    {"b.obj", "v 0 0 1\nv 1 0 1\nv 0 1 1\nf 1 2 3\n", 0},
+    {"quad.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n", 0},
+    {NULL, NULL, 0}};
 
 #define HEAD                                                                        \
     "{\"version\": 1,\n"                                                            \
@@ -338,18 +307,9 @@ static const struct mem_file g_files[] = {
     "\"render\": {\"width\": 8, \"height\": 8},\n"                                  \
     "\"materials\": {\"m\": {\"type\": \"diffuse\"}, \"glass\": {\"type\": \"dielectric\", \"ior\": 1.33}},\n"
 
-static int load(const char *text, struct scene *s, char *err)
-{
-    struct asset_source src = {mem_read, (void *)(uintptr_t)g_files};
-    return scene_json_parse("scenes/t.json", text, strlen(text), &src, s, err, 512);
-}
-
 static void expect_error(const char *text, const char *want)
 {
-    struct scene s;
-    char err[512] = "";
-    cr_assert_eq(load(text, &s, err), -1, "accepted: %s", text);
-    cr_expect(strstr(err, want) != NULL, "error \"%s\" lacks \"%s\"", err, want);
+    test_scene_expect_error(text, g_files, want);
 }
 
 Test(motion, scene_keys_for_motion_and_materials)
@@ -363,7 +323,7 @@ Test(motion, scene_keys_for_motion_and_materials)
                           "{\"type\": \"obj\", \"frames\": [\"a.obj\", \"b.obj\"], \"frame_times\": [0, 0.5]},\n"
                           "{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1, \"material\": \"m\",\n"
                           "  \"keyframes\": [{\"time\": 0}, {\"time\": 2, \"translate\": [0, 1, 0]}]}]}";
-    cr_assert_eq(load(ok, &s, err), 0, "%s", err);
+    cr_assert_eq(test_scene_load(ok, g_files, &s, err), 0, "%s", err);
     cr_assert_eq(s.materials[1].type, MATERIAL_DIELECTRIC);
     cr_assert_float_eq(s.materials[1].ior, 1.33f, 1e-6f);
     cr_assert_eq(s.meshes[0].num_keys, 2);
