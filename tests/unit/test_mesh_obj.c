@@ -206,6 +206,19 @@ Test(mesh_obj, mtl_errors)
     expect_error("usemtl a\n", NULL, "m.obj:1:8: unknown material \"a\"");
 }
 
+/* Reads rel_path through src and parses it, as the scene reader does. */
+static int load_obj(struct scene *s, struct mesh_obj_cache *cache, const struct asset_source *src, const char *rel_path,
+                    const struct mesh_obj_options *opt, char *err)
+{
+    char *data;
+    size_t size;
+    if (src->read(src->ctx, rel_path, &data, &size, err, 512) != 0)
+        return -1;
+    int rc = mesh_obj_parse(s, cache, src, rel_path, data, size, opt, err, 512);
+    free(data);
+    return rc;
+}
+
 Test(mesh_obj, mtllib_relative_to_obj_folder)
 {
     static const struct mem_file files[] = {
@@ -218,14 +231,14 @@ Test(mesh_obj, mtllib_relative_to_obj_folder)
     char err[512];
     struct mesh_obj_options opt = mesh_obj_default_options();
     opt.display_dir = "scenes/x/";
-    cr_assert_eq(mesh_obj_load(&s, &cache, &src, "models/car.obj", &opt, err, sizeof err), 0, "%s", err);
+    cr_assert_eq(load_obj(&s, &cache, &src, "models/car.obj", &opt, err), 0, "%s", err);
     /* The same MTL named by a second OBJ is not read twice: its materials are shared. */
-    cr_assert_eq(mesh_obj_load(&s, &cache, &src, "models/car.obj", &opt, err, sizeof err), 0, "%s", err);
+    cr_assert_eq(load_obj(&s, &cache, &src, "models/car.obj", &opt, err), 0, "%s", err);
     cr_expect_eq(s.num_materials, 1);
     cr_expect_str_eq(s.materials[0].name, "models/car.mtl:paint");
     cr_expect_eq(s.num_meshes, 2);
     cr_expect_eq(s.meshes[1].material_ids[0], 0);
-    cr_expect_eq(mesh_obj_load(&s, &cache, &src, "models/none.obj", &opt, err, sizeof err), -1);
+    cr_expect_eq(load_obj(&s, &cache, &src, "models/none.obj", &opt, err), -1);
     cr_expect(strstr(err, "models/none.obj") != NULL, "%s", err);
     mesh_obj_cache_free(&cache);
     scene_free(&s);
