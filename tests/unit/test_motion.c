@@ -109,11 +109,15 @@ static void render_columns(const struct scene *s, double *alpha, double *red, ui
     free(px);
 }
 
-/* The right edge sweeps x = -1 -> 1 uniformly over the shutter, so a point x is covered
- * for the fraction (1 - x) / 2 of the time; a pixel's coverage is that at its centre. */
-static void check_ramp(const struct scene *s)
+/* Adds the moving quad q to s and renders it. The right edge sweeps x = -1 -> 1 uniformly
+ * over the shutter, so a point x is covered for the fraction (1 - x) / 2 of the time; a
+ * pixel's coverage is that at its centre. Frees s. */
+static void check_ramp(struct scene *s, struct mesh *q)
 {
     enum { W = 64 };
+    scene_add_mesh(s, q);
+    ramp_camera(s, W, 256);
+    cr_assert_eq(scene_has_motion(s, 0), 1);
     double alpha[W], red[W];
     uint64_t nans;
     render_columns(s, alpha, red, &nans);
@@ -136,6 +140,7 @@ static void check_ramp(const struct scene *s)
     }
     /* Chi-square of the inner columns against the ramp (mean 'inside', sd sqrt(2 inside)). */
     cr_assert(sq < inside + 5.0 * sqrt(2.0 * inside), "chi2 %.1f over %d columns", sq, inside);
+    scene_free(s);
 }
 
 Test(motion, moving_edge_rigid_keys_give_linear_ramp)
@@ -147,11 +152,7 @@ Test(motion, moving_edge_rigid_keys_give_linear_ramp)
     /* Keys exactly at shutter open and close. */
     q.keys = keys2(key(0, v3(-1, 0, 0), v3(0, 0, 1), 0), key(1, v3(1, 0, 0), v3(0, 0, 1), 0));
     q.num_keys = 2;
-    scene_add_mesh(&s, &q);
-    ramp_camera(&s, 64, 256);
-    cr_assert_eq(scene_has_motion(&s, 0), 1);
-    check_ramp(&s);
-    scene_free(&s);
+    check_ramp(&s, &q);
 }
 
 Test(motion, moving_edge_deformation_frames_give_linear_ramp)
@@ -173,11 +174,7 @@ Test(motion, moving_edge_deformation_frames_give_linear_ramp)
             q.frame_positions[f * 12 + 3 * v + 2] = 0.0f;
         }
     }
-    scene_add_mesh(&s, &q);
-    ramp_camera(&s, 64, 256);
-    cr_assert_eq(scene_has_motion(&s, 0), 1);
-    check_ramp(&s);
-    scene_free(&s);
+    check_ramp(&s, &q);
 }
 
 Test(motion, still_scenes_get_no_time_steps)
