@@ -65,6 +65,15 @@ static void add_file(const char *name, const uint8_t *data, size_t size)
     cr_assert_fail("too many files");
 }
 
+/* Adds the test data file `file` to the in-memory asset source as `as`. */
+static void add_testdata(const char *file, const char *as)
+{
+    size_t n;
+    uint8_t *d = read_testdata(file, &n);
+    add_file(as, d, n);
+    free(d);
+}
+
 static void clear_files(void)
 {
     for (int i = 0; i < 16; i++) {
@@ -149,10 +158,7 @@ Test(nvdb, analytic_values_exact)
     free(g.data);
 
     /* Through the scene: the map, then the transform; lookups at voxel centres. */
-    size_t n;
-    uint8_t *d = read_testdata("ball.nvdb", &n);
-    add_file("ball.nvdb", d, n);
-    free(d);
+    add_testdata("ball.nvdb", "ball.nvdb");
     char text[2048];
     scene_with(text, sizeof text, "{\"file\": \"ball.nvdb\", \"scale\": 2, \"transform\": {\"scale\": 2, \"translate\": [1, 0, 0]}}");
     struct scene s;
@@ -219,10 +225,7 @@ Test(nvdb, first_float_grid_and_by_name)
     free(b);
 
     /* In a scene: "grid" picks by name; a bad name is reported at the file key. */
-    size_t n;
-    uint8_t *d = read_testdata("multi.nvdb", &n);
-    add_file("multi.nvdb", d, n);
-    free(d);
+    add_testdata("multi.nvdb", "multi.nvdb");
     char text[2048];
     scene_with(text, sizeof text, "{\"file\": \"multi.nvdb\", \"grid\": \"temperature\"}");
     struct scene s;
@@ -286,12 +289,10 @@ static float *render(const struct scene *s)
 
 Test(nvdb, same_as_dense_grid, .timeout = 60)
 {
-    size_t n;
-    uint8_t *d = read_testdata("ball.nvdb", &n);
-    add_file("ball.nvdb", d, n);
-    free(d);
+    add_testdata("ball.nvdb", "ball.nvdb");
     /* The dense file under an .nvdb name, the NanoVDB one under a .grid name: content decides. */
-    d = ball_brgrid(&n);
+    size_t n;
+    uint8_t *d = ball_brgrid(&n);
     add_file("ball_dense.nvdb", d, n);
     free(d);
     struct xform t = ball_to_world(), s2 = {{{2, 0, 0, 1}, {0, 2, 0, 0}, {0, 0, 2, 0}}};
@@ -382,10 +383,7 @@ Test(nvdb, refusals)
         cr_assert_null(g.data);
     }
     /* In a scene the message carries file:line:col. */
-    size_t n;
-    uint8_t *d = read_testdata("ball_zip.nvdb", &n);
-    add_file("z.nvdb", d, n);
-    free(d);
+    add_testdata("ball_zip.nvdb", "z.nvdb");
     char text[2048], err[512];
     scene_with(text, sizeof text, "{\"file\": \"z.nvdb\"}");
     struct scene s;
