@@ -29,11 +29,15 @@ COMMON_OBJ := $(COMMON_SRC:%.c=$(BUILD)/obj/%.o)
 MASTER_OBJ := $(patsubst %.c,$(BUILD)/obj/%.o,$(wildcard master/*.c))
 MASTER_LIB_OBJ := $(filter-out %/main.o,$(MASTER_OBJ))
 WORKER_OBJ := $(patsubst %.c,$(BUILD)/obj/%.o,$(wildcard worker/*.c))
-UNIT_SRC   := $(wildcard tests/unit/test_*.c)
+UNIT_SRC   := $(wildcard tests/unit/test_*.c) tests/unit/helpers.c
 UNIT_OBJ   := $(UNIT_SRC:%.c=$(BUILD)/obj/%.o)
+# Test tools: one source each in tests/tools/, linked with the library.
+TOOLS      := exrtool junkpeer replay maketex texbench
+TOOL_BIN   := $(TOOLS:%=$(BUILD)/%)
+TOOL_OBJ   := $(TOOLS:%=$(BUILD)/obj/tests/tools/%.o)
 
 .PHONY: all deps test unit integration demo bench clean fuzz fuzz-ci tools stress test-slurm test-netns
-all: $(BUILD)/master $(BUILD)/worker $(BUILD)/exrtool $(BUILD)/junkpeer $(BUILD)/replay $(BUILD)/maketex $(BUILD)/texbench
+all: $(BUILD)/master $(BUILD)/worker $(TOOL_BIN)
 
 # Install what is missing; the stamp makes later builds skip the check.
 $(DEPS_STAMP): scripts/install-deps.sh
@@ -59,19 +63,7 @@ $(BUILD)/master: $(MASTER_OBJ) $(BUILD)/libbrume.a
 $(BUILD)/worker: $(WORKER_OBJ) $(BUILD)/libbrume.a
 	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
 
-$(BUILD)/exrtool: $(BUILD)/obj/tests/tools/exrtool.o $(BUILD)/libbrume.a
-	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
-
-$(BUILD)/junkpeer: $(BUILD)/obj/tests/tools/junkpeer.o $(BUILD)/libbrume.a
-	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
-
-$(BUILD)/replay: $(BUILD)/obj/tests/tools/replay.o $(BUILD)/libbrume.a
-	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
-
-$(BUILD)/maketex: $(BUILD)/obj/tests/tools/maketex.o $(BUILD)/libbrume.a
-	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
-
-$(BUILD)/texbench: $(BUILD)/obj/tests/tools/texbench.o $(BUILD)/libbrume.a
+$(TOOL_BIN): $(BUILD)/%: $(BUILD)/obj/tests/tools/%.o $(BUILD)/libbrume.a
 	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
 
 $(BUILD)/unit_tests: $(UNIT_OBJ) $(BUILD)/libmaster.a $(BUILD)/libbrume.a
@@ -130,4 +122,4 @@ fuzz: $(BUILD)/make_nvdb
 clean:
 	rm -rf build build-san
 
--include $(COMMON_OBJ:.o=.d) $(MASTER_OBJ:.o=.d) $(WORKER_OBJ:.o=.d) $(UNIT_OBJ:.o=.d) $(BUILD)/obj/tests/tools/exrtool.d $(BUILD)/obj/tests/tools/junkpeer.d $(BUILD)/obj/tests/tools/replay.d $(BUILD)/obj/tests/tools/maketex.d $(BUILD)/obj/tests/tools/texbench.d
+-include $(COMMON_OBJ:.o=.d) $(MASTER_OBJ:.o=.d) $(WORKER_OBJ:.o=.d) $(UNIT_OBJ:.o=.d) $(TOOL_OBJ:.o=.d)

@@ -7,20 +7,15 @@
 # ours is chosen with "sampler": "independent"), so a sample costs the same work. Prints a table, writes bench-out/bench.txt and bench-out/bench.png.
 # Usage: BUILD=build sh scripts/bench.sh   (env: W, H, SPP_LO, SPP_HI, DEPTH, REPS)
 set -eu
-BUILD=${BUILD:-build}
+. scripts/lib.sh
 W=${W:-256}
 H=${H:-256}
 SPP_LO=${SPP_LO:-4}
 SPP_HI=${SPP_HI:-36}
 DEPTH=${DEPTH:-8}
 REPS=${REPS:-3}
-CORES=$(nproc)
 MODELS=/usr/share/doc/embree3/models
-sh scripts/install-deps.sh embree-tools gnuplot-nox bc
-OUT=bench-out
-mkdir -p "$OUT"
-T=$(mktemp -d /tmp/brume-bench.XXXXXX)
-trap 'rm -rf "$T"' EXIT
+bench_init bench embree-tools gnuplot-nox bc
 cp "$MODELS/cornell_box.obj" "$MODELS/cornell_box.mtl" "$T/"
 # The camera and light of cornell_box.ecs:
 #   -pointlight 213 300 227 100000 100000 100000 ; -vp 278 273 -800 -vi 278 273 0 -vu 0 1 0 -fov 37
@@ -35,11 +30,6 @@ cat >"$T/embree_cornell.json" <<JSON
 }
 JSON
 
-now() { date +%s.%N; }
-# seconds for one run of a command (output kept in $T/last.log)
-timeit() { s=$(now); "$@" >"$T/last.log" 2>&1 || { cat "$T/last.log"; echo "bench: command failed: $*" >&2; exit 1; }; e=$(now); echo "$e - $s" | bc -l; }
-median() { sort -g | awk '{a[NR]=$1} END {print (NR%2) ? a[(NR+1)/2] : (a[NR/2]+a[NR/2+1])/2}'; }
-
 ours() { "$BUILD/master" "$T/embree_cornell.json" -o "$T/ours.exr" --workers "$1" --threads "$2" --spp "$3"; }
 theirs() { pathtracer -c "$MODELS/cornell_box.ecs" -i "$T/cornell_box.obj" --size "$W" "$H" --spp "$1" \
   --max-path-length "$DEPTH" --threads "$CORES" -o "$T/theirs.ppm"; }
@@ -47,9 +37,9 @@ theirs() { pathtracer -c "$MODELS/cornell_box.ecs" -i "$T/cornell_box.obj" --siz
 : >"$T/times"
 for r in $(seq "$REPS"); do
   for spp in "$SPP_LO" "$SPP_HI"; do
-    echo "theirs $spp $(timeit theirs "$spp")" >>"$T/times"
-    echo "ours1 $spp $(timeit ours 1 "$CORES" "$spp")" >>"$T/times"
-    echo "ours2 $spp $(timeit ours "$CORES" 1 "$spp")" >>"$T/times"
+    echo "theirs $spp $(wall_secs theirs "$spp")" >>"$T/times"
+    echo "ours1 $spp $(wall_secs ours 1 "$CORES" "$spp")" >>"$T/times"
+    echo "ours2 $spp $(wall_secs ours "$CORES" 1 "$spp")" >>"$T/times"
   done
 done
 med() { awk -v k="$1" -v s="$2" '$1==k && $2==s {print $3}' "$T/times" | median; }
@@ -59,8 +49,8 @@ t_theirs=$(per_sample theirs)
 t_ours1=$(per_sample ours1)
 t_ours2=$(per_sample ours2)
 # Rays per sample of our renderer on this scene (counted), used to estimate theirs (not reported by the tutorial).
-"$BUILD/master" "$T/embree_cornell.json" -o "$T/ours.exr" --workers 1 --threads "$CORES" --spp "$SPP_HI" >"$T/last.log" 2>&1
-rays_per_sample=$(grep "Mrays/s" "$T/last.log" | awk -F'[ ,]+' '{for(i=1;i<=NF;i++){if($(i+1)=="Msamples/s")ms=$i; if($(i+1)=="Mrays/s")mr=$i}} END{print mr/ms}')
+logged ours 1 "$CORES" "$SPP_HI"
+rays_per_sample=$(grep "Mrays/s" "$T/log" | awk -F'[ ,]+' '{for(i=1;i<=NF;i++){if($(i+1)=="Msamples/s")ms=$i; if($(i+1)=="Mrays/s")mr=$i}} END{print mr/ms}')
 ours_mrays=$(echo "$rays_per_sample * 1000 / $t_ours1" | bc -l)
 theirs_mrays=$(echo "$rays_per_sample * 1000 / $t_theirs" | bc -l)
 {
@@ -73,8 +63,7 @@ theirs_mrays=$(echo "$rays_per_sample * 1000 / $t_theirs" | bc -l)
   printf 'rays per sample (ours, counted): %.3f; Embree Mrays/s estimated from it\n' "$rays_per_sample"
 } | tee "$OUT/bench.txt"
 awk '{print $1, $2, $3}' "$T/times" >"$OUT/bench-times.dat"
-if command -v gnuplot >/dev/null 2>&1; then
-  gnuplot <<GP 2>/dev/null && echo "plot: $OUT/bench.png"
+plot "$OUT/bench.png" <<GP
 set terminal png size 800,500
 set output "$OUT/bench.png"
 set title "Time per sample against Embree's pathtracer (lower is better)"
@@ -88,4 +77,3 @@ plot "-" using 2:xtic(1) title "ns/sample"
 "brume-${CORES}x1" $t_ours2
 e
 GP
-fi

@@ -12,31 +12,24 @@
 # bench-out/media.txt and bench-out/media.png. Timings are measurements, never assertions.
 # Usage: BUILD=build sh scripts/bench_media.sh   (env: REF_SPP, SCENES, SWEEP=0 to skip the sweep)
 set -eu
-BUILD=${BUILD:-build}
+. scripts/lib.sh
 REF_SPP=${REF_SPP:-2048}
 SCENES=${SCENES:-"fog_spot smoke cornell_fog"}
 SWEEP=${SWEEP:-1}
-CORES=$(nproc)
-sh scripts/install-deps.sh gnuplot-nox bc
-OUT=bench-out
-mkdir -p "$OUT"
-T=$(mktemp -d /tmp/brume-bmedia.XXXXXX)
-trap 'rm -rf "$T"' EXIT
+bench_init bmedia gnuplot-nox bc
 M="$BUILD/master"
 X="$BUILD/exrtool"
-wall() { awk '/summary: wall/ {print $3}' "$1"; }
 pass_secs() { sed -n 's/.*photon pass: .* in \([0-9.]*\) s on.*/\1/p' "$1" | head -1; }
 
 render() { # scene method spp seed out [extra args]
   s=$1; m=$2; spp=$3; seed=$4; o=$5; shift 5
-  "$M" "scenes/$s/$s.json" -o "$o" --workers 1 --threads "$CORES" --no-journal --spp "$spp" --seed "$seed" \
-    --media-method "$m" "$@" >"$T/log" 2>&1 || { cat "$T/log"; exit 1; }
+  logged "$M" "scenes/$s/$s.json" -o "$o" --workers 1 --threads "$CORES" --no-journal --spp "$spp" --seed "$seed" \
+    --media-method "$m" "$@"
 }
 
 : >"$T/rows"
 for s in $SCENES; do
-  key=$(cat "scenes/$s/$s.json" "$BUILD/worker" | sha256sum | cut -c1-16)
-  REF="$OUT/$s-ref-$REF_SPP-$key.exr"
+  REF="$OUT/$s-ref-$REF_SPP-$(ref_key "scenes/$s/$s.json").exr"
   if [ ! -f "$REF" ]; then
     echo "media: rendering the $s reference (vpt, $REF_SPP spp, once)"
     render "$s" vpt "$REF_SPP" 999 "$REF"
@@ -46,7 +39,7 @@ for s in $SCENES; do
     m=$1; spp=$2
     for seed in 11 12; do
       render "$s" "$m" "$spp" "$seed" "$T/$seed.exr"
-      w=$(wall "$T/log")
+      w=$(render_secs)
       ps=$(pass_secs "$T/log")
       [ -n "$ps" ] && [ ! -s "$T/pass-$s" ] && grep "photon pass:" "$T/log" | head -1 | sed "s/^master: info: media: /$s: /" >"$T/pass-$s"
       echo "$w ${ps:-0}" >"$T/t$seed"
@@ -90,19 +83,19 @@ if echo " $SCENES " | grep -q " smoke "; then
   mkdir -p "$T/exact"
   cp scenes/smoke/* "$T/exact/"
   sed 's/"volume": {/"volume": {"shadow_cache": false, /' scenes/smoke/smoke.json >"$T/exact/smoke.json"
-  "$M" scenes/smoke/smoke.json -o "$T/c.exr" --workers 1 --threads "$CORES" --no-journal --spp 1 --seed 11 >"$T/log" 2>&1 || { cat "$T/log"; exit 1; }
-  wc_=$(wall "$T/log")
-  "$M" "$T/exact/smoke.json" -o "$T/e.exr" --workers 1 --threads "$CORES" --no-journal --spp 1 --seed 11 >"$T/log" 2>&1 || { cat "$T/log"; exit 1; }
-  we_=$(wall "$T/log")
-  REF="$OUT/smoke-ref-$REF_SPP-$(cat scenes/smoke/smoke.json "$BUILD/worker" | sha256sum | cut -c1-16).exr"
+  logged "$M" scenes/smoke/smoke.json -o "$T/c.exr" --workers 1 --threads "$CORES" --no-journal --spp 1 --seed 11
+  wc_=$(render_secs)
+  logged "$M" "$T/exact/smoke.json" -o "$T/e.exr" --workers 1 --threads "$CORES" --no-journal --spp 1 --seed 11
+  we_=$(render_secs)
+  REF="$OUT/smoke-ref-$REF_SPP-$(ref_key scenes/smoke/smoke.json).exr"
   printf 'smoke beam 1 spp: shadow cache %.3f s rmse %s; exact marched shadows %.3f s rmse %s; cached vs exact %s\n' \
     "$wc_" "$("$X" rmse "$T/c.exr" "$REF")" "$we_" "$("$X" rmse "$T/e.exr" "$REF")" "$("$X" rmse "$T/c.exr" "$T/e.exr")" | tee -a "$OUT/media.txt"
 fi
 
 # Default-settings share: photon pass against the render at the scene's own spp.
 for s in $SCENES; do
-  "$M" "scenes/$s/$s.json" -o "$T/d.exr" --workers 1 --threads "$CORES" --no-journal >"$T/log" 2>&1 || { cat "$T/log"; exit 1; }
-  w=$(wall "$T/log"); p=$(pass_secs "$T/log")
+  logged "$M" "scenes/$s/$s.json" -o "$T/d.exr" --workers 1 --threads "$CORES" --no-journal
+  w=$(render_secs); p=$(pass_secs "$T/log")
   # Broadcast: the worker's fetch of every blob (the volume blob is nearly all of it) and
   # its scene build, from the JOB's arrival to READY.
   bc=$(sed -n 's/.*fetched and the scene built in \([0-9.]*\) s.*/\1/p' "$T/log" | sort -n | tail -1)
@@ -112,14 +105,14 @@ done
 
 if [ "$SWEEP" = 1 ]; then
   s=fog_spot
-  REF="$OUT/$s-ref-$REF_SPP-$(cat "scenes/$s/$s.json" "$BUILD/worker" | sha256sum | cut -c1-16).exr"
+  REF="$OUT/$s-ref-$REF_SPP-$(ref_key "scenes/$s/$s.json").exr"
   echo | tee -a "$OUT/media.txt"
   echo "Sweep on $s (beam, 2 spp): photons x gather radius; bias and variance (RMSE units)" | tee -a "$OUT/media.txt"
   printf '%9s %7s %11s %11s %11s %9s\n' photons radius rmse bias var secs | tee -a "$OUT/media.txt"
   for n in 12500 50000 200000; do
     for r in 0.035 0.07 0.14; do
       render "$s" beam 2 11 "$T/a.exr" --photons "$n" --gather-radius "$r"
-      ta=$(wall "$T/log"); pa=$(pass_secs "$T/log")
+      ta=$(render_secs); pa=$(pass_secs "$T/log")
       render "$s" beam 2 12 "$T/b.exr" --photons "$n" --gather-radius "$r"
       ra=$("$X" rmse "$T/a.exr" "$REF"); rb=$("$X" rmse "$T/b.exr" "$REF"); d=$("$X" rmse "$T/a.exr" "$T/b.exr")
       awk -v n="$n" -v r="$r" -v ra="$ra" -v rb="$rb" -v d="$d" -v t="$ta" -v p="${pa:-0}" 'BEGIN {
@@ -129,18 +122,16 @@ if [ "$SWEEP" = 1 ]; then
   done
 fi
 
-if command -v gnuplot >/dev/null 2>&1; then
-  set -- $SCENES
-  n=$#
-  {
-    echo "set terminal png size $((450 * n)),420 noenhanced"
-    echo "set output \"$OUT/media.png\""
-    echo "set multiplot layout 1,$n title \"Media: RMSE against a converged VPT reference vs time (log-log)\""
-    echo "set logscale xy; set grid; set xlabel \"seconds (render + photon pass)\"; set ylabel \"RMSE\""
-    for s in $SCENES; do
-      echo "set title \"$s\""
-      echo "plot \"$OUT/media-$s-vpt.dat\" using 1:2 with linespoints title \"vpt\", \"$OUT/media-$s-march.dat\" using 1:2 with linespoints title \"march (per-step lookups)\", \"$OUT/media-$s-beam.dat\" using 1:2 with linespoints title \"beam\""
-    done
-    echo "unset multiplot"
-  } | gnuplot 2>/dev/null && echo "plot: $OUT/media.png"
-fi
+set -- $SCENES
+n=$#
+{
+  echo "set terminal png size $((450 * n)),420 noenhanced"
+  echo "set output \"$OUT/media.png\""
+  echo "set multiplot layout 1,$n title \"Media: RMSE against a converged VPT reference vs time (log-log)\""
+  echo "set logscale xy; set grid; set xlabel \"seconds (render + photon pass)\"; set ylabel \"RMSE\""
+  for s in $SCENES; do
+    echo "set title \"$s\""
+    echo "plot \"$OUT/media-$s-vpt.dat\" using 1:2 with linespoints title \"vpt\", \"$OUT/media-$s-march.dat\" using 1:2 with linespoints title \"march (per-step lookups)\", \"$OUT/media-$s-beam.dat\" using 1:2 with linespoints title \"beam\""
+  done
+  echo "unset multiplot"
+} | plot "$OUT/media.png"

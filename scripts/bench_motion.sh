@@ -6,34 +6,26 @@
 # process start, parsing and BVH builds drop out; median of REPS. Prints the ratio of
 # throughputs (moving / still). Usage: BUILD=build sh scripts/bench_motion.sh (env: W, H, SPP_LO, SPP_HI, REPS)
 set -eu
-BUILD=${BUILD:-build}
+. scripts/lib.sh
 W=${W:-320}
 H=${H:-240}
 SPP_LO=${SPP_LO:-4}
 SPP_HI=${SPP_HI:-36}
 REPS=${REPS:-5}
-sh scripts/install-deps.sh time
-T=$(mktemp -d /tmp/brume-bench-motion.XXXXXX)
-trap 'rm -rf "$T"' EXIT
+bench_init bench-motion time
 cp scenes/motion/*.obj scenes/motion/*.png scenes/motion/motion.json "$T/"
 # The still variant: shutter_close = shutter_open.
 sed 's/"shutter_close": [0-9.]*/"shutter_close": 0/' scenes/motion/motion.json >"$T/still.json"
 grep -q '"shutter_close": 0}' "$T/still.json" || { echo "bench_motion: cannot make the still variant" >&2; exit 1; }
 
-# CPU seconds (user + system, master and worker) of one render: steadier than wall time on
-# a shared, noisy machine; the slope below removes the fixed costs.
-wall() {
-  /usr/bin/time -f "cpu %U %S" -o "$T/cpu" "$BUILD/master" "$1" -o "$T/out.exr" --workers 1 --spp "$2" \
-    >"$T/log" 2>&1 || { cat "$T/log" >&2; exit 1; }
-  awk '/^cpu/ {print $2 + $3}' "$T/cpu"
-}
-median() { sort -g | awk '{a[NR] = $1} END {print a[int((NR + 1) / 2)]}'; }
+# CPU seconds (master and worker) of one render; the slope below removes the fixed costs.
+cpu() { cpu_secs "$BUILD/master" "$1" -o "$T/out.exr" --workers 1 --spp "$2"; }
 # Nanoseconds per sample: slope between SPP_LO and SPP_HI, median over REPS.
 ns_per_sample() {
   i=0
   while [ $i -lt "$REPS" ]; do
-    lo=$(wall "$1" "$SPP_LO")
-    hi=$(wall "$1" "$SPP_HI")
+    lo=$(cpu "$1" "$SPP_LO")
+    hi=$(cpu "$1" "$SPP_HI")
     awk -v lo="$lo" -v hi="$hi" -v n=$(( (SPP_HI - SPP_LO) * W * H )) 'BEGIN {printf "%.2f\n", (hi - lo) * 1e9 / n}'
     i=$((i + 1))
   done | median
@@ -43,7 +35,7 @@ for f in motion still; do
 done
 moving=$(ns_per_sample "$T/motion.json")
 still=$(ns_per_sample "$T/still.json")
-echo "motion blur cost, scenes/motion at ${W}x${H}, CPU time, slope ${SPP_LO}..${SPP_HI} spp, median of $REPS, $(nproc) cores"
+echo "motion blur cost, scenes/motion at ${W}x${H}, CPU time, slope ${SPP_LO}..${SPP_HI} spp, median of $REPS, $CORES cores"
 printf '%-34s %12s %12s\n' "variant" "ns/sample" "throughput"
 printf '%-34s %12s %12s\n' "still (shutter closed, no steps)" "$still" "1.000"
 printf '%-34s %12s %12s\n' "moving (shutter 0..0.5)" "$moving" "$(awk -v a="$still" -v b="$moving" 'BEGIN {printf "%.3f", a / b}')"

@@ -6,17 +6,12 @@
 # bench-out/sampling.txt and bench-out/sampling.png. Called by `make bench`.
 # Usage: BUILD=build sh scripts/bench_sampling.sh   (env: REF_SPP, SEEDS)
 set -eu
-BUILD=${BUILD:-build}
+. scripts/lib.sh
 REF_SPP=${REF_SPP:-32768}
 SEEDS=${SEEDS:-"11 12 13"}
 W=${W:-160}
 H=${H:-120}
-CORES=$(nproc)
-sh scripts/install-deps.sh gnuplot-nox bc time
-OUT=bench-out
-mkdir -p "$OUT"
-T=$(mktemp -d /tmp/brume-bsamp.XXXXXX)
-trap 'rm -rf "$T"' EXIT
+bench_init bsamp gnuplot-nox bc time
 # The scene (default: defocus and motion blur together, glass in front of a lit checker
 # wall) at a bench resolution, so render time dominates process start-up.
 SRC=${SCENE:-scenes/dof_motion/dof_motion.json}
@@ -27,12 +22,11 @@ sed "s/\"width\": 64, \"height\": 48/\"width\": $W, \"height\": $H/" "$SRC" >"$S
 grep -q "\"width\": $W," "$SCENE" || { echo "bench_sampling: cannot set the resolution"; exit 1; }
 
 # The reference is keyed by the scene's content and the binary, so a change to either redoes it.
-key=$(cat "$SCENE" "$BUILD/worker" | sha256sum | cut -c1-16)
-REF="$OUT/$NAME-ref-${W}x$H-$REF_SPP-$key.exr"
+REF="$OUT/$NAME-ref-${W}x$H-$REF_SPP-$(ref_key "$SCENE").exr"
 if [ ! -f "$REF" ]; then
   echo "sampling: rendering the reference ($REF_SPP spp, once)"
-  "$BUILD/master" "$SCENE" -o "$REF" --workers 1 --threads "$CORES" --spp "$REF_SPP" --seed 999 \
-    --sampler independent >"$T/log" 2>&1 || { cat "$T/log"; exit 1; }
+  logged "$BUILD/master" "$SCENE" -o "$REF" --workers 1 --threads "$CORES" --spp "$REF_SPP" --seed 999 \
+    --sampler independent
 fi
 
 # Time is CPU seconds (user + system) of the master and its worker, not wall time: the
@@ -45,10 +39,9 @@ for smp in independent stratified sobol; do
     secs=0
     n=0
     for seed in $SEEDS; do
-      /usr/bin/time -f "cpu %U %S" -o "$T/cpu" "$BUILD/master" "$SCENE" -o "$T/img.exr" --workers 1 \
-        --threads "$CORES" --spp "$spp" --seed "$seed" --sampler "$smp" >"$T/log" 2>&1 || { cat "$T/log"; exit 1; }
+      w=$(cpu_secs "$BUILD/master" "$SCENE" -o "$T/img.exr" --workers 1 \
+        --threads "$CORES" --spp "$spp" --seed "$seed" --sampler "$smp")
       r=$("$BUILD/exrtool" rmse "$T/img.exr" "$REF")
-      w=$(awk '/^cpu/ {print $2 + $3}' "$T/cpu")
       mse=$(echo "$mse + $r * $r" | bc -l)
       secs=$(echo "$secs + $w" | bc -l)
       n=$((n + 1))
@@ -86,8 +79,7 @@ done
 for smp in independent stratified sobol; do
   awk -v s="$smp" '$1 == s {print $2, $3, $4}' "$T/rows" >"$OUT/sampling-$smp.dat"
 done
-if command -v gnuplot >/dev/null 2>&1; then
-  gnuplot <<GP 2>/dev/null && echo "plot: $OUT/sampling.png"
+plot "$OUT/sampling.png" <<GP
 set terminal png size 1000,450
 set output "$OUT/sampling.png"
 set multiplot layout 1,2 title "$NAME: RMSE against a converged reference (log-log)"
@@ -104,4 +96,3 @@ plot "$OUT/sampling-independent.dat" using 3:2 with linespoints title "independe
      "$OUT/sampling-sobol.dat" using 3:2 with linespoints title "sobol"
 unset multiplot
 GP
-fi

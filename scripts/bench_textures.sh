@@ -10,17 +10,12 @@
 # bench-out/textures.png. Called by `make bench`.
 # Usage: BUILD=build sh scripts/bench_textures.sh   (env: REF_SPP, W, H, FLOOR_SCALE)
 set -eu
-BUILD=${BUILD:-build}
+. scripts/lib.sh
 REF_SPP=${REF_SPP:-1024}
 W=${W:-256}
 H=${H:-144}
 FLOOR_SCALE=${FLOOR_SCALE:-400}
-CORES=$(nproc)
-sh scripts/install-deps.sh gnuplot-nox bc
-OUT=bench-out
-mkdir -p "$OUT"
-T=$(mktemp -d /tmp/brume-btex.XXXXXX)
-trap 'rm -rf "$T"' EXIT
+bench_init btex gnuplot-nox bc
 # Two scenes: "full" is the textured scene at the bench resolution with a finer floor
 # checker (so the floor is minified almost everywhere, as a floor seen to the horizon is),
 # the MTL-textured box left out (an MTL map has no filter key: it is always EWA); "floor"
@@ -57,12 +52,10 @@ PY
 : >"$T/rows"
 render() { # scene.json spp seed out.exr
   rm -f "$4"
-  "$BUILD/master" "$1" -o "$4" --workers 1 --threads "$CORES" --spp "$2" --seed "$3" >"$T/log" 2>&1 ||
-    { cat "$T/log"; exit 1; }
+  logged "$BUILD/master" "$1" -o "$4" --workers 1 --threads "$CORES" --spp "$2" --seed "$3"
 }
 reference() { # name scene.json: sets REF, rendering it once per scene and binary
-  key=$(cat "$2" "$BUILD/worker" | sha256sum | cut -c1-16)
-  REF="$OUT/textured-$1-ref-${W}x$H-$REF_SPP-$key.exr"
+  REF="$OUT/textured-$1-ref-${W}x$H-$REF_SPP-$(ref_key "$2").exr"
   if [ ! -f "$REF" ]; then
     echo "textures: rendering the $1 reference ($REF_SPP spp, once)"
     render "$2" "$REF_SPP" 999 "$REF"
@@ -74,7 +67,7 @@ for sc in full floor; do
     for spp in 1 2 4 8 16 32 64; do
       render "$T/scene/bench-$sc-$f.json" "$spp" 7 "$T/img.exr"
       r=$("$BUILD/exrtool" rmse "$T/img.exr" "$REF")
-      w=$(awk '/summary: wall/ {print $3}' "$T/log")
+      w=$(render_secs)
       echo "$sc $f $spp $r $w" >>"$T/rows"
     done
   done
@@ -132,8 +125,7 @@ for sc in full floor; do
     awk -v sc="$sc" -v f="$f" '$1 == sc && $2 == f {print $3, $4, $5}' "$T/rows" >"$OUT/textures-$sc-$f.dat"
   done
 done
-if command -v gnuplot >/dev/null 2>&1; then
-  gnuplot <<GP 2>/dev/null && echo "plot: $OUT/textures.png"
+plot "$OUT/textures.png" <<GP
 set terminal png size 1000,800
 set output "$OUT/textures.png"
 set multiplot layout 2,2 title "Textured scene: RMSE against a converged reference (log-log), per texture filter"
@@ -148,4 +140,3 @@ do for [sc in "full floor"] {
 }
 unset multiplot
 GP
-fi

@@ -32,7 +32,6 @@ static inline float v3_max_component(vec3 a)
     return m > a.z ? m : a.z;
 }
 static inline float v3_max_abs(vec3 a) { return fmaxf(fabsf(a.x), fmaxf(fabsf(a.y), fabsf(a.z))); }
-static inline float v3_luminance(vec3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
 static inline int v3_is_finite(vec3 a) { return isfinite(a.x) && isfinite(a.y) && isfinite(a.z); }
 static inline int v3_is_black(vec3 a) { return a.x == 0.0f && a.y == 0.0f && a.z == 0.0f; }
 

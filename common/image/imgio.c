@@ -64,6 +64,18 @@ static void stream_init(struct imgio_stream *s)
     s->fd = -1;
 }
 
+/* A stream reading path; -1 with the reason in err when it cannot be opened. */
+static int stream_open_read(struct imgio_stream *s, const char *path, char *err, size_t errlen)
+{
+    stream_init(s);
+    s->fd = open(path, O_RDONLY | O_CLOEXEC);
+    if (s->fd < 0) {
+        set_err(err, errlen, "%s: cannot open: %s", path, strerror(errno));
+        return -1;
+    }
+    return 0;
+}
+
 static void on_exr_error(exr_const_context_t ctxt, exr_result_t code, const char *msg)
 {
     void *ud = NULL;
@@ -751,12 +763,8 @@ int imgio_read(const char *path, const char *const *channels, uint32_t num_chann
         return -1;
     }
     struct imgio_stream s;
-    stream_init(&s);
-    s.fd = open(path, O_RDONLY | O_CLOEXEC);
-    if (s.fd < 0) {
-        set_err(err, errlen, "%s: cannot open: %s", path, strerror(errno));
+    if (stream_open_read(&s, path, err, errlen) != 0)
         return -1;
-    }
     int rc = read_stream(&s, path, channels, num_channels, pixels, width, height, err, errlen);
     close(s.fd);
     return rc;
@@ -903,12 +911,8 @@ int imgio_read_attrs(const char *path, struct image_desc *d, struct image_attrs 
     memset(d, 0, sizeof *d);
     memset(a, 0, sizeof *a);
     struct imgio_stream s;
-    stream_init(&s);
-    s.fd = open(path, O_RDONLY | O_CLOEXEC);
-    if (s.fd < 0) {
-        set_err(err, errlen, "%s: cannot open: %s", path, strerror(errno));
+    if (stream_open_read(&s, path, err, errlen) != 0)
         return -1;
-    }
     exr_context_initializer_t init = stream_initializer(&s);
     exr_context_t ctx = NULL;
     char what[300];

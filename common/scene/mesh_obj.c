@@ -934,24 +934,3 @@ done:
     obj_state_free(&s);
     return rc;
 }
-
-int mesh_obj_load(struct scene *scene, struct mesh_obj_cache *cache, const struct asset_source *src,
-                  const char *rel_path, const struct mesh_obj_options *opt, char *err, size_t errlen)
-{
-    char why[512];
-    if (asset_path_check(rel_path, why, sizeof why) != 0) {
-        str_fmt(err, errlen, "%s", why);
-        return -1;
-    }
-    if (!src || !src->read) {
-        str_fmt(err, errlen, "%s: no asset source to read it from", rel_path);
-        return -1;
-    }
-    char *data = NULL;
-    size_t size = 0;
-    if (src->read(src->ctx, rel_path, &data, &size, err, errlen) != 0)
-        return -1;
-    int rc = mesh_obj_parse(scene, cache, src, rel_path, data, size, opt, err, errlen);
-    free(data);
-    return rc;
-}

@@ -38,15 +38,11 @@ struct mesh_obj_options {
 /* Identity transform, no override, no prefix. */
 struct mesh_obj_options mesh_obj_default_options(void);
 
-/* Reads rel_path (relative to the scene folder) through src and appends its mesh (if it
- * has faces) and materials to scene. MTL files are read relative to the OBJ's folder.
- * Returns 0, or -1 with one line in err; on failure the scene may hold materials added
- * so far, but no partial mesh. */
-int mesh_obj_load(struct scene *scene, struct mesh_obj_cache *cache, const struct asset_source *src,
-                  const char *rel_path, const struct mesh_obj_options *opt, char *err, size_t errlen);
-
-/* Same, on OBJ text already in memory (len bytes, need not be NUL-terminated); rel_path
- * names it in messages and anchors mtllib paths. */
+/* Parses OBJ text already in memory (len bytes, need not be NUL-terminated) and appends its
+ * mesh (if it has faces) and materials to scene; rel_path (relative to the scene folder)
+ * names it in messages and anchors mtllib paths: MTL files are read through src relative
+ * to the OBJ's folder. Returns 0, or -1 with one line in err; on failure the scene may
+ * hold materials added so far, but no partial mesh. */
 int mesh_obj_parse(struct scene *scene, struct mesh_obj_cache *cache, const struct asset_source *src,
                    const char *rel_path, const char *text, size_t len, const struct mesh_obj_options *opt,
                    char *err, size_t errlen);

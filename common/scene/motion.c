@@ -100,22 +100,6 @@ void motion_key_at(const struct motion_key *keys, uint32_t n, double t, struct m
     out->time = (float)t;
 }
 
-struct xform motion_key_xform(const struct motion_key *k)
-{
-    double r = k->quat[0], i = k->quat[1], j = k->quat[2], q = k->quat[3];
-    double m[3][3] = {{1 - 2 * (j * j + q * q), 2 * (i * j - q * r), 2 * (i * q + j * r)},
-                      {2 * (i * j + q * r), 1 - 2 * (i * i + q * q), 2 * (j * q - i * r)},
-                      {2 * (i * q - j * r), 2 * (j * q + i * r), 1 - 2 * (i * i + j * j)}};
-    double s[3] = {k->scale.x, k->scale.y, k->scale.z}, tr[3] = {k->translate.x, k->translate.y, k->translate.z};
-    struct xform x;
-    for (int a = 0; a < 3; a++) {
-        for (int b = 0; b < 3; b++)
-            x.m[a][b] = (float)(m[a][b] * s[b]);
-        x.m[a][3] = (float)tr[a];
-    }
-    return x;
-}
-
 static int key_equal(const struct motion_key *a, const struct motion_key *b)
 {
     return memcmp(&a->scale, &b->scale, sizeof a->scale) == 0 && memcmp(a->quat, b->quat, sizeof a->quat) == 0 &&

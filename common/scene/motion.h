@@ -18,8 +18,6 @@ void motion_quat_from_axis_angle(vec3 axis, double degrees, float q[4]);
 /* The key at time t: linear scale and translation, slerp (shorter arc) rotation; clamped
  * to the first and last key outside their range. */
 void motion_key_at(const struct motion_key *keys, uint32_t n, double t, struct motion_key *out);
-/* T R S of a key as a 3x4 affine transform. */
-struct xform motion_key_xform(const struct motion_key *k);
 /* 1 if no key that affects [t0, t1] differs from another (or t1 <= t0): still. */
 int motion_keys_still(const struct motion_key *keys, uint32_t n, double t0, double t1);
 /* Deformation frames: 1 if every frame affecting [t0, t1] has the same positions. */

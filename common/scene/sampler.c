@@ -20,11 +20,6 @@ int sampler_type_from_name(const char *name, enum sampler_type *out)
     return -1;
 }
 
-const char *sampler_type_name(enum sampler_type t)
-{
-    return (unsigned)t < SAMPLER_COUNT_ ? names[t] : "?";
-}
-
 /* Domain of the pass key, kept apart from the sample keys (whose inputs are < 2^32). */
 #define PASS_DOMAIN (0x5a4d504c52ull << 32)
 
@@ -235,24 +230,6 @@ static void flips_table(uint64_t tree, uint64_t out[4])
     uint64_t d4[2] = {spread8(tree >> 16) << 4, spread8(tree >> 24) << 4};
     for (int q = 0; q < 4; q++)
         out[q] = low | d4[q & 1] | spread8(tree >> (32 + 8 * q)) << 5;
-}
-
-uint32_t sampler_owen_scramble(uint32_t x, uint64_t tree, uint32_t seed)
-{
-    return reverse_bits(owen_rev(reverse_bits(x), tree, seed));
-}
-
-uint32_t sampler_owen_scramble_table_(uint32_t x, uint64_t tree, uint32_t seed);
-uint32_t sampler_owen_scramble_table_(uint32_t x, uint64_t tree, uint32_t seed)
-{
-    uint64_t t[4];
-    flips_table(tree, t);
-    return reverse_bits(owen_rev_table(reverse_bits(x), t, seed));
-}
-
-uint32_t sampler_sobol_bits(uint32_t index, uint32_t dim)
-{
-    return reverse_bits(dim == 0 ? index : sobol1_rev(index));
 }
 
 /* 24 bits of a reversed value: exact in float and never 1. */

@@ -68,7 +68,6 @@ struct sampler {
 
 /* Names as the scene and command line spell them; returns -1 for an unknown name. */
 int sampler_type_from_name(const char *name, enum sampler_type *out);
-const char *sampler_type_name(enum sampler_type t);
 
 /* Sample `sample` of pixel `pixel` for a render of spp samples per pixel. Sample indices
  * >= spp are valid too: they start further passes with fresh permutations/scrambles. */
@@ -161,9 +160,5 @@ static inline uint32_t sampler_dim_pair(uint32_t dim, uint32_t *comp, int *is_2d
 
 /* Building blocks, exposed for tests. */
 uint32_t sampler_permute(uint32_t i, uint32_t n, uint32_t seed); /* bijection on [0, n) */
-/* Nested uniform scramble, base 2: exact per-node flips from tree on the first 6 digits,
- * a hash seeded by seed below them. */
-uint32_t sampler_owen_scramble(uint32_t x, uint64_t tree, uint32_t seed);
-uint32_t sampler_sobol_bits(uint32_t index, uint32_t dim);      /* dim 0 or 1 */
 
 #endif

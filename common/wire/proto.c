@@ -303,47 +303,47 @@ static int need(struct reader *r, size_t n, const char *field)
     return 0;
 }
 
-/* Each reads its width if the message holds it (need() records the failure), else 0. */
+/* The next n bytes, consumed; NULL when the message ends first (need() records why). */
+static const uint8_t *take(struct reader *r, size_t n, const char *field)
+{
+    if (need(r, n, field) < 0)
+        return NULL;
+    r->pos += n;
+    return r->p + r->pos - n;
+}
+
+/* Each reads its width if the message holds it, else 0. */
 static uint16_t get_u16(struct reader *r, const char *field)
 {
-    if (need(r, 2, field) < 0)
-        return 0;
-    r->pos += 2;
-    return bytes_get_u16(r->p + r->pos - 2);
+    const uint8_t *q = take(r, 2, field);
+    return q ? bytes_get_u16(q) : 0;
 }
 
 static uint32_t get_u32(struct reader *r, const char *field)
 {
-    if (need(r, 4, field) < 0)
-        return 0;
-    r->pos += 4;
-    return bytes_get_u32(r->p + r->pos - 4);
+    const uint8_t *q = take(r, 4, field);
+    return q ? bytes_get_u32(q) : 0;
 }
 
 static uint64_t get_u64(struct reader *r, const char *field)
 {
-    if (need(r, 8, field) < 0)
-        return 0;
-    r->pos += 8;
-    return bytes_get_u64(r->p + r->pos - 8);
+    const uint8_t *q = take(r, 8, field);
+    return q ? bytes_get_u64(q) : 0;
 }
 
 static double get_f64(struct reader *r, const char *field)
 {
-    if (need(r, 8, field) < 0)
-        return 0;
-    r->pos += 8;
-    return bytes_get_f64(r->p + r->pos - 8);
+    const uint8_t *q = take(r, 8, field);
+    return q ? bytes_get_f64(q) : 0;
 }
 
 static void get_hash(struct reader *r, struct blob_hash *h, const char *field)
 {
-    if (need(r, BLOB_HASH_SIZE, field) < 0) {
+    const uint8_t *q = take(r, BLOB_HASH_SIZE, field);
+    if (q)
+        memcpy(h->bytes, q, BLOB_HASH_SIZE);
+    else
         memset(h, 0, sizeof *h);
-        return;
-    }
-    memcpy(h->bytes, r->p + r->pos, BLOB_HASH_SIZE);
-    r->pos += BLOB_HASH_SIZE;
 }
 
 static void fail(struct reader *r, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
@@ -372,16 +372,15 @@ static void get_str(struct reader *r, char *out, const char *field)
         fail(r, "%s: string of %u bytes exceeds the limit of %d", field, (unsigned)n, PROTO_MAX_STRING - 1);
         return;
     }
-    if (need(r, n, field) < 0)
+    const uint8_t *q = take(r, n, field);
+    if (!q)
         return;
-    const uint8_t *q = r->p + r->pos;
     if (memchr(q, 0, n)) {
         fail(r, "%s: string of %u bytes contains a NUL", field, (unsigned)n);
         return;
     }
     memcpy(out, q, n);
     out[n] = '\0';
-    r->pos += n;
 }
 
 /* A u32-length payload that stays in the frame; max is checked before the bytes. */
@@ -394,11 +393,7 @@ static const uint8_t *get_payload(struct reader *r, uint32_t *len, uint32_t max,
         fail(r, "%s: length %u exceeds the limit of %u", field, *len, max);
         return NULL;
     }
-    if (need(r, *len, field) < 0)
-        return NULL;
-    const uint8_t *q = r->p + r->pos;
-    r->pos += *len;
-    return q;
+    return take(r, *len, field);
 }
 
 /* Tile statistics of RESULT and KEPT; a non-finite error sum is refused. */

@@ -9,6 +9,7 @@
 #include <string.h>
 #include "render/integrator.h"
 #include "base/log.h"
+#include "helpers.h"
 
 static uint32_t add_mat(struct scene *s, vec3 albedo, vec3 emission)
 {
@@ -22,22 +23,7 @@ static uint32_t add_mat(struct scene *s, vec3 albedo, vec3 emission)
 
 static void add_quad(struct scene *s, vec3 a, vec3 b, vec3 c, vec3 d, uint32_t mat)
 {
-    struct mesh m;
-    memset(&m, 0, sizeof m);
-    m.num_vertices = 4;
-    m.num_triangles = 2;
-    m.positions = mem_alloc(sizeof(float) * 12);
-    vec3 v[4] = {a, b, c, d};
-    for (int i = 0; i < 4; i++) {
-        m.positions[3 * i] = v[i].x;
-        m.positions[3 * i + 1] = v[i].y;
-        m.positions[3 * i + 2] = v[i].z;
-    }
-    static const uint32_t idx[6] = {0, 1, 2, 0, 2, 3};
-    m.indices = mem_alloc(sizeof idx);
-    memcpy(m.indices, idx, sizeof idx);
-    m.material_ids = mem_alloc(sizeof(uint32_t) * 2);
-    m.material_ids[0] = m.material_ids[1] = mat;
+    struct mesh m = test_quad(a, b, c, d, mat, 0);
     scene_add_mesh(s, &m);
 }
 
@@ -54,23 +40,11 @@ static void settings(struct scene *s, uint32_t w, uint32_t h, uint32_t spp, uint
 /* Mean of channel R over the image and its standard error (from the variance channel). */
 static void render_mean(const struct scene *s, double *mean, double *stderr_, uint64_t *nans)
 {
-    struct render_job job;
-    char err[256];
-    cr_assert_eq(render_job_init(&job, s, 0, 2, err, sizeof err), 0, "%s", err);
-    uint32_t w = s->settings.width, h = s->settings.height;
-    float *px = mem_alloc(sizeof(float) * w * h * TILE_NUM_CHANNELS);
     struct tile_stats st;
-    integrator_render_tile(&job, 0, 0, w, h, px, &st);
-    double sum = 0, var = 0;
-    for (uint32_t i = 0; i < w * h; i++) {
-        sum += px[i * TILE_NUM_CHANNELS + CH_R];
-        var += px[i * TILE_NUM_CHANNELS + CH_VAR_R];
-    }
-    *mean = sum / (w * h);
-    *stderr_ = sqrt(var) / (w * h);
+    float *px = test_render(s, 2, &st);
+    *mean = test_channel_mean(px, s->settings.width, s->settings.height, CH_R, stderr_);
     *nans = st.nan_samples;
     free(px);
-    render_job_free(&job);
 }
 
 static void furnace_sphere(uint32_t depth)

@@ -9,6 +9,7 @@
 #include "render/integrator.h"
 #include "base/log.h"
 #include "scene/material.h"
+#include "helpers.h"
 
 Test(material, fresnel_normal_incidence)
 {
@@ -158,22 +159,7 @@ static void add_quad(struct scene *s, vec3 a, vec3 b, vec3 c, vec3 d, uint32_t m
 {
     vec3 nrm = v3_cross(v3_sub(b, a), v3_sub(c, a));
     int flip = (v3_dot(nrm, v3_sub(inside, a)) > 0.0f) == (outward != 0);
-    struct mesh m;
-    memset(&m, 0, sizeof m);
-    m.num_vertices = 4;
-    m.num_triangles = 2;
-    m.positions = mem_alloc(sizeof(float) * 12);
-    vec3 v[4] = {a, b, c, d};
-    for (int i = 0; i < 4; i++) {
-        m.positions[3 * i] = v[i].x;
-        m.positions[3 * i + 1] = v[i].y;
-        m.positions[3 * i + 2] = v[i].z;
-    }
-    static const uint32_t idx[6] = {0, 1, 2, 0, 2, 3}, idx_flip[6] = {0, 2, 1, 0, 3, 2};
-    m.indices = mem_alloc(sizeof idx);
-    memcpy(m.indices, flip ? idx_flip : idx, sizeof idx);
-    m.material_ids = mem_alloc(sizeof(uint32_t) * 2);
-    m.material_ids[0] = m.material_ids[1] = mat;
+    struct mesh m = test_quad(a, b, c, d, mat, flip);
     scene_add_mesh(s, &m);
 }
 
@@ -205,23 +191,12 @@ static void furnace_setup(struct scene *s, uint32_t spp)
 
 static void furnace_check(const struct scene *s)
 {
-    struct render_job job;
-    char err[256];
-    cr_assert_eq(render_job_init(&job, s, 0, 2, err, sizeof err), 0, "%s", err);
-    uint32_t w = s->settings.width, h = s->settings.height;
-    float *px = mem_alloc(sizeof(float) * w * h * TILE_NUM_CHANNELS);
     struct tile_stats st;
-    integrator_render_tile(&job, 0, 0, w, h, px, &st);
-    double sum = 0, var = 0;
-    for (uint32_t i = 0; i < w * h; i++) {
-        sum += px[i * TILE_NUM_CHANNELS + CH_G];
-        var += px[i * TILE_NUM_CHANNELS + CH_VAR_G];
-    }
-    double mean = sum / (w * h), se = sqrt(var) / (w * h);
+    float *px = test_render(s, 2, &st);
+    double se, mean = test_channel_mean(px, s->settings.width, s->settings.height, CH_G, &se);
     cr_assert_eq(st.nan_samples, 0);
     cr_assert(fabs(mean - 1.0) < 4.0 * se + 2e-3, "furnace mean %.5f (stderr %.2g)", mean, se);
     free(px);
-    render_job_free(&job);
 }
 
 Test(material, white_furnace_glass_sphere)

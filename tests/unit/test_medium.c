@@ -23,22 +23,7 @@
 #include "scene/grid.h"
 #include "base/rng.h"
 #include "scene/scene_json.h"
-
-struct mem_file { const char *path, *data; size_t size; /* 0: strlen(data) */ };
-
-static int mem_read(void *ctx, const char *rel_path, char **data, size_t *size, char *err, size_t errlen)
-{
-    for (const struct mem_file *f = ctx; f->path; f++)
-        if (strcmp(f->path, rel_path) == 0) {
-            *size = f->size ? f->size : strlen(f->data);
-            *data = malloc(*size + 1);
-            memcpy(*data, f->data, *size);
-            (*data)[*size] = '\0';
-            return 0;
-        }
-    snprintf(err, errlen, "%s: No such file or directory", rel_path);
-    return -1;
-}
+#include "helpers.h"
 
 /* A 20-unit cube around the origin with faces wound inwards. */
 #define BOX_OBJ                                                                                             \
@@ -83,9 +68,7 @@ static void grid_bytes(void)
 static int load(const char *text, struct scene *s, char *err)
 {
     grid_bytes();
-    struct asset_source src = {mem_read, (void *)(uintptr_t)g_files};
-    memset(s, 0, sizeof *s);
-    return scene_json_parse("scenes/t.json", text, strlen(text), &src, s, err, 512);
+    return test_scene_load(text, g_files, s, err);
 }
 
 static void load_ok(const char *text, struct scene *s)
@@ -599,25 +582,15 @@ Test(medium, volume_blob_roundtrip)
 static double render_mean(struct scene *s, struct photon_map *map, uint32_t spp, double *se)
 {
     s->settings.spp = spp;
-    struct render_job job;
-    job_ok(&job, s);
-    render_job_set_photon_map(&job, &map);
-    uint32_t w = s->settings.width, h = s->settings.height;
-    float *px = malloc(sizeof(float) * w * h * TILE_NUM_CHANNELS);
     struct tile_stats st;
-    integrator_render_tile(&job, 0, 0, w, h, px, &st);
-    double sum = 0.0, var = 0.0;
-    for (uint32_t i = 0; i < w * h; i++) {
+    float *px = test_render_map(s, map, 1, &st);
+    uint32_t w = s->settings.width, h = s->settings.height;
+    for (uint32_t i = 0; i < w * h; i++)
         cr_assert(isfinite(px[i * TILE_NUM_CHANNELS + CH_R]));
-        sum += px[i * TILE_NUM_CHANNELS + CH_R];
-        var += px[i * TILE_NUM_CHANNELS + CH_VAR_R];
-    }
     cr_assert_eq(st.nan_samples, 0);
-    *se = sqrt(var) / (w * h);
+    double mean = test_channel_mean(px, w, h, CH_R, se);
     free(px);
-    job.photons = NULL; /* the caller's */
-    render_job_free(&job);
-    return sum / (w * h);
+    return mean;
 }
 
 /* The scene's photon map, decoded as a worker does (the caller frees). */
@@ -784,10 +757,8 @@ Test(medium, encodings)
 
 static void expect_error(const char *text, const char *want)
 {
-    struct scene s;
-    char err[512] = "";
-    cr_assert_neq(load(text, &s, err), 0, "accepted: %s", text);
-    cr_assert(strstr(err, want) != NULL, "error \"%s\" lacks \"%s\"", err, want);
+    grid_bytes();
+    test_scene_expect_error(text, g_files, want);
 }
 
 #define H HEAD("\"position\": [0, 0, -5], \"look_at\": [0, 0, 0]", 8, 8, 1, 4)

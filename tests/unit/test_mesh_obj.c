@@ -5,28 +5,13 @@
 #include <stdio.h>
 #include <string.h>
 #include "scene/mesh_obj.h"
-
-struct mem_file { const char *path, *data; };
-
-static int mem_read(void *ctx, const char *rel_path, char **data, size_t *size, char *err, size_t errlen)
-{
-    for (const struct mem_file *f = ctx; f->path; f++)
-        if (strcmp(f->path, rel_path) == 0) {
-            *size = strlen(f->data);
-            *data = malloc(*size + 1);
-            memcpy(*data, f->data, *size + 1);
-            return 0;
-        }
-    snprintf(err, errlen, "%s: No such file or directory", rel_path);
-    return -1;
-}
+#include "helpers.h"
 
 /* Parses text as "m.obj" with files as the rest of the folder; returns the rc. */
 static int parse(const char *text, const struct mem_file *files, const struct mesh_obj_options *opt,
                  struct scene *s, char *err)
 {
-    static const struct mem_file none[] = {{NULL, NULL}};
-    struct asset_source src = {mem_read, (void *)(uintptr_t)(files ? files : none)};
+    struct asset_source src = {mem_read, (void *)(uintptr_t)files};
     struct mesh_obj_cache cache = {0};
     int rc = mesh_obj_parse(s, &cache, &src, "m.obj", text, strlen(text), opt, err, 512);
     mesh_obj_cache_free(&cache);
@@ -181,8 +166,8 @@ Test(mesh_obj, materials_from_mtl)
 {
     static const struct mem_file files[] = {
         {"m.mtl", "# lib\nnewmtl red\nKa 0 0 0\nKd 1 0 0\nKs 0 0 0\nNs 10\nNi 1.5\nd 1\nillum 2\n"
-                  "map_Ks red.png\nnewmtl glow\nKd 0.5\nKe 4 5 6\nmap_Ks x.png\n"},
-        {NULL, NULL}};
+                  "map_Ks red.png\nnewmtl glow\nKd 0.5\nKe 4 5 6\nmap_Ks x.png\n", 0},
+        {NULL, NULL, 0}};
     struct scene s = {0};
     char err[512];
     const char *text = "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nusemtl glow\nf 1 2 3\n"
@@ -204,10 +189,10 @@ Test(mesh_obj, materials_from_mtl)
 
 Test(mesh_obj, mtl_errors)
 {
-    static const struct mem_file bad_kd[] = {{"m.mtl", "newmtl a\nKd 1.5 0 0\n"}, {NULL, NULL}};
-    static const struct mem_file early[] = {{"m.mtl", "\n  Kd 1 1 1\n"}, {NULL, NULL}};
-    static const struct mem_file twice[] = {{"m.mtl", "newmtl a\nnewmtl a\n"}, {NULL, NULL}};
-    static const struct mem_file bad_num[] = {{"m.mtl", "newmtl a\nKe 1 2 q\n"}, {NULL, NULL}};
+    static const struct mem_file bad_kd[] = {{"m.mtl", "newmtl a\nKd 1.5 0 0\n", 0}, {NULL, NULL, 0}};
+    static const struct mem_file early[] = {{"m.mtl", "\n  Kd 1 1 1\n", 0}, {NULL, NULL, 0}};
+    static const struct mem_file twice[] = {{"m.mtl", "newmtl a\nnewmtl a\n", 0}, {NULL, NULL, 0}};
+    static const struct mem_file bad_num[] = {{"m.mtl", "newmtl a\nKe 1 2 q\n", 0}, {NULL, NULL, 0}};
     expect_error("mtllib m.mtl\n", bad_kd, "m.mtl:2:4: Kd components must be in [0, 1]");
     expect_error("mtllib m.mtl\n", early, "m.mtl:2:3: Kd before any newmtl");
     expect_error("mtllib m.mtl\n", twice, "m.mtl:2:8: material \"a\" defined twice");
@@ -216,31 +201,44 @@ Test(mesh_obj, mtl_errors)
     expect_error("mtllib ../up.mtl\n", NULL, "m.obj:1:8: mtllib \"../up.mtl\"");
     expect_error("mtllib /etc/passwd\n", NULL, "m.obj:1:8: mtllib \"/etc/passwd\": absolute path");
     expect_error("mtllib\n", NULL, "m.obj:1:7: mtllib needs a file name");
-    static const struct mem_file ok[] = {{"m.mtl", "newmtl a\n"}, {NULL, NULL}};
+    static const struct mem_file ok[] = {{"m.mtl", "newmtl a\n", 0}, {NULL, NULL, 0}};
     expect_error("mtllib m.mtl\nusemtl b\n", ok, "m.obj:2:8: unknown material \"b\"");
     expect_error("usemtl a\n", NULL, "m.obj:1:8: unknown material \"a\"");
+}
+
+/* Reads rel_path through src and parses it, as the scene reader does. */
+static int load_obj(struct scene *s, struct mesh_obj_cache *cache, const struct asset_source *src, const char *rel_path,
+                    const struct mesh_obj_options *opt, char *err)
+{
+    char *data;
+    size_t size;
+    if (src->read(src->ctx, rel_path, &data, &size, err, 512) != 0)
+        return -1;
+    int rc = mesh_obj_parse(s, cache, src, rel_path, data, size, opt, err, 512);
+    free(data);
+    return rc;
 }
 
 Test(mesh_obj, mtllib_relative_to_obj_folder)
 {
     static const struct mem_file files[] = {
-        {"models/car.obj", "mtllib car.mtl\nusemtl paint\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"},
-        {"models/car.mtl", "newmtl paint\nKd 0 0 1\n"},
-        {NULL, NULL}};
+        {"models/car.obj", "mtllib car.mtl\nusemtl paint\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", 0},
+        {"models/car.mtl", "newmtl paint\nKd 0 0 1\n", 0},
+        {NULL, NULL, 0}};
     struct asset_source src = {mem_read, (void *)(uintptr_t)files};
     struct mesh_obj_cache cache = {0};
     struct scene s = {0};
     char err[512];
     struct mesh_obj_options opt = mesh_obj_default_options();
     opt.display_dir = "scenes/x/";
-    cr_assert_eq(mesh_obj_load(&s, &cache, &src, "models/car.obj", &opt, err, sizeof err), 0, "%s", err);
+    cr_assert_eq(load_obj(&s, &cache, &src, "models/car.obj", &opt, err), 0, "%s", err);
     /* The same MTL named by a second OBJ is not read twice: its materials are shared. */
-    cr_assert_eq(mesh_obj_load(&s, &cache, &src, "models/car.obj", &opt, err, sizeof err), 0, "%s", err);
+    cr_assert_eq(load_obj(&s, &cache, &src, "models/car.obj", &opt, err), 0, "%s", err);
     cr_expect_eq(s.num_materials, 1);
     cr_expect_str_eq(s.materials[0].name, "models/car.mtl:paint");
     cr_expect_eq(s.num_meshes, 2);
     cr_expect_eq(s.meshes[1].material_ids[0], 0);
-    cr_expect_eq(mesh_obj_load(&s, &cache, &src, "models/none.obj", &opt, err, sizeof err), -1);
+    cr_expect_eq(load_obj(&s, &cache, &src, "models/none.obj", &opt, err), -1);
     cr_expect(strstr(err, "models/none.obj") != NULL, "%s", err);
     mesh_obj_cache_free(&cache);
     scene_free(&s);

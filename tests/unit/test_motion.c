@@ -12,6 +12,7 @@
 #include "scene/motion.h"
 #include "scene/scene_json.h"
 #include "scene/texture.h"
+#include "helpers.h"
 
 static uint32_t add_mat(struct scene *s, vec3 emission)
 {
@@ -25,19 +26,7 @@ static uint32_t add_mat(struct scene *s, vec3 emission)
 /* Quad in the plane z = 0 over [x0, x1] x [y0, y1], facing +z (toward the camera). */
 static struct mesh quad_mesh(float x0, float x1, float y0, float y1, uint32_t mat)
 {
-    struct mesh m;
-    memset(&m, 0, sizeof m);
-    m.num_vertices = 4;
-    m.num_triangles = 2;
-    m.positions = mem_alloc(sizeof(float) * 12);
-    const float v[12] = {x0, y0, 0, x1, y0, 0, x1, y1, 0, x0, y1, 0};
-    memcpy(m.positions, v, sizeof v);
-    static const uint32_t idx[6] = {0, 1, 2, 0, 2, 3};
-    m.indices = mem_alloc(sizeof idx);
-    memcpy(m.indices, idx, sizeof idx);
-    m.material_ids = mem_alloc(sizeof(uint32_t) * 2);
-    m.material_ids[0] = m.material_ids[1] = mat;
-    return m;
+    return test_quad(v3(x0, y0, 0), v3(x1, y0, 0), v3(x1, y1, 0), v3(x0, y1, 0), mat, 0);
 }
 
 static struct motion_key key(float t, vec3 translate, vec3 axis, float degrees)
@@ -49,6 +38,24 @@ static struct motion_key key(float t, vec3 translate, vec3 axis, float degrees)
     k.translate = translate;
     motion_quat_from_axis_angle(axis, degrees, k.quat);
     return k;
+}
+
+/* T R S of a key as a 3x4 affine transform (the renderer hands Embree the quaternion; only
+ * these checks need the matrix). */
+static struct xform key_xform(const struct motion_key *k)
+{
+    double r = k->quat[0], i = k->quat[1], j = k->quat[2], q = k->quat[3];
+    double m[3][3] = {{1 - 2 * (j * j + q * q), 2 * (i * j - q * r), 2 * (i * q + j * r)},
+                      {2 * (i * j + q * r), 1 - 2 * (i * i + q * q), 2 * (j * q - i * r)},
+                      {2 * (i * q - j * r), 2 * (j * q + i * r), 1 - 2 * (i * i + j * j)}};
+    double s[3] = {k->scale.x, k->scale.y, k->scale.z}, tr[3] = {k->translate.x, k->translate.y, k->translate.z};
+    struct xform x;
+    for (int a = 0; a < 3; a++) {
+        for (int b = 0; b < 3; b++)
+            x.m[a][b] = (float)(m[a][b] * s[b]);
+        x.m[a][3] = (float)tr[a];
+    }
+    return x;
 }
 
 static struct motion_key *keys2(struct motion_key a, struct motion_key b)
@@ -88,13 +95,9 @@ static int scene_has_motion(const struct scene *s, uint32_t frame)
 /* Renders s and returns each column's mean alpha (coverage) and R over the rows. */
 static void render_columns(const struct scene *s, double *alpha, double *red, uint64_t *nans)
 {
-    struct render_job job;
-    char err[256];
-    cr_assert_eq(render_job_init(&job, s, 0, 2, err, sizeof err), 0, "%s", err);
-    uint32_t w = s->settings.width, h = s->settings.height;
-    float *px = mem_alloc(sizeof(float) * w * h * TILE_NUM_CHANNELS);
     struct tile_stats st;
-    integrator_render_tile(&job, 0, 0, w, h, px, &st);
+    float *px = test_render(s, 2, &st);
+    uint32_t w = s->settings.width, h = s->settings.height;
     for (uint32_t x = 0; x < w; x++) {
         alpha[x] = red[x] = 0.0;
         for (uint32_t y = 0; y < h; y++) {
@@ -104,14 +107,17 @@ static void render_columns(const struct scene *s, double *alpha, double *red, ui
     }
     *nans = st.nan_samples;
     free(px);
-    render_job_free(&job);
 }
 
-/* The right edge sweeps x = -1 -> 1 uniformly over the shutter, so a point x is covered
- * for the fraction (1 - x) / 2 of the time; a pixel's coverage is that at its centre. */
-static void check_ramp(const struct scene *s)
+/* Adds the moving quad q to s and renders it. The right edge sweeps x = -1 -> 1 uniformly
+ * over the shutter, so a point x is covered for the fraction (1 - x) / 2 of the time; a
+ * pixel's coverage is that at its centre. Frees s. */
+static void check_ramp(struct scene *s, struct mesh *q)
 {
     enum { W = 64 };
+    scene_add_mesh(s, q);
+    ramp_camera(s, W, 256);
+    cr_assert_eq(scene_has_motion(s, 0), 1);
     double alpha[W], red[W];
     uint64_t nans;
     render_columns(s, alpha, red, &nans);
@@ -134,6 +140,7 @@ static void check_ramp(const struct scene *s)
     }
     /* Chi-square of the inner columns against the ramp (mean 'inside', sd sqrt(2 inside)). */
     cr_assert(sq < inside + 5.0 * sqrt(2.0 * inside), "chi2 %.1f over %d columns", sq, inside);
+    scene_free(s);
 }
 
 Test(motion, moving_edge_rigid_keys_give_linear_ramp)
@@ -145,11 +152,7 @@ Test(motion, moving_edge_rigid_keys_give_linear_ramp)
     /* Keys exactly at shutter open and close. */
     q.keys = keys2(key(0, v3(-1, 0, 0), v3(0, 0, 1), 0), key(1, v3(1, 0, 0), v3(0, 0, 1), 0));
     q.num_keys = 2;
-    scene_add_mesh(&s, &q);
-    ramp_camera(&s, 64, 256);
-    cr_assert_eq(scene_has_motion(&s, 0), 1);
-    check_ramp(&s);
-    scene_free(&s);
+    check_ramp(&s, &q);
 }
 
 Test(motion, moving_edge_deformation_frames_give_linear_ramp)
@@ -171,11 +174,7 @@ Test(motion, moving_edge_deformation_frames_give_linear_ramp)
             q.frame_positions[f * 12 + 3 * v + 2] = 0.0f;
         }
     }
-    scene_add_mesh(&s, &q);
-    ramp_camera(&s, 64, 256);
-    cr_assert_eq(scene_has_motion(&s, 0), 1);
-    check_ramp(&s);
-    scene_free(&s);
+    check_ramp(&s, &q);
 }
 
 Test(motion, still_scenes_get_no_time_steps)
@@ -255,7 +254,7 @@ Test(motion, half_turn_between_keys_is_finite)
     }
     struct motion_key mid;
     motion_key_at(k, 2, 0.5, &mid);
-    struct xform x = motion_key_xform(&mid);
+    struct xform x = key_xform(&mid);
     vec3 p = xform_point(&x, v3(1, 0, 0)); /* a quarter turn about y: (1,0,0) -> (0,0,-1) */
     cr_assert_float_eq(p.x, 0.0f, 1e-5f);
     cr_assert_float_eq(p.z, -1.0f, 1e-5f);
@@ -311,26 +310,11 @@ Test(motion, rebuilt_hits_lie_on_the_ray)
 
 /* ---- Scene keys ---- */
 
-struct mem_file { const char *path, *data; };
-
-static int mem_read(void *ctx, const char *rel_path, char **data, size_t *size, char *err, size_t errlen)
-{
-    for (const struct mem_file *f = ctx; f->path; f++)
-        if (strcmp(f->path, rel_path) == 0) {
-            *size = strlen(f->data);
-            *data = mem_alloc(*size + 1);
-            memcpy(*data, f->data, *size + 1);
-            return 0;
-        }
-    snprintf(err, errlen, "%s: No such file or directory", rel_path);
-    return -1;
-}
-
 static const struct mem_file g_files[] = {
-    {"a.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"},
-    {"b.obj", "v 0 0 1\nv 1 0 1\nv 0 1 1\nf 1 2 3\n"},
-    {"quad.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n"},
-    {NULL, NULL}};
+    {"a.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", 0},
+    {"b.obj", "v 0 0 1\nv 1 0 1\nv 0 1 1\nf 1 2 3\n", 0},
+    {"quad.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n", 0},
+    {NULL, NULL, 0}};
 
 #define HEAD                                                                        \
     "{\"version\": 1,\n"                                                            \
@@ -338,18 +322,9 @@ static const struct mem_file g_files[] = {
     "\"render\": {\"width\": 8, \"height\": 8},\n"                                  \
     "\"materials\": {\"m\": {\"type\": \"diffuse\"}, \"glass\": {\"type\": \"dielectric\", \"ior\": 1.33}},\n"
 
-static int load(const char *text, struct scene *s, char *err)
-{
-    struct asset_source src = {mem_read, (void *)(uintptr_t)g_files};
-    return scene_json_parse("scenes/t.json", text, strlen(text), &src, s, err, 512);
-}
-
 static void expect_error(const char *text, const char *want)
 {
-    struct scene s;
-    char err[512] = "";
-    cr_assert_eq(load(text, &s, err), -1, "accepted: %s", text);
-    cr_expect(strstr(err, want) != NULL, "error \"%s\" lacks \"%s\"", err, want);
+    test_scene_expect_error(text, g_files, want);
 }
 
 Test(motion, scene_keys_for_motion_and_materials)
@@ -363,13 +338,13 @@ Test(motion, scene_keys_for_motion_and_materials)
                           "{\"type\": \"obj\", \"frames\": [\"a.obj\", \"b.obj\"], \"frame_times\": [0, 0.5]},\n"
                           "{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1, \"material\": \"m\",\n"
                           "  \"keyframes\": [{\"time\": 0}, {\"time\": 2, \"translate\": [0, 1, 0]}]}]}";
-    cr_assert_eq(load(ok, &s, err), 0, "%s", err);
+    cr_assert_eq(test_scene_load(ok, g_files, &s, err), 0, "%s", err);
     cr_assert_eq(s.materials[1].type, MATERIAL_DIELECTRIC);
     cr_assert_float_eq(s.materials[1].ior, 1.33f, 1e-6f);
     cr_assert_eq(s.meshes[0].num_keys, 2);
     cr_assert_float_eq(s.meshes[0].keys[1].scale.y, 2.0f, 0.0f);
     /* y by 90, then x by 90: (1, 0, 0) -> (0, 0, -1) -> (0, 1, 0). */
-    struct xform x = motion_key_xform(&s.meshes[0].keys[1]);
+    struct xform x = key_xform(&s.meshes[0].keys[1]);
     vec3 p = xform_point(&x, v3(0.5f, 0, 0));
     cr_assert(fabsf(p.x - 1.0f) < 1e-5f && fabsf(p.y - 1.0f) < 1e-5f && fabsf(p.z) < 1e-5f, "%g %g %g",
               (double)p.x, (double)p.y, (double)p.z);

@@ -19,6 +19,7 @@
 #include "scene/nvdb.h"
 #include "base/rng.h"
 #include "scene/scene_json.h"
+#include "helpers.h"
 
 #include "../tools/nvdb_values.h" /* the analytic densities of make_nvdb.cpp */
 
@@ -27,8 +28,11 @@ static const double BALL_A[3][3] = {{0.125, 0.0, 0.0625}, {0.0, 0.25, 0.0}, {0.0
 static const double BALL_T[3] = {-1.0, 0.5, -0.75};
 static const int BALL_LO[3] = {-6, -4, -5}, BALL_HI[3] = {9, 7, 5};
 
-struct file { char name[64]; uint8_t *data; size_t size; };
-static struct file g_files[16];
+/* The in-memory folder: add_file() fills the first free slot, so g_files stays ended by an
+ * empty one; the names and bytes are owned here. */
+static char g_names[16][64];
+static uint8_t *g_data[16];
+static struct mem_file g_files[16];
 
 static uint8_t *read_testdata(const char *name, size_t *size)
 {
@@ -51,43 +55,37 @@ static uint8_t *read_testdata(const char *name, size_t *size)
 static void add_file(const char *name, const uint8_t *data, size_t size)
 {
     for (int i = 0; i < 15; i++)
-        if (!g_files[i].data) {
-            snprintf(g_files[i].name, sizeof g_files[i].name, "%s", name);
-            g_files[i].data = malloc(size + 1);
-            memcpy(g_files[i].data, data, size);
-            g_files[i].size = size;
+        if (!g_files[i].path) {
+            snprintf(g_names[i], sizeof g_names[i], "%s", name);
+            g_data[i] = malloc(size + 1);
+            memcpy(g_data[i], data, size);
+            g_files[i] = (struct mem_file){g_names[i], g_data[i], size};
             return;
         }
     cr_assert_fail("too many files");
 }
 
+/* Adds the test data file `file` to the in-memory asset source as `as`. */
+static void add_testdata(const char *file, const char *as)
+{
+    size_t n;
+    uint8_t *d = read_testdata(file, &n);
+    add_file(as, d, n);
+    free(d);
+}
+
 static void clear_files(void)
 {
     for (int i = 0; i < 16; i++) {
-        free(g_files[i].data);
-        g_files[i].data = NULL;
+        free(g_data[i]);
+        g_data[i] = NULL;
+        g_files[i] = (struct mem_file){NULL, NULL, 0};
     }
-}
-
-static int mem_read(void *ctx, const char *rel_path, char **data, size_t *size, char *err, size_t errlen)
-{
-    (void)ctx;
-    for (int i = 0; i < 16; i++)
-        if (g_files[i].data && strcmp(g_files[i].name, rel_path) == 0) {
-            *size = g_files[i].size;
-            *data = malloc(*size + 1);
-            memcpy(*data, g_files[i].data, *size);
-            return 0;
-        }
-    snprintf(err, errlen, "%s: No such file or directory", rel_path);
-    return -1;
 }
 
 static int load(const char *text, struct scene *s, char *err)
 {
-    struct asset_source src = {mem_read, NULL};
-    memset(s, 0, sizeof *s);
-    return scene_json_parse("scenes/t.json", text, strlen(text), &src, s, err, 512);
+    return test_scene_load(text, g_files, s, err);
 }
 
 static void load_ok(const char *text, struct scene *s)
@@ -160,10 +158,7 @@ Test(nvdb, analytic_values_exact)
     free(g.data);
 
     /* Through the scene: the map, then the transform; lookups at voxel centres. */
-    size_t n;
-    uint8_t *d = read_testdata("ball.nvdb", &n);
-    add_file("ball.nvdb", d, n);
-    free(d);
+    add_testdata("ball.nvdb", "ball.nvdb");
     char text[2048];
     scene_with(text, sizeof text, "{\"file\": \"ball.nvdb\", \"scale\": 2, \"transform\": {\"scale\": 2, \"translate\": [1, 0, 0]}}");
     struct scene s;
@@ -230,10 +225,7 @@ Test(nvdb, first_float_grid_and_by_name)
     free(b);
 
     /* In a scene: "grid" picks by name; a bad name is reported at the file key. */
-    size_t n;
-    uint8_t *d = read_testdata("multi.nvdb", &n);
-    add_file("multi.nvdb", d, n);
-    free(d);
+    add_testdata("multi.nvdb", "multi.nvdb");
     char text[2048];
     scene_with(text, sizeof text, "{\"file\": \"multi.nvdb\", \"grid\": \"temperature\"}");
     struct scene s;
@@ -287,25 +279,20 @@ static uint8_t *ball_brgrid(size_t *size)
     return b;
 }
 
-static void render(const struct scene *s, float *px)
+static float *render(const struct scene *s)
 {
-    struct render_job job;
-    char err[512] = "";
-    cr_assert_eq(render_job_init(&job, s, 0, 1, err, sizeof err), 0, "%s", err);
     struct tile_stats st;
-    integrator_render_tile(&job, 0, 0, s->settings.width, s->settings.height, px, &st);
+    float *px = test_render(s, 1, &st);
     cr_assert_eq(st.nan_samples, 0);
-    render_job_free(&job);
+    return px;
 }
 
 Test(nvdb, same_as_dense_grid, .timeout = 60)
 {
-    size_t n;
-    uint8_t *d = read_testdata("ball.nvdb", &n);
-    add_file("ball.nvdb", d, n);
-    free(d);
+    add_testdata("ball.nvdb", "ball.nvdb");
     /* The dense file under an .nvdb name, the NanoVDB one under a .grid name: content decides. */
-    d = ball_brgrid(&n);
+    size_t n;
+    uint8_t *d = ball_brgrid(&n);
     add_file("ball_dense.nvdb", d, n);
     free(d);
     struct xform t = ball_to_world(), s2 = {{{2, 0, 0, 1}, {0, 2, 0, 0}, {0, 0, 2, 0}}};
@@ -340,9 +327,7 @@ Test(nvdb, same_as_dense_grid, .timeout = 60)
         }
     }
     size_t npx = (size_t)a.settings.width * a.settings.height * TILE_NUM_CHANNELS;
-    float *pa = malloc(sizeof(float) * npx), *pb = malloc(sizeof(float) * npx);
-    render(&a, pa);
-    render(&b, pb);
+    float *pa = render(&a), *pb = render(&b);
     double sum = 0.0;
     for (size_t i = 0; i < npx; i += TILE_NUM_CHANNELS)
         sum += pa[i + CH_R];
@@ -398,10 +383,7 @@ Test(nvdb, refusals)
         cr_assert_null(g.data);
     }
     /* In a scene the message carries file:line:col. */
-    size_t n;
-    uint8_t *d = read_testdata("ball_zip.nvdb", &n);
-    add_file("z.nvdb", d, n);
-    free(d);
+    add_testdata("ball_zip.nvdb", "z.nvdb");
     char text[2048], err[512];
     scene_with(text, sizeof text, "{\"file\": \"z.nvdb\"}");
     struct scene s;

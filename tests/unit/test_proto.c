@@ -144,6 +144,20 @@ static void assert_hash_eq(const struct blob_hash *a, const struct blob_hash *b)
     cr_assert(memcmp(a->bytes, b->bytes, BLOB_HASH_SIZE) == 0);
 }
 
+/* A RESULT's or KEPT's tile statistics and EXR chunk. */
+static void assert_tile_eq(const struct tile_stats *x, const uint8_t *xc, uint32_t xn, const struct tile_stats *y,
+                           const uint8_t *yc, uint32_t yn)
+{
+    cr_assert_eq(x->samples, y->samples);
+    cr_assert_eq(x->rays, y->rays);
+    cr_assert_eq(x->nan_samples, y->nan_samples);
+    cr_assert_eq(x->render_ns, y->render_ns);
+    cr_assert(memcmp(&x->sum_rel_stderr, &y->sum_rel_stderr, sizeof(double)) == 0);
+    cr_assert_eq(x->rel_stderr_pixels, y->rel_stderr_pixels);
+    cr_assert_eq(xn, yn);
+    cr_assert(memcmp(xc, yc, xn) == 0);
+}
+
 static void assert_msg_eq(const struct proto_msg *a, const struct proto_msg *b)
 {
     cr_assert_eq(a->type, b->type);
@@ -202,14 +216,7 @@ static void assert_msg_eq(const struct proto_msg *a, const struct proto_msg *b)
         cr_assert_eq(x->frame, y->frame);
         cr_assert_eq(x->tile, y->tile);
         cr_assert_eq(x->attempt, y->attempt);
-        cr_assert_eq(x->stats.samples, y->stats.samples);
-        cr_assert_eq(x->stats.rays, y->stats.rays);
-        cr_assert_eq(x->stats.nan_samples, y->stats.nan_samples);
-        cr_assert_eq(x->stats.render_ns, y->stats.render_ns);
-        cr_assert(memcmp(&x->stats.sum_rel_stderr, &y->stats.sum_rel_stderr, sizeof(double)) == 0);
-        cr_assert_eq(x->stats.rel_stderr_pixels, y->stats.rel_stderr_pixels);
-        cr_assert_eq(x->chunk_size, y->chunk_size);
-        cr_assert(memcmp(x->chunk, y->chunk, x->chunk_size) == 0);
+        assert_tile_eq(&x->stats, x->chunk, x->chunk_size, &y->stats, y->chunk, y->chunk_size);
         break;
     }
     case MSG_ERROR:
@@ -235,14 +242,7 @@ static void assert_msg_eq(const struct proto_msg *a, const struct proto_msg *b)
         assert_hash_eq(&x->job_key, &y->job_key);
         cr_assert_eq(x->frame, y->frame);
         cr_assert_eq(x->tile, y->tile);
-        cr_assert_eq(x->stats.samples, y->stats.samples);
-        cr_assert_eq(x->stats.rays, y->stats.rays);
-        cr_assert_eq(x->stats.nan_samples, y->stats.nan_samples);
-        cr_assert_eq(x->stats.render_ns, y->stats.render_ns);
-        cr_assert(memcmp(&x->stats.sum_rel_stderr, &y->stats.sum_rel_stderr, sizeof(double)) == 0);
-        cr_assert_eq(x->stats.rel_stderr_pixels, y->stats.rel_stderr_pixels);
-        cr_assert_eq(x->chunk_size, y->chunk_size);
-        cr_assert(memcmp(x->chunk, y->chunk, x->chunk_size) == 0);
+        assert_tile_eq(&x->stats, x->chunk, x->chunk_size, &y->stats, y->chunk, y->chunk_size);
         break;
     }
     case MSG_BYE:

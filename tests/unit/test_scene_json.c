@@ -5,38 +5,17 @@
 #include <stdio.h>
 #include <string.h>
 #include "scene/scene_json.h"
-
-struct mem_file { const char *path, *data; };
-
-static int mem_read(void *ctx, const char *rel_path, char **data, size_t *size, char *err, size_t errlen)
-{
-    for (const struct mem_file *f = ctx; f->path; f++)
-        if (strcmp(f->path, rel_path) == 0) {
-            *size = strlen(f->data);
-            *data = malloc(*size + 1);
-            memcpy(*data, f->data, *size + 1);
-            return 0;
-        }
-    snprintf(err, errlen, "%s: No such file or directory", rel_path);
-    return -1;
-}
+#include "helpers.h"
 
 static const struct mem_file g_files[] = {
-    {"tri.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"},
-    {"a/x.obj", "mtllib m.mtl\nusemtl paint\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"},
-    {"a/m.mtl", "newmtl paint\nKd 1 0 0\n"},
-    {"b/x.obj", "mtllib m.mtl\nusemtl paint\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"},
-    {"b/m.mtl", "newmtl paint\nKd 0 1 0\n"},
-    {"bad.obj", "v 0 0 0\nv 1 0 zz\n"},
-    {"big.obj", "v 1e30 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\n"},
-    {NULL, NULL}};
-
-static int load(const char *text, struct scene *s, char *err)
-{
-    struct asset_source src = {mem_read, (void *)(uintptr_t)g_files};
-    memset(s, 0, sizeof *s);
-    return scene_json_parse("scenes/t.json", text, strlen(text), &src, s, err, 512);
-}
+    {"tri.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", 0},
+    {"a/x.obj", "mtllib m.mtl\nusemtl paint\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", 0},
+    {"a/m.mtl", "newmtl paint\nKd 1 0 0\n", 0},
+    {"b/x.obj", "mtllib m.mtl\nusemtl paint\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", 0},
+    {"b/m.mtl", "newmtl paint\nKd 0 1 0\n", 0},
+    {"bad.obj", "v 0 0 0\nv 1 0 zz\n", 0},
+    {"big.obj", "v 1e30 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\n", 0},
+    {NULL, NULL, 0}};
 
 /* A valid scene is HEAD + the text given + "}". */
 #define HEAD                                                                        \
@@ -66,20 +45,14 @@ static void show_position(const char *text, const char *err)
 
 static void expect_error(const char *text, const char *want)
 {
-    struct scene s;
-    char err[512] = "";
-    cr_assert_eq(load(text, &s, err), -1, "accepted: %s", text);
-    cr_expect(strstr(err, want) != NULL, "error \"%s\" lacks \"%s\"", err, want);
-    show_position(text, err);
-    cr_expect_null(s.materials);
-    cr_expect_eq(s.num_meshes, 0);
+    show_position(text, test_scene_expect_error(text, g_files, want));
 }
 
 Test(scene_json, defaults)
 {
     struct scene s;
     char err[512];
-    cr_assert_eq(load(HEAD "}", &s, err), 0, "%s", err);
+    cr_assert_eq(test_scene_load(HEAD "}", g_files, &s, err), 0, "%s", err);
     cr_expect_eq(s.settings.width, 64);
     cr_expect_eq(s.settings.height, 48);
     cr_expect_eq(s.settings.spp, 16);
@@ -99,7 +72,7 @@ Test(scene_json, defaults)
                        " \"up\": [0, 1, 1], \"fov_y\": 40, \"aperture\": 0, \"focus_distance\": 3},"
                        " \"render\": {\"width\": 5, \"height\": 7, \"spp\": 3, \"max_depth\": 2,"
                        " \"seed\": 12345678901, \"tile_size\": 8}}";
-    cr_assert_eq(load(full, &s, err), 0, "%s", err);
+    cr_assert_eq(test_scene_load(full, g_files, &s, err), 0, "%s", err);
     cr_expect_eq(s.settings.spp, 3);
     cr_expect_eq(s.settings.max_depth, 2);
     cr_expect_eq(s.settings.seed, 12345678901ull);
@@ -118,7 +91,7 @@ Test(scene_json, materials_spheres_lights)
                             "\"objects\": [{\"type\": \"sphere\", \"center\": [1, 2, 3], \"radius\": 0.5,"
                             " \"material\": \"glow\", \"name\": \"ball\"}],\n"
                             "\"lights\": [{\"type\": \"point\", \"position\": [0, 5, 0], \"intensity\": [4, 4, 4]}]}";
-    cr_assert_eq(load(text, &s, err), 0, "%s", err);
+    cr_assert_eq(test_scene_load(text, g_files, &s, err), 0, "%s", err);
     cr_assert_eq(s.num_materials, 2);
     cr_expect_str_eq(s.materials[0].name, "m");
     cr_expect_float_eq(s.materials[0].albedo.z, 0.3f, 0);
@@ -152,7 +125,7 @@ Test(scene_json, obj_and_transforms)
                             " \"transform\": {\"scale\": 3, \"rotate\": {\"axis\": [1, 1, 1], \"degrees\": 30},"
                             " \"translate\": [0, 1, 0]}}],\n"
                             "\"materials\": {\"w\": {\"type\": \"diffuse\"}}}";
-    cr_assert_eq(load(text, &s, err), 0, "%s", err);
+    cr_assert_eq(test_scene_load(text, g_files, &s, err), 0, "%s", err);
     cr_assert_eq(s.num_meshes, 3);
     const float *p = s.meshes[0].positions;
     cr_expect_float_eq(p[3], 10.0f, 1e-5);
@@ -184,7 +157,7 @@ Test(scene_json, mtl_names_are_namespaced_and_override_wins)
                             "\"objects\": [{\"type\": \"obj\", \"file\": \"a/x.obj\"}, {\"type\": \"obj\","
                             " \"file\": \"b/x.obj\"}, {\"type\": \"obj\", \"file\": \"a/x.obj\"},"
                             " {\"type\": \"obj\", \"file\": \"b/x.obj\", \"material\": \"gold\"}]}";
-    cr_assert_eq(load(text, &s, err), 0, "%s", err);
+    cr_assert_eq(test_scene_load(text, g_files, &s, err), 0, "%s", err);
     cr_assert_eq(s.num_materials, 3);
     cr_expect_str_eq(s.materials[1].name, "a/m.mtl:paint");
     cr_expect_str_eq(s.materials[2].name, "b/m.mtl:paint");

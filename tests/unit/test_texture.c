@@ -24,6 +24,7 @@
 #include "image/mip.h"
 #include "render/raydiff.h"
 #include "scene/texture.h"
+#include "helpers.h"
 
 /* ---- helpers ---- */
 
@@ -755,18 +756,6 @@ static void horizon_scene(struct scene *s, float R, uint32_t tex)
     s->camera.fov_y_deg = 40;
 }
 
-static float *render(const struct scene *s, struct tile_stats *st)
-{
-    struct render_job job;
-    char err[256];
-    cr_assert_eq(render_job_init(&job, s, 0, 1, err, sizeof err), 0, "%s", err);
-    uint32_t w = s->settings.width, h = s->settings.height;
-    float *px = mem_alloc(sizeof(float) * w * h * TILE_NUM_CHANNELS);
-    integrator_render_tile(&job, 0, 0, w, h, px, st);
-    render_job_free(&job);
-    return px;
-}
-
 static double rmse(const float *a, const float *b, uint32_t w, uint32_t y0, uint32_t y1)
 {
     double e = 0;
@@ -814,7 +803,7 @@ Test(texture_render, checkerboard_to_the_horizon_ewa_beats_unfiltered, .timeout 
     horizon_scene(&ref, R, 0);
     render_settings(&ref, W, H, 1024);
     struct tile_stats st;
-    float *want = render(&ref, &st);
+    float *want = test_render(&ref, 1, &st);
     cr_expect_eq(st.nan_samples, 0);
     /* The same squares from an image, 1 spp, per filter. */
     double err[TEXFILTER_COUNT_], far[TEXFILTER_COUNT_];
@@ -830,7 +819,7 @@ Test(texture_render, checkerboard_to_the_horizon_ewa_beats_unfiltered, .timeout 
         scene_add_texture(&s, &t);
         horizon_scene(&s, R, 0);
         render_settings(&s, W, H, 1);
-        img[f] = render(&s, &st);
+        img[f] = test_render(&s, 1, &st);
         cr_expect_eq(st.nan_samples, 0);
         err[f] = rmse(img[f], want, W, 0, H);
         /* Rows showing the far floor: just below the horizon (which is row H / 2 - 1). */
@@ -844,7 +833,7 @@ Test(texture_render, checkerboard_to_the_horizon_ewa_beats_unfiltered, .timeout 
     scene_add_texture(&one, &proc);
     horizon_scene(&one, R, 0);
     render_settings(&one, W, H, 1);
-    float *proc1 = render(&one, &st);
+    float *proc1 = test_render(&one, 1, &st);
     cr_expect(rmse(proc1, img[TEXFILTER_NEAREST], W, 0, H) < 0.02, "image vs procedural %g",
               rmse(proc1, img[TEXFILTER_NEAREST], W, 0, H));
     cr_log_info("checker horizon RMSE at 1 spp: nearest %.4f bilinear %.4f trilinear %.4f ewa %.4f (far rows: "
@@ -895,7 +884,7 @@ Test(texture_render, huge_texture_thin_lens_degenerate_uvs_no_nan, .timeout = 12
     s.camera.aperture_radius = 5.0f;
     s.camera.focus_distance = 0.05f;
     struct tile_stats st;
-    float *px = render(&s, &st);
+    float *px = test_render(&s, 1, &st);
     cr_expect_eq(st.nan_samples, 0);
     cr_expect(all_finite(px, (size_t)32 * 24 * TILE_NUM_CHANNELS));
     free(px);
@@ -919,7 +908,7 @@ Test(texture_render, huge_texture_thin_lens_degenerate_uvs_no_nan, .timeout = 12
             uv[2 * i + 1] = k ? 0.2f * (float)i : 0.5f;
         }
         s.camera.aperture_radius = 0.0f;
-        px = render(&s, &st);
+        px = test_render(&s, 1, &st);
         cr_expect_eq(st.nan_samples, 0);
         cr_expect(all_finite(px, (size_t)32 * 24 * TILE_NUM_CHANNELS));
         free(px);
@@ -931,54 +920,35 @@ Test(texture_render, huge_texture_thin_lens_degenerate_uvs_no_nan, .timeout = 12
 
 #include "scene/scene_json.h"
 
-struct bin_file {
-    const char *path;
-    const uint8_t *data;
-    size_t size;
-};
-
-static int bin_read(void *ctx, const char *rel_path, char **data, size_t *size, char *err, size_t errlen)
-{
-    for (const struct bin_file *f = ctx; f->path; f++)
-        if (strcmp(f->path, rel_path) == 0) {
-            *size = f->size;
-            *data = mem_alloc(f->size + 1);
-            memcpy(*data, f->data, f->size);
-            (*data)[f->size] = '\0';
-            return 0;
-        }
-    snprintf(err, errlen, "%s: No such file or directory", rel_path);
-    return -1;
-}
-
-#define TXT(p, s) {p, (const uint8_t *)(s), sizeof(s) - 1}
 #define SCENE_HEAD                                                                      \
     "{\"version\": 1,\n"                                                                \
     "\"camera\": {\"position\": [0, 0, -5], \"look_at\": [0, 0, 0], \"fov_y\": 40},\n" \
     "\"render\": {\"width\": 16, \"height\": 16},\n"
 
-static int load_scene(const char *text, struct scene *s, char *err)
+/* The scene tests' folder: a 4 x 2 PNG under two names and OBJ/MTL files that use it. */
+static const struct mem_file *scene_files(void)
 {
     static uint8_t png[4 * 2 * 3];
-    for (size_t i = 0; i < sizeof png; i++)
-        png[i] = (uint8_t)(i * 20);
     static struct membuf enc;
-    if (!enc.p)
-        enc = encode("png", 4, 2, 3, png);
-    const struct bin_file files[] = {
-        {"tex/a.png", enc.p, enc.n},
-        {"m/b.png", enc.p, enc.n},
-        TXT("quad.obj", "mtllib m/q.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nusemtl p\nf 1/1 2/2 3/3\n"),
-        TXT("m/q.mtl", "newmtl p\nmap_Kd -s 2 3 -o 0.5 0 -clamp on b.png\nnewmtl q\nmap_Kd -bm 1 b.png\n"
-                       "newmtl r\nKd 0.5 0.25 1\nmap_Kd b.png\nmap_Bump -bm 0.2 b.png\nnorm -s 2 2 b.png\n"),
-        TXT("nofile.obj", "mtllib m/n.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl p\nf 1 2 3\n"),
-        TXT("m/n.mtl", "newmtl p\nmap_Kd -s 2 2\n"),
-        TXT("gone.obj", "mtllib m/g.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl p\nf 1 2 3\n"),
-        TXT("m/g.mtl", "newmtl p\nmap_Kd   gone.png\n"),
+    static struct mem_file files[] = {
+        {"tex/a.png", NULL, 0},
+        {"m/b.png", NULL, 0},
+        {"quad.obj", "mtllib m/q.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nusemtl p\nf 1/1 2/2 3/3\n", 0},
+        {"m/q.mtl", "newmtl p\nmap_Kd -s 2 3 -o 0.5 0 -clamp on b.png\nnewmtl q\nmap_Kd -bm 1 b.png\n"
+                    "newmtl r\nKd 0.5 0.25 1\nmap_Kd b.png\nmap_Bump -bm 0.2 b.png\nnorm -s 2 2 b.png\n", 0},
+        {"nofile.obj", "mtllib m/n.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl p\nf 1 2 3\n", 0},
+        {"m/n.mtl", "newmtl p\nmap_Kd -s 2 2\n", 0},
+        {"gone.obj", "mtllib m/g.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl p\nf 1 2 3\n", 0},
+        {"m/g.mtl", "newmtl p\nmap_Kd   gone.png\n", 0},
         {NULL, NULL, 0}};
-    struct asset_source src = {bin_read, (void *)(uintptr_t)files};
-    memset(s, 0, sizeof *s);
-    return scene_json_parse("scenes/t.json", text, strlen(text), &src, s, err, 512);
+    if (!enc.p) {
+        for (size_t i = 0; i < sizeof png; i++)
+            png[i] = (uint8_t)(i * 20);
+        enc = encode("png", 4, 2, 3, png);
+        files[0].data = files[1].data = enc.p;
+        files[0].size = files[1].size = enc.n;
+    }
+    return files;
 }
 
 Test(texture_scene, textures_section_and_albedo_texture)
@@ -995,7 +965,7 @@ Test(texture_scene, textures_section_and_albedo_texture)
         "  \"g\": {\"type\": \"dielectric\", \"bump_texture\": \"img\", \"bump_scale\": -0.05},\n"
         "  \"k\": {\"type\": \"mirror\", \"normal_texture\": \"img\"}},\n"
         "\"objects\": [{\"type\": \"obj\", \"file\": \"quad.obj\"}]\n}";
-    cr_assert_eq(load_scene(text, &s, err), 0, "%s", err);
+    cr_assert_eq(test_scene_load(text, scene_files(), &s, err), 0, "%s", err);
     cr_assert_eq(s.num_textures, 6); /* c, img, map_Kd of p and r (q's is skipped), r's bump and norm */
     cr_expect_eq(s.textures[0].type, TEXTURE_CHECKER);
     cr_expect_eq(s.textures[0].filter, TEXFILTER_TRILINEAR);
@@ -1043,10 +1013,7 @@ Test(texture_scene, textures_section_and_albedo_texture)
 
 static void expect_scene_error(const char *text, const char *want)
 {
-    struct scene s;
-    char err[512];
-    cr_expect_eq(load_scene(text, &s, err), -1, "accepted: %s", text);
-    cr_expect(strstr(err, want) != NULL, "got \"%s\", want \"%s\"", err, want);
+    test_scene_expect_error(text, scene_files(), want);
 }
 
 Test(texture_scene, errors_name_line_and_column)
@@ -1188,7 +1155,7 @@ Test(texture_render, ewa_through_a_mirror_filters_like_direct_view, .timeout = 1
         render_settings(&s, W, H, pass == 2 ? 1024 : 1);
         s.settings.max_depth = 2;
         struct tile_stats st;
-        img[pass] = render(&s, &st);
+        img[pass] = test_render(&s, 1, &st);
         cr_expect_eq(st.nan_samples, 0);
         scene_free(&s);
     }
@@ -1257,7 +1224,7 @@ Test(texture_render, ewa_through_glass_filters_like_direct_view, .timeout = 120)
         render_settings(&s, W, H, pass == 2 ? 1024 : 1);
         s.settings.max_depth = 4;
         struct tile_stats st;
-        img[pass] = render(&s, &st);
+        img[pass] = test_render(&s, 1, &st);
         cr_expect_eq(st.nan_samples, 0);
         scene_free(&s);
     }

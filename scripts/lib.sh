@@ -1,0 +1,57 @@
+# Shared by the bench scripts (scripts/bench*.sh), sourced after `set -eu`:
+#   . scripts/lib.sh; bench_init NAME [DEBIAN_PACKAGE...]
+# Sets BUILD (env, default build), CORES, OUT (bench-out/, where tables and plots go) and T
+# (a temporary folder, removed on exit). Helpers that run a render keep its output in
+# $T/log and, when it fails, show it and end the script.
+BUILD=${BUILD:-build}
+CORES=$(nproc)
+OUT=bench-out
+
+# bench_init NAME [PACKAGE...]: installs what is missing, makes $OUT and $T.
+bench_init() {
+  T=$(mktemp -d "/tmp/brume-$1.XXXXXX")
+  trap 'rm -rf "$T"' EXIT
+  shift
+  [ $# -eq 0 ] || sh scripts/install-deps.sh "$@"
+  mkdir -p "$OUT"
+}
+
+# logged CMD...: runs CMD with its output in $T/log; on failure shows the log and exits.
+logged() {
+  "$@" >"$T/log" 2>&1 || { cat "$T/log" >&2; echo "bench: command failed: $*" >&2; exit 1; }
+}
+
+# cpu_secs CMD...: CPU seconds (user + system, children included) of one logged run. On a
+# shared, noisy machine CPU time is steadier than wall time for renders that keep every
+# thread busy.
+cpu_secs() {
+  logged /usr/bin/time -f "cpu %U %S" -o "$T/cpu" "$@"
+  awk '/^cpu/ {print $2 + $3}' "$T/cpu"
+}
+
+# wall_secs CMD...: wall seconds of one logged run, process start included.
+wall_secs() {
+  s=$(date +%s.%N)
+  logged "$@"
+  e=$(date +%s.%N)
+  echo "$e - $s" | bc -l
+}
+
+# render_secs [LOG]: the render's own wall time from the master's summary line.
+render_secs() { awk '/summary: wall/ {print $3}' "${1:-$T/log}"; }
+
+# median: of the numbers on stdin, one a line (mean of the middle two for an even count).
+median() { sort -g | awk '{a[NR] = $1} END {print (NR % 2) ? a[(NR + 1) / 2] : (a[NR / 2] + a[NR / 2 + 1]) / 2}'; }
+
+# ref_key FILE...: 16 hex digits of the files and the worker binary, so that a cached
+# reference image is redone when the scene or the renderer changes.
+ref_key() { cat "$@" "$BUILD/worker" | sha256sum | cut -c1-16; }
+
+# plot PNG: runs the gnuplot script on stdin, when gnuplot is installed, and names the plot.
+plot() {
+  if command -v gnuplot >/dev/null 2>&1; then
+    if gnuplot 2>/dev/null; then echo "plot: $1"; fi
+  else
+    cat >/dev/null
+  fi
+}

@@ -1,0 +1,92 @@
+/* Scaffolding shared by the unit tests; see helpers.h. Linked into build/unit_tests only. */
+#include "helpers.h"
+#include <criterion/criterion.h>
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+#include "base/log.h"
+#include "scene/scene_json.h"
+
+int mem_read(void *ctx, const char *rel_path, char **data, size_t *size, char *err, size_t errlen)
+{
+    for (const struct mem_file *f = ctx; f && f->path; f++)
+        if (strcmp(f->path, rel_path) == 0) {
+            *size = f->size ? f->size : strlen(f->data);
+            *data = mem_alloc(*size + 1);
+            memcpy(*data, f->data, *size);
+            (*data)[*size] = '\0'; /* asset_source promises a terminator beyond *size */
+            return 0;
+        }
+    snprintf(err, errlen, "%s: No such file or directory", rel_path);
+    return -1;
+}
+
+int test_scene_load(const char *text, const struct mem_file *files, struct scene *s, char *err)
+{
+    struct asset_source src = {mem_read, (void *)(uintptr_t)files};
+    return scene_json_parse("scenes/t.json", text, strlen(text), &src, s, err, 512);
+}
+
+const char *test_scene_expect_error(const char *text, const struct mem_file *files, const char *want)
+{
+    static char err[512];
+    struct scene s;
+    err[0] = '\0';
+    cr_assert_eq(test_scene_load(text, files, &s, err), -1, "accepted: %s", text);
+    cr_expect(strstr(err, want) != NULL, "error \"%s\" lacks \"%s\"", err, want);
+    /* scene_json_parse leaves a failed scene freed */
+    cr_expect_null(s.materials);
+    cr_expect_eq(s.num_meshes, 0);
+    return err;
+}
+
+struct mesh test_quad(vec3 a, vec3 b, vec3 c, vec3 d, uint32_t mat, int flip)
+{
+    struct mesh m;
+    memset(&m, 0, sizeof m);
+    m.num_vertices = 4;
+    m.num_triangles = 2;
+    m.positions = mem_alloc(sizeof(float) * 12);
+    vec3 v[4] = {a, b, c, d};
+    for (int i = 0; i < 4; i++) {
+        m.positions[3 * i] = v[i].x;
+        m.positions[3 * i + 1] = v[i].y;
+        m.positions[3 * i + 2] = v[i].z;
+    }
+    static const uint32_t idx[6] = {0, 1, 2, 0, 2, 3}, idx_flip[6] = {0, 2, 1, 0, 3, 2};
+    m.indices = mem_alloc(sizeof idx);
+    memcpy(m.indices, flip ? idx_flip : idx, sizeof idx);
+    m.material_ids = mem_alloc(sizeof(uint32_t) * 2);
+    m.material_ids[0] = m.material_ids[1] = mat;
+    return m;
+}
+
+float *test_render_map(const struct scene *s, struct photon_map *map, uint32_t threads, struct tile_stats *st)
+{
+    struct render_job job;
+    char err[256];
+    cr_assert_eq(render_job_init(&job, s, 0, threads, err, sizeof err), 0, "%s", err);
+    render_job_set_photon_map(&job, &map);
+    uint32_t w = s->settings.width, h = s->settings.height;
+    float *px = mem_alloc(sizeof(float) * w * h * TILE_NUM_CHANNELS);
+    integrator_render_tile(&job, 0, 0, w, h, px, st);
+    job.photons = NULL; /* lent: still the caller's */
+    render_job_free(&job);
+    return px;
+}
+
+float *test_render(const struct scene *s, uint32_t threads, struct tile_stats *st)
+{
+    return test_render_map(s, NULL, threads, st);
+}
+
+double test_channel_mean(const float *px, uint32_t w, uint32_t h, enum tile_channel ch, double *se)
+{
+    double sum = 0, var = 0;
+    for (uint32_t i = 0; i < w * h; i++) {
+        sum += px[i * TILE_NUM_CHANNELS + ch];
+        var += px[i * TILE_NUM_CHANNELS + ch + CH_VAR_R];
+    }
+    *se = sqrt(var) / (w * h);
+    return sum / (w * h);
+}

@@ -1,0 +1,39 @@
+/* Scaffolding shared by the unit tests (tests/unit/test_*.c): an in-memory asset source,
+ * scene files parsed from strings, quads built in code and whole-image renders. Failures
+ * inside a helper fail the calling test through Criterion's asserts. */
+#ifndef BRUME_TEST_HELPERS_H
+#define BRUME_TEST_HELPERS_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include "base/asset.h"
+#include "render/integrator.h"
+#include "scene/scene.h"
+
+/* A file of an in-memory folder; a folder is an array ended by {NULL}. size 0 means
+ * strlen(data), so text files need no size. */
+struct mem_file { const char *path; const void *data; size_t size; };
+
+/* The asset_source read function over a folder (ctx: its first mem_file). */
+int mem_read(void *ctx, const char *rel_path, char **data, size_t *size, char *err, size_t errlen);
+
+/* Parses text as "scenes/t.json" with files (NULL: none) as its folder; err holds 512
+ * bytes. Returns scene_json_parse's rc. */
+int test_scene_load(const char *text, const struct mem_file *files, struct scene *s, char *err);
+/* Asserts that text fails to parse with an error containing want and leaves the scene
+ * empty; returns the error (static) for tests that check more. */
+const char *test_scene_expect_error(const char *text, const struct mem_file *files, const char *want);
+
+/* Quad a b c d as two triangles (a b c, a c d; with flip, a c b, a d c), material mat. */
+struct mesh test_quad(vec3 a, vec3 b, vec3 c, vec3 d, uint32_t mat, int flip);
+
+/* Renders all of s (frame 0) as one tile; returns mem_alloc'd pixels of TILE_NUM_CHANNELS
+ * floats each. */
+/* The same with the photon map `map` (or NULL) lent to the job for the render. */
+float *test_render_map(const struct scene *s, struct photon_map *map, uint32_t threads, struct tile_stats *st);
+float *test_render(const struct scene *s, uint32_t threads, struct tile_stats *st);
+/* Mean of colour channel ch (CH_R, CH_G or CH_B) over a w x h render and its standard error,
+ * from the matching variance channel. */
+double test_channel_mean(const float *px, uint32_t w, uint32_t h, enum tile_channel ch, double *se);
+
+#endif
