@@ -36,7 +36,7 @@ TOOLS      := exrtool junkpeer replay maketex texbench
 TOOL_BIN   := $(TOOLS:%=$(BUILD)/%)
 TOOL_OBJ   := $(TOOLS:%=$(BUILD)/obj/tests/tools/%.o)
 
-.PHONY: all deps test unit integration demo bench clean fuzz fuzz-ci tools stress test-slurm test-netns
+.PHONY: all deps test layers unit integration demo bench clean fuzz fuzz-ci tools stress test-slurm test-netns
 all: $(BUILD)/master $(BUILD)/worker $(TOOL_BIN)
 
 # Install what is missing; the stamp makes later builds skip the check.
@@ -94,7 +94,11 @@ FUZZ_CI_SECONDS ?= 5
 fuzz-ci: $(DEPS_STAMP)
 	BUILD=$(BUILD) CC=$(CC) FUZZ_CI_SECONDS=$(FUZZ_CI_SECONDS) sh tests/fuzz/ci.sh
 
-test: unit integration fuzz-ci
+# Includes only downward between layers, no circle between modules (and the check's own test).
+layers: $(DEPS_STAMP)
+	sh tests/layers/run.sh
+
+test: layers unit integration fuzz-ci
 
 # Need root and daemons or namespaces; not part of `make test` (see README).
 test-slurm: all

@@ -201,7 +201,7 @@ static int publish_manifest(struct master *m)
     struct blob_hash sh;
     blob_hash_compute(h.data, h.size, &sh);
     blob_hash_hex(&sh, m->base_hash);
-    proto_buf_free(&h);
+    proto_buf_fini(&h);
     return 0;
 }
 
@@ -696,7 +696,7 @@ static void handle_message(struct master *m, struct net_frame *f)
             log_debug("%s from an unknown peer dropped", proto_type_name(msg.type));
         }
         if (msg.type == MSG_JOB)
-            proto_job_free(&msg.u.job);
+            proto_job_fini(&msg.u.job);
         return;
     }
     struct peer *p = &m->peers[pi];
@@ -736,7 +736,7 @@ static void handle_message(struct master *m, struct net_frame *f)
         if (peer_should_log_drop(p))
             log_warn("worker %s: unexpected %s dropped", p->name, proto_type_name(msg.type));
         if (msg.type == MSG_JOB)
-            proto_job_free(&msg.u.job);
+            proto_job_fini(&msg.u.job);
     }
 }
 
@@ -1112,7 +1112,7 @@ static int frame_render(struct master *m, uint64_t *last_beat)
                     if (m->c.rejected_envelope <= 5)
                         log_warn("a message with a malformed envelope (frame count or identity) was dropped");
                 }
-                net_frame_free(&f);
+                net_frame_fini(&f);
             }
         }
         uint64_t now = net_now_ms();
@@ -1258,9 +1258,9 @@ done:
     free(m.manifest);
     free(m.decode_scratch);
     free(m.acks);
-    proto_buf_free(&m.out);
-    blob_store_free(&m.blobs);
-    asset_dir_free(&m.assets);
-    scene_free(&m.scene);
+    proto_buf_fini(&m.out);
+    blob_store_fini(&m.blobs);
+    asset_dir_fini(&m.assets);
+    scene_fini(&m.scene);
     return rc;
 }

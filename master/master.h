@@ -4,40 +4,7 @@
  * master/main.c. */
 #ifndef BRUME_MASTER_H
 #define BRUME_MASTER_H
-#include <stdint.h>
-
-struct master_opts {
-    const char *scene_path;
-    const char *output_path;
-    const char *preview_path;   /* PNG next to the EXR, or NULL */
-    const char *bind;           /* extra endpoint for remote workers, or NULL */
-    const char *worker_exe;     /* worker binary for local workers */
-    uint32_t workers;           /* local workers to start */
-    uint32_t threads;           /* per local worker */
-    uint32_t worker_timeout_ms; /* evict a worker silent this long */
-    uint32_t stall_ms;          /* evict a worker whose render threads make no progress this long */
-    int no_journal;             /* do not keep OUT.journal (measurements only) */
-    int verbose;                /* also print every counter (they always go to OUT.stats.json) */
-    const uint32_t *only_tiles; /* --tiles: render just these (others stay black), or NULL */
-    uint32_t num_only_tiles;
-    const char *curve_secret;   /* CurveZMQ key pair of the master, or NULL */
-    const char *allow_path;     /* allowed worker public keys, with curve_secret */
-    int argc;                   /* the command line, to print the command that re-renders a tile */
-    char **argv;
-    int have_spp, have_seed, have_tile, have_depth;
-    int have_sampler;
-    uint32_t sampler;           /* enum sampler_type, with have_sampler */
-    uint32_t spp, tile, depth;
-    uint64_t seed;
-    int have_frames;            /* --frames A:B[:STEP]: a range, one numbered output per frame */
-    uint32_t frame_first, frame_last, frame_step;
-    /* Media (photons.c): overrides of the scene's "volume" block, photon-pass threads. */
-    uint32_t photon_threads;
-    int have_media_method, have_photons, have_gather_radius, have_march_step;
-    uint32_t media_method;
-    uint64_t photons;
-    float gather_radius, march_step;
-};
+#include "opts.h"
 
 /* Renders the frame (or each frame of the range) and writes the run's counters to
  * OUT.stats.json (OUT as given to -o), on failure too; returns 0 on success, 1 on failure

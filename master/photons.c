@@ -83,7 +83,7 @@ int master_media_prepare(struct scene *scene, const struct master_opts *o, uint3
         } else {
             struct photon_pass_stats st;
             if (photon_trace_map(&job, scene->settings.seed, threads, &map, &map_size, &st, err, sizeof err) != 0) {
-                render_job_free(&job);
+                render_job_fini(&job);
                 log_error("%s", err);
                 return -1;
             }
@@ -99,7 +99,7 @@ int master_media_prepare(struct scene *scene, const struct master_opts *o, uint3
                      st.seconds > 0 ? (double)st.emitted / st.seconds : 0.0, st.bytes,
                      st.stored ? (double)st.bytes / (double)st.stored : 0.0, (double)job.media->radius, bound, hex);
         }
-        render_job_free(&job);
+        render_job_fini(&job);
     }
     volume_blob_make(sm, map, map_size, &blob, &blob_size);
     free(map);

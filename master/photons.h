@@ -7,7 +7,7 @@
 #ifndef BRUME_MASTER_PHOTONS_H
 #define BRUME_MASTER_PHOTONS_H
 #include "base/asset.h"
-#include "master.h"
+#include "opts.h"
 #include "scene/scene.h"
 
 /* 1 when the photon map depends on the frame: the scene has a photon pass and geometry

@@ -330,17 +330,17 @@ static void unload_job(struct worker *w)
 {
     pool_stop(&w->pool);
     if (w->loaded) {
-        render_job_free(&w->rjob);
-        scene_free(&w->scene);
+        render_job_fini(&w->rjob);
+        scene_fini(&w->scene);
     }
     w->loaded = 0;
     for (size_t i = 0; i < w->num_fetches; i++)
-        blob_recv_free(&w->fetches[i].recv);
+        blob_recv_fini(&w->fetches[i].recv);
     free(w->fetches);
     w->fetches = NULL;
     w->num_fetches = 0;
     if (w->have_job)
-        proto_job_free(&w->job);
+        proto_job_fini(&w->job);
     w->have_job = 0;
 }
 
@@ -371,7 +371,7 @@ static int load_job(struct worker *w)
             rc = volume_blob_apply(&w->scene, (const uint8_t *)vb, vbs, &map, err, sizeof err);
         free(vb);
         if (rc != 0) {
-            scene_free(&w->scene);
+            scene_fini(&w->scene);
             send_error(w, err);
             log_error("%s", err);
             return -1;
@@ -388,7 +388,7 @@ static int load_job(struct worker *w)
     if (scene_validate(&w->scene, err, sizeof err) != 0 ||
         render_job_init(&w->rjob, &w->scene, w->job.frame, w->opts->threads, err, sizeof err) != 0) {
         photon_map_free(&map);
-        scene_free(&w->scene);
+        scene_fini(&w->scene);
         send_error(w, err);
         log_error("%s", err);
         return -1;
@@ -469,13 +469,13 @@ static int switch_frame(struct worker *w, struct msg_job *job, int same_conn, ui
 {
     char err[512];
     pool_stop(&w->pool); /* tiles being rendered finish and go out under their old job id */
-    proto_job_free(&w->job);
+    proto_job_fini(&w->job);
     w->job = *job;
     /* Kept tiles go before READY: the master must not hand them out meanwhile. */
     offer_kept(w, same_conn, old_job);
     /* Texture pyramids and the light table stay; the frame's geometry and camera are new. */
     if (render_job_reframe(&w->rjob, w->job.frame, w->opts->threads, err, sizeof err) != 0) {
-        scene_free(&w->scene);
+        scene_fini(&w->scene);
         w->loaded = 0;
         send_error(w, err);
         log_error("%s", err);
@@ -565,7 +565,7 @@ static int on_blob_data(struct worker *w, const struct msg_blob_data *d)
                 return -1;
             }
             blob_store_adopt(&w->cache, &h, data, size);
-            blob_recv_free(&f->recv);
+            blob_recv_fini(&f->recv);
             if (!fetches_pending(w))
                 return load_job(w);
         }
@@ -797,7 +797,7 @@ int worker_run(const struct worker_opts *opts)
                 char err[256];
                 if (proto_decode(f.data, f.size, &m, err, sizeof err) != 0) {
                     log_warn("master: message dropped: %s", err);
-                    net_frame_free(&f);
+                    net_frame_fini(&f);
                     continue;
                 }
                 last_heard = now;
@@ -829,7 +829,7 @@ int worker_run(const struct worker_opts *opts)
                 default:
                     log_warn("master: unexpected %s message dropped", proto_type_name(m.type));
                 }
-                net_frame_free(&f);
+                net_frame_fini(&f);
                 if (fatal)
                     goto done;
             }
@@ -878,8 +878,8 @@ done:
     while (w.num_kept > 0)
         kept_free_at(&w, w.num_kept - 1);
     free(w.kept);
-    blob_store_free(&w.cache);
-    proto_buf_free(&w.out);
+    blob_store_fini(&w.cache);
+    proto_buf_fini(&w.out);
     zmq_close(w.results);
     if (w.sock)
         zmq_close(w.sock);

@@ -218,7 +218,7 @@ struct asset_source asset_dir_source(struct asset_dir *dir)
     return s;
 }
 
-void asset_dir_free(struct asset_dir *dir)
+void asset_dir_fini(struct asset_dir *dir)
 {
     for (size_t i = 0; i < dir->num_files; i++)
         free(dir->files[i].data);

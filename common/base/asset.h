@@ -41,6 +41,6 @@ int asset_dir_init(struct asset_dir *dir, const char *folder, char *err, size_t 
 struct asset_source asset_dir_source(struct asset_dir *dir);
 /* Reads a file through the source and records it (used for the scene file itself). */
 int asset_dir_read(void *ctx, const char *rel_path, char **data, size_t *size, char *err, size_t errlen);
-void asset_dir_free(struct asset_dir *dir);
+void asset_dir_fini(struct asset_dir *dir);
 
 #endif

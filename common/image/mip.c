@@ -81,7 +81,7 @@ int tex_image_alloc(struct tex_image *img, uint32_t width, uint32_t height, uint
     return 0;
 }
 
-void tex_image_free(struct tex_image *img)
+void tex_image_fini(struct tex_image *img)
 {
     free(img->data);
     memset(img, 0, sizeof *img);
@@ -187,7 +187,7 @@ static void level_down(const struct tex_image *src, struct tex_image *dst)
     free(row);
 }
 
-void mip_build(struct mip *m, const struct tex_image *base, enum texture_wrap wrap)
+void mip_init(struct mip *m, const struct tex_image *base, enum texture_wrap wrap)
 {
     pthread_once(&tables_once, tables_init);
     memset(m, 0, sizeof *m);
@@ -207,11 +207,11 @@ void mip_build(struct mip *m, const struct tex_image *base, enum texture_wrap wr
     }
 }
 
-void mip_free(struct mip *m)
+void mip_fini(struct mip *m)
 {
     for (uint32_t i = 0; i < m->num_levels; i++)
         if (m->owns[i])
-            tex_image_free(&m->levels[i]);
+            tex_image_fini(&m->levels[i]);
     memset(m, 0, sizeof *m);
 }
 

@@ -34,7 +34,7 @@ size_t tex_image_bytes(uint32_t width, uint32_t height, uint32_t channels, enum 
 /* Allocates data for the shape (zeroed); 0, or -1 when tex_image_bytes says 0. */
 int tex_image_alloc(struct tex_image *img, uint32_t width, uint32_t height, uint32_t channels,
                     enum texel_format format);
-void tex_image_free(struct tex_image *img);
+void tex_image_fini(struct tex_image *img);
 
 /* The pyramid: level 0 is the image (borrowed, not copied); level k+1 is level k box-
  * filtered to max(1, floor(w / 2)) x max(1, floor(h / 2)) by exact area weights (any
@@ -47,8 +47,8 @@ struct mip {
     int owns[MIP_MAX_LEVELS];
 };
 
-void mip_build(struct mip *m, const struct tex_image *base, enum texture_wrap wrap);
-void mip_free(struct mip *m);
+void mip_init(struct mip *m, const struct tex_image *base, enum texture_wrap wrap);
+void mip_fini(struct mip *m);
 
 /* The texel (x, y) of a level after wrapping, as linear RGB (gray is splatted). */
 vec3 mip_texel(const struct mip *m, uint32_t level, int64_t x, int64_t y);

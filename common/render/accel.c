@@ -98,13 +98,14 @@ static int build_meshes(struct accel *a, const struct scene *s, double t0, doubl
         uint32_t num_steps = 0;
         if (m->num_frames >= 2) {
             size_t nf = 3 * (size_t)m->num_vertices;
-            num_steps = motion_frames_still(m, t0, t1)
+            num_steps = motion_frames_still(m->frame_positions, m->frame_times, m->num_frames, m->num_vertices, t0, t1)
                             ? 1
                             : motion_step_count(m->frame_times, sizeof(float), m->num_frames, t0, t1);
             mo->steps = mem_alloc(sizeof(float) * (nf * num_steps + 4)); /* Embree reads 16 bytes past */
             memset(mo->steps + nf * num_steps, 0, 4 * sizeof(float));
             for (uint32_t k = 0; k < num_steps; k++)
-                motion_frames_at(m, num_steps > 1 ? t0 + (t1 - t0) * k / (num_steps - 1) : t0, mo->steps + k * nf);
+                motion_frames_at(m->positions, m->frame_positions, m->frame_times, m->num_frames, m->num_vertices,
+                                 num_steps > 1 ? t0 + (t1 - t0) * k / (num_steps - 1) : t0, mo->steps + k * nf);
             mo->num_steps = num_steps;
             steps = mo->steps;
             a->has_motion |= num_steps > 1;
@@ -175,7 +176,7 @@ static int build_spheres(struct accel *a, const struct scene *s, double t0, doub
     return 0;
 }
 
-int accel_build(struct accel *a, const struct scene *s, uint32_t frame, uint32_t threads, char *err,
+int accel_init(struct accel *a, const struct scene *s, uint32_t frame, uint32_t threads, char *err,
                 size_t errlen)
 {
     memset(a, 0, sizeof *a);
@@ -210,14 +211,14 @@ int accel_build(struct accel *a, const struct scene *s, uint32_t frame, uint32_t
     if (!(t1 > t0))
         t1 = t0;
     if (build_meshes(a, s, t0, t1, err, errlen) != 0 || build_spheres(a, s, t0, t1, err, errlen) != 0) {
-        accel_free(a);
+        accel_fini(a);
         return -1;
     }
     rtcCommitScene(a->scene);
     enum RTCError e = rtcGetDeviceError(a->device);
     if (e != RTC_ERROR_NONE) {
         str_fmt(err, errlen, "embree: scene build failed (error %d)", (int)e);
-        accel_free(a);
+        accel_fini(a);
         return -1;
     }
     a->desc = s;
@@ -248,7 +249,7 @@ static void free_motion(struct accel_motion *mo, uint32_t n)
     free(mo);
 }
 
-void accel_free(struct accel *a)
+void accel_fini(struct accel *a)
 {
     /* The top-level scene first: it references the instances and their scenes. */
     if (a->scene)

@@ -47,9 +47,9 @@ struct accel_hit {
 
 /* Builds the scene for frame `frame` (its shutter is frame + camera.shutter_open .. close).
  * threads: Embree's build threads (0 = all cores). Returns 0 or -1 with err. */
-int accel_build(struct accel *a, const struct scene *scene, uint32_t frame, uint32_t threads, char *err,
+int accel_init(struct accel *a, const struct scene *scene, uint32_t frame, uint32_t threads, char *err,
                 size_t errlen);
-void accel_free(struct accel *a);
+void accel_fini(struct accel *a);
 
 /* Closest hit in (0, tmax) at time01 in [0, 1] across the shutter; returns 1 on a hit. */
 int accel_intersect(const struct accel *a, vec3 org, vec3 dir, float tmax, float time01, struct accel_hit *hit);

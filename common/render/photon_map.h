@@ -9,6 +9,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "scene/medium.h"
+#include "scene/scene.h"
 #include "base/vec.h"
 
 struct photon {

@@ -25,14 +25,14 @@ static void mips_init(struct render_job *job)
     for (uint32_t i = 0; i < scene->num_textures; i++) {
         const struct texture *t = &scene->textures[i];
         if (t->type == TEXTURE_IMAGE)
-            mip_build(&job->mips[i], &t->image, t->wrap);
+            mip_init(&job->mips[i], &t->image, t->wrap);
     }
 }
 
 static void mips_fini(struct render_job *job)
 {
     for (uint32_t i = 0; job->mips && i < job->scene->num_textures; i++)
-        mip_free(&job->mips[i]);
+        mip_fini(&job->mips[i]);
     free(job->mips);
     job->mips = NULL;
 }
@@ -42,7 +42,7 @@ static int frame_init(struct render_job *job, uint32_t frame, uint32_t threads, 
 {
     const struct scene *scene = job->scene;
     job->frame = frame;
-    if (accel_build(&job->accel, scene, frame, threads, err, errlen) != 0)
+    if (accel_init(&job->accel, scene, frame, threads, err, errlen) != 0)
         return -1;
     camera_init(&job->camera, &scene->camera, scene->settings.width, scene->settings.height);
     camera_set_scene_motion(&job->camera, job->accel.has_motion);
@@ -56,9 +56,9 @@ int render_job_init(struct render_job *job, const struct scene *scene, uint32_t 
 {
     memset(job, 0, sizeof *job);
     job->scene = scene;
-    light_table_build(&job->lights, scene);
+    light_table_init(&job->lights, scene);
     if (frame_init(job, frame, threads, err, errlen) != 0) {
-        light_table_free(&job->lights);
+        light_table_fini(&job->lights);
         return -1;
     }
     mips_init(job);
@@ -67,10 +67,10 @@ int render_job_init(struct render_job *job, const struct scene *scene, uint32_t 
 
 int render_job_reframe(struct render_job *job, uint32_t frame, uint32_t threads, char *err, size_t errlen)
 {
-    accel_free(&job->accel);
+    accel_fini(&job->accel);
     media_job_free(&job->media);
     if (frame_init(job, frame, threads, err, errlen) != 0) {
-        render_job_free(job);
+        render_job_fini(job);
         return -1;
     }
     return 0;
@@ -85,13 +85,13 @@ void render_job_set_photon_map(struct render_job *job, struct photon_map **map)
         job->media->map = job->media->sm->method != MEDIA_VPT ? job->photons : NULL;
 }
 
-void render_job_free(struct render_job *job)
+void render_job_fini(struct render_job *job)
 {
     if (!job->scene)
         return;
     mips_fini(job);
-    accel_free(&job->accel);
-    light_table_free(&job->lights);
+    accel_fini(&job->accel);
+    light_table_fini(&job->lights);
     media_job_free(&job->media);
     photon_map_free(&job->photons);
     memset(job, 0, sizeof *job);

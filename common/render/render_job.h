@@ -37,8 +37,8 @@ int render_job_init(struct render_job *job, const struct scene *scene, uint32_t 
 int render_job_reframe(struct render_job *job, uint32_t frame, uint32_t threads, char *err, size_t errlen);
 /* Takes ownership of *map (set to NULL), replacing the job's photon map. */
 void render_job_set_photon_map(struct render_job *job, struct photon_map **map);
-/* Frees what the job built and owns (not the scene). Named _free for its callers outside
- * render/ (test_motion.c); the job itself is the caller's storage. */
-void render_job_free(struct render_job *job);
+/* Frees what the job built and owns (not the scene); the job itself is the caller's
+ * storage. */
+void render_job_fini(struct render_job *job);
 
 #endif

@@ -49,7 +49,7 @@ static void add_entry(struct light_table *t, size_t *cap, struct light_entry e)
     t->entries[t->num_entries++] = e;
 }
 
-void light_table_build(struct light_table *t, const struct scene *s)
+void light_table_init(struct light_table *t, const struct scene *s)
 {
     memset(t, 0, sizeof *t);
     size_t cap = 0;
@@ -116,7 +116,7 @@ void light_table_build(struct light_table *t, const struct scene *s)
     t->cdf[t->num_entries] = 1.0f;
 }
 
-void light_table_free(struct light_table *t)
+void light_table_fini(struct light_table *t)
 {
     free(t->entries);
     free(t->cdf);

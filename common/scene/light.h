@@ -45,8 +45,8 @@ struct light_sample {
  * 1 inside the inner one, smoothstep in cos between; 1 for point lights. */
 float light_spot_falloff(const struct light *l, vec3 dir);
 
-void light_table_build(struct light_table *t, const struct scene *s);
-void light_table_free(struct light_table *t);
+void light_table_init(struct light_table *t, const struct scene *s);
+void light_table_fini(struct light_table *t);
 
 /* Samples one light for shading point ref with three uniforms. */
 void light_sample(const struct light_table *t, const struct scene *s, vec3 ref, float u_pick, float u1,

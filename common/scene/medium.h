@@ -7,7 +7,7 @@
 #define BRUME_MEDIUM_H
 #include <stddef.h>
 #include <stdint.h>
-#include "scene/scene.h"
+#include "scene/scene_limits.h"
 #include "base/vec.h"
 
 #define MEDIUM_NONE UINT32_MAX
@@ -74,7 +74,6 @@ void media_set_mesh(struct scene_media *m, uint32_t idx, uint32_t medium);
 void media_set_sphere(struct scene_media *m, uint32_t idx, uint32_t medium);
 uint32_t media_mesh_inside(const struct scene_media *m, uint32_t idx);
 uint32_t media_sphere_inside(const struct scene_media *m, uint32_t idx);
-int media_validate(const struct scene *s, char *err, size_t errlen);
 const char *media_method_name(enum media_method m);
 int media_method_from_name(const char *name, enum media_method *out);
 

@@ -26,7 +26,7 @@ struct mesh_obj_mtl {
     size_t num, cap;
 };
 
-void mesh_obj_cache_free(struct mesh_obj_cache *cache)
+void mesh_obj_cache_fini(struct mesh_obj_cache *cache)
 {
     for (size_t i = 0; i < cache->num_mtls; i++) {
         struct mesh_obj_mtl *m = &cache->mtls[i];
@@ -351,7 +351,7 @@ static int mtl_map_kd(struct reader *r, struct scene *scene, const struct asset_
     if (image_load_asset(src, rel, display, kind == MTL_MAP_KD, &t.image, why, sizeof why) != 0)
         return reader_fail(r, file.p, "%s: %s", what, why);
     if (scene->num_textures >= 65536) {
-        texture_free(&t);
+        texture_fini(&t);
         return reader_fail(r, kw->p, "too many textures (at most 65536)");
     }
     uint32_t id = scene_add_texture(scene, &t) + 1;

@@ -23,7 +23,7 @@ struct mesh_obj_cache {
     uint32_t default_material;  /* the white diffuse for faces without usemtl */
     int has_default;
 };
-void mesh_obj_cache_free(struct mesh_obj_cache *cache);
+void mesh_obj_cache_fini(struct mesh_obj_cache *cache);
 
 struct mesh_obj_options {
     struct xform transform;      /* object to world; normals get the inverse transpose, and

@@ -134,29 +134,31 @@ int motion_keys_still(const struct motion_key *keys, uint32_t n, double t0, doub
     return 1;
 }
 
-int motion_frames_still(const struct mesh *m, double t0, double t1)
+int motion_frames_still(const float *frame_positions, const float *frame_times, uint32_t num_frames,
+                        uint32_t num_vertices, double t0, double t1)
 {
-    if (m->num_frames < 2 || !(t1 > t0))
+    if (num_frames < 2 || !(t1 > t0))
         return 1;
     uint32_t f, l;
-    affecting(m->frame_times, sizeof(float), m->num_frames, t0, t1, &f, &l);
-    size_t nf = 3 * (size_t)m->num_vertices;
+    affecting(frame_times, sizeof(float), num_frames, t0, t1, &f, &l);
+    size_t nf = 3 * (size_t)num_vertices;
     for (uint32_t i = f + 1; i <= l; i++)
-        if (memcmp(&m->frame_positions[f * nf], &m->frame_positions[i * nf], nf * sizeof(float)) != 0)
+        if (memcmp(&frame_positions[f * nf], &frame_positions[i * nf], nf * sizeof(float)) != 0)
             return 0;
     return 1;
 }
 
-void motion_frames_at(const struct mesh *m, double t, float *out)
+void motion_frames_at(const float *positions, const float *frame_positions, const float *frame_times,
+                      uint32_t num_frames, uint32_t num_vertices, double t, float *out)
 {
-    size_t nf = 3 * (size_t)m->num_vertices;
-    if (m->num_frames < 2) {
-        memcpy(out, m->positions, nf * sizeof(float));
+    size_t nf = 3 * (size_t)num_vertices;
+    if (num_frames < 2) {
+        memcpy(out, positions, nf * sizeof(float));
         return;
     }
     double w;
-    uint32_t i = segment(m->frame_times, sizeof(float), m->num_frames, t, &w);
-    const float *a = &m->frame_positions[i * nf], *b = &m->frame_positions[(i + 1) * nf];
+    uint32_t i = segment(frame_times, sizeof(float), num_frames, t, &w);
+    const float *a = &frame_positions[i * nf], *b = &frame_positions[(i + 1) * nf];
     if (w == 0.0 || w == 1.0) {
         memcpy(out, w == 0.0 ? a : b, nf * sizeof(float));
         return;

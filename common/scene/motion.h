@@ -5,10 +5,19 @@
 #ifndef BRUME_MOTION_H
 #define BRUME_MOTION_H
 #include <stdint.h>
-#include "scene/scene.h"
 #include "base/vec.h"
 
 #define MOTION_MAX_SEGMENTS 64  /* Embree time segments per frame at most */
+
+/* One key of rigid motion, in frames. The key's transform is T R S (scale, then rotation,
+ * then translation) applied after the object's static "transform"; between keys scale and
+ * translation interpolate linearly and the rotation by slerp along the shorter arc. */
+struct motion_key {
+    float time;
+    vec3 scale;         /* > 0 per axis (no mirrors: the winding stays meaningful) */
+    float quat[4];      /* unit quaternion (r, i, j, k) */
+    vec3 translate;
+};
 
 /* 0 if the keys are usable: n == 0, or keys non-NULL with finite, strictly increasing
  * times, finite scales > 0, finite translations and unit quaternions (to 1e-3). */
@@ -21,9 +30,11 @@ void motion_key_at(const struct motion_key *keys, uint32_t n, double t, struct m
 /* 1 if no key that affects [t0, t1] differs from another (or t1 <= t0): still. */
 int motion_keys_still(const struct motion_key *keys, uint32_t n, double t0, double t1);
 /* Deformation frames: 1 if every frame affecting [t0, t1] has the same positions. */
-int motion_frames_still(const struct mesh *m, double t0, double t1);
+int motion_frames_still(const float *frame_positions, const float *frame_times, uint32_t num_frames,
+                        uint32_t num_vertices, double t0, double t1);
 /* Vertex positions of m at time t (3 * num_vertices floats into out). */
-void motion_frames_at(const struct mesh *m, double t, float *out);
+void motion_frames_at(const float *positions, const float *frame_positions, const float *frame_times,
+                      uint32_t num_frames, uint32_t num_vertices, double t, float *out);
 /* Embree time steps (>= 2) for [t0, t1] (t1 > t0) given key times: 2 when no key lies
  * inside, else the fewest uniform steps that land on every inner key (to 1e-4 of the
  * interval), at most MOTION_MAX_SEGMENTS + 1 (then inner keys are approximated). */

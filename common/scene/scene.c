@@ -8,7 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-void scene_free(struct scene *scene)
+void scene_fini(struct scene *scene)
 {
     for (uint32_t i = 0; i < scene->num_meshes; i++) {
         struct mesh *m = &scene->meshes[i];
@@ -29,7 +29,7 @@ void scene_free(struct scene *scene)
     free(scene->lights);
     media_scene_free(&scene->media);
     for (uint32_t i = 0; i < scene->num_textures; i++)
-        texture_free(&scene->textures[i]);
+        texture_fini(&scene->textures[i]);
     free(scene->textures);
     memset(scene, 0, sizeof *scene);
 }
@@ -78,6 +78,51 @@ uint32_t scene_add_light(struct scene *s, const struct light *l)
 }
 
 static int finite3(vec3 v) { return v3_is_finite(v); }
+
+static int nonneg3(vec3 v, float hi)
+{
+    return v3_is_finite(v) && v.x >= 0 && v.y >= 0 && v.z >= 0 && v.x <= hi && v.y <= hi && v.z <= hi;
+}
+
+static int media_validate(const struct scene *s, char *err, size_t errlen)
+{
+    const struct scene_media *m = s->media;
+    if (!m)
+        return 0;
+    for (uint32_t i = 0; i < m->num_media; i++) {
+        const struct medium *md = &m->media[i];
+        if (!nonneg3(md->sigma_a, 1e30f) || !nonneg3(md->sigma_s, 1e30f) || !nonneg3(md->emission, 1e30f) ||
+            !(md->g > -1.0f && md->g < 1.0f)) {
+            str_fmt(err, errlen, "medium \"%s\": coefficients must be in [0, 1e30] and g in (-1, 1)", md->name);
+            return -1;
+        }
+    }
+    if (m->fog != MEDIUM_NONE && m->fog >= m->num_media) {
+        str_fmt(err, errlen, "fog medium index out of range");
+        return -1;
+    }
+    for (uint32_t i = 0; i < m->num_mesh_medium; i++)
+        if (m->mesh_medium[i] != MEDIUM_NONE && (m->mesh_medium[i] >= m->num_media || i >= s->num_meshes)) {
+            str_fmt(err, errlen, "mesh medium out of range");
+            return -1;
+        }
+    for (uint32_t i = 0; i < m->num_sphere_medium; i++)
+        if (m->sphere_medium[i] != MEDIUM_NONE && (m->sphere_medium[i] >= m->num_media || i >= s->num_spheres)) {
+            str_fmt(err, errlen, "sphere medium out of range");
+            return -1;
+        }
+    if (m->interface_material != UINT32_MAX && m->interface_material >= s->num_materials) {
+        str_fmt(err, errlen, "interface material out of range");
+        return -1;
+    }
+    if ((unsigned)m->method >= MEDIA_METHOD_COUNT_ || !(m->step >= 0.0f) || !isfinite(m->step) ||
+        !(m->radius >= 0.0f) || !isfinite(m->radius) || !(m->skip_bound >= 0.0f && m->skip_bound <= 1.0f) ||
+        m->photons > (1ull << 32) || m->max_photon_depth < 1 || m->max_photon_depth > 1024) {
+        str_fmt(err, errlen, "volume settings out of range");
+        return -1;
+    }
+    return 0;
+}
 
 int scene_validate(const struct scene *s, char *err, size_t errlen)
 {

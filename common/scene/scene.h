@@ -7,11 +7,8 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "base/vec.h"
-
-#define SCENE_MAX_DIM 16384      /* width or height */
-#define SCENE_MAX_SPP 1048576
-#define SCENE_MAX_DEPTH 1024
-#define SCENE_NAME_MAX 128
+#include "scene/motion.h"
+#include "scene/scene_limits.h"
 
 struct scene_media;
 
@@ -32,16 +29,6 @@ struct material {
     uint32_t bump_tex;   /* any type: 1 + index of a height texture perturbing the shading normal; 0 = none */
     float bump_scale;    /* height units per texture value (in scene units) */
     uint32_t normal_tex; /* any type: 1 + index of a tangent-space normal map (RGB = 2 n - 1); 0 = none */
-};
-
-/* One key of rigid motion, in frames. The key's transform is T R S (scale, then rotation,
- * then translation) applied after the object's static "transform"; between keys scale and
- * translation interpolate linearly and the rotation by slerp along the shorter arc. */
-struct motion_key {
-    float time;
-    vec3 scale;         /* > 0 per axis (no mirrors: the winding stays meaningful) */
-    float quat[4];      /* unit quaternion (r, i, j, k) */
-    vec3 translate;
 };
 
 /* A triangle mesh in world space. normals and uvs are per vertex and may be NULL. */
@@ -146,7 +133,7 @@ struct scene {
 };
 
 /* Frees everything the scene owns and zeroes it. Safe on a zeroed scene. */
-void scene_free(struct scene *scene);
+void scene_fini(struct scene *scene);
 
 /* Appends a material / mesh / sphere / light and returns its index. The scene takes
  * ownership of a mesh's arrays. */

@@ -1311,7 +1311,7 @@ static int parse_frames(struct ctx *c, const struct member *fm, const struct mem
         o.material_override = 0;
         int rc = mesh_obj_parse(&tmp, &cache, c->src, file, data, size, &o, c->err, c->errlen);
         free(data);
-        mesh_obj_cache_free(&cache);
+        mesh_obj_cache_fini(&cache);
         if (rc == 0) {
             const struct mesh *fmsh = tmp.num_meshes == 1 ? &tmp.meshes[0] : NULL;
             if (!fmsh || fmsh->num_vertices != mesh->num_vertices || fmsh->num_triangles != mesh->num_triangles ||
@@ -1327,7 +1327,7 @@ static int parse_frames(struct ctx *c, const struct member *fm, const struct mem
                 memcpy(mesh->frame_positions + i * nf, fmsh->positions, sizeof(float) * nf);
             }
         }
-        scene_free(&tmp);
+        scene_fini(&tmp);
         if (rc != 0)
             return -1;
     }
@@ -1637,7 +1637,7 @@ int scene_json_parse(const char *name, const char *text, size_t len, const struc
         memcpy(c.display_dir, name, (size_t)(slash - name) + 1);
     int rc = parse_root(&c, root);
     json_decref(root);
-    mesh_obj_cache_free(&c.cache);
+    mesh_obj_cache_fini(&c.cache);
     if (rc == 0) {
         char why[512];
         if (scene_validate(out, why, sizeof why) != 0) {
@@ -1646,6 +1646,6 @@ int scene_json_parse(const char *name, const char *text, size_t len, const struc
         }
     }
     if (rc != 0)
-        scene_free(out);
+        scene_fini(out);
     return rc;
 }

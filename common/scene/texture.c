@@ -24,9 +24,9 @@ void texture_init(struct texture *t, enum texture_type type, const char *name)
     t->color1 = v3(0, 0, 0);
 }
 
-void texture_free(struct texture *t)
+void texture_fini(struct texture *t)
 {
-    tex_image_free(&t->image);
+    tex_image_fini(&t->image);
 }
 
 int texture_filter_from_name(const char *name, enum texture_filter *out)

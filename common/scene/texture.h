@@ -8,7 +8,7 @@
 #define BRUME_TEXTURE_H
 #include <stddef.h>
 #include "image/mip.h"
-#include "scene/scene.h"
+#include "scene/scene_limits.h"
 #include "base/vec.h"
 
 #define TEXTURE_DEFAULT_FILTER TEXFILTER_EWA
@@ -45,7 +45,7 @@ void tex_coord_centre(const struct tex_coord *tc, float *u, float *v);
 
 /* Defaults: EWA, max anisotropy 8, repeat, identity transform, white/black checker. */
 void texture_init(struct texture *t, enum texture_type type, const char *name);
-void texture_free(struct texture *t);
+void texture_fini(struct texture *t);
 
 int texture_filter_from_name(const char *name, enum texture_filter *out);
 const char *texture_filter_name(enum texture_filter f);

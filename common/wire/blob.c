@@ -122,7 +122,7 @@ int blob_recv_finish(struct blob_recv *r, uint8_t **data, char *err, size_t errl
     return 0;
 }
 
-void blob_recv_free(struct blob_recv *r)
+void blob_recv_fini(struct blob_recv *r)
 {
     free(r->data);
     free(r->have);
@@ -186,7 +186,7 @@ void blob_store_drop(struct blob_store *s, const struct blob_hash *hash)
         }
 }
 
-void blob_store_free(struct blob_store *s)
+void blob_store_fini(struct blob_store *s)
 {
     for (size_t i = 0; i < s->count; i++)
         free(s->entries[i].data);

@@ -37,7 +37,7 @@ int blob_recv_complete(const struct blob_recv *r);
 /* Verifies the hash of a complete blob; on success hands the data to *data (caller owns)
  * and returns 0. */
 int blob_recv_finish(struct blob_recv *r, uint8_t **data, char *err, size_t errlen);
-void blob_recv_free(struct blob_recv *r);
+void blob_recv_fini(struct blob_recv *r);
 
 /* An in-memory store of blobs by hash (master: published files; worker: cache). */
 struct blob_store {
@@ -51,6 +51,6 @@ const struct blob_entry *blob_store_adopt(struct blob_store *s, const struct blo
 const struct blob_entry *blob_store_get(const struct blob_store *s, const struct blob_hash *hash);
 /* Removes the entry with that hash, if any (entries returned before may move). */
 void blob_store_drop(struct blob_store *s, const struct blob_hash *hash);
-void blob_store_free(struct blob_store *s);
+void blob_store_fini(struct blob_store *s);
 
 #endif

@@ -90,7 +90,7 @@ int net_recv(void *sock, int with_identity, struct net_frame *f)
     return 1;
 }
 
-void net_frame_free(struct net_frame *f)
+void net_frame_fini(struct net_frame *f)
 {
     free(f->data);
     f->data = NULL;

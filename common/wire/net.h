@@ -26,7 +26,7 @@ struct net_frame {
  * expect an identity frame first (ROUTER). Returns 1 on a well-formed envelope, 0 when
  * nothing was there, -1 on a malformed envelope (wrong frame count: drained and dropped). */
 int net_recv(void *sock, int with_identity, struct net_frame *f);
-void net_frame_free(struct net_frame *f);
+void net_frame_fini(struct net_frame *f);
 
 /* CurveZMQ keys are 40-character Z85 strings. A key pair file holds the public key on
  * its first line and the secret key on its second; a public key file (and each line of

@@ -11,7 +11,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-void proto_buf_free(struct proto_buf *b)
+void proto_buf_fini(struct proto_buf *b)
 {
     free(b->data);
     b->data = NULL;
@@ -38,7 +38,7 @@ const char *proto_type_name(enum proto_type t)
     return "UNKNOWN";
 }
 
-void proto_job_free(struct msg_job *job)
+void proto_job_fini(struct msg_job *job)
 {
     free(job->assets);
     job->assets = NULL;
@@ -581,7 +581,7 @@ int proto_decode(const uint8_t *frame, size_t size, struct proto_msg *msg, char 
     if (r->failed) {
         /* On failure nothing is left for the caller to free. */
         if (msg->type == MSG_JOB)
-            proto_job_free(&msg->u.job);
+            proto_job_fini(&msg->u.job);
         return -1;
     }
     return 0;

@@ -154,7 +154,7 @@ struct proto_msg {
 
 /* A growable output buffer for encoding. */
 struct proto_buf { uint8_t *data; size_t size, cap; };
-void proto_buf_free(struct proto_buf *b);
+void proto_buf_fini(struct proto_buf *b);
 
 /* Encodes msg into b (b->size reset first). Returns 0, or -1 if a field is out of its
  * limits (e.g. a string too long), in which case nothing should be sent. */
@@ -164,7 +164,7 @@ int proto_encode(const struct proto_msg *msg, struct proto_buf *b);
  * trailing bytes. Returns 0, or -1 with the reason in err. On success with MSG_JOB the
  * caller frees with proto_job_free. */
 int proto_decode(const uint8_t *frame, size_t size, struct proto_msg *msg, char *err, size_t errlen);
-void proto_job_free(struct msg_job *job);
+void proto_job_fini(struct msg_job *job);
 const char *proto_type_name(enum proto_type t);
 
 #endif

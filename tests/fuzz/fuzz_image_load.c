@@ -33,12 +33,12 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             abort();
         if ((uint64_t)img.width * img.height <= (1u << 20)) {
             struct mip m;
-            mip_build(&m, &img, TEXWRAP_REPEAT);
+            mip_init(&m, &img, TEXWRAP_REPEAT);
             for (int f = 0; f < TEXFILTER_COUNT_; f++)
                 (void)mip_lookup(&m, (enum texture_filter)f, 8.0f, 0.3f, 0.7f, 0.01f, 0.002f, -0.001f, 0.05f);
-            mip_free(&m);
+            mip_fini(&m);
         }
-        tex_image_free(&img);
+        tex_image_fini(&img);
     } else if (strncmp(err, "f.img", 5) != 0) {
         abort(); /* every message names the file */
     }

@@ -73,7 +73,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         (void)why;
     }
     free(copy);
-    mesh_obj_cache_free(&cache);
-    scene_free(&scene);
+    mesh_obj_cache_fini(&cache);
+    scene_fini(&scene);
     return 0;
 }

@@ -98,7 +98,7 @@ static int msg_eq(const struct proto_msg *a, const struct proto_msg *b)
 static void free_msg(struct proto_msg *m)
 {
     if (m->type == MSG_JOB)
-        proto_job_free(&m->u.job);
+        proto_job_fini(&m->u.job);
 }
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
@@ -121,6 +121,6 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         abort();
     free_msg(&m2);
     free_msg(&m1);
-    proto_buf_free(&b);
+    proto_buf_fini(&b);
     return 0;
 }

@@ -56,6 +56,6 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         abort();
     }
     free(copy);
-    scene_free(&scene);
+    scene_fini(&scene);
     return 0;
 }

@@ -50,6 +50,6 @@ int main(int argc, char **argv)
         if (f)
             fclose(f);
     }
-    proto_buf_free(&b);
+    proto_buf_fini(&b);
     return rc;
 }

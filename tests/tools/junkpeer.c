@@ -64,7 +64,7 @@ int main(int argc, char **argv)
     struct proto_msg bye = {.type = MSG_BYE};
     proto_encode(&bye, &b);
     zmq_send(s, b.data, b.size, 0);
-    proto_buf_free(&b);
+    proto_buf_fini(&b);
     zmq_close(s);
     zmq_ctx_term(ctx);
     return 0;

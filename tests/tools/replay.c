@@ -61,7 +61,7 @@ static void send_malformed(const uint8_t *p, size_t n)
     char err[256];
     if (proto_decode(p, n, &m, err, sizeof err) == 0) {
         if (m.type == MSG_JOB)
-            proto_job_free(&m.u.job);
+            proto_job_fini(&m.u.job);
         return; /* a mutation that happens to be a valid message: not part of this corpus */
     }
     send_raw(p, n);
@@ -77,7 +77,7 @@ static void send_msg(const struct proto_msg *m, enum expect e)
     }
     send_raw(b.data, b.size);
     g_expect[e]++;
-    proto_buf_free(&b);
+    proto_buf_fini(&b);
 }
 
 static uint8_t g_chunk[64];
@@ -184,11 +184,11 @@ static int wait_job(struct msg_job *job)
                 *job = m.u.job;
                 job->assets = malloc(sizeof *job->assets * (m.u.job.num_assets ? m.u.job.num_assets : 1));
                 memcpy(job->assets, m.u.job.assets, sizeof *job->assets * m.u.job.num_assets);
-                proto_job_free(&m.u.job);
+                proto_job_fini(&m.u.job);
             } else if (m.type == MSG_JOB) {
-                proto_job_free(&m.u.job);
+                proto_job_fini(&m.u.job);
             }
-            net_frame_free(&f);
+            net_frame_fini(&f);
             if (got)
                 return 0;
         }
@@ -388,7 +388,7 @@ int main(int argc, char **argv)
     proto_encode(&m, &bye);
     send_raw(bye.data, bye.size);
     g_sent--; /* the BYE is not part of the corpus */
-    proto_buf_free(&bye);
+    proto_buf_fini(&bye);
     zmq_close(g_sock);
 
     /* One frame over ZMQ_MAXMSGSIZE on a connection of its own: libzmq drops it (and the
@@ -412,7 +412,7 @@ int main(int argc, char **argv)
         total += g_expect[e];
     }
     printf("replay: sent %llu messages, %llu to be rejected (plus 1 frame over ZMQ_MAXMSGSIZE)\n", g_sent, total);
-    proto_job_free(&job);
-    proto_buf_free(&b);
+    proto_job_fini(&job);
+    proto_buf_fini(&b);
     return total == g_sent ? 0 : 1;
 }

@@ -30,7 +30,7 @@ int main(int argc, char **argv)
     for (size_t i = 0; i < (size_t)1024 * 1024 * 3; i++)
         p[i] = (uint8_t)((i * 2654435761u) >> 24);
     struct mip m;
-    mip_build(&m, &im, TEXWRAP_REPEAT);
+    mip_init(&m, &im, TEXWRAP_REPEAT);
     enum { K = 4096 };
     float *fp = mem_alloc(sizeof(float) * 6 * K);
     uint64_t st = 1;
@@ -56,8 +56,8 @@ int main(int argc, char **argv)
         double t = now() - t0;
         printf("%s %.2f %.6f\n", texture_filter_name((enum texture_filter)f), t * 1e9 / (double)n, sum / (double)n);
     }
-    mip_free(&m);
-    tex_image_free(&im);
+    mip_fini(&m);
+    tex_image_fini(&im);
     free(fp);
     return 0;
 }

@@ -71,7 +71,7 @@ float *test_render_map(const struct scene *s, struct photon_map *map, uint32_t t
     float *px = mem_alloc(sizeof(float) * w * h * TILE_NUM_CHANNELS);
     integrator_render_tile(&job, 0, 0, w, h, px, st);
     job.photons = NULL; /* lent: still the caller's */
-    render_job_free(&job);
+    render_job_fini(&job);
     return px;
 }
 

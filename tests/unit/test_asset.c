@@ -118,7 +118,7 @@ Test(asset_dir, reads_and_records_files)
     cr_expect_str_eq(dir.files[1].path, "sub/b.mtl");
     cr_expect_eq(dir.files[1].size, 9);
     cr_expect_str_eq(dir.files[2].path, "inside.obj");
-    asset_dir_free(&dir);
+    asset_dir_fini(&dir);
 }
 
 static void expect_read_fails(const char *rel, const char *why)
@@ -133,7 +133,7 @@ static void expect_read_fails(const char *rel, const char *why)
     cr_expect_null(data);
     cr_expect(strstr(err, why) != NULL, "%s: error \"%s\" lacks \"%s\"", rel, err, why);
     cr_expect_eq(dir.num_files, 0);
-    asset_dir_free(&dir);
+    asset_dir_fini(&dir);
 }
 
 Test(asset_dir, refuses_what_leaves_the_folder)

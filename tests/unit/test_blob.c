@@ -75,7 +75,7 @@ Test(blob, shuffled_chunks_with_duplicates)
     uint8_t *data = NULL;
     cr_assert_eq(blob_recv_finish(&r, &data, err, sizeof err), 0, "%s", err);
     cr_assert(memcmp(data, src, size) == 0);
-    blob_recv_free(&r);   /* safe after finish: the data now belongs to the caller */
+    blob_recv_fini(&r);   /* safe after finish: the data now belongs to the caller */
     free(data);
     free(src);
 }
@@ -109,7 +109,7 @@ Test(blob, misplaced_or_missized_chunks_rejected)
     }
     cr_assert_eq(blob_recv_put(&r, 2ull * BLOB_CHUNK_SIZE, src + 2 * BLOB_CHUNK_SIZE, 100, err, sizeof err), 0);
     cr_assert_eq(r.chunks_have, 1);
-    blob_recv_free(&r);
+    blob_recv_fini(&r);
     free(src);
 }
 
@@ -135,7 +135,7 @@ Test(blob, hash_mismatch_detected)
     blob_hash_hex(&got, got_hex);
     snprintf(msg, sizeof msg, "hash mismatch: expected %s got %s", want_hex, got_hex);
     cr_assert_str_eq(err, msg);
-    blob_recv_free(&r);
+    blob_recv_fini(&r);
     free(src);
 }
 
@@ -149,7 +149,7 @@ Test(blob, oversize_refused_before_allocation)
     cr_assert(strstr(err, "limit"), "%s", err);
     cr_assert_null(r.data);
     cr_assert_null(r.have);
-    blob_recv_free(&r);   /* safe after a failed init */
+    blob_recv_fini(&r);   /* safe after a failed init */
     cr_assert_eq(blob_recv_init(&r, &h, UINT64_MAX, err, sizeof err), -1);
     cr_assert_null(r.data);
 }
@@ -167,13 +167,13 @@ Test(blob, zero_size_blob)
     cr_assert_eq(blob_recv_finish(&r, &data, err, sizeof err), 0, "%s", err);
     cr_assert_not_null(data);
     free(data);
-    blob_recv_free(&r);
+    blob_recv_fini(&r);
 
     blob_hash_compute("x", 1, &h);
     cr_assert_eq(blob_recv_init(&r, &h, 0, err, sizeof err), 0);
     cr_assert_eq(blob_recv_finish(&r, &data, err, sizeof err), -1);
     cr_assert(strstr(err, "hash mismatch"), "%s", err);
-    blob_recv_free(&r);
+    blob_recv_fini(&r);
 }
 
 Test(blob, exact_multiple_of_chunk_size)
@@ -191,7 +191,7 @@ Test(blob, exact_multiple_of_chunk_size)
     uint8_t *data;
     cr_assert_eq(blob_recv_finish(&r, &data, err, sizeof err), 0, "%s", err);
     free(data);
-    blob_recv_free(&r);
+    blob_recv_fini(&r);
     free(src);
 }
 
@@ -237,7 +237,7 @@ Test(blob, store_put_get_adopt)
     struct blob_hash ho;
     blob_hash_compute(own, 64, &ho);
     cr_assert_eq(blob_store_adopt(&s, &ho, own, 64)->data, own);
-    blob_store_free(&s);
+    blob_store_fini(&s);
     cr_assert_eq(s.count, 0);
     cr_assert_null(s.entries);
 }

@@ -69,7 +69,7 @@ static void furnace_sphere(uint32_t depth)
     cr_assert_eq(nans, 0);
     cr_assert(fabs(mean - expect) < 4.0 * se + 1e-5 * expect, "depth %u: mean %.6f expected %.6f (stderr %.2g)",
               depth, mean, expect, se);
-    scene_free(&s);
+    scene_fini(&s);
 }
 
 Test(integrator, closed_sphere_point_light_depth_1) { furnace_sphere(1); }
@@ -103,7 +103,7 @@ Test(integrator, floor_under_square_area_light)
     cr_assert_eq(nans, 0);
     cr_assert(fabs(mean - expect) < 4.0 * se + 1e-3 * expect, "mean %.6f expected %.6f (stderr %.2g)", mean, expect,
               se);
-    scene_free(&s);
+    scene_fini(&s);
 }
 
 Test(integrator, floor_under_sphere_light)
@@ -125,7 +125,7 @@ Test(integrator, floor_under_sphere_light)
     cr_assert_eq(nans, 0);
     cr_assert(fabs(mean - expect) < 4.0 * se + 1e-3 * expect, "mean %.6f expected %.6f (stderr %.2g)", mean, expect,
               se);
-    scene_free(&s);
+    scene_fini(&s);
 }
 
 Test(integrator, pixels_do_not_depend_on_tile_split)
@@ -158,8 +158,8 @@ Test(integrator, pixels_do_not_depend_on_tile_split)
                        sizeof(float) * w * TILE_NUM_CHANNELS);
         }
     cr_assert_eq(memcmp(whole, part, sizeof whole), 0);
-    render_job_free(&job);
-    scene_free(&s);
+    render_job_fini(&job);
+    scene_fini(&s);
 }
 
 Test(integrator, huge_coordinates_no_acne)
@@ -179,7 +179,7 @@ Test(integrator, huge_coordinates_no_acne)
     uint64_t nans;
     render_mean(&s, &mean, &se, &nans);
     cr_assert(fabs(mean - expect) < 4.0 * se + 1e-2 * expect, "mean %.6f expected %.6f", mean, expect);
-    scene_free(&s);
+    scene_fini(&s);
 }
 
 Test(integrator, non_finite_samples_counted_and_dropped)
@@ -203,8 +203,8 @@ Test(integrator, non_finite_samples_counted_and_dropped)
     cr_assert_eq(st.samples, 4 * 4 * 8);
     for (size_t i = 0; i < sizeof px / sizeof px[0]; i++)
         cr_assert(isfinite(px[i]), "channel value %zu is %g", i, px[i]);
-    render_job_free(&job);
-    scene_free(&s);
+    render_job_fini(&job);
+    scene_fini(&s);
 }
 
 Test(integrator, huge_sphere_floor_no_acne)
@@ -226,5 +226,5 @@ Test(integrator, huge_sphere_floor_no_acne)
     uint64_t nans;
     render_mean(&s, &mean, &se, &nans);
     cr_assert(fabs(mean - expect) < 1e-2 * expect, "mean %.6f expected %.6f", mean, expect);
-    scene_free(&s);
+    scene_fini(&s);
 }

@@ -209,7 +209,7 @@ Test(material, white_furnace_glass_sphere)
     s.camera = (struct camera_desc){.position = v3(0, 0, 0), .look_at = v3(0, 0, -1), .up = v3(0, 1, 0),
                                     .fov_y_deg = 70.0f};
     furnace_check(&s);
-    scene_free(&s);
+    scene_fini(&s);
 }
 
 Test(material, white_furnace_mirror_and_glass_box)
@@ -223,7 +223,7 @@ Test(material, white_furnace_mirror_and_glass_box)
     s.camera = (struct camera_desc){.position = v3(0.2f, 0.3f, 0), .look_at = v3(0, 0, -3), .up = v3(0, 1, 0),
                                     .fov_y_deg = 80.0f};
     furnace_check(&s);
-    scene_free(&s);
+    scene_fini(&s);
 }
 
 Test(material, white_furnace_grazing_glass_slab)
@@ -236,5 +236,5 @@ Test(material, white_furnace_grazing_glass_slab)
     s.camera = (struct camera_desc){.position = v3(0, 0.1001f, 4.9f), .look_at = v3(0, 0.1f, -5), .up = v3(0, 1, 0),
                                     .fov_y_deg = 2.0f};
     furnace_check(&s);
-    scene_free(&s);
+    scene_fini(&s);
 }

@@ -141,8 +141,8 @@ Test(medium, beer_lambert_slab)
         vec3 L = media_sample_path(&job, &smp, 0, 0, v3(-5, 0, 0), v3(1, 0, 0), 0.0f, &rays, &hit);
         cr_assert(fabsf(L.x - 2 * expect) <= 2e-5f * expect + 1e-30f, "sigma %g: L %.9g %.9g %.9g vs %.9g", (double)sig[i], (double)L.x, (double)L.y, (double)L.z, (double)(2 * expect));
         cr_assert(fabsf(L.z - 2.0f) <= 1e-6f);
-        render_job_free(&job);
-        scene_free(&s);
+        render_job_fini(&job);
+        scene_fini(&s);
     }
 }
 
@@ -193,7 +193,7 @@ Test(medium, single_scattering_airlight)
     double est = sum / n;
     cr_assert(fabs(est / ref - 1.0) < 0.01, "march %g vs airlight %g", est, ref);
     /* The same with the volumetric path tracer at max_depth 1 (single scattering). */
-    render_job_free(&job);
+    render_job_fini(&job);
     s.media->method = MEDIA_VPT;
     job_ok(&job, &s);
     double s1 = 0.0, s2 = 0.0;
@@ -207,8 +207,8 @@ Test(medium, single_scattering_airlight)
     }
     double mean = s1 / m, se = sqrt(fmax(0.0, s2 / m - mean * mean) / m);
     cr_assert(fabs(mean - ref) < 4 * se + 0.005 * ref, "vpt %g +- %g vs airlight %g", mean, se, ref);
-    render_job_free(&job);
-    scene_free(&s);
+    render_job_fini(&job);
+    scene_fini(&s);
 }
 
 /* ---- white furnace ---- */
@@ -243,8 +243,8 @@ static void furnace(const char *medium_json, const char *camera, int fog)
     }
     double mean = s1 / n, se = sqrt(fmax(0.0, s2 / n - mean * mean) / n);
     cr_assert(fabs(mean - 1.0) < 4 * se + 1e-3, "%s: furnace radiance %g +- %g", medium_json, mean, se);
-    render_job_free(&job);
-    scene_free(&s);
+    render_job_fini(&job);
+    scene_fini(&s);
 }
 
 Test(medium, white_furnace_vpt)
@@ -319,7 +319,7 @@ Test(medium, grid_transmittance)
                 cr_assert_eq(grid_density(md->grid, v3_add(orig[r], v3_scale(dirs[r], t))), 0.0f);
         }
     }
-    scene_free(&s);
+    scene_fini(&s);
 }
 
 Test(medium, grid_errors)
@@ -399,7 +399,7 @@ Test(medium, grid_emission, .timeout = 60)
     fprintf(stderr, "grid emission: reference %g, march %g, vpt %g +- %g\n", ref, march, vpt, se_v);
     cr_assert(fabs(march / ref - 1.0) < 0.01, "march %g vs %g", march, ref);
     cr_assert(fabs(vpt / ref - 1.0) < 0.02, "vpt %g vs %g", vpt, ref);
-    scene_free(&s);
+    scene_fini(&s);
 }
 
 Test(medium, white_furnace_grid)
@@ -511,7 +511,7 @@ static uint8_t *build_map(const struct scene *s, uint32_t threads, size_t *size,
     cr_assert_eq(photon_trace_map(&job, 1, threads, &blob, size, &st, err, sizeof err), 0, "%s", err);
     cr_assert(st.stored >= min_stored, "stored %llu", (unsigned long long)st.stored);
     cr_assert(st.bytes <= 26 * st.stored + 4096, "bytes/photon %g", (double)st.bytes / st.stored);
-    render_job_free(&job);
+    render_job_fini(&job);
     return blob;
 }
 
@@ -537,7 +537,7 @@ Test(medium, photon_map_same_bytes_any_threads)
     cr_assert_neq(photon_map_decode(a, n1, &pm, err, sizeof err), 0);
     free(a);
     free(b);
-    scene_free(&s);
+    scene_fini(&s);
 }
 
 /* The volume blob carries the master's settings and map; a worker refuses a damaged one. */
@@ -574,8 +574,8 @@ Test(medium, volume_blob_roundtrip)
     photon_map_free(&wm);
     free(vb);
     free(map);
-    scene_free(&w);
-    scene_free(&s);
+    scene_fini(&w);
+    scene_fini(&s);
 }
 
 /* map (or NULL): lent to the job for the render, still the caller's after. */
@@ -624,7 +624,7 @@ Test(medium, photon_map_matches_vpt, .timeout = 120)
     photon_map_free(&map);
     double se_s, single = render_mean(&s, NULL, 4, &se_s);
     cr_assert(single < 0.8 * ref, "single %g vs vpt %g", single, ref);
-    scene_free(&s);
+    scene_fini(&s);
 }
 
 /* The scattering sphere over a white floor seen from above: the floor's indirect light
@@ -650,12 +650,12 @@ Test(medium, surface_photon_map_matches_vpt, .timeout = 120)
     struct scene s;
     load_ok(FLOOR_SCENE("vpt", "true"), &s);
     double se_ref, ref = render_mean(&s, NULL, 256, &se_ref);
-    scene_free(&s);
+    scene_fini(&s);
     load_ok(FLOOR_SCENE("beam", "false"), &s);
     struct photon_map *map = decode_map(&s, 1000);
     cr_assert_null(map->surface);
     double se_p, path = render_mean(&s, map, 16, &se_p);
-    scene_free(&s);
+    scene_fini(&s);
     load_ok(FLOOR_SCENE("beam", "true"), &s);
     size_t n1, n2;
     uint8_t *a = build_map(&s, 1, &n1, 1000), *b = build_map(&s, 2, &n2, 1000);
@@ -677,7 +677,7 @@ Test(medium, surface_photon_map_matches_vpt, .timeout = 120)
     cr_assert(fabs(surf / path - 1.0) < 0.05, "beam+surface %g vs beam+paths %g", surf, path);
     cr_assert(none < 0.97 * surf, "without surface photons %g vs %g", none, surf);
     photon_map_free(&map);
-    scene_free(&s);
+    scene_fini(&s);
 }
 
 /* ---- hard cases ---- */
@@ -710,7 +710,7 @@ Test(medium, hard_cases_finite, .timeout = 120)
                 double se, mean = render_mean(&s, map, 2, &se);
                 cr_assert(isfinite(mean) && mean >= 0.0, "%s %s: mean %g", coeffs[c], methods[mth], mean);
                 photon_map_free(&map);
-                scene_free(&s);
+                scene_fini(&s);
             }
 }
 
@@ -787,7 +787,7 @@ Test(medium, scene_keys)
     cr_assert(fabsf(s.lights[0].direction.y + 1.0f) < 1e-6f);
     cr_assert(fabsf(light_spot_falloff(&s.lights[0], v3(0, -1, 0)) - 1.0f) < 1e-6f);
     cr_assert_eq(light_spot_falloff(&s.lights[0], v3(1, -1, 0)), 0.0f);
-    scene_free(&s);
+    scene_fini(&s);
 
     expect_error(H ",\n\"media\": {\"fog\": {\"sigma_q\": [1, 1, 1]}}}", "scenes/t.json:4:19: unknown key \"sigma_q\" in medium \"fog\"");
     expect_error(H ",\n\"media\": {\"fog\": {\"sigma_s\": 1}}}", "scenes/t.json:4:30: sigma_s must be an array of 3 numbers");
@@ -892,7 +892,7 @@ Test(medium, shadow_cache_vs_exact, .timeout = 60)
     struct tr_cache ch;
     cr_assert_eq(tr_cache_init(&ch, &hom, v3(0, 0, 0), 2), 0);
     cr_assert_null(ch.tau);
-    scene_free(&s);
+    scene_fini(&s);
 }
 
 static int knn_cmp(const void *a, const void *b)
@@ -960,7 +960,7 @@ Test(medium, knn_matches_brute_force, .timeout = 60)
     cr_assert(full > 20 && partial > 5, "queries too easy: %d full, %d partial", full, partial);
     free(all);
     photon_map_free(&map);
-    scene_free(&s);
+    scene_fini(&s);
 }
 
 /* March with the shadow cache against the exact marched shadow rays on the grid scene (a
@@ -981,7 +981,7 @@ Test(medium, march_shadow_cache_image_bias, .timeout = 120)
         load_ok(text[c], &s);
         cr_assert_eq(s.media->shadow_cache, c);
         mean[c] = render_mean(&s, NULL, 16, &se[c]);
-        scene_free(&s);
+        scene_fini(&s);
     }
     cr_log_info("march: exact shadows %g +- %g, cached %g +- %g", mean[0], se[0], mean[1], se[1]);
     cr_assert(mean[0] > 0.01 && fabs(mean[1] / mean[0] - 1.0) < 0.02, "cached %g vs exact %g", mean[1], mean[0]);

@@ -14,7 +14,7 @@ static int parse(const char *text, const struct mem_file *files, const struct me
     struct asset_source src = {mem_read, (void *)(uintptr_t)files};
     struct mesh_obj_cache cache = {0};
     int rc = mesh_obj_parse(s, &cache, &src, "m.obj", text, strlen(text), opt, err, 512);
-    mesh_obj_cache_free(&cache);
+    mesh_obj_cache_fini(&cache);
     return rc;
 }
 
@@ -24,7 +24,7 @@ static void expect_error(const char *text, const struct mem_file *files, const c
     char err[512] = "";
     cr_assert_eq(parse(text, files, NULL, &s, err), -1, "expected failure for: %s", text);
     cr_expect(strstr(err, want) != NULL, "error \"%s\" lacks \"%s\"", err, want);
-    scene_free(&s);
+    scene_fini(&s);
 }
 
 static const char quad[] = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n";
@@ -50,7 +50,7 @@ Test(mesh_obj, plain_faces_and_default_material)
     cr_expect_eq(m->material_ids[0], 0);
     cr_expect_float_eq(s.materials[0].albedo.x, 0.8f, 1e-6);
     cr_expect(v3_is_black(s.materials[0].emission));
-    scene_free(&s);
+    scene_fini(&s);
 }
 
 Test(mesh_obj, all_face_forms)
@@ -64,25 +64,25 @@ Test(mesh_obj, all_face_forms)
     cr_assert_not_null(s.meshes[0].uvs);
     cr_expect_float_eq(s.meshes[0].uvs[2], 1.0f, 1e-6);
     cr_expect_float_eq(s.meshes[0].normals[2], 1.0f, 1e-6);
-    scene_free(&s);
+    scene_fini(&s);
 
     text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n";
     cr_assert_eq(parse(text, NULL, NULL, &s, err), 0, "%s", err);
     cr_expect_null(s.meshes[0].normals);
     cr_expect_not_null(s.meshes[0].uvs);
-    scene_free(&s);
+    scene_fini(&s);
 
     text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//1\n";
     cr_assert_eq(parse(text, NULL, NULL, &s, err), 0, "%s", err);
     cr_expect_not_null(s.meshes[0].normals);
     cr_expect_null(s.meshes[0].uvs);
-    scene_free(&s);
+    scene_fini(&s);
 
     /* Mixed forms: attributes missing at some corner are dropped for the whole mesh. */
     text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2 3//1\n";
     cr_assert_eq(parse(text, NULL, NULL, &s, err), 0, "%s", err);
     cr_expect_null(s.meshes[0].normals);
-    scene_free(&s);
+    scene_fini(&s);
 }
 
 Test(mesh_obj, negative_indices_and_polygons)
@@ -97,14 +97,14 @@ Test(mesh_obj, negative_indices_and_polygons)
     for (int i = 0; i < 9; i++)
         cr_expect_eq(m->indices[i], want[i]);
     cr_expect_float_eq(m->positions[3 * 2], 2.0f, 1e-6);
-    scene_free(&s);
+    scene_fini(&s);
 
     /* Relative indices count from the vertices read so far. */
     text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\nv 5 5 5\nf -4 -3 -1\n";
     cr_assert_eq(parse(text, NULL, NULL, &s, err), 0, "%s", err);
     cr_expect_eq(s.meshes[0].num_vertices, 4);
     cr_expect_float_eq(s.meshes[0].positions[3 * s.meshes[0].indices[5]], 5.0f, 1e-6);
-    scene_free(&s);
+    scene_fini(&s);
 }
 
 Test(mesh_obj, crlf_comments_and_ignored_statements)
@@ -115,7 +115,7 @@ Test(mesh_obj, crlf_comments_and_ignored_statements)
                        "v 0 1 0\r\nl 1 2\r\n\r\n   \r\nf 1 2 3\r\n";
     cr_assert_eq(parse(text, NULL, NULL, &s, err), 0, "%s", err);
     cr_expect_eq(s.meshes[0].num_triangles, 1);
-    scene_free(&s);
+    scene_fini(&s);
 }
 
 Test(mesh_obj, empty_file_gives_no_mesh)
@@ -125,7 +125,7 @@ Test(mesh_obj, empty_file_gives_no_mesh)
     cr_assert_eq(parse("", NULL, NULL, &s, err), 0);
     cr_expect_eq(s.num_meshes, 0);
     cr_expect_eq(s.num_materials, 0);
-    scene_free(&s);
+    scene_fini(&s);
 }
 
 Test(mesh_obj, vertex_sharing)
@@ -136,7 +136,7 @@ Test(mesh_obj, vertex_sharing)
     const char *text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 1\nf 1/1 2/1 3/1\nf 1/1 3/1 2/2\n";
     cr_assert_eq(parse(text, NULL, NULL, &s, err), 0, "%s", err);
     cr_expect_eq(s.meshes[0].num_vertices, 4);
-    scene_free(&s);
+    scene_fini(&s);
 }
 
 Test(mesh_obj, errors_name_line_and_column)
@@ -184,7 +184,7 @@ Test(mesh_obj, materials_from_mtl)
     cr_expect_eq(m->material_ids[0], 2);
     cr_expect_eq(m->material_ids[1], 1);
     cr_expect_eq(m->material_ids[2], 0);
-    scene_free(&s);
+    scene_fini(&s);
 }
 
 Test(mesh_obj, mtl_errors)
@@ -240,8 +240,8 @@ Test(mesh_obj, mtllib_relative_to_obj_folder)
     cr_expect_eq(s.meshes[1].material_ids[0], 0);
     cr_expect_eq(load_obj(&s, &cache, &src, "models/none.obj", &opt, err), -1);
     cr_expect(strstr(err, "models/none.obj") != NULL, "%s", err);
-    mesh_obj_cache_free(&cache);
-    scene_free(&s);
+    mesh_obj_cache_fini(&cache);
+    scene_fini(&s);
 }
 
 Test(mesh_obj, override_skips_mtl)
@@ -256,7 +256,7 @@ Test(mesh_obj, override_skips_mtl)
     cr_assert_eq(parse(text, NULL, &opt, &s, err), 0, "%s", err);
     cr_expect_eq(s.num_materials, 1);
     cr_expect_eq(s.meshes[0].material_ids[0], 0);
-    scene_free(&s);
+    scene_fini(&s);
 }
 
 Test(mesh_obj, transform_positions_normals_and_winding)
@@ -279,7 +279,7 @@ Test(mesh_obj, transform_positions_normals_and_winding)
     cr_expect_float_eq(m->normals[0], 0.5f / l, 1e-5);
     cr_expect_float_eq(m->normals[1], 1.0f / l, 1e-5);
     cr_expect_eq(m->indices[1], 1);
-    scene_free(&s);
+    scene_fini(&s);
 
     /* A mirror keeps the geometric normal on the same side by flipping the winding. */
     struct xform mirror = {{{-1, 0, 0, 0}, {0, 1, 0, 0}, {0, 0, 1, 0}}};
@@ -288,5 +288,5 @@ Test(mesh_obj, transform_positions_normals_and_winding)
     cr_expect_eq(s.meshes[0].indices[1], 2);
     cr_expect_eq(s.meshes[0].indices[2], 1);
     cr_expect_float_eq(s.meshes[0].normals[0], -1.0f / sqrtf(2.0f), 1e-5);
-    scene_free(&s);
+    scene_fini(&s);
 }

@@ -86,9 +86,9 @@ static int scene_has_motion(const struct scene *s, uint32_t frame)
 {
     struct accel a;
     char err[256];
-    cr_assert_eq(accel_build(&a, s, frame, 1, err, sizeof err), 0, "%s", err);
+    cr_assert_eq(accel_init(&a, s, frame, 1, err, sizeof err), 0, "%s", err);
     int m = a.has_motion;
-    accel_free(&a);
+    accel_fini(&a);
     return m;
 }
 
@@ -140,7 +140,7 @@ static void check_ramp(struct scene *s, struct mesh *q)
     }
     /* Chi-square of the inner columns against the ramp (mean 'inside', sd sqrt(2 inside)). */
     cr_assert(sq < inside + 5.0 * sqrt(2.0 * inside), "chi2 %.1f over %d columns", sq, inside);
-    scene_free(s);
+    scene_fini(s);
 }
 
 Test(motion, moving_edge_rigid_keys_give_linear_ramp)
@@ -202,7 +202,7 @@ Test(motion, still_scenes_get_no_time_steps)
     s.camera.shutter_close = 0.5f;
     cr_assert_eq(scene_has_motion(&s, 0), 1, "moving during the shutter");
     cr_assert_eq(scene_has_motion(&s, 7), 0, "after the last key (frame 7)");
-    scene_free(&s);
+    scene_fini(&s);
 }
 
 Test(motion, zero_length_shutter_freezes_at_open)
@@ -226,7 +226,7 @@ Test(motion, zero_length_shutter_freezes_at_open)
         if (fabs(xc - 0.5) > 0.1)
             cr_assert_eq(alpha[x], xc < 0.5 ? 1.0 : 0.0, "column %d", x);
     }
-    scene_free(&s);
+    scene_fini(&s);
 }
 
 Test(motion, step_counts_follow_the_keys)
@@ -274,7 +274,7 @@ Test(motion, rebuilt_hits_lie_on_the_ray)
     ramp_camera(&s, 16, 1);
     struct accel a;
     char err[256];
-    cr_assert_eq(accel_build(&a, &s, 0, 1, err, sizeof err), 0, "%s", err);
+    cr_assert_eq(accel_init(&a, &s, 0, 1, err, sizeof err), 0, "%s", err);
     cr_assert_eq(a.has_motion, 1);
     int hits = 0;
     for (int i = 0; i < 400; i++) {
@@ -297,7 +297,7 @@ Test(motion, rebuilt_hits_lie_on_the_ray)
                   (double)pw.x, (double)pw.y, (double)pw.z, (double)pr.x, (double)pr.y, (double)pr.z);
     }
     cr_assert(hits > 100, "%d hits", hits);
-    accel_free(&a);
+    accel_fini(&a);
     /* The half turn also renders without NaN (the quad is seen edge-on mid-shutter). */
     s.camera.shutter_close = 1.0f;
     s.settings.max_depth = 4;
@@ -305,7 +305,7 @@ Test(motion, rebuilt_hits_lie_on_the_ray)
     uint64_t nans;
     render_columns(&s, alpha, red, &nans);
     cr_assert_eq(nans, 0);
-    scene_free(&s);
+    scene_fini(&s);
 }
 
 /* ---- Scene keys ---- */
@@ -351,7 +351,7 @@ Test(motion, scene_keys_for_motion_and_materials)
     cr_assert_eq(s.meshes[1].num_frames, 2);
     cr_assert_float_eq(s.meshes[1].frame_positions[9 + 2], 1.0f, 0.0f);
     cr_assert_eq(s.spheres[0].num_keys, 2);
-    scene_free(&s);
+    scene_fini(&s);
 
     expect_error(HEAD "\"objects\": [{\"type\": \"obj\", \"frames\": [\"a.obj\", \"quad.obj\"], \"frame_times\": [0, 1]}]}",
                  "scenes/t.json:5:49: frame \"quad.obj\" does not have the topology of the first frame");
@@ -420,13 +420,13 @@ Test(motion, reframed_job_equals_a_fresh_one)
     integrator_render_tile(&b, 0, 0, w, h, pb, &sb);
     cr_assert(memcmp(pa, pb, sizeof(float) * w * h * TILE_NUM_CHANNELS) == 0, "reframed pixels differ from a fresh job's");
     /* And the frame matters: frame 0 differs. */
-    render_job_free(&b);
+    render_job_fini(&b);
     cr_assert_eq(render_job_init(&b, &s, 0, 2, err, sizeof err), 0, "%s", err);
     integrator_render_tile(&b, 0, 0, w, h, pb, &sb);
     cr_assert(memcmp(pa, pb, sizeof(float) * w * h * TILE_NUM_CHANNELS) != 0, "frames 0 and 2 render the same");
     free(pa);
     free(pb);
-    render_job_free(&a);
-    render_job_free(&b);
-    scene_free(&s);
+    render_job_fini(&a);
+    render_job_fini(&b);
+    scene_fini(&s);
 }

@@ -180,7 +180,7 @@ Test(nvdb, analytic_values_exact)
             }
     /* Beyond the border voxels the density is 0. */
     cr_assert_eq(grid_density(sg, v3(1e3f, 0, 0)), 0.0f);
-    scene_free(&s);
+    scene_fini(&s);
     clear_files();
 }
 
@@ -231,7 +231,7 @@ Test(nvdb, first_float_grid_and_by_name)
     struct scene s;
     load_ok(text, &s);
     cr_assert_eq(s.media->media[0].grid->nx, 8u);
-    scene_free(&s);
+    scene_fini(&s);
     scene_with(text, sizeof text, "{\"file\": \"multi.nvdb\", \"grid\": \"velocity\"}");
     cr_assert_neq(load(text, &s, err), 0);
     cr_assert(strstr(err, "scenes/t.json:4:") != NULL && strstr(err, "grid \"multi.nvdb\": grid \"velocity\" holds vec3f") != NULL,
@@ -335,8 +335,8 @@ Test(nvdb, same_as_dense_grid, .timeout = 60)
     cr_assert_eq(memcmp(pa, pb, sizeof(float) * npx), 0, "renders differ");
     free(pa);
     free(pb);
-    scene_free(&a);
-    scene_free(&b);
+    scene_fini(&a);
+    scene_fini(&b);
     /* "grid" with a dense file is an error at the key. */
     scene_with(text, sizeof text, "{\"file\": \"ball_dense.nvdb\", \"grid\": \"density\"}");
     char err[512];

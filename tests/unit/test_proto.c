@@ -254,7 +254,7 @@ static void assert_msg_eq(const struct proto_msg *a, const struct proto_msg *b)
 static void free_decoded(struct proto_msg *m)
 {
     if (m->type == MSG_JOB)
-        proto_job_free(&m->u.job);
+        proto_job_fini(&m->u.job);
 }
 
 /* Decodes a frame that must be rejected; returns the reason for further checks. */
@@ -357,7 +357,7 @@ Test(proto, round_trip_every_type)
         assert_msg_eq(&in[i], &out);
         free_decoded(&out);
     }
-    proto_buf_free(&b);
+    proto_buf_fini(&b);
 }
 
 Test(proto, payloads_point_into_the_frame)
@@ -370,7 +370,7 @@ Test(proto, payloads_point_into_the_frame)
     cr_assert_eq(proto_encode(&in[3], &b), 0);
     cr_assert_eq(proto_decode(b.data, b.size, &out, err, sizeof err), 0);
     cr_assert(out.u.blob_data.bytes >= b.data && out.u.blob_data.bytes + out.u.blob_data.length <= b.data + b.size);
-    proto_buf_free(&b);
+    proto_buf_fini(&b);
 }
 
 Test(proto, header_layout_is_little_endian)
@@ -388,7 +388,7 @@ Test(proto, header_layout_is_little_endian)
     struct proto_msg bye = {.type = MSG_BYE};
     cr_assert_eq(proto_encode(&bye, &b), 0);
     cr_assert_eq(b.size, 8);
-    proto_buf_free(&b);
+    proto_buf_fini(&b);
 }
 
 Test(proto, double_travels_as_ieee_bits)
@@ -406,7 +406,7 @@ Test(proto, double_travels_as_ieee_bits)
         cr_assert_eq(proto_decode(b.data, b.size, &out, err, sizeof err), 0, "%s", err);
         assert_msg_eq(r, &out);
     }
-    proto_buf_free(&b);
+    proto_buf_fini(&b);
 }
 
 Test(proto, every_truncation_rejected)
@@ -424,7 +424,7 @@ Test(proto, every_truncation_rejected)
             free(copy);
         }
     }
-    proto_buf_free(&b);
+    proto_buf_fini(&b);
 }
 
 Test(proto, trailing_byte_rejected)
@@ -441,7 +441,7 @@ Test(proto, trailing_byte_rejected)
         cr_assert(strstr(err, "trailing"), "%s", err);
         free(copy);
     }
-    proto_buf_free(&b);
+    proto_buf_fini(&b);
 }
 
 Test(proto, wrong_magic_and_version)
@@ -463,7 +463,7 @@ Test(proto, wrong_magic_and_version)
     b.data[5] = 1;
     err = expect_reject(b.data, b.size);
     cr_assert(strstr(err, "256"), "%s", err);
-    proto_buf_free(&b);
+    proto_buf_fini(&b);
 }
 
 Test(proto, unknown_type_rejected)
@@ -536,7 +536,7 @@ Test(proto, string_limits)
     cr_assert_eq(proto_encode(&m, &b), -1);
     m.u.error.text[PROTO_MAX_STRING - 1] = '\0';
     cr_assert_eq(proto_encode(&m, &b), 0);
-    proto_buf_free(&b);
+    proto_buf_fini(&b);
 }
 
 Test(proto, job_asset_limits)
@@ -593,7 +593,7 @@ Test(proto, job_with_max_assets_round_trips)
     char err[256];
     cr_assert_eq(proto_decode(b.data, b.size, &out, err, sizeof err), 0, "%s", err);
     assert_msg_eq(&m, &out);
-    proto_job_free(&out.u.job);
+    proto_job_fini(&out.u.job);
     cr_assert_null(out.u.job.assets);
 
     m.u.job.num_assets = PROTO_MAX_ASSETS + 1;
@@ -601,7 +601,7 @@ Test(proto, job_with_max_assets_round_trips)
     m.u.job.num_assets = 2;
     assets[1].path[0] = '\0';
     cr_assert_eq(proto_encode(&m, &b), -1, "encode refuses what decode refuses");
-    proto_buf_free(&b);
+    proto_buf_fini(&b);
     free(assets);
 }
 
@@ -623,7 +623,7 @@ Test(proto, job_zero_settings_rejected)
         j->tile_size = bad[i][3];
         cr_assert_eq(proto_encode(&in[1], &b), -1);
     }
-    proto_buf_free(&b);
+    proto_buf_fini(&b);
     free(f.d);
 }
 
@@ -705,7 +705,7 @@ Test(proto, result_limits)
         r->u.result.stats.sum_rel_stderr = bad[i];
         cr_assert_eq(proto_encode(r, &b), -1);
     }
-    proto_buf_free(&b);
+    proto_buf_fini(&b);
 }
 
 Test(proto, ack_and_kept_limits)
@@ -740,7 +740,7 @@ Test(proto, ack_and_kept_limits)
     m.u.ack.count = PROTO_MAX_ACK_TILES;
     cr_assert_eq(proto_encode(&m, &b), 0);
     cr_assert_eq(b.size, 8 + 8 + 4 + 4 + 4 * PROTO_MAX_ACK_TILES);
-    proto_buf_free(&b);
+    proto_buf_fini(&b);
 }
 
 Test(proto, oversized_frame_rejected)
@@ -811,8 +811,8 @@ Test(proto, random_bit_flips_never_crash, .timeout = 60)
     }
     /* Most single flips land in payload bytes and still decode; both paths are exercised. */
     cr_assert(accepted > 0 && accepted < total, "accepted %d of %d", accepted, total);
-    proto_buf_free(&b);
-    proto_buf_free(&b2);
+    proto_buf_fini(&b);
+    proto_buf_fini(&b2);
 }
 
 Test(proto, random_bodies_never_crash, .timeout = 60)
@@ -833,7 +833,7 @@ Test(proto, random_bodies_never_crash, .timeout = 60)
         decode_reencode(copy, len, &b2);
         free(copy);
     }
-    proto_buf_free(&b2);
+    proto_buf_fini(&b2);
 }
 
 Test(proto, failed_decode_leaves_nothing_to_free)
@@ -848,5 +848,5 @@ Test(proto, failed_decode_leaves_nothing_to_free)
     cr_assert_eq(proto_decode(b.data, b.size - 3, &out, err, sizeof err), -1);
     cr_assert_null(out.u.job.assets);
     cr_assert_eq(out.u.job.num_assets, 0);
-    proto_buf_free(&b);
+    proto_buf_fini(&b);
 }

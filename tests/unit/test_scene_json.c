@@ -66,7 +66,7 @@ Test(scene_json, defaults)
     cr_expect_float_eq(s.camera.fov_y_deg, 40.0f, 0);
     cr_expect_float_eq(s.camera.position.z, -5.0f, 0);
     cr_expect_eq(s.num_meshes + s.num_spheres + s.num_lights + s.num_materials, 0);
-    scene_free(&s);
+    scene_fini(&s);
 
     const char *full = "{\"version\": 1, \"camera\": {\"position\": [0, 0, -5], \"look_at\": [0, 0, 0],"
                        " \"up\": [0, 1, 1], \"fov_y\": 40, \"aperture\": 0, \"focus_distance\": 3},"
@@ -79,7 +79,7 @@ Test(scene_json, defaults)
     cr_expect_eq(s.settings.tile_size, 8);
     cr_expect_float_eq(s.camera.up.z, 1.0f, 0);
     cr_expect_float_eq(s.camera.focus_distance, 3.0f, 0);
-    scene_free(&s);
+    scene_fini(&s);
 }
 
 Test(scene_json, materials_spheres_lights)
@@ -104,7 +104,7 @@ Test(scene_json, materials_spheres_lights)
     cr_assert_eq(s.num_lights, 1);
     cr_expect_eq(s.lights[0].type, LIGHT_POINT);
     cr_expect_float_eq(s.lights[0].position.y, 5.0f, 0);
-    scene_free(&s);
+    scene_fini(&s);
 }
 
 Test(scene_json, obj_and_transforms)
@@ -146,7 +146,7 @@ Test(scene_json, obj_and_transforms)
     cr_expect_eq(s.meshes[0].material_ids[0], 1);
     cr_expect_float_eq(s.spheres[0].radius, 3.0f, 1e-5);
     cr_expect_float_eq(v3_length(v3_sub(s.spheres[0].center, v3(0, 1, 0))), 3.0f, 1e-5);
-    scene_free(&s);
+    scene_fini(&s);
 }
 
 Test(scene_json, mtl_names_are_namespaced_and_override_wins)
@@ -165,7 +165,7 @@ Test(scene_json, mtl_names_are_namespaced_and_override_wins)
     cr_expect_eq(s.meshes[1].material_ids[0], 2);
     cr_expect_eq(s.meshes[2].material_ids[0], 1);
     cr_expect_eq(s.meshes[3].material_ids[0], 0);
-    scene_free(&s);
+    scene_fini(&s);
 }
 
 Test(scene_json, syntax_errors_from_jansson)
@@ -330,7 +330,7 @@ static int load_file(const char *path, struct scene *s, char *err, size_t errlen
     memset(s, 0, sizeof *s);
     int rc = scene_json_parse(path, text, size, &src, s, err, errlen);
     free(text);
-    asset_dir_free(&dir);
+    asset_dir_fini(&dir);
     return rc;
 }
 
@@ -365,7 +365,7 @@ Test(scene_json, cornell_from_disk)
         cr_expect_lt(n.y, 0.0f);
     }
     cr_expect_eq(emitting, 2);
-    scene_free(&s);
+    scene_fini(&s);
 }
 
 Test(scene_json, tiny_from_disk)
@@ -383,5 +383,5 @@ Test(scene_json, tiny_from_disk)
     cr_expect_eq(s.meshes[1].num_triangles, 2);
     cr_expect_float_eq(s.meshes[1].positions[1], 3.0f, 0);
     cr_expect_gt(s.materials[s.meshes[1].material_ids[0]].emission.x, 0.0f);
-    scene_free(&s);
+    scene_fini(&s);
 }

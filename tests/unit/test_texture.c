@@ -57,7 +57,7 @@ Test(mip, non_power_of_two_levels_keep_the_mean)
     for (uint32_t i = 0; i < 37 * 5; i++)
         texels(&im)[i] = (float)((i * 7919u) % 101u) / 100.0f;
     struct mip m;
-    mip_build(&m, &im, TEXWRAP_REPEAT);
+    mip_init(&m, &im, TEXWRAP_REPEAT);
     static const uint32_t w[] = {37, 18, 9, 4, 2, 1}, h[] = {5, 2, 1, 1, 1, 1};
     cr_assert_eq(m.num_levels, 6);
     double mean0 = level_mean(&m, 0);
@@ -66,8 +66,8 @@ Test(mip, non_power_of_two_levels_keep_the_mean)
         cr_expect_eq(m.levels[l].height, h[l], "level %u", l);
         cr_expect(fabs(level_mean(&m, l) - mean0) < 1e-5, "level %u mean %g vs %g", l, level_mean(&m, l), mean0);
     }
-    mip_free(&m);
-    tex_image_free(&im);
+    mip_fini(&m);
+    tex_image_fini(&im);
 }
 
 Test(mip, srgb_bytes_average_in_linear_space)
@@ -78,13 +78,13 @@ Test(mip, srgb_bytes_average_in_linear_space)
     ((uint8_t *)im.data)[0] = 0;
     ((uint8_t *)im.data)[1] = 255;
     struct mip m;
-    mip_build(&m, &im, TEXWRAP_CLAMP);
+    mip_init(&m, &im, TEXWRAP_CLAMP);
     cr_assert_eq(m.num_levels, 2);
     cr_expect_eq(((uint8_t *)m.levels[1].data)[0], 188);
     cr_expect(fabsf(mip_texel(&m, 1, 0, 0).x - 0.5f) < 0.003f);
     cr_expect(fabsf(mip_srgb_to_linear(128.0f / 255.0f) - 0.2158605f) < 1e-5f);
-    mip_free(&m);
-    tex_image_free(&im);
+    mip_fini(&m);
+    tex_image_fini(&im);
 }
 
 Test(mip, level_for_known_footprint)
@@ -92,7 +92,7 @@ Test(mip, level_for_known_footprint)
     struct tex_image im;
     f32_image(&im, 256, 64, 1);
     struct mip m;
-    mip_build(&m, &im, TEXWRAP_REPEAT);
+    mip_init(&m, &im, TEXWRAP_REPEAT);
     cr_assert_eq(m.num_levels, 9);
     cr_expect_float_eq(mip_level_for_width(&m, 1.0f / 256.0f), 0.0f, 1e-6);
     cr_expect_float_eq(mip_level_for_width(&m, 4.0f / 256.0f), 2.0f, 1e-5);
@@ -108,8 +108,8 @@ Test(mip, level_for_known_footprint)
     cr_expect_float_eq(ds1, 0.0f, 1e-9);
     cr_expect_float_eq(dt1, 4.0f / 256.0f, 1e-6);
     cr_expect_float_eq(lvl, 2.0f, 1e-5);
-    mip_free(&m);
-    tex_image_free(&im);
+    mip_fini(&m);
+    tex_image_fini(&im);
 }
 
 Test(mip, ewa_weights_sum_to_one_and_follow_the_ellipse)
@@ -117,7 +117,7 @@ Test(mip, ewa_weights_sum_to_one_and_follow_the_ellipse)
     struct tex_image im;
     f32_image(&im, 64, 64, 1);
     struct mip m;
-    mip_build(&m, &im, TEXWRAP_REPEAT);
+    mip_init(&m, &im, TEXWRAP_REPEAT);
     enum { CAP = 4096 };
     int64_t xs[CAP], ys[CAP];
     float ws[CAP];
@@ -154,8 +154,8 @@ Test(mip, ewa_weights_sum_to_one_and_follow_the_ellipse)
         sum += ws[i];
     cr_expect(fabs(sum - 1.0) < 1e-5);
     cr_expect_float_eq(c.x, 0.375f, 1e-6);
-    mip_free(&m);
-    tex_image_free(&im);
+    mip_fini(&m);
+    tex_image_fini(&im);
 }
 
 Test(mip, filters_agree_on_smooth_images_and_wrap)
@@ -167,7 +167,7 @@ Test(mip, filters_agree_on_smooth_images_and_wrap)
             for (int c = 0; c < 3; c++)
                 texels(&im)[(y * 128 + x) * 3 + c] = 0.5f + 0.4f * sinf(6.2831853f * (x + 0.5f) / 128.0f);
     struct mip m;
-    mip_build(&m, &im, TEXWRAP_REPEAT);
+    mip_init(&m, &im, TEXWRAP_REPEAT);
     for (int f = 0; f < TEXFILTER_COUNT_; f++) {
         vec3 a = mip_lookup(&m, (enum texture_filter)f, 8, 0.3f, 0.4f, 0.5f / 128, 0, 0, 0.5f / 96);
         vec3 b = mip_lookup(&m, (enum texture_filter)f, 8, 2.3f, -3.6f, 0.5f / 128, 0, 0, 0.5f / 96);
@@ -182,8 +182,8 @@ Test(mip, filters_agree_on_smooth_images_and_wrap)
     cr_expect(v3_is_finite(nanl));
     vec3 inf_d = mip_lookup(&m, TEXFILTER_EWA, 8, 0.5f, 0.5f, INFINITY, NAN, 1e30f, -1e30f);
     cr_expect(v3_is_finite(inf_d));
-    mip_free(&m);
-    tex_image_free(&im);
+    mip_fini(&m);
+    tex_image_fini(&im);
 }
 
 /* ---- checker ---- */
@@ -381,7 +381,7 @@ Test(texture, centring_moves_footprint_filters_only)
         for (uint32_t x = 0; x < 64; x++)
             texels(&t.image)[y * 64 + x] = (float)x / 64.0f;
     struct mip m;
-    mip_build(&m, &t.image, TEXWRAP_CLAMP);
+    mip_init(&m, &t.image, TEXWRAP_CLAMP);
     /* A footprint of 1/4 texel (level 0) moved 4 texels along u: cx * dudx = 4 / 64. */
     struct tex_coord tc = {0.3f, 0.5f, 0.25f / 64.0f, 0.0f, 0.0f, 0.25f / 4.0f, 16.0f, 0.0f};
     float expect[TEXFILTER_COUNT_];
@@ -394,8 +394,8 @@ Test(texture, centring_moves_footprint_filters_only)
         vec3 c = texture_eval(&t, &m, &tc);
         cr_expect(fabsf(c.x - expect[f]) < 2e-3f, "%s: %g, expected %g", texture_filter_name(t.filter), c.x, expect[f]);
     }
-    mip_free(&m);
-    texture_free(&t);
+    mip_fini(&m);
+    texture_fini(&t);
 }
 
 /* EWA's weights for a footprint of w texels have the variance of a box w wide (w^2 / 12),
@@ -405,7 +405,7 @@ Test(mip, ewa_weights_have_the_variance_of_a_box_over_the_footprint)
     struct tex_image im;
     f32_image(&im, 512, 512, 1);
     struct mip m;
-    mip_build(&m, &im, TEXWRAP_REPEAT);
+    mip_init(&m, &im, TEXWRAP_REPEAT);
     enum { CAP = 16384 };
     static int64_t xs[CAP], ys[CAP];
     static float ws[CAP];
@@ -422,8 +422,8 @@ Test(mip, ewa_weights_have_the_variance_of_a_box_over_the_footprint)
     }
     double box = (double)w * w / 12.0;
     cr_expect(fabs(vx / box - 1.0) < 0.03 && fabs(vy / box - 1.0) < 0.03, "variance %g %g vs box %g", vx, vy, box);
-    mip_free(&m);
-    tex_image_free(&im);
+    mip_fini(&m);
+    tex_image_fini(&im);
 }
 
 Test(raydiff, glass_slab_matches_analytic_refraction)
@@ -629,30 +629,30 @@ Test(image_load, png_jpeg_hdr_exr_decode)
     cr_assert_eq(image_load_memory("a.png", b.p, b.n, 1, &im, err, sizeof err), 0, "%s", err);
     cr_expect(im.width == 6 && im.height == 4 && im.channels == 3 && im.format == TEXEL_U8_SRGB);
     cr_expect_eq(((uint8_t *)im.data)[3 * 7], 70); /* bytes kept, row-major from the top */
-    tex_image_free(&im);
+    tex_image_fini(&im);
     free(b.p);
     b = encode("png", 6, 4, 1, gray);
     cr_assert_eq(image_load_memory("g.png", b.p, b.n, 0, &im, err, sizeof err), 0, "%s", err);
     cr_expect(im.channels == 1 && im.format == TEXEL_U8_LINEAR && ((uint8_t *)im.data)[5] == 25);
-    tex_image_free(&im);
+    tex_image_fini(&im);
     free(b.p);
     b = encode("jpg", 6, 4, 3, rgb);
     cr_assert_eq(image_load_memory("a.jpg", b.p, b.n, 1, &im, err, sizeof err), 0, "%s", err);
     cr_expect(im.width == 6 && im.height == 4 && im.channels == 3);
     cr_expect(abs(((uint8_t *)im.data)[1] - 128) < 8, "jpeg green %d", ((uint8_t *)im.data)[1]);
-    tex_image_free(&im);
+    tex_image_fini(&im);
     free(b.p);
     b = encode("hdr", 6, 4, 3, frgb);
     cr_assert_eq(image_load_memory("a.hdr", b.p, b.n, 1, &im, err, sizeof err), 0, "%s", err);
     cr_expect(im.format == TEXEL_F32 && im.channels == 3);
     cr_expect(fabsf(((float *)im.data)[3 * 5] - 1.25f) < 0.02f && fabsf(((float *)im.data)[1] - 3.5f) < 0.05f);
-    tex_image_free(&im);
+    tex_image_fini(&im);
     free(b.p);
     b = encode_exr(6, 4, frgb);
     cr_assert_eq(image_load_memory("a.exr", b.p, b.n, 1, &im, err, sizeof err), 0, "%s", err);
     cr_expect(im.format == TEXEL_F32 && im.width == 6 && im.height == 4);
     cr_expect_float_eq(((float *)im.data)[3 * 5], 1.25f, 1e-6);
-    tex_image_free(&im);
+    tex_image_fini(&im);
     free(b.p);
 }
 
@@ -679,7 +679,7 @@ Test(image_load, garbage_truncated_and_oversized_files_fail_cleanly)
         for (size_t n = 0; n < files[f].n; n += 1 + n / 16) {
             if (image_load_memory(names[f], files[f].p, n, 1, &im, err, sizeof err) == 0) {
                 cr_expect(im.width == 16 && im.height == 16);
-                tex_image_free(&im);
+                tex_image_fini(&im);
             } else {
                 cr_expect(strncmp(err, names[f], 5) == 0, "%s", err);
             }
@@ -694,7 +694,7 @@ Test(image_load, garbage_truncated_and_oversized_files_fail_cleanly)
             }
             if (image_load_memory(names[f], copy, files[f].n, 1, &im, err, sizeof err) == 0) {
                 cr_expect(tex_image_bytes(im.width, im.height, im.channels, im.format) > 0);
-                tex_image_free(&im);
+                tex_image_fini(&im);
             }
         }
         free(copy);
@@ -824,7 +824,7 @@ Test(texture_render, checkerboard_to_the_horizon_ewa_beats_unfiltered, .timeout 
         err[f] = rmse(img[f], want, W, 0, H);
         /* Rows showing the far floor: just below the horizon (which is row H / 2 - 1). */
         far[f] = rmse(img[f], want, W, H / 2, H / 2 + H / 6);
-        scene_free(&s);
+        scene_fini(&s);
     }
     /* The image and procedural checkers are the same function: nearest at 1 spp equals
      * the procedural point lookup at 1 spp. */
@@ -850,8 +850,8 @@ Test(texture_render, checkerboard_to_the_horizon_ewa_beats_unfiltered, .timeout 
     free(proc1);
     free(want);
     one.num_textures = 0; /* proc is shared with ref */
-    scene_free(&one);
-    scene_free(&ref);
+    scene_fini(&one);
+    scene_fini(&ref);
 }
 
 static int all_finite(const float *px, size_t n)
@@ -890,7 +890,7 @@ Test(texture_render, huge_texture_thin_lens_degenerate_uvs_no_nan, .timeout = 12
     free(px);
     /* Every filter at extreme footprints on the huge pyramid. */
     struct mip m;
-    mip_build(&m, &s.textures[0].image, TEXWRAP_CLAMP);
+    mip_init(&m, &s.textures[0].image, TEXWRAP_CLAMP);
     cr_expect_eq(m.num_levels, 15);
     for (int f = 0; f < TEXFILTER_COUNT_; f++) {
         vec3 a = mip_lookup(&m, (enum texture_filter)f, 64, 0.5f, 0.5f, 1e-9f, 0, 0, 1e6f);
@@ -899,7 +899,7 @@ Test(texture_render, huge_texture_thin_lens_degenerate_uvs_no_nan, .timeout = 12
         cr_expect(v3_is_finite(a) && v3_is_finite(b) && v3_is_finite(c), "filter %d", f);
         cr_expect(a.x >= 0 && a.x <= 1 && b.x >= 0 && b.x <= 1 && c.x >= 0 && c.x <= 1);
     }
-    mip_free(&m);
+    mip_fini(&m);
     /* Degenerate uvs: every vertex at one uv, then all on one line. */
     for (int k = 0; k < 2; k++) {
         float *uv = s.meshes[0].uvs;
@@ -913,7 +913,7 @@ Test(texture_render, huge_texture_thin_lens_degenerate_uvs_no_nan, .timeout = 12
         cr_expect(all_finite(px, (size_t)32 * 24 * TILE_NUM_CHANNELS));
         free(px);
     }
-    scene_free(&s);
+    scene_fini(&s);
 }
 
 /* ---- scene files: the "textures" section, albedo_texture and MTL map_Kd ---- */
@@ -1008,7 +1008,7 @@ Test(texture_scene, textures_section_and_albedo_texture)
     cr_expect_eq(s.textures[r->normal_tex - 1].image.format, TEXEL_U8_LINEAR);
     cr_expect_float_eq(s.textures[r->normal_tex - 1].scale[0], 2.0f, 0);
     cr_expect(s.meshes[0].uvs != NULL);
-    scene_free(&s);
+    scene_fini(&s);
 }
 
 static void expect_scene_error(const char *text, const char *want)
@@ -1069,7 +1069,7 @@ Test(bump, height_ramp_tilts_the_normal_as_computed_by_hand)
             ((float *)t.image.data)[y * 64 + x] = ((float)x + 0.5f) / 64.0f; /* h(u) = u, bilinear: exact inside */
     scene_add_texture(&s, &t);
     struct mip m;
-    mip_build(&m, &s.textures[0].image, TEXWRAP_CLAMP);
+    mip_init(&m, &s.textures[0].image, TEXWRAP_CLAMP);
     struct material mat;
     memset(&mat, 0, sizeof mat);
     mat.type = MATERIAL_DIFFUSE;
@@ -1100,8 +1100,8 @@ Test(bump, height_ramp_tilts_the_normal_as_computed_by_hand)
     raydiff_triangle(p, uv, NULL, 0.3f, 0.3f, v3(0, 0, 1), &cam, v3(0, 0, -1), 5.0f, &dh);
     n = texshade_bump(&s, &m, &mat, &dh, v3(0, 0, 1), v3(0, 0, 1));
     cr_expect(v3_is_finite(n) && n.z > 0.0f);
-    mip_free(&m);
-    scene_free(&s);
+    mip_fini(&m);
+    scene_fini(&s);
 }
 
 /* ---- end to end: filtering through a mirror ---- */
@@ -1157,7 +1157,7 @@ Test(texture_render, ewa_through_a_mirror_filters_like_direct_view, .timeout = 1
         struct tile_stats st;
         img[pass] = test_render(&s, 1, &st);
         cr_expect_eq(st.nan_samples, 0);
-        scene_free(&s);
+        scene_fini(&s);
     }
     float *near1 = img[0], *ewa1 = img[1], *ref = img[2];
     double e_near = rmse(near1, ref, W, 0, H), e_ewa = rmse(ewa1, ref, W, 0, H);
@@ -1226,7 +1226,7 @@ Test(texture_render, ewa_through_glass_filters_like_direct_view, .timeout = 120)
         struct tile_stats st;
         img[pass] = test_render(&s, 1, &st);
         cr_expect_eq(st.nan_samples, 0);
-        scene_free(&s);
+        scene_fini(&s);
     }
     double e_near = rmse(img[0], img[2], W, 0, H), e_ewa = rmse(img[1], img[2], W, 0, H), mean = 0;
     for (uint32_t i = 0; i < W * H; i++)
@@ -1253,7 +1253,7 @@ Test(bump, tangent_space_normal_map)
     }
     scene_add_texture(&s, &t);
     struct mip m;
-    mip_build(&m, &s.textures[0].image, TEXWRAP_REPEAT);
+    mip_init(&m, &s.textures[0].image, TEXWRAP_REPEAT);
     struct material mat;
     memset(&mat, 0, sizeof mat);
     mat.type = MATERIAL_MIRROR;
@@ -1270,17 +1270,17 @@ Test(bump, tangent_space_normal_map)
     float *px = s.textures[0].image.data;
     for (int i = 0; i < 16; i++)
         px[3 * i] = 0.5f, px[3 * i + 1] = 0.5f, px[3 * i + 2] = 1.0f;
-    mip_free(&m);
-    mip_build(&m, &s.textures[0].image, TEXWRAP_REPEAT);
+    mip_fini(&m);
+    mip_init(&m, &s.textures[0].image, TEXWRAP_REPEAT);
     n = texshade_bump(&s, &m, &mat, &dh, v3(0, 0, 1), v3(0, 0, 1));
     expect_vec_near(n, v3(0, 0, 1), 1e-5f, "flat map");
     /* A map pointing into the surface: the shading normal is kept. */
     for (int i = 0; i < 16; i++)
         px[3 * i] = 0.5f, px[3 * i + 1] = 0.5f, px[3 * i + 2] = 0.0f;
-    mip_free(&m);
-    mip_build(&m, &s.textures[0].image, TEXWRAP_REPEAT);
+    mip_fini(&m);
+    mip_init(&m, &s.textures[0].image, TEXWRAP_REPEAT);
     n = texshade_bump(&s, &m, &mat, &dh, v3(0, 0, 1), v3(0, 0, 1));
     cr_expect(n.x == 0 && n.y == 0 && n.z == 1);
-    mip_free(&m);
-    scene_free(&s);
+    mip_fini(&m);
+    scene_fini(&s);
 }
