@@ -17,7 +17,7 @@ static void usage(FILE *f)
             "  --connect ENDPOINT  the master's endpoint, e.g. tcp://10.0.0.1:5555 or ipc:///tmp/x.sock\n"
             "  --threads T         render threads (default: all cores)\n"
             "  --timeout-ms MS     give up after MS milliseconds without a word from the master (default 30000)\n"
-            "  --curve-secret F    our CurveZMQ key pair (from brume-keygen); needs --server-key\n"
+            "  --curve-secret F    our CurveZMQ key pair (from master --keygen); needs --server-key\n"
             "  --server-key F      the master's public key file (KEYFILE.pub of the master's pair)\n"
             "  --exit-with-parent  exit when the process that started us dies (local workers)\n"
             "  --fault KIND[:N]    tests only: hang-after:N, crash-tile:N, garbage, slow:MS\n"
