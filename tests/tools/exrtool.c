@@ -2,7 +2,23 @@
  *   exrtool cmp A.exr B.exr      exit 0 if R,G,B,A are bit-identical, else 1 (prints differences)
  *   exrtool rmse A.exr REF.exr   prints the RMSE of R,G,B against REF
  *   exrtool mean A.exr           prints the mean of R,G,B,A
- * Reads files through imgio_read (OpenEXRCore). */
+ *   exrtool relrmse A.exr REF.exr [--box N]
+ *                                prints the relative RMSE: RMS over pixels and R,G,B of A - REF over
+ *                                the mean of REF over pixels and R,G,B; with --box N both images are
+ *                                first box-downsampled by N x N (a partial block at the right or
+ *                                bottom edge is the mean of the pixels it holds): low-frequency error
+ *   exrtool errest A.exr         prints the relative RMSE the image estimates for itself from its
+ *                                variance.R/G/B channels (the variance of each pixel's mean):
+ *                                sqrt(mean over pixels and R,G,B of the variance) / mean of R,G,B
+ *   exrtool semean A.exr         prints the mean of R,G,B over the image and its standard error from
+ *                                the variance channels (pixels independent; within a pixel the
+ *                                channels' errors taken as fully correlated, an upper bound)
+ *   exrtool average OUT.exr A.exr B.exr
+ *                                writes (A + B) / 2 (R,G,B,A), variance (vA + vB) / 4
+ *   exrtool synth OUT.exr W H V [--checker AMP] [--var VAR]
+ *                                writes a test image: R,G,B = V (+AMP where x + y is even, -AMP
+ *                                where odd, with --checker), A = 1, every variance channel = VAR
+ * Reads files through imgio_read (OpenEXRCore); writes tiled EXRs through imgio's writer. */
 #include "image/imgio.h"
 #include "base/log.h"
 #include <math.h>
@@ -11,6 +27,8 @@
 #include <string.h>
 
 static const char *const channels[] = {"R", "G", "B", "A"};
+enum { NCH = 7 }; /* R, G, B, A and the variance of each colour's mean, as the renderer writes */
+static const char *const all_channels[NCH] = {"R", "G", "B", "A", "variance.R", "variance.G", "variance.B"};
 
 static float *load(const char *path, uint32_t *w, uint32_t *h)
 {
@@ -23,8 +41,220 @@ static float *load(const char *path, uint32_t *w, uint32_t *h)
     return px;
 }
 
+/* R, G, B, A, variance.R, variance.G, variance.B interleaved (7 floats a pixel). */
+static float *load_var(const char *path, uint32_t *w, uint32_t *h)
+{
+    char err[512];
+    float *px = NULL;
+    if (imgio_read(path, all_channels, NCH, &px, w, h, err, sizeof err) != 0) {
+        fprintf(stderr, "exrtool: %s\n", err);
+        exit(2);
+    }
+    return px;
+}
+
+/* Writes w x h pixels of NCH interleaved channels as a tiled, uncompressed EXR. */
+static void write_exr(const char *path, const float *px, uint32_t w, uint32_t h)
+{
+    char err[512];
+    struct image_desc d;
+    memset(&d, 0, sizeof d);
+    d.width = w;
+    d.height = h;
+    d.tile_size = 32;
+    d.num_channels = NCH;
+    for (int c = 0; c < NCH; c++)
+        snprintf(d.channel_names[c], sizeof d.channel_names[c], "%s", all_channels[c]);
+    d.compression = IMGIO_NONE;
+    struct image_attrs a;
+    memset(&a, 0, sizeof a);
+    a.spp = 1;
+    snprintf(a.scene_hash, sizeof a.scene_hash, "%s", "0");
+    snprintf(a.software, sizeof a.software, "%s", "brume exrtool");
+    struct imgio_encoder *e = imgio_encoder_new(&d, err, sizeof err);
+    struct imgio_writer *wr = e ? imgio_writer_open(path, &d, &a, err, sizeof err) : NULL;
+    if (!wr) {
+        fprintf(stderr, "exrtool: %s\n", err);
+        exit(2);
+    }
+    float *tile = malloc(sizeof(float) * NCH * d.tile_size * d.tile_size);
+    for (uint32_t ty = 0; ty < imgio_tiles_y(&d); ty++)
+        for (uint32_t tx = 0; tx < imgio_tiles_x(&d); tx++) {
+            uint32_t x0, y0, tw, th;
+            imgio_tile_rect(&d, tx, ty, &x0, &y0, &tw, &th);
+            for (uint32_t y = 0; y < th; y++)
+                memcpy(&tile[(size_t)y * tw * NCH], &px[((size_t)(y0 + y) * w + x0) * NCH], sizeof(float) * NCH * tw);
+            uint8_t *chunk = NULL;
+            size_t size = 0;
+            if (imgio_encode_tile(e, tx, ty, tile, &chunk, &size, err, sizeof err) != 0 ||
+                imgio_writer_put_tile(wr, tx, ty, chunk, size, err, sizeof err) != 0) {
+                fprintf(stderr, "exrtool: %s\n", err);
+                exit(2);
+            }
+            free(chunk);
+        }
+    free(tile);
+    imgio_encoder_free(&e);
+    if (imgio_writer_close(&wr, err, sizeof err) != 0) {
+        fprintf(stderr, "exrtool: %s\n", err);
+        exit(2);
+    }
+}
+
+/* Box-downsamples R,G,B (4 floats a pixel) by n x n in place of *px; partial blocks at the
+ * right and bottom edges average the pixels they hold. Updates *w, *h. */
+static void box_down(float **px, uint32_t *w, uint32_t *h, uint32_t n)
+{
+    uint32_t bw = (*w + n - 1) / n, bh = (*h + n - 1) / n;
+    float *o = calloc((size_t)bw * bh * 4, sizeof(float));
+    for (uint32_t by = 0; by < bh; by++)
+        for (uint32_t bx = 0; bx < bw; bx++) {
+            double s[3] = {0, 0, 0};
+            size_t cnt = 0;
+            for (uint32_t y = by * n; y < by * n + n && y < *h; y++)
+                for (uint32_t x = bx * n; x < bx * n + n && x < *w; x++, cnt++)
+                    for (int c = 0; c < 3; c++)
+                        s[c] += (*px)[((size_t)y * *w + x) * 4 + c];
+            for (int c = 0; c < 3; c++)
+                o[((size_t)by * bw + bx) * 4 + c] = (float)(s[c] / (double)cnt);
+        }
+    free(*px);
+    *px = o;
+    *w = bw;
+    *h = bh;
+}
+
+static int relrmse(int argc, char **argv)
+{
+    uint32_t n = 1;
+    if (argc == 6 && !strcmp(argv[4], "--box") && atoi(argv[5]) >= 1)
+        n = (uint32_t)atoi(argv[5]);
+    else if (argc != 4) {
+        fprintf(stderr, "usage: exrtool relrmse A.exr REF.exr [--box N]\n");
+        return 2;
+    }
+    uint32_t wa, ha, wb, hb;
+    float *a = load(argv[2], &wa, &ha), *b = load(argv[3], &wb, &hb);
+    if (wa != wb || ha != hb) {
+        fprintf(stderr, "exrtool: sizes differ: %ux%u vs %ux%u\n", wa, ha, wb, hb);
+        return 1;
+    }
+    if (n > 1) {
+        box_down(&a, &wa, &ha, n);
+        box_down(&b, &wb, &hb, n);
+    }
+    double se = 0, sr = 0;
+    size_t np = (size_t)wa * ha;
+    for (size_t i = 0; i < np; i++)
+        for (int c = 0; c < 3; c++) {
+            double d = (double)a[i * 4 + c] - b[i * 4 + c];
+            se += d * d;
+            sr += b[i * 4 + c];
+        }
+    free(a);
+    free(b);
+    if (!(sr > 0)) {
+        fprintf(stderr, "exrtool: the reference's mean is not positive\n");
+        return 1;
+    }
+    printf("%.9g\n", sqrt(se / (3.0 * np)) / (sr / (3.0 * np)));
+    return 0;
+}
+
+/* errest and semean: the noise the image states for itself. */
+static int noise(const char *cmd, const char *path)
+{
+    uint32_t w, h;
+    float *a = load_var(path, &w, &h);
+    size_t np = (size_t)w * h;
+    double sum = 0, var = 0, var_corr = 0;
+    for (size_t i = 0; i < np; i++) {
+        double sd = 0;
+        for (int c = 0; c < 3; c++) {
+            sum += a[i * NCH + c];
+            double v = fmax(0.0, a[i * NCH + 4 + c]);
+            var += v;
+            sd += sqrt(v) / 3.0;
+        }
+        var_corr += sd * sd;
+    }
+    free(a);
+    double mean = sum / (3.0 * np);
+    if (!strcmp(cmd, "semean")) {
+        printf("%.9g %.9g\n", mean, sqrt(var_corr) / (double)np);
+        return 0;
+    }
+    if (!(mean > 0)) {
+        fprintf(stderr, "exrtool: the image's mean is not positive\n");
+        return 1;
+    }
+    printf("%.9g\n", sqrt(var / (3.0 * np)) / mean);
+    return 0;
+}
+
+static int average(const char *out, const char *pa, const char *pb)
+{
+    uint32_t wa, ha, wb, hb;
+    float *a = load_var(pa, &wa, &ha), *b = load_var(pb, &wb, &hb);
+    if (wa != wb || ha != hb) {
+        fprintf(stderr, "exrtool: sizes differ: %ux%u vs %ux%u\n", wa, ha, wb, hb);
+        return 1;
+    }
+    for (size_t i = 0; i < (size_t)wa * ha * NCH; i++)
+        a[i] = (i % NCH) < 4 ? 0.5f * (a[i] + b[i]) : 0.25f * (a[i] + b[i]);
+    write_exr(out, a, wa, ha);
+    free(a);
+    free(b);
+    return 0;
+}
+
+static int synth(int argc, char **argv)
+{
+    if (argc < 6 || argc % 2) {
+        fprintf(stderr, "usage: exrtool synth OUT.exr W H V [--checker AMP] [--var VAR]\n");
+        return 2;
+    }
+    uint32_t w = (uint32_t)atoi(argv[3]), h = (uint32_t)atoi(argv[4]);
+    double v = atof(argv[5]), amp = 0, var = 0;
+    for (int i = 6; i + 1 < argc; i += 2) {
+        if (!strcmp(argv[i], "--checker"))
+            amp = atof(argv[i + 1]);
+        else if (!strcmp(argv[i], "--var"))
+            var = atof(argv[i + 1]);
+        else {
+            fprintf(stderr, "exrtool: unknown option %s\n", argv[i]);
+            return 2;
+        }
+    }
+    if (w < 1 || h < 1 || w > 1u << 14 || h > 1u << 14) {
+        fprintf(stderr, "exrtool: bad size\n");
+        return 2;
+    }
+    float *px = malloc(sizeof(float) * NCH * w * h);
+    for (uint32_t y = 0; y < h; y++)
+        for (uint32_t x = 0; x < w; x++) {
+            float *p = &px[((size_t)y * w + x) * NCH];
+            for (int c = 0; c < 3; c++) {
+                p[c] = (float)(v + ((x + y) % 2 ? -amp : amp));
+                p[4 + c] = (float)var;
+            }
+            p[3] = 1.0f;
+        }
+    write_exr(argv[2], px, w, h);
+    free(px);
+    return 0;
+}
+
 int main(int argc, char **argv)
 {
+    if (argc >= 2 && !strcmp(argv[1], "relrmse"))
+        return relrmse(argc, argv);
+    if (argc == 3 && (!strcmp(argv[1], "errest") || !strcmp(argv[1], "semean")))
+        return noise(argv[1], argv[2]);
+    if (argc == 5 && !strcmp(argv[1], "average"))
+        return average(argv[2], argv[3], argv[4]);
+    if (argc >= 2 && !strcmp(argv[1], "synth"))
+        return synth(argc, argv);
     if (argc == 3 && !strcmp(argv[1], "mean")) {
         uint32_t w, h;
         float *a = load(argv[2], &w, &h);
@@ -55,7 +285,9 @@ int main(int argc, char **argv)
         return diff ? 1 : 0;
     }
     if (argc != 4 || (strcmp(argv[1], "cmp") && strcmp(argv[1], "rmse"))) {
-        fprintf(stderr, "usage: exrtool cmp A.exr B.exr | exrtool rmse A.exr REF.exr | exrtool mean A.exr\n");
+        fprintf(stderr, "usage: exrtool cmp A.exr B.exr | rmse A.exr REF.exr | mean A.exr | cmprect A B X0 Y0 W H |\n"
+                        "       relrmse A.exr REF.exr [--box N] | errest A.exr | semean A.exr |\n"
+                        "       average OUT.exr A.exr B.exr | synth OUT.exr W H V [--checker AMP] [--var VAR]\n");
         return 2;
     }
     uint32_t wa, ha, wb, hb;

@@ -1,0 +1,43 @@
+#!/bin/sh
+# exrtool's error metrics (relrmse, relrmse --box, errest, semean, average) on synthetic
+# EXRs with known differences, written by `exrtool synth`.
+# Usage: BUILD=build sh tests/integration/exrtool.sh
+. "$(dirname "$0")/lib.sh"
+lib_init exrtool
+
+# near NAME GOT WANT: |GOT - WANT| <= 1e-5 (1 + |WANT|)
+near() {
+  if awk -v g="$2" -v w="$3" 'BEGIN { d = g - w; if (d < 0) d = -d; a = w < 0 ? -w : w; exit !(g != "" && d <= 1e-5 * (1 + a)) }'; then
+    ok "$1: $2"
+  else
+    bad "$1: got '$2', want $3"
+  fi
+}
+
+# 9x5 images: REF = 1; A = 1 +- 0.2 in a pixel checkerboard (+ where x + y is even), its
+# variance channels 0.01; B = 1.1 everywhere.
+$X synth "$T/ref.exr" 9 5 1 && $X synth "$T/a.exr" 9 5 1 --checker 0.2 --var 0.01 && $X synth "$T/b.exr" 9 5 1.1 \
+  && ok "synth writes three images" || bad "synth failed"
+near "relrmse of identical images" "$($X relrmse "$T/ref.exr" "$T/ref.exr")" 0
+near "relrmse, checker +-0.2 on 1" "$($X relrmse "$T/a.exr" "$T/ref.exr")" 0.2
+near "relrmse, offset 0.1 on 1" "$($X relrmse "$T/b.exr" "$T/ref.exr")" 0.1
+near "relrmse divides by the reference's mean" "$($X relrmse "$T/ref.exr" "$T/b.exr")" "$(awk 'BEGIN { print 0.1 / 1.1 }')"
+# --box 8 on 9x5: blocks 8x5 (the checker cancels) and 1x5 (+ - + - +: mean 0.2 / 5 = 0.04):
+# RMS over the two blocks sqrt(0.04^2 / 2).
+near "relrmse --box 8, partial edge block" "$($X relrmse "$T/a.exr" "$T/ref.exr" --box 8)" "$(awk 'BEGIN { print 0.04 / sqrt(2) }')"
+near "relrmse --box 2 keeps an offset" "$($X relrmse "$T/b.exr" "$T/ref.exr" --box 2)" 0.1
+near "relrmse --box 1 is relrmse" "$($X relrmse "$T/a.exr" "$T/ref.exr" --box 1)" 0.2
+# errest: sqrt(0.01) over the mean of A (23 pixels at 1.2, 22 at 0.8: 45.2 / 45).
+near "errest from the variance channels" "$($X errest "$T/a.exr")" "$(awk 'BEGIN { print 0.1 / (45.2 / 45) }')"
+near "errest without variance is 0" "$($X errest "$T/ref.exr")" 0
+set -- $($X semean "$T/a.exr")
+near "semean: mean" "${1:-}" "$(awk 'BEGIN { print 45.2 / 45 }')"
+near "semean: standard error sqrt(45 x 0.01) / 45" "${2:-}" "$(awk 'BEGIN { print sqrt(0.45) / 45 }')"
+# average of A and REF: the checker halves, the variance quarters.
+$X average "$T/m.exr" "$T/a.exr" "$T/ref.exr" || bad "average failed"
+near "average: relrmse halves" "$($X relrmse "$T/m.exr" "$T/ref.exr")" 0.1
+near "average: variance / 4" "$($X errest "$T/m.exr")" "$(awk 'BEGIN { print 0.05 / (45.1 / 45) }')"
+if $X relrmse "$T/a.exr" "$T/ref.exr" --box 0 >/dev/null 2>&1; then bad "--box 0 accepted"; else ok "--box 0 refused"; fi
+$X synth "$T/small.exr" 4 4 1
+if $X relrmse "$T/a.exr" "$T/small.exr" >/dev/null 2>&1; then bad "sizes that differ accepted"; else ok "sizes that differ refused"; fi
+finish
