@@ -36,7 +36,7 @@ TOOLS      := exrtool junkpeer replay maketex texbench
 TOOL_BIN   := $(TOOLS:%=$(BUILD)/%)
 TOOL_OBJ   := $(TOOLS:%=$(BUILD)/obj/tests/tools/%.o)
 
-.PHONY: all deps test layers unit integration demo bench clean fuzz fuzz-ci tools stress test-slurm test-netns
+.PHONY: all deps test layers unit integration demo bench bench-media clean fuzz fuzz-ci tools stress test-slurm test-netns
 all: $(BUILD)/master $(BUILD)/worker $(TOOL_BIN)
 
 # Install what is missing; the stamp makes later builds skip the check.
@@ -116,6 +116,11 @@ bench: all
 	BUILD=$(BUILD) sh scripts/bench_motion.sh
 	BUILD=$(BUILD) sh scripts/bench_media.sh
 	BUILD=$(BUILD) sh scripts/bench_textures.sh
+
+# Media: error against time for vpt and the photon method against an honest VPT reference
+# (docs/benchmarks.md); quick run: make bench-media SCENES=fog_spot BUDGETS="2 6" REF_SPP=256
+bench-media: all
+	BUILD=$(BUILD) sh scripts/bench_media.sh
 
 # Fuzz targets (libFuzzer, clang): make fuzz FUZZ_SECONDS=60 [FUZZ_ONLY="fuzz_nvdb ..."]
 FUZZ_SECONDS ?= 30

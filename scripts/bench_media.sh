@@ -1,137 +1,191 @@
 #!/bin/sh
-# Benchmark: participating media, error against time. For three scenes (scenes/fog_spot: a
-# spot light in a fog box, light shafts; scenes/smoke: a dense grid cloud, strong multiple
-# scattering; scenes/cornell_fog: the Cornell box in thin fog) it renders the volumetric
-# path tracer (vpt), Jensen ray marching with a photon lookup per step (march) and with the
-# beam radiance estimate (beam) at several spp and two seeds, and reports RMSE against a
-# converged VPT reference (REF_SPP spp, cached in bench-out/ by scene and binary), time,
-# efficiency 1 / (MSE x time), the photon pass (time, photons/s, bytes/photon, share of the
-# render), and on fog_spot a sweep of photon count and gather radius with bias and variance
-# split (variance from two seeds: E|A - B|^2 = 2 var; bias^2 = MSE - var), and on smoke the
-# shadow transmittance cache against exact marched shadow rays. Writes
-# bench-out/media.txt and bench-out/media.png. Timings are measurements, never assertions.
-# Usage: BUILD=build sh scripts/bench_media.sh   (env: REF_SPP, SCENES, SWEEP=0 to skip the sweep)
+# Benchmark: participating media, error against time, against an honest reference.
+#
+# For each scene (scenes/fog_spot: a spot light in a fog box, light shafts; scenes/cornell_fog:
+# the Cornell box in thin fog; scenes/smoke: a dense grid cloud, strong multiple scattering)
+# and nothing tuned per scene beyond its JSON:
+#  1. The reference: VPT (--media-method vpt) at a path length that no longer matters. Probes
+#     at PROBE_SPP spp render the scene at each max_depth of DEPTHS with the same seed
+#     (common random numbers: the deeper image holds the same paths, only longer, so the
+#     change of the mean is the light of the extra vertices with little noise); the first
+#     depth whose mean moved less than the reference's standard error (the probe's, from its
+#     variance channels, scaled to REF_SPP) from the depth before is the reference depth.
+#     The reference is two independent seeds of REF_SPP/2 spp each at that depth, averaged;
+#     its own relRMSE is RMS(A - B) / (2 mean): E|A - B|^2 = 2 var of one seed, and the
+#     average has var / 2 (a bias the two seeds share, e.g. truncation, does not show in it:
+#     that is what the depth search is for). Cached under bench-out/ref/ by a key of the
+#     scene folder's files and these settings (not the binaries; REF_REDO=1 redoes it).
+#  2. The photon method at its defaults (the scene's volume.method, no override) at the spp
+#     of BUDGETS, and VPT at the reference depth at spp chosen (from one calibration render)
+#     to take about the same times. Time is the wall time of the whole master process
+#     (photon pass, worker start, scene build, render, EXR written). For each render:
+#     relRMSE against the reference, the same after an 8x8 box filter (low-frequency error:
+#     blotches), the renderer's own estimate from its variance channels (exrtool errest) and
+#     its ratio to the true error; for the photon method the ratio to VPT's relRMSE at the same
+#     time (VPT's error-time curve interpolated on log-log axes; '*' marks an extrapolation);
+#     per method the least-squares log-log slope of error against time.
+# Writes bench-out/media.txt, bench-out/media.png (gnuplot) and bench-out/media-SCENE.dat.
+# Timings are measurements of one run, never assertions; speed only as ratios of this run.
+# Usage: BUILD=build sh scripts/bench_media.sh
+#   env: SCENES ("fog_spot cornell_fog smoke"), BUDGETS (photon method spp, "2 6 20 60"; at 1 spp
+#        the variance channels, hence errest, are 0),
+#        REF_SPP (4096), PROBE_SPP (64), DEPTHS ("8 16 32 64"), BOX (8), SEED (11),
+#        VPT_DEPTH ("ref", or "scene" for the scene's own max_depth), REF_REDO (0)
 set -eu
 . scripts/lib.sh
-REF_SPP=${REF_SPP:-2048}
-SCENES=${SCENES:-"fog_spot smoke cornell_fog"}
-SWEEP=${SWEEP:-1}
+SCENES=${SCENES:-"fog_spot cornell_fog smoke"}
+BUDGETS=${BUDGETS:-"2 6 20 60"}
+REF_SPP=${REF_SPP:-4096}
+PROBE_SPP=${PROBE_SPP:-64}
+DEPTHS=${DEPTHS:-"8 16 32 64"}
+BOX=${BOX:-8}
+SEED=${SEED:-11}
+VPT_DEPTH=${VPT_DEPTH:-ref}
+REF_REDO=${REF_REDO:-0}
+CAL_SPP=8
 bench_init bmedia gnuplot-nox bc
 M="$BUILD/master"
 X="$BUILD/exrtool"
+mkdir -p "$OUT/ref"
+
+# render SCENE OUT SPP SEED [args]: one master run; prints its wall seconds (process start
+# to exit, photon pass included).
+render() {
+  r_s=$1; r_o=$2; r_spp=$3; r_seed=$4; shift 4
+  wall_secs "$M" "scenes/$r_s/$r_s.json" -o "$r_o" --workers 1 --threads "$CORES" --no-journal --spp "$r_spp" \
+    --seed "$r_seed" "$@"
+}
 pass_secs() { sed -n 's/.*photon pass: .* in \([0-9.]*\) s on.*/\1/p' "$1" | head -1; }
 
-render() { # scene method spp seed out [extra args]
-  s=$1; m=$2; spp=$3; seed=$4; o=$5; shift 5
-  logged "$M" "scenes/$s/$s.json" -o "$o" --workers 1 --threads "$CORES" --no-journal --spp "$spp" --seed "$seed" \
-    --media-method "$m" "$@"
+# reference SCENE: sets RDIR (the cache folder holding ref.exr and ref.txt), rendering what
+# is missing.
+reference() {
+  sc=$1
+  key=$( (find "scenes/$sc" -type f | LC_ALL=C sort | xargs cat; echo "ref v1 $REF_SPP $PROBE_SPP $DEPTHS") | sha256sum | cut -c1-16)
+  RDIR="$OUT/ref/$sc-$key"
+  if [ "$REF_REDO" != 1 ] && [ -f "$RDIR/ref.txt" ] && [ -f "$RDIR/ref.exr" ]; then
+    echo "media: $sc: cached reference $RDIR" >&2
+    return 0
+  fi
+  rm -rf "$RDIR"
+  mkdir -p "$RDIR.tmp"
+  echo "media: $sc: reference depth search, vpt at $PROBE_SPP spp, max_depth $DEPTHS" >&2
+  prev=""; pmean=""; dref=""; note=""; mv_=0; sref=0
+  for d in $DEPTHS; do
+    render "$sc" "$RDIR.tmp/probe-$d.exr" "$PROBE_SPP" 7 --media-method vpt --max-depth "$d" >/dev/null
+    set -- $("$X" semean "$RDIR.tmp/probe-$d.exr")
+    mean=$1; se=$2
+    # the reference's standard error: the probe's, scaled from PROBE_SPP to REF_SPP spp
+    sref=$(awk -v se="$se" -v a="$PROBE_SPP" -v b="$REF_SPP" 'BEGIN { printf "%.6g", se * sqrt(a / b) }')
+    echo "depth $d: mean $mean, standard error $se at $PROBE_SPP spp ($sref at $REF_SPP spp)" >>"$RDIR.tmp/probes.txt"
+    if [ -n "$prev" ]; then
+      mv_=$(awk -v a="$mean" -v b="$pmean" 'BEGIN { d = a - b; printf "%.6g", d }')
+      if awk -v m="$mv_" -v s="$sref" 'BEGIN { if (m < 0) m = -m; exit !(m < s) }'; then
+        dref=$d
+        note="mean moved $mv_ from max_depth $prev to $d, less than the reference's standard error $sref"
+        break
+      fi
+    fi
+    prev=$d; pmean=$mean
+  done
+  if [ -z "$dref" ]; then
+    dref=$prev
+    note="NOT CONVERGED: the mean still moved $mv_ from the depth before to $dref, more than the reference's standard error $sref"
+  fi
+  half=$((REF_SPP / 2))
+  echo "media: $sc: reference, vpt, max_depth $dref, 2 seeds x $half spp" >&2
+  ta=$(render "$sc" "$RDIR.tmp/a.exr" "$half" 1001 --media-method vpt --max-depth "$dref")
+  tb=$(render "$sc" "$RDIR.tmp/b.exr" "$half" 1002 --media-method vpt --max-depth "$dref")
+  logged "$X" average "$RDIR.tmp/ref.exr" "$RDIR.tmp/a.exr" "$RDIR.tmp/b.exr"
+  rel=$(awk -v r="$("$X" relrmse "$RDIR.tmp/a.exr" "$RDIR.tmp/b.exr")" 'BEGIN { printf "%.6g", r / 2 }')
+  rlf=$(awk -v r="$("$X" relrmse "$RDIR.tmp/a.exr" "$RDIR.tmp/b.exr" --box "$BOX")" 'BEGIN { printf "%.6g", r / 2 }')
+  set -- $("$X" semean "$RDIR.tmp/ref.exr")
+  # ref.txt: depth, relRMSE, low-frequency relRMSE, mean, seconds of the two renders, note
+  printf '%s %s %s %s %s\n%s\n' "$dref" "$rel" "$rlf" "$1" "$(echo "$ta + $tb" | bc -l)" "$note" >"$RDIR.tmp/ref.txt"
+  rm -f "$RDIR.tmp/a.exr" "$RDIR.tmp/b.exr" "$RDIR.tmp"/probe-*.exr
+  mv "$RDIR.tmp" "$RDIR"
 }
 
-: >"$T/rows"
-for s in $SCENES; do
-  REF="$OUT/$s-ref-$REF_SPP-$(ref_key "scenes/$s/$s.json").exr"
-  if [ ! -f "$REF" ]; then
-    echo "media: rendering the $s reference (vpt, $REF_SPP spp, once)"
-    render "$s" vpt "$REF_SPP" 999 "$REF"
-  fi
-  for cfg in "vpt 4" "vpt 16" "vpt 64" "march 1" "march 4" "beam 1" "beam 4"; do
-    set -- $cfg
-    m=$1; spp=$2
-    for seed in 11 12; do
-      render "$s" "$m" "$spp" "$seed" "$T/$seed.exr"
-      w=$(render_secs)
-      ps=$(pass_secs "$T/log")
-      [ -n "$ps" ] && [ ! -s "$T/pass-$s" ] && grep "photon pass:" "$T/log" | head -1 | sed "s/^master: info: media: /$s: /" >"$T/pass-$s"
-      echo "$w ${ps:-0}" >"$T/t$seed"
-    done
-    r1=$("$X" rmse "$T/11.exr" "$REF")
-    r2=$("$X" rmse "$T/12.exr" "$REF")
-    d=$("$X" rmse "$T/11.exr" "$T/12.exr")
-    t1=$(cut -d' ' -f1 "$T/t11"); t2=$(cut -d' ' -f1 "$T/t12"); p1=$(cut -d' ' -f2 "$T/t11")
-    # time = render wall + photon pass (the pass is the master's, before the render)
-    echo "$s $m $spp $r1 $r2 $d $t1 $t2 $p1" >>"$T/rows"
+: >"$T/summary"
+: >"$OUT/media.txt"
+for sc in $SCENES; do
+  [ -f "scenes/$sc/$sc.json" ] || { echo "bench_media: no scene scenes/$sc/$sc.json" >&2; exit 1; }
+  reference "$sc"
+  REF="$RDIR/ref.exr"
+  { read -r dref rrel rlf rmean rsecs; read -r note; } <"$RDIR/ref.txt"
+  pm=$(sed -n 's/.*"method": *"\([a-z]*\)".*/\1/p' "scenes/$sc/$sc.json" | head -1)
+  pm=${pm:-beam}
+  sdepth=$(sed -n 's/.*"max_depth": *\([0-9]*\).*/\1/p' "scenes/$sc/$sc.json" | head -1)
+  vdepth=$dref
+  [ "$VPT_DEPTH" = scene ] && vdepth=$sdepth
+  : >"$T/rows-$sc"
+  # The photon method at its defaults (no --media-method: the scene's method and settings).
+  for spp in $BUDGETS; do
+    echo "media: $sc: $pm, $spp spp" >&2
+    t=$(render "$sc" "$T/p.exr" "$spp" "$SEED")
+    ps=$(pass_secs "$T/log")
+    echo "$pm $spp $t $("$X" relrmse "$T/p.exr" "$REF") $("$X" relrmse "$T/p.exr" "$REF" --box "$BOX") $("$X" errest "$T/p.exr") ${ps:-0}" >>"$T/rows-$sc"
   done
+  # VPT: spp for the same times, from one calibration render at CAL_SPP spp.
+  tc=$(render "$sc" "$T/c.exr" "$CAL_SPP" "$SEED" --media-method vpt --max-depth "$vdepth")
+  for t in $(awk -v m="$pm" '$1 == m {print $3}' "$T/rows-$sc"); do
+    spp=$(awk -v t="$t" -v c="$tc" -v n="$CAL_SPP" 'BEGIN { s = int(n * t / c + 0.5); print s < 1 ? 1 : s }')
+    echo "media: $sc: vpt, $spp spp (max_depth $vdepth)" >&2
+    t=$(render "$sc" "$T/v.exr" "$spp" "$SEED" --media-method vpt --max-depth "$vdepth")
+    echo "vpt $spp $t $("$X" relrmse "$T/v.exr" "$REF") $("$X" relrmse "$T/v.exr" "$REF" --box "$BOX") $("$X" errest "$T/v.exr") 0" >>"$T/rows-$sc"
+  done
+  awk -v m=vpt '$1 == m {print $3, $4}' "$T/rows-$sc" >"$T/vcurve"
+  awk -v m=vpt '$1 == m {print $3, $5}' "$T/rows-$sc" >"$T/vcurve-lf"
+  gm=$(awk -v m="$pm" '$1 == m {print $3, $4}' "$T/rows-$sc" | while read -r t r; do
+         vr=$(loglog_interp "$t" <"$T/vcurve"); echo "$r ${vr%\*}"; done | awk '{ s += log($1 / $2); n++ } END { printf "%.3f", exp(s / n) }')
+  gml=$(awk -v m="$pm" '$1 == m {print $3, $5}' "$T/rows-$sc" | while read -r t r; do
+         vr=$(loglog_interp "$t" <"$T/vcurve-lf"); echo "$r ${vr%\*}"; done | awk '{ s += log($1 / $2); n++ } END { printf "%.3f", exp(s / n) }')
+  {
+    echo "== $sc: reference vpt, max_depth $dref (scene: $sdepth), $REF_SPP spp (2 seeds x $((REF_SPP / 2))), mean $rmean, own relRMSE $rrel, low-frequency (box $BOX) $rlf, $(printf '%.1f' "$rsecs") s"
+    echo "   depth: $note"
+    printf '%-6s %5s %8s %9s %9s %9s %9s %9s %9s %9s %8s %8s\n' method spp secs relRMSE "-ref" lowfreq errest est/true ref_rel ref_lf "vs_vpt" pass_s
+    while read -r m spp t r lf e ps; do
+      ratio=""
+      if [ "$m" != vpt ]; then
+        vr=$(loglog_interp "$t" <"$T/vcurve")
+        ratio=$(awk -v r="$r" -v v="${vr%\*}" -v x="$vr" 'BEGIN { printf "%.3f%s", r / v, (x ~ /\*/) ? "*" : "" }')
+      fi
+      awk -v m="$m" -v spp="$spp" -v t="$t" -v r="$r" -v lf="$lf" -v e="$e" -v rr="$rrel" -v rl="$rlf" -v q="$ratio" -v ps="$ps" \
+        'BEGIN { x = r * r - rr * rr; printf "%-6s %5d %8.3f %9.5f %9.5f %9.5f %9.5f %9s %9.5f %9.5f %8s %8s\n", m, spp, t, r, (x > 0 ? sqrt(x) : 0), lf, e,
+                 (r > 0 && e > 0 ? sprintf("%.3f", e / r) : "-"), rr, rl, (q == "" ? "-" : q), (m == "vpt" ? "-" : sprintf("%.3f", ps)) }'
+    done <"$T/rows-$sc"
+    for m in "$pm" vpt; do
+      sl=$(awk -v m="$m" '$1 == m {print $3, $4}' "$T/rows-$sc" | loglog_slope)
+      sll=$(awk -v m="$m" '$1 == m {print $3, $5}' "$T/rows-$sc" | loglog_slope)
+      span=$(awk -v m="$m" '$1 == m { if (!n++ || $3 < lo) lo = $3; if ($3 > hi) hi = $3 } END { printf "%.1f", hi / lo }' "$T/rows-$sc")
+      echo "   $m: log-log slope of relRMSE against time $sl (low-frequency $sll), over a time span of ${span}x (-0.5: unbiased Monte Carlo)"
+    done
+    echo "   $pm / vpt relRMSE at matched time: $gm (geometric mean over the budgets; low-frequency $gml); below 1: $pm wins"
+    echo
+  } | tee -a "$OUT/media.txt"
+  echo "$sc $pm $dref $rrel $gm $gml" >>"$T/summary"
+  awk '{print $1, $2, $3, $4, $5}' "$T/rows-$sc" >"$OUT/media-$sc.dat"
+  echo "$rrel $rlf" >"$OUT/media-$sc-ref.dat"
 done
 
 {
-  printf 'Media benchmark: %s cores, 1 worker x %s threads; RMSE vs a %s-spp VPT reference; time = render + photon pass; mean of seeds 11, 12\n' "$CORES" "$CORES" "$REF_SPP"
-  printf '%-12s %-6s %5s %11s %11s %11s %9s %9s %12s\n' scene method spp rmse bias var secs pass_s 'eff=1/(mse*s)'
-  awk '{ mse=($4*$4+$5*$5)/2; var=$6*$6/2; b2=mse-var; if (b2<0) b2=0; t=($7+$8)/2+$9;
-         printf "%-12s %-6s %5d %11.6f %11.6f %11.6f %9.3f %9.3f %12.1f\n", $1, $2, $3, sqrt(mse), sqrt(b2), sqrt(var), t, $9, 1/(mse*t) }' "$T/rows"
-  echo
-  echo "Best efficiency per scene and method, and ratios:"
-  awk '{ mse=($4*$4+$5*$5)/2; t=($7+$8)/2+$9; e=1/(mse*t); k=$1" "$2; if (e>best[k]) best[k]=e; sc[$1]=1 }
-       END { for (s in sc) {
-               printf "%-12s vpt %10.1f  march %10.1f  beam %10.1f   beam/march %6.2fx   best photon map/vpt %6.2fx\n", s,
-                 best[s" vpt"], best[s" march"], best[s" beam"], best[s" beam"]/best[s" march"],
-                 (best[s" beam"]>best[s" march"]?best[s" beam"]:best[s" march"])/best[s" vpt"] } }' "$T/rows"
-  echo
-  echo "Photon pass (master, $CORES threads), first run per scene:"
-  for s in $SCENES; do [ -f "$T/pass-$s" ] && cat "$T/pass-$s"; done
-} | tee "$OUT/media.txt"
-
-for s in $SCENES; do
-  for m in vpt march beam; do
-    awk -v s="$s" -v m="$m" '$1 == s && $2 == m { mse=($4*$4+$5*$5)/2; print ($7+$8)/2+$9, sqrt(mse) }' "$T/rows" >"$OUT/media-$s-$m.dat"
-  done
-done
-
-# Shadow transmittance cache against exact marched shadow rays (grid scenes: smoke), beam at
-# 1 spp, same seed: the RMSE between the two images is the cache's bias plus the marched
-# shadows' own noise.
-if echo " $SCENES " | grep -q " smoke "; then
-  mkdir -p "$T/exact"
-  cp scenes/smoke/* "$T/exact/"
-  sed 's/"volume": {/"volume": {"shadow_cache": false, /' scenes/smoke/smoke.json >"$T/exact/smoke.json"
-  logged "$M" scenes/smoke/smoke.json -o "$T/c.exr" --workers 1 --threads "$CORES" --no-journal --spp 1 --seed 11
-  wc_=$(render_secs)
-  logged "$M" "$T/exact/smoke.json" -o "$T/e.exr" --workers 1 --threads "$CORES" --no-journal --spp 1 --seed 11
-  we_=$(render_secs)
-  REF="$OUT/smoke-ref-$REF_SPP-$(ref_key scenes/smoke/smoke.json).exr"
-  printf 'smoke beam 1 spp: shadow cache %.3f s rmse %s; exact marched shadows %.3f s rmse %s; cached vs exact %s\n' \
-    "$wc_" "$("$X" rmse "$T/c.exr" "$REF")" "$we_" "$("$X" rmse "$T/e.exr" "$REF")" "$("$X" rmse "$T/c.exr" "$T/e.exr")" | tee -a "$OUT/media.txt"
-fi
-
-# Default-settings share: photon pass against the render at the scene's own spp.
-for s in $SCENES; do
-  logged "$M" "scenes/$s/$s.json" -o "$T/d.exr" --workers 1 --threads "$CORES" --no-journal
-  w=$(render_secs); p=$(pass_secs "$T/log")
-  # Broadcast: the worker's fetch of every blob (the volume blob is nearly all of it) and
-  # its scene build, from the JOB's arrival to READY.
-  bc=$(sed -n 's/.*fetched and the scene built in \([0-9.]*\) s.*/\1/p' "$T/log" | sort -n | tail -1)
-  printf '%-12s default settings: render %.3f s, photon pass %.3f s, broadcast and load %.3f s (%.1f %% of the render)\n' \
-    "$s" "$w" "${p:-0}" "${bc:-0}" "$(echo "100 * (${p:-0} + ${bc:-0}) / $w" | bc -l)" | tee -a "$OUT/media.txt"
-done
-
-if [ "$SWEEP" = 1 ]; then
-  s=fog_spot
-  REF="$OUT/$s-ref-$REF_SPP-$(ref_key "scenes/$s/$s.json").exr"
-  echo | tee -a "$OUT/media.txt"
-  echo "Sweep on $s (beam, 2 spp): photons x gather radius; bias and variance (RMSE units)" | tee -a "$OUT/media.txt"
-  printf '%9s %7s %11s %11s %11s %9s\n' photons radius rmse bias var secs | tee -a "$OUT/media.txt"
-  for n in 12500 50000 200000; do
-    for r in 0.035 0.07 0.14; do
-      render "$s" beam 2 11 "$T/a.exr" --photons "$n" --gather-radius "$r"
-      ta=$(render_secs); pa=$(pass_secs "$T/log")
-      render "$s" beam 2 12 "$T/b.exr" --photons "$n" --gather-radius "$r"
-      ra=$("$X" rmse "$T/a.exr" "$REF"); rb=$("$X" rmse "$T/b.exr" "$REF"); d=$("$X" rmse "$T/a.exr" "$T/b.exr")
-      awk -v n="$n" -v r="$r" -v ra="$ra" -v rb="$rb" -v d="$d" -v t="$ta" -v p="${pa:-0}" 'BEGIN {
-        mse=(ra*ra+rb*rb)/2; var=d*d/2; b2=mse-var; if (b2<0) b2=0;
-        printf "%9d %7.3f %11.6f %11.6f %11.6f %9.3f\n", n, r, sqrt(mse), sqrt(b2), sqrt(var), t+p }' | tee -a "$OUT/media.txt"
-    done
-  done
-fi
+  echo "Summary (1 worker x $CORES threads; load average at the end: $(cut -d' ' -f1-3 /proc/loadavg)):"
+  printf '%-12s %-6s %9s %9s %14s %14s\n' scene method ref_depth ref_rel "relRMSE/vpt" "lowfreq/vpt"
+  awk '{ printf "%-12s %-6s %9s %9.5f %14s %14s\n", $1, $2, $3, $4, $5, $6 }' "$T/summary"
+} | tee -a "$OUT/media.txt"
 
 set -- $SCENES
 n=$#
 {
-  echo "set terminal png size $((450 * n)),420 noenhanced"
+  echo "set terminal png size $((460 * n)),440 noenhanced"
   echo "set output \"$OUT/media.png\""
-  echo "set multiplot layout 1,$n title \"Media: RMSE against a converged VPT reference vs time (log-log)\""
-  echo "set logscale xy; set grid; set xlabel \"seconds (render + photon pass)\"; set ylabel \"RMSE\""
-  for s in $SCENES; do
-    echo "set title \"$s\""
-    echo "plot \"$OUT/media-$s-vpt.dat\" using 1:2 with linespoints title \"vpt\", \"$OUT/media-$s-march.dat\" using 1:2 with linespoints title \"march (per-step lookups)\", \"$OUT/media-$s-beam.dat\" using 1:2 with linespoints title \"beam\""
+  echo "set multiplot layout 1,$n title \"Media: relRMSE against an honest VPT reference vs wall time (log-log); dashed: box $BOX (low frequency)\""
+  echo "set logscale xy; set grid; set xlabel \"seconds (whole run, photon pass included)\"; set ylabel \"relRMSE\"; set key bottom left"
+  for sc in $SCENES; do
+    d="$OUT/media-$sc.dat"
+    r=$(cut -d' ' -f1 "$OUT/media-$sc-ref.dat")
+    echo "set title \"$sc\""
+    echo "plot \"< grep -v '^vpt' $d\" using 3:4 with linespoints lt 1 title \"photon (scene default)\", \"< grep -v '^vpt' $d\" using 3:5 with linespoints lt 1 dt 2 notitle, \"< grep '^vpt' $d\" using 3:4 with linespoints lt 2 title \"vpt\", \"< grep '^vpt' $d\" using 3:5 with linespoints lt 2 dt 2 notitle, $r with lines lt 0 title \"reference's own relRMSE\""
   done
   echo "unset multiplot"
 } | plot "$OUT/media.png"

@@ -55,3 +55,25 @@ plot() {
     cat >/dev/null
   fi
 }
+
+# files_key FILE...: 16 hex digits of the files' contents alone (not the binaries), for a
+# cache of results that depend on a scene and settings but not on this build.
+files_key() { cat "$@" | sha256sum | cut -c1-16; }
+
+# loglog_slope: least-squares slope of log(y) against log(x) over the "x y" lines on stdin
+# (lines with a non-positive x or y are skipped); "nan" for fewer than two points.
+loglog_slope() {
+  awk '$1 > 0 && $2 > 0 { x = log($1); y = log($2); n++; sx += x; sy += y; sxx += x * x; sxy += x * y }
+       END { d = n * sxx - sx * sx; if (n < 2 || d == 0) print "nan"; else printf "%.4f\n", (n * sxy - sx * sy) / d }'
+}
+
+# loglog_interp X: y at X on the piecewise-linear log-log curve through the "x y" points on
+# stdin (any order); outside their range the nearest end segment is extended and a "*" is
+# appended (an extrapolation). "nan" for fewer than two points.
+loglog_interp() {
+  sort -g | awk -v q="$1" '$1 > 0 && $2 > 0 { n++; x[n] = log($1); y[n] = log($2) }
+    END { if (n < 2) { print "nan"; exit }
+          lq = log(q); i = 1; while (i < n - 1 && lq > x[i + 1]) i++
+          f = (x[i + 1] == x[i]) ? 0 : (lq - x[i]) / (x[i + 1] - x[i])
+          printf "%.6g%s\n", exp(y[i] + f * (y[i + 1] - y[i])), (lq < x[1] || lq > x[n]) ? "*" : "" }'
+}
