@@ -118,7 +118,7 @@ bench: all
 	BUILD=$(BUILD) sh scripts/bench_textures.sh
 
 # Media: error against time for vpt and the photon method against an honest VPT reference
-# (docs/benchmarks.md); quick run: make bench-media SCENES=fog_spot BUDGETS="2 6" REF_SPP=256
+# (docs/benchmarks.md); quick run: SCENES=fog_spot BUDGETS="2 6" REF_SPP=256 make bench-media
 bench-media: all
 	BUILD=$(BUILD) sh scripts/bench_media.sh
 

@@ -67,7 +67,7 @@ reference() {
     echo "media: $sc: cached reference $RDIR" >&2
     return 0
   fi
-  rm -rf "$RDIR"
+  rm -rf "$RDIR" "$RDIR.tmp"
   mkdir -p "$RDIR.tmp"
   echo "media: $sc: reference depth search, vpt at $PROBE_SPP spp, max_depth $DEPTHS" >&2
   prev=""; pmean=""; dref=""; note=""; mv_=0; sref=0
