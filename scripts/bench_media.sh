@@ -27,14 +27,14 @@
 # Writes bench-out/media.txt, bench-out/media.png (gnuplot) and bench-out/media-SCENE.dat.
 # Timings are measurements of one run, never assertions; speed only as ratios of this run.
 # Usage: BUILD=build sh scripts/bench_media.sh
-#   env: SCENES ("fog_spot cornell_fog smoke"), BUDGETS (photon method spp, "2 6 20 60"; at 1 spp
+#   env: SCENES ("fog_spot cornell_fog smoke"), BUDGETS (photon method spp, "2 8 30 100"; at 1 spp
 #        the variance channels, hence errest, are 0),
 #        REF_SPP (4096), PROBE_SPP (64), DEPTHS ("8 16 32 64"), BOX (8), SEED (11),
 #        VPT_DEPTH ("ref", or "scene" for the scene's own max_depth), REF_REDO (0)
 set -eu
 . scripts/lib.sh
 SCENES=${SCENES:-"fog_spot cornell_fog smoke"}
-BUDGETS=${BUDGETS:-"2 6 20 60"}
+BUDGETS=${BUDGETS:-"2 8 30 100"}
 REF_SPP=${REF_SPP:-4096}
 PROBE_SPP=${PROBE_SPP:-64}
 DEPTHS=${DEPTHS:-"8 16 32 64"}
@@ -102,7 +102,7 @@ reference() {
   set -- $("$X" semean "$RDIR.tmp/ref.exr")
   # ref.txt: depth, relRMSE, low-frequency relRMSE, mean, seconds of the two renders, note
   printf '%s %s %s %s %s\n%s\n' "$dref" "$rel" "$rlf" "$1" "$(echo "$ta + $tb" | bc -l)" "$note" >"$RDIR.tmp/ref.txt"
-  rm -f "$RDIR.tmp/a.exr" "$RDIR.tmp/b.exr" "$RDIR.tmp"/probe-*.exr
+  rm -f "$RDIR.tmp/a.exr" "$RDIR.tmp/b.exr" "$RDIR.tmp"/probe-*.exr "$RDIR.tmp"/*.stats.json
   mv "$RDIR.tmp" "$RDIR"
 }
 
@@ -134,43 +134,52 @@ for sc in $SCENES; do
     t=$(render "$sc" "$T/v.exr" "$spp" "$SEED" --media-method vpt --max-depth "$vdepth")
     echo "vpt $spp $t $("$X" relrmse "$T/v.exr" "$REF") $("$X" relrmse "$T/v.exr" "$REF" --box "$BOX") $("$X" errest "$T/v.exr") 0" >>"$T/rows-$sc"
   done
-  awk -v m=vpt '$1 == m {print $3, $4}' "$T/rows-$sc" >"$T/vcurve"
-  awk -v m=vpt '$1 == m {print $3, $5}' "$T/rows-$sc" >"$T/vcurve-lf"
-  gm=$(awk -v m="$pm" '$1 == m {print $3, $4}' "$T/rows-$sc" | while read -r t r; do
-         vr=$(loglog_interp "$t" <"$T/vcurve"); echo "$r ${vr%\*}"; done | awk '{ s += log($1 / $2); n++ } END { printf "%.3f", exp(s / n) }')
-  gml=$(awk -v m="$pm" '$1 == m {print $3, $5}' "$T/rows-$sc" | while read -r t r; do
-         vr=$(loglog_interp "$t" <"$T/vcurve-lf"); echo "$r ${vr%\*}"; done | awk '{ s += log($1 / $2); n++ } END { printf "%.3f", exp(s / n) }')
+  # The true error: the reference's own error removed in quadrature (the two are
+  # independent, so E relRMSE^2 = true^2 + ref_rel^2); 0 where the reference's noise hides it.
+  # Columns of rows: method spp secs relRMSE lowfreq errest pass_s true lowfreq_true
+  awk -v rr="$rrel" -v rl="$rlf" '{ x = $4 * $4 - rr * rr; y = $5 * $5 - rl * rl
+    print $0, (x > 0 ? sqrt(x) : 0), (y > 0 ? sqrt(y) : 0) }' "$T/rows-$sc" >"$T/rows2" && mv "$T/rows2" "$T/rows-$sc"
+  awk -v m=vpt '$1 == m {print $3, $8}' "$T/rows-$sc" >"$T/vcurve"
+  awk -v m=vpt '$1 == m {print $3, $9}' "$T/rows-$sc" >"$T/vcurve-lf"
+  # matched MEASURE CURVE: geometric mean over the photon budgets of photon / VPT at the same time
+  matched() {
+    awk -v m="$pm" -v c="$1" '$1 == m {print $3, $c}' "$T/rows-$sc" | while read -r t r; do
+      vr=$(loglog_interp "$t" <"$2"); echo "$r ${vr%\*}"; done |
+      awk '$1 > 0 && $2 > 0 && $2 != "nan" { s += log($1 / $2); n++ } END { if (n) printf "%.3f", exp(s / n); else print "nan" }'
+  }
+  gm=$(matched 8 "$T/vcurve")
+  gml=$(matched 9 "$T/vcurve-lf")
   {
     echo "== $sc: reference vpt, max_depth $dref (scene: $sdepth), $REF_SPP spp (2 seeds x $((REF_SPP / 2))), mean $rmean, own relRMSE $rrel, low-frequency (box $BOX) $rlf, $(printf '%.1f' "$rsecs") s"
     echo "   depth: $note"
-    printf '%-6s %5s %8s %9s %9s %9s %9s %9s %9s %9s %8s %8s\n' method spp secs relRMSE "-ref" lowfreq errest est/true ref_rel ref_lf "vs_vpt" pass_s
-    while read -r m spp t r lf e ps; do
+    printf '%-6s %5s %8s %9s %9s %9s %9s %9s %8s %9s %9s %8s %8s\n' method spp secs relRMSE true lowfreq lf_true errest est/true ref_rel ref_lf vs_vpt pass_s
+    while read -r m spp t r lf e ps tr tl; do
       ratio=""
       if [ "$m" != vpt ]; then
         vr=$(loglog_interp "$t" <"$T/vcurve")
-        ratio=$(awk -v r="$r" -v v="${vr%\*}" -v x="$vr" 'BEGIN { printf "%.3f%s", r / v, (x ~ /\*/) ? "*" : "" }')
+        ratio=$(awk -v r="$tr" -v v="${vr%\*}" -v x="$vr" 'BEGIN { if (r > 0 && v > 0) printf "%.3f%s", r / v, (x ~ /\*/) ? "*" : ""; else print "-" }')
       fi
-      awk -v m="$m" -v spp="$spp" -v t="$t" -v r="$r" -v lf="$lf" -v e="$e" -v rr="$rrel" -v rl="$rlf" -v q="$ratio" -v ps="$ps" \
-        'BEGIN { x = r * r - rr * rr; printf "%-6s %5d %8.3f %9.5f %9.5f %9.5f %9.5f %9s %9.5f %9.5f %8s %8s\n", m, spp, t, r, (x > 0 ? sqrt(x) : 0), lf, e,
-                 (r > 0 && e > 0 ? sprintf("%.3f", e / r) : "-"), rr, rl, (q == "" ? "-" : q), (m == "vpt" ? "-" : sprintf("%.3f", ps)) }'
+      awk -v m="$m" -v spp="$spp" -v t="$t" -v r="$r" -v lf="$lf" -v e="$e" -v tr="$tr" -v tl="$tl" -v rr="$rrel" -v rl="$rlf" -v q="$ratio" -v ps="$ps" \
+        'BEGIN { printf "%-6s %5d %8.3f %9.5f %9.5f %9.5f %9.5f %9.5f %8s %9.5f %9.5f %8s %8s\n", m, spp, t, r, tr, lf, tl, e,
+                 (tr > 0 && e > 0 ? sprintf("%.3f", e / tr) : "-"), rr, rl, (q == "" ? "-" : q), (m == "vpt" ? "-" : sprintf("%.3f", ps)) }'
     done <"$T/rows-$sc"
     for m in "$pm" vpt; do
-      sl=$(awk -v m="$m" '$1 == m {print $3, $4}' "$T/rows-$sc" | loglog_slope)
-      sll=$(awk -v m="$m" '$1 == m {print $3, $5}' "$T/rows-$sc" | loglog_slope)
+      sl=$(awk -v m="$m" '$1 == m {print $3, $8}' "$T/rows-$sc" | loglog_slope)
+      sll=$(awk -v m="$m" '$1 == m {print $3, $9}' "$T/rows-$sc" | loglog_slope)
       span=$(awk -v m="$m" '$1 == m { if (!n++ || $3 < lo) lo = $3; if ($3 > hi) hi = $3 } END { printf "%.1f", hi / lo }' "$T/rows-$sc")
-      echo "   $m: log-log slope of relRMSE against time $sl (low-frequency $sll), over a time span of ${span}x (-0.5: unbiased Monte Carlo)"
+      echo "   $m: log-log slope of the true relRMSE against time $sl (low-frequency $sll), over a time span of ${span}x (-0.5: unbiased Monte Carlo)"
     done
-    echo "   $pm / vpt relRMSE at matched time: $gm (geometric mean over the budgets; low-frequency $gml); below 1: $pm wins"
+    echo "   $pm / vpt true relRMSE at matched time: $gm (geometric mean over the budgets; low-frequency $gml); below 1: $pm wins"
     echo
   } | tee -a "$OUT/media.txt"
   echo "$sc $pm $dref $rrel $gm $gml" >>"$T/summary"
-  awk '{print $1, $2, $3, $4, $5}' "$T/rows-$sc" >"$OUT/media-$sc.dat"
+  awk '{print $1, $2, $3, $4, $5, $8, $9}' "$T/rows-$sc" >"$OUT/media-$sc.dat"
   echo "$rrel $rlf" >"$OUT/media-$sc-ref.dat"
 done
 
 {
   echo "Summary (1 worker x $CORES threads; load average at the end: $(cut -d' ' -f1-3 /proc/loadavg)):"
-  printf '%-12s %-6s %9s %9s %14s %14s\n' scene method ref_depth ref_rel "relRMSE/vpt" "lowfreq/vpt"
+  printf '%-12s %-6s %9s %9s %14s %14s\n' scene method ref_depth ref_rel "true/vpt" "lf_true/vpt"
   awk '{ printf "%-12s %-6s %9s %9.5f %14s %14s\n", $1, $2, $3, $4, $5, $6 }' "$T/summary"
 } | tee -a "$OUT/media.txt"
 
@@ -179,13 +188,13 @@ n=$#
 {
   echo "set terminal png size $((460 * n)),440 noenhanced"
   echo "set output \"$OUT/media.png\""
-  echo "set multiplot layout 1,$n title \"Media: relRMSE against an honest VPT reference vs wall time (log-log); dashed: box $BOX (low frequency)\""
+  echo "set multiplot layout 1,$n title \"Media: true relRMSE (reference noise removed) vs wall time (log-log); dashed: box $BOX (low frequency)\""
   echo "set logscale xy; set grid; set xlabel \"seconds (whole run, photon pass included)\"; set ylabel \"relRMSE\"; set key bottom left"
   for sc in $SCENES; do
     d="$OUT/media-$sc.dat"
     r=$(cut -d' ' -f1 "$OUT/media-$sc-ref.dat")
     echo "set title \"$sc\""
-    echo "plot \"< grep -v '^vpt' $d\" using 3:4 with linespoints lt 1 title \"photon (scene default)\", \"< grep -v '^vpt' $d\" using 3:5 with linespoints lt 1 dt 2 notitle, \"< grep '^vpt' $d\" using 3:4 with linespoints lt 2 title \"vpt\", \"< grep '^vpt' $d\" using 3:5 with linespoints lt 2 dt 2 notitle, $r with lines lt 0 title \"reference's own relRMSE\""
+    echo "plot \"< grep -v '^vpt' $d\" using 3:6 with linespoints lt 1 title \"photon (scene default)\", \"< grep -v '^vpt' $d\" using 3:7 with linespoints lt 1 dt 2 notitle, \"< grep '^vpt' $d\" using 3:6 with linespoints lt 2 title \"vpt\", \"< grep '^vpt' $d\" using 3:7 with linespoints lt 2 dt 2 notitle, $r with lines lt 0 title \"reference's own relRMSE\""
   done
   echo "unset multiplot"
 } | plot "$OUT/media.png"
