@@ -186,15 +186,15 @@ done
 set -- $SCENES
 n=$#
 {
-  echo "set terminal png size $((460 * n)),440 noenhanced"
+  echo "set terminal png size $((460 * n)),520 noenhanced"
   echo "set output \"$OUT/media.png\""
-  echo "set multiplot layout 1,$n title \"Media: true relRMSE (reference noise removed) vs wall time (log-log); dashed: box $BOX (low frequency)\""
-  echo "set logscale xy; set grid; set xlabel \"seconds (whole run, photon pass included)\"; set ylabel \"relRMSE\"; set key bottom left"
+  echo "set multiplot layout 1,$n title \"Media: true relRMSE vs wall time\""
+  echo "set logscale xy; set grid; set xlabel \"seconds (whole run, photon pass included)\"; set ylabel \"relRMSE\"; set key below"
   for sc in $SCENES; do
     d="$OUT/media-$sc.dat"
     r=$(cut -d' ' -f1 "$OUT/media-$sc-ref.dat")
     echo "set title \"$sc\""
-    echo "plot \"< grep -v '^vpt' $d\" using 3:6 with linespoints lt 1 title \"photon (scene default)\", \"< grep -v '^vpt' $d\" using 3:7 with linespoints lt 1 dt 2 notitle, \"< grep '^vpt' $d\" using 3:6 with linespoints lt 2 title \"vpt\", \"< grep '^vpt' $d\" using 3:7 with linespoints lt 2 dt 2 notitle, $r with lines lt 0 title \"reference's own relRMSE\""
+    echo "plot \"< grep -v '^vpt' $d\" using 3:6 with linespoints lt 1 pt 7 title \"photon (scene default)\", \"< grep -v '^vpt' $d\" using 3:7 with linespoints lt 1 pt 6 title \"photon, box $BOX\", \"< grep '^vpt' $d\" using 3:6 with linespoints lt 2 pt 5 title \"vpt\", \"< grep '^vpt' $d\" using 3:7 with linespoints lt 2 pt 4 title \"vpt, box $BOX\", $r with lines lt 0 title \"reference's own relRMSE\""
   done
   echo "unset multiplot"
 } | plot "$OUT/media.png"
