@@ -729,7 +729,7 @@ Test(medium, gather_radius_near_zero)
     m.photons = &ph;
     m.bucket_start = start;
     m.decoded = NULL;
-    vec3 gk = photon_map_gather_knn(&m, v3(0, 0, 0), v3(0, 0, 1), 0.5f, 50, 2e-30f);
+    vec3 gk = photon_map_gather_knn(&m, v3(0, 0, 0), v3(1, 0, 0), 0.5f, 50, 2e-30f); /* outside the forward cone */
     cr_assert(v3_is_finite(gk) && gk.x > 0.0f);
     struct medium md;
     memset(&md, 0, sizeof md);
@@ -955,7 +955,8 @@ Test(medium, knn_matches_brute_force, .timeout = 60)
             cr_assert(r2 == rmax * rmax);
         }
         vec3 e = photon_map_gather_knn(m, x, v3(0, 0, 1), 0.3f, k, rmax);
-        cr_assert(v3_is_finite(e) && (n > 0 ? e.x > 0.0f : e.x == 0.0f));
+        /* > 0 unless every photon found lies in the forward cone (photon_map.h) */
+        cr_assert(v3_is_finite(e) && (n > 0 ? e.x >= 0.0f : e.x == 0.0f));
     }
     cr_assert(full > 20 && partial > 5, "queries too easy: %d full, %d partial", full, partial);
     free(all);
