@@ -308,6 +308,7 @@ vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, 
     vec3 prev_p = org;
     int prev_delta = 1;
     uint32_t depth = 0, crossings = 0, vertex = 0;
+    int gathered = 0;       /* the final gather's bounce is taken: the next diffuse vertex looks up */
     vec3 seg_start = org;   /* exact start of the segment (boundary point, not the offset origin) */
     *hit_any = 0;
     for (;;) {
@@ -403,10 +404,17 @@ vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, 
         vec3 ng = front ? s.ng : v3_neg(s.ng);
         vec3 ns = v3_dot(s.ns, ng) < 0.0f ? v3_neg(s.ns) : s.ns;
         vec3 p_off = offset_ray_origin(v3_add(s.p, v3_scale(ng, s.p_err)), ng);
-        /* Jensen's methods with a surface photon map: a diffuse surface's indirect light is
-         * the map's estimate and the path ends here, so its direct light is next-event
-         * estimation's alone (full weight, no MIS partner). */
-        const int surface_map = !vpt && mj->map && mj->map->surface && mat->type == MATERIAL_DIFFUSE;
+        /* Jensen's methods with a surface photon map: final gather. At the first diffuse
+         * vertex the path takes one more diffuse bounce (cosine-sampled, marched through
+         * the media like any segment); at the next diffuse vertex the indirect light is the
+         * map's estimate and the path ends there, so that vertex's direct light is
+         * next-event estimation's alone (full weight, no MIS partner). Looked up at the
+         * first vertex directly, the map's noise shows as blotches. Without room for one
+         * more vertex (max_depth) the first vertex looks up. */
+        const int diffuse_map = !vpt && mj->map && mj->map->surface && mat->type == MATERIAL_DIFFUSE;
+        const int surface_map = diffuse_map && (gathered || depth >= rs->max_depth);
+        if (diffuse_map)
+            gathered = 1;
         if (!vpt && few_points && !material_is_delta(mat)) {
             /* Jensen's methods, a few point lights: every one (no pick noise). */
             for (uint32_t li = 0; li < job->lights.num_entries; li++) {
