@@ -251,7 +251,7 @@ static float exit_distance(const struct media_job *mj, vec3 o, vec3 d)
  * homogeneous fog photon_fog_reach past it (the bounds rule: photons are kept as far). */
 static float march_reach(const struct media_job *mj, const struct medium *md, vec3 o, vec3 d)
 {
-    float t = exit_distance(mj, o, d), reach = photon_fog_reach(md);
+    float t = exit_distance(mj, o, d), reach = photon_fog_reach(md, mj->scene_size);
     return reach > 0.0f ? t + reach : t;
 }
 

@@ -84,7 +84,7 @@ static int media_bounds(const struct render_job *job, vec3 *center, float *radiu
     return 1;
 }
 
-float photon_fog_reach(const struct medium *md)
+float photon_fog_reach(const struct medium *md, float scene_size)
 {
     if (md->grid)
         return 0.0f;
@@ -94,7 +94,7 @@ float photon_fog_reach(const struct medium *md)
         if (st[c] > 0.0f)
             smin = fminf(smin, st[c]);
     /* A channel with sigma_t = 0 neither scatters nor absorbs: nothing to gather there. */
-    return isfinite(smin) ? -logf(PHOTON_REACH_EPS) / smin : 0.0f;
+    return isfinite(smin) ? fminf(-logf(PHOTON_REACH_EPS) / smin, PHOTON_REACH_MAX * scene_size) : 0.0f;
 }
 
 /* The bounds rule: photons go wherever their walk takes them (one that leaves the scene's
@@ -358,8 +358,10 @@ int photon_trace_map(const struct render_job *job, uint64_t seed, uint32_t threa
     tc.photon_scale = tc.emitted ? (float)(1.0 / (double)tc.emitted) : 0.0f;
     tc.num_blocks = (uint32_t)((tc.emitted + PM_BLOCK - 1) / PM_BLOCK);
     float grow = job->media->radius;
-    if (sm->fog != MEDIUM_NONE)
-        grow += photon_fog_reach(&sm->media[sm->fog]);
+    if (sm->fog != MEDIUM_NONE) {
+        struct medium cut; /* camera rays see the fog without its forward cone (photon_map.h) */
+        grow += photon_fog_reach(medium_forward_cut(&sm->media[sm->fog], &cut), job->media->scene_size);
+    }
     tc.keep_lo = v3_sub(job->media->bounds_lo, v3(grow, grow, grow));
     tc.keep_hi = v3_add(job->media->bounds_hi, v3(grow, grow, grow));
     tc.aim = media_bounds(job, &tc.aim_center, &tc.aim_radius);

@@ -669,13 +669,20 @@ Test(medium, surface_photon_map_matches_vpt, .timeout = 120)
     for (uint32_t i = 0; i < sm->num_photons; i++)
         cr_assert(fabsf(sm->photons[i].p[1] + 1.2f) < 1e-3f, "a surface photon off the floor at y %g", sm->photons[i].p[1]);
     double se_s, surf = render_mean(&s, map, 4, &se_s);
+    /* With the final gather the floor's map is read only at second diffuse vertices (here
+     * the black walls); with max_depth 1 there is no room for the bounce and the floor
+     * reads it: without its photons that image is darker. */
+    uint32_t depth = s.settings.max_depth;
+    s.settings.max_depth = 1;
+    double se_1, first = render_mean(&s, map, 4, &se_1);
     map->surface->num_photons = 0;
     double se_n, none = render_mean(&s, map, 4, &se_n);
-    fprintf(stderr, "surface map: beam+surface %g, beam+paths %g, vpt %g +- %g, without its photons %g\n", surf, path,
-            ref, se_ref, none);
+    s.settings.max_depth = depth;
+    fprintf(stderr, "surface map: beam+surface %g, beam+paths %g, vpt %g +- %g; max_depth 1: %g, without its photons %g\n",
+            surf, path, ref, se_ref, first, none);
     cr_assert(fabs(surf / ref - 1.0) < 0.10, "beam+surface %g vs vpt %g", surf, ref);
     cr_assert(fabs(surf / path - 1.0) < 0.05, "beam+surface %g vs beam+paths %g", surf, path);
-    cr_assert(none < 0.97 * surf, "without surface photons %g vs %g", none, surf);
+    cr_assert(none < 0.97 * first, "without surface photons %g vs %g (max_depth 1)", none, first);
     photon_map_free(&map);
     scene_fini(&s);
 }
