@@ -7,6 +7,7 @@
 #include "render/media_integrator.h"
 #include "render/media_track.h"
 #include "render/photon_map.h"
+#include "render/photon_trace.h"
 #include "render/surface.h"
 #include "base/rng.h"
 #include "scene/grid.h"
@@ -61,8 +62,9 @@ static float rnd(const struct rngs *r, uint32_t vertex, uint32_t k)
 }
 
 /* Light arriving at x (in `medium`) from one sampled light, times the phase function for
- * light leaving along d_out; *pdf_light gets the sample's pdf for MIS (0 = delta). */
-static vec3 scatter_nee(const struct render_job *job, vec3 x, vec3 d_out, uint32_t medium, float g, float u0,
+ * light leaving along d_out (cut: without the forward cone, photon_map.h); *pdf_light
+ * gets the sample's pdf for MIS (0 = delta). */
+static vec3 scatter_nee(const struct render_job *job, vec3 x, vec3 d_out, uint32_t medium, float g, int cut, float u0,
                         float u1, float u2, float time01, uint64_t key, uint64_t *rays, int mis,
                         const struct flight_ctx *fc)
 {
@@ -78,7 +80,7 @@ static vec3 scatter_nee(const struct render_job *job, vec3 x, vec3 d_out, uint32
     if (!(dist > 0.0f))
         return v3(0, 0, 0);
     vec3 wi = v3_scale(to, 1.0f / dist);
-    float ph = phase_hg(v3_dot(v3_neg(wi), d_out), g);
+    float ph = cut ? phase_hg_cut(v3_dot(v3_neg(wi), d_out), g) : phase_hg(v3_dot(v3_neg(wi), d_out), g);
     vec3 target = ls.is_delta ? ls.p : offset_ray_origin(ls.p, v3_dot(ls.n, wi) < 0.0f ? ls.n : v3_neg(ls.n));
     vec3 tr = media_shadow_transmittance(job->media, x, target, medium, time01, key, rays);
     if (v3_is_black(tr))
@@ -108,7 +110,8 @@ static int march_all_points(const struct render_job *job)
 }
 
 /* Single scattering toward every light of a table of point lights at x (light leaving
- * along d_out): sum of I falloff / d^2 x phase x shadow transmittance. */
+ * along d_out): sum of I falloff / d^2 x phase (without the forward cone) x shadow
+ * transmittance. */
 static vec3 point_lights_all(const struct render_job *job, vec3 x, vec3 d_out, uint32_t medium, float g, float time01,
                              uint64_t key, uint64_t *rays)
 {
@@ -126,7 +129,7 @@ static vec3 point_lights_all(const struct render_job *job, vec3 x, vec3 d_out, u
         vec3 li = v3_scale(e->emission, light_spot_falloff(l, v3_neg(to)) / d2);
         if (v3_is_black(li))
             continue;
-        float ph = phase_hg(v3_dot(v3_scale(to, -1.0f / sqrtf(d2)), d_out), g);
+        float ph = phase_hg_cut(v3_dot(v3_scale(to, -1.0f / sqrtf(d2)), d_out), g);
         vec3 tr = media_shadow_transmittance(job->media, x, l->position, medium, time01, rng_mix64(key + i), rays);
         sum = v3_add(sum, v3_scale(v3_mul(li, tr), ph));
     }
@@ -142,7 +145,9 @@ static vec3 march_segment(const struct render_job *job, const struct rngs *r, ui
                           float len, uint32_t medium, float time01, uint64_t *rays, vec3 *seg_tr)
 {
     const struct media_job *mj = job->media;
-    const struct medium *md = &mj->sm->media[medium];
+    /* The forward cone is no scattering: camera rays see sigma_t less its share. */
+    struct medium cut_md;
+    const struct medium *md = medium_forward_cut(&mj->sm->media[medium], &cut_md);
     const int het = md->grid != NULL, emissive = !v3_is_black(md->emission);
     vec3 L = het ? v3(0, 0, 0) : medium_emission_integral(md, len);
     *seg_tr = medium_transmittance(md, len);
@@ -197,7 +202,7 @@ static vec3 march_segment(const struct render_job *job, const struct rngs *r, ui
             continue;
         vec3 ls = all_points ? point_lights_all(job, x, v3_neg(d), medium, md->g, time01,
                                                 rng_mix64(seg_key ^ (0x5348ull << 48) ^ k), rays)
-                             : scatter_nee(job, x, v3_neg(d), medium, md->g, rng_uniform(seg_key, 3 * k),
+                             : scatter_nee(job, x, v3_neg(d), medium, md->g, 1, rng_uniform(seg_key, 3 * k),
                                            rng_uniform(seg_key, 3 * k + 1), rng_uniform(seg_key, 3 * k + 2), time01,
                                            rng_mix64(seg_key ^ (0x5348ull << 48) ^ k), rays, 0, NULL);
         vec3 in = v3_scale(v3_mul(md->sigma_s, ls), rho);
@@ -240,6 +245,14 @@ static float exit_distance(const struct media_job *mj, vec3 o, vec3 d)
         t1 = fminf(t1, t);
     }
     return t1 > 0.0f ? t1 : 0.0f;
+}
+
+/* Where march and beam stop a ray that hits nothing: the exit from the bounds, or in a
+ * homogeneous fog photon_fog_reach past it (the bounds rule: photons are kept as far). */
+static float march_reach(const struct media_job *mj, const struct medium *md, vec3 o, vec3 d)
+{
+    float t = exit_distance(mj, o, d), reach = photon_fog_reach(md, mj->scene_size);
+    return reach > 0.0f ? t + reach : t;
 }
 
 /* Single scattering of one point light (picked as NEE picks) along the segment, sampled
@@ -295,6 +308,7 @@ vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, 
     vec3 prev_p = org;
     int prev_delta = 1;
     uint32_t depth = 0, crossings = 0, vertex = 0;
+    int gathered = 0;       /* the final gather's bounce is taken: the next diffuse vertex looks up */
     vec3 seg_start = org;   /* exact start of the segment (boundary point, not the offset origin) */
     *hit_any = 0;
     for (;;) {
@@ -325,7 +339,7 @@ vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, 
                     vec3 x = v3_add(org, v3_scale(dir, t));
                     if (++depth > rs->max_depth)
                         break;
-                    L = v3_add(L, v3_mul(beta, scatter_nee(job, x, v3_neg(dir), medium, md->g, rnd(&r, vertex, 2),
+                    L = v3_add(L, v3_mul(beta, scatter_nee(job, x, v3_neg(dir), medium, md->g, 0, rnd(&r, vertex, 2),
                                                            rnd(&r, vertex, 3), rnd(&r, vertex, 4), time01,
                                                            rng_mix64(r.key ^ (0x5348ull << 48) ^ vertex), rays, 1,
                                                            equi ? &fc : NULL)));
@@ -347,11 +361,13 @@ vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, 
                     continue;
                 }
             } else {
-                float len = hit ? h.t : exit_distance(mj, org, dir);
+                struct medium cut_md;
+                const struct medium *mdc = medium_forward_cut(md, &cut_md);
+                float len = hit ? h.t : march_reach(mj, mdc, org, dir);
                 vec3 seg_tr;
                 L = v3_add(L, v3_mul(beta, march_segment(job, &r, vertex, org, dir, len, medium, time01, rays, &seg_tr)));
                 float exact = hit ? v3_length(v3_sub(v3_add(org, v3_scale(dir, h.t)), seg_start)) : INFINITY;
-                beta = v3_mul(beta, md->grid ? seg_tr : medium_transmittance(md, exact));
+                beta = v3_mul(beta, md->grid ? seg_tr : medium_transmittance(mdc, exact));
                 if (v3_is_black(beta))
                     break;
             }
@@ -388,10 +404,17 @@ vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, 
         vec3 ng = front ? s.ng : v3_neg(s.ng);
         vec3 ns = v3_dot(s.ns, ng) < 0.0f ? v3_neg(s.ns) : s.ns;
         vec3 p_off = offset_ray_origin(v3_add(s.p, v3_scale(ng, s.p_err)), ng);
-        /* Jensen's methods with a surface photon map: a diffuse surface's indirect light is
-         * the map's estimate and the path ends here, so its direct light is next-event
-         * estimation's alone (full weight, no MIS partner). */
-        const int surface_map = !vpt && mj->map && mj->map->surface && mat->type == MATERIAL_DIFFUSE;
+        /* Jensen's methods with a surface photon map: final gather. At the first diffuse
+         * vertex the path takes one more diffuse bounce (cosine-sampled, marched through
+         * the media like any segment); at the next diffuse vertex the indirect light is the
+         * map's estimate and the path ends there, so that vertex's direct light is
+         * next-event estimation's alone (full weight, no MIS partner). Looked up at the
+         * first vertex directly, the map's noise shows as blotches. Without room for one
+         * more vertex (max_depth) the first vertex looks up. */
+        const int diffuse_map = !vpt && mj->map && mj->map->surface && mat->type == MATERIAL_DIFFUSE;
+        const int surface_map = diffuse_map && (gathered || depth >= rs->max_depth);
+        if (diffuse_map)
+            gathered = 1;
         if (!vpt && few_points && !material_is_delta(mat)) {
             /* Jensen's methods, a few point lights: every one (no pick noise). */
             for (uint32_t li = 0; li < job->lights.num_entries; li++) {

@@ -31,6 +31,7 @@ struct trace_ctx {
     _Atomic uint32_t next_block;
     struct photon_list *blocks;     /* volume photons per block of indices */
     struct photon_list *surface;    /* surface photons per block (NULL: none kept) */
+    vec3 keep_lo, keep_hi;  /* photons are stored inside this box (the bounds rule) */
     int aim;                /* point lights aim most photons at the media's bounding sphere */
     vec3 aim_center;
     float aim_radius;
@@ -83,10 +84,27 @@ static int media_bounds(const struct render_job *job, vec3 *center, float *radiu
     return 1;
 }
 
-static int outside_bounds(const struct media_job *mj, vec3 p)
+float photon_fog_reach(const struct medium *md, float scene_size)
 {
-    return !(p.x >= mj->bounds_lo.x && p.y >= mj->bounds_lo.y && p.z >= mj->bounds_lo.z && p.x <= mj->bounds_hi.x &&
-             p.y <= mj->bounds_hi.y && p.z <= mj->bounds_hi.z);
+    if (md->grid)
+        return 0.0f;
+    float smin = INFINITY;
+    const float st[3] = {md->sigma_t.x, md->sigma_t.y, md->sigma_t.z};
+    for (int c = 0; c < 3; c++)
+        if (st[c] > 0.0f)
+            smin = fminf(smin, st[c]);
+    /* A channel with sigma_t = 0 neither scatters nor absorbs: nothing to gather there. */
+    return isfinite(smin) ? fminf(-logf(PHOTON_REACH_EPS) / smin, PHOTON_REACH_MAX * scene_size) : 0.0f;
+}
+
+/* The bounds rule: photons go wherever their walk takes them (one that leaves the scene's
+ * bounds in a fog can scatter back), and are stored where camera rays can gather them:
+ * the bounds, grown by how far march and beam follow a ray past them in the fog
+ * (photon_fog_reach) and by the gather radius. */
+static int outside_keep(const struct trace_ctx *tc, vec3 p)
+{
+    return !(p.x >= tc->keep_lo.x && p.y >= tc->keep_lo.y && p.z >= tc->keep_lo.z && p.x <= tc->keep_hi.x &&
+             p.y <= tc->keep_hi.y && p.z <= tc->keep_hi.z);
 }
 
 static vec3 cosine_dir(vec3 n, float u1, float u2)
@@ -221,9 +239,7 @@ static void trace_photon(const struct trace_ctx *tc, uint64_t index, struct phot
             power = v3_mul(power, w);
             if (scatter) {
                 vec3 x = v3_add(o, v3_scale(d, t));
-                if (outside_bounds(tc->mj, x))
-                    return;
-                if (indirect)
+                if (indirect && !outside_keep(tc, x))
                     store(vol, x, d, power);
                 /* Russian roulette keeps the power of survivors near what it was. */
                 float q = fminf(1.0f, v3_max_component(power) / fmaxf(v3_max_component(before), 1e-30f));
@@ -341,6 +357,13 @@ int photon_trace_map(const struct render_job *job, uint64_t seed, uint32_t threa
     tc.emitted = job->lights.num_entries > 0 ? sm->photons : 0;
     tc.photon_scale = tc.emitted ? (float)(1.0 / (double)tc.emitted) : 0.0f;
     tc.num_blocks = (uint32_t)((tc.emitted + PM_BLOCK - 1) / PM_BLOCK);
+    float grow = job->media->radius;
+    if (sm->fog != MEDIUM_NONE) {
+        struct medium cut; /* camera rays see the fog without its forward cone (photon_map.h) */
+        grow += photon_fog_reach(medium_forward_cut(&sm->media[sm->fog], &cut), job->media->scene_size);
+    }
+    tc.keep_lo = v3_sub(job->media->bounds_lo, v3(grow, grow, grow));
+    tc.keep_hi = v3_add(job->media->bounds_hi, v3(grow, grow, grow));
     tc.aim = media_bounds(job, &tc.aim_center, &tc.aim_radius);
     atomic_init(&tc.next_block, 0);
     tc.blocks = mem_calloc(tc.num_blocks ? tc.num_blocks : 1, sizeof *tc.blocks);

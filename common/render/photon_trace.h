@@ -11,6 +11,7 @@
 
 struct render_job;
 struct scene;
+struct medium;
 
 struct photon_pass_stats {
     double seconds;
@@ -24,6 +25,15 @@ struct photon_pass_stats {
  * (render_job_init of a scene with media). 0 or -1 with err. */
 int photon_trace_map(const struct render_job *job, uint64_t seed, uint32_t threads, uint8_t **blob, size_t *size,
                      struct photon_pass_stats *stats, char *err, size_t errlen);
+/* How far a camera ray that leaves the scene's bounds in homogeneous medium md is
+ * marched (march, beam) past them, and so how far past them photons are kept: the
+ * distance where the transmittance of every channel that scatters or absorbs falls to
+ * PHOTON_REACH_EPS, at most PHOTON_REACH_MAX scene diagonals (scene_size; a fog that
+ * thin is all but transparent). 0 for grids (their boxes are inside the bounds) and media
+ * that do nothing. See docs/media.md, "Open fog". */
+#define PHOTON_REACH_EPS 1e-4f
+#define PHOTON_REACH_MAX 64.0f
+float photon_fog_reach(const struct medium *md, float scene_size);
 /* Upper bound on the share of in-scattered light that comes from more than one bounce:
  * max(largest surface reflectance, largest medium albedo x (1 - exp(-sigma_t,max D))),
  * D the scene's diagonal. The photon pass is skipped when it is below skip_bound. */
