@@ -169,6 +169,7 @@ int master_media_prepare(struct scene *scene, const struct master_opts *o, uint3
             maps = mem_calloc(passes, sizeof *maps);
             map_sizes = mem_calloc(passes, sizeof *map_sizes);
             const float r0 = job.media->radius;
+            uint8_t *hashes = mem_alloc(32 * (size_t)passes); /* the maps' hashes, for one logged hash */
             double seconds = 0.0;
             uint64_t emitted = 0, stored = 0, stored_surface = 0;
             for (uint32_t p = 0; p < passes; p++) {
@@ -184,6 +185,7 @@ int master_media_prepare(struct scene *scene, const struct master_opts *o, uint3
                         free(maps[q]);
                     free(maps);
                     free(map_sizes);
+                    free(hashes);
                     render_job_fini(&job);
                     log_error("%s", err);
                     return -1;
@@ -197,6 +199,7 @@ int master_media_prepare(struct scene *scene, const struct master_opts *o, uint3
                 char hex[65];
                 blob_hash_compute(maps[p], map_sizes[p], &h);
                 blob_hash_hex(&h, hex);
+                memcpy(hashes + 32 * (size_t)p, h.bytes, 32);
                 log_debug("media: pass %u: %llu stored (%llu on surfaces) in %.3f s, %zu bytes, radius %g (surface %g), "
                           "map %.16s", p, (unsigned long long)st.stored, (unsigned long long)st.stored_surface,
                           st.seconds, map_sizes[p], (double)rv, (double)rsurf, hex);
@@ -204,14 +207,19 @@ int master_media_prepare(struct scene *scene, const struct master_opts *o, uint3
             size_t bytes = 0;
             for (uint32_t p = 0; p < num_maps; p++)
                 bytes += map_sizes[p];
+            struct blob_hash all;
+            char all_hex[65];
+            blob_hash_compute(hashes, 32 * (size_t)num_maps, &all);
+            blob_hash_hex(&all, all_hex);
+            free(hashes);
             log_info("media: photon pass: %u map(s) (progressive passes, alpha %g), %llu emitted, %llu stored (%llu on "
                      "surfaces) in %.3f s on %u thread(s) (%.3g photons/s), %zu bytes (%.1f bytes/photon), radius %g "
-                     "to %g (surface %g to %g), multiple-scattering bound %.3g",
+                     "to %g (surface %g to %g), multiple-scattering bound %.3g, map %.16s",
                      num_maps, (double)sm->alpha, (unsigned long long)emitted, (unsigned long long)stored,
                      (unsigned long long)stored_surface, seconds, threads, seconds > 0 ? (double)emitted / seconds : 0.0,
                      bytes, stored ? (double)bytes / (double)stored : 0.0, (double)r0,
                      photon_pass_radius(r0, sm->alpha, num_maps - 1, 3), (double)r0,
-                     photon_pass_radius(r0, sm->alpha, num_maps - 1, 2), bound);
+                     photon_pass_radius(r0, sm->alpha, num_maps - 1, 2), bound, all_hex);
             log_info("passes: %u of %u spp (%u spp), pass p with photon map p", num_maps, k, rs->spp);
         }
         render_job_fini(&job);

@@ -133,14 +133,10 @@ static vec3 sample_path(const struct render_job *job, uint32_t pass, uint32_t px
     return L;
 }
 
-/* Welford's running mean and sum of squared deviations of the pass means (batch means). */
-struct batch {
-    double mean[3], m2[3], lum_mean, lum_m2;
-    uint32_t n;
-};
-
-static void batch_add(struct batch *b, const double m[3], double lum)
+void pass_batch_add(struct pass_batch *b, const double m[3])
 {
+    /* Welford's running mean and sum of squared deviations (stable for any P). */
+    double lum = 0.2126 * m[0] + 0.7152 * m[1] + 0.0722 * m[2];
     b->n++;
     for (int k = 0; k < 3; k++) {
         double d = m[k] - b->mean[k];
@@ -150,6 +146,12 @@ static void batch_add(struct batch *b, const double m[3], double lum)
     double d = lum - b->lum_mean;
     b->lum_mean += d / b->n;
     b->lum_m2 += d * (lum - b->lum_mean);
+}
+
+double pass_batch_var_of_mean(const struct pass_batch *b, int k)
+{
+    double m2 = k < 3 ? b->m2[k] : b->lum_m2;
+    return b->n > 1 ? fmax(0.0, m2) / (b->n - 1) / b->n : 0.0;
 }
 
 /* A pixel rendered in passes (job->num_passes >= 2, progressive photon mapping): pass p
@@ -164,7 +166,7 @@ static void render_pixel_passes(const struct render_job *job, uint32_t px_x, uin
     const uint32_t passes = job->num_passes, k = (rs->spp + passes - 1) / passes;
     struct sampler_pixel sp;
     sampler_pixel_init(&sp, rs->sampler, rs->seed, job->frame, (uint64_t)px_y * rs->width + px_x, k * passes);
-    struct batch b;
+    struct pass_batch b;
     memset(&b, 0, sizeof b);
     double cover = 0.0;
     uint32_t n_all = 0;
@@ -188,16 +190,16 @@ static void render_pixel_passes(const struct render_job *job, uint32_t px_x, uin
         if (n == 0)
             continue; /* every sample of the pass dropped: the other passes make the pixel */
         double m[3] = {sum[0] / n, sum[1] / n, sum[2] / n};
-        batch_add(&b, m, 0.2126 * m[0] + 0.7152 * m[1] + 0.0722 * m[2]);
+        pass_batch_add(&b, m);
         n_all += n;
     }
     for (int c = 0; c < 3; c++) {
         px[CH_R + c] = (float)b.mean[c];
-        px[CH_VAR_R + c] = b.n > 1 ? (float)(fmax(0.0, b.m2[c]) / (b.n - 1) / b.n) : 0.0f;
+        px[CH_VAR_R + c] = (float)pass_batch_var_of_mean(&b, c);
     }
     px[CH_A] = n_all ? (float)(cover / n_all) : 0.0f;
     if (b.lum_mean > 0.0 && b.n > 1) {
-        stats->sum_rel_stderr += sqrt(fmax(0.0, b.lum_m2) / (b.n - 1) / b.n) / b.lum_mean;
+        stats->sum_rel_stderr += sqrt(pass_batch_var_of_mean(&b, 3)) / b.lum_mean;
         stats->rel_stderr_pixels++;
     }
 }

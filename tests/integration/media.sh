@@ -65,6 +65,34 @@ timeout 120 $W --connect "tcp://127.0.0.1:$P" --threads 1 >"$T/wlog" 2>&1
 wait $mpid && r=0 || r=1
 if [ $r = 0 ] && $X cmp "$T/p1.exr" "$T/late.exr"; then ok "extra tcp worker: fetches the volume blob, identical pixels"; else bad "extra tcp worker: fetches the volume blob, identical pixels"; fi
 
+# Progressive passes (4 photon maps, 4 spp): bit-identical for 1 and 3 workers; a master
+# killed mid-frame and restarted resumes from its journal to the same pixels; a late tcp
+# worker fetches the 4 maps and the image is the same.
+PA="--spp 4 --passes 4"
+run $M $S -o "$T/pp1.exr" $PA --no-journal --workers 1 --threads 2 && r1=0 || r1=1
+grep -q "photon pass: 4 map(s)" "$T/log" && g1=0 || g1=1
+run $M $S -o "$T/pp3.exr" $PA --no-journal --workers 3 --threads 1 --tile 16 && r3=0 || r3=1
+if [ $r1 = 0 ] && [ $r3 = 0 ] && [ $g1 = 0 ] && $X cmp "$T/pp1.exr" "$T/pp3.exr" && grep -q "estimated relRMSE .*batch means" "$T/log"; then
+  ok "4 passes: 1 vs 3 workers bit-identical, batch-means estimate reported"; else bad "4 passes: 1 vs 3 workers bit-identical, batch-means estimate reported"; fi
+$M $S -o "$T/ppk.exr" $PA --workers 2 --threads 1 --tile 16 >"$T/klog" 2>&1 &
+mpid=$!
+i=0
+while [ $i -lt 100 ] && ! grep -q "tiles" "$T/ppk.exr.journal" 2>/dev/null && [ ! -s "$T/ppk.exr.journal" ]; do sleep 0.05; i=$((i + 1)); done
+sleep 0.3
+kill -9 $mpid 2>/dev/null
+wait $mpid 2>/dev/null
+run $M $S -o "$T/ppk.exr" $PA --workers 2 --threads 1 --tile 16 && r=0 || r=1
+fj=$(counter tiles_from_journal "$T/ppk.exr")
+echo "media: passes, master killed: ${fj:-0} tiles from the journal"
+if [ $r = 0 ] && $X cmp "$T/pp1.exr" "$T/ppk.exr"; then ok "4 passes: master kill -9 + restart: identical pixels"; else bad "4 passes: master kill -9 + restart: identical pixels"; fi
+timeout 120 $M $S -o "$T/pplate.exr" $PA --no-journal --workers 1 --threads 1 --bind "tcp://127.0.0.1:$((P + 1))" >"$T/log" 2>&1 &
+mpid=$!
+sleep 1
+timeout 120 $W --connect "tcp://127.0.0.1:$((P + 1))" --threads 1 >"$T/wlog" 2>&1
+wait $mpid && r=0 || r=1
+if [ $r = 0 ] && grep -q "in 4 pass(es)" "$T/wlog" && $X cmp "$T/pp1.exr" "$T/pplate.exr"; then
+  ok "4 passes: late tcp worker gets the 4 maps, identical pixels"; else bad "4 passes: late tcp worker gets the 4 maps, identical pixels"; fi
+
 # NanoVDB density grids: the smoke as a .nvdb written by NanoVDB's own writer (make_nvdb),
 # sent to workers as a blob like any asset: pixels bit-identical for 1 and 3 workers, the
 # image's mean within 0.5 % of the dense smoke's; a compressed .nvdb is refused at file:line:col.
