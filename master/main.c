@@ -38,7 +38,9 @@ static void usage(FILE *f)
             "  --insecure             allow --bind on a non-loopback address without CurveZMQ\n"
             "  --keygen KEYFILE       write a new key pair to KEYFILE and KEYFILE.pub, then exit\n"
             "  --media-method NAME    vpt, march or beam: how media are rendered (overrides the scene)\n"
-            "  --photons N            photons the photon pass emits (overrides the scene)\n"
+            "  --photons N            photons the photon pass emits, per pass (overrides the scene)\n"
+            "  --passes N             progressive photon-map passes, 1..1024 (overrides render.passes; default 8\n"
+            "                         with a photon map, 1 otherwise); each pass renders ceil(spp / N) samples\n"
             "  --gather-radius R      photon gather radius in scene units (overrides the scene)\n"
             "  --march-step R         ray-marching step in scene units (overrides the scene)\n"
             "  --photon-threads T     threads of the photon pass (default: cores); the map is the same for any T\n"
@@ -123,6 +125,7 @@ int main(int argc, char **argv)
         NUM_OPT("--stall-ms", 100, 86400000, o.stall_ms, dummy)
         NUM_OPT("--photon-threads", 1, 1024, o.photon_threads, dummy)
         NUM_OPT("--photons", 0, 1ull << 32, o.photons, o.have_photons)
+        NUM_OPT("--passes", 1, 1024, o.passes, o.have_passes)
 #undef NUM_OPT
         if (has_arg && (!strcmp(a, "--gather-radius") || !strcmp(a, "--march-step"))) {
             char *end;

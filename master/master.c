@@ -98,6 +98,8 @@ struct master {
     char last_worker_error[PROTO_MAX_STRING];
     char fatal[2048];           /* set when the job cannot finish: the reason, printed last */
     double wall_seconds;        /* of the frames rendered */
+    uint32_t passes;            /* progressive photon-map passes of the frame (1 without a photon map) */
+    double rel_rmse_est;        /* the last frame's estimated relRMSE from its variance channels (error_estimate) */
     float *decode_scratch;
     char ipc_dir[256];
     char ipc_endpoint[320];
@@ -159,7 +161,7 @@ static int load_scene(struct master *m)
         return -1;
     }
     m->map_frame = o->have_frames ? o->frame_first : 0;
-    if (master_media_prepare(&m->scene, o, m->map_frame, &m->assets) != 0)
+    if (master_media_prepare(&m->scene, o, m->map_frame, &m->assets, &m->passes) != 0)
         return -1;
     m->map_per_frame = master_media_per_frame(&m->scene);
     return publish_manifest(m);
@@ -840,9 +842,38 @@ static void print_progress(struct master *m, uint64_t start_ms, int tty, int fin
     fflush(stderr);
 }
 
+/* The image's estimated relative RMSE: sqrt(mean over pixels of the variance of the pixel
+ * mean, averaged over R, G, B) / (mean of R, G, B over the image), from the variance
+ * channels of the finished tiles. With progressive passes they hold batch means, so the
+ * estimate includes the photon maps' error. 0 for a black image. */
+static double error_estimate(struct master *m)
+{
+    double sum_var = 0.0, sum_mean = 0.0;
+    uint64_t pixels = 0;
+    uint32_t tiles_x = imgio_tiles_x(&m->desc);
+    for (uint32_t t = 0; t < m->num_tiles; t++) {
+        uint32_t x0, y0, w, h;
+        char err[256];
+        if (!m->chunks[t].data)
+            continue;
+        imgio_tile_rect(&m->desc, t % tiles_x, t / tiles_x, &x0, &y0, &w, &h);
+        if (imgio_decode_tile(&m->desc, t % tiles_x, t / tiles_x, m->chunks[t].data, m->chunks[t].size,
+                              m->decode_scratch, err, sizeof err) != 0)
+            continue; /* checked when accepted: cannot happen */
+        for (size_t i = 0; i < (size_t)w * h; i++) {
+            const float *px = &m->decode_scratch[i * TILE_NUM_CHANNELS];
+            sum_var += ((double)px[CH_VAR_R] + px[CH_VAR_G] + px[CH_VAR_B]) / 3.0;
+            sum_mean += ((double)px[CH_R] + px[CH_G] + px[CH_B]) / 3.0;
+        }
+        pixels += (uint64_t)w * h;
+    }
+    return pixels && sum_mean > 0.0 ? sqrt(sum_var / (double)pixels) / (sum_mean / (double)pixels) : 0.0;
+}
+
 static void print_summary(struct master *m, double secs)
 {
     const struct tile_stats *s = &m->stats;
+    m->rel_rmse_est = error_estimate(m);
     printf("summary: %s -> %s (frame %u)\n", m->opts->scene_path, m->out_path, m->frame);
     printf("summary: %ux%u, %u spp, %u tiles of %u px, seed %llu\n", m->scene.settings.width,
            m->scene.settings.height, m->scene.settings.spp, m->num_tiles, m->scene.settings.tile_size,
@@ -856,6 +887,8 @@ static void print_summary(struct master *m, double secs)
     printf("summary: tiles from journal: %llu\n", (unsigned long long)m->c.tiles_from_journal);
     printf("summary: noise: mean relative standard error %.4f over %u lit pixels\n",
            s->rel_stderr_pixels ? s->sum_rel_stderr / s->rel_stderr_pixels : 0.0, s->rel_stderr_pixels);
+    printf("summary: estimated relRMSE %.4f (sqrt(mean pixel variance of the mean) / image mean, RGB; %s)\n",
+           m->rel_rmse_est, m->passes > 1 ? "batch means over the photon-map passes" : "sample variance");
     for (uint32_t i = 0; i < m->num_peers; i++)
         printf("summary: worker %s: %u tiles\n", m->peers[i].name, m->sched->workers[i].tiles_done);
     printf("summary: scene hash %s\n", m->scene_hash);
@@ -895,6 +928,8 @@ static int write_stats(const struct master *m, int ok, char *err, size_t errlen)
     json_object_set_new(root, "nan_samples", json_integer((json_int_t)st->nan_samples));
     json_object_set_new(root, "mean_rel_stderr",
                         json_real(st->rel_stderr_pixels ? st->sum_rel_stderr / st->rel_stderr_pixels : 0.0));
+    json_object_set_new(root, "est_rel_rmse", json_real(m->rel_rmse_est));
+    json_object_set_new(root, "passes", json_integer(m->passes));
     for (uint32_t i = 0; i < m->num_peers; i++) {
         json_t *w = json_object();
         json_object_set_new(w, "name", json_string(m->peers[i].name));
@@ -1029,7 +1064,7 @@ static int frame_begin(struct master *m, uint32_t frames_started)
         for (uint32_t i = 0; i < m->num_manifest; i++)
             if (strcmp(m->manifest[i].path, MEDIA_PHOTON_ASSET) == 0)
                 old = m->manifest[i].hash;
-        if (master_media_prepare(&m->scene, o, m->frame, &m->assets) != 0)
+        if (master_media_prepare(&m->scene, o, m->frame, &m->assets, &m->passes) != 0)
             return -1;
         blob_store_drop(&m->blobs, &old);
         if (publish_manifest(m) != 0)

@@ -36,6 +36,8 @@ struct master_opts {
     uint32_t media_method;
     uint64_t photons;
     float gather_radius, march_step;
+    int have_passes;            /* --passes N (1..1024): progressive photon-map passes */
+    uint32_t passes;
 };
 
 #endif

@@ -3,6 +3,8 @@
 #include "photons.h"
 #include "wire/blob.h"
 #include "base/log.h"
+#include "base/rng.h"
+#include "scene/scene_limits.h"
 #include "render/media_track.h"
 #include "render/photon_map.h"
 #include "render/photon_trace.h"
@@ -11,6 +13,7 @@
 #include <stdlib.h>
 #include <stdio.h>
 #include <string.h>
+#include <time.h>
 
 /* Adds the volume blob to the job's files, or replaces the one there (a new frame's). */
 static void publish(struct asset_dir *assets, uint8_t *data, size_t size)
@@ -45,11 +48,72 @@ int master_media_per_frame(const struct scene *scene)
     return 0;
 }
 
-int master_media_prepare(struct scene *scene, const struct master_opts *o, uint32_t frame, struct asset_dir *assets)
+static double now_seconds(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+/* The seed of pass p's photons: the scene's seed for pass 0 (a single pass traces the map
+ * it always did), a hash of (seed, pass) after; photon_trace keys every photon by (seed,
+ * frame, index), so each map is a pure function of (seed, frame, pass). */
+static uint64_t pass_seed(uint64_t seed, uint32_t pass)
+{
+    return pass == 0 ? seed : rng_mix64(seed ^ rng_mix64(0x7061737365730000ull + pass));
+}
+
+/* photon_trace_map serialises the surface map with the volume map's radius; a pass gives
+ * it its own (the 2D rule): its photons are serialised again, in the order the first map
+ * holds them (deterministic), behind the volume map's bytes. */
+static int set_surface_radius(uint8_t **map, size_t *size, float radius, char *err, size_t errlen)
+{
+    struct photon_map *m = NULL;
+    if (photon_map_decode(*map, *size, &m, err, errlen) != 0)
+        return -1;
+    if (!m->surface || m->surface->radius == radius) {
+        photon_map_free(&m);
+        return 0;
+    }
+    size_t vbytes = 48 + sizeof(struct photon) * (size_t)m->num_photons + 4 * ((size_t)m->table_size + 1);
+    struct photon_list block = {NULL, m->surface->num_photons, m->surface->num_photons};
+    block.a = mem_alloc(sizeof *block.a * (block.n ? block.n : 1));
+    memcpy(block.a, m->surface->photons, sizeof *block.a * block.n);
+    uint8_t *smap = NULL;
+    size_t sbytes = 0;
+    uint32_t count = 0;
+    int rc = photon_map_serialise(&block, 1, radius, m->surface->num_emitted, &smap, &sbytes, &count, err, errlen);
+    photon_map_free(&m);
+    if (rc != 0)
+        return -1;
+    uint8_t *joined = mem_alloc(vbytes + sbytes);
+    memcpy(joined, *map, vbytes);
+    memcpy(joined + vbytes, smap, sbytes);
+    free(smap);
+    free(*map);
+    *map = joined;
+    *size = vbytes + sbytes;
+    return 0;
+}
+
+/* The passes a frame renders: --passes, else render.passes, else MASTER_DEFAULT_PASSES. */
+#define MASTER_DEFAULT_PASSES 8u
+static uint32_t passes_wanted(const struct scene *scene, const struct master_opts *o)
+{
+    return o->have_passes ? o->passes : scene->settings.passes ? scene->settings.passes : MASTER_DEFAULT_PASSES;
+}
+
+int master_media_prepare(struct scene *scene, const struct master_opts *o, uint32_t frame, struct asset_dir *assets,
+                         uint32_t *passes_out)
 {
     struct scene_media *sm = scene->media;
-    if (!sm)
+    *passes_out = 1;
+    uint32_t asked = o->have_passes ? o->passes : scene->settings.passes;
+    if (!sm) {
+        if (asked > 1)
+            log_info("passes: 1 (%u asked): passes apply to photon maps and the scene has no media", asked);
         return 0;
+    }
     if (o->have_media_method)
         sm->method = (enum media_method)o->media_method;
     if (o->have_photons)
@@ -58,15 +122,21 @@ int master_media_prepare(struct scene *scene, const struct master_opts *o, uint3
         sm->radius = o->gather_radius;
     if (o->have_march_step)
         sm->step = o->march_step;
-    uint8_t *map = NULL, *blob = NULL;
-    size_t map_size = 0, blob_size = 0;
+    if (!(sm->alpha > 0.0f))
+        sm->alpha = MEDIA_DEFAULT_ALPHA;
+    uint8_t **maps = NULL, *blob = NULL;
+    size_t *map_sizes = NULL, blob_size = 0;
+    uint32_t num_maps = 0;
     int used = 0;
+    const char *no_map = NULL;
     for (uint32_t i = 0; i < sm->num_media; i++)
         used |= !v3_is_black(sm->media[i].sigma_t);
     if (sm->method == MEDIA_VPT) {
         log_info("media: volumetric path tracing, no photon pass");
+        no_map = "volumetric path tracing";
     } else if (!used || sm->photons == 0) {
         log_info("media: no photon pass (%s)", used ? "photons 0" : "no medium scatters or absorbs");
+        no_map = "no photon pass";
     } else {
         char err[512];
         struct render_job job;
@@ -80,30 +150,90 @@ int master_media_prepare(struct scene *scene, const struct master_opts *o, uint3
             log_info("media: photon pass skipped: multiple scattering is bounded by %.3g < skip_bound %.3g "
                      "(max(surface reflectance, medium albedo x (1 - exp(-sigma_t,max x %.3g))))",
                      bound, (double)sm->skip_bound, (double)job.media->scene_size);
+            no_map = "photon pass skipped";
         } else {
-            struct photon_pass_stats st;
-            if (photon_trace_map(&job, scene->settings.seed, threads, &map, &map_size, &st, err, sizeof err) != 0) {
+            /* Progressive photon mapping: P maps from fresh seeds, radii by the PPM rule. */
+            uint32_t passes = passes_wanted(scene, o);
+            struct render_settings *rs = &scene->settings;
+            uint32_t k = (rs->spp + passes - 1) / passes;
+            if ((uint64_t)k * passes > SCENE_MAX_SPP) {
+                log_error("passes: %u passes of %u spp exceed the %u spp limit (lower --spp or --passes / "
+                          "render.passes)", passes, k, (unsigned)SCENE_MAX_SPP);
                 render_job_fini(&job);
-                log_error("%s", err);
                 return -1;
             }
-            struct blob_hash h;
-            char hex[65];
-            blob_hash_compute(map, map_size, &h);
-            blob_hash_hex(&h, hex);
-            log_info("media: photon pass: %llu emitted, %llu stored (%llu on surfaces) in %.3f s on %u thread(s) "
-                     "(%.3g photons/s), %zu bytes (%.1f bytes/photon), radius %g, multiple-scattering bound %.3g, "
-                     "map %.16s",
-                     (unsigned long long)st.emitted, (unsigned long long)st.stored,
-                     (unsigned long long)st.stored_surface, st.seconds, threads,
-                     st.seconds > 0 ? (double)st.emitted / st.seconds : 0.0, st.bytes,
-                     st.stored ? (double)st.bytes / (double)st.stored : 0.0, (double)job.media->radius, bound, hex);
+            if (k * passes != rs->spp)
+                log_info("passes: spp %u raised to %u (%u passes of ceil(%u / %u) = %u spp)", rs->spp, k * passes,
+                         passes, rs->spp, passes, k);
+            rs->spp = k * passes;
+            maps = mem_calloc(passes, sizeof *maps);
+            map_sizes = mem_calloc(passes, sizeof *map_sizes);
+            const float r0 = job.media->radius;
+            uint8_t *hashes = mem_alloc(32 * (size_t)passes); /* the maps' hashes, for one logged hash */
+            double seconds = 0.0;
+            uint64_t emitted = 0, stored = 0, stored_surface = 0;
+            for (uint32_t p = 0; p < passes; p++) {
+                struct photon_pass_stats st;
+                float rv = (float)photon_pass_radius(r0, sm->alpha, p, 3);
+                float rsurf = (float)photon_pass_radius(r0, sm->alpha, p, 2);
+                job.media->radius = rv;
+                double t0 = now_seconds();
+                if (photon_trace_map(&job, pass_seed(scene->settings.seed, p), threads, &maps[p], &map_sizes[p], &st,
+                                     err, sizeof err) != 0 ||
+                    (sm->surface_photons && set_surface_radius(&maps[p], &map_sizes[p], rsurf, err, sizeof err) != 0)) {
+                    for (uint32_t q = 0; q <= p; q++)
+                        free(maps[q]);
+                    free(maps);
+                    free(map_sizes);
+                    free(hashes);
+                    render_job_fini(&job);
+                    log_error("%s", err);
+                    return -1;
+                }
+                seconds += now_seconds() - t0;
+                num_maps = p + 1;
+                emitted += st.emitted;
+                stored += st.stored;
+                stored_surface += st.stored_surface;
+                struct blob_hash h;
+                char hex[65];
+                blob_hash_compute(maps[p], map_sizes[p], &h);
+                blob_hash_hex(&h, hex);
+                memcpy(hashes + 32 * (size_t)p, h.bytes, 32);
+                log_debug("media: pass %u: %llu stored (%llu on surfaces) in %.3f s, %zu bytes, radius %g (surface %g), "
+                          "map %.16s", p, (unsigned long long)st.stored, (unsigned long long)st.stored_surface,
+                          st.seconds, map_sizes[p], (double)rv, (double)rsurf, hex);
+            }
+            size_t bytes = 0;
+            for (uint32_t p = 0; p < num_maps; p++)
+                bytes += map_sizes[p];
+            struct blob_hash all;
+            char all_hex[65];
+            blob_hash_compute(hashes, 32 * (size_t)num_maps, &all);
+            blob_hash_hex(&all, all_hex);
+            free(hashes);
+            log_info("media: photon pass: %u map(s) (progressive passes, alpha %g), %llu emitted, %llu stored (%llu on "
+                     "surfaces) in %.3f s on %u thread(s) (%.3g photons/s), %zu bytes (%.1f bytes/photon), radius %g "
+                     "to %g (surface %g to %g), multiple-scattering bound %.3g, map %.16s",
+                     num_maps, (double)sm->alpha, (unsigned long long)emitted, (unsigned long long)stored,
+                     (unsigned long long)stored_surface, seconds, threads, seconds > 0 ? (double)emitted / seconds : 0.0,
+                     bytes, stored ? (double)bytes / (double)stored : 0.0, (double)r0,
+                     photon_pass_radius(r0, sm->alpha, num_maps - 1, 3), (double)r0,
+                     photon_pass_radius(r0, sm->alpha, num_maps - 1, 2), bound, all_hex);
+            log_info("passes: %u of %u spp (%u spp), pass p with photon map p", num_maps, k, rs->spp);
         }
         render_job_fini(&job);
     }
-    volume_blob_make(sm, map, map_size, &blob, &blob_size);
-    free(map);
+    if (no_map && asked > 1)
+        log_info("passes: 1 (%u asked): no photon map (%s)", asked, no_map);
+    volume_blob_make_passes(sm, (const uint8_t *const *)maps, map_sizes, num_maps, &blob, &blob_size);
+    for (uint32_t p = 0; p < num_maps; p++)
+        free(maps[p]);
+    free(maps);
+    free(map_sizes);
     publish(assets, blob, blob_size);
-    log_info("media: method %s, volume blob %zu bytes", media_method_name(sm->method), blob_size);
+    *passes_out = num_maps ? num_maps : 1;
+    log_info("media: method %s, volume blob %zu bytes (%u photon map(s))", media_method_name(sm->method), blob_size,
+             num_maps);
     return 0;
 }

@@ -15,7 +15,11 @@
  * scene's map is the same for every frame: built once, reused. */
 int master_media_per_frame(const struct scene *scene);
 /* 0 on success (also when the scene has no media: nothing is done), -1 logged. A second
- * call replaces the volume blob among the files. */
-int master_media_prepare(struct scene *scene, const struct master_opts *o, uint32_t frame, struct asset_dir *assets);
+ * call replaces the volume blob among the files. With a photon map, the frame renders in
+ * progressive passes (--passes, render.passes, default 8), one map each, all in the blob;
+ * scene->settings.spp is raised to a multiple of them (ceil(spp / P) per pass). *passes
+ * gets their number (1 without a photon map). */
+int master_media_prepare(struct scene *scene, const struct master_opts *o, uint32_t frame, struct asset_dir *assets,
+                         uint32_t *passes);
 
 #endif

@@ -394,14 +394,24 @@ static int load_job(struct worker *w)
         return -1;
     }
     render_job_set_photon_map(&w->rjob, &map);
+    /* Progressive passes: one map per pass; the master settles spp on a multiple of them. */
+    if (rs->spp % w->rjob.num_passes != 0) {
+        str_fmt(err, sizeof err, "job: %u spp is not a multiple of the volume blob's %u photon-map passes", rs->spp,
+                w->rjob.num_passes);
+        render_job_fini(&w->rjob);
+        scene_fini(&w->scene);
+        send_error(w, err);
+        log_error("%s", err);
+        return -1;
+    }
     w->loaded = 1;
     tile_image_desc(&w->desc, rs);
     pool_start(w);
     struct proto_msg m = {.type = MSG_READY};
     m.u.ready.job_id = w->job.job_id;
     m.u.ready.credits = w->opts->threads * TILES_PER_THREAD;
-    log_info("job %llu loaded: %ux%u, %u spp, %u threads; %llu bytes of assets fetched and the scene built in %.3f s",
-             (unsigned long long)w->job.job_id, rs->width, rs->height, rs->spp, w->opts->threads,
+    log_info("job %llu loaded: %ux%u, %u spp in %u pass(es), %u threads; %llu bytes of assets fetched and the scene built in %.3f s",
+             (unsigned long long)w->job.job_id, rs->width, rs->height, rs->spp, w->rjob.num_passes, w->opts->threads,
              (unsigned long long)w->fetch_bytes, (double)(net_now_ms() - w->job_at_ms) * 1e-3);
     worker_send(w, &m);
     return 0;

@@ -21,8 +21,8 @@ static vec3 emitted(const struct render_job *job, const struct surface *s, vec3 
     return job->scene->materials[s->material].emission;
 }
 
-static vec3 sample_path(const struct render_job *job, uint32_t px, uint32_t py, struct sampler smp, uint64_t *rays,
-                        int *hit_any)
+static vec3 sample_path(const struct render_job *job, uint32_t pass, uint32_t px, uint32_t py, struct sampler smp,
+                        uint64_t *rays, int *hit_any)
 {
     const struct scene *sc = job->scene;
     const struct render_settings *rs = &sc->settings;
@@ -33,7 +33,7 @@ static vec3 sample_path(const struct render_job *job, uint32_t px, uint32_t py, 
     float time01 = cs.time01;
     vec3 org = cs.o, dir = cs.d;
     if (job->media)
-        return media_sample_path(job, &smp, px, py, org, dir, time01, rays, hit_any);
+        return media_sample_path_pass(job, pass, &smp, px, py, org, dir, time01, rays, hit_any);
     struct raydiff rd;          /* texture footprints, only when a material has a texture */
     if (job->textured)
         texshade_camera(job, &cs, &smp, &rd);
@@ -133,12 +133,89 @@ static vec3 sample_path(const struct render_job *job, uint32_t px, uint32_t py, 
     return L;
 }
 
+void pass_batch_add(struct pass_batch *b, const double m[3])
+{
+    /* Welford's running mean and sum of squared deviations (stable for any P). */
+    double lum = 0.2126 * m[0] + 0.7152 * m[1] + 0.0722 * m[2];
+    b->n++;
+    for (int k = 0; k < 3; k++) {
+        double d = m[k] - b->mean[k];
+        b->mean[k] += d / b->n;
+        b->m2[k] += d * (m[k] - b->mean[k]);
+    }
+    double d = lum - b->lum_mean;
+    b->lum_mean += d / b->n;
+    b->lum_m2 += d * (lum - b->lum_mean);
+}
+
+double pass_batch_var_of_mean(const struct pass_batch *b, int k)
+{
+    double m2 = k < 3 ? b->m2[k] : b->lum_m2;
+    return b->n > 1 ? fmax(0.0, m2) / (b->n - 1) / b->n : 0.0;
+}
+
+/* A pixel rendered in passes (job->num_passes >= 2, progressive photon mapping): pass p
+ * takes sample indices [p k, (p + 1) k) and the pass's photon map; the pixel is the
+ * average of the pass means and its variance channels hold the variance of that average
+ * estimated from the spread of the pass means (batch means, s^2 / P), which sees the
+ * photon maps' error as well as the camera samples'. */
+static void render_pixel_passes(const struct render_job *job, uint32_t px_x, uint32_t px_y, float *px,
+                                struct tile_stats *stats)
+{
+    const struct render_settings *rs = &job->scene->settings;
+    const uint32_t passes = job->num_passes, k = (rs->spp + passes - 1) / passes;
+    struct sampler_pixel sp;
+    sampler_pixel_init(&sp, rs->sampler, rs->seed, job->frame, (uint64_t)px_y * rs->width + px_x, k * passes);
+    struct pass_batch b;
+    memset(&b, 0, sizeof b);
+    double cover = 0.0;
+    uint32_t n_all = 0;
+    for (uint32_t p = 0; p < passes; p++) {
+        double sum[3] = {0, 0, 0};
+        uint32_t n = 0;
+        for (uint32_t si = p * k; si < (p + 1) * k; si++) {
+            int hit_any;
+            vec3 l = sample_path(job, p, px_x, px_y, sampler_start_pixel(&sp, si), &stats->rays, &hit_any);
+            stats->samples++;
+            if (!v3_is_finite(l)) {
+                stats->nan_samples++;
+                continue;
+            }
+            sum[0] += l.x;
+            sum[1] += l.y;
+            sum[2] += l.z;
+            cover += hit_any;
+            n++;
+        }
+        if (n == 0)
+            continue; /* every sample of the pass dropped: the other passes make the pixel */
+        double m[3] = {sum[0] / n, sum[1] / n, sum[2] / n};
+        pass_batch_add(&b, m);
+        n_all += n;
+    }
+    for (int c = 0; c < 3; c++) {
+        px[CH_R + c] = (float)b.mean[c];
+        px[CH_VAR_R + c] = (float)pass_batch_var_of_mean(&b, c);
+    }
+    px[CH_A] = n_all ? (float)(cover / n_all) : 0.0f;
+    if (b.lum_mean > 0.0 && b.n > 1) {
+        stats->sum_rel_stderr += sqrt(pass_batch_var_of_mean(&b, 3)) / b.lum_mean;
+        stats->rel_stderr_pixels++;
+    }
+}
+
 void integrator_render_tile(const struct render_job *job, uint32_t x0, uint32_t y0, uint32_t w, uint32_t h,
                             float *pixels, struct tile_stats *stats)
 {
     const struct render_settings *rs = &job->scene->settings;
     const uint32_t spp = rs->spp;
     memset(stats, 0, sizeof *stats);
+    if (job->num_passes > 1) {
+        for (uint32_t y = 0; y < h; y++)
+            for (uint32_t x = 0; x < w; x++)
+                render_pixel_passes(job, x0 + x, y0 + y, &pixels[((size_t)y * w + x) * TILE_NUM_CHANNELS], stats);
+        return;
+    }
     for (uint32_t y = 0; y < h; y++)
         for (uint32_t x = 0; x < w; x++) {
             double sum[3] = {0, 0, 0}, sum2[3] = {0, 0, 0}, lum_sum = 0.0, lum_sum2 = 0.0, cover = 0.0;
@@ -150,7 +227,7 @@ void integrator_render_tile(const struct render_job *job, uint32_t x0, uint32_t 
                                spp);
             for (uint32_t si = 0; si < spp; si++) {
                 int hit_any;
-                vec3 l = sample_path(job, x0 + x, y0 + y, sampler_start_pixel(&sp, si), &stats->rays, &hit_any);
+                vec3 l = sample_path(job, 0, x0 + x, y0 + y, sampler_start_pixel(&sp, si), &stats->rays, &hit_any);
                 stats->samples++;
                 if (!v3_is_finite(l)) {
                     stats->nan_samples++;

@@ -14,4 +14,15 @@
 void integrator_render_tile(const struct render_job *job, uint32_t x0, uint32_t y0, uint32_t w, uint32_t h,
                             float *pixels, struct tile_stats *stats);
 
+/* Batch means over progressive passes: the running average of a pixel's pass means (RGB
+ * and luminance) and the variance of that average estimated from their spread, s^2 / P
+ * (s^2 the sample variance of the P pass means). Zero-initialise, add each pass's mean. */
+struct pass_batch {
+    double mean[3], m2[3], lum_mean, lum_m2;
+    uint32_t n;
+};
+void pass_batch_add(struct pass_batch *b, const double m[3]);
+/* Channel k (0..2: R, G, B; 3: luminance): s^2 / n, 0 for fewer than 2 passes. */
+double pass_batch_var_of_mean(const struct pass_batch *b, int k);
+
 #endif

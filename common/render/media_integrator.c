@@ -141,10 +141,10 @@ static vec3 point_lights_all(const struct render_job *job, vec3 x, vec3 d_out, u
  * segment's transmittance. Homogeneous media: closed-form transmittance to each step.
  * Grids: the optical depth accumulates step by step (a table of it serves the beam). */
 #define TAU_TABLE 4096
-static vec3 march_segment(const struct render_job *job, const struct rngs *r, uint32_t vertex, vec3 o, vec3 d,
-                          float len, uint32_t medium, float time01, uint64_t *rays, vec3 *seg_tr)
+static vec3 march_segment(const struct render_job *job, const struct media_job *mj, const struct rngs *r,
+                          uint32_t vertex, vec3 o, vec3 d, float len, uint32_t medium, float time01, uint64_t *rays,
+                          vec3 *seg_tr)
 {
-    const struct media_job *mj = job->media;
     /* The forward cone is no scattering: camera rays see sigma_t less its share. */
     struct medium cut_md;
     const struct medium *md = medium_forward_cut(&mj->sm->media[medium], &cut_md);
@@ -293,8 +293,14 @@ static vec3 equiangular(const struct render_job *job, const struct rngs *r, uint
 vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, uint32_t px, uint32_t py, vec3 org,
                        vec3 dir, float time01, uint64_t *rays, int *hit_any)
 {
+    return media_sample_path_pass(job, 0, smp, px, py, org, dir, time01, rays, hit_any);
+}
+
+vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const struct sampler *smp, uint32_t px,
+                            uint32_t py, vec3 org, vec3 dir, float time01, uint64_t *rays, int *hit_any)
+{
     const struct scene *sc = job->scene;
-    const struct media_job *mj = job->media;
+    const struct media_job *mj = render_job_pass_media(job, pass); /* the pass's photon map */
     const struct scene_media *sm = mj->sm;
     const struct render_settings *rs = &sc->settings;
     struct rngs r;
@@ -365,7 +371,7 @@ vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, 
                 const struct medium *mdc = medium_forward_cut(md, &cut_md);
                 float len = hit ? h.t : march_reach(mj, mdc, org, dir);
                 vec3 seg_tr;
-                L = v3_add(L, v3_mul(beta, march_segment(job, &r, vertex, org, dir, len, medium, time01, rays, &seg_tr)));
+                L = v3_add(L, v3_mul(beta, march_segment(job, mj, &r, vertex, org, dir, len, medium, time01, rays, &seg_tr)));
                 float exact = hit ? v3_length(v3_sub(v3_add(org, v3_scale(dir, h.t)), seg_start)) : INFINITY;
                 beta = v3_mul(beta, md->grid ? seg_tr : medium_transmittance(mdc, exact));
                 if (v3_is_black(beta))

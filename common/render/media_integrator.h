@@ -9,8 +9,12 @@
 #include "scene/medium.h"  /* media settings, for callers that pick the method */
 #include "scene/sampler.h"
 
-/* One camera sample of a media scene, from the camera ray (org, dir) at time01. */
+/* One camera sample of a media scene, from the camera ray (org, dir) at time01, with the
+ * photon map of the first pass. */
 vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, uint32_t px, uint32_t py, vec3 org,
                        vec3 dir, float time01, uint64_t *rays, int *hit_any);
+/* The same with the photon map of pass `pass` (< job->num_passes; render_job_pass_media). */
+vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const struct sampler *smp, uint32_t px,
+                            uint32_t py, vec3 org, vec3 dir, float time01, uint64_t *rays, int *hit_any);
 
 #endif

@@ -221,10 +221,11 @@ int photon_map_decode(const uint8_t *data, size_t size, struct photon_map **out,
         return -1;
     if (used == size)
         return 0;
-    /* A surface map follows: exactly one more map, with the same radius and photon count. */
+    /* A surface map follows: exactly one more map, with the same photon count (its radius
+     * may differ: progressive passes shrink it by the 2D rule, the volume map's by the 3D). */
     struct photon_map *s = NULL;
     if (decode_one(data + used, size - used, &used2, &s, err, errlen) != 0 || used2 != size - used ||
-        s->radius != (*out)->radius || s->num_emitted != (*out)->num_emitted) {
+        s->num_emitted != (*out)->num_emitted) {
         if (s || used2)
             str_fmt(err, errlen, "photon map: the surface map does not fit the blob or the volume map");
         photon_map_free(&s);
@@ -237,14 +238,25 @@ int photon_map_decode(const uint8_t *data, size_t size, struct photon_map **out,
 
 void photon_map_free(struct photon_map **pm)
 {
-    if (!*pm)
-        return;
-    photon_map_free(&(*pm)->surface);
-    free((*pm)->decoded);
-    free((*pm)->photons);
-    free((*pm)->bucket_start);
-    free(*pm);
+    struct photon_map *m = *pm;
     *pm = NULL;
+    while (m) { /* the passes' chain, iteratively (up to VOLUME_BLOB_MAX_MAPS long) */
+        struct photon_map *next = m->next_pass;
+        photon_map_free(&m->surface);
+        free(m->decoded);
+        free(m->photons);
+        free(m->bucket_start);
+        free(m);
+        m = next;
+    }
+}
+
+double photon_pass_radius(double r0, double alpha, uint32_t pass, int dim)
+{
+    double rd = 1.0;
+    for (uint32_t p = 1; p <= pass; p++)
+        rd *= ((double)p + alpha) / ((double)p + 1.0);
+    return r0 * pow(rd, 1.0 / (double)dim);
 }
 
 /* ---- lookups ---- */
@@ -580,24 +592,87 @@ vec3 photon_map_beam(const struct photon_map *m, vec3 o, vec3 d, float t1, const
 
 /* ---- the volume blob ---- */
 
-#define VB_MAGIC "BVOL0001"
-#define VB_HEADER 32
+#define VB_MAGIC "BVOL0002"
+#define VB_HEADER 48
 
-int volume_blob_make(const struct scene_media *sm, const uint8_t *map, size_t map_size, uint8_t **out,
-                     size_t *out_size)
+int volume_blob_make_passes(const struct scene_media *sm, const uint8_t *const *maps, const size_t *map_sizes,
+                            uint32_t num_maps, uint8_t **out, size_t *out_size)
 {
-    size_t n = VB_HEADER + (map ? map_size : 0);
+    size_t n = VB_HEADER;
+    for (uint32_t i = 0; i < num_maps; i++)
+        n += 8 + map_sizes[i];
     uint8_t *b = mem_calloc(n, 1);
     memcpy(b, VB_MAGIC, 8);
     bytes_put_u32(b + 8, (uint32_t)sm->method);
     bytes_put_f32(b + 12, sm->step);
     bytes_put_f32(b + 16, sm->radius);
-    bytes_put_u32(b + 20, map ? 1u : 0u);
+    bytes_put_u32(b + 20, num_maps);
     bytes_put_u64(b + 24, sm->photons);
-    if (map)
-        memcpy(b + VB_HEADER, map, map_size);
+    bytes_put_f32(b + 32, sm->alpha > 0.0f ? sm->alpha : MEDIA_DEFAULT_ALPHA);
+    size_t at = VB_HEADER;
+    for (uint32_t i = 0; i < num_maps; i++) {
+        bytes_put_u64(b + at, (uint64_t)map_sizes[i]);
+        memcpy(b + at + 8, maps[i], map_sizes[i]);
+        at += 8 + map_sizes[i];
+    }
     *out = b;
     *out_size = n;
+    return 0;
+}
+
+int volume_blob_make(const struct scene_media *sm, const uint8_t *map, size_t map_size, uint8_t **out,
+                     size_t *out_size)
+{
+    return volume_blob_make_passes(sm, &map, &map_size, map ? 1u : 0u, out, out_size);
+}
+
+int volume_blob_decode(const uint8_t *data, size_t size, struct scene_media *settings, struct photon_map **maps,
+                       uint32_t *num_maps, char *err, size_t errlen)
+{
+    *maps = NULL;
+    *num_maps = 0;
+    if (size < VB_HEADER || memcmp(data, VB_MAGIC, 8) != 0) {
+        str_fmt(err, errlen, "volume blob: bad header");
+        return -1;
+    }
+    uint32_t method = bytes_get_u32(data + 8), n = bytes_get_u32(data + 20);
+    float step = bytes_get_f32(data + 12), radius = bytes_get_f32(data + 16), alpha = bytes_get_f32(data + 32);
+    int zero = bytes_get_u32(data + 36) == 0 && bytes_get_u64(data + 40) == 0;
+    if (method >= MEDIA_METHOD_COUNT_ || !(step >= 0.0f) || !isfinite(step) || !(radius >= 0.0f) ||
+        !isfinite(radius) || !(alpha > 0.0f && alpha <= 1.0f) || n > VOLUME_BLOB_MAX_MAPS || !zero) {
+        str_fmt(err, errlen, "volume blob: settings out of range");
+        return -1;
+    }
+    struct photon_map *head = NULL, **tail = &head;
+    size_t at = VB_HEADER;
+    for (uint32_t i = 0; i < n; i++) {
+        uint64_t len = size - at >= 8 ? bytes_get_u64(data + at) : UINT64_MAX;
+        if (len == UINT64_MAX || len > size - at - 8) {
+            str_fmt(err, errlen, "volume blob: map %u of %u does not fit the blob", i, n);
+            photon_map_free(&head);
+            return -1;
+        }
+        if (photon_map_decode(data + at + 8, (size_t)len, tail, err, errlen) != 0) {
+            photon_map_free(&head);
+            return -1;
+        }
+        tail = &(*tail)->next_pass;
+        at += 8 + (size_t)len;
+    }
+    if (at != size) {
+        str_fmt(err, errlen, "volume blob: %zu bytes after the last map", size - at);
+        photon_map_free(&head);
+        return -1;
+    }
+    if (settings) {
+        settings->method = (enum media_method)method;
+        settings->step = step;
+        settings->radius = radius;
+        settings->photons = bytes_get_u64(data + 24);
+        settings->alpha = alpha;
+    }
+    *maps = head;
+    *num_maps = n;
     return 0;
 }
 
@@ -606,22 +681,18 @@ int volume_blob_apply(struct scene *s, const uint8_t *data, size_t size, struct 
 {
     struct scene_media *sm = s->media;
     *map = NULL;
-    if (!sm || size < VB_HEADER || memcmp(data, VB_MAGIC, 8) != 0) {
-        str_fmt(err, errlen, "volume blob: bad header or a scene without media");
+    if (!sm) {
+        str_fmt(err, errlen, "volume blob: a scene without media");
         return -1;
     }
-    uint32_t method = bytes_get_u32(data + 8), has_map = bytes_get_u32(data + 20);
-    float step = bytes_get_f32(data + 12), radius = bytes_get_f32(data + 16);
-    if (method >= MEDIA_METHOD_COUNT_ || !(step >= 0.0f) || !isfinite(step) || !(radius >= 0.0f) ||
-        !isfinite(radius) || has_map > 1 || (!has_map && size != VB_HEADER)) {
-        str_fmt(err, errlen, "volume blob: settings out of range");
+    struct scene_media st = *sm;
+    uint32_t n;
+    if (volume_blob_decode(data, size, &st, map, &n, err, errlen) != 0)
         return -1;
-    }
-    sm->method = (enum media_method)method;
-    sm->step = step;
-    sm->radius = radius;
-    sm->photons = bytes_get_u64(data + 24);
-    if (has_map && photon_map_decode(data + VB_HEADER, size - VB_HEADER, map, err, errlen) != 0)
-        return -1;
+    sm->method = st.method;
+    sm->step = st.step;
+    sm->radius = st.radius;
+    sm->photons = st.photons;
+    sm->alpha = st.alpha;
     return 0;
 }

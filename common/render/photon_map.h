@@ -32,6 +32,7 @@ struct photon_map {
     uint32_t *bucket_start;     /* table_size + 1 */
     struct photon_decoded *decoded; /* per photon, filled by photon_map_decode; NULL: decode on the fly */
     struct photon_map *surface; /* the volume map's companion: photons on diffuse surfaces, or NULL */
+    struct photon_map *next_pass; /* the next pass's map (progressive passes, volume blob), or NULL; owned */
 };
 
 /* Photons one block of photon indices stored, in index order (photon_trace.c fills them). */
@@ -48,7 +49,15 @@ int photon_map_serialise(struct photon_list *blocks, uint32_t num_blocks, float 
                          uint8_t **map, size_t *bytes, uint32_t *count, char *err, size_t errlen);
 /* Checks and decodes a blob (every size and index is checked before use). */
 int photon_map_decode(const uint8_t *data, size_t size, struct photon_map **out, char *err, size_t errlen);
+/* Frees the map, its surface map and the maps of the passes after it. */
 void photon_map_free(struct photon_map **pm);
+
+/* Progressive photon mapping (Knaus and Zwicker 2011; volumes as in Jarosz et al. 2011):
+ * the gather radius of pass p (0-based) for a kernel of dimension dim (3: volume, 2:
+ * surface), r_p^dim = r_{p-1}^dim (p + alpha) / (p + 1), r_0 = r0 (their rule with their
+ * 1-based pass number i = p: r_{i+1}^dim = r_i^dim (i + alpha) / (i + 1)). Monotone, and
+ * r_p -> 0 for alpha < 1 (r_p^dim ~ p^(alpha - 1)); alpha = 1 keeps r0. */
+double photon_pass_radius(double r0, double alpha, uint32_t pass, int dim);
 
 /* Flux density of indirect light at x on a surface with unit normal n (on the side light
  * arrives from): sum of the power of the surface photons within the map's radius of x,
@@ -99,12 +108,26 @@ uint16_t photon_dir_encode(vec3 d);
 vec3 photon_dir_decode(uint16_t e);
 
 /* The volume blob of a job (path MEDIA_PHOTON_ASSET): the media settings the master
- * settled on (command-line overrides included) and the photon map, if one was built.
- * Every worker renders with exactly these; the blob is content-addressed like any asset. */
+ * settled on (command-line overrides included) and the photon maps, one per pass, if any
+ * were built. Every worker renders with exactly these; the blob is content-addressed like
+ * any asset. Format "BVOL0002": a 48-byte header (magic, method, step, radius r0, number
+ * of maps P <= VOLUME_BLOB_MAX_MAPS, photons per pass, alpha, zero padding), then per map
+ * its byte size (u64) and the map (photon_map_serialise's bytes: volume map, then
+ * surface map). */
+#define VOLUME_BLOB_MAX_MAPS 1024u
+int volume_blob_make_passes(const struct scene_media *sm, const uint8_t *const *maps, const size_t *map_sizes,
+                            uint32_t num_maps, uint8_t **out, size_t *out_size);
+/* One map (or none when map is NULL): a single pass. */
 int volume_blob_make(const struct scene_media *sm, const uint8_t *map, size_t map_size, uint8_t **out,
                      size_t *out_size);
-/* Applies a volume blob to a freshly parsed scene (its settings) and decodes its map into
- * *map (NULL when the blob has none; the caller hands it to its render job). 0 or -1 with err. */
+/* Checks a volume blob and decodes its maps into a chain (*maps, then ->next_pass; NULL
+ * when it holds none) and its count; settings into *settings when not NULL (method, step,
+ * radius, photons, alpha). Needs no scene (the fuzz target calls it). 0 or -1 with err. */
+int volume_blob_decode(const uint8_t *data, size_t size, struct scene_media *settings, struct photon_map **maps,
+                       uint32_t *num_maps, char *err, size_t errlen);
+/* Applies a volume blob to a freshly parsed scene (its settings) and decodes its maps into
+ * *map, a chain of one map per pass linked by next_pass (NULL when the blob has none; the
+ * caller hands it to its render job). 0 or -1 with err. */
 int volume_blob_apply(struct scene *s, const uint8_t *data, size_t size, struct photon_map **map, char *err,
                       size_t errlen);
 #endif

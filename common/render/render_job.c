@@ -37,6 +37,35 @@ static void mips_fini(struct render_job *job)
     job->mips = NULL;
 }
 
+/* The passes' views of the media state (one per map of the chain), after the media state
+ * or the maps change. */
+static void passes_update(struct render_job *job)
+{
+    free(job->pass_media);
+    job->pass_media = NULL;
+    job->num_passes = 0;
+    for (const struct photon_map *m = job->photons; m; m = m->next_pass)
+        job->num_passes++;
+    if (job->num_passes == 0)
+        job->num_passes = 1;
+    if (!job->media)
+        return;
+    job->pass_media = mem_calloc(job->num_passes, sizeof *job->pass_media);
+    const struct photon_map *m = job->photons;
+    for (uint32_t p = 0; p < job->num_passes; p++) {
+        job->pass_media[p] = *job->media;
+        job->pass_media[p].map = job->media->map ? m : NULL;
+        if (job->pass_media[p].map)
+            job->pass_media[p].radius = m->radius;
+        m = m ? m->next_pass : NULL;
+    }
+}
+
+const struct media_job *render_job_pass_media(const struct render_job *job, uint32_t pass)
+{
+    return job->pass_media && pass < job->num_passes ? &job->pass_media[pass] : job->media;
+}
+
 /* What depends on the frame: Embree scene, camera at the frame's time, media state. */
 static int frame_init(struct render_job *job, uint32_t frame, uint32_t threads, char *err, size_t errlen)
 {
@@ -48,6 +77,7 @@ static int frame_init(struct render_job *job, uint32_t frame, uint32_t threads, 
     camera_set_scene_motion(&job->camera, job->accel.has_motion);
     if (scene->media)
         job->media = media_job_new(&job->accel, &job->lights, job->photons);
+    passes_update(job);
     return 0;
 }
 
@@ -69,6 +99,8 @@ int render_job_reframe(struct render_job *job, uint32_t frame, uint32_t threads,
 {
     accel_fini(&job->accel);
     media_job_free(&job->media);
+    free(job->pass_media);
+    job->pass_media = NULL;
     if (frame_init(job, frame, threads, err, errlen) != 0) {
         render_job_fini(job);
         return -1;
@@ -83,6 +115,7 @@ void render_job_set_photon_map(struct render_job *job, struct photon_map **map)
     *map = NULL;
     if (job->media)
         job->media->map = job->media->sm->method != MEDIA_VPT ? job->photons : NULL;
+    passes_update(job);
 }
 
 void render_job_fini(struct render_job *job)
@@ -93,6 +126,7 @@ void render_job_fini(struct render_job *job)
     accel_fini(&job->accel);
     light_table_fini(&job->lights);
     media_job_free(&job->media);
+    free(job->pass_media);
     photon_map_free(&job->photons);
     memset(job, 0, sizeof *job);
 }

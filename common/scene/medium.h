@@ -63,7 +63,10 @@ struct scene_media {
     int surface_photons;        /* march / beam: a surface photon map for diffuse surfaces' indirect light (default 1) */
     float skip_bound;           /* skip the photon pass when multiple scattering is bounded below this */
     uint32_t max_photon_depth;  /* interactions per photon path */
+    float alpha;                /* progressive radius reduction per pass, in (0, 1]; 0 = MEDIA_DEFAULT_ALPHA */
 };
+/* Knaus and Zwicker's alpha: the share of each pass's photons a pass keeps in the radius rule. */
+#define MEDIA_DEFAULT_ALPHA (2.0f / 3.0f)
 
 struct scene_media *media_scene_new(void);
 void media_scene_free(struct scene_media **m);

@@ -105,6 +105,8 @@ enum sampler_type { SAMPLER_INDEPENDENT, SAMPLER_STRATIFIED, SAMPLER_SOBOL, SAMP
  * convergence (slope -0.60 against -0.59). */
 #define SCENE_DEFAULT_SAMPLER SAMPLER_SOBOL
 
+#define SCENE_MAX_PASSES 1024u
+
 struct render_settings {
     uint32_t width, height;
     uint32_t spp;
@@ -112,6 +114,7 @@ struct render_settings {
     uint64_t seed;
     uint32_t tile_size;     /* square tiles of tile_size pixels; edge tiles are clipped */
     enum sampler_type sampler;
+    uint32_t passes;        /* render.passes (1..SCENE_MAX_PASSES): photon-map passes (docs/media.md); 0 = default */
 };
 
 struct texture; /* texture.h */

@@ -883,9 +883,9 @@ static uint32_t interface_material(struct ctx *c)
 static int parse_volume(struct ctx *c, const struct member *vm)
 {
     static const char *const keys[] = {"method", "fog", "step", "photons", "radius", "skip_bound", "max_photon_depth",
-                                       "knn", "shadow_cache", "surface_photons"};
-    struct member m[10];
-    if (object_members(c, vm->val, &vm->path, "volume", keys, 10, m) != 0)
+                                       "knn", "shadow_cache", "surface_photons", "alpha"};
+    struct member m[11];
+    if (object_members(c, vm->val, &vm->path, "volume", keys, 11, m) != 0)
         return -1;
     struct scene_media *sm = c->scene->media;
     if (m[0].val) {
@@ -946,6 +946,13 @@ static int parse_volume(struct ctx *c, const struct member *vm)
         if (!json_is_boolean(m[9].val))
             return fail(c, &m[9].path, AT_VALUE, "surface_photons must be true or false");
         sm->surface_photons = json_is_true(m[9].val);
+    }
+    if (m[10].val) {
+        if (get_float(c, m[10].val, &m[10].path, "alpha", &f) != 0)
+            return -1;
+        if (!(f > 0.0f && f <= 1.0f))
+            return fail(c, &m[10].path, AT_VALUE, "alpha must be in (0, 1]");
+        sm->alpha = f;
     }
     return 0;
 }
@@ -1119,9 +1126,10 @@ static int parse_camera(struct ctx *c, const struct member *cm)
 
 static int parse_render(struct ctx *c, const struct member *rm)
 {
-    static const char *const keys[] = {"width", "height", "spp", "max_depth", "seed", "tile_size", "sampler"};
-    struct member m[7];
-    if (object_members(c, rm->val, &rm->path, "render", keys, 7, m) != 0 ||
+    static const char *const keys[] = {"width", "height", "spp", "max_depth", "seed", "tile_size", "sampler",
+                                       "passes"};
+    struct member m[8];
+    if (object_members(c, rm->val, &rm->path, "render", keys, 8, m) != 0 ||
         require(c, &m[0], &rm->path, "render", "width") != 0 ||
         require(c, &m[1], &rm->path, "render", "height") != 0)
         return -1;
@@ -1145,6 +1153,13 @@ static int parse_render(struct ctx *c, const struct member *rm)
             return -1;
         if (sampler_type_from_name(name, &r->sampler) != 0)
             return fail(c, &m[6].path, AT_VALUE, "sampler must be \"independent\", \"stratified\" or \"sobol\"");
+    }
+    r->passes = 0;
+    if (m[7].val) {
+        json_int_t n;
+        if (get_uint(c, &m[7], "passes", 1, SCENE_MAX_PASSES, &n) != 0)
+            return -1;
+        r->passes = (uint32_t)n;
     }
     return 0;
 }

@@ -3,8 +3,11 @@
  * (byte 0) and table size (byte 1, a power of two) and supplies its photons and bucket
  * table, so the header fits and the decoder's deeper checks (bucket order, positions) are
  * reached; whatever input is left follows as a second map (the surface map) behind a
- * "BVPM0001" magic. The raw input is also decoded as it is. A decoded map then answers
- * every lookup at a few points. Built and run by tests/fuzz/run.sh. */
+ * "BVPM0001" magic. The raw input is also decoded as it is, and as a volume blob (the
+ * progressive passes' maps behind a "BVOL0002" header), and the built map is wrapped in
+ * a volume blob of up to three passes whose header fields and map sizes the input also
+ * sets. A decoded map then answers every lookup at a few points. Built and run by
+ * tests/fuzz/run.sh. */
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
@@ -41,9 +44,36 @@ static void exercise(const uint8_t *blob, size_t n)
     photon_map_free(&m);
 }
 
+/* A volume blob: every map of the chain answers the lookups. */
+static void exercise_blob(const uint8_t *blob, size_t n)
+{
+    struct photon_map *maps = NULL;
+    struct scene_media st;
+    uint32_t count = 0;
+    char err[256];
+    memset(&st, 0, sizeof st);
+    if (volume_blob_decode(blob, n, &st, &maps, &count, err, sizeof err) != 0)
+        return;
+    static const float pts[2][3] = {{0, 0, 0}, {0.3f, -0.2f, 0.9f}};
+    for (const struct photon_map *m = maps; m; m = m->next_pass)
+        for (int i = 0; i < 2; i++) {
+            vec3 x = v3(pts[i][0], pts[i][1], pts[i][2]);
+            (void)photon_map_gather_knn(m, x, v3(0, 1, 0), 0.3f, 4, 4.0f * m->radius);
+            (void)photon_map_surface(m, x, v3(0, 1, 0));
+        }
+    photon_map_free(&maps);
+}
+
+static void put_u64(uint8_t *p, uint64_t v)
+{
+    for (int i = 0; i < 8; i++)
+        p[i] = (uint8_t)(v >> (8 * i));
+}
+
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     exercise(data, size);
+    exercise_blob(data, size);
     if (size < 2)
         return 0;
     uint32_t n = data[0], table = 1u << (data[1] % 8);
@@ -64,6 +94,24 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         memcpy(b + 48 + body + 8, data + 2 + take, rest);
     }
     exercise(b, total);
+    /* The map as 1..3 passes of a volume blob: the count and the first size from the input
+     * (mostly right, sometimes off), so the blob's own checks and the maps' both run. */
+    uint32_t passes = 1 + data[0] % 3;
+    size_t vsize = 48 + passes * (8 + total);
+    uint8_t *vb = mem_calloc(vsize, 1);
+    memcpy(vb, "BVOL0002", 8);
+    put_u32(vb + 8, data[1] % 4);                      /* method (3: out of range) */
+    memcpy(vb + 16, &r, 4);                            /* radius */
+    put_u32(vb + 20, passes + (data[1] >> 7));         /* sometimes one map more than there are */
+    float alpha = 2.0f / 3.0f;
+    memcpy(vb + 32, &alpha, 4);
+    for (uint32_t p = 0; p < passes; p++) {
+        size_t at = 48 + p * (8 + total);
+        put_u64(vb + at, total + (p == 0 && (data[1] & 0x40) ? 1 : 0));
+        memcpy(vb + at + 8, b, total);
+    }
+    exercise_blob(vb, vsize);
+    free(vb);
     free(b);
     return 0;
 }

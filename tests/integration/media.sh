@@ -4,7 +4,9 @@
 # beam estimate, per-step lookups and the volumetric path tracer, and on the smoke grid for
 # march and beam (shadow transmittance cache); a late tcp worker gets the
 # map too; the smoke as a NanoVDB file (1 vs 3 workers, against the dense grid); a map per
-# frame when geometry moves, one for the range when not; a scene
+# frame when geometry moves (2 progressive passes: 2 maps per frame), one for the range
+# when not; 4 progressive passes: 1 vs 3 workers, a master killed and restarted, a late
+# worker, all identical; a scene
 # error in the media keys or a compressed .nvdb names file:line:col.
 # Ends with "integration: N passed, N failed". Usage: BUILD=build sh tests/integration/media.sh
 . "$(dirname "$0")/lib.sh"
@@ -12,7 +14,7 @@ lib_init media
 maphash() { sed -n 's/.*photon pass: .* map \([0-9a-f]*\).*/\1/p' "$1" | head -1; }
 scenehash() { sed -n 's/^summary: scene hash //p' "$1" | head -1; }
 S=scenes/fog_spot/fog_spot.json
-A="--spp 1 --no-journal"
+A="--spp 1 --passes 1 --no-journal"  # one pass: the tests of one map (passes below)
 
 run $M $S -o "$T/p1.exr" $A --workers 1 --threads 2 --photon-threads 1 && r1=0 || r1=1
 cp "$T/log" "$T/p1.log"
@@ -34,8 +36,8 @@ done
 # A grid (the smoke): march (k-nearest lookups) and beam read the shadow transmittance cache,
 # filled by whichever thread needs it first; pixels must not depend on that.
 for meth in march beam; do
-  run $M scenes/smoke/smoke.json -o "$T/s${meth}1.exr" --spp 1 --no-journal --workers 1 --threads 1 --media-method $meth && r1=0 || r1=1
-  run $M scenes/smoke/smoke.json -o "$T/s${meth}3.exr" --spp 1 --no-journal --workers 3 --threads 2 --media-method $meth --tile 16 && r3=0 || r3=1
+  run $M scenes/smoke/smoke.json -o "$T/s${meth}1.exr" --spp 1 --passes 1 --no-journal --workers 1 --threads 1 --media-method $meth && r1=0 || r1=1
+  run $M scenes/smoke/smoke.json -o "$T/s${meth}3.exr" --spp 1 --passes 1 --no-journal --workers 3 --threads 2 --media-method $meth --tile 16 && r3=0 || r3=1
   if [ $r1 = 0 ] && [ $r3 = 0 ] && $X cmp "$T/s${meth}1.exr" "$T/s${meth}3.exr"; then
     ok "smoke $meth (shadow cache): 1 vs 3 workers bit-identical"; else bad "smoke $meth (shadow cache): 1 vs 3 workers bit-identical"; fi
 done
@@ -65,6 +67,34 @@ timeout 120 $W --connect "tcp://127.0.0.1:$P" --threads 1 >"$T/wlog" 2>&1
 wait $mpid && r=0 || r=1
 if [ $r = 0 ] && $X cmp "$T/p1.exr" "$T/late.exr"; then ok "extra tcp worker: fetches the volume blob, identical pixels"; else bad "extra tcp worker: fetches the volume blob, identical pixels"; fi
 
+# Progressive passes (4 photon maps, 4 spp): bit-identical for 1 and 3 workers; a master
+# killed mid-frame and restarted resumes from its journal to the same pixels; a late tcp
+# worker fetches the 4 maps and the image is the same.
+PA="--spp 4 --passes 4"
+run $M $S -o "$T/pp1.exr" $PA --no-journal --workers 1 --threads 2 && r1=0 || r1=1
+grep -q "photon pass: 4 map(s)" "$T/log" && g1=0 || g1=1
+run $M $S -o "$T/pp3.exr" $PA --no-journal --workers 3 --threads 1 --tile 16 && r3=0 || r3=1
+if [ $r1 = 0 ] && [ $r3 = 0 ] && [ $g1 = 0 ] && $X cmp "$T/pp1.exr" "$T/pp3.exr" && grep -q "estimated relRMSE .*batch means" "$T/log"; then
+  ok "4 passes: 1 vs 3 workers bit-identical, batch-means estimate reported"; else bad "4 passes: 1 vs 3 workers bit-identical, batch-means estimate reported"; fi
+$M $S -o "$T/ppk.exr" $PA --workers 2 --threads 1 --tile 16 >"$T/klog" 2>&1 &
+mpid=$!
+i=0
+while [ $i -lt 100 ] && ! grep -q "tiles" "$T/ppk.exr.journal" 2>/dev/null && [ ! -s "$T/ppk.exr.journal" ]; do sleep 0.05; i=$((i + 1)); done
+sleep 0.3
+kill -9 $mpid 2>/dev/null
+wait $mpid 2>/dev/null
+run $M $S -o "$T/ppk.exr" $PA --workers 2 --threads 1 --tile 16 && r=0 || r=1
+fj=$(counter tiles_from_journal "$T/ppk.exr")
+echo "media: passes, master killed: ${fj:-0} tiles from the journal"
+if [ $r = 0 ] && $X cmp "$T/pp1.exr" "$T/ppk.exr"; then ok "4 passes: master kill -9 + restart: identical pixels"; else bad "4 passes: master kill -9 + restart: identical pixels"; fi
+timeout 120 $M $S -o "$T/pplate.exr" $PA --no-journal --workers 1 --threads 1 --bind "tcp://127.0.0.1:$((P + 1))" >"$T/log" 2>&1 &
+mpid=$!
+sleep 1
+timeout 120 $W --connect "tcp://127.0.0.1:$((P + 1))" --threads 1 >"$T/wlog" 2>&1
+wait $mpid && r=0 || r=1
+if [ $r = 0 ] && grep -q "in 4 pass(es)" "$T/wlog" && $X cmp "$T/pp1.exr" "$T/pplate.exr"; then
+  ok "4 passes: late tcp worker gets the 4 maps, identical pixels"; else bad "4 passes: late tcp worker gets the 4 maps, identical pixels"; fi
+
 # NanoVDB density grids: the smoke as a .nvdb written by NanoVDB's own writer (make_nvdb),
 # sent to workers as a blob like any asset: pixels bit-identical for 1 and 3 workers, the
 # image's mean within 0.5 % of the dense smoke's; a compressed .nvdb is refused at file:line:col.
@@ -74,8 +104,8 @@ cp scenes/smoke/floor.obj "$T/nv/"
 sed 's/"smoke.grid"/"smoke.nvdb"/' scenes/smoke/smoke.json >"$T/nv/smoke.json"
 if $N --from-grid scenes/smoke/smoke.grid "$T/nv/smoke.nvdb" >"$T/log" 2>&1; then
   for meth in beam vpt; do
-    run $M "$T/nv/smoke.json" -o "$T/nv_${meth}1.exr" --spp 1 --no-journal --workers 1 --threads 1 --media-method $meth && r1=0 || r1=1
-    run $M "$T/nv/smoke.json" -o "$T/nv_${meth}3.exr" --spp 1 --no-journal --workers 3 --threads 2 --media-method $meth --tile 16 && r3=0 || r3=1
+    run $M "$T/nv/smoke.json" -o "$T/nv_${meth}1.exr" --spp 1 --passes 1 --no-journal --workers 1 --threads 1 --media-method $meth && r1=0 || r1=1
+    run $M "$T/nv/smoke.json" -o "$T/nv_${meth}3.exr" --spp 1 --passes 1 --no-journal --workers 3 --threads 2 --media-method $meth --tile 16 && r3=0 || r3=1
     if [ $r1 = 0 ] && [ $r3 = 0 ] && $X cmp "$T/nv_${meth}1.exr" "$T/nv_${meth}3.exr"; then
       ok "nvdb smoke $meth: 1 vs 3 workers bit-identical"; else bad "nvdb smoke $meth: 1 vs 3 workers bit-identical"; fi
   done
@@ -102,7 +132,7 @@ cp scenes/fog_spot/room.obj "$T/anim/"
 sed 's|"radius": 0.3, "material": "ball"}|"radius": 0.3, "material": "ball", "keyframes": [{"time": 0}, {"time": 2, "translate": [-0.8, -0.9, 0]}]}|' \
   $S >"$T/anim/anim.json"
 cp $S "$T/anim/still.json"
-FR="--spp 1 --no-journal --frames 0:2"
+FR="--spp 2 --passes 2 --no-journal --frames 0:2"  # 2 passes: 2 maps per frame
 run $M "$T/anim/anim.json" -o "$T/anim1.####.exr" $FR --workers 1 --threads 2 && r1=0 || r1=1
 cp "$T/log" "$T/anim1.log"
 run $M "$T/anim/anim.json" -o "$T/anim3.####.exr" $FR --workers 3 --threads 1 --tile 16 && r3=0 || r3=1
@@ -112,8 +142,9 @@ maps3=$(sed -n 's/.*photon pass: .* map \([0-9a-f]*\).*/\1/p' "$T/anim3.log" | t
 nuniq=$(echo $maps1 | tr ' ' '\n' | sort -u | wc -l)
 same=1
 for f in 0000 0001 0002; do $X cmp "$T/anim1.$f.exr" "$T/anim3.$f.exr" >/dev/null || same=0; done
-if [ $r1 = 0 ] && [ $r3 = 0 ] && [ "$nuniq" = 3 ] && [ "$maps1" = "$maps3" ] && [ $same = 1 ]; then
-  ok "moving geometry: a photon map per frame ($maps1), frames 1 vs 3 workers bit-identical"
+npm=$(grep -c "photon pass: 2 map(s)" "$T/anim1.log")
+if [ $r1 = 0 ] && [ $r3 = 0 ] && [ "$nuniq" = 3 ] && [ "$npm" = 3 ] && [ "$maps1" = "$maps3" ] && [ $same = 1 ]; then
+  ok "moving geometry: 2 photon maps per frame ($maps1), frames 1 vs 3 workers bit-identical"
 else bad "moving geometry: a photon map per frame (maps: $maps1 / $maps3, rc $r1 $r3, same $same)"; fi
 run $M "$T/anim/still.json" -o "$T/still.####.exr" $FR --workers 2 --threads 1 && rs=0 || rs=1
 np=$(grep -c "photon pass:" "$T/log")
