@@ -24,6 +24,10 @@ struct photon_pass_stats {
  * (render_job_init of a scene with media). 0 or -1 with err. */
 int photon_trace_map(const struct render_job *job, uint64_t seed, uint32_t threads, uint8_t **blob, size_t *size,
                      struct photon_pass_stats *stats, char *err, size_t errlen);
+/* Asks every photon pass of this process to stop: its threads stop at the next photon
+ * and photon_trace_map returns -1 ("interrupted"). Async-signal-safe (a lock-free atomic
+ * store): the master's SIGINT / SIGTERM handler calls it. There is no way back. */
+void photon_trace_request_stop(void);
 /* Upper bound on the share of in-scattered light that comes from more than one bounce:
  * max(largest surface reflectance, largest medium albedo x (1 - exp(-sigma_t,max D))),
  * D the scene's diagonal. The photon pass is skipped when it is below skip_bound. */
