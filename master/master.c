@@ -19,6 +19,7 @@
 #include "photons.h"
 #include "sched.h"
 #include "render/media_integrator.h"
+#include "render/photon_trace.h"
 #include "scene/scene_json.h"
 #include "render/tile.h"
 #include <errno.h>
@@ -113,7 +114,13 @@ struct master {
 };
 
 static volatile sig_atomic_t g_interrupted;
-static void on_signal(int sig) { (void)sig; g_interrupted = 1; }
+/* SIGINT / SIGTERM: the render loop polls the flag; a photon pass stops at its next photon. */
+static void on_signal(int sig)
+{
+    (void)sig;
+    g_interrupted = 1;
+    photon_trace_request_stop();
+}
 
 /* ---- setup ---- */
 
@@ -1251,6 +1258,10 @@ done:
             if (!m.sched->workers[i].gone)
                 send_to(&m, &m.peers[i], &bye);
     }
+    if (m.num_local && g_interrupted) /* interrupted: local workers drop their tiles at the next row */
+        for (uint32_t i = 0; i < m.num_local; i++)
+            if (m.local_pids[i] > 0)
+                kill(m.local_pids[i], SIGTERM);
     if (m.num_local)
         launch_stop_all(m.local_pids, m.num_local, 3000);
     if (m.ipc_dir[0]) {

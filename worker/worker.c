@@ -210,12 +210,18 @@ static void *pool_thread(void *arg)
         clock_gettime(CLOCK_MONOTONIC, &a);
         /* Row by row: pixels are pure functions of their coordinates, so this is the same
          * image, and each row is a proof of progress for the heartbeat. */
-        for (uint32_t y = 0; y < h; y++) {
+        uint32_t y = 0;
+        for (; y < h && !g_stop; y++) { /* SIGINT / SIGTERM: the tile is dropped at the next row */
             struct tile_stats row;
             integrator_render_tile(p->rjob, x0, y0 + y, w, 1, pixels + (size_t)y * w * TILE_NUM_CHANNELS, &row);
             tile_stats_add(&d->stats, &row);
             atomic_fetch_add(&prog->samples, (uint64_t)w * spp);
             atomic_store(&prog->last_ms, net_now_ms());
+        }
+        if (y < h) {
+            free(d);
+            atomic_store(&prog->busy, 0);
+            break;
         }
         clock_gettime(CLOCK_MONOTONIC, &b);
         d->stats.render_ns = (uint64_t)(b.tv_sec - a.tv_sec) * 1000000000ull + (uint64_t)b.tv_nsec - (uint64_t)a.tv_nsec;

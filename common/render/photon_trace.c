@@ -299,16 +299,29 @@ static void trace_photon(const struct trace_ctx *tc, uint64_t index, struct phot
     }
 }
 
+static atomic_int stop_requested;
+
+void photon_trace_request_stop(void)
+{
+    atomic_store_explicit(&stop_requested, 1, memory_order_relaxed);
+}
+
+static int stopping(void)
+{
+    return atomic_load_explicit(&stop_requested, memory_order_relaxed) != 0;
+}
+
 static void *trace_thread(void *arg)
 {
     struct trace_ctx *tc = arg;
-    for (;;) {
+    /* The stop flag is polled per block and per photon: a pass stops within one photon. */
+    while (!stopping()) {
         uint32_t b = atomic_fetch_add(&tc->next_block, 1);
         if (b >= tc->num_blocks)
             break;
         uint64_t first = (uint64_t)b * PM_BLOCK, last = first + PM_BLOCK;
         last = last < tc->emitted ? last : tc->emitted;
-        for (uint64_t i = first; i < last; i++)
+        for (uint64_t i = first; i < last && !stopping(); i++)
             trace_photon(tc, i, &tc->blocks[b], tc->surface ? &tc->surface[b] : NULL);
     }
     return NULL;
@@ -381,6 +394,18 @@ int photon_trace_map(const struct render_job *job, uint64_t seed, uint32_t threa
     for (uint32_t i = 1; i <= started; i++)
         pthread_join(th[i], NULL);
     free(th);
+    if (stopping()) {
+        for (uint32_t b = 0; b < tc.num_blocks; b++) {
+            free(tc.blocks[b].a);
+            if (tc.surface)
+                free(tc.surface[b].a);
+        }
+        free(tc.blocks);
+        free(tc.surface);
+        str_fmt(err, errlen, "photon pass interrupted (by a signal) before its %llu photons were traced",
+                (unsigned long long)tc.emitted);
+        return -1;
+    }
     float radius = job->media->radius;
     size_t vbytes = 0, sbytes = 0;
     uint32_t vn = 0, sn = 0;

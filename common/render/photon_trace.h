@@ -34,6 +34,10 @@ int photon_trace_map(const struct render_job *job, uint64_t seed, uint32_t threa
 #define PHOTON_REACH_EPS 1e-4f
 #define PHOTON_REACH_MAX 64.0f
 float photon_fog_reach(const struct medium *md, float scene_size);
+/* Asks every photon pass of this process to stop: its threads stop at the next photon
+ * and photon_trace_map returns -1 ("interrupted"). Async-signal-safe (a lock-free atomic
+ * store): the master's SIGINT / SIGTERM handler calls it. There is no way back. */
+void photon_trace_request_stop(void);
 /* Upper bound on the share of in-scattered light that comes from more than one bounce:
  * max(largest surface reflectance, largest medium albedo x (1 - exp(-sigma_t,max D))),
  * D the scene's diagonal. The photon pass is skipped when it is below skip_bound. */

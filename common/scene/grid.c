@@ -8,8 +8,12 @@
 #include "base/rng.h"
 #include <math.h>
 #include <pthread.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
+
+/* Trilinear weights and the scale round: majorants are inflated by 2^-16, many times that. */
+#define MAJ_INFLATE (1.0f + 0x1p-16f)
 
 int grid_parse(const uint8_t *data, size_t size, struct density_grid *out, char *err, size_t errlen)
 {
@@ -44,6 +48,61 @@ int grid_parse(const uint8_t *data, size_t size, struct density_grid *out, char 
     out->scale = 1.0f;
     out->grid_to_world = out->world_to_grid = xform_identity();
     return 0;
+}
+
+/* Majorant cells sit on the lattice of voxel centres (u = q n - 0.5): cell c of an axis
+ * covers u in [(c - 1) B, c B) and every lookup there reads only voxels (c - 1) B .. c B
+ * (clipped to the grid: lookups clamp to its edge), so their maximum bounds it exactly. */
+static void maj_window(uint32_t c, uint32_t n, uint32_t *lo, uint32_t *hi)
+{
+    int64_t a = ((int64_t)c - 1) * GRID_MAJ_BLOCK, b = (int64_t)c * GRID_MAJ_BLOCK;
+    *lo = a < 0 ? 0u : (a > (int64_t)n - 1 ? n - 1 : (uint32_t)a);
+    *hi = b > (int64_t)n - 1 ? n - 1 : (uint32_t)b;
+}
+
+/* The majorant cells (grid.h): maxima over each cell's window, axis by axis. They live in
+ * data's allocation, after the voxels, so whoever frees data frees them. */
+static void grid_build_majorants(struct density_grid *g)
+{
+    uint32_t n[3] = {g->nx, g->ny, g->nz}, m[3];
+    for (int k = 0; k < 3; k++)
+        m[k] = (n[k] + GRID_MAJ_BLOCK - 1) / GRID_MAJ_BLOCK + 1;
+    size_t nv = (size_t)n[0] * n[1] * n[2], nc = (size_t)m[0] * m[1] * m[2];
+    g->data = mem_realloc(g->data, sizeof(float) * (nv + nc));
+    g->majorant = g->data + nv;
+    memcpy(g->maj_n, m, sizeof m);
+    float *a = mem_alloc(sizeof(float) * m[0] * n[1] * n[2]), *b = mem_alloc(sizeof(float) * m[0] * m[1] * n[2]);
+    uint32_t lo, hi;
+    for (uint32_t z = 0; z < n[2]; z++)
+        for (uint32_t y = 0; y < n[1]; y++)
+            for (uint32_t cx = 0; cx < m[0]; cx++) {
+                const float *row = g->data + ((size_t)z * n[1] + y) * n[0];
+                float mx = 0.0f;
+                maj_window(cx, n[0], &lo, &hi);
+                for (uint32_t x = lo; x <= hi; x++)
+                    mx = fmaxf(mx, row[x]);
+                a[((size_t)z * n[1] + y) * m[0] + cx] = mx;
+            }
+    for (uint32_t z = 0; z < n[2]; z++)
+        for (uint32_t cy = 0; cy < m[1]; cy++)
+            for (uint32_t cx = 0; cx < m[0]; cx++) {
+                float mx = 0.0f;
+                maj_window(cy, n[1], &lo, &hi);
+                for (uint32_t y = lo; y <= hi; y++)
+                    mx = fmaxf(mx, a[((size_t)z * n[1] + y) * m[0] + cx]);
+                b[((size_t)z * m[1] + cy) * m[0] + cx] = mx;
+            }
+    for (uint32_t cz = 0; cz < m[2]; cz++)
+        for (uint32_t cy = 0; cy < m[1]; cy++)
+            for (uint32_t cx = 0; cx < m[0]; cx++) {
+                float mx = 0.0f;
+                maj_window(cz, n[2], &lo, &hi);
+                for (uint32_t z = lo; z <= hi; z++)
+                    mx = fmaxf(mx, b[((size_t)z * m[1] + cy) * m[0] + cx]);
+                g->majorant[((size_t)cz * m[1] + cy) * m[0] + cx] = mx * g->scale * MAJ_INFLATE;
+            }
+    free(a);
+    free(b);
 }
 
 void grid_finish(struct density_grid *g, const struct xform *grid_to_world, float scale)
@@ -86,6 +145,7 @@ void grid_finish(struct density_grid *g, const struct xform *grid_to_world, floa
         vw = fminf(vw, v3_length(col) / (float)n[k]);
     }
     g->voxel_world = vw;
+    grid_build_majorants(g);
 }
 
 float grid_density(const struct density_grid *g, vec3 p)
@@ -134,7 +194,252 @@ float medium_march_step(const struct medium *m, float step)
     return m->grid ? fminf(step, 0.5f * m->grid->voxel_world) : step;
 }
 
-#define TRACK_MAX 1000000
+/* ---- local majorants along a ray ---- */
+
+/* A 3D DDA over a lattice of cells of edge h (voxel-centre units) whose cell i of an axis
+ * covers u in [(i - 1) h, i h): coarse majorant cells (h = B) and trilinear patches (h = 1,
+ * patch i between the voxel centres i - 1 and i). */
+struct dda {
+    int32_t i[3], step[3], n[3];
+    double tnext[3], tdelta[3], t, tend;
+    uint32_t guard;
+};
+
+static int dda_init(struct dda *w, const double u0[3], const double du[3], double h, const uint32_t n[3], double t0,
+                    double t1)
+{
+    w->t = t0;
+    w->tend = t1;
+    w->guard = n[0] + n[1] + n[2] + 4;
+    for (int k = 0; k < 3; k++) {
+        double p = (u0[k] + t0 * du[k]) / h + 1.0, dk = du[k] / h, fl = floor(p);
+        if (!isfinite(p) || !isfinite(dk))
+            return 0;
+        w->n[k] = (int32_t)n[k];
+        w->i[k] = fl < 0.0 ? 0 : (fl >= (double)n[k] ? (int32_t)n[k] - 1 : (int32_t)fl);
+        w->step[k] = dk > 0.0 ? 1 : (dk < 0.0 ? -1 : 0);
+        w->tdelta[k] = dk != 0.0 ? fabs(1.0 / dk) : INFINITY;
+        w->tnext[k] = dk > 0.0 ? t0 + ((double)w->i[k] + 1.0 - p) / dk
+                               : (dk < 0.0 ? t0 + ((double)w->i[k] - p) / dk : INFINITY);
+    }
+    return t0 < t1;
+}
+
+/* The next cell: its index and [*a, *b) of the ray. 0 at the end. */
+static int dda_next(struct dda *w, double *a, double *b, int32_t idx[3])
+{
+    if (!(w->t < w->tend) || w->guard-- == 0)
+        return 0;
+    int k = w->tnext[0] < w->tnext[1] ? (w->tnext[0] < w->tnext[2] ? 0 : 2) : (w->tnext[1] < w->tnext[2] ? 1 : 2);
+    *a = w->t;
+    *b = fmax(w->t, fmin(w->tnext[k], w->tend));
+    memcpy(idx, w->i, sizeof w->i);
+    w->t = *b;
+    if (w->tnext[k] < w->tend) {
+        w->i[k] += w->step[k];
+        w->tnext[k] += w->tdelta[k];
+        if (w->i[k] < 0 || w->i[k] >= w->n[k])
+            w->t = w->tend; /* left the grid */
+    }
+    return 1;
+}
+
+/* Pieces [a, b) of a ray, each with a majorant density. Coarse cells whose majorant
+ * optical depth sigma_t,max maj (b - a) is at most MAJ_REFINE are pieces as they are;
+ * denser ones are walked patch by patch (the max of the patch's 8 voxels), and a patch
+ * still above MAJ_REFINE is bisected, each half bounded by the largest value of the
+ * trilinear function at the corners of its box (a multilinear function's maximum over a
+ * box is at a corner). So tracking takes about MAJ_REFINE tentative collisions per piece
+ * however uneven the density, and a piece's bound holds exactly: lookups are clamped into
+ * the piece's cell or patch, against rounding. */
+#define MAJ_REFINE 4.0
+#define MAJ_DEPTH 30
+struct pieces {
+    const struct density_grid *g;
+    double u0[3], du[3];    /* u(t) = u0 + t du, voxel-centre coordinates */
+    double st_max;
+    struct dda coarse, fine;
+    int fine_on;
+    uint32_t nfine[3];
+    /* the current piece */
+    int patch;              /* 1: density from V over patch p; 0: lookups clamped to [clo, chi] */
+    int32_t p[3];
+    float V[8];             /* patch corners, scale applied, x fastest */
+    double clo[3], chi[3];
+    /* bisection stack of the current patch */
+    double sa[MAJ_DEPTH + 2], sb[MAJ_DEPTH + 2];
+    int sd[MAJ_DEPTH + 2], sp;
+};
+
+static int pieces_init(struct pieces *pc, const struct medium *m, vec3 o, vec3 d, float tmax)
+{
+    const struct density_grid *g = m->grid;
+    float c0, c1;
+    pc->st_max = v3_max_component(m->sigma_t);
+    if (!medium_clip(m, o, d, tmax, &c0, &c1) || !(pc->st_max > 0.0))
+        return 0;
+    vec3 og = xform_point(&g->world_to_grid, o), dg = xform_vector(&g->world_to_grid, d);
+    float oo[3] = {og.x, og.y, og.z}, dd[3] = {dg.x, dg.y, dg.z};
+    uint32_t n[3] = {g->nx, g->ny, g->nz};
+    for (int k = 0; k < 3; k++) {
+        pc->u0[k] = (double)oo[k] * n[k] - 0.5;
+        pc->du[k] = (double)dd[k] * n[k];
+        pc->nfine[k] = n[k] + 1;
+    }
+    pc->g = g;
+    pc->fine_on = 0;
+    pc->sp = 0;
+    return dda_init(&pc->coarse, pc->u0, pc->du, GRID_MAJ_BLOCK, g->maj_n, c0, c1);
+}
+
+static float lerpf(float a, float b, float f) { return a * (1.0f - f) + b * f; }
+
+static float trilerp(const float V[8], float fx, float fy, float fz)
+{
+    float c0 = lerpf(lerpf(V[0], V[1], fx), lerpf(V[2], V[3], fx), fy);
+    float c1 = lerpf(lerpf(V[4], V[5], fx), lerpf(V[6], V[7], fx), fy);
+    return lerpf(c0, c1, fz);
+}
+
+/* Largest value of the patch's trilinear function over the box of the ray over [a, b]. */
+static float patch_bound(const struct pieces *pc, double a, double b)
+{
+    float lo[3], hi[3];
+    for (int k = 0; k < 3; k++) {
+        double fa = pc->u0[k] + a * pc->du[k] - (pc->p[k] - 1), fb = pc->u0[k] + b * pc->du[k] - (pc->p[k] - 1);
+        lo[k] = (float)fmin(1.0, fmax(0.0, fmin(fa, fb)));
+        hi[k] = (float)fmin(1.0, fmax(0.0, fmax(fa, fb)));
+    }
+    float mx = 0.0f;
+    for (int c = 0; c < 8; c++)
+        mx = fmaxf(mx, trilerp(pc->V, c & 1 ? hi[0] : lo[0], c & 2 ? hi[1] : lo[1], c & 4 ? hi[2] : lo[2]));
+    return mx * MAJ_INFLATE;
+}
+
+/* The next piece [*a, *b) with its majorant density *maj (> 0; cells bounded by 0 are
+ * skipped). 0 at the end of the ray. */
+static int pieces_next(struct pieces *pc, double *a, double *b, float *maj)
+{
+    const struct density_grid *g = pc->g;
+    int32_t idx[3];
+    for (;;) {
+        if (pc->sp > 0) {
+            pc->sp--;
+            double pa = pc->sa[pc->sp], pb = pc->sb[pc->sp];
+            int depth = pc->sd[pc->sp];
+            float mj = patch_bound(pc, pa, pb);
+            if (!(mj > 0.0f))
+                continue;
+            if (pc->st_max * mj * (pb - pa) > MAJ_REFINE && depth < MAJ_DEPTH) {
+                double mid = 0.5 * (pa + pb);
+                pc->sa[pc->sp] = mid, pc->sb[pc->sp] = pb, pc->sd[pc->sp++] = depth + 1;
+                pc->sa[pc->sp] = pa, pc->sb[pc->sp] = mid, pc->sd[pc->sp++] = depth + 1;
+                continue;
+            }
+            *a = pa, *b = pb, *maj = mj;
+            pc->patch = 1;
+            return 1;
+        }
+        if (pc->fine_on) {
+            if (!dda_next(&pc->fine, a, b, idx)) {
+                pc->fine_on = 0;
+                continue;
+            }
+            /* Patch idx: between the voxel centres idx - 1 and idx (clamped to the grid). */
+            uint32_t v0[3], v1[3], n[3] = {g->nx, g->ny, g->nz};
+            for (int k = 0; k < 3; k++) {
+                pc->p[k] = idx[k];
+                v0[k] = idx[k] - 1 < 0 ? 0u : (uint32_t)(idx[k] - 1);
+                v1[k] = (uint32_t)idx[k] > n[k] - 1 ? n[k] - 1 : (uint32_t)idx[k];
+            }
+            float mx = 0.0f;
+            for (int c = 0; c < 8; c++) {
+                uint32_t x = c & 1 ? v1[0] : v0[0], y = c & 2 ? v1[1] : v0[1], z = c & 4 ? v1[2] : v0[2];
+                pc->V[c] = g->data[((size_t)z * g->ny + y) * g->nx + x] * g->scale;
+                mx = fmaxf(mx, pc->V[c]);
+            }
+            if (!(mx > 0.0f))
+                continue;
+            pc->sa[0] = *a, pc->sb[0] = *b, pc->sd[0] = 0, pc->sp = 1;
+            continue;
+        }
+        if (!dda_next(&pc->coarse, a, b, idx))
+            return 0;
+        float mj = g->majorant[((size_t)idx[2] * g->maj_n[1] + (size_t)idx[1]) * g->maj_n[0] + (size_t)idx[0]];
+        if (!(mj > 0.0f))
+            continue; /* empty cell: skipped */
+        if (pc->st_max * mj * (*b - *a) > MAJ_REFINE) {
+            pc->fine_on = dda_init(&pc->fine, pc->u0, pc->du, 1.0, pc->nfine, *a, *b);
+            continue;
+        }
+        for (int k = 0; k < 3; k++) {
+            pc->clo[k] = ((double)idx[k] - 1.0) * GRID_MAJ_BLOCK;
+            pc->chi[k] = (double)idx[k] * GRID_MAJ_BLOCK;
+        }
+        *maj = mj;
+        pc->patch = 0;
+        return 1;
+    }
+}
+
+/* Density at t of the current piece, its point clamped into the piece's cell or patch. */
+static float pieces_density(const struct pieces *pc, double t)
+{
+    const struct density_grid *g = pc->g;
+    if (pc->patch) {
+        float f[3];
+        for (int k = 0; k < 3; k++)
+            f[k] = (float)fmin(1.0, fmax(0.0, pc->u0[k] + t * pc->du[k] - (pc->p[k] - 1)));
+        return trilerp(pc->V, f[0], f[1], f[2]);
+    }
+    int32_t n[3] = {(int32_t)g->nx, (int32_t)g->ny, (int32_t)g->nz}, i0[3], i1[3];
+    float f[3];
+    for (int k = 0; k < 3; k++) {
+        double u = fmin(pc->chi[k], fmax(pc->clo[k], pc->u0[k] + t * pc->du[k])), fl = floor(u);
+        f[k] = (float)(u - fl);
+        int32_t a = (int32_t)fl;
+        i0[k] = a < 0 ? 0 : (a >= n[k] ? n[k] - 1 : a);
+        i1[k] = a + 1 < 0 ? 0 : (a + 1 >= n[k] ? n[k] - 1 : a + 1);
+    }
+#define V(x, y, z) g->data[((size_t)(z) * g->ny + (y)) * g->nx + (x)]
+    float c[8] = {V(i0[0], i0[1], i0[2]), V(i1[0], i0[1], i0[2]), V(i0[0], i1[1], i0[2]), V(i1[0], i1[1], i0[2]),
+                  V(i0[0], i0[1], i1[2]), V(i1[0], i0[1], i1[2]), V(i0[0], i1[1], i1[2]), V(i1[0], i1[1], i1[2])};
+#undef V
+    return trilerp(c, f[0], f[1], f[2]) * g->scale;
+}
+
+float grid_majorant(const struct density_grid *g, vec3 p)
+{
+    vec3 q = xform_point(&g->world_to_grid, p);
+    float qq[3] = {q.x, q.y, q.z};
+    uint32_t n[3] = {g->nx, g->ny, g->nz};
+    size_t idx[3];
+    for (int k = 0; k < 3; k++) {
+        if (!(qq[k] >= 0.0f && qq[k] <= 1.0f))
+            return 0.0f;
+        double c = floor(((double)qq[k] * n[k] - 0.5) / GRID_MAJ_BLOCK + 1.0);
+        idx[k] = c < 0.0 ? 0 : (c >= (double)g->maj_n[k] ? g->maj_n[k] - 1 : (size_t)c);
+    }
+    return g->majorant[(idx[2] * g->maj_n[1] + idx[1]) * g->maj_n[0] + idx[0]];
+}
+
+static _Atomic uint64_t track_bound_hits;
+
+uint64_t grid_track_bound_hits(void)
+{
+    return atomic_load_explicit(&track_bound_hits, memory_order_relaxed);
+}
+
+/* A ray reached GRID_TRACK_MAX: counted, and logged the first time and at each power of 10. */
+static void track_bound_hit(const char *what)
+{
+    uint64_t n = atomic_fetch_add_explicit(&track_bound_hits, 1, memory_order_relaxed) + 1, p = 1;
+    while (p < n && p <= UINT64_MAX / 10)
+        p *= 10;
+    if (p == n)
+        log_warn("density grid: %llu ray(s) so far reached the bound of %u tracking steps (%s; counted as "
+                 "absorbed)", (unsigned long long)n, GRID_TRACK_MAX, what);
+}
 
 vec3 medium_tr_segment(const struct medium *m, vec3 o, vec3 d, float len, uint64_t key, int ratio)
 {
@@ -143,21 +448,35 @@ vec3 medium_tr_segment(const struct medium *m, vec3 o, vec3 d, float len, uint64
     float c0, c1;
     if (!medium_clip(m, o, d, len, &c0, &c1))
         return v3(1, 1, 1);
-    float st_max = v3_max_component(m->sigma_t), mu = st_max * m->grid->max_density;
-    if (!(mu > 0.0f))
-        return v3(1, 1, 1);
     if (ratio) {
+        /* Ratio tracking: tentative collisions at rate mu = sigma_t,max x the piece's
+         * majorant (an exponential optical depth consumed piece by piece), each multiplying
+         * the estimate by 1 - sigma_t rho / mu. */
+        struct pieces pc;
+        if (!pieces_init(&pc, m, o, d, len))
+            return v3(1, 1, 1);
         vec3 tr = v3(1, 1, 1);
-        float t = c0;
-        for (uint32_t k = 0; k < TRACK_MAX; k++) {
-            t += -log1pf(-rng_uniform(key, k)) / mu;
-            if (!(t < c1))
-                break;
-            float rho = grid_density(m->grid, v3_add(o, v3_scale(d, t)));
-            tr = v3_mul(tr, v3(1.0f - m->sigma_t.x * rho / mu, 1.0f - m->sigma_t.y * rho / mu,
-                               1.0f - m->sigma_t.z * rho / mu));
-            if (v3_max_component(tr) < 1e-7f)
-                return v3(0, 0, 0);
+        uint32_t k = 0;
+        double a, b, left = -log1p(-(double)rng_uniform(key, 0));
+        float maj;
+        while (pieces_next(&pc, &a, &b, &maj)) {
+            double mu = pc.st_max * maj, t = a;
+            for (;;) {
+                if (!(t + left / mu < b)) {
+                    left = fmax(0.0, left - (b - t) * mu);
+                    break;
+                }
+                t += left / mu;
+                float r = (float)(pieces_density(&pc, t) / mu);
+                tr = v3_mul(tr, v3(1.0f - m->sigma_t.x * r, 1.0f - m->sigma_t.y * r, 1.0f - m->sigma_t.z * r));
+                if (v3_max_component(tr) < 1e-7f)
+                    return v3(0, 0, 0);
+                if (++k >= GRID_TRACK_MAX) {
+                    track_bound_hit("ratio tracking");
+                    return v3(0, 0, 0);
+                }
+                left = -log1p(-(double)rng_uniform(key, k));
+            }
         }
         return tr;
     }
@@ -199,30 +518,41 @@ int medium_sample_flight(const struct medium *m, vec3 o, vec3 d, float tmax, vec
         return medium_sample_distance(m, tmax, chan, rng_uniform(key, 0), rng_uniform(key, 1), t, weight);
     *t = tmax;
     *weight = v3(1, 1, 1);
-    float c0, c1;
-    if (!medium_clip(m, o, d, tmax, &c0, &c1))
+    struct pieces pc;
+    if (!pieces_init(&pc, m, o, d, tmax))
         return 0;
-    float mu = v3_max_component(m->sigma_t) * m->grid->max_density;
-    if (!(mu > 0.0f))
-        return 0;
-    /* Weighted delta tracking: a tentative collision is real with probability
-     * avg(sigma_t(x)) / mu; the weights keep every channel unbiased. */
+    /* Weighted delta tracking against each piece's majorant mu: a tentative collision is
+     * real with probability avg(sigma_t(x)) / mu; the weights keep every channel unbiased. */
     vec3 w = v3(1, 1, 1);
-    float tt = c0;
-    for (uint32_t k = 0; k < TRACK_MAX; k++) {
-        tt += -log1pf(-rng_uniform(key, 2 * k)) / mu;
-        if (!(tt < c1))
-            break;
-        float rho = grid_density(m->grid, v3_add(o, v3_scale(d, tt)));
-        vec3 st = v3_scale(m->sigma_t, rho);
-        float avg = (st.x + st.y + st.z) / 3.0f, p = avg / mu;
-        if (rng_uniform(key, 2 * k + 1) < p) {
-            *t = tt;
-            *weight = v3_mul(w, v3_scale(m->sigma_s, rho / avg));
-            return 1;
+    uint32_t k = 0;
+    double a, b, left = -log1p(-(double)rng_uniform(key, 0));
+    float majd;
+    while (pieces_next(&pc, &a, &b, &majd)) {
+        double tt = a;
+        float mu = (float)(pc.st_max * majd);
+        for (;;) {
+            if (!(tt + left / mu < b)) {
+                left = fmax(0.0, left - (b - tt) * mu);
+                break;
+            }
+            tt += left / mu;
+            float rho = pieces_density(&pc, tt);
+            vec3 st = v3_scale(m->sigma_t, rho);
+            float avg = (st.x + st.y + st.z) / 3.0f, p = avg / mu;
+            if (rng_uniform(key, 2 * k + 1) < p) {
+                *t = (float)tt;
+                *weight = v3_mul(w, v3_scale(m->sigma_s, rho / avg));
+                return 1;
+            }
+            float q = mu - avg;
+            w = v3_mul(w, v3((mu - st.x) / q, (mu - st.y) / q, (mu - st.z) / q));
+            if (++k >= GRID_TRACK_MAX) {
+                track_bound_hit("delta tracking");
+                *weight = v3(0, 0, 0);
+                return 0;
+            }
+            left = -log1p(-(double)rng_uniform(key, 2 * k));
         }
-        float q = mu - avg;
-        w = v3_mul(w, v3((mu - st.x) / q, (mu - st.y) / q, (mu - st.z) / q));
     }
     *weight = w;
     return 0;

@@ -16,16 +16,33 @@
  * (each >= 1, product <= GRID_MAX_VOXELS), then nx*ny*nz little-endian float32 densities
  * (x fastest, then y, then z), each finite and >= 0; nothing after. 0 or -1 with err. */
 int grid_parse(const uint8_t *data, size_t size, struct density_grid *out, char *err, size_t errlen);
-/* Sets the placement and scale and derives the occupied box and voxel size. */
+/* Sets the placement and scale and derives the occupied box, the voxel size and the
+ * majorant cells (below). */
 void grid_finish(struct density_grid *g, const struct xform *grid_to_world, float scale);
 /* Density (scale applied) at world point p. */
 float grid_density(const struct density_grid *g, vec3 p);
+
+/* Local majorants: the grid is cut into cells of GRID_MAJ_BLOCK^3 voxels, each holding the
+ * largest voxel value (times scale, inflated by 2^-16 against rounding) within one voxel
+ * beyond what its trilinear support touches, so no lookup in the cell (even one rounded
+ * across its face) exceeds it. Delta tracking, ratio tracking and free flight walk these
+ * cells along the ray (a 3D DDA) with each cell's majorant, skip cells whose majorant is 0,
+ * and take at most GRID_TRACK_MAX tentative collisions per call: a ray that reaches the
+ * bound counts as absorbed (transmittance 0, no scattering), is counted
+ * (grid_track_bound_hits) and logged (the first, then at each power of 10). */
+#define GRID_MAJ_BLOCK 4u
+#define GRID_TRACK_MAX 65536u
+/* The majorant of the cell holding world point p; 0 outside the grid. For tests. */
+float grid_majorant(const struct density_grid *g, vec3 p);
+/* Rays of this process whose tracking reached GRID_TRACK_MAX so far. */
+uint64_t grid_track_bound_hits(void);
 
 /* The part [*t0, *t1) of o + t d, t in [0, tmax), where the medium can be non-empty
  * (homogeneous: all of it). Returns 0 if there is none. d need not be unit for grids. */
 int medium_clip(const struct medium *m, vec3 o, vec3 d, float tmax, float *t0, float *t1);
 /* Transmittance over [0, len) of o + t d (d unit): closed form for homogeneous media;
- * for grids ratio tracking (unbiased, ratio != 0) or a jittered march (Jensen) using the
+ * for grids ratio tracking against the local majorants (unbiased, ratio != 0) or a
+ * jittered march (Jensen) using the
  * random numbers of key. */
 vec3 medium_tr_segment(const struct medium *m, vec3 o, vec3 d, float len, uint64_t key, int ratio);
 /* Emission reaching o from [0, len) of o + t d (d unit): the integral of Tr(t) e rho(t),
@@ -34,7 +51,7 @@ vec3 medium_tr_segment(const struct medium *m, vec3 o, vec3 d, float len, uint64
  * numbers from key). */
 vec3 medium_emission_segment(const struct medium *m, vec3 o, vec3 d, float len, uint64_t key);
 /* Free flight over [0, tmax) of o + t d: closed form (medium_sample_distance) for
- * homogeneous media, weighted delta tracking against the majorant for grids. Same
+ * homogeneous media, weighted delta tracking against the local majorants for grids. Same
  * contract as medium_sample_distance; random numbers from key. */
 int medium_sample_flight(const struct medium *m, vec3 o, vec3 d, float tmax, vec3 chan, uint64_t key, float *t,
                          vec3 *weight);

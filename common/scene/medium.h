@@ -22,7 +22,10 @@ struct density_grid {
     uint32_t nx, ny, nz;
     float *data;            /* nx * ny * nz values, x fastest, each >= 0 and finite */
     float scale;            /* multiplies every value */
-    float max_density;      /* max of data, times scale: the majorant's density */
+    float max_density;      /* max of data, times scale (the photon pass's skip bound) */
+    uint32_t maj_n[3];      /* majorant cells per axis, GRID_MAJ_BLOCK voxels each (grid.h) */
+    float *majorant;        /* per cell, x fastest: an upper bound of the density (scale applied)
+                             * anywhere in it; lives in data's allocation, after the voxels */
     struct xform grid_to_world, world_to_grid;
     vec3 occ_lo, occ_hi;    /* grid-space box holding every non-zero voxel's support */
     float voxel_world;      /* smallest voxel edge in world units: the marching step scale */
