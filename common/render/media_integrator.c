@@ -146,8 +146,7 @@ static vec3 march_segment(const struct render_job *job, const struct media_job *
                           vec3 *seg_tr)
 {
     /* The forward cone is no scattering: camera rays see sigma_t less its share. */
-    struct medium cut_md;
-    const struct medium *md = medium_forward_cut(&mj->sm->media[medium], &cut_md);
+    const struct medium *md = &mj->cut[medium];
     const int het = md->grid != NULL, emissive = !v3_is_black(md->emission);
     vec3 L = het ? v3(0, 0, 0) : medium_emission_integral(md, len);
     *seg_tr = medium_transmittance(md, len);
@@ -367,8 +366,7 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
                     continue;
                 }
             } else {
-                struct medium cut_md;
-                const struct medium *mdc = medium_forward_cut(md, &cut_md);
+                const struct medium *mdc = &mj->cut[medium];
                 float len = hit ? h.t : march_reach(mj, mdc, org, dir);
                 vec3 seg_tr;
                 L = v3_add(L, v3_mul(beta, march_segment(job, mj, &r, vertex, org, dir, len, medium, time01, rays, &seg_tr)));

@@ -137,6 +137,9 @@ struct media_job *media_job_new(const struct accel *a, const struct light_table 
     const struct scene_media *sm = sc->media;
     struct media_job *mj = mem_calloc(1, sizeof *mj);
     mj->sm = sm;
+    mj->cut = mem_alloc(sizeof *mj->cut * (sm->num_media + 1));
+    for (uint32_t i = 0; i < sm->num_media; i++)
+        mj->cut[i] = medium_forward_cut(&sm->media[i]);
     mj->accel = a;
     mj->lights = lt;
     struct RTCBounds b;
@@ -201,6 +204,7 @@ void media_job_free(struct media_job **pmj)
     if (!*pmj)
         return;
     free((*pmj)->light_medium);
+    free((*pmj)->cut);
     shadow_caches_free(&(*pmj)->shadow);
     free(*pmj);
     *pmj = NULL;

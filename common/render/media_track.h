@@ -25,6 +25,7 @@ struct media_job {
     float radius;               /* gather radius used */
     const struct photon_map *map; /* the job's map for Jensen's methods; NULL: single scattering only (skipped, or VPT) */
     struct shadow_caches *shadow; /* march / beam: per (point light, grid medium) tr_cache, filled on first use */
+    struct medium *cut;         /* per medium: medium_forward_cut of it, what march / beam camera rays see */
 };
 
 /* a, lt: the render job's (outlive the result); map: the job's photon map or NULL. */

@@ -263,36 +263,10 @@ double photon_pass_radius(double r0, double alpha, uint32_t pass, int dim)
 
 /* ---- the forward cone ---- */
 
-double phase_forward_mass(float g)
-{
-    double gg = (double)g, mc = (double)PM_FORWARD_COS;
-    if (fabs(gg) < 1e-4)
-        return 0.5 * (1.0 - mc);
-    /* HG's cdf in cos theta: (1 - g^2) / (2g) (1 / sqrt(1 + g^2 - 2 g mu) - 1 / (1 + g)). */
-    double f = 1.0 - (1.0 - gg * gg) / (2.0 * gg) * (1.0 / sqrt(1.0 + gg * gg - 2.0 * gg * mc) - 1.0 / (1.0 + gg));
-    return f < 0.0 ? 0.0 : (f > 1.0 ? 1.0 : f);
-}
-
-float phase_hg_cut(float cos_theta, float g)
-{
-    return cos_theta > PM_FORWARD_COS ? 0.0f : phase_hg(cos_theta, g);
-}
-
-const struct medium *medium_forward_cut(const struct medium *md, struct medium *tmp)
-{
-    if (v3_is_black(md->sigma_s))
-        return md;
-    *tmp = *md;
-    float f = (float)phase_forward_mass(md->g);
-    vec3 st = v3_sub(md->sigma_t, v3_scale(md->sigma_s, f));
-    tmp->sigma_t = v3(fmaxf(st.x, md->sigma_a.x), fmaxf(st.y, md->sigma_a.y), fmaxf(st.z, md->sigma_a.z));
-    return tmp;
-}
-
 /* Henyey-Greenstein without the forward cone, in float for the lookups' inner loops. */
 static inline float phase_hg_fast(float cos_theta, float g)
 {
-    if (cos_theta > PM_FORWARD_COS)
+    if (cos_theta > MEDIUM_FORWARD_COS)
         return 0.0f;
     float d = 1.0f + g * g - 2.0f * g * cos_theta;
     d = d > 1e-30f ? d : 1e-30f;

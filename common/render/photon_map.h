@@ -86,21 +86,6 @@ struct photon_tau {
 vec3 photon_map_beam(const struct photon_map *m, vec3 o, vec3 d, float t1, const struct medium *md,
                      const struct photon_tau *tau);
 
-/* Strongly forward-scattering media in march and beam (docs/media.md, "The forward
- * cone"): Henyey-Greenstein scattering by less than acos(PM_FORWARD_COS) (2.6 degrees) is
- * taken as no scattering along camera rays, whose transmittance then uses sigma_t - f
- * sigma_s, f = phase_forward_mass(g), while in-scattering (single scattering and the
- * photon estimates) uses phase_hg_cut, the phase function without that cone. Photons are
- * traced with the whole phase function. At g = 0.999 the cone holds 98 % of the
- * scattering, a spike no photon estimate can resolve. */
-#define PM_FORWARD_COS 0.999f
-double phase_forward_mass(float g);
-/* HG for cos_theta <= PM_FORWARD_COS, else 0 (not renormalised). */
-float phase_hg_cut(float cos_theta, float g);
-/* md with sigma_t reduced by the forward cone's share of sigma_s, in *tmp; md itself when
- * that share is 0 (nothing scatters). */
-const struct medium *medium_forward_cut(const struct medium *md, struct medium *tmp);
-
 /* Encodings, exposed for tests. */
 void photon_rgbe_encode(vec3 c, uint8_t out[4]);
 vec3 photon_rgbe_decode(const uint8_t in[4]);

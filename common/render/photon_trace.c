@@ -371,10 +371,8 @@ int photon_trace_map(const struct render_job *job, uint64_t seed, uint32_t threa
     tc.photon_scale = tc.emitted ? (float)(1.0 / (double)tc.emitted) : 0.0f;
     tc.num_blocks = (uint32_t)((tc.emitted + PM_BLOCK - 1) / PM_BLOCK);
     float grow = job->media->radius;
-    if (sm->fog != MEDIUM_NONE) {
-        struct medium cut; /* camera rays see the fog without its forward cone (photon_map.h) */
-        grow += photon_fog_reach(medium_forward_cut(&sm->media[sm->fog], &cut), job->media->scene_size);
-    }
+    if (sm->fog != MEDIUM_NONE) /* camera rays see the fog without its forward cone (medium.h) */
+        grow += photon_fog_reach(&job->media->cut[sm->fog], job->media->scene_size);
     tc.keep_lo = v3_sub(job->media->bounds_lo, v3(grow, grow, grow));
     tc.keep_hi = v3_add(job->media->bounds_hi, v3(grow, grow, grow));
     tc.aim = media_bounds(job, &tc.aim_center, &tc.aim_radius);

@@ -191,3 +191,29 @@ void grid_free(struct density_grid **pg)
     free(*pg);
     *pg = NULL;
 }
+
+double phase_forward_mass(float g)
+{
+    double gg = (double)g, mc = (double)MEDIUM_FORWARD_COS;
+    if (fabs(gg) < 1e-4)
+        return 0.5 * (1.0 - mc);
+    /* HG's cdf in cos theta: (1 - g^2) / (2g) (1 / sqrt(1 + g^2 - 2 g mu) - 1 / (1 + g)). */
+    double f = 1.0 - (1.0 - gg * gg) / (2.0 * gg) * (1.0 / sqrt(1.0 + gg * gg - 2.0 * gg * mc) - 1.0 / (1.0 + gg));
+    return f < 0.0 ? 0.0 : (f > 1.0 ? 1.0 : f);
+}
+
+float phase_hg_cut(float cos_theta, float g)
+{
+    return cos_theta > MEDIUM_FORWARD_COS ? 0.0f : phase_hg(cos_theta, g);
+}
+
+struct medium medium_forward_cut(const struct medium *md)
+{
+    struct medium cut = *md;
+    if (v3_is_black(md->sigma_s))
+        return cut;
+    float f = (float)phase_forward_mass(md->g);
+    vec3 st = v3_sub(md->sigma_t, v3_scale(md->sigma_s, f));
+    cut.sigma_t = v3(fmaxf(st.x, md->sigma_a.x), fmaxf(st.y, md->sigma_a.y), fmaxf(st.z, md->sigma_a.z));
+    return cut;
+}

@@ -109,4 +109,19 @@ float phase_hg_sample(vec3 d_in, float g, float u1, float u2, vec3 *d_out);
 /* cos(theta) of the HG sample for (g, u): exposed for the chi-square test. */
 float phase_hg_sample_cos(float g, float u);
 
+/* Strongly forward-scattering media in march and beam (docs/media.md, "The forward
+ * cone"): Henyey-Greenstein scattering by less than acos(MEDIUM_FORWARD_COS) (2.6 degrees) is
+ * taken as no scattering along camera rays, whose transmittance then uses sigma_t - f
+ * sigma_s, f = phase_forward_mass(g), while in-scattering (single scattering and the
+ * photon estimates) uses phase_hg_cut, the phase function without that cone. Photons are
+ * traced with the whole phase function. At g = 0.999 the cone holds 98 % of the
+ * scattering, a spike no photon estimate can resolve. */
+#define MEDIUM_FORWARD_COS 0.999f
+double phase_forward_mass(float g);
+/* HG for cos_theta <= MEDIUM_FORWARD_COS, else 0 (not renormalised). */
+float phase_hg_cut(float cos_theta, float g);
+/* md with sigma_t reduced by the forward cone's share of sigma_s (a copy; the render job
+ * keeps one per medium, media_track.h). */
+struct medium medium_forward_cut(const struct medium *md);
+
 #endif
