@@ -30,27 +30,37 @@ static const char *const channels[] = {"R", "G", "B", "A"};
 enum { NCH = 7 }; /* R, G, B, A and the variance of each colour's mean, as the renderer writes */
 static const char *const all_channels[NCH] = {"R", "G", "B", "A", "variance.R", "variance.G", "variance.B"};
 
-static float *load(const char *path, uint32_t *w, uint32_t *h)
+static float *load_channels(const char *path, const char *const *names, int n, uint32_t *w, uint32_t *h)
 {
     char err[512];
     float *px = NULL;
-    if (imgio_read(path, channels, 4, &px, w, h, err, sizeof err) != 0) {
+    if (imgio_read(path, names, n, &px, w, h, err, sizeof err) != 0) {
         fprintf(stderr, "exrtool: %s\n", err);
         exit(2);
     }
     return px;
 }
 
+/* R, G, B, A interleaved. */
+static float *load(const char *path, uint32_t *w, uint32_t *h) { return load_channels(path, channels, 4, w, h); }
+
 /* R, G, B, A, variance.R, variance.G, variance.B interleaved (7 floats a pixel). */
 static float *load_var(const char *path, uint32_t *w, uint32_t *h)
 {
-    char err[512];
-    float *px = NULL;
-    if (imgio_read(path, all_channels, NCH, &px, w, h, err, sizeof err) != 0) {
-        fprintf(stderr, "exrtool: %s\n", err);
-        exit(2);
+    return load_channels(path, all_channels, NCH, w, h);
+}
+
+/* Two images of the same size (exit status 1 when they differ): *a and *b. */
+static void load_pair(const char *pa, const char *pb, const char *const *names, int n, float **a, float **b,
+                      uint32_t *w, uint32_t *h)
+{
+    uint32_t wb, hb;
+    *a = load_channels(pa, names, n, w, h);
+    *b = load_channels(pb, names, n, &wb, &hb);
+    if (*w != wb || *h != hb) {
+        fprintf(stderr, "exrtool: sizes differ: %ux%u vs %ux%u\n", *w, *h, wb, hb);
+        exit(1);
     }
-    return px;
 }
 
 /* Writes w x h pixels of NCH interleaved channels as a tiled, uncompressed EXR. */
@@ -133,13 +143,11 @@ static int relrmse(int argc, char **argv)
         fprintf(stderr, "usage: exrtool relrmse A.exr REF.exr [--box N]\n");
         return 2;
     }
-    uint32_t wa, ha, wb, hb;
-    float *a = load(argv[2], &wa, &ha), *b = load(argv[3], &wb, &hb);
-    if (wa != wb || ha != hb) {
-        fprintf(stderr, "exrtool: sizes differ: %ux%u vs %ux%u\n", wa, ha, wb, hb);
-        return 1;
-    }
+    uint32_t wa, ha;
+    float *a, *b;
+    load_pair(argv[2], argv[3], channels, 4, &a, &b, &wa, &ha);
     if (n > 1) {
+        uint32_t wb = wa, hb = ha;
         box_down(&a, &wa, &ha, n);
         box_down(&b, &wb, &hb, n);
     }
@@ -194,12 +202,9 @@ static int noise(const char *cmd, const char *path)
 
 static int average(const char *out, const char *pa, const char *pb)
 {
-    uint32_t wa, ha, wb, hb;
-    float *a = load_var(pa, &wa, &ha), *b = load_var(pb, &wb, &hb);
-    if (wa != wb || ha != hb) {
-        fprintf(stderr, "exrtool: sizes differ: %ux%u vs %ux%u\n", wa, ha, wb, hb);
-        return 1;
-    }
+    uint32_t wa, ha;
+    float *a, *b;
+    load_pair(pa, pb, all_channels, NCH, &a, &b, &wa, &ha);
     for (size_t i = 0; i < (size_t)wa * ha * NCH; i++)
         a[i] = (i % NCH) < 4 ? 0.5f * (a[i] + b[i]) : 0.25f * (a[i] + b[i]);
     write_exr(out, a, wa, ha);
@@ -290,12 +295,9 @@ int main(int argc, char **argv)
                         "       average OUT.exr A.exr B.exr | synth OUT.exr W H V [--checker AMP] [--var VAR]\n");
         return 2;
     }
-    uint32_t wa, ha, wb, hb;
-    float *a = load(argv[2], &wa, &ha), *b = load(argv[3], &wb, &hb);
-    if (wa != wb || ha != hb) {
-        fprintf(stderr, "exrtool: sizes differ: %ux%u vs %ux%u\n", wa, ha, wb, hb);
-        return 1;
-    }
+    uint32_t wa, ha;
+    float *a, *b;
+    load_pair(argv[2], argv[3], channels, 4, &a, &b, &wa, &ha);
     size_t n = (size_t)wa * ha;
     if (!strcmp(argv[1], "cmp")) {
         size_t diff = 0;
