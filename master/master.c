@@ -23,6 +23,7 @@
 #include "scene/scene_json.h"
 #include "render/tile.h"
 #include <errno.h>
+#include <stdarg.h>
 #include <fcntl.h>
 #include <libgen.h>
 #include <math.h>
@@ -126,6 +127,19 @@ static void on_signal(int sig)
 
 static int publish_manifest(struct master *m);
 
+/* Records why the job cannot finish (the first reason wins): master_run prints it last,
+ * after the workers are stopped, and writes it into the stats file. */
+static void master_fail(struct master *m, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+static void master_fail(struct master *m, const char *fmt, ...)
+{
+    if (m->fatal[0])
+        return;
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(m->fatal, sizeof m->fatal, fmt, ap);
+    va_end(ap);
+}
+
 static int load_scene(struct master *m)
 {
     const struct master_opts *o = m->opts;
@@ -136,20 +150,20 @@ static int load_scene(struct master *m)
     const char *dir = dirname(dir_buf);
     snprintf(m->scene_rel, sizeof m->scene_rel, "%s", basename(base_buf));
     if (asset_dir_init(&m->assets, dir, err, sizeof err) != 0) {
-        log_error("%s", err);
+        master_fail(m, "%s", err);
         return -1;
     }
     char *text = NULL;
     size_t len = 0;
     if (asset_dir_read(&m->assets, m->scene_rel, &text, &len, err, sizeof err) != 0) {
-        log_error("%s: %s", o->scene_path, err);
+        master_fail(m, "%s: %s", o->scene_path, err);
         return -1;
     }
     struct asset_source src = asset_dir_source(&m->assets);
     int rc = scene_json_parse(o->scene_path, text, len, &src, &m->scene, err, sizeof err);
     free(text);
     if (rc != 0) {
-        log_error("%s", err);
+        master_fail(m, "%s", err);
         return -1;
     }
     struct render_settings *rs = &m->scene.settings;
@@ -164,7 +178,7 @@ static int load_scene(struct master *m)
     if (o->have_sampler)
         rs->sampler = (enum sampler_type)o->sampler;
     if (scene_validate(&m->scene, err, sizeof err) != 0) {
-        log_error("%s: %s", o->scene_path, err);
+        master_fail(m, "%s: %s", o->scene_path, err);
         return -1;
     }
     m->map_frame = o->have_frames ? o->frame_first : 0;
@@ -184,7 +198,7 @@ static int publish_manifest(struct master *m)
     m->manifest = NULL;
     m->num_manifest = (uint32_t)m->assets.num_files;
     if (m->num_manifest > PROTO_MAX_ASSETS) {
-        log_error("%s: %u files, more than the %u a job can carry", o->scene_path, m->num_manifest, PROTO_MAX_ASSETS);
+        master_fail(m, "%s: %u files, more than the %u a job can carry", o->scene_path, m->num_manifest, PROTO_MAX_ASSETS);
         return -1;
     }
     m->manifest = mem_calloc(m->num_manifest, sizeof *m->manifest);
@@ -242,13 +256,13 @@ static int restrict_tiles(struct master *m)
     const struct master_opts *o = m->opts;
     for (uint32_t i = 0; i < o->num_only_tiles; i++)
         if (o->only_tiles[i] >= m->num_tiles) {
-            log_error("--tiles: tile %u does not exist (the frame has tiles 0..%u)", o->only_tiles[i], m->num_tiles - 1);
+            master_fail(m, "--tiles: tile %u does not exist (the frame has tiles 0..%u)", o->only_tiles[i], m->num_tiles - 1);
             return -1;
         }
     char err[256];
     struct imgio_encoder *enc = imgio_encoder_new(&m->desc, err, sizeof err);
     if (!enc) {
-        log_error("%s", err);
+        master_fail(m, "%s", err);
         return -1;
     }
     size_t n = (size_t)m->scene.settings.tile_size * m->scene.settings.tile_size * TILE_NUM_CHANNELS;
@@ -263,7 +277,7 @@ static int restrict_tiles(struct master *m)
             continue;
         if (imgio_encode_tile(enc, t % tiles_x, t / tiles_x, black, &m->chunks[t].data, &m->chunks[t].size, err,
                               sizeof err) != 0) {
-            log_error("%s", err);
+            master_fail(m, "%s", err);
             rc = -1;
         }
         sched_tile_set_done(m->sched, t);
@@ -794,7 +808,7 @@ static int open_journal(struct master *m)
     struct replay_ctx ctx = {m};
     m->journal = journal_open(path, &key, m->num_tiles, replay_tile, &ctx, &recovered, &torn, &other, err, sizeof err);
     if (!m->journal) {
-        log_error("%s", err);
+        master_fail(m, "%s", err);
         return -1;
     }
     if (journal_syncer_start(m->journal, err, sizeof err) != 0)
@@ -820,7 +834,7 @@ static int write_output(struct master *m, double seconds)
     snprintf(a.scene_hash, sizeof a.scene_hash, "%s", m->scene_hash);
     snprintf(a.software, sizeof a.software, "brume 0.1");
     if (output_write_exr(m->out_path, &m->desc, &a, m->chunks, err, sizeof err) != 0) {
-        log_error("%s", err);
+        master_fail(m, "%s", err);
         return -1;
     }
     /* Only now is the journal's content safe elsewhere. */
@@ -969,7 +983,7 @@ static int start_local_workers(struct master *m)
         tmp = "/tmp";
     snprintf(m->ipc_dir, sizeof m->ipc_dir, "%s/brume-XXXXXX", tmp);
     if (!mkdtemp(m->ipc_dir)) {
-        log_error("cannot create a private folder for the local socket in %s: %s", tmp, strerror(errno));
+        master_fail(m, "cannot create a private folder for the local socket in %s: %s", tmp, strerror(errno));
         return -1;
     }
     if (o->curve_secret) {
@@ -980,14 +994,14 @@ static int start_local_workers(struct master *m)
         snprintf(m->local_pub_path, sizeof m->local_pub_path, "%s/master.pub", m->ipc_dir);
         if (zap_write_local_keys(m->local_key_path, m->local_pub_path, o->curve_secret, &local_public, err,
                                  sizeof err) != 0) {
-            log_error("%s", err);
+            master_fail(m, "%s", err);
             return -1;
         }
         zap_allow_key(m->zap, &local_public);
     }
     snprintf(m->ipc_endpoint, sizeof m->ipc_endpoint, "ipc://%s/master.sock", m->ipc_dir);
     if (zmq_bind(m->sock, m->ipc_endpoint) != 0) {
-        log_error("cannot bind %s: %s", m->ipc_endpoint, zmq_strerror(errno));
+        master_fail(m, "cannot bind %s: %s", m->ipc_endpoint, zmq_strerror(errno));
         return -1;
     }
     m->local_pids = mem_calloc(o->workers, sizeof *m->local_pids);
@@ -1060,7 +1074,7 @@ static int frame_begin(struct master *m, uint32_t frames_started)
 {
     const struct master_opts *o = m->opts;
     if (output_frame_path(o->output_path, o->have_frames, m->frame, m->out_path, sizeof m->out_path) != 0) {
-        log_error("-o %s: the output name for frame %u is too long", o->output_path, m->frame);
+        master_fail(m, "-o %s: the output name for frame %u is too long", o->output_path, m->frame);
         return -1;
     }
     if (m->map_per_frame && m->frame != m->map_frame) {
@@ -1223,13 +1237,13 @@ int master_run(const struct master_opts *o)
         char err[512];
         m.zap = zap_new(m.zctx, m.sock, o->curve_secret, o->allow_path, err, sizeof err);
         if (!m.zap) {
-            log_error("%s", err);
+            master_fail(&m, "%s", err);
             goto done;
         }
         log_info("CurveZMQ on: %zu allowed worker key(s)", zap_num_allowed(m.zap));
     }
     if (o->bind && zmq_bind(m.sock, o->bind) != 0) {
-        log_error("cannot bind %s: %s", o->bind, zmq_strerror(errno));
+        master_fail(&m, "cannot bind %s: %s", o->bind, zmq_strerror(errno));
         goto done;
     }
     uint32_t first = o->have_frames ? o->frame_first : 0, last = o->have_frames ? o->frame_last : 0;
