@@ -155,7 +155,10 @@ double pass_batch_var_of_mean(const struct pass_batch *b, int k)
 }
 
 /* A pixel rendered in passes (job->num_passes >= 2, progressive photon mapping): pass p
- * takes sample indices [p k, (p + 1) k) and the pass's photon map; the pixel is the
+ * takes sample indices [p k, (p + 1) k), which the sampler scrambles afresh per pass (for
+ * sobol, k points of one sequence under the pass's own scramble, not the p-th block of one
+ * long sequence: consecutive blocks are not independent, and their spread overstates the
+ * error of the whole), and the pass's photon map; the pixel is the
  * average of the pass means and its variance channels hold the variance of that average
  * estimated from the spread of the pass means (batch means, s^2 / P), which sees the
  * photon maps' error as well as the camera samples'. */
@@ -165,7 +168,7 @@ static void render_pixel_passes(const struct render_job *job, uint32_t px_x, uin
     const struct render_settings *rs = &job->scene->settings;
     const uint32_t passes = job->num_passes, k = (rs->spp + passes - 1) / passes;
     struct sampler_pixel sp;
-    sampler_pixel_init(&sp, rs->sampler, rs->seed, job->frame, (uint64_t)px_y * rs->width + px_x, k * passes);
+    sampler_pixel_init(&sp, rs->sampler, rs->seed, job->frame, (uint64_t)px_y * rs->width + px_x, k);
     struct pass_batch b;
     memset(&b, 0, sizeof b);
     double cover = 0.0;
@@ -173,6 +176,7 @@ static void render_pixel_passes(const struct render_job *job, uint32_t px_x, uin
     for (uint32_t p = 0; p < passes; p++) {
         double sum[3] = {0, 0, 0};
         uint32_t n = 0;
+        sampler_pixel_set_pass(&sp, p);
         for (uint32_t si = p * k; si < (p + 1) * k; si++) {
             int hit_any;
             vec3 l = sample_path(job, p, px_x, px_y, sampler_start_pixel(&sp, si), &stats->rays, &hit_any);

@@ -72,7 +72,17 @@ void sampler_pixel_init(struct sampler_pixel *p, enum sampler_type type, uint64_
     p->spp = spp ? spp : 1;
     setup_grid(p->spp, type, &p->perm_mask, &p->nx, &p->ny, &p->log2_spp);
     p->prefix = key_prefix(seed, frame, pixel);
+    p->pass = 0;
     p->pixel_key = rng_mix64(p->prefix ^ PASS_DOMAIN);
+    p->have = 0;
+}
+
+void sampler_pixel_set_pass(struct sampler_pixel *p, uint32_t pass)
+{
+    if (pass == p->pass)
+        return;
+    p->pass = pass;
+    p->pixel_key = rng_mix64(p->prefix ^ PASS_DOMAIN ^ pass);
     p->have = 0;
 }
 
@@ -93,9 +103,10 @@ struct sampler sampler_start_pixel(struct sampler_pixel *p, uint32_t sample)
     s.cache = NULL;
     if (s.type == SAMPLER_INDEPENDENT)
         return s;
-    /* Later passes (index >= spp) get fresh permutations and scrambles, not memoized. */
-    s.pixel_key = pass == 0 ? p->pixel_key : rng_mix64(p->prefix ^ PASS_DOMAIN ^ pass);
-    s.cache = pass == 0 ? p : NULL;
+    /* Later passes (index >= spp) get fresh permutations and scrambles, memoized only for
+     * the pass p holds. */
+    s.pixel_key = pass == p->pass ? p->pixel_key : rng_mix64(p->prefix ^ PASS_DOMAIN ^ pass);
+    s.cache = pass == p->pass ? p : NULL;
     return s;
 }
 

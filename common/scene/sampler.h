@@ -47,7 +47,8 @@ struct sampler_pixel {
     uint32_t nx, ny;    /* stratified: 2D grid nx * ny == spp */
     int log2_spp;       /* log2(spp) when spp is a power of two, else -1 */
     uint64_t prefix;    /* rng_key's (seed, frame, pixel) part */
-    uint64_t pixel_key; /* hash of (seed, frame, pixel, pass 0) */
+    uint32_t pass;      /* the pass whose seeds are memoized here (sampler_pixel_set_pass) */
+    uint64_t pixel_key; /* hash of (seed, frame, pixel, pass) */
     uint64_t have;      /* bit d: seeds[d] filled */
     struct sampler_dim_seeds seeds[SAMPLER_CACHE_DIMS];
 };
@@ -79,6 +80,10 @@ struct sampler sampler_start_type(enum sampler_type type, uint64_t seed, uint32_
 void sampler_pixel_init(struct sampler_pixel *p, enum sampler_type type, uint64_t seed, uint32_t frame,
                         uint64_t pixel, uint32_t spp);
 struct sampler sampler_start_pixel(struct sampler_pixel *p, uint32_t sample);
+/* Moves p's memo to pass `pass` (samples [pass spp, (pass + 1) spp)): each pass of a pixel
+ * is an independent randomisation of the same point set (randomised QMC), so that the
+ * means of passes are independent replicates. Values are the same with or without it. */
+void sampler_pixel_set_pass(struct sampler_pixel *p, uint32_t pass);
 
 /* The independent sampler of earlier versions (same bits). */
 static inline struct sampler sampler_start(uint64_t seed, uint32_t frame, uint64_t pixel, uint32_t sample)
