@@ -87,14 +87,22 @@ if [ -n "$why" ]; then
 else
   timeout 60 $M $SCENE -o "$T/ref.exr" --workers 1 $ARGS >"$T/log" 2>&1 || bad "reference render"
   $M --keygen "$T/m.key" >/dev/null && $M --keygen "$T/w.key" >/dev/null && cp "$T/w.key.pub" "$T/allow"
+  printf '%s@127.0.0.1:%s 1\n127.0.0.1:%s 1 ssh_key=%s\n' "$(id -un)" $SP $SP "$T/client_key" >"$T/hosts"
+  # The workers start first and connect before the master binds (ZeroMQ retries): a render
+  # of a few seconds would otherwise finish before a slow ssh login brings the second one.
+  timeout 90 sh $S --hosts "$T/hosts" --connect "tcp://127.0.0.1:$P" --worker "$WABS" --ssh-key "$T/client_key" \
+    --server-key "$T/m.key.pub" --curve-secret "$T/w.key" --timeout-ms 20000 --log-dir "$T/wlogs" \
+    --ssh-opt "-o StrictHostKeyChecking=no" --ssh-opt "-o UserKnownHostsFile=/dev/null" --ssh-opt "-o LogLevel=ERROR" >"$T/launch" 2>&1 &
+  spid=$!
+  i=0
+  while [ "$(pgrep -f -c -- "$WABS.*127.0.0.1:$P" 2>/dev/null)" -lt 2 ] && [ $i -lt 150 ]; do
+    i=$((i + 1)); sleep 0.2
+  done
   timeout 60 $M $SCENE -o "$T/ssh.exr" $ARGS --workers 0 --bind "tcp://127.0.0.1:$P" \
     --curve-secret "$T/m.key" --allow "$T/allow" >"$T/log" 2>&1 &
   mpid=$!
-  echo $mpid >"$T/pids"
-  printf '%s@127.0.0.1:%s 1\n127.0.0.1:%s 1 ssh_key=%s\n' "$(id -un)" $SP $SP "$T/client_key" >"$T/hosts"
-  timeout 60 sh $S --hosts "$T/hosts" --connect "tcp://127.0.0.1:$P" --worker "$WABS" --ssh-key "$T/client_key" \
-    --server-key "$T/m.key.pub" --curve-secret "$T/w.key" --timeout-ms 20000 --log-dir "$T/wlogs" \
-    --ssh-opt "-o StrictHostKeyChecking=no" --ssh-opt "-o UserKnownHostsFile=/dev/null" --ssh-opt "-o LogLevel=ERROR" >"$T/launch" 2>&1
+  echo "$mpid $spid" >"$T/pids"
+  wait $spid
   sr=$?
   wait $mpid && r=0 || r=1
   echo "ssh: 2 workers over ssh to 127.0.0.1:$SP; workers joined $(counter workers_joined "$T/ssh.exr"); tiles per worker: $(grep -c 'summary: worker' "$T/log") workers listed"
