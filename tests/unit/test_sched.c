@@ -75,7 +75,7 @@ Test(sched, units_wait_for_their_release)
     cr_assert_eq(sched_worker_ready(s, w1, 8), 0);
     assert_none(s, 10);
     struct sched_eviction ev;
-    sched_evict(s, 0, SCHED_SILENT, &ev);
+    sched_evict(s, 0, SCHED_LEFT, &ev);
     cr_assert_eq(ev.requeued, 3);
     for (int i = 0; i < 3; i++)
         cr_assert_lt(give_one(s, 20).tile, 3, "re-issued units of a released pass go out");
