@@ -253,6 +253,7 @@ int proto_encode(const struct proto_msg *msg, struct proto_buf *b)
         put_u32(b, msg->u.heartbeat.tiles_done);
         put_u64(b, msg->u.heartbeat.samples_done);
         put_u32(b, msg->u.heartbeat.stalled_ms);
+        put_u32(b, msg->u.heartbeat.map_wait_ms);
         return 0;
     case MSG_BYE:
         return 0;
@@ -587,6 +588,7 @@ int proto_decode(const uint8_t *frame, size_t size, struct proto_msg *msg, char 
         msg->u.heartbeat.tiles_done = get_u32(r, "tiles_done");
         msg->u.heartbeat.samples_done = get_u64(r, "samples_done");
         msg->u.heartbeat.stalled_ms = get_u32(r, "stalled_ms");
+        msg->u.heartbeat.map_wait_ms = get_u32(r, "map_wait_ms");
         break;
     case MSG_MAP: {
         struct msg_map *m = &msg->u.map;

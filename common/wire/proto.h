@@ -148,8 +148,10 @@ struct msg_error {
 /* samples_done: camera samples the worker's render threads finished since it started, a
  * counter that only grows; stalled_ms: how long the slowest busy render thread has not
  * finished a row. The master evicts a worker holding tiles whose counter stops moving or
- * that reports a stalled thread (its main thread may answer while render threads hang). */
-struct msg_heartbeat { uint64_t job_id; uint32_t tiles_done; uint64_t samples_done; uint32_t stalled_ms; };
+ * that reports a stalled thread (its main thread may answer while render threads hang).
+ * map_wait_ms: how long, in the job so far, the worker had units waiting for their photon
+ * map's fetch and nothing to render (a statistic). */
+struct msg_heartbeat { uint64_t job_id; uint32_t tiles_done; uint64_t samples_done; uint32_t stalled_ms; uint32_t map_wait_ms; };
 
 /* A decoded message. Pointers inside refer to the frame's bytes, which must outlive it. */
 struct proto_msg {

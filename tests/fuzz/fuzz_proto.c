@@ -70,7 +70,8 @@ static int msg_eq(const struct proto_msg *a, const struct proto_msg *b)
         return a->u.heartbeat.job_id == b->u.heartbeat.job_id &&
                a->u.heartbeat.tiles_done == b->u.heartbeat.tiles_done &&
                a->u.heartbeat.samples_done == b->u.heartbeat.samples_done &&
-               a->u.heartbeat.stalled_ms == b->u.heartbeat.stalled_ms;
+               a->u.heartbeat.stalled_ms == b->u.heartbeat.stalled_ms &&
+               a->u.heartbeat.map_wait_ms == b->u.heartbeat.map_wait_ms;
     case MSG_BYE:
         return 1;
     case MSG_ACK:

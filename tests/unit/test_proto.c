@@ -109,6 +109,7 @@ static size_t make_samples(struct proto_msg out[MSG_TYPE_MAX_])
     out[n].u.heartbeat.tiles_done = 400;
     out[n].u.heartbeat.samples_done = 0x0102030405060708ull;
     out[n].u.heartbeat.stalled_ms = 0x0a0b0c0du;
+    out[n].u.heartbeat.map_wait_ms = 0x11223344u;
     n++;
 
     out[n].type = MSG_BYE;
@@ -237,6 +238,7 @@ static void assert_msg_eq(const struct proto_msg *a, const struct proto_msg *b)
         cr_assert_eq(a->u.heartbeat.tiles_done, b->u.heartbeat.tiles_done);
         cr_assert_eq(a->u.heartbeat.samples_done, b->u.heartbeat.samples_done);
         cr_assert_eq(a->u.heartbeat.stalled_ms, b->u.heartbeat.stalled_ms);
+        cr_assert_eq(a->u.heartbeat.map_wait_ms, b->u.heartbeat.map_wait_ms);
         break;
     case MSG_ACK:
         cr_assert_eq(a->u.ack.job_id, b->u.ack.job_id);
