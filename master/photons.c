@@ -244,9 +244,20 @@ static void *tracer_thread(void *arg)
         return NULL;
     }
     const float r0 = job.media->radius;
-    for (uint32_t p = 0; p < t->passes; p++) {
+    uint8_t *hashes = mem_alloc(32 * (size_t)t->passes); /* the maps' hashes, for one logged hash */
+    double seconds = 0.0;
+    size_t bytes = 0;
+    uint32_t p = 0;
+    for (; p < t->passes; p++) {
         struct traced_map m = {0};
         int rc = trace_one(t, &job, r0, p, &m);
+        if (rc == 0) {
+            struct blob_hash h;
+            blob_hash_compute(m.data, m.size, &h);
+            memcpy(hashes + 32 * (size_t)p, h.bytes, 32);
+            seconds += m.seconds;
+            bytes += m.size;
+        }
         pthread_mutex_lock(&t->lock);
         if (rc != 0)
             t->failed = 1;
@@ -256,6 +267,16 @@ static void *tracer_thread(void *arg)
         if (rc != 0)
             break;
     }
+    if (p == t->passes) {
+        struct blob_hash all;
+        char all_hex[65];
+        blob_hash_compute(hashes, 32 * (size_t)t->passes, &all);
+        blob_hash_hex(&all, all_hex);
+        log_info("media: photon pass: %u map(s) (progressive passes, alpha %g) of frame %u in %.3f s on %u thread(s), "
+                 "%zu bytes, map %.16s", t->passes, (double)t->scene->media->alpha, t->frame, seconds, t->threads, bytes,
+                 all_hex);
+    }
+    free(hashes);
     render_job_fini(&job);
     return NULL;
 }
