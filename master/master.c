@@ -1339,9 +1339,9 @@ static int frame_begin(struct master *m, uint32_t frames_started)
         return -1;
     m->job_id = m->job_base + frames_started;
     for (uint32_t i = 0; i < m->num_peers; i++)
-        if (!m->sched->workers[i].gone && m->sched->tiles_done < m->num_tiles)
+        if (!m->sched->workers[i].gone && m->sched->tiles_done < m->num_units)
             send_job(m, &m->peers[i]);
-    if (m->sched->tiles_done < m->num_tiles && !m->local_pids && start_local_workers(m) != 0)
+    if (m->sched->tiles_done < m->num_units && !m->local_pids && start_local_workers(m) != 0)
         return -1;
     log_info("rendering %s frame %u -> %s: %ux%u, %u spp, %u tiles x %u pass(es) (%u units from the journal), %u "
              "local worker(s)%s%s", o->scene_path, m->frame, m->out_path, m->scene.settings.width,

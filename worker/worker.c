@@ -781,8 +781,8 @@ static int map_install(struct worker *w, uint32_t pass)
 }
 
 /* MAP: pass `pass` of the current job renders with this blob. The newest pass is fetched
- * at once (so it is here when its units come); an older one only when a unit of it comes
- * (a worker joining late fetches only what it renders). */
+ * at once (maps_prefetch, so it is here when its units come); an older one only when a
+ * unit of it comes (a worker joining late fetches only what it renders). */
 static int on_map(struct worker *w, const struct msg_map *mm)
 {
     if (!w->have_job || mm->job_id != w->job.job_id || mm->pass >= w->num_maps) {
@@ -796,14 +796,23 @@ static int on_map(struct worker *w, const struct msg_map *mm)
     pm->hash = mm->hash;
     pm->size = mm->size;
     pm->announced = 1;
-    int newest = 1, wanted = 0;
-    for (uint32_t p = mm->pass + 1; p < w->num_maps; p++)
-        newest &= !w->maps[p].announced;
     for (size_t i = 0; i < w->num_parked; i++)
-        wanted |= w->parked[i].pass == mm->pass;
-    if (newest || wanted)
-        map_fetch_start(w, mm->pass);
+        if (w->parked[i].pass == mm->pass) {
+            map_fetch_start(w, mm->pass);
+            break;
+        }
     return w->loaded ? map_install(w, mm->pass) : 0;
+}
+
+/* After the messages at hand: the newest announced map is fetched ahead of its units
+ * (MAPs of earlier passes that came in the same batch, to a worker joining late, are not). */
+static void maps_prefetch(struct worker *w)
+{
+    for (uint32_t p = w->num_maps; p-- > 0;)
+        if (w->maps[p].announced) {
+            map_fetch_start(w, p);
+            return;
+        }
 }
 
 static void kept_free_at(struct worker *w, size_t i)
@@ -1059,6 +1068,7 @@ int worker_run(const struct worker_opts *opts)
                     goto done;
             }
         }
+        maps_prefetch(&w);
         if (!w.lost && now - last_heard > MASTER_LOST_MS && now - w.conn_at_ms > MASTER_LOST_MS) {
             log_warn("no word from the master at %s for %llu ms; reconnecting (%zu finished tile(s) kept)",
                      opts->endpoint, (unsigned long long)(now - last_heard), w.num_kept);
