@@ -1228,7 +1228,7 @@ static int start_local_workers(struct master *m);
 static int maps_start(struct master *m, uint32_t frame)
 {
     char err[512];
-    photon_tracer_free(&m->tracer);
+    photon_tracer_free(&m->tracer, 0); /* the last frame's: done or nearly (the stop flag is for good) */
     for (uint32_t p = 0; p < m->maps_published; p++)
         blob_store_drop(&m->blobs, &m->maps[p].hash);
     memset(m->maps, 0, sizeof *m->maps * m->passes);
@@ -1272,7 +1272,7 @@ static int maps_poll(struct master *m)
         sched_release(m->sched, m->maps_published * m->num_tiles);
         log_debug("photon map %u published (%zu bytes); its units go out", pass, size);
         if (m->maps_published == m->passes)
-            photon_tracer_free(&m->tracer);
+            photon_tracer_free(&m->tracer, 0);
     }
     return 0;
 }
@@ -1518,7 +1518,7 @@ done:
         m.c.journal_syncs += m.journal->syncs;
         journal_free(&m.journal);
     }
-    photon_tracer_free(&m.tracer);
+    photon_tracer_free(&m.tracer, 1);
     zap_free(&m.zap);
     if (m.sock)
         zmq_close(m.sock);

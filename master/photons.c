@@ -322,7 +322,7 @@ int photon_tracer_poll(struct photon_tracer *t, uint32_t *pass, uint8_t **map, s
     return rc;
 }
 
-void photon_tracer_free(struct photon_tracer **tp)
+void photon_tracer_free(struct photon_tracer **tp, int stop)
 {
     struct photon_tracer *t = *tp;
     if (!t)
@@ -330,7 +330,7 @@ void photon_tracer_free(struct photon_tracer **tp)
     pthread_mutex_lock(&t->lock);
     int busy = !t->failed && t->traced < t->passes;
     pthread_mutex_unlock(&t->lock);
-    if (busy)
+    if (busy && stop)
         photon_trace_request_stop(); /* the master is leaving: the pass stops at its next photon */
     pthread_join(t->thread, NULL);
     for (uint32_t p = 0; p < t->passes; p++)

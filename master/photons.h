@@ -33,8 +33,9 @@ struct photon_tracer *photon_tracer_new(const struct scene *scene, const struct 
  * the seconds it took; 0 when it is not ready yet; -1 with err when tracing failed. */
 int photon_tracer_poll(struct photon_tracer *t, uint32_t *pass, uint8_t **map, size_t *size, double *seconds,
                        char *err, size_t errlen);
-/* Joins the thread (an unfinished pass is stopped: photon_trace_request_stop, for good)
- * and frees what was not taken; *t becomes NULL (NULL is fine). */
-void photon_tracer_free(struct photon_tracer **t);
+/* Joins the thread and frees what was not taken; *t becomes NULL (NULL is fine). With
+ * stop, unfinished tracing is stopped (photon_trace_request_stop: for good, in this
+ * process; only for a master that is leaving), else it is waited for. */
+void photon_tracer_free(struct photon_tracer **t, int stop);
 
 #endif
