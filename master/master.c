@@ -1343,9 +1343,12 @@ static int frame_begin(struct master *m, uint32_t frames_started)
             send_job(m, &m->peers[i]);
     if (m->sched->tiles_done < m->num_units && !m->local_pids && start_local_workers(m) != 0)
         return -1;
-    log_info("rendering %s frame %u -> %s: %ux%u, %u spp, %u tiles x %u pass(es) (%u units from the journal), %u "
-             "local worker(s)%s%s", o->scene_path, m->frame, m->out_path, m->scene.settings.width,
-             m->scene.settings.height, m->scene.settings.spp, m->num_tiles, m->passes, m->sched->tiles_done, o->workers,
+    char units[64] = "";
+    if (m->passes > 1)
+        snprintf(units, sizeof units, " in %u passes: %u units", m->passes, m->num_units);
+    log_info("rendering %s frame %u -> %s: %ux%u, %u spp, %u tiles%s (%u from the journal), %u local worker(s)%s%s",
+             o->scene_path, m->frame, m->out_path, m->scene.settings.width, m->scene.settings.height,
+             m->scene.settings.spp, m->num_tiles, units, m->sched->tiles_done, o->workers,
              o->bind ? ", accepting workers at " : "", o->bind ? o->bind : "");
     return 0;
 }
@@ -1358,8 +1361,16 @@ static int frame_render(struct master *m, uint64_t *last_beat)
     uint64_t start = net_now_ms(), last_progress = start, last_tick = start;
     while (m->sched->tiles_done < m->num_units) {
         if (g_interrupted) {
-            snprintf(m->fatal, sizeof m->fatal, "interrupted; %u of %u %s of frame %u were finished",
-                     m->sched->tiles_done, m->num_units, m->passes > 1 ? "units (tile passes)" : "tiles", m->frame);
+            if (m->tracer && m->sched->tiles_done == 0) {
+                /* Nothing rendered yet: the photon pass was what ran; nothing to resume. */
+                snprintf(m->fatal, sizeof m->fatal, "photon pass interrupted: %u of %u photon maps of frame %u traced, "
+                         "no unit rendered", m->maps_published, m->passes, m->frame);
+                if (m->journal)
+                    journal_remove(&m->journal);
+            } else {
+                snprintf(m->fatal, sizeof m->fatal, "interrupted; %u of %u %s of frame %u were finished",
+                         m->sched->tiles_done, m->num_units, m->passes > 1 ? "units (tile passes)" : "tiles", m->frame);
+            }
             return -1;
         }
         if (m->fatal[0])
@@ -1393,7 +1404,7 @@ static int frame_render(struct master *m, uint64_t *last_beat)
         uint64_t now = net_now_ms();
         account_waits(m, now - last_tick);
         last_tick = now;
-        if (maps_poll(m) != 0)
+        if (!g_interrupted && maps_poll(m) != 0) /* interrupted: the tracer stopped too; said above */
             return -1;
         reap_local(m);
         check_liveness(m, now);
