@@ -16,8 +16,10 @@
 #include "wire/proto.h"
 #include "zap.h"
 #include "output.h"
+#include "fold.h"
 #include "photons.h"
 #include "sched.h"
+#include "render/integrator.h"
 #include "render/media_integrator.h"
 #include "render/photon_trace.h"
 #include "scene/scene_json.h"
@@ -47,6 +49,19 @@ struct peer {
     char name[300];         /* host:pid for messages */
     uint32_t pid;
     uint32_t dropped;       /* messages of this peer dropped; only the first few are logged */
+    uint64_t *map_bytes;    /* per pass: bytes of that pass's map blob served to it */
+    uint64_t *wait_ms;      /* per pass: ms it was ready with credits while that pass's map was not published */
+    uint64_t live_ms;       /* ms it was a ready worker of a frame */
+    uint64_t fetch_wait_ms; /* ms it reported waiting for a map fetch with nothing to render (heartbeats) */
+    uint64_t fetch_wait_job;  /* the job of its last report, and the ms it had reported for it */
+    uint32_t fetch_wait_last;
+};
+
+/* A pass's photon map as published: its blob (among the blobs served), once traced. */
+struct pass_map {
+    struct blob_hash hash;
+    uint64_t size;
+    double seconds;         /* tracing time */
 };
 
 /* What happened, for tests and operators: OUT.stats.json ("counters"), and with
@@ -79,7 +94,8 @@ struct master {
     char scene_rel[ASSET_PATH_MAX];
     char base_hash[65];         /* names, contents and settings (a per-frame photon map: that frame's) */
     int map_per_frame;          /* the photon map depends on the frame (master_media_per_frame) */
-    uint32_t map_frame;         /* the frame the published photon map was built for */
+    uint32_t map_frame;         /* the frame the photon maps are traced for */
+    int maps_started;           /* a tracer was started (the maps of map_frame are being or were traced) */
     char scene_hash[65];        /* base_hash and the frame: what the output header records */
     struct scene scene;
     struct image_desc desc;
@@ -101,6 +117,15 @@ struct master {
     char fatal[2048];           /* set when the job cannot finish: the reason, printed last */
     double wall_seconds;        /* of the frames rendered */
     uint32_t passes;            /* progressive photon-map passes of the frame (1 without a photon map) */
+    uint32_t photon_maps;       /* photon maps: 0 (none) or passes */
+    uint32_t num_units;         /* units (tile, pass): u = pass * num_tiles + tile */
+    struct fold *fold;          /* passes >= 2: a tile's pass means folded in pass order */
+    struct imgio_encoder *enc;  /* encodes folded tiles */
+    float *fold_out;
+    struct pass_map *maps;      /* per pass */
+    uint32_t maps_published;    /* passes 0..maps_published-1 have their map announced */
+    uint32_t maps_frame;        /* the frame the maps are traced for */
+    struct photon_tracer *tracer; /* tracing the rest of the maps, or NULL */
     double rel_rmse_est;        /* the last frame's estimated relRMSE from its variance channels (error_estimate) */
     float *decode_scratch;
     char ipc_dir[256];
@@ -182,8 +207,9 @@ static int load_scene(struct master *m)
         return -1;
     }
     m->map_frame = o->have_frames ? o->frame_first : 0;
-    if (master_media_prepare(&m->scene, o, m->map_frame, &m->assets, &m->passes) != 0)
+    if (master_media_prepare(&m->scene, o, m->map_frame, &m->assets, &m->photon_maps) != 0)
         return -1;
+    m->passes = m->photon_maps ? m->photon_maps : 1;
     m->map_per_frame = master_media_per_frame(&m->scene);
     return publish_manifest(m);
 }
@@ -216,8 +242,9 @@ static int publish_manifest(struct master *m)
         h.size += pl + BLOB_HASH_SIZE;
     }
     char settings[256];
-    int sl = snprintf(settings, sizeof settings, "%ux%u spp=%u depth=%u seed=%llu sampler=%u", rs->width, rs->height,
-                      rs->spp, rs->max_depth, (unsigned long long)rs->seed, (unsigned)rs->sampler);
+    int sl = snprintf(settings, sizeof settings, "%ux%u spp=%u depth=%u seed=%llu sampler=%u photon_maps=%u", rs->width,
+                      rs->height, rs->spp, rs->max_depth, (unsigned long long)rs->seed, (unsigned)rs->sampler,
+                      m->photon_maps);
     mem_grow((void **)&h.data, &h.cap, h.size + (size_t)sl, 1);
     memcpy(h.data + h.size, settings, (size_t)sl);
     h.size += (size_t)sl;
@@ -244,10 +271,20 @@ static void setup_tiles(struct master *m)
     const struct render_settings *rs = &m->scene.settings;
     tile_image_desc(&m->desc, rs);
     m->num_tiles = imgio_tiles_x(&m->desc) * imgio_tiles_y(&m->desc);
-    m->sched = sched_new(m->num_tiles);
+    m->num_units = m->num_tiles * m->passes;
+    m->sched = sched_new(m->num_units);
     m->chunks = mem_calloc(m->num_tiles, sizeof *m->chunks);
     m->decode_scratch = mem_alloc(sizeof(float) * rs->tile_size * rs->tile_size * TILE_NUM_CHANNELS);
+    m->maps = mem_calloc(m->passes, sizeof *m->maps);
+    if (m->passes > 1) {
+        m->fold = fold_new(&m->desc, m->passes);
+        m->fold_out = mem_alloc(sizeof(float) * rs->tile_size * rs->tile_size * TILE_NUM_CHANNELS);
+    }
 }
+
+/* Tile and pass of unit u. */
+static uint32_t unit_tile(const struct master *m, uint32_t u) { return u % m->num_tiles; }
+static uint32_t unit_pass(const struct master *m, uint32_t u) { return u / m->num_tiles; }
 
 /* --tiles: every other tile is a black, transparent chunk encoded here, so the output is
  * a complete EXR in which only the chosen tiles were rendered. */
@@ -280,7 +317,8 @@ static int restrict_tiles(struct master *m)
             master_fail(m, "%s", err);
             rc = -1;
         }
-        sched_tile_set_done(m->sched, t);
+        for (uint32_t p = 0; p < m->passes; p++)
+            sched_tile_set_done(m->sched, p * m->num_tiles + t);
     }
     free(black);
     imgio_encoder_free(&enc);
@@ -388,6 +426,17 @@ static int name_is_banned(const struct master *m, const char *name)
 
 static void send_job(struct master *m, const struct peer *p);
 
+/* MAP: pass `pass`'s photon map is published (after the JOB it belongs to). */
+static void send_map(struct master *m, const struct peer *p, uint32_t pass)
+{
+    struct proto_msg msg = {.type = MSG_MAP};
+    msg.u.map.job_id = m->job_id;
+    msg.u.map.pass = pass;
+    msg.u.map.hash = m->maps[pass].hash;
+    msg.u.map.size = m->maps[pass].size;
+    send_to(m, p, &msg);
+}
+
 static void on_hello(struct master *m, const struct net_frame *f, const struct msg_hello *h)
 {
     if (find_peer(m, f->id, f->id_len) >= 0) {
@@ -420,6 +469,8 @@ static void on_hello(struct master *m, const struct net_frame *f, const struct m
     memcpy(p->id, f->id, f->id_len);
     p->id_len = f->id_len;
     p->pid = h->pid;
+    p->map_bytes = mem_calloc(m->passes, sizeof *p->map_bytes);
+    p->wait_ms = mem_calloc(m->passes, sizeof *p->wait_ms);
     snprintf(p->name, sizeof p->name, "%s", name);
     sched_worker_join(m->sched, h->threads, net_now_ms());
     m->num_peers++;
@@ -445,13 +496,16 @@ static void send_job(struct master *m, const struct peer *p)
     j->tile_size = rs->tile_size;
     j->seed = rs->seed;
     j->sampler = rs->sampler;
+    j->photon_maps = m->photon_maps;
     snprintf(j->scene_path, sizeof j->scene_path, "%s", m->scene_rel);
     j->num_assets = m->num_manifest;
     j->assets = m->manifest;
     send_to(m, p, &job);
+    for (uint32_t pass = 0; pass < m->maps_published; pass++)
+        send_map(m, p, pass);
 }
 
-static void on_blob_req(struct master *m, const struct peer *p, const struct msg_blob_req *r)
+static void on_blob_req(struct master *m, struct peer *p, const struct msg_blob_req *r)
 {
     const struct blob_entry *e = blob_store_get(&m->blobs, &r->hash);
     if (!e || r->offset > e->size || r->length > BLOB_CHUNK_SIZE || r->length > e->size - r->offset) {
@@ -467,11 +521,17 @@ static void on_blob_req(struct master *m, const struct peer *p, const struct msg
     d.u.blob_data.bytes = e->data + r->offset;
     d.u.blob_data.length = r->length;
     send_to(m, p, &d);
+    for (uint32_t pass = 0; pass < m->maps_published; pass++)
+        if (blob_hash_equal(&m->maps[pass].hash, &r->hash))
+            p->map_bytes[pass] += r->length;
 }
 
-static int chunk_is_sane(struct master *m, uint32_t tile, const uint8_t *chunk, size_t chunk_size, char *err,
+/* Decodes unit u's chunk into decode_scratch and checks it: finite pixels, and for a
+ * pass of several a coverage in [0, 1] or PASS_ALPHA_NONE and no negative variance. */
+static int chunk_is_sane(struct master *m, uint32_t unit, const uint8_t *chunk, size_t chunk_size, char *err,
                          size_t errlen)
 {
+    uint32_t tile = unit_tile(m, unit);
     uint32_t tiles_x = imgio_tiles_x(&m->desc);
     uint32_t tx = tile % tiles_x, ty = tile / tiles_x, x0, y0, w, h;
     imgio_tile_rect(&m->desc, tx, ty, &x0, &y0, &w, &h);
@@ -482,6 +542,14 @@ static int chunk_is_sane(struct master *m, uint32_t tile, const uint8_t *chunk, 
             str_fmt(err, errlen, "non-finite pixel value in tile %u", tile);
             return 0;
         }
+    for (size_t i = 0; m->passes > 1 && i < (size_t)w * h; i++) {
+        const float *px = &m->decode_scratch[i * TILE_NUM_CHANNELS];
+        if (!((px[CH_A] >= 0.0f && px[CH_A] <= 1.0f) || px[CH_A] == PASS_ALPHA_NONE) || px[CH_VAR_R] < 0.0f ||
+            px[CH_VAR_G] < 0.0f || px[CH_VAR_B] < 0.0f) {
+            str_fmt(err, errlen, "tile %u pass %u: coverage or variance out of range", tile, unit_pass(m, unit));
+            return 0;
+        }
+    }
     return 1;
 }
 
@@ -556,24 +624,50 @@ static void commit_and_ack(struct master *m, int wait)
     }
 }
 
-/* Keeps an accepted tile: journal first (written here, synced by commit_and_ack before
+/* A unit whose chunk chunk_is_sane has just decoded into decode_scratch: with one pass
+ * the chunk is the tile's; with several it is folded (fold.h), and once the tile's last
+ * pass is in, the folded tile is encoded as the tile's chunk. */
+static int unit_keep(struct master *m, uint32_t unit, const struct tile_stats *st, const uint8_t *chunk,
+                     size_t chunk_size)
+{
+    uint32_t tile = unit_tile(m, unit);
+    tile_stats_add(&m->stats, st);
+    if (m->passes == 1) {
+        m->chunks[tile].data = mem_alloc(chunk_size ? chunk_size : 1);
+        memcpy(m->chunks[tile].data, chunk, chunk_size);
+        m->chunks[tile].size = chunk_size;
+        return 0;
+    }
+    if (!fold_add(m->fold, tile, unit_pass(m, unit), m->decode_scratch, m->fold_out, &m->stats))
+        return 0;
+    char err[256];
+    uint32_t tiles_x = imgio_tiles_x(&m->desc);
+    if (!m->enc && !(m->enc = imgio_encoder_new(&m->desc, err, sizeof err))) {
+        master_fail(m, "%s", err);
+        return -1;
+    }
+    if (imgio_encode_tile(m->enc, tile % tiles_x, tile / tiles_x, m->fold_out, &m->chunks[tile].data,
+                          &m->chunks[tile].size, err, sizeof err) != 0) {
+        master_fail(m, "%s", err);
+        return -1;
+    }
+    return 0;
+}
+
+/* Keeps an accepted unit: journal first (written here, synced by commit_and_ack before
  * anyone is told), then the caller marks it done in the scheduler. */
-static int tile_accept(struct master *m, uint32_t tile, const struct tile_stats *st, const uint8_t *chunk,
+static int tile_accept(struct master *m, uint32_t unit, const struct tile_stats *st, const uint8_t *chunk,
                        size_t chunk_size)
 {
     if (m->journal) {
         char err[512];
-        if (journal_write(m->journal, tile, st, chunk, (uint32_t)chunk_size, err, sizeof err) != 0) {
+        if (journal_write(m->journal, unit, st, chunk, (uint32_t)chunk_size, err, sizeof err) != 0) {
             snprintf(m->fatal, sizeof m->fatal, "%s", err);
             return -1;
         }
     }
-    m->chunks[tile].data = mem_alloc(chunk_size ? chunk_size : 1);
-    memcpy(m->chunks[tile].data, chunk, chunk_size);
-    m->chunks[tile].size = chunk_size;
     m->c.tiles_done++;
-    tile_stats_add(&m->stats, st);
-    return 0;
+    return unit_keep(m, unit, st, chunk, chunk_size);
 }
 
 /* An invalid tile from peer pi was counted by the scheduler; a ban (SCHED_FAILS_TO_BAN in
@@ -599,7 +693,7 @@ static void on_kept(struct master *m, int32_t pi, const struct msg_kept *k)
     struct peer *p = &m->peers[pi];
     sched_worker_progress(m->sched, pi, net_now_ms());
     if (k->job_id != m->job_id || !blob_hash_equal(&k->job_key, &m->job_key) || k->frame != m->frame ||
-        k->tile >= m->num_tiles) {
+        k->tile >= m->num_units) {
         if (peer_should_log_drop(p))
             log_warn("worker %s: kept tile %u (frame %u) was rendered for another job; dropped", p->name, k->tile,
                      k->frame);
@@ -640,7 +734,7 @@ static void on_result(struct master *m, int32_t pi, const struct msg_result *r)
     }
     if (r->job_id == m->job_id)
         sched_worker_credit(m->sched, pi);
-    if (r->job_id != m->job_id || r->frame != m->frame || r->tile >= m->num_tiles) {
+    if (r->job_id != m->job_id || r->frame != m->frame || r->tile >= m->num_units) {
         if (peer_should_log_drop(p))
             log_warn("worker %s: RESULT for job %llu frame %u tile %u is not ours; dropped", p->name,
                      (unsigned long long)r->job_id, r->frame, r->tile);
@@ -750,6 +844,14 @@ static void handle_message(struct master *m, struct net_frame *f)
         break;
     case MSG_HEARTBEAT:
         sched_worker_heartbeat(m->sched, pi, msg.u.heartbeat.samples_done, msg.u.heartbeat.stalled_ms, net_now_ms());
+        if (msg.u.heartbeat.job_id == m->job_id) { /* its own cumulative count for this job */
+            if (p->fetch_wait_job != m->job_id)
+                p->fetch_wait_last = 0;
+            if (msg.u.heartbeat.map_wait_ms > p->fetch_wait_last)
+                p->fetch_wait_ms += msg.u.heartbeat.map_wait_ms - p->fetch_wait_last;
+            p->fetch_wait_last = msg.u.heartbeat.map_wait_ms;
+            p->fetch_wait_job = m->job_id;
+        }
         break;
     case MSG_BYE:
         evict_peer(m, pi, SCHED_LEFT, "it left");
@@ -767,22 +869,21 @@ static void handle_message(struct master *m, struct net_frame *f)
 
 struct replay_ctx { struct master *m; };
 
-static int replay_tile(void *ctx, uint32_t tile, const struct tile_stats *st, const uint8_t *chunk, uint32_t size)
+static int replay_tile(void *ctx, uint32_t unit, const struct tile_stats *st, const uint8_t *chunk, uint32_t size)
 {
     struct master *m = ((struct replay_ctx *)ctx)->m;
     char err[256];
-    if (m->sched->tiles[tile].state == SCHED_DONE)
-        return 0; /* a tile journaled twice: the first copy is as good */
-    if (!chunk_is_sane(m, tile, chunk, size, err, sizeof err)) {
-        log_warn("journal: tile %u does not decode (%s); the journal is cut there", tile, err);
+    if (m->sched->tiles[unit].state == SCHED_DONE)
+        return 0; /* a unit journaled twice: the first copy is as good */
+    if (!chunk_is_sane(m, unit, chunk, size, err, sizeof err)) {
+        log_warn("journal: unit %u (tile %u, pass %u) does not decode (%s); the journal is cut there", unit,
+                 unit_tile(m, unit), unit_pass(m, unit), err);
         return -1;
     }
-    m->chunks[tile].data = mem_alloc(size ? size : 1);
-    memcpy(m->chunks[tile].data, chunk, size);
-    m->chunks[tile].size = size;
-    sched_tile_set_done(m->sched, tile);
+    if (unit_keep(m, unit, st, chunk, size) != 0)
+        return -1;
+    sched_tile_set_done(m->sched, unit);
     m->c.tiles_from_journal++;
-    tile_stats_add(&m->stats, st);
     return 0;
 }
 
@@ -792,8 +893,8 @@ static void compute_job_key(struct master *m)
 {
     const struct render_settings *rs = &m->scene.settings;
     char ident[512];
-    int n = snprintf(ident, sizeof ident, "brume-journal-1 %s tile=%u sampler=%u frame=%u tiles=%u", m->scene_hash,
-                     rs->tile_size, (unsigned)rs->sampler, m->frame, m->num_tiles);
+    int n = snprintf(ident, sizeof ident, "brume-journal-2 %s tile=%u sampler=%u frame=%u tiles=%u passes=%u",
+                     m->scene_hash, rs->tile_size, (unsigned)rs->sampler, m->frame, m->num_tiles, m->passes);
     blob_hash_compute(ident, (size_t)n, &m->job_key);
 }
 
@@ -806,7 +907,7 @@ static int open_journal(struct master *m)
     uint64_t torn;
     int other;
     struct replay_ctx ctx = {m};
-    m->journal = journal_open(path, &key, m->num_tiles, replay_tile, &ctx, &recovered, &torn, &other, err, sizeof err);
+    m->journal = journal_open(path, &key, m->num_units, replay_tile, &ctx, &recovered, &torn, &other, err, sizeof err);
     if (!m->journal) {
         master_fail(m, "%s", err);
         return -1;
@@ -816,7 +917,7 @@ static int open_journal(struct master *m)
     if (other)
         log_warn("%s belonged to another job (scene or settings differ); starting afresh", path);
     if (recovered || torn)
-        log_info("journal %s: %u tile(s) recovered%s", path, recovered, torn ? ", a torn last record cut off" : "");
+        log_info("journal %s: %u unit(s) recovered%s", path, recovered, torn ? ", a torn last record cut off" : "");
     return 0;
 }
 
@@ -853,13 +954,14 @@ static void print_progress(struct master *m, uint64_t start_ms, int tty, int fin
 {
     double secs = (double)(net_now_ms() - start_ms) / 1000.0;
     double rate = secs > 0 ? (double)m->stats.samples / secs : 0.0;
-    double left = m->sched->tiles_done > 0 ? secs * (m->num_tiles - m->sched->tiles_done) / m->sched->tiles_done : 0.0;
+    double left = m->sched->tiles_done > 0 ? secs * (m->num_units - m->sched->tiles_done) / m->sched->tiles_done : 0.0;
+    const char *what = m->passes > 1 ? "units" : "tiles";
     if (tty)
-        fprintf(stderr, "\rmaster: tiles %u/%u  %.2f Msamples/s  ETA %.0fs   %s", m->sched->tiles_done, m->num_tiles,
+        fprintf(stderr, "\rmaster: %s %u/%u  %.2f Msamples/s  ETA %.0fs   %s", what, m->sched->tiles_done, m->num_units,
                 rate / 1e6, left, final ? "\n" : "");
     else
-        fprintf(stderr, "master: progress: tiles %u/%u, %.2f Msamples/s, ETA %.0fs\n", m->sched->tiles_done, m->num_tiles,
-                rate / 1e6, left);
+        fprintf(stderr, "master: progress: %s %u/%u, %.2f Msamples/s, ETA %.0fs\n", what, m->sched->tiles_done,
+                m->num_units, rate / 1e6, left);
     fflush(stderr);
 }
 
@@ -911,7 +1013,26 @@ static void print_summary(struct master *m, double secs)
     printf("summary: estimated relRMSE %.4f (sqrt(mean pixel variance of the mean) / image mean, RGB; %s)\n",
            m->rel_rmse_est, m->passes > 1 ? "batch means over the photon-map passes" : "sample variance");
     for (uint32_t i = 0; i < m->num_peers; i++)
-        printf("summary: worker %s: %u tiles\n", m->peers[i].name, m->sched->workers[i].tiles_done);
+        printf("summary: worker %s: %u %s\n", m->peers[i].name, m->sched->workers[i].tiles_done,
+               m->passes > 1 ? "units (tile passes)" : "tiles");
+    if (m->photon_maps) {
+        uint64_t bytes = 0, wait = 0, live = 0;
+        for (uint32_t i = 0; i < m->num_peers; i++) {
+            for (uint32_t p = 0; p < m->passes; p++)
+                bytes += m->peers[i].map_bytes[p], wait += m->peers[i].wait_ms[p];
+            wait += m->peers[i].fetch_wait_ms;
+            live += m->peers[i].live_ms;
+        }
+        printf("summary: photon maps: %u pass(es), %llu map bytes fetched by %u worker(s), workers waited for maps "
+               "%.1f %% of their time\n", m->passes, (unsigned long long)bytes, m->num_peers,
+               live ? 100.0 * (double)wait / (double)live : 0.0);
+        if (m->opts->verbose)
+            for (uint32_t p = 0; p < m->passes; p++)
+                for (uint32_t i = 0; i < m->num_peers; i++)
+                    printf("summary: pass %u: worker %s fetched %llu map bytes, waited %llu ms for the map\n", p,
+                           m->peers[i].name, (unsigned long long)m->peers[i].map_bytes[p],
+                           (unsigned long long)m->peers[i].wait_ms[p]);
+    }
     printf("summary: scene hash %s\n", m->scene_hash);
     fflush(stdout);
 }
@@ -958,6 +1079,41 @@ static int write_stats(const struct master *m, int ok, char *err, size_t errlen)
         json_array_append_new(workers, w);
     }
     json_object_set_new(root, "workers", workers);
+    if (m->photon_maps && m->maps) {
+        /* Per pass: the map's bytes and tracing time, and per worker the map bytes it
+         * fetched and the ms it sat ready with credits while the pass's map was not out;
+         * per worker too the ms it reported waiting for a map's fetch with nothing to render. */
+        json_t *passes = json_array(), *wait = json_array();
+        uint64_t waited = 0, live = 0;
+        for (uint32_t p = 0; p < m->passes; p++) {
+            json_t *jp = json_object(), *jw = json_array();
+            json_object_set_new(jp, "pass", json_integer(p));
+            json_object_set_new(jp, "map_bytes", json_integer((json_int_t)m->maps[p].size));
+            json_object_set_new(jp, "trace_seconds", json_real(m->maps[p].seconds));
+            for (uint32_t i = 0; i < m->num_peers; i++) {
+                json_t *w = json_object();
+                json_object_set_new(w, "name", json_string(m->peers[i].name));
+                json_object_set_new(w, "map_bytes_fetched", json_integer((json_int_t)m->peers[i].map_bytes[p]));
+                json_object_set_new(w, "wait_ms", json_integer((json_int_t)m->peers[i].wait_ms[p]));
+                json_array_append_new(jw, w);
+                waited += m->peers[i].wait_ms[p];
+            }
+            json_object_set_new(jp, "workers", jw);
+            json_array_append_new(passes, jp);
+        }
+        for (uint32_t i = 0; i < m->num_peers; i++) {
+            json_t *w = json_object();
+            json_object_set_new(w, "name", json_string(m->peers[i].name));
+            json_object_set_new(w, "fetch_wait_ms", json_integer((json_int_t)m->peers[i].fetch_wait_ms));
+            json_object_set_new(w, "live_ms", json_integer((json_int_t)m->peers[i].live_ms));
+            json_array_append_new(wait, w);
+            waited += m->peers[i].fetch_wait_ms;
+            live += m->peers[i].live_ms;
+        }
+        json_object_set_new(root, "photon_map_passes", passes);
+        json_object_set_new(root, "map_waits", wait);
+        json_object_set_new(root, "map_wait_share", json_real(live ? (double)waited / (double)live : 0.0));
+    }
 #define X(n) json_object_set_new(counters, #n, json_integer((json_int_t)m->c.n));
     COUNTERS(X)
 #undef X
@@ -1067,6 +1223,77 @@ static void check_liveness(struct master *m, uint64_t now)
 
 static int start_local_workers(struct master *m);
 
+/* Traces the photon maps of `frame` on the tracer's thread (maps_poll publishes them);
+ * the last frame's maps, if any, are dropped (geometry moves: every frame has its own). */
+static int maps_start(struct master *m, uint32_t frame)
+{
+    char err[512];
+    photon_tracer_free(&m->tracer, 0); /* the last frame's: done or nearly (the stop flag is for good) */
+    for (uint32_t p = 0; p < m->maps_published; p++)
+        blob_store_drop(&m->blobs, &m->maps[p].hash);
+    memset(m->maps, 0, sizeof *m->maps * m->passes);
+    m->maps_published = 0;
+    m->tracer = photon_tracer_new(&m->scene, m->opts, frame, m->passes, err, sizeof err);
+    if (!m->tracer) {
+        master_fail(m, "%s", err);
+        return -1;
+    }
+    m->map_frame = frame;
+    m->maps_started = 1;
+    return 0;
+}
+
+/* Publishes the maps traced since the last call, in pass order: a blob each, MAP to every
+ * worker, and the pass's units released. */
+static int maps_poll(struct master *m)
+{
+    while (m->tracer) {
+        uint32_t pass;
+        uint8_t *data;
+        size_t size;
+        double secs;
+        char err[600];
+        int rc = photon_tracer_poll(m->tracer, &pass, &data, &size, &secs, err, sizeof err);
+        if (rc < 0) {
+            master_fail(m, "%s", err);
+            return -1;
+        }
+        if (rc == 0)
+            return 0;
+        const struct blob_entry *e = blob_store_put(&m->blobs, data, size);
+        free(data);
+        m->maps[pass].hash = e->hash;
+        m->maps[pass].size = size;
+        m->maps[pass].seconds = secs;
+        m->maps_published = pass + 1;
+        for (uint32_t i = 0; i < m->num_peers; i++)
+            if (!m->sched->workers[i].gone)
+                send_map(m, &m->peers[i], pass);
+        sched_release(m->sched, m->maps_published * m->num_tiles);
+        log_debug("photon map %u published (%zu bytes); its units go out", pass, size);
+        if (m->maps_published == m->passes)
+            photon_tracer_free(&m->tracer, 0);
+    }
+    return 0;
+}
+
+/* Worker time for the statistics: each ready worker's time in the frame, and the part of
+ * it spent idle with credits while every queued unit waited for a map not yet published
+ * (charged to that pass). */
+static void account_waits(struct master *m, uint64_t dt)
+{
+    int blocked = sched_blocked(m->sched);
+    uint32_t pass = m->maps_published < m->passes ? m->maps_published : m->passes - 1;
+    for (uint32_t i = 0; i < m->num_peers; i++) {
+        const struct sched_worker *w = &m->sched->workers[i];
+        if (w->gone || !w->ready)
+            continue;
+        m->peers[i].live_ms += dt;
+        if (blocked && w->in_flight == 0 && w->credits > 0)
+            m->peers[i].wait_ms[pass] += dt;
+    }
+}
+
 /* Starts frame m->frame: fresh tile slots, its journal, and a JOB for every worker
  * (which keeps its blobs and rebuilds only what depends on the frame). 1 when the frame
  * is done already (skipped), 0 when it is ready to render, -1 on error. */
@@ -1076,21 +1303,6 @@ static int frame_begin(struct master *m, uint32_t frames_started)
     if (output_frame_path(o->output_path, o->have_frames, m->frame, m->out_path, sizeof m->out_path) != 0) {
         master_fail(m, "-o %s: the output name for frame %u is too long", o->output_path, m->frame);
         return -1;
-    }
-    if (m->map_per_frame && m->frame != m->map_frame) {
-        /* Geometry moves: this frame's photon map, published in place of the last one
-         * (workers fetch it with the JOB; the base hash changes with it). */
-        struct blob_hash old;
-        memset(&old, 0, sizeof old);
-        for (uint32_t i = 0; i < m->num_manifest; i++)
-            if (strcmp(m->manifest[i].path, MEDIA_PHOTON_ASSET) == 0)
-                old = m->manifest[i].hash;
-        if (master_media_prepare(&m->scene, o, m->frame, &m->assets, &m->passes) != 0)
-            return -1;
-        blob_store_drop(&m->blobs, &old);
-        if (publish_manifest(m) != 0)
-            return -1;
-        m->map_frame = m->frame;
     }
     frame_hash(m);
     compute_job_key(m);
@@ -1103,10 +1315,17 @@ static int frame_begin(struct master *m, uint32_t frames_started)
         m->c.frames_skipped++;
         return 1;
     }
+    if (m->photon_maps && (!m->maps_started || (m->map_per_frame && m->frame != m->map_frame)) &&
+        maps_start(m, m->maps_started ? m->frame : m->map_frame) != 0)
+        return -1;
     for (uint32_t t = 0; t < m->num_tiles; t++)
         free(m->chunks[t].data);
     memset(m->chunks, 0, sizeof *m->chunks * m->num_tiles);
     sched_frame_begin(m->sched);
+    if (m->photon_maps) /* a pass's units go out once its map is published */
+        sched_release(m->sched, m->maps_published * m->num_tiles);
+    if (m->fold)
+        fold_reset(m->fold);
     memset(&m->stats, 0, sizeof m->stats);
     if (o->only_tiles && restrict_tiles(m) != 0)
         return -1;
@@ -1120,14 +1339,17 @@ static int frame_begin(struct master *m, uint32_t frames_started)
         return -1;
     m->job_id = m->job_base + frames_started;
     for (uint32_t i = 0; i < m->num_peers; i++)
-        if (!m->sched->workers[i].gone && m->sched->tiles_done < m->num_tiles)
+        if (!m->sched->workers[i].gone && m->sched->tiles_done < m->num_units)
             send_job(m, &m->peers[i]);
-    if (m->sched->tiles_done < m->num_tiles && !m->local_pids && start_local_workers(m) != 0)
+    if (m->sched->tiles_done < m->num_units && !m->local_pids && start_local_workers(m) != 0)
         return -1;
-    log_info("rendering %s frame %u -> %s: %ux%u, %u spp, %u tiles (%u from the journal), %u local worker(s)%s%s",
+    char units[64] = "";
+    if (m->passes > 1)
+        snprintf(units, sizeof units, " in %u passes: %u units", m->passes, m->num_units);
+    log_info("rendering %s frame %u -> %s: %ux%u, %u spp, %u tiles%s (%u from the journal), %u local worker(s)%s%s",
              o->scene_path, m->frame, m->out_path, m->scene.settings.width, m->scene.settings.height,
-             m->scene.settings.spp, m->num_tiles, m->sched->tiles_done, o->workers, o->bind ? ", accepting workers at " : "",
-             o->bind ? o->bind : "");
+             m->scene.settings.spp, m->num_tiles, units, m->sched->tiles_done, o->workers,
+             o->bind ? ", accepting workers at " : "", o->bind ? o->bind : "");
     return 0;
 }
 
@@ -1136,11 +1358,19 @@ static int frame_render(struct master *m, uint64_t *last_beat)
 {
     const struct master_opts *o = m->opts;
     int tty = isatty(2);
-    uint64_t start = net_now_ms(), last_progress = start;
-    while (m->sched->tiles_done < m->num_tiles) {
+    uint64_t start = net_now_ms(), last_progress = start, last_tick = start;
+    while (m->sched->tiles_done < m->num_units) {
         if (g_interrupted) {
-            snprintf(m->fatal, sizeof m->fatal, "interrupted; %u of %u tiles of frame %u were finished",
-                     m->sched->tiles_done, m->num_tiles, m->frame);
+            if (m->tracer && m->sched->tiles_done == 0) {
+                /* Nothing rendered yet: the photon pass was what ran; nothing to resume. */
+                snprintf(m->fatal, sizeof m->fatal, "photon pass interrupted: %u of %u photon maps of frame %u traced, "
+                         "no unit rendered", m->maps_published, m->passes, m->frame);
+                if (m->journal)
+                    journal_remove(&m->journal);
+            } else {
+                snprintf(m->fatal, sizeof m->fatal, "interrupted; %u of %u %s of frame %u were finished",
+                         m->sched->tiles_done, m->num_units, m->passes > 1 ? "units (tile passes)" : "tiles", m->frame);
+            }
             return -1;
         }
         if (m->fatal[0])
@@ -1172,13 +1402,17 @@ static int frame_render(struct master *m, uint64_t *last_beat)
             }
         }
         uint64_t now = net_now_ms();
+        account_waits(m, now - last_tick);
+        last_tick = now;
+        if (!g_interrupted && maps_poll(m) != 0) /* interrupted: the tracer stopped too; said above */
+            return -1;
         reap_local(m);
         check_liveness(m, now);
         if (m->fatal[0])
             continue;
         if (!o->bind && m->local_alive == 0 && sched_live_workers(m->sched) == 0) {
-            snprintf(m->fatal, sizeof m->fatal, "every worker has exited; %u of %u tiles were finished%s%.1000s",
-                     m->sched->tiles_done, m->num_tiles, m->last_worker_error[0] ? "; last worker error: " : "",
+            snprintf(m->fatal, sizeof m->fatal, "every worker has exited; %u of %u %s were finished%s%.1000s",
+                     m->sched->tiles_done, m->num_units, m->passes > 1 ? "units" : "tiles", m->last_worker_error[0] ? "; last worker error: " : "",
                      m->last_worker_error);
             return -1;
         }
@@ -1295,6 +1529,7 @@ done:
         m.c.journal_syncs += m.journal->syncs;
         journal_free(&m.journal);
     }
+    photon_tracer_free(&m.tracer, 1);
     zap_free(&m.zap);
     if (m.sock)
         zmq_close(m.sock);
@@ -1313,7 +1548,15 @@ done:
         free(m.chunks[t].data);
     free(m.chunks);
     sched_free(&m.sched);
+    for (uint32_t i = 0; i < m.num_peers; i++) {
+        free(m.peers[i].map_bytes);
+        free(m.peers[i].wait_ms);
+    }
     free(m.peers);
+    fold_free(&m.fold);
+    imgio_encoder_free(&m.enc);
+    free(m.fold_out);
+    free(m.maps);
     free(m.local_pids);
     free(m.manifest);
     free(m.decode_scratch);

@@ -10,6 +10,7 @@
 #include "render/photon_trace.h"
 #include "render/render_job.h"
 #include "scene/medium.h"
+#include <pthread.h>
 #include <stdlib.h>
 #include <stdio.h>
 #include <string.h>
@@ -104,10 +105,10 @@ static uint32_t passes_wanted(const struct scene *scene, const struct master_opt
 }
 
 int master_media_prepare(struct scene *scene, const struct master_opts *o, uint32_t frame, struct asset_dir *assets,
-                         uint32_t *passes_out)
+                         uint32_t *photon_maps)
 {
     struct scene_media *sm = scene->media;
-    *passes_out = 1;
+    *photon_maps = 0;
     uint32_t asked = o->have_passes ? o->passes : scene->settings.passes;
     if (!sm) {
         if (asked > 1)
@@ -124,9 +125,9 @@ int master_media_prepare(struct scene *scene, const struct master_opts *o, uint3
         sm->step = o->march_step;
     if (!(sm->alpha > 0.0f))
         sm->alpha = MEDIA_DEFAULT_ALPHA;
-    uint8_t **maps = NULL, *blob = NULL;
-    size_t *map_sizes = NULL, blob_size = 0;
-    uint32_t num_maps = 0;
+    uint8_t *blob = NULL;
+    size_t blob_size = 0;
+    uint32_t passes = 0;
     int used = 0;
     const char *no_map = NULL;
     for (uint32_t i = 0; i < sm->num_media; i++)
@@ -140,100 +141,202 @@ int master_media_prepare(struct scene *scene, const struct master_opts *o, uint3
     } else {
         char err[512];
         struct render_job job;
-        uint32_t threads = o->photon_threads ? o->photon_threads : 1;
-        if (render_job_init(&job, scene, frame, threads, err, sizeof err) != 0) {
+        if (render_job_init(&job, scene, frame, 1, err, sizeof err) != 0) {
             log_error("photon pass: %s", err);
             return -1;
         }
         double bound = photon_trace_indirect_bound(scene, job.media->scene_size);
+        float r0 = job.media->radius, scene_size = job.media->scene_size;
+        render_job_fini(&job);
         if (bound < sm->skip_bound) {
             log_info("media: photon pass skipped: multiple scattering is bounded by %.3g < skip_bound %.3g "
                      "(max(surface reflectance, medium albedo x (1 - exp(-sigma_t,max x %.3g))))",
-                     bound, (double)sm->skip_bound, (double)job.media->scene_size);
+                     bound, (double)sm->skip_bound, (double)scene_size);
             no_map = "photon pass skipped";
         } else {
-            /* Progressive photon mapping: P maps from fresh seeds, radii by the PPM rule. */
-            uint32_t passes = passes_wanted(scene, o);
+            /* Progressive photon mapping: P maps from fresh seeds, radii by the PPM rule,
+             * traced while tiles render (photon_tracer_new). */
+            passes = passes_wanted(scene, o);
             struct render_settings *rs = &scene->settings;
             uint32_t k = (rs->spp + passes - 1) / passes;
             if ((uint64_t)k * passes > SCENE_MAX_SPP) {
                 log_error("passes: %u passes of %u spp exceed the %u spp limit (lower --spp or --passes / "
                           "render.passes)", passes, k, (unsigned)SCENE_MAX_SPP);
-                render_job_fini(&job);
                 return -1;
             }
             if (k * passes != rs->spp)
                 log_info("passes: spp %u raised to %u (%u passes of ceil(%u / %u) = %u spp)", rs->spp, k * passes,
                          passes, rs->spp, passes, k);
             rs->spp = k * passes;
-            maps = mem_calloc(passes, sizeof *maps);
-            map_sizes = mem_calloc(passes, sizeof *map_sizes);
-            const float r0 = job.media->radius;
-            uint8_t *hashes = mem_alloc(32 * (size_t)passes); /* the maps' hashes, for one logged hash */
-            double seconds = 0.0;
-            uint64_t emitted = 0, stored = 0, stored_surface = 0;
-            for (uint32_t p = 0; p < passes; p++) {
-                struct photon_pass_stats st;
-                float rv = (float)photon_pass_radius(r0, sm->alpha, p, 3);
-                float rsurf = (float)photon_pass_radius(r0, sm->alpha, p, 2);
-                job.media->radius = rv;
-                double t0 = now_seconds();
-                if (photon_trace_map(&job, pass_seed(scene->settings.seed, p), threads, &maps[p], &map_sizes[p], &st,
-                                     err, sizeof err) != 0 ||
-                    (sm->surface_photons && set_surface_radius(&maps[p], &map_sizes[p], rsurf, err, sizeof err) != 0)) {
-                    for (uint32_t q = 0; q <= p; q++)
-                        free(maps[q]);
-                    free(maps);
-                    free(map_sizes);
-                    free(hashes);
-                    render_job_fini(&job);
-                    log_error("%s", err);
-                    return -1;
-                }
-                seconds += now_seconds() - t0;
-                num_maps = p + 1;
-                emitted += st.emitted;
-                stored += st.stored;
-                stored_surface += st.stored_surface;
-                struct blob_hash h;
-                char hex[65];
-                blob_hash_compute(maps[p], map_sizes[p], &h);
-                blob_hash_hex(&h, hex);
-                memcpy(hashes + 32 * (size_t)p, h.bytes, 32);
-                log_debug("media: pass %u: %llu stored (%llu on surfaces) in %.3f s, %zu bytes, radius %g (surface %g), "
-                          "map %.16s", p, (unsigned long long)st.stored, (unsigned long long)st.stored_surface,
-                          st.seconds, map_sizes[p], (double)rv, (double)rsurf, hex);
-            }
-            size_t bytes = 0;
-            for (uint32_t p = 0; p < num_maps; p++)
-                bytes += map_sizes[p];
-            struct blob_hash all;
-            char all_hex[65];
-            blob_hash_compute(hashes, 32 * (size_t)num_maps, &all);
-            blob_hash_hex(&all, all_hex);
-            free(hashes);
-            log_info("media: photon pass: %u map(s) (progressive passes, alpha %g), %llu emitted, %llu stored (%llu on "
-                     "surfaces) in %.3f s on %u thread(s) (%.3g photons/s), %zu bytes (%.1f bytes/photon), radius %g "
-                     "to %g (surface %g to %g), multiple-scattering bound %.3g, map %.16s",
-                     num_maps, (double)sm->alpha, (unsigned long long)emitted, (unsigned long long)stored,
-                     (unsigned long long)stored_surface, seconds, threads, seconds > 0 ? (double)emitted / seconds : 0.0,
-                     bytes, stored ? (double)bytes / (double)stored : 0.0, (double)r0,
-                     photon_pass_radius(r0, sm->alpha, num_maps - 1, 3), (double)r0,
-                     photon_pass_radius(r0, sm->alpha, num_maps - 1, 2), bound, all_hex);
-            log_info("passes: %u of %u spp (%u spp), pass p with photon map p", num_maps, k, rs->spp);
+            log_info("passes: %u of %u spp (%u spp), pass p with photon map p; radius %g to %g (surface %g to %g), "
+                     "multiple-scattering bound %.3g", passes, k, rs->spp, (double)r0,
+                     photon_pass_radius(r0, sm->alpha, passes - 1, 3), (double)r0,
+                     photon_pass_radius(r0, sm->alpha, passes - 1, 2), bound);
         }
-        render_job_fini(&job);
     }
     if (no_map && asked > 1)
         log_info("passes: 1 (%u asked): no photon map (%s)", asked, no_map);
-    volume_blob_make_passes(sm, (const uint8_t *const *)maps, map_sizes, num_maps, &blob, &blob_size);
-    for (uint32_t p = 0; p < num_maps; p++)
-        free(maps[p]);
-    free(maps);
-    free(map_sizes);
+    /* The settings alone: the maps are blobs of their own, one per pass (MSG_MAP). */
+    volume_blob_make(sm, NULL, 0, &blob, &blob_size);
     publish(assets, blob, blob_size);
-    *passes_out = num_maps ? num_maps : 1;
-    log_info("media: method %s, volume blob %zu bytes (%u photon map(s))", media_method_name(sm->method), blob_size,
-             num_maps);
+    *photon_maps = passes;
+    log_info("media: method %s, settings blob %zu bytes, %u photon map(s)", media_method_name(sm->method), blob_size,
+             passes);
     return 0;
+}
+
+/* ---- the tracer thread ---- */
+
+struct traced_map {
+    uint8_t *data;
+    size_t size;
+    double seconds;
+};
+
+struct photon_tracer {
+    const struct scene *scene;
+    uint32_t frame, passes, threads;
+    pthread_t thread;
+    pthread_mutex_t lock;
+    struct traced_map *maps;    /* per pass, filled in pass order by the thread */
+    uint32_t traced, taken;     /* maps traced (under lock), maps handed to the caller */
+    int failed, joined;
+    char err[512];
+};
+
+static int trace_one(struct photon_tracer *t, struct render_job *job, float r0, uint32_t p, struct traced_map *out)
+{
+    const struct scene_media *sm = t->scene->media;
+    struct photon_pass_stats st;
+    float rv = (float)photon_pass_radius(r0, sm->alpha, p, 3), rsurf = (float)photon_pass_radius(r0, sm->alpha, p, 2);
+    job->media->radius = rv;
+    double t0 = now_seconds();
+    if (photon_trace_map(job, pass_seed(t->scene->settings.seed, p), t->threads, &out->data, &out->size, &st, t->err,
+                         sizeof t->err) != 0)
+        return -1;
+    if (sm->surface_photons && set_surface_radius(&out->data, &out->size, rsurf, t->err, sizeof t->err) != 0) {
+        free(out->data);
+        out->data = NULL;
+        return -1;
+    }
+    out->seconds = now_seconds() - t0;
+    struct blob_hash h;
+    char hex[65];
+    blob_hash_compute(out->data, out->size, &h);
+    blob_hash_hex(&h, hex);
+    log_info("media: photon map %u of %u: %llu emitted, %llu stored (%llu on surfaces) in %.3f s on %u thread(s), "
+             "%zu bytes, radius %g (surface %g), map %.16s", p, t->passes, (unsigned long long)st.emitted,
+             (unsigned long long)st.stored, (unsigned long long)st.stored_surface, out->seconds, t->threads, out->size,
+             (double)rv, (double)rsurf, hex);
+    return 0;
+}
+
+static void *tracer_thread(void *arg)
+{
+    struct photon_tracer *t = arg;
+    struct render_job job;
+    char err[400];
+    if (render_job_init(&job, t->scene, t->frame, t->threads, err, sizeof err) != 0) {
+        pthread_mutex_lock(&t->lock);
+        snprintf(t->err, sizeof t->err, "photon pass: %s", err);
+        t->failed = 1;
+        pthread_mutex_unlock(&t->lock);
+        return NULL;
+    }
+    const float r0 = job.media->radius;
+    uint8_t *hashes = mem_alloc(32 * (size_t)t->passes); /* the maps' hashes, for one logged hash */
+    double seconds = 0.0;
+    size_t bytes = 0;
+    uint32_t p = 0;
+    for (; p < t->passes; p++) {
+        struct traced_map m = {0};
+        int rc = trace_one(t, &job, r0, p, &m);
+        if (rc == 0) {
+            struct blob_hash h;
+            blob_hash_compute(m.data, m.size, &h);
+            memcpy(hashes + 32 * (size_t)p, h.bytes, 32);
+            seconds += m.seconds;
+            bytes += m.size;
+        }
+        pthread_mutex_lock(&t->lock);
+        if (rc != 0)
+            t->failed = 1;
+        else
+            t->maps[t->traced++] = m;
+        pthread_mutex_unlock(&t->lock);
+        if (rc != 0)
+            break;
+    }
+    if (p == t->passes) {
+        struct blob_hash all;
+        char all_hex[65];
+        blob_hash_compute(hashes, 32 * (size_t)t->passes, &all);
+        blob_hash_hex(&all, all_hex);
+        log_info("media: photon pass: %u map(s) (progressive passes, alpha %g) of frame %u in %.3f s on %u thread(s), "
+                 "%zu bytes, map %.16s", t->passes, (double)t->scene->media->alpha, t->frame, seconds, t->threads, bytes,
+                 all_hex);
+    }
+    free(hashes);
+    render_job_fini(&job);
+    return NULL;
+}
+
+struct photon_tracer *photon_tracer_new(const struct scene *scene, const struct master_opts *o, uint32_t frame,
+                                        uint32_t passes, char *err, size_t errlen)
+{
+    struct photon_tracer *t = mem_calloc(1, sizeof *t);
+    t->scene = scene;
+    t->frame = frame;
+    t->passes = passes;
+    t->threads = o->photon_threads ? o->photon_threads : 1;
+    t->maps = mem_calloc(passes ? passes : 1, sizeof *t->maps);
+    pthread_mutex_init(&t->lock, NULL);
+    if (pthread_create(&t->thread, NULL, tracer_thread, t) != 0) {
+        str_fmt(err, errlen, "photon pass: cannot start its thread");
+        pthread_mutex_destroy(&t->lock);
+        free(t->maps);
+        free(t);
+        return NULL;
+    }
+    return t;
+}
+
+int photon_tracer_poll(struct photon_tracer *t, uint32_t *pass, uint8_t **map, size_t *size, double *seconds,
+                       char *err, size_t errlen)
+{
+    pthread_mutex_lock(&t->lock);
+    int rc = 0;
+    if (t->taken < t->traced) {
+        struct traced_map *m = &t->maps[t->taken];
+        *pass = t->taken++;
+        *map = m->data;
+        *size = m->size;
+        *seconds = m->seconds;
+        m->data = NULL;
+        rc = 1;
+    } else if (t->failed) {
+        str_fmt(err, errlen, "%s", t->err);
+        rc = -1;
+    }
+    pthread_mutex_unlock(&t->lock);
+    return rc;
+}
+
+void photon_tracer_free(struct photon_tracer **tp, int stop)
+{
+    struct photon_tracer *t = *tp;
+    if (!t)
+        return;
+    pthread_mutex_lock(&t->lock);
+    int busy = !t->failed && t->traced < t->passes;
+    pthread_mutex_unlock(&t->lock);
+    if (busy && stop)
+        photon_trace_request_stop(); /* the master is leaving: the pass stops at its next photon */
+    pthread_join(t->thread, NULL);
+    for (uint32_t p = 0; p < t->passes; p++)
+        free(t->maps[p].data);
+    free(t->maps);
+    pthread_mutex_destroy(&t->lock);
+    free(t);
+    *tp = NULL;
 }

@@ -14,12 +14,28 @@
  * that moves (rigid keys or deformation frames), so each frame gets its own map. A still
  * scene's map is the same for every frame: built once, reused. */
 int master_media_per_frame(const struct scene *scene);
-/* 0 on success (also when the scene has no media: nothing is done), -1 logged. A second
- * call replaces the volume blob among the files. With a photon map, the frame renders in
- * progressive passes (--passes, render.passes, default 8), one map each, all in the blob;
- * scene->settings.spp is raised to a multiple of them (ceil(spp / P) per pass). *passes
- * gets their number (1 without a photon map). */
+/* 0 on success (also when the scene has no media: nothing is done), -1 logged. Settles the
+ * media settings (command-line overrides) and publishes them as the volume blob among the
+ * files (a second call replaces it). With a photon map, the frame renders in progressive
+ * passes (--passes, render.passes, default 8), one map each; scene->settings.spp is
+ * raised to a multiple of them (ceil(spp / P) per pass) and *photon_maps gets P (0
+ * without a photon map). The maps themselves are traced by a photon_tracer. */
 int master_media_prepare(struct scene *scene, const struct master_opts *o, uint32_t frame, struct asset_dir *assets,
-                         uint32_t *passes);
+                         uint32_t *photon_maps);
+
+/* Traces the P maps of a frame on a thread of its own, in pass order, while the master
+ * renders: map p is a pure function of (scene, seed, frame, p) (volume map, then surface
+ * map; photon_map_serialise's bytes). The scene must not change while it runs. */
+struct photon_tracer;
+struct photon_tracer *photon_tracer_new(const struct scene *scene, const struct master_opts *o, uint32_t frame,
+                                        uint32_t passes, char *err, size_t errlen);
+/* The next map in pass order once traced: 1 with *pass, *map (the caller frees), *size and
+ * the seconds it took; 0 when it is not ready yet; -1 with err when tracing failed. */
+int photon_tracer_poll(struct photon_tracer *t, uint32_t *pass, uint8_t **map, size_t *size, double *seconds,
+                       char *err, size_t errlen);
+/* Joins the thread and frees what was not taken; *t becomes NULL (NULL is fine). With
+ * stop, unfinished tracing is stopped (photon_trace_request_stop: for good, in this
+ * process; only for a master that is leaving), else it is waited for. */
+void photon_tracer_free(struct photon_tracer **t, int stop);
 
 #endif

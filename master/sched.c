@@ -15,6 +15,7 @@ struct sched *sched_new(uint32_t num_tiles)
     s->tiles = mem_calloc(num_tiles ? num_tiles : 1, sizeof *s->tiles);
     s->queue = mem_calloc(num_tiles ? num_tiles : 1, sizeof *s->queue);
     s->failed_tile = -1;
+    s->released = num_tiles;
     return s;
 }
 
@@ -36,6 +37,7 @@ void sched_frame_begin(struct sched *s)
     s->tiles_done = 0;
     s->failed_tile = -1;
     s->q_count = 0;
+    s->released = s->num_tiles;
     for (uint32_t t = 0; t < s->num_tiles; t++)
         s->queue[s->q_count++] = t;
     for (uint32_t i = 0; i < s->num_workers; i++) {
@@ -45,6 +47,21 @@ void sched_frame_begin(struct sched *s)
         w->in_flight = 0;
         w->isolated = 0;
     }
+}
+
+void sched_release(struct sched *s, uint32_t limit)
+{
+    s->released = limit < s->num_tiles ? limit : s->num_tiles;
+}
+
+int sched_blocked(const struct sched *s)
+{
+    if (s->q_count == 0)
+        return 0;
+    for (uint32_t qi = 0; qi < s->q_count; qi++)
+        if (s->queue[qi] < s->released)
+            return 0;
+    return 1;
 }
 
 static void queue_remove_at(struct sched *s, uint32_t i)
@@ -263,7 +280,7 @@ int sched_assign_next(struct sched *s, uint64_t now_ms, struct sched_assignment 
             continue;
         for (uint32_t qi = 0; qi < s->q_count; qi++) {
             uint32_t tile = s->queue[qi];
-            if (s->tiles[tile].crashes > 0 && w->in_flight > 0)
+            if (tile >= s->released || (s->tiles[tile].crashes > 0 && w->in_flight > 0))
                 continue;
             queue_remove_at(s, qi);
             give(s, tile, (int32_t)i, 0, now_ms, a);

@@ -60,6 +60,7 @@ struct sched {
     struct sched_worker *workers;   /* index = the caller's peer index; never removed */
     uint32_t num_workers;
     int32_t failed_tile;            /* the first tile blamed by SCHED_CRASHES_TO_FAIL workers, or -1 */
+    uint32_t released;              /* queued tiles with an index below this may go out (sched_release) */
 };
 
 /* Why a worker leaves. Only a death a tile could cause blames its tiles: not leaving, a
@@ -94,9 +95,16 @@ enum sched_health { SCHED_HEALTHY, SCHED_HEALTH_SILENT, SCHED_HEALTH_STALLED, SC
 /* ---- lifetime and frames ---- */
 struct sched *sched_new(uint32_t num_tiles);
 void sched_free(struct sched **sp);
-/* A new frame: every tile queued in order, blame cleared; workers keep their ban, streak
- * and counts but must send READY again. */
+/* A new frame: every tile queued in order, blame cleared, every tile released; workers
+ * keep their ban, streak and counts but must send READY again. */
 void sched_frame_begin(struct sched *s);
+/* Release limit: only queued tiles with an index below `limit` (capped at num_tiles) go
+ * out; the rest wait in the queue until a later call raises it. The master
+ * schedules units u = pass * tiles + tile and releases a pass's units once its photon map
+ * is published. */
+void sched_release(struct sched *s, uint32_t limit);
+/* 1 when queued tiles wait only for the release limit: nothing released is queued. */
+int sched_blocked(const struct sched *s);
 /* A tile finished without a worker (from the journal, or black outside --tiles): done and
  * out of the queue. 0, or -1 when it was done already (nothing changes). */
 int sched_tile_set_done(struct sched *s, uint32_t tile);
@@ -127,10 +135,11 @@ void sched_evict(struct sched *s, int32_t w, enum sched_evict_kind kind, struct 
 uint32_t sched_live_workers(const struct sched *s);
 
 /* ---- tiles ---- */
-/* The next tile to send, or 0 when none goes out now. Queued tiles go first, in queue
+/* The next tile to send, or 0 when none goes out now. Released queued tiles go first, in queue
  * order, to workers in index order with credits; a tile that already took a worker down
  * goes only to an idle worker, which then gets nothing else. With the queue empty, an idle
- * worker gets a copy of the oldest tile in flight elsewhere (never a suspect one). */
+ * worker gets a copy of the oldest tile in flight elsewhere (never a suspect one); a
+ * straggler copy waits while queued tiles wait for their release. */
 int sched_assign_next(struct sched *s, uint64_t now_ms, struct sched_assignment *a);
 /* A RESULT for (tile, attempt) from w (tile < num_tiles: the caller checks). */
 enum sched_result_verdict sched_result(const struct sched *s, int32_t w, uint32_t tile, uint32_t attempt);

@@ -42,7 +42,15 @@
 
 /* job_key and conn: the job the tile belongs to (survives a master restart) and the
  * connection it came on (a RESULT goes only to the master that assigned the tile). */
-struct tile_task { uint64_t job_id; uint32_t frame, tile, attempt; struct blob_hash job_key; uint32_t conn; };
+/* tile is the id on the wire: with photon maps the unit pass * tiles + tile (then
+ * image_tile and pass split it), else the tile (pass 0). */
+struct tile_task {
+    uint64_t job_id;
+    uint32_t frame, tile, attempt;
+    struct blob_hash job_key;
+    uint32_t conn;
+    uint32_t image_tile, pass;
+};
 
 /* A finished tile the master has not acknowledged yet. */
 struct kept_tile {
@@ -92,6 +100,17 @@ struct fetch {
     uint32_t in_flight;
 };
 
+/* A pass's photon map: announced by MAP for the current job, fetched as a blob, decoded
+ * into the render job's slot for the pass (installed). */
+struct pass_map {
+    struct blob_hash hash;      /* announced for the current job */
+    uint64_t size;
+    int announced;
+    int installed;              /* the render job's slot holds the map of installed_hash */
+    struct blob_hash installed_hash;
+    struct fetch fetch;         /* fetch.recv.data while fetching */
+};
+
 struct worker {
     const struct worker_opts *opts;
     void *zctx, *sock, *results;
@@ -119,6 +138,12 @@ struct worker {
     uint32_t kept_delivered, reconnects;
     uint64_t job_at_ms;         /* when the current JOB arrived */
     uint64_t fetch_bytes;       /* bytes of its blobs fetched (not already cached) */
+    struct pass_map *maps;      /* per pass of the job (job.photon_maps), or NULL */
+    uint32_t num_maps;
+    struct tile_task *parked;   /* units waiting for their pass's map */
+    size_t num_parked, cap_parked;
+    uint64_t map_wait_ms;       /* this job: ms with parked units and nothing to render */
+    uint64_t map_bytes;         /* this job: bytes of photon maps fetched */
 };
 
 static volatile sig_atomic_t g_stop;
@@ -184,7 +209,7 @@ static void *pool_thread(void *arg)
     char err[256];
     struct imgio_encoder *enc = imgio_encoder_new(p->desc, err, sizeof err);
     uint32_t tiles_x = imgio_tiles_x(p->desc);
-    uint32_t spp = p->rjob->scene->settings.spp;
+    uint32_t spp = p->rjob->scene->settings.spp, passes = p->rjob->num_passes;
     float *pixels = mem_alloc(sizeof(float) * p->desc->tile_size * p->desc->tile_size * TILE_NUM_CHANNELS);
     for (;;) {
         pthread_mutex_lock(&p->lock);
@@ -204,7 +229,7 @@ static void *pool_thread(void *arg)
 
         struct tile_done *d = mem_calloc(1, sizeof *d);
         d->task = t;
-        uint32_t tx = t.tile % tiles_x, ty = t.tile / tiles_x, x0, y0, w, h;
+        uint32_t tx = t.image_tile % tiles_x, ty = t.image_tile / tiles_x, x0, y0, w, h;
         imgio_tile_rect(p->desc, tx, ty, &x0, &y0, &w, &h);
         struct timespec a, b;
         clock_gettime(CLOCK_MONOTONIC, &a);
@@ -213,9 +238,13 @@ static void *pool_thread(void *arg)
         uint32_t y = 0;
         for (; y < h && !g_stop; y++) { /* SIGINT / SIGTERM: the tile is dropped at the next row */
             struct tile_stats row;
-            integrator_render_tile(p->rjob, x0, y0 + y, w, 1, pixels + (size_t)y * w * TILE_NUM_CHANNELS, &row);
+            float *rowpx = pixels + (size_t)y * w * TILE_NUM_CHANNELS;
+            if (passes > 1) /* one pass of the tile: the master folds the passes */
+                integrator_render_tile_pass(p->rjob, t.pass, x0, y0 + y, w, 1, rowpx, &row);
+            else
+                integrator_render_tile(p->rjob, x0, y0 + y, w, 1, rowpx, &row);
             tile_stats_add(&d->stats, &row);
-            atomic_fetch_add(&prog->samples, (uint64_t)w * spp);
+            atomic_fetch_add(&prog->samples, (uint64_t)w * spp / passes);
             atomic_store(&prog->last_ms, net_now_ms());
         }
         if (y < h) {
@@ -298,6 +327,20 @@ static int pool_push(struct pool *p, const struct tile_task *t)
     return ok ? 0 : -1;
 }
 
+/* No tile queued and no render thread busy. */
+static int pool_idle(struct worker *w)
+{
+    struct pool *p = &w->pool;
+    if (!p->threads)
+        return 1;
+    pthread_mutex_lock(&p->lock);
+    int idle = p->count == 0;
+    pthread_mutex_unlock(&p->lock);
+    for (uint32_t i = 0; idle && i < p->num_threads; i++)
+        idle = !atomic_load(&p->progress[i].busy);
+    return idle;
+}
+
 /* ---- job loading ---- */
 
 struct blob_source_ctx { const struct msg_job *job; const struct blob_store *cache; };
@@ -332,9 +375,12 @@ static void send_error(struct worker *w, const char *text)
     worker_send(w, &m);
 }
 
+static void maps_reset(struct worker *w, int keep_installed);
+
 static void unload_job(struct worker *w)
 {
     pool_stop(&w->pool);
+    maps_reset(w, 0);
     if (w->loaded) {
         render_job_fini(&w->rjob);
         scene_fini(&w->scene);
@@ -349,6 +395,8 @@ static void unload_job(struct worker *w)
         proto_job_fini(&w->job);
     w->have_job = 0;
 }
+
+static int map_install(struct worker *w, uint32_t pass);
 
 /* Builds scene, Embree scene and thread pool once every blob is here; sends READY. */
 static int load_job(struct worker *w)
@@ -376,6 +424,11 @@ static int load_job(struct worker *w)
         if (rc == 0)
             rc = volume_blob_apply(&w->scene, (const uint8_t *)vb, vbs, &map, err, sizeof err);
         free(vb);
+        if (rc == 0 && map) { /* maps travel one blob per pass, announced by MAP */
+            photon_map_free(&map);
+            str_fmt(err, sizeof err, "volume blob: it carries photon maps; this worker takes them from MAP messages");
+            rc = -1;
+        }
         if (rc != 0) {
             scene_fini(&w->scene);
             send_error(w, err);
@@ -399,20 +452,23 @@ static int load_job(struct worker *w)
         log_error("%s", err);
         return -1;
     }
-    render_job_set_photon_map(&w->rjob, &map);
-    /* Progressive passes: one map per pass; the master settles spp on a multiple of them. */
-    if (rs->spp % w->rjob.num_passes != 0) {
-        str_fmt(err, sizeof err, "job: %u spp is not a multiple of the volume blob's %u photon-map passes", rs->spp,
-                w->rjob.num_passes);
+    /* Progressive passes: one map slot per pass (proto checked that they divide spp),
+     * filled as the maps arrive. */
+    if (w->job.photon_maps && !w->scene.media) {
+        str_fmt(err, sizeof err, "job: %u photon maps for a scene without media", w->job.photon_maps);
         render_job_fini(&w->rjob);
         scene_fini(&w->scene);
         send_error(w, err);
         log_error("%s", err);
         return -1;
     }
+    render_job_set_passes(&w->rjob, w->job.photon_maps);
     w->loaded = 1;
     tile_image_desc(&w->desc, rs);
     pool_start(w);
+    for (uint32_t p = 0; p < w->num_maps; p++) /* maps announced and fetched while the scene loaded */
+        if (map_install(w, p) != 0)
+            return -1;
     struct proto_msg m = {.type = MSG_READY};
     m.u.ready.job_id = w->job.job_id;
     m.u.ready.credits = w->opts->threads * TILES_PER_THREAD;
@@ -452,6 +508,7 @@ static int job_same_scene(const struct msg_job *a, const struct msg_job *b)
 {
     if (a->width != b->width || a->height != b->height || a->spp != b->spp || a->max_depth != b->max_depth ||
         a->tile_size != b->tile_size || a->seed != b->seed || a->sampler != b->sampler ||
+        a->photon_maps != b->photon_maps ||
         strcmp(a->scene_path, b->scene_path) != 0 || a->num_assets != b->num_assets)
         return 0;
     for (uint32_t i = 0; i < a->num_assets; i++)
@@ -485,6 +542,7 @@ static int switch_frame(struct worker *w, struct msg_job *job, int same_conn, ui
 {
     char err[512];
     pool_stop(&w->pool); /* tiles being rendered finish and go out under their old job id */
+    maps_reset(w, 1); /* the maps stay until this job announces others */
     proto_job_fini(&w->job);
     w->job = *job;
     /* Kept tiles go before READY: the master must not hand them out meanwhile. */
@@ -517,6 +575,8 @@ static int on_job(struct worker *w, struct msg_job *job)
     unload_job(w);
     w->job = *job;   /* takes ownership of the asset array */
     w->have_job = 1;
+    w->num_maps = job->photon_maps;
+    w->maps = w->num_maps ? mem_calloc(w->num_maps, sizeof *w->maps) : NULL;
     cache_keep_only(&w->cache, &w->job);
     w->job_at_ms = net_now_ms();
     w->fetch_bytes = 0;
@@ -558,8 +618,10 @@ static int on_job(struct worker *w, struct msg_job *job)
 
 static int on_blob_data(struct worker *w, const struct msg_blob_data *d)
 {
-    for (size_t i = 0; i < w->num_fetches; i++) {
-        struct fetch *f = &w->fetches[i];
+    size_t nf = w->num_fetches + w->num_maps;
+    for (size_t i = 0; i < nf; i++) {
+        int map_pass = i >= w->num_fetches ? (int)(i - w->num_fetches) : -1;
+        struct fetch *f = map_pass >= 0 ? &w->maps[map_pass].fetch : &w->fetches[i];
         if (!f->recv.data || !blob_hash_equal(&f->recv.hash, &d->hash))
             continue;
         char err[256];
@@ -582,6 +644,10 @@ static int on_blob_data(struct worker *w, const struct msg_blob_data *d)
             }
             blob_store_adopt(&w->cache, &h, data, size);
             blob_recv_fini(&f->recv);
+            if (map_pass >= 0) {
+                w->map_bytes += size;
+                return w->loaded ? map_install(w, (uint32_t)map_pass) : 0;
+            }
             if (!fetches_pending(w))
                 return load_job(w);
         }
@@ -590,17 +656,163 @@ static int on_blob_data(struct worker *w, const struct msg_blob_data *d)
     return 0; /* a chunk we no longer want (e.g. a duplicate): harmless */
 }
 
+static int map_ready(const struct worker *w, uint32_t pass);
+static void map_fetch_start(struct worker *w, uint32_t pass);
+
 static void on_tile(struct worker *w, const struct msg_tile *t)
 {
     uint32_t ntiles = w->loaded ? imgio_tiles_x(&w->desc) * imgio_tiles_y(&w->desc) : 0;
-    if (!w->loaded || t->job_id != w->job.job_id || t->frame != w->job.frame || t->tile >= ntiles) {
+    uint64_t nunits = (uint64_t)ntiles * (w->num_maps ? w->num_maps : 1);
+    if (!w->loaded || t->job_id != w->job.job_id || t->frame != w->job.frame || t->tile >= nunits) {
         log_warn("dropping TILE %u for job %llu frame %u: not part of the loaded job", t->tile,
                  (unsigned long long)t->job_id, t->frame);
         return;
     }
-    struct tile_task task = {t->job_id, t->frame, t->tile, t->attempt, w->job.job_key, w->conn};
+    struct tile_task task = {t->job_id, t->frame, t->tile, t->attempt, w->job.job_key, w->conn, t->tile % ntiles,
+                             t->tile / ntiles};
+    if (w->num_maps && !map_ready(w, task.pass)) {
+        struct pass_map *pm = &w->maps[task.pass];
+        if (!pm->announced) {
+            log_warn("dropping TILE %u: pass %u's photon map was never announced", t->tile, task.pass);
+            return;
+        }
+        if (w->num_parked == w->cap_parked) {
+            w->cap_parked = w->cap_parked ? w->cap_parked * 2 : 16;
+            w->parked = mem_realloc(w->parked, sizeof *w->parked * w->cap_parked);
+        }
+        w->parked[w->num_parked++] = task; /* rendered once the map is here (map_install) */
+        map_fetch_start(w, task.pass);
+        return;
+    }
     if (pool_push(&w->pool, &task) != 0)
         log_warn("dropping TILE %u: master exceeded our credits", t->tile);
+}
+
+/* ---- photon maps, one blob per pass ---- */
+
+/* Drops the job's map state: fetches and parked units; with keep_installed (the next frame
+ * of the same scene) the maps stay in the render job until a MAP replaces them. */
+static void maps_reset(struct worker *w, int keep_installed)
+{
+    for (uint32_t p = 0; p < w->num_maps; p++) {
+        blob_recv_fini(&w->maps[p].fetch.recv);
+        memset(&w->maps[p].fetch, 0, sizeof w->maps[p].fetch);
+        w->maps[p].announced = 0;
+    }
+    if (!keep_installed) {
+        free(w->maps);
+        w->maps = NULL;
+        w->num_maps = 0;
+    }
+    w->num_parked = 0;
+    w->map_wait_ms = 0;
+    w->map_bytes = 0;
+}
+
+static int map_ready(const struct worker *w, uint32_t pass)
+{
+    const struct pass_map *pm = &w->maps[pass];
+    return pm->announced && pm->installed && blob_hash_equal(&pm->installed_hash, &pm->hash);
+}
+
+/* Fetches pass `pass`'s announced map unless it is here or on its way. */
+static void map_fetch_start(struct worker *w, uint32_t pass)
+{
+    struct pass_map *pm = &w->maps[pass];
+    if (!pm->announced || map_ready(w, pass) || pm->fetch.recv.data || blob_store_get(&w->cache, &pm->hash))
+        return;
+    char err[256];
+    if (blob_recv_init(&pm->fetch.recv, &pm->hash, pm->size, err, sizeof err) != 0) {
+        log_error("photon map of pass %u: %s", pass, err);
+        send_error(w, err);
+        return;
+    }
+    pm->fetch.next_offset = 0;
+    pm->fetch.in_flight = 0;
+    if (pm->size == 0) { /* never a valid map: let the decoder say why */
+        uint8_t *data;
+        if (blob_recv_finish(&pm->fetch.recv, &data, err, sizeof err) == 0)
+            blob_store_adopt(&w->cache, &pm->hash, data, 0);
+        blob_recv_fini(&pm->fetch.recv);
+        return;
+    }
+    request_chunks(w, &pm->fetch);
+}
+
+/* Pass `pass`'s map, once its blob is in the cache: decoded (every size and index
+ * checked) into the render job's slot, the blob dropped, and the units parked for it
+ * handed to the render threads. 0 (also when the blob is not here yet), or -1 after an
+ * ERROR to the master. */
+static int map_install(struct worker *w, uint32_t pass)
+{
+    struct pass_map *pm = &w->maps[pass];
+    if (!pm->announced)
+        return 0;
+    if (!map_ready(w, pass)) {
+        const struct blob_entry *e = blob_store_get(&w->cache, &pm->hash);
+        if (!e)
+            return 0;
+        char err[256], text[PROTO_MAX_STRING];
+        struct photon_map *map = NULL;
+        if (photon_map_decode(e->data, e->size, &map, err, sizeof err) != 0) {
+            snprintf(text, sizeof text, "photon map of pass %u: %s", pass, err);
+            log_error("%s", text);
+            send_error(w, text);
+            return -1;
+        }
+        render_job_set_pass_map(&w->rjob, pass, &map);
+        pm->installed = 1;
+        pm->installed_hash = pm->hash;
+        struct blob_hash h = pm->hash;
+        blob_store_drop(&w->cache, &h); /* decoded now; a later job announcing it again finds it installed */
+        log_debug("photon map of pass %u installed (%llu bytes)", pass, (unsigned long long)pm->size);
+    }
+    size_t k = 0;
+    for (size_t i = 0; i < w->num_parked; i++) {
+        if (w->parked[i].pass == pass) {
+            if (pool_push(&w->pool, &w->parked[i]) != 0)
+                log_warn("dropping TILE %u: master exceeded our credits", w->parked[i].tile);
+        } else {
+            w->parked[k++] = w->parked[i];
+        }
+    }
+    w->num_parked = k;
+    return 0;
+}
+
+/* MAP: pass `pass` of the current job renders with this blob. The newest pass is fetched
+ * at once (maps_prefetch, so it is here when its units come); an older one only when a
+ * unit of it comes (a worker joining late fetches only what it renders). */
+static int on_map(struct worker *w, const struct msg_map *mm)
+{
+    if (!w->have_job || mm->job_id != w->job.job_id || mm->pass >= w->num_maps) {
+        log_warn("master: MAP for job %llu pass %u dropped: not a pass of the current job (%u photon maps)",
+                 (unsigned long long)mm->job_id, mm->pass, w->num_maps);
+        return 0;
+    }
+    struct pass_map *pm = &w->maps[mm->pass];
+    if (pm->fetch.recv.data && !blob_hash_equal(&pm->fetch.recv.hash, &mm->hash))
+        blob_recv_fini(&pm->fetch.recv);
+    pm->hash = mm->hash;
+    pm->size = mm->size;
+    pm->announced = 1;
+    for (size_t i = 0; i < w->num_parked; i++)
+        if (w->parked[i].pass == mm->pass) {
+            map_fetch_start(w, mm->pass);
+            break;
+        }
+    return w->loaded ? map_install(w, mm->pass) : 0;
+}
+
+/* After the messages at hand: the newest announced map is fetched ahead of its units
+ * (MAPs of earlier passes that came in the same batch, to a worker joining late, are not). */
+static void maps_prefetch(struct worker *w)
+{
+    for (uint32_t p = w->num_maps; p-- > 0;)
+        if (w->maps[p].announced) {
+            map_fetch_start(w, p);
+            return;
+        }
 }
 
 static void kept_free_at(struct worker *w, size_t i)
@@ -790,7 +1002,7 @@ int worker_run(const struct worker_opts *opts)
     if (connect_master(&w) != 0)
         goto done;
 
-    uint64_t last_heard = net_now_ms(), last_beat = net_now_ms();
+    uint64_t last_heard = net_now_ms(), last_beat = net_now_ms(), last_tick = net_now_ms();
     while (!g_stop) {
         zmq_pollitem_t items[2] = {{w.sock, 0, ZMQ_POLLIN, 0}, {w.results, 0, ZMQ_POLLIN, 0}};
         int n = zmq_poll(items, 2, 200);
@@ -799,6 +1011,9 @@ int worker_run(const struct worker_opts *opts)
             goto done;
         }
         uint64_t now = net_now_ms();
+        if (w.num_parked > 0 && pool_idle(&w))
+            w.map_wait_ms += now - last_tick;
+        last_tick = now;
         if (items[1].revents & ZMQ_POLLIN)
             drain_results(&w);
         if (items[0].revents & ZMQ_POLLIN) {
@@ -835,6 +1050,9 @@ int worker_run(const struct worker_opts *opts)
                 case MSG_TILE:
                     on_tile(&w, &m.u.tile);
                     break;
+                case MSG_MAP:
+                    fatal = on_map(&w, &m.u.map) != 0;
+                    break;
                 case MSG_HEARTBEAT:
                     break;
                 case MSG_BYE:
@@ -850,6 +1068,7 @@ int worker_run(const struct worker_opts *opts)
                     goto done;
             }
         }
+        maps_prefetch(&w);
         if (!w.lost && now - last_heard > MASTER_LOST_MS && now - w.conn_at_ms > MASTER_LOST_MS) {
             log_warn("no word from the master at %s for %llu ms; reconnecting (%zu finished tile(s) kept)",
                      opts->endpoint, (unsigned long long)(now - last_heard), w.num_kept);
@@ -877,6 +1096,7 @@ int worker_run(const struct worker_opts *opts)
                     stalled = now - last;
             }
             hb.u.heartbeat.stalled_ms = stalled > UINT32_MAX ? UINT32_MAX : (uint32_t)stalled;
+            hb.u.heartbeat.map_wait_ms = w.map_wait_ms > UINT32_MAX ? UINT32_MAX : (uint32_t)w.map_wait_ms;
             worker_send(&w, &hb);
             last_beat = now;
         }
@@ -891,6 +1111,7 @@ done:
     log_info("rendered %u tile(s); %u offered again to a master that came back; %u reconnection(s)",
              atomic_load(&w.tiles_rendered), w.kept_delivered, w.reconnects);
     unload_job(&w);
+    free(w.parked);
     while (w.num_kept > 0)
         kept_free_at(&w, w.num_kept - 1);
     free(w.kept);

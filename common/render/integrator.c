@@ -154,58 +154,114 @@ double pass_batch_var_of_mean(const struct pass_batch *b, int k)
     return b->n > 1 ? fmax(0.0, m2) / (b->n - 1) / b->n : 0.0;
 }
 
-/* A pixel rendered in passes (job->num_passes >= 2, progressive photon mapping): pass p
- * takes sample indices [p k, (p + 1) k), which the sampler scrambles afresh per pass (for
- * sobol, k points of one sequence under the pass's own scramble, not the p-th block of one
- * long sequence: consecutive blocks are not independent, and their spread overstates the
- * error of the whole), and the pass's photon map; the pixel is the
- * average of the pass means and its variance channels hold the variance of that average
- * estimated from the spread of the pass means (batch means, s^2 / P), which sees the
- * photon maps' error as well as the camera samples'. */
+/* One pass of a pixel (progressive photon mapping, job->num_passes >= 2): pass p takes
+ * sample indices [p k, (p + 1) k), which the sampler scrambles afresh per pass (for sobol,
+ * k points of one sequence under the pass's own scramble, not the p-th block of one long
+ * sequence: consecutive blocks are not independent, and their spread overstates the error
+ * of the whole), and the pass's photon map. *n gets the samples kept (NaN and Inf are
+ * dropped), m their mean, *cover the share that hit something. */
+static void render_pixel_pass(const struct render_job *job, struct sampler_pixel *sp, uint32_t pass, uint32_t px_x,
+                              uint32_t px_y, double m[3], double *cover, uint32_t *n, struct tile_stats *stats)
+{
+    const struct render_settings *rs = &job->scene->settings;
+    const uint32_t k = (rs->spp + job->num_passes - 1) / job->num_passes;
+    double sum[3] = {0, 0, 0}, hits = 0.0;
+    *n = 0;
+    sampler_pixel_set_pass(sp, pass);
+    for (uint32_t si = pass * k; si < (pass + 1) * k; si++) {
+        int hit_any;
+        vec3 l = sample_path(job, pass, px_x, px_y, sampler_start_pixel(sp, si), &stats->rays, &hit_any);
+        stats->samples++;
+        if (!v3_is_finite(l)) {
+            stats->nan_samples++;
+            continue;
+        }
+        sum[0] += l.x;
+        sum[1] += l.y;
+        sum[2] += l.z;
+        hits += hit_any;
+        (*n)++;
+    }
+    for (int c = 0; c < 3; c++)
+        m[c] = *n ? sum[c] / *n : 0.0;
+    *cover = *n ? hits / *n : 0.0;
+}
+
+static void sampler_pixel_for(const struct render_job *job, uint32_t px_x, uint32_t px_y, struct sampler_pixel *sp)
+{
+    const struct render_settings *rs = &job->scene->settings;
+    const uint32_t k = (rs->spp + job->num_passes - 1) / job->num_passes;
+    sampler_pixel_init(sp, rs->sampler, rs->seed, job->frame, (uint64_t)px_y * rs->width + px_x, k);
+}
+
+void pass_pixel_fold(struct pass_pixel *pp, const float *px)
+{
+    if (px[CH_A] < 0.0f)
+        return; /* every sample of the pass dropped: the other passes make the pixel */
+    double m[3] = {px[CH_R], px[CH_G], px[CH_B]};
+    pass_batch_add(&pp->b, m);
+    pp->cover += px[CH_A];
+}
+
+void pass_pixel_finish(const struct pass_pixel *pp, float *px, struct tile_stats *stats)
+{
+    const struct pass_batch *b = &pp->b;
+    for (int c = 0; c < 3; c++) {
+        px[CH_R + c] = (float)b->mean[c];
+        px[CH_VAR_R + c] = (float)pass_batch_var_of_mean(b, c);
+    }
+    px[CH_A] = b->n ? (float)(pp->cover / b->n) : 0.0f;
+    if (b->lum_mean > 0.0 && b->n > 1) {
+        stats->sum_rel_stderr += sqrt(pass_batch_var_of_mean(b, 3)) / b->lum_mean;
+        stats->rel_stderr_pixels++;
+    }
+}
+
+/* The pass's channels of one pixel: its mean, its coverage (PASS_ALPHA_NONE when every
+ * sample was dropped), variance 0 (batch means are taken over the passes). */
+static void pass_pixel_channels(const double m[3], double cover, uint32_t n, float *px)
+{
+    for (int c = 0; c < 3; c++) {
+        px[CH_R + c] = n ? (float)m[c] : 0.0f;
+        px[CH_VAR_R + c] = 0.0f;
+    }
+    px[CH_A] = n ? (float)cover : PASS_ALPHA_NONE;
+}
+
+/* A pixel rendered in all its passes: the pass means, rounded to float as a worker sends
+ * them, folded in pass order exactly as the master folds units (pass_pixel_fold), so a
+ * whole-tile render and a render unit by unit give the same bits. */
 static void render_pixel_passes(const struct render_job *job, uint32_t px_x, uint32_t px_y, float *px,
                                 struct tile_stats *stats)
 {
-    const struct render_settings *rs = &job->scene->settings;
-    const uint32_t passes = job->num_passes, k = (rs->spp + passes - 1) / passes;
     struct sampler_pixel sp;
-    sampler_pixel_init(&sp, rs->sampler, rs->seed, job->frame, (uint64_t)px_y * rs->width + px_x, k);
-    struct pass_batch b;
-    memset(&b, 0, sizeof b);
-    double cover = 0.0;
-    uint32_t n_all = 0;
-    for (uint32_t p = 0; p < passes; p++) {
-        double sum[3] = {0, 0, 0};
-        uint32_t n = 0;
-        sampler_pixel_set_pass(&sp, p);
-        for (uint32_t si = p * k; si < (p + 1) * k; si++) {
-            int hit_any;
-            vec3 l = sample_path(job, p, px_x, px_y, sampler_start_pixel(&sp, si), &stats->rays, &hit_any);
-            stats->samples++;
-            if (!v3_is_finite(l)) {
-                stats->nan_samples++;
-                continue;
-            }
-            sum[0] += l.x;
-            sum[1] += l.y;
-            sum[2] += l.z;
-            cover += hit_any;
-            n++;
+    sampler_pixel_for(job, px_x, px_y, &sp);
+    struct pass_pixel pp;
+    memset(&pp, 0, sizeof pp);
+    for (uint32_t p = 0; p < job->num_passes; p++) {
+        double m[3], cover;
+        uint32_t n;
+        float ch[TILE_NUM_CHANNELS];
+        render_pixel_pass(job, &sp, p, px_x, px_y, m, &cover, &n, stats);
+        pass_pixel_channels(m, cover, n, ch);
+        pass_pixel_fold(&pp, ch);
+    }
+    pass_pixel_finish(&pp, px, stats);
+}
+
+void integrator_render_tile_pass(const struct render_job *job, uint32_t pass, uint32_t x0, uint32_t y0, uint32_t w,
+                                 uint32_t h, float *pixels, struct tile_stats *stats)
+{
+    memset(stats, 0, sizeof *stats);
+    for (uint32_t y = 0; y < h; y++)
+        for (uint32_t x = 0; x < w; x++) {
+            struct sampler_pixel sp;
+            double m[3], cover;
+            uint32_t n;
+            sampler_pixel_for(job, x0 + x, y0 + y, &sp);
+            render_pixel_pass(job, &sp, pass, x0 + x, y0 + y, m, &cover, &n, stats);
+            pass_pixel_channels(m, cover, n, &pixels[((size_t)y * w + x) * TILE_NUM_CHANNELS]);
         }
-        if (n == 0)
-            continue; /* every sample of the pass dropped: the other passes make the pixel */
-        double m[3] = {sum[0] / n, sum[1] / n, sum[2] / n};
-        pass_batch_add(&b, m);
-        n_all += n;
-    }
-    for (int c = 0; c < 3; c++) {
-        px[CH_R + c] = (float)b.mean[c];
-        px[CH_VAR_R + c] = (float)pass_batch_var_of_mean(&b, c);
-    }
-    px[CH_A] = n_all ? (float)(cover / n_all) : 0.0f;
-    if (b.lum_mean > 0.0 && b.n > 1) {
-        stats->sum_rel_stderr += sqrt(pass_batch_var_of_mean(&b, 3)) / b.lum_mean;
-        stats->rel_stderr_pixels++;
-    }
 }
 
 void integrator_render_tile(const struct render_job *job, uint32_t x0, uint32_t y0, uint32_t w, uint32_t h,

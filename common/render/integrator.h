@@ -14,6 +14,15 @@
 void integrator_render_tile(const struct render_job *job, uint32_t x0, uint32_t y0, uint32_t w, uint32_t h,
                             float *pixels, struct tile_stats *stats);
 
+/* One pass (< job->num_passes, >= 2 of them) of the rectangle: per pixel the mean of the
+ * pass's k = spp / num_passes samples (CH_R..CH_B), the share of them that hit something
+ * (CH_A; PASS_ALPHA_NONE when every sample was dropped as NaN or Inf) and variance 0. The
+ * master folds a tile's passes in pass order (pass_pixel_fold); pixels depend only on
+ * (scene, seed, frame, pass, pixel). */
+#define PASS_ALPHA_NONE (-1.0f)
+void integrator_render_tile_pass(const struct render_job *job, uint32_t pass, uint32_t x0, uint32_t y0, uint32_t w,
+                                 uint32_t h, float *pixels, struct tile_stats *stats);
+
 /* Batch means over progressive passes: the running average of a pixel's pass means (RGB
  * and luminance) and the variance of that average estimated from their spread, s^2 / P
  * (s^2 the sample variance of the P pass means). Zero-initialise, add each pass's mean. */
@@ -24,5 +33,17 @@ struct pass_batch {
 void pass_batch_add(struct pass_batch *b, const double m[3]);
 /* Channel k (0..2: R, G, B; 3: luminance): s^2 / n, 0 for fewer than 2 passes. */
 double pass_batch_var_of_mean(const struct pass_batch *b, int k);
+
+/* A pixel's passes folded in pass order: batch means of the pass means and the sum of the
+ * passes' coverage. Zero-initialise; pass_pixel_fold takes one pass's channels (as
+ * integrator_render_tile_pass writes them; a pass with PASS_ALPHA_NONE is left out);
+ * pass_pixel_finish writes the pixel (mean, coverage, variance of the mean s^2 / P) and
+ * adds its relative standard error to stats (sum_rel_stderr, rel_stderr_pixels). */
+struct pass_pixel {
+    struct pass_batch b;
+    double cover;
+};
+void pass_pixel_fold(struct pass_pixel *pp, const float *px);
+void pass_pixel_finish(const struct pass_pixel *pp, float *px, struct tile_stats *stats);
 
 #endif

@@ -37,28 +37,36 @@ static void mips_fini(struct render_job *job)
     job->mips = NULL;
 }
 
-/* The passes' views of the media state (one per map of the chain), after the media state
- * or the maps change. */
+/* Pass p's view of the media state: the job's, with pass p's map (and its radius). */
+static void pass_view_set(struct render_job *job, uint32_t p)
+{
+    const struct photon_map *m = job->pass_maps ? job->pass_maps[p] : NULL;
+    job->pass_media[p] = *job->media;
+    job->pass_media[p].map = job->media->sm->method != MEDIA_VPT ? m : NULL;
+    if (job->pass_media[p].map)
+        job->pass_media[p].radius = m->radius;
+}
+
+/* The passes' views of the media state, after the media state or the passes change. */
 static void passes_update(struct render_job *job)
 {
     free(job->pass_media);
     job->pass_media = NULL;
-    job->num_passes = 0;
-    for (const struct photon_map *m = job->photons; m; m = m->next_pass)
-        job->num_passes++;
     if (job->num_passes == 0)
         job->num_passes = 1;
     if (!job->media)
         return;
     job->pass_media = mem_calloc(job->num_passes, sizeof *job->pass_media);
-    const struct photon_map *m = job->photons;
-    for (uint32_t p = 0; p < job->num_passes; p++) {
-        job->pass_media[p] = *job->media;
-        job->pass_media[p].map = job->media->map ? m : NULL;
-        if (job->pass_media[p].map)
-            job->pass_media[p].radius = m->radius;
-        m = m ? m->next_pass : NULL;
-    }
+    for (uint32_t p = 0; p < job->num_passes; p++)
+        pass_view_set(job, p);
+}
+
+static void pass_maps_free(struct render_job *job)
+{
+    for (uint32_t p = 0; job->pass_maps && p < job->num_passes; p++)
+        photon_map_free(&job->pass_maps[p]);
+    free(job->pass_maps);
+    job->pass_maps = NULL;
 }
 
 const struct media_job *render_job_pass_media(const struct render_job *job, uint32_t pass)
@@ -76,7 +84,7 @@ static int frame_init(struct render_job *job, uint32_t frame, uint32_t threads, 
     camera_init(&job->camera, &scene->camera, scene->settings.width, scene->settings.height);
     camera_set_scene_motion(&job->camera, job->accel.has_motion);
     if (scene->media)
-        job->media = media_job_new(&job->accel, &job->lights, job->photons);
+        job->media = media_job_new(&job->accel, &job->lights, job->pass_maps ? job->pass_maps[0] : NULL);
     passes_update(job);
     return 0;
 }
@@ -110,12 +118,43 @@ int render_job_reframe(struct render_job *job, uint32_t frame, uint32_t threads,
 
 void render_job_set_photon_map(struct render_job *job, struct photon_map **map)
 {
-    photon_map_free(&job->photons);
-    job->photons = *map;
-    *map = NULL;
+    uint32_t n = 0;
+    for (const struct photon_map *m = *map; m; m = m->next_pass)
+        n++;
+    render_job_set_passes(job, n);
+    for (uint32_t p = 0; p < n; p++) {
+        struct photon_map *m = *map;
+        *map = m->next_pass;
+        m->next_pass = NULL;
+        render_job_set_pass_map(job, p, &m);
+    }
+}
+
+void render_job_set_passes(struct render_job *job, uint32_t passes)
+{
+    pass_maps_free(job);
+    job->num_passes = passes ? passes : 1;
+    job->pass_maps = passes ? mem_calloc(passes, sizeof *job->pass_maps) : NULL;
     if (job->media)
-        job->media->map = job->media->sm->method != MEDIA_VPT ? job->photons : NULL;
+        job->media->map = NULL;
     passes_update(job);
+}
+
+void render_job_set_pass_map(struct render_job *job, uint32_t pass, struct photon_map **map)
+{
+    CHECK(job->pass_maps && pass < job->num_passes);
+    photon_map_free(&job->pass_maps[pass]);
+    job->pass_maps[pass] = *map;
+    *map = NULL;
+    if (pass == 0 && job->media)
+        job->media->map = job->media->sm->method != MEDIA_VPT ? job->pass_maps[0] : NULL;
+    if (job->media)
+        pass_view_set(job, pass);
+}
+
+const struct photon_map *render_job_pass_map(const struct render_job *job, uint32_t pass)
+{
+    return job->pass_maps && pass < job->num_passes ? job->pass_maps[pass] : NULL;
 }
 
 void render_job_fini(struct render_job *job)
@@ -127,6 +166,6 @@ void render_job_fini(struct render_job *job)
     light_table_fini(&job->lights);
     media_job_free(&job->media);
     free(job->pass_media);
-    photon_map_free(&job->photons);
+    pass_maps_free(job);
     memset(job, 0, sizeof *job);
 }

@@ -25,8 +25,9 @@ struct render_job {
     struct media_job *media; /* media_track.h; NULL when the scene has no media */
     struct mip *mips;       /* per scene texture (NULL entries for checkers), NULL when no material has one */
     int textured;           /* a material uses a texture: rays carry differentials */
-    struct photon_map *photons; /* owned: the master's photon maps, one per pass (chained by next_pass), or NULL */
-    uint32_t num_passes;        /* progressive photon-map passes: the maps in the chain; 1 without a map */
+    struct photon_map **pass_maps; /* owned: the master's photon maps, one slot per pass (NULL: not installed),
+                                    * or NULL without photon maps */
+    uint32_t num_passes;        /* progressive photon-map passes (slots of pass_maps); 1 without a map */
     struct media_job *pass_media; /* per pass: a view of *media whose map (and radius) is that pass's; NULL
                                    * without media. Views share media's pointers and own nothing. */
 };
@@ -39,8 +40,18 @@ int render_job_init(struct render_job *job, const struct scene *scene, uint32_t 
  * the job is freed. */
 int render_job_reframe(struct render_job *job, uint32_t frame, uint32_t threads, char *err, size_t errlen);
 /* Takes ownership of *map (set to NULL), replacing the job's photon maps: *map and the
- * passes' maps chained after it (next_pass); num_passes becomes their count (1 for NULL). */
+ * passes' maps chained after it (next_pass) go into the pass slots; num_passes becomes
+ * their count (1 for NULL). */
 void render_job_set_photon_map(struct render_job *job, struct photon_map **map);
+/* num_passes slots for maps installed one by one (passes 0: no maps, one pass). Not while
+ * rendering. */
+void render_job_set_passes(struct render_job *job, uint32_t passes);
+/* Takes ownership of *map (set to NULL) as pass `pass`'s map (< num_passes), replacing the
+ * one there. Only pass `pass`'s view changes: render threads may render other passes
+ * meanwhile, provided a unit of this pass is handed to them only after this returns. */
+void render_job_set_pass_map(struct render_job *job, uint32_t pass, struct photon_map **map);
+/* Pass `pass`'s map, or NULL. */
+const struct photon_map *render_job_pass_map(const struct render_job *job, uint32_t pass);
 /* The media state pass `pass` (< num_passes) renders with: the job's, with that pass's map. */
 const struct media_job *render_job_pass_media(const struct render_job *job, uint32_t pass);
 /* Frees what the job built and owns (not the scene); the job itself is the caller's

@@ -33,6 +33,7 @@ const char *proto_type_name(enum proto_type t)
     case MSG_BYE: return "BYE";
     case MSG_ACK: return "ACK";
     case MSG_KEPT: return "KEPT";
+    case MSG_MAP: return "MAP";
     case MSG_TYPE_MAX_: break;
     }
     return "UNKNOWN";
@@ -56,6 +57,11 @@ static int check_job_settings(const struct msg_job *j, char *err, size_t errlen)
     if (!j->width || !j->height || !j->spp || !j->tile_size) {
         str_fmt(err, errlen, "JOB: width %u, height %u, spp %u and tile_size %u must be > 0",
                 j->width, j->height, j->spp, j->tile_size);
+        return -1;
+    }
+    if (j->photon_maps > PROTO_MAX_PASSES || (j->photon_maps && j->spp % j->photon_maps != 0)) {
+        str_fmt(err, errlen, "JOB: %u photon-map passes (at most %d, dividing spp %u)", j->photon_maps,
+                PROTO_MAX_PASSES, j->spp);
         return -1;
     }
     return 0;
@@ -187,6 +193,7 @@ int proto_encode(const struct proto_msg *msg, struct proto_buf *b)
         put_u32(b, m->tile_size);
         put_u64(b, m->seed);
         put_u32(b, m->sampler);
+        put_u32(b, m->photon_maps);
         if (put_str(b, m->scene_path) < 0)
             return -1;
         put_u32(b, m->num_assets);
@@ -246,6 +253,7 @@ int proto_encode(const struct proto_msg *msg, struct proto_buf *b)
         put_u32(b, msg->u.heartbeat.tiles_done);
         put_u64(b, msg->u.heartbeat.samples_done);
         put_u32(b, msg->u.heartbeat.stalled_ms);
+        put_u32(b, msg->u.heartbeat.map_wait_ms);
         return 0;
     case MSG_BYE:
         return 0;
@@ -270,6 +278,16 @@ int proto_encode(const struct proto_msg *msg, struct proto_buf *b)
         put_u32(b, m->tile);
         put_stats(b, &m->stats);
         return put_payload(b, m->chunk, m->chunk_size);
+    }
+    case MSG_MAP: {
+        const struct msg_map *m = &msg->u.map;
+        if (m->pass >= PROTO_MAX_PASSES || m->size > BLOB_MAX_SIZE)
+            return -1;
+        put_u64(b, m->job_id);
+        put_u32(b, m->pass);
+        put_hash(b, &m->hash);
+        put_u64(b, m->size);
+        return 0;
     }
     case MSG_TYPE_MAX_:
         break;
@@ -421,6 +439,7 @@ static void decode_job(struct reader *r, struct msg_job *m)
     m->tile_size = get_u32(r, "tile_size");
     m->seed = get_u64(r, "seed");
     m->sampler = get_u32(r, "sampler");
+    m->photon_maps = get_u32(r, "photon_maps");
     get_str(r, m->scene_path, "scene_path");
     uint32_t n = get_u32(r, "num_assets");
     if (r->failed)
@@ -569,7 +588,21 @@ int proto_decode(const uint8_t *frame, size_t size, struct proto_msg *msg, char 
         msg->u.heartbeat.tiles_done = get_u32(r, "tiles_done");
         msg->u.heartbeat.samples_done = get_u64(r, "samples_done");
         msg->u.heartbeat.stalled_ms = get_u32(r, "stalled_ms");
+        msg->u.heartbeat.map_wait_ms = get_u32(r, "map_wait_ms");
         break;
+    case MSG_MAP: {
+        struct msg_map *m = &msg->u.map;
+        m->job_id = get_u64(r, "job_id");
+        m->pass = get_u32(r, "pass");
+        get_hash(r, &m->hash, "hash");
+        m->size = get_u64(r, "size");
+        if (!r->failed && m->pass >= PROTO_MAX_PASSES)
+            fail(r, "pass %u exceeds the limit of %d passes", m->pass, PROTO_MAX_PASSES);
+        else if (!r->failed && m->size > BLOB_MAX_SIZE)
+            fail(r, "size %llu exceeds the limit of %llu", (unsigned long long)m->size,
+                 (unsigned long long)BLOB_MAX_SIZE);
+        break;
+    }
     case MSG_BYE:
     case MSG_TYPE_MAX_:
         break;

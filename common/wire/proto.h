@@ -13,12 +13,13 @@
 #include "render/tile.h"
 
 #define PROTO_MAGIC 0x4d555242u /* "BRUM" little-endian */
-#define PROTO_VERSION 3 /* 2: HEARTBEAT carries samples_done; 3: JOB carries job_key, ACK, KEPT */
+#define PROTO_VERSION 4 /* 2: HEARTBEAT carries samples_done; 3: JOB carries job_key, ACK, KEPT; 4: photon-map passes (JOB photon_maps, MAP) */
 #define PROTO_MAX_MESSAGE (64u * 1024u * 1024u) /* also ZMQ_MAXMSGSIZE */
 #define PROTO_MAX_STRING 1024
 #define PROTO_MAX_ASSETS 4096
 #define PROTO_MAX_CHUNK (48u * 1024u * 1024u)   /* an EXR tile chunk */
 #define PROTO_MAX_ACK_TILES 256                  /* tiles one ACK may list (more: several ACKs) */
+#define PROTO_MAX_PASSES 1024                    /* photon-map passes of a job (VOLUME_BLOB_MAX_MAPS) */
 
 enum proto_type {
     MSG_HELLO = 1,      /* w->m: I exist; my threads */
@@ -33,7 +34,8 @@ enum proto_type {
     MSG_BYE = 10,       /* m->w: job over, exit; w->m: I am leaving */
     MSG_ACK = 11,       /* m->w: these tiles of (job, frame) are safe (journal synced): forget them */
     MSG_KEPT = 12,      /* w->m: a finished tile kept for a job of this job_key (a master that came back) */
-    MSG_TYPE_MAX_ = 13
+    MSG_MAP = 13,       /* m->w: pass `pass`'s photon map is published as blob hash (size bytes) */
+    MSG_TYPE_MAX_ = 14
 };
 
 struct msg_hello {
@@ -59,6 +61,10 @@ struct msg_job {
     uint32_t width, height, spp, max_depth, tile_size;
     uint64_t seed;
     uint32_t sampler;                    /* enum sampler_type, < SAMPLER_COUNT_ */
+    /* Photon maps: 0 (none; one pass) or P (1..PROTO_MAX_PASSES, spp a multiple of P): the
+     * frame renders in P passes, pass p with map p, announced by MAP. With P >= 1 the
+     * `tile` of TILE, RESULT, KEPT and ACK is a unit u = p * tiles + tile. */
+    uint32_t photon_maps;
     char scene_path[PROTO_MAX_STRING];   /* one of the assets: the scene file */
     uint32_t num_assets;                 /* <= PROTO_MAX_ASSETS */
     struct proto_asset *assets;          /* decode allocates; free with proto_job_free */
@@ -86,7 +92,7 @@ struct msg_ready {
 struct msg_tile {
     uint64_t job_id;
     uint32_t frame;
-    uint32_t tile;      /* index: ty * tiles_x + tx */
+    uint32_t tile;      /* index: ty * tiles_x + tx; with photon maps the unit pass * tiles + tile */
     uint32_t attempt;
 };
 
@@ -123,6 +129,17 @@ struct msg_kept {
     uint32_t chunk_size;    /* <= PROTO_MAX_CHUNK */
 };
 
+/* Pass `pass` (< the JOB's photon_maps) of job job_id renders with the map in blob hash,
+ * of `size` bytes (<= BLOB_MAX_SIZE): a worker fetches it like any blob before it renders
+ * a unit of that pass. Sent to every worker when the master has traced the map, and after
+ * a JOB for every map published so far (late workers). */
+struct msg_map {
+    uint64_t job_id;
+    uint32_t pass;
+    struct blob_hash hash;
+    uint64_t size;
+};
+
 struct msg_error {
     uint64_t job_id;
     char text[PROTO_MAX_STRING];
@@ -131,8 +148,10 @@ struct msg_error {
 /* samples_done: camera samples the worker's render threads finished since it started, a
  * counter that only grows; stalled_ms: how long the slowest busy render thread has not
  * finished a row. The master evicts a worker holding tiles whose counter stops moving or
- * that reports a stalled thread (its main thread may answer while render threads hang). */
-struct msg_heartbeat { uint64_t job_id; uint32_t tiles_done; uint64_t samples_done; uint32_t stalled_ms; };
+ * that reports a stalled thread (its main thread may answer while render threads hang).
+ * map_wait_ms: how long, in the job so far, the worker had units waiting for their photon
+ * map's fetch and nothing to render (a statistic). */
+struct msg_heartbeat { uint64_t job_id; uint32_t tiles_done; uint64_t samples_done; uint32_t stalled_ms; uint32_t map_wait_ms; };
 
 /* A decoded message. Pointers inside refer to the frame's bytes, which must outlive it. */
 struct proto_msg {
@@ -149,6 +168,7 @@ struct proto_msg {
         struct msg_heartbeat heartbeat;
         struct msg_ack ack;
         struct msg_kept kept;
+        struct msg_map map;
     } u;
 };
 

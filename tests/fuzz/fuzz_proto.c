@@ -31,7 +31,7 @@ static int msg_eq(const struct proto_msg *a, const struct proto_msg *b)
         const struct msg_job *x = &a->u.job, *y = &b->u.job;
         if (x->job_id != y->job_id || !hash_eq(&x->job_key, &y->job_key) || x->frame != y->frame || x->width != y->width ||
             x->height != y->height || x->spp != y->spp || x->max_depth != y->max_depth ||
-            x->tile_size != y->tile_size || x->seed != y->seed ||
+            x->tile_size != y->tile_size || x->seed != y->seed || x->photon_maps != y->photon_maps ||
             strcmp(x->scene_path, y->scene_path) != 0 || x->num_assets != y->num_assets)
             return 0;
         for (uint32_t i = 0; i < x->num_assets; i++)
@@ -70,7 +70,8 @@ static int msg_eq(const struct proto_msg *a, const struct proto_msg *b)
         return a->u.heartbeat.job_id == b->u.heartbeat.job_id &&
                a->u.heartbeat.tiles_done == b->u.heartbeat.tiles_done &&
                a->u.heartbeat.samples_done == b->u.heartbeat.samples_done &&
-               a->u.heartbeat.stalled_ms == b->u.heartbeat.stalled_ms;
+               a->u.heartbeat.stalled_ms == b->u.heartbeat.stalled_ms &&
+               a->u.heartbeat.map_wait_ms == b->u.heartbeat.map_wait_ms;
     case MSG_BYE:
         return 1;
     case MSG_ACK:
@@ -89,6 +90,9 @@ static int msg_eq(const struct proto_msg *a, const struct proto_msg *b)
                x->stats.rel_stderr_pixels == y->stats.rel_stderr_pixels && x->chunk_size == y->chunk_size &&
                bytes_eq(x->chunk, y->chunk, x->chunk_size);
     }
+    case MSG_MAP:
+        return a->u.map.job_id == b->u.map.job_id && a->u.map.pass == b->u.map.pass &&
+               hash_eq(&a->u.map.hash, &b->u.map.hash) && a->u.map.size == b->u.map.size;
     case MSG_TYPE_MAX_:
         break;
     }

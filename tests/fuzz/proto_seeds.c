@@ -38,6 +38,7 @@ int main(int argc, char **argv)
         case MSG_HEARTBEAT: m.u.heartbeat.job_id = 5; m.u.heartbeat.samples_done = 9; break;
         case MSG_ACK: m.u.ack.job_id = 5; m.u.ack.count = 3; m.u.ack.tiles[1] = 1; m.u.ack.tiles[2] = 2; break;
         case MSG_KEPT: m.u.kept.job_id = 5; m.u.kept.tile = 3; m.u.kept.chunk = bytes; m.u.kept.chunk_size = sizeof bytes; break;
+        case MSG_MAP: m.u.map.job_id = 5; m.u.map.pass = 2; m.u.map.size = 1000; break;
         case MSG_BYE: case MSG_TYPE_MAX_: break;
         }
         char path[4096];

@@ -5,8 +5,8 @@
 # march and beam (shadow transmittance cache); a late tcp worker gets the
 # map too; the smoke as a NanoVDB file (1 vs 3 workers, against the dense grid); a map per
 # frame when geometry moves (2 progressive passes: 2 maps per frame), one for the range
-# when not; 4 progressive passes: 1 vs 3 workers, a master killed and restarted, a late
-# worker, all identical; a scene
+# when not; 4 progressive passes: 1 vs 3 workers, a master killed during pass 2 and
+# restarted, a worker joining after pass 0, all identical; a scene
 # error in the media keys or a compressed .nvdb names file:line:col.
 # Ends with "integration: N passed, N failed". Usage: BUILD=build sh tests/integration/media.sh
 . "$(dirname "$0")/lib.sh"
@@ -67,33 +67,62 @@ timeout 120 $W --connect "tcp://127.0.0.1:$P" --threads 1 >"$T/wlog" 2>&1
 wait $mpid && r=0 || r=1
 if [ $r = 0 ] && $X cmp "$T/p1.exr" "$T/late.exr"; then ok "extra tcp worker: fetches the volume blob, identical pixels"; else bad "extra tcp worker: fetches the volume blob, identical pixels"; fi
 
-# Progressive passes (4 photon maps, 4 spp): bit-identical for 1 and 3 workers; a master
-# killed mid-frame and restarted resumes from its journal to the same pixels; a late tcp
-# worker fetches the 4 maps and the image is the same.
+# Progressive passes (4 photon maps, 4 spp; units (tile, pass), the maps traced while
+# earlier passes render): bit-identical for 1 and 3 workers; a master killed while pass 2
+# renders (its journal holds a unit of pass 2) and restarted resumes to the same pixels; a
+# tcp worker joining once pass 0 is done fetches only the maps of the passes it renders
+# and the image is the same.
 PA="--spp 4 --passes 4"
+# jpass JOURNAL TILES: "units-of-pass-0 highest-pass" from the journal's records (header
+# 76 bytes; record: "TREC", u32 unit, u32 chunk size, 44 bytes of stats, chunk, 32-byte hash).
+jpass() {
+  python3 -c 'import struct, sys
+try: d = open(sys.argv[1], "rb").read()
+except OSError: d = b""
+tiles, at, n0, top = int(sys.argv[2]), 76, 0, -1
+while at + 12 <= len(d) and d[at:at + 4] == b"TREC":
+    unit, size = struct.unpack_from("<II", d, at + 4)
+    if at + 12 + 44 + size + 32 > len(d): break
+    n0 += unit < tiles; top = max(top, unit // tiles); at += 12 + 44 + size + 32
+print(n0, top)' "$1" "$2"
+}
 run $M $S -o "$T/pp1.exr" $PA --no-journal --workers 1 --threads 2 && r1=0 || r1=1
 grep -q "photon pass: 4 map(s)" "$T/log" && g1=0 || g1=1
 run $M $S -o "$T/pp3.exr" $PA --no-journal --workers 3 --threads 1 --tile 16 && r3=0 || r3=1
-if [ $r1 = 0 ] && [ $r3 = 0 ] && [ $g1 = 0 ] && $X cmp "$T/pp1.exr" "$T/pp3.exr" && grep -q "estimated relRMSE .*batch means" "$T/log"; then
-  ok "4 passes: 1 vs 3 workers bit-identical, batch-means estimate reported"; else bad "4 passes: 1 vs 3 workers bit-identical, batch-means estimate reported"; fi
+if [ $r1 = 0 ] && [ $r3 = 0 ] && [ $g1 = 0 ] && $X cmp "$T/pp1.exr" "$T/pp3.exr" && grep -q "estimated relRMSE .*batch means" "$T/log" &&
+   grep -q "summary: photon maps: 4 pass(es), .* map bytes fetched by 3 worker(s), workers waited for maps" "$T/log"; then
+  ok "4 passes: 1 vs 3 workers bit-identical, batch-means estimate and map statistics reported"
+else bad "4 passes: 1 vs 3 workers bit-identical, batch-means estimate and map statistics reported"; fi
 $M $S -o "$T/ppk.exr" $PA --workers 2 --threads 1 --tile 16 >"$T/klog" 2>&1 &
 mpid=$!
 i=0
-while [ $i -lt 100 ] && ! grep -q "tiles" "$T/ppk.exr.journal" 2>/dev/null && [ ! -s "$T/ppk.exr.journal" ]; do sleep 0.05; i=$((i + 1)); done
-sleep 0.3
+while [ $i -lt 400 ] && [ "$(jpass "$T/ppk.exr.journal" 80 | cut -d' ' -f2)" -lt 2 ]; do sleep 0.05; i=$((i + 1)); done
 kill -9 $mpid 2>/dev/null
 wait $mpid 2>/dev/null
+jk=$(jpass "$T/ppk.exr.journal" 80)
 run $M $S -o "$T/ppk.exr" $PA --workers 2 --threads 1 --tile 16 && r=0 || r=1
 fj=$(counter tiles_from_journal "$T/ppk.exr")
-echo "media: passes, master killed: ${fj:-0} tiles from the journal"
-if [ $r = 0 ] && $X cmp "$T/pp1.exr" "$T/ppk.exr"; then ok "4 passes: master kill -9 + restart: identical pixels"; else bad "4 passes: master kill -9 + restart: identical pixels"; fi
-timeout 120 $M $S -o "$T/pplate.exr" $PA --no-journal --workers 1 --threads 1 --bind "tcp://127.0.0.1:$((P + 1))" >"$T/log" 2>&1 &
+echo "media: passes, master killed with journal (units of pass 0, last pass) $jk: ${fj:-0} units from the journal"
+if [ $r = 0 ] && [ "${jk#* }" = 2 ] && [ "${fj:-0}" -gt 0 ] && $X cmp "$T/pp1.exr" "$T/ppk.exr"; then
+  ok "4 passes: master kill -9 during pass 2 + restart: identical pixels"
+else bad "4 passes: master kill -9 during pass 2 + restart: identical pixels (journal $jk, from journal ${fj:-0})"; fi
+timeout 120 $M $S -o "$T/pplate.exr" $PA --workers 1 --threads 1 --tile 16 --bind "tcp://127.0.0.1:$((P + 1))" >"$T/log" 2>&1 &
 mpid=$!
-sleep 1
+i=0
+while [ $i -lt 600 ] && [ "$(jpass "$T/pplate.exr.journal" 80 | cut -d' ' -f1)" -lt 80 ]; do sleep 0.05; i=$((i + 1)); done
 timeout 120 $W --connect "tcp://127.0.0.1:$((P + 1))" --threads 1 >"$T/wlog" 2>&1
 wait $mpid && r=0 || r=1
-if [ $r = 0 ] && grep -q "in 4 pass(es)" "$T/wlog" && $X cmp "$T/pp1.exr" "$T/pplate.exr"; then
-  ok "4 passes: late tcp worker gets the 4 maps, identical pixels"; else bad "4 passes: late tcp worker gets the 4 maps, identical pixels"; fi
+late=$(python3 -c 'import json, sys
+s = json.load(open(sys.argv[1]))
+w = [x["name"] for x in s["workers"] if x["tiles"] > 0]
+got = [[y["map_bytes_fetched"] for y in p["workers"]] for p in s["photon_map_passes"]]
+# the second worker joined late: no map of pass 0, some of a later pass
+print("ok" if len(s["workers"]) == 2 and s["workers"][1]["tiles"] > 0 and got[0][1] == 0 and sum(g[1] for g in got[1:]) > 0 else "no", got)' \
+  "$T/pplate.exr.stats.json" 2>/dev/null)
+echo "media: late worker, map bytes per pass and worker: $late"
+if [ $r = 0 ] && [ "${late%% *}" = ok ] && grep -q "in 4 pass(es)" "$T/wlog" && $X cmp "$T/pp1.exr" "$T/pplate.exr"; then
+  ok "4 passes: tcp worker joining after pass 0 fetches only later maps, identical pixels"
+else bad "4 passes: tcp worker joining after pass 0 fetches only later maps, identical pixels"; fi
 
 # NanoVDB density grids: the smoke as a .nvdb written by NanoVDB's own writer (make_nvdb),
 # sent to workers as a blob like any asset: pixels bit-identical for 1 and 3 workers, the

@@ -146,6 +146,12 @@ static void sample(enum proto_type t, uint64_t job_id, uint32_t variant, struct 
         m->u.kept.chunk = g_chunk;
         m->u.kept.chunk_size = sizeof g_chunk;
         break;
+    case MSG_MAP:
+        m->u.map.job_id = job_id;
+        m->u.map.pass = variant % 4;
+        m->u.map.hash.bytes[0] = (uint8_t)variant;
+        m->u.map.size = 64;
+        break;
     case MSG_BYE:
     case MSG_TYPE_MAX_:
         break;

@@ -5,6 +5,7 @@
 #include <stdio.h>
 #include <string.h>
 #include "base/log.h"
+#include "render/photon_map.h"
 #include "scene/scene_json.h"
 
 int mem_read(void *ctx, const char *rel_path, char **data, size_t *size, char *err, size_t errlen)
@@ -66,11 +67,16 @@ float *test_render_map(const struct scene *s, struct photon_map *map, uint32_t t
     struct render_job job;
     char err[256];
     cr_assert_eq(render_job_init(&job, s, 0, threads, err, sizeof err), 0, "%s", err);
+    int lent = map != NULL;
     render_job_set_photon_map(&job, &map);
     uint32_t w = s->settings.width, h = s->settings.height;
     float *px = mem_alloc(sizeof(float) * w * h * TILE_NUM_CHANNELS);
     integrator_render_tile(&job, 0, 0, w, h, px, st);
-    job.photons = NULL; /* lent: still the caller's */
+    /* lent: the slots go back to the caller as the chain it gave */
+    for (uint32_t p = 0; lent && p < job.num_passes; p++) {
+        job.pass_maps[p]->next_pass = p + 1 < job.num_passes ? job.pass_maps[p + 1] : NULL;
+        job.pass_maps[p] = NULL;
+    }
     render_job_fini(&job);
     return px;
 }

@@ -52,6 +52,7 @@ static size_t make_samples(struct proto_msg out[MSG_TYPE_MAX_])
     out[n].u.job.tile_size = 32;
     out[n].u.job.seed = 0xdeadbeefcafef00dull;
     out[n].u.job.sampler = SAMPLER_SOBOL;
+    out[n].u.job.photon_maps = 8;
     strcpy(out[n].u.job.scene_path, "scene.json");
     out[n].u.job.num_assets = 3;
     out[n].u.job.assets = k_assets;
@@ -108,9 +109,17 @@ static size_t make_samples(struct proto_msg out[MSG_TYPE_MAX_])
     out[n].u.heartbeat.tiles_done = 400;
     out[n].u.heartbeat.samples_done = 0x0102030405060708ull;
     out[n].u.heartbeat.stalled_ms = 0x0a0b0c0du;
+    out[n].u.heartbeat.map_wait_ms = 0x11223344u;
     n++;
 
     out[n].type = MSG_BYE;
+    n++;
+
+    out[n].type = MSG_MAP;
+    out[n].u.map.job_id = 0x0102030405060708ull;
+    out[n].u.map.pass = PROTO_MAX_PASSES - 1;
+    out[n].u.map.hash = make_hash(33);
+    out[n].u.map.size = 0x00000000f1e2d3c4ull;
     n++;
 
     out[n].type = MSG_ACK;
@@ -179,6 +188,7 @@ static void assert_msg_eq(const struct proto_msg *a, const struct proto_msg *b)
         cr_assert_eq(x->tile_size, y->tile_size);
         cr_assert_eq(x->seed, y->seed);
         cr_assert_eq(x->sampler, y->sampler);
+        cr_assert_eq(x->photon_maps, y->photon_maps);
         cr_assert_str_eq(x->scene_path, y->scene_path);
         cr_assert_eq(x->num_assets, y->num_assets);
         for (uint32_t i = 0; i < x->num_assets; i++) {
@@ -228,6 +238,7 @@ static void assert_msg_eq(const struct proto_msg *a, const struct proto_msg *b)
         cr_assert_eq(a->u.heartbeat.tiles_done, b->u.heartbeat.tiles_done);
         cr_assert_eq(a->u.heartbeat.samples_done, b->u.heartbeat.samples_done);
         cr_assert_eq(a->u.heartbeat.stalled_ms, b->u.heartbeat.stalled_ms);
+        cr_assert_eq(a->u.heartbeat.map_wait_ms, b->u.heartbeat.map_wait_ms);
         break;
     case MSG_ACK:
         cr_assert_eq(a->u.ack.job_id, b->u.ack.job_id);
@@ -245,6 +256,12 @@ static void assert_msg_eq(const struct proto_msg *a, const struct proto_msg *b)
         assert_tile_eq(&x->stats, x->chunk, x->chunk_size, &y->stats, y->chunk, y->chunk_size);
         break;
     }
+    case MSG_MAP:
+        cr_assert_eq(a->u.map.job_id, b->u.map.job_id);
+        cr_assert_eq(a->u.map.pass, b->u.map.pass);
+        assert_hash_eq(&a->u.map.hash, &b->u.map.hash);
+        cr_assert_eq(a->u.map.size, b->u.map.size);
+        break;
     case MSG_BYE:
     case MSG_TYPE_MAX_:
         break;
@@ -322,6 +339,7 @@ static void fb_job_prefix(struct fb *b, uint32_t width, uint32_t height, uint32_
     fb_u(b, tile, 4);
     fb_u(b, 1234, 8);
     fb_u(b, 0, 4); /* sampler */
+    fb_u(b, 0, 4); /* photon_maps */
     fb_u(b, 10, 2);
     fb_bytes(b, "scene.json", 10);
 }
@@ -740,6 +758,40 @@ Test(proto, ack_and_kept_limits)
     m.u.ack.count = PROTO_MAX_ACK_TILES;
     cr_assert_eq(proto_encode(&m, &b), 0);
     cr_assert_eq(b.size, 8 + 8 + 4 + 4 + 4 * PROTO_MAX_ACK_TILES);
+    proto_buf_fini(&b);
+}
+
+/* MAP: a pass or size beyond the limits never reaches the worker; JOB: photon_maps must
+ * be at most PROTO_MAX_PASSES and divide spp. */
+Test(proto, map_and_passes_limits)
+{
+    struct fb f = {0};
+    fb_header(&f, MSG_MAP);
+    fb_u(&f, 1, 8);
+    fb_u(&f, PROTO_MAX_PASSES, 4);
+    fb_fill(&f, 0, BLOB_HASH_SIZE);
+    fb_u(&f, 10, 8);
+    const char *err = expect_reject(f.d, f.n);
+    cr_assert(strstr(err, "pass") && strstr(err, "limit"), "%s", err);
+    fb_header(&f, MSG_MAP);
+    fb_u(&f, 1, 8);
+    fb_u(&f, 3, 4);
+    fb_fill(&f, 0, BLOB_HASH_SIZE);
+    fb_u(&f, BLOB_MAX_SIZE + 1, 8);
+    err = expect_reject(f.d, f.n);
+    cr_assert(strstr(err, "size") && strstr(err, "limit"), "%s", err);
+    free(f.d);
+    struct proto_msg m = {.type = MSG_JOB};
+    struct proto_buf b = {0};
+    m.u.job.width = m.u.job.height = m.u.job.tile_size = 8;
+    m.u.job.spp = 12;
+    m.u.job.photon_maps = 8;
+    cr_assert_eq(proto_encode(&m, &b), -1, "spp not a multiple of the passes");
+    m.u.job.photon_maps = 4;
+    cr_assert_eq(proto_encode(&m, &b), 0);
+    m.u.job.spp = 2048;
+    m.u.job.photon_maps = PROTO_MAX_PASSES * 2;
+    cr_assert_eq(proto_encode(&m, &b), -1, "too many passes");
     proto_buf_fini(&b);
 }
 

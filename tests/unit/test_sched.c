@@ -55,6 +55,40 @@ Test(sched, tiles_go_out_in_order_within_credits)
     cr_assert_null(s);
 }
 
+/* Units u = pass * tiles + tile: a pass's units go out only once its map is released;
+ * a re-issued unit of a released pass still goes first, and no straggler copy is made
+ * while units wait for their release. */
+Test(sched, units_wait_for_their_release)
+{
+    struct sched *s = setup(6, 1, 8); /* 3 tiles x 2 passes */
+    sched_release(s, 0);
+    cr_assert(sched_blocked(s));
+    assert_none(s, 10);
+    sched_release(s, 3);
+    cr_assert(!sched_blocked(s));
+    for (uint32_t u = 0; u < 3; u++)
+        cr_assert_eq(give_one(s, 10).tile, u);
+    assert_none(s, 10); /* units 3..5 wait for pass 1, and no straggler copy meanwhile */
+    cr_assert(sched_blocked(s));
+    cr_assert_eq(sched_live_workers(s), 1);
+    int32_t w1 = sched_worker_join(s, 4, 10);
+    cr_assert_eq(sched_worker_ready(s, w1, 8), 0);
+    assert_none(s, 10);
+    struct sched_eviction ev;
+    sched_evict(s, 0, SCHED_LEFT, &ev);
+    cr_assert_eq(ev.requeued, 3);
+    for (int i = 0; i < 3; i++)
+        cr_assert_lt(give_one(s, 20).tile, 3, "re-issued units of a released pass go out");
+    assert_none(s, 20);
+    sched_release(s, 100); /* capped at the number of units */
+    cr_assert_eq(s->released, 6);
+    for (uint32_t u = 3; u < 6; u++)
+        cr_assert_eq(give_one(s, 20).tile, u);
+    sched_frame_begin(s);
+    cr_assert_eq(s->released, 6, "a new frame releases everything until told otherwise");
+    sched_free(&s);
+}
+
 Test(sched, ready_credits_are_capped_and_at_least_one)
 {
     struct sched *s = sched_new(1);

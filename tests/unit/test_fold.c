@@ -1,0 +1,121 @@
+/* Unit tests for the pass fold (master/fold.c): a tile's passes arriving in any order give
+ * the same bits as in pass order, a pass without samples is left out, and the result is
+ * the batch-means mean and variance of the pass means. Run by `make unit`. */
+#include <criterion/criterion.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include "master/fold.h"
+#include "render/integrator.h"
+
+#define PASSES 5u
+
+static void make_desc(struct image_desc *d)
+{
+    struct render_settings rs;
+    memset(&rs, 0, sizeof rs);
+    rs.width = 10;
+    rs.height = 7;
+    rs.tile_size = 4;
+    tile_image_desc(d, &rs);
+}
+
+/* Pass p's channels for tile t: values that differ in their low bits, so that a fold in
+ * another order would round differently. */
+static void pass_pixels(uint32_t t, uint32_t p, size_t n, float *px)
+{
+    for (size_t i = 0; i < n; i++) {
+        float *c = &px[i * TILE_NUM_CHANNELS];
+        for (int k = 0; k < 3; k++)
+            c[CH_R + k] = (float)(0.1 + 0.37 * sin(1.3 * (double)(t * 131 + p * 17 + i * 7 + k)) + 0.001 * p);
+        c[CH_A] = (i + p) % 7 == 0 ? PASS_ALPHA_NONE : 0.25f * (float)((i + p) % 5) / 4.0f;
+        c[CH_VAR_R] = c[CH_VAR_G] = c[CH_VAR_B] = 0.0f;
+    }
+}
+
+static void fold_in_order(const struct image_desc *d, const uint32_t *order, float *out, struct tile_stats *st)
+{
+    struct fold *f = fold_new(d, PASSES);
+    uint32_t tiles = imgio_tiles_x(d) * imgio_tiles_y(d);
+    float px[16 * TILE_NUM_CHANNELS];
+    memset(st, 0, sizeof *st);
+    uint32_t done = 0;
+    for (uint32_t i = 0; i < tiles * PASSES; i++) {
+        uint32_t u = order[i], t = u % tiles, p = u / tiles;
+        uint32_t x0, y0, w, h;
+        imgio_tile_rect(d, t % imgio_tiles_x(d), t / imgio_tiles_x(d), &x0, &y0, &w, &h);
+        pass_pixels(t, p, (size_t)w * h, px);
+        int fin = fold_add(f, t, p, px, out + (size_t)t * 16 * TILE_NUM_CHANNELS, st);
+        done += (uint32_t)fin;
+    }
+    cr_assert_eq(done, tiles, "every tile final exactly once");
+    fold_free(&f);
+    cr_assert_null(f);
+}
+
+Test(fold, any_arrival_order_gives_the_same_bits)
+{
+    struct image_desc d;
+    make_desc(&d);
+    uint32_t tiles = imgio_tiles_x(&d) * imgio_tiles_y(&d), n = tiles * PASSES;
+    uint32_t *order = malloc(sizeof *order * n);
+    size_t bytes = sizeof(float) * tiles * 16 * TILE_NUM_CHANNELS;
+    float *a = calloc(1, bytes), *b = calloc(1, bytes);
+    struct tile_stats sa, sb;
+    for (uint32_t i = 0; i < n; i++)
+        order[i] = i;
+    fold_in_order(&d, order, a, &sa);
+    uint64_t x = 12345;
+    for (int trial = 0; trial < 20; trial++) {
+        for (uint32_t i = n - 1; i > 0; i--) { /* Fisher-Yates with a fixed LCG */
+            x = x * 6364136223846793005ull + 1442695040888963407ull;
+            uint32_t j = (uint32_t)((x >> 33) % (i + 1));
+            uint32_t tmp = order[i];
+            order[i] = order[j];
+            order[j] = tmp;
+        }
+        memset(b, 0, bytes);
+        fold_in_order(&d, order, b, &sb);
+        cr_assert(memcmp(a, b, bytes) == 0, "trial %d: pixels differ with another arrival order", trial);
+        /* The summary's sum over tiles follows the order tiles finish in; only it may round differently. */
+        cr_assert(fabs(sa.sum_rel_stderr - sb.sum_rel_stderr) <= 1e-12 * sa.sum_rel_stderr &&
+                  sa.rel_stderr_pixels == sb.rel_stderr_pixels);
+    }
+    free(order);
+    free(a);
+    free(b);
+}
+
+Test(fold, batch_means_of_the_passes_with_samples)
+{
+    struct image_desc d;
+    make_desc(&d);
+    uint32_t tiles = imgio_tiles_x(&d) * imgio_tiles_y(&d);
+    uint32_t *order = malloc(sizeof *order * tiles * PASSES);
+    for (uint32_t i = 0; i < tiles * PASSES; i++)
+        order[i] = tiles * PASSES - 1 - i; /* last pass first */
+    float *out = calloc((size_t)tiles * 16 * TILE_NUM_CHANNELS, sizeof(float));
+    struct tile_stats st;
+    fold_in_order(&d, order, out, &st);
+    /* Tile 0, pixel 3: the plain mean and s^2 / n of the passes whose alpha is not NONE. */
+    float px[16 * TILE_NUM_CHANNELS];
+    double sum = 0, sum2 = 0, cover = 0;
+    uint32_t n = 0;
+    for (uint32_t p = 0; p < PASSES; p++) {
+        pass_pixels(0, p, 16, px);
+        const float *c = &px[3 * TILE_NUM_CHANNELS];
+        if (c[CH_A] < 0.0f)
+            continue;
+        sum += c[CH_G];
+        sum2 += (double)c[CH_G] * c[CH_G];
+        cover += c[CH_A];
+        n++;
+    }
+    double mean = sum / n, var = (sum2 - n * mean * mean) / (n - 1) / n;
+    const float *o = &out[3 * TILE_NUM_CHANNELS];
+    cr_assert(fabs(o[CH_G] - mean) < 1e-6, "mean %g, expected %g", o[CH_G], mean);
+    cr_assert(fabs(o[CH_VAR_G] - var) < 1e-6 * (1 + var), "variance %g, expected %g", o[CH_VAR_G], var);
+    cr_assert(fabs(o[CH_A] - cover / n) < 1e-6);
+    free(order);
+    free(out);
+}
