@@ -7,6 +7,7 @@
 #include "scene/scene_limits.h"
 #include "render/media_track.h"
 #include "render/photon_map.h"
+#include "render/passes.h"
 #include "render/photon_trace.h"
 #include "render/render_job.h"
 #include "scene/medium.h"
@@ -97,13 +98,6 @@ static int set_surface_radius(uint8_t **map, size_t *size, float radius, char *e
     return 0;
 }
 
-/* The passes a frame renders: --passes, else render.passes, else MASTER_DEFAULT_PASSES. */
-#define MASTER_DEFAULT_PASSES 8u
-static uint32_t passes_wanted(const struct scene *scene, const struct master_opts *o)
-{
-    return o->have_passes ? o->passes : scene->settings.passes ? scene->settings.passes : MASTER_DEFAULT_PASSES;
-}
-
 int master_media_prepare(struct scene *scene, const struct master_opts *o, uint32_t frame, struct asset_dir *assets,
                          uint32_t *photon_maps)
 {
@@ -156,10 +150,17 @@ int master_media_prepare(struct scene *scene, const struct master_opts *o, uint3
         } else {
             /* Progressive photon mapping: P maps from fresh seeds, radii by the PPM rule,
              * traced while tiles render (photon_tracer_new). */
-            passes = passes_wanted(scene, o);
             struct render_settings *rs = &scene->settings;
-            uint32_t k = (rs->spp + passes - 1) / passes;
-            if ((uint64_t)k * passes > SCENE_MAX_SPP) {
+            struct pass_plan plan;
+            int plan_rc = passes_plan(rs->spp, asked, sm->photons, o->have_photons,
+                                      (uint64_t)rs->width * rs->height, &plan);
+            uint32_t k = plan.spp_per_pass;
+            passes = plan.passes;
+            if (plan.photons != sm->photons)
+                log_info("passes: %llu photons per pass (of %llu: at most %u per pixel with the default passes)",
+                         (unsigned long long)plan.photons, (unsigned long long)sm->photons, PASS_PHOTONS_PER_PIXEL);
+            sm->photons = plan.photons;
+            if (plan_rc != 0) {
                 log_error("passes: %u passes of %u spp exceed the %u spp limit (lower --spp or --passes / "
                           "render.passes)", passes, k, (unsigned)SCENE_MAX_SPP);
                 return -1;
@@ -167,11 +168,11 @@ int master_media_prepare(struct scene *scene, const struct master_opts *o, uint3
             if (k * passes != rs->spp)
                 log_info("passes: spp %u raised to %u (%u passes of ceil(%u / %u) = %u spp)", rs->spp, k * passes,
                          passes, rs->spp, passes, k);
-            rs->spp = k * passes;
+            rs->spp = plan.spp;
             log_info("passes: %u of %u spp (%u spp), pass p with photon map p; radius %g to %g (surface %g to %g), "
                      "multiple-scattering bound %.3g", passes, k, rs->spp, (double)r0,
-                     photon_pass_radius(r0, sm->alpha, passes - 1, 3), (double)r0,
-                     photon_pass_radius(r0, sm->alpha, passes - 1, 2), bound);
+                     photon_pass_radius(r0, sm->alpha, passes - 1, passes_volume_kernel_dim(sm->method)), (double)r0,
+                     photon_pass_radius(r0, sm->alpha, passes - 1, PASSES_SURFACE_KERNEL_DIM), bound);
         }
     }
     if (no_map && asked > 1)
@@ -208,7 +209,8 @@ static int trace_one(struct photon_tracer *t, struct render_job *job, float r0, 
 {
     const struct scene_media *sm = t->scene->media;
     struct photon_pass_stats st;
-    float rv = (float)photon_pass_radius(r0, sm->alpha, p, 3), rsurf = (float)photon_pass_radius(r0, sm->alpha, p, 2);
+    float rv = (float)photon_pass_radius(r0, sm->alpha, p, passes_volume_kernel_dim(sm->method));
+    float rsurf = (float)photon_pass_radius(r0, sm->alpha, p, PASSES_SURFACE_KERNEL_DIM);
     job->media->radius = rv;
     double t0 = now_seconds();
     if (photon_trace_map(job, pass_seed(t->scene->settings.seed, p), t->threads, &out->data, &out->size, &st, t->err,

@@ -12,8 +12,10 @@
 #include "master/opts.h"
 #include "master/photons.h"
 #include "render/integrator.h"
+#include "render/passes.h"
 #include "render/photon_map.h"
 #include "scene/medium.h"
+#include "scene/scene_limits.h"
 #include "helpers.h"
 
 /* ---- radius schedule ---- */
@@ -46,6 +48,62 @@ Test(passes, radius_schedule)
     double r = photon_pass_radius(1.0, a, 1000000, 3);
     cr_assert(r < 0.25, "r %g", r);
     cr_assert_float_eq(r * r * r * pow(1e6, 1.0 - a), 1.0 / tgamma(1.0 + a), 1e-4);
+}
+
+/* ---- the default plan of passes ---- */
+
+Test(passes, kernel_dims)
+{
+    /* beam: photon points against the ray, a 2D disc across it; march: a 3D sphere. */
+    cr_assert_eq(passes_volume_kernel_dim(MEDIA_MARCH_BEAM), 2);
+    cr_assert_eq(passes_volume_kernel_dim(MEDIA_MARCH_STEPS), 3);
+    cr_assert_eq(PASSES_SURFACE_KERNEL_DIM, 2);
+    /* Knaus and Zwicker's alpha for a 2D kernel, 4 / (d + 4), is the default. */
+    cr_assert_float_eq(MEDIA_DEFAULT_ALPHA, 4.0f / (2.0f + 4.0f), 1e-7);
+}
+
+Test(passes, plan)
+{
+    struct pass_plan pl;
+    /* Default: a pass per sample, so the maps (and the radius shrinkage) grow with spp;
+     * photons per pass at most 4 per pixel. */
+    for (uint32_t spp = 1; spp <= 256; spp *= 2) {
+        cr_assert_eq(passes_plan(spp, 0, 300000, 0, 128 * 128, &pl), 0);
+        cr_assert_eq(pl.passes, spp);
+        cr_assert_eq(pl.spp_per_pass, 1u);
+        cr_assert_eq(pl.spp, spp);
+        cr_assert_eq(pl.photons, 4u * 128 * 128);
+    }
+    /* Fewer photons than the cap, or photons given on the command line: kept. */
+    cr_assert_eq(passes_plan(8, 0, 50000, 0, 160 * 120, &pl), 0);
+    cr_assert_eq(pl.photons, 50000u);
+    cr_assert_eq(passes_plan(8, 0, 300000, 1, 128 * 128, &pl), 0);
+    cr_assert_eq(pl.photons, 300000u);
+    cr_assert_eq(pl.passes, 8u);
+    /* All maps together stay within PASS_MAX_PHOTONS: then passes take more samples, and
+     * spp is not raised more than one sample per pass. */
+    cr_assert_eq(passes_plan(1000, 0, 32768, 1, 1, &pl), 0);
+    cr_assert(pl.passes * pl.photons <= PASS_MAX_PHOTONS);
+    cr_assert_eq(pl.passes, 500u);
+    cr_assert_eq(pl.spp_per_pass, 2u);
+    cr_assert_eq(pl.spp, 1000u);
+    cr_assert_eq(passes_plan(7, 0, PASS_MAX_PHOTONS * 4, 1, 1, &pl), 0);
+    cr_assert_eq(pl.passes, 1u);
+    cr_assert_eq(pl.spp, 7u);
+    /* Past SCENE_MAX_PASSES samples, passes take several each. */
+    cr_assert_eq(passes_plan(5000, 0, 100, 0, 1000, &pl), 0);
+    cr_assert_eq(pl.passes, 1000u);
+    cr_assert_eq(pl.spp_per_pass, 5u);
+    /* An explicit count wins: ceil(spp / P) per pass, spp raised to P k, photons as given. */
+    cr_assert_eq(passes_plan(10, 4, 300000, 0, 128 * 128, &pl), 0);
+    cr_assert_eq(pl.passes, 4u);
+    cr_assert_eq(pl.spp_per_pass, 3u);
+    cr_assert_eq(pl.spp, 12u);
+    cr_assert_eq(pl.photons, 300000u);
+    /* Over the spp limit: refused, with the plan that was asked for. */
+    cr_assert_eq(passes_plan(SCENE_MAX_SPP, 1000, 100, 0, 1, &pl), -1);
+    cr_assert_eq(pl.spp, 0u);
+    cr_assert_eq(pl.passes, 1000u);
 }
 
 /* ---- batch means ---- */
@@ -170,8 +228,8 @@ static struct photon_map *prepare(struct scene *s, uint32_t passes, uint32_t spp
     return maps;
 }
 
-/* The blob holds P maps with the radii of the schedule; the surface maps shrink by the 2D
- * rule; a damaged blob is refused. spp is raised to a multiple of the passes. */
+/* The blob holds P maps with the radii of the schedule; beam's volume maps and the surface
+ * maps shrink by the 2D rule; a damaged blob is refused. spp is raised to a multiple of the passes. */
 Test(passes, volume_blob_maps)
 {
     struct scene s;
@@ -181,7 +239,7 @@ Test(passes, volume_blob_maps)
     cr_assert_eq(n, 5u);
     uint32_t p = 0;
     for (const struct photon_map *m = maps; m; m = m->next_pass, p++) {
-        cr_assert_float_eq(m->radius, (float)photon_pass_radius(0.1, 2.0 / 3.0, p, 3), 1e-7);
+        cr_assert_float_eq(m->radius, (float)photon_pass_radius(0.1, 2.0 / 3.0, p, 2), 1e-7); /* beam: 2D */
         cr_assert_not_null(m->surface);
         cr_assert_float_eq(m->surface->radius, (float)photon_pass_radius(0.1, 2.0 / 3.0, p, 2), 1e-7);
         cr_assert(m->num_photons > 100);
@@ -191,6 +249,18 @@ Test(passes, volume_blob_maps)
     cr_assert(maps->num_photons != maps->next_pass->num_photons ||
               memcmp(maps->photons, maps->next_pass->photons, 20) != 0);
     photon_map_free(&maps);
+
+    /* No count asked: the master plans one pass per sample. */
+    struct master_opts od;
+    memset(&od, 0, sizeof od);
+    od.photon_threads = 1;
+    s.settings.spp = 3;
+    struct asset_dir dd;
+    memset(&dd, 0, sizeof dd);
+    cr_assert_eq(master_media_prepare(&s, &od, 0, &dd, &n), 0);
+    cr_assert_eq(n, 3u);
+    cr_assert_eq(s.settings.spp, 3u);
+    asset_dir_fini(&dd);
 
     /* Not a multiple: ceil(spp / P) per pass. */
     struct master_opts o;

@@ -1,0 +1,46 @@
+/* Progressive photon-map passes: the plan of a frame's passes and the kernel dimensions
+ * of the radius rule (see passes.h). */
+#include "render/passes.h"
+#include "scene/scene.h"
+#include "scene/scene_limits.h"
+
+int passes_volume_kernel_dim(enum media_method method)
+{
+    /* The beam estimate gathers the photons within r of the camera ray: its kernel blurs
+     * only across the ray, so its variance grows as 1 / r^2 against an r^2 bias, and the
+     * radius rule that balances the two is the 2D one (Jarosz et al. 2011). */
+    return method == MEDIA_MARCH_BEAM ? 2 : 3;
+}
+
+int passes_plan(uint32_t spp, uint32_t asked, uint64_t photons, int photons_given, uint64_t pixels,
+                struct pass_plan *out)
+{
+    if (spp == 0)
+        spp = 1;
+    uint32_t p = asked, k;
+    if (p == 0) {
+        /* A pass's cost grows with its photons twice: tracing them, and every beam query,
+         * which walks the M r^2 photons near its ray. Past a few photons per pixel, more
+         * passes buy more (each also shrinks the radius) than denser maps. */
+        uint64_t cap = (uint64_t)PASS_PHOTONS_PER_PIXEL * (pixels ? pixels : 1);
+        if (!photons_given && photons > cap)
+            photons = cap;
+        uint64_t most = photons ? PASS_MAX_PHOTONS / photons : SCENE_MAX_PASSES;
+        if (most < 1)
+            most = 1;
+        if (most > SCENE_MAX_PASSES)
+            most = SCENE_MAX_PASSES;
+        k = PASS_DEFAULT_SPP;
+        if ((spp + k - 1) / k > most)
+            k = (uint32_t)((spp + most - 1) / most);
+        p = (spp + k - 1) / k;
+    }
+    if (p > SCENE_MAX_PASSES)
+        p = SCENE_MAX_PASSES;
+    k = (spp + p - 1) / p;
+    out->passes = p;
+    out->spp_per_pass = k;
+    out->spp = (uint64_t)k * p > SCENE_MAX_SPP ? 0 : k * p;
+    out->photons = photons;
+    return out->spp ? 0 : -1;
+}
