@@ -736,12 +736,12 @@ Test(medium, gather_radius_near_zero)
     m.photons = &ph;
     m.bucket_start = start;
     m.decoded = NULL;
-    vec3 gk = photon_map_gather_knn(&m, v3(0, 0, 0), v3(1, 0, 0), 0.5f, 50, 2e-30f); /* outside the forward cone */
+    vec3 gk = photon_map_gather_knn(&m, v3(0, 0, 0), v3(1, 0, 0), 0.5f, 50, 2e-30f, PHOTON_DEPTH_ANY); /* outside the forward cone */
     cr_assert(v3_is_finite(gk) && gk.x > 0.0f);
     struct medium md;
     memset(&md, 0, sizeof md);
     md.sigma_t = v3(1, 1, 1);
-    vec3 b = photon_map_beam(&m, v3(0, 0, -1), v3(0, 0, 1), 2.0f, &md, NULL);
+    vec3 b = photon_map_beam(&m, v3(0, 0, -1), v3(0, 0, 1), 2.0f, &md, NULL, PHOTON_DEPTH_ANY);
     cr_assert(v3_is_finite(b));
 }
 
@@ -961,7 +961,7 @@ Test(medium, knn_matches_brute_force, .timeout = 60)
             partial++;
             cr_assert(r2 == rmax * rmax);
         }
-        vec3 e = photon_map_gather_knn(m, x, v3(0, 0, 1), 0.3f, k, rmax);
+        vec3 e = photon_map_gather_knn(m, x, v3(0, 0, 1), 0.3f, k, rmax, PHOTON_DEPTH_ANY);
         /* > 0 unless every photon found lies in the forward cone (photon_map.h) */
         cr_assert(v3_is_finite(e) && (n > 0 ? e.x >= 0.0f : e.x == 0.0f));
     }
