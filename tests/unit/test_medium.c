@@ -1108,3 +1108,33 @@ Test(medium, final_gather_matches_vpt, .timeout = 120)
 {
     photon_methods_match_vpt("final gather", FLOOR_SCENE("vpt", "true"), FLOOR_SCENE("beam", "true"), 4);
 }
+
+/* A closed box filled with fog (Cornell-like: white walls, a sphere lamp near the ceiling,
+ * the camera inside): every camera ray ends on a wall, so the image is the first wall's
+ * direct light, the fog along the camera ray, and what the final gather's bounce (marched
+ * through the fog by one point per segment, gather_segment) brings back. */
+#define FOG_BOX_SCENE(depth)                                                                                \
+    HEAD("\"position\": [0, 0, -9], \"look_at\": [0, -1, 0]", 12, 12, 1, depth)                             \
+    ",\n\"materials\": {\"white\": {\"type\": \"diffuse\", \"albedo\": [0.6, 0.6, 0.6]},\n"                 \
+    "  \"lamp\": {\"type\": \"diffuse\", \"albedo\": [0, 0, 0], \"emission\": [20, 20, 20]}},\n"              \
+    "\"media\": {\"fog\": {\"sigma_a\": [0.01, 0.01, 0.01], \"sigma_s\": [0.06, 0.06, 0.06], \"g\": 0.2}},\n" \
+    "\"volume\": {\"method\": \"beam\", \"fog\": \"fog\", \"photons\": 40000, \"radius\": 0.5, "              \
+    "\"step\": 0.25},\n"                                                                                     \
+    "\"objects\": [{\"type\": \"obj\", \"file\": \"box.obj\", \"material\": \"white\"},\n"                    \
+    "  {\"type\": \"sphere\", \"center\": [0, 7, 2], \"radius\": 1, \"material\": \"lamp\"}]}"
+
+Test(medium, fog_box_gather_matches_vpt, .timeout = 180)
+{
+    photon_methods_match_vpt("fog box", FOG_BOX_SCENE(64), FOG_BOX_SCENE(64), 8);
+}
+
+/* max_depth counts the scattering and surface events of the whole path for every method:
+ * march and beam count a march step's single scattering as one event and leave out the
+ * photons whose light path would make the path too long (docs/media.md). Short paths are
+ * where the counts differ most. */
+Test(medium, max_depth_same_for_all_methods, .timeout = 240)
+{
+    photon_methods_match_vpt("fog box, max_depth 1", FOG_BOX_SCENE(1), FOG_BOX_SCENE(1), 8);
+    photon_methods_match_vpt("fog box, max_depth 2", FOG_BOX_SCENE(2), FOG_BOX_SCENE(2), 8);
+    photon_methods_match_vpt("fog box, max_depth 3", FOG_BOX_SCENE(3), FOG_BOX_SCENE(3), 8);
+}
