@@ -497,7 +497,8 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
          * map's estimate and the path ends there, so that vertex's direct light is
          * next-event estimation's alone (full weight, no MIS partner). Looked up at the
          * first vertex directly, the map's noise shows as blotches. Without room for one
-         * more vertex (max_depth) the first vertex looks up. */
+         * more vertex (max_depth) the path ends at the first vertex too; its lookup then
+         * finds no photon short enough (max_depth bounds the light path as well). */
         const int diffuse_map = !vpt && mj->map && mj->map->surface && mat->type == MATERIAL_DIFFUSE;
         const int surface_map = diffuse_map && (gathered || depth >= rs->max_depth);
         if (diffuse_map)
