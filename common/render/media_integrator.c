@@ -335,13 +335,11 @@ static vec3 equiangular(const struct render_job *job, const struct rngs *r, uint
 }
 
 /* March and beam after the first non-delta bounce (the final gather's bounce and any
- * segment after it) in a homogeneous medium: the segment's in-scattering from one point instead of a
- * march, t from an exponential truncated to the segment (the light it sees: single
- * scattering by NEE, weighted against one equiangular sample toward a point light as in
- * VPT, and multiple scattering from the map's one-point estimate), times Tr(t) / pdf(t).
- * Its mean is the march's and the beam's (the sphere kernel integrates along the line to
- * the beam's); one shadow ray and one small query instead of one per step and a beam,
- * and these paths, spread over the hemisphere, average the extra noise away. */
+ * segment after it) in a homogeneous medium: single scattering from one point instead of
+ * a march, t from an exponential truncated to the segment, NEE there weighted against one
+ * equiangular sample toward a point light as in VPT, times Tr(t) / pdf(t): one or two
+ * shadow rays instead of one per step, and these paths, spread over the hemisphere,
+ * average the extra noise away. Multiple scattering: the beam over the whole segment. */
 static vec3 gather_segment(const struct render_job *job, const struct media_job *mj, const struct rngs *r,
                            uint32_t vertex, uint32_t depth, vec3 o, vec3 d, float len, uint32_t medium, vec3 chan,
                            float time01, uint64_t *rays)
@@ -361,9 +359,12 @@ static vec3 gather_segment(const struct render_job *job, const struct media_job 
                                              rng_mix64(r->key ^ (0x4753ull << 48) ^ vertex), rays, 0, &fc));
         L = v3_add(L, equiangular(job, r, vertex, &fc, medium, time01, rays));
     }
+    L = v3_add(L, v3_scale(v3_mul(medium_transmittance(md, fc.t), in), 1.0f / trunc_pdf(s, len, fc.t)));
+    /* Multiple scattering keeps the beam: a one-point estimate, photons within r of a
+     * single point, made the sample values heavy-tailed where photons are sparse. */
     if (kmax > 0 && mj->map)
-        in = v3_add(in, photon_map_sphere(mj->map, x, v3_neg(d), md->g, kmax));
-    return v3_add(L, v3_scale(v3_mul(medium_transmittance(md, fc.t), in), 1.0f / trunc_pdf(s, len, fc.t)));
+        L = v3_add(L, photon_map_beam(mj->map, o, d, len, md, NULL, kmax));
+    return L;
 }
 
 vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, uint32_t px, uint32_t py, vec3 org,

@@ -359,27 +359,6 @@ vec3 photon_map_surface(const struct photon_map *vm, vec3 x, vec3 n, uint32_t de
     return scaled(acc, 1.0 / (M_PI * rk * rk));
 }
 
-vec3 photon_map_sphere(const struct photon_map *m, vec3 x, vec3 d_out, float g, uint32_t depth_max)
-{
-    if (!m || m->num_photons == 0)
-        return v3(0, 0, 0);
-    float r = m->radius, r2 = r * r;
-    uint32_t buckets[MAX_VISIT];
-    uint32_t nb = sphere_buckets(m, x, r, buckets);
-    double acc[3] = {0, 0, 0};
-    for (uint32_t bi = 0; bi < nb; bi++)
-        for (uint32_t i = m->bucket_start[buckets[bi]]; i < m->bucket_start[buckets[bi] + 1]; i++) {
-            const struct photon *ph = &m->photons[i];
-            vec3 dp = v3_sub(v3(ph->p[0], ph->p[1], ph->p[2]), x);
-            if (ph->depth > depth_max || v3_dot(dp, dp) > r2)
-                continue;
-            vec3 c = photon_contrib(m, i, d_out, g);
-            acc[0] += c.x, acc[1] += c.y, acc[2] += c.z;
-        }
-    double rk = fmax((double)r, PM_MIN_KERNEL_RADIUS);
-    return scaled(acc, 1.0 / (4.0 / 3.0 * M_PI * rk * rk * rk));
-}
-
 /* Max-heap on squared distance (the root is the farthest of the k kept). */
 struct knn_item { float d2; uint32_t i; };
 

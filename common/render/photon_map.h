@@ -71,10 +71,6 @@ double photon_pass_radius(double r0, double alpha, uint32_t pass, int dim);
  * near the tangent plane (|(p - x) . n| <= r / 4) and arriving from n's side, over pi r^2.
  * A diffuse surface of albedo a reflects a / pi times it. 0 without a surface map. */
 vec3 photon_map_surface(const struct photon_map *m, vec3 x, vec3 n, uint32_t depth_max);
-/* Volume radiance estimate at one point with the map's fixed radius r: sum over photons
- * within r of x of phase (without the forward cone) x power / (4/3 pi r^3). The final
- * gather's one-point estimate; its kernel integrates along a line to the beam's. */
-vec3 photon_map_sphere(const struct photon_map *m, vec3 x, vec3 d_out, float g, uint32_t depth_max);
 /* Jensen's k-nearest query: the (at most) k photons nearest to x within rmax (capped at 8
  * hash-grid cells, 16 gather radii), searched in rings of cells around x's cell until the
  * k-th distance is below the next ring's; indices into m->photons in idx (room for
