@@ -16,7 +16,7 @@
 #     that is what the depth search is for). Cached under bench-out/ref/ by a key of the
 #     scene folder's files and these settings (not the binaries; REF_REDO=1 redoes it).
 #  2. The photon method at its defaults (the scene's volume.method, no override) at the spp
-#     of BUDGETS, and VPT at the reference depth at spp chosen (from one calibration render)
+#     of BUDGETS, and VPT, both at the reference depth, VPT at spp chosen (from one calibration render)
 #     to take about the same times. Time is the wall time of the whole master process
 #     (photon pass, worker start, scene build, render, EXR written). For each render:
 #     relRMSE against the reference, the same after an 8x8 box filter (low-frequency error:
@@ -119,10 +119,11 @@ for sc in $SCENES; do
   vdepth=$dref
   [ "$VPT_DEPTH" = scene ] && vdepth=$sdepth
   : >"$T/rows-$sc"
-  # The photon method at its defaults (no --media-method: the scene's method and settings).
+  # The photon method at its defaults (no --media-method: the scene's method and settings),
+  # at VPT's depth: max_depth bounds both methods' paths alike (docs/media.md).
   for spp in $BUDGETS; do
-    echo "media: $sc: $pm, $spp spp" >&2
-    t=$(render "$sc" "$T/p.exr" "$spp" "$SEED")
+    echo "media: $sc: $pm, $spp spp (max_depth $vdepth)" >&2
+    t=$(render "$sc" "$T/p.exr" "$spp" "$SEED" --max-depth "$vdepth")
     ps=$(pass_secs "$T/log")
     echo "$pm $spp $t $("$X" relrmse "$T/p.exr" "$REF") $("$X" relrmse "$T/p.exr" "$REF" --box "$BOX") $("$X" errest "$T/p.exr") ${ps:-0}" >>"$T/rows-$sc"
   done

@@ -52,9 +52,39 @@ static float equi_sample(const struct equi *e, float u)
     return e->delta + e->dist * tanf(e->ta + u * (e->tb - e->ta));
 }
 
-/* The segment a VPT vertex's free flight ran over, for the MIS between free-flight NEE and
- * equiangular sampling of point lights. */
-struct flight_ctx { vec3 o, d; float tend, t; vec3 chan; const struct medium *md; float eps; };
+/* The segment a distance sample ran over, for the MIS between its NEE and equiangular
+ * sampling of point lights: VPT's free flight (trunc 0), or the final gather's one point
+ * per segment (trunc 1: an exponential truncated to [0, tend), cut: phase without the
+ * forward cone). */
+struct flight_ctx { vec3 o, d; float tend, t; vec3 chan; const struct medium *md; float eps; int trunc, cut; };
+
+/* The truncated exponential's coefficient: sigma_t averaged over the channels (the weight
+ * Tr(t) / pdf(t) is per channel). */
+static float trunc_sigma(const struct medium *md)
+{
+    return (md->sigma_t.x + md->sigma_t.y + md->sigma_t.z) / 3.0f;
+}
+
+/* pdf of t in [0, tend) under exp(-s t) restricted to the segment (uniform when s tend is
+ * 0); expm1 keeps it exact in thin media. */
+static float trunc_pdf(float s, float tend, float t)
+{
+    float mass = -expm1f(-s * tend);
+    return mass > 0.0f ? s * expf(-s * t) / mass : 1.0f / tend;
+}
+
+static float trunc_sample(float s, float tend, float u)
+{
+    float mass = -expm1f(-s * tend);
+    float t = mass > 0.0f ? -log1pf(-u * mass) / s : u * tend;
+    return t < tend ? t : nextafterf(tend, 0.0f);
+}
+
+/* Density of the distance sample at t, for MIS. */
+static float flight_pdf(const struct flight_ctx *fc, float t)
+{
+    return fc->trunc ? trunc_pdf(trunc_sigma(fc->md), fc->tend, t) : medium_flight_pdf(fc->md, fc->chan, t);
+}
 
 static float rnd(const struct rngs *r, uint32_t vertex, uint32_t k)
 {
@@ -90,7 +120,7 @@ static vec3 scatter_nee(const struct render_job *job, vec3 x, vec3 d_out, uint32
     if (fc && ls.is_delta && equi_init(&e, fc->o, fc->d, ls.p, fc->tend, fc->eps) && fc->t < fc->tend) {
         /* Balance heuristic against equiangular sampling of the same light (its pick
          * probability is the same in both strategies and cancels). */
-        float pf = medium_flight_pdf(fc->md, fc->chan, fc->t), pe = equi_pdf(&e, fc->t);
+        float pf = flight_pdf(fc, fc->t), pe = equi_pdf(&e, fc->t);
         w = pf / (pf + pe);
     }
     return v3_scale(v3_mul(ls.radiance, tr), ph * w / ls.pdf);
@@ -136,15 +166,29 @@ static vec3 point_lights_all(const struct render_job *job, vec3 x, vec3 d_out, u
     return sum;
 }
 
-/* Jensen's march along [0, len) of o + t d in medium md: emission, single scattering and
- * the photon estimate, each attenuated to the camera (beta outside); *seg_tr gets the
- * segment's transmittance. Homogeneous media: closed-form transmittance to each step.
- * Grids: the optical depth accumulates step by step (a table of it serves the beam). */
+/* max_depth counts the scattering and surface events of the whole path. After `depth`
+ * camera events, in-scattering on a segment is one more (nee: 1 when single scattering
+ * still fits), and a photon that arrived after k events makes the path depth + 1 + k long:
+ * the largest k a volume lookup may count, or 0 for none (photons have k >= 1). */
+static uint32_t volume_photon_depth_max(uint32_t max_depth, uint32_t depth, int *nee)
+{
+    *nee = depth < max_depth;
+    return depth + 1 < max_depth ? max_depth - depth - 1 : 0;
+}
+
+/* Jensen's march along [0, len) of o + t d in medium md after `depth` camera events:
+ * emission, single scattering and the photon estimate, each attenuated to the camera (beta
+ * outside); *seg_tr gets the segment's transmittance. Homogeneous media: closed-form
+ * transmittance to each step. Grids: the optical depth accumulates step by step (a table
+ * of it serves the beam). */
 #define TAU_TABLE 4096
 static vec3 march_segment(const struct render_job *job, const struct media_job *mj, const struct rngs *r,
-                          uint32_t vertex, vec3 o, vec3 d, float len, uint32_t medium, float time01, uint64_t *rays,
-                          vec3 *seg_tr)
+                          uint32_t vertex, uint32_t depth, vec3 o, vec3 d, float len, uint32_t medium, float time01,
+                          uint64_t *rays, vec3 *seg_tr)
 {
+    int nee;
+    const uint32_t kmax = volume_photon_depth_max(job->scene->settings.max_depth, depth, &nee);
+    const struct photon_map *map = kmax > 0 ? mj->map : NULL;
     /* The forward cone is no scattering: camera rays see sigma_t less its share. */
     const struct medium *md = &mj->cut[medium];
     const int het = md->grid != NULL, emissive = !v3_is_black(md->emission);
@@ -199,33 +243,33 @@ static vec3 march_segment(const struct render_job *job, const struct media_job *
             break; /* nothing beyond reaches the camera */
         if (!(rho > 0.0f))
             continue;
-        vec3 ls = all_points ? point_lights_all(job, x, v3_neg(d), medium, md->g, time01,
+        vec3 ls = !nee ? v3(0, 0, 0) : all_points ? point_lights_all(job, x, v3_neg(d), medium, md->g, time01,
                                                 rng_mix64(seg_key ^ (0x5348ull << 48) ^ k), rays)
                              : scatter_nee(job, x, v3_neg(d), medium, md->g, 1, rng_uniform(seg_key, 3 * k),
                                            rng_uniform(seg_key, 3 * k + 1), rng_uniform(seg_key, 3 * k + 2), time01,
                                            rng_mix64(seg_key ^ (0x5348ull << 48) ^ k), rays, 0, NULL);
         vec3 in = v3_scale(v3_mul(md->sigma_s, ls), rho);
-        if (mj->sm->method == MEDIA_MARCH_STEPS && mj->map)
-            in = v3_add(in, photon_map_gather_knn(mj->map, x, v3_neg(d), md->g, mj->sm->knn,
-                                                             KNN_RADIUS_FACTOR * mj->map->radius));
+        if (mj->sm->method == MEDIA_MARCH_STEPS && map)
+            in = v3_add(in, photon_map_gather_knn(map, x, v3_neg(d), md->g, mj->sm->knn,
+                                                  KNN_RADIUS_FACTOR * map->radius, kmax));
         L = v3_add(L, v3_scale(v3_mul(tr, in), dx));
     }
     if (het)
         *seg_tr = v3(expf(-md->sigma_t.x * tau), expf(-md->sigma_t.y * tau), expf(-md->sigma_t.z * tau));
-    if (mj->sm->method == MEDIA_MARCH_BEAM && mj->map) {
+    if (mj->sm->method == MEDIA_MARCH_BEAM && map) {
         if (het) {
             /* Photons lie in the occupied box (stored only where the density is non-zero):
              * the beam need only walk the part of the ray within r of its world box. */
             vec3 blo, bhi;
             grid_world_box(md->grid, &blo, &bhi);
-            float rad = mj->map->radius, e0 = 0.0f, e1 = len;
+            float rad = map->radius, e0 = 0.0f, e1 = len;
             vec3 pad = v3(rad, rad, rad);
             if (v3_clip_box(o, d, v3_sub(blo, pad), v3_add(bhi, pad), &e0, &e1) && e0 < e1) {
                 struct photon_tau tt = {tau_tab, ntab, c0 - e0, dx};
-                L = v3_add(L, photon_map_beam(mj->map, v3_add(o, v3_scale(d, e0)), d, e1 - e0, md, &tt));
+                L = v3_add(L, photon_map_beam(map, v3_add(o, v3_scale(d, e0)), d, e1 - e0, md, &tt, kmax));
             }
         } else {
-            L = v3_add(L, photon_map_beam(mj->map, o, d, len, md, NULL));
+            L = v3_add(L, photon_map_beam(map, o, d, len, md, NULL, kmax));
         }
     }
     return L;
@@ -272,7 +316,7 @@ static vec3 equiangular(const struct render_job *job, const struct rngs *r, uint
     float t = equi_sample(&q, rnd(r, vertex, 9));
     if (!(t >= 0.0f && t < fc->tend))
         return v3(0, 0, 0);
-    float pe = equi_pdf(&q, t), pf = medium_flight_pdf(fc->md, fc->chan, t);
+    float pe = equi_pdf(&q, t), pf = flight_pdf(fc, t);
     vec3 x = v3_add(fc->o, v3_scale(fc->d, t));
     vec3 to = v3_sub(l->position, x);
     float d2 = v3_dot(to, to);
@@ -282,11 +326,45 @@ static vec3 equiangular(const struct render_job *job, const struct rngs *r, uint
     if (v3_is_black(li))
         return v3(0, 0, 0);
     /* light travels along -to, then back along -d toward the segment's origin */
-    float ph = phase_hg(v3_dot(v3_scale(to, 1.0f / sqrtf(d2)), fc->d), fc->md->g);
+    float cos_t = v3_dot(v3_scale(to, 1.0f / sqrtf(d2)), fc->d);
+    float ph = fc->cut ? phase_hg_cut(cos_t, fc->md->g) : phase_hg(cos_t, fc->md->g);
     vec3 tr = media_shadow_transmittance(job->media, x, l->position, medium, time01,
                                          rng_mix64(r->key ^ (0x4551ull << 48) ^ vertex), rays);
     vec3 f = v3_mul(v3_mul(medium_transmittance(fc->md, t), fc->md->sigma_s), v3_mul(li, tr));
     return v3_scale(f, ph * (pe / (pe + pf)) / (pick * pe));
+}
+
+/* March and beam after the first non-delta bounce (the final gather's bounce and any
+ * segment after it) in a homogeneous medium: single scattering from one point instead of
+ * a march, t from an exponential truncated to the segment, NEE there weighted against one
+ * equiangular sample toward a point light as in VPT, times Tr(t) / pdf(t): one or two
+ * shadow rays instead of one per step, and these paths, spread over the hemisphere,
+ * average the extra noise away. Multiple scattering: the beam over the whole segment. */
+static vec3 gather_segment(const struct render_job *job, const struct media_job *mj, const struct rngs *r,
+                           uint32_t vertex, uint32_t depth, vec3 o, vec3 d, float len, uint32_t medium, vec3 chan,
+                           float time01, uint64_t *rays)
+{
+    const struct medium *md = &mj->cut[medium];
+    vec3 L = medium_emission_integral(md, len);
+    if (v3_is_black(md->sigma_s) || !(len > 0.0f) || !isfinite(len))
+        return L;
+    int nee;
+    const uint32_t kmax = volume_photon_depth_max(job->scene->settings.max_depth, depth, &nee);
+    float s = trunc_sigma(md);
+    struct flight_ctx fc = {o, d, len, trunc_sample(s, len, rnd(r, vertex, 11)), chan, md, 1e-7f * mj->scene_size, 1, 1};
+    vec3 x = v3_add(o, v3_scale(d, fc.t)), in = v3(0, 0, 0);
+    if (nee && job->lights.num_entries > 0) {
+        in = v3_mul(md->sigma_s, scatter_nee(job, x, v3_neg(d), medium, md->g, 1, rnd(r, vertex, 12),
+                                             rnd(r, vertex, 13), rnd(r, vertex, 14), time01,
+                                             rng_mix64(r->key ^ (0x4753ull << 48) ^ vertex), rays, 0, &fc));
+        L = v3_add(L, equiangular(job, r, vertex, &fc, medium, time01, rays));
+    }
+    L = v3_add(L, v3_scale(v3_mul(medium_transmittance(md, fc.t), in), 1.0f / trunc_pdf(s, len, fc.t)));
+    /* Multiple scattering keeps the beam: a one-point estimate, photons within r of a
+     * single point, made the sample values heavy-tailed where photons are sparse. */
+    if (kmax > 0 && mj->map)
+        L = v3_add(L, photon_map_beam(mj->map, o, d, len, md, NULL, kmax));
+    return L;
 }
 
 vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, uint32_t px, uint32_t py, vec3 org,
@@ -314,6 +392,7 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
     int prev_delta = 1;
     uint32_t depth = 0, crossings = 0, vertex = 0;
     int gathered = 0;       /* the final gather's bounce is taken: the next diffuse vertex looks up */
+    int spread = 0;         /* a non-delta bounce was taken: segments take one point (gather_segment) */
     vec3 seg_start = org;   /* exact start of the segment (boundary point, not the offset origin) */
     *hit_any = 0;
     for (;;) {
@@ -333,7 +412,7 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
                 int scatter = medium_sample_flight(md, org, dir, tmax, chan, rng_mix64(r.key ^ (0x464cull << 48) ^ vertex), &t, &w);
                 /* Homogeneous media: one equiangular sample toward a point light per segment. */
                 struct flight_ctx fc = {org, dir, hit ? h.t : exit_distance(mj, org, dir), t, chan, md,
-                                        1e-7f * mj->scene_size};
+                                        1e-7f * mj->scene_size, 0, 0};
                 int equi = !md->grid && !v3_is_black(md->sigma_s) && job->lights.num_entries > 0 && depth < rs->max_depth;
                 if (equi)
                     L = v3_add(L, v3_mul(beta, equiangular(job, &r, vertex, &fc, medium, time01, rays)));
@@ -368,8 +447,13 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
             } else {
                 const struct medium *mdc = &mj->cut[medium];
                 float len = hit ? h.t : march_reach(mj, mdc, org, dir);
-                vec3 seg_tr;
-                L = v3_add(L, v3_mul(beta, march_segment(job, mj, &r, vertex, org, dir, len, medium, time01, rays, &seg_tr)));
+                vec3 seg_tr = v3(1, 1, 1);
+                if (spread && !md->grid)
+                    L = v3_add(L, v3_mul(beta, gather_segment(job, mj, &r, vertex, depth, org, dir, len, medium, beta,
+                                                              time01, rays)));
+                else
+                    L = v3_add(L, v3_mul(beta, march_segment(job, mj, &r, vertex, depth, org, dir, len, medium, time01,
+                                                             rays, &seg_tr)));
                 float exact = hit ? v3_length(v3_sub(v3_add(org, v3_scale(dir, h.t)), seg_start)) : INFINITY;
                 beta = v3_mul(beta, md->grid ? seg_tr : medium_transmittance(mdc, exact));
                 if (v3_is_black(beta))
@@ -414,7 +498,8 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
          * map's estimate and the path ends there, so that vertex's direct light is
          * next-event estimation's alone (full weight, no MIS partner). Looked up at the
          * first vertex directly, the map's noise shows as blotches. Without room for one
-         * more vertex (max_depth) the first vertex looks up. */
+         * more vertex (max_depth) the path ends at the first vertex too; its lookup then
+         * finds no photon short enough (max_depth bounds the light path as well). */
         const int diffuse_map = !vpt && mj->map && mj->map->surface && mat->type == MATERIAL_DIFFUSE;
         const int surface_map = diffuse_map && (gathered || depth >= rs->max_depth);
         if (diffuse_map)
@@ -449,7 +534,8 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
             }
         }
         if (surface_map) {
-            vec3 e = photon_map_surface(mj->map, s.p, ng);
+            /* photons of at most max_depth - depth events: depth counts this vertex */
+            vec3 e = photon_map_surface(mj->map, s.p, ng, rs->max_depth - depth);
             L = v3_add(L, v3_mul(beta, v3_mul(mat->albedo, v3_scale(e, (float)(1.0 / M_PI)))));
             break;
         }
@@ -470,6 +556,7 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
         prev_pdf = bs.pdf;
         prev_p = s.p;
         prev_delta = bs.is_delta;
+        spread |= !bs.is_delta;
         if (bs.transmitted) {
             medium = media_after_crossing(job->media, &h, s.ng, dir);
             org = offset_ray_origin(v3_sub(s.p, v3_scale(ng, s.p_err)), v3_neg(ng));

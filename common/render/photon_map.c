@@ -197,9 +197,10 @@ static int decode_one(const uint8_t *data, size_t size, size_t *used, struct pho
     for (uint32_t i = 0; ok && i < table; i++)
         ok = m->bucket_start[i] <= m->bucket_start[i + 1];
     for (uint32_t i = 0; ok && i < n; i++)
-        ok = isfinite(m->photons[i].p[0]) && isfinite(m->photons[i].p[1]) && isfinite(m->photons[i].p[2]);
+        ok = isfinite(m->photons[i].p[0]) && isfinite(m->photons[i].p[1]) && isfinite(m->photons[i].p[2]) &&
+             m->photons[i].depth >= 1 && m->photons[i].depth <= PHOTON_DEPTH_MAX;
     if (!ok) {
-        str_fmt(err, errlen, "photon map: bucket table or photon positions are invalid");
+        str_fmt(err, errlen, "photon map: bucket table, photon positions or depths are invalid");
         photon_map_free(&m);
         return -1;
     }
@@ -332,7 +333,7 @@ static vec3 scaled(const double acc[3], double k)
     return v3((float)fmin(acc[0] * k, 1e30), (float)fmin(acc[1] * k, 1e30), (float)fmin(acc[2] * k, 1e30));
 }
 
-vec3 photon_map_surface(const struct photon_map *vm, vec3 x, vec3 n)
+vec3 photon_map_surface(const struct photon_map *vm, vec3 x, vec3 n, uint32_t depth_max)
 {
     const struct photon_map *m = vm ? vm->surface : NULL;
     if (!m || m->num_photons == 0)
@@ -345,7 +346,7 @@ vec3 photon_map_surface(const struct photon_map *vm, vec3 x, vec3 n)
         for (uint32_t i = m->bucket_start[buckets[bi]]; i < m->bucket_start[buckets[bi] + 1]; i++) {
             const struct photon *ph = &m->photons[i];
             vec3 dp = v3_sub(v3(ph->p[0], ph->p[1], ph->p[2]), x);
-            if (v3_dot(dp, dp) > r2 || fabsf(v3_dot(dp, n)) > slab)
+            if (ph->depth > depth_max || v3_dot(dp, dp) > r2 || fabsf(v3_dot(dp, n)) > slab)
                 continue;
             const struct photon_decoded *pd = m->decoded ? &m->decoded[i] : NULL;
             vec3 dir = pd ? v3(pd->dir[0], pd->dir[1], pd->dir[2]) : photon_dir_decode(ph->dir);
@@ -461,7 +462,8 @@ uint32_t photon_map_knn(const struct photon_map *m, vec3 x, uint32_t k, float rm
     return n;
 }
 
-vec3 photon_map_gather_knn(const struct photon_map *m, vec3 x, vec3 d_out, float g, uint32_t k, float rmax)
+vec3 photon_map_gather_knn(const struct photon_map *m, vec3 x, vec3 d_out, float g, uint32_t k, float rmax,
+                           uint32_t depth_max)
 {
     uint32_t idx[PM_KNN_MAX];
     float r2;
@@ -469,7 +471,11 @@ vec3 photon_map_gather_knn(const struct photon_map *m, vec3 x, vec3 d_out, float
     if (n == 0)
         return v3(0, 0, 0);
     double acc[3] = {0, 0, 0};
+    /* The k nearest of all photons, then only the short enough ones counted: the same
+     * estimate as a ball of radius r_k holding just those, so still consistent. */
     for (uint32_t j = 0; j < n; j++) {
+        if (m->photons[idx[j]].depth > depth_max)
+            continue;
         vec3 c = photon_contrib(m, idx[j], d_out, g);
         acc[0] += c.x, acc[1] += c.y, acc[2] += c.z;
     }
@@ -517,7 +523,7 @@ static vec3 tau_tr(const struct photon_tau *tt, const struct medium *md, float t
 }
 
 vec3 photon_map_beam(const struct photon_map *m, vec3 o, vec3 d, float t1, const struct medium *md,
-                     const struct photon_tau *tau)
+                     const struct photon_tau *tau, uint32_t depth_max)
 {
     if (!m || m->num_photons == 0 || !(t1 > 0.0f))
         return v3(0, 0, 0);
@@ -547,6 +553,8 @@ vec3 photon_map_beam(const struct photon_map *m, vec3 o, vec3 d, float t1, const
         for (uint32_t bi = 0; bi < nb; bi++) {
             for (uint32_t i = m->bucket_start[buckets[bi]]; i < m->bucket_start[buckets[bi] + 1]; i++) {
                 const struct photon *ph = &m->photons[i];
+                if (ph->depth > depth_max)
+                    continue;
                 vec3 dp = v3_sub(v3(ph->p[0], ph->p[1], ph->p[2]), o);
                 float t = v3_dot(dp, d);
                 if (!(t >= a && t < b))

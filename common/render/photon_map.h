@@ -16,8 +16,13 @@ struct photon {
     float p[3];
     uint8_t rgbe[4];    /* power (W), shared exponent */
     uint16_t dir;       /* direction of travel, octahedral 8+8 bits */
-    uint16_t reserved;  /* 0 */
+    uint16_t depth;     /* scattering + surface events of the light path before it arrived here,
+                         * 1..PHOTON_DEPTH_MAX: lookups leave out photons that would make the
+                         * camera path plus the light path longer than max_depth */
 };
+#define PHOTON_DEPTH_MAX 1024u  /* volume.max_photon_depth's bound */
+/* A lookup's depth_max that keeps every photon. */
+#define PHOTON_DEPTH_ANY UINT32_MAX
 
 struct photon_decoded {
     float dir[3], power[3];
@@ -59,11 +64,13 @@ void photon_map_free(struct photon_map **pm);
  * r_p -> 0 for alpha < 1 (r_p^dim ~ p^(alpha - 1)); alpha = 1 keeps r0. */
 double photon_pass_radius(double r0, double alpha, uint32_t pass, int dim);
 
+/* Every lookup counts only photons of depth <= depth_max (PHOTON_DEPTH_ANY: all). */
+
 /* Flux density of indirect light at x on a surface with unit normal n (on the side light
  * arrives from): sum of the power of the surface photons within the map's radius of x,
  * near the tangent plane (|(p - x) . n| <= r / 4) and arriving from n's side, over pi r^2.
  * A diffuse surface of albedo a reflects a / pi times it. 0 without a surface map. */
-vec3 photon_map_surface(const struct photon_map *m, vec3 x, vec3 n);
+vec3 photon_map_surface(const struct photon_map *m, vec3 x, vec3 n, uint32_t depth_max);
 /* Jensen's k-nearest query: the (at most) k photons nearest to x within rmax (capped at 8
  * hash-grid cells, 16 gather radii), searched in rings of cells around x's cell until the
  * k-th distance is below the next ring's; indices into m->photons in idx (room for
@@ -73,7 +80,8 @@ vec3 photon_map_surface(const struct photon_map *m, vec3 x, vec3 n);
 uint32_t photon_map_knn(const struct photon_map *m, vec3 x, uint32_t k, float rmax, uint32_t *idx, float *r2);
 /* Jensen's per-step estimate with the k nearest photons (adaptive radius, at most rmax):
  * sum of phase x power / (4/3 pi r_k^3). */
-vec3 photon_map_gather_knn(const struct photon_map *m, vec3 x, vec3 d_out, float g, uint32_t k, float rmax);
+vec3 photon_map_gather_knn(const struct photon_map *m, vec3 x, vec3 d_out, float g, uint32_t k, float rmax,
+                           uint32_t depth_max);
 /* Beam radiance estimate (Jarosz et al. 2008) along o + t d, t in [0, t1), in homogeneous
  * medium md: sum over photons within r of the ray of K(r) Tr(t_i) phase power, K = 1 /
  * (pi r^2). One query for the whole segment. */
@@ -84,7 +92,7 @@ struct photon_tau {
 };
 /* tau: transmittance from a marched table (heterogeneous media), or NULL for the closed form. */
 vec3 photon_map_beam(const struct photon_map *m, vec3 o, vec3 d, float t1, const struct medium *md,
-                     const struct photon_tau *tau);
+                     const struct photon_tau *tau, uint32_t depth_max);
 
 /* Encodings, exposed for tests. */
 void photon_rgbe_encode(vec3 c, uint8_t out[4]);

@@ -196,7 +196,8 @@ static int emit(const struct trace_ctx *tc, uint64_t key, vec3 *o, vec3 *d, vec3
     return 0;
 }
 
-static void store(struct photon_list *l, vec3 p, vec3 d, vec3 power)
+/* depth: the events (scatterings, surface bounces) before the photon arrived at p. */
+static void store(struct photon_list *l, vec3 p, vec3 d, vec3 power, uint32_t depth)
 {
     if (!v3_is_finite(power) || v3_is_black(power))
         return;
@@ -205,7 +206,7 @@ static void store(struct photon_list *l, vec3 p, vec3 d, vec3 power)
     ph->p[0] = p.x, ph->p[1] = p.y, ph->p[2] = p.z;
     photon_rgbe_encode(power, ph->rgbe);
     ph->dir = photon_dir_encode(d);
-    ph->reserved = 0;
+    ph->depth = (uint16_t)depth; /* <= max_photon_depth <= PHOTON_DEPTH_MAX */
 }
 
 /* Traces photon `index`: volume photons into vol; when surf is non-NULL, photons arriving
@@ -240,7 +241,7 @@ static void trace_photon(const struct trace_ctx *tc, uint64_t index, struct phot
             if (scatter) {
                 vec3 x = v3_add(o, v3_scale(d, t));
                 if (indirect && !outside_keep(tc, x))
-                    store(vol, x, d, power);
+                    store(vol, x, d, power, depth);
                 /* Russian roulette keeps the power of survivors near what it was. */
                 float q = fminf(1.0f, v3_max_component(power) / fmaxf(v3_max_component(before), 1e-30f));
                 if (!(q > 0.0f) || rng_uniform(key, dim + 2) >= q)
@@ -271,7 +272,7 @@ static void trace_photon(const struct trace_ctx *tc, uint64_t index, struct phot
         /* Light reaching a diffuse surface after an interaction: its indirect light (what
          * arrives straight from a light, next-event estimation computes). */
         if (surf && indirect && mat->type == MATERIAL_DIFFUSE && !v3_is_black(mat->albedo))
-            store(surf, s.p, d, power);
+            store(surf, s.p, d, power, depth);
         vec3 wo = v3_neg(d);
         int front = v3_dot(s.ng, wo) >= 0.0f;
         vec3 ng = front ? s.ng : v3_neg(s.ng);

@@ -37,9 +37,9 @@ static void exercise(const uint8_t *blob, size_t n)
     md.sigma_t = v3_add(md.sigma_a, md.sigma_s);
     for (int i = 0; i < 4; i++) {
         vec3 x = v3(pts[i][0], pts[i][1], pts[i][2]);
-        (void)photon_map_gather_knn(m, x, v3(0, 1, 0), -0.2f, 8, 4.0f * m->radius);
-        (void)photon_map_beam(m, x, v3(0, 0, 1), 2.0f, &md, NULL);
-        (void)photon_map_surface(m, x, v3(0, 1, 0));
+        (void)photon_map_gather_knn(m, x, v3(0, 1, 0), -0.2f, 8, 4.0f * m->radius, PHOTON_DEPTH_ANY);
+        (void)photon_map_beam(m, x, v3(0, 0, 1), 2.0f, &md, NULL, PHOTON_DEPTH_ANY);
+        (void)photon_map_surface(m, x, v3(0, 1, 0), PHOTON_DEPTH_ANY);
     }
     photon_map_free(&m);
 }
@@ -58,8 +58,8 @@ static void exercise_blob(const uint8_t *blob, size_t n)
     for (const struct photon_map *m = maps; m; m = m->next_pass)
         for (int i = 0; i < 2; i++) {
             vec3 x = v3(pts[i][0], pts[i][1], pts[i][2]);
-            (void)photon_map_gather_knn(m, x, v3(0, 1, 0), 0.3f, 4, 4.0f * m->radius);
-            (void)photon_map_surface(m, x, v3(0, 1, 0));
+            (void)photon_map_gather_knn(m, x, v3(0, 1, 0), 0.3f, 4, 4.0f * m->radius, PHOTON_DEPTH_ANY);
+            (void)photon_map_surface(m, x, v3(0, 1, 0), PHOTON_DEPTH_ANY);
         }
     photon_map_free(&maps);
 }
