@@ -10,6 +10,7 @@
 #include "wire/blob.h"
 #include "image/imgio.h"
 #include "journal.h"
+#include "outnames.h"
 #include "launch.h"
 #include "base/log.h"
 #include "wire/net.h"
@@ -178,6 +179,7 @@ static int load_scene(struct master *m)
         master_fail(m, "%s", err);
         return -1;
     }
+    asset_set_stop_flag(&g_interrupted); /* a signal stops a long parse too */
     char *text = NULL;
     size_t len = 0;
     if (asset_dir_read(&m->assets, m->scene_rel, &text, &len, err, sizeof err) != 0) {
@@ -187,7 +189,7 @@ static int load_scene(struct master *m)
     struct asset_source src = asset_dir_source(&m->assets);
     int rc = scene_json_parse(o->scene_path, text, len, &src, &m->scene, err, sizeof err);
     free(text);
-    if (rc != 0) {
+    if (rc != 0 || outnames_check(o, &m->assets, err, sizeof err) != 0) {
         master_fail(m, "%s", err);
         return -1;
     }
@@ -1120,7 +1122,7 @@ static int write_stats(const struct master *m, int ok, char *err, size_t errlen)
     json_object_set_new(root, "counters", counters);
     char path[4200];
     snprintf(path, sizeof path, "%s.stats.json", o->output_path);
-    int rc = output_write_json(path, root, err, errlen);
+    int rc = asset_dir_find(&m->assets, path) >= 0 ? 0 : output_write_json(path, root, err, errlen); /* an input */
     json_decref(root);
     return rc;
 }

@@ -16,6 +16,12 @@
 /* Same cap as a blob (blob.h): a larger file could never reach a worker anyway. */
 #define ASSET_MAX_FILE_SIZE (1ull << 32)
 
+static const volatile sig_atomic_t *stop_flag;
+
+void asset_set_stop_flag(const volatile sig_atomic_t *flag) { stop_flag = flag; }
+
+int asset_stop_requested(void) { return stop_flag && *stop_flag; }
+
 int asset_path_check(const char *rel_path, char *err, size_t errlen)
 {
     size_t len = strlen(rel_path);
@@ -116,19 +122,16 @@ static int path_is_inside(const char *root, const char *real)
     return strncmp(root, real, n) == 0 && (real[n] == '/' || real[n] == '\0');
 }
 
-static int read_whole_fd(int fd, const char *rel_path, char **data, size_t *size, char *err, size_t errlen)
+/* fd is a regular file of file_size bytes (fstat). */
+static int read_whole_fd(int fd, const char *rel_path, off_t file_size, char **data, size_t *size, char *err,
+                         size_t errlen)
 {
-    struct stat st;
-    if (fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
-        str_fmt(err, errlen, "%s: not a regular file", rel_path);
-        return -1;
-    }
-    if ((unsigned long long)st.st_size >= ASSET_MAX_FILE_SIZE) {
+    if ((unsigned long long)file_size >= ASSET_MAX_FILE_SIZE) {
         str_fmt(err, errlen, "%s: file larger than %llu bytes", rel_path, ASSET_MAX_FILE_SIZE);
         return -1;
     }
     /* The size may change while we read; we read what is there up to EOF. */
-    size_t cap = (size_t)st.st_size + 1, len = 0;
+    size_t cap = (size_t)file_size + 1, len = 0;
     char *buf = mem_alloc(cap);
     for (;;) {
         if (len + 1 >= cap) {
@@ -168,6 +171,10 @@ int asset_dir_read(void *ctx, const char *rel_path, char **data, size_t *size, c
         str_fmt(err, errlen, "%s", why);
         return -1;
     }
+    if (asset_stop_requested()) {
+        str_fmt(err, errlen, "%s: interrupted", rel_path);
+        return -1;
+    }
     /* Served from the record when read before: the bytes a scene saw stay the bytes
      * that are published, even if the file changes on disk meanwhile. */
     for (size_t i = 0; i < dir->num_files; i++)
@@ -192,21 +199,41 @@ int asset_dir_read(void *ctx, const char *rel_path, char **data, size_t *size, c
         free(real);
         return -1;
     }
-    int fd = open(real, O_RDONLY | O_CLOEXEC | O_NOFOLLOW);
-    free(real);
+    /* O_NONBLOCK: opening a FIFO for reading would otherwise wait for a writer forever
+     * (signals included), before fstat could tell it is no file. It changes nothing for
+     * the regular files that are read. */
+    int fd = open(real, O_RDONLY | O_CLOEXEC | O_NOFOLLOW | O_NONBLOCK);
     if (fd < 0) {
         str_fmt(err, errlen, "%s: %s", rel_path, strerror(errno));
+        free(real);
         return -1;
     }
-    int rc = read_whole_fd(fd, rel_path, data, size, err, errlen);
+    struct stat st;
+    if (fstat(fd, &st) != 0) {
+        str_fmt(err, errlen, "%s: %s", rel_path, strerror(errno));
+        st.st_mode = 0;
+    } else if (!S_ISREG(st.st_mode)) {
+        str_fmt(err, errlen, "%s: not a regular file (%s)", rel_path,
+                S_ISFIFO(st.st_mode)                            ? "a FIFO"
+                : S_ISDIR(st.st_mode)                           ? "a folder"
+                : S_ISCHR(st.st_mode) || S_ISBLK(st.st_mode)    ? "a device"
+                : S_ISSOCK(st.st_mode)                          ? "a socket"
+                                                                : "not a file");
+    }
+    int rc = S_ISREG(st.st_mode) ? read_whole_fd(fd, rel_path, st.st_size, data, size, err, errlen) : -1;
     close(fd);
-    if (rc != 0)
+    if (rc != 0) {
+        free(real);
         return -1;
+    }
     mem_grow((void **)&dir->files, &dir->cap_files, dir->num_files + 1, sizeof *dir->files);
     struct asset_file *f = &dir->files[dir->num_files++];
     memset(f, 0, sizeof *f);
     memcpy(f->path, rel_path, strlen(rel_path) + 1);
     f->size = *size;
+    f->real = real;
+    f->dev = (uint64_t)st.st_dev;
+    f->ino = (uint64_t)st.st_ino;
     f->data = mem_alloc(*size + 1);
     memcpy(f->data, *data, *size + 1);
     return 0;
@@ -220,9 +247,60 @@ struct asset_source asset_dir_source(struct asset_dir *dir)
 
 void asset_dir_fini(struct asset_dir *dir)
 {
-    for (size_t i = 0; i < dir->num_files; i++)
+    for (size_t i = 0; i < dir->num_files; i++) {
         free(dir->files[i].data);
+        free(dir->files[i].real);
+    }
     free(dir->files);
     dir->files = NULL;
     dir->num_files = dir->cap_files = 0;
+}
+
+/* realpath of path, or of its folder joined with its last component when path does not
+ * exist yet (an output about to be written). NULL when neither resolves. */
+static char *resolve_maybe_new(const char *path)
+{
+    char *real = realpath(path, NULL);
+    if (real || errno != ENOENT)
+        return real;
+    size_t n = strlen(path);
+    char *folder = mem_alloc(n + 2);
+    memcpy(folder, path, n + 1);
+    char *slash = strrchr(folder, '/');
+    const char *name = slash ? path + (slash - folder) + 1 : path;
+    if (!slash)
+        strcpy(folder, ".");
+    else if (slash == folder)
+        folder[1] = '\0'; /* "/name" */
+    else
+        *slash = '\0';
+    char *rf = realpath(folder, NULL);
+    free(folder);
+    if (!rf)
+        return NULL;
+    size_t need = strlen(rf) + 1 + strlen(name) + 1;
+    char *out = mem_alloc(need);
+    str_fmt(out, need, "%s/%s", strcmp(rf, "/") == 0 ? "" : rf, name);
+    free(rf);
+    return out;
+}
+
+long asset_dir_find(const struct asset_dir *dir, const char *path)
+{
+    struct stat st;
+    int exists = stat(path, &st) == 0;
+    char *real = resolve_maybe_new(path);
+    long found = -1;
+    for (size_t i = 0; i < dir->num_files && found < 0; i++) {
+        const struct asset_file *f = &dir->files[i];
+        if (!f->real)
+            continue;
+        /* By name too: a file replaced since it was read has another inode, but writing
+         * over its name still destroys what the scene refers to. */
+        if ((exists && (uint64_t)st.st_dev == f->dev && (uint64_t)st.st_ino == f->ino) ||
+            (real && strcmp(real, f->real) == 0))
+            found = (long)i;
+    }
+    free(real);
+    return found;
 }

@@ -5,6 +5,7 @@
  * scene cannot name a file outside its folder. */
 #ifndef BRUME_ASSET_H
 #define BRUME_ASSET_H
+#include <signal.h>
 #include <stddef.h>
 #include <stdint.h>
 
@@ -17,6 +18,13 @@ struct asset_source {
     void *ctx;
 };
 
+/* The process's stop flag for scene loading (the master's SIGINT / SIGTERM flag; NULL,
+ * the default, for none). Once it is set, asset_dir_read and the parsers that can run
+ * long (OBJ, every few thousand lines) fail with "interrupted", so a signal ends a load
+ * within moments whatever the scene's size. */
+void asset_set_stop_flag(const volatile sig_atomic_t *flag);
+int asset_stop_requested(void);
+
 /* 0 if rel_path is a safe relative path (see above), else -1 with the reason in err. */
 int asset_path_check(const char *rel_path, char *err, size_t errlen);
 
@@ -27,13 +35,19 @@ int asset_path_join(const char *dir, const char *rel, char *out, size_t outlen, 
 
 /* A source reading from a folder on disk; it also records every file read (path and
  * bytes), which the master publishes as blobs. Symlinks that resolve outside the folder
- * are refused. */
+ * are refused; so is anything but a regular file, and opening never blocks (a FIFO named
+ * as a texture would otherwise hang the master in open()). */
 struct asset_dir {
     char root[4096];          /* realpath of the scene folder */
     struct asset_file {
         char path[ASSET_PATH_MAX];
         char *data;
         size_t size;
+        /* The file's resolved path and identity when read (real NULL for entries that are
+         * not files, such as the master's photon map): asset_dir_find compares output
+         * names against them. */
+        char *real;
+        uint64_t dev, ino;
     } *files;
     size_t num_files, cap_files;
 };
@@ -42,5 +56,9 @@ struct asset_source asset_dir_source(struct asset_dir *dir);
 /* Reads a file through the source and records it (used for the scene file itself). */
 int asset_dir_read(void *ctx, const char *rel_path, char **data, size_t *size, char *err, size_t errlen);
 void asset_dir_fini(struct asset_dir *dir);
+/* The recorded file that path (any path on this machine, e.g. an output name) names: the
+ * same device and inode, or the same resolved path (a name that does not exist yet is
+ * resolved through its folder). Its index, or -1 when path names none of them. */
+long asset_dir_find(const struct asset_dir *dir, const char *path);
 
 #endif

@@ -109,10 +109,15 @@ static inline float float_bits_offset(float p, int delta)
 
 /* Moves a surface point p off the surface to the side of the unit normal n, robustly at
  * any magnitude (Waechter and Binder, Ray Tracing Gems ch. 6): a few ulps far from the
- * origin, a fixed step near it. Hot: inlined into every spawn. */
+ * origin, a fixed step near it. The fixed step is 2^-16 while p lies half a unit or more
+ * from the origin, and shrinks with |p| below that: a scene a millionth of a unit across
+ * would otherwise step 2^-16, far past its own geometry, and lose its direct light. The
+ * rounding of the hit itself is the caller's p_err (surface.h). Hot: inlined into every
+ * spawn. */
 __attribute__((always_inline)) static inline vec3 offset_ray_origin(vec3 p, vec3 n)
 {
-    const float origin = 1.0f / 32.0f, float_scale = 1.0f / 65536.0f, int_scale = 256.0f;
+    const float origin = 1.0f / 32.0f, int_scale = 256.0f;
+    float float_scale = fminf(1.0f / 65536.0f, fmaxf(fmaxf(fabsf(p.x), fabsf(p.y)), fabsf(p.z)) * 0x1p-15f);
     int ox = (int)(int_scale * n.x), oy = (int)(int_scale * n.y), oz = (int)(int_scale * n.z);
     vec3 pi = v3(float_bits_offset(p.x, ox), float_bits_offset(p.y, oy), float_bits_offset(p.z, oz));
     return v3(fabsf(p.x) < origin ? p.x + float_scale * n.x : pi.x,

@@ -591,6 +591,9 @@ struct imgio_writer {
      * as the file has tiles, so a duplicate would lock out a missing tile: track them. */
     uint8_t *written;
     uint32_t num_written, num_tiles;
+    /* The first failed tile write (e.g. "No space left on device"): close reports it, not
+     * the missing tiles it left, whatever error buffer the caller gives close. */
+    char first_err[512];
 };
 
 static void writer_discard(struct imgio_writer *w)
@@ -698,6 +701,8 @@ int imgio_writer_put_tile(struct imgio_writer *w, uint32_t tx, uint32_t ty, cons
         char what[300];
         snprintf(what, sizeof what, "%s: cannot write tile (%u,%u)", w->path, tx, ty);
         lib_err(err, errlen, &w->stream, rv, what);
+        if (!w->first_err[0])
+            lib_err(w->first_err, sizeof w->first_err, &w->stream, rv, what);
         return -1;
     }
     w->written[k] = 1;
@@ -713,7 +718,10 @@ int imgio_writer_close(struct imgio_writer **wp, char *err, size_t errlen)
     *wp = NULL;
     if (w->num_written != w->num_tiles) {
         /* The offset table would point at nothing: never leave such a file behind. */
-        set_err(err, errlen, "%s: %u of %u tiles missing", w->path, w->num_tiles - w->num_written, w->num_tiles);
+        if (w->first_err[0])
+            set_err(err, errlen, "%s", w->first_err);
+        else
+            set_err(err, errlen, "%s: %u of %u tiles missing", w->path, w->num_tiles - w->num_written, w->num_tiles);
         writer_discard(w);
         return -1;
     }

@@ -1,6 +1,7 @@
 /* The surface interaction and next-event set-up (see surface.h). Hit points are rebuilt
  * from barycentrics of the stored vertices (exact to rounding), not from o + t d, so the
- * integer-ULP ray offsets of vec.h stay acne-free at any coordinate magnitude. */
+ * integer-ULP ray offsets of vec.h stay acne-free at any coordinate magnitude; near the
+ * origin p_err carries the scale of the triangle (triangle_p_err). */
 #include "render/surface.h"
 #include "scene/material.h"
 #include "scene/motion.h"
@@ -19,6 +20,32 @@ static vec3 step_vertex(const struct accel_motion *mo, uint32_t num_vertices, ui
     a += (size_t)fi * 3 * num_vertices;
     const float *b = a + 3 * (size_t)num_vertices;
     return v3((1.0f - f) * a[0] + f * b[0], (1.0f - f) * a[1] + f * b[1], (1.0f - f) * a[2] + f * b[2]);
+}
+
+/* How far a triangle hit may lie off the triangle (and an intersection test against it
+ * may err) below half a unit of coordinate magnitude, where offset_ray_origin's fixed step
+ * shrinks with |p|: a point near the origin of a triangle whose vertices lie far away has
+ * the vertices' rounding, not its own. 0 at larger magnitudes, where the fixed step
+ * (2^-16) and the ulp offsets already cover it. */
+static float triangle_p_err(vec3 p, uint32_t geom, uint32_t prim, const struct accel *acc,
+                            const struct accel_motion *mo, float time01)
+{
+    if (v3_max_abs(p) >= 0.5f)
+        return 0.0f;
+    const struct mesh *m = &acc->desc->meshes[geom];
+    const uint32_t *idx = &m->indices[3 * prim];
+    float mag = 0.0f;
+    for (int k = 0; k < 3; k++) {
+        vec3 v;
+        if (mo && mo->num_steps > 0) {
+            v = step_vertex(mo, m->num_vertices, idx[k], time01);
+        } else {
+            const float *a = &m->positions[3 * idx[k]];
+            v = v3(a[0], a[1], a[2]);
+        }
+        mag = fmaxf(mag, v3_max_abs(v));
+    }
+    return fminf(mag, 0.5f) * 0x1p-20f;
 }
 
 /* The hit as a surface point at the ray's time. Still geometry: barycentrics of the
@@ -83,6 +110,7 @@ void surface_from_hit(const struct accel *acc, const struct light_table *lt, vec
         s->ng = v3_normalize(motion_xform_normal(&x, s->ng));
         s->ns = v3_normalize(motion_xform_normal(&x, s->ns));
     }
+    s->p_err = triangle_p_err(s->p, h->geom, h->prim, acc, mo, time01);
     s->material = m->material_ids[h->prim];
     s->light = lt->tri_light && lt->tri_light[h->geom] ? lt->tri_light[h->geom][h->prim] : LIGHT_NONE;
 }

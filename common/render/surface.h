@@ -17,7 +17,7 @@ struct surface {
     vec3 ns;            /* unit shading normal, same side as ng */
     uint32_t material;
     uint32_t light;     /* light entry, or LIGHT_NONE */
-    float p_err;        /* bound on how far p may lie off the true surface; 0 for triangles */
+    float p_err;        /* bound on how far p may lie off the true surface (triangles: only near the origin) */
 };
 
 /* Hit h of the ray (org, dir) at time01 of accel acc as a surface point; lt gives the

@@ -854,6 +854,11 @@ int mesh_obj_parse(struct scene *scene, struct mesh_obj_cache *cache, const stru
     bool warned_unsupported = false;
     int rc = -1;
     while (reader_next_line(&r)) {
+        /* A huge OBJ parses for seconds: a SIGINT / SIGTERM must not wait for its end. */
+        if ((r.line & 4095) == 0 && asset_stop_requested()) {
+            reader_fail(&r, NULL, "interrupted");
+            goto done;
+        }
         struct token kw;
         int k = reader_token(&r, &kw);
         if (k < 0)

@@ -2,6 +2,7 @@
  * and the on-disk source (containment after realpath, so escaping symlinks are refused;
  * each file recorded once). Uses a fresh temporary folder per test. */
 #include <criterion/criterion.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -156,4 +157,54 @@ Test(asset_dir, init_errors)
     snprintf(p, sizeof p, "%s/secret.txt", g_tmp);
     cr_expect_eq(asset_dir_init(&dir, p, err, sizeof err), -1);
     cr_expect(strstr(err, "not a directory") != NULL, "%s", err);
+}
+
+/* A FIFO would block open() until a writer came; it is refused at once instead. Criterion
+ * times the test out (.timeout) rather than hang if it ever blocks again. */
+Test(asset_dir, refuses_a_fifo_without_blocking, .timeout = 10)
+{
+    char p[512];
+    snprintf(p, sizeof p, "%s/scene/pipe.png", g_tmp);
+    cr_assert_eq(mkfifo(p, 0600), 0);
+    expect_read_fails("pipe.png", "pipe.png: not a regular file (a FIFO)");
+}
+
+Test(asset_dir, a_signal_stops_reading)
+{
+    static volatile sig_atomic_t stop;
+    stop = 1;
+    asset_set_stop_flag(&stop);
+    expect_read_fails("a.obj", "a.obj: interrupted");
+    asset_set_stop_flag(NULL);
+}
+
+/* Output names against the files read: the same inode through a hard link or a symlink,
+ * the same resolved path, and names that are no input (new or existing). */
+Test(asset_dir, finds_a_read_file_by_any_name)
+{
+    struct asset_dir dir;
+    char err[512], folder[512], p[512], q[512];
+    snprintf(folder, sizeof folder, "%s/scene", g_tmp);
+    cr_assert_eq(asset_dir_init(&dir, folder, err, sizeof err), 0, "%s", err);
+    char *data;
+    size_t size;
+    cr_assert_eq(asset_dir_read(&dir, "sub/b.mtl", &data, &size, err, sizeof err), 0, "%s", err);
+    free(data);
+    snprintf(p, sizeof p, "%s/scene/sub/b.mtl", g_tmp);
+    cr_expect_eq(asset_dir_find(&dir, p), 0);
+    snprintf(p, sizeof p, "%s/scene/sub/../sub/b.mtl", g_tmp);
+    cr_expect_eq(asset_dir_find(&dir, p), 0);
+    snprintf(p, sizeof p, "%s/scene/sub/b.mtl", g_tmp);
+    snprintf(q, sizeof q, "%s/hard.png", g_tmp);
+    cr_assert_eq(link(p, q), 0);
+    cr_expect_eq(asset_dir_find(&dir, q), 0, "a hard link to an input not found");
+    snprintf(q, sizeof q, "%s/soft.png", g_tmp);
+    cr_assert_eq(symlink(p, q), 0);
+    cr_expect_eq(asset_dir_find(&dir, q), 0, "a symlink to an input not found");
+    snprintf(p, sizeof p, "%s/scene/a.obj", g_tmp); /* exists, never read */
+    cr_expect_eq(asset_dir_find(&dir, p), -1);
+    snprintf(p, sizeof p, "%s/scene/new.exr", g_tmp);
+    cr_expect_eq(asset_dir_find(&dir, p), -1);
+    cr_expect_eq(asset_dir_find(&dir, "no/such/folder/x.exr"), -1);
+    asset_dir_fini(&dir);
 }

@@ -1,0 +1,15 @@
+/* The names a run writes (each frame's EXR and journal, OUT.stats.json, the preview PNG)
+ * checked against the files the scene read, so `-o scene.json` or `-o model.obj` is
+ * refused before anything is rendered instead of destroying the input. Called by
+ * master/master.c once the scene is parsed; reads the file system, writes nothing. */
+#ifndef BRUME_OUTNAMES_H
+#define BRUME_OUTNAMES_H
+#include <stddef.h>
+#include "base/asset.h"
+#include "opts.h"
+
+/* 0 when no output name of the run names a file in inputs (same device and inode, or
+ * the same resolved path); else -1 with one line in err naming both. */
+int outnames_check(const struct master_opts *o, const struct asset_dir *inputs, char *err, size_t errlen);
+
+#endif

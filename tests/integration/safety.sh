@@ -1,0 +1,111 @@
+#!/bin/sh
+# Strangers on the machine and odd inputs: scene files that are FIFOs are refused at once
+# (never opened blocking), a signal stops a long scene load, an output name that is one of
+# the scene's own files is refused before rendering, a full disk is reported as such, and
+# the tiny scene scaled by 1e-7 and 1e7 renders as the original does.
+# Usage: BUILD=build sh tests/integration/safety.sh
+. "$(dirname "$0")/lib.sh"
+lib_init safety
+
+# --- a FIFO named as a texture or as an OBJ: refused by name, file:line:col, at once ---
+mkdir -p "$T/fifo"
+cp scenes/tiny/* "$T/fifo/"
+mkfifo "$T/fifo/pipe.png"
+printf 'newmtl floor\nKd 0.5 0.5 0.5\nmap_Kd pipe.png\n\nnewmtl box\nKd 0.7 0.3 0.2\n' >"$T/fifo/tiny.mtl"
+TMO=20 run $M "$T/fifo/tiny.json" -o "$T/fifo.exr" && r=0 || r=$?
+if [ $r = 1 ] && grep -qE "tiny\.mtl:3:[0-9]+: .*pipe\.png: not a regular file \(a FIFO\)" "$T/log" && [ ! -e "$T/fifo.exr" ]; then
+  ok "FIFO as a texture refused at once, named with file:line:col"; else bad "FIFO as a texture refused at once, named with file:line:col (rc $r)"; fi
+cp scenes/tiny/tiny.mtl "$T/fifo/"
+rm "$T/fifo/tiny.obj"
+mkfifo "$T/fifo/tiny.obj"
+TMO=20 run $M "$T/fifo/tiny.json" -o "$T/fifo.exr" && r=0 || r=$?
+if [ $r = 1 ] && grep -qE "tiny\.json:[0-9]+:[0-9]+: .*tiny\.obj: not a regular file \(a FIFO\)" "$T/log"; then
+  ok "FIFO as an OBJ refused at once, named with file:line:col"; else bad "FIFO as an OBJ refused at once, named with file:line:col (rc $r)"; fi
+
+# --- SIGTERM during a long scene load (thousands of objects naming one long OBJ) stops it
+# there, with the error line of an interrupted run ---
+mkdir -p "$T/slow"
+python3 - "$T/slow" <<'PY'
+import json, sys
+d = sys.argv[1]
+open(d + '/long.obj', 'w').write('#\n' * 400000 + 'v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n')
+objs = [{'type': 'obj', 'file': 'long.obj', 'material': 'm'} for i in range(20000)]
+json.dump({'version': 1, 'camera': {'position': [0, 0, 5], 'look_at': [0, 0, 0], 'fov_y': 40},
+           'render': {'width': 8, 'height': 8},
+           'materials': {'m': {'type': 'diffuse', 'albedo': [0.5, 0.5, 0.5]}}, 'objects': objs}, open(d + '/slow.json', 'w'))
+PY
+timeout 300 $M "$T/slow/slow.json" -o "$T/slow.exr" >"$T/log" 2>&1 &
+mp=$!
+echo $mp >>"$T/pids"
+sleep 1
+kill -TERM $mp 2>/dev/null
+wait $mp && r=0 || r=$?
+if [ $r = 1 ] && tail -1 "$T/log" | grep -qE "^master: error: .*long\.obj:[0-9]+:[0-9]+: interrupted" && [ ! -e "$T/slow.exr" ]; then
+  ok "SIGTERM during the scene load stops it, exit 1, interrupted"; else bad "SIGTERM during the scene load stops it, exit 1, interrupted (rc $r)"; fi
+rm -rf "$T/slow"
+
+# --- -o naming one of the scene's own files: refused before rendering, the file unchanged ---
+mkdir -p "$T/own"
+cp scenes/tiny/* "$T/own/"
+for f in tiny.json tiny.obj; do
+  sum=$(md5sum <"$T/own/$f")
+  run $M "$T/own/tiny.json" -o "$T/own/$f" && r=0 || r=$?
+  if [ $r = 1 ] && grep -q "refusing to overwrite" "$T/log" && [ "$(md5sum <"$T/own/$f")" = "$sum" ]; then
+    ok "-o $f refused, the file unchanged"; else bad "-o $f refused, the file unchanged (rc $r)"; fi
+done
+# the same through another name (a hard link: same inode), as the preview, as a frame's name
+# and as the stats file
+ln "$T/own/tiny.mtl" "$T/own/link.png"
+sum=$(md5sum <"$T/own/tiny.mtl")
+run $M "$T/own/tiny.json" -o "$T/own/x.exr" --preview "$T/own/link.png" && r=0 || r=$?
+if [ $r = 1 ] && grep -q "refusing to overwrite" "$T/log" && [ "$(md5sum <"$T/own/tiny.mtl")" = "$sum" ] && [ ! -e "$T/own/x.exr" ]; then
+  ok "--preview onto an input (hard link) refused"; else bad "--preview onto an input (hard link) refused (rc $r)"; fi
+cp "$T/own/lamp.obj" "$T/own/f.0007.exr"
+sed 's/"lamp.obj"/"f.0007.exr"/' scenes/tiny/tiny.json >"$T/own/frames.json"
+sum=$(md5sum <"$T/own/f.0007.exr")
+run $M "$T/own/frames.json" -o "$T/own/f.exr" --frames 1:1000000 && r=0 || r=$?
+if [ $r = 1 ] && grep -q "refusing to overwrite" "$T/log" && [ "$(md5sum <"$T/own/f.0007.exr")" = "$sum" ] && [ ! -e "$T/own/f.0001.exr" ]; then
+  ok "a frame of a range named like an input refused before frame 1"; else bad "a frame of a range named like an input refused before frame 1 (rc $r)"; fi
+cp scenes/tiny/lamp.obj "$T/own/s.stats.json"
+sed 's/"lamp.obj"/"s.stats.json"/' scenes/tiny/tiny.json >"$T/own/stats.json"
+sum=$(md5sum <"$T/own/s.stats.json")
+run $M "$T/own/stats.json" -o "$T/own/s" && r=0 || r=$?
+if [ $r = 1 ] && grep -q "refusing to overwrite" "$T/log" && [ "$(md5sum <"$T/own/s.stats.json")" = "$sum" ]; then
+  ok "a stats name that is an input: refused and left alone"; else bad "a stats name that is an input: refused and left alone (rc $r)"; fi
+
+# --- a full disk: the first cause, "No space left on device", with the file name ---
+mnt="$T/mnt"
+mkdir -p "$mnt"
+if mount -t tmpfs -o size=64k tmpfs "$mnt" 2>/dev/null; then
+  seen=0
+  for fill in 40 44 48 52 56 60; do
+    rm -rf "$mnt"/*
+    dd if=/dev/zero of="$mnt/fill" bs=1k count=$fill 2>/dev/null
+    run $M scenes/tiny/tiny.json -o "$mnt/o.exr" && r=0 || r=$?
+    [ $r = 0 ] && continue
+    seen=$((seen + 1))
+    if ! tail -1 "$T/log" | grep -qE "^master: error: $mnt/o\.exr[^ ]*: .*No space left on device$" || [ -e "$mnt/o.exr" ]; then
+      seen=-100
+      cp "$T/log" "$T/full.log"
+    fi
+  done
+  umount "$mnt"
+  if [ $seen -gt 0 ]; then ok "full disk reported as No space left on device, with the file ($seen fill levels)"
+  else BAD_LOGS=full.log bad "full disk reported as No space left on device, with the file"; fi
+else
+  echo "skip: full disk (cannot mount a tmpfs here)"
+fi
+
+# --- the tiny scene scaled by 1e-7 and 1e7 renders as the original (same samples, so the
+# difference must stay far below the image's own noise estimate) ---
+run $M scenes/tiny/tiny.json -o "$T/base.exr" --spp 16 && r=0 || r=1
+noise=$($X errest "$T/base.exr" 2>/dev/null)
+for s in 1e-7 1e7; do
+  python3 scripts/scene_variant.py scenes/tiny "$T/s$s" $s 0 0 0
+  run $M "$T/s$s/tiny.json" -o "$T/s$s.exr" --spp 16 && r2=0 || r2=1
+  rel=$($X relrmse "$T/s$s.exr" "$T/base.exr" 2>/dev/null)
+  if [ $r = 0 ] && [ $r2 = 0 ] && python3 -c 'import sys; sys.exit(not (float(sys.argv[1]) < 0.1 * float(sys.argv[2])))' "$rel" "$noise"; then
+    ok "tiny scaled by $s: relRMSE $rel against the original, noise $noise"; else bad "tiny scaled by $s: relRMSE $rel against the original, noise $noise"; fi
+done
+
+finish
