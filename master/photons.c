@@ -97,24 +97,30 @@ static int set_surface_radius(uint8_t **map, size_t *size, float radius, char *e
     return 0;
 }
 
-/* The passes a frame renders: --passes, else render.passes, else MASTER_DEFAULT_PASSES. */
 #define MASTER_DEFAULT_PASSES 8u
-static uint32_t passes_wanted(const struct scene *scene, const struct master_opts *o)
+
+int master_passes_fit(struct render_settings *rs, uint32_t passes)
 {
-    return o->have_passes ? o->passes : scene->settings.passes ? scene->settings.passes : MASTER_DEFAULT_PASSES;
+    uint32_t k = (rs->spp + passes - 1) / passes;
+    if ((uint64_t)k * passes > SCENE_MAX_SPP) {
+        log_error("passes: %u passes of %u spp exceed the %u spp limit (lower --spp or --passes / render.passes)",
+                  passes, k, (unsigned)SCENE_MAX_SPP);
+        return -1;
+    }
+    if (k * passes != rs->spp)
+        log_info("passes: spp %u raised to %u (%u passes of ceil(%u / %u) = %u spp)", rs->spp, k * passes, passes,
+                 rs->spp, passes, k);
+    rs->spp = k * passes;
+    return 0;
 }
 
 int master_media_prepare(struct scene *scene, const struct master_opts *o, uint32_t frame, struct asset_dir *assets,
-                         uint32_t *photon_maps)
+                         uint32_t asked, uint32_t *photon_maps)
 {
     struct scene_media *sm = scene->media;
     *photon_maps = 0;
-    uint32_t asked = o->have_passes ? o->passes : scene->settings.passes;
-    if (!sm) {
-        if (asked > 1)
-            log_info("passes: 1 (%u asked): passes apply to photon maps and the scene has no media", asked);
+    if (!sm)
         return 0;
-    }
     if (o->have_media_method)
         sm->method = (enum media_method)o->media_method;
     if (o->have_photons)
@@ -156,26 +162,19 @@ int master_media_prepare(struct scene *scene, const struct master_opts *o, uint3
         } else {
             /* Progressive photon mapping: P maps from fresh seeds, radii by the PPM rule,
              * traced while tiles render (photon_tracer_new). */
-            passes = passes_wanted(scene, o);
+            passes = asked ? asked : MASTER_DEFAULT_PASSES;
             struct render_settings *rs = &scene->settings;
-            uint32_t k = (rs->spp + passes - 1) / passes;
-            if ((uint64_t)k * passes > SCENE_MAX_SPP) {
-                log_error("passes: %u passes of %u spp exceed the %u spp limit (lower --spp or --passes / "
-                          "render.passes)", passes, k, (unsigned)SCENE_MAX_SPP);
+            if (master_passes_fit(rs, passes) != 0)
                 return -1;
-            }
-            if (k * passes != rs->spp)
-                log_info("passes: spp %u raised to %u (%u passes of ceil(%u / %u) = %u spp)", rs->spp, k * passes,
-                         passes, rs->spp, passes, k);
-            rs->spp = k * passes;
+            uint32_t k = rs->spp / passes;
             log_info("passes: %u of %u spp (%u spp), pass p with photon map p; radius %g to %g (surface %g to %g), "
                      "multiple-scattering bound %.3g", passes, k, rs->spp, (double)r0,
                      photon_pass_radius(r0, sm->alpha, passes - 1, 3), (double)r0,
                      photon_pass_radius(r0, sm->alpha, passes - 1, 2), bound);
         }
     }
-    if (no_map && asked > 1)
-        log_info("passes: 1 (%u asked): no photon map (%s)", asked, no_map);
+    if (no_map)
+        log_debug("media: no photon map (%s)", no_map);
     /* The settings alone: the maps are blobs of their own, one per pass (MSG_MAP). */
     volume_blob_make(sm, NULL, 0, &blob, &blob_size);
     publish(assets, blob, blob_size);
