@@ -41,7 +41,7 @@ TXT="$OUT/adaptive.txt"
 # run SCENE_JSON OUT [args]: CPU seconds of one master run with one local worker.
 run() { r_j=$1; r_o=$2; shift 2; cpu_secs "$M" "$r_j" -o "$r_o" --workers 1 --threads "$CORES" --no-journal "$@"; }
 # truerr IMG REF REFERR: relRMSE against the reference with the reference's own error removed.
-truerr() { awk -v a="$($X relrmse "$1" "$2")" -v r="$3" 'BEGIN { d = a * a - r * r; printf "%.5f\n", d > 0 ? sqrt(d) : 0 }'; }
+truerr() { awk -v a="$($X relrmse "$1" "$2")" -v r="$3" 'BEGIN { d = a * a - r * r; printf "%.5f\n", (d > 0) ? sqrt(d) : 0 }'; }
 
 {
   echo "# bench_adaptive: CPU seconds, true relRMSE (reference error removed), on $(nproc) cores"
@@ -79,7 +79,7 @@ for s in $SCENES; do
   done
   while read -r E c e est sppm; do
     uc=$(awk '{ print $3, $2 }' "$DAT.u" | loglog_interp "$e")
-    ratio=$(awk -v a="$c" -v u="${uc%\*}" 'BEGIN { printf "%.3f\n", u > 0 ? a / u : 0 }')
+    ratio=$(awk -v a="$c" -v u="${uc%\*}" 'BEGIN { printf "%.3f\n", (u > 0) ? a / u : 0 }')
     printf "%s %s %s %s %.3f %s %s %s %s\n" "$s" "$E" "$c" "$e" "$(awk -v e="$e" -v t="$E" 'BEGIN { print e / t }')" "$est" \
       "$sppm" "$uc" "$ratio" >>"$TXT"
   done <"$DAT.a"
