@@ -36,7 +36,7 @@ TOOLS      := exrtool junkpeer replay maketex texbench
 TOOL_BIN   := $(TOOLS:%=$(BUILD)/%)
 TOOL_OBJ   := $(TOOLS:%=$(BUILD)/obj/tests/tools/%.o)
 
-.PHONY: all deps test layers unit integration demo bench bench-media clean fuzz fuzz-ci tools stress test-slurm test-netns
+.PHONY: all deps test layers unit integration demo bench bench-media bench-adaptive clean fuzz fuzz-ci tools stress test-slurm test-netns
 all: $(BUILD)/master $(BUILD)/worker $(TOOL_BIN)
 
 # Install what is missing; the stamp makes later builds skip the check.
@@ -116,11 +116,16 @@ bench: all
 	BUILD=$(BUILD) sh scripts/bench_motion.sh
 	BUILD=$(BUILD) sh scripts/bench_media.sh
 	BUILD=$(BUILD) sh scripts/bench_textures.sh
+	BUILD=$(BUILD) sh scripts/bench_adaptive.sh
 
 # Media: error against time for vpt and the photon method against an honest VPT reference
 # (docs/benchmarks.md); quick run: SCENES=fog_spot BUDGETS="2 6" REF_SPP=256 make bench-media
 bench-media: all
 	BUILD=$(BUILD) sh scripts/bench_media.sh
+# Adaptive rendering against uniform spp at equal error, and calibration (docs/adaptive.md);
+# quick run: SCENES="cornell_glass motion" TARGETS="0.05 0.02" REF_SPP=1024 make bench-adaptive
+bench-adaptive: all
+	BUILD=$(BUILD) sh scripts/bench_adaptive.sh
 
 # Fuzz targets (libFuzzer, clang): make fuzz FUZZ_SECONDS=60 [FUZZ_ONLY="fuzz_nvdb ..."]
 FUZZ_SECONDS ?= 30

@@ -4,30 +4,43 @@
 #include "fold.h"
 #include "base/log.h"
 #include "render/integrator.h"
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+const char *const fold_samples_channel = "samples";
+
 struct fold_tile {
     uint32_t folded;            /* passes 0..folded-1 are in acc */
+    int final;                  /* finished: takes nothing more */
     struct pass_pixel *acc;     /* per pixel, NULL before the first pass */
     float **early;              /* per pass: a copy of a pass that came before its turn, or NULL */
 };
 
 struct fold {
     struct image_desc desc;
-    uint32_t passes, num_tiles, tiles_x;
+    uint32_t passes, spp_per_pass, num_tiles, tiles_x;
     struct fold_tile *tiles;
 };
 
-struct fold *fold_new(const struct image_desc *desc, uint32_t passes)
+struct fold *fold_new(const struct image_desc *desc, uint32_t passes, uint32_t spp_per_pass)
 {
     struct fold *f = mem_calloc(1, sizeof *f);
     f->desc = *desc;
     f->passes = passes;
+    f->spp_per_pass = spp_per_pass;
     f->tiles_x = imgio_tiles_x(desc);
     f->num_tiles = f->tiles_x * imgio_tiles_y(desc);
     f->tiles = mem_calloc(f->num_tiles ? f->num_tiles : 1, sizeof *f->tiles);
     return f;
+}
+
+void fold_output_desc(const struct image_desc *desc, struct image_desc *out)
+{
+    *out = *desc;
+    out->num_channels = FOLD_NUM_CHANNELS;
+    snprintf(out->channel_names[FOLD_CH_SAMPLES], sizeof out->channel_names[FOLD_CH_SAMPLES], "%s",
+             fold_samples_channel);
 }
 
 static void tile_clear(struct fold *f, struct fold_tile *t)
@@ -56,6 +69,13 @@ void fold_free(struct fold **fp)
     *fp = NULL;
 }
 
+static size_t tile_pixels(const struct fold *f, uint32_t tile)
+{
+    uint32_t x0, y0, w, h;
+    imgio_tile_rect(&f->desc, tile % f->tiles_x, tile / f->tiles_x, &x0, &y0, &w, &h);
+    return (size_t)w * h;
+}
+
 static void fold_pass(struct fold_tile *t, size_t pixels, const float *px)
 {
     for (size_t i = 0; i < pixels; i++)
@@ -63,13 +83,12 @@ static void fold_pass(struct fold_tile *t, size_t pixels, const float *px)
     t->folded++;
 }
 
-int fold_add(struct fold *f, uint32_t tile, uint32_t pass, const float *px, float *out, struct tile_stats *stats)
+uint32_t fold_add_unit(struct fold *f, uint32_t tile, uint32_t pass, const float *px)
 {
     CHECK(tile < f->num_tiles && pass < f->passes);
     struct fold_tile *t = &f->tiles[tile];
-    uint32_t x0, y0, w, h;
-    imgio_tile_rect(&f->desc, tile % f->tiles_x, tile / f->tiles_x, &x0, &y0, &w, &h);
-    size_t pixels = (size_t)w * h;
+    CHECK(!t->final);
+    size_t pixels = tile_pixels(f, tile);
     if (!t->acc) {
         t->acc = mem_calloc(pixels, sizeof *t->acc);
         t->early = mem_calloc(f->passes, sizeof *t->early);
@@ -78,7 +97,7 @@ int fold_add(struct fold *f, uint32_t tile, uint32_t pass, const float *px, floa
         CHECK(pass > t->folded && !t->early[pass]);
         t->early[pass] = mem_alloc(sizeof(float) * pixels * TILE_NUM_CHANNELS);
         memcpy(t->early[pass], px, sizeof(float) * pixels * TILE_NUM_CHANNELS);
-        return 0;
+        return t->folded;
     }
     fold_pass(t, pixels, px);
     while (t->folded < f->passes && t->early[t->folded]) {
@@ -87,11 +106,49 @@ int fold_add(struct fold *f, uint32_t tile, uint32_t pass, const float *px, floa
         fold_pass(t, pixels, e);
         free(e);
     }
-    if (t->folded < f->passes)
-        return 0;
-    for (size_t i = 0; i < pixels; i++)
-        pass_pixel_finish(&t->acc[i], &out[i * TILE_NUM_CHANNELS], stats);
+    return t->folded;
+}
+
+void fold_finish(struct fold *f, uint32_t tile, float *out, struct tile_stats *stats)
+{
+    CHECK(tile < f->num_tiles);
+    struct fold_tile *t = &f->tiles[tile];
+    CHECK(!t->final);
+    size_t pixels = tile_pixels(f, tile);
+    uint32_t folded = t->folded;
+    for (size_t i = 0; i < pixels; i++) {
+        float *px = &out[i * FOLD_NUM_CHANNELS];
+        if (t->acc) {
+            pass_pixel_finish(&t->acc[i], px, stats);
+        } else {
+            memset(px, 0, sizeof(float) * TILE_NUM_CHANNELS);
+        }
+        px[FOLD_CH_SAMPLES] = (float)((double)folded * f->spp_per_pass);
+    }
     tile_clear(f, t);
-    t->folded = f->passes; /* final: nothing more is taken */
+    t->folded = folded;
+    t->final = 1;
+}
+
+int fold_add(struct fold *f, uint32_t tile, uint32_t pass, const float *px, float *out, struct tile_stats *stats)
+{
+    if (fold_add_unit(f, tile, pass, px) < f->passes)
+        return 0;
+    fold_finish(f, tile, out, stats);
     return 1;
+}
+
+void fold_tile_sums(const struct fold *f, uint32_t tile, double *sum_var, double *sum_mean)
+{
+    CHECK(tile < f->num_tiles);
+    const struct fold_tile *t = &f->tiles[tile];
+    double v = 0.0, mu = 0.0;
+    size_t pixels = tile_pixels(f, tile);
+    for (size_t i = 0; t->acc && i < pixels; i++) {
+        const struct pass_batch *b = &t->acc[i].b;
+        v += (pass_batch_var_of_mean(b, 0) + pass_batch_var_of_mean(b, 1) + pass_batch_var_of_mean(b, 2)) / 3.0;
+        mu += (b->mean[0] + b->mean[1] + b->mean[2]) / 3.0;
+    }
+    *sum_var = v;
+    *sum_mean = mu;
 }

@@ -1,7 +1,8 @@
-/* Folding a frame's units (tile, pass) into final tiles: progressive passes arrive in any
- * order, from any worker, journal or kept copy, and each tile's passes are folded in pass
- * order (Welford's batch means, pass_pixel_fold), a pass that comes early being buffered,
- * so the final pixels do not depend on arrival order. Pure: no I/O. Called by
+/* Folding a frame's units (tile, pass) into final tiles: passes arrive in any order, from
+ * any worker, journal or kept copy, and each tile's passes are folded in pass order
+ * (Welford's batch means, pass_pixel_fold), a pass that comes early being buffered, so
+ * the final pixels do not depend on arrival order. A final tile has FOLD_NUM_CHANNELS
+ * channels: the tile's, then the samples each pixel received. Pure: no I/O. Called by
  * master/master.c; tested by tests/unit/test_fold.c. */
 #ifndef BRUME_FOLD_H
 #define BRUME_FOLD_H
@@ -9,18 +10,34 @@
 #include "image/imgio.h"
 #include "render/tile.h"
 
+#define FOLD_NUM_CHANNELS (TILE_NUM_CHANNELS + 1)
+#define FOLD_CH_SAMPLES TILE_NUM_CHANNELS
+extern const char *const fold_samples_channel; /* "samples" */
+
 struct fold;
 
-/* Folds for the tiles of desc in `passes` passes (>= 2). */
-struct fold *fold_new(const struct image_desc *desc, uint32_t passes);
+/* Folds for the tiles of desc in at most `passes` passes (>= 2) of spp_per_pass samples. */
+struct fold *fold_new(const struct image_desc *desc, uint32_t passes, uint32_t spp_per_pass);
 void fold_free(struct fold **f);
 /* A new frame: nothing folded or buffered. */
 void fold_reset(struct fold *f);
+/* The output layout: desc's channels and the samples channel. */
+void fold_output_desc(const struct image_desc *desc, struct image_desc *out);
 /* Unit (tile, pass)'s channels (the tile's w*h pixels, TILE_NUM_CHANNELS each, as
  * integrator_render_tile_pass writes them); tile and pass must be in range, and each unit
- * is given once (the scheduler's done state guarantees it). 1 when this completed the
- * tile: its final pixels (mean, coverage, batch-means variance) are in out (w*h pixels)
- * and its relative standard errors added to stats; 0 while passes are missing. */
+ * is given once (the scheduler's done state guarantees it). Returns the passes folded
+ * now: passes 0..n-1 are in, later ones buffered. */
+uint32_t fold_add_unit(struct fold *f, uint32_t tile, uint32_t pass, const float *px);
+/* A tile's final pixels from its folded passes (mean, coverage, batch-means variance,
+ * samples) into out (w*h pixels of FOLD_NUM_CHANNELS), its relative standard errors
+ * added to stats; the tile then takes nothing more. */
+void fold_finish(struct fold *f, uint32_t tile, float *out, struct tile_stats *stats);
+/* fold_add_unit, and fold_finish once all `passes` are in: 1 then, 0 while passes are
+ * missing. */
 int fold_add(struct fold *f, uint32_t tile, uint32_t pass, const float *px, float *out, struct tile_stats *stats);
+/* Over the tile's pixels after its folded passes: the sum of the variance of the pixel
+ * mean and the sum of the pixel mean, each the mean of R, G and B (as the summary's
+ * relRMSE counts them). */
+void fold_tile_sums(const struct fold *f, uint32_t tile, double *sum_var, double *sum_mean);
 
 #endif

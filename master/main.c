@@ -39,8 +39,15 @@ static void usage(FILE *f)
             "  --keygen KEYFILE       write a new key pair to KEYFILE and KEYFILE.pub, then exit\n"
             "  --media-method NAME    vpt, march or beam: how media are rendered (overrides the scene)\n"
             "  --photons N            photons the photon pass emits, per pass (overrides the scene)\n"
-            "  --passes N             progressive photon-map passes, 1..1024 (overrides render.passes; default one\n"
-            "                         per sample with a photon map, 1 otherwise); each renders ceil(spp / N) samples\n"
+            "  --passes N             passes, 1..1024 (overrides render.passes; default one per\n"
+            "                         sample with a photon map, 1 otherwise); each renders ceil(spp / N) samples with its own scramble (and\n"
+            "                         photon map); the error estimate is then from batch means\n"
+            "  --target-error E       adaptive: render until the estimated relRMSE is E (overrides\n"
+            "                         render.target_error); --spp is the cap (default 4096), --passes the most\n"
+            "                         passes a tile gets (default spp / 8)\n"
+            "  --time-limit T         adaptive: stop at the first round boundary after T seconds (overrides\n"
+            "                         render.time_limit); the EXR records the rounds reached\n"
+            "  --max-rounds R         adaptive: at most R rounds (reproduces a time-limited run exactly)\n"
             "  --gather-radius R      photon gather radius in scene units (overrides the scene)\n"
             "  --march-step R         ray-marching step in scene units (overrides the scene)\n"
             "  --photon-threads T     threads of the photon pass (default: cores); the map is the same for any T\n"
@@ -126,7 +133,26 @@ int main(int argc, char **argv)
         NUM_OPT("--photon-threads", 1, 1024, o.photon_threads, dummy)
         NUM_OPT("--photons", 0, 1ull << 32, o.photons, o.have_photons)
         NUM_OPT("--passes", 1, 1024, o.passes, o.have_passes)
+        NUM_OPT("--max-rounds", 1, 1024, o.max_rounds, o.have_max_rounds)
 #undef NUM_OPT
+        if (has_arg && (!strcmp(a, "--target-error") || !strcmp(a, "--time-limit"))) {
+            int target = !strcmp(a, "--target-error");
+            char *end;
+            const char *t = argv[++i];
+            double d = strtod(t, &end);
+            if (!*t || *end || !(d > 0.0) || !(d < (target ? 1.0 : 1e9))) {
+                log_error("%s: \"%s\" is not a number in %s", a, t, target ? "(0, 1)" : "(0, 1e9) seconds");
+                return 2;
+            }
+            if (target) {
+                o.target_error = d;
+                o.have_target_error = 1;
+            } else {
+                o.time_limit = d;
+                o.have_time_limit = 1;
+            }
+            continue;
+        }
         if (has_arg && (!strcmp(a, "--gather-radius") || !strcmp(a, "--march-step"))) {
             char *end;
             const char *t = argv[++i];

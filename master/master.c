@@ -18,6 +18,7 @@
 #include "zap.h"
 #include "output.h"
 #include "fold.h"
+#include "adapt.h"
 #include "photons.h"
 #include "sched.h"
 #include "render/integrator.h"
@@ -43,6 +44,11 @@
 #define MAX_PEERS 4096
 #define PROGRESS_PLAIN_MS 5000
 #define PROGRESS_TTY_MS 250
+/* Adaptive defaults (docs/adaptive.md): the spp cap without --spp, and the samples of a
+ * pass (each pass is an independently scrambled set, so a larger one keeps more of the
+ * sampler's stratification; a smaller one adapts in finer steps). */
+#define MASTER_ADAPT_SPP_CAP 4096u
+#define MASTER_ADAPT_PASS_SPP 8u
 /* Who a worker is; its scheduling state is m->sched->workers[same index]. */
 struct peer {
     uint8_t id[NET_MAX_IDENTITY];
@@ -117,8 +123,15 @@ struct master {
     char last_worker_error[PROTO_MAX_STRING];
     char fatal[2048];           /* set when the job cannot finish: the reason, printed last */
     double wall_seconds;        /* of the frames rendered */
-    uint32_t passes;            /* progressive photon-map passes of the frame (1 without a photon map) */
+    uint32_t passes;            /* passes of the frame (adaptive: the most a tile gets); 1: a unit is a tile */
+    uint32_t spp_per_pass;      /* spp / passes */
     uint32_t photon_maps;       /* photon maps: 0 (none) or passes */
+    struct image_desc out_desc; /* the output's layout: desc, and with passes the samples channel */
+    struct adapt *adapt;        /* adaptive rounds (target error or time limit), or NULL */
+    double target_error, time_limit; /* adaptive settings (0: none) */
+    uint32_t max_rounds;
+    int time_up;                /* the time limit passed: the round under way is the last */
+    uint32_t *round_from;       /* per tile: its passes before the round being released */
     uint32_t num_units;         /* units (tile, pass): u = pass * num_tiles + tile */
     struct fold *fold;          /* passes >= 2: a tile's pass means folded in pass order */
     struct imgio_encoder *enc;  /* encodes folded tiles */
@@ -209,9 +222,33 @@ static int load_scene(struct master *m)
         return -1;
     }
     m->map_frame = o->have_frames ? o->frame_first : 0;
-    if (master_media_prepare(&m->scene, o, m->map_frame, &m->assets, &m->photon_maps) != 0)
+    uint32_t asked = o->have_passes ? o->passes : rs->passes;
+    m->target_error = o->have_target_error ? o->target_error : rs->target_error;
+    m->time_limit = o->have_time_limit ? o->time_limit : rs->time_limit;
+    m->max_rounds = o->have_max_rounds ? o->max_rounds : 0;
+    int adaptive = m->target_error > 0.0 || m->time_limit > 0.0 || m->max_rounds > 0;
+    if (adaptive) {
+        /* --spp is the cap; passes of MASTER_ADAPT_PASS_SPP samples unless --passes says. */
+        if (!o->have_spp)
+            rs->spp = MASTER_ADAPT_SPP_CAP;
+        if (!asked)
+            asked = (rs->spp + MASTER_ADAPT_PASS_SPP - 1) / MASTER_ADAPT_PASS_SPP;
+        asked = asked < 2 ? 2 : asked > PROTO_MAX_PASSES ? PROTO_MAX_PASSES : asked;
+    }
+    if (master_media_prepare(&m->scene, o, m->map_frame, &m->assets, asked, &m->photon_maps) != 0)
         return -1;
-    m->passes = m->photon_maps ? m->photon_maps : 1;
+    m->passes = m->photon_maps ? m->photon_maps : asked > 1 ? asked : 1;
+    if (!m->photon_maps && m->passes > 1) {
+        if (master_passes_fit(rs, m->passes) != 0)
+            return -1;
+        log_info("passes: %u of %u spp (%u spp), each with its own scramble; error estimate from batch means",
+                 m->passes, rs->spp / m->passes, rs->spp);
+    }
+    m->spp_per_pass = rs->spp / m->passes;
+    if (adaptive)
+        log_info("adaptive: target relRMSE %g, time limit %g s, at most %u passes of %u spp per tile (%u spp)%s",
+                 m->target_error, m->time_limit, m->passes, m->spp_per_pass, rs->spp,
+                 m->max_rounds ? ", round cap set" : "");
     m->map_per_frame = master_media_per_frame(&m->scene);
     return publish_manifest(m);
 }
@@ -244,9 +281,9 @@ static int publish_manifest(struct master *m)
         h.size += pl + BLOB_HASH_SIZE;
     }
     char settings[256];
-    int sl = snprintf(settings, sizeof settings, "%ux%u spp=%u depth=%u seed=%llu sampler=%u photon_maps=%u", rs->width,
-                      rs->height, rs->spp, rs->max_depth, (unsigned long long)rs->seed, (unsigned)rs->sampler,
-                      m->photon_maps);
+    int sl = snprintf(settings, sizeof settings, "%ux%u spp=%u depth=%u seed=%llu sampler=%u photon_maps=%u passes=%u",
+                      rs->width, rs->height, rs->spp, rs->max_depth, (unsigned long long)rs->seed,
+                      (unsigned)rs->sampler, m->photon_maps, m->passes);
     mem_grow((void **)&h.data, &h.cap, h.size + (size_t)sl, 1);
     memcpy(h.data + h.size, settings, (size_t)sl);
     h.size += (size_t)sl;
@@ -276,11 +313,25 @@ static void setup_tiles(struct master *m)
     m->num_units = m->num_tiles * m->passes;
     m->sched = sched_new(m->num_units);
     m->chunks = mem_calloc(m->num_tiles, sizeof *m->chunks);
-    m->decode_scratch = mem_alloc(sizeof(float) * rs->tile_size * rs->tile_size * TILE_NUM_CHANNELS);
+    m->decode_scratch = mem_alloc(sizeof(float) * rs->tile_size * rs->tile_size * FOLD_NUM_CHANNELS);
     m->maps = mem_calloc(m->passes, sizeof *m->maps);
+    m->out_desc = m->desc;
     if (m->passes > 1) {
-        m->fold = fold_new(&m->desc, m->passes);
-        m->fold_out = mem_alloc(sizeof(float) * rs->tile_size * rs->tile_size * TILE_NUM_CHANNELS);
+        m->fold = fold_new(&m->desc, m->passes, m->spp_per_pass);
+        m->fold_out = mem_alloc(sizeof(float) * rs->tile_size * rs->tile_size * FOLD_NUM_CHANNELS);
+        fold_output_desc(&m->desc, &m->out_desc);
+    }
+    if (m->target_error > 0.0 || m->time_limit > 0.0 || m->max_rounds > 0) {
+        uint32_t *pixels = mem_alloc(sizeof *pixels * m->num_tiles);
+        uint32_t tiles_x = imgio_tiles_x(&m->desc);
+        for (uint32_t t = 0; t < m->num_tiles; t++) {
+            uint32_t x0, y0, w, h;
+            imgio_tile_rect(&m->desc, t % tiles_x, t / tiles_x, &x0, &y0, &w, &h);
+            pixels[t] = w * h;
+        }
+        m->adapt = adapt_new(m->num_tiles, pixels, m->passes, m->target_error, m->max_rounds);
+        m->round_from = mem_calloc(m->num_tiles, sizeof *m->round_from);
+        free(pixels);
     }
 }
 
@@ -299,12 +350,12 @@ static int restrict_tiles(struct master *m)
             return -1;
         }
     char err[256];
-    struct imgio_encoder *enc = imgio_encoder_new(&m->desc, err, sizeof err);
+    struct imgio_encoder *enc = imgio_encoder_new(&m->out_desc, err, sizeof err);
     if (!enc) {
         master_fail(m, "%s", err);
         return -1;
     }
-    size_t n = (size_t)m->scene.settings.tile_size * m->scene.settings.tile_size * TILE_NUM_CHANNELS;
+    size_t n = (size_t)m->scene.settings.tile_size * m->scene.settings.tile_size * FOLD_NUM_CHANNELS;
     float *black = mem_calloc(n, sizeof *black);
     uint32_t tiles_x = imgio_tiles_x(&m->desc);
     int rc = 0;
@@ -321,6 +372,10 @@ static int restrict_tiles(struct master *m)
         }
         for (uint32_t p = 0; p < m->passes; p++)
             sched_tile_set_done(m->sched, p * m->num_tiles + t);
+        if (m->adapt) { /* not rendered: no passes, no variance */
+            m->adapt->outstanding -= m->adapt->tiles[t].passes;
+            m->adapt->tiles[t].passes = 0;
+        }
     }
     free(black);
     imgio_encoder_free(&enc);
@@ -499,6 +554,7 @@ static void send_job(struct master *m, const struct peer *p)
     j->seed = rs->seed;
     j->sampler = rs->sampler;
     j->photon_maps = m->photon_maps;
+    j->passes = m->passes;
     snprintf(j->scene_path, sizeof j->scene_path, "%s", m->scene_rel);
     j->num_assets = m->num_manifest;
     j->assets = m->manifest;
@@ -626,9 +682,78 @@ static void commit_and_ack(struct master *m, int wait)
     }
 }
 
+/* Encodes the folded tile in fold_out as the tile's output chunk. */
+static int tile_encode_folded(struct master *m, uint32_t tile)
+{
+    char err[256];
+    uint32_t tiles_x = imgio_tiles_x(&m->desc);
+    if (!m->enc && !(m->enc = imgio_encoder_new(&m->out_desc, err, sizeof err))) {
+        master_fail(m, "%s", err);
+        return -1;
+    }
+    if (imgio_encode_tile(m->enc, tile % tiles_x, tile / tiles_x, m->fold_out, &m->chunks[tile].data,
+                          &m->chunks[tile].size, err, sizeof err) != 0) {
+        master_fail(m, "%s", err);
+        return -1;
+    }
+    return 0;
+}
+
+/* Queues the units of the round just decided, pass by pass (so folding proceeds in
+ * order): tile t's passes [round_from[t], its new count). */
+static void adapt_release(struct master *m)
+{
+    const struct adapt *a = m->adapt;
+    uint32_t lo = m->passes, hi = 0;
+    for (uint32_t t = 0; t < m->num_tiles; t++)
+        if (a->tiles[t].passes > m->round_from[t]) {
+            lo = m->round_from[t] < lo ? m->round_from[t] : lo;
+            hi = a->tiles[t].passes > hi ? a->tiles[t].passes : hi;
+        }
+    for (uint32_t p = lo; p < hi; p++)
+        for (uint32_t t = 0; t < m->num_tiles; t++)
+            if (p >= m->round_from[t] && p < a->tiles[t].passes)
+                sched_unhold(m->sched, p * m->num_tiles + t);
+    for (uint32_t t = 0; t < m->num_tiles; t++)
+        m->round_from[t] = a->tiles[t].passes;
+}
+
+/* A round's last unit is folded: the decision, from the folded passes only (the same after
+ * a journal replay, whose records come in the order the units were accepted). Either the
+ * next round goes out, or every tile is final and the units never wanted are done. */
+static int adapt_round_end(struct master *m)
+{
+    struct adapt *a = m->adapt;
+    for (uint32_t t = 0; t < m->num_tiles; t++)
+        fold_tile_sums(m->fold, t, &a->tiles[t].sum_var, &a->tiles[t].sum_mean);
+    uint32_t round = a->round;
+    if (adapt_decide(a, m->time_up, m->stats.samples)) {
+        uint64_t units = a->outstanding;
+        adapt_release(m);
+        log_info("adaptive: round %u: estimated relRMSE %.4f (target %g); round %u: %llu more units", round, a->est,
+                 m->target_error, a->round, (unsigned long long)units);
+        return 0;
+    }
+    log_info("adaptive: round %u: estimated relRMSE %.4f (target %g): %s", round, a->est, m->target_error,
+             m->time_up ? "time limit reached" : a->target > 0.0 && a->est <= a->target ? "target met"
+             : a->max_rounds && round + 1 >= a->max_rounds ? "round cap reached" : "every tile at its pass cap");
+    for (uint32_t t = 0; t < m->num_tiles; t++) {
+        if (m->chunks[t].data) /* --tiles: a black tile */
+            continue;
+        fold_finish(m->fold, t, m->fold_out, &m->stats);
+        if (tile_encode_folded(m, t) != 0)
+            return -1;
+    }
+    for (uint32_t u = 0; u < m->num_units; u++)
+        if (m->sched->tiles[u].state == SCHED_HELD)
+            sched_tile_set_done(m->sched, u);
+    return 0;
+}
+
 /* A unit whose chunk chunk_is_sane has just decoded into decode_scratch: with one pass
  * the chunk is the tile's; with several it is folded (fold.h), and once the tile's last
- * pass is in, the folded tile is encoded as the tile's chunk. */
+ * pass is in (adaptive: once the rounds end), the folded tile is encoded as the tile's
+ * chunk. */
 static int unit_keep(struct master *m, uint32_t unit, const struct tile_stats *st, const uint8_t *chunk,
                      size_t chunk_size)
 {
@@ -640,20 +765,19 @@ static int unit_keep(struct master *m, uint32_t unit, const struct tile_stats *s
         m->chunks[tile].size = chunk_size;
         return 0;
     }
+    if (m->adapt) {
+        struct adapt *a = m->adapt;
+        fold_add_unit(m->fold, tile, unit_pass(m, unit), m->decode_scratch);
+        a->tiles[tile].samples += st->samples;
+        a->tiles[tile].rays += st->rays;
+        CHECK(a->outstanding > 0);
+        if (--a->outstanding == 0)
+            return adapt_round_end(m);
+        return 0;
+    }
     if (!fold_add(m->fold, tile, unit_pass(m, unit), m->decode_scratch, m->fold_out, &m->stats))
         return 0;
-    char err[256];
-    uint32_t tiles_x = imgio_tiles_x(&m->desc);
-    if (!m->enc && !(m->enc = imgio_encoder_new(&m->desc, err, sizeof err))) {
-        master_fail(m, "%s", err);
-        return -1;
-    }
-    if (imgio_encode_tile(m->enc, tile % tiles_x, tile / tiles_x, m->fold_out, &m->chunks[tile].data,
-                          &m->chunks[tile].size, err, sizeof err) != 0) {
-        master_fail(m, "%s", err);
-        return -1;
-    }
-    return 0;
+    return tile_encode_folded(m, tile);
 }
 
 /* Keeps an accepted unit: journal first (written here, synced by commit_and_ack before
@@ -700,6 +824,11 @@ static void on_kept(struct master *m, int32_t pi, const struct msg_kept *k)
             log_warn("worker %s: kept tile %u (frame %u) was rendered for another job; dropped", p->name, k->tile,
                      k->frame);
         m->c.results_not_ours++;
+        return;
+    }
+    if (m->sched->tiles[k->tile].state == SCHED_HELD) {
+        /* A unit of an adaptive round not decided yet: rendered again if it is ever wanted. */
+        m->c.results_stale++;
         return;
     }
     if (sched_kept(m->sched, k->tile)) {
@@ -877,6 +1006,8 @@ static int replay_tile(void *ctx, uint32_t unit, const struct tile_stats *st, co
     char err[256];
     if (m->sched->tiles[unit].state == SCHED_DONE)
         return 0; /* a unit journaled twice: the first copy is as good */
+    if (m->sched->tiles[unit].state == SCHED_HELD)
+        return 0; /* not wanted by the rounds replayed so far (cannot happen: records follow the rounds) */
     if (!chunk_is_sane(m, unit, chunk, size, err, sizeof err)) {
         log_warn("journal: unit %u (tile %u, pass %u) does not decode (%s); the journal is cut there", unit,
                  unit_tile(m, unit), unit_pass(m, unit), err);
@@ -895,8 +1026,10 @@ static void compute_job_key(struct master *m)
 {
     const struct render_settings *rs = &m->scene.settings;
     char ident[512];
-    int n = snprintf(ident, sizeof ident, "brume-journal-2 %s tile=%u sampler=%u frame=%u tiles=%u passes=%u",
-                     m->scene_hash, rs->tile_size, (unsigned)rs->sampler, m->frame, m->num_tiles, m->passes);
+    int n = snprintf(ident, sizeof ident,
+                     "brume-journal-2 %s tile=%u sampler=%u frame=%u tiles=%u passes=%u target=%.17g rounds=%u",
+                     m->scene_hash, rs->tile_size, (unsigned)rs->sampler, m->frame, m->num_tiles, m->passes,
+                     m->target_error, m->max_rounds);
     blob_hash_compute(ident, (size_t)n, &m->job_key);
 }
 
@@ -936,7 +1069,14 @@ static int write_output(struct master *m, double seconds)
     a.render_seconds = seconds;
     snprintf(a.scene_hash, sizeof a.scene_hash, "%s", m->scene_hash);
     snprintf(a.software, sizeof a.software, "brume 0.1");
-    if (output_write_exr(m->out_path, &m->desc, &a, m->chunks, err, sizeof err) != 0) {
+    a.est_rel_rmse = m->rel_rmse_est;
+    a.passes = m->passes;
+    if (m->adapt) {
+        a.target_error = m->target_error;
+        a.rounds = m->adapt->round + 1;
+        a.time_limited = (uint32_t)m->time_up;
+    }
+    if (output_write_exr(m->out_path, &m->out_desc, &a, m->chunks, err, sizeof err) != 0) {
         master_fail(m, "%s", err);
         return -1;
     }
@@ -945,7 +1085,7 @@ static int write_output(struct master *m, double seconds)
         m->c.journal_syncs += m->journal->syncs;
         journal_remove(&m->journal);
     }
-    if (o->preview_path && output_write_preview(o->preview_path, &m->desc, m->chunks, err, sizeof err) != 0)
+    if (o->preview_path && output_write_preview(o->preview_path, &m->out_desc, m->chunks, err, sizeof err) != 0)
         log_warn("preview: %s", err);
     return 0;
 }
@@ -958,6 +1098,23 @@ static void print_progress(struct master *m, uint64_t start_ms, int tty, int fin
     double rate = secs > 0 ? (double)m->stats.samples / secs : 0.0;
     double left = m->sched->tiles_done > 0 ? secs * (m->num_units - m->sched->tiles_done) / m->sched->tiles_done : 0.0;
     const char *what = m->passes > 1 ? "units" : "tiles";
+    if (m->adapt) {
+        /* Units of later rounds are not known yet: the ETA is fitted from the estimate's decay. */
+        const struct adapt *a = m->adapt;
+        double want = adapt_eta_samples(a);
+        double eta = want > (double)m->stats.samples && rate > 0 ? (want - (double)m->stats.samples) / rate : 0.0;
+        char est[96] = "estimate after round 0 pending";
+        if (a->num_history)
+            snprintf(est, sizeof est, "est. relRMSE %.4f -> target %g", a->est, m->target_error);
+        if (tty)
+            fprintf(stderr, "\rmaster: round %u, %u units to go  %s  %.2f Msamples/s  ETA %.0fs   %s", a->round,
+                    a->outstanding, est, rate / 1e6, eta, final ? "\n" : "");
+        else
+            fprintf(stderr, "master: progress: round %u, %u units to go, %s, %.2f Msamples/s, ETA %.0fs\n", a->round,
+                    a->outstanding, est, rate / 1e6, eta);
+        fflush(stderr);
+        return;
+    }
     if (tty)
         fprintf(stderr, "\rmaster: %s %u/%u  %.2f Msamples/s  ETA %.0fs   %s", what, m->sched->tiles_done, m->num_units,
                 rate / 1e6, left, final ? "\n" : "");
@@ -982,11 +1139,11 @@ static double error_estimate(struct master *m)
         if (!m->chunks[t].data)
             continue;
         imgio_tile_rect(&m->desc, t % tiles_x, t / tiles_x, &x0, &y0, &w, &h);
-        if (imgio_decode_tile(&m->desc, t % tiles_x, t / tiles_x, m->chunks[t].data, m->chunks[t].size,
+        if (imgio_decode_tile(&m->out_desc, t % tiles_x, t / tiles_x, m->chunks[t].data, m->chunks[t].size,
                               m->decode_scratch, err, sizeof err) != 0)
             continue; /* checked when accepted: cannot happen */
         for (size_t i = 0; i < (size_t)w * h; i++) {
-            const float *px = &m->decode_scratch[i * TILE_NUM_CHANNELS];
+            const float *px = &m->decode_scratch[i * m->out_desc.num_channels];
             sum_var += ((double)px[CH_VAR_R] + px[CH_VAR_G] + px[CH_VAR_B]) / 3.0;
             sum_mean += ((double)px[CH_R] + px[CH_G] + px[CH_B]) / 3.0;
         }
@@ -998,7 +1155,6 @@ static double error_estimate(struct master *m)
 static void print_summary(struct master *m, double secs)
 {
     const struct tile_stats *s = &m->stats;
-    m->rel_rmse_est = error_estimate(m);
     printf("summary: %s -> %s (frame %u)\n", m->opts->scene_path, m->out_path, m->frame);
     printf("summary: %ux%u, %u spp, %u tiles of %u px, seed %llu\n", m->scene.settings.width,
            m->scene.settings.height, m->scene.settings.spp, m->num_tiles, m->scene.settings.tile_size,
@@ -1013,7 +1169,23 @@ static void print_summary(struct master *m, double secs)
     printf("summary: noise: mean relative standard error %.4f over %u lit pixels\n",
            s->rel_stderr_pixels ? s->sum_rel_stderr / s->rel_stderr_pixels : 0.0, s->rel_stderr_pixels);
     printf("summary: estimated relRMSE %.4f (sqrt(mean pixel variance of the mean) / image mean, RGB; %s)\n",
-           m->rel_rmse_est, m->passes > 1 ? "batch means over the photon-map passes" : "sample variance");
+           m->rel_rmse_est, m->passes > 1 ? "batch means over the passes" : "sample variance");
+    if (m->adapt) {
+        uint32_t lo = UINT32_MAX, hi = 0;
+        double sum = 0.0, pixels = 0.0;
+        for (uint32_t t = 0; t < m->num_tiles; t++) {
+            const struct adapt_tile *at = &m->adapt->tiles[t];
+            uint32_t spp = at->passes * m->spp_per_pass;
+            lo = spp < lo ? spp : lo;
+            hi = spp > hi ? spp : hi;
+            sum += (double)spp * at->pixels;
+            pixels += at->pixels;
+        }
+        printf("summary: adaptive: target relRMSE %g, estimated %.4f after %u round(s)%s; spp min %u mean %.1f max %u "
+               "(cap %u); %.3f s\n", m->target_error, m->rel_rmse_est, m->adapt->round + 1,
+               m->time_up ? " (time limit)" : "", lo, pixels > 0 ? sum / pixels : 0.0, hi, m->scene.settings.spp,
+               secs);
+    }
     for (uint32_t i = 0; i < m->num_peers; i++)
         printf("summary: worker %s: %u %s\n", m->peers[i].name, m->sched->workers[i].tiles_done,
                m->passes > 1 ? "units (tile passes)" : "tiles");
@@ -1074,6 +1246,11 @@ static int write_stats(const struct master *m, int ok, char *err, size_t errlen)
                         json_real(st->rel_stderr_pixels ? st->sum_rel_stderr / st->rel_stderr_pixels : 0.0));
     json_object_set_new(root, "est_rel_rmse", json_real(m->rel_rmse_est));
     json_object_set_new(root, "passes", json_integer(m->passes));
+    if (m->adapt) {
+        json_object_set_new(root, "target_error", json_real(m->target_error));
+        json_object_set_new(root, "rounds", json_integer(m->adapt->round + 1));
+        json_object_set_new(root, "time_limited", json_boolean(m->time_up));
+    }
     for (uint32_t i = 0; i < m->num_peers; i++) {
         json_t *w = json_object();
         json_object_set_new(w, "name", json_string(m->peers[i].name));
@@ -1329,8 +1506,16 @@ static int frame_begin(struct master *m, uint32_t frames_started)
     if (m->fold)
         fold_reset(m->fold);
     memset(&m->stats, 0, sizeof m->stats);
+    if (m->adapt) { /* units go out round by round (adapt.h); round 0 now */
+        sched_hold_all(m->sched);
+        adapt_begin(m->adapt);
+        memset(m->round_from, 0, sizeof *m->round_from * m->num_tiles);
+        m->time_up = 0;
+    }
     if (o->only_tiles && restrict_tiles(m) != 0)
         return -1;
+    if (m->adapt)
+        adapt_release(m);
     if (m->journal) {
         m->c.journal_syncs += m->journal->syncs;
         journal_free(&m->journal);
@@ -1404,6 +1589,11 @@ static int frame_render(struct master *m, uint64_t *last_beat)
             }
         }
         uint64_t now = net_now_ms();
+        if (m->adapt && m->time_limit > 0.0 && !m->time_up && (double)(now - start) >= m->time_limit * 1000.0) {
+            m->time_up = 1; /* the one decision that depends on timing (docs/adaptive.md) */
+            log_info("adaptive: time limit %g s reached; the render stops at the end of round %u", m->time_limit,
+                     m->adapt->round);
+        }
         account_waits(m, now - last_tick);
         last_tick = now;
         if (!g_interrupted && maps_poll(m) != 0) /* interrupted: the tracer stopped too; said above */
@@ -1440,6 +1630,7 @@ static int frame_render(struct master *m, uint64_t *last_beat)
     print_progress(m, start, tty, 1);
     double secs = (double)(net_now_ms() - start) / 1000.0;
     m->wall_seconds += secs;
+    m->rel_rmse_est = error_estimate(m);
     if (write_output(m, secs) != 0)
         return -1;
     print_summary(m, secs);
@@ -1556,6 +1747,8 @@ done:
     }
     free(m.peers);
     fold_free(&m.fold);
+    adapt_free(&m.adapt);
+    free(m.round_from);
     imgio_encoder_free(&m.enc);
     free(m.fold_out);
     free(m.maps);

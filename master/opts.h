@@ -36,8 +36,13 @@ struct master_opts {
     uint32_t media_method;
     uint64_t photons;
     float gather_radius, march_step;
-    int have_passes;            /* --passes N (1..1024): progressive photon-map passes */
+    int have_passes;            /* --passes N (1..1024): passes (photon maps, batch means; adaptive: the most per tile) */
     uint32_t passes;
+    /* Adaptive rendering (docs/adaptive.md): overrides of render.target_error and
+     * render.time_limit, and a cap on rounds (reproduces a time-limited run). */
+    int have_target_error, have_time_limit, have_max_rounds;
+    double target_error, time_limit;
+    uint32_t max_rounds;
 };
 
 #endif

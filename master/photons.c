@@ -98,17 +98,28 @@ static int set_surface_radius(uint8_t **map, size_t *size, float radius, char *e
     return 0;
 }
 
+int master_passes_fit(struct render_settings *rs, uint32_t passes)
+{
+    uint32_t k = (rs->spp + passes - 1) / passes;
+    if ((uint64_t)k * passes > SCENE_MAX_SPP) {
+        log_error("passes: %u passes of %u spp exceed the %u spp limit (lower --spp or --passes / render.passes)",
+                  passes, k, (unsigned)SCENE_MAX_SPP);
+        return -1;
+    }
+    if (k * passes != rs->spp)
+        log_info("passes: spp %u raised to %u (%u passes of ceil(%u / %u) = %u spp)", rs->spp, k * passes, passes,
+                 rs->spp, passes, k);
+    rs->spp = k * passes;
+    return 0;
+}
+
 int master_media_prepare(struct scene *scene, const struct master_opts *o, uint32_t frame, struct asset_dir *assets,
-                         uint32_t *photon_maps)
+                         uint32_t asked, uint32_t *photon_maps)
 {
     struct scene_media *sm = scene->media;
     *photon_maps = 0;
-    uint32_t asked = o->have_passes ? o->passes : scene->settings.passes;
-    if (!sm) {
-        if (asked > 1)
-            log_info("passes: 1 (%u asked): passes apply to photon maps and the scene has no media", asked);
+    if (!sm)
         return 0;
-    }
     if (o->have_media_method)
         sm->method = (enum media_method)o->media_method;
     if (o->have_photons)
@@ -175,8 +186,8 @@ int master_media_prepare(struct scene *scene, const struct master_opts *o, uint3
                      photon_pass_radius(r0, sm->alpha, passes - 1, PASSES_SURFACE_KERNEL_DIM), bound);
         }
     }
-    if (no_map && asked > 1)
-        log_info("passes: 1 (%u asked): no photon map (%s)", asked, no_map);
+    if (no_map)
+        log_debug("media: no photon map (%s)", no_map);
     /* The settings alone: the maps are blobs of their own, one per pass (MSG_MAP). */
     volume_blob_make(sm, NULL, 0, &blob, &blob_size);
     publish(assets, blob, blob_size);

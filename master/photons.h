@@ -17,11 +17,15 @@ int master_media_per_frame(const struct scene *scene);
 /* 0 on success (also when the scene has no media: nothing is done), -1 logged. Settles the
  * media settings (command-line overrides) and publishes them as the volume blob among the
  * files (a second call replaces it). With a photon map, the frame renders in progressive
- * passes (--passes, render.passes, default 8), one map each; scene->settings.spp is
+ * passes (`asked`, the master's count, or 8 when 0), one map each; scene->settings.spp is
  * raised to a multiple of them (ceil(spp / P) per pass) and *photon_maps gets P (0
  * without a photon map). The maps themselves are traced by a photon_tracer. */
 int master_media_prepare(struct scene *scene, const struct master_opts *o, uint32_t frame, struct asset_dir *assets,
-                         uint32_t *photon_maps);
+                         uint32_t asked, uint32_t *photon_maps);
+/* Raises rs->spp to the next multiple of passes (ceil(spp / passes) samples per pass, logged
+ * when it changes). 0, or -1 (logged) when that exceeds SCENE_MAX_SPP. */
+struct render_settings;
+int master_passes_fit(struct render_settings *rs, uint32_t passes);
 
 /* Traces the P maps of a frame on a thread of its own, in pass order, while the master
  * renders: map p is a pure function of (scene, seed, frame, p) (volume map, then surface

@@ -54,6 +54,23 @@ void sched_release(struct sched *s, uint32_t limit)
     s->released = limit < s->num_tiles ? limit : s->num_tiles;
 }
 
+void sched_hold_all(struct sched *s)
+{
+    for (uint32_t t = 0; t < s->num_tiles; t++)
+        if (s->tiles[t].state == SCHED_QUEUED)
+            s->tiles[t].state = SCHED_HELD;
+    s->q_count = 0;
+}
+
+int sched_unhold(struct sched *s, uint32_t tile)
+{
+    if (s->tiles[tile].state != SCHED_HELD)
+        return -1;
+    s->tiles[tile].state = SCHED_QUEUED;
+    s->queue[s->q_count++] = tile;
+    return 0;
+}
+
 int sched_blocked(const struct sched *s)
 {
     if (s->q_count == 0)

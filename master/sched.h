@@ -28,7 +28,9 @@
 #define SCHED_CRASHES_TO_FAIL 3 /* distinct workers a tile may take down before the job fails */
 #define SCHED_FAILS_TO_BAN 3    /* invalid results in a row that ban a worker */
 
-enum sched_tile_state { SCHED_QUEUED, SCHED_ASSIGNED, SCHED_DONE };
+/* SCHED_HELD: not wanted yet (adaptive rounds, sched_hold_all): in no queue, goes out
+ * only after sched_unhold; a result or kept copy of it is stale. */
+enum sched_tile_state { SCHED_QUEUED, SCHED_ASSIGNED, SCHED_DONE, SCHED_HELD };
 
 struct sched_tile {
     enum sched_tile_state state;
@@ -103,6 +105,11 @@ void sched_frame_begin(struct sched *s);
  * schedules units u = pass * tiles + tile and releases a pass's units once its photon map
  * is published. */
 void sched_release(struct sched *s, uint32_t limit);
+/* Adaptive rounds: after sched_frame_begin, every tile held (none queued); sched_unhold
+ * queues a held tile at the back (the caller unholds in the order units should go out).
+ * 0, or -1 when the tile was not held (nothing changes). */
+void sched_hold_all(struct sched *s);
+int sched_unhold(struct sched *s, uint32_t tile);
 /* 1 when queued tiles wait only for the release limit: nothing released is queued. */
 int sched_blocked(const struct sched *s);
 /* A tile finished without a worker (from the journal, or black outside --tiles): done and

@@ -42,8 +42,8 @@
 
 /* job_key and conn: the job the tile belongs to (survives a master restart) and the
  * connection it came on (a RESULT goes only to the master that assigned the tile). */
-/* tile is the id on the wire: with photon maps the unit pass * tiles + tile (then
- * image_tile and pass split it), else the tile (pass 0). */
+/* tile is the id on the wire: with passes the unit pass * tiles + tile (then image_tile
+ * and pass split it), else the tile (pass 0). */
 struct tile_task {
     uint64_t job_id;
     uint32_t frame, tile, attempt;
@@ -462,7 +462,8 @@ static int load_job(struct worker *w)
         log_error("%s", err);
         return -1;
     }
-    render_job_set_passes(&w->rjob, w->job.photon_maps);
+    /* Passes without photon maps get empty map slots: nothing waits for a MAP. */
+    render_job_set_passes(&w->rjob, w->job.photon_maps ? w->job.photon_maps : w->job.passes > 1 ? w->job.passes : 0);
     w->loaded = 1;
     tile_image_desc(&w->desc, rs);
     pool_start(w);
@@ -508,7 +509,7 @@ static int job_same_scene(const struct msg_job *a, const struct msg_job *b)
 {
     if (a->width != b->width || a->height != b->height || a->spp != b->spp || a->max_depth != b->max_depth ||
         a->tile_size != b->tile_size || a->seed != b->seed || a->sampler != b->sampler ||
-        a->photon_maps != b->photon_maps ||
+        a->photon_maps != b->photon_maps || a->passes != b->passes ||
         strcmp(a->scene_path, b->scene_path) != 0 || a->num_assets != b->num_assets)
         return 0;
     for (uint32_t i = 0; i < a->num_assets; i++)
@@ -662,7 +663,7 @@ static void map_fetch_start(struct worker *w, uint32_t pass);
 static void on_tile(struct worker *w, const struct msg_tile *t)
 {
     uint32_t ntiles = w->loaded ? imgio_tiles_x(&w->desc) * imgio_tiles_y(&w->desc) : 0;
-    uint64_t nunits = (uint64_t)ntiles * (w->num_maps ? w->num_maps : 1);
+    uint64_t nunits = (uint64_t)ntiles * (w->job.passes > 1 ? w->job.passes : 1);
     if (!w->loaded || t->job_id != w->job.job_id || t->frame != w->job.frame || t->tile >= nunits) {
         log_warn("dropping TILE %u for job %llu frame %u: not part of the loaded job", t->tile,
                  (unsigned long long)t->job_id, t->frame);

@@ -657,6 +657,16 @@ struct imgio_writer *imgio_writer_open(const char *path, const struct image_desc
     if (rv == EXR_ERR_SUCCESS && sw[0])
         rv = exr_attr_set_string(w->ctx, 0, "software", sw);
     if (rv == EXR_ERR_SUCCESS)
+        rv = exr_attr_set_double(w->ctx, 0, "brume_est_rel_rmse", a->est_rel_rmse);
+    if (rv == EXR_ERR_SUCCESS && a->passes > 1)
+        rv = exr_attr_set_int(w->ctx, 0, "brume_passes", (int32_t)(a->passes & INT32_MAX));
+    if (rv == EXR_ERR_SUCCESS && a->target_error > 0.0)
+        rv = exr_attr_set_double(w->ctx, 0, "brume_target_error", a->target_error);
+    if (rv == EXR_ERR_SUCCESS && a->rounds > 0)
+        rv = exr_attr_set_int(w->ctx, 0, "brume_rounds", (int32_t)(a->rounds & INT32_MAX));
+    if (rv == EXR_ERR_SUCCESS && a->time_limited)
+        rv = exr_attr_set_int(w->ctx, 0, "brume_time_limited", 1);
+    if (rv == EXR_ERR_SUCCESS)
         rv = exr_write_header(w->ctx);
     if (rv != EXR_ERR_SUCCESS) {
         char what[300];

@@ -30,6 +30,13 @@ struct image_attrs {
     double render_seconds;
     char scene_hash[65];    /* hex */
     char software[64];      /* e.g. "brume 0.1" */
+    /* The error estimate and, with passes, how far the render went (docs/adaptive.md);
+     * written when > 0 (est_rel_rmse: always). */
+    double est_rel_rmse;    /* brume_est_rel_rmse: the image's estimated relRMSE */
+    uint32_t passes;        /* brume_passes: passes of the frame (adaptive: at most, per tile) */
+    double target_error;    /* brume_target_error */
+    uint32_t rounds;        /* brume_rounds: adaptive rounds rendered (--max-rounds reproduces a time-limited run) */
+    uint32_t time_limited;  /* brume_time_limited: 1 when --time-limit ended the render */
 };
 
 /* Tile grid helpers: number of tiles across and down, and a tile's pixel rectangle. */

@@ -114,7 +114,9 @@ struct render_settings {
     uint64_t seed;
     uint32_t tile_size;     /* square tiles of tile_size pixels; edge tiles are clipped */
     enum sampler_type sampler;
-    uint32_t passes;        /* render.passes (1..SCENE_MAX_PASSES): photon-map passes (docs/media.md); 0 = default */
+    uint32_t passes;        /* render.passes (1..SCENE_MAX_PASSES): passes (docs/media.md, docs/adaptive.md); 0 = default */
+    float target_error;     /* render.target_error: adaptive to this relRMSE (docs/adaptive.md); 0 = none */
+    float time_limit;       /* render.time_limit: seconds, adaptive, stops at a round boundary; 0 = none */
 };
 
 struct texture; /* texture.h */

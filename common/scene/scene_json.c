@@ -1127,9 +1127,9 @@ static int parse_camera(struct ctx *c, const struct member *cm)
 static int parse_render(struct ctx *c, const struct member *rm)
 {
     static const char *const keys[] = {"width", "height", "spp", "max_depth", "seed", "tile_size", "sampler",
-                                       "passes"};
-    struct member m[8];
-    if (object_members(c, rm->val, &rm->path, "render", keys, 8, m) != 0 ||
+                                       "passes", "target_error", "time_limit"};
+    struct member m[10];
+    if (object_members(c, rm->val, &rm->path, "render", keys, 10, m) != 0 ||
         require(c, &m[0], &rm->path, "render", "width") != 0 ||
         require(c, &m[1], &rm->path, "render", "height") != 0)
         return -1;
@@ -1161,6 +1161,17 @@ static int parse_render(struct ctx *c, const struct member *rm)
             return -1;
         r->passes = (uint32_t)n;
     }
+    /* Adaptive rendering (docs/adaptive.md): a target relRMSE in (0, 1), a time limit in s. */
+    r->target_error = 0.0f;
+    r->time_limit = 0.0f;
+    if (m[8].val && get_float(c, m[8].val, &m[8].path, "target_error", &r->target_error) != 0)
+        return -1;
+    if (m[8].val && !(r->target_error > 0.0f && r->target_error < 1.0f))
+        return fail(c, &m[8].path, AT_VALUE, "target_error must be in (0, 1)");
+    if (m[9].val && get_float(c, m[9].val, &m[9].path, "time_limit", &r->time_limit) != 0)
+        return -1;
+    if (m[9].val && !(r->time_limit > 0.0f && r->time_limit < 1e9f))
+        return fail(c, &m[9].path, AT_VALUE, "time_limit must be seconds > 0");
     return 0;
 }
 

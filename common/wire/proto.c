@@ -64,6 +64,12 @@ static int check_job_settings(const struct msg_job *j, char *err, size_t errlen)
                 PROTO_MAX_PASSES, j->spp);
         return -1;
     }
+    if (j->passes > PROTO_MAX_PASSES || (j->passes > 1 && j->spp % j->passes != 0) ||
+        (j->photon_maps && j->photon_maps != j->passes)) {
+        str_fmt(err, errlen, "JOB: %u passes (at most %d, dividing spp %u, equal to the %u photon maps when there are any)",
+                j->passes, PROTO_MAX_PASSES, j->spp, j->photon_maps);
+        return -1;
+    }
     return 0;
 }
 
@@ -194,6 +200,7 @@ int proto_encode(const struct proto_msg *msg, struct proto_buf *b)
         put_u64(b, m->seed);
         put_u32(b, m->sampler);
         put_u32(b, m->photon_maps);
+        put_u32(b, m->passes);
         if (put_str(b, m->scene_path) < 0)
             return -1;
         put_u32(b, m->num_assets);
@@ -440,6 +447,7 @@ static void decode_job(struct reader *r, struct msg_job *m)
     m->seed = get_u64(r, "seed");
     m->sampler = get_u32(r, "sampler");
     m->photon_maps = get_u32(r, "photon_maps");
+    m->passes = get_u32(r, "passes");
     get_str(r, m->scene_path, "scene_path");
     uint32_t n = get_u32(r, "num_assets");
     if (r->failed)

@@ -13,7 +13,7 @@
 #include "render/tile.h"
 
 #define PROTO_MAGIC 0x4d555242u /* "BRUM" little-endian */
-#define PROTO_VERSION 4 /* 2: HEARTBEAT carries samples_done; 3: JOB carries job_key, ACK, KEPT; 4: photon-map passes (JOB photon_maps, MAP) */
+#define PROTO_VERSION 5 /* 2: HEARTBEAT carries samples_done; 3: JOB carries job_key, ACK, KEPT; 4: photon-map passes (JOB photon_maps, MAP); 5: JOB passes (passes without photon maps) */
 #define PROTO_MAX_MESSAGE (64u * 1024u * 1024u) /* also ZMQ_MAXMSGSIZE */
 #define PROTO_MAX_STRING 1024
 #define PROTO_MAX_ASSETS 4096
@@ -65,6 +65,10 @@ struct msg_job {
      * frame renders in P passes, pass p with map p, announced by MAP. With P >= 1 the
      * `tile` of TILE, RESULT, KEPT and ACK is a unit u = p * tiles + tile. */
     uint32_t photon_maps;
+    /* Passes: 0 or 1 (one pass: a unit is a tile) or P (2..PROTO_MAX_PASSES, spp a multiple
+     * of P): units u = p * tiles + tile, each pass spp / P samples with its own scramble.
+     * photon_maps is 0 or equal to it. */
+    uint32_t passes;
     char scene_path[PROTO_MAX_STRING];   /* one of the assets: the scene file */
     uint32_t num_assets;                 /* <= PROTO_MAX_ASSETS */
     struct proto_asset *assets;          /* decode allocates; free with proto_job_free */

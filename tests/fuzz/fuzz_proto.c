@@ -31,7 +31,7 @@ static int msg_eq(const struct proto_msg *a, const struct proto_msg *b)
         const struct msg_job *x = &a->u.job, *y = &b->u.job;
         if (x->job_id != y->job_id || !hash_eq(&x->job_key, &y->job_key) || x->frame != y->frame || x->width != y->width ||
             x->height != y->height || x->spp != y->spp || x->max_depth != y->max_depth ||
-            x->tile_size != y->tile_size || x->seed != y->seed || x->photon_maps != y->photon_maps ||
+            x->tile_size != y->tile_size || x->seed != y->seed || x->photon_maps != y->photon_maps || x->passes != y->passes ||
             strcmp(x->scene_path, y->scene_path) != 0 || x->num_assets != y->num_assets)
             return 0;
         for (uint32_t i = 0; i < x->num_assets; i++)

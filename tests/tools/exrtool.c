@@ -15,6 +15,7 @@
  *                                channels' errors taken as fully correlated, an upper bound)
  *   exrtool average OUT.exr A.exr B.exr
  *                                writes (A + B) / 2 (R,G,B,A), variance (vA + vB) / 4
+ *   exrtool chsum A.exr NAME     prints the sum over pixels of channel NAME (e.g. "samples")
  *   exrtool synth OUT.exr W H V [--checker AMP] [--var VAR]
  *                                writes a test image: R,G,B = V (+AMP where x + y is even, -AMP
  *                                where odd, with --checker), A = 1, every variance channel = VAR
@@ -260,6 +261,22 @@ int main(int argc, char **argv)
         return average(argv[2], argv[3], argv[4]);
     if (argc >= 2 && !strcmp(argv[1], "synth"))
         return synth(argc, argv);
+    if (argc == 4 && !strcmp(argv[1], "chsum")) {
+        const char *names[1] = {argv[3]};
+        float *px = NULL;
+        uint32_t w, h;
+        char err[512];
+        if (imgio_read(argv[2], names, 1, &px, &w, &h, err, sizeof err) != 0) {
+            fprintf(stderr, "exrtool: %s\n", err);
+            return 2;
+        }
+        double sum = 0.0;
+        for (size_t i = 0; i < (size_t)w * h; i++)
+            sum += px[i];
+        printf("%.17g\n", sum);
+        free(px);
+        return 0;
+    }
     if (argc == 3 && !strcmp(argv[1], "mean")) {
         uint32_t w, h;
         float *a = load(argv[2], &w, &h);

@@ -35,7 +35,7 @@ static void pass_pixels(uint32_t t, uint32_t p, size_t n, float *px)
 
 static void fold_in_order(const struct image_desc *d, const uint32_t *order, float *out, struct tile_stats *st)
 {
-    struct fold *f = fold_new(d, PASSES);
+    struct fold *f = fold_new(d, PASSES, 3);
     uint32_t tiles = imgio_tiles_x(d) * imgio_tiles_y(d);
     float px[16 * TILE_NUM_CHANNELS];
     memset(st, 0, sizeof *st);
@@ -45,7 +45,7 @@ static void fold_in_order(const struct image_desc *d, const uint32_t *order, flo
         uint32_t x0, y0, w, h;
         imgio_tile_rect(d, t % imgio_tiles_x(d), t / imgio_tiles_x(d), &x0, &y0, &w, &h);
         pass_pixels(t, p, (size_t)w * h, px);
-        int fin = fold_add(f, t, p, px, out + (size_t)t * 16 * TILE_NUM_CHANNELS, st);
+        int fin = fold_add(f, t, p, px, out + (size_t)t * 16 * FOLD_NUM_CHANNELS, st);
         done += (uint32_t)fin;
     }
     cr_assert_eq(done, tiles, "every tile final exactly once");
@@ -59,7 +59,7 @@ Test(fold, any_arrival_order_gives_the_same_bits)
     make_desc(&d);
     uint32_t tiles = imgio_tiles_x(&d) * imgio_tiles_y(&d), n = tiles * PASSES;
     uint32_t *order = malloc(sizeof *order * n);
-    size_t bytes = sizeof(float) * tiles * 16 * TILE_NUM_CHANNELS;
+    size_t bytes = sizeof(float) * tiles * 16 * FOLD_NUM_CHANNELS;
     float *a = calloc(1, bytes), *b = calloc(1, bytes);
     struct tile_stats sa, sb;
     for (uint32_t i = 0; i < n; i++)
@@ -94,7 +94,7 @@ Test(fold, batch_means_of_the_passes_with_samples)
     uint32_t *order = malloc(sizeof *order * tiles * PASSES);
     for (uint32_t i = 0; i < tiles * PASSES; i++)
         order[i] = tiles * PASSES - 1 - i; /* last pass first */
-    float *out = calloc((size_t)tiles * 16 * TILE_NUM_CHANNELS, sizeof(float));
+    float *out = calloc((size_t)tiles * 16 * FOLD_NUM_CHANNELS, sizeof(float));
     struct tile_stats st;
     fold_in_order(&d, order, out, &st);
     /* Tile 0, pixel 3: the plain mean and s^2 / n of the passes whose alpha is not NONE. */
@@ -112,8 +112,9 @@ Test(fold, batch_means_of_the_passes_with_samples)
         n++;
     }
     double mean = sum / n, var = (sum2 - n * mean * mean) / (n - 1) / n;
-    const float *o = &out[3 * TILE_NUM_CHANNELS];
+    const float *o = &out[3 * FOLD_NUM_CHANNELS];
     cr_assert(fabs(o[CH_G] - mean) < 1e-6, "mean %g, expected %g", o[CH_G], mean);
+    cr_assert_eq(o[FOLD_CH_SAMPLES], (float)(PASSES * 3), "samples: passes x spp per pass");
     cr_assert(fabs(o[CH_VAR_G] - var) < 1e-6 * (1 + var), "variance %g, expected %g", o[CH_VAR_G], var);
     cr_assert(fabs(o[CH_A] - cover / n) < 1e-6);
     free(order);

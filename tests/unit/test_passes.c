@@ -196,7 +196,7 @@ static struct photon_map *prepare(struct scene *s, uint32_t passes, uint32_t spp
     s->settings.spp = spp_per_pass * passes;
     struct asset_dir dir;
     memset(&dir, 0, sizeof dir);
-    cr_assert_eq(master_media_prepare(s, &o, 0, &dir, got), 0);
+    cr_assert_eq(master_media_prepare(s, &o, 0, &dir, passes, got), 0);
     cr_assert_eq(dir.num_files, 1u);
     cr_assert_eq(s->settings.spp, spp_per_pass * passes);
     struct photon_map *maps = NULL, **tail = &maps;
@@ -273,7 +273,7 @@ Test(passes, volume_blob_maps)
     s.settings.spp = 4;
     struct asset_dir dir;
     memset(&dir, 0, sizeof dir);
-    cr_assert_eq(master_media_prepare(&s, &o, 0, &dir, &n), 0);
+    cr_assert_eq(master_media_prepare(&s, &o, 0, &dir, o.have_passes ? o.passes : 0, &n), 0);
     cr_assert_eq(n, 3u);
     cr_assert_eq(s.settings.spp, 6u);
     /* Decoding: the settings blob as made (no maps: they are blobs of their own), then
@@ -309,7 +309,7 @@ Test(passes, volume_blob_maps)
     s.media->method = MEDIA_VPT;
     memset(&dir, 0, sizeof dir);
     s.settings.spp = 4;
-    cr_assert_eq(master_media_prepare(&s, &o, 0, &dir, &n), 0);
+    cr_assert_eq(master_media_prepare(&s, &o, 0, &dir, o.have_passes ? o.passes : 0, &n), 0);
     cr_assert_eq(n, 0u);
     cr_assert_eq(s.settings.spp, 4u);
     asset_dir_fini(&dir);

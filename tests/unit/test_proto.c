@@ -53,6 +53,7 @@ static size_t make_samples(struct proto_msg out[MSG_TYPE_MAX_])
     out[n].u.job.seed = 0xdeadbeefcafef00dull;
     out[n].u.job.sampler = SAMPLER_SOBOL;
     out[n].u.job.photon_maps = 8;
+    out[n].u.job.passes = 8;
     strcpy(out[n].u.job.scene_path, "scene.json");
     out[n].u.job.num_assets = 3;
     out[n].u.job.assets = k_assets;
@@ -189,6 +190,7 @@ static void assert_msg_eq(const struct proto_msg *a, const struct proto_msg *b)
         cr_assert_eq(x->seed, y->seed);
         cr_assert_eq(x->sampler, y->sampler);
         cr_assert_eq(x->photon_maps, y->photon_maps);
+        cr_assert_eq(x->passes, y->passes);
         cr_assert_str_eq(x->scene_path, y->scene_path);
         cr_assert_eq(x->num_assets, y->num_assets);
         for (uint32_t i = 0; i < x->num_assets; i++) {
@@ -340,6 +342,7 @@ static void fb_job_prefix(struct fb *b, uint32_t width, uint32_t height, uint32_
     fb_u(b, 1234, 8);
     fb_u(b, 0, 4); /* sampler */
     fb_u(b, 0, 4); /* photon_maps */
+    fb_u(b, 0, 4); /* passes */
     fb_u(b, 10, 2);
     fb_bytes(b, "scene.json", 10);
 }
@@ -785,12 +788,19 @@ Test(proto, map_and_passes_limits)
     struct proto_buf b = {0};
     m.u.job.width = m.u.job.height = m.u.job.tile_size = 8;
     m.u.job.spp = 12;
-    m.u.job.photon_maps = 8;
+    m.u.job.photon_maps = m.u.job.passes = 8;
     cr_assert_eq(proto_encode(&m, &b), -1, "spp not a multiple of the passes");
-    m.u.job.photon_maps = 4;
+    m.u.job.photon_maps = m.u.job.passes = 4;
     cr_assert_eq(proto_encode(&m, &b), 0);
+    m.u.job.photon_maps = 0; /* passes without photon maps */
+    cr_assert_eq(proto_encode(&m, &b), 0);
+    m.u.job.passes = 5;
+    cr_assert_eq(proto_encode(&m, &b), -1, "passes without maps must divide spp too");
+    m.u.job.photon_maps = 2;
+    m.u.job.passes = 4;
+    cr_assert_eq(proto_encode(&m, &b), -1, "photon maps and passes disagree");
     m.u.job.spp = 2048;
-    m.u.job.photon_maps = PROTO_MAX_PASSES * 2;
+    m.u.job.photon_maps = m.u.job.passes = PROTO_MAX_PASSES * 2;
     cr_assert_eq(proto_encode(&m, &b), -1, "too many passes");
     proto_buf_fini(&b);
 }

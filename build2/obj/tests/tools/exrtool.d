@@ -1,0 +1,4 @@
+build2/obj/tests/tools/exrtool.o: tests/tools/exrtool.c \
+ common/image/imgio.h common/base/log.h
+common/image/imgio.h:
+common/base/log.h:

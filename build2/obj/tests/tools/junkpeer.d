@@ -1,0 +1,13 @@
+build2/obj/tests/tools/junkpeer.o: tests/tools/junkpeer.c \
+ common/wire/proto.h common/wire/blob.h common/render/tile.h \
+ common/image/imgio.h common/scene/scene.h common/base/vec.h \
+ common/scene/motion.h common/scene/scene_limits.h common/wire/net.h
+common/wire/proto.h:
+common/wire/blob.h:
+common/render/tile.h:
+common/image/imgio.h:
+common/scene/scene.h:
+common/base/vec.h:
+common/scene/motion.h:
+common/scene/scene_limits.h:
+common/wire/net.h:

@@ -1,0 +1,23 @@
+build2/obj/tests/unit/test_scene_json.o: tests/unit/test_scene_json.c \
+ common/scene/scene_json.h common/base/asset.h common/scene/scene.h \
+ common/base/vec.h common/scene/motion.h common/scene/scene_limits.h \
+ tests/unit/helpers.h common/render/integrator.h \
+ common/render/render_job.h common/render/accel.h common/scene/camera.h \
+ common/scene/sampler.h common/base/rng.h common/scene/light.h \
+ common/render/tile.h common/image/imgio.h
+common/scene/scene_json.h:
+common/base/asset.h:
+common/scene/scene.h:
+common/base/vec.h:
+common/scene/motion.h:
+common/scene/scene_limits.h:
+tests/unit/helpers.h:
+common/render/integrator.h:
+common/render/render_job.h:
+common/render/accel.h:
+common/scene/camera.h:
+common/scene/sampler.h:
+common/base/rng.h:
+common/scene/light.h:
+common/render/tile.h:
+common/image/imgio.h:

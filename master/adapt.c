@@ -1,0 +1,190 @@
+/* Adaptive rounds (see adapt.h). The allocation minimises the cost of reaching a variance
+ * budget: with a tile's pixel variance of the mean v m / n after n passes (v after m) and a
+ * cost c per pass, the Lagrange optimum of sum c n subject to sum v m / n = budget is
+ * n = s sqrt(v m / c), tiles held at their current passes or at the cap leaving the free
+ * set. Everything is summed in tile order, so the same inputs give the same bits. */
+#include "adapt.h"
+#include "base/log.h"
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+struct adapt *adapt_new(uint32_t num_tiles, const uint32_t *pixels, uint32_t max_passes, double target,
+                        uint32_t max_rounds)
+{
+    struct adapt *a = mem_calloc(1, sizeof *a);
+    a->num_tiles = num_tiles;
+    a->max_passes = max_passes;
+    a->target = target;
+    a->max_rounds = max_rounds;
+    a->tiles = mem_calloc(num_tiles ? num_tiles : 1, sizeof *a->tiles);
+    for (uint32_t t = 0; t < num_tiles; t++)
+        a->tiles[t].pixels = pixels[t];
+    return a;
+}
+
+void adapt_free(struct adapt **ap)
+{
+    if (!*ap)
+        return;
+    free((*ap)->tiles);
+    free(*ap);
+    *ap = NULL;
+}
+
+void adapt_begin(struct adapt *a)
+{
+    uint32_t first = a->max_passes < ADAPT_FIRST_PASSES ? a->max_passes : ADAPT_FIRST_PASSES;
+    a->round = 0;
+    a->finished = 0;
+    a->est = 0.0;
+    a->num_history = 0;
+    a->outstanding = 0;
+    for (uint32_t t = 0; t < a->num_tiles; t++) {
+        uint32_t px = a->tiles[t].pixels;
+        memset(&a->tiles[t], 0, sizeof a->tiles[t]);
+        a->tiles[t].pixels = px;
+        a->tiles[t].passes = first;
+        a->outstanding += first;
+    }
+}
+
+uint64_t adapt_allocate(uint32_t num_tiles, const double *v, const double *c, const uint32_t *m, double budget,
+                        uint32_t max_passes, uint32_t growth, uint32_t *n)
+{
+    double *want = mem_alloc(sizeof *want * (num_tiles ? num_tiles : 1));
+    uint8_t *fixed = mem_calloc(num_tiles ? num_tiles : 1, 1);
+    double fixed_var = 0.0;
+    for (uint32_t t = 0; t < num_tiles; t++) {
+        want[t] = m[t];
+        if (!(v[t] > 0.0) || m[t] >= max_passes) {
+            fixed[t] = 1;
+            fixed_var += v[t] > 0.0 ? v[t] : 0.0;
+        }
+    }
+    /* Each pass moves at least one tile out of the free set, or ends. */
+    for (uint32_t iter = 0; iter <= num_tiles; iter++) {
+        double sum = 0.0;
+        for (uint32_t t = 0; t < num_tiles; t++)
+            if (!fixed[t])
+                sum += sqrt(v[t] * m[t] * c[t]);
+        double free_budget = budget - fixed_var;
+        int changed = 0;
+        for (uint32_t t = 0; t < num_tiles; t++) {
+            if (fixed[t])
+                continue;
+            if (!(free_budget > 0.0)) { /* the budget cannot be met: everything free to the cap */
+                want[t] = max_passes;
+                continue;
+            }
+            want[t] = sum / free_budget * sqrt(v[t] * m[t] / c[t]);
+            if (want[t] <= m[t]) {
+                want[t] = m[t];
+                fixed[t] = 1;
+                fixed_var += v[t];
+                changed = 1;
+            } else if (want[t] >= max_passes) {
+                want[t] = max_passes;
+                fixed[t] = 1;
+                fixed_var += v[t] * m[t] / max_passes;
+                changed = 1;
+            }
+        }
+        if (!changed || !(free_budget > 0.0))
+            break;
+    }
+    uint64_t added = 0;
+    for (uint32_t t = 0; t < num_tiles; t++) {
+        double cap = (double)m[t] * growth < max_passes ? (double)m[t] * growth : max_passes;
+        double w = ceil(want[t] - 1e-9); /* a continuous optimum that is an integer stays */
+        if (w > cap)
+            w = cap;
+        n[t] = w > m[t] ? (uint32_t)w : m[t];
+        added += n[t] - m[t];
+    }
+    free(want);
+    free(fixed);
+    return added;
+}
+
+double adapt_image_estimate(const struct adapt *a)
+{
+    double var = 0.0, mean = 0.0, pixels = 0.0;
+    for (uint32_t t = 0; t < a->num_tiles; t++) {
+        var += a->tiles[t].sum_var;
+        mean += a->tiles[t].sum_mean;
+        pixels += a->tiles[t].pixels;
+    }
+    return pixels > 0.0 && mean > 0.0 ? sqrt(var / pixels) / (mean / pixels) : 0.0;
+}
+
+int adapt_decide(struct adapt *a, int stop, uint64_t samples_total)
+{
+    a->est = adapt_image_estimate(a);
+    if (a->num_history < ADAPT_MAX_HISTORY) {
+        a->hist_samples[a->num_history] = (double)samples_total;
+        a->hist_est[a->num_history++] = a->est;
+    }
+    if (stop || a->est <= 0.0 || (a->target > 0.0 && a->est <= a->target) ||
+        (a->max_rounds && a->round + 1 >= a->max_rounds)) {
+        a->finished = 1;
+        return 0;
+    }
+    /* Without a target (a time limit alone) each round aims at half the error. */
+    double target = a->target > 0.0 ? a->target : 0.5 * a->est;
+    double mean = 0.0, pixels = 0.0;
+    uint32_t n_tiles = a->num_tiles;
+    double *v = mem_alloc(sizeof *v * (n_tiles ? n_tiles : 1)), *c = mem_alloc(sizeof *c * (n_tiles ? n_tiles : 1));
+    uint32_t *m = mem_alloc(sizeof *m * (n_tiles ? n_tiles : 1)), *n = mem_alloc(sizeof *n * (n_tiles ? n_tiles : 1));
+    for (uint32_t t = 0; t < n_tiles; t++) {
+        const struct adapt_tile *at = &a->tiles[t];
+        mean += at->sum_mean;
+        pixels += at->pixels;
+        v[t] = at->sum_var;
+        m[t] = at->passes;
+        /* Rays (every bounce and shadow ray) plus one per camera sample: what a pass of
+         * this tile costs, counted, not timed. */
+        c[t] = at->passes ? (double)(at->rays + at->samples) / at->passes : 1.0;
+        if (!(c[t] > 0.0))
+            c[t] = 1.0;
+    }
+    /* relRMSE^2 = (sum var / pixels) / (sum mean / pixels)^2 <= target^2 */
+    double budget = target * target * mean * mean / pixels;
+    uint64_t added = adapt_allocate(n_tiles, v, c, m, budget, a->max_passes, ADAPT_GROWTH, n);
+    a->outstanding = 0;
+    for (uint32_t t = 0; t < n_tiles; t++) {
+        a->outstanding += n[t] - a->tiles[t].passes;
+        a->tiles[t].passes = n[t];
+    }
+    free(v);
+    free(c);
+    free(m);
+    free(n);
+    if (added == 0) {
+        a->finished = 1;
+        return 0;
+    }
+    a->round++;
+    return 1;
+}
+
+double adapt_eta_samples(const struct adapt *a)
+{
+    if (!(a->target > 0.0) || a->num_history == 0 || !(a->est > 0.0))
+        return 0.0;
+    double sx = 0, sy = 0, sxx = 0, sxy = 0;
+    uint32_t k = 0;
+    for (uint32_t i = 0; i < a->num_history; i++) {
+        if (!(a->hist_est[i] > 0.0) || !(a->hist_samples[i] > 0.0))
+            continue;
+        double x = log(a->hist_samples[i]), y = log(a->hist_est[i]);
+        sx += x, sy += y, sxx += x * x, sxy += x * y;
+        k++;
+    }
+    double b = 0.5; /* Monte Carlo's rate until two rounds say otherwise */
+    if (k >= 2 && sxx * k - sx * sx > 0.0)
+        b = -(sxy * k - sx * sy) / (sxx * k - sx * sx);
+    b = b < 0.25 ? 0.25 : b > 1.0 ? 1.0 : b;
+    double last = a->hist_samples[a->num_history - 1];
+    return a->est <= a->target ? last : last * pow(a->est / a->target, 1.0 / b);
+}

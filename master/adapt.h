@@ -1,0 +1,63 @@
+/* Adaptive rendering to a target error (docs/adaptive.md): which tiles get which passes.
+ * A frame renders in rounds; in each round some tiles get more passes (units (tile, pass)
+ * of a fixed pass size), and every decision is taken when the round's units are all
+ * folded, from per-tile sums that depend only on the folded passes, never on timing, so
+ * the passes each tile gets (and the image) are the same for any worker count or arrival
+ * order, and after a journal replay. Pure: no I/O, no clock. Called by master/master.c;
+ * tested by tests/unit/test_adapt.c. */
+#ifndef BRUME_ADAPT_H
+#define BRUME_ADAPT_H
+#include <stdint.h>
+
+#define ADAPT_FIRST_PASSES 4u   /* passes every tile gets before its batch-means estimate counts */
+#define ADAPT_GROWTH 2u         /* a tile's passes at most double per round: early estimates are rough */
+#define ADAPT_MAX_HISTORY 256u
+
+/* A tile's state as the rounds see it. */
+struct adapt_tile {
+    uint32_t pixels;
+    uint32_t passes;        /* passes released so far (its units 0..passes-1) */
+    double sum_var;         /* over its pixels: variance of the pixel mean (mean of R, G, B), after `passes` */
+    double sum_mean;        /* over its pixels: the pixel mean (mean of R, G, B) */
+    uint64_t samples, rays; /* traced so far (deterministic: the cost measure, never time) */
+};
+
+struct adapt {
+    uint32_t num_tiles, max_passes, max_rounds;
+    double target;          /* relRMSE to reach; 0: none (time limit or max_rounds only) */
+    uint32_t round;         /* rounds released so far (round 0 = the first passes) */
+    uint32_t outstanding;   /* units of the current round not yet folded */
+    int finished;           /* no more passes: the frame ends once outstanding is 0 */
+    double est;             /* the image's estimated relRMSE at the last decision */
+    uint32_t num_history;   /* (samples, estimate) at each decision: the ETA's fit */
+    double hist_samples[ADAPT_MAX_HISTORY], hist_est[ADAPT_MAX_HISTORY];
+    struct adapt_tile *tiles;
+};
+
+/* max_passes (>= 2) passes at most per tile; pixels[t] the pixel count of tile t. */
+struct adapt *adapt_new(uint32_t num_tiles, const uint32_t *pixels, uint32_t max_passes, double target,
+                        uint32_t max_rounds);
+void adapt_free(struct adapt **a);
+/* A new frame: round 0, every tile ADAPT_FIRST_PASSES passes (at most max_passes). The
+ * caller releases units (t, p) for p < tiles[t].passes. */
+void adapt_begin(struct adapt *a);
+/* The allocation rule. Tiles of sum variance v[t] (pixel variances of the mean summed,
+ * after m[t] passes), cost per pass c[t] > 0: the fewest-cost passes n[t] >= m[t] (at most
+ * max_passes) with sum_t v[t] m[t] / n[t] <= budget, by Lagrange: n[t] proportional to
+ * sqrt(v[t] m[t] / c[t]) (the error per unit cost equalised), rounded up, then each at
+ * most growth x m[t]. Writes n; returns the passes added. */
+uint64_t adapt_allocate(uint32_t num_tiles, const double *v, const double *c, const uint32_t *m, double budget,
+                        uint32_t max_passes, uint32_t growth, uint32_t *n);
+/* The image's estimated relRMSE from the tiles' sums: sqrt(sum var / pixels) / (sum mean /
+ * pixels); 0 for a black image. */
+double adapt_image_estimate(const struct adapt *a);
+/* The decision at a round's end (every tile's sums up to date): 1 when a new round is
+ * released (tiles' passes raised: the caller releases units [old, new) of each, pass by
+ * pass), 0 when the frame is finished (target met, every tile at max_passes, max_rounds
+ * reached, or stop set: the time limit). */
+int adapt_decide(struct adapt *a, int stop, uint64_t samples_total);
+/* Samples in all at which the fitted decay of the estimate (est ~ samples^-b over the
+ * decisions so far) reaches the target; 0 when it cannot be told (no target, one point). */
+double adapt_eta_samples(const struct adapt *a);
+
+#endif

@@ -1,0 +1,76 @@
+#!/bin/sh
+# Adaptive rendering to a target error (docs/adaptive.md): the same --target-error run
+# with 1 and 3 workers (and another tile order) is bit-identical; a master killed with
+# kill -9 after round 0 and restarted resumes from its journal to identical pixels; the
+# samples channel sums to the samples the run reports; a --time-limit run records its
+# rounds and --max-rounds reproduces it; passes apply to a scene without photon maps.
+# Ends with "integration: N passed, N failed". Usage: BUILD=build sh tests/integration/adaptive.sh
+. "$(dirname "$0")/lib.sh"
+lib_init adaptive
+S=scenes/tiny/tiny.json
+AD="--target-error 0.03 --tile 8 --spp 2048"
+samples() { python3 -c 'import json, sys; print(json.load(open(sys.argv[1] + ".stats.json"))["samples"])' "$1" 2>/dev/null; }
+
+run $M $S -o "$T/a1.exr" $AD --no-journal --workers 1 --threads 1 && r1=0 || r1=1
+cp "$T/log" "$T/a1.log"
+run $M $S -o "$T/a3.exr" $AD --no-journal --workers 3 --threads 2 && r3=0 || r3=1
+est=$(sed -n 's/^summary: adaptive: target relRMSE [0-9.]*, estimated \([0-9.]*\).*/\1/p' "$T/a1.log")
+if [ $r1 = 0 ] && [ $r3 = 0 ] && $X cmp "$T/a1.exr" "$T/a3.exr" && [ -n "$est" ] &&
+   awk -v e="$est" 'BEGIN { exit !(e <= 0.03 && e > 0) }' && grep -q "spp min [0-9]* mean [0-9.]* max" "$T/a1.log"; then
+  ok "target 0.03: 1 vs 3 workers bit-identical, estimate $est met"
+else bad "target 0.03: 1 vs 3 workers bit-identical (rc $r1 $r3, estimate $est)"; fi
+ns=$(samples "$T/a1.exr")
+cs=$($X chsum "$T/a1.exr" samples 2>/dev/null)
+if [ -n "$ns" ] && [ -n "$cs" ] && awk -v a="$ns" -v b="$cs" 'BEGIN { exit !(a == b && a > 0) }' &&
+   grep -aq brume_est_rel_rmse "$T/a1.exr" && grep -aq brume_target_error "$T/a1.exr"; then
+  ok "samples channel sums to the samples reported ($ns); estimate and target in the header"
+else bad "samples channel sums to the samples reported ($ns vs $cs)"; fi
+if ! $X cmp "$T/a1.exr" "$T/a3.exr" >/dev/null 2>&1 || [ "$($X chsum "$T/a1.exr" samples)" != "$($X chsum "$T/a3.exr" samples)" ]; then
+  bad "samples channel identical for 1 and 3 workers"; else ok "samples channel identical for 1 and 3 workers"; fi
+
+# Killed after round 0 (the journal holds a unit of pass 4 or later), restarted: identical.
+# jtop JOURNAL TILES: the highest pass among the journal's records (header 76 bytes;
+# record: "TREC", u32 unit, u32 chunk size, 44 bytes of stats, chunk, 32-byte hash).
+jtop() {
+  python3 -c 'import struct, sys
+try: d = open(sys.argv[1], "rb").read()
+except OSError: d = b""
+tiles, at, top = int(sys.argv[2]), 76, -1
+while at + 12 <= len(d) and d[at:at + 4] == b"TREC":
+    unit, size = struct.unpack_from("<II", d, at + 4)
+    if at + 12 + 44 + size + 32 > len(d): break
+    top = max(top, unit // tiles); at += 12 + 44 + size + 32
+print(top)' "$1" "$2"
+}
+KD="--target-error 0.01 --tile 8 --spp 4096"
+run $M $S -o "$T/k0.exr" $KD --no-journal --workers 2 --threads 1 && r0=0 || r0=1
+$M $S -o "$T/k.exr" $KD --workers 2 --threads 1 >"$T/klog" 2>&1 &
+mpid=$!
+i=0
+while [ $i -lt 600 ] && [ "$(jtop "$T/k.exr.journal" 12)" -lt 5 ]; do sleep 0.05; i=$((i + 1)); done
+kill -9 $mpid 2>/dev/null
+wait $mpid 2>/dev/null
+jt=$(jtop "$T/k.exr.journal" 12)
+run $M $S -o "$T/k.exr" $KD --workers 2 --threads 1 && rk=0 || rk=1
+fj=$(counter tiles_from_journal "$T/k.exr")
+if [ $r0 = 0 ] && [ $rk = 0 ] && [ "${fj:-0}" -gt 0 ] && $X cmp "$T/k0.exr" "$T/k.exr" &&
+   [ "$($X chsum "$T/k0.exr" samples)" = "$($X chsum "$T/k.exr" samples)" ]; then
+  ok "master kill -9 mid-round (journal up to pass $jt) + restart: identical ($fj units from the journal)"
+else bad "master kill -9 mid-round + restart: identical (rc $r0 $rk, journal pass $jt, from journal ${fj:-0})"; fi
+
+# A time limit stops at a round boundary and records the rounds; --max-rounds reproduces it.
+run $M $S -o "$T/t.exr" --time-limit 0.001 --tile 8 --spp 1024 --no-journal --workers 1 --threads 1 && rt=0 || rt=1
+rounds=$(python3 -c 'import json, sys; print(json.load(open(sys.argv[1] + ".stats.json"))["rounds"])' "$T/t.exr" 2>/dev/null)
+run $M $S -o "$T/t2.exr" --time-limit 1000 --max-rounds "${rounds:-1}" --tile 8 --spp 1024 --no-journal --workers 2 --threads 1 && rt2=0 || rt2=1
+if [ $rt = 0 ] && [ $rt2 = 0 ] && [ -n "$rounds" ] && grep -aq brume_time_limited "$T/t.exr" && $X cmp "$T/t.exr" "$T/t2.exr"; then
+  ok "time limit: stopped after $rounds round(s), recorded; --max-rounds $rounds reproduces it"
+else bad "time limit: recorded rounds ($rounds) and --max-rounds reproduce it (rc $rt $rt2)"; fi
+
+# Passes on a scene without photon maps: batch-means estimate, 1 vs 2 workers identical.
+run $M $S -o "$T/p1.exr" --spp 16 --passes 4 --no-journal --workers 1 --threads 1 && p1=0 || p1=1
+run $M $S -o "$T/p2.exr" --spp 16 --passes 4 --no-journal --workers 2 --threads 1 --tile 8 && p2=0 || p2=1
+if [ $p1 = 0 ] && [ $p2 = 0 ] && grep -q "batch means over the passes" "$T/log" && $X cmp "$T/p1.exr" "$T/p2.exr"; then
+  ok "4 passes without photon maps: batch means, 1 vs 2 workers identical"
+else bad "4 passes without photon maps: batch means, 1 vs 2 workers identical"; fi
+
+finish

@@ -1,0 +1,152 @@
+/* Unit tests for the adaptive rounds (master/adapt.c) on synthetic tiles of known
+ * variance: the allocation equalises error per unit cost (passes in proportion to
+ * sqrt(v m / c)), meets the budget, keeps tiles at their passes or the cap, grows at most
+ * ADAPT_GROWTH-fold; rounds stop at the target, the cap or the round limit; the held
+ * units of the scheduler go out only when released. Run by `make unit`. */
+#include <criterion/criterion.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include "master/adapt.h"
+#include "master/sched.h"
+
+static double projected(uint32_t n, const double *v, const uint32_t *m, const uint32_t *np)
+{
+    double sum = 0.0;
+    for (uint32_t t = 0; t < n; t++)
+        sum += np[t] ? v[t] * m[t] / np[t] : 0.0;
+    return sum;
+}
+
+Test(adapt, passes_in_proportion_to_error_per_cost)
+{
+    /* Variances 1, 4, 16 after 4 passes, equal cost: the optimum gives passes 1 : 2 : 4. */
+    const double v[3] = {1.0, 4.0, 16.0}, c[3] = {1.0, 1.0, 1.0};
+    const uint32_t m[3] = {4, 4, 4};
+    uint32_t n[3];
+    /* sum v m / n = budget with n = s sqrt(v m): s = sum sqrt(v m) / budget = (2+4+8)/budget */
+    double budget = 14.0 * 14.0 / 56.0; /* s = 56/14 = 4 -> n = 8, 16, 32 */
+    uint64_t added = adapt_allocate(3, v, c, m, budget, 1000, 100, n);
+    cr_assert_eq(n[0], 8);
+    cr_assert_eq(n[1], 16);
+    cr_assert_eq(n[2], 32);
+    cr_assert_eq(added, 4 + 12 + 28);
+    cr_assert(projected(3, v, m, n) <= budget * (1 + 1e-12));
+}
+
+Test(adapt, cost_lowers_the_share)
+{
+    /* Same variance, the second tile 4x as costly per pass: half the passes. */
+    const double v[2] = {8.0, 8.0}, c[2] = {1.0, 4.0};
+    const uint32_t m[2] = {4, 4};
+    uint32_t n[2];
+    adapt_allocate(2, v, c, m, 1.0, 100000, 1000, n);
+    cr_assert(fabs((double)n[0] / n[1] - 2.0) < 0.05, "passes %u and %u: expected 2:1", n[0], n[1]);
+    double v2[2] = {8.0, 8.0};
+    cr_assert(projected(2, v2, m, n) <= 1.0 + 1e-12);
+}
+
+Test(adapt, quiet_tiles_keep_their_passes_and_caps_hold)
+{
+    /* A black tile (v 0) and a nearly quiet one keep 4 passes; a very noisy one hits the
+     * cap; the growth limit holds in the first call. */
+    const double v[4] = {0.0, 1e-9, 100.0, 1.0}, c[4] = {1, 1, 1, 1};
+    const uint32_t m[4] = {4, 4, 4, 4};
+    uint32_t n[4];
+    adapt_allocate(4, v, c, m, 7.0, 64, 1000, n);
+    cr_assert_eq(n[0], 4);
+    cr_assert_eq(n[1], 4);
+    cr_assert(n[2] > n[3] && n[2] <= 64, "the noisiest most, within the cap: %u", n[2]);
+    cr_assert(n[3] > 4 && n[3] < 64);
+    cr_assert(projected(4, v, m, n) <= 7.0 * (1 + 1e-12));
+    adapt_allocate(4, v, c, m, 7.0, 64, 2, n);
+    for (int t = 0; t < 4; t++)
+        cr_assert(n[t] <= 8, "growth at most 2x: tile %d got %u", t, n[t]);
+    /* An unreachable budget: every noisy tile to the cap (within the growth limit). */
+    adapt_allocate(4, v, c, m, 1e-12, 16, 1000, n);
+    cr_assert(n[2] == 16 && n[3] == 16 && n[0] == 4);
+}
+
+/* Rounds on synthetic tiles whose per-pass variance is known exactly: the sums follow
+ * v m / n, so the rounds must end at the target with the fewest passes the rule allows. */
+Test(adapt, rounds_reach_the_target_and_stop)
+{
+    enum { T = 16 };
+    uint32_t pixels[T];
+    double per_pass[T];
+    for (int t = 0; t < T; t++) {
+        pixels[t] = 64;
+        per_pass[t] = t < 4 ? 64.0 * 0.5 : 64.0 * 0.01; /* 4 noisy tiles, 12 quiet ones */
+    }
+    struct adapt *a = adapt_new(T, pixels, 512, 0.02, 0);
+    adapt_begin(a);
+    cr_assert_eq(a->outstanding, T * ADAPT_FIRST_PASSES);
+    int more = 1;
+    uint32_t rounds = 0;
+    uint64_t samples = 0;
+    while (more) {
+        for (int t = 0; t < T; t++) {
+            a->tiles[t].sum_var = per_pass[t] / a->tiles[t].passes;
+            a->tiles[t].sum_mean = 64.0;
+            a->tiles[t].samples = a->tiles[t].passes * 64ull;
+            a->tiles[t].rays = a->tiles[t].samples * 3;
+            samples += a->tiles[t].samples;
+        }
+        more = adapt_decide(a, 0, samples);
+        rounds++;
+        cr_assert(rounds < 20);
+    }
+    cr_assert(a->finished);
+    cr_assert(a->est <= 0.02, "estimate %g", a->est);
+    cr_assert(a->tiles[0].passes > a->tiles[8].passes, "noisy tiles get more passes");
+    /* About the fewest: the estimate is not far below the target. */
+    cr_assert(a->est > 0.02 * 0.8, "estimate %g overshoots", a->est);
+    cr_assert(adapt_eta_samples(a) > 0.0);
+    /* The same inputs give the same passes (determinism of the rule itself). */
+    uint32_t first[T];
+    for (int t = 0; t < T; t++)
+        first[t] = a->tiles[t].passes;
+    adapt_begin(a);
+    more = 1;
+    samples = 0;
+    while (more) {
+        for (int t = 0; t < T; t++) {
+            a->tiles[t].sum_var = per_pass[t] / a->tiles[t].passes;
+            a->tiles[t].sum_mean = 64.0;
+            a->tiles[t].samples = a->tiles[t].passes * 64ull;
+            a->tiles[t].rays = a->tiles[t].samples * 3;
+            samples += a->tiles[t].samples;
+        }
+        more = adapt_decide(a, 0, samples);
+    }
+    for (int t = 0; t < T; t++)
+        cr_assert_eq(a->tiles[t].passes, first[t]);
+    /* stop (the time limit) and the round cap end at once. */
+    adapt_begin(a);
+    cr_assert_eq(adapt_decide(a, 1, 1), 0);
+    adapt_free(&a);
+    a = adapt_new(T, pixels, 512, 0.02, 1);
+    adapt_begin(a);
+    cr_assert_eq(adapt_decide(a, 0, 1), 0, "--max-rounds 1: round 0 is the last");
+    adapt_free(&a);
+    cr_assert_null(a);
+}
+
+Test(adapt, held_units_go_out_only_when_released)
+{
+    struct sched *s = sched_new(6);
+    sched_frame_begin(s);
+    int32_t w = sched_worker_join(s, 1, 0);
+    sched_worker_ready(s, w, 4);
+    sched_hold_all(s);
+    struct sched_assignment as;
+    cr_assert_eq(sched_assign_next(s, 0, &as), 0, "nothing released");
+    cr_assert_eq(sched_unhold(s, 4), 0);
+    cr_assert_eq(sched_unhold(s, 4), -1, "already queued");
+    cr_assert_eq(sched_assign_next(s, 0, &as), 1);
+    cr_assert_eq(as.tile, 4);
+    cr_assert_eq(sched_result(s, w, 2, 1), SCHED_RESULT_STALE, "a held unit's result is stale");
+    cr_assert_eq(sched_tile_set_done(s, 2), 0, "a held unit can be closed");
+    cr_assert_eq(sched_unhold(s, 2), -1);
+    sched_free(&s);
+}
