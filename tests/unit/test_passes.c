@@ -257,7 +257,7 @@ Test(passes, volume_blob_maps)
     s.settings.spp = 3;
     struct asset_dir dd;
     memset(&dd, 0, sizeof dd);
-    cr_assert_eq(master_media_prepare(&s, &od, 0, &dd, &n), 0);
+    cr_assert_eq(master_media_prepare(&s, &od, 0, &dd, 0, &n), 0);
     cr_assert_eq(n, 3u);
     cr_assert_eq(s.settings.spp, 3u);
     asset_dir_fini(&dd);
