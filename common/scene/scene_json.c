@@ -43,7 +43,8 @@ struct ctx {
     struct mesh_obj_cache cache;
     uint32_t num_json_materials;  /* materials 0..n-1 are the scene file's, by name */
     char display_dir[1024];
-    double origin[3];             /* scene.origin: subtracted from every position read */
+    const double *origin;         /* scene.origin: subtracted from every position read */
+    bool origin_given;            /* by the caller: the camera does not set it */
 };
 
 static struct jpath jpath_child(const struct jpath *p, uint32_t ordinal)
@@ -1656,7 +1657,6 @@ static void read_origin(struct ctx *c, json_t *camera)
         if (!(o[i] >= -FLT_MAX && o[i] <= FLT_MAX))
             return;
     }
-    memcpy(c->origin, o, sizeof o);
     memcpy(c->scene->origin, o, sizeof o);
 }
 
@@ -1676,7 +1676,8 @@ static int parse_root(struct ctx *c, json_t *root)
                     (long long)json_integer_value(m[0].val), SCENE_VERSION);
     if (require(c, &m[1], &rp, "scene", "camera") != 0 || require(c, &m[2], &rp, "scene", "render") != 0)
         return -1;
-    read_origin(c, m[1].val);
+    if (!c->origin_given)
+        read_origin(c, m[1].val);
     /* Textures, then materials: objects refer to materials (and materials to textures) by
      * name wherever they appear in the file. */
     if (m[8].val && parse_textures(c, &m[8]) != 0)
@@ -1702,6 +1703,12 @@ static int parse_root(struct ctx *c, json_t *root)
 int scene_json_parse(const char *name, const char *text, size_t len, const struct asset_source *src,
                      struct scene *out, char *err, size_t errlen)
 {
+    return scene_json_parse_origin(name, text, len, src, NULL, out, err, errlen);
+}
+
+int scene_json_parse_origin(const char *name, const char *text, size_t len, const struct asset_source *src,
+                            const double origin[3], struct scene *out, char *err, size_t errlen)
+{
     memset(out, 0, sizeof *out);
     json_error_t jerr;
     json_t *root = json_loadb(text, len, JSON_REJECT_DUPLICATES, &jerr);
@@ -1719,6 +1726,11 @@ int scene_json_parse(const char *name, const char *text, size_t len, const struc
     c.errlen = errlen;
     c.scene = out;
     c.src = src;
+    c.origin = out->origin;
+    if (origin) {
+        memcpy(out->origin, origin, sizeof out->origin);
+        c.origin_given = true;
+    }
     const char *slash = strrchr(name, '/');
     if (slash && (size_t)(slash - name) + 2 <= sizeof c.display_dir)
         memcpy(c.display_dir, name, (size_t)(slash - name) + 1);
