@@ -96,6 +96,56 @@ static inline struct xform xform_then(const struct xform *a, const struct xform 
     return r;
 }
 
+/* The same in double: scene loading composes and applies transforms in double, subtracts
+ * the render frame's origin (scene.h) and rounds to float once, so a scene far from the
+ * world origin keeps the precision it has near its camera. */
+struct dxform { double m[3][4]; };
+
+static inline struct dxform dxform_identity(void)
+{
+    struct dxform t = {{{1, 0, 0, 0}, {0, 1, 0, 0}, {0, 0, 1, 0}}};
+    return t;
+}
+/* a then b */
+static inline struct dxform dxform_then(const struct dxform *a, const struct dxform *b)
+{
+    struct dxform r;
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 4; j++)
+            r.m[i][j] = b->m[i][0] * a->m[0][j] + b->m[i][1] * a->m[1][j] + b->m[i][2] * a->m[2][j] +
+                        (j == 3 ? b->m[i][3] : 0.0);
+    return r;
+}
+static inline void dxform_point(const struct dxform *t, const double p[3], double out[3])
+{
+    for (int i = 0; i < 3; i++)
+        out[i] = t->m[i][0] * p[0] + t->m[i][1] * p[1] + t->m[i][2] * p[2] + t->m[i][3];
+}
+static inline struct dxform dxform_from_float(const struct xform *t)
+{
+    struct dxform r;
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 4; j++)
+            r.m[i][j] = t->m[i][j];
+    return r;
+}
+static inline struct xform dxform_to_float(const struct dxform *t)
+{
+    struct xform r;
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 4; j++)
+            r.m[i][j] = (float)t->m[i][j];
+    return r;
+}
+/* t followed by a move of the whole space by -origin (origin NULL: t). */
+static inline struct dxform dxform_minus_origin(const struct dxform *t, const double *origin)
+{
+    struct dxform r = *t;
+    for (int i = 0; origin && i < 3; i++)
+        r.m[i][3] -= origin[i];
+    return r;
+}
+
 /* p moved by delta units in the last place, away from zero. */
 static inline float float_bits_offset(float p, int delta)
 {

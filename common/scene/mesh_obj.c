@@ -42,7 +42,7 @@ void mesh_obj_cache_fini(struct mesh_obj_cache *cache)
 struct mesh_obj_options mesh_obj_default_options(void)
 {
     struct mesh_obj_options o;
-    o.transform = xform_identity();
+    o.transform = dxform_identity();
     o.material_override = MESH_OBJ_NO_OVERRIDE;
     o.display_dir = "";
     o.mesh_name = NULL;
@@ -202,7 +202,9 @@ static bool number_syntax_ok(const char *p, size_t n)
     return i == n;
 }
 
-static int token_float(struct reader *r, const struct token *t, float *out)
+/* A number that fits a float, read in double: vertices keep their digits until the render
+ * frame's origin is subtracted. */
+static int token_number(struct reader *r, const struct token *t, double *out)
 {
     char buf[80];
     if (t->n >= sizeof buf || !number_syntax_ok(t->p, t->n))
@@ -212,13 +214,22 @@ static int token_float(struct reader *r, const struct token *t, float *out)
     double d = strtod(buf, NULL);
     if (!(d >= -FLT_MAX && d <= FLT_MAX))
         return reader_fail(r, t->p, "number \"%s\" out of range", buf);
+    *out = d;
+    return 0;
+}
+
+static int token_float(struct reader *r, const struct token *t, float *out)
+{
+    double d;
+    if (token_number(r, t, &d) != 0)
+        return -1;
     *out = (float)d;
     return 0;
 }
 
 /* Reads between min_n and max_n numbers to the end of the line; returns the count.
  * where (optional, max_n entries) receives each number's position for messages. */
-static int reader_floats(struct reader *r, float *out, const char **where, int min_n, int max_n, const char *what)
+static int reader_numbers(struct reader *r, double *out, const char **where, int min_n, int max_n, const char *what)
 {
     int n = 0;
     struct token t;
@@ -227,7 +238,7 @@ static int reader_floats(struct reader *r, float *out, const char **where, int m
     while ((k = reader_token(r, &t)) == 1) {
         if (n == max_n)
             return reader_fail(r, t.p, "%s takes at most %d numbers", what, max_n);
-        if (token_float(r, &t, &out[n]) != 0)
+        if (token_number(r, &t, &out[n]) != 0)
             return -1;
         if (where)
             where[n] = t.p;
@@ -238,6 +249,16 @@ static int reader_floats(struct reader *r, float *out, const char **where, int m
     if (n < min_n)
         return reader_fail(r, n ? r->text + r->cur : start, "%s needs %s%d numbers, got %d", what,
                            min_n == max_n ? "" : "at least ", min_n, n);
+    return n;
+}
+
+/* reader_numbers rounded to float (max_n <= 6): everything but vertex positions. */
+static int reader_floats(struct reader *r, float *out, const char **where, int min_n, int max_n, const char *what)
+{
+    double d[6];
+    int n = reader_numbers(r, d, where, min_n, max_n < 6 ? max_n : 6, what);
+    for (int i = 0; i < n; i++)
+        out[i] = (float)d[i];
     return n;
 }
 
@@ -516,7 +537,8 @@ static int mtl_get(struct scene *scene, struct mesh_obj_cache *cache, const stru
 struct corner { int32_t v, vt, vn; };
 
 struct obj_state {
-    float *pos, *nrm, *uv;
+    double *pos;             /* as written: the transform and origin apply in double */
+    float *nrm, *uv;
     size_t num_pos, num_nrm, num_uv, cap_pos, cap_nrm, cap_uv;
     struct corner *corners;  /* 3 per triangle */
     uint32_t *tri_mat;
@@ -591,15 +613,14 @@ static int parse_corner(struct reader *r, const struct token *t, const struct ob
     return 0;
 }
 
-static int push_floats(struct reader *r, float **arr, size_t *count, size_t *cap, const float *v, int n,
-                       const char *what)
+/* Appends one element of elem_size bytes to *arr (*cap counts elements). */
+static int push_element(struct reader *r, void **arr, size_t *count, size_t *cap, const void *v, size_t elem_size,
+                        const char *what)
 {
     if (*count >= MESH_OBJ_MAX_ELEMENTS)
         return reader_fail(r, r->text + r->line_start, "more than %u %s", MESH_OBJ_MAX_ELEMENTS, what);
-    size_t c = *cap;
-    mem_grow((void **)arr, &c, (*count + 1) * (size_t)n, sizeof **arr);
-    *cap = c;
-    memcpy(*arr + *count * (size_t)n, v, (size_t)n * sizeof *v);
+    mem_grow(arr, cap, *count + 1, elem_size);
+    memcpy((char *)*arr + *count * elem_size, v, elem_size);
     (*count)++;
     return 0;
 }
@@ -725,18 +746,20 @@ static void obj_build_mesh(struct obj_state *s, const struct mesh_obj_options *o
         }
     }
     free(table);
+    /* Normals from the transform rounded to float, positions in double. */
+    struct xform tf = dxform_to_float(&opt->transform);
     float cof[3][3], det;
-    xform_cofactor(&opt->transform, cof, &det);
+    xform_cofactor(&tf, cof, &det);
     float nsign = det < 0.0f ? -1.0f : 1.0f;
     float *positions = mem_alloc(3 * (size_t)nv * sizeof *positions);
     float *normals = has_n ? mem_alloc(3 * (size_t)nv * sizeof *normals) : NULL;
     float *uvs = has_uv ? mem_alloc(2 * (size_t)nv * sizeof *uvs) : NULL;
     for (uint32_t i = 0; i < nv; i++) {
-        const float *p = &s->pos[3 * (size_t)keys[i].v];
-        vec3 w = xform_point(&opt->transform, v3(p[0], p[1], p[2]));
-        positions[3 * i + 0] = w.x;
-        positions[3 * i + 1] = w.y;
-        positions[3 * i + 2] = w.z;
+        double w[3];
+        dxform_point(&opt->transform, &s->pos[3 * (size_t)keys[i].v], w);
+        positions[3 * i + 0] = (float)w[0];
+        positions[3 * i + 1] = (float)w[1];
+        positions[3 * i + 2] = (float)w[2];
         if (normals) {
             const float *q = &s->nrm[3 * (size_t)keys[i].vn];
             vec3 nn = v3(nsign * (cof[0][0] * q[0] + cof[0][1] * q[1] + cof[0][2] * q[2]),
@@ -866,25 +889,25 @@ int mesh_obj_parse(struct scene *scene, struct mesh_obj_cache *cache, const stru
         if (k == 0)
             continue;
         if (token_is(&kw, "v")) {
-            float v[6];
-            int n = reader_floats(&r, v, NULL, 3, 6, "v");
+            double v[6];
+            int n = reader_numbers(&r, v, NULL, 3, 6, "v");
             if (n < 0)
                 goto done;
             if (n == 5) {  /* x y z [w], or x y z r g b (the common vertex colour extension) */
                 reader_fail(&r, kw.p, "v takes 3, 4 or 6 numbers");
                 goto done;
             }
-            if (push_floats(&r, &s.pos, &s.num_pos, &s.cap_pos, v, 3, "vertices") != 0)
+            if (push_element(&r, (void **)&s.pos, &s.num_pos, &s.cap_pos, v, 3 * sizeof *v, "vertices") != 0)
                 goto done;
         } else if (token_is(&kw, "vn")) {
             float v[3];
             if (reader_floats(&r, v, NULL, 3, 3, "vn") < 0 ||
-                push_floats(&r, &s.nrm, &s.num_nrm, &s.cap_nrm, v, 3, "normals") != 0)
+                push_element(&r, (void **)&s.nrm, &s.num_nrm, &s.cap_nrm, v, 3 * sizeof *v, "normals") != 0)
                 goto done;
         } else if (token_is(&kw, "vt")) {
             float v[3] = {0, 0, 0};
             if (reader_floats(&r, v, NULL, 1, 3, "vt") < 0 ||
-                push_floats(&r, &s.uv, &s.num_uv, &s.cap_uv, v, 2, "texture coordinates") != 0)
+                push_element(&r, (void **)&s.uv, &s.num_uv, &s.cap_uv, v, 2 * sizeof *v, "texture coordinates") != 0)
                 goto done;
         } else if (token_is(&kw, "f")) {
             if (!have_material) {

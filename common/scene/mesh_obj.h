@@ -26,9 +26,11 @@ struct mesh_obj_cache {
 void mesh_obj_cache_fini(struct mesh_obj_cache *cache);
 
 struct mesh_obj_options {
-    struct xform transform;      /* object to world; normals get the inverse transpose, and
-                                  * a mirroring transform flips the winding so the
-                                  * geometric normal keeps facing the same side */
+    struct dxform transform;     /* object to the render frame (world minus the scene's
+                                  * origin, scene.h), applied to the vertices in double;
+                                  * normals get the inverse transpose, and a mirroring
+                                  * transform flips the winding so the geometric normal
+                                  * keeps facing the same side */
     uint32_t material_override;  /* scene material for every face, or MESH_OBJ_NO_OVERRIDE;
                                   * with an override, mtllib files are not read and usemtl
                                   * names are not checked */

@@ -1,5 +1,6 @@
 /* The flat scene: what a job renders, after parsing and with every transform applied
- * (all positions in world space). Owned by the job; read-only while tiles render.
+ * (all positions in the render frame: world space minus scene.origin). Owned by the job;
+ * read-only while tiles render.
  * Built by scene_json.c (from scene.json and its OBJ/MTL assets); consumed by accel.c,
  * light.c, camera.c and integrator.c on both master and worker. */
 #ifndef BRUME_SCENE_H
@@ -31,7 +32,7 @@ struct material {
     uint32_t normal_tex; /* any type: 1 + index of a tangent-space normal map (RGB = 2 n - 1); 0 = none */
 };
 
-/* A triangle mesh in world space. normals and uvs are per vertex and may be NULL. */
+/* A triangle mesh in the render frame. normals and uvs are per vertex and may be NULL. */
 struct mesh {
     char name[SCENE_NAME_MAX];
     uint32_t num_vertices, num_triangles;
@@ -122,6 +123,12 @@ struct render_settings {
 struct texture; /* texture.h */
 
 struct scene {
+    /* World position of the render frame's (0, 0, 0): the camera's position (its first
+     * key's if it moves), read in double. Every position below (vertices, centres, lights,
+     * the camera, key translations, grids) is stored relative to it, rounded to float once,
+     * so precision is relative to the camera wherever the scene lies. Directions and sizes
+     * are unchanged. Only for reporting: rendering never needs it. */
+    double origin[3];
     struct camera_desc camera;
     struct render_settings settings;
     struct material *materials;

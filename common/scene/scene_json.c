@@ -43,6 +43,8 @@ struct ctx {
     struct mesh_obj_cache cache;
     uint32_t num_json_materials;  /* materials 0..n-1 are the scene file's, by name */
     char display_dir[1024];
+    const double *origin;         /* scene.origin: subtracted from every position read */
+    bool origin_given;            /* by the caller: the camera does not set it */
 };
 
 static struct jpath jpath_child(const struct jpath *p, uint32_t ordinal)
@@ -264,13 +266,24 @@ static const char *type_name(const json_t *v)
     return "?";
 }
 
-static int get_float(struct ctx *c, json_t *v, const struct jpath *p, const char *what, float *out)
+/* A number that fits a float, kept in double (positions and transforms, until the origin
+ * is subtracted). */
+static int get_double(struct ctx *c, json_t *v, const struct jpath *p, const char *what, double *out)
 {
     if (!json_is_number(v))
         return fail(c, p, AT_VALUE, "%s must be a number, not %s", what, type_name(v));
     double d = json_number_value(v);
     if (!(d >= -FLT_MAX && d <= FLT_MAX))
         return fail(c, p, AT_VALUE, "%s is out of range", what);
+    *out = d;
+    return 0;
+}
+
+static int get_float(struct ctx *c, json_t *v, const struct jpath *p, const char *what, float *out)
+{
+    double d;
+    if (get_double(c, v, p, what, &d) != 0)
+        return -1;
     *out = (float)d;
     return 0;
 }
@@ -288,17 +301,41 @@ static int get_uint(struct ctx *c, const struct member *m, const char *what, jso
     return 0;
 }
 
-static int get_vec3(struct ctx *c, json_t *v, const struct jpath *p, const char *what, vec3 *out)
+static int get_dvec3(struct ctx *c, json_t *v, const struct jpath *p, const char *what, double out[3])
 {
     if (!json_is_array(v) || json_array_size(v) != 3)
         return fail(c, p, AT_VALUE, "%s must be an array of 3 numbers", what);
-    float f[3];
     for (size_t i = 0; i < 3; i++) {
         struct jpath ep = jpath_child(p, (uint32_t)i);
-        if (get_float(c, json_array_get(v, i), &ep, what, &f[i]) != 0)
+        if (get_double(c, json_array_get(v, i), &ep, what, &out[i]) != 0)
             return -1;
     }
-    *out = v3(f[0], f[1], f[2]);
+    return 0;
+}
+
+/* Directions, sizes and colours. */
+static int get_vec3(struct ctx *c, json_t *v, const struct jpath *p, const char *what, vec3 *out)
+{
+    double d[3];
+    if (get_dvec3(c, v, p, what, d) != 0)
+        return -1;
+    *out = v3((float)d[0], (float)d[1], (float)d[2]);
+    return 0;
+}
+
+/* p - origin, rounded to float once. */
+static vec3 rel_point(const struct ctx *c, const double p[3])
+{
+    return v3((float)(p[0] - c->origin[0]), (float)(p[1] - c->origin[1]), (float)(p[2] - c->origin[2]));
+}
+
+/* A world position: stored relative to the scene's origin (scene.h). */
+static int get_point(struct ctx *c, json_t *v, const struct jpath *p, const char *what, vec3 *out)
+{
+    double d[3];
+    if (get_dvec3(c, v, p, what, d) != 0)
+        return -1;
+    *out = rel_point(c, d);
     return 0;
 }
 
@@ -326,27 +363,10 @@ static int get_string(struct ctx *c, const struct member *m, const char *what, c
 
 /* ---- Transforms ---- */
 
-/* Affine 3x4 in double: composing in double keeps float rounding to one final step. */
-struct dxf { double m[3][4]; };
+/* Transforms are composed in double (struct dxform, vec.h) and rounded to float once, after
+ * the origin is subtracted. */
 
-static struct dxf dxf_identity(void)
-{
-    struct dxf t = {{{1, 0, 0, 0}, {0, 1, 0, 0}, {0, 0, 1, 0}}};
-    return t;
-}
-
-/* b after a */
-static struct dxf dxf_then(const struct dxf *a, const struct dxf *b)
-{
-    struct dxf r;
-    for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 4; j++)
-            r.m[i][j] = b->m[i][0] * a->m[0][j] + b->m[i][1] * a->m[1][j] + b->m[i][2] * a->m[2][j] +
-                        (j == 3 ? b->m[i][3] : 0.0);
-    return r;
-}
-
-static int parse_rotation(struct ctx *c, json_t *v, const struct jpath *p, struct dxf *out)
+static int parse_rotation(struct ctx *c, json_t *v, const struct jpath *p, struct dxform *out)
 {
     static const char *const keys[] = {"axis", "degrees"};
     struct member m[2];
@@ -363,31 +383,31 @@ static int parse_rotation(struct ctx *c, json_t *v, const struct jpath *p, struc
         return fail(c, &m[0].path, AT_VALUE, "rotate axis must be a non-zero vector");
     x /= l, y /= l, z /= l;
     double a = (double)deg * (M_PI / 180.0), s = sin(a), co = cos(a), t = 1.0 - co;
-    struct dxf r = {{{t * x * x + co, t * x * y - s * z, t * x * z + s * y, 0},
+    struct dxform r = {{{t * x * x + co, t * x * y - s * z, t * x * z + s * y, 0},
                      {t * x * y + s * z, t * y * y + co, t * y * z - s * x, 0},
                      {t * x * z - s * y, t * y * z + s * x, t * z * z + co, 0}}};
     *out = r;
     return 0;
 }
 
-static int parse_transform(struct ctx *c, const struct member *tm, struct xform *out, double *uniform_scale,
+static int parse_transform(struct ctx *c, const struct member *tm, struct dxform *out, double *uniform_scale,
                            bool *uniform)
 {
     static const char *const keys[] = {"translate", "rotate", "scale", "matrix"};
     struct member m[4];
     if (object_members(c, tm->val, &tm->path, "transform", keys, 4, m) != 0)
         return -1;
-    struct dxf t = dxf_identity();
+    struct dxform t = dxform_identity();
     if (m[3].val) {
         if (m[0].val || m[1].val || m[2].val)
             return fail(c, &m[3].path, AT_KEY, "matrix cannot be combined with translate, rotate or scale");
         size_t n = json_is_array(m[3].val) ? json_array_size(m[3].val) : 0;
         if (n != 12 && n != 16)
             return fail(c, &m[3].path, AT_VALUE, "matrix must be an array of 12 or 16 numbers (row-major)");
-        float f[16];
+        double f[16];
         for (size_t i = 0; i < n; i++) {
             struct jpath ep = jpath_child(&m[3].path, (uint32_t)i);
-            if (get_float(c, json_array_get(m[3].val, i), &ep, "matrix entry", &f[i]) != 0)
+            if (get_double(c, json_array_get(m[3].val, i), &ep, "matrix entry", &f[i]) != 0)
                 return -1;
         }
         if (n == 16 && !(f[12] == 0 && f[13] == 0 && f[14] == 0 && f[15] == 1))
@@ -418,25 +438,24 @@ static int parse_transform(struct ctx *c, const struct member *tm, struct xform 
             if (json_is_array(m[1].val)) {
                 for (size_t i = 0; i < json_array_size(m[1].val); i++) {
                     struct jpath ep = jpath_child(&m[1].path, (uint32_t)i);
-                    struct dxf r;
+                    struct dxform r;
                     if (parse_rotation(c, json_array_get(m[1].val, i), &ep, &r) != 0)
                         return -1;
-                    t = dxf_then(&t, &r);
+                    t = dxform_then(&t, &r);
                 }
             } else {
-                struct dxf r;
+                struct dxform r;
                 if (parse_rotation(c, m[1].val, &m[1].path, &r) != 0)
                     return -1;
-                t = dxf_then(&t, &r);
+                t = dxform_then(&t, &r);
             }
         }
         if (m[0].val) {
-            vec3 v;
-            if (get_vec3(c, m[0].val, &m[0].path, "translate", &v) != 0)
+            double v[3];
+            if (get_dvec3(c, m[0].val, &m[0].path, "translate", v) != 0)
                 return -1;
-            t.m[0][3] += v.x;
-            t.m[1][3] += v.y;
-            t.m[2][3] += v.z;
+            for (int i = 0; i < 3; i++)
+                t.m[i][3] += v[i];
         }
     }
     double (*a)[4] = t.m;
@@ -460,9 +479,7 @@ static int parse_transform(struct ctx *c, const struct member *tm, struct xform 
     *uniform = fabs(len2[0] - mean) <= tol && fabs(len2[1] - mean) <= tol && fabs(len2[2] - mean) <= tol &&
                maxdot <= tol;
     *uniform_scale = sqrt(mean);
-    for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 4; j++)
-            out->m[i][j] = (float)a[i][j];
+    *out = t;
     return 0;
 }
 
@@ -744,7 +761,7 @@ static int parse_density(struct ctx *c, const struct member *dm, struct density_
         if (!(scale >= 0.0f && scale <= 1e30f))
             return fail(c, &m[1].path, AT_VALUE, "scale must be in [0, 1e30]");
     }
-    struct xform t = xform_identity();
+    struct dxform t = dxform_identity();
     if (m[2].val) {
         double us;
         bool uniform;
@@ -766,19 +783,23 @@ static int parse_density(struct ctx *c, const struct member *dm, struct density_
     struct density_grid *g = mem_calloc(1, sizeof *g);
     const uint8_t *bytes = (const uint8_t *)data;
     int rc;
+    struct xform tw; /* grid to the render frame */
     if (nvdb_is_nvdb(bytes, size)) {
         struct xform file_to_world;
         uint64_t negatives;
         rc = nvdb_parse(bytes, size, grid_name, g, &file_to_world, &negatives, why, sizeof why);
         if (rc == 0) {
-            t = xform_then(&file_to_world, &t);
-            double det = (double)t.m[0][0] * ((double)t.m[1][1] * t.m[2][2] - (double)t.m[1][2] * t.m[2][1]) -
-                         (double)t.m[0][1] * ((double)t.m[1][0] * t.m[2][2] - (double)t.m[1][2] * t.m[2][0]) +
-                         (double)t.m[0][2] * ((double)t.m[1][0] * t.m[2][1] - (double)t.m[1][1] * t.m[2][0]);
+            struct dxform fw = dxform_from_float(&file_to_world);
+            t = dxform_then(&fw, &t);
+            struct dxform tr = dxform_minus_origin(&t, c->origin);
+            tw = dxform_to_float(&tr);
+            double det = (double)tw.m[0][0] * ((double)tw.m[1][1] * tw.m[2][2] - (double)tw.m[1][2] * tw.m[2][1]) -
+                         (double)tw.m[0][1] * ((double)tw.m[1][0] * tw.m[2][2] - (double)tw.m[1][2] * tw.m[2][0]) +
+                         (double)tw.m[0][2] * ((double)tw.m[1][0] * tw.m[2][1] - (double)tw.m[1][1] * tw.m[2][0]);
             bool finite = isfinite(det) && det != 0.0;
             for (int i = 0; i < 3; i++)
                 for (int j = 0; j < 4; j++)
-                    finite = finite && isfinite(t.m[i][j]);
+                    finite = finite && isfinite(tw.m[i][j]);
             if (!finite) {
                 str_fmt(why, sizeof why, "the grid's map and the transform together are singular or not finite");
                 rc = -1;
@@ -791,13 +812,15 @@ static int parse_density(struct ctx *c, const struct member *dm, struct density_
             return fail(c, &m[3].path, AT_KEY, "grid: \"%s\" is not a NanoVDB file (only those hold named grids)", file);
         }
         rc = grid_parse(bytes, size, g, why, sizeof why);
+        struct dxform tr = dxform_minus_origin(&t, c->origin);
+        tw = dxform_to_float(&tr);
     }
     free(data);
     if (rc != 0) {
         grid_free(&g);
         return fail(c, &m[0].path, AT_VALUE, "grid \"%s\": %s", file, why);
     }
-    grid_finish(g, &t, scale);
+    grid_finish(g, &tw, scale);
     *out = g;
     return 0;
 }
@@ -969,8 +992,8 @@ static int parse_camera_key(struct ctx *c, json_t *obj, const struct jpath *p, s
             return -1;
     k->up = v3(0, 1, 0);
     if (get_float(c, m[0].val, &m[0].path, "time", &k->time) != 0 ||
-        get_vec3(c, m[1].val, &m[1].path, "position", &k->position) != 0 ||
-        get_vec3(c, m[2].val, &m[2].path, "look_at", &k->look_at) != 0 ||
+        get_point(c, m[1].val, &m[1].path, "position", &k->position) != 0 ||
+        get_point(c, m[2].val, &m[2].path, "look_at", &k->look_at) != 0 ||
         (m[3].val && get_vec3(c, m[3].val, &m[3].path, "up", &k->up) != 0))
         return -1;
     if (!(fabsf(k->time) <= 1e7f))
@@ -1024,8 +1047,8 @@ static int parse_camera(struct ctx *c, const struct member *cm)
             if (i != UP && require(c, &m[i], &cm->path, "camera", keys[i]) != 0)
                 return -1;
         cd->up = v3(0, 1, 0);
-        if (get_vec3(c, m[POS].val, &m[POS].path, "position", &cd->position) != 0 ||
-            get_vec3(c, m[LOOK].val, &m[LOOK].path, "look_at", &cd->look_at) != 0 ||
+        if (get_point(c, m[POS].val, &m[POS].path, "position", &cd->position) != 0 ||
+            get_point(c, m[LOOK].val, &m[LOOK].path, "look_at", &cd->look_at) != 0 ||
             (m[UP].val && get_vec3(c, m[UP].val, &m[UP].path, "up", &cd->up) != 0) ||
             get_float(c, m[FOV].val, &m[FOV].path, "fov_y", &cd->fov_y_deg) != 0)
             return -1;
@@ -1072,7 +1095,7 @@ static int parse_camera(struct ctx *c, const struct member *cm)
                         "focus_distance must be in [0, 1e12] (0 = distance to look_at)");
     }
     if (m[FOCUS_POINT].val) {
-        if (get_vec3(c, m[FOCUS_POINT].val, &m[FOCUS_POINT].path, "focus_point", &cd->focus_point) != 0)
+        if (get_point(c, m[FOCUS_POINT].val, &m[FOCUS_POINT].path, "focus_point", &cd->focus_point) != 0)
             return -1;
         cd->has_focus_point = 1;
     }
@@ -1236,6 +1259,7 @@ static int parse_keyframes(struct ctx *c, const struct member *km, struct motion
     if (n == 0 || n > MAX_KEYFRAMES)
         return fail(c, &km->path, AT_VALUE, "keyframes must be an array of 1 to %d objects", MAX_KEYFRAMES);
     static const char *const keys[] = {"time", "translate", "rotate", "scale"};
+    static const double zero[3] = {0, 0, 0};
     struct motion_key *k = mem_calloc(n, sizeof *k);
     for (size_t i = 0; i < n; i++) {
         struct jpath p = jpath_child(&km->path, (uint32_t)i);
@@ -1281,7 +1305,9 @@ static int parse_keyframes(struct ctx *c, const struct member *km, struct motion
         double l = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
         for (int j = 0; j < 4; j++)
             k[i].quat[j] = (float)(q[j] / l);
-        if (m[1].val && get_vec3(c, m[1].val, &m[1].path, "translate", &k[i].translate) != 0)
+        /* Keys move the object in the render frame: their translation holds the origin. */
+        if (m[1].val ? get_point(c, m[1].val, &m[1].path, "translate", &k[i].translate) != 0
+                     : (k[i].translate = rel_point(c, zero), 0))
             goto fail;
     }
     *out = k;
@@ -1401,6 +1427,10 @@ static int parse_obj_object(struct ctx *c, json_t *obj, const struct jpath *p, c
         if (parse_transform(c, &m[3], &opt.transform, &s, &uniform) != 0)
             return -1;
     }
+    /* A moving object's vertices are in the space its keys move (their translations hold
+     * the origin); any other object's are in the render frame. */
+    if (!m[5].val)
+        opt.transform = dxform_minus_origin(&opt.transform, c->origin);
     if (m[4].val && get_string(c, &m[4], "name", &name) != 0)
         return -1;
     opt.mesh_name = name;
@@ -1440,27 +1470,37 @@ static int parse_sphere(struct ctx *c, json_t *obj, const struct jpath *p, const
         return -1;
     struct sphere sp;
     memset(&sp, 0, sizeof sp);
-    if (get_vec3(c, m[1].val, &m[1].path, "center", &sp.center) != 0 ||
+    double center[3];
+    if (get_dvec3(c, m[1].val, &m[1].path, "center", center) != 0 ||
         get_float(c, m[2].val, &m[2].path, "radius", &sp.radius) != 0)
         return -1;
     if (!(sp.radius > 0.0f))
         return fail(c, &m[2].path, AT_VALUE, "radius must be > 0");
     if (m[3].val ? find_material(c, &m[3], &sp.material_id) != 0 : (sp.material_id = interface_material(c), 0))
         return -1;
+    /* As for meshes: a moving sphere's centre is in the space its keys move, any other's
+     * in the render frame. */
+    struct dxform t = dxform_identity();
     if (m[4].val) {
-        struct xform t;
         double s;
         bool uniform;
         if (parse_transform(c, &m[4], &t, &s, &uniform) != 0)
             return -1;
         if (!uniform)
             return fail(c, &m[4].path, AT_VALUE, "a sphere's transform must scale uniformly");
-        sp.center = xform_point(&t, sp.center);
         double r = (double)sp.radius * s;
-        if (!(r > 0.0 && r <= FLT_MAX) || !v3_is_finite(sp.center))
+        if (!(r > 0.0 && r <= FLT_MAX))
             return fail(c, &m[4].path, AT_VALUE, "transformed sphere is out of range");
         sp.radius = (float)r;
     }
+    if (!m[6].val)
+        t = dxform_minus_origin(&t, c->origin);
+    double w[3];
+    dxform_point(&t, center, w);
+    sp.center = v3((float)w[0], (float)w[1], (float)w[2]);
+    if (!v3_is_finite(sp.center))
+        return fail(c, m[4].val ? &m[4].path : &m[1].path, AT_VALUE, "%s is out of range",
+                    m[4].val ? "transformed sphere" : "sphere center (from the camera)");
     const char *name = NULL;
     if (m[5].val && get_string(c, &m[5], "name", &name) != 0)
         return -1;
@@ -1518,7 +1558,7 @@ static int parse_spot(struct ctx *c, json_t *obj, const struct jpath *p, const c
     l.type = LIGHT_SPOT;
     if (object_members(c, obj, p, what, keys, 7, m) != 0 || require(c, &m[1], p, what, "position") != 0 ||
         require(c, &m[2], p, what, "intensity") != 0 || require(c, &m[5], p, what, "angle") != 0 ||
-        get_vec3(c, m[1].val, &m[1].path, "position", &l.position) != 0 ||
+        get_point(c, m[1].val, &m[1].path, "position", &l.position) != 0 ||
         get_vec3(c, m[2].val, &m[2].path, "intensity", &l.intensity) != 0 ||
         check_color(c, &m[2], "intensity", 0.0f, FLT_MAX, l.intensity) != 0)
         return -1;
@@ -1530,7 +1570,7 @@ static int parse_spot(struct ctx *c, json_t *obj, const struct jpath *p, const c
         return -1;
     if (m[4].val) {
         vec3 at;
-        if (get_vec3(c, m[4].val, &m[4].path, "look_at", &at) != 0)
+        if (get_point(c, m[4].val, &m[4].path, "look_at", &at) != 0)
             return -1;
         d = v3_sub(at, l.position);
     }
@@ -1591,13 +1631,33 @@ static int parse_lights(struct ctx *c, const struct member *lm)
         l.type = LIGHT_POINT;
         if (object_members(c, obj, &p, what, keys, 3, m) != 0 || require(c, &m[1], &p, what, "position") != 0 ||
             require(c, &m[2], &p, what, "intensity") != 0 ||
-            get_vec3(c, m[1].val, &m[1].path, "position", &l.position) != 0 ||
+            get_point(c, m[1].val, &m[1].path, "position", &l.position) != 0 ||
             get_vec3(c, m[2].val, &m[2].path, "intensity", &l.intensity) != 0 ||
             check_color(c, &m[2], "intensity", 0.0f, FLT_MAX, l.intensity) != 0)
             return -1;
         scene_add_light(c->scene, &l);
     }
     return 0;
+}
+
+/* The scene's origin (scene.h): the camera's position, its first key's if it moves, read
+ * before anything positional. A camera without a usable position keeps 0: parse_camera
+ * reports it. */
+static void read_origin(struct ctx *c, json_t *camera)
+{
+    json_t *pos = json_object_get(camera, "position"), *keys = json_object_get(camera, "keyframes");
+    if (!pos && json_is_array(keys))
+        pos = json_object_get(json_array_get(keys, 0), "position");
+    if (!json_is_array(pos) || json_array_size(pos) != 3)
+        return;
+    double o[3];
+    for (size_t i = 0; i < 3; i++) {
+        json_t *v = json_array_get(pos, i);
+        o[i] = json_is_number(v) ? json_number_value(v) : NAN;
+        if (!(o[i] >= -FLT_MAX && o[i] <= FLT_MAX))
+            return;
+    }
+    memcpy(c->scene->origin, o, sizeof o);
 }
 
 static int parse_root(struct ctx *c, json_t *root)
@@ -1616,6 +1676,8 @@ static int parse_root(struct ctx *c, json_t *root)
                     (long long)json_integer_value(m[0].val), SCENE_VERSION);
     if (require(c, &m[1], &rp, "scene", "camera") != 0 || require(c, &m[2], &rp, "scene", "render") != 0)
         return -1;
+    if (!c->origin_given)
+        read_origin(c, m[1].val);
     /* Textures, then materials: objects refer to materials (and materials to textures) by
      * name wherever they appear in the file. */
     if (m[8].val && parse_textures(c, &m[8]) != 0)
@@ -1641,6 +1703,12 @@ static int parse_root(struct ctx *c, json_t *root)
 int scene_json_parse(const char *name, const char *text, size_t len, const struct asset_source *src,
                      struct scene *out, char *err, size_t errlen)
 {
+    return scene_json_parse_origin(name, text, len, src, NULL, out, err, errlen);
+}
+
+int scene_json_parse_origin(const char *name, const char *text, size_t len, const struct asset_source *src,
+                            const double origin[3], struct scene *out, char *err, size_t errlen)
+{
     memset(out, 0, sizeof *out);
     json_error_t jerr;
     json_t *root = json_loadb(text, len, JSON_REJECT_DUPLICATES, &jerr);
@@ -1658,6 +1726,11 @@ int scene_json_parse(const char *name, const char *text, size_t len, const struc
     c.errlen = errlen;
     c.scene = out;
     c.src = src;
+    c.origin = out->origin;
+    if (origin) {
+        memcpy(out->origin, origin, sizeof out->origin);
+        c.origin_given = true;
+    }
     const char *slash = strrchr(name, '/');
     if (slash && (size_t)(slash - name) + 2 <= sizeof c.display_dir)
         memcpy(c.display_dir, name, (size_t)(slash - name) + 1);

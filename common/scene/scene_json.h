@@ -14,5 +14,10 @@
  * returns 0; on failure returns -1, leaves *out freed and writes one line into err. */
 int scene_json_parse(const char *name, const char *text, size_t len, const struct asset_source *src,
                      struct scene *out, char *err, size_t errlen);
+/* The same with the render frame's origin (scene.h) given in world coordinates instead of
+ * taken from the camera; {0, 0, 0} keeps world space (unit tests that check positions
+ * written in the file). origin NULL: scene_json_parse. */
+int scene_json_parse_origin(const char *name, const char *text, size_t len, const struct asset_source *src,
+                            const double origin[3], struct scene *out, char *err, size_t errlen);
 
 #endif

@@ -49,7 +49,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     struct mesh_obj_options opt = mesh_obj_default_options();
     /* Odd sizes also exercise the transform path, mirroring included. */
     if (size & 1) {
-        struct xform t = {{{-2, 0, 0, 1}, {0, 1, 0, 2}, {0, 0, 0.5f, 3}}};
+        struct dxform t = {{{-2, 0, 0, 1}, {0, 1, 0, 2}, {0, 0, 0.5, 3}}};
         opt.transform = t;
     }
     char err[512];

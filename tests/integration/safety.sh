@@ -2,7 +2,7 @@
 # Strangers on the machine and odd inputs: scene files that are FIFOs are refused at once
 # (never opened blocking), a signal stops a long scene load, an output name that is one of
 # the scene's own files is refused before rendering, a full disk is reported as such, and
-# the tiny scene scaled by 1e-7 and 1e7 renders as the original does.
+# the tiny scene scaled by 1e-7 and 1e7 or moved by 1e6 and 1e7 renders as the original does.
 # Usage: BUILD=build sh tests/integration/safety.sh
 . "$(dirname "$0")/lib.sh"
 lib_init safety
@@ -106,6 +106,14 @@ for s in 1e-7 1e7; do
   rel=$($X relrmse "$T/s$s.exr" "$T/base.exr" 2>/dev/null)
   if [ $r = 0 ] && [ $r2 = 0 ] && python3 -c 'import sys; sys.exit(not (float(sys.argv[1]) < 0.1 * float(sys.argv[2])))' "$rel" "$noise"; then
     ok "tiny scaled by $s: relRMSE $rel against the original, noise $noise"; else bad "tiny scaled by $s: relRMSE $rel against the original, noise $noise"; fi
+done
+# --- and moved by 1e6 and 1e7 along every axis (rendered relative to the camera) ---
+for t in 1e6 1e7; do
+  python3 scripts/scene_variant.py scenes/tiny "$T/t$t" 1 $t $t -$t
+  run $M "$T/t$t/tiny.json" -o "$T/t$t.exr" --spp 16 && r2=0 || r2=1
+  rel=$($X relrmse "$T/t$t.exr" "$T/base.exr" 2>/dev/null)
+  if [ $r = 0 ] && [ $r2 = 0 ] && python3 -c 'import sys; sys.exit(not (float(sys.argv[1]) < 0.1 * float(sys.argv[2])))' "$rel" "$noise"; then
+    ok "tiny moved by $t: relRMSE $rel against the original, noise $noise"; else bad "tiny moved by $t: relRMSE $rel against the original, noise $noise"; fi
 done
 
 finish

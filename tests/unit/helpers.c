@@ -25,7 +25,8 @@ int mem_read(void *ctx, const char *rel_path, char **data, size_t *size, char *e
 int test_scene_load(const char *text, const struct mem_file *files, struct scene *s, char *err)
 {
     struct asset_source src = {mem_read, (void *)(uintptr_t)files};
-    return scene_json_parse("scenes/t.json", text, strlen(text), &src, s, err, 512);
+    static const double world[3] = {0, 0, 0};
+    return scene_json_parse_origin("scenes/t.json", text, strlen(text), &src, world, s, err, 512);
 }
 
 const char *test_scene_expect_error(const char *text, const struct mem_file *files, const char *want)

@@ -17,8 +17,8 @@ struct mem_file { const char *path; const void *data; size_t size; };
 /* The asset_source read function over a folder (ctx: its first mem_file). */
 int mem_read(void *ctx, const char *rel_path, char **data, size_t *size, char *err, size_t errlen);
 
-/* Parses text as "scenes/t.json" with files (NULL: none) as its folder; err holds 512
- * bytes. Returns scene_json_parse's rc. */
+/* Parses text as "scenes/t.json" with files (NULL: none) as its folder, in world space
+ * (origin 0: positions stay as written); err holds 512 bytes. Returns the parser's rc. */
 int test_scene_load(const char *text, const struct mem_file *files, struct scene *s, char *err);
 /* Asserts that text fails to parse with an error containing want and leaves the scene
  * empty; returns the error (static) for tests that check more. */

@@ -265,7 +265,7 @@ Test(mesh_obj, transform_positions_normals_and_winding)
     char err[512];
     struct mesh_obj_options opt = mesh_obj_default_options();
     /* Scale x by 2, then translate by (10, 20, 30). */
-    struct xform t = {{{2, 0, 0, 10}, {0, 1, 0, 20}, {0, 0, 1, 30}}};
+    struct dxform t = {{{2, 0, 0, 10}, {0, 1, 0, 20}, {0, 0, 1, 30}}};
     opt.transform = t;
     const char *text = "v 1 0 0\nv 0 1 0\nv 0 0 1\nvn 1 1 0\nf 1//1 2//1 3//1\n";
     cr_assert_eq(parse(text, NULL, &opt, &s, err), 0, "%s", err);
@@ -282,7 +282,7 @@ Test(mesh_obj, transform_positions_normals_and_winding)
     scene_fini(&s);
 
     /* A mirror keeps the geometric normal on the same side by flipping the winding. */
-    struct xform mirror = {{{-1, 0, 0, 0}, {0, 1, 0, 0}, {0, 0, 1, 0}}};
+    struct dxform mirror = {{{-1, 0, 0, 0}, {0, 1, 0, 0}, {0, 0, 1, 0}}};
     opt.transform = mirror;
     cr_assert_eq(parse(text, NULL, &opt, &s, err), 0, "%s", err);
     cr_expect_eq(s.meshes[0].indices[1], 2);

@@ -344,7 +344,10 @@ Test(scene_json, cornell_from_disk)
     cr_expect_eq(s.settings.spp, 64);
     cr_expect_eq(s.settings.max_depth, 8);
     cr_expect_float_eq(s.camera.fov_y_deg, 39.3f, 1e-6);
-    cr_expect_float_eq(s.camera.position.z, -800.0f, 0);
+    /* Read from disk, positions are relative to the camera at (278, 273, -800). */
+    cr_expect(s.origin[0] == 278.0 && s.origin[1] == 273.0 && s.origin[2] == -800.0);
+    cr_expect(s.camera.position.x == 0.0f && s.camera.position.y == 0.0f && s.camera.position.z == 0.0f);
+    cr_expect_float_eq(s.camera.look_at.z, 800.0f, 0);
     cr_assert_eq(s.num_meshes, 1);
     cr_expect_eq(s.meshes[0].num_triangles, 36);  /* 18 quads */
     cr_expect_eq(s.num_materials, 4);
@@ -359,7 +362,7 @@ Test(scene_json, cornell_from_disk)
         for (int k = 0; k < 3; k++) {
             const float *q = &m->positions[3 * m->indices[3 * t + k]];
             p[k] = v3(q[0], q[1], q[2]);
-            cr_expect_float_eq(p[k].y, 548.7f, 1e-3);
+            cr_expect_float_eq(p[k].y, 548.7f - 273.0f, 1e-3);
         }
         vec3 n = v3_cross(v3_sub(p[1], p[0]), v3_sub(p[2], p[0]));
         cr_expect_lt(n.y, 0.0f);
@@ -381,7 +384,68 @@ Test(scene_json, tiny_from_disk)
     cr_expect_eq(s.num_lights, 1);
     cr_expect_eq(s.meshes[0].num_triangles, 14);
     cr_expect_eq(s.meshes[1].num_triangles, 2);
-    cr_expect_float_eq(s.meshes[1].positions[1], 3.0f, 0);
+    cr_expect_float_eq(s.meshes[1].positions[1], 3.0f - 2.0f, 0); /* the camera is at y = 2 */
     cr_expect_gt(s.materials[s.meshes[1].material_ids[0]].emission.x, 0.0f);
     scene_fini(&s);
+}
+
+/* The same scene written near the world origin and 1e7 away (along x), read in the camera's frame:
+ * every position comes out the same (the far one is subtracted in double before rounding),
+ * and origin says where the frame lies. */
+Test(scene_json, positions_relative_to_the_camera)
+{
+    char json[2][2048], obj[2][256];
+    const double off[2] = {0.0, 1e7};
+    for (int i = 0; i < 2; i++) {
+        double o = off[i];
+        snprintf(obj[i], sizeof obj[i], "v %.17g 0.25 0.3\nv %.17g 0 0.5\nv %.17g 1 0.1\nf 1 2 3\n", o + 0.5,
+                 o + 1.0, o + 0.125);
+        snprintf(json[i], sizeof json[i],
+                 "{\"version\": 1,\n\"camera\": {\"keyframes\": [{\"time\": 0, \"position\": [%.17g, 1.5, -5],"
+                 " \"look_at\": [%.17g, 0.5, 0]}, {\"time\": 1, \"position\": [%.17g, 1.5, -5],"
+                 " \"look_at\": [%.17g, 0.5, 0]}], \"fov_y\": 40, \"focus_point\": [%.17g, 0, 0.7]},\n"
+                 "\"render\": {\"width\": 8, \"height\": 8},\n"
+                 "\"materials\": {\"w\": {\"type\": \"diffuse\"}},\n"
+                 "\"objects\": [{\"type\": \"obj\", \"file\": \"far.obj\", \"material\": \"w\"},\n"
+                 " {\"type\": \"obj\", \"file\": \"tri.obj\", \"material\": \"w\", \"transform\": {\"rotate\":"
+                 " {\"axis\": [0, 1, 0], \"degrees\": 30}, \"translate\": [%.17g, 2, 0.3]}},\n"
+                 " {\"type\": \"obj\", \"file\": \"tri.obj\", \"material\": \"w\", \"keyframes\": [{\"time\": 0,"
+                 " \"translate\": [%.17g, 0, 0]}, {\"time\": 1}]},\n"
+                 " {\"type\": \"sphere\", \"center\": [%.17g, 0.5, 0.25], \"radius\": 0.5, \"material\": \"w\"}],\n"
+                 "\"lights\": [{\"type\": \"point\", \"position\": [%.17g, 3, -2], \"intensity\": [1, 1, 1]},\n"
+                 " {\"type\": \"spot\", \"position\": [%.17g, 3, 0], \"look_at\": [%.17g, 0, 0.5],"
+                 " \"intensity\": [1, 1, 1], \"angle\": 30}]}",
+                 o - 0.5, o, o + 0.5, o + 0.25, o + 0.2, o + 0.1, o - 0.75, o + 1.2, o - 2.0,
+                 o, o + 0.5);
+    }
+    struct scene s[2];
+    for (int i = 0; i < 2; i++) {
+        const struct mem_file files[] = {{"far.obj", obj[i], 0}, g_files[0], {NULL, NULL, 0}};
+        struct asset_source src = {mem_read, (void *)(uintptr_t)files};
+        char err[512] = "";
+        cr_assert_eq(scene_json_parse("scenes/t.json", json[i], strlen(json[i]), &src, &s[i], err, sizeof err), 0,
+                     "%s", err);
+        cr_expect(s[i].origin[0] == off[i] - 0.5 && s[i].origin[1] == 1.5 && s[i].origin[2] == -5.0);
+        cr_expect(s[i].camera.position.x == 0.0f && s[i].camera.position.z == 0.0f);
+    }
+    cr_assert_eq(s[0].num_meshes, 3);
+    cr_assert_eq(s[1].num_meshes, 3);
+    for (uint32_t m = 0; m < 3; m++)
+        for (uint32_t k = 0; k < 3 * s[0].meshes[m].num_vertices; k++)
+            cr_expect_float_eq(s[1].meshes[m].positions[k], s[0].meshes[m].positions[k], 1e-6, "mesh %u [%u]", m, k);
+    const vec3 a[] = {s[0].camera.keyframes[1].position, s[0].camera.keyframes[1].look_at, s[0].camera.look_at,
+                      s[0].camera.focus_point, s[0].meshes[2].keys[0].translate,
+                      s[0].spheres[0].center, s[0].lights[0].position, s[0].lights[1].position,
+                      s[0].lights[1].direction};
+    const vec3 b[] = {s[1].camera.keyframes[1].position, s[1].camera.keyframes[1].look_at, s[1].camera.look_at,
+                      s[1].camera.focus_point, s[1].meshes[2].keys[0].translate,
+                      s[1].spheres[0].center, s[1].lights[0].position, s[1].lights[1].position,
+                      s[1].lights[1].direction};
+    for (size_t i = 0; i < sizeof a / sizeof *a; i++)
+        cr_expect(v3_length(v3_sub(a[i], b[i])) <= 1e-6f, "position %zu: (%g %g %g) vs (%g %g %g)", i, (double)a[i].x,
+                  (double)a[i].y, (double)a[i].z, (double)b[i].x, (double)b[i].y, (double)b[i].z);
+    /* A key without a translation leaves the object where the world origin is. */
+    cr_expect_float_eq(s[1].meshes[2].keys[1].translate.x, (float)(-s[1].origin[0]), 0);
+    scene_fini(&s[0]);
+    scene_fini(&s[1]);
 }
