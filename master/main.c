@@ -38,6 +38,8 @@ static void usage(FILE *f)
             "  --insecure             allow --bind on a non-loopback address without CurveZMQ\n"
             "  --keygen KEYFILE       write a new key pair to KEYFILE and KEYFILE.pub, then exit\n"
             "  --media-method NAME    vpt, march or beam: how media are rendered (overrides the scene)\n"
+            "  --indirect NAME        gather or path: march and beam's indirect light at diffuse\n"
+            "                         surfaces (overrides volume.indirect)\n"
             "  --photons N            photons the photon pass emits, per pass (overrides the scene)\n"
             "  --passes N             passes, 1..1024 (overrides render.passes; default one per\n"
             "                         sample with a photon map, 1 otherwise); each renders ceil(spp / N) samples with its own scramble (and\n"
@@ -178,6 +180,16 @@ int main(int argc, char **argv)
             }
             o.media_method = (uint32_t)mm;
             o.have_media_method = 1;
+            continue;
+        }
+        if (has_arg && !strcmp(a, "--indirect")) {
+            enum media_indirect mi;
+            if (media_indirect_from_name(argv[++i], &mi) != 0) {
+                log_error("--indirect: \"%s\" is not gather or path", argv[i]);
+                return 2;
+            }
+            o.indirect = (uint32_t)mi;
+            o.have_indirect = 1;
             continue;
         }
         if (has_arg && (!strcmp(a, "-o") || !strcmp(a, "--output"))) {
