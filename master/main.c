@@ -172,24 +172,22 @@ int main(int argc, char **argv)
             }
             continue;
         }
-        if (has_arg && !strcmp(a, "--media-method")) {
-            enum media_method mm;
-            if (media_method_from_name(argv[++i], &mm) != 0) {
-                log_error("--media-method: \"%s\" is not vpt, march or beam", argv[i]);
+        if (has_arg && (!strcmp(a, "--media-method") || !strcmp(a, "--indirect"))) {
+            const char *t = argv[++i];
+            const int method = !strcmp(a, "--media-method");
+            enum media_method mm = MEDIA_VPT;
+            enum media_indirect mi = MEDIA_INDIRECT_GATHER;
+            if (method ? media_method_from_name(t, &mm) != 0 : media_indirect_from_name(t, &mi) != 0) {
+                log_error("%s: \"%s\" is not %s", a, t, method ? "vpt, march or beam" : "gather or path");
                 return 2;
             }
-            o.media_method = (uint32_t)mm;
-            o.have_media_method = 1;
-            continue;
-        }
-        if (has_arg && !strcmp(a, "--indirect")) {
-            enum media_indirect mi;
-            if (media_indirect_from_name(argv[++i], &mi) != 0) {
-                log_error("--indirect: \"%s\" is not gather or path", argv[i]);
-                return 2;
+            if (method) {
+                o.media_method = (uint32_t)mm;
+                o.have_media_method = 1;
+            } else {
+                o.indirect = (uint32_t)mi;
+                o.have_indirect = 1;
             }
-            o.indirect = (uint32_t)mi;
-            o.have_indirect = 1;
             continue;
         }
         if (has_arg && (!strcmp(a, "-o") || !strcmp(a, "--output"))) {
