@@ -38,6 +38,8 @@ static void usage(FILE *f)
             "  --insecure             allow --bind on a non-loopback address without CurveZMQ\n"
             "  --keygen KEYFILE       write a new key pair to KEYFILE and KEYFILE.pub, then exit\n"
             "  --media-method NAME    vpt, march or beam: how media are rendered (overrides the scene)\n"
+            "  --indirect NAME        gather or path: march and beam's indirect light at diffuse\n"
+            "                         surfaces (overrides volume.indirect)\n"
             "  --photons N            photons the photon pass emits, per pass (overrides the scene)\n"
             "  --passes N             passes, 1..1024 (overrides render.passes; default one per\n"
             "                         sample with a photon map, 1 otherwise); each renders ceil(spp / N) samples with its own scramble (and\n"
@@ -170,14 +172,22 @@ int main(int argc, char **argv)
             }
             continue;
         }
-        if (has_arg && !strcmp(a, "--media-method")) {
-            enum media_method mm;
-            if (media_method_from_name(argv[++i], &mm) != 0) {
-                log_error("--media-method: \"%s\" is not vpt, march or beam", argv[i]);
+        if (has_arg && (!strcmp(a, "--media-method") || !strcmp(a, "--indirect"))) {
+            const char *t = argv[++i];
+            const int method = !strcmp(a, "--media-method");
+            enum media_method mm = MEDIA_VPT;
+            enum media_indirect mi = MEDIA_INDIRECT_GATHER;
+            if (method ? media_method_from_name(t, &mm) != 0 : media_indirect_from_name(t, &mi) != 0) {
+                log_error("%s: \"%s\" is not %s", a, t, method ? "vpt, march or beam" : "gather or path");
                 return 2;
             }
-            o.media_method = (uint32_t)mm;
-            o.have_media_method = 1;
+            if (method) {
+                o.media_method = (uint32_t)mm;
+                o.have_media_method = 1;
+            } else {
+                o.indirect = (uint32_t)mi;
+                o.have_indirect = 1;
+            }
             continue;
         }
         if (has_arg && (!strcmp(a, "-o") || !strcmp(a, "--output"))) {

@@ -32,8 +32,8 @@ struct master_opts {
     uint32_t frame_first, frame_last, frame_step;
     /* Media (photons.c): overrides of the scene's "volume" block, photon-pass threads. */
     uint32_t photon_threads;
-    int have_media_method, have_photons, have_gather_radius, have_march_step;
-    uint32_t media_method;
+    int have_media_method, have_photons, have_gather_radius, have_march_step, have_indirect;
+    uint32_t media_method, indirect;
     uint64_t photons;
     float gather_radius, march_step;
     int have_passes;            /* --passes N (1..1024): passes (photon maps, batch means; adaptive: the most per tile) */

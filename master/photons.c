@@ -122,6 +122,8 @@ int master_media_prepare(struct scene *scene, const struct master_opts *o, uint3
         return 0;
     if (o->have_media_method)
         sm->method = (enum media_method)o->media_method;
+    if (o->have_indirect)
+        sm->indirect = (enum media_indirect)o->indirect;
     if (o->have_photons)
         sm->photons = o->photons;
     if (o->have_gather_radius)
@@ -192,8 +194,8 @@ int master_media_prepare(struct scene *scene, const struct master_opts *o, uint3
     volume_blob_make(sm, NULL, 0, &blob, &blob_size);
     publish(assets, blob, blob_size);
     *photon_maps = passes;
-    log_info("media: method %s, settings blob %zu bytes, %u photon map(s)", media_method_name(sm->method), blob_size,
-             passes);
+    log_info("media: method %s, indirect %s, settings blob %zu bytes, %u photon map(s)", media_method_name(sm->method),
+             media_indirect_name(sm->indirect), blob_size, passes);
     return 0;
 }
 
@@ -227,7 +229,7 @@ static int trace_one(struct photon_tracer *t, struct render_job *job, float r0, 
     if (photon_trace_map(job, pass_seed(t->scene->settings.seed, p), t->threads, &out->data, &out->size, &st, t->err,
                          sizeof t->err) != 0)
         return -1;
-    if (sm->surface_photons && set_surface_radius(&out->data, &out->size, rsurf, t->err, sizeof t->err) != 0) {
+    if (media_wants_surface_photons(sm) && set_surface_radius(&out->data, &out->size, rsurf, t->err, sizeof t->err) != 0) {
         free(out->data);
         out->data = NULL;
         return -1;

@@ -2,8 +2,10 @@
  * flight, NEE with shadow transmittance and MIS (equiangular for point lights). March
  * (Jensen): jittered steps, single scattering to every light when there are at most
  * MARCH_ALL_LIGHTS point lights + the k-nearest photon estimate; beam: one beam query per
- * segment. Random numbers: one key per (seed, frame, pixel, sample) and a fixed layout of
- * dimensions per vertex, so pixels do not depend on threads, tiles or workers. */
+ * segment; at the first diffuse vertex a final gather (surface photon map after one
+ * bounce) or, with path-traced indirect light, VPT from there on. Random numbers: one key
+ * per (seed, frame, pixel, sample) and a fixed layout of dimensions per vertex, so pixels
+ * do not depend on threads, tiles or workers. */
 #include "render/media_integrator.h"
 #include "render/media_track.h"
 #include "render/photon_map.h"
@@ -383,7 +385,11 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
     struct rngs r;
     uint64_t pixel = (uint64_t)py * rs->width + px;
     r.key = rng_mix64(smp->key ^ rng_mix64(smp->pixel_key ^ rng_key(rs->seed ^ 0x6d65646961ull, job->frame, pixel, smp->index)));
-    const int vpt = sm->method == MEDIA_VPT;
+    /* vpt: the path is the volumetric path tracer's from here on: always with the vpt
+     * method; with march and beam and path-traced indirect light, from the first diffuse
+     * vertex's bounce on (the photon maps then serve the segments before it only). */
+    int vpt = sm->method == MEDIA_VPT;
+    const int path_indirect = !vpt && sm->indirect == MEDIA_INDIRECT_PATH;
     const int few_points = march_all_points(job);
     uint32_t medium = mj->camera_medium;
     vec3 L = v3(0, 0, 0), beta = v3(1, 1, 1);
@@ -500,7 +506,7 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
          * first vertex directly, the map's noise shows as blotches. Without room for one
          * more vertex (max_depth) the path ends at the first vertex too; its lookup then
          * finds no photon short enough (max_depth bounds the light path as well). */
-        const int diffuse_map = !vpt && mj->map && mj->map->surface && mat->type == MATERIAL_DIFFUSE;
+        const int diffuse_map = !vpt && !path_indirect && mj->map && mj->map->surface && mat->type == MATERIAL_DIFFUSE;
         const int surface_map = diffuse_map && (gathered || depth >= rs->max_depth);
         if (diffuse_map)
             gathered = 1;
@@ -557,6 +563,14 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
         prev_p = s.p;
         prev_delta = bs.is_delta;
         spread |= !bs.is_delta;
+        /* Path-traced indirect light: after a non-delta bounce VPT covers all the light
+         * arriving at this vertex (its medium's in-scattering by free flight, surfaces by
+         * BSDF sampling with MIS, as the NEE above weighted it), so nothing of the photon
+         * maps may join it. The camera segments before this vertex keep march and beam:
+         * their in-scattering (single scattering and the photons' multiple scattering) is
+         * light that left the path there, which VPT's part never counts. depth has
+         * counted this path's surface vertices and goes on counting VPT's events. */
+        vpt |= path_indirect && !bs.is_delta;
         if (bs.transmitted) {
             medium = media_after_crossing(job->media, &h, s.ng, dir);
             org = offset_ray_origin(v3_sub(s.p, v3_scale(ng, s.p_err)), v3_neg(ng));

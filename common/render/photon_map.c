@@ -591,6 +591,7 @@ int volume_blob_make_passes(const struct scene_media *sm, const uint8_t *const *
     bytes_put_u32(b + 20, num_maps);
     bytes_put_u64(b + 24, sm->photons);
     bytes_put_f32(b + 32, sm->alpha > 0.0f ? sm->alpha : MEDIA_DEFAULT_ALPHA);
+    bytes_put_u32(b + 36, (uint32_t)sm->indirect);
     size_t at = VB_HEADER;
     for (uint32_t i = 0; i < num_maps; i++) {
         bytes_put_u64(b + at, (uint64_t)map_sizes[i]);
@@ -619,9 +620,11 @@ int volume_blob_decode(const uint8_t *data, size_t size, struct scene_media *set
     }
     uint32_t method = bytes_get_u32(data + 8), n = bytes_get_u32(data + 20);
     float step = bytes_get_f32(data + 12), radius = bytes_get_f32(data + 16), alpha = bytes_get_f32(data + 32);
-    int zero = bytes_get_u32(data + 36) == 0 && bytes_get_u64(data + 40) == 0;
-    if (method >= MEDIA_METHOD_COUNT_ || !(step >= 0.0f) || !isfinite(step) || !(radius >= 0.0f) ||
-        !isfinite(radius) || !(alpha > 0.0f && alpha <= 1.0f) || n > VOLUME_BLOB_MAX_MAPS || !zero) {
+    uint32_t indirect = bytes_get_u32(data + 36);
+    int zero = bytes_get_u64(data + 40) == 0;
+    if (method >= MEDIA_METHOD_COUNT_ || indirect >= MEDIA_INDIRECT_COUNT_ || !(step >= 0.0f) || !isfinite(step) ||
+        !(radius >= 0.0f) || !isfinite(radius) || !(alpha > 0.0f && alpha <= 1.0f) || n > VOLUME_BLOB_MAX_MAPS ||
+        !zero) {
         str_fmt(err, errlen, "volume blob: settings out of range");
         return -1;
     }
@@ -652,6 +655,7 @@ int volume_blob_decode(const uint8_t *data, size_t size, struct scene_media *set
         settings->radius = radius;
         settings->photons = bytes_get_u64(data + 24);
         settings->alpha = alpha;
+        settings->indirect = (enum media_indirect)indirect;
     }
     *maps = head;
     *num_maps = n;
@@ -676,5 +680,6 @@ int volume_blob_apply(struct scene *s, const uint8_t *data, size_t size, struct 
     sm->radius = st.radius;
     sm->photons = st.photons;
     sm->alpha = st.alpha;
+    sm->indirect = st.indirect;
     return 0;
 }

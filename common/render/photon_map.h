@@ -104,7 +104,8 @@ vec3 photon_dir_decode(uint16_t e);
  * settled on (command-line overrides included) and the photon maps, one per pass, if any
  * were built. Every worker renders with exactly these; the blob is content-addressed like
  * any asset. Format "BVOL0002": a 48-byte header (magic, method, step, radius r0, number
- * of maps P <= VOLUME_BLOB_MAX_MAPS, photons per pass, alpha, zero padding), then per map
+ * of maps P <= VOLUME_BLOB_MAX_MAPS, photons per pass, alpha, indirect mode, zero
+ * padding), then per map
  * its byte size (u64) and the map (photon_map_serialise's bytes: volume map, then
  * surface map). */
 #define VOLUME_BLOB_MAX_MAPS 1024u
@@ -115,7 +116,8 @@ int volume_blob_make(const struct scene_media *sm, const uint8_t *map, size_t ma
                      size_t *out_size);
 /* Checks a volume blob and decodes its maps into a chain (*maps, then ->next_pass; NULL
  * when it holds none) and its count; settings into *settings when not NULL (method, step,
- * radius, photons, alpha). Needs no scene (the fuzz target calls it). 0 or -1 with err. */
+ * radius, photons, alpha, indirect). Needs no scene (the fuzz target calls it). 0 or -1
+ * with err. */
 int volume_blob_decode(const uint8_t *data, size_t size, struct scene_media *settings, struct photon_map **maps,
                        uint32_t *num_maps, char *err, size_t errlen);
 /* Applies a volume blob to a freshly parsed scene (its settings) and decodes its maps into

@@ -379,7 +379,7 @@ int photon_trace_map(const struct render_job *job, uint64_t seed, uint32_t threa
     tc.aim = media_bounds(job, &tc.aim_center, &tc.aim_radius);
     atomic_init(&tc.next_block, 0);
     tc.blocks = mem_calloc(tc.num_blocks ? tc.num_blocks : 1, sizeof *tc.blocks);
-    if (sm->surface_photons)
+    if (media_wants_surface_photons(sm))
         tc.surface = mem_calloc(tc.num_blocks ? tc.num_blocks : 1, sizeof *tc.surface);
     threads = threads < 1 ? 1 : (threads > 256 ? 256 : threads);
     pthread_t *th = mem_alloc(sizeof *th * threads);

@@ -1,9 +1,10 @@
 /* Photon tracing for the photon map (Jensen and Christensen 1998), on the master: photons
  * leave the lights in proportion to their power, are traced through media and off
  * surfaces, and are stored at each scattering in a medium except on their first flight
- * (marching computes single scattering) and, with surface_photons, on diffuse surfaces
- * after any interaction. Fixed blocks of photon indices per thread, joined in index
- * order: the bytes are the same for any thread count. */
+ * (marching computes single scattering) and, for the final gather with surface_photons
+ * (media_wants_surface_photons), on diffuse surfaces after any interaction. Fixed blocks
+ * of photon indices per thread, joined in index order: the bytes are the same for any
+ * thread count. */
 #ifndef BRUME_PHOTON_TRACE_H
 #define BRUME_PHOTON_TRACE_H
 #include <stddef.h>

@@ -18,6 +18,7 @@ struct scene_media *media_scene_new(void)
     m->knn = 50;
     m->shadow_cache = 1;
     m->surface_photons = 1;
+    m->indirect = MEDIA_INDIRECT_GATHER;
     m->max_photon_depth = 16;
     return m;
 }
@@ -74,14 +75,43 @@ const char *media_method_name(enum media_method m)
     return (unsigned)m < MEDIA_METHOD_COUNT_ ? method_names[m] : "?";
 }
 
+/* The index of name in names[0..n), or -1. */
+static int name_index(const char *const *names, int n, const char *name)
+{
+    for (int i = 0; i < n; i++)
+        if (strcmp(name, names[i]) == 0)
+            return i;
+    return -1;
+}
+
 int media_method_from_name(const char *name, enum media_method *out)
 {
-    for (int i = 0; i < MEDIA_METHOD_COUNT_; i++)
-        if (strcmp(name, method_names[i]) == 0) {
-            *out = (enum media_method)i;
-            return 0;
-        }
-    return -1;
+    int i = name_index(method_names, MEDIA_METHOD_COUNT_, name);
+    if (i < 0)
+        return -1;
+    *out = (enum media_method)i;
+    return 0;
+}
+
+static const char *const indirect_names[MEDIA_INDIRECT_COUNT_] = {"gather", "path"};
+
+const char *media_indirect_name(enum media_indirect m)
+{
+    return (unsigned)m < MEDIA_INDIRECT_COUNT_ ? indirect_names[m] : "?";
+}
+
+int media_indirect_from_name(const char *name, enum media_indirect *out)
+{
+    int i = name_index(indirect_names, MEDIA_INDIRECT_COUNT_, name);
+    if (i < 0)
+        return -1;
+    *out = (enum media_indirect)i;
+    return 0;
+}
+
+int media_wants_surface_photons(const struct scene_media *m)
+{
+    return m->surface_photons && m->indirect == MEDIA_INDIRECT_GATHER;
 }
 
 static float tr1(float sigma_t, float d)

@@ -48,6 +48,14 @@ enum media_method {
     MEDIA_METHOD_COUNT_
 };
 
+/* March and beam: how the indirect light of the first diffuse camera-path vertex is
+ * estimated (docs/media.md, "Indirect light at diffuse surfaces"). */
+enum media_indirect {
+    MEDIA_INDIRECT_GATHER, /* one diffuse bounce, marched, then the surface photon map */
+    MEDIA_INDIRECT_PATH,   /* the path goes on as VPT; the photon maps serve the camera segments only */
+    MEDIA_INDIRECT_COUNT_
+};
+
 struct scene_media {
     struct medium *media;
     uint32_t num_media;
@@ -64,6 +72,7 @@ struct scene_media {
     uint32_t knn;               /* per-step estimate: photons of Jensen's k-nearest query (default 50) */
     int shadow_cache;           /* march / beam in grids: cached shadow transmittance (default 1) */
     int surface_photons;        /* march / beam: a surface photon map for diffuse surfaces' indirect light (default 1) */
+    enum media_indirect indirect; /* march / beam: final gather or path-traced indirect light */
     float skip_bound;           /* skip the photon pass when multiple scattering is bounded below this */
     uint32_t max_photon_depth;  /* interactions per photon path */
     float alpha;                /* progressive radius reduction per pass, in (0, 1]; 0 = MEDIA_DEFAULT_ALPHA */
@@ -82,6 +91,10 @@ uint32_t media_mesh_inside(const struct scene_media *m, uint32_t idx);
 uint32_t media_sphere_inside(const struct scene_media *m, uint32_t idx);
 const char *media_method_name(enum media_method m);
 int media_method_from_name(const char *name, enum media_method *out);
+const char *media_indirect_name(enum media_indirect m);
+int media_indirect_from_name(const char *name, enum media_indirect *out);
+/* Whether the photon pass keeps a surface map: only the final gather reads one. */
+int media_wants_surface_photons(const struct scene_media *m);
 
 /* ---- closed forms for homogeneous media ---- */
 

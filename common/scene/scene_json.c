@@ -906,9 +906,9 @@ static uint32_t interface_material(struct ctx *c)
 static int parse_volume(struct ctx *c, const struct member *vm)
 {
     static const char *const keys[] = {"method", "fog", "step", "photons", "radius", "skip_bound", "max_photon_depth",
-                                       "knn", "shadow_cache", "surface_photons", "alpha"};
-    struct member m[11];
-    if (object_members(c, vm->val, &vm->path, "volume", keys, 11, m) != 0)
+                                       "knn", "shadow_cache", "surface_photons", "alpha", "indirect"};
+    struct member m[12];
+    if (object_members(c, vm->val, &vm->path, "volume", keys, 12, m) != 0)
         return -1;
     struct scene_media *sm = c->scene->media;
     if (m[0].val) {
@@ -976,6 +976,13 @@ static int parse_volume(struct ctx *c, const struct member *vm)
         if (!(f > 0.0f && f <= 1.0f))
             return fail(c, &m[10].path, AT_VALUE, "alpha must be in (0, 1]");
         sm->alpha = f;
+    }
+    if (m[11].val) {
+        const char *name = NULL;
+        if (get_string(c, &m[11], "indirect", &name) != 0)
+            return -1;
+        if (media_indirect_from_name(name, &sm->indirect) != 0)
+            return fail(c, &m[11].path, AT_VALUE, "indirect must be \"gather\" or \"path\"");
     }
     return 0;
 }

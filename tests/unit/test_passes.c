@@ -270,6 +270,8 @@ Test(passes, volume_blob_maps)
     o.passes = 3;
     o.have_photons = 1;
     o.photons = 500;
+    o.have_indirect = 1; /* --indirect path: travels in the blob */
+    o.indirect = MEDIA_INDIRECT_PATH;
     s.settings.spp = 4;
     struct asset_dir dir;
     memset(&dir, 0, sizeof dir);
@@ -288,6 +290,7 @@ Test(passes, volume_blob_maps)
     cr_assert_eq(count, 0u);
     cr_assert_null(maps);
     cr_assert_float_eq(st.alpha, 2.0f / 3.0f, 1e-7);
+    cr_assert_eq(st.indirect, MEDIA_INDIRECT_PATH);
     photon_map_free(&maps);
     for (size_t cut = 0; cut < size; cut += 1 + cut / 7) {
         cr_assert_neq(volume_blob_decode(b, cut, &st, &maps, &count, err, sizeof err), 0, "cut %zu", cut);
@@ -300,6 +303,9 @@ Test(passes, volume_blob_maps)
     bad[20] = 1; /* one map more than there are */
     cr_assert_neq(volume_blob_decode(bad, size, &st, &maps, &count, err, sizeof err), 0);
     bad[20] = 0;
+    bad[36] = MEDIA_INDIRECT_COUNT_; /* no such indirect mode */
+    cr_assert_neq(volume_blob_decode(bad, size, &st, &maps, &count, err, sizeof err), 0);
+    bad[36] = MEDIA_INDIRECT_PATH;
     memset(bad + 32, 0, 4); /* alpha 0 */
     cr_assert_neq(volume_blob_decode(bad, size, &st, &maps, &count, err, sizeof err), 0);
     free(bad);
