@@ -33,6 +33,14 @@ for meth in march vpt; do
   if [ $r1 = 0 ] && [ $r3 = 0 ] && $X cmp "$T/${meth}1.exr" "$T/${meth}3.exr"; then
     ok "$meth: 1 vs 3 workers bit-identical"; else bad "$meth: 1 vs 3 workers bit-identical"; fi
 done
+# Path-traced indirect light: 1 vs 3 workers, and a bad mode named on the command line.
+run $M $S -o "$T/pi1.exr" $A --workers 1 --threads 2 --indirect path && r1=0 || r1=1
+run $M $S -o "$T/pi3.exr" $A --workers 3 --threads 1 --indirect path --tile 8 && r3=0 || r3=1
+if [ $r1 = 0 ] && [ $r3 = 0 ] && $X cmp "$T/pi1.exr" "$T/pi3.exr" && ! $X cmp "$T/pi1.exr" "$T/p1.exr" 2>/dev/null; then
+  ok "beam, indirect path: 1 vs 3 workers bit-identical (and not the gather's image)"
+else bad "beam, indirect path: 1 vs 3 workers bit-identical"; fi
+if ! run $M $S -o "$T/pib.exr" $A --indirect bounce && grep -q "indirect" "$T/log" && [ ! -e "$T/pib.exr" ]; then
+  ok "--indirect bounce refused: $(grep -m1 indirect "$T/log")"; else bad "--indirect bounce refused"; fi
 # A grid (the smoke): march (k-nearest lookups) and beam read the shadow transmittance cache,
 # filled by whichever thread needs it first; pixels must not depend on that.
 for meth in march beam; do
