@@ -67,6 +67,25 @@ Test(adapt, quiet_tiles_keep_their_passes_and_caps_hold)
     cr_assert(n[2] == 16 && n[3] == 16 && n[0] == 4);
 }
 
+/* Rounds until adapt_decide says stop, each tile's sums following its known per-pass
+ * variance (v m / n) with 64 samples and 3 rays per sample per pass; at most 20 rounds. */
+static void run_rounds(struct adapt *a, const double *per_pass)
+{
+    uint64_t samples = 0;
+    for (uint32_t rounds = 0;; rounds++) {
+        cr_assert(rounds < 20);
+        for (uint32_t t = 0; t < a->num_tiles; t++) {
+            a->tiles[t].sum_var = per_pass[t] / a->tiles[t].passes;
+            a->tiles[t].sum_mean = 64.0;
+            a->tiles[t].samples = a->tiles[t].passes * 64ull;
+            a->tiles[t].rays = a->tiles[t].samples * 3;
+            samples += a->tiles[t].samples;
+        }
+        if (!adapt_decide(a, 0, samples))
+            return;
+    }
+}
+
 /* Rounds on synthetic tiles whose per-pass variance is known exactly: the sums follow
  * v m / n, so the rounds must end at the target with the fewest passes the rule allows. */
 Test(adapt, rounds_reach_the_target_and_stop)
@@ -81,21 +100,7 @@ Test(adapt, rounds_reach_the_target_and_stop)
     struct adapt *a = adapt_new(T, pixels, 512, 0.02, 0);
     adapt_begin(a);
     cr_assert_eq(a->outstanding, T * ADAPT_FIRST_PASSES);
-    int more = 1;
-    uint32_t rounds = 0;
-    uint64_t samples = 0;
-    while (more) {
-        for (int t = 0; t < T; t++) {
-            a->tiles[t].sum_var = per_pass[t] / a->tiles[t].passes;
-            a->tiles[t].sum_mean = 64.0;
-            a->tiles[t].samples = a->tiles[t].passes * 64ull;
-            a->tiles[t].rays = a->tiles[t].samples * 3;
-            samples += a->tiles[t].samples;
-        }
-        more = adapt_decide(a, 0, samples);
-        rounds++;
-        cr_assert(rounds < 20);
-    }
+    run_rounds(a, per_pass);
     cr_assert(a->finished);
     cr_assert(a->est <= 0.02, "estimate %g", a->est);
     cr_assert(a->tiles[0].passes > a->tiles[8].passes, "noisy tiles get more passes");
@@ -107,18 +112,7 @@ Test(adapt, rounds_reach_the_target_and_stop)
     for (int t = 0; t < T; t++)
         first[t] = a->tiles[t].passes;
     adapt_begin(a);
-    more = 1;
-    samples = 0;
-    while (more) {
-        for (int t = 0; t < T; t++) {
-            a->tiles[t].sum_var = per_pass[t] / a->tiles[t].passes;
-            a->tiles[t].sum_mean = 64.0;
-            a->tiles[t].samples = a->tiles[t].passes * 64ull;
-            a->tiles[t].rays = a->tiles[t].samples * 3;
-            samples += a->tiles[t].samples;
-        }
-        more = adapt_decide(a, 0, samples);
-    }
+    run_rounds(a, per_pass);
     for (int t = 0; t < T; t++)
         cr_assert_eq(a->tiles[t].passes, first[t]);
     /* stop (the time limit) and the round cap end at once. */
