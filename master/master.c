@@ -30,6 +30,7 @@
 #include <stdarg.h>
 #include <fcntl.h>
 #include <libgen.h>
+#include <float.h>
 #include <math.h>
 #include <signal.h>
 #include <stdio.h>
@@ -141,6 +142,7 @@ struct master {
     uint32_t maps_frame;        /* the frame the maps are traced for */
     struct photon_tracer *tracer; /* tracing the rest of the maps, or NULL */
     double rel_rmse_est;        /* the last frame's estimated relRMSE from its variance channels (error_estimate) */
+    uint64_t var_saturated;     /* its pixels whose variance channel is saturated (tile_variance_value) */
     float *decode_scratch;
     char ipc_dir[256];
     char ipc_endpoint[320];
@@ -203,6 +205,13 @@ static int load_scene(struct master *m)
     int rc = scene_json_parse(o->scene_path, text, len, &src, &m->scene, err, sizeof err);
     free(text);
     if (rc != 0 || outnames_check(o, &m->assets, err, sizeof err) != 0) {
+        master_fail(m, "%s", err);
+        return -1;
+    }
+    /* The output's folder takes a new file: checked now, not after the render. */
+    char first[4096];
+    if (output_frame_path(o->output_path, o->have_frames, o->have_frames ? o->frame_first : 0, first, sizeof first) == 0 &&
+        output_check_writable(first, err, sizeof err) != 0) {
         master_fail(m, "%s", err);
         return -1;
     }
@@ -1131,6 +1140,7 @@ static void print_progress(struct master *m, uint64_t start_ms, int tty, int fin
 static double error_estimate(struct master *m)
 {
     double sum_var = 0.0, sum_mean = 0.0;
+    m->var_saturated = 0;
     uint64_t pixels = 0;
     uint32_t tiles_x = imgio_tiles_x(&m->desc);
     for (uint32_t t = 0; t < m->num_tiles; t++) {
@@ -1145,6 +1155,7 @@ static double error_estimate(struct master *m)
         for (size_t i = 0; i < (size_t)w * h; i++) {
             const float *px = &m->decode_scratch[i * m->out_desc.num_channels];
             sum_var += ((double)px[CH_VAR_R] + px[CH_VAR_G] + px[CH_VAR_B]) / 3.0;
+            m->var_saturated += px[CH_VAR_R] == FLT_MAX || px[CH_VAR_G] == FLT_MAX || px[CH_VAR_B] == FLT_MAX;
             sum_mean += ((double)px[CH_R] + px[CH_G] + px[CH_B]) / 3.0;
         }
         pixels += (uint64_t)w * h;
@@ -1170,6 +1181,9 @@ static void print_summary(struct master *m, double secs)
            s->rel_stderr_pixels ? s->sum_rel_stderr / s->rel_stderr_pixels : 0.0, s->rel_stderr_pixels);
     printf("summary: estimated relRMSE %.4f (sqrt(mean pixel variance of the mean) / image mean, RGB; %s)\n",
            m->rel_rmse_est, m->passes > 1 ? "batch means over the passes" : "sample variance");
+    if (m->var_saturated)
+        printf("summary: the variance of %llu pixel(s) is past float's range (saved as FLT_MAX): the estimate is a "
+               "lower bound\n", (unsigned long long)m->var_saturated);
     if (m->adapt) {
         uint32_t lo = UINT32_MAX, hi = 0;
         double sum = 0.0, pixels = 0.0;
@@ -1245,6 +1259,7 @@ static int write_stats(const struct master *m, int ok, char *err, size_t errlen)
     json_object_set_new(root, "mean_rel_stderr",
                         json_real(st->rel_stderr_pixels ? st->sum_rel_stderr / st->rel_stderr_pixels : 0.0));
     json_object_set_new(root, "est_rel_rmse", json_real(m->rel_rmse_est));
+    json_object_set_new(root, "variance_saturated_pixels", json_integer((json_int_t)m->var_saturated));
     json_object_set_new(root, "passes", json_integer(m->passes));
     if (m->adapt) {
         json_object_set_new(root, "target_error", json_real(m->target_error));

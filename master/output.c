@@ -68,6 +68,20 @@ static int fsync_dir_of(const char *path)
 }
 
 /* The temporary file is renamed into place; the folder is synced so the rename lasts. */
+int output_check_writable(const char *path, char *err, size_t errlen)
+{
+    char tmp[4200];
+    snprintf(tmp, sizeof tmp, "%s.tmp.%d", path, (int)getpid());
+    int fd = open(tmp, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+    if (fd < 0) {
+        str_fmt(err, errlen, "%s: cannot create the output there: %s", tmp, strerror(errno));
+        return -1;
+    }
+    close(fd);
+    unlink(tmp);
+    return 0;
+}
+
 static int publish(const char *tmp, const char *path, char *err, size_t errlen)
 {
     if (rename(tmp, path) != 0) {

@@ -31,6 +31,10 @@ int output_write_exr(const char *path, const struct image_desc *desc, const stru
 /* A tone-mapped sRGB PNG of the decoded chunks (a tile that does not decode stays black). */
 int output_write_preview(const char *path, const struct image_desc *desc, const struct output_chunk *chunks,
                          char *err, size_t errlen);
+/* Whether path's folder takes a new file: creates and removes the temporary name the
+ * writers use (path.tmp.PID). Checked before the first tile, so that a render whose output
+ * cannot be written fails at once, not after the night's work. 0, or -1 with the cause. */
+int output_check_writable(const char *path, char *err, size_t errlen);
 /* Writes root as indented JSON to path atomically. 0 or -1. */
 int output_write_json(const char *path, const json_t *root, char *err, size_t errlen);
 

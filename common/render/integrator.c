@@ -208,7 +208,7 @@ void pass_pixel_finish(const struct pass_pixel *pp, float *px, struct tile_stats
     const struct pass_batch *b = &pp->b;
     for (int c = 0; c < 3; c++) {
         px[CH_R + c] = (float)b->mean[c];
-        px[CH_VAR_R + c] = (float)pass_batch_var_of_mean(b, c);
+        px[CH_VAR_R + c] = tile_variance_value(pass_batch_var_of_mean(b, c));
     }
     px[CH_A] = b->n ? (float)(pp->cover / b->n) : 0.0f;
     if (b->lum_mean > 0.0 && b->n > 1) {
@@ -312,7 +312,7 @@ void integrator_render_tile(const struct render_job *job, uint32_t x0, uint32_t 
                 double var = n > 1 ? (sum2[k] - n * mean[k] * mean[k]) / (n - 1) : 0.0;
                 var_mean[k] = n > 1 ? fmax(0.0, var) / n : 0.0;
                 px[CH_R + k] = (float)mean[k];
-                px[CH_VAR_R + k] = (float)var_mean[k];
+                px[CH_VAR_R + k] = tile_variance_value(var_mean[k]);
             }
             px[CH_A] = n ? (float)(cover / n) : 0.0f;
             /* Relative standard error of the pixel's luminance, from the luminance of each

@@ -3,6 +3,7 @@
  * Shared by the integrator (fills them), proto (carries them) and the master (sums them). */
 #ifndef BRUME_TILE_H
 #define BRUME_TILE_H
+#include <float.h>
 #include <stdint.h>
 #include "image/imgio.h"
 #include "scene/scene.h"
@@ -22,6 +23,15 @@ struct tile_stats {
 };
 
 void tile_stats_add(struct tile_stats *sum, const struct tile_stats *t);
+
+/* A variance channel's value: the double rounded to float, saturated at FLT_MAX. A scene
+ * bright enough (emission 1e25 and up) has a sample variance past float's range while its
+ * mean is still a float; the channel then says "at least FLT_MAX" instead of inf, which
+ * the master would take for a lying worker. */
+static inline float tile_variance_value(double v)
+{
+    return v > (double)FLT_MAX ? FLT_MAX : (float)v;
+}
 
 /* The EXR layout of a frame: tiles of the render's tile size, the channels above, ZIP.
  * Master and workers both derive it from the settings, so their chunks agree. */

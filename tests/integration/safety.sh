@@ -96,6 +96,32 @@ else
   echo "skip: full disk (cannot mount a tmpfs here)"
 fi
 
+# --- a read-only output folder with --no-journal: refused before any tile is rendered ---
+ro="$T/ro"
+mkdir -p "$ro"
+if mount -t tmpfs -o ro,size=64k tmpfs "$ro" 2>/dev/null; then
+  run $M scenes/tiny/tiny.json -o "$ro/o.exr" --no-journal && r=0 || r=$?
+  umount "$ro"
+  if [ $r != 0 ] && tail -1 "$T/log" | grep -qE "^master: error: $ro/o\.exr\.tmp\.[0-9]+: .*Read-only file system$" &&
+     ! grep -q "rendered [1-9]" "$T/log"; then
+    ok "read-only output folder refused before rendering: $(tail -1 "$T/log")"
+  else bad "read-only output folder refused before rendering (rc $r)"; fi
+else
+  echo "skip: read-only output folder (cannot mount a tmpfs here)"
+fi
+
+# --- emission 1e30: the sample variance passes float's range; the render is the scene's,
+# not a lying worker's: it completes, the variance channels saturate, the summary says so ---
+mkdir -p "$T/hot"
+cp scenes/tiny/* "$T/hot/"
+sed 's/"emission": \[8, 8, 8\]/"emission": [1e30, 1e30, 1e30]/' scenes/tiny/tiny.json >"$T/hot/tiny.json"
+run $M "$T/hot/tiny.json" -o "$T/hot.exr" --no-journal && r=0 || r=$?
+hm=$($X mean "$T/hot.exr" 2>/dev/null | cut -d' ' -f1)
+if [ $r = 0 ] && grep -q "lower bound" "$T/log" && ! grep -qE "tile [0-9]+ rejected|banned" "$T/log" &&
+   python3 -c 'import math, sys; v = float(sys.argv[1]); sys.exit(not (math.isfinite(v) and v > 1e26))' "${hm:-nan}"; then
+  ok "emission 1e30 renders (mean $hm), variance saturated and said to be a lower bound, no worker banned"
+else bad "emission 1e30 renders, variance saturated, no worker banned (rc $r, mean ${hm:-?})"; fi
+
 # --- the tiny scene scaled by 1e-7 and 1e7 renders as the original (same samples, so the
 # difference must stay far below the image's own noise estimate) ---
 run $M scenes/tiny/tiny.json -o "$T/base.exr" --spp 16 && r=0 || r=1
