@@ -53,6 +53,8 @@ static void usage(FILE *f)
             "  --gather-radius R      photon gather radius in scene units (overrides the scene)\n"
             "  --march-step R         ray-marching step in scene units (overrides the scene)\n"
             "  --photon-threads T     threads of the photon pass (default: cores); the map is the same for any T\n"
+            "  --photon-memory GB     budget of a frame's photon maps, checked by a pilot before tracing\n"
+            "                         (default: half the machine's memory)\n"
             "  --verbose              debug logging, and every counter at the end (always in OUT.stats.json)\n");
 }
 
@@ -153,6 +155,17 @@ int main(int argc, char **argv)
                 o.time_limit = d;
                 o.have_time_limit = 1;
             }
+            continue;
+        }
+        if (has_arg && !strcmp(a, "--photon-memory")) {
+            char *end;
+            const char *t = argv[++i];
+            double d = strtod(t, &end);
+            if (!*t || *end || !(d > 0.0) || !(d < 1e9)) {
+                log_error("%s: \"%s\" is not a number of GB > 0", a, t);
+                return 2;
+            }
+            o.photon_memory_gb = d;
             continue;
         }
         if (has_arg && (!strcmp(a, "--gather-radius") || !strcmp(a, "--march-step"))) {

@@ -36,6 +36,7 @@ struct master_opts {
     uint32_t media_method, indirect;
     uint64_t photons;
     float gather_radius, march_step;
+    double photon_memory_gb;    /* --photon-memory GB: the photon maps' budget (0: half the machine's memory) */
     int have_passes;            /* --passes N (1..1024): passes (photon maps, batch means; adaptive: the most per tile) */
     uint32_t passes;
     /* Adaptive rendering (docs/adaptive.md): overrides of render.target_error and

@@ -16,6 +16,7 @@
 #include <stdio.h>
 #include <string.h>
 #include <time.h>
+#include <unistd.h>
 
 /* Adds the volume blob to the job's files, or replaces the one there (a new frame's). */
 static void publish(struct asset_dir *assets, uint8_t *data, size_t size)
@@ -113,6 +114,57 @@ int master_passes_fit(struct render_settings *rs, uint32_t passes)
     return 0;
 }
 
+/* Budget before work: a pilot map of PHOTON_PILOT photons, traced as pass 0's would be,
+ * measures the bytes and seconds per emitted photon; the maps of a frame (the master
+ * holds them all, for late workers and re-issues) must fit in budget_bytes. A photon
+ * count that would take hours and all memory is refused at once, naming the setting. */
+#define PHOTON_PILOT 4096u
+static int photon_budget(struct scene *scene, uint32_t frame, uint32_t passes, double budget_bytes, uint32_t threads)
+{
+    struct scene_media *sm = scene->media;
+    uint64_t photons = sm->photons;
+    if (photons <= PHOTON_PILOT)
+        return 0;
+    char err[512];
+    struct render_job job;
+    sm->photons = PHOTON_PILOT;
+    uint8_t *data = NULL;
+    size_t size = 0;
+    struct photon_pass_stats st;
+    int rc = render_job_init(&job, scene, frame, threads, err, sizeof err);
+    if (rc == 0) {
+        rc = photon_trace_map(&job, pass_seed(scene->settings.seed, 0), threads, &data, &size, &st, err, sizeof err);
+        render_job_fini(&job);
+    }
+    sm->photons = photons;
+    free(data);
+    if (rc != 0) {
+        log_error("photon pass: %s", err);
+        return -1;
+    }
+    double scale = (double)photons / PHOTON_PILOT, bytes = (double)size * scale * passes;
+    double secs = st.seconds * scale * passes;
+    log_info("media: photon budget: %u map(s) of %llu photons: about %.3g GB and %.3g s of tracing on %u thread(s) "
+             "(from a pilot of %u photons; budget %.3g GB)", passes, (unsigned long long)photons, bytes / 1e9, secs,
+             threads, PHOTON_PILOT, budget_bytes / 1e9);
+    if (bytes > budget_bytes) {
+        log_error("volume.photons %llu x %u pass(es): the photon maps would take about %.3g GB (%.1f bytes per emitted "
+                  "photon, from a pilot of %u), more than the budget of %.3g GB (half this machine's memory, or "
+                  "--photon-memory GB); lower --photons / volume.photons or the passes",
+                  (unsigned long long)photons, passes, bytes / 1e9, (double)size / PHOTON_PILOT, PHOTON_PILOT,
+                  budget_bytes / 1e9);
+        return -1;
+    }
+    return 0;
+}
+
+/* Half the machine's physical memory, in bytes (1 GB when it cannot be read). */
+static double default_photon_memory(void)
+{
+    long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGESIZE);
+    return pages > 0 && page > 0 ? 0.5 * (double)pages * (double)page : 1e9;
+}
+
 int master_media_prepare(struct scene *scene, const struct master_opts *o, uint32_t frame, struct asset_dir *assets,
                          uint32_t asked, uint32_t *photon_maps)
 {
@@ -182,6 +234,10 @@ int master_media_prepare(struct scene *scene, const struct master_opts *o, uint3
                 log_info("passes: spp %u raised to %u (%u passes of ceil(%u / %u) = %u spp)", rs->spp, k * passes,
                          passes, rs->spp, passes, k);
             rs->spp = plan.spp;
+            if (photon_budget(scene, frame, passes, o->photon_memory_gb > 0.0 ? o->photon_memory_gb * 1e9
+                                                                              : default_photon_memory(),
+                              o->photon_threads ? o->photon_threads : 1) != 0)
+                return -1;
             log_info("passes: %u of %u spp (%u spp), pass p with photon map p; radius %g to %g (surface %g to %g), "
                      "multiple-scattering bound %.3g", passes, k, rs->spp, (double)r0,
                      photon_pass_radius(r0, sm->alpha, passes - 1, passes_volume_kernel_dim(sm->method)), (double)r0,

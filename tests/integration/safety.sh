@@ -122,6 +122,16 @@ if [ $r = 0 ] && grep -q "lower bound" "$T/log" && ! grep -qE "tile [0-9]+ rejec
   ok "emission 1e30 renders (mean $hm), variance saturated and said to be a lower bound, no worker banned"
 else bad "emission 1e30 renders, variance saturated, no worker banned (rc $r, mean ${hm:-?})"; fi
 
+# --- "photons": 4294967296 (the documented maximum): refused before tracing, from a pilot ---
+TMO=60 run $M scenes/fog_spot/fog_spot.json -o "$T/big.exr" --no-journal --spp 2 --photons 4294967296 && r=0 || r=$?
+if [ $r != 0 ] && tail -1 "$T/log" | grep -q "^master: error: volume.photons 4294967296 .* more than the budget" &&
+   ! grep -q "photon map 0 of" "$T/log" && [ ! -e "$T/big.exr" ]; then
+  ok "4294967296 photons refused before tracing: $(tail -1 "$T/log" | cut -c1-120)..."
+else bad "4294967296 photons refused before tracing (rc $r)"; fi
+run $M scenes/fog_spot/fog_spot.json -o "$T/small.exr" --no-journal --spp 1 --photons 20000 --photon-memory 0.000001 && r=0 || r=$?
+if [ $r != 0 ] && tail -1 "$T/log" | grep -q "more than the budget"; then
+  ok "--photon-memory sets the budget"; else bad "--photon-memory sets the budget (rc $r)"; fi
+
 # --- the tiny scene scaled by 1e-7 and 1e7 renders as the original (same samples, so the
 # difference must stay far below the image's own noise estimate) ---
 run $M scenes/tiny/tiny.json -o "$T/base.exr" --spp 16 && r=0 || r=1
