@@ -80,6 +80,7 @@ struct pass_map {
     X(rejected_envelope) X(rejected_unknown_peer) X(rejected_unexpected) X(rejected_wrong_job)                    \
     X(rejected_blob_req) X(rejected_banned) X(auth_rejects) X(handshake_failures) X(evicted_silent)                \
     X(evicted_stalled) X(evicted_died) X(evicted_error) X(workers_banned) X(workers_joined) X(ready_stale)         \
+    X(local_restarts)                                                                                              \
     X(frames_done) X(frames_skipped) X(tiles_from_kept) X(kept_duplicate) X(acks_sent) X(journal_syncs)
 struct counters {
 #define X(n) uint64_t n;
@@ -119,6 +120,8 @@ struct master {
     uint32_t num_peers;
     pid_t *local_pids;
     uint32_t num_local, local_alive;
+    uint32_t local_restarts;    /* local workers started again after one died or was evicted */
+    uint64_t last_waiting_ms;   /* the last "waiting for workers" line (no live worker) */
     struct tile_stats stats;
     struct counters c;
     char last_worker_error[PROTO_MAX_STRING];
@@ -471,6 +474,14 @@ static void peer_evicted(struct master *m, int32_t pi, enum sched_evict_kind kin
     log_warn("worker %s removed (%s); %u tile(s) re-queued", p->name, why, ev->requeued);
     struct proto_msg bye = {.type = MSG_BYE};
     send_to(m, p, &bye);
+    /* A local worker that went silent or stalled (stopped, swapped out, wedged) cannot
+     * read the BYE: end the process, so that it is reaped and started again. */
+    if (kind == SCHED_SILENT || kind == SCHED_STALLED)
+        for (uint32_t i = 0; i < m->num_local; i++)
+            if (m->local_pids[i] > 0 && (uint32_t)m->local_pids[i] == p->pid) {
+                log_warn("local worker %u (pid %d) ended with SIGKILL", i, (int)m->local_pids[i]);
+                kill(m->local_pids[i], SIGKILL);
+            }
 }
 
 static void evict_peer(struct master *m, int32_t pi, enum sched_evict_kind kind, const char *why)
@@ -1366,6 +1377,29 @@ static int start_local_workers(struct master *m)
     return 0;
 }
 
+/* A local worker process ended before the frame did: start another in its slot, up to
+ * LOCAL_RESTARTS_MAX per local worker over the run, so that one stopped or crashed worker
+ * cannot end a one-command render. A tile that takes workers down still fails the job
+ * by its crash blame (sched.h), restarted workers being distinct workers. */
+#define LOCAL_RESTARTS_MAX 3u
+static void restart_local(struct master *m, uint32_t slot)
+{
+    const struct master_opts *o = m->opts;
+    if (g_interrupted || m->fatal[0] || m->sched->tiles_done >= m->num_units ||
+        m->local_restarts >= LOCAL_RESTARTS_MAX * m->num_local)
+        return;
+    pid_t pid = launch_worker(o->worker_exe, m->ipc_endpoint, o->threads, o->curve_secret ? m->local_key_path : NULL,
+                              m->local_pub_path);
+    if (pid < 0)
+        return;
+    m->local_pids[slot] = pid;
+    m->local_alive++;
+    m->local_restarts++;
+    m->c.local_restarts++;
+    log_warn("local worker %u started again (pid %d; restart %u of at most %u)", slot, (int)pid, m->local_restarts,
+             LOCAL_RESTARTS_MAX * m->num_local);
+}
+
 static void reap_local(struct master *m)
 {
     int status;
@@ -1375,6 +1409,7 @@ static void reap_local(struct master *m)
             if (m->local_pids[i] == pid) {
                 m->local_pids[i] = 0;
                 m->local_alive--;
+                restart_local(m, i);
             }
         for (uint32_t i = 0; i < m->num_peers; i++)
             if (!m->sched->workers[i].gone && m->peers[i].pid == (uint32_t)pid && m->num_local > 0) {
@@ -1622,6 +1657,11 @@ static int frame_render(struct master *m, uint64_t *last_beat)
                      m->sched->tiles_done, m->num_units, m->passes > 1 ? "units" : "tiles", m->last_worker_error[0] ? "; last worker error: " : "",
                      m->last_worker_error);
             return -1;
+        }
+        if (o->bind && sched_live_workers(m->sched) == 0 && now - m->last_waiting_ms >= 10000) {
+            m->last_waiting_ms = now;
+            log_info("waiting for workers: 0 connected, %u of %u %s done", m->sched->tiles_done, m->num_units,
+                     m->passes > 1 ? "units" : "tiles");
         }
         assign_tiles(m);
         commit_and_ack(m, 0);

@@ -132,6 +132,25 @@ run $M scenes/fog_spot/fog_spot.json -o "$T/small.exr" --no-journal --spp 1 --ph
 if [ $r != 0 ] && tail -1 "$T/log" | grep -q "more than the budget"; then
   ok "--photon-memory sets the budget"; else bad "--photon-memory sets the budget (rc $r)"; fi
 
+# --- a lone local worker stopped (SIGSTOP) longer than --worker-timeout-ms: evicted, ended
+# and started again by the master; the image is the one an undisturbed run gives ---
+SA="--spp 16 --no-journal --workers 1 --threads 2"
+run $M scenes/cornell/cornell.json -o "$T/nostop.exr" $SA && r0=0 || r0=1
+timeout 120 $M scenes/cornell/cornell.json -o "$T/stop.exr" $SA --worker-timeout-ms 1500 >"$T/stop.log" 2>&1 &
+mpid=$!
+echo $mpid >"$T/pids"
+wpid="" i=0
+while [ -z "$wpid" ] && [ $i -lt 100 ]; do
+  wpid=$(sed -n 's/.*worker [^ ]*:\([0-9][0-9]*\) joined.*/\1/p' "$T/stop.log" | head -1)
+  i=$((i + 1)); sleep 0.1
+done
+[ -n "$wpid" ] && kill -STOP "$wpid" 2>/dev/null
+wait $mpid && r=0 || r=1
+if [ $r0 = 0 ] && [ $r = 0 ] && [ -n "$wpid" ] && grep -q "started again" "$T/stop.log" && $X cmp "$T/nostop.exr" "$T/stop.exr"; then
+  ok "a lone local worker stopped: evicted, started again, identical image ($(grep -c 'started again' "$T/stop.log") restart(s))"
+else cp "$T/stop.log" "$T/log"; bad "a lone local worker stopped: evicted, started again, identical image (rc $r, worker ${wpid:-?})"; fi
+[ -n "$wpid" ] && kill -KILL "$wpid" 2>/dev/null
+
 # --- the tiny scene scaled by 1e-7 and 1e7 renders as the original (same samples, so the
 # difference must stay far below the image's own noise estimate) ---
 run $M scenes/tiny/tiny.json -o "$T/base.exr" --spp 16 && r=0 || r=1
