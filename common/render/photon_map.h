@@ -12,6 +12,8 @@
 #include "scene/scene.h"
 #include "base/vec.h"
 
+struct photon_beam_grid;
+
 struct photon {
     float p[3];
     uint8_t rgbe[4];    /* power (W), shared exponent */
@@ -36,6 +38,9 @@ struct photon_map {
     struct photon *photons;     /* sorted by bucket */
     uint32_t *bucket_start;     /* table_size + 1 */
     struct photon_decoded *decoded; /* per photon, filled by photon_map_decode; NULL: decode on the fly */
+    struct photon_beam_grid *beam; /* the beam query's rows of photons (photon_map.c), built by
+                                    * photon_map_decode for a volume map; NULL: the query reads
+                                    * every photon (maps built by hand in tests) */
     struct photon_map *surface; /* the volume map's companion: photons on diffuse surfaces, or NULL */
     struct photon_map *next_pass; /* the next pass's map (progressive passes, volume blob), or NULL; owned */
 };
