@@ -483,11 +483,15 @@ vec3 photon_map_gather_knn(const struct photon_map *m, vec3 x, vec3 d_out, float
 /* The beam estimate needs the photons within r of a segment, a thin tube, which the hash
  * grid's cells of 2r (and the buckets colliding cells share) cover only loosely. So the
  * reader sorts a copy of the volume map's positions into rows (photon_map_decode): cells
- * of BEAM_CELL_RADII r across y and z, unbounded along x, a row's photons by x (then by
- * index). A query visits the rows the tube crosses, each only over the x interval the tube
- * can reach there (the segment clipped to the row's slabs grown by r), and reads just those
- * photons, in an order fixed by the map and the ray. */
-#define BEAM_CELL_RADII 1.0f
+ * of k r across y and z, unbounded along x, a row's photons by x (then by index). A query
+ * visits the rows the tube crosses, each only over the x interval the tube can reach there
+ * (the segment clipped to the row's slabs grown by r), and reads just those photons, in an
+ * order fixed by the map and the ray. Each row visited costs a hash lookup, each photon
+ * read a distance test: k grows where photons are sparse (fewer rows, a few more photons),
+ * from 1 to 4 as the photons' mean crowding (a photon's count of photons in its bucket of
+ * the blob's grid) falls: k = 2 (BEAM_CROWD / crowding)^(1/3), BEAM_CROWD photons per
+ * cell of 2r, measured best on the three media scenes (dense smoke: k = 1, cornell_fog: 3). */
+#define BEAM_CROWD 10.0
 #define BEAM_MAX_CELLS 32768.0f     /* cells per axis at most (tiny radii): walks stay bounded */
 /* Rounding slack, relative to the coordinates' magnitude: a photon the acceptance test
  * takes is within r + BEAM_SLACK x (|o| + |p|) of the ray (tens of float epsilons). */
@@ -568,7 +572,13 @@ static struct photon_beam_grid *beam_grid_build(const struct photon_map *m)
     g->scale = scale;
     /* Cells no smaller than the slack, so a tiny radius far from the origin does not make
      * a query walk thousands of rows across the slack alone. */
-    g->cell = fmaxf(fmaxf(BEAM_CELL_RADII * m->radius, ext / BEAM_MAX_CELLS), fmaxf(BEAM_SLACK * scale, 1e-30f));
+    double crowd = 0.0;
+    for (uint32_t b = 0; b < m->table_size; b++) {
+        double c = (double)(m->bucket_start[b + 1] - m->bucket_start[b]);
+        crowd += c * c / (double)n;
+    }
+    float kr = (float)fmin(fmax(2.0 * cbrt(BEAM_CROWD / fmax(crowd, 1.0)), 1.0), 4.0);
+    g->cell = fmaxf(fmaxf(kr * m->radius, ext / BEAM_MAX_CELLS), fmaxf(BEAM_SLACK * scale, 1e-30f));
     g->inv = 1.0f / g->cell;
     for (int k = 0; k < 3; k++) {
         g->cmax[k] = (uint32_t)BEAM_MAX_CELLS + 1u; /* rounding's margin */
@@ -632,6 +642,10 @@ static vec3 tau_tr(const struct photon_tau *tt, const struct medium *md, float t
     return v3(ex, expf(-md->sigma_t.y * tau), expf(-md->sigma_t.z * tau));
 }
 
+/* Plain comparisons: the operands are never NaN here, and libm's fminf is a call. */
+static inline float beam_min(float a, float b) { return a < b ? a : b; }
+static inline float beam_max(float a, float b) { return a > b ? a : b; }
+
 struct beam_ray {
     vec3 o, d, d_out;
     float t1, r2;
@@ -664,7 +678,7 @@ static void beam_walk(const struct photon_map *m, const struct photon_beam_grid 
                       double acc[3])
 {
     vec3 o = br->o, d = br->d;
-    float scale = fmaxf(g->scale, fmaxf(fmaxf(fabsf(o.x), fabsf(o.y)), fabsf(o.z)));
+    float scale = beam_max(g->scale, beam_max(beam_max(fabsf(o.x), fabsf(o.y)), fabsf(o.z)));
     float e = m->radius * (1.0f + BEAM_SLACK) + 2.0f * BEAM_SLACK * scale, c = g->cell;
     float ta = 0.0f, tb = br->t1;
     vec3 blo = v3(g->lo[0] - e, g->lo[1] - e, g->lo[2] - e), bhi = v3(g->hi[0] + e, g->hi[1] + e, g->hi[2] + e);
@@ -673,8 +687,8 @@ static void beam_walk(const struct photon_map *m, const struct photon_beam_grid 
     if (!(tb < INFINITY))
         tb = ta; /* d = 0: the ray is the point o */
     float za = o.z + d.z * ta, zb = o.z + d.z * tb, ya = o.y + d.y * ta, yb = o.y + d.y * tb;
-    uint32_t z0 = beam_cell(g, fminf(za, zb) - e, 2), z1 = beam_cell(g, fmaxf(za, zb) + e, 2);
-    uint32_t y0 = beam_cell(g, fminf(ya, yb) - e, 1), y1 = beam_cell(g, fmaxf(ya, yb) + e, 1);
+    uint32_t z0 = beam_cell(g, beam_min(za, zb) - e, 2), z1 = beam_cell(g, beam_max(za, zb) + e, 2);
+    uint32_t y0 = beam_cell(g, beam_min(ya, yb) - e, 1), y1 = beam_cell(g, beam_max(ya, yb) + e, 1);
     /* The rows the walk would visit (a slab's y cells at most): when that is more than half
      * the photons (a slack grown huge by an origin far away), reading them all is cheaper. */
     double slab_y = fabs((double)d.y) * ((double)c + 2.0 * e) / fabs((double)d.z) + 2.0 * e;
@@ -689,7 +703,7 @@ static void beam_walk(const struct photon_map *m, const struct photon_beam_grid 
         if (!f_clip_slab(o.z, d.z, zl - e, zl + c + e, &sa, &sb) || !(sa <= sb))
             continue;
         float sya = o.y + d.y * sa, syb = o.y + d.y * sb;
-        uint32_t sy0 = beam_cell(g, fminf(sya, syb) - e, 1), sy1 = beam_cell(g, fmaxf(sya, syb) + e, 1);
+        uint32_t sy0 = beam_cell(g, beam_min(sya, syb) - e, 1), sy1 = beam_cell(g, beam_max(sya, syb) + e, 1);
         for (uint32_t cy = sy0; cy <= sy1; cy++) {
             float ra = sa, rb = sb, yl = g->lo[1] + (float)cy * c;
             if (!f_clip_slab(o.y, d.y, yl - e, yl + c + e, &ra, &rb) || !(ra <= rb))
@@ -697,7 +711,7 @@ static void beam_walk(const struct photon_map *m, const struct photon_beam_grid 
             const struct beam_row *row = beam_row_find(g, cy, cz);
             if (!row)
                 continue;
-            float xa = o.x + d.x * ra, xb = o.x + d.x * rb, xlo = fminf(xa, xb) - e, xhi = fmaxf(xa, xb) + e;
+            float xa = o.x + d.x * ra, xb = o.x + d.x * rb, xlo = beam_min(xa, xb) - e, xhi = beam_max(xa, xb) + e;
             uint32_t l = row->start, h = row->end;
             while (l < h) { /* the first photon of the row at x >= xlo */
                 uint32_t mid = l + (h - l) / 2;
