@@ -534,18 +534,42 @@ static const struct beam_row *beam_row_find(const struct photon_beam_grid *g, ui
     }
 }
 
-struct beam_key { uint32_t z, y; float x; uint32_t i; };
-
-static int beam_key_cmp(const void *pa, const void *pb)
+/* Sorts the keys and their photon indices (given in index order) by key, stably: LSD radix
+ * sort, 16 bits a pass, so equal keys keep index order. */
+static void beam_sort(uint64_t *key, uint32_t *idx, uint32_t n)
 {
-    const struct beam_key *a = pa, *b = pb;
-    if (a->z != b->z)
-        return a->z < b->z ? -1 : 1;
-    if (a->y != b->y)
-        return a->y < b->y ? -1 : 1;
-    if (a->x != b->x)
-        return a->x < b->x ? -1 : 1;
-    return a->i < b->i ? -1 : (a->i > b->i);
+    uint64_t *k2 = mem_alloc(sizeof *k2 * n);
+    uint32_t *i2 = mem_alloc(sizeof *i2 * n), *count = mem_alloc(sizeof *count * 65536);
+    for (int shift = 0; shift < 64; shift += 16) {
+        memset(count, 0, sizeof *count * 65536);
+        for (uint32_t i = 0; i < n; i++)
+            count[key[i] >> shift & 0xffff]++;
+        for (uint32_t b = 0, sum = 0; b < 65536; b++) {
+            uint32_t c = count[b];
+            count[b] = sum;
+            sum += c;
+        }
+        for (uint32_t i = 0; i < n; i++) {
+            uint32_t j = count[key[i] >> shift & 0xffff]++;
+            k2[j] = key[i];
+            i2[j] = idx[i];
+        }
+        uint64_t *tk = key;
+        key = k2, k2 = tk;
+        uint32_t *ti = idx;
+        idx = i2, i2 = ti;
+    }
+    free(k2); /* four passes: the sorted data is back in the caller's arrays */
+    free(i2);
+    free(count);
+}
+
+/* x as an unsigned key in the order of the floats (-0 just before +0, which compare equal). */
+static uint32_t beam_x_key(float x)
+{
+    uint32_t u;
+    memcpy(&u, &x, 4);
+    return u >> 31 ? ~u : u | 0x80000000u;
 }
 
 static struct photon_beam_grid *beam_grid_build(const struct photon_map *m)
@@ -584,14 +608,17 @@ static struct photon_beam_grid *beam_grid_build(const struct photon_map *m)
         g->cmax[k] = (uint32_t)BEAM_MAX_CELLS + 1u; /* rounding's margin */
         g->cmax[k] = beam_cell(g, hi[k], k);
     }
-    struct beam_key *key = mem_alloc(sizeof *key * n);
-    for (uint32_t i = 0; i < n; i++)
-        key[i] = (struct beam_key){beam_cell(g, m->photons[i].p[2], 2), beam_cell(g, m->photons[i].p[1], 1),
-                                   m->photons[i].p[0], i};
-    qsort(key, n, sizeof *key, beam_key_cmp);
+    uint64_t *key = mem_alloc(sizeof *key * n);
+    uint32_t *idx = mem_alloc(sizeof *idx * n);
+    for (uint32_t i = 0; i < n; i++) {
+        const float *p = m->photons[i].p;
+        key[i] = (uint64_t)beam_cell(g, p[2], 2) << 48 | (uint64_t)beam_cell(g, p[1], 1) << 32 | beam_x_key(p[0]);
+        idx[i] = i;
+    }
+    beam_sort(key, idx, n); /* by row (z, y cells), then x, then index */
     uint32_t rows = 0;
     for (uint32_t j = 0; j < n; j++)
-        rows += j == 0 || key[j].z != key[j - 1].z || key[j].y != key[j - 1].y;
+        rows += j == 0 || key[j] >> 32 != key[j - 1] >> 32;
     uint32_t slots = 2;
     while (slots < 2 * rows)
         slots <<= 1;
@@ -601,17 +628,19 @@ static struct photon_beam_grid *beam_grid_build(const struct photon_map *m)
         g->rows[s].y = UINT32_MAX;
     g->rec = mem_alloc(sizeof *g->rec * n);
     for (uint32_t j = 0, row_start = 0; j < n; j++) {
-        const struct photon *ph = &m->photons[key[j].i];
-        g->rec[j] = (struct beam_rec){{ph->p[0], ph->p[1], ph->p[2]}, key[j].i};
-        if (j + 1 < n && key[j + 1].z == key[j].z && key[j + 1].y == key[j].y)
+        const struct photon *ph = &m->photons[idx[j]];
+        g->rec[j] = (struct beam_rec){{ph->p[0], ph->p[1], ph->p[2]}, idx[j]};
+        if (j + 1 < n && key[j + 1] >> 32 == key[j] >> 32)
             continue;
-        uint32_t h = beam_row_slot(key[j].y, key[j].z, g->mask);
+        uint32_t y = (uint32_t)(key[j] >> 32 & 0xffff), z = (uint32_t)(key[j] >> 48);
+        uint32_t h = beam_row_slot(y, z, g->mask);
         while (g->rows[h].y != UINT32_MAX)
             h = (h + 1) & g->mask;
-        g->rows[h] = (struct beam_row){key[j].y, key[j].z, row_start, j + 1};
+        g->rows[h] = (struct beam_row){y, z, row_start, j + 1};
         row_start = j + 1;
     }
     free(key);
+    free(idx);
     return g;
 }
 

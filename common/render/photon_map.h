@@ -3,7 +3,8 @@
  * radius, plus each bucket's start: two flat arrays, serialised behind a 48-byte header;
  * a surface map of the same format may follow the volume map. Written by the master
  * (photon_trace.c), decoded with bounds checks by workers and owned by the render job;
- * read-only while rendering. Also the job's volume blob (media settings + map). */
+ * read-only while rendering. A reader adds what it alone uses (decoded photons, the beam
+ * query's rows; never serialised). Also the job's volume blob (media settings + map). */
 #ifndef BRUME_PHOTON_MAP_H
 #define BRUME_PHOTON_MAP_H
 #include <stddef.h>
