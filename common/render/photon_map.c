@@ -493,8 +493,9 @@ vec3 photon_map_gather_knn(const struct photon_map *m, vec3 x, vec3 d_out, float
  * cell of 2r, measured best on the three media scenes (dense smoke: k = 1, cornell_fog: 3). */
 #define BEAM_CROWD 10.0
 #define BEAM_MAX_CELLS 32768.0f     /* cells per axis at most (tiny radii): walks stay bounded */
-/* Rounding slack, relative to the coordinates' magnitude: a photon the acceptance test
- * takes is within r + BEAM_SLACK x (|o| + |p|) of the ray (tens of float epsilons). */
+/* Rounding slack, relative to the coordinates' largest magnitude s (ray origin, photons'
+ * box): a photon the acceptance test takes (float arithmetic) is within r + about 20
+ * epsilons x |p - o| of the ray; the walk pads r by 2 BEAM_SLACK s, over 130 epsilons x s. */
 #define BEAM_SLACK 4e-6f
 
 struct beam_rec { float p[3]; uint32_t i; };
@@ -594,14 +595,14 @@ static struct photon_beam_grid *beam_grid_build(const struct photon_map *m)
         scale = fmaxf(scale, fmaxf(fabsf(lo[k]), fabsf(hi[k])));
     }
     g->scale = scale;
-    /* Cells no smaller than the slack, so a tiny radius far from the origin does not make
-     * a query walk thousands of rows across the slack alone. */
     double crowd = 0.0;
     for (uint32_t b = 0; b < m->table_size; b++) {
         double c = (double)(m->bucket_start[b + 1] - m->bucket_start[b]);
         crowd += c * c / (double)n;
     }
     float kr = (float)fmin(fmax(2.0 * cbrt(BEAM_CROWD / fmax(crowd, 1.0)), 1.0), 4.0);
+    /* Cells no smaller than the slack, so a tiny radius far from the origin does not make
+     * a query walk thousands of rows across the slack alone. */
     g->cell = fmaxf(fmaxf(kr * m->radius, ext / BEAM_MAX_CELLS), fmaxf(BEAM_SLACK * scale, 1e-30f));
     g->inv = 1.0f / g->cell;
     for (int k = 0; k < 3; k++) {
