@@ -175,24 +175,27 @@ __attribute__((always_inline)) static inline vec3 offset_ray_origin(vec3 p, vec3
               fabsf(p.z) < origin ? p.z + float_scale * n.z : pi.z);
 }
 
+/* One axis of v3_clip_box: narrows [*t0, *t1] to where o + t d lies in [l, h]. */
+static inline int f_clip_slab(float o, float d, float l, float h, float *t0, float *t1)
+{
+    if (!(l <= h))
+        return 0;
+    if (d == 0.0f)
+        return !(o < l || o > h);
+    float ta = (l - o) / d, tb = (h - o) / d;
+    *t0 = fmaxf(*t0, fminf(ta, tb));
+    *t1 = fminf(*t1, fmaxf(ta, tb));
+    return 1;
+}
+
 /* Narrows [*t0, *t1] to the part of o + t d inside the box [lo, hi] (slab test; d need
  * not be unit, a zero component keeps or drops the whole line); returns 1 if any of it is
  * left (*t0 <= *t1), 0 when none is or the box is empty. */
 static inline int v3_clip_box(vec3 o, vec3 d, vec3 lo, vec3 hi, float *t0, float *t1)
 {
-    const float oo[3] = {o.x, o.y, o.z}, dd[3] = {d.x, d.y, d.z}, l[3] = {lo.x, lo.y, lo.z}, h[3] = {hi.x, hi.y, hi.z};
-    for (int k = 0; k < 3; k++) {
-        if (!(l[k] <= h[k]))
-            return 0;
-        if (dd[k] == 0.0f) {
-            if (oo[k] < l[k] || oo[k] > h[k])
-                return 0;
-            continue;
-        }
-        float ta = (l[k] - oo[k]) / dd[k], tb = (h[k] - oo[k]) / dd[k];
-        *t0 = fmaxf(*t0, fminf(ta, tb));
-        *t1 = fminf(*t1, fmaxf(ta, tb));
-    }
+    if (!f_clip_slab(o.x, d.x, lo.x, hi.x, t0, t1) || !f_clip_slab(o.y, d.y, lo.y, hi.y, t0, t1) ||
+        !f_clip_slab(o.z, d.z, lo.z, hi.z, t0, t1))
+        return 0;
     return *t0 <= *t1;
 }
 

@@ -157,6 +157,10 @@ int photon_map_serialise(struct photon_list *blocks, uint32_t num_blocks, float 
     return 0;
 }
 
+struct photon_beam_grid;
+static struct photon_beam_grid *beam_grid_build(const struct photon_map *m);
+static void beam_grid_free(struct photon_beam_grid *g);
+
 /* One map at the start of data: its size (from its header) goes to *used. */
 static int decode_one(const uint8_t *data, size_t size, size_t *used, struct photon_map **out, char *err,
                       size_t errlen)
@@ -220,8 +224,10 @@ int photon_map_decode(const uint8_t *data, size_t size, struct photon_map **out,
     size_t used = 0, used2 = 0;
     if (decode_one(data, size, &used, out, err, errlen) != 0)
         return -1;
-    if (used == size)
+    if (used == size) {
+        (*out)->beam = beam_grid_build(*out);
         return 0;
+    }
     /* A surface map follows: exactly one more map, with the same photon count (its radius
      * may differ: progressive passes shrink it by the 2D rule, the volume map's by the 3D). */
     struct photon_map *s = NULL;
@@ -234,6 +240,7 @@ int photon_map_decode(const uint8_t *data, size_t size, struct photon_map **out,
         return -1;
     }
     (*out)->surface = s;
+    (*out)->beam = beam_grid_build(*out);
     return 0;
 }
 
@@ -247,6 +254,7 @@ void photon_map_free(struct photon_map **pm)
         free(m->decoded);
         free(m->photons);
         free(m->bucket_start);
+        beam_grid_free(m->beam);
         free(m);
         m = next;
     }
@@ -288,29 +296,16 @@ static inline vec3 photon_contrib(const struct photon_map *m, uint32_t i, vec3 d
 
 /* Visits each bucket of the cells [lo, hi] once (hash collisions would repeat them). */
 #define MAX_VISIT 64
-/* seg (optional): o, d, [a, b]: only cells whose centre lies within r + half a cell
- * diagonal of that segment can hold photons within r of it. */
-struct seg_filter { vec3 o, d; float a, b, reach2; };
 
-static uint32_t collect_buckets(const struct photon_map *m, vec3 lo, vec3 hi, uint32_t *out,
-                                const struct seg_filter *seg)
+static uint32_t collect_buckets(const struct photon_map *m, vec3 lo, vec3 hi, uint32_t *out)
 {
-    float inv = 1.0f / m->cell_size, cs = m->cell_size;
+    float inv = 1.0f / m->cell_size;
     int32_t x0 = cell_coord(lo.x, inv), y0 = cell_coord(lo.y, inv), z0 = cell_coord(lo.z, inv);
     int32_t x1 = cell_coord(hi.x, inv), y1 = cell_coord(hi.y, inv), z1 = cell_coord(hi.z, inv);
     uint32_t nb = 0;
     for (int32_t z = z0; z <= z1 && z - z0 < 4; z++)
         for (int32_t y = y0; y <= y1 && y - y0 < 4; y++)
             for (int32_t x = x0; x <= x1 && x - x0 < 4; x++) {
-                if (seg) {
-                    vec3 c = v3(((float)x + 0.5f) * cs, ((float)y + 0.5f) * cs, ((float)z + 0.5f) * cs);
-                    vec3 oc = v3_sub(c, seg->o);
-                    float t = v3_dot(oc, seg->d);
-                    t = t < seg->a ? seg->a : (t > seg->b ? seg->b : t);
-                    vec3 q = v3_sub(oc, v3_scale(seg->d, t));
-                    if (v3_dot(q, q) > seg->reach2)
-                        continue;
-                }
                 uint32_t b = bucket_of(x, y, z, m->table_size - 1);
                 int seen = 0;
                 for (uint32_t i = 0; i < nb && !seen; i++)
@@ -324,7 +319,7 @@ static uint32_t collect_buckets(const struct photon_map *m, vec3 lo, vec3 hi, ui
 /* The buckets of the cells the sphere of radius r around x touches. */
 static uint32_t sphere_buckets(const struct photon_map *m, vec3 x, float r, uint32_t *buckets)
 {
-    return collect_buckets(m, v3(x.x - r, x.y - r, x.z - r), v3(x.x + r, x.y + r, x.z + r), buckets, NULL);
+    return collect_buckets(m, v3(x.x - r, x.y - r, x.z - r), v3(x.x + r, x.y + r, x.z + r), buckets);
 }
 
 /* acc times k, saturated at 1e30 (a near-zero kernel radius cannot give infinity). */
@@ -483,26 +478,181 @@ vec3 photon_map_gather_knn(const struct photon_map *m, vec3 x, vec3 d_out, float
     return scaled(acc, 1.0 / (4.0 / 3.0 * M_PI * rk * rk * rk));
 }
 
-/* Drops repeated bucket ids in place (a small open-addressing set); returns the count. */
-static uint32_t unique_buckets(uint32_t *b, uint32_t n)
+/* ---- the beam query: rows of photons along x ---- */
+
+/* The beam estimate needs the photons within r of a segment, a thin tube, which the hash
+ * grid's cells of 2r (and the buckets colliding cells share) cover only loosely. So the
+ * reader sorts a copy of the volume map's positions into rows (photon_map_decode): cells
+ * of k r across y and z, unbounded along x, a row's photons by x (then by index). A query
+ * visits the rows the tube crosses, each only over the x interval the tube can reach there
+ * (the segment clipped to the row's slabs grown by r), and reads just those photons, in an
+ * order fixed by the map and the ray. Each row visited costs a hash lookup, each photon
+ * read a distance test: k grows where photons are sparse (fewer rows, a few more photons),
+ * from 1 to 4 as the photons' mean crowding (a photon's count of photons in its bucket of
+ * the blob's grid) falls: k = 2 (BEAM_CROWD / crowding)^(1/3), BEAM_CROWD photons per
+ * cell of 2r, measured best on the three media scenes (dense smoke: k = 1, cornell_fog: 3). */
+#define BEAM_CROWD 10.0
+#define BEAM_MAX_CELLS 32768.0f     /* cells per axis at most (tiny radii): walks stay bounded */
+/* Rounding slack, relative to the coordinates' largest magnitude s (ray origin, photons'
+ * box): a photon the acceptance test takes (float arithmetic) is within r + about 20
+ * epsilons x |p - o| of the ray; the walk pads r by 2 BEAM_SLACK s, over 130 epsilons x s. */
+#define BEAM_SLACK 4e-6f
+
+struct beam_rec { float p[3]; uint32_t i; };
+struct beam_row { uint32_t y, z, start, end; }; /* y == UINT32_MAX: an empty slot */
+
+struct photon_beam_grid {
+    float lo[3], hi[3], scale;  /* the photons' box, its largest |coordinate| */
+    float cell, inv;
+    uint32_t cmax[3];           /* the largest cell coordinate per axis: a far ray walks no further */
+    uint32_t mask;              /* row table: mask + 1 slots, at most half full */
+    struct beam_row *rows;
+    struct beam_rec *rec;       /* num_photons records, by row, then x, then photon index */
+};
+
+static uint32_t beam_cell(const struct photon_beam_grid *g, float v, int axis)
 {
-    enum { SET = 2048 };
-    uint32_t set[SET];
-    memset(set, 0xff, sizeof set);
-    uint32_t k = 0;
-    for (uint32_t i = 0; i < n; i++) {
-        uint32_t h = (b[i] * 2654435761u) & (SET - 1);
-        while (set[h] != UINT32_MAX && set[h] != b[i])
-            h = (h + 1) & (SET - 1);
-        if (set[h] == b[i])
-            continue;
-        set[h] = b[i];
-        b[k++] = b[i];
-    }
-    return k;
+    float f = floorf((v - g->lo[axis]) * g->inv); /* monotone in v: queries bound cells safely */
+    if (!(f > 0.0f))
+        return 0; /* also NaN */
+    return f < (float)g->cmax[axis] ? (uint32_t)f : g->cmax[axis];
 }
 
-#define BEAM_CHUNK 16           /* pieces whose buckets are merged before the photons are read */
+static uint32_t beam_row_slot(uint32_t y, uint32_t z, uint32_t mask)
+{
+    uint32_t h = y * 0x9e3779b1u ^ z * 0x85ebca77u;
+    return (h ^ h >> 15) & mask;
+}
+
+static const struct beam_row *beam_row_find(const struct photon_beam_grid *g, uint32_t y, uint32_t z)
+{
+    for (uint32_t h = beam_row_slot(y, z, g->mask);; h = (h + 1) & g->mask) {
+        const struct beam_row *r = &g->rows[h];
+        if (r->y == y && r->z == z)
+            return r;
+        if (r->y == UINT32_MAX)
+            return NULL;
+    }
+}
+
+/* Sorts the keys and their photon indices (given in index order) by key, stably: LSD radix
+ * sort, 16 bits a pass, so equal keys keep index order. */
+static void beam_sort(uint64_t *key, uint32_t *idx, uint32_t n)
+{
+    uint64_t *k2 = mem_alloc(sizeof *k2 * n);
+    uint32_t *i2 = mem_alloc(sizeof *i2 * n), *count = mem_alloc(sizeof *count * 65536);
+    for (int shift = 0; shift < 64; shift += 16) {
+        memset(count, 0, sizeof *count * 65536);
+        for (uint32_t i = 0; i < n; i++)
+            count[key[i] >> shift & 0xffff]++;
+        for (uint32_t b = 0, sum = 0; b < 65536; b++) {
+            uint32_t c = count[b];
+            count[b] = sum;
+            sum += c;
+        }
+        for (uint32_t i = 0; i < n; i++) {
+            uint32_t j = count[key[i] >> shift & 0xffff]++;
+            k2[j] = key[i];
+            i2[j] = idx[i];
+        }
+        uint64_t *tk = key;
+        key = k2, k2 = tk;
+        uint32_t *ti = idx;
+        idx = i2, i2 = ti;
+    }
+    free(k2); /* four passes: the sorted data is back in the caller's arrays */
+    free(i2);
+    free(count);
+}
+
+/* x as an unsigned key in the order of the floats (-0 just before +0, which compare equal). */
+static uint32_t beam_x_key(float x)
+{
+    uint32_t u;
+    memcpy(&u, &x, 4);
+    return u >> 31 ? ~u : u | 0x80000000u;
+}
+
+static struct photon_beam_grid *beam_grid_build(const struct photon_map *m)
+{
+    uint32_t n = m->num_photons;
+    if (n == 0)
+        return NULL;
+    struct photon_beam_grid *g = mem_calloc(1, sizeof *g);
+    float lo[3], hi[3];
+    for (int k = 0; k < 3; k++)
+        lo[k] = hi[k] = m->photons[0].p[k];
+    for (uint32_t i = 1; i < n; i++)
+        for (int k = 0; k < 3; k++) {
+            lo[k] = fminf(lo[k], m->photons[i].p[k]);
+            hi[k] = fmaxf(hi[k], m->photons[i].p[k]);
+        }
+    float ext = 0.0f, scale = 0.0f;
+    for (int k = 0; k < 3; k++) {
+        g->lo[k] = lo[k];
+        g->hi[k] = hi[k];
+        ext = fmaxf(ext, hi[k] - lo[k]);
+        scale = fmaxf(scale, fmaxf(fabsf(lo[k]), fabsf(hi[k])));
+    }
+    g->scale = scale;
+    double crowd = 0.0;
+    for (uint32_t b = 0; b < m->table_size; b++) {
+        double c = (double)(m->bucket_start[b + 1] - m->bucket_start[b]);
+        crowd += c * c / (double)n;
+    }
+    float kr = (float)fmin(fmax(2.0 * cbrt(BEAM_CROWD / fmax(crowd, 1.0)), 1.0), 4.0);
+    /* Cells no smaller than the slack, so a tiny radius far from the origin does not make
+     * a query walk thousands of rows across the slack alone. */
+    g->cell = fmaxf(fmaxf(kr * m->radius, ext / BEAM_MAX_CELLS), fmaxf(BEAM_SLACK * scale, 1e-30f));
+    g->inv = 1.0f / g->cell;
+    for (int k = 0; k < 3; k++) {
+        g->cmax[k] = (uint32_t)BEAM_MAX_CELLS + 1u; /* rounding's margin */
+        g->cmax[k] = beam_cell(g, hi[k], k);
+    }
+    uint64_t *key = mem_alloc(sizeof *key * n);
+    uint32_t *idx = mem_alloc(sizeof *idx * n);
+    for (uint32_t i = 0; i < n; i++) {
+        const float *p = m->photons[i].p;
+        key[i] = (uint64_t)beam_cell(g, p[2], 2) << 48 | (uint64_t)beam_cell(g, p[1], 1) << 32 | beam_x_key(p[0]);
+        idx[i] = i;
+    }
+    beam_sort(key, idx, n); /* by row (z, y cells), then x, then index */
+    uint32_t rows = 0;
+    for (uint32_t j = 0; j < n; j++)
+        rows += j == 0 || key[j] >> 32 != key[j - 1] >> 32;
+    uint32_t slots = 2;
+    while (slots < 2 * rows)
+        slots <<= 1;
+    g->mask = slots - 1;
+    g->rows = mem_alloc(sizeof *g->rows * slots);
+    for (uint32_t s = 0; s < slots; s++)
+        g->rows[s].y = UINT32_MAX;
+    g->rec = mem_alloc(sizeof *g->rec * n);
+    for (uint32_t j = 0, row_start = 0; j < n; j++) {
+        const struct photon *ph = &m->photons[idx[j]];
+        g->rec[j] = (struct beam_rec){{ph->p[0], ph->p[1], ph->p[2]}, idx[j]};
+        if (j + 1 < n && key[j + 1] >> 32 == key[j] >> 32)
+            continue;
+        uint32_t y = (uint32_t)(key[j] >> 32 & 0xffff), z = (uint32_t)(key[j] >> 48);
+        uint32_t h = beam_row_slot(y, z, g->mask);
+        while (g->rows[h].y != UINT32_MAX)
+            h = (h + 1) & g->mask;
+        g->rows[h] = (struct beam_row){y, z, row_start, j + 1};
+        row_start = j + 1;
+    }
+    free(key);
+    free(idx);
+    return g;
+}
+
+static void beam_grid_free(struct photon_beam_grid *g)
+{
+    if (!g)
+        return;
+    free(g->rows);
+    free(g->rec);
+    free(g);
+}
 
 static vec3 tau_tr(const struct photon_tau *tt, const struct medium *md, float t)
 {
@@ -522,52 +672,103 @@ static vec3 tau_tr(const struct photon_tau *tt, const struct medium *md, float t
     return v3(ex, expf(-md->sigma_t.y * tau), expf(-md->sigma_t.z * tau));
 }
 
+/* Plain comparisons: the operands are never NaN here, and libm's fminf is a call. */
+static inline float beam_min(float a, float b) { return a < b ? a : b; }
+static inline float beam_max(float a, float b) { return a > b ? a : b; }
+
+struct beam_ray {
+    vec3 o, d, d_out;
+    float t1, r2;
+    uint32_t depth_max;
+    const struct medium *md;
+    const struct photon_tau *tau;
+};
+
+/* Photon i at p counts when its closest-point parameter t lies in [0, t1) and it is within
+ * r of the ray: its phase x power x transmittance to t goes into acc. */
+static inline void beam_add(const struct photon_map *m, uint32_t i, const float p[3], const struct beam_ray *br,
+                            double acc[3])
+{
+    vec3 dp = v3_sub(v3(p[0], p[1], p[2]), br->o);
+    float t = v3_dot(dp, br->d);
+    if (!(t >= 0.0f && t < br->t1))
+        return;
+    vec3 perp = v3_sub(dp, v3_scale(br->d, t));
+    if (v3_dot(perp, perp) > br->r2 || m->photons[i].depth > br->depth_max)
+        return;
+    vec3 tr = br->tau ? tau_tr(br->tau, br->md, t) : medium_transmittance(br->md, t);
+    vec3 c = v3_mul(photon_contrib(m, i, br->d_out, br->md->g), tr);
+    acc[0] += c.x, acc[1] += c.y, acc[2] += c.z;
+}
+
+/* The rows (y, z cells) the tube around the segment crosses, z slab by z slab; in each
+ * the photons whose x the tube reaches there. e is r plus the rounding slack: a photon
+ * within r of the ray at parameter t lies within e of o + t d on every axis. */
+static void beam_walk(const struct photon_map *m, const struct photon_beam_grid *g, const struct beam_ray *br,
+                      double acc[3])
+{
+    vec3 o = br->o, d = br->d;
+    float scale = beam_max(g->scale, beam_max(beam_max(fabsf(o.x), fabsf(o.y)), fabsf(o.z)));
+    float e = m->radius * (1.0f + BEAM_SLACK) + 2.0f * BEAM_SLACK * scale, c = g->cell;
+    float ta = 0.0f, tb = br->t1;
+    vec3 blo = v3(g->lo[0] - e, g->lo[1] - e, g->lo[2] - e), bhi = v3(g->hi[0] + e, g->hi[1] + e, g->hi[2] + e);
+    if (!v3_clip_box(o, d, blo, bhi, &ta, &tb))
+        return;
+    if (!(tb < INFINITY))
+        tb = ta; /* d = 0: the ray is the point o */
+    float za = o.z + d.z * ta, zb = o.z + d.z * tb, ya = o.y + d.y * ta, yb = o.y + d.y * tb;
+    uint32_t z0 = beam_cell(g, beam_min(za, zb) - e, 2), z1 = beam_cell(g, beam_max(za, zb) + e, 2);
+    uint32_t y0 = beam_cell(g, beam_min(ya, yb) - e, 1), y1 = beam_cell(g, beam_max(ya, yb) + e, 1);
+    /* The rows the walk would visit (a slab's y cells at most): when that is more than half
+     * the photons (a slack grown huge by an origin far away), reading them all is cheaper. */
+    double slab_y = fabs((double)d.y) * ((double)c + 2.0 * e) / fabs((double)d.z) + 2.0 * e;
+    double walk = (double)(z1 - z0 + 1) * fmin((double)(y1 - y0 + 1), slab_y / c + 2.0);
+    if (!(walk <= 0.5 * (double)m->num_photons)) {
+        for (uint32_t j = 0; j < m->num_photons; j++)
+            beam_add(m, g->rec[j].i, g->rec[j].p, br, acc);
+        return;
+    }
+    for (uint32_t cz = z0; cz <= z1; cz++) {
+        float sa = ta, sb = tb, zl = g->lo[2] + (float)cz * c;
+        if (!f_clip_slab(o.z, d.z, zl - e, zl + c + e, &sa, &sb) || !(sa <= sb))
+            continue;
+        float sya = o.y + d.y * sa, syb = o.y + d.y * sb;
+        uint32_t sy0 = beam_cell(g, beam_min(sya, syb) - e, 1), sy1 = beam_cell(g, beam_max(sya, syb) + e, 1);
+        for (uint32_t cy = sy0; cy <= sy1; cy++) {
+            float ra = sa, rb = sb, yl = g->lo[1] + (float)cy * c;
+            if (!f_clip_slab(o.y, d.y, yl - e, yl + c + e, &ra, &rb) || !(ra <= rb))
+                continue;
+            const struct beam_row *row = beam_row_find(g, cy, cz);
+            if (!row)
+                continue;
+            float xa = o.x + d.x * ra, xb = o.x + d.x * rb, xlo = beam_min(xa, xb) - e, xhi = beam_max(xa, xb) + e;
+            uint32_t l = row->start, h = row->end;
+            while (l < h) { /* the first photon of the row at x >= xlo */
+                uint32_t mid = l + (h - l) / 2;
+                if (g->rec[mid].p[0] < xlo)
+                    l = mid + 1;
+                else
+                    h = mid;
+            }
+            for (uint32_t j = l; j < row->end && g->rec[j].p[0] <= xhi; j++)
+                beam_add(m, g->rec[j].i, g->rec[j].p, br, acc);
+        }
+    }
+}
+
 vec3 photon_map_beam(const struct photon_map *m, vec3 o, vec3 d, float t1, const struct medium *md,
                      const struct photon_tau *tau, uint32_t depth_max)
 {
-    if (!m || m->num_photons == 0 || !(t1 > 0.0f))
+    if (!m || m->num_photons == 0 || !(t1 > 0.0f) || !v3_is_finite(o) || !v3_is_finite(d))
         return v3(0, 0, 0);
-    float r = m->radius, r2 = r * r, seg = m->cell_size;
-    vec3 d_out = v3_neg(d);
+    float r = m->radius;
+    struct beam_ray br = {o, d, v3_neg(d), t1, r * r, depth_max, md, tau};
     double acc[3] = {0, 0, 0};
-    uint32_t buckets[BEAM_CHUNK * MAX_VISIT];
-    /* The segment in pieces one cell long; the buckets of BEAM_CHUNK pieces are merged
-     * (sorted, duplicates dropped) and a photon counts only if its closest-point parameter
-     * lies in the chunk's interval, so no photon is counted twice. */
-    float np = ceilf(t1 / seg);
-    uint64_t pieces = np < (float)(1u << 24) ? (uint64_t)np : (1u << 24); /* also for inf / NaN */
-    for (uint64_t k0 = 0; k0 < pieces; k0 += BEAM_CHUNK) {
-        uint32_t nb = 0;
-        uint64_t k1 = k0 + BEAM_CHUNK < pieces ? k0 + BEAM_CHUNK : pieces;
-        for (uint64_t k = k0; k < k1; k++) {
-            float a = (float)k * seg, b = fminf(t1, (float)(k + 1) * seg);
-            vec3 pa = v3_add(o, v3_scale(d, a)), pb = v3_add(o, v3_scale(d, b));
-            vec3 lo = v3(fminf(pa.x, pb.x) - r, fminf(pa.y, pb.y) - r, fminf(pa.z, pb.z) - r);
-            vec3 hi = v3(fmaxf(pa.x, pb.x) + r, fmaxf(pa.y, pb.y) + r, fmaxf(pa.z, pb.z) + r);
-            float reach = r + 0.8660254f * seg;
-            struct seg_filter sf = {o, d, a, b, reach * reach};
-            nb += collect_buckets(m, lo, hi, buckets + nb, &sf);
-        }
-        nb = unique_buckets(buckets, nb);
-        float a = (float)k0 * seg, b = k1 == pieces ? t1 : (float)k1 * seg;
-        for (uint32_t bi = 0; bi < nb; bi++) {
-            for (uint32_t i = m->bucket_start[buckets[bi]]; i < m->bucket_start[buckets[bi] + 1]; i++) {
-                const struct photon *ph = &m->photons[i];
-                if (ph->depth > depth_max)
-                    continue;
-                vec3 dp = v3_sub(v3(ph->p[0], ph->p[1], ph->p[2]), o);
-                float t = v3_dot(dp, d);
-                if (!(t >= a && t < b))
-                    continue;
-                vec3 perp = v3_sub(dp, v3_scale(d, t));
-                if (v3_dot(perp, perp) > r2)
-                    continue;
-                vec3 tr = tau ? tau_tr(tau, md, t) : medium_transmittance(md, t);
-                vec3 c = v3_mul(photon_contrib(m, i, d_out, md->g), tr);
-                acc[0] += c.x, acc[1] += c.y, acc[2] += c.z;
-            }
-        }
-    }
+    if (m->beam)
+        beam_walk(m, m->beam, &br, acc);
+    else /* a map built by hand (tests): every photon */
+        for (uint32_t i = 0; i < m->num_photons; i++)
+            beam_add(m, i, m->photons[i].p, &br, acc);
     double rk = fmax((double)r, PM_MIN_KERNEL_RADIUS);
     return scaled(acc, 1.0 / (M_PI * rk * rk));
 }

@@ -3,7 +3,8 @@
  * radius, plus each bucket's start: two flat arrays, serialised behind a 48-byte header;
  * a surface map of the same format may follow the volume map. Written by the master
  * (photon_trace.c), decoded with bounds checks by workers and owned by the render job;
- * read-only while rendering. Also the job's volume blob (media settings + map). */
+ * read-only while rendering. A reader adds what it alone uses (decoded photons, the beam
+ * query's rows; never serialised). Also the job's volume blob (media settings + map). */
 #ifndef BRUME_PHOTON_MAP_H
 #define BRUME_PHOTON_MAP_H
 #include <stddef.h>
@@ -11,6 +12,8 @@
 #include "scene/medium.h"
 #include "scene/scene.h"
 #include "base/vec.h"
+
+struct photon_beam_grid;
 
 struct photon {
     float p[3];
@@ -36,6 +39,9 @@ struct photon_map {
     struct photon *photons;     /* sorted by bucket */
     uint32_t *bucket_start;     /* table_size + 1 */
     struct photon_decoded *decoded; /* per photon, filled by photon_map_decode; NULL: decode on the fly */
+    struct photon_beam_grid *beam; /* the beam query's rows of photons (photon_map.c), built by
+                                    * photon_map_decode for a volume map; NULL: the query reads
+                                    * every photon (maps built by hand in tests) */
     struct photon_map *surface; /* the volume map's companion: photons on diffuse surfaces, or NULL */
     struct photon_map *next_pass; /* the next pass's map (progressive passes, volume blob), or NULL; owned */
 };

@@ -737,6 +737,7 @@ Test(medium, gather_radius_near_zero)
     m.photons = &ph;
     m.bucket_start = start;
     m.decoded = NULL;
+    m.beam = NULL;
     vec3 gk = photon_map_gather_knn(&m, v3(0, 0, 0), v3(1, 0, 0), 0.5f, 50, 2e-30f, PHOTON_DEPTH_ANY); /* outside the forward cone */
     cr_assert(v3_is_finite(gk) && gk.x > 0.0f);
     struct medium md;
@@ -974,6 +975,103 @@ Test(medium, knn_matches_brute_force, .timeout = 60)
     free(all);
     photon_map_free(&map);
     scene_fini(&s);
+}
+
+/* The estimate's definition, over every photon: closest-point parameter in [0, t1),
+ * within r of the ray, phase x power x transmittance / (pi r^2) (saturated as the map's). */
+static vec3 beam_brute_force(const struct photon_map *m, vec3 o, vec3 d, float t1, const struct medium *md,
+                             uint32_t depth_max)
+{
+    double acc[3] = {0, 0, 0};
+    float r = m->radius;
+    for (uint32_t i = 0; i < m->num_photons; i++) {
+        const struct photon *ph = &m->photons[i];
+        vec3 dp = v3_sub(v3(ph->p[0], ph->p[1], ph->p[2]), o);
+        float t = v3_dot(dp, d);
+        vec3 perp = v3_sub(dp, v3_scale(d, t));
+        if (t < 0.0f || !(t < t1) || v3_dot(perp, perp) > r * r || ph->depth > depth_max)
+            continue;
+        float f = phase_hg_cut(v3_dot(photon_dir_decode(ph->dir), v3_neg(d)), md->g);
+        vec3 c = v3_mul(v3_scale(photon_rgbe_decode(ph->rgbe), f), medium_transmittance(md, t));
+        acc[0] += c.x, acc[1] += c.y, acc[2] += c.z;
+    }
+    double k = 1.0 / (M_PI * fmax(r, 1e-9) * fmax(r, 1e-9));
+    return v3((float)fmin(acc[0] * k, 1e30), (float)fmin(acc[1] * k, 1e30), (float)fmin(acc[2] * k, 1e30));
+}
+
+/* The beam query (rows of photons built at decode) against the loop over every photon,
+ * to 1e-5 relative: random rays and rays aimed at photons, segments starting and ending
+ * inside the photons' box, rays along the axes, a far-off cluster, radii from 1e-30 to 50
+ * times the box, photon depths filtered. */
+Test(medium, beam_matches_brute_force, .timeout = 120)
+{
+    struct { vec3 c; float half, r; uint32_t n; } cfg[] = {
+        {{0, 0, 0}, 1.0f, 0.05f, 20000},   {{0, 0, 0}, 1.0f, 0.2f, 5000},  {{0, 0, 0}, 1.0f, 1e-4f, 20000},
+        {{0, 0, 0}, 1.0f, 1e-30f, 3000},   {{0, 0, 0}, 1.0f, 50.0f, 3000}, {{1000, -500, 200}, 1.0f, 0.02f, 20000},
+        {{0.3f, 0, -2}, 40.0f, 0.5f, 20000},
+    };
+    struct medium md;
+    memset(&md, 0, sizeof md);
+    md.sigma_t = v3(0.3f, 0.7f, 1.5f);
+    md.g = 0.4f;
+    uint32_t rays = 0, nonzero = 0;
+    for (uint32_t c = 0; c < sizeof cfg / sizeof cfg[0]; c++) {
+        struct photon_list block = {NULL, cfg[c].n, cfg[c].n};
+        block.a = malloc(sizeof *block.a * cfg[c].n);
+        for (uint32_t i = 0; i < cfg[c].n; i++) {
+            uint64_t k = rng_key(301, c, i, 0);
+            struct photon *ph = &block.a[i];
+            /* half the photons in a few tight clumps, so rows hold very different counts */
+            float s = i % 2 ? cfg[c].half : 0.05f * cfg[c].half;
+            float at[3] = {cfg[c].c.x + (i % 2 ? 0.0f : 0.3f * cfg[c].half * ((float)(i % 6) - 2.5f)), cfg[c].c.y,
+                           cfg[c].c.z};
+            for (int a = 0; a < 3; a++)
+                ph->p[a] = at[a] + s * (2.0f * rng_uniform(k, (uint32_t)a) - 1.0f);
+            photon_rgbe_encode(v3(rng_uniform(k, 3), rng_uniform(k, 4), 0.1f + rng_uniform(k, 5)), ph->rgbe);
+            ph->dir = photon_dir_encode(v3_normalize(v3(rng_uniform(k, 6) - 0.5f, rng_uniform(k, 7) - 0.5f,
+                                                        rng_uniform(k, 8) - 0.5f)));
+            ph->depth = (uint16_t)(1 + i % 8);
+        }
+        uint8_t *blob = NULL;
+        size_t bytes = 0;
+        uint32_t count = 0;
+        char err[256];
+        cr_assert_eq(photon_map_serialise(&block, 1, cfg[c].r, cfg[c].n, &blob, &bytes, &count, err, sizeof err), 0);
+        struct photon_map *m = NULL;
+        cr_assert_eq(photon_map_decode(blob, bytes, &m, err, sizeof err), 0, "%s", err);
+        free(blob);
+        cr_assert_not_null(m->beam);
+        for (uint32_t q = 0; q < 400; q++) {
+            uint64_t k = rng_key(302, c, q, 0);
+            float h = cfg[c].half;
+            vec3 o = v3_add(cfg[c].c, v3_scale(v3(rng_uniform(k, 0) - 0.5f, rng_uniform(k, 1) - 0.5f,
+                                                  rng_uniform(k, 2) - 0.5f), (q % 3 ? 2.5f : 6.0f) * h));
+            vec3 d = v3_normalize(v3(rng_uniform(k, 3) - 0.5f, rng_uniform(k, 4) - 0.5f, rng_uniform(k, 5) - 0.5f));
+            if (q % 5 == 0) { /* along an axis, either way */
+                float dd[3] = {0, 0, 0};
+                dd[q / 5 % 3] = q / 15 % 2 ? -1.0f : 1.0f;
+                d = v3(dd[0], dd[1], dd[2]);
+            }
+            float t1 = (0.05f + 3.0f * rng_uniform(k, 6)) * h;
+            if (q % 7 == 0)
+                t1 = 1e30f;
+            if (q % 4 == 1) { /* through a photon: o before it, or the photon inside the segment */
+                const float *p = m->photons[(q * 7919u) % m->num_photons].p;
+                o = v3_sub(v3(p[0], p[1], p[2]), v3_scale(d, t1 * rng_uniform(k, 7)));
+            }
+            uint32_t depth_max = q % 3 == 0 ? PHOTON_DEPTH_ANY : 1 + q % 8;
+            vec3 a = photon_map_beam(m, o, d, t1, &md, NULL, depth_max);
+            vec3 b = beam_brute_force(m, o, d, t1, &md, depth_max);
+            float tol = 1e-5f * fmaxf(v3_max_component(b), 1e-30f);
+            cr_assert(fabsf(a.x - b.x) <= tol && fabsf(a.y - b.y) <= tol && fabsf(a.z - b.z) <= tol,
+                      "config %u ray %u: beam (%g %g %g), brute force (%g %g %g)", c, q, (double)a.x, (double)a.y,
+                      (double)a.z, (double)b.x, (double)b.y, (double)b.z);
+            rays++;
+            nonzero += v3_max_component(b) > 0.0f;
+        }
+        photon_map_free(&m);
+    }
+    cr_assert(nonzero > rays / 3, "only %u of %u rays found photons", nonzero, rays);
 }
 
 /* March with the shadow cache against the exact marched shadow rays on the grid scene (a
