@@ -80,7 +80,7 @@ if [ $r = 0 ] && $X cmp "$T/p1.exr" "$T/late.exr"; then ok "extra tcp worker: fe
 # renders (its journal holds a unit of pass 2) and restarted resumes to the same pixels; a
 # tcp worker joining once pass 0 is done fetches only the maps of the passes it renders
 # and the image is the same.
-PA="--spp 4 --passes 4"
+PA="--spp 16 --passes 4"  # 4 spp a pass: pass 2 lasts long enough to be caught
 # jpass JOURNAL TILES: "units-of-pass-0 highest-pass" from the journal's records (header
 # 76 bytes; record: "TREC", u32 unit, u32 chunk size, 44 bytes of stats, chunk, 32-byte hash).
 jpass() {
@@ -104,7 +104,7 @@ else bad "4 passes: 1 vs 3 workers bit-identical, batch-means estimate and map s
 $M $S -o "$T/ppk.exr" $PA --workers 2 --threads 1 --tile 16 >"$T/klog" 2>&1 &
 mpid=$!
 i=0
-while [ $i -lt 400 ] && [ "$(jpass "$T/ppk.exr.journal" 80 | cut -d' ' -f2)" -lt 2 ]; do sleep 0.05; i=$((i + 1)); done
+while [ $i -lt 1000 ] && [ "$(jpass "$T/ppk.exr.journal" 80 | cut -d' ' -f2)" -lt 2 ]; do sleep 0.02; i=$((i + 1)); done
 kill -9 $mpid 2>/dev/null
 wait $mpid 2>/dev/null
 jk=$(jpass "$T/ppk.exr.journal" 80)
