@@ -163,8 +163,7 @@ double pass_batch_var_of_mean(const struct pass_batch *b, int k)
 static void render_pixel_pass(const struct render_job *job, struct sampler_pixel *sp, uint32_t pass, uint32_t px_x,
                               uint32_t px_y, double m[3], double *cover, uint32_t *n, struct tile_stats *stats)
 {
-    const struct render_settings *rs = &job->scene->settings;
-    const uint32_t k = (rs->spp + job->num_passes - 1) / job->num_passes;
+    const uint32_t k = sp->spp; /* samples per pass: sampler_pixel_for set the pixel's pass size */
     double sum[3] = {0, 0, 0}, hits = 0.0;
     *n = 0;
     sampler_pixel_set_pass(sp, pass);
