@@ -634,7 +634,10 @@ static void on_hello(struct master *m, const struct net_frame *f, const struct m
         sched_worker_rejoin(m->sched, slot, h->threads, net_now_ms());
     }
     m->c.workers_joined++;
-    log_info("worker %s joined with %u thread(s)", p->name, h->threads);
+    if (p->user_id[0])
+        log_info("worker %s joined with %u thread(s), key %.8s...", p->name, h->threads, p->user_id);
+    else
+        log_info("worker %s joined with %u thread(s)", p->name, h->threads);
     send_job(m, p);
 }
 

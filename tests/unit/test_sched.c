@@ -342,10 +342,9 @@ Test(sched, a_nonfinite_tile_goes_to_another_worker_without_blame)
 Test(sched, a_rejoined_slot_starts_afresh)
 {
     struct sched *s = setup(2, 2, 2);
-    give_one(s, 0);
     struct sched_eviction ev;
-    sched_evict(s, 0, SCHED_SILENT, &ev);
-    cr_assert_eq(s->workers[0].gone, 1);
+    sched_evict(s, 0, SCHED_LEFT, &ev);
+    cr_assert(s->workers[0].gone && ev.requeued == 0);
     sched_worker_rejoin(s, 0, 3, 50);
     cr_assert_eq(s->workers[0].gone, 0);
     cr_assert_eq(s->workers[0].ready, 0);
