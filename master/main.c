@@ -35,7 +35,9 @@ static void usage(FILE *f)
             "  --no-journal           do not keep OUT.exr.journal (a killed master then starts over)\n"
             "  --curve-secret KEYFILE CurveZMQ: the master's key pair (from --keygen); needs --allow\n"
             "  --allow FILE           public keys of the workers allowed in, one per line\n"
-            "  --insecure             allow --bind on a non-loopback address without CurveZMQ\n"
+            "                         (a tcp:// --bind without them: CurveZMQ with throw-away keys, so only\n"
+            "                         the local workers can join)\n"
+            "  --insecure             a tcp:// --bind without CurveZMQ: anyone who reaches it can join (warned)\n"
             "  --keygen KEYFILE       write a new key pair to KEYFILE and KEYFILE.pub, then exit\n"
             "  --media-method NAME    vpt, march or beam: how media are rendered (overrides the scene)\n"
             "  --indirect NAME        gather or path: march and beam's indirect light at diffuse\n"
@@ -97,7 +99,7 @@ int main(int argc, char **argv)
     o.stall_ms = 30000;
     o.argc = argc;
     o.argv = argv;
-    int have_threads = 0, insecure = 0;
+    int have_threads = 0;
     static uint32_t only_tiles[4096];
     char worker_exe[4096];
     log_set_prefix("master");
@@ -208,7 +210,7 @@ int main(int argc, char **argv)
         } else if (!strcmp(a, "--no-journal")) {
             o.no_journal = 1;
         } else if (!strcmp(a, "--insecure")) {
-            insecure = 1;
+            o.insecure = 1;
         } else if (has_arg && !strcmp(a, "--curve-secret")) {
             o.curve_secret = argv[++i];
         } else if (has_arg && !strcmp(a, "--allow")) {
@@ -279,8 +281,13 @@ int main(int argc, char **argv)
         log_error("--curve-secret and --allow go together");
         return 2;
     }
-    if (o.bind && !o.curve_secret && !insecure && !net_endpoint_is_local(o.bind)) {
-        log_error("--bind %s: anyone who can reach it could join; use --curve-secret and --allow, or --insecure", o.bind);
+    if (o.insecure && o.curve_secret) {
+        log_error("--insecure and --curve-secret contradict each other");
+        return 2;
+    }
+    if (o.bind && net_endpoint_is_tcp(o.bind) && !o.curve_secret && !o.insecure && o.workers == 0) {
+        log_error("--bind %s: workers must prove a key (CurveZMQ, on for every tcp:// endpoint): give --curve-secret "
+                  "and --allow (see docs/cluster.md), or --insecure to let anyone who reaches it join", o.bind);
         return 2;
     }
     if (o.workers == 0 && !o.bind) {

@@ -42,7 +42,9 @@
 #include <unistd.h>
 #include <zmq.h>
 
-#define MAX_PEERS 4096
+#define MAX_PEERS 4096          /* live workers at once */
+#define MAX_SLOTS (2 * MAX_PEERS) /* peer slots; past this, a gone worker's slot is reused */
+#define MAX_PEERS_PER_KEY 1024  /* live workers of one identity (one key, or all without CurveZMQ) */
 #define PROGRESS_PLAIN_MS 5000
 #define PROGRESS_TTY_MS 250
 /* Adaptive defaults (docs/adaptive.md): the spp cap without --spp, and the samples of a
@@ -54,7 +56,9 @@
 struct peer {
     uint8_t id[NET_MAX_IDENTITY];
     size_t id_len;
-    char name[300];         /* host:pid for messages */
+    char user_id[NET_Z85_KEY_LEN + 1]; /* with CurveZMQ: its public key (what it proved), else "" */
+    int job_sent;           /* it was sent the JOB (only then does it get blobs) */
+    char name[300];         /* host:pid it claims, for messages only: never who it is */
     uint32_t pid;
     uint32_t dropped;       /* messages of this peer dropped; only the first few are logged */
     uint64_t *map_bytes;    /* per pass: bytes of that pass's map blob served to it */
@@ -80,7 +84,7 @@ struct pass_map {
     X(rejected_envelope) X(rejected_unknown_peer) X(rejected_unexpected) X(rejected_wrong_job)                    \
     X(rejected_blob_req) X(rejected_banned) X(auth_rejects) X(handshake_failures) X(evicted_silent)                \
     X(evicted_stalled) X(evicted_died) X(evicted_error) X(workers_banned) X(workers_joined) X(ready_stale)         \
-    X(local_restarts)                                                                                              \
+    X(local_restarts) X(kept_untied) X(results_nonfinite) X(hellos_refused)                                       \
     X(frames_done) X(frames_skipped) X(tiles_from_kept) X(kept_duplicate) X(acks_sent) X(journal_syncs)
 struct counters {
 #define X(n) uint64_t n;
@@ -95,6 +99,10 @@ struct master {
     const struct master_opts *opts;
     void *zctx, *sock;
     struct zap *zap;            /* CurveZMQ admission, or NULL */
+    struct net_key curve_pub, curve_sec; /* the master's key pair, with zap */
+    struct blob_hash tag_key;   /* MAC key of TILE tags: from the master's secret key (random without one) */
+    int tcp_open;               /* a tcp:// bind without CurveZMQ (--insecure): nobody is known */
+    uint32_t hellos_logged;
     struct proto_buf out;
     struct asset_dir assets;
     struct blob_store blobs;
@@ -150,7 +158,7 @@ struct master {
     char ipc_dir[256];
     char ipc_endpoint[320];
     struct journal *journal;    /* this frame's, or NULL (--no-journal, --tiles, after the output is in place) */
-    char banned_names[16][300];
+    char banned_names[16][400]; /* ban_key: key and claimed name */
     uint32_t num_banned;
     uint32_t stranger_drops_logged;
     struct pending_ack *acks;   /* tiles to acknowledge once the journal is synced */
@@ -170,6 +178,7 @@ static void on_signal(int sig)
 /* ---- setup ---- */
 
 static int publish_manifest(struct master *m);
+static int bind_endpoint(struct master *m, const char *endpoint);
 
 /* Records why the job cannot finish (the first reason wins): master_run prints it last,
  * after the workers are stopped, and writes it into the stats file. */
@@ -396,19 +405,26 @@ static int restrict_tiles(struct master *m)
 
 /* ---- peers ---- */
 
-static int32_t find_peer(const struct master *m, const uint8_t *id, size_t id_len)
+/* A peer is its connection (the ROUTER's routing id, which libzmq gives and no peer can
+ * take over while the connection lives) and, with CurveZMQ, the key it proved. */
+static int peer_is(const struct peer *p, const struct net_frame *f)
+{
+    return p->id_len == f->id_len && memcmp(p->id, f->id, f->id_len) == 0 && strcmp(p->user_id, f->user_id) == 0;
+}
+
+static int32_t find_peer(const struct master *m, const struct net_frame *f)
 {
     for (uint32_t i = 0; i < m->num_peers; i++)
-        if (!m->sched->workers[i].gone && m->peers[i].id_len == id_len && memcmp(m->peers[i].id, id, id_len) == 0)
+        if (!m->sched->workers[i].gone && peer_is(&m->peers[i], f))
             return (int32_t)i;
     return -1;
 }
 
 /* A peer we evicted (its late messages are stale, not strangers'). */
-static int32_t find_gone_peer(const struct master *m, const uint8_t *id, size_t id_len)
+static int32_t find_gone_peer(const struct master *m, const struct net_frame *f)
 {
     for (uint32_t i = m->num_peers; i-- > 0;)
-        if (m->sched->workers[i].gone && m->peers[i].id_len == id_len && memcmp(m->peers[i].id, id, id_len) == 0)
+        if (m->sched->workers[i].gone && peer_is(&m->peers[i], f))
             return (int32_t)i;
     return -1;
 }
@@ -493,15 +509,24 @@ static void evict_peer(struct master *m, int32_t pi, enum sched_evict_kind kind,
     peer_evicted(m, pi, kind, &ev, why);
 }
 
-static int name_is_banned(const struct master *m, const char *name)
+/* Bans are remembered as key and claimed name: a peer claiming a banned worker's name
+ * with another key is not that worker. */
+static void ban_key(const struct peer *p, char *out, size_t outlen)
 {
+    snprintf(out, outlen, "%s %s", p->user_id, p->name);
+}
+
+static int name_is_banned(const struct master *m, const char *user_id, const char *name)
+{
+    char key[400];
+    snprintf(key, sizeof key, "%s %s", user_id, name);
     for (uint32_t i = 0; i < m->num_banned; i++)
-        if (!strcmp(m->banned_names[i], name))
+        if (!strcmp(m->banned_names[i], key))
             return 1;
     return 0;
 }
 
-static void send_job(struct master *m, const struct peer *p);
+static void send_job(struct master *m, struct peer *p);
 
 /* MAP: pass `pass`'s photon map is published (after the JOB it belongs to). */
 static void send_map(struct master *m, const struct peer *p, uint32_t pass)
@@ -514,9 +539,46 @@ static void send_map(struct master *m, const struct peer *p, uint32_t pass)
     send_to(m, p, &msg);
 }
 
+/* Logs a refused HELLO (after a few, only counts: a flood cannot flood the log) and tells
+ * the peer to go. */
+static void hello_refused(struct master *m, const struct net_frame *f, const char *name, const char *why)
+{
+    struct proto_msg bye = {.type = MSG_BYE};
+    net_send(m->sock, f->id, f->id_len, &bye, &m->out);
+    m->c.hellos_refused++;
+    if (++m->hellos_logged <= 5)
+        log_warn("hello from %s refused: %s%s", name, why, m->hellos_logged == 5 ? " (further refusals are counted, not logged)" : "");
+}
+
+/* A slot for a new peer: the next one, or past MAX_SLOTS the oldest gone, unbanned worker's
+ * (its pending ACKs dropped: they were for a connection that is gone). -1 when none. */
+static int32_t peer_slot(struct master *m)
+{
+    if (m->num_peers < MAX_SLOTS) {
+        m->peers = mem_realloc(m->peers, sizeof *m->peers * (m->num_peers + 1));
+        memset(&m->peers[m->num_peers], 0, sizeof *m->peers);
+        return (int32_t)m->num_peers;
+    }
+    for (uint32_t i = 0; i < m->num_peers; i++) {
+        const struct sched_worker *w = &m->sched->workers[i];
+        if (!w->gone || w->banned)
+            continue;
+        uint32_t k = 0;
+        for (uint32_t a = 0; a < m->num_acks; a++)
+            if (m->acks[a].peer != (int32_t)i)
+                m->acks[k++] = m->acks[a];
+        m->num_acks = k;
+        free(m->peers[i].map_bytes);
+        free(m->peers[i].wait_ms);
+        memset(&m->peers[i], 0, sizeof *m->peers);
+        return (int32_t)i;
+    }
+    return -1;
+}
+
 static void on_hello(struct master *m, const struct net_frame *f, const struct msg_hello *h)
 {
-    if (find_peer(m, f->id, f->id_len) >= 0) {
+    if (find_peer(m, f) >= 0) {
         m->c.rejected_unexpected++; /* repeated hello: already known */
         return;
     }
@@ -525,40 +587,63 @@ static void on_hello(struct master *m, const struct net_frame *f, const struct m
     for (char *c = name; *c; c++) /* peer text goes into our log: keep it printable */
         if (*c < 0x20 || *c == 0x7f)
             *c = '?';
-    int32_t gone = find_gone_peer(m, f->id, f->id_len);
-    if (name_is_banned(m, name) || (gone >= 0 && m->sched->workers[gone].banned)) {
+    int32_t gone = find_gone_peer(m, f);
+    if (name_is_banned(m, f->user_id, name) || (gone >= 0 && m->sched->workers[gone].banned)) {
         m->c.rejected_banned++;
         return;
     }
-    /* The same worker process on a new connection (it lost us and reconnected): its old
-     * connection is dead; its tiles go back to the queue without counting as a crash. */
-    for (uint32_t i = 0; i < m->num_peers; i++)
-        if (!m->sched->workers[i].gone && !strcmp(m->peers[i].name, name))
+    /* The same worker on a new connection (it lost us and reconnected): its old
+     * connection is dead; its tiles go back to the queue without counting as a crash.
+     * Only a peer that proved the same key can say so: the host and pid a HELLO claims
+     * are words, and without CurveZMQ a silent old connection is evicted by its timeout. */
+    uint32_t live = 0, same_key = 0;
+    for (uint32_t i = 0; i < m->num_peers; i++) {
+        if (m->sched->workers[i].gone)
+            continue;
+        if (f->user_id[0] && !strcmp(m->peers[i].user_id, f->user_id) && !strcmp(m->peers[i].name, name)) {
             evict_peer(m, (int32_t)i, SCHED_LEFT, "it reconnected");
-    if (m->num_peers >= MAX_PEERS) {
-        log_warn("too many workers; ignoring hello from %s", name);
-        m->c.rejected_unexpected++;
+            continue;
+        }
+        live++;
+        same_key += !strcmp(m->peers[i].user_id, f->user_id);
+    }
+    if (live >= MAX_PEERS || same_key >= MAX_PEERS_PER_KEY) {
+        char why[128];
+        snprintf(why, sizeof why, "%u workers %s already", live >= MAX_PEERS ? live : same_key,
+                 live >= MAX_PEERS ? "in all" : "with its key");
+        hello_refused(m, f, name, why);
         return;
     }
-    m->peers = mem_realloc(m->peers, sizeof *m->peers * (m->num_peers + 1));
-    struct peer *p = &m->peers[m->num_peers];
-    memset(p, 0, sizeof *p);
+    int32_t slot = peer_slot(m);
+    if (slot < 0) {
+        hello_refused(m, f, name, "no free slot");
+        return;
+    }
+    struct peer *p = &m->peers[slot];
     memcpy(p->id, f->id, f->id_len);
     p->id_len = f->id_len;
+    memcpy(p->user_id, f->user_id, sizeof p->user_id);
     p->pid = h->pid;
     p->map_bytes = mem_calloc(m->passes, sizeof *p->map_bytes);
     p->wait_ms = mem_calloc(m->passes, sizeof *p->wait_ms);
     snprintf(p->name, sizeof p->name, "%s", name);
-    sched_worker_join(m->sched, h->threads, net_now_ms());
-    m->num_peers++;
+    if ((uint32_t)slot == m->num_peers) {
+        sched_worker_join(m->sched, h->threads, net_now_ms());
+        m->num_peers++;
+    } else {
+        sched_worker_rejoin(m->sched, slot, h->threads, net_now_ms());
+    }
     m->c.workers_joined++;
-    log_info("worker %s joined with %u thread(s)", p->name, h->threads);
+    if (p->user_id[0])
+        log_info("worker %s joined with %u thread(s), key %.8s...", p->name, h->threads, p->user_id);
+    else
+        log_info("worker %s joined with %u thread(s)", p->name, h->threads);
     send_job(m, p);
 }
 
 /* The current frame's job. A worker that has the scene already keeps it and its blobs
  * and only rebuilds what depends on the frame. */
-static void send_job(struct master *m, const struct peer *p)
+static void send_job(struct master *m, struct peer *p)
 {
     const struct render_settings *rs = &m->scene.settings;
     struct proto_msg job = {.type = MSG_JOB};
@@ -579,13 +664,14 @@ static void send_job(struct master *m, const struct peer *p)
     j->num_assets = m->num_manifest;
     j->assets = m->manifest;
     send_to(m, p, &job);
+    p->job_sent = 1;
     for (uint32_t pass = 0; pass < m->maps_published; pass++)
         send_map(m, p, pass);
 }
 
 static void on_blob_req(struct master *m, struct peer *p, const struct msg_blob_req *r)
 {
-    const struct blob_entry *e = blob_store_get(&m->blobs, &r->hash);
+    const struct blob_entry *e = p->job_sent ? blob_store_get(&m->blobs, &r->hash) : NULL;
     if (!e || r->offset > e->size || r->length > BLOB_CHUNK_SIZE || r->length > e->size - r->offset) {
         m->c.rejected_blob_req++;
         if (p->dropped < 5)
@@ -605,7 +691,9 @@ static void on_blob_req(struct master *m, struct peer *p, const struct msg_blob_
 }
 
 /* Decodes unit u's chunk into decode_scratch and checks it: finite pixels, and for a
- * pass of several a coverage in [0, 1] or PASS_ALPHA_NONE and no negative variance. */
+ * pass of several a coverage in [0, 1] or PASS_ALPHA_NONE and no negative variance.
+ * 1 when sane, 0 when not, -1 when it decodes but holds non-finite values (which the
+ * scene may cause: see on_result). */
 static int chunk_is_sane(struct master *m, uint32_t unit, const uint8_t *chunk, size_t chunk_size, char *err,
                          size_t errlen)
 {
@@ -618,7 +706,7 @@ static int chunk_is_sane(struct master *m, uint32_t unit, const uint8_t *chunk, 
     for (size_t i = 0; i < (size_t)w * h * TILE_NUM_CHANNELS; i++)
         if (!isfinite(m->decode_scratch[i])) {
             str_fmt(err, errlen, "non-finite pixel value in tile %u", tile);
-            return 0;
+            return -1;
         }
     for (size_t i = 0; m->passes > 1 && i < (size_t)w * h; i++) {
         const float *px = &m->decode_scratch[i * TILE_NUM_CHANNELS];
@@ -825,10 +913,37 @@ static void peer_sent_invalid(struct master *m, int32_t pi, int banned, const st
     if (!banned)
         return;
     if (m->num_banned < sizeof m->banned_names / sizeof m->banned_names[0])
-        snprintf(m->banned_names[m->num_banned++], sizeof m->banned_names[0], "%s", p->name);
+        ban_key(p, m->banned_names[m->num_banned++], sizeof m->banned_names[0]);
     char why[64];
     snprintf(why, sizeof why, "banned for the job: %u invalid results in a row", m->sched->workers[pi].fail_streak);
     peer_evicted(m, pi, SCHED_BANNED, ev, why);
+}
+
+/* The tag of an assignment of unit `unit` to a peer with key user_id: a MAC under the
+ * master's tag key over the job key, the unit and the key. A master restarted with the
+ * same key pair computes the same tag, so it can tell a kept tile that was assigned to
+ * this very key from one that was not. */
+static void tile_tag(const struct master *m, uint32_t unit, const char *user_id, struct blob_hash *tag)
+{
+    uint8_t text[BLOB_HASH_SIZE + 4 + NET_Z85_KEY_LEN] = {0};
+    memcpy(text, m->job_key.bytes, BLOB_HASH_SIZE);
+    for (int i = 0; i < 4; i++)
+        text[BLOB_HASH_SIZE + i] = (uint8_t)(unit >> (8 * i));
+    memcpy(text + BLOB_HASH_SIZE + 4, user_id, strlen(user_id));
+    blob_mac_compute(&m->tag_key, text, sizeof text, tag);
+}
+
+/* Whether a kept tile is tied to the peer offering it. With CurveZMQ: its tag is the one
+ * this master's key gives the assignment of that unit to the peer's key. Without it: only
+ * when no tcp:// endpoint is open (then every peer came through a socket file only our
+ * user can open, docs/cluster.md); with --insecure nothing ties it. */
+static int kept_is_tied(const struct master *m, const struct peer *p, const struct msg_kept *k)
+{
+    if (!m->zap)
+        return !m->tcp_open;
+    struct blob_hash want;
+    tile_tag(m, k->tile, p->user_id, &want);
+    return blob_mac_equal(&want, &k->tag);
 }
 
 /* A tile a worker kept for a master that went away, offered to us: accepted only for this
@@ -856,8 +971,16 @@ static void on_kept(struct master *m, int32_t pi, const struct msg_kept *k)
         ack_push(m, pi, k->job_id, k->frame, k->tile);
         return;
     }
+    if (!kept_is_tied(m, p, k)) {
+        /* Nothing ties the tile to this peer: rendered again rather than trusted. */
+        m->c.kept_untied++;
+        if (peer_should_log_drop(p))
+            log_warn("worker %s: kept tile %u was not assigned to its key by a master with our key; dropped (it is "
+                     "rendered again)", p->name, k->tile);
+        return;
+    }
     char err[256];
-    if (!chunk_is_sane(m, k->tile, k->chunk, k->chunk_size, err, sizeof err)) {
+    if (chunk_is_sane(m, k->tile, k->chunk, k->chunk_size, err, sizeof err) != 1) {
         log_warn("worker %s: kept tile %u rejected: %s", p->name, k->tile, err);
         struct sched_eviction ev;
         int banned = sched_kept_invalid(m->sched, pi, &ev);
@@ -869,6 +992,58 @@ static void on_kept(struct master *m, int32_t pi, const struct msg_kept *k)
     sched_kept_valid(m->sched, pi, k->tile);
     ack_push(m, pi, k->job_id, k->frame, k->tile);
     m->c.tiles_from_kept++;
+}
+
+/* The brightest emitter of the scene, for the message of a scene that overflows float. */
+static void scene_brightest(const struct scene *sc, char *out, size_t outlen)
+{
+    float best = 0.0f;
+    out[0] = '\0';
+    for (uint32_t i = 0; i < sc->num_materials; i++) {
+        const struct material *mt = &sc->materials[i];
+        float e = fmaxf(mt->emission.x, fmaxf(mt->emission.y, mt->emission.z));
+        if (e > best) {
+            best = e;
+            snprintf(out, outlen, "; the brightest emitter is material \"%s\" with emission %g", mt->name, (double)e);
+        }
+    }
+    for (uint32_t i = 0; i < sc->num_lights; i++) {
+        const struct vec3 *v = &sc->lights[i].intensity;
+        float e = fmaxf(v->x, fmaxf(v->y, v->z));
+        if (e > best) {
+            best = e;
+            snprintf(out, outlen, "; the brightest emitter is light %u (in the order of \"lights\") with intensity %g",
+                     i, (double)e);
+        }
+    }
+}
+
+/* A result of unit u from peer pi that decodes but holds non-finite values. Pixels are
+ * pure functions of the scene, so if another render of it (another worker, or this one
+ * when it is the only one) was non-finite too, the scene causes it: the job fails with a
+ * message that says so. Otherwise the unit goes to another worker, which settles it. */
+static void result_nonfinite(struct master *m, int32_t pi, uint32_t u)
+{
+    int32_t first = m->sched->tiles[u].nonfinite_by - 1;
+    m->c.results_nonfinite++;
+    if (first < 0) {
+        log_warn("worker %s: tile %u has non-finite values; rendered again elsewhere to tell the scene from the worker",
+                 m->peers[pi].name, u);
+        sched_result_nonfinite(m->sched, pi, u);
+        return;
+    }
+    uint32_t t = unit_tile(m, u), tiles_x = imgio_tiles_x(&m->desc), x0, y0, w, h;
+    imgio_tile_rect(&m->desc, t % tiles_x, t / tiles_x, &x0, &y0, &w, &h);
+    char brightest[400];
+    scene_brightest(&m->scene, brightest, sizeof brightest);
+    char who[700];
+    if (first == pi)
+        snprintf(who, sizeof who, "twice on worker %s, the only worker", m->peers[pi].name);
+    else
+        snprintf(who, sizeof who, "on two workers (%s and %s)", m->peers[first].name, m->peers[pi].name);
+    master_fail(m, "the scene produces non-finite values at tile %u pass %u (pixels %u,%u %ux%u), %s: values past "
+                "float's range; check the emission and intensity values%s", t, unit_pass(m, u), x0, y0, w, h, who,
+                brightest);
 }
 
 static void on_result(struct master *m, int32_t pi, const struct msg_result *r)
@@ -906,7 +1081,12 @@ static void on_result(struct master *m, int32_t pi, const struct msg_result *r)
         return;
     }
     char err[256];
-    if (!chunk_is_sane(m, r->tile, r->chunk, r->chunk_size, err, sizeof err)) {
+    int sane = chunk_is_sane(m, r->tile, r->chunk, r->chunk_size, err, sizeof err);
+    if (sane == -1) {
+        result_nonfinite(m, pi, r->tile);
+        return;
+    }
+    if (sane != 1) {
         log_warn("worker %s: tile %u rejected: %s; re-queued", p->name, r->tile, err);
         struct sched_eviction ev;
         int banned = sched_result_invalid(m->sched, pi, r->tile, &ev);
@@ -915,6 +1095,15 @@ static void on_result(struct master *m, int32_t pi, const struct msg_result *r)
     }
     if (tile_accept(m, r->tile, &r->stats, r->chunk, r->chunk_size) != 0)
         return;
+    int32_t wrong = m->sched->tiles[r->tile].nonfinite_by - 1;
+    if (wrong >= 0 && wrong != pi && !m->sched->workers[wrong].gone) {
+        /* Its non-finite tile is finite here: that worker got it wrong. */
+        log_warn("worker %s: its non-finite tile %u renders finite on %s: counted as invalid", m->peers[wrong].name,
+                 r->tile, p->name);
+        struct sched_eviction ev;
+        int banned = sched_worker_invalid(m->sched, wrong, &ev);
+        peer_sent_invalid(m, wrong, banned, &ev);
+    }
     sched_result_valid(m->sched, pi, r->tile);
     ack_push(m, pi, r->job_id, r->frame, r->tile);
 }
@@ -932,6 +1121,7 @@ static void assign_tiles(struct master *m)
         msg.u.tile.frame = m->frame;
         msg.u.tile.tile = a.tile;
         msg.u.tile.attempt = a.attempt;
+        tile_tag(m, a.tile, m->peers[a.worker].user_id, &msg.u.tile.tag);
         send_to(m, &m->peers[a.worker], &msg);
     }
 }
@@ -940,7 +1130,7 @@ static void handle_message(struct master *m, struct net_frame *f)
 {
     struct proto_msg msg;
     char err[256];
-    int32_t pi = find_peer(m, f->id, f->id_len);
+    int32_t pi = find_peer(m, f);
     if (proto_decode(f->data, f->size, &msg, err, sizeof err) != 0) {
         m->c.rejected_decode++;
         /* Strangers share one small log budget, known peers have their own. */
@@ -953,7 +1143,7 @@ static void handle_message(struct master *m, struct net_frame *f)
         return;
     }
     if (pi < 0) {
-        int32_t gone = find_gone_peer(m, f->id, f->id_len);
+        int32_t gone = find_gone_peer(m, f);
         if (gone >= 0 && msg.type == MSG_RESULT) {
             m->c.results_stale++; /* a late result of an evicted worker (e.g. after SIGCONT) */
             log_debug("late RESULT for tile %u from evicted worker %s dropped", msg.u.result.tile, m->peers[gone].name);
@@ -1028,7 +1218,7 @@ static int replay_tile(void *ctx, uint32_t unit, const struct tile_stats *st, co
         return 0; /* a unit journaled twice: the first copy is as good */
     if (m->sched->tiles[unit].state == SCHED_HELD)
         return 0; /* not wanted by the rounds replayed so far (cannot happen: records follow the rounds) */
-    if (!chunk_is_sane(m, unit, chunk, size, err, sizeof err)) {
+    if (chunk_is_sane(m, unit, chunk, size, err, sizeof err) != 1) {
         log_warn("journal: unit %u (tile %u, pass %u) does not decode (%s); the journal is cut there", unit,
                  unit_tile(m, unit), unit_pass(m, unit), err);
         return -1;
@@ -1347,13 +1537,13 @@ static int start_local_workers(struct master *m)
         master_fail(m, "cannot create a private folder for the local socket in %s: %s", tmp, strerror(errno));
         return -1;
     }
-    if (o->curve_secret) {
+    if (m->zap) {
         /* The master's own local workers get a fresh key pair in the private (0700) folder. */
         char err[512];
         struct net_key local_public;
         snprintf(m->local_key_path, sizeof m->local_key_path, "%s/worker.key", m->ipc_dir);
         snprintf(m->local_pub_path, sizeof m->local_pub_path, "%s/master.pub", m->ipc_dir);
-        if (zap_write_local_keys(m->local_key_path, m->local_pub_path, o->curve_secret, &local_public, err,
+        if (zap_write_local_keys(m->local_key_path, m->local_pub_path, &m->curve_pub, &local_public, err,
                                  sizeof err) != 0) {
             master_fail(m, "%s", err);
             return -1;
@@ -1361,14 +1551,12 @@ static int start_local_workers(struct master *m)
         zap_allow_key(m->zap, &local_public);
     }
     snprintf(m->ipc_endpoint, sizeof m->ipc_endpoint, "ipc://%s/master.sock", m->ipc_dir);
-    if (zmq_bind(m->sock, m->ipc_endpoint) != 0) {
-        master_fail(m, "cannot bind %s: %s", m->ipc_endpoint, zmq_strerror(errno));
+    if (bind_endpoint(m, m->ipc_endpoint) != 0)
         return -1;
-    }
     m->local_pids = mem_calloc(o->workers, sizeof *m->local_pids);
     for (uint32_t i = 0; i < o->workers; i++) {
-        pid_t pid = launch_worker(o->worker_exe, m->ipc_endpoint, o->threads,
-                                  o->curve_secret ? m->local_key_path : NULL, m->local_pub_path);
+        pid_t pid = launch_worker(o->worker_exe, m->ipc_endpoint, o->threads, m->zap ? m->local_key_path : NULL,
+                                  m->local_pub_path);
         if (pid < 0)
             return -1;
         m->local_pids[m->num_local++] = pid;
@@ -1388,7 +1576,7 @@ static void restart_local(struct master *m, uint32_t slot)
     if (g_interrupted || m->fatal[0] || m->sched->tiles_done >= m->num_units ||
         m->local_restarts >= LOCAL_RESTARTS_MAX * m->num_local)
         return;
-    pid_t pid = launch_worker(o->worker_exe, m->ipc_endpoint, o->threads, o->curve_secret ? m->local_key_path : NULL,
+    pid_t pid = launch_worker(o->worker_exe, m->ipc_endpoint, o->threads, m->zap ? m->local_key_path : NULL,
                               m->local_pub_path);
     if (pid < 0)
         return;
@@ -1692,6 +1880,66 @@ static int frame_render(struct master *m, uint64_t *last_beat)
     return 0;
 }
 
+/* Who may join. Every tcp:// endpoint (loopback included) gets CurveZMQ: with the key
+ * pair and allow-list of --curve-secret/--allow, or else a throw-away key pair that only
+ * this master's local workers are given. Without a tcp:// endpoint the local socket's
+ * file permissions are the guard (docs/cluster.md); --insecure opens tcp:// to anyone,
+ * with a warning every run. The MAC key of TILE tags comes from the master's secret key,
+ * so a master restarted with the same key pair recognises its assignments. */
+static int auth_setup(struct master *m)
+{
+    const struct master_opts *o = m->opts;
+    char err[600];
+    int tcp = o->bind && net_endpoint_is_tcp(o->bind);
+    if (!o->curve_secret && (!tcp || o->insecure)) {
+        if (getrandom(m->tag_key.bytes, sizeof m->tag_key.bytes, 0) != (ssize_t)sizeof m->tag_key.bytes) {
+            master_fail(m, "getrandom: %s", strerror(errno));
+            return -1;
+        }
+        m->tcp_open = tcp;
+        if (tcp)
+            log_warn("--insecure: workers at %s are not authenticated: anyone who can reach it can join, read the "
+                     "scene and alter the image", o->bind);
+        return 0;
+    }
+    if (o->curve_secret ? net_key_pair_load(o->curve_secret, &m->curve_pub, &m->curve_sec, err, sizeof err) != 0
+                        : zmq_curve_keypair(m->curve_pub.z85, m->curve_sec.z85) != 0) {
+        master_fail(m, "%s", o->curve_secret ? err : "cannot create a CurveZMQ key pair (libzmq without CURVE?)");
+        return -1;
+    }
+    m->zap = zap_new(m->zctx, m->sock, &m->curve_sec, err, sizeof err);
+    if (!m->zap || (o->allow_path && zap_allow_file(m->zap, o->allow_path, err, sizeof err) != 0)) {
+        master_fail(m, "%s", err);
+        return -1;
+    }
+    char text[64];
+    int n = snprintf(text, sizeof text, "brume-tile-tag-1 %s", m->curve_sec.z85);
+    blob_hash_compute(text, (size_t)n, &m->tag_key);
+    if (o->curve_secret)
+        log_info("CurveZMQ on: %zu allowed worker key(s)", zap_num_allowed(m->zap));
+    else
+        log_info("CurveZMQ on at %s with a throw-away key pair: only this master's local workers can join (remote "
+                 "workers need --curve-secret and --allow, docs/cluster.md)", o->bind);
+    return 0;
+}
+
+/* Binds endpoint (none: nothing to do). A socket file is created readable and writable by
+ * our user only, whatever the umask: connecting needs write permission on it. */
+static int bind_endpoint(struct master *m, const char *endpoint)
+{
+    if (!endpoint)
+        return 0;
+    mode_t old = umask(077);
+    int rc = zmq_bind(m->sock, endpoint);
+    int e = errno;
+    umask(old);
+    if (rc != 0) {
+        master_fail(m, "cannot bind %s: %s", endpoint, zmq_strerror(e));
+        return -1;
+    }
+    return 0;
+}
+
 int master_run(const struct master_opts *o)
 {
     struct master m;
@@ -1715,19 +1963,8 @@ int master_run(const struct master_opts *o)
     net_socket_setup(m.sock);
     int mandatory = 1;
     zmq_setsockopt(m.sock, ZMQ_ROUTER_MANDATORY, &mandatory, sizeof mandatory);
-    if (o->curve_secret) {
-        char err[512];
-        m.zap = zap_new(m.zctx, m.sock, o->curve_secret, o->allow_path, err, sizeof err);
-        if (!m.zap) {
-            master_fail(&m, "%s", err);
-            goto done;
-        }
-        log_info("CurveZMQ on: %zu allowed worker key(s)", zap_num_allowed(m.zap));
-    }
-    if (o->bind && zmq_bind(m.sock, o->bind) != 0) {
-        master_fail(&m, "cannot bind %s: %s", o->bind, zmq_strerror(errno));
+    if (auth_setup(&m) != 0 || bind_endpoint(&m, o->bind) != 0)
         goto done;
-    }
     uint32_t first = o->have_frames ? o->frame_first : 0, last = o->have_frames ? o->frame_last : 0;
     uint32_t step = o->have_frames ? o->frame_step : 1, started = 0;
     uint64_t last_beat = net_now_ms();

@@ -21,6 +21,7 @@ struct master_opts {
     uint32_t num_only_tiles;
     const char *curve_secret;   /* CurveZMQ key pair of the master, or NULL */
     const char *allow_path;     /* allowed worker public keys, with curve_secret */
+    int insecure;               /* --insecure: a tcp:// bind without CurveZMQ (warned every run) */
     int argc;                   /* the command line, to print the command that re-renders a tile */
     char **argv;
     int have_spp, have_seed, have_tile, have_depth;

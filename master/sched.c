@@ -156,6 +156,15 @@ int32_t sched_worker_join(struct sched *s, uint32_t threads, uint64_t now_ms)
     return (int32_t)s->num_workers++;
 }
 
+void sched_worker_rejoin(struct sched *s, int32_t wi, uint32_t threads, uint64_t now_ms)
+{
+    struct sched_worker *w = &s->workers[wi];
+    CHECK(w->gone);
+    memset(w, 0, sizeof *w);
+    w->threads = threads ? threads : 1;
+    w->last_heard_ms = w->last_progress_ms = now_ms;
+}
+
 int sched_worker_ready(struct sched *s, int32_t wi, uint32_t credits)
 {
     struct sched_worker *w = &s->workers[wi];
@@ -257,6 +266,15 @@ uint32_t sched_live_workers(const struct sched *s)
     return n;
 }
 
+/* Whether a live, ready worker other than i exists (one that could take a tile i should not). */
+static int other_ready_worker(const struct sched *s, uint32_t i)
+{
+    for (uint32_t k = 0; k < s->num_workers; k++)
+        if (k != i && !s->workers[k].gone && s->workers[k].ready)
+            return 1;
+    return 0;
+}
+
 static int can_take(const struct sched_worker *w)
 {
     return !w->gone && w->ready && w->credits > 0 && !w->isolated;
@@ -297,7 +315,8 @@ int sched_assign_next(struct sched *s, uint64_t now_ms, struct sched_assignment 
             continue;
         for (uint32_t qi = 0; qi < s->q_count; qi++) {
             uint32_t tile = s->queue[qi];
-            if (tile >= s->released || (s->tiles[tile].crashes > 0 && w->in_flight > 0))
+            if (tile >= s->released || (s->tiles[tile].crashes > 0 && w->in_flight > 0) ||
+                (s->tiles[tile].nonfinite_by == (int32_t)i + 1 && other_ready_worker(s, i)))
                 continue;
             queue_remove_at(s, qi);
             give(s, tile, (int32_t)i, 0, now_ms, a);
@@ -369,6 +388,18 @@ int sched_result_invalid(struct sched *s, int32_t wi, uint32_t tile, struct sche
 {
     drop_holder(s, tile, wi);
     s->workers[wi].isolated = 0;
+    return sent_invalid(s, wi, ev);
+}
+
+void sched_result_nonfinite(struct sched *s, int32_t wi, uint32_t tile)
+{
+    drop_holder(s, tile, wi);
+    s->workers[wi].isolated = 0;
+    s->tiles[tile].nonfinite_by = wi + 1;
+}
+
+int sched_worker_invalid(struct sched *s, int32_t wi, struct sched_eviction *ev)
+{
     return sent_invalid(s, wi, ev);
 }
 

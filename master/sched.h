@@ -41,6 +41,8 @@ struct sched_tile {
     uint64_t assigned_ms;
     uint32_t crashes;               /* distinct workers that died holding it */
     int requeued;                   /* its next assignment is a re-issue */
+    int32_t nonfinite_by;           /* 1 + the worker whose result was non-finite (it does not get the
+                                     * tile again while another worker lives), or 0 */
 };
 
 struct sched_worker {
@@ -119,6 +121,9 @@ int sched_tile_set_done(struct sched *s, uint32_t tile);
 /* ---- workers ---- */
 /* A worker joined; its index (the next one). */
 int32_t sched_worker_join(struct sched *s, uint32_t threads, uint64_t now_ms);
+/* A new worker in the slot of gone worker w (slots are reused, so that joins cannot grow
+ * the table without bound): fresh state, as if it had joined. w must be gone. */
+void sched_worker_rejoin(struct sched *s, int32_t w, uint32_t threads, uint64_t now_ms);
 /* READY for the current job: credits capped at 4 per thread, at least 1. -1 when the
  * worker was ready already (nothing changes). */
 int sched_worker_ready(struct sched *s, int32_t w, uint32_t credits);
@@ -157,6 +162,15 @@ void sched_result_valid(struct sched *s, int32_t w, uint32_t tile);
  * this was the worker's SCHED_FAILS_TO_BAN-th in a row (it is banned and evicted, *ev
  * says what that did), else 0. */
 int sched_result_invalid(struct sched *s, int32_t w, uint32_t tile, struct sched_eviction *ev);
+/* After SCHED_RESULT_CHECK: the chunk has non-finite values, which the scene may cause
+ * (then every worker agrees) or the worker may have got wrong: the tile goes back to the
+ * queue and, while another worker lives, goes to another worker; no blame yet. The
+ * caller judges by the next result: non-finite again fails the job (the scene's), a
+ * valid one from another worker blames w (sched_worker_invalid). */
+void sched_result_nonfinite(struct sched *s, int32_t w, uint32_t tile);
+/* An invalid result of w found out later (its non-finite tile rendered finite elsewhere):
+ * counts towards a ban like sched_result_invalid (same return and *ev). */
+int sched_worker_invalid(struct sched *s, int32_t w, struct sched_eviction *ev);
 /* A tile a worker kept for an earlier master, for this job: 1 if it is done already (a
  * duplicate), else 0 (check the chunk, then _valid or _invalid). */
 int sched_kept(const struct sched *s, uint32_t tile);

@@ -26,15 +26,14 @@ size_t zap_num_allowed(const struct zap *z) { return z->num_allowed; }
 void *zap_socket(const struct zap *z) { return z->rep; }
 void *zap_monitor_socket(const struct zap *z) { return z->monitor; }
 
-int zap_write_local_keys(const char *key_path, const char *pub_path, const char *master_secret_path,
+int zap_write_local_keys(const char *key_path, const char *pub_path, const struct net_key *master_public,
                          struct net_key *local_public, char *err, size_t errlen)
 {
-    struct net_key sec, pub, master_pub, master_sec;
-    if (net_key_pair_write(key_path, err, errlen) != 0 || net_key_pair_load(key_path, &pub, &sec, err, errlen) != 0 ||
-        net_key_pair_load(master_secret_path, &master_pub, &master_sec, err, errlen) != 0)
+    struct net_key sec, pub;
+    if (net_key_pair_write(key_path, err, errlen) != 0 || net_key_pair_load(key_path, &pub, &sec, err, errlen) != 0)
         return -1;
     FILE *f = fopen(pub_path, "w");
-    if (!f || fprintf(f, "%s\n", master_pub.z85) < 0 || fclose(f) != 0) {
+    if (!f || fprintf(f, "%s\n", master_public->z85) < 0 || fclose(f) != 0) {
         str_fmt(err, errlen, "%s: %s", pub_path, strerror(errno));
         return -1;
     }
@@ -42,27 +41,30 @@ int zap_write_local_keys(const char *key_path, const char *pub_path, const char 
     return 0;
 }
 
-struct zap *zap_new(void *zctx, void *sock, const char *secret_path, const char *allow_path, char *err,
-                    size_t errlen)
+int zap_allow_file(struct zap *z, const char *allow_path, char *err, size_t errlen)
 {
-    struct net_key pub, sec, *keys = NULL;
+    struct net_key *keys = NULL;
     size_t count = 0;
-    if (!zmq_has("curve")) {
-        str_fmt(err, errlen, "--curve-secret: this libzmq has no CurveZMQ");
-        return NULL;
-    }
-    if (net_key_pair_load(secret_path, &pub, &sec, err, errlen) != 0 ||
-        net_key_list_load(allow_path, &keys, &count, err, errlen) != 0)
-        return NULL;
-    struct zap *z = mem_calloc(1, sizeof *z);
+    if (net_key_list_load(allow_path, &keys, &count, err, errlen) != 0)
+        return -1;
     for (size_t i = 0; i < count; i++)
         zap_allow_key(z, &keys[i]);
     free(keys);
+    return 0;
+}
+
+struct zap *zap_new(void *zctx, void *sock, const struct net_key *secret, char *err, size_t errlen)
+{
+    if (!zmq_has("curve")) {
+        str_fmt(err, errlen, "CurveZMQ: this libzmq has no CURVE support");
+        return NULL;
+    }
+    struct zap *z = mem_calloc(1, sizeof *z);
     /* The handler must be bound before the first peer connects. */
     z->rep = zmq_socket(zctx, ZMQ_REP);
     int linger = 0;
     zmq_setsockopt(z->rep, ZMQ_LINGER, &linger, sizeof linger);
-    if (zmq_bind(z->rep, "inproc://zeromq.zap.01") != 0 || net_curve_server(sock, &sec) != 0) {
+    if (zmq_bind(z->rep, "inproc://zeromq.zap.01") != 0 || net_curve_server(sock, secret) != 0) {
         str_fmt(err, errlen, "cannot enable CurveZMQ: %s", zmq_strerror(errno));
         zap_free(&z);
         return NULL;
@@ -130,11 +132,16 @@ int zap_handle(struct zap *z)
     if (!ok && ++z->refused <= 5)
         log_warn("a worker with a key not in the allow-list was refused");
     const char *status = ok ? "200" : "400", *text = ok ? "OK" : "key not allowed";
+    /* The User-Id is the key in Z85: libzmq attaches it to every message of the
+     * connection, so the master knows who sent what without trusting the peer. */
+    char user_id[NET_Z85_KEY_LEN + 1] = "";
+    if (ok)
+        zmq_z85_encode(user_id, zmq_msg_data(&part[6]), 32);
     zmq_send(z->rep, "1.0", 3, ZMQ_SNDMORE);
     zmq_send(z->rep, zmq_msg_data(&part[1]), zmq_msg_size(&part[1]), ZMQ_SNDMORE);
     zmq_send(z->rep, status, 3, ZMQ_SNDMORE);
     zmq_send(z->rep, text, strlen(text), ZMQ_SNDMORE);
-    zmq_send(z->rep, "", 0, ZMQ_SNDMORE);
+    zmq_send(z->rep, user_id, strlen(user_id), ZMQ_SNDMORE);
     zmq_send(z->rep, "", 0, 0);
     for (int i = 0; i < n; i++)
         zmq_msg_close(&part[i]);

@@ -10,17 +10,19 @@
 
 struct zap;
 
-/* Turns CurveZMQ on for sock (server side, the master's key pair from secret_path) and
- * admits the keys listed in allow_path. NULL with the reason on failure. */
-struct zap *zap_new(void *zctx, void *sock, const char *secret_path, const char *allow_path, char *err,
-                    size_t errlen);
+/* Turns CurveZMQ on for sock (server side, the master's secret key); nobody is admitted
+ * until keys are allowed (zap_allow_key, zap_allow_file). NULL with the reason on failure.
+ * An admitted peer's messages carry its public key as User-Id (net_frame.user_id). */
+struct zap *zap_new(void *zctx, void *sock, const struct net_key *secret, char *err, size_t errlen);
+/* Admits the keys listed in allow_path. 0, or -1 with the reason (file and line). */
+int zap_allow_file(struct zap *z, const char *allow_path, char *err, size_t errlen);
 void zap_free(struct zap **zp);
 size_t zap_num_allowed(const struct zap *z);
 void zap_allow_key(struct zap *z, const struct net_key *k);
 /* A fresh key pair for the master's own local workers at key_path (+ ".pub") and the
  * master's public key at pub_path, both in the private socket folder; *local_public is
  * the workers' public key, to be allowed. 0, or -1 with the reason. */
-int zap_write_local_keys(const char *key_path, const char *pub_path, const char *master_secret_path,
+int zap_write_local_keys(const char *key_path, const char *pub_path, const struct net_key *master_public,
                          struct net_key *local_public, char *err, size_t errlen);
 void *zap_socket(const struct zap *z);
 void *zap_monitor_socket(const struct zap *z); /* NULL when the monitor could not start */

@@ -50,6 +50,7 @@ struct tile_task {
     struct blob_hash job_key;
     uint32_t conn;
     uint32_t image_tile, pass;
+    struct blob_hash tag;   /* the master's tag of the assignment, returned in KEPT */
 };
 
 /* A finished tile the master has not acknowledged yet. */
@@ -193,6 +194,7 @@ static void fault_before_tile(struct pool *p, const struct tile_task *t)
     }
     case FAULT_NONE:
     case FAULT_GARBAGE:
+    case FAULT_NONFINITE_TILE:
         break;
     }
 }
@@ -254,8 +256,8 @@ static void *pool_thread(void *arg)
         }
         clock_gettime(CLOCK_MONOTONIC, &b);
         d->stats.render_ns = (uint64_t)(b.tv_sec - a.tv_sec) * 1000000000ull + (uint64_t)b.tv_nsec - (uint64_t)a.tv_nsec;
-        if (p->fault == FAULT_GARBAGE)
-            pixels[0] = NAN;
+        if (p->fault == FAULT_GARBAGE || (p->fault == FAULT_NONFINITE_TILE && t.tile == p->fault_arg))
+            pixels[0] = p->fault == FAULT_GARBAGE ? NAN : INFINITY;
         if (!enc) {
             d->failed = 1;
             snprintf(d->err, sizeof d->err, "%s", err);
@@ -670,7 +672,7 @@ static void on_tile(struct worker *w, const struct msg_tile *t)
         return;
     }
     struct tile_task task = {t->job_id, t->frame, t->tile, t->attempt, w->job.job_key, w->conn, t->tile % ntiles,
-                             t->tile / ntiles};
+                             t->tile / ntiles, t->tag};
     if (w->num_maps && !map_ready(w, task.pass)) {
         struct pass_map *pm = &w->maps[task.pass];
         if (!pm->announced) {
@@ -835,6 +837,7 @@ static void send_kept(struct worker *w, struct kept_tile *k)
     m.u.kept.job_key = k->task.job_key;
     m.u.kept.frame = k->task.frame;
     m.u.kept.tile = k->task.tile;
+    m.u.kept.tag = k->task.tag;
     m.u.kept.stats = k->stats;
     m.u.kept.chunk = k->chunk;
     m.u.kept.chunk_size = (uint32_t)k->chunk_size;

@@ -11,7 +11,8 @@ enum worker_fault {
     FAULT_HANG_AFTER,   /* render threads hang (main thread still answers) after N tiles */
     FAULT_CRASH_TILE,   /* abort() when asked to render tile N */
     FAULT_GARBAGE,      /* every result carries a NaN pixel (the master must reject it) */
-    FAULT_SLOW          /* sleep N ms before each tile (a straggler) */
+    FAULT_SLOW,         /* sleep N ms before each tile (a straggler) */
+    FAULT_NONFINITE_TILE /* tile (unit) N carries an infinite pixel, as a scene past float's range would */
 };
 
 struct worker_opts {

@@ -30,6 +30,13 @@ void blob_hash_compute(const void *data, size_t size, struct blob_hash *out)
     crypto_generichash(out->bytes, BLOB_HASH_SIZE, in, size, NULL, 0);
 }
 
+void blob_mac_compute(const struct blob_hash *key, const void *data, size_t size, struct blob_hash *out)
+{
+    static const uint8_t empty[1] = {0};
+    pthread_once(&g_sodium_once, sodium_init_once);
+    crypto_generichash(out->bytes, BLOB_HASH_SIZE, size ? data : empty, size, key->bytes, BLOB_HASH_SIZE);
+}
+
 void blob_hash_hex(const struct blob_hash *h, char hex[65])
 {
     static const char digits[] = "0123456789abcdef";
@@ -43,6 +50,11 @@ void blob_hash_hex(const struct blob_hash *h, char hex[65])
 int blob_hash_equal(const struct blob_hash *a, const struct blob_hash *b)
 {
     return memcmp(a->bytes, b->bytes, BLOB_HASH_SIZE) == 0;
+}
+
+int blob_mac_equal(const struct blob_hash *a, const struct blob_hash *b)
+{
+    return sodium_memcmp(a->bytes, b->bytes, BLOB_HASH_SIZE) == 0;
 }
 
 /* ---- chunked receive ---- */

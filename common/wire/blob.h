@@ -17,6 +17,10 @@ void blob_hash_compute(const void *data, size_t size, struct blob_hash *out);
 /* 64 lowercase hex digits and a NUL into hex[65]. */
 void blob_hash_hex(const struct blob_hash *h, char hex[65]);
 int blob_hash_equal(const struct blob_hash *a, const struct blob_hash *b);
+/* Keyed BLAKE2b-256 (a MAC): out = H_key(data); the master ties kept tiles to the key
+ * they were assigned to with it. Tags compare with blob_mac_equal (constant time). */
+void blob_mac_compute(const struct blob_hash *key, const void *data, size_t size, struct blob_hash *out);
+int blob_mac_equal(const struct blob_hash *a, const struct blob_hash *b);
 
 /* A blob being received in chunks: the buffer is allocated from the announced size
  * (checked against BLOB_MAX_SIZE first), chunks may arrive in any order and more than

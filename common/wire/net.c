@@ -83,6 +83,9 @@ int net_recv(void *sock, int with_identity, struct net_frame *f)
         drain(sock);
         return -1;
     }
+    const char *uid = zmq_msg_gets(&m, "User-Id");
+    if (uid && strlen(uid) == NET_Z85_KEY_LEN)
+        memcpy(f->user_id, uid, NET_Z85_KEY_LEN + 1);
     f->size = zmq_msg_size(&m);
     f->data = mem_alloc(f->size ? f->size : 1);
     memcpy(f->data, zmq_msg_data(&m), f->size);
@@ -262,9 +265,15 @@ int net_curve_server(void *sock, const struct net_key *our_secret)
     int one = 1;
     if (zmq_setsockopt(sock, ZMQ_CURVE_SERVER, &one, sizeof one) != 0 ||
         zmq_setsockopt(sock, ZMQ_CURVE_SECRETKEY, our_secret->z85, NET_Z85_KEY_LEN) != 0 ||
-        zmq_setsockopt(sock, ZMQ_ZAP_DOMAIN, "brume", 5) != 0)
+        zmq_setsockopt(sock, ZMQ_ZAP_DOMAIN, "brume", 5) != 0 ||
+        zmq_setsockopt(sock, ZMQ_HANDSHAKE_IVL, &(int){NET_HANDSHAKE_MS}, sizeof(int)) != 0)
         return -1;
     return 0;
+}
+
+int net_endpoint_is_tcp(const char *e)
+{
+    return !strncmp(e, "tcp://", 6);
 }
 
 int net_endpoint_is_local(const char *e)

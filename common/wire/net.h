@@ -9,6 +9,7 @@
 #include "wire/proto.h"
 
 #define NET_MAX_IDENTITY 256
+#define NET_Z85_KEY_LEN 40
 
 void net_socket_setup(void *sock);
 /* Encodes and sends msg (preceded by identity when id_len > 0) without blocking: -1
@@ -21,6 +22,9 @@ struct net_frame {
     size_t id_len;
     uint8_t *data;      /* mem_alloc'd copy of the payload, freed by net_frame_free */
     size_t size;
+    /* Who the peer is: with CurveZMQ, the Z85 public key its handshake proved (the ZAP
+     * handler's User-Id); "" without CurveZMQ. Set by libzmq, never by the peer. */
+    char user_id[NET_Z85_KEY_LEN + 1];
 };
 /* Receives one message without blocking (call after zmq_poll said POLLIN). with_identity:
  * expect an identity frame first (ROUTER). Returns 1 on a well-formed envelope, 0 when
@@ -32,7 +36,6 @@ void net_frame_fini(struct net_frame *f);
  * its first line and the secret key on its second; a public key file (and each line of
  * an allow-list) holds one public key, optionally followed by a name. Lines starting with
  * '#' are comments. */
-#define NET_Z85_KEY_LEN 40
 struct net_key { char z85[NET_Z85_KEY_LEN + 1]; };
 int net_key_pair_load(const char *path, struct net_key *public_key, struct net_key *secret_key, char *err, size_t errlen);
 int net_key_public_load(const char *path, struct net_key *public_key, char *err, size_t errlen);
@@ -43,8 +46,12 @@ int net_key_pair_write(const char *path, char *err, size_t errlen);
 /* Client side of CurveZMQ: set before zmq_connect. 0 or -1. */
 int net_curve_client(void *sock, const struct net_key *server_public, const struct net_key *our_public,
                      const struct net_key *our_secret);
-/* Server side: CURVE with ZAP domain "brume"; set before zmq_bind. 0 or -1. */
+/* Server side: CURVE with ZAP domain "brume" and a handshake deadline; set before
+ * zmq_bind. 0 or -1. */
+#define NET_HANDSHAKE_MS 5000 /* a connection that has not finished its handshake by then is closed */
 int net_curve_server(void *sock, const struct net_key *our_secret);
+/* True for tcp:// endpoints (reachable over a network, loopback included). */
+int net_endpoint_is_tcp(const char *endpoint);
 /* True for endpoints only this machine can reach (ipc, inproc, tcp on loopback). */
 int net_endpoint_is_local(const char *endpoint);
 

@@ -240,6 +240,7 @@ int proto_encode(const struct proto_msg *msg, struct proto_buf *b)
         put_u32(b, msg->u.tile.frame);
         put_u32(b, msg->u.tile.tile);
         put_u32(b, msg->u.tile.attempt);
+        put_hash(b, &msg->u.tile.tag);
         return 0;
     case MSG_RESULT: {
         const struct msg_result *m = &msg->u.result;
@@ -283,6 +284,7 @@ int proto_encode(const struct proto_msg *msg, struct proto_buf *b)
         put_hash(b, &m->job_key);
         put_u32(b, m->frame);
         put_u32(b, m->tile);
+        put_hash(b, &m->tag);
         put_stats(b, &m->stats);
         return put_payload(b, m->chunk, m->chunk_size);
     }
@@ -550,6 +552,7 @@ int proto_decode(const uint8_t *frame, size_t size, struct proto_msg *msg, char 
         msg->u.tile.frame = get_u32(r, "frame");
         msg->u.tile.tile = get_u32(r, "tile");
         msg->u.tile.attempt = get_u32(r, "attempt");
+        get_hash(r, &msg->u.tile.tag, "tag");
         break;
     case MSG_RESULT: {
         struct msg_result *m = &msg->u.result;
@@ -567,6 +570,7 @@ int proto_decode(const uint8_t *frame, size_t size, struct proto_msg *msg, char 
         get_hash(r, &m->job_key, "job_key");
         m->frame = get_u32(r, "frame");
         m->tile = get_u32(r, "tile");
+        get_hash(r, &m->tag, "tag");
         get_stats(r, &m->stats);
         m->chunk = get_payload(r, &m->chunk_size, PROTO_MAX_CHUNK, "chunk");
         break;

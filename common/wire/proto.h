@@ -13,7 +13,7 @@
 #include "render/tile.h"
 
 #define PROTO_MAGIC 0x4d555242u /* "BRUM" little-endian */
-#define PROTO_VERSION 5 /* 2: HEARTBEAT carries samples_done; 3: JOB carries job_key, ACK, KEPT; 4: photon-map passes (JOB photon_maps, MAP); 5: JOB passes (passes without photon maps) */
+#define PROTO_VERSION 6 /* 2: HEARTBEAT carries samples_done; 3: JOB carries job_key, ACK, KEPT; 4: photon-map passes (JOB photon_maps, MAP); 5: JOB passes (passes without photon maps); 6: TILE and KEPT carry the holder's tag */
 #define PROTO_MAX_MESSAGE (64u * 1024u * 1024u) /* also ZMQ_MAXMSGSIZE */
 #define PROTO_MAX_STRING 1024
 #define PROTO_MAX_ASSETS 4096
@@ -98,6 +98,10 @@ struct msg_tile {
     uint32_t frame;
     uint32_t tile;      /* index: ty * tiles_x + tx; with photon maps the unit pass * tiles + tile */
     uint32_t attempt;
+    /* The master's MAC over (job key, tile, the holder's public key): the worker keeps it
+     * with the finished tile and returns it in KEPT, so that a master that comes back
+     * takes a kept tile only from the identity it was assigned to. */
+    struct blob_hash tag;
 };
 
 struct msg_result {
@@ -128,6 +132,7 @@ struct msg_kept {
     struct blob_hash job_key;
     uint32_t frame;
     uint32_t tile;
+    struct blob_hash tag;   /* the TILE's tag, as the assigning master sent it */
     struct tile_stats stats;
     const uint8_t *chunk;   /* points into the decoded frame */
     uint32_t chunk_size;    /* <= PROTO_MAX_CHUNK */

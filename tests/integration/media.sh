@@ -68,7 +68,7 @@ if [ $r = 0 ] && grep -q "photon pass skipped: multiple scattering is bounded by
 
 # A worker joining over tcp after the start also fetches the volume blob and renders the same pixels.
 P=$((21000 + ($$ % 20000)))
-timeout 120 $M $S -o "$T/late.exr" $A --workers 1 --threads 1 --bind "tcp://127.0.0.1:$P" >"$T/log" 2>&1 &
+timeout 120 $M $S -o "$T/late.exr" $A --workers 1 --threads 1 --bind "tcp://127.0.0.1:$P" --insecure >"$T/log" 2>&1 &
 mpid=$!
 sleep 1
 timeout 120 $W --connect "tcp://127.0.0.1:$P" --threads 1 >"$T/wlog" 2>&1
@@ -114,7 +114,7 @@ echo "media: passes, master killed with journal (units of pass 0, last pass) $jk
 if [ $r = 0 ] && [ "${jk#* }" = 2 ] && [ "${fj:-0}" -gt 0 ] && $X cmp "$T/pp1.exr" "$T/ppk.exr"; then
   ok "4 passes: master kill -9 during pass 2 + restart: identical pixels"
 else bad "4 passes: master kill -9 during pass 2 + restart: identical pixels (journal $jk, from journal ${fj:-0})"; fi
-timeout 120 $M $S -o "$T/pplate.exr" $PA --workers 1 --threads 1 --tile 16 --bind "tcp://127.0.0.1:$((P + 1))" >"$T/log" 2>&1 &
+timeout 120 $M $S -o "$T/pplate.exr" $PA --workers 1 --threads 1 --tile 16 --bind "tcp://127.0.0.1:$((P + 1))" --insecure >"$T/log" 2>&1 &
 mpid=$!
 i=0
 while [ $i -lt 600 ] && [ "$(jpass "$T/pplate.exr.journal" 80 | cut -d' ' -f1)" -lt 80 ]; do sleep 0.05; i=$((i + 1)); done

@@ -74,7 +74,7 @@ ls "$T" | grep -q "\.tmp\." && bad "no temporary files left" || ok "no temporary
 
 # --- a remote worker over tcp loopback (master starts none) gives the same pixels ---
 P=$(port)
-timeout 60 $M scenes/tiny/tiny.json -o "$T/r.exr" --workers 0 --bind "tcp://127.0.0.1:$P" >"$T/log" 2>&1 &
+timeout 60 $M scenes/tiny/tiny.json -o "$T/r.exr" --workers 0 --bind "tcp://127.0.0.1:$P" --insecure >"$T/log" 2>&1 &
 mpid=$!
 sleep 0.3
 timeout 60 $W --connect "tcp://127.0.0.1:$P" --threads 2 >"$T/wlog" 2>&1
@@ -96,7 +96,7 @@ if [ -n "$victim" ] && [ $r = 0 ] && $X cmp "$T/c1.exr" "$T/k.exr"; then ok "kil
 # --- a hostile peer: garbage, wrong versions, results for tiles it never got: dropped, image unchanged ---
 P=$((P + 1))
 run $M scenes/cornell/cornell.json -o "$T/j0.exr" --workers 2 --threads 1 --spp 12 && r0=0 || r0=1
-timeout 60 $M scenes/cornell/cornell.json -o "$T/j.exr" --workers 1 --spp 12 --bind "tcp://127.0.0.1:$P" >"$T/log" 2>&1 &
+timeout 60 $M scenes/cornell/cornell.json -o "$T/j.exr" --workers 1 --spp 12 --bind "tcp://127.0.0.1:$P" --insecure >"$T/log" 2>&1 &
 mpid=$!
 sleep 0.3
 timeout 20 $BUILD/junkpeer "tcp://127.0.0.1:$P" >/dev/null 2>&1

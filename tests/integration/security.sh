@@ -2,6 +2,11 @@
 # Keeping strangers out: CurveZMQ with an allow-list. A client without CurveZMQ and a
 # worker with an unlisted key get no message to the master's code and no tile; a listed
 # worker renders the same pixels. Binding a public address without keys is refused.
+# A loopback bind without keys is CurveZMQ too (throw-away keys for the local workers):
+# a stranger gets no JOB and no blob and cannot poison the image. A rogue whose key is on
+# the allow-list cannot poison tiles it does not hold (KEPT, RESULT), cannot evict a
+# worker by claiming its host and pid, and a flood of its HELLOs does not keep the real
+# worker out. A tile that is non-finite on two workers fails the job, naming the cause.
 # Ends with "integration: N passed, N failed". Usage: BUILD=build sh tests/integration/security.sh
 . "$(dirname "$0")/lib.sh"
 lib_init sec
@@ -11,6 +16,8 @@ if $M --keygen "$T/master.key" >/dev/null && $M --keygen "$T/good.key" >/dev/nul
   [ "$(stat -c %a "$T/good.key")" = 600 ] && [ "$(wc -c <"$T/good.key.pub")" = 41 ]; then
   ok "--keygen writes a private key pair and a public key"; else bad "--keygen writes a private key pair and a public key"; fi
 cp "$T/good.key.pub" "$T/allow"
+$M --keygen "$T/rogue.key" >/dev/null
+cat "$T/good.key.pub" "$T/rogue.key.pub" >"$T/allow2"
 
 if ! timeout 10 $M scenes/tiny/tiny.json -o "$T/x.exr" --workers 0 --bind "tcp://0.0.0.0:$P" >"$T/log" 2>&1 &&
   grep -q "insecure" "$T/log"; then ok "public bind without keys refused"; else bad "public bind without keys refused"; fi
@@ -40,6 +47,90 @@ timeout 60 $M scenes/tiny/tiny.json -o "$T/l.exr" --workers 2 --bind "tcp://127.
   --curve-secret "$T/master.key" --allow "$T/allow" >"$T/log" 2>&1 && r=0 || r=1
 if [ $r = 0 ] && [ "$(counter auth_rejects "$T/l.exr")" = 0 ] && $X cmp "$T/ref.exr" "$T/l.exr"; then
   ok "CurveZMQ: local workers get their own key"; else bad "CurveZMQ: local workers get their own key"; fi
+
+# --- a loopback bind without keys: CurveZMQ all the same; a stranger gets nothing in ---
+SLOW="--spp 8192 --threads 1"
+timeout 60 $M scenes/tiny/tiny.json -o "$T/sref.exr" --workers 1 $SLOW >"$T/log" 2>&1 || bad "reference render (slow)"
+timeout 60 $M scenes/tiny/tiny.json -o "$T/d.exr" --workers 1 $SLOW --bind "tcp://127.0.0.1:$((P + 2))" >"$T/log" 2>&1 &
+mpid=$!
+sleep 0.3
+timeout 20 $BUILD/junkpeer "tcp://127.0.0.1:$((P + 2))" rogue >"$T/jp" 2>&1
+wait $mpid && r=0 || r=1
+echo "security: stranger on a default loopback bind: $(cat "$T/jp"), handshake failures $(counter handshake_failures "$T/d.exr")"
+if [ $r = 0 ] && grep -q "junkpeer: job no, blob bytes 0" "$T/jp" && grep -q "CurveZMQ on at" "$T/log" &&
+  [ "$(counter tiles_from_kept "$T/d.exr")" = 0 ] && $X cmp "$T/sref.exr" "$T/d.exr" >/dev/null; then
+  ok "loopback bind without keys: CurveZMQ on, a stranger gets no JOB, no blob, no tile in"
+else cat "$T/jp" >>"$T/log"; bad "loopback bind without keys: CurveZMQ on, a stranger gets no JOB, no blob, no tile in"; fi
+# ... and with --workers 0 nobody could join: refused; --insecure is the way out, with a warning
+if ! timeout 10 $M scenes/tiny/tiny.json -o "$T/x.exr" --workers 0 --bind "tcp://127.0.0.1:$((P + 3))" >"$T/log" 2>&1 &&
+  grep -q -- "--curve-secret" "$T/log" && timeout 30 $M scenes/tiny/tiny.json -o "$T/i.exr" --bind "tcp://127.0.0.1:$((P + 3))" \
+  --insecure >"$T/log" 2>&1 && grep -q "warning: --insecure" "$T/log" && $X cmp "$T/ref.exr" "$T/i.exr" >/dev/null; then
+  ok "loopback bind, --workers 0, no keys: refused; --insecure renders with a warning"
+else bad "loopback bind, --workers 0, no keys: refused; --insecure renders with a warning"; fi
+
+# --- a rogue with a key on the allow-list, holding no tile: KEPT and RESULT for every tile
+# (pixels 7.0) are dropped; the image is the clean render's ---
+KEYS="--curve-secret $T/master.key --allow $T/allow2"
+WKEY="--curve-secret $T/good.key --server-key $T/master.key.pub"
+timeout 60 $M scenes/tiny/tiny.json -o "$T/k.exr" --workers 0 --bind "tcp://127.0.0.1:$((P + 4))" $KEYS >"$T/log" 2>&1 &
+mpid=$!
+sleep 0.3
+timeout 20 $BUILD/junkpeer --key "$T/rogue.key" "$T/master.key.pub" "tcp://127.0.0.1:$((P + 4))" rogue >"$T/jp" 2>&1
+timeout 60 $W --connect "tcp://127.0.0.1:$((P + 4))" $WKEY >/dev/null 2>&1
+wait $mpid && r=0 || r=1
+echo "security: authenticated rogue: $(cat "$T/jp"); kept untied $(counter kept_untied "$T/k.exr"), results stale $(counter results_stale "$T/k.exr")"
+if [ $r = 0 ] && grep -q "junkpeer: job yes" "$T/jp" && [ "$(counter tiles_from_kept "$T/k.exr")" = 0 ] &&
+  [ "$(counter kept_untied "$T/k.exr")" = 4 ] && [ "$(counter results_stale "$T/k.exr")" = 12 ] && $X cmp "$T/ref.exr" "$T/k.exr" >/dev/null; then
+  ok "an allowed rogue's KEPT and RESULT for tiles it does not hold are dropped; image identical"
+else cat "$T/jp" >>"$T/log"; bad "an allowed rogue's KEPT and RESULT for tiles it does not hold are dropped; image identical"; fi
+
+# --- impersonation: a HELLO with the real worker's host and pid does not evict it ---
+timeout 60 $M scenes/tiny/tiny.json -o "$T/m.exr" --workers 0 --bind "tcp://127.0.0.1:$((P + 5))" $KEYS $SLOW >"$T/log" 2>&1 &
+mpid=$!
+$W --connect "tcp://127.0.0.1:$((P + 5))" $WKEY --threads 1 --timeout-ms 20000 >/dev/null 2>&1 &
+wpid=$!
+echo "$wpid" >>"$T/pids"
+i=0
+while ! grep -q "joined" "$T/log" && [ $i -lt 100 ]; do sleep 0.1; i=$((i + 1)); done
+who=$(sed -n 's/.*worker \(.*\) joined.*/\1/p' "$T/log" | head -1)
+timeout 20 $BUILD/junkpeer --key "$T/rogue.key" "$T/master.key.pub" "tcp://127.0.0.1:$((P + 5))" hello-as "${who%:*}" "${who##*:}" >/dev/null 2>&1
+wait $mpid && r=0 || r=1
+wait $wpid && wr=0 || wr=1
+if [ $r = 0 ] && [ $wr = 0 ] && [ -n "$who" ] && [ "${who##*:}" = "$wpid" ] && ! grep -q "reconnected" "$T/log" &&
+  [ "$(counter workers_joined "$T/m.exr")" = 2 ] && $X cmp "$T/sref.exr" "$T/m.exr" >/dev/null; then
+  ok "a HELLO claiming the real worker's host:pid ($who) does not evict it; image identical"
+else bad "a HELLO claiming the real worker's host:pid (${who:-?}) does not evict it; image identical (master rc $r, worker rc $wr)"; fi
+
+# --- a flood: 4,200 HELLOs from an allowed key and 500 connects without one; the real
+# worker still joins and the render finishes ---
+timeout 120 $M scenes/tiny/tiny.json -o "$T/f.exr" --workers 0 --bind "tcp://127.0.0.1:$((P + 6))" $KEYS >"$T/log" 2>&1 &
+mpid=$!
+sleep 0.3
+t0=$(date +%s)
+timeout 100 $BUILD/junkpeer "tcp://127.0.0.1:$((P + 6))" flood 500 >/dev/null 2>&1 &
+timeout 100 $BUILD/junkpeer --key "$T/rogue.key" "$T/master.key.pub" "tcp://127.0.0.1:$((P + 6))" flood 4200 >"$T/jp" 2>&1
+timeout 60 $W --connect "tcp://127.0.0.1:$((P + 6))" $WKEY >/dev/null 2>&1 && wr=0 || wr=1
+wait $mpid && r=0 || r=1
+echo "security: flood: $(cat "$T/jp") in $(($(date +%s) - t0)) s; joined $(counter workers_joined "$T/f.exr"), refused $(counter hellos_refused "$T/f.exr")"
+if [ $r = 0 ] && [ $wr = 0 ] && grep -q "4200 hellos sent" "$T/jp" && [ "$(counter hellos_refused "$T/f.exr")" -ge 1 ] &&
+  grep -q "worker $(hostname):[0-9]* joined" "$T/log" && $X cmp "$T/ref.exr" "$T/f.exr" >/dev/null; then
+  ok "a HELLO flood from an allowed key and unauthenticated connects do not keep the real worker out"
+else bad "a HELLO flood from an allowed key and unauthenticated connects do not keep the real worker out (master rc $r, worker rc $wr)"; fi
+
+# --- a tile non-finite on two workers (as a scene past float's range makes it): the job
+# fails naming the tile and the cause; no worker is banned ---
+# (tiles of 4096 samples: the second worker is ready before the first returns tile 2)
+timeout 60 $M scenes/tiny/tiny.json -o "$T/n.exr" --workers 0 --bind "ipc://$T/n.sock" --spp 4096 >"$T/log" 2>&1 &
+mpid=$!
+for k in 1 2; do
+  $W --connect "ipc://$T/n.sock" --threads 1 --fault nonfinite-tile:2 --timeout-ms 20000 >/dev/null 2>&1 &
+  echo "$!" >>"$T/pids"
+done
+wait $mpid && r=0 || r=$?
+if [ $r = 1 ] && tail -1 "$T/log" | grep -q "non-finite values at tile 2 pass 0 .*two workers.*check the emission and intensity values; the brightest emitter is material .lamp. with emission 8" &&
+  [ "$(counter workers_banned "$T/n.exr")" = 0 ]; then
+  ok "a tile non-finite on two workers fails the job with the scene's cause, no ban"
+else bad "a tile non-finite on two workers fails the job with the scene's cause, no ban (rc $r)"; fi
 
 # A corpus of malformed and out-of-order messages from one peer, then a real worker: the
 # master survives, rejects each message under the reason the corpus predicts (the

@@ -24,7 +24,7 @@ if [ $r = 0 ] && $X cmp "$T/a1.exr" "$T/a2.exr"; then ok "textured: 2 workers x 
 
 # --- a worker in another folder over tcp: textures reach it only as blobs ---
 P=$((21000 + ($$ % 20000)))
-timeout 60 $M $S -o "$T/r.exr" --spp 2 --workers 0 --bind "tcp://127.0.0.1:$P" >"$T/log" 2>&1 &
+timeout 60 $M $S -o "$T/r.exr" --spp 2 --workers 0 --bind "tcp://127.0.0.1:$P" --insecure >"$T/log" 2>&1 &
 mpid=$!
 sleep 0.3
 mkdir -p "$T/elsewhere"

@@ -83,6 +83,7 @@ static size_t make_samples(struct proto_msg out[MSG_TYPE_MAX_])
     out[n].u.tile.frame = 3;
     out[n].u.tile.tile = 1234;
     out[n].u.tile.attempt = 2;
+    out[n].u.tile.tag = make_hash(91);
     n++;
 
     out[n].type = MSG_RESULT;
@@ -137,6 +138,7 @@ static size_t make_samples(struct proto_msg out[MSG_TYPE_MAX_])
     out[n].u.kept.job_key = make_hash(78);
     out[n].u.kept.frame = 7;
     out[n].u.kept.tile = 0x0a0b0c0du;
+    out[n].u.kept.tag = make_hash(92);
     out[n].u.kept.stats.samples = 5;
     out[n].u.kept.stats.rays = 0x0123456789abcdefull;
     out[n].u.kept.stats.nan_samples = 1;
@@ -221,6 +223,7 @@ static void assert_msg_eq(const struct proto_msg *a, const struct proto_msg *b)
         cr_assert_eq(a->u.tile.frame, b->u.tile.frame);
         cr_assert_eq(a->u.tile.tile, b->u.tile.tile);
         cr_assert_eq(a->u.tile.attempt, b->u.tile.attempt);
+        assert_hash_eq(&a->u.tile.tag, &b->u.tile.tag);
         break;
     case MSG_RESULT: {
         const struct msg_result *x = &a->u.result, *y = &b->u.result;
@@ -255,6 +258,7 @@ static void assert_msg_eq(const struct proto_msg *a, const struct proto_msg *b)
         assert_hash_eq(&x->job_key, &y->job_key);
         cr_assert_eq(x->frame, y->frame);
         cr_assert_eq(x->tile, y->tile);
+        assert_hash_eq(&x->tag, &y->tag);
         assert_tile_eq(&x->stats, x->chunk, x->chunk_size, &y->stats, y->chunk, y->chunk_size);
         break;
     }
@@ -748,7 +752,7 @@ Test(proto, ack_and_kept_limits)
     err = expect_reject(f.d, f.n);
     cr_assert(strstr(err, "truncated"), "%s", err);
     fb_header(&f, MSG_KEPT);
-    fb_fill(&f, 0, 8 + BLOB_HASH_SIZE + 4 * 2 + 8 * 4 + 8 + 4);
+    fb_fill(&f, 0, 8 + BLOB_HASH_SIZE + 4 * 2 + BLOB_HASH_SIZE + 8 * 4 + 8 + 4); /* job, key, frame, tile, tag, stats */
     fb_u(&f, PROTO_MAX_CHUNK + 1, 4);
     err = expect_reject(f.d, f.n);
     cr_assert(strstr(err, "chunk") && strstr(err, "limit"), "%s", err);

@@ -303,6 +303,58 @@ Test(sched, a_ban_after_three_invalid_results_in_a_row)
     sched_free(&s);
 }
 
+/* A non-finite result blames nobody yet: the tile goes to another ready worker (the one
+ * that returned it gets it again only when it is the only one), and the streak is
+ * untouched; sched_worker_invalid counts later, like an invalid result. */
+Test(sched, a_nonfinite_tile_goes_to_another_worker_without_blame)
+{
+    struct sched *s = setup(3, 2, 1);
+    struct sched_assignment a = give_one(s, 0), b = give_one(s, 0);
+    cr_assert_eq(a.worker, 0);
+    cr_assert_eq(b.worker, 1);
+    sched_worker_credit(s, 0);
+    sched_result_nonfinite(s, 0, a.tile);
+    cr_assert_eq(s->workers[0].fail_streak, 0);
+    cr_assert_eq(s->tiles[a.tile].nonfinite_by, 1);
+    struct sched_assignment c = give_one(s, 1);
+    cr_assert_neq(c.tile, a.tile, "worker 0 does not get back the tile it returned non-finite");
+    sched_result_valid(s, 1, b.tile);
+    sched_worker_credit(s, 1);
+    struct sched_assignment d = give_one(s, 2);
+    cr_assert_eq(d.tile, a.tile);
+    cr_assert_eq(d.worker, 1);
+    struct sched_eviction ev;
+    cr_assert_eq(sched_worker_invalid(s, 0, &ev), 0);
+    cr_assert_eq(s->workers[0].fail_streak, 1);
+    sched_free(&s);
+
+    s = setup(2, 1, 1); /* the only worker gets it again */
+    a = give_one(s, 0);
+    sched_worker_credit(s, 0);
+    sched_result_nonfinite(s, 0, a.tile);
+    b = give_one(s, 1);
+    cr_assert_eq(b.tile, a.tile);
+    cr_assert_eq(b.worker, 0);
+    sched_free(&s);
+}
+
+/* A gone worker's slot taken by a new one starts afresh. */
+Test(sched, a_rejoined_slot_starts_afresh)
+{
+    struct sched *s = setup(2, 2, 2);
+    struct sched_eviction ev;
+    sched_evict(s, 0, SCHED_LEFT, &ev);
+    cr_assert(s->workers[0].gone && ev.requeued == 0);
+    sched_worker_rejoin(s, 0, 3, 50);
+    cr_assert_eq(s->workers[0].gone, 0);
+    cr_assert_eq(s->workers[0].ready, 0);
+    cr_assert_eq(s->workers[0].threads, 3);
+    cr_assert_eq(s->workers[0].last_heard_ms, 50);
+    cr_assert_eq(s->num_workers, 2);
+    cr_assert_eq(sched_worker_ready(s, 0, 1), 0);
+    sched_free(&s);
+}
+
 Test(sched, straggler_copies_only_when_the_queue_is_empty)
 {
     struct sched *s = setup(3, 1, 2);
