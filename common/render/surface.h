@@ -29,14 +29,16 @@ void surface_from_hit(const struct accel *acc, const struct light_table *lt, vec
  * p (material mat, shading normal ns and geometric normal ng on wo's side): the sample, the
  * BSDF value f toward it (cosine included) and its pdf, and the point a shadow ray aims at
  * (off an area light's surface). 0 when no light can arrive that way. Visibility is the
- * caller's: an occlusion ray (integrator.c) or transmittance (media_integrator.c). */
+ * caller's: an occlusion ray (integrator.c) or transmittance (media_integrator.c). Only
+ * light on wo's side is sampled: light through a rough dielectric is found by BSDF
+ * sampling alone, so callers give transmitted BSDF samples full weight (no MIS). */
 struct nee_sample {
     struct light_sample ls;
     vec3 f, target;
     float bsdf_pdf;
 };
 int nee_prepare(const struct light_table *lt, const struct scene *sc, const struct material *mat, vec3 p, vec3 ns,
-                vec3 ng, vec3 wo, float pick, float u, float v, struct nee_sample *n);
+                vec3 ng, vec3 wo, int front, float pick, float u, float v, struct nee_sample *n);
 
 /* Power heuristic (beta = 2) of MIS between the strategies with pdfs a (the one taken) and b. */
 static inline float power_heuristic(float a, float b)
