@@ -284,8 +284,13 @@ static void sample_rough(const struct material *m, vec3 n, vec3 wo, int front, f
         float eta = front ? m->ior : 1.0f / m->ior;
         float f = material_fresnel_dielectric(co, eta);
         vec3 wt;
-        if (lobe_uniform(u1, u2) >= f && material_refract(lo, wm, co, eta, &wt))
+        int refr = lobe_uniform(u1, u2) >= f && material_refract(lo, wm, co, eta, &wt);
+        if (refr)
             li = wt;
+        if (refr ? !(li.z < 0.0f) : !(li.z > 0.0f)) {
+            no_sample(out); /* the lobe's direction lies on the other side of the surface */
+            return;
+        }
     }
     finish_rough(m, &fr, n, wo, li, front, out);
 }

@@ -10,9 +10,11 @@
 #define BRUME_MICROFACET_H
 #include "base/vec.h"
 
-/* Below this alpha (roughness below 0.001 with alpha = roughness^2), a lobe is treated as
- * smooth: a delta BSDF, exactly the mirror and glass of material.c. */
-#define MICROFACET_SMOOTH_ALPHA 1e-6f
+/* Below this alpha (roughness below about 0.0032 with alpha = roughness^2), a lobe is
+ * treated as smooth: a delta BSDF, exactly the mirror and glass of material.c. Narrower
+ * lobes are not resolved in float (half vectors of unit vectors carry errors of ~1e-7):
+ * the chi-square tests of sampling fail at roughness 0.001. */
+#define MICROFACET_SMOOTH_ALPHA 1e-5f
 
 /* Perceptual roughness in [0, 1] to alpha, as Cycles and Disney map it: alpha = r^2. */
 static inline float microfacet_alpha(float roughness)

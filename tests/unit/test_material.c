@@ -126,7 +126,7 @@ Test(material, mirror_reflects_with_its_reflectance)
     cr_assert_float_eq(bs.wi.z, -wo.z, 1e-6f);
     cr_assert_eq(bs.weight.y, 0.5f);
     float pdf;
-    vec3 f = material_eval(&m, n, wo, bs.wi, &pdf);
+    vec3 f = material_eval(&m, n, wo, bs.wi, 1, &pdf);
     cr_assert(v3_is_black(f) && pdf == 0.0f);
     /* Grazing and below-surface outgoing directions give no sample and no NaN. */
     material_sample(&m, n, v3(1, 0, 0), 1, 0.3f, 0.7f, &bs);
