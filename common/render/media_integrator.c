@@ -536,7 +536,7 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
             }
         } else if (job->lights.num_entries > 0 && !material_is_delta(mat)) {
             struct nee_sample n;
-            if (nee_prepare(&job->lights, sc, mat, s.p, ns, ng, wo, front, rnd(&r, vertex, 2), rnd(&r, vertex, 3), rnd(&r, vertex, 4), &n)) {
+            if (nee_prepare(&job->lights, sc, mat, s.p, ns, ng, wo, front, 0, rnd(&r, vertex, 2), rnd(&r, vertex, 3), rnd(&r, vertex, 4), &n)) {
                 vec3 tr = media_shadow_transmittance(job->media, p_off, n.target, medium, time01,
                                                      rng_mix64(r.key ^ (0x5353ull << 48) ^ vertex), rays);
                 if (!v3_is_black(tr)) {
