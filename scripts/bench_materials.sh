@@ -1,13 +1,14 @@
 #!/bin/sh
 # Benchmark: rough materials and the environment light on scenes/materials (rough gold,
-# brushed metal, frosted glass, glossy plastic, a plastic floor with a roughness texture,
-# under a sky with a sun of 2 degrees' radius holding most of its power). Two comparisons,
-# each as relRMSE against a converged reference (visible-normal and importance sampling,
-# another seed, REF_SPP spp, cached in bench-out/) at the same CPU time:
+# brushed metal, frosted glass, glossy plastic, a plastic floor with a roughness texture).
+# Two comparisons, each as relRMSE against a converged reference of the default variant
+# (another seed, REF_SPP spp, cached in bench-out/) at the same CPU time:
 #   - GGX sampling: visible normals (Heitz 2018, the default) against the classic D cos
-#     (every material's "sample_visible": false);
+#     (every material's "sample_visible": false), under the scene's sky without its sun
+#     (so that BSDF sampling, not light sampling, carries the reflections);
 #   - the environment light: importance sampling by the map (the default) against uniform
-#     sphere sampling ("sampling": "uniform").
+#     sphere sampling ("sampling": "uniform"), under the scene's sky with its sun (2
+#     degrees' radius, most of the sky's power).
 # Equal time: at a fixed spp a variant's error e and CPU time t give e sqrt(t) (error falls
 # as 1/sqrt(time)); the ratio of those is the error ratio at equal time. Writes
 # bench-out/materials.txt. Usage: BUILD=build sh scripts/bench_materials.sh
@@ -21,10 +22,11 @@ W=${W:-128}
 H=${H:-96}
 bench_init bmat bc time
 cp scenes/materials/* "$T/"
-variant() { # variant NAME VISIBLE ENV_SAMPLING
-  python3 - "$T/materials.json" "$T/$1.json" "$2" "$3" "$W" "$H" <<'PY'
+python3 scripts/gen_sky_hdr.py "$T/nosun.hdr" 128 64 35 60 0 1
+variant() { # variant NAME VISIBLE ENV_SAMPLING SKY
+  python3 - "$T/materials.json" "$T/$1.json" "$2" "$3" "$W" "$H" "$4" <<'PY'
 import json, sys
-src, dst, vis, env, w, h = sys.argv[1:7]
+src, dst, vis, env, w, h, sky = sys.argv[1:8]
 s = json.load(open(src))
 s["render"].update({"width": int(w), "height": int(h), "sampler": "independent"})
 for m in s["materials"].values():
@@ -33,21 +35,27 @@ for m in s["materials"].values():
 for l in s["lights"]:
     if l["type"] == "environment":
         l["sampling"] = env
+        l["file"] = sky
 json.dump(s, open(dst, "w"), indent=1)
 PY
 }
-variant vndf 1 importance
-variant dcos 0 importance
-variant uniform 1 uniform
+variant vndf 1 importance nosun.hdr
+variant dcos 0 importance nosun.hdr
+variant importance 1 importance sky.hdr
+variant uniform 1 uniform sky.hdr
 
-REF="$OUT/materials-ref-${W}x$H-$REF_SPP-$(ref_key "$T/vndf.json" "$T/sky.hdr").exr"
-if [ ! -f "$REF" ]; then
-  echo "materials: rendering the reference ($REF_SPP spp, once)"
-  logged "$BUILD/master" "$T/vndf.json" -o "$REF" --workers 1 --threads "$CORES" --spp "$REF_SPP" --seed 999
-fi
+for r in vndf importance; do
+  ref="$OUT/materials-ref-$r-${W}x$H-$REF_SPP-$(ref_key "$T/$r.json" "$T/sky.hdr" "$T/nosun.hdr").exr"
+  if [ ! -f "$ref" ]; then
+    echo "materials: rendering the $r reference ($REF_SPP spp, once)"
+    logged "$BUILD/master" "$T/$r.json" -o "$ref" --workers 1 --threads "$CORES" --spp "$REF_SPP" --seed 999
+  fi
+  eval "REF_$r=\$ref"
+done
 
 : >"$T/rows"
-for v in vndf dcos uniform; do
+for v in vndf dcos importance uniform; do
+  case $v in vndf | dcos) REF=$REF_vndf ;; *) REF=$REF_importance ;; esac
   for spp in $SPP; do
     e2=0; secs=0; n=0
     for seed in $SEEDS; do
@@ -66,6 +74,6 @@ done
   awk '{printf "%-8s %6d %10.5f %8.3f %10.5f\n", $1, $2, $3, $4, $3 * sqrt($4)}' "$T/rows"
   awk '{k[$1 " " $2] = $3 * sqrt($4); s[$2] = 1}
     END { for (p in s) {
-      printf "at %s spp: D cos sampling / VNDF error at equal time %.3f; uniform / importance environment %.3f\n",
-        p, k["dcos " p] / k["vndf " p], k["uniform " p] / k["vndf " p] } }' "$T/rows" | sort -n -k2
+      printf "at %s spp: D cos / VNDF error at equal time %.3f (no sun); uniform / importance environment %.3f (sun)\n",
+        p, k["dcos " p] / k["vndf " p], k["uniform " p] / k["importance " p] } }' "$T/rows" | sort -n -k2
 } | tee "$OUT/materials.txt"
