@@ -198,15 +198,6 @@ static void chi_square(const struct material *m, vec3 wo, int front, const char 
     if (pe > 0.0)
         chi2 += (po - pe) * (po - pe) / fmax(pe, 1.0);
     /* The samples that fail (masked, below the horizon) are what the pdf leaves out. */
-    if (getenv("CHI_LOG")) {
-        double er = 0, orr = 0, worst = 0; int wb = -1;
-        for (int q = 0; q < BINS * BINS; q++) { er += expect[q]; orr += count[q]; }
-        for (int q = 0; q < lobes * BINS * BINS; q++) if (expect[q] > 5 && (count[q]-expect[q])*(count[q]-expect[q])/expect[q] > worst) { worst = (count[q]-expect[q])*(count[q]-expect[q])/expect[q]; wb = q; }
-        fprintf(stderr, "  refl exp %.0f got %.0f; worst bin %d (lobe %d i %d j %d) exp %.1f got %d\n", er, orr, wb, wb / (BINS*BINS), (wb % (BINS*BINS)) / BINS, wb % BINS, wb >= 0 ? expect[wb] : 0, wb >= 0 ? count[wb] : 0);
-    }
-    if (getenv("CHI_LOG")) fprintf(stderr, "%s: chi2 %.1f dof %d got %d total %.0f\n", what, chi2, dof, got, total);
-    if (getenv("CHI_LOG"))
-        return;
     cr_assert(fabs(got - total) < 5.0 * sqrt(N) + 2e-3 * N, "%s: %d samples against %.0f expected", what, got, total);
     cr_assert(dof >= 8, "%s: %d bins", what, dof);
     cr_assert(chi2 < dof + 6.0 * sqrt(2.0 * dof), "%s: chi2 %.1f over %d bins", what, chi2, dof);
@@ -325,9 +316,9 @@ Test(microfacet, energy_white_furnace)
                     sum2 += w * w;
                 }
                 double mean = sum / N, se = sqrt(fmax(0.0, sum2 / N - mean * mean) / N);
-                fprintf(stderr, "furnace type %d roughness %.3f theta %d: albedo %.4f (loss %.4f)\n", t, (double)rs[k], a ? 60 : 0, mean, 1.0 - mean);
+                cr_log_info("furnace type %d roughness %.3f theta %d: albedo %.4f (loss %.4f)", t, (double)rs[k], a ? 60 : 0, mean, 1.0 - mean);
                 cr_assert(mean <= 1.0 + 4.0 * se + 1e-4, "type %d roughness %g: albedo %g above 1", t, (double)rs[k], mean);
-                if (types[t] != MATERIAL_PLASTIC && !getenv("CHI_LOG"))
+                if (types[t] != MATERIAL_PLASTIC)
                     cr_assert(1.0 - mean <= max_loss[k] + 4.0 * se, "type %d roughness %g theta %d: loss %g", t, (double)rs[k], a ? 60 : 0, 1.0 - mean);
             }
 }
