@@ -12,6 +12,7 @@
 #include "base/rng.h"
 #include "scene/material.h"
 #include "scene/microfacet.h"
+#include "helpers.h"
 
 static struct material rough(enum material_type type, float ur, float vr)
 {
@@ -379,4 +380,39 @@ Test(microfacet, conductor_fresnel)
     m.reflectance = v3(0.5f, 0.5f, 0.5f);
     cr_assert(fabsf(material_fresnel_conductor(&m, 1.0f).x - 0.5f) < 1e-6f);
     cr_assert(fabsf(material_fresnel_conductor(&m, 0.0f).x - 1.0f) < 1e-6f);
+}
+
+Test(microfacet, scene_keys)
+{
+    struct scene s;
+    char err[512];
+    const char *head = "{\"version\": 1, \"camera\": {\"position\": [0,0,0], \"look_at\": [0,0,-1], \"fov_y\": 40},"
+                       " \"render\": {\"width\": 8, \"height\": 8, \"spp\": 1},"
+                       " \"textures\": {\"r\": {\"type\": \"checker\", \"color0\": [0.1, 0.1, 0.1], \"color1\": [0.5, 0.5, 0.5]}},\n";
+    char text[2048];
+    snprintf(text, sizeof text, "%s\"materials\": {"
+             "\"a\": {\"type\": \"conductor\", \"roughness\": 0.5, \"vroughness\": 0.2},"
+             "\"b\": {\"type\": \"conductor\", \"reflectance\": [0.9, 0.8, 0.7]},"
+             "\"c\": {\"type\": \"dielectric\", \"roughness\": 0.1, \"sample_visible\": false},"
+             "\"d\": {\"type\": \"coateddiffuse\", \"roughness\": \"r\", \"albedo\": [0.5, 0.5, 0.5]},"
+             "\"e\": {\"type\": \"mirror\", \"roughness\": 0.002}}}", head);
+    cr_assert_eq(test_scene_load(text, NULL, &s, err), 0, "%s", err);
+    cr_assert_eq(s.num_materials, 5);
+    const struct material *m = s.materials;
+    cr_assert(m[0].type == MATERIAL_CONDUCTOR && !m[0].schlick && fabsf(m[0].alpha_x - 0.25f) < 1e-7f &&
+              fabsf(m[0].alpha_y - 0.04f) < 1e-7f && fabsf(m[0].eta.x - 0.2f) < 1e-6f);
+    cr_assert(m[1].schlick && m[1].reflectance.y == 0.8f && m[1].alpha_x == 0.0f && material_is_delta(&m[1]));
+    cr_assert(m[2].type == MATERIAL_DIELECTRIC && m[2].sample_all && !material_is_delta(&m[2]));
+    cr_assert(m[3].type == MATERIAL_PLASTIC && m[3].roughness_tex == 1 && !material_is_delta(&m[3]));
+    cr_assert(m[4].type == MATERIAL_MIRROR && material_is_delta(&m[4])); /* below the smooth threshold */
+    scene_fini(&s);
+    snprintf(text, sizeof text, "%s\"materials\": {\"a\": {\"type\": \"conductor\", \"reflectance\": [1, 1, 1], \"eta\": [1, 1, 1]}}}", head);
+    test_scene_expect_error(text, NULL, "scenes/t.json:2:");
+    test_scene_expect_error(text, NULL, "give \"reflectance\" or \"eta\" and \"k\", not both");
+    snprintf(text, sizeof text, "%s\"materials\": {\"a\": {\"type\": \"plastic\", \"roughness\": \"r\", \"uroughness\": 0.2}}}", head);
+    test_scene_expect_error(text, NULL, "a roughness texture excludes uroughness and vroughness");
+    snprintf(text, sizeof text, "%s\"materials\": {\"a\": {\"type\": \"diffuse\", \"roughness\": 0.2}}}", head);
+    test_scene_expect_error(text, NULL, "scenes/t.json:2:40: key \"roughness\" does not apply to a diffuse material");
+    snprintf(text, sizeof text, "%s\"materials\": {\"a\": {\"type\": \"plastic\", \"roughness\": \"nope\"}}}", head);
+    test_scene_expect_error(text, NULL, "unknown texture \"nope\"");
 }
