@@ -36,7 +36,7 @@ TOOLS      := exrtool junkpeer replay maketex texbench
 TOOL_BIN   := $(TOOLS:%=$(BUILD)/%)
 TOOL_OBJ   := $(TOOLS:%=$(BUILD)/obj/tests/tools/%.o)
 
-.PHONY: all deps test layers unit integration demo bench bench-media bench-adaptive clean fuzz fuzz-ci tools stress test-slurm test-netns
+.PHONY: all deps test layers unit integration demo bench bench-media bench-adaptive bench-materials clean fuzz fuzz-ci tools stress test-slurm test-netns
 all: $(BUILD)/master $(BUILD)/worker $(TOOL_BIN)
 
 # Install what is missing; the stamp makes later builds skip the check.
@@ -117,6 +117,7 @@ bench: all
 	BUILD=$(BUILD) sh scripts/bench_media.sh
 	BUILD=$(BUILD) sh scripts/bench_textures.sh
 	BUILD=$(BUILD) sh scripts/bench_adaptive.sh
+	BUILD=$(BUILD) sh scripts/bench_materials.sh
 
 # Media: error against time for vpt and the photon method against an honest VPT reference
 # (docs/benchmarks.md); quick run: SCENES=fog_spot BUDGETS="2 6" REF_SPP=256 make bench-media
@@ -126,6 +127,11 @@ bench-media: all
 # quick run: SCENES="cornell_glass motion" TARGETS="0.05 0.02" REF_SPP=1024 make bench-adaptive
 bench-adaptive: all
 	BUILD=$(BUILD) sh scripts/bench_adaptive.sh
+
+# GGX sampling (visible normals against D cos) and the environment light (importance
+# against uniform) at equal CPU time (docs/benchmarks.md); quick run: REF_SPP=256 SEEDS=1 make bench-materials
+bench-materials: all
+	BUILD=$(BUILD) sh scripts/bench_materials.sh
 
 # Fuzz targets (libFuzzer, clang): make fuzz FUZZ_SECONDS=60 [FUZZ_ONLY="fuzz_nvdb ..."]
 FUZZ_SECONDS ?= 30

@@ -21,6 +21,12 @@ static vec3 emitted(const struct render_job *job, const struct surface *s, vec3 
     return job->scene->materials[s->material].emission;
 }
 
+/* The offset origin of a ray leaving s into the side opposite ng. */
+static vec3 behind(const struct surface *s, vec3 ng)
+{
+    return offset_ray_origin(v3_sub(s->p, v3_scale(ng, s->p_err)), v3_neg(ng));
+}
+
 static vec3 sample_path(const struct render_job *job, uint32_t pass, uint32_t px, uint32_t py, struct sampler smp,
                         uint64_t *rays, int *hit_any)
 {
@@ -46,8 +52,15 @@ static vec3 sample_path(const struct render_job *job, uint32_t pass, uint32_t px
     for (uint32_t vertex = 1;; vertex++) {
         struct accel_hit h;
         (*rays)++;
-        if (!accel_intersect(&job->accel, org, dir, INFINITY, time01, &h))
+        if (!accel_intersect(&job->accel, org, dir, INFINITY, time01, &h)) {
+            /* Escaped: the environment light, weighted against its light samples. */
+            if (sc->env) {
+                vec3 le = light_env_radiance(&job->lights, sc, dir);
+                float w = prev_delta ? 1.0f : power_heuristic(prev_pdf, light_env_pdf(&job->lights, sc, dir));
+                L = v3_add(L, v3_mul(beta, v3_scale(le, w)));
+            }
             break;
+        }
         if (vertex == 1)
             *hit_any = 1;
         struct surface s;
@@ -93,9 +106,10 @@ static vec3 sample_path(const struct render_job *job, uint32_t pass, uint32_t px
             float lu, lv;
             sampler_get_2d(&smp, d0 + DIM_LIGHT_U, &lu, &lv);
             struct nee_sample n;
-            if (nee_prepare(&job->lights, sc, mat, s.p, ns, ng, wo, sampler_get(&smp, d0 + DIM_LIGHT_PICK), lu, lv, &n)) {
+            if (nee_prepare(&job->lights, sc, mat, s.p, ns, ng, wo, front, 1, sampler_get(&smp, d0 + DIM_LIGHT_PICK), lu, lv, &n)) {
                 (*rays)++;
-                if (!accel_occluded(&job->accel, p_off, v3_sub(n.target, p_off), 1.0f - 0x1p-12f, time01)) {
+                vec3 o = n.transmitted ? behind(&s, ng) : p_off;
+                if (!accel_occluded(&job->accel, o, v3_sub(n.target, o), 1.0f - 0x1p-12f, time01)) {
                     float w = n.ls.is_delta ? 1.0f : power_heuristic(n.ls.pdf, n.bsdf_pdf);
                     L = v3_add(L, v3_mul(beta, v3_scale(v3_mul(n.f, n.ls.radiance), w / n.ls.pdf)));
                 }
@@ -127,7 +141,7 @@ static vec3 sample_path(const struct render_job *job, uint32_t pass, uint32_t px
         prev_p = s.p;
         prev_delta = bs.is_delta;
         /* A refracted ray leaves from the other side of the surface. */
-        org = bs.transmitted ? offset_ray_origin(v3_sub(s.p, v3_scale(ng, s.p_err)), v3_neg(ng)) : p_off;
+        org = bs.transmitted ? behind(&s, ng) : p_off;
         dir = bs.wi;
     }
     return L;

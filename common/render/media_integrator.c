@@ -466,8 +466,14 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
                     break;
             }
         }
-        if (!hit)
+        if (!hit) {
+            /* Escaped: the environment light, weighted as an emitter hit below is. */
+            if (sc->env && !v3_is_black(beta)) {
+                float w = prev_delta ? 1.0f : power_heuristic(prev_pdf, light_env_pdf(&job->lights, sc, dir));
+                L = v3_add(L, v3_mul(beta, v3_scale(light_env_radiance(&job->lights, sc, dir), w)));
+            }
             break;
+        }
         struct surface s;
         surface_from_hit(&job->accel, &job->lights, org, dir, &h, time01, &s);
         if (media_is_interface(job->media, s.material)) {
@@ -520,7 +526,7 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
                     continue;
                 vec3 wi = v3_scale(to, 1.0f / sqrtf(d2));
                 float bpdf;
-                vec3 f = v3_dot(wi, ng) > 0.0f ? material_eval(mat, ns, wo, wi, &bpdf) : v3(0, 0, 0);
+                vec3 f = v3_dot(wi, ng) > 0.0f ? material_eval(mat, ns, wo, wi, front, &bpdf) : v3(0, 0, 0);
                 vec3 rad = v3_scale(job->lights.entries[li].emission, light_spot_falloff(l, v3_neg(to)) / d2);
                 if (v3_is_black(f) || v3_is_black(rad))
                     continue;
@@ -530,7 +536,7 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
             }
         } else if (job->lights.num_entries > 0 && !material_is_delta(mat)) {
             struct nee_sample n;
-            if (nee_prepare(&job->lights, sc, mat, s.p, ns, ng, wo, rnd(&r, vertex, 2), rnd(&r, vertex, 3), rnd(&r, vertex, 4), &n)) {
+            if (nee_prepare(&job->lights, sc, mat, s.p, ns, ng, wo, front, 0, rnd(&r, vertex, 2), rnd(&r, vertex, 3), rnd(&r, vertex, 4), &n)) {
                 vec3 tr = media_shadow_transmittance(job->media, p_off, n.target, medium, time01,
                                                      rng_mix64(r.key ^ (0x5353ull << 48) ^ vertex), rays);
                 if (!v3_is_black(tr)) {
@@ -561,7 +567,7 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
             break;
         prev_pdf = bs.pdf;
         prev_p = s.p;
-        prev_delta = bs.is_delta;
+        prev_delta = bs.is_delta || bs.transmitted; /* NEE samples wo's side only (surface.h) */
         spread |= !bs.is_delta;
         /* Path-traced indirect light: after a non-delta bounce VPT covers all the light
          * arriving at this vertex (its medium's in-scattering by free flight, surfaces by

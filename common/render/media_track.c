@@ -188,6 +188,8 @@ struct media_job *media_job_new(const struct accel *a, const struct light_table 
                 v[k] = v3(m->positions[3 * idx[k]], m->positions[3 * idx[k] + 1], m->positions[3 * idx[k] + 2]);
             vec3 n = v3_normalize(v3_cross(v3_sub(v[1], v[0]), v3_sub(v[2], v[0])));
             p = offset_ray_origin(v3_scale(v3_add(v3_add(v[0], v[1]), v[2]), 1.0f / 3.0f), n);
+        } else if (e->kind == LK_ENV) {
+            p = v3_add(mj->bounds_hi, v3(size, size, size)); /* outside everything */
         } else {
             const struct sphere *s = &sc->spheres[e->index];
             p = v3_add(s->center, v3(0, s->radius * 1.001f, 0));

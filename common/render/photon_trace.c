@@ -3,6 +3,7 @@
  * lists that photon_map.c serialises. Photon i draws only from random numbers keyed by
  * (seed, frame, i), so the map is a pure function of the scene. Called by the master. */
 #include "render/photon_trace.h"
+#include "scene/envmap.h"
 #include "base/log.h"
 #include "base/rng.h"
 #include "render/media_track.h"
@@ -192,6 +193,22 @@ static int emit(const struct trace_ctx *tc, uint64_t key, vec3 *o, vec3 *d, vec3
         *power = v3_scale(e->emission, (float)M_PI * e->area / pick * tc->photon_scale);
         return 1;
     }
+    case LK_ENV: {
+        /* A direction w toward the sky by the light's own sampling, then a point on the
+         * disc of the scene's bounding sphere facing it: flux L(w) pi r^2 / pdf(w). */
+        float pdf;
+        vec3 w = envmap_sample(sc->env, u1, u2, &pdf);
+        if (!(pdf > 0.0f))
+            return 0;
+        vec3 t, b;
+        v3_basis(w, &t, &b);
+        float r = lt->env_radius * sqrtf(u3), sp, cp;
+        sincos_2pi(u4, &sp, &cp);
+        *o = v3_add(v3_add(lt->env_center, v3_scale(w, lt->env_radius)), v3_add(v3_scale(t, r * cp), v3_scale(b, r * sp)));
+        *d = v3_neg(w);
+        *power = v3_scale(envmap_eval(sc->env, w), e->area / (pdf * pick) * tc->photon_scale);
+        return 1;
+    }
     }
     return 0;
 }
@@ -283,7 +300,7 @@ static void trace_photon(const struct trace_ctx *tc, uint64_t index, struct phot
         if (bs.pdf <= 0.0f || (bs.transmitted ? side >= 0.0f : side <= 0.0f))
             return;
         /* Flux crosses an index change unscaled (the 1/eta^2 of bs.weight is for radiance). */
-        vec3 w = bs.transmitted ? mat->transmittance : bs.weight;
+        vec3 w = bs.transmitted && bs.is_delta ? mat->transmittance : v3_scale(bs.weight, 1.0f / bs.eta2);
         float q = fminf(1.0f, v3_max_component(w));
         if (!(q > 0.0f) || rng_uniform(key, dim + 7) >= q)
             return;

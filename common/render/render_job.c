@@ -17,7 +17,8 @@ static void mips_init(struct render_job *job)
     const struct scene *scene = job->scene;
     job->textured = 0;
     for (uint32_t i = 0; i < scene->num_materials; i++)
-        if (scene->materials[i].albedo_tex || scene->materials[i].bump_tex || scene->materials[i].normal_tex)
+        if (scene->materials[i].albedo_tex || scene->materials[i].bump_tex || scene->materials[i].normal_tex ||
+            scene->materials[i].roughness_tex)
             job->textured = 1;
     if (!job->textured || scene->num_textures == 0)
         return;

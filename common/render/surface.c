@@ -116,7 +116,7 @@ void surface_from_hit(const struct accel *acc, const struct light_table *lt, vec
 }
 
 int nee_prepare(const struct light_table *lt, const struct scene *sc, const struct material *mat, vec3 p, vec3 ns,
-                vec3 ng, vec3 wo, float pick, float u, float v, struct nee_sample *n)
+                vec3 ng, vec3 wo, int front, int through, float pick, float u, float v, struct nee_sample *n)
 {
     light_sample(lt, sc, p, pick, u, v, &n->ls);
     if (!(n->ls.pdf > 0.0f) || v3_is_black(n->ls.radiance))
@@ -124,7 +124,10 @@ int nee_prepare(const struct light_table *lt, const struct scene *sc, const stru
     vec3 to = v3_sub(n->ls.p, p);
     vec3 wi = v3_scale(to, 1.0f / v3_length(to));
     n->bsdf_pdf = 0.0f;
-    n->f = v3_dot(wi, ng) > 0.0f ? material_eval(mat, ns, wo, wi, &n->bsdf_pdf) : v3(0, 0, 0);
+    float side = v3_dot(wi, ng);
+    n->transmitted = side < 0.0f;
+    int ok = side > 0.0f || (through && side < 0.0f && mat->type == MATERIAL_DIELECTRIC);
+    n->f = ok ? material_eval(mat, ns, wo, wi, front, &n->bsdf_pdf) : v3(0, 0, 0);
     if (v3_is_black(n->f))
         return 0;
     const struct light_sample *ls = &n->ls;

@@ -29,14 +29,18 @@ void surface_from_hit(const struct accel *acc, const struct light_table *lt, vec
  * p (material mat, shading normal ns and geometric normal ng on wo's side): the sample, the
  * BSDF value f toward it (cosine included) and its pdf, and the point a shadow ray aims at
  * (off an area light's surface). 0 when no light can arrive that way. Visibility is the
- * caller's: an occlusion ray (integrator.c) or transmittance (media_integrator.c). */
+ * caller's: an occlusion ray (integrator.c) or transmittance (media_integrator.c). With
+ * `through`, a light point behind a rough dielectric is taken too (n->transmitted: the
+ * shadow ray leaves from the other side); without it only light on wo's side is sampled,
+ * and the caller gives transmitted BSDF samples full weight (no MIS partner). */
 struct nee_sample {
     struct light_sample ls;
     vec3 f, target;
     float bsdf_pdf;
+    int transmitted;
 };
 int nee_prepare(const struct light_table *lt, const struct scene *sc, const struct material *mat, vec3 p, vec3 ns,
-                vec3 ng, vec3 wo, float pick, float u, float v, struct nee_sample *n);
+                vec3 ng, vec3 wo, int front, int through, float pick, float u, float v, struct nee_sample *n);
 
 /* Power heuristic (beta = 2) of MIS between the strategies with pdfs a (the one taken) and b. */
 static inline float power_heuristic(float a, float b)

@@ -2,6 +2,7 @@
  * from the scene data as surface_from_hit does (rigid instances through Embree's
  * transform at the ray's time, deforming meshes from the blended time steps). */
 #include "render/texshade.h"
+#include "scene/microfacet.h"
 #include "base/log.h"
 #include "scene/motion.h"
 #include "scene/texture.h"
@@ -91,15 +92,23 @@ void texshade_hit(const struct render_job *job, vec3 org, vec3 dir, const struct
 const struct material *texshade_material(const struct render_job *job, const struct material *mat,
                                          const struct raydiff_hit *dh, struct material *buf)
 {
-    if (!mat->albedo_tex || mat->type != MATERIAL_DIFFUSE)
+    int albedo = mat->albedo_tex && (mat->type == MATERIAL_DIFFUSE || mat->type == MATERIAL_PLASTIC);
+    if (!albedo && !mat->roughness_tex)
         return mat;
-    uint32_t ti = mat->albedo_tex - 1;
-    const struct texture *t = &job->scene->textures[ti];
-    vec3 c = texture_eval(t, job->mips ? &job->mips[ti] : NULL, &dh->tc);
-    /* An albedo stays in [0, 1] whatever an HDR image holds. */
-    c = v3(fminf(fmaxf(c.x, 0.0f), 1.0f), fminf(fmaxf(c.y, 0.0f), 1.0f), fminf(fmaxf(c.z, 0.0f), 1.0f));
     *buf = *mat;
-    buf->albedo = v3_mul(mat->albedo, c);
+    if (albedo) {
+        uint32_t ti = mat->albedo_tex - 1;
+        vec3 c = texture_eval(&job->scene->textures[ti], job->mips ? &job->mips[ti] : NULL, &dh->tc);
+        /* An albedo stays in [0, 1] whatever an HDR image holds. */
+        c = v3(fminf(fmaxf(c.x, 0.0f), 1.0f), fminf(fmaxf(c.y, 0.0f), 1.0f), fminf(fmaxf(c.z, 0.0f), 1.0f));
+        buf->albedo = v3_mul(mat->albedo, c);
+    }
+    if (mat->roughness_tex) { /* the texture's first channel is the roughness, alpha = r^2 */
+        uint32_t ti = mat->roughness_tex - 1;
+        vec3 c = texture_eval(&job->scene->textures[ti], job->mips ? &job->mips[ti] : NULL, &dh->tc);
+        float r = fminf(fmaxf(c.x, 0.0f), 1.0f);
+        buf->alpha_x = buf->alpha_y = microfacet_alpha(r);
+    }
     return buf;
 }
 

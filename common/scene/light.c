@@ -3,6 +3,7 @@
  * when the shading point is inside), which is what light_pdf mirrors. */
 #include "scene/light.h"
 #include "base/log.h"
+#include "scene/envmap.h"
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -39,6 +40,8 @@ static double emitted_power(const struct light_entry *e)
     case LK_TRIANGLE:
     case LK_SPHERE:
         return M_PI * (double)e->area * le;
+    case LK_ENV:
+        return 4.0 * M_PI * (double)e->area * le; /* area: the disc, pi r^2; le: the mean radiance */
     }
     return 0.0;
 }
@@ -49,10 +52,40 @@ static void add_entry(struct light_table *t, size_t *cap, struct light_entry e)
     t->entries[t->num_entries++] = e;
 }
 
+/* The sphere around every vertex, sphere and light (radius at least 1e-3). */
+static void scene_sphere(const struct scene *s, vec3 *center, float *radius)
+{
+    vec3 lo = v3(INFINITY, INFINITY, INFINITY), hi = v3(-INFINITY, -INFINITY, -INFINITY);
+#define GROW(p) (lo = v3(fminf(lo.x, (p).x), fminf(lo.y, (p).y), fminf(lo.z, (p).z)), \
+                 hi = v3(fmaxf(hi.x, (p).x), fmaxf(hi.y, (p).y), fmaxf(hi.z, (p).z)))
+    for (uint32_t mi = 0; mi < s->num_meshes; mi++) {
+        const struct mesh *m = &s->meshes[mi];
+        const float *pos = m->num_frames > 1 && m->frame_positions ? m->frame_positions : m->positions;
+        size_t nv = (size_t)m->num_vertices * (m->num_frames > 1 && m->frame_positions ? m->num_frames : 1);
+        for (size_t k = 0; k < nv; k++)
+            GROW(v3(pos[3 * k], pos[3 * k + 1], pos[3 * k + 2]));
+    }
+    for (uint32_t i = 0; i < s->num_spheres; i++) {
+        vec3 c = s->spheres[i].center, r = v3(s->spheres[i].radius, s->spheres[i].radius, s->spheres[i].radius);
+        GROW(v3_add(c, r));
+        GROW(v3_sub(c, r));
+    }
+    for (uint32_t i = 0; i < s->num_lights; i++)
+        GROW(s->lights[i].position);
+    GROW(s->camera.position);
+#undef GROW
+    *center = v3_scale(v3_add(lo, hi), 0.5f);
+    float r = 0.5f * v3_length(v3_sub(hi, lo));
+    *radius = isfinite(r) && r > 1e-3f ? r : 1e-3f;
+    if (!v3_is_finite(*center))
+        *center = v3(0, 0, 0);
+}
+
 void light_table_init(struct light_table *t, const struct scene *s)
 {
     memset(t, 0, sizeof *t);
     size_t cap = 0;
+    t->env_entry = LIGHT_NONE;
     for (uint32_t i = 0; i < s->num_lights; i++) {
         const struct light *l = &s->lights[i];
         float omega = l->type == LIGHT_SPOT ? 2.0f * (float)M_PI * (1.0f - l->cos_outer) : 4.0f * (float)M_PI;
@@ -96,6 +129,12 @@ void light_table_init(struct light_table *t, const struct scene *s)
         float r = s->spheres[i].radius;
         t->sphere_light[i] = t->num_entries;
         add_entry(t, &cap, (struct light_entry){LK_SPHERE, i, 0, em, 4.0f * (float)M_PI * r * r});
+    }
+    if (s->env && s->env->marg_int > 0.0f && s->env->strength > 0.0f) {
+        scene_sphere(s, &t->env_center, &t->env_radius);
+        t->env_entry = t->num_entries;
+        float disc = (float)M_PI * t->env_radius * t->env_radius;
+        add_entry(t, &cap, (struct light_entry){LK_ENV, 0, 0, s->env->mean, disc});
     }
     if (t->num_entries == 0)
         return;
@@ -221,7 +260,33 @@ void light_sample(const struct light_table *t, const struct scene *s, vec3 ref, 
         out->radiance = out->pdf > 0.0f ? e->emission : v3(0, 0, 0);
         return;
     }
+    case LK_ENV: {
+        float pdf;
+        vec3 d = envmap_sample(s->env, u1, u2, &pdf);
+        if (!(pdf > 0.0f))
+            return;
+        /* A point beyond everything, seen from ref: the shadow ray crosses the whole scene. */
+        float far = v3_length(v3_sub(ref, t->env_center)) + 2.0f * t->env_radius;
+        out->p = v3_add(ref, v3_scale(d, far));
+        out->n = v3_neg(d);
+        out->pdf = pick_pdf * pdf;
+        out->radiance = envmap_eval(s->env, d);
+        return;
     }
+    }
+}
+
+vec3 light_env_radiance(const struct light_table *t, const struct scene *s, vec3 d)
+{
+    (void)t;
+    return s->env ? envmap_eval(s->env, d) : v3(0, 0, 0);
+}
+
+float light_env_pdf(const struct light_table *t, const struct scene *s, vec3 d)
+{
+    if (t->env_entry == LIGHT_NONE || !s->env)
+        return 0.0f;
+    return t->pick_pdf[t->env_entry] * envmap_pdf(s->env, d);
 }
 
 float light_pdf(const struct light_table *t, const struct scene *s, uint32_t entry, vec3 ref, vec3 p_light,
@@ -239,6 +304,8 @@ float light_pdf(const struct light_table *t, const struct scene *s, uint32_t ent
     switch (e->kind) {
     case LK_POINT:
         return 0.0f; /* cannot be hit by chance */
+    case LK_ENV:
+        return pick_pdf * envmap_pdf(s->env, v3_scale(d, 1.0f / sqrtf(d2)));
     case LK_TRIANGLE:
         if (cos_l <= 0.0f)
             return 0.0f; /* back side emits nothing */

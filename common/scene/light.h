@@ -4,7 +4,9 @@
  * of its right-handed normal (counter-clockwise winding seen from the front), a sphere
  * outwards. Also answers the pdf of hitting an emitter by chance, for MIS. Emitters on
  * moving geometry (keyframes or deformation frames) are left out: their position depends
- * on the ray time, so the integrator counts them when BSDF sampling hits them. */
+ * on the ray time, so the integrator counts them when BSDF sampling hits them. The
+ * environment (envmap.h) is one more entry, LK_ENV, picked by its power through a disc
+ * around the scene (pi r^2 times its integral over the sphere, as pbrt-v4 counts it). */
 #ifndef BRUME_LIGHT_H
 #define BRUME_LIGHT_H
 #include <stdint.h>
@@ -13,7 +15,7 @@
 
 #define LIGHT_NONE UINT32_MAX
 
-enum light_kind { LK_POINT, LK_TRIANGLE, LK_SPHERE };
+enum light_kind { LK_POINT, LK_TRIANGLE, LK_SPHERE, LK_ENV };
 
 struct light_entry {
     enum light_kind kind;
@@ -31,6 +33,12 @@ struct light_table {
     uint32_t **tri_light;       /* per mesh: per triangle entry index or LIGHT_NONE; NULL if none */
     uint32_t num_meshes;
     uint32_t *sphere_light;     /* per sphere, or NULL */
+    /* The environment light (scene.env): its entry or LIGHT_NONE, and the sphere bounding
+     * the scene's geometry and lights, which its samples are placed beyond and its photons
+     * are aimed at (through a disc of that radius, as pbrt does for infinite lights). */
+    uint32_t env_entry;
+    vec3 env_center;
+    float env_radius;
 };
 
 struct light_sample {
@@ -56,6 +64,11 @@ void light_sample(const struct light_table *t, const struct scene *s, vec3 ref, 
  * with light normal n_light on emitter `entry`, seen from ref. */
 float light_pdf(const struct light_table *t, const struct scene *s, uint32_t entry, vec3 ref, vec3 p_light,
                 vec3 n_light);
+
+/* The environment's radiance toward -d (d: a ray's direction that escaped the scene) and
+ * the solid-angle pdf, pick included, with which light_sample would have produced it. */
+vec3 light_env_radiance(const struct light_table *t, const struct scene *s, vec3 d);
+float light_env_pdf(const struct light_table *t, const struct scene *s, vec3 d);
 
 /* The entry whose CDF interval holds u in [0, 1) (never one of probability zero), for
  * callers that pick a light themselves (the media integrator, the photon pass). */

@@ -1,7 +1,9 @@
 /* BSDFs of the closed set of materials, dispatched by a switch on the type (hot path).
  * Directions are world-space unit vectors, wo toward the viewer, wi toward the light;
  * n is the shading normal on the side of wo. eval returns f * |cos(wi, n)|; delta BSDFs
- * (mirror, dielectric) evaluate to zero and are only sampled. Callers: integrator.c. */
+ * (smooth mirror, conductor and dielectric) evaluate to zero and are only sampled; rough
+ * ones are GGX microfacet lobes (material.c, microfacet.h). Callers: integrator.c,
+ * media_integrator.c, photon_trace.c, surface.c. */
 #ifndef BRUME_MATERIAL_H
 #define BRUME_MATERIAL_H
 #include "scene/scene.h"
@@ -13,16 +15,23 @@ struct bsdf_sample {
     float pdf;      /* solid angle; for a delta lobe the probability of picking it; 0 = no sample */
     int is_delta;   /* a single direction: no MIS, no light sampling */
     int transmitted; /* wi is on the other side of the surface than wo */
+    float eta2;     /* the radiance scale 1 / eta^2 in weight (1 unless transmitted): flux
+                     * (photons) crosses an index change without it */
 };
+
+/* Roughness below MICROFACET_SMOOTH_ALPHA: the smooth (delta) lobe. */
+int material_is_smooth(const struct material *m);
 
 static inline int material_is_delta(const struct material *m)
 {
-    return m->type == MATERIAL_MIRROR || m->type == MATERIAL_DIELECTRIC;
+    return (m->type == MATERIAL_MIRROR || m->type == MATERIAL_DIELECTRIC || m->type == MATERIAL_CONDUCTOR) &&
+           material_is_smooth(m);
 }
 
-vec3 material_eval(const struct material *m, vec3 n, vec3 wo, vec3 wi, float *pdf);
-/* front: wo is on the outside (the side the geometric normal points to); only dielectrics
- * care (it decides which index of refraction is on which side). */
+/* front: wo is on the outside (the side the geometric normal points to); dielectrics and
+ * plastic care (it decides which index of refraction is on which side). eval returns the
+ * reflection lobe when wi is on n's side, else the transmission lobe (rough dielectric). */
+vec3 material_eval(const struct material *m, vec3 n, vec3 wo, vec3 wi, int front, float *pdf);
 void material_sample(const struct material *m, vec3 n, vec3 wo, int front, float u1, float u2,
                      struct bsdf_sample *out);
 
@@ -33,5 +42,8 @@ float material_fresnel_dielectric(float cos_i, float eta);
 /* Refracts wo (unit, dot(wo, n) = cos_i >= 0) through n with eta as above; returns 0
  * under total internal reflection. */
 int material_refract(vec3 wo, vec3 n, float cos_i, float eta, vec3 *wt);
+/* Reflectance of a mirror (its constant reflectance) or a conductor (complex eta + i k,
+ * or Schlick with F0 = reflectance) at cos_i. */
+vec3 material_fresnel_conductor(const struct material *m, float cos_i);
 
 #endif

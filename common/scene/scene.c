@@ -4,6 +4,7 @@
 #include "scene/medium.h"
 #include "scene/motion.h"
 #include "scene/texture.h"
+#include "scene/envmap.h"
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -31,6 +32,7 @@ void scene_fini(struct scene *scene)
     for (uint32_t i = 0; i < scene->num_textures; i++)
         texture_fini(&scene->textures[i]);
     free(scene->textures);
+    envmap_free(&scene->env);
     memset(scene, 0, sizeof *scene);
 }
 
@@ -178,7 +180,12 @@ int scene_validate(const struct scene *s, char *err, size_t errlen)
             str_fmt(err, errlen, "material \"%s\": texture index out of range", m->name);
             return -1;
         }
-        if (m->type == MATERIAL_DIELECTRIC && !(m->ior > 0.0f && isfinite(m->ior))) {
+        if (m->roughness_tex > s->num_textures || !(m->alpha_x >= 0.0f && m->alpha_x <= 1.0f) ||
+            !(m->alpha_y >= 0.0f && m->alpha_y <= 1.0f) || !finite3(m->eta) || !finite3(m->k)) {
+            str_fmt(err, errlen, "material \"%s\": roughness must be in [0, 1], eta and k finite", m->name);
+            return -1;
+        }
+        if ((m->type == MATERIAL_DIELECTRIC || m->type == MATERIAL_PLASTIC) && !(m->ior > 0.0f && isfinite(m->ior))) {
             str_fmt(err, errlen, "material \"%s\": ior must be > 0 and finite", m->name);
             return -1;
         }

@@ -13,19 +13,29 @@
 
 struct scene_media;
 
-/* Diffuse is the only non-delta BSDF; mirror and dielectric scatter into single
- * directions (delta BSDFs: no light sampling at their vertices, see integrator.c). */
-enum material_type { MATERIAL_DIFFUSE, MATERIAL_MIRROR, MATERIAL_DIELECTRIC };
+/* Mirror, conductor and dielectric are delta BSDFs when smooth (alpha below
+ * MICROFACET_SMOOTH_ALPHA, microfacet.h: no light sampling at their vertices, see
+ * integrator.c) and GGX microfacet BSDFs when rough; plastic is a dielectric coat over
+ * Lambert, never delta (material.c). */
+enum material_type { MATERIAL_DIFFUSE, MATERIAL_MIRROR, MATERIAL_DIELECTRIC, MATERIAL_CONDUCTOR, MATERIAL_PLASTIC };
 
 struct material {
     char name[SCENE_NAME_MAX];
     enum material_type type;
-    vec3 albedo;   /* diffuse reflectance, each channel in [0, 1] */
+    vec3 albedo;   /* diffuse and plastic: diffuse reflectance, each channel in [0, 1] */
     vec3 emission; /* emitted radiance (W / sr / m^2), >= 0; non-zero makes the surface a light */
-    vec3 reflectance;   /* mirror: reflectance per channel in [0, 1] */
+    vec3 reflectance;   /* mirror: reflectance per channel in [0, 1]; conductor with schlick:
+                         * reflectance at normal incidence */
     vec3 transmittance; /* dielectric: tint of refracted light per channel in [0, 1] */
-    float ior;          /* dielectric: index of refraction inside / outside (the side the
-                         * geometric normal points to is outside) */
+    float ior;          /* dielectric, plastic: index of refraction inside / outside (the side
+                         * the geometric normal points to is outside) */
+    float alpha_x, alpha_y; /* mirror, conductor, dielectric, plastic: GGX widths along the
+                             * shading frame's axes (v3_basis of the normal); 0 = smooth */
+    vec3 eta, k;        /* conductor: complex index of refraction per channel */
+    int schlick;        /* conductor: Schlick's Fresnel with F0 = reflectance, not eta and k */
+    int sample_all;     /* GGX lobes: sample D cos (all normals), not the visible normals */
+    uint32_t roughness_tex; /* microfacet types: 1 + texture index; its value r sets
+                             * alpha_x = alpha_y = r^2; 0 = none */
     uint32_t albedo_tex; /* diffuse: 1 + index into scene.textures (albedo multiplies it); 0 = none */
     uint32_t bump_tex;   /* any type: 1 + index of a height texture perturbing the shading normal; 0 = none */
     float bump_scale;    /* height units per texture value (in scene units) */
@@ -121,6 +131,7 @@ struct render_settings {
 };
 
 struct texture; /* texture.h */
+struct environment; /* envmap.h */
 
 struct scene {
     /* World position of the render frame's (0, 0, 0): the camera's position (its first
@@ -142,6 +153,7 @@ struct scene {
     struct scene_media *media;  /* participating media (medium.h); NULL when the scene has none */
     struct texture *textures;   /* texture.h; referenced by materials */
     uint32_t num_textures;
+    struct environment *env;    /* envmap.h: the environment light, or NULL */
 };
 
 /* Frees everything the scene owns and zeroes it. Safe on a zeroed scene. */

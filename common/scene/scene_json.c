@@ -15,6 +15,8 @@
 #include "scene/sampler.h"
 #include "image/image_load.h"
 #include "scene/texture.h"
+#include "scene/envmap.h"
+#include "scene/microfacet.h"
 #include <float.h>
 #include <jansson.h>
 #include <math.h>
@@ -607,15 +609,59 @@ static int parse_textures(struct ctx *c, const struct member *tm)
     return 0;
 }
 
+/* The texture named by member m's string into *slot (1 + index). */
+static int find_texture(struct ctx *c, const struct member *m, const char *key, uint32_t *slot)
+{
+    const char *tname = NULL;
+    if (get_string(c, m, key, &tname) != 0)
+        return -1;
+    for (uint32_t t = 0; t < c->scene->num_textures && !*slot; t++)
+        if (strcmp(c->scene->textures[t].name, tname) == 0)
+            *slot = t + 1;
+    if (!*slot) {
+        char tb[80];
+        return fail(c, &m->path, AT_VALUE, "unknown texture \"%s\" (not in \"textures\")", printable(tname, tb, sizeof tb));
+    }
+    return 0;
+}
+
+/* A roughness in [0, 1] from member m (a number). */
+static int get_roughness(struct ctx *c, const struct member *m, const char *key, float *out)
+{
+    if (get_float(c, m->val, &m->path, key, out) != 0)
+        return -1;
+    if (!(*out >= 0.0f && *out <= 1.0f))
+        return fail(c, &m->path, AT_VALUE, "%s must be in [0, 1]", key);
+    return 0;
+}
+
 static int parse_materials(struct ctx *c, const struct member *mm)
 {
     if (!json_is_object(mm->val))
         return fail(c, &mm->path, AT_VALUE, "materials must be an object (name -> material)");
     /* One closed list for all types; which keys a type takes is checked below. */
-    static const char *const keys[] = {"type", "albedo", "emission", "reflectance", "ior", "transmittance",
-                                       "albedo_texture", "bump_texture", "bump_scale", "normal_texture"};
-    static const char *const type_names[] = {"diffuse", "mirror", "dielectric"};
-    static const char *const type_keys[] = {"albedo", "reflectance", "ior, transmittance"};
+    enum { K_TYPE, K_ALBEDO, K_EMISSION, K_REFL, K_IOR, K_TRANS, K_ALBEDO_TEX, K_BUMP_TEX, K_BUMP_SCALE, K_NORMAL_TEX,
+           K_ROUGH, K_UROUGH, K_VROUGH, K_ETA, K_K, K_VISIBLE, K_N };
+    static const char *const keys[K_N] = {"type", "albedo", "emission", "reflectance", "ior", "transmittance",
+                                          "albedo_texture", "bump_texture", "bump_scale", "normal_texture",
+                                          "roughness", "uroughness", "vroughness", "eta", "k", "sample_visible"};
+    enum { T_DIFFUSE, T_MIRROR, T_DIELECTRIC, T_CONDUCTOR, T_PLASTIC, T_COATED, T_N };
+    static const char *const type_names[T_N] = {"diffuse", "mirror", "dielectric", "conductor", "plastic",
+                                                "coateddiffuse"};
+    static const enum material_type type_of[T_N] = {MATERIAL_DIFFUSE, MATERIAL_MIRROR, MATERIAL_DIELECTRIC,
+                                                    MATERIAL_CONDUCTOR, MATERIAL_PLASTIC, MATERIAL_PLASTIC};
+    static const char *const type_keys[T_N] = {
+        "albedo, albedo_texture",
+        "reflectance, roughness, uroughness, vroughness, sample_visible",
+        "ior, transmittance, roughness, uroughness, vroughness, sample_visible",
+        "eta, k, reflectance, roughness, uroughness, vroughness, sample_visible",
+        "albedo, albedo_texture, ior, roughness, uroughness, vroughness, sample_visible",
+        "albedo, albedo_texture, ior, roughness, uroughness, vroughness, sample_visible"};
+    /* Per key, the material types (bits of enum material_type) it applies to; 0 = any. */
+    const unsigned D = 1u << MATERIAL_DIFFUSE, M = 1u << MATERIAL_MIRROR, G = 1u << MATERIAL_DIELECTRIC,
+                   C = 1u << MATERIAL_CONDUCTOR, P = 1u << MATERIAL_PLASTIC;
+    const unsigned key_types[K_N] = {0, D | P, 0, M | C, G | P, G, D | P, 0, 0, 0,
+                                     M | G | C | P, M | G | C | P, M | G | C | P, C, C, M | G | C | P};
     const char *name = NULL;
     json_t *def;
     uint32_t ordinal = 0;
@@ -627,93 +673,107 @@ static int parse_materials(struct ctx *c, const struct member *mm)
             return fail(c, &p, AT_KEY, "material name must be 1 to %d bytes long", SCENE_NAME_MAX - 1);
         char what[160];
         str_fmt(what, sizeof what, "material \"%s\"", printable(name, nb, sizeof nb));
-        struct member m[10];
+        struct member m[K_N];
         const char *type = NULL;
-        if (object_members(c, def, &p, what, keys, 10, m) != 0 || require(c, &m[0], &p, what, "type") != 0 ||
-            get_string(c, &m[0], "type", &type) != 0)
+        if (object_members(c, def, &p, what, keys, K_N, m) != 0 || require(c, &m[K_TYPE], &p, what, "type") != 0 ||
+            get_string(c, &m[K_TYPE], "type", &type) != 0)
             return -1;
         int ti = 0;
-        while (ti < 3 && strcmp(type, type_names[ti]) != 0)
+        while (ti < T_N && strcmp(type, type_names[ti]) != 0)
             ti++;
-        if (ti == 3) {
+        if (ti == T_N) {
             char tb[80];
-            return fail(c, &m[0].path, AT_VALUE, "unknown material type \"%s\" (known: diffuse, mirror, dielectric)",
+            return fail(c, &m[K_TYPE].path, AT_VALUE,
+                        "unknown material type \"%s\" (known: diffuse, mirror, dielectric, conductor, plastic, "
+                        "coateddiffuse)",
                         printable(type, tb, sizeof tb));
         }
-        /* Key k (1..5) belongs to: albedo diffuse, emission any, reflectance mirror,
-         * ior and transmittance dielectric. */
-        static const int key_type[6] = {-1, 0, -1, 1, 2, 2};
-        for (int k = 1; k < 6; k++)
-            if (m[k].val && key_type[k] >= 0 && key_type[k] != ti)
-                return fail(c, &m[k].path, AT_KEY, "key \"%s\" does not apply to a %s material (its keys: %s, emission)",
+        enum material_type mt = type_of[ti];
+        for (int k = 1; k < K_N; k++)
+            if (m[k].val && key_types[k] && !(key_types[k] & (1u << mt)))
+                return fail(c, &m[k].path, AT_KEY, "key \"%s\" does not apply to a %s material (its keys: %s, emission, "
+                            "bump_texture, bump_scale, normal_texture)",
                             keys[k], type_names[ti], type_keys[ti]);
         struct material mat;
         memset(&mat, 0, sizeof mat);
         memcpy(mat.name, name, n + 1);
-        mat.type = ti == 0 ? MATERIAL_DIFFUSE : ti == 1 ? MATERIAL_MIRROR : MATERIAL_DIELECTRIC;
+        mat.type = mt;
         mat.albedo = v3(0.8f, 0.8f, 0.8f);
         mat.emission = v3(0, 0, 0);
         mat.reflectance = v3(1, 1, 1);
         mat.transmittance = v3(1, 1, 1);
         mat.ior = 1.5f;
-        if (m[3].val && (get_vec3(c, m[3].val, &m[3].path, "reflectance", &mat.reflectance) != 0 ||
-                         check_color(c, &m[3], "reflectance", 0.0f, 1.0f, mat.reflectance) != 0))
+        /* Copper (pbrt-v4's default conductor, its spectra at 650, 550 and 450 nm). */
+        mat.eta = v3(0.200f, 0.924f, 1.102f);
+        mat.k = v3(3.912f, 2.452f, 2.142f);
+        if (m[K_REFL].val && (get_vec3(c, m[K_REFL].val, &m[K_REFL].path, "reflectance", &mat.reflectance) != 0 ||
+                              check_color(c, &m[K_REFL], "reflectance", 0.0f, 1.0f, mat.reflectance) != 0))
             return -1;
-        if (m[5].val && (get_vec3(c, m[5].val, &m[5].path, "transmittance", &mat.transmittance) != 0 ||
-                         check_color(c, &m[5], "transmittance", 0.0f, 1.0f, mat.transmittance) != 0))
+        if (mt == MATERIAL_CONDUCTOR) {
+            if (m[K_REFL].val && (m[K_ETA].val || m[K_K].val))
+                return fail(c, &m[K_REFL].path, AT_KEY, "%s: give \"reflectance\" or \"eta\" and \"k\", not both", what);
+            mat.schlick = m[K_REFL].val != NULL;
+            if (m[K_ETA].val && (get_vec3(c, m[K_ETA].val, &m[K_ETA].path, "eta", &mat.eta) != 0 ||
+                                 check_color(c, &m[K_ETA], "eta", 1e-3f, 100.0f, mat.eta) != 0))
+                return -1;
+            if (m[K_K].val && (get_vec3(c, m[K_K].val, &m[K_K].path, "k", &mat.k) != 0 ||
+                               check_color(c, &m[K_K], "k", 0.0f, 100.0f, mat.k) != 0))
+                return -1;
+        }
+        if (m[K_TRANS].val && (get_vec3(c, m[K_TRANS].val, &m[K_TRANS].path, "transmittance", &mat.transmittance) != 0 ||
+                               check_color(c, &m[K_TRANS], "transmittance", 0.0f, 1.0f, mat.transmittance) != 0))
             return -1;
-        if (m[4].val) {
-            if (get_float(c, m[4].val, &m[4].path, "ior", &mat.ior) != 0)
+        if (m[K_IOR].val) {
+            if (get_float(c, m[K_IOR].val, &m[K_IOR].path, "ior", &mat.ior) != 0)
                 return -1;
             if (!(mat.ior >= 1.0f / 16.0f && mat.ior <= 16.0f))
-                return fail(c, &m[4].path, AT_VALUE, "ior must be in [0.0625, 16] (inside / outside)");
+                return fail(c, &m[K_IOR].path, AT_VALUE, "ior must be in [0.0625, 16] (inside / outside)");
         }
-        if (m[6].val) { /* a texture's albedo is multiplied by "albedo" (default white) */
-            if (ti != 0)
-                return fail(c, &m[6].path, AT_KEY, "albedo_texture applies to diffuse materials only");
-            const char *tname = NULL;
-            if (get_string(c, &m[6], "albedo_texture", &tname) != 0)
+        float rough = 0.0f, ur, vr;
+        if (m[K_ROUGH].val && json_is_string(m[K_ROUGH].val)) {
+            if (m[K_UROUGH].val || m[K_VROUGH].val)
+                return fail(c, &m[K_ROUGH].path, AT_VALUE, "%s: a roughness texture excludes uroughness and vroughness", what);
+            if (find_texture(c, &m[K_ROUGH], "roughness", &mat.roughness_tex) != 0)
                 return -1;
-            for (uint32_t t = 0; t < c->scene->num_textures && !mat.albedo_tex; t++)
-                if (strcmp(c->scene->textures[t].name, tname) == 0)
-                    mat.albedo_tex = t + 1;
-            if (!mat.albedo_tex) {
-                char tb[80];
-                return fail(c, &m[6].path, AT_VALUE, "unknown texture \"%s\" (not in \"textures\")",
-                            printable(tname, tb, sizeof tb));
-            }
+            rough = 1.0f;
+        } else if (m[K_ROUGH].val && get_roughness(c, &m[K_ROUGH], "roughness", &rough) != 0) {
+            return -1;
+        }
+        ur = vr = rough;
+        if (m[K_UROUGH].val && get_roughness(c, &m[K_UROUGH], "uroughness", &ur) != 0)
+            return -1;
+        if (m[K_VROUGH].val && get_roughness(c, &m[K_VROUGH], "vroughness", &vr) != 0)
+            return -1;
+        mat.alpha_x = microfacet_alpha(ur);
+        mat.alpha_y = microfacet_alpha(vr);
+        if (m[K_VISIBLE].val) {
+            if (!json_is_boolean(m[K_VISIBLE].val))
+                return fail(c, &m[K_VISIBLE].path, AT_VALUE, "sample_visible must be true or false");
+            mat.sample_all = !json_is_true(m[K_VISIBLE].val);
+        }
+        if (m[K_ALBEDO_TEX].val) { /* a texture's albedo is multiplied by "albedo" (default white) */
+            if (find_texture(c, &m[K_ALBEDO_TEX], "albedo_texture", &mat.albedo_tex) != 0)
+                return -1;
             mat.albedo = v3(1, 1, 1);
         }
         mat.bump_scale = 1.0f;
-        for (int k = 7; k <= 9; k += 2) { /* a height map or a normal map, for any material type */
-            if (!m[k].val)
-                continue;
-            const char *tname = NULL;
-            uint32_t *slot = k == 7 ? &mat.bump_tex : &mat.normal_tex;
-            if (get_string(c, &m[k], keys[k], &tname) != 0)
-                return -1;
-            for (uint32_t t = 0; t < c->scene->num_textures && !*slot; t++)
-                if (strcmp(c->scene->textures[t].name, tname) == 0)
-                    *slot = t + 1;
-            if (!*slot) {
-                char tb[80];
-                return fail(c, &m[k].path, AT_VALUE, "unknown texture \"%s\" (not in \"textures\")",
-                            printable(tname, tb, sizeof tb));
-            }
-        }
-        if (m[8].val) {
-            if (!m[7].val)
-                return fail(c, &m[8].path, AT_KEY, "bump_scale needs \"bump_texture\"");
-            if (get_float(c, m[8].val, &m[8].path, "bump_scale", &mat.bump_scale) != 0)
+        if (m[K_BUMP_TEX].val && find_texture(c, &m[K_BUMP_TEX], "bump_texture", &mat.bump_tex) != 0)
+            return -1;
+        if (m[K_NORMAL_TEX].val && find_texture(c, &m[K_NORMAL_TEX], "normal_texture", &mat.normal_tex) != 0)
+            return -1;
+        if (m[K_BUMP_SCALE].val) {
+            if (!m[K_BUMP_TEX].val)
+                return fail(c, &m[K_BUMP_SCALE].path, AT_KEY, "bump_scale needs \"bump_texture\"");
+            if (get_float(c, m[K_BUMP_SCALE].val, &m[K_BUMP_SCALE].path, "bump_scale", &mat.bump_scale) != 0)
                 return -1;
             if (!(fabsf(mat.bump_scale) <= 1e6f))
-                return fail(c, &m[8].path, AT_VALUE, "bump_scale must be in [-1e6, 1e6]");
+                return fail(c, &m[K_BUMP_SCALE].path, AT_VALUE, "bump_scale must be in [-1e6, 1e6]");
         }
-        if (m[1].val && (get_vec3(c, m[1].val, &m[1].path, "albedo", &mat.albedo) != 0 ||
-                         check_color(c, &m[1], "albedo", 0.0f, 1.0f, mat.albedo) != 0))
+        if (m[K_ALBEDO].val && (get_vec3(c, m[K_ALBEDO].val, &m[K_ALBEDO].path, "albedo", &mat.albedo) != 0 ||
+                                check_color(c, &m[K_ALBEDO], "albedo", 0.0f, 1.0f, mat.albedo) != 0))
             return -1;
-        if (m[2].val && (get_vec3(c, m[2].val, &m[2].path, "emission", &mat.emission) != 0 ||
-                         check_color(c, &m[2], "emission", 0.0f, FLT_MAX, mat.emission) != 0))
+        if (m[K_EMISSION].val && (get_vec3(c, m[K_EMISSION].val, &m[K_EMISSION].path, "emission", &mat.emission) != 0 ||
+                                  check_color(c, &m[K_EMISSION], "emission", 0.0f, FLT_MAX, mat.emission) != 0))
             return -1;
         scene_add_material(c->scene, &mat);
         c->num_json_materials++;
@@ -1605,6 +1665,67 @@ static int parse_spot(struct ctx *c, json_t *obj, const struct jpath *p, const c
     return 0;
 }
 
+/* The environment light: a lat-long image (any texture format image_load reads, linear
+ * RGB; 8-bit files as sRGB) with strength and rotation (envmap.h). */
+static int parse_environment(struct ctx *c, json_t *obj, const struct jpath *p, const char *what)
+{
+    enum { E_TYPE, E_FILE, E_STRENGTH, E_ROTATION, E_SAMPLING, E_N };
+    static const char *const keys[E_N] = {"type", "file", "strength", "rotation", "sampling"};
+    struct member m[E_N];
+    if (object_members(c, obj, p, what, keys, E_N, m) != 0 || require(c, &m[E_FILE], p, what, "file") != 0)
+        return -1;
+    if (c->scene->env)
+        return fail(c, &m[E_TYPE].path, AT_VALUE, "%s: only one environment light is allowed", what);
+    float strength = 1.0f, rotation = 0.0f;
+    if (m[E_STRENGTH].val) {
+        if (get_float(c, m[E_STRENGTH].val, &m[E_STRENGTH].path, "strength", &strength) != 0)
+            return -1;
+        if (!(strength >= 0.0f && strength <= 1e12f))
+            return fail(c, &m[E_STRENGTH].path, AT_VALUE, "strength must be in [0, 1e12]");
+    }
+    if (m[E_ROTATION].val) {
+        if (get_float(c, m[E_ROTATION].val, &m[E_ROTATION].path, "rotation", &rotation) != 0)
+            return -1;
+        if (!(fabsf(rotation) <= 3600.0f))
+            return fail(c, &m[E_ROTATION].path, AT_VALUE, "rotation (degrees about +y) must be in [-3600, 3600]");
+    }
+    int uniform = 0;
+    if (m[E_SAMPLING].val) {
+        const char *smp = NULL;
+        if (get_string(c, &m[E_SAMPLING], "sampling", &smp) != 0)
+            return -1;
+        if (strcmp(smp, "uniform") == 0)
+            uniform = 1;
+        else if (strcmp(smp, "importance") != 0)
+            return fail(c, &m[E_SAMPLING].path, AT_VALUE, "sampling must be \"importance\" or \"uniform\"");
+    }
+    const char *file = NULL;
+    if (get_string(c, &m[E_FILE], "file", &file) != 0)
+        return -1;
+    if (!c->src)
+        return fail(c, &m[E_FILE].path, AT_VALUE, "cannot read image \"%s\": no asset source", file);
+    char display[2048], why[512];
+    str_fmt(display, sizeof display, "%s%s", c->display_dir, file);
+    struct tex_image img;
+    if (image_load_asset(c->src, file, display, 1, &img, why, sizeof why) != 0)
+        return fail(c, &m[E_FILE].path, AT_VALUE, "cannot load image: %s", why);
+    size_t np = (size_t)img.width * img.height;
+    float *rgb = mem_alloc(sizeof(float) * 3 * np);
+    for (size_t i = 0; i < np; i++)
+        for (int k = 0; k < 3; k++) {
+            size_t j = i * img.channels + (img.channels == 3 ? (size_t)k : 0);
+            float v = img.format == TEXEL_F32 ? ((const float *)img.data)[j]
+                      : img.format == TEXEL_U8_SRGB ? mip_srgb_to_linear(((const uint8_t *)img.data)[j] / 255.0f)
+                                                    : ((const uint8_t *)img.data)[j] / 255.0f;
+            rgb[3 * i + k] = isfinite(v) && v > 0.0f ? fminf(v, 1e30f) : 0.0f;
+        }
+    uint32_t w = img.width, h = img.height;
+    tex_image_fini(&img);
+    c->scene->env = envmap_new(rgb, w, h, strength, rotation);
+    c->scene->env->uniform = uniform;
+    return 0;
+}
+
 static int parse_lights(struct ctx *c, const struct member *lm)
 {
     if (!json_is_array(lm->val))
@@ -1626,10 +1747,15 @@ static int parse_lights(struct ctx *c, const struct member *lm)
                 return -1;
             continue;
         }
+        if (strcmp(type, "environment") == 0) {
+            if (parse_environment(c, obj, &p, what) != 0)
+                return -1;
+            continue;
+        }
         if (strcmp(type, "point") != 0) {
             char tb[80];
             return fail(c, &tm.path, AT_VALUE,
-                        "unknown light type \"%s\" (known: point, spot; area lights are emissive materials)",
+                        "unknown light type \"%s\" (known: point, spot, environment; area lights are emissive materials)",
                         printable(type, tb, sizeof tb));
         }
         struct member m[3];

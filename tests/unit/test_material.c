@@ -126,7 +126,7 @@ Test(material, mirror_reflects_with_its_reflectance)
     cr_assert_float_eq(bs.wi.z, -wo.z, 1e-6f);
     cr_assert_eq(bs.weight.y, 0.5f);
     float pdf;
-    vec3 f = material_eval(&m, n, wo, bs.wi, &pdf);
+    vec3 f = material_eval(&m, n, wo, bs.wi, 1, &pdf);
     cr_assert(v3_is_black(f) && pdf == 0.0f);
     /* Grazing and below-surface outgoing directions give no sample and no NaN. */
     material_sample(&m, n, v3(1, 0, 0), 1, 0.3f, 0.7f, &bs);
@@ -236,5 +236,34 @@ Test(material, white_furnace_grazing_glass_slab)
     s.camera = (struct camera_desc){.position = v3(0, 0.1001f, 4.9f), .look_at = v3(0, 0.1f, -5), .up = v3(0, 1, 0),
                                     .fov_y_deg = 2.0f};
     furnace_check(&s);
+    scene_fini(&s);
+}
+
+/* Rough lobes in the furnace: a frosted glass sphere, a rough mirror and a plastic ball
+ * (albedo 1) inside the emitting box. Single-scattering GGX loses energy (about 1% per
+ * bounce at roughness 0.3, test_microfacet.c), so the image lies just below 1, never above. */
+Test(material, white_furnace_rough_lobes)
+{
+    struct scene s;
+    furnace_setup(&s, 32);
+    uint32_t glass = add_mat(&s, MATERIAL_DIELECTRIC, v3(0, 0, 0)), mirror = add_mat(&s, MATERIAL_MIRROR, v3(0, 0, 0));
+    uint32_t plastic = add_mat(&s, MATERIAL_PLASTIC, v3(0, 0, 0));
+    s.materials[glass].alpha_x = s.materials[glass].alpha_y = 0.09f;
+    s.materials[mirror].alpha_x = 0.09f;
+    s.materials[mirror].alpha_y = 0.01f;
+    s.materials[plastic].alpha_x = s.materials[plastic].alpha_y = 0.04f;
+    s.materials[plastic].albedo = v3(1, 1, 1);
+    struct sphere a = {"frosted", v3(-1, 0, -3), 1.0f, glass, NULL, 0}, b = {"rough mirror", v3(1.2f, 0.8f, -3.5f), 0.8f, mirror, NULL, 0},
+                  c = {"plastic", v3(1, -1, -3), 0.6f, plastic, NULL, 0};
+    scene_add_sphere(&s, &a);
+    scene_add_sphere(&s, &b);
+    scene_add_sphere(&s, &c);
+    s.camera = (struct camera_desc){.position = v3(0, 0, 0), .look_at = v3(0, 0, -3), .up = v3(0, 1, 0), .fov_y_deg = 60.0f};
+    struct tile_stats st;
+    float *px = test_render(&s, 2, &st);
+    double se, mean = test_channel_mean(px, s.settings.width, s.settings.height, CH_G, &se);
+    cr_assert_eq(st.nan_samples, 0);
+    cr_assert(mean <= 1.0 + 4.0 * se + 1e-3 && mean > 0.95, "furnace mean %.5f (stderr %.2g)", mean, se);
+    free(px);
     scene_fini(&s);
 }

@@ -1040,7 +1040,7 @@ Test(texture_scene, errors_name_line_and_column)
                        "scenes/t.json:4:58: unknown texture \"nope\"");
     expect_scene_error(SCENE_HEAD "\"textures\": {\"c\": {\"type\": \"checker\"}},\n"
                                   "\"materials\": {\"m\": {\"type\": \"mirror\", \"albedo_texture\": \"c\"}}}",
-                       "scenes/t.json:5:39: albedo_texture applies to diffuse materials only");
+                       "scenes/t.json:5:39: key \"albedo_texture\" does not apply to a mirror material");
     expect_scene_error(SCENE_HEAD "\"materials\": {\"m\": {\"type\": \"mirror\", \"bump_scale\": 2}}}",
                        "scenes/t.json:4:39: bump_scale needs \"bump_texture\"");
     expect_scene_error(SCENE_HEAD "\"materials\": {\"m\": {\"type\": \"mirror\", \"bump_texture\": \"x\"}}}",

@@ -1,0 +1,170 @@
+/* The environment light's map and its sampling distribution (see envmap.h). */
+#include "scene/envmap.h"
+#include "base/log.h"
+#include <math.h>
+#include <stdlib.h>
+
+static float lum(const float *c)
+{
+    return 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2];
+}
+
+/* The cell i with cdf[i] <= u < cdf[i + 1] among n cells, skipping empty ones. */
+static uint32_t find_cell(const float *cdf, uint32_t n, float u)
+{
+    uint32_t lo = 0, hi = n;
+    while (hi - lo > 1) {
+        uint32_t mid = (lo + hi) / 2;
+        if (cdf[mid] <= u)
+            lo = mid;
+        else
+            hi = mid;
+    }
+    while (lo + 1 < n && cdf[lo + 1] <= cdf[lo])
+        lo++;
+    return lo;
+}
+
+struct environment *envmap_new(float *rgb, uint32_t width, uint32_t height, float strength, float rotation)
+{
+    struct environment *e = mem_calloc(1, sizeof *e);
+    e->rgb = rgb;
+    e->width = width;
+    e->height = height;
+    e->strength = strength;
+    e->rotation = rotation;
+    e->cond_cdf = mem_alloc(sizeof(float) * (size_t)height * (width + 1));
+    e->cond_int = mem_alloc(sizeof(float) * height);
+    e->marg_cdf = mem_alloc(sizeof(float) * (height + 1));
+    double mean[3] = {0, 0, 0}, marg = 0.0;
+    double *row_int = mem_alloc(sizeof(double) * height);
+    for (uint32_t y = 0; y < height; y++) {
+        double st = sin(M_PI * (y + 0.5) / height), acc = 0.0;
+        float *cdf = &e->cond_cdf[(size_t)y * (width + 1)];
+        cdf[0] = 0.0f;
+        for (uint32_t x = 0; x < width; x++) {
+            const float *c = &rgb[3 * ((size_t)y * width + x)];
+            acc += (double)fmaxf(0.0f, lum(c)) * st / width;
+            for (int k = 0; k < 3; k++)
+                mean[k] += (double)c[k] * st;
+            cdf[x + 1] = (float)acc;
+        }
+        for (uint32_t x = 1; x <= width; x++)
+            cdf[x] = acc > 0.0 ? (float)(cdf[x] / acc) : (float)x / width;
+        cdf[width] = 1.0f;
+        e->cond_int[y] = (float)acc;
+        row_int[y] = acc;
+        marg += acc / height;
+    }
+    double acc = 0.0;
+    e->marg_cdf[0] = 0.0f;
+    for (uint32_t y = 0; y < height; y++) {
+        acc += row_int[y] / height;
+        e->marg_cdf[y + 1] = marg > 0.0 ? (float)(acc / marg) : (float)(y + 1) / height;
+    }
+    e->marg_cdf[height] = 1.0f;
+    e->marg_int = (float)marg;
+    free(row_int);
+    /* Solid-angle mean: sum of L sin(theta) dtheta dphi / 4 pi, with sum of sin over rows ~ 2 h / pi. */
+    double wsum = 0.0;
+    for (uint32_t y = 0; y < height; y++)
+        wsum += sin(M_PI * (y + 0.5) / height) * width;
+    e->mean = v3((float)(mean[0] / wsum * strength), (float)(mean[1] / wsum * strength), (float)(mean[2] / wsum * strength));
+    return e;
+}
+
+void envmap_free(struct environment **pe)
+{
+    struct environment *e = *pe;
+    if (!e)
+        return;
+    free(e->rgb);
+    free(e->cond_cdf);
+    free(e->cond_int);
+    free(e->marg_cdf);
+    free(e);
+    *pe = NULL;
+}
+
+static void dir_to_uv(const struct environment *e, vec3 d, float *u, float *v)
+{
+    float phi = atan2f(d.z, d.x) - e->rotation * (float)(M_PI / 180.0);
+    float uu = phi * (float)(0.5 * M_1_PI);
+    uu -= floorf(uu);
+    *u = uu < 1.0f ? uu : 0.0f;
+    float vv = acosf(fminf(1.0f, fmaxf(-1.0f, d.y))) * (float)M_1_PI;
+    *v = fminf(vv, 0x1.fffffep-1f);
+}
+
+static vec3 uv_to_dir(const struct environment *e, float u, float v, float *sin_t)
+{
+    float theta = v * (float)M_PI, phi = u * 2.0f * (float)M_PI + e->rotation * (float)(M_PI / 180.0);
+    float st = sinf(theta);
+    *sin_t = st;
+    return v3(st * cosf(phi), cosf(theta), st * sinf(phi));
+}
+
+vec3 envmap_eval(const struct environment *e, vec3 d)
+{
+    float u, v;
+    dir_to_uv(e, d, &u, &v);
+    uint32_t x = (uint32_t)(u * e->width), y = (uint32_t)(v * e->height);
+    x = x < e->width ? x : e->width - 1;
+    y = y < e->height ? y : e->height - 1;
+    const float *c = &e->rgb[3 * ((size_t)y * e->width + x)];
+    return v3(c[0] * e->strength, c[1] * e->strength, c[2] * e->strength);
+}
+
+float envmap_pdf_uv(const struct environment *e, float u, float v)
+{
+    if (!(e->marg_int > 0.0f))
+        return 0.0f;
+    uint32_t x = (uint32_t)(u * e->width), y = (uint32_t)(v * e->height);
+    x = x < e->width ? x : e->width - 1;
+    y = y < e->height ? y : e->height - 1;
+    const float *c = &e->rgb[3 * ((size_t)y * e->width + x)];
+    float st = sinf((float)M_PI * (y + 0.5f) / e->height);
+    return fmaxf(0.0f, lum(c)) * st / e->marg_int;
+}
+
+void envmap_sample_uv(const struct environment *e, float u1, float u2, float *u, float *v, float *pdf)
+{
+    uint32_t y = find_cell(e->marg_cdf, e->height, u1);
+    float dy = e->marg_cdf[y + 1] - e->marg_cdf[y];
+    float fy = dy > 0.0f ? (u1 - e->marg_cdf[y]) / dy : 0.5f;
+    const float *cdf = &e->cond_cdf[(size_t)y * (e->width + 1)];
+    uint32_t x = find_cell(cdf, e->width, u2);
+    float dx = cdf[x + 1] - cdf[x];
+    float fx = dx > 0.0f ? (u2 - cdf[x]) / dx : 0.5f;
+    *v = fminf((y + fminf(fmaxf(fy, 0.0f), 1.0f)) / e->height, 0x1.fffffep-1f);
+    *u = fminf((x + fminf(fmaxf(fx, 0.0f), 1.0f)) / e->width, 0x1.fffffep-1f);
+    /* The cell's density, from the cell indices (not the rounded point). */
+    const float *c = &e->rgb[3 * ((size_t)y * e->width + x)];
+    float st = sinf((float)M_PI * (y + 0.5f) / e->height);
+    *pdf = e->marg_int > 0.0f ? fmaxf(0.0f, lum(c)) * st / e->marg_int : 0.0f;
+}
+
+vec3 envmap_sample(const struct environment *e, float u1, float u2, float *pdf)
+{
+    if (e->uniform) {
+        float z = 1.0f - 2.0f * u1, r = sqrtf(fmaxf(0.0f, 1.0f - z * z)), sp, cp;
+        sincos_2pi(u2, &sp, &cp);
+        *pdf = (float)(0.25 * M_1_PI);
+        return v3(r * cp, z, r * sp);
+    }
+    float u, v, p2, st;
+    envmap_sample_uv(e, u1, u2, &u, &v, &p2);
+    vec3 d = uv_to_dir(e, u, v, &st);
+    *pdf = st > 0.0f && p2 > 0.0f ? p2 / (2.0f * (float)(M_PI * M_PI) * st) : 0.0f;
+    return d;
+}
+
+float envmap_pdf(const struct environment *e, vec3 d)
+{
+    if (e->uniform)
+        return (float)(0.25 * M_1_PI);
+    float u, v;
+    dir_to_uv(e, d, &u, &v);
+    float st = sinf(v * (float)M_PI);
+    return st > 0.0f ? envmap_pdf_uv(e, u, v) / (2.0f * (float)(M_PI * M_PI) * st) : 0.0f;
+}

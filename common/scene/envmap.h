@@ -1,0 +1,44 @@
+/* The environment light: a lat-long (equirectangular) radiance map at infinity, times
+ * strength, turned by rotation degrees about +y. Direction d maps to
+ * phi = atan2(d.z, d.x) - rotation (u = phi / 2 pi, wrapped to [0, 1)) and
+ * theta = acos(d.y) (v = theta / pi, row 0 at +y); each texel is constant over its cell
+ * (nearest lookup), so the sampling distribution below is exactly proportional to the
+ * texels' luminance. Sampled by a piecewise-constant 2D distribution (pbrt's
+ * PiecewiseConstant2D): a marginal over rows and a conditional per row, of luminance times
+ * sin(theta) at the row centre; its solid-angle pdf is p(u, v) / (2 pi^2 sin(theta)).
+ * `uniform` samples the sphere uniformly instead (for the benchmark). Built by
+ * scene_json.c; read-only while rendering (light.c, integrators, photon_trace.c). */
+#ifndef BRUME_ENVMAP_H
+#define BRUME_ENVMAP_H
+#include <stdint.h>
+#include "base/vec.h"
+
+struct environment {
+    float *rgb;             /* width * height * 3 linear radiance, rows from +y down */
+    uint32_t width, height;
+    float strength;         /* multiplies the map */
+    float rotation;         /* degrees about +y */
+    int uniform;            /* sample the sphere uniformly, not by the map */
+    /* the distribution: */
+    float *cond_cdf;        /* height rows of width + 1 */
+    float *cond_int;        /* height: each row's integral over u */
+    float *marg_cdf;        /* height + 1 */
+    float marg_int;         /* integral over [0, 1]^2; 0 = a black map */
+    vec3 mean;              /* solid-angle mean radiance (strength included) */
+};
+
+/* Takes ownership of rgb (mem_alloc'd) and builds the distribution. */
+struct environment *envmap_new(float *rgb, uint32_t width, uint32_t height, float strength, float rotation);
+void envmap_free(struct environment **env);
+
+/* Radiance arriving from direction d (unit, pointing away from the scene). */
+vec3 envmap_eval(const struct environment *e, vec3 d);
+/* A direction from two uniforms; *pdf its solid-angle density (0 = none). */
+vec3 envmap_sample(const struct environment *e, float u1, float u2, float *pdf);
+float envmap_pdf(const struct environment *e, vec3 d);
+
+/* The continuous 2D distribution alone, on [0, 1)^2 (tests): a point and its density. */
+void envmap_sample_uv(const struct environment *e, float u1, float u2, float *u, float *v, float *pdf);
+float envmap_pdf_uv(const struct environment *e, float u, float v);
+
+#endif
