@@ -79,7 +79,7 @@ static size_t tile_pixels(const struct fold *f, uint32_t tile)
 static void fold_pass(struct fold_tile *t, size_t pixels, const float *px)
 {
     for (size_t i = 0; i < pixels; i++)
-        pass_pixel_fold(&t->acc[i], &px[i * TILE_NUM_CHANNELS]);
+        pass_pixel_fold(&t->acc[i], t->folded, &px[i * TILE_NUM_CHANNELS]);
     t->folded++;
 }
 

@@ -250,11 +250,18 @@ static int load_scene(struct master *m)
     if (master_media_prepare(&m->scene, o, m->map_frame, &m->assets, asked, &m->photon_maps) != 0)
         return -1;
     m->passes = m->photon_maps ? m->photon_maps : asked > 1 ? asked : 1;
+    if (!m->photon_maps && m->passes > SAMPLER_STREAMS && m->passes % SAMPLER_STREAMS) {
+        /* Every stream holds as many passes (docs/adaptive.md). */
+        uint32_t p = (m->passes + SAMPLER_STREAMS - 1) / SAMPLER_STREAMS * SAMPLER_STREAMS;
+        log_info("passes: %u raised to %u, a multiple of the sampler's %u streams", m->passes, p,
+                 (unsigned)SAMPLER_STREAMS);
+        m->passes = p;
+    }
     if (!m->photon_maps && m->passes > 1) {
         if (master_passes_fit(rs, m->passes) != 0)
             return -1;
-        log_info("passes: %u of %u spp (%u spp), each with its own scramble; error estimate from batch means",
-                 m->passes, rs->spp / m->passes, rs->spp);
+        log_info("passes: %u of %u spp (%u spp) in %u stream(s); error estimate from batch means over the streams",
+                 m->passes, rs->spp / m->passes, rs->spp, m->passes < SAMPLER_STREAMS ? m->passes : (unsigned)SAMPLER_STREAMS);
     }
     m->spp_per_pass = rs->spp / m->passes;
     if (adaptive)
@@ -341,7 +348,7 @@ static void setup_tiles(struct master *m)
             imgio_tile_rect(&m->desc, t % tiles_x, t / tiles_x, &x0, &y0, &w, &h);
             pixels[t] = w * h;
         }
-        m->adapt = adapt_new(m->num_tiles, pixels, m->passes, m->target_error, m->max_rounds);
+        m->adapt = adapt_new(m->num_tiles, pixels, m->passes, SAMPLER_STREAMS, m->target_error, m->max_rounds);
         m->round_from = mem_calloc(m->num_tiles, sizeof *m->round_from);
         free(pixels);
     }

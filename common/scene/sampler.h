@@ -26,6 +26,17 @@ enum sampler_dim {
     DIM_PER_BOUNCE = 6
 };
 
+/* Replicate streams of the sobol sampler. A pixel's passes belong to SAMPLER_STREAMS
+ * independent streams: pass p is block p / SAMPLER_STREAMS of stream p mod SAMPLER_STREAMS,
+ * i.e. its k samples are the indices [b k, (b + 1) k) of ONE Owen-scrambled Sobol sequence
+ * seeded by (pixel, stream), so a stream's samples so far are a prefix of one sequence
+ * (Sobol's convergence kept) and the streams' means are independent replicates (the batch
+ * means of the error estimate, docs/adaptive.md). The stratified and independent samplers
+ * give each pass its own randomisation (a stream per pass). */
+#ifndef SAMPLER_STREAMS
+#define SAMPLER_STREAMS 4u
+#endif
+
 /* Seeds of one dimension for one pixel pass: the index permutation, and for sobol the
  * seed of the hash for the deep digits and the exact flips of the first 6 digits as a
  * table indexed by the first 5 (byte p of the 4 words: the flips for prefix p). */
@@ -48,7 +59,7 @@ struct sampler_pixel {
     int log2_spp;       /* log2(spp) when spp is a power of two, else -1 */
     uint64_t prefix;    /* rng_key's (seed, frame, pixel) part */
     uint32_t pass;      /* the pass whose seeds are memoized here (sampler_pixel_set_pass) */
-    uint64_t pixel_key; /* hash of (seed, frame, pixel, pass) */
+    uint64_t pixel_key; /* hash of (seed, frame, pixel, stream) (stratified: pass) */
     uint64_t have;      /* bit d: seeds[d] filled */
     struct sampler_dim_seeds seeds[SAMPLER_CACHE_DIMS];
 };
@@ -58,20 +69,22 @@ struct sampler_pixel {
 struct sampler {
     enum sampler_type type;
     uint32_t index;     /* sample index within the pixel's pass: index < spp */
+    uint32_t sidx;      /* sobol: index within the pass's stream (block * spp + index) */
     uint32_t spp;
     uint32_t perm_mask;
     uint32_t nx, ny;
     int log2_spp;
     uint64_t key;       /* rng_key(seed, frame, pixel, sample); 0 for sobol (unused) */
-    uint64_t pixel_key; /* hash of (seed, frame, pixel, pass) */
+    uint64_t pixel_key; /* hash of (seed, frame, pixel, stream) (stratified: pass) */
     struct sampler_pixel *cache; /* seeds memo of this pixel and pass, or NULL */
 };
 
 /* Names as the scene and command line spell them; returns -1 for an unknown name. */
 int sampler_type_from_name(const char *name, enum sampler_type *out);
 
-/* Sample `sample` of pixel `pixel` for a render of spp samples per pixel. Sample indices
- * >= spp are valid too: they start further passes with fresh permutations/scrambles. */
+/* Sample `sample` of pixel `pixel` for passes of spp samples. Sample indices >= spp are
+ * valid too: they are further passes (pass = sample / spp), for sobol further blocks of the
+ * pass's stream, for stratified fresh permutations. */
 struct sampler sampler_start_type(enum sampler_type type, uint64_t seed, uint32_t frame, uint64_t pixel,
                                   uint32_t sample, uint32_t spp);
 
@@ -80,9 +93,8 @@ struct sampler sampler_start_type(enum sampler_type type, uint64_t seed, uint32_
 void sampler_pixel_init(struct sampler_pixel *p, enum sampler_type type, uint64_t seed, uint32_t frame,
                         uint64_t pixel, uint32_t spp);
 struct sampler sampler_start_pixel(struct sampler_pixel *p, uint32_t sample);
-/* Moves p's memo to pass `pass` (samples [pass spp, (pass + 1) spp)): each pass of a pixel
- * is an independent randomisation of the same point set (randomised QMC), so that the
- * means of passes are independent replicates. Values are the same with or without it. */
+/* Moves p's memo to pass `pass` (samples [pass spp, (pass + 1) spp)). Values are the same
+ * with or without it. */
 void sampler_pixel_set_pass(struct sampler_pixel *p, uint32_t pass);
 
 /* The independent sampler of earlier versions (same bits). */
@@ -165,5 +177,9 @@ static inline uint32_t sampler_dim_pair(uint32_t dim, uint32_t *comp, int *is_2d
 
 /* Building blocks, exposed for tests. */
 uint32_t sampler_permute(uint32_t i, uint32_t n, uint32_t seed); /* bijection on [0, n) */
+/* Burley's (2020) shuffle of a sobol index: a nested uniform scramble of its bits (bit k
+ * flipped by a hash of the bits above k), so every aligned block of 2^m indices maps onto
+ * an aligned block of 2^m (a bijection of 32-bit indices). */
+uint32_t sampler_shuffle(uint32_t i, uint32_t seed);
 
 #endif
