@@ -249,6 +249,10 @@ static int load_scene(struct master *m)
     }
     if (master_media_prepare(&m->scene, o, m->map_frame, &m->assets, asked, &m->photon_maps) != 0)
         return -1;
+    /* A plain render's default: one pass per sampler stream (when spp is a multiple of the
+     * streams), so its error estimate is the batch means' (docs/adaptive.md). */
+    if (!asked && !m->photon_maps)
+        asked = rs->spp >= SAMPLER_STREAMS && rs->spp % SAMPLER_STREAMS == 0 ? SAMPLER_STREAMS : 1;
     m->passes = m->photon_maps ? m->photon_maps : asked > 1 ? asked : 1;
     if (!m->photon_maps && m->passes > SAMPLER_STREAMS && m->passes % SAMPLER_STREAMS) {
         /* Every stream holds as many passes (docs/adaptive.md). */
@@ -336,7 +340,7 @@ static void setup_tiles(struct master *m)
     m->maps = mem_calloc(m->passes, sizeof *m->maps);
     m->out_desc = m->desc;
     if (m->passes > 1) {
-        m->fold = fold_new(&m->desc, m->passes, m->spp_per_pass);
+        m->fold = fold_new(&m->desc, m->passes, m->spp_per_pass, integrator_streams(m->photon_maps > 0));
         m->fold_out = mem_alloc(sizeof(float) * rs->tile_size * rs->tile_size * FOLD_NUM_CHANNELS);
         fold_output_desc(&m->desc, &m->out_desc);
     }
@@ -348,7 +352,8 @@ static void setup_tiles(struct master *m)
             imgio_tile_rect(&m->desc, t % tiles_x, t / tiles_x, &x0, &y0, &w, &h);
             pixels[t] = w * h;
         }
-        m->adapt = adapt_new(m->num_tiles, pixels, m->passes, SAMPLER_STREAMS, m->target_error, m->max_rounds);
+        m->adapt = adapt_new(m->num_tiles, pixels, m->passes, integrator_streams(m->photon_maps > 0), m->target_error,
+                             m->max_rounds);
         m->round_from = mem_calloc(m->num_tiles, sizeof *m->round_from);
         free(pixels);
     }

@@ -4,6 +4,7 @@
  * pathtracer counts path length). Rays leave surfaces (surface.c) with integer-ULP offsets
  * along the geometric normal (Waechter and Binder, Ray Tracing Gems ch. 6). */
 #include "render/integrator.h"
+#include "base/log.h"
 #include "render/media_integrator.h"
 #include "render/surface.h"
 #include "render/texshade.h"
@@ -133,19 +134,20 @@ static vec3 sample_path(const struct render_job *job, uint32_t pass, uint32_t px
     return L;
 }
 
-void pass_batch_add(struct pass_batch *b, uint32_t pass, const double m[3])
+void pass_batch_add(struct pass_batch *b, uint32_t stream, const double m[3])
 {
-    double *sum = b->sum[pass % SAMPLER_STREAMS];
+    CHECK(stream < SAMPLER_MAX_STREAMS);
+    double *sum = b->sum[stream];
     for (int k = 0; k < 3; k++)
         sum[k] += m[k];
     sum[3] += 0.2126 * m[0] + 0.7152 * m[1] + 0.0722 * m[2];
-    b->count[pass % SAMPLER_STREAMS]++;
+    b->count[stream]++;
     b->n++;
     /* The average of the stream means, recomputed in stream order (the same bits whatever
      * the passes so far). */
     double acc[4] = {0, 0, 0, 0};
     uint32_t q = 0;
-    for (uint32_t s = 0; s < SAMPLER_STREAMS; s++)
+    for (uint32_t s = 0; s < SAMPLER_MAX_STREAMS; s++)
         if (b->count[s]) {
             for (int k = 0; k < 4; k++)
                 acc[k] += b->sum[s][k] / b->count[s];
@@ -160,7 +162,7 @@ double pass_batch_var_of_mean(const struct pass_batch *b, int k)
 {
     double mean = k < 3 ? b->mean[k] : b->lum_mean, ss = 0.0;
     uint32_t q = 0;
-    for (uint32_t s = 0; s < SAMPLER_STREAMS; s++)
+    for (uint32_t s = 0; s < SAMPLER_MAX_STREAMS; s++)
         if (b->count[s]) {
             double d = b->sum[s][k] / b->count[s] - mean;
             ss += d * d;
@@ -170,8 +172,7 @@ double pass_batch_var_of_mean(const struct pass_batch *b, int k)
 }
 
 /* One pass of a pixel (job->num_passes >= 2): pass p takes sample indices
- * [p k, (p + 1) k), which the sampler makes block p / SAMPLER_STREAMS of stream
- * p mod SAMPLER_STREAMS (for sobol, the next k points of the stream's one scrambled
+ * [p k, (p + 1) k), which the sampler makes block p / R of stream p mod R (for sobol, the next k points of the stream's one scrambled
  * sequence), and the pass's photon map. *n gets the samples kept (NaN and Inf are
  * dropped), m their mean, *cover the share that hit something. */
 static void render_pixel_pass(const struct render_job *job, struct sampler_pixel *sp, uint32_t pass, uint32_t px_x,
@@ -205,14 +206,15 @@ static void sampler_pixel_for(const struct render_job *job, uint32_t px_x, uint3
     const struct render_settings *rs = &job->scene->settings;
     const uint32_t k = (rs->spp + job->num_passes - 1) / job->num_passes;
     sampler_pixel_init(sp, rs->sampler, rs->seed, job->frame, (uint64_t)px_y * rs->width + px_x, k);
+    sampler_pixel_set_streams(sp, integrator_streams(job->pass_maps != NULL));
 }
 
-void pass_pixel_fold(struct pass_pixel *pp, uint32_t pass, const float *px)
+void pass_pixel_fold(struct pass_pixel *pp, uint32_t stream, const float *px)
 {
     if (px[CH_A] < 0.0f)
         return; /* every sample of the pass dropped: the other passes make the pixel */
     double m[3] = {px[CH_R], px[CH_G], px[CH_B]};
-    pass_batch_add(&pp->b, pass, m);
+    pass_batch_add(&pp->b, stream, m);
     pp->cover += px[CH_A];
 }
 
@@ -257,7 +259,7 @@ static void render_pixel_passes(const struct render_job *job, uint32_t px_x, uin
         float ch[TILE_NUM_CHANNELS];
         render_pixel_pass(job, &sp, p, px_x, px_y, m, &cover, &n, stats);
         pass_pixel_channels(m, cover, n, ch);
-        pass_pixel_fold(&pp, p, ch);
+        pass_pixel_fold(&pp, p % sp.streams, ch);
     }
     pass_pixel_finish(&pp, px, stats);
 }

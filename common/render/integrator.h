@@ -25,19 +25,20 @@ void integrator_render_tile_pass(const struct render_job *job, uint32_t pass, ui
                                  uint32_t h, float *pixels, struct tile_stats *stats);
 
 /* Batch means over the replicate streams of the passes (sampler.h): pass p belongs to
- * stream p mod SAMPLER_STREAMS, whose passes together are one sample set (for sobol a
+ * stream p mod R (integrator_streams), whose passes together are one sample set (for sobol a
  * prefix of one scrambled sequence, so their mean keeps the sampler's convergence), and the
  * streams are independent. The pixel is the average of the stream means (each stream
  * weighted equally: a tile's passes are a multiple of the stream count, or fewer than it)
  * and the variance of that average is estimated from the stream means' spread, s^2 / q (q
  * the streams that hold a pass). Zero-initialise, add each pass's mean with its pass. */
 struct pass_batch {
-    double sum[SAMPLER_STREAMS][4]; /* per stream: the sum of its pass means (R, G, B, luminance) */
-    uint32_t count[SAMPLER_STREAMS];
+    double sum[SAMPLER_MAX_STREAMS][4]; /* per stream: the sum of its pass means (R, G, B, luminance) */
+    uint32_t count[SAMPLER_MAX_STREAMS];
     double mean[3], lum_mean;       /* the average of the stream means so far */
     uint32_t n;                     /* passes added */
 };
-void pass_batch_add(struct pass_batch *b, uint32_t pass, const double m[3]);
+/* stream < SAMPLER_MAX_STREAMS: the pass's stream (its pass mod R). */
+void pass_batch_add(struct pass_batch *b, uint32_t stream, const double m[3]);
 /* Channel k (0..2: R, G, B; 3: luminance): s^2 / q over the q stream means, 0 for fewer
  * than 2 streams. */
 double pass_batch_var_of_mean(const struct pass_batch *b, int k);
@@ -51,7 +52,13 @@ struct pass_pixel {
     struct pass_batch b;
     double cover;
 };
-void pass_pixel_fold(struct pass_pixel *pp, uint32_t pass, const float *px);
+void pass_pixel_fold(struct pass_pixel *pp, uint32_t stream, const float *px);
+/* R, the sampler streams of a render: SAMPLER_STREAMS_MAPS with photon maps, else
+ * SAMPLER_STREAMS (the master's fold and the workers' sampler agree on it). */
+static inline uint32_t integrator_streams(int photon_maps)
+{
+    return photon_maps ? SAMPLER_STREAMS_MAPS : SAMPLER_STREAMS;
+}
 void pass_pixel_finish(const struct pass_pixel *pp, float *px, struct tile_stats *stats);
 
 #endif

@@ -33,15 +33,15 @@ static uint64_t key_prefix(uint64_t seed, uint32_t frame, uint64_t pixel)
 
 /* The key of a pixel's pass: sobol's passes share their stream's (a stream is one
  * sequence), the stratified sampler's each have their own. */
-static inline uint64_t pass_key(uint64_t prefix, enum sampler_type type, uint32_t pass)
+static inline uint64_t pass_key(uint64_t prefix, enum sampler_type type, uint32_t pass, uint32_t streams)
 {
-    return rng_mix64(prefix ^ PASS_DOMAIN ^ (type == SAMPLER_SOBOL ? pass % SAMPLER_STREAMS : pass));
+    return rng_mix64(prefix ^ PASS_DOMAIN ^ (type == SAMPLER_SOBOL ? pass % streams : pass));
 }
 
 /* Index within the pass's stream of sample `index` of pass `pass`. */
-static inline uint32_t stream_index(uint32_t pass, uint32_t index, uint32_t spp)
+static inline uint32_t stream_index(uint32_t pass, uint32_t index, uint32_t spp, uint32_t streams)
 {
-    return pass / SAMPLER_STREAMS * spp + index;
+    return pass / streams * spp + index;
 }
 
 /* The next power of two >= n, minus 1. */
@@ -87,8 +87,16 @@ void sampler_pixel_init(struct sampler_pixel *p, enum sampler_type type, uint64_
     p->spp = spp ? spp : 1;
     setup_grid(p->spp, type, &p->perm_mask, &p->nx, &p->ny, &p->log2_spp);
     p->prefix = key_prefix(seed, frame, pixel);
+    p->streams = SAMPLER_STREAMS;
     p->pass = 0;
-    p->pixel_key = pass_key(p->prefix, type, 0);
+    p->pixel_key = pass_key(p->prefix, type, 0, p->streams);
+    p->have = 0;
+}
+
+void sampler_pixel_set_streams(struct sampler_pixel *p, uint32_t streams)
+{
+    p->streams = streams >= 1 && streams <= SAMPLER_MAX_STREAMS ? streams : SAMPLER_STREAMS;
+    p->pixel_key = pass_key(p->prefix, p->type, p->pass, p->streams);
     p->have = 0;
 }
 
@@ -97,7 +105,7 @@ void sampler_pixel_set_pass(struct sampler_pixel *p, uint32_t pass)
     if (pass == p->pass)
         return;
     p->pass = pass;
-    p->pixel_key = pass_key(p->prefix, p->type, pass);
+    p->pixel_key = pass_key(p->prefix, p->type, pass, p->streams);
     p->have = 0;
 }
 
@@ -112,7 +120,7 @@ struct sampler sampler_start_pixel(struct sampler_pixel *p, uint32_t sample)
     s.log2_spp = p->log2_spp;
     uint32_t pass = s.log2_spp >= 0 ? sample >> s.log2_spp : sample / s.spp;
     s.index = sample - pass * s.spp;
-    s.sidx = stream_index(pass, s.index, s.spp);
+    s.sidx = stream_index(pass, s.index, s.spp, p->streams);
     /* The Sobol sampler draws nothing per sample: its key would be wasted work. */
     s.key = s.type == SAMPLER_SOBOL ? 0 : rng_mix64(p->prefix ^ sample);
     s.pixel_key = 0;
@@ -120,7 +128,7 @@ struct sampler sampler_start_pixel(struct sampler_pixel *p, uint32_t sample)
     if (s.type == SAMPLER_INDEPENDENT)
         return s;
     /* Seeds memoized only for the pass p holds. */
-    s.pixel_key = pass == p->pass ? p->pixel_key : pass_key(p->prefix, s.type, pass);
+    s.pixel_key = pass == p->pass ? p->pixel_key : pass_key(p->prefix, s.type, pass, p->streams);
     s.cache = pass == p->pass ? p : NULL;
     return s;
 }
@@ -133,10 +141,10 @@ struct sampler sampler_start_type(enum sampler_type type, uint64_t seed, uint32_
     s.spp = spp ? spp : 1;
     setup_grid(s.spp, type, &s.perm_mask, &s.nx, &s.ny, &s.log2_spp);
     s.index = sample % s.spp;
-    s.sidx = stream_index(sample / s.spp, s.index, s.spp);
+    s.sidx = stream_index(sample / s.spp, s.index, s.spp, SAMPLER_STREAMS);
     uint64_t prefix = key_prefix(seed, frame, pixel);
     s.key = type == SAMPLER_SOBOL ? 0 : rng_mix64(prefix ^ sample);
-    s.pixel_key = type == SAMPLER_INDEPENDENT ? 0 : pass_key(prefix, type, sample / s.spp);
+    s.pixel_key = type == SAMPLER_INDEPENDENT ? 0 : pass_key(prefix, type, sample / s.spp, SAMPLER_STREAMS);
     s.cache = NULL;
     return s;
 }

@@ -26,16 +26,17 @@ enum sampler_dim {
     DIM_PER_BOUNCE = 6
 };
 
-/* Replicate streams of the sobol sampler. A pixel's passes belong to SAMPLER_STREAMS
- * independent streams: pass p is block p / SAMPLER_STREAMS of stream p mod SAMPLER_STREAMS,
- * i.e. its k samples are the indices [b k, (b + 1) k) of ONE Owen-scrambled Sobol sequence
- * seeded by (pixel, stream), so a stream's samples so far are a prefix of one sequence
- * (Sobol's convergence kept) and the streams' means are independent replicates (the batch
- * means of the error estimate, docs/adaptive.md). The stratified and independent samplers
- * give each pass its own randomisation (a stream per pass). */
-#ifndef SAMPLER_STREAMS
-#define SAMPLER_STREAMS 4u
-#endif
+/* Replicate streams of the sobol sampler. A pixel's passes belong to R independent
+ * streams: pass p is block p / R of stream p mod R, i.e. its k samples are the indices
+ * [b k, (b + 1) k) of ONE Owen-scrambled Sobol sequence seeded by (pixel, stream), so a
+ * stream's samples so far are a prefix of one sequence (Sobol's convergence kept) and the
+ * streams' means are independent replicates (the batch means of the error estimate,
+ * docs/adaptive.md). R is SAMPLER_STREAMS, or SAMPLER_STREAMS_MAPS with photon maps, whose
+ * noise is smooth across pixels, so that its estimate needs more replicates. The
+ * stratified and independent samplers give each pass its own randomisation. */
+#define SAMPLER_STREAMS 2u
+#define SAMPLER_STREAMS_MAPS 4u
+#define SAMPLER_MAX_STREAMS 4u
 
 /* Seeds of one dimension for one pixel pass: the index permutation, and for sobol the
  * seed of the hash for the deep digits and the exact flips of the first 6 digits as a
@@ -58,6 +59,7 @@ struct sampler_pixel {
     uint32_t nx, ny;    /* stratified: 2D grid nx * ny == spp */
     int log2_spp;       /* log2(spp) when spp is a power of two, else -1 */
     uint64_t prefix;    /* rng_key's (seed, frame, pixel) part */
+    uint32_t streams;   /* R (sampler_pixel_init: SAMPLER_STREAMS) */
     uint32_t pass;      /* the pass whose seeds are memoized here (sampler_pixel_set_pass) */
     uint64_t pixel_key; /* hash of (seed, frame, pixel, stream) (stratified: pass) */
     uint64_t have;      /* bit d: seeds[d] filled */
@@ -93,6 +95,8 @@ struct sampler sampler_start_type(enum sampler_type type, uint64_t seed, uint32_
 void sampler_pixel_init(struct sampler_pixel *p, enum sampler_type type, uint64_t seed, uint32_t frame,
                         uint64_t pixel, uint32_t spp);
 struct sampler sampler_start_pixel(struct sampler_pixel *p, uint32_t sample);
+/* Sets p's stream count (1..SAMPLER_MAX_STREAMS; init sets SAMPLER_STREAMS). */
+void sampler_pixel_set_streams(struct sampler_pixel *p, uint32_t streams);
 /* Moves p's memo to pass `pass` (samples [pass spp, (pass + 1) spp)). Values are the same
  * with or without it. */
 void sampler_pixel_set_pass(struct sampler_pixel *p, uint32_t pass);

@@ -144,7 +144,9 @@ Test(adapt, allocation_in_multiples_of_the_streams)
             cr_assert_eq(n[t] % 4, 0, "budget %g tile %d: %u passes", budget, t, n[t]);
             cr_assert(n[t] >= n1[t] && n[t] < n1[t] + 4, "budget %g tile %d: %u, unrounded %u", budget, t, n[t], n1[t]);
         }
-        cr_assert(projected(4, v, m, n) <= budget * (1 + 1e-12));
+        /* More passes than the unrounded rule: its budget stays met (where the cap let it). */
+        if (projected(4, v, m, n1) <= budget * (1 + 1e-12))
+            cr_assert(projected(4, v, m, n) <= budget * (1 + 1e-12));
         cr_assert_eq(n[3], 4, "a black tile keeps its passes");
     }
     /* The optimum 8, 16, 32 is on multiples of 4 and stays. */

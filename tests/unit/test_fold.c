@@ -35,7 +35,7 @@ static void pass_pixels(uint32_t t, uint32_t p, size_t n, float *px)
 
 static void fold_in_order(const struct image_desc *d, const uint32_t *order, float *out, struct tile_stats *st)
 {
-    struct fold *f = fold_new(d, PASSES, 3);
+    struct fold *f = fold_new(d, PASSES, 3, SAMPLER_STREAMS);
     uint32_t tiles = imgio_tiles_x(d) * imgio_tiles_y(d);
     float px[16 * TILE_NUM_CHANNELS];
     memset(st, 0, sizeof *st);

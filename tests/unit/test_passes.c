@@ -133,7 +133,7 @@ Test(passes, batch_means_synthetic)
                     m[k] = mu[k] + sigma[k] * normal(rng_key(7, t, px, p), (uint32_t)k);
                     avg[k] += m[k] / P[t];
                 }
-                pass_batch_add(&b, p, m);
+                pass_batch_add(&b, p % SAMPLER_STREAMS, m);
             }
             for (int k = 0; k < 3; k++) {
                 cr_assert_float_eq(b.mean[k], avg[k], 1e-9 * (1.0 + fabs(avg[k])));
@@ -175,7 +175,7 @@ Test(passes, batch_means_over_streams_not_passes)
                 if (block % 2 == 0)
                     z[stream] = normal(rng_key(9, t, px, p), 0);
                 double v = mu + (block % 2 == 0 ? z[stream] : -z[stream]) + sigma_e * normal(rng_key(9, t, px, p), 1);
-                pass_batch_add(&b, p, (double[3]){v, v, v});
+                pass_batch_add(&b, stream, (double[3]){v, v, v});
             }
             sum_var += pass_batch_var_of_mean(&b, 1);
             sum_sq_err += (b.mean[1] - mu) * (b.mean[1] - mu);

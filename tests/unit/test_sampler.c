@@ -361,6 +361,13 @@ Test(sampler, stream_values_are_pure)
             sampler_pixel_init(&p, SAMPLER_SOBOL, 5, 1, 11, 4);
             sampler_pixel_set_pass(&p, idx / 4 * SAMPLER_STREAMS + s);
             struct sampler e = sampler_start_pixel(&p, (idx / 4 * SAMPLER_STREAMS + s) * 4 + idx % 4);
+            /* With photon maps (SAMPLER_STREAMS_MAPS streams), pass p is block p / 4 of
+             * stream p mod 4: stream 0's blocks are the same sequence as here. */
+            struct sampler_pixel pm;
+            sampler_pixel_init(&pm, SAMPLER_SOBOL, 5, 1, 11, 4);
+            sampler_pixel_set_streams(&pm, SAMPLER_STREAMS_MAPS);
+            uint32_t pass_m = idx / 4 * SAMPLER_STREAMS_MAPS + s;
+            struct sampler f = sampler_start_pixel(&pm, pass_m * 4 + idx % 4);
             struct sampler o = stream_sample(11, (s + 1) % SAMPLER_STREAMS, idx, 8);
             struct sampler q = stream_sample(12, s, idx, 8);
             for (uint32_t d = 0; d < 70; d++) {
@@ -368,6 +375,8 @@ Test(sampler, stream_values_are_pure)
                 cr_assert_eq(v, sampler_get(&b, d), "stream %u index %u dim %u", s, idx, d);
                 cr_assert_eq(v, sampler_get(&c, d));
                 cr_assert_eq(v, sampler_get(&e, d));
+                cr_assert_eq(v, sampler_get(&f, d), "%u streams: stream %u index %u dim %u", SAMPLER_STREAMS_MAPS, s,
+                             idx, d);
                 cr_assert_neq(v, sampler_get(&o, d), "streams %u and %u share a value", s, (s + 1) % SAMPLER_STREAMS);
                 cr_assert_neq(v, sampler_get(&q, d));
             }
