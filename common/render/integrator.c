@@ -181,6 +181,10 @@ static void render_pixel_pass(const struct render_job *job, struct sampler_pixel
     const uint32_t k = sp->spp; /* samples per pass: sampler_pixel_for set the pixel's pass size */
     double sum[3] = {0, 0, 0}, hits = 0.0;
     *n = 0;
+    /* A photon-map pass always has its map (the master's streams count agrees). */
+    uint32_t streams = integrator_streams(render_job_pass_map(job, pass) != NULL);
+    if (sp->streams != streams)
+        sampler_pixel_set_streams(sp, streams);
     sampler_pixel_set_pass(sp, pass);
     for (uint32_t si = pass * k; si < (pass + 1) * k; si++) {
         int hit_any;
@@ -206,7 +210,6 @@ static void sampler_pixel_for(const struct render_job *job, uint32_t px_x, uint3
     const struct render_settings *rs = &job->scene->settings;
     const uint32_t k = (rs->spp + job->num_passes - 1) / job->num_passes;
     sampler_pixel_init(sp, rs->sampler, rs->seed, job->frame, (uint64_t)px_y * rs->width + px_x, k);
-    sampler_pixel_set_streams(sp, integrator_streams(job->pass_maps != NULL));
 }
 
 void pass_pixel_fold(struct pass_pixel *pp, uint32_t stream, const float *px)
