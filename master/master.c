@@ -249,10 +249,6 @@ static int load_scene(struct master *m)
     }
     if (master_media_prepare(&m->scene, o, m->map_frame, &m->assets, asked, &m->photon_maps) != 0)
         return -1;
-    /* A plain render's default: one pass per sampler stream (when spp is a multiple of the
-     * streams), so its error estimate is the batch means' (docs/adaptive.md). */
-    if (!asked && !m->photon_maps)
-        asked = rs->spp >= SAMPLER_STREAMS && rs->spp % SAMPLER_STREAMS == 0 ? SAMPLER_STREAMS : 1;
     m->passes = m->photon_maps ? m->photon_maps : asked > 1 ? asked : 1;
     if (!m->photon_maps && m->passes > SAMPLER_STREAMS && m->passes % SAMPLER_STREAMS) {
         /* Every stream holds as many passes (docs/adaptive.md). */

@@ -27,7 +27,7 @@
 # Usage: BUILD=build sh scripts/bench_adaptive.sh
 #   env: SCENES ("dof_motion motion:64x48 textured:160x90 cornell_glass:64x64:0.05 fog_spot:40x30:0.05"),
 #        TARGETS ("0.05 0.02 0.01"), REF_SPP (16384), REF_PASSES (16), CAP (16384), SEED (17),
-#        MAX_UNIFORM_SPP (16384), STREAMS (4: the sampler's SAMPLER_STREAMS), ADAPT_TILE (8),
+#        MAX_UNIFORM_SPP (16384), STREAMS (2: the sampler's SAMPLER_STREAMS), ADAPT_TILE (8),
 #        OVERHEAD (1), OVERHEAD_REF_SPP (4096), REF_REDO (0)
 set -eu
 . scripts/lib.sh
@@ -38,7 +38,7 @@ REF_PASSES=${REF_PASSES:-16}
 CAP=${CAP:-16384}
 SEED=${SEED:-17}
 MAX_UNIFORM_SPP=${MAX_UNIFORM_SPP:-16384}
-STREAMS=${STREAMS:-4}
+STREAMS=${STREAMS:-2}
 ADAPT_TILE=${ADAPT_TILE:-8}
 OVERHEAD=${OVERHEAD:-1}
 REF_REDO=${REF_REDO:-0}

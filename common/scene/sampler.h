@@ -34,7 +34,9 @@ enum sampler_dim {
  * docs/adaptive.md). R is SAMPLER_STREAMS, or SAMPLER_STREAMS_MAPS with photon maps, whose
  * noise is smooth across pixels, so that its estimate needs more replicates. The
  * stratified and independent samplers give each pass its own randomisation. */
+#ifndef SAMPLER_STREAMS
 #define SAMPLER_STREAMS 2u
+#endif
 #define SAMPLER_STREAMS_MAPS 4u
 #define SAMPLER_MAX_STREAMS 4u
 
