@@ -136,12 +136,23 @@ static inline void sampler_get_2d(const struct sampler *s, uint32_t dim0, float 
 /* 1 with the grid (*nx cells along x, *ny along y) when every sample of a pass over s's
  * pixel lies alone in its own cell of that grid over the pixel (the DIM_PIXEL pair), else
  * 0: 1 x 1 at 1 spp (any sampler); stratified at any spp; sobol when spp is a power of
- * two (its first 2^k points form a (0, k, 2)-net, scrambling included, so every
- * elementary box of area 1/spp holds one). Texture footprints are that cell
- * (texshade_camera). */
+ * two (any aligned power-of-two block of a stream is a (0, m, 2)-net, scrambling and
+ * shuffle included, so every elementary box of its size holds one). For sobol the grid is
+ * that of the stream's samples so far, block b of k samples giving the largest power of
+ * two <= (b + 1) k (a block lies inside an aligned block of that size), so that later
+ * passes of a stream filter as finely as its samples so far and a pixel's textures
+ * sharpen as its passes grow. Texture footprints are that cell (texshade_camera). */
 static inline int sampler_pixel_cells(const struct sampler *s, uint32_t *nx, uint32_t *ny)
 {
     *nx = *ny = 1;
+    if (s->type == SAMPLER_SOBOL && s->log2_spp >= 0) {
+        uint64_t n = (uint64_t)(s->sidx / s->spp + 1u) * s->spp;
+        int m = 63 - __builtin_clzll(n);
+        m = m > 24 ? 24 : m;
+        *nx = 1u << (m / 2);
+        *ny = 1u << (m - m / 2);
+        return 1;
+    }
     if (s->spp == 1)
         return 1;
     if (s->type == SAMPLER_INDEPENDENT || s->nx * s->ny != s->spp)

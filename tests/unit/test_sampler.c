@@ -410,3 +410,30 @@ Test(sampler, streams_are_independent)
                   sy / PIXELS);
     }
 }
+
+/* A sobol pass's texture cells follow its stream's samples so far: block b of k samples
+ * has the grid of the largest power of two <= (b + 1) k, and each of its samples lies
+ * alone in its cell of that grid (the block is inside an aligned net of that size). */
+Test(sampler, pixel_cells_follow_the_stream)
+{
+    const uint32_t k = 8;
+    for (uint32_t b = 0; b < 12; b++)
+        for (uint32_t s = 0; s < SAMPLER_STREAMS; s++) {
+            uint32_t n = (b + 1) * k, p2 = 1;
+            while (p2 * 2 <= n)
+                p2 *= 2;
+            static unsigned char seen[1024];
+            memset(seen, 0, sizeof seen);
+            for (uint32_t i = 0; i < k; i++) {
+                struct sampler smp = stream_sample(3, s, b * k + i, k);
+                uint32_t nx, ny;
+                cr_assert(sampler_pixel_cells(&smp, &nx, &ny));
+                cr_assert_eq(nx * ny, p2, "block %u: grid %ux%u, expected %u cells", b, nx, ny, p2);
+                float u, v;
+                sampler_get_2d(&smp, DIM_PIXEL_X, &u, &v);
+                uint32_t c = (uint32_t)(v * (float)ny) * nx + (uint32_t)(u * (float)nx);
+                cr_assert_eq(seen[c], 0, "block %u: two samples in cell %u", b, c);
+                seen[c] = 1;
+            }
+        }
+}
