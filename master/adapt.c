@@ -9,12 +9,13 @@
 #include <stdlib.h>
 #include <string.h>
 
-struct adapt *adapt_new(uint32_t num_tiles, const uint32_t *pixels, uint32_t max_passes, double target,
-                        uint32_t max_rounds)
+struct adapt *adapt_new(uint32_t num_tiles, const uint32_t *pixels, uint32_t max_passes, uint32_t step,
+                        double target, uint32_t max_rounds)
 {
     struct adapt *a = mem_calloc(1, sizeof *a);
     a->num_tiles = num_tiles;
     a->max_passes = max_passes;
+    a->step = step && max_passes % step == 0 ? step : 1;
     a->target = target;
     a->max_rounds = max_rounds;
     a->tiles = mem_calloc(num_tiles ? num_tiles : 1, sizeof *a->tiles);
@@ -34,7 +35,8 @@ void adapt_free(struct adapt **ap)
 
 void adapt_begin(struct adapt *a)
 {
-    uint32_t first = a->max_passes < ADAPT_FIRST_PASSES ? a->max_passes : ADAPT_FIRST_PASSES;
+    uint32_t first = (ADAPT_FIRST_PASSES + a->step - 1) / a->step * a->step;
+    first = a->max_passes < first ? a->max_passes : first;
     a->round = 0;
     a->finished = 0;
     a->est = 0.0;
@@ -50,7 +52,7 @@ void adapt_begin(struct adapt *a)
 }
 
 uint64_t adapt_allocate(uint32_t num_tiles, const double *v, const double *c, const uint32_t *m, double budget,
-                        uint32_t max_passes, uint32_t growth, uint32_t *n)
+                        uint32_t max_passes, uint32_t growth, uint32_t step, uint32_t *n)
 {
     double *want = mem_alloc(sizeof *want * (num_tiles ? num_tiles : 1));
     uint8_t *fixed = mem_calloc(num_tiles ? num_tiles : 1, 1);
@@ -96,7 +98,7 @@ uint64_t adapt_allocate(uint32_t num_tiles, const double *v, const double *c, co
     uint64_t added = 0;
     for (uint32_t t = 0; t < num_tiles; t++) {
         double cap = (double)m[t] * growth < max_passes ? (double)m[t] * growth : max_passes;
-        double w = ceil(want[t] - 1e-9); /* a continuous optimum that is an integer stays */
+        double w = ceil((want[t] - 1e-9) / step) * step; /* an optimum on a step stays */
         if (w > cap)
             w = cap;
         n[t] = w > m[t] ? (uint32_t)w : m[t];
@@ -150,7 +152,7 @@ int adapt_decide(struct adapt *a, int stop, uint64_t samples_total)
     }
     /* relRMSE^2 = (sum var / pixels) / (sum mean / pixels)^2 <= target^2 */
     double budget = target * target * mean * mean / pixels;
-    uint64_t added = adapt_allocate(n_tiles, v, c, m, budget, a->max_passes, ADAPT_GROWTH, n);
+    uint64_t added = adapt_allocate(n_tiles, v, c, m, budget, a->max_passes, ADAPT_GROWTH, a->step, n);
     a->outstanding = 0;
     for (uint32_t t = 0; t < n_tiles; t++) {
         a->outstanding += n[t] - a->tiles[t].passes;

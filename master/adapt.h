@@ -24,6 +24,7 @@ struct adapt_tile {
 
 struct adapt {
     uint32_t num_tiles, max_passes, max_rounds;
+    uint32_t step;          /* a tile's passes are a multiple of step (the sampler's streams) */
     double target;          /* relRMSE to reach; 0: none (time limit or max_rounds only) */
     uint32_t round;         /* rounds released so far (round 0 = the first passes) */
     uint32_t outstanding;   /* units of the current round not yet folded */
@@ -34,20 +35,25 @@ struct adapt {
     struct adapt_tile *tiles;
 };
 
-/* max_passes (>= 2) passes at most per tile; pixels[t] the pixel count of tile t. */
-struct adapt *adapt_new(uint32_t num_tiles, const uint32_t *pixels, uint32_t max_passes, double target,
-                        uint32_t max_rounds);
+/* max_passes (>= 2) passes at most per tile; pixels[t] the pixel count of tile t; step:
+ * passes go in multiples of it (SAMPLER_STREAMS, so that every stream of a tile holds as
+ * many passes and the batch means weigh them equally), 1 when max_passes is not a
+ * multiple of it. */
+struct adapt *adapt_new(uint32_t num_tiles, const uint32_t *pixels, uint32_t max_passes, uint32_t step,
+                        double target, uint32_t max_rounds);
 void adapt_free(struct adapt **a);
-/* A new frame: round 0, every tile ADAPT_FIRST_PASSES passes (at most max_passes). The
+/* A new frame: round 0, every tile ADAPT_FIRST_PASSES passes (rounded up to a multiple of
+ * step, at most max_passes). The
  * caller releases units (t, p) for p < tiles[t].passes. */
 void adapt_begin(struct adapt *a);
 /* The allocation rule. Tiles of sum variance v[t] (pixel variances of the mean summed,
  * after m[t] passes), cost per pass c[t] > 0: the fewest-cost passes n[t] >= m[t] (at most
  * max_passes) with sum_t v[t] m[t] / n[t] <= budget, by Lagrange: n[t] proportional to
- * sqrt(v[t] m[t] / c[t]) (the error per unit cost equalised), rounded up, then each at
- * most growth x m[t]. Writes n; returns the passes added. */
+ * sqrt(v[t] m[t] / c[t]) (the error per unit cost equalised), rounded up to a multiple of
+ * step, then each at most growth x m[t]. m[t] and max_passes are multiples of step. Writes
+ * n; returns the passes added. */
 uint64_t adapt_allocate(uint32_t num_tiles, const double *v, const double *c, const uint32_t *m, double budget,
-                        uint32_t max_passes, uint32_t growth, uint32_t *n);
+                        uint32_t max_passes, uint32_t growth, uint32_t step, uint32_t *n);
 /* The image's estimated relRMSE from the tiles' sums: sqrt(sum var / pixels) / (sum mean /
  * pixels); 0 for a black image. */
 double adapt_image_estimate(const struct adapt *a);

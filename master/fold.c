@@ -19,13 +19,15 @@ struct fold_tile {
 
 struct fold {
     struct image_desc desc;
-    uint32_t passes, spp_per_pass, num_tiles, tiles_x;
+    uint32_t passes, spp_per_pass, num_tiles, tiles_x, streams;
     struct fold_tile *tiles;
 };
 
-struct fold *fold_new(const struct image_desc *desc, uint32_t passes, uint32_t spp_per_pass)
+struct fold *fold_new(const struct image_desc *desc, uint32_t passes, uint32_t spp_per_pass, uint32_t streams)
 {
     struct fold *f = mem_calloc(1, sizeof *f);
+    CHECK(streams >= 1 && streams <= SAMPLER_MAX_STREAMS);
+    f->streams = streams;
     f->desc = *desc;
     f->passes = passes;
     f->spp_per_pass = spp_per_pass;
@@ -76,10 +78,10 @@ static size_t tile_pixels(const struct fold *f, uint32_t tile)
     return (size_t)w * h;
 }
 
-static void fold_pass(struct fold_tile *t, size_t pixels, const float *px)
+static void fold_pass(const struct fold *f, struct fold_tile *t, size_t pixels, const float *px)
 {
     for (size_t i = 0; i < pixels; i++)
-        pass_pixel_fold(&t->acc[i], &px[i * TILE_NUM_CHANNELS]);
+        pass_pixel_fold(&t->acc[i], t->folded % f->streams, &px[i * TILE_NUM_CHANNELS]);
     t->folded++;
 }
 
@@ -99,11 +101,11 @@ uint32_t fold_add_unit(struct fold *f, uint32_t tile, uint32_t pass, const float
         memcpy(t->early[pass], px, sizeof(float) * pixels * TILE_NUM_CHANNELS);
         return t->folded;
     }
-    fold_pass(t, pixels, px);
+    fold_pass(f, t, pixels, px);
     while (t->folded < f->passes && t->early[t->folded]) {
         float *e = t->early[t->folded];
         t->early[t->folded] = NULL;
-        fold_pass(t, pixels, e);
+        fold_pass(f, t, pixels, e);
         free(e);
     }
     return t->folded;

@@ -1,6 +1,7 @@
 /* Folding a frame's units (tile, pass) into final tiles: passes arrive in any order, from
  * any worker, journal or kept copy, and each tile's passes are folded in pass order
- * (Welford's batch means, pass_pixel_fold), a pass that comes early being buffered, so
+ * (per-stream sums of the pass means, batch means over the sampler's streams:
+ * pass_pixel_fold), a pass that comes early being buffered, so
  * the final pixels do not depend on arrival order. A final tile has FOLD_NUM_CHANNELS
  * channels: the tile's, then the samples each pixel received. Pure: no I/O. Called by
  * master/master.c; tested by tests/unit/test_fold.c. */
@@ -16,8 +17,9 @@ extern const char *const fold_samples_channel; /* "samples" */
 
 struct fold;
 
-/* Folds for the tiles of desc in at most `passes` passes (>= 2) of spp_per_pass samples. */
-struct fold *fold_new(const struct image_desc *desc, uint32_t passes, uint32_t spp_per_pass);
+/* Folds for the tiles of desc in at most `passes` passes (>= 2) of spp_per_pass samples,
+ * pass p in stream p mod streams (integrator_streams). */
+struct fold *fold_new(const struct image_desc *desc, uint32_t passes, uint32_t spp_per_pass, uint32_t streams);
 void fold_free(struct fold **f);
 /* A new frame: nothing folded or buffered. */
 void fold_reset(struct fold *f);
@@ -36,8 +38,8 @@ void fold_finish(struct fold *f, uint32_t tile, float *out, struct tile_stats *s
  * missing. */
 int fold_add(struct fold *f, uint32_t tile, uint32_t pass, const float *px, float *out, struct tile_stats *stats);
 /* Over the tile's pixels after its folded passes: the sum of the variance of the pixel
- * mean and the sum of the pixel mean, each the mean of R, G and B (as the summary's
- * relRMSE counts them). */
+ * mean (s^2 / q over its q stream means) and the sum of the pixel mean, each the mean of
+ * R, G and B (as the summary's relRMSE counts them). */
 void fold_tile_sums(const struct fold *f, uint32_t tile, double *sum_var, double *sum_mean);
 
 #endif

@@ -259,11 +259,18 @@ static int load_scene(struct master *m)
     if (master_media_prepare(&m->scene, o, m->map_frame, &m->assets, asked, &m->photon_maps) != 0)
         return -1;
     m->passes = m->photon_maps ? m->photon_maps : asked > 1 ? asked : 1;
+    if (!m->photon_maps && m->passes > SAMPLER_STREAMS && m->passes % SAMPLER_STREAMS) {
+        /* Every stream holds as many passes (docs/adaptive.md). */
+        uint32_t p = (m->passes + SAMPLER_STREAMS - 1) / SAMPLER_STREAMS * SAMPLER_STREAMS;
+        log_info("passes: %u raised to %u, a multiple of the sampler's %u streams", m->passes, p,
+                 (unsigned)SAMPLER_STREAMS);
+        m->passes = p;
+    }
     if (!m->photon_maps && m->passes > 1) {
         if (master_passes_fit(rs, m->passes) != 0)
             return -1;
-        log_info("passes: %u of %u spp (%u spp), each with its own scramble; error estimate from batch means",
-                 m->passes, rs->spp / m->passes, rs->spp);
+        log_info("passes: %u of %u spp (%u spp) in %u stream(s); error estimate from batch means over the streams",
+                 m->passes, rs->spp / m->passes, rs->spp, m->passes < SAMPLER_STREAMS ? m->passes : (unsigned)SAMPLER_STREAMS);
     }
     m->spp_per_pass = rs->spp / m->passes;
     if (adaptive)
@@ -338,7 +345,7 @@ static void setup_tiles(struct master *m)
     m->maps = mem_calloc(m->passes, sizeof *m->maps);
     m->out_desc = m->desc;
     if (m->passes > 1) {
-        m->fold = fold_new(&m->desc, m->passes, m->spp_per_pass);
+        m->fold = fold_new(&m->desc, m->passes, m->spp_per_pass, integrator_streams(m->photon_maps > 0));
         m->fold_out = mem_alloc(sizeof(float) * rs->tile_size * rs->tile_size * FOLD_NUM_CHANNELS);
         fold_output_desc(&m->desc, &m->out_desc);
     }
@@ -350,7 +357,8 @@ static void setup_tiles(struct master *m)
             imgio_tile_rect(&m->desc, t % tiles_x, t / tiles_x, &x0, &y0, &w, &h);
             pixels[t] = w * h;
         }
-        m->adapt = adapt_new(m->num_tiles, pixels, m->passes, m->target_error, m->max_rounds);
+        m->adapt = adapt_new(m->num_tiles, pixels, m->passes, integrator_streams(m->photon_maps > 0), m->target_error,
+                             m->max_rounds);
         m->round_from = mem_calloc(m->num_tiles, sizeof *m->round_from);
         free(pixels);
     }
@@ -1381,7 +1389,7 @@ static void print_summary(struct master *m, double secs)
     printf("summary: noise: mean relative standard error %.4f over %u lit pixels\n",
            s->rel_stderr_pixels ? s->sum_rel_stderr / s->rel_stderr_pixels : 0.0, s->rel_stderr_pixels);
     printf("summary: estimated relRMSE %.4f (sqrt(mean pixel variance of the mean) / image mean, RGB; %s)\n",
-           m->rel_rmse_est, m->passes > 1 ? "batch means over the passes" : "sample variance");
+           m->rel_rmse_est, m->passes > 1 ? "batch means over the streams of passes" : "sample variance");
     if (m->var_saturated)
         printf("summary: the variance of %llu pixel(s) is past float's range (saved as FLT_MAX): the estimate is a "
                "lower bound\n", (unsigned long long)m->var_saturated);

@@ -2,35 +2,45 @@
 # Benchmark: adaptive rendering to a target error (docs/adaptive.md) against uniform spp,
 # at equal true error, and the calibration of --target-error.
 #
-# For each scene of SCENES (scenes with uneven noise: depth of field and motion blur, textures,
-# caustics through a glass ball in the Cornell box, light shafts in fog, a small motion scene):
+# Each entry of SCENES is NAME[:WxH[:E1,E2,...[:REFSPP]]]: scenes/NAME/NAME.json at that
+# resolution (the scene's own without one) with those targets (TARGETS without them) and
+# reference spp (REF_SPP without it). For each:
 #  1. A reference: REF_SPP spp in REF_PASSES passes, seed 99; its own relRMSE is its
-#     batch-means estimate (exrtool errest; the passes are independent replicates) and is
-#     taken out of every measured error in quadrature: true = sqrt(rel^2 - ref^2). Cached
-#     under bench-out/ref-adaptive/ by the scene's files and these settings (REF_REDO=1 redoes).
-#  2. Adaptive: --target-error E for E of TARGETS (seed SEED, --spp cap CAP): CPU seconds,
-#     true relRMSE, its ratio to E (the calibration), the mean spp.
-#  3. Uniform: plain renders (one pass, the scene's sampler) at spp 8, 16, 32, ... until the
-#     true error is below the smallest adaptive one; the uniform CPU time at the adaptive
-#     render's true error is interpolated on the log-log error-time curve ('*': extrapolated);
-#     the ratio adaptive / uniform is the equal-error time ratio.
+#     batch-means estimate (exrtool errest: the passes' streams are independent replicates)
+#     and is taken out of every measured error in quadrature: true = sqrt(rel^2 - ref^2).
+#     Cached under bench-out/ref-adaptive/ by the scene's files, the resolution and these
+#     settings (REF_REDO=1 redoes).
+#  2. Adaptive: --target-error E (seed SEED, --spp cap CAP, tiles of ADAPT_TILE px): CPU
+#     seconds, true relRMSE, its ratio to E (the calibration), the estimate, the mean spp.
+#  3. Uniform, the same mechanism: --passes STREAMS (one pass per sampler stream, what a
+#     tile of the adaptive render is) at spp 8, 16, 32, ... until the true error is below
+#     0.9 x the smallest adaptive one (at most MAX_UNIFORM_SPP); and plain uniform Sobol
+#     (one pass) likewise. The uniform CPU time at the adaptive render's true error is
+#     interpolated on the log-log error-time curve ('*': extrapolated); the ratios
+#     adaptive / uniform are the equal-error time ratios.
 #  4. Overhead on uniform noise: OVERHEAD_SCENE (the plain Cornell box at 128x128) at 64 spp
-#     uniform, then adaptive with the target set to that render's true error.
+#     uniform (streams, and one pass), then adaptive with the target set to the streamed
+#     render's true error.
 # CPU seconds (user + system of the master and its local worker, /usr/bin/time) on a shared
 # machine; timings are measurements of one run, never assertions.
 # Writes bench-out/adaptive.txt, bench-out/adaptive.png (gnuplot), bench-out/adaptive-SCENE.dat.
 # Usage: BUILD=build sh scripts/bench_adaptive.sh
-#   env: SCENES ("dof_motion textured cornell_glass fog_spot motion"), TARGETS ("0.05 0.02 0.01"),
-#        REF_SPP (4096), REF_PASSES (16), CAP (8192), SEED (17), MAX_UNIFORM_SPP (8192), REF_REDO (0)
+#   env: SCENES ("dof_motion motion:64x48 textured:160x90 cornell_glass:64x64:0.05 fog_spot:40x30:0.05"),
+#        TARGETS ("0.05 0.02 0.01"), REF_SPP (16384), REF_PASSES (16), CAP (16384), SEED (17),
+#        MAX_UNIFORM_SPP (16384), STREAMS (2: the sampler's SAMPLER_STREAMS), ADAPT_TILE (8),
+#        OVERHEAD (1), OVERHEAD_REF_SPP (4096), REF_REDO (0)
 set -eu
 . scripts/lib.sh
-SCENES=${SCENES:-"dof_motion textured cornell_glass fog_spot motion"}
+SCENES=${SCENES:-"dof_motion motion:64x48 textured:160x90 cornell_glass:64x64:0.05 fog_spot:40x30:0.05"}
 TARGETS=${TARGETS:-"0.05 0.02 0.01"}
-REF_SPP=${REF_SPP:-4096}
+REF_SPP=${REF_SPP:-16384}
 REF_PASSES=${REF_PASSES:-16}
-CAP=${CAP:-8192}
+CAP=${CAP:-16384}
 SEED=${SEED:-17}
-MAX_UNIFORM_SPP=${MAX_UNIFORM_SPP:-8192}
+MAX_UNIFORM_SPP=${MAX_UNIFORM_SPP:-16384}
+STREAMS=${STREAMS:-2}
+ADAPT_TILE=${ADAPT_TILE:-8}
+OVERHEAD=${OVERHEAD:-1}
 REF_REDO=${REF_REDO:-0}
 bench_init badaptive gnuplot-nox
 M="$BUILD/master"
@@ -42,67 +52,115 @@ TXT="$OUT/adaptive.txt"
 run() { r_j=$1; r_o=$2; shift 2; cpu_secs "$M" "$r_j" -o "$r_o" --workers 1 --threads "$CORES" --no-journal "$@"; }
 # truerr IMG REF REFERR: relRMSE against the reference with the reference's own error removed.
 truerr() { awk -v a="$($X relrmse "$1" "$2")" -v r="$3" 'BEGIN { d = a * a - r * r; printf "%.5f\n", (d > 0) ? sqrt(d) : 0 }'; }
+# scene_at NAME WxH DIR: a copy of scenes/NAME in DIR with the render resolution WxH
+# (the scene's own when WxH is empty); prints the JSON's path.
+scene_at() {
+  mkdir -p "$3"
+  cp -r "scenes/$1/." "$3/"
+  if [ -n "$2" ]; then
+    python3 -c 'import json, sys
+p, w, h = sys.argv[1], int(sys.argv[2].split("x")[0]), int(sys.argv[2].split("x")[1])
+d = json.load(open(p)); d["render"]["width"] = w; d["render"]["height"] = h
+json.dump(d, open(p, "w"), indent=1)' "$3/$1.json" "$2"
+  fi
+  echo "$3/$1.json"
+}
+# reference JSON NAME: renders (or finds cached) the reference of JSON; prints its folder.
+reference() {
+  rkey=$(files_key "$(dirname "$1")"/* | cut -c1-12)
+  rd="$OUT/ref-adaptive/$2-$rkey-$REF_SPP-$REF_PASSES"
+  if [ "$REF_REDO" = 1 ] || [ ! -f "$rd/ref.exr" ]; then
+    mkdir -p "$rd"
+    rc=$(run "$1" "$rd/ref.exr" --spp "$REF_SPP" --passes "$REF_PASSES" --seed 99)
+    echo "reference $2: $REF_SPP spp in $REF_PASSES passes, $rc s CPU" >&2
+  fi
+  echo "$rd"
+}
+# sweep JSON REF REFERR DAT MINERR [args]: uniform renders at spp 8, 16, ... into DAT
+# ("spp cpu true") until the error is below 0.9 MINERR or MAX_UNIFORM_SPP.
+sweep() {
+  w_j=$1 w_r=$2 w_e=$3 w_d=$4 w_m=$5
+  shift 5
+  : >"$w_d"
+  spp=8
+  while [ "$spp" -le "$MAX_UNIFORM_SPP" ]; do
+    c=$(run "$w_j" "$T/u.exr" --spp "$spp" --seed "$SEED" "$@")
+    e=$(truerr "$T/u.exr" "$w_r" "$w_e")
+    echo "$spp $c $e" >>"$w_d"
+    awk -v e="$e" -v m="$w_m" 'BEGIN { exit !(e < 0.9 * m) }' && break
+    spp=$((spp * 2))
+  done
+}
+# at_error DAT ERR: the CPU seconds interpolated at ERR on DAT's uniform curve.
+at_error() { awk '{ print $3, $2 }' "$1" | loglog_interp "$2"; }
+ratio() { awk -v a="$1" -v u="${2%\*}" 'BEGIN { printf "%.3f\n", (u > 0) ? a / u : 0 }'; }
 
 {
-  echo "# bench_adaptive: CPU seconds, true relRMSE (reference error removed), on $(nproc) cores"
-  echo "# scene target cpu_adaptive true true/target est spp_mean uniform_cpu_at_equal_error ratio"
+  echo "# bench_adaptive: CPU seconds, true relRMSE (reference error removed), on $(nproc) cores;"
+  echo "# uniform_s: --passes $STREAMS (the same streams); uniform_1: one pass; adaptive tiles of $ADAPT_TILE px"
+  echo "# scene target cpu_adaptive true true/target est spp_mean uniform_s_cpu ratio_s uniform_1_cpu ratio_1"
 } >"$TXT"
-for s in $SCENES; do
-  J="scenes/$s/$s.json"
-  key=$(files_key scenes/$s/* "$0" | cut -c1-12)
-  RD="$OUT/ref-adaptive/$s-$key-$REF_SPP-$REF_PASSES"
-  if [ "$REF_REDO" = 1 ] || [ ! -f "$RD/ref.exr" ]; then
-    mkdir -p "$RD"
-    c=$(run "$J" "$RD/ref.exr" --spp "$REF_SPP" --passes "$REF_PASSES" --seed 99)
-    echo "reference $s: $REF_SPP spp in $REF_PASSES passes, $c s CPU"
-  fi
+for entry in $SCENES; do
+  s=${entry%%:*}
+  rest=${entry#"$s"}
+  rest=${rest#:}
+  res=${rest%%:*}
+  rest=${rest#"$res"}
+  rest=${rest#:}
+  tg=$(echo "${rest%%:*}" | tr ',' ' ')
+  [ -n "$tg" ] || tg=$TARGETS
+  rs=${rest#*:}
+  [ "$rs" != "$rest" ] && [ -n "$rs" ] || rs=$REF_SPP
+  J=$(scene_at "$s" "$res" "$T/scene-$s")
+  RD=$(REF_SPP=$rs reference "$J" "$s${res:+-$res}")
   referr=$($X errest "$RD/ref.exr")
   DAT="$OUT/adaptive-$s.dat"
-  : >"$DAT.u"
   : >"$DAT.a"
   minerr=1
-  for E in $TARGETS; do
-    c=$(run "$J" "$T/a.exr" --target-error "$E" --spp "$CAP" --seed "$SEED")
+  for E in $tg; do
+    c=$(run "$J" "$T/a.exr" --target-error "$E" --spp "$CAP" --seed "$SEED" --tile "$ADAPT_TILE")
     e=$(truerr "$T/a.exr" "$RD/ref.exr" "$referr")
     est=$($X errest "$T/a.exr")
     sppm=$(sed -n 's/.*spp min [0-9]* mean \([0-9.]*\) max.*/\1/p' "$T/log")
     echo "$E $c $e $est $sppm" >>"$DAT.a"
     minerr=$(awk -v a="$minerr" -v b="$e" 'BEGIN { print (b < a) ? b : a }')
   done
-  spp=8
-  while [ "$spp" -le "$MAX_UNIFORM_SPP" ]; do
-    c=$(run "$J" "$T/u.exr" --spp "$spp" --seed "$SEED")
-    e=$(truerr "$T/u.exr" "$RD/ref.exr" "$referr")
-    echo "$spp $c $e" >>"$DAT.u"
-    awk -v e="$e" -v m="$minerr" 'BEGIN { exit !(e < 0.9 * m) }' && break
-    spp=$((spp * 2))
-  done
+  sweep "$J" "$RD/ref.exr" "$referr" "$DAT.s" "$minerr" --passes "$STREAMS"
+  sweep "$J" "$RD/ref.exr" "$referr" "$DAT.1" "$minerr" --passes 1
   while read -r E c e est sppm; do
-    uc=$(awk '{ print $3, $2 }' "$DAT.u" | loglog_interp "$e")
-    ratio=$(awk -v a="$c" -v u="${uc%\*}" 'BEGIN { printf "%.3f\n", (u > 0) ? a / u : 0 }')
-    printf "%s %s %s %s %.3f %s %s %s %s\n" "$s" "$E" "$c" "$e" "$(awk -v e="$e" -v t="$E" 'BEGIN { print e / t }')" "$est" \
-      "$sppm" "$uc" "$ratio" >>"$TXT"
+    us=$(at_error "$DAT.s" "$e")
+    u1=$(at_error "$DAT.1" "$e")
+    printf "%s %s %s %s %.3f %s %s %s %s %s %s\n" "$s${res:+@$res}" "$E" "$c" "$e" \
+      "$(awk -v e="$e" -v t="$E" 'BEGIN { print e / t }')" "$est" "$sppm" "$us" "$(ratio "$c" "$us")" "$u1" \
+      "$(ratio "$c" "$u1")" >>"$TXT"
   done <"$DAT.a"
-  { echo "# uniform: spp cpu true"; cat "$DAT.u"; echo; echo; echo "# adaptive: target cpu true est spp_mean"; cat "$DAT.a"; } >"$DAT"
-  rm -f "$DAT.u" "$DAT.a"
-  echo "reference $s: own relRMSE $referr" >>"$TXT"
+  {
+    echo "# uniform, $STREAMS streams: spp cpu true"; cat "$DAT.s"; echo; echo
+    echo "# adaptive: target cpu true est spp_mean"; cat "$DAT.a"; echo; echo
+    echo "# uniform, one pass: spp cpu true"; cat "$DAT.1"
+  } >"$DAT"
+  rm -f "$DAT.s" "$DAT.a" "$DAT.1"
+  echo "reference $s${res:+@$res}: own relRMSE $referr" >>"$TXT"
 done
 
 # Overhead on uniform noise: the Cornell box at 128x128.
-mkdir -p "$T/cb"
-cp scenes/cornell/cornell.obj scenes/cornell/cornell.mtl "$T/cb/"
-sed -e 's/"width": 512/"width": 128/' -e 's/"height": 512/"height": 128/' scenes/cornell/cornell.json >"$T/cb/cb.json"
-CR="$OUT/ref-adaptive/cornell128-$(files_key "$T/cb/cb.json" "$0" | cut -c1-12)-$REF_SPP"
-if [ "$REF_REDO" = 1 ] || [ ! -f "$CR/ref.exr" ]; then
-  mkdir -p "$CR"
-  run "$T/cb/cb.json" "$CR/ref.exr" --spp "$REF_SPP" --passes "$REF_PASSES" --seed 99 >/dev/null
+if [ "$OVERHEAD" = 1 ]; then
+  CJ=$(scene_at cornell 128x128 "$T/cb")
+  CR=$(REF_SPP=${OVERHEAD_REF_SPP:-4096} reference "$CJ" cornell-128x128)
+  cref=$($X errest "$CR/ref.exr")
+  cs=$(run "$CJ" "$T/us.exr" --spp 64 --seed "$SEED" --passes "$STREAMS")
+  es=$(truerr "$T/us.exr" "$CR/ref.exr" "$cref")
+  c1=$(run "$CJ" "$T/u1.exr" --spp 64 --seed "$SEED" --passes 1)
+  e1=$(truerr "$T/u1.exr" "$CR/ref.exr" "$cref")
+  ca=$(run "$CJ" "$T/a64.exr" --target-error "$es" --spp "$CAP" --seed "$SEED" --tile "$ADAPT_TILE")
+  ea=$(truerr "$T/a64.exr" "$CR/ref.exr" "$cref")
+  {
+    echo "overhead cornell128: uniform 64 spp in $STREAMS streams $cs s true $es; one pass $c1 s true $e1;" \
+      "adaptive to $es: $ca s true $ea; ratio to streams $(ratio "$ca" "$cs"), to one pass at equal error" \
+      "$(awk -v a="$ca" -v u="$c1" -v ea="$ea" -v e1="$e1" 'BEGIN { printf "%.3f", a / (u * (e1 / ea) ^ 2) }') (one pass scaled by (e1/ea)^2)"
+    echo "reference cornell128: own relRMSE $cref"
+  } >>"$TXT"
 fi
-cref=$($X errest "$CR/ref.exr")
-cu=$(run "$T/cb/cb.json" "$T/u64.exr" --spp 64 --seed "$SEED")
-eu=$(truerr "$T/u64.exr" "$CR/ref.exr" "$cref")
-ca=$(run "$T/cb/cb.json" "$T/a64.exr" --target-error "$eu" --spp "$CAP" --seed "$SEED")
-ea=$(truerr "$T/a64.exr" "$CR/ref.exr" "$cref")
-echo "overhead cornell128: uniform 64 spp $cu s true $eu; adaptive to $eu: $ca s true $ea; ratio $(awk -v a="$ca" -v u="$cu" 'BEGIN { printf "%.3f", a / u }')" >>"$TXT"
 cat "$TXT"
 
 {
@@ -110,7 +168,8 @@ cat "$TXT"
   echo "set logscale xy; set xlabel 'CPU seconds'; set ylabel 'true relRMSE'; set key outside"
   printf "plot "
   sep=""
-  for s in $SCENES; do
+  for entry in $SCENES; do
+    s=${entry%%:*}
     printf "%s'%s' index 0 using 2:3 with linespoints title '%s uniform', '%s' index 1 using 2:3 with points pt 7 title '%s adaptive'" \
       "$sep" "$OUT/adaptive-$s.dat" "$s" "$OUT/adaptive-$s.dat" "$s"
     sep=", "

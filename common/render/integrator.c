@@ -4,6 +4,7 @@
  * pathtracer counts path length). Rays leave surfaces (surface.c) with integer-ULP offsets
  * along the geometric normal (Waechter and Binder, Ray Tracing Gems ch. 6). */
 #include "render/integrator.h"
+#include "base/log.h"
 #include "render/media_integrator.h"
 #include "render/surface.h"
 #include "render/texshade.h"
@@ -147,32 +148,46 @@ static vec3 sample_path(const struct render_job *job, uint32_t pass, uint32_t px
     return L;
 }
 
-void pass_batch_add(struct pass_batch *b, const double m[3])
+void pass_batch_add(struct pass_batch *b, uint32_t stream, const double m[3])
 {
-    /* Welford's running mean and sum of squared deviations (stable for any P). */
-    double lum = 0.2126 * m[0] + 0.7152 * m[1] + 0.0722 * m[2];
+    CHECK(stream < SAMPLER_MAX_STREAMS);
+    double *sum = b->sum[stream];
+    for (int k = 0; k < 3; k++)
+        sum[k] += m[k];
+    sum[3] += 0.2126 * m[0] + 0.7152 * m[1] + 0.0722 * m[2];
+    b->count[stream]++;
     b->n++;
-    for (int k = 0; k < 3; k++) {
-        double d = m[k] - b->mean[k];
-        b->mean[k] += d / b->n;
-        b->m2[k] += d * (m[k] - b->mean[k]);
-    }
-    double d = lum - b->lum_mean;
-    b->lum_mean += d / b->n;
-    b->lum_m2 += d * (lum - b->lum_mean);
+    /* The average of the stream means, recomputed in stream order (the same bits whatever
+     * the passes so far). */
+    double acc[4] = {0, 0, 0, 0};
+    uint32_t q = 0;
+    for (uint32_t s = 0; s < SAMPLER_MAX_STREAMS; s++)
+        if (b->count[s]) {
+            for (int k = 0; k < 4; k++)
+                acc[k] += b->sum[s][k] / b->count[s];
+            q++;
+        }
+    for (int k = 0; k < 3; k++)
+        b->mean[k] = acc[k] / q;
+    b->lum_mean = acc[3] / q;
 }
 
 double pass_batch_var_of_mean(const struct pass_batch *b, int k)
 {
-    double m2 = k < 3 ? b->m2[k] : b->lum_m2;
-    return b->n > 1 ? fmax(0.0, m2) / (b->n - 1) / b->n : 0.0;
+    double mean = k < 3 ? b->mean[k] : b->lum_mean, ss = 0.0;
+    uint32_t q = 0;
+    for (uint32_t s = 0; s < SAMPLER_MAX_STREAMS; s++)
+        if (b->count[s]) {
+            double d = b->sum[s][k] / b->count[s] - mean;
+            ss += d * d;
+            q++;
+        }
+    return q > 1 ? ss / (q - 1) / q : 0.0;
 }
 
-/* One pass of a pixel (progressive photon mapping, job->num_passes >= 2): pass p takes
- * sample indices [p k, (p + 1) k), which the sampler scrambles afresh per pass (for sobol,
- * k points of one sequence under the pass's own scramble, not the p-th block of one long
- * sequence: consecutive blocks are not independent, and their spread overstates the error
- * of the whole), and the pass's photon map. *n gets the samples kept (NaN and Inf are
+/* One pass of a pixel (job->num_passes >= 2): pass p takes sample indices
+ * [p k, (p + 1) k), which the sampler makes block p / R of stream p mod R (for sobol, the next k points of the stream's one scrambled
+ * sequence), and the pass's photon map. *n gets the samples kept (NaN and Inf are
  * dropped), m their mean, *cover the share that hit something. */
 static void render_pixel_pass(const struct render_job *job, struct sampler_pixel *sp, uint32_t pass, uint32_t px_x,
                               uint32_t px_y, double m[3], double *cover, uint32_t *n, struct tile_stats *stats)
@@ -180,6 +195,10 @@ static void render_pixel_pass(const struct render_job *job, struct sampler_pixel
     const uint32_t k = sp->spp; /* samples per pass: sampler_pixel_for set the pixel's pass size */
     double sum[3] = {0, 0, 0}, hits = 0.0;
     *n = 0;
+    /* A photon-map pass always has its map (the master's streams count agrees). */
+    uint32_t streams = integrator_streams(render_job_pass_map(job, pass) != NULL);
+    if (sp->streams != streams)
+        sampler_pixel_set_streams(sp, streams);
     sampler_pixel_set_pass(sp, pass);
     for (uint32_t si = pass * k; si < (pass + 1) * k; si++) {
         int hit_any;
@@ -207,12 +226,12 @@ static void sampler_pixel_for(const struct render_job *job, uint32_t px_x, uint3
     sampler_pixel_init(sp, rs->sampler, rs->seed, job->frame, (uint64_t)px_y * rs->width + px_x, k);
 }
 
-void pass_pixel_fold(struct pass_pixel *pp, const float *px)
+void pass_pixel_fold(struct pass_pixel *pp, uint32_t stream, const float *px)
 {
     if (px[CH_A] < 0.0f)
         return; /* every sample of the pass dropped: the other passes make the pixel */
     double m[3] = {px[CH_R], px[CH_G], px[CH_B]};
-    pass_batch_add(&pp->b, m);
+    pass_batch_add(&pp->b, stream, m);
     pp->cover += px[CH_A];
 }
 
@@ -257,7 +276,7 @@ static void render_pixel_passes(const struct render_job *job, uint32_t px_x, uin
         float ch[TILE_NUM_CHANNELS];
         render_pixel_pass(job, &sp, p, px_x, px_y, m, &cover, &n, stats);
         pass_pixel_channels(m, cover, n, ch);
-        pass_pixel_fold(&pp, ch);
+        pass_pixel_fold(&pp, p % sp.streams, ch);
     }
     pass_pixel_finish(&pp, px, stats);
 }

@@ -1,9 +1,11 @@
 /* Stratified and Owen-scrambled Sobol samplers (sampler.h). Each 1D dimension and each 2D
- * pair gets its own per-pixel hashed permutation of the sample index (Cook 1984's random
- * pairing; pbrt's PaddedSobol), so pairs are stratified within and decorrelated across.
- * Pure functions of their arguments: no tables written at run time, no state. Hot: a path
- * asks for ~10 pairs per sample, so a pair costs a few hashes and no division, sqrt or
- * loop over digits when spp is a power of two (sampler_start_type precomputes the grid). */
+ * pair gets its own per-pixel hashed shuffle of the sample index (Cook 1984's random
+ * pairing; pbrt's PaddedSobol; for sobol Burley 2020's nested uniform shuffle, which keeps
+ * every power-of-two block of a stream a (0,m,2)-net, so streams extend), so pairs are
+ * stratified within and decorrelated across. Pure functions of their arguments: no tables
+ * written at run time, no state. Hot: a path asks for ~10 pairs per sample, so a pair costs
+ * a few hashes and no division, sqrt or loop over digits when spp is a power of two
+ * (sampler_start_type precomputes the grid). */
 #include "scene/sampler.h"
 #include <math.h>
 #include <string.h>
@@ -27,6 +29,19 @@ int sampler_type_from_name(const char *name, enum sampler_type *out)
 static uint64_t key_prefix(uint64_t seed, uint32_t frame, uint64_t pixel)
 {
     return rng_mix64(rng_mix64(rng_mix64(seed ^ 0x6272756d65ull) ^ frame) ^ pixel);
+}
+
+/* The key of a pixel's pass: sobol's passes share their stream's (a stream is one
+ * sequence), the stratified sampler's each have their own. */
+static inline uint64_t pass_key(uint64_t prefix, enum sampler_type type, uint32_t pass, uint32_t streams)
+{
+    return rng_mix64(prefix ^ PASS_DOMAIN ^ (type == SAMPLER_SOBOL ? pass % streams : pass));
+}
+
+/* Index within the pass's stream of sample `index` of pass `pass`. */
+static inline uint32_t stream_index(uint32_t pass, uint32_t index, uint32_t spp, uint32_t streams)
+{
+    return pass / streams * spp + index;
 }
 
 /* The next power of two >= n, minus 1. */
@@ -72,8 +87,16 @@ void sampler_pixel_init(struct sampler_pixel *p, enum sampler_type type, uint64_
     p->spp = spp ? spp : 1;
     setup_grid(p->spp, type, &p->perm_mask, &p->nx, &p->ny, &p->log2_spp);
     p->prefix = key_prefix(seed, frame, pixel);
+    p->streams = SAMPLER_STREAMS;
     p->pass = 0;
-    p->pixel_key = rng_mix64(p->prefix ^ PASS_DOMAIN);
+    p->pixel_key = pass_key(p->prefix, type, 0, p->streams);
+    p->have = 0;
+}
+
+void sampler_pixel_set_streams(struct sampler_pixel *p, uint32_t streams)
+{
+    p->streams = streams >= 1 && streams <= SAMPLER_MAX_STREAMS ? streams : SAMPLER_STREAMS;
+    p->pixel_key = pass_key(p->prefix, p->type, p->pass, p->streams);
     p->have = 0;
 }
 
@@ -82,7 +105,7 @@ void sampler_pixel_set_pass(struct sampler_pixel *p, uint32_t pass)
     if (pass == p->pass)
         return;
     p->pass = pass;
-    p->pixel_key = rng_mix64(p->prefix ^ PASS_DOMAIN ^ pass);
+    p->pixel_key = pass_key(p->prefix, p->type, pass, p->streams);
     p->have = 0;
 }
 
@@ -97,15 +120,15 @@ struct sampler sampler_start_pixel(struct sampler_pixel *p, uint32_t sample)
     s.log2_spp = p->log2_spp;
     uint32_t pass = s.log2_spp >= 0 ? sample >> s.log2_spp : sample / s.spp;
     s.index = sample - pass * s.spp;
+    s.sidx = stream_index(pass, s.index, s.spp, p->streams);
     /* The Sobol sampler draws nothing per sample: its key would be wasted work. */
     s.key = s.type == SAMPLER_SOBOL ? 0 : rng_mix64(p->prefix ^ sample);
     s.pixel_key = 0;
     s.cache = NULL;
     if (s.type == SAMPLER_INDEPENDENT)
         return s;
-    /* Later passes (index >= spp) get fresh permutations and scrambles, memoized only for
-     * the pass p holds. */
-    s.pixel_key = pass == p->pass ? p->pixel_key : rng_mix64(p->prefix ^ PASS_DOMAIN ^ pass);
+    /* Seeds memoized only for the pass p holds. */
+    s.pixel_key = pass == p->pass ? p->pixel_key : pass_key(p->prefix, s.type, pass, p->streams);
     s.cache = pass == p->pass ? p : NULL;
     return s;
 }
@@ -118,9 +141,10 @@ struct sampler sampler_start_type(enum sampler_type type, uint64_t seed, uint32_
     s.spp = spp ? spp : 1;
     setup_grid(s.spp, type, &s.perm_mask, &s.nx, &s.ny, &s.log2_spp);
     s.index = sample % s.spp;
+    s.sidx = stream_index(sample / s.spp, s.index, s.spp, SAMPLER_STREAMS);
     uint64_t prefix = key_prefix(seed, frame, pixel);
     s.key = type == SAMPLER_SOBOL ? 0 : rng_mix64(prefix ^ sample);
-    s.pixel_key = type == SAMPLER_INDEPENDENT ? 0 : rng_mix64(prefix ^ PASS_DOMAIN ^ (sample / s.spp));
+    s.pixel_key = type == SAMPLER_INDEPENDENT ? 0 : pass_key(prefix, type, sample / s.spp, SAMPLER_STREAMS);
     s.cache = NULL;
     return s;
 }
@@ -305,8 +329,18 @@ static inline float sobol_value(const struct sampler *s, uint32_t d, uint32_t r,
     return rev_to_unit(e ? owen_rev_table(r, e->flips, tail) : owen_rev(r, dim_tree(s, d), tail));
 }
 
+uint32_t sampler_shuffle(uint32_t i, uint32_t seed)
+{
+    return reverse_bits(owen_tail_rev(reverse_bits(i), seed));
+}
+
+/* The point a 1D dimension or 2D pair takes for this sample: sobol shuffles the stream
+ * index (blocks of 2^m stay blocks: every power-of-two prefix of a stream, and every pass
+ * of a power-of-two size, is a (0,m,2)-net); stratified permutes within the pass. */
 static inline uint32_t index_for(const struct sampler *s, uint32_t perm_seed)
 {
+    if (s->type == SAMPLER_SOBOL)
+        return sampler_shuffle(s->sidx, perm_seed);
     return permute_in(s->index, s->spp, s->perm_mask, perm_seed);
 }
 

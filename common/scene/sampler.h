@@ -26,6 +26,20 @@ enum sampler_dim {
     DIM_PER_BOUNCE = 6
 };
 
+/* Replicate streams of the sobol sampler. A pixel's passes belong to R independent
+ * streams: pass p is block p / R of stream p mod R, i.e. its k samples are the indices
+ * [b k, (b + 1) k) of ONE Owen-scrambled Sobol sequence seeded by (pixel, stream), so a
+ * stream's samples so far are a prefix of one sequence (Sobol's convergence kept) and the
+ * streams' means are independent replicates (the batch means of the error estimate,
+ * docs/adaptive.md). R is SAMPLER_STREAMS, or SAMPLER_STREAMS_MAPS with photon maps, whose
+ * noise is smooth across pixels, so that its estimate needs more replicates. The
+ * stratified and independent samplers give each pass its own randomisation. */
+#ifndef SAMPLER_STREAMS
+#define SAMPLER_STREAMS 2u
+#endif
+#define SAMPLER_STREAMS_MAPS 4u
+#define SAMPLER_MAX_STREAMS 4u
+
 /* Seeds of one dimension for one pixel pass: the index permutation, and for sobol the
  * seed of the hash for the deep digits and the exact flips of the first 6 digits as a
  * table indexed by the first 5 (byte p of the 4 words: the flips for prefix p). */
@@ -47,8 +61,9 @@ struct sampler_pixel {
     uint32_t nx, ny;    /* stratified: 2D grid nx * ny == spp */
     int log2_spp;       /* log2(spp) when spp is a power of two, else -1 */
     uint64_t prefix;    /* rng_key's (seed, frame, pixel) part */
+    uint32_t streams;   /* R (sampler_pixel_init: SAMPLER_STREAMS) */
     uint32_t pass;      /* the pass whose seeds are memoized here (sampler_pixel_set_pass) */
-    uint64_t pixel_key; /* hash of (seed, frame, pixel, pass) */
+    uint64_t pixel_key; /* hash of (seed, frame, pixel, stream) (stratified: pass) */
     uint64_t have;      /* bit d: seeds[d] filled */
     struct sampler_dim_seeds seeds[SAMPLER_CACHE_DIMS];
 };
@@ -58,20 +73,22 @@ struct sampler_pixel {
 struct sampler {
     enum sampler_type type;
     uint32_t index;     /* sample index within the pixel's pass: index < spp */
+    uint32_t sidx;      /* sobol: index within the pass's stream (block * spp + index) */
     uint32_t spp;
     uint32_t perm_mask;
     uint32_t nx, ny;
     int log2_spp;
     uint64_t key;       /* rng_key(seed, frame, pixel, sample); 0 for sobol (unused) */
-    uint64_t pixel_key; /* hash of (seed, frame, pixel, pass) */
+    uint64_t pixel_key; /* hash of (seed, frame, pixel, stream) (stratified: pass) */
     struct sampler_pixel *cache; /* seeds memo of this pixel and pass, or NULL */
 };
 
 /* Names as the scene and command line spell them; returns -1 for an unknown name. */
 int sampler_type_from_name(const char *name, enum sampler_type *out);
 
-/* Sample `sample` of pixel `pixel` for a render of spp samples per pixel. Sample indices
- * >= spp are valid too: they start further passes with fresh permutations/scrambles. */
+/* Sample `sample` of pixel `pixel` for passes of spp samples. Sample indices >= spp are
+ * valid too: they are further passes (pass = sample / spp), for sobol further blocks of the
+ * pass's stream, for stratified fresh permutations. */
 struct sampler sampler_start_type(enum sampler_type type, uint64_t seed, uint32_t frame, uint64_t pixel,
                                   uint32_t sample, uint32_t spp);
 
@@ -80,9 +97,10 @@ struct sampler sampler_start_type(enum sampler_type type, uint64_t seed, uint32_
 void sampler_pixel_init(struct sampler_pixel *p, enum sampler_type type, uint64_t seed, uint32_t frame,
                         uint64_t pixel, uint32_t spp);
 struct sampler sampler_start_pixel(struct sampler_pixel *p, uint32_t sample);
-/* Moves p's memo to pass `pass` (samples [pass spp, (pass + 1) spp)): each pass of a pixel
- * is an independent randomisation of the same point set (randomised QMC), so that the
- * means of passes are independent replicates. Values are the same with or without it. */
+/* Sets p's stream count (1..SAMPLER_MAX_STREAMS; init sets SAMPLER_STREAMS). */
+void sampler_pixel_set_streams(struct sampler_pixel *p, uint32_t streams);
+/* Moves p's memo to pass `pass` (samples [pass spp, (pass + 1) spp)). Values are the same
+ * with or without it. */
 void sampler_pixel_set_pass(struct sampler_pixel *p, uint32_t pass);
 
 /* The independent sampler of earlier versions (same bits). */
@@ -118,12 +136,23 @@ static inline void sampler_get_2d(const struct sampler *s, uint32_t dim0, float 
 /* 1 with the grid (*nx cells along x, *ny along y) when every sample of a pass over s's
  * pixel lies alone in its own cell of that grid over the pixel (the DIM_PIXEL pair), else
  * 0: 1 x 1 at 1 spp (any sampler); stratified at any spp; sobol when spp is a power of
- * two (its first 2^k points form a (0, k, 2)-net, scrambling included, so every
- * elementary box of area 1/spp holds one). Texture footprints are that cell
- * (texshade_camera). */
+ * two (any aligned power-of-two block of a stream is a (0, m, 2)-net, scrambling and
+ * shuffle included, so every elementary box of its size holds one). For sobol the grid is
+ * that of the stream's samples so far, block b of k samples giving the largest power of
+ * two <= (b + 1) k (a block lies inside an aligned block of that size), so that later
+ * passes of a stream filter as finely as its samples so far and a pixel's textures
+ * sharpen as its passes grow. Texture footprints are that cell (texshade_camera). */
 static inline int sampler_pixel_cells(const struct sampler *s, uint32_t *nx, uint32_t *ny)
 {
     *nx = *ny = 1;
+    if (s->type == SAMPLER_SOBOL && s->log2_spp >= 0) {
+        uint64_t n = (uint64_t)(s->sidx / s->spp + 1u) * s->spp;
+        int m = 63 - __builtin_clzll(n);
+        m = m > 24 ? 24 : m;
+        *nx = 1u << (m / 2);
+        *ny = 1u << (m - m / 2);
+        return 1;
+    }
     if (s->spp == 1)
         return 1;
     if (s->type == SAMPLER_INDEPENDENT || s->nx * s->ny != s->spp)
@@ -165,5 +194,9 @@ static inline uint32_t sampler_dim_pair(uint32_t dim, uint32_t *comp, int *is_2d
 
 /* Building blocks, exposed for tests. */
 uint32_t sampler_permute(uint32_t i, uint32_t n, uint32_t seed); /* bijection on [0, n) */
+/* Burley's (2020) shuffle of a sobol index: a nested uniform scramble of its bits (bit k
+ * flipped by a hash of the bits above k), so every aligned block of 2^m indices maps onto
+ * an aligned block of 2^m (a bijection of 32-bit indices). */
+uint32_t sampler_shuffle(uint32_t i, uint32_t seed);
 
 #endif

@@ -3,7 +3,8 @@
 # with 1 and 3 workers (and another tile order) is bit-identical; a master killed with
 # kill -9 after round 0 and restarted resumes from its journal to identical pixels; the
 # samples channel sums to the samples the run reports; a --time-limit run records its
-# rounds and --max-rounds reproduces it; passes apply to a scene without photon maps.
+# rounds and --max-rounds reproduces it; passes apply to a scene without photon maps; a
+# tile's m passes are the uniform render with m passes.
 # Ends with "integration: N passed, N failed". Usage: BUILD=build sh tests/integration/adaptive.sh
 . "$(dirname "$0")/lib.sh"
 lib_init adaptive
@@ -69,8 +70,17 @@ else bad "time limit: recorded rounds ($rounds) and --max-rounds reproduce it (r
 # Passes on a scene without photon maps: batch-means estimate, 1 vs 2 workers identical.
 run $M $S -o "$T/p1.exr" --spp 16 --passes 4 --no-journal --workers 1 --threads 1 && p1=0 || p1=1
 run $M $S -o "$T/p2.exr" --spp 16 --passes 4 --no-journal --workers 2 --threads 1 --tile 8 && p2=0 || p2=1
-if [ $p1 = 0 ] && [ $p2 = 0 ] && grep -q "batch means over the passes" "$T/log" && $X cmp "$T/p1.exr" "$T/p2.exr"; then
+if [ $p1 = 0 ] && [ $p2 = 0 ] && grep -q "batch means over the streams of passes" "$T/log" && $X cmp "$T/p1.exr" "$T/p2.exr"; then
   ok "4 passes without photon maps: batch means, 1 vs 2 workers identical"
 else bad "4 passes without photon maps: batch means, 1 vs 2 workers identical"; fi
+
+# A tile that got m passes is the uniform render with --spp 8m --passes m: round 0 (4
+# passes of 8 spp per tile) against --spp 32 --passes 4, bit for bit, samples included.
+run $M $S -o "$T/r0.exr" --target-error 0.0001 --max-rounds 1 --spp 4096 --tile 8 --no-journal --workers 2 --threads 1 && q1=0 || q1=1
+run $M $S -o "$T/u32.exr" --spp 32 --passes 4 --tile 16 --no-journal --workers 1 --threads 2 && q2=0 || q2=1
+if [ $q1 = 0 ] && [ $q2 = 0 ] && $X cmp "$T/r0.exr" "$T/u32.exr" &&
+   [ "$($X chsum "$T/r0.exr" samples)" = "$($X chsum "$T/u32.exr" samples)" ]; then
+  ok "adaptive round 0 (4 passes of 8) = --spp 32 --passes 4, bit for bit"
+else bad "adaptive round 0 (4 passes of 8) = --spp 32 --passes 4 (rc $q1 $q2)"; fi
 
 finish

@@ -26,7 +26,7 @@ Test(adapt, passes_in_proportion_to_error_per_cost)
     uint32_t n[3];
     /* sum v m / n = budget with n = s sqrt(v m): s = sum sqrt(v m) / budget = (2+4+8)/budget */
     double budget = 14.0 * 14.0 / 56.0; /* s = 56/14 = 4 -> n = 8, 16, 32 */
-    uint64_t added = adapt_allocate(3, v, c, m, budget, 1000, 100, n);
+    uint64_t added = adapt_allocate(3, v, c, m, budget, 1000, 100, 1, n);
     cr_assert_eq(n[0], 8);
     cr_assert_eq(n[1], 16);
     cr_assert_eq(n[2], 32);
@@ -40,7 +40,7 @@ Test(adapt, cost_lowers_the_share)
     const double v[2] = {8.0, 8.0}, c[2] = {1.0, 4.0};
     const uint32_t m[2] = {4, 4};
     uint32_t n[2];
-    adapt_allocate(2, v, c, m, 1.0, 100000, 1000, n);
+    adapt_allocate(2, v, c, m, 1.0, 100000, 1000, 1, n);
     cr_assert(fabs((double)n[0] / n[1] - 2.0) < 0.05, "passes %u and %u: expected 2:1", n[0], n[1]);
     double v2[2] = {8.0, 8.0};
     cr_assert(projected(2, v2, m, n) <= 1.0 + 1e-12);
@@ -53,17 +53,17 @@ Test(adapt, quiet_tiles_keep_their_passes_and_caps_hold)
     const double v[4] = {0.0, 1e-9, 100.0, 1.0}, c[4] = {1, 1, 1, 1};
     const uint32_t m[4] = {4, 4, 4, 4};
     uint32_t n[4];
-    adapt_allocate(4, v, c, m, 7.0, 64, 1000, n);
+    adapt_allocate(4, v, c, m, 7.0, 64, 1000, 1, n);
     cr_assert_eq(n[0], 4);
     cr_assert_eq(n[1], 4);
     cr_assert(n[2] > n[3] && n[2] <= 64, "the noisiest most, within the cap: %u", n[2]);
     cr_assert(n[3] > 4 && n[3] < 64);
     cr_assert(projected(4, v, m, n) <= 7.0 * (1 + 1e-12));
-    adapt_allocate(4, v, c, m, 7.0, 64, 2, n);
+    adapt_allocate(4, v, c, m, 7.0, 64, 2, 1, n);
     for (int t = 0; t < 4; t++)
         cr_assert(n[t] <= 8, "growth at most 2x: tile %d got %u", t, n[t]);
     /* An unreachable budget: every noisy tile to the cap (within the growth limit). */
-    adapt_allocate(4, v, c, m, 1e-12, 16, 1000, n);
+    adapt_allocate(4, v, c, m, 1e-12, 16, 1000, 1, n);
     cr_assert(n[2] == 16 && n[3] == 16 && n[0] == 4);
 }
 
@@ -97,11 +97,14 @@ Test(adapt, rounds_reach_the_target_and_stop)
         pixels[t] = 64;
         per_pass[t] = t < 4 ? 64.0 * 0.5 : 64.0 * 0.01; /* 4 noisy tiles, 12 quiet ones */
     }
-    struct adapt *a = adapt_new(T, pixels, 512, 0.02, 0);
+    struct adapt *a = adapt_new(T, pixels, 512, 4, 0.02, 0);
     adapt_begin(a);
     cr_assert_eq(a->outstanding, T * ADAPT_FIRST_PASSES);
     run_rounds(a, per_pass);
     cr_assert(a->finished);
+    for (int t = 0; t < T; t++)
+        cr_assert_eq(a->tiles[t].passes % 4, 0, "tile %d: %u passes, not a multiple of the streams", t,
+                     a->tiles[t].passes);
     cr_assert(a->est <= 0.02, "estimate %g", a->est);
     cr_assert(a->tiles[0].passes > a->tiles[8].passes, "noisy tiles get more passes");
     /* About the fewest: the estimate is not far below the target. */
@@ -119,11 +122,48 @@ Test(adapt, rounds_reach_the_target_and_stop)
     adapt_begin(a);
     cr_assert_eq(adapt_decide(a, 1, 1), 0);
     adapt_free(&a);
-    a = adapt_new(T, pixels, 512, 0.02, 1);
+    a = adapt_new(T, pixels, 512, 4, 0.02, 1);
     adapt_begin(a);
     cr_assert_eq(adapt_decide(a, 0, 1), 0, "--max-rounds 1: round 0 is the last");
     adapt_free(&a);
     cr_assert_null(a);
+}
+
+/* Passes go in multiples of the step (the sampler's streams): the optimum rounded up to
+ * the next multiple, within the cap and the growth limit, and a tile whose optimum is on a
+ * multiple keeps it. */
+Test(adapt, allocation_in_multiples_of_the_streams)
+{
+    const double v[4] = {1.0, 4.0, 16.0, 0.0}, c[4] = {1.0, 1.0, 1.0, 1.0};
+    const uint32_t m[4] = {4, 4, 4, 4};
+    uint32_t n[4], n1[4];
+    for (double budget = 0.3; budget < 5.0; budget *= 1.37) {
+        adapt_allocate(4, v, c, m, budget, 64, 1000, 1, n1);
+        adapt_allocate(4, v, c, m, budget, 64, 1000, 4, n);
+        for (int t = 0; t < 4; t++) {
+            cr_assert_eq(n[t] % 4, 0, "budget %g tile %d: %u passes", budget, t, n[t]);
+            cr_assert(n[t] >= n1[t] && n[t] < n1[t] + 4, "budget %g tile %d: %u, unrounded %u", budget, t, n[t], n1[t]);
+        }
+        /* More passes than the unrounded rule: its budget stays met (where the cap let it). */
+        if (projected(4, v, m, n1) <= budget * (1 + 1e-12))
+            cr_assert(projected(4, v, m, n) <= budget * (1 + 1e-12));
+        cr_assert_eq(n[3], 4, "a black tile keeps its passes");
+    }
+    /* The optimum 8, 16, 32 is on multiples of 4 and stays. */
+    const uint32_t m4[3] = {4, 4, 4};
+    adapt_allocate(3, v, c, m4, 14.0 * 14.0 / 56.0, 1000, 100, 4, n);
+    cr_assert(n[0] == 8 && n[1] == 16 && n[2] == 32);
+    /* Round 0 of a frame: the first passes are a multiple of the step too. */
+    uint32_t pixels[2] = {16, 16};
+    struct adapt *a = adapt_new(2, pixels, 48, 8, 0.01, 0);
+    adapt_begin(a);
+    cr_assert_eq(a->tiles[0].passes, 8);
+    adapt_free(&a);
+    a = adapt_new(2, pixels, 6, 4, 0.01, 0); /* a cap that is no multiple: step 1 */
+    adapt_begin(a);
+    cr_assert_eq(a->step, 1);
+    cr_assert_eq(a->tiles[1].passes, ADAPT_FIRST_PASSES);
+    adapt_free(&a);
 }
 
 Test(adapt, held_units_go_out_only_when_released)

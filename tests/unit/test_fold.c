@@ -35,7 +35,7 @@ static void pass_pixels(uint32_t t, uint32_t p, size_t n, float *px)
 
 static void fold_in_order(const struct image_desc *d, const uint32_t *order, float *out, struct tile_stats *st)
 {
-    struct fold *f = fold_new(d, PASSES, 3);
+    struct fold *f = fold_new(d, PASSES, 3, SAMPLER_STREAMS);
     uint32_t tiles = imgio_tiles_x(d) * imgio_tiles_y(d);
     float px[16 * TILE_NUM_CHANNELS];
     memset(st, 0, sizeof *st);
@@ -97,21 +97,33 @@ Test(fold, batch_means_of_the_passes_with_samples)
     float *out = calloc((size_t)tiles * 16 * FOLD_NUM_CHANNELS, sizeof(float));
     struct tile_stats st;
     fold_in_order(&d, order, out, &st);
-    /* Tile 0, pixel 3: the plain mean and s^2 / n of the passes whose alpha is not NONE. */
+    /* Tile 0, pixel 3: the mean of the stream means (pass p in stream p mod
+     * SAMPLER_STREAMS) and s^2 / q of the q stream means, over the passes whose alpha is not
+     * NONE. */
     float px[16 * TILE_NUM_CHANNELS];
-    double sum = 0, sum2 = 0, cover = 0;
-    uint32_t n = 0;
+    double ssum[SAMPLER_STREAMS] = {0}, cover = 0;
+    uint32_t scount[SAMPLER_STREAMS] = {0}, n = 0;
     for (uint32_t p = 0; p < PASSES; p++) {
         pass_pixels(0, p, 16, px);
         const float *c = &px[3 * TILE_NUM_CHANNELS];
         if (c[CH_A] < 0.0f)
             continue;
-        sum += c[CH_G];
-        sum2 += (double)c[CH_G] * c[CH_G];
+        ssum[p % SAMPLER_STREAMS] += c[CH_G];
+        scount[p % SAMPLER_STREAMS]++;
         cover += c[CH_A];
         n++;
     }
-    double mean = sum / n, var = (sum2 - n * mean * mean) / (n - 1) / n;
+    double sum = 0, sum2 = 0;
+    uint32_t q = 0;
+    for (uint32_t s = 0; s < SAMPLER_STREAMS; s++)
+        if (scount[s]) {
+            double sm = ssum[s] / scount[s];
+            sum += sm;
+            sum2 += sm * sm;
+            q++;
+        }
+    cr_assert_geq(q, 2u);
+    double mean = sum / q, var = (sum2 - q * mean * mean) / (q - 1) / q;
     const float *o = &out[3 * FOLD_NUM_CHANNELS];
     cr_assert(fabs(o[CH_G] - mean) < 1e-6, "mean %g, expected %g", o[CH_G], mean);
     cr_assert_eq(o[FOLD_CH_SAMPLES], (float)(PASSES * 3), "samples: passes x spp per pass");

@@ -28,7 +28,7 @@ Test(sampler, consistent_values)
     /* Pinned: a change here changes every image rendered with that sampler; do it on purpose. */
     const float pinned[3][4] = {{0x1.ea7d18p-2f, 0x1.d9195ep-1f, 0x1.90349ep-1f, 0x1.02bc7cp-2f},
                                 {0x1.1ea7dp-2f, 0x1.4d2b5cp-1f, 0x1.190348p-1f, 0x1.6d7438p-1f},
-                                {0x1.3add8p-4f, 0x1.212466p-1f, 0x1.fa2b34p-1f, 0x1.5e1118p-3f}};
+                                {0x1.b200c8p-1f, 0x1.d6e1a8p-1f, 0x1.3f9ae2p-1f, 0x1.a10b1ap-1f}};
     const uint32_t dims[4] = {DIM_PIXEL_X, DIM_LENS_V, DIM_TIME, sampler_bounce_dim(7, DIM_BSDF_V)};
     for (int t = 0; t < 3; t++) {
         struct sampler s = sampler_start_type(all_types[t], 1, 2, 1234, 5, 16);
@@ -259,5 +259,181 @@ Test(sampler, pixel_cells_only_where_the_grid_holds)
             if (grid && spp > 1)
                 for (uint64_t px = 0; px < 3; px++)
                     check_strata(all_types[t], spp, nx, ny, DIM_PIXEL_X, px);
+        }
+}
+
+/* ---- sobol replicate streams (sampler.h: pass p is block p / SAMPLER_STREAMS of stream
+ * p mod SAMPLER_STREAMS) ---- */
+
+/* The sampler of index `idx` of stream `stream` with passes of k samples. */
+static struct sampler stream_sample(uint64_t pixel, uint32_t stream, uint32_t idx, uint32_t k)
+{
+    uint32_t pass = idx / k * SAMPLER_STREAMS + stream;
+    return sampler_start_type(SAMPLER_SOBOL, 5, 1, pixel, pass * k + idx % k, k);
+}
+
+/* Indices [first, first + 2^m) of a stream form a (0,m,2)-net in the pair at dim0: every
+ * elementary box of area 2^-m, of every shape 2^a x 2^(m-a), holds exactly one point; and
+ * the 1D dim dim1 is stratified into 2^m strata. */
+static void check_net(uint64_t pixel, uint32_t stream, uint32_t k, uint32_t first, int m, uint32_t dim0,
+                      uint32_t dim1)
+{
+    uint32_t n = 1u << m;
+    static float us[4096], vs[4096], ws[4096];
+    for (uint32_t i = 0; i < n; i++) {
+        struct sampler s = stream_sample(pixel, stream, first + i, k);
+        sampler_get_2d(&s, dim0, &us[i], &vs[i]);
+        ws[i] = sampler_get(&s, dim1);
+    }
+    static unsigned cells[4096];
+    for (int a = 0; a <= m; a++) {
+        uint32_t nx = 1u << a, ny = 1u << (m - a);
+        memset(cells, 0, sizeof(unsigned) * n);
+        for (uint32_t i = 0; i < n; i++)
+            cells[(uint32_t)(vs[i] * (float)ny) * nx + (uint32_t)(us[i] * (float)nx)]++;
+        for (uint32_t c = 0; c < n; c++)
+            cr_assert_eq(cells[c], 1, "stream %u k %u indices [%u, %u) dim %u box %ux%u cell %u holds %u", stream, k,
+                         first, first + n, dim0, nx, ny, c, cells[c]);
+    }
+    memset(cells, 0, sizeof(unsigned) * n);
+    for (uint32_t i = 0; i < n; i++)
+        cells[(uint32_t)(ws[i] * (float)n)]++;
+    for (uint32_t c = 0; c < n; c++)
+        cr_assert_eq(cells[c], 1, "stream %u 1D dim %u stratum %u of %u", stream, dim1, c, n);
+}
+
+Test(sampler, stream_prefixes_and_blocks_are_nets)
+{
+    const uint32_t pairs[] = {DIM_PIXEL_X, DIM_LENS_U, sampler_bounce_dim(0, DIM_LIGHT_U),
+                              sampler_bounce_dim(5, DIM_BSDF_U)};
+    const uint32_t ones[] = {DIM_TIME, sampler_bounce_dim(0, DIM_RR), sampler_bounce_dim(5, DIM_LIGHT_PICK),
+                             sampler_bounce_dim(1, DIM_RR)};
+    const uint32_t ks[] = {1, 4, 8, 32};
+    for (uint32_t s = 0; s < SAMPLER_STREAMS; s++)
+        for (size_t ki = 0; ki < sizeof ks / sizeof *ks; ki++)
+            for (size_t d = 0; d < 4; d++)
+                for (uint64_t px = 0; px < 2; px++) {
+                    /* Every power-of-two prefix of the stream, whatever the pass size. */
+                    for (int m = 0; m <= 10; m++)
+                        check_net(px * 977u, s, ks[ki], 0, m, pairs[d], ones[d]);
+                    /* And any aligned block (a later pass, the second half of a prefix). */
+                    check_net(px * 977u, s, ks[ki], 8 * ks[ki], 3, pairs[d], ones[d]);
+                    check_net(px * 977u, s, ks[ki], 256, 8, pairs[d], ones[d]);
+                }
+}
+
+/* The shuffle is a bijection that maps aligned blocks of 2^m onto aligned blocks of 2^m. */
+Test(sampler, shuffle_keeps_aligned_blocks)
+{
+    static unsigned char seen[1024];
+    for (uint32_t seed = 1; seed < 40; seed++) {
+        uint32_t sd = seed * 0x9e3779b9u;
+        for (int m = 0; m <= 10; m++)
+            for (uint32_t block = 0; block < 4; block++) {
+                uint32_t n = 1u << m, first = block * n + (seed % 3) * (n << 3);
+                uint32_t base = sampler_shuffle(first, sd) & ~(n - 1u);
+                memset(seen, 0, n);
+                for (uint32_t i = first; i < first + n; i++) {
+                    uint32_t j = sampler_shuffle(i, sd);
+                    cr_assert_eq(j & ~(n - 1u), base, "seed %u m %u: index %u leaves the block", seed, m, i);
+                    cr_assert_eq(seen[j & (n - 1u)], 0);
+                    seen[j & (n - 1u)] = 1;
+                }
+            }
+        /* Not the identity: the order is shuffled. */
+        uint32_t moved = 0;
+        for (uint32_t i = 0; i < 64; i++)
+            moved += sampler_shuffle(i, sd) != i;
+        cr_assert_gt(moved, 16);
+    }
+}
+
+/* A value is a pure function of (seed, frame, pixel, stream, index in the stream, dim):
+ * the same stream index reached with another pass size gives the same bits; another
+ * stream, pixel or index does not. */
+Test(sampler, stream_values_are_pure)
+{
+    for (uint32_t s = 0; s < SAMPLER_STREAMS; s++)
+        for (uint32_t idx = 0; idx < 64; idx += 7) {
+            struct sampler a = stream_sample(11, s, idx, 8), b = stream_sample(11, s, idx, 2),
+                           c = stream_sample(11, s, idx, 1);
+            struct sampler_pixel p;
+            sampler_pixel_init(&p, SAMPLER_SOBOL, 5, 1, 11, 4);
+            sampler_pixel_set_pass(&p, idx / 4 * SAMPLER_STREAMS + s);
+            struct sampler e = sampler_start_pixel(&p, (idx / 4 * SAMPLER_STREAMS + s) * 4 + idx % 4);
+            /* With photon maps (SAMPLER_STREAMS_MAPS streams), pass p is block p / 4 of
+             * stream p mod 4: stream 0's blocks are the same sequence as here. */
+            struct sampler_pixel pm;
+            sampler_pixel_init(&pm, SAMPLER_SOBOL, 5, 1, 11, 4);
+            sampler_pixel_set_streams(&pm, SAMPLER_STREAMS_MAPS);
+            uint32_t pass_m = idx / 4 * SAMPLER_STREAMS_MAPS + s;
+            struct sampler f = sampler_start_pixel(&pm, pass_m * 4 + idx % 4);
+            struct sampler o = stream_sample(11, (s + 1) % SAMPLER_STREAMS, idx, 8);
+            struct sampler q = stream_sample(12, s, idx, 8);
+            for (uint32_t d = 0; d < 70; d++) {
+                float v = sampler_get(&a, d);
+                cr_assert_eq(v, sampler_get(&b, d), "stream %u index %u dim %u", s, idx, d);
+                cr_assert_eq(v, sampler_get(&c, d));
+                cr_assert_eq(v, sampler_get(&e, d));
+                cr_assert_eq(v, sampler_get(&f, d), "%u streams: stream %u index %u dim %u", SAMPLER_STREAMS_MAPS, s,
+                             idx, d);
+                cr_assert_neq(v, sampler_get(&o, d), "streams %u and %u share a value", s, (s + 1) % SAMPLER_STREAMS);
+                cr_assert_neq(v, sampler_get(&q, d));
+            }
+        }
+}
+
+/* Streams are independent: over many pixels, the means of a smooth integrand over 16
+ * points of two streams are uncorrelated (each is an unbiased estimate: their average is
+ * the integral), and the scrambles of the same index differ. */
+Test(sampler, streams_are_independent)
+{
+    enum { PIXELS = 4000, N = 16 };
+    for (uint32_t s = 1; s < SAMPLER_STREAMS; s++) {
+        double sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
+        for (uint32_t px = 0; px < PIXELS; px++) {
+            double m[2] = {0, 0};
+            for (int w = 0; w < 2; w++)
+                for (uint32_t i = 0; i < N; i++) {
+                    struct sampler a = stream_sample(px, w ? s : 0, i, 4);
+                    float u, v;
+                    sampler_get_2d(&a, DIM_LENS_U, &u, &v);
+                    m[w] += (u * v + sampler_get(&a, DIM_TIME)) / N;
+                }
+            sx += m[0], sy += m[1], sxx += m[0] * m[0], syy += m[1] * m[1], sxy += m[0] * m[1];
+        }
+        double cov = sxy / PIXELS - sx / PIXELS * sy / PIXELS;
+        double r = cov / sqrt((sxx / PIXELS - sx * sx / PIXELS / PIXELS) * (syy / PIXELS - sy * sy / PIXELS / PIXELS));
+        /* 4000 pairs: the correlation of independent estimates is within +-0.06 (3.8 sigma). */
+        cr_assert(fabs(r) < 0.06, "streams 0 and %u: correlation %g", s, r);
+        cr_assert(fabs(sx / PIXELS - 0.75) < 0.002 && fabs(sy / PIXELS - 0.75) < 0.002, "means %g %g", sx / PIXELS,
+                  sy / PIXELS);
+    }
+}
+
+/* A sobol pass's texture cells follow its stream's samples so far: block b of k samples
+ * has the grid of the largest power of two <= (b + 1) k, and each of its samples lies
+ * alone in its cell of that grid (the block is inside an aligned net of that size). */
+Test(sampler, pixel_cells_follow_the_stream)
+{
+    const uint32_t k = 8;
+    for (uint32_t b = 0; b < 12; b++)
+        for (uint32_t s = 0; s < SAMPLER_STREAMS; s++) {
+            uint32_t n = (b + 1) * k, p2 = 1;
+            while (p2 * 2 <= n)
+                p2 *= 2;
+            static unsigned char seen[1024];
+            memset(seen, 0, sizeof seen);
+            for (uint32_t i = 0; i < k; i++) {
+                struct sampler smp = stream_sample(3, s, b * k + i, k);
+                uint32_t nx, ny;
+                cr_assert(sampler_pixel_cells(&smp, &nx, &ny));
+                cr_assert_eq(nx * ny, p2, "block %u: grid %ux%u, expected %u cells", b, nx, ny, p2);
+                float u, v;
+                sampler_get_2d(&smp, DIM_PIXEL_X, &u, &v);
+                uint32_t c = (uint32_t)(v * (float)ny) * nx + (uint32_t)(u * (float)nx);
+                cr_assert_eq(seen[c], 0, "block %u: two samples in cell %u", b, c);
+                seen[c] = 1;
+            }
         }
 }
