@@ -1154,12 +1154,124 @@ static int parse_camera(struct ctx *c, const struct member *cm)
     return 0;
 }
 
+const char *const scene_aov_names[AOV_COUNT_] = {"Z", "N", "albedo", "P", "id.object", "id.material"};
+static const char *const filter_names[FILTER_COUNT_] = {"box", "gaussian", "blackman-harris"};
+
+int scene_aov_from_name(const char *name)
+{
+    for (int a = 0; a < AOV_COUNT_; a++)
+        if (!strcmp(name, scene_aov_names[a]))
+            return a;
+    return -1;
+}
+
+int scene_aovs_from_list(const char *list, uint32_t *aovs)
+{
+    *aovs = 0;
+    if (!strcmp(list, "all")) {
+        *aovs = AOV_ALL;
+        return 0;
+    }
+    while (*list) {
+        size_t n = strcspn(list, ",");
+        char name[32];
+        if (n == 0 || n >= sizeof name)
+            return -1;
+        memcpy(name, list, n);
+        name[n] = '\0';
+        int a = scene_aov_from_name(name);
+        if (a < 0)
+            return -1;
+        *aovs |= 1u << a;
+        list += n + (list[n] == ',');
+    }
+    return 0;
+}
+
+int scene_filter_from_name(const char *name)
+{
+    for (int f = 0; f < FILTER_COUNT_; f++)
+        if (!strcmp(name, filter_names[f]))
+            return f;
+    return -1;
+}
+
+int scene_filter_from_spec(const char *spec, uint32_t *filter, float *width)
+{
+    char name[32];
+    size_t n = strcspn(spec, ":");
+    if (n == 0 || n >= sizeof name)
+        return -1;
+    memcpy(name, spec, n);
+    name[n] = '\0';
+    int f = scene_filter_from_name(name);
+    if (f < 0)
+        return -1;
+    *filter = (uint32_t)f;
+    *width = f == FILTER_BOX ? 1.0f : SCENE_FILTER_DEFAULT_WIDTH;
+    if (spec[n] == ':') {
+        char *end;
+        double w = strtod(spec + n + 1, &end);
+        if (f == FILTER_BOX || end == spec + n + 1 || *end || !(w >= SCENE_FILTER_MIN_WIDTH) ||
+            !(w <= SCENE_FILTER_MAX_WIDTH))
+            return -1;
+        *width = (float)w;
+    }
+    return 0;
+}
+
+/* render.aovs: a list of AOV names. */
+static int parse_aovs(struct ctx *c, const struct member *am, uint32_t *aovs)
+{
+    *aovs = 0;
+    if (!json_is_array(am->val))
+        return fail(c, &am->path, AT_VALUE, "aovs must be an array of AOV names");
+    for (size_t i = 0; i < json_array_size(am->val); i++) {
+        struct member e = {json_array_get(am->val, i), jpath_child(&am->path, (uint32_t)i)};
+        const char *name = NULL;
+        if (get_string(c, &e, "an AOV", &name) != 0)
+            return -1;
+        int a = scene_aov_from_name(name);
+        if (a < 0)
+            return fail(c, &e.path, AT_VALUE,
+                        "unknown AOV \"%s\" (Z, N, albedo, P, id.object or id.material)", name);
+        *aovs |= 1u << a;
+    }
+    return 0;
+}
+
+/* render.filter: {"type": "box" | "gaussian" | "blackman-harris", "width": pixels}. */
+static int parse_filter(struct ctx *c, const struct member *fm, struct camera_desc *cd)
+{
+    static const char *const keys[] = {"type", "width"};
+    struct member m[2];
+    const char *name = NULL;
+    if (object_members(c, fm->val, &fm->path, "filter", keys, 2, m) != 0 ||
+        require(c, &m[0], &fm->path, "filter", "type") != 0 || get_string(c, &m[0], "filter type", &name) != 0)
+        return -1;
+    int f = scene_filter_from_name(name);
+    if (f < 0)
+        return fail(c, &m[0].path, AT_VALUE, "unknown filter \"%s\" (box, gaussian or blackman-harris)", name);
+    cd->filter = (uint32_t)f;
+    cd->filter_width = f == FILTER_BOX ? 1.0f : SCENE_FILTER_DEFAULT_WIDTH;
+    if (m[1].val) {
+        if (f == FILTER_BOX)
+            return fail(c, &m[1].path, AT_VALUE, "the box filter is one pixel wide: it takes no width");
+        if (get_float(c, m[1].val, &m[1].path, "filter width", &cd->filter_width) != 0)
+            return -1;
+        if (!(cd->filter_width >= SCENE_FILTER_MIN_WIDTH && cd->filter_width <= SCENE_FILTER_MAX_WIDTH))
+            return fail(c, &m[1].path, AT_VALUE, "filter width must be in [%g, %g] pixels",
+                        (double)SCENE_FILTER_MIN_WIDTH, (double)SCENE_FILTER_MAX_WIDTH);
+    }
+    return 0;
+}
+
 static int parse_render(struct ctx *c, const struct member *rm)
 {
     static const char *const keys[] = {"width", "height", "spp", "max_depth", "seed", "tile_size", "sampler",
-                                       "passes", "target_error", "time_limit"};
-    struct member m[10];
-    if (object_members(c, rm->val, &rm->path, "render", keys, 10, m) != 0 ||
+                                       "passes", "target_error", "time_limit", "aovs", "filter"};
+    struct member m[12];
+    if (object_members(c, rm->val, &rm->path, "render", keys, 12, m) != 0 ||
         require(c, &m[0], &rm->path, "render", "width") != 0 ||
         require(c, &m[1], &rm->path, "render", "height") != 0)
         return -1;
@@ -1202,6 +1314,13 @@ static int parse_render(struct ctx *c, const struct member *rm)
         return -1;
     if (m[9].val && !(r->time_limit > 0.0f && r->time_limit < 1e9f))
         return fail(c, &m[9].path, AT_VALUE, "time_limit must be seconds > 0");
+    r->aovs = 0;
+    if (m[10].val && parse_aovs(c, &m[10], &r->aovs) != 0)
+        return -1;
+    c->scene->camera.filter = FILTER_BOX;
+    c->scene->camera.filter_width = 1.0f;
+    if (m[11].val && parse_filter(c, &m[11], &c->scene->camera) != 0)
+        return -1;
     return 0;
 }
 

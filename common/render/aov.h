@@ -1,0 +1,58 @@
+/* Arbitrary output variables (render.aovs; channels in render/tile.h): what one camera
+ * sample records at its first hit, the per-pixel means of a pass, and the fold of passes.
+ * N, albedo and P are means over the pixel's kept samples (a miss adds zero, so they are
+ * weighted by coverage like the beauty); Z is the nearest first hit over the samples
+ * (+inf when none hits) and the ids are those of that nearest hit (-1: none), the first
+ * sample's in sample order on a tie. Passes fold in pass order as the beauty does, so a
+ * whole-tile render and the master's fold give the same bits. Callers: integrator.c
+ * (samples, passes), master/fold.c (passes), master/master.c (checks workers' tiles). */
+#ifndef BRUME_AOV_H
+#define BRUME_AOV_H
+#include "render/tile.h"
+#include "scene/scene.h"
+
+/* One camera sample's AOVs. */
+struct aov_sample {
+    float z;                    /* camera distance of the first hit; INFINITY on a miss */
+    vec3 n, p;                  /* first hit: shading normal (facing the ray), world position */
+    vec3 albedo;                /* first non-specular hit's albedo times the specular bounces' weight */
+    float id_object, id_material; /* first hit's; -1 on a miss */
+};
+void aov_sample_miss(struct aov_sample *a);
+
+/* Object id of a hit (accel_hit geom, prim): meshes in scene order, then spheres. */
+static inline uint32_t aov_object_id(const struct scene *sc, uint32_t geom, uint32_t sphere_geom, uint32_t prim)
+{
+    return geom < sphere_geom ? geom : sc->num_meshes + prim;
+}
+
+/* A non-delta material's albedo for the albedo AOV (what a denoiser takes as the
+ * surface's colour); 0 for materials with no diffuse part. */
+vec3 aov_material_albedo(const struct material *m);
+
+/* Samples of one pixel in one pass. */
+struct aov_accum {
+    double sum[9];              /* N, albedo, P */
+    float z, id_object, id_material;
+};
+void aov_accum_reset(struct aov_accum *acc);
+void aov_accum_add(struct aov_accum *acc, const struct aov_sample *s);
+/* The pixel's AOV channels (at l's offsets in px) from n kept samples. */
+void aov_accum_write(const struct aov_accum *acc, uint32_t n, const struct tile_layout *l, float *px);
+
+/* A pixel's passes folded in pass order (a pass whose samples were all dropped,
+ * CH_A == PASS_ALPHA_NONE, is left out, as in pass_pixel_fold). */
+struct aov_pixel {
+    double mean[9];
+    uint32_t n;
+    float z, id_object, id_material;
+};
+void aov_pixel_init(struct aov_pixel *ap);
+void aov_pixel_fold(struct aov_pixel *ap, const struct tile_layout *l, const float *px);
+void aov_pixel_finish(const struct aov_pixel *ap, const struct tile_layout *l, float *px);
+
+/* 1 when a worker's pixel holds plausible AOVs: Z >= 0 or +inf, N, albedo and P finite,
+ * ids -1 or integers below num_objects / num_materials. */
+int aov_pixel_valid(const struct tile_layout *l, const float *px, uint32_t num_objects, uint32_t num_materials);
+
+#endif
