@@ -208,7 +208,9 @@ int proto_encode(const struct proto_msg *msg, struct proto_buf *b)
         put_u32(b, m->sampler);
         put_u32(b, m->aovs);
         put_u32(b, m->filter);
-        put_f64(b, m->filter_width);
+        uint32_t fw;
+        memcpy(&fw, &m->filter_width, 4); /* the float's bits: decoding and encoding again gives the same bytes */
+        put_u32(b, fw);
         put_u32(b, m->photon_maps);
         put_u32(b, m->passes);
         if (put_str(b, m->scene_path) < 0)
@@ -458,7 +460,8 @@ static void decode_job(struct reader *r, struct msg_job *m)
     m->sampler = get_u32(r, "sampler");
     m->aovs = get_u32(r, "aovs");
     m->filter = get_u32(r, "filter");
-    m->filter_width = (float)get_f64(r, "filter_width");
+    uint32_t fw = get_u32(r, "filter_width");
+    memcpy(&m->filter_width, &fw, 4);
     m->photon_maps = get_u32(r, "photon_maps");
     m->passes = get_u32(r, "passes");
     get_str(r, m->scene_path, "scene_path");

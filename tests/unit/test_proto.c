@@ -349,7 +349,7 @@ static void fb_job_prefix(struct fb *b, uint32_t width, uint32_t height, uint32_
     fb_u(b, 0, 4); /* sampler */
     fb_u(b, 0, 4); /* aovs */
     fb_u(b, 0, 4); /* filter: box */
-    fb_u(b, 0, 8); /* filter_width (f64 0) */
+    fb_u(b, 0, 4); /* filter_width (float bits) */
     fb_u(b, 0, 4); /* photon_maps */
     fb_u(b, 0, 4); /* passes */
     fb_u(b, 10, 2);
