@@ -787,6 +787,39 @@ static int ear_clip(struct obj_state *s, size_t n, uint32_t material)
     return 0;
 }
 
+/* Triangles of the polygon in s->poly (n >= 3 corners) into s: a fan when it is convex,
+ * else ear clipping. -1 with the reason in why. */
+static int polygon_add(struct obj_state *s, size_t n, uint32_t material, char *why, size_t whylen)
+{
+    if (s->num_tris + (n - 2) > MESH_OBJ_MAX_ELEMENTS) {
+        str_fmt(why, whylen, "more than %u triangles", MESH_OBJ_MAX_ELEMENTS);
+        return -1;
+    }
+    mem_grow((void **)&s->corners, &s->cap_corners, 3 * (s->num_tris + n - 2), sizeof *s->corners);
+    mem_grow((void **)&s->tri_mat, &s->cap_tri, s->num_tris + n - 2, sizeof *s->tri_mat);
+    int shape = n == 3 ? 1 : polygon_project_convex(s, n);
+    if (shape < 0) {
+        str_fmt(why, whylen, "face with %zu corners crosses itself: it cannot be triangulated", n);
+        return -1;
+    }
+    if (shape == 1) {
+        /* Fan around the first corner: exact for convex polygons (most of what exporters write). */
+        for (size_t i = 1; i + 1 < n; i++)
+            add_triangle(s, 0, (uint32_t)i, (uint32_t)(i + 1), material);
+        return 0;
+    }
+    if (n > EAR_CLIP_MAX_CORNERS) {
+        str_fmt(why, whylen, "non-convex face with %zu corners (at most %d can be triangulated)", n,
+                EAR_CLIP_MAX_CORNERS);
+        return -1;
+    }
+    if (ear_clip(s, n, material) != 0) {
+        str_fmt(why, whylen, "face with %zu corners cannot be triangulated: it folds back on its plane", n);
+        return -1;
+    }
+    return 0;
+}
+
 static int obj_face(struct reader *r, struct obj_state *s, uint32_t material)
 {
     size_t n = 0;
@@ -805,25 +838,9 @@ static int obj_face(struct reader *r, struct obj_state *s, uint32_t material)
         return -1;
     if (n < 3)
         return reader_fail(r, n ? r->text + r->cur : start, "face needs at least 3 corners, got %zu", n);
-    if (s->num_tris + (n - 2) > MESH_OBJ_MAX_ELEMENTS)
-        return reader_fail(r, start, "more than %u triangles", MESH_OBJ_MAX_ELEMENTS);
-    mem_grow((void **)&s->corners, &s->cap_corners, 3 * (s->num_tris + n - 2), sizeof *s->corners);
-    mem_grow((void **)&s->tri_mat, &s->cap_tri, s->num_tris + n - 2, sizeof *s->tri_mat);
-    int shape = n == 3 ? 1 : polygon_project_convex(s, n);
-    if (shape < 0)
-        return reader_fail(r, start, "face with %zu corners crosses itself: it cannot be triangulated", n);
-    if (shape == 1) {
-        /* Fan around the first corner: exact for convex polygons (most of what exporters write). */
-        for (size_t i = 1; i + 1 < n; i++)
-            add_triangle(s, 0, (uint32_t)i, (uint32_t)(i + 1), material);
-        return 0;
-    }
-    if (n > EAR_CLIP_MAX_CORNERS)
-        return reader_fail(r, start, "non-convex face with %zu corners (at most %d can be triangulated)", n,
-                           EAR_CLIP_MAX_CORNERS);
-    if (ear_clip(s, n, material) != 0)
-        return reader_fail(r, start, "face with %zu corners cannot be triangulated: it folds back on its plane",
-                           n);
+    char why[160];
+    if (polygon_add(s, n, material, why, sizeof why) != 0)
+        return reader_fail(r, start, "%s", why);
     return 0;
 }
 
@@ -1117,6 +1134,52 @@ int mesh_obj_parse(struct scene *scene, struct mesh_obj_cache *cache, const stru
     }
     rc = 0;
 done:
+    obj_state_free(&s);
+    return rc;
+}
+
+int mesh_obj_from_arrays(struct scene *scene, struct mesh_obj_cache *cache, const struct mesh_arrays *a,
+                         const struct mesh_obj_options *opt_in, const char *file, char *err, size_t errlen)
+{
+    struct mesh_obj_options opt = opt_in ? *opt_in : mesh_obj_default_options();
+    uint32_t material = opt.material_override != MESH_OBJ_NO_OVERRIDE ? opt.material_override
+                                                                       : default_material(scene, cache);
+    struct obj_state s;
+    memset(&s, 0, sizeof s);
+    /* Borrowed: the OBJ state's attribute arrays are the caller's (not freed below). */
+    s.pos = a->positions;
+    s.nrm = a->normals;
+    s.uv = a->uvs;
+    s.num_pos = a->num_vertices;
+    s.num_nrm = a->normals ? a->num_vertices : 0;
+    s.num_uv = a->uvs ? a->num_vertices : 0;
+    int rc = 0;
+    size_t at = 0;
+    for (size_t f = 0; f < a->num_faces && rc == 0; f++) {
+        size_t n = a->face_sizes[f];
+        mem_grow((void **)&s.poly, &s.cap_poly, n, sizeof *s.poly);
+        for (size_t k = 0; k < n; k++) {
+            int32_t v = (int32_t)a->face_corners[at + k];
+            s.poly[k] = (struct corner){v, a->uvs ? v : -1, a->normals ? v : -1};
+        }
+        at += n;
+        char why[160];
+        if (polygon_add(&s, n, material, why, sizeof why) != 0) {
+            str_fmt(err, errlen, "%s%s: face %zu: %s", opt.display_dir ? opt.display_dir : "", file, f, why);
+            rc = -1;
+        }
+    }
+    if (rc == 0 && s.num_tris > 0) {
+        struct mesh m;
+        char display[ASSET_PATH_MAX + 1024];
+        str_fmt(display, sizeof display, "%s%s", opt.display_dir ? opt.display_dir : "", file);
+        obj_build_mesh(&s, &opt, opt.mesh_name ? opt.mesh_name : file, display, &m);
+        scene_add_mesh(scene, &m);
+    } else if (rc == 0) {
+        log_warn("%s%s: no faces, nothing to render", opt.display_dir ? opt.display_dir : "", file);
+    }
+    s.pos = NULL;
+    s.nrm = s.uv = NULL;
     obj_state_free(&s);
     return rc;
 }

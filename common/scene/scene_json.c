@@ -11,6 +11,7 @@
 #include "scene/grid.h"
 #include "scene/nvdb.h"
 #include "scene/mesh_obj.h"
+#include "scene/mesh_ply.h"
 #include "scene/motion.h"
 #include "scene/sampler.h"
 #include "image/image_load.h"
@@ -1512,7 +1513,8 @@ static int parse_frames(struct ctx *c, const struct member *fm, const struct mem
     return 0;
 }
 
-static int parse_obj_object(struct ctx *c, json_t *obj, const struct jpath *p, const char *what)
+/* An "obj" or (ply set) "ply" object: a mesh file, its material, transform and motion. */
+static int parse_obj_object(struct ctx *c, json_t *obj, const struct jpath *p, const char *what, int ply)
 {
     static const char *const keys[] = {"type", "file", "material", "transform", "name", "keyframes", "frames",
                                        "frame_times", "medium"};
@@ -1522,6 +1524,9 @@ static int parse_obj_object(struct ctx *c, json_t *obj, const struct jpath *p, c
     uint32_t inside = MEDIUM_NONE;
     if (m[8].val && find_medium(c, &m[8], &inside) != 0)
         return -1;
+    if (ply && (m[6].val || m[7].val))
+        return fail(c, m[6].val ? &m[6].path : &m[7].path, AT_KEY,
+                    "%s: a deforming sequence (\"frames\") is read from OBJ files only", what);
     /* A deforming object names its OBJ sequence in "frames" instead of "file". */
     if (m[6].val) {
         if (m[1].val)
@@ -1565,16 +1570,17 @@ static int parse_obj_object(struct ctx *c, json_t *obj, const struct jpath *p, c
     if (!c->src || !c->src->read)
         return fail(c, &m[1].path, AT_VALUE, "cannot read OBJ file \"%s\": no asset source", file);
     if (c->src->read(c->src->ctx, file, &data, &size, why, sizeof why) != 0)
-        return fail(c, &m[1].path, AT_VALUE, "cannot read OBJ file: %s", why);
+        return fail(c, &m[1].path, AT_VALUE, "cannot read %s file: %s", ply ? "PLY" : "OBJ", why);
     uint32_t before = c->scene->num_meshes;
-    int rc = mesh_obj_parse(c->scene, &c->cache, c->src, file, data, size, &opt, c->err, c->errlen);
+    int rc = ply ? mesh_ply_parse(c->scene, &c->cache, file, (const uint8_t *)data, size, &opt, c->err, c->errlen)
+                 : mesh_obj_parse(c->scene, &c->cache, c->src, file, data, size, &opt, c->err, c->errlen);
     free(data);
     for (uint32_t i = before; rc == 0 && m[8].val && i < c->scene->num_meshes; i++)
         media_set_mesh(c->scene->media, i, inside);
     if (rc != 0 || (!m[5].val && !m[6].val))
         return rc;
     if (c->scene->num_meshes != before + 1)
-        return fail(c, &m[1].path, AT_VALUE, "a moving object needs an OBJ file with faces");
+        return fail(c, &m[1].path, AT_VALUE, "a moving object needs a mesh file with faces");
     struct mesh *mesh = &c->scene->meshes[before];
     if (m[5].val && parse_keyframes(c, &m[5], &mesh->keys, &mesh->num_keys) != 0)
         return -1;
@@ -1660,13 +1666,13 @@ static int parse_objects(struct ctx *c, const struct member *om)
         if (object_type(c, obj, &p, what, &tm, &type) != 0)
             return -1;
         int rc;
-        if (strcmp(type, "obj") == 0) {
-            rc = parse_obj_object(c, obj, &p, what);
+        if (strcmp(type, "obj") == 0 || strcmp(type, "ply") == 0) {
+            rc = parse_obj_object(c, obj, &p, what, strcmp(type, "ply") == 0);
         } else if (strcmp(type, "sphere") == 0) {
             rc = parse_sphere(c, obj, &p, what);
         } else {
             char tb[80];
-            rc = fail(c, &tm.path, AT_VALUE, "unknown object type \"%s\" (known: obj, sphere)",
+            rc = fail(c, &tm.path, AT_VALUE, "unknown object type \"%s\" (known: obj, ply, sphere)",
                       printable(type, tb, sizeof tb));
         }
         if (rc != 0)
