@@ -1,6 +1,5 @@
 /* AOV records, pass means and pass folds (see aov.h). */
 #include "render/aov.h"
-#include "render/integrator.h"
 #include <math.h>
 #include <string.h>
 
