@@ -3,43 +3,11 @@
 #include <math.h>
 #include <string.h>
 
-void aov_sample_miss(struct aov_sample *a)
-{
-    a->z = INFINITY;
-    a->n = a->p = a->albedo = v3(0, 0, 0);
-    a->id_object = a->id_material = -1.0f;
-}
-
-vec3 aov_material_albedo(const struct material *m)
-{
-    switch (m->type) {
-    case MATERIAL_DIFFUSE:
-        return m->albedo;
-    default:
-        return v3(0, 0, 0);
-    }
-}
-
 void aov_accum_reset(struct aov_accum *acc)
 {
     memset(acc->sum, 0, sizeof acc->sum);
     acc->z = INFINITY;
     acc->id_object = acc->id_material = -1.0f;
-}
-
-void aov_accum_add(struct aov_accum *acc, const struct aov_sample *s)
-{
-    const vec3 v[3] = {s->n, s->albedo, s->p};
-    for (int k = 0; k < 3; k++) {
-        acc->sum[3 * k] += v[k].x;
-        acc->sum[3 * k + 1] += v[k].y;
-        acc->sum[3 * k + 2] += v[k].z;
-    }
-    if (s->z < acc->z) {
-        acc->z = s->z;
-        acc->id_object = s->id_object;
-        acc->id_material = s->id_material;
-    }
 }
 
 /* N, albedo and P (9 values, in that order) and the nearest hit into px at l's offsets. */

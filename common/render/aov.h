@@ -10,6 +10,7 @@
 #define BRUME_AOV_H
 #include "render/tile.h"
 #include "scene/scene.h"
+#include <math.h>
 
 /* One camera sample's AOVs. */
 struct aov_sample {
@@ -18,7 +19,12 @@ struct aov_sample {
     vec3 albedo;                /* first non-specular hit's albedo times the specular bounces' weight */
     float id_object, id_material; /* first hit's; -1 on a miss */
 };
-void aov_sample_miss(struct aov_sample *a);
+static inline void aov_sample_miss(struct aov_sample *a)
+{
+    a->z = INFINITY;
+    a->n = a->p = a->albedo = v3(0, 0, 0);
+    a->id_object = a->id_material = -1.0f;
+}
 
 /* Object id of a hit (accel_hit geom, prim): meshes in scene order, then spheres. */
 static inline uint32_t aov_object_id(const struct scene *sc, uint32_t geom, uint32_t sphere_geom, uint32_t prim)
@@ -28,7 +34,15 @@ static inline uint32_t aov_object_id(const struct scene *sc, uint32_t geom, uint
 
 /* A non-delta material's albedo for the albedo AOV (what a denoiser takes as the
  * surface's colour); 0 for materials with no diffuse part. */
-vec3 aov_material_albedo(const struct material *m);
+static inline vec3 aov_material_albedo(const struct material *m)
+{
+    switch (m->type) {
+    case MATERIAL_DIFFUSE:
+        return m->albedo;
+    default:
+        return v3(0, 0, 0);
+    }
+}
 
 /* Samples of one pixel in one pass. */
 struct aov_accum {
@@ -36,7 +50,20 @@ struct aov_accum {
     float z, id_object, id_material;
 };
 void aov_accum_reset(struct aov_accum *acc);
-void aov_accum_add(struct aov_accum *acc, const struct aov_sample *s);
+static inline void aov_accum_add(struct aov_accum *acc, const struct aov_sample *s)
+{
+    const vec3 v[3] = {s->n, s->albedo, s->p};
+    for (int k = 0; k < 3; k++) {
+        acc->sum[3 * k] += v[k].x;
+        acc->sum[3 * k + 1] += v[k].y;
+        acc->sum[3 * k + 2] += v[k].z;
+    }
+    if (s->z < acc->z) {
+        acc->z = s->z;
+        acc->id_object = s->id_object;
+        acc->id_material = s->id_material;
+    }
+}
 /* The pixel's AOV channels (at l's offsets in px) from n kept samples. */
 void aov_accum_write(const struct aov_accum *acc, uint32_t n, const struct tile_layout *l, float *px);
 
