@@ -51,6 +51,7 @@ struct ply_elem {
     uint64_t count;
     struct ply_prop props[PLY_MAX_PROPS];
     uint32_t num_props;
+    uint32_t line;            /* of its "element" line in the header */
 };
 
 struct ply {
@@ -234,6 +235,7 @@ static int header_parse(struct ply *ply, const uint8_t *data, size_t len)
                 if (!strcmp(ply->elems[i].name, e->name))
                     return ply_fail(ply, "element %s defined twice", e->name);
             e->count = n;
+            e->line = ply->line;
             ply->num_elems++;
         } else if (!strcmp(kw, "property")) {
             if (header_property(ply, q, le) != 0)
@@ -452,6 +454,7 @@ static int out_init(struct ply *ply, struct ply_out *o, const struct ply_elem **
     for (uint32_t i = 0; i < ply->num_elems; i++) {
         const struct ply_elem *e = &ply->elems[i];
         uint64_t min = elem_min_bytes(ply, e), left = (uint64_t)(ply->end - ply->p);
+        ply->line = e->line; /* errors here point at the element's header line */
         if (min > 0 && e->count > left / min)
             return ply_fail(ply, "element %s: %llu of them cannot fit in the %llu bytes left", e->name,
                             (unsigned long long)e->count, (unsigned long long)left);
@@ -462,6 +465,7 @@ static int out_init(struct ply *ply, struct ply_out *o, const struct ply_elem **
     }
     if (!*vertex)
         return ply_fail(ply, "no vertex element");
+    ply->line = (*vertex)->line;
     uint32_t roles = 0;
     for (uint32_t k = 0; k < (*vertex)->num_props; k++)
         roles |= 1u << (*vertex)->props[k].role;
@@ -478,6 +482,7 @@ static int out_init(struct ply *ply, struct ply_out *o, const struct ply_elem **
     if ((roles & uv) == uv)
         o->a.uvs = mem_calloc(nv ? 2 * nv : 1, sizeof *o->a.uvs);
     if (*face) {
+        ply->line = (*face)->line;
         bool indices = false;
         for (uint32_t k = 0; k < (*face)->num_props; k++)
             indices |= (*face)->props[k].role == R_INDICES;
@@ -515,8 +520,12 @@ int mesh_ply_parse(struct scene *scene, struct mesh_obj_cache *cache, const char
     memset(&o, 0, sizeof o);
     const struct ply_elem *vertex, *face;
     int rc = -1;
-    if (header_parse(ply, data, len) != 0 || out_init(ply, &o, &vertex, &face) != 0)
+    if (header_parse(ply, data, len) != 0)
         goto done;
+    uint32_t body_line = ply->line;
+    if (out_init(ply, &o, &vertex, &face) != 0)
+        goto done;
+    ply->line = body_line;
     /* A vertex element after the face element: indices are still checked against its
      * declared count. */
     for (uint32_t k = 0; k < ply->num_elems; k++) {

@@ -1158,13 +1158,26 @@ static int parse_camera(struct ctx *c, const struct member *cm)
 const char *const scene_aov_names[AOV_COUNT_] = {"Z", "N", "albedo", "P", "id.object", "id.material"};
 static const char *const filter_names[FILTER_COUNT_] = {"box", "gaussian", "blackman-harris"};
 
-int scene_aov_from_name(const char *name)
+/* Index of name in names[0..n-1], or -1. */
+static int name_index(const char *const *names, int n, const char *name)
 {
-    for (int a = 0; a < AOV_COUNT_; a++)
-        if (!strcmp(name, scene_aov_names[a]))
-            return a;
+    for (int i = 0; i < n; i++)
+        if (!strcmp(name, names[i]))
+            return i;
     return -1;
 }
+
+/* The first n bytes of s as a name of at most outlen - 1 bytes; -1 when empty or longer. */
+static int name_copy(const char *s, size_t n, char *out, size_t outlen)
+{
+    if (n == 0 || n >= outlen)
+        return -1;
+    memcpy(out, s, n);
+    out[n] = '\0';
+    return 0;
+}
+
+int scene_aov_from_name(const char *name) { return name_index(scene_aov_names, AOV_COUNT_, name); }
 
 int scene_aovs_from_list(const char *list, uint32_t *aovs)
 {
@@ -1176,10 +1189,8 @@ int scene_aovs_from_list(const char *list, uint32_t *aovs)
     while (*list) {
         size_t n = strcspn(list, ",");
         char name[32];
-        if (n == 0 || n >= sizeof name)
+        if (name_copy(list, n, name, sizeof name) != 0)
             return -1;
-        memcpy(name, list, n);
-        name[n] = '\0';
         int a = scene_aov_from_name(name);
         if (a < 0)
             return -1;
@@ -1189,22 +1200,14 @@ int scene_aovs_from_list(const char *list, uint32_t *aovs)
     return 0;
 }
 
-int scene_filter_from_name(const char *name)
-{
-    for (int f = 0; f < FILTER_COUNT_; f++)
-        if (!strcmp(name, filter_names[f]))
-            return f;
-    return -1;
-}
+int scene_filter_from_name(const char *name) { return name_index(filter_names, FILTER_COUNT_, name); }
 
 int scene_filter_from_spec(const char *spec, uint32_t *filter, float *width)
 {
     char name[32];
     size_t n = strcspn(spec, ":");
-    if (n == 0 || n >= sizeof name)
+    if (name_copy(spec, n, name, sizeof name) != 0)
         return -1;
-    memcpy(name, spec, n);
-    name[n] = '\0';
     int f = scene_filter_from_name(name);
     if (f < 0)
         return -1;

@@ -18,35 +18,27 @@
 #include "render/aov.h"
 #include "scene/scene_json.h"
 
-static uint32_t add_mat(struct scene *s, const char *name, enum material_type type, vec3 albedo)
+/* A material of the given type whose albedo and reflectance are c. */
+static uint32_t add_mat(struct scene *s, const char *name, enum material_type type, vec3 c)
 {
-    struct material m;
-    memset(&m, 0, sizeof m);
+    struct material m = {.type = type, .albedo = c, .reflectance = c};
     snprintf(m.name, sizeof m.name, "%s", name);
-    m.type = type;
-    m.albedo = albedo;
-    m.reflectance = albedo;
     return scene_add_material(s, &m);
 }
 
-static void add_quad(struct scene *s, vec3 a, vec3 b, vec3 c, vec3 d, uint32_t mat)
-{
-    struct mesh m = test_quad(a, b, c, d, mat, 0);
-    scene_add_mesh(s, &m);
-}
+#define ADD_QUAD(s, a, b, c, d, mat)                                                                                \
+    do {                                                                                                           \
+        struct mesh q_ = test_quad(a, b, c, d, mat, 0);                                                            \
+        scene_add_mesh(s, &q_);                                                                                    \
+    } while (0)
 
 /* Camera at the origin looking down -z, w x h pixels, fov 20 degrees. */
 static void setup(struct scene *s, uint32_t w, uint32_t h, uint32_t spp, uint32_t aovs)
 {
     s->camera = (struct camera_desc){.position = v3(0, 0, 0), .look_at = v3(0, 0, -1), .up = v3(0, 1, 0),
                                      .fov_y_deg = 20.0f};
-    s->settings.width = w;
-    s->settings.height = h;
-    s->settings.spp = spp;
-    s->settings.max_depth = 4;
-    s->settings.seed = 9;
-    s->settings.tile_size = 16;
-    s->settings.aovs = aovs;
+    s->settings = (struct render_settings){
+        .width = w, .height = h, .spp = spp, .max_depth = 4, .seed = 9, .tile_size = 16, .aovs = aovs};
     struct light l = {.type = LIGHT_POINT, .position = v3(0, 2, 0), .intensity = v3(3, 3, 3)};
     scene_add_light(s, &l);
 }
@@ -91,7 +83,7 @@ Test(aov, plane_at_known_distance)
     setup(&s, 9, 9, 8, AOV_ALL);
     add_mat(&s, "unused", MATERIAL_DIFFUSE, v3(0.5f, 0.5f, 0.5f));
     uint32_t pm = add_mat(&s, "plane", MATERIAL_DIFFUSE, v3(0.2f, 0.4f, 0.6f));
-    add_quad(&s, v3(-50, -50, -7), v3(50, -50, -7), v3(50, 50, -7), v3(-50, 50, -7), pm);
+    ADD_QUAD(&s, v3(-50, -50, -7), v3(50, -50, -7), v3(50, 50, -7), v3(-50, 50, -7), pm);
     struct tile_stats st;
     float *px = test_render(&s, 1, &st);
     struct tile_layout l;
@@ -131,8 +123,8 @@ Test(aov, albedo_through_a_mirror)
     setup(&s, 5, 5, 4, AOV_ALL);
     uint32_t mm = add_mat(&s, "mirror", MATERIAL_MIRROR, v3(0.8f, 0.8f, 0.8f));
     uint32_t wm = add_mat(&s, "wall", MATERIAL_DIFFUSE, v3(0.5f, 0.25f, 1.0f));
-    add_quad(&s, v3(-50, -50, -5), v3(50, -50, -5), v3(50, 50, -5), v3(-50, 50, -5), mm);
-    add_quad(&s, v3(-50, -50, 1), v3(-50, 50, 1), v3(50, 50, 1), v3(50, -50, 1), wm); /* behind the camera */
+    ADD_QUAD(&s, v3(-50, -50, -5), v3(50, -50, -5), v3(50, 50, -5), v3(-50, 50, -5), mm);
+    ADD_QUAD(&s, v3(-50, -50, 1), v3(-50, 50, 1), v3(50, 50, 1), v3(50, -50, 1), wm); /* behind the camera */
     struct tile_stats st;
     float *px = test_render(&s, 1, &st);
     struct tile_layout l;
@@ -158,7 +150,7 @@ static void fold_scene(struct scene *s, uint32_t aovs)
     s->camera.fov_y_deg = 40.0f;
     uint32_t fm = add_mat(s, "floor", MATERIAL_DIFFUSE, v3(0.6f, 0.5f, 0.4f));
     uint32_t mm = add_mat(s, "mirror", MATERIAL_MIRROR, v3(0.9f, 0.9f, 0.9f));
-    add_quad(s, v3(-5, 0, -5), v3(-5, 0, 5), v3(5, 0, 5), v3(5, 0, -5), fm);
+    ADD_QUAD(s, v3(-5, 0, -5), v3(-5, 0, 5), v3(5, 0, 5), v3(5, 0, -5), fm);
     struct sphere sp = {"ball", v3(-0.5f, 0.5f, 0), 0.5f, mm, NULL, 0};
     scene_add_sphere(s, &sp);
     struct sphere sp2 = {"ball2", v3(0.7f, 0.3f, 0.5f), 0.3f, fm, NULL, 0};

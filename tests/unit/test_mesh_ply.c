@@ -188,21 +188,20 @@ static const char ascii_head[] = "ply\nformat ascii 1.0\nelement vertex 3\nprope
 
 Test(mesh_ply, body_errors_name_element_property_and_line)
 {
-    char t[1024];
-    snprintf(t, sizeof t, "%s0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n", ascii_head);
-    expect_text_error(t, "m.ply:13: element face 0, property vertex_indices: vertex index 3 out of range (3 vertices)");
-    snprintf(t, sizeof t, "%s0 0 0\n1 0 x\n0 1 0\n3 0 1 2\n", ascii_head);
-    expect_text_error(t, "m.ply:11: element vertex 1, property z: malformed number");
-    snprintf(t, sizeof t, "%s0 0 0\n1 0 nan\n0 1 0\n3 0 1 2\n", ascii_head);
-    expect_text_error(t, "element vertex 1, property z: malformed number");
-    snprintf(t, sizeof t, "%s0 0 0\n1 0 0\n0 1 0\n2 0 1\n", ascii_head);
-    expect_text_error(t, "element face 0, property vertex_indices: 2 corners (a face has 3 to 65535)");
-    snprintf(t, sizeof t, "%s0 0 0\n1 0 0\n0 1 0\n300 0 1 2\n", ascii_head);
-    expect_text_error(t, "property vertex_indices: integer 300 out of its type's range");
-    snprintf(t, sizeof t, "%s0 0 0\n1 0 0\n0 1 0\n3 0 1\n", ascii_head);
-    expect_text_error(t, "m.ply:13: element face 0, property vertex_indices: the file ends early");
-    snprintf(t, sizeof t, "%s0 0 0\n1 0 0\n0 1 0\n3 0 -1 2\n", ascii_head);
-    expect_text_error(t, "vertex index -1 out of range");
+    static const char *const cases[][2] = {
+        {"0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n", "m.ply:13: element face 0, property vertex_indices: vertex index 3 out of range (3 vertices)"},
+        {"0 0 0\n1 0 x\n0 1 0\n3 0 1 2\n", "m.ply:11: element vertex 1, property z: malformed number"},
+        {"0 0 0\n1 0 nan\n0 1 0\n3 0 1 2\n", "element vertex 1, property z: malformed number"},
+        {"0 0 0\n1 0 0\n0 1 0\n2 0 1\n", "element face 0, property vertex_indices: 2 corners (a face has 3 to 65535)"},
+        {"0 0 0\n1 0 0\n0 1 0\n300 0 1 2\n", "property vertex_indices: integer 300 out of its type's range"},
+        {"0 0 0\n1 0 0\n0 1 0\n3 0 1\n", "m.ply:13: element face 0, property vertex_indices: the file ends early"},
+        {"0 0 0\n1 0 0\n0 1 0\n3 0 -1 2\n", "vertex index -1 out of range"},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof *cases; i++) {
+        char t[1024];
+        snprintf(t, sizeof t, "%s%s", ascii_head, cases[i][0]);
+        expect_text_error(t, cases[i][1]);
+    }
     /* Counts are checked against the bytes left before anything is allocated. */
     expect_text_error("ply\nformat binary_little_endian 1.0\nelement vertex 100000000\nproperty float x\n"
                       "property float y\nproperty float z\nend_header\n\1\2\3",
