@@ -360,8 +360,8 @@ static void setup_tiles(struct master *m)
 static uint32_t unit_tile(const struct master *m, uint32_t u) { return u % m->num_tiles; }
 static uint32_t unit_pass(const struct master *m, uint32_t u) { return u / m->num_tiles; }
 
-/* --tiles: every other tile is a black, transparent chunk encoded here, so the output is
- * a complete EXR in which only the chosen tiles were rendered. */
+/* --tiles: every other tile is a black, transparent chunk encoded here (AOVs: nothing
+ * hit), so the output is a complete EXR in which only the chosen tiles were rendered. */
 static int restrict_tiles(struct master *m)
 {
     const struct master_opts *o = m->opts;
@@ -378,6 +378,7 @@ static int restrict_tiles(struct master *m)
     }
     size_t n = (size_t)m->scene.settings.tile_size * m->scene.settings.tile_size * FOLD_MAX_CHANNELS;
     float *black = mem_calloc(n, sizeof *black);
+    aov_fill_miss(&m->out_desc, black, (size_t)m->scene.settings.tile_size * m->scene.settings.tile_size);
     uint32_t tiles_x = imgio_tiles_x(&m->desc);
     int rc = 0;
     for (uint32_t t = 0; t < m->num_tiles && rc == 0; t++) {

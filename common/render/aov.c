@@ -87,3 +87,13 @@ int aov_pixel_valid(const struct tile_layout *l, const float *px, uint32_t num_o
         return 0;
     return 1;
 }
+
+void aov_fill_miss(const struct image_desc *d, float *px, size_t pixels)
+{
+    for (uint32_t c = 0; c < d->num_channels; c++) {
+        const char *name = d->channel_names[c];
+        float v = !strcmp(name, "Z") ? INFINITY : !strcmp(name, "id.object") || !strcmp(name, "id.material") ? -1.0f : 0.0f;
+        for (size_t i = 0; v != 0.0f && i < pixels; i++)
+            px[i * d->num_channels + c] = v;
+    }
+}

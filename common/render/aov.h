@@ -82,4 +82,8 @@ void aov_pixel_finish(const struct aov_pixel *ap, const struct tile_layout *l, f
  * ids -1 or integers below num_objects / num_materials. */
 int aov_pixel_valid(const struct tile_layout *l, const float *px, uint32_t num_objects, uint32_t num_materials);
 
+/* Sets the AOV channels of pixels (interleaved as d says, any layout: found by name) to
+ * what a pixel where nothing is hit holds: Z +inf, ids -1 (the rest is left alone). */
+void aov_fill_miss(const struct image_desc *d, float *px, size_t pixels);
+
 #endif
