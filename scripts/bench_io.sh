@@ -33,12 +33,12 @@ a=$(median <"$T/aovs")
   awk -v b="$b" -v a="$a" 'BEGIN { printf "throughput with all AOVs / beauty alone: %.3f\n", b / a }'
   echo
   python3 scripts/gen_mesh.py "$N" "$T/m"
-  echo "PLY load: grid $N ($(head -c 0 /dev/null)$(./$BUILD/meshload "$T/m.ply" 1 | awk '{print $1}') triangles), CPU s, best of $REPS"
+  echo "PLY load: grid $N ($(head -c 0 /dev/null)$($BUILD/meshload "$T/m.ply" 1 | awk '{print $1}') triangles), CPU s, best of $REPS"
   echo "file | bytes | best s | mean s | ratio to OBJ (best)"
-  obj=$(./$BUILD/meshload "$T/m.obj" "$REPS")
+  obj=$($BUILD/meshload "$T/m.obj" "$REPS")
   objbest=$(echo "$obj" | awk '{print $3}')
   for f in m.ply m.be.ply m.ascii.ply m.obj; do
-    l=$(./$BUILD/meshload "$T/$f" "$REPS")
+    l=$($BUILD/meshload "$T/$f" "$REPS")
     [ "$f" = m.obj ] && l=$obj
     echo "$l" | awk -v f="$f" -v s="$(wc -c <"$T/$f")" -v o="$objbest" '{ printf "%s | %d | %.3f | %.3f | %.2f\n", f, s, $3, $4, $3 / o }'
   done
