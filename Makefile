@@ -116,6 +116,7 @@ bench: all
 	BUILD=$(BUILD) sh scripts/bench_motion.sh
 	BUILD=$(BUILD) sh scripts/bench_media.sh
 	BUILD=$(BUILD) sh scripts/bench_textures.sh
+	BUILD=$(BUILD) sh scripts/bench_io.sh
 	BUILD=$(BUILD) sh scripts/bench_adaptive.sh
 
 # Media: error against time for vpt and the photon method against an honest VPT reference
