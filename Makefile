@@ -32,7 +32,7 @@ WORKER_OBJ := $(patsubst %.c,$(BUILD)/obj/%.o,$(wildcard worker/*.c))
 UNIT_SRC   := $(wildcard tests/unit/test_*.c) tests/unit/helpers.c
 UNIT_OBJ   := $(UNIT_SRC:%.c=$(BUILD)/obj/%.o)
 # Test tools: one source each in tests/tools/, linked with the library.
-TOOLS      := exrtool junkpeer replay maketex texbench
+TOOLS      := exrtool junkpeer replay maketex texbench meshload
 TOOL_BIN   := $(TOOLS:%=$(BUILD)/%)
 TOOL_OBJ   := $(TOOLS:%=$(BUILD)/obj/tests/tools/%.o)
 
@@ -116,6 +116,7 @@ bench: all
 	BUILD=$(BUILD) sh scripts/bench_motion.sh
 	BUILD=$(BUILD) sh scripts/bench_media.sh
 	BUILD=$(BUILD) sh scripts/bench_textures.sh
+	BUILD=$(BUILD) sh scripts/bench_io.sh
 	BUILD=$(BUILD) sh scripts/bench_adaptive.sh
 	BUILD=$(BUILD) sh scripts/bench_materials.sh
 

@@ -3,6 +3,7 @@
  * once the tile is final. */
 #include "fold.h"
 #include "base/log.h"
+#include "render/aov.h"
 #include "render/integrator.h"
 #include <stdio.h>
 #include <stdlib.h>
@@ -15,11 +16,13 @@ struct fold_tile {
     int final;                  /* finished: takes nothing more */
     struct pass_pixel *acc;     /* per pixel, NULL before the first pass */
     float **early;              /* per pass: a copy of a pass that came before its turn, or NULL */
+    struct aov_pixel *aov;      /* per pixel, with AOVs, NULL before the first pass */
 };
 
 struct fold {
     struct image_desc desc;
     uint32_t passes, spp_per_pass, num_tiles, tiles_x, streams;
+    struct tile_layout lay;     /* the units' channels (beauty, AOVs) */
     struct fold_tile *tiles;
 };
 
@@ -32,6 +35,7 @@ struct fold *fold_new(const struct image_desc *desc, uint32_t passes, uint32_t s
     f->passes = passes;
     f->spp_per_pass = spp_per_pass;
     f->tiles_x = imgio_tiles_x(desc);
+    tile_layout_from_desc(&f->lay, desc);
     f->num_tiles = f->tiles_x * imgio_tiles_y(desc);
     f->tiles = mem_calloc(f->num_tiles ? f->num_tiles : 1, sizeof *f->tiles);
     return f;
@@ -40,14 +44,49 @@ struct fold *fold_new(const struct image_desc *desc, uint32_t passes, uint32_t s
 void fold_output_desc(const struct image_desc *desc, struct image_desc *out)
 {
     *out = *desc;
-    out->num_channels = FOLD_NUM_CHANNELS;
+    out->num_channels = desc->num_channels + 1;
     snprintf(out->channel_names[FOLD_CH_SAMPLES], sizeof out->channel_names[FOLD_CH_SAMPLES], "%s",
              fold_samples_channel);
+    for (uint32_t c = TILE_NUM_CHANNELS; c < desc->num_channels; c++) /* the AOVs follow the samples */
+        memcpy(out->channel_names[c + 1], desc->channel_names[c], sizeof out->channel_names[c]);
+}
+
+/* AOVs: a tile's per-pixel folds, one pass's pixels into them, the final channels (after
+ * the samples channel). */
+static void fold_aovs_start(const struct fold *f, struct fold_tile *t, size_t pixels)
+{
+    if (!f->lay.aovs)
+        return;
+    t->aov = mem_alloc(pixels * sizeof *t->aov);
+    for (size_t i = 0; i < pixels; i++)
+        aov_pixel_init(&t->aov[i]);
+}
+
+static void fold_aovs_pass(const struct fold *f, struct fold_tile *t, size_t pixels, const float *px)
+{
+    for (size_t i = 0; t->aov && i < pixels; i++)
+        aov_pixel_fold(&t->aov[i], &f->lay, &px[i * f->lay.num_channels]);
+}
+
+static void fold_aovs_finish(const struct fold *f, const struct fold_tile *t, size_t pixels, float *out)
+{
+    if (!f->lay.aovs)
+        return;
+    struct tile_layout ol = f->lay;
+    for (int a = 0; a < AOV_COUNT_; a++)
+        ol.off[a] += ol.off[a] >= 0;
+    ol.num_channels++;
+    for (size_t i = 0; i < pixels; i++) {
+        struct aov_pixel none;
+        aov_pixel_init(&none);
+        aov_pixel_finish(t->aov ? &t->aov[i] : &none, &ol, &out[i * ol.num_channels]);
+    }
 }
 
 static void tile_clear(struct fold *f, struct fold_tile *t)
 {
     free(t->acc);
+    free(t->aov);
     for (uint32_t p = 0; t->early && p < f->passes; p++)
         free(t->early[p]);
     free(t->early);
@@ -81,7 +120,8 @@ static size_t tile_pixels(const struct fold *f, uint32_t tile)
 static void fold_pass(const struct fold *f, struct fold_tile *t, size_t pixels, const float *px)
 {
     for (size_t i = 0; i < pixels; i++)
-        pass_pixel_fold(&t->acc[i], t->folded % f->streams, &px[i * TILE_NUM_CHANNELS]);
+        pass_pixel_fold(&t->acc[i], t->folded % f->streams, &px[i * f->lay.num_channels]);
+    fold_aovs_pass(f, t, pixels, px);
     t->folded++;
 }
 
@@ -94,11 +134,12 @@ uint32_t fold_add_unit(struct fold *f, uint32_t tile, uint32_t pass, const float
     if (!t->acc) {
         t->acc = mem_calloc(pixels, sizeof *t->acc);
         t->early = mem_calloc(f->passes, sizeof *t->early);
+        fold_aovs_start(f, t, pixels);
     }
     if (pass != t->folded) {
         CHECK(pass > t->folded && !t->early[pass]);
-        t->early[pass] = mem_alloc(sizeof(float) * pixels * TILE_NUM_CHANNELS);
-        memcpy(t->early[pass], px, sizeof(float) * pixels * TILE_NUM_CHANNELS);
+        t->early[pass] = mem_alloc(sizeof(float) * pixels * f->lay.num_channels);
+        memcpy(t->early[pass], px, sizeof(float) * pixels * f->lay.num_channels);
         return t->folded;
     }
     fold_pass(f, t, pixels, px);
@@ -119,7 +160,7 @@ void fold_finish(struct fold *f, uint32_t tile, float *out, struct tile_stats *s
     size_t pixels = tile_pixels(f, tile);
     uint32_t folded = t->folded;
     for (size_t i = 0; i < pixels; i++) {
-        float *px = &out[i * FOLD_NUM_CHANNELS];
+        float *px = &out[i * (f->lay.num_channels + 1)];
         if (t->acc) {
             pass_pixel_finish(&t->acc[i], px, stats);
         } else {
@@ -127,6 +168,7 @@ void fold_finish(struct fold *f, uint32_t tile, float *out, struct tile_stats *s
         }
         px[FOLD_CH_SAMPLES] = (float)((double)folded * f->spp_per_pass);
     }
+    fold_aovs_finish(f, t, pixels, out);
     tile_clear(f, t);
     t->folded = folded;
     t->final = 1;

@@ -13,6 +13,9 @@
 
 #define FOLD_NUM_CHANNELS (TILE_NUM_CHANNELS + 1)
 #define FOLD_CH_SAMPLES TILE_NUM_CHANNELS
+/* With AOVs a final tile has the tile's beauty channels, the samples channel, then the
+ * AOVs (desc->num_channels + 1 in all, at most FOLD_MAX_CHANNELS). */
+#define FOLD_MAX_CHANNELS (TILE_MAX_CHANNELS + 1)
 extern const char *const fold_samples_channel; /* "samples" */
 
 struct fold;
@@ -23,15 +26,15 @@ struct fold *fold_new(const struct image_desc *desc, uint32_t passes, uint32_t s
 void fold_free(struct fold **f);
 /* A new frame: nothing folded or buffered. */
 void fold_reset(struct fold *f);
-/* The output layout: desc's channels and the samples channel. */
+/* The output layout: desc's beauty channels, the samples channel, desc's AOVs. */
 void fold_output_desc(const struct image_desc *desc, struct image_desc *out);
-/* Unit (tile, pass)'s channels (the tile's w*h pixels, TILE_NUM_CHANNELS each, as
+/* Unit (tile, pass)'s channels (the tile's w*h pixels, desc->num_channels each, as
  * integrator_render_tile_pass writes them); tile and pass must be in range, and each unit
  * is given once (the scheduler's done state guarantees it). Returns the passes folded
  * now: passes 0..n-1 are in, later ones buffered. */
 uint32_t fold_add_unit(struct fold *f, uint32_t tile, uint32_t pass, const float *px);
 /* A tile's final pixels from its folded passes (mean, coverage, batch-means variance,
- * samples) into out (w*h pixels of FOLD_NUM_CHANNELS), its relative standard errors
+ * samples) into out (w*h pixels of desc->num_channels + 1), its relative standard errors
  * added to stats; the tile then takes nothing more. */
 void fold_finish(struct fold *f, uint32_t tile, float *out, struct tile_stats *stats);
 /* fold_add_unit, and fold_finish once all `passes` are in: 1 then, 0 while passes are

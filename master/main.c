@@ -7,6 +7,7 @@
 #include "scene/medium.h"
 #include "wire/net.h"
 #include "scene/sampler.h"
+#include "scene/scene_json.h"
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -23,6 +24,10 @@ static void usage(FILE *f)
             "  --tile W               tile size in pixels, 8..1024 (overrides the scene)\n"
             "  --max-depth D          maximum path vertices (overrides the scene)\n"
             "  --sampler NAME         independent, stratified or sobol (overrides the scene)\n"
+            "  --aovs LIST            AOVs beside the beauty: Z,N,albedo,P,id.object,id.material or all\n"
+            "                         (overrides render.aovs)\n"
+            "  --filter F[:W]         pixel filter box, gaussian or blackman-harris, W pixels wide\n"
+            "                         (overrides render.filter)\n"
             "  --bind ENDPOINT        also accept workers at ENDPOINT, e.g. tcp://127.0.0.1:5555\n"
             "  --preview OUT.png      also write a tone-mapped sRGB PNG preview\n"
             "  --worker-exe PATH      worker binary for local workers (default: next to master)\n"
@@ -261,6 +266,20 @@ int main(int argc, char **argv)
             }
             o.sampler = (uint32_t)st;
             o.have_sampler = 1;
+        } else if (has_arg && !strcmp(a, "--aovs")) {
+            if (scene_aovs_from_list(argv[++i], &o.aovs) != 0) {
+                log_error("--aovs: expected a list of Z, N, albedo, P, id.object, id.material, or all; got \"%s\"",
+                          argv[i]);
+                return 2;
+            }
+            o.have_aovs = 1;
+        } else if (has_arg && !strcmp(a, "--filter")) {
+            if (scene_filter_from_spec(argv[++i], &o.filter, &o.filter_width) != 0) {
+                log_error("--filter: expected box, gaussian[:WIDTH] or blackman-harris[:WIDTH] (WIDTH in pixels, "
+                          "%g..%g); got \"%s\"", (double)SCENE_FILTER_MIN_WIDTH, (double)SCENE_FILTER_MAX_WIDTH, argv[i]);
+                return 2;
+            }
+            o.have_filter = 1;
         } else if (has_arg && !strcmp(a, "--preview")) {
             o.preview_path = argv[++i];
         } else if (has_arg && !strcmp(a, "--worker-exe")) {

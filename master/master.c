@@ -21,6 +21,7 @@
 #include "adapt.h"
 #include "photons.h"
 #include "sched.h"
+#include "render/aov.h"
 #include "render/integrator.h"
 #include "render/media_integrator.h"
 #include "render/photon_trace.h"
@@ -238,6 +239,12 @@ static int load_scene(struct master *m)
         rs->max_depth = o->depth;
     if (o->have_sampler)
         rs->sampler = (enum sampler_type)o->sampler;
+    if (o->have_aovs)
+        rs->aovs = o->aovs;
+    if (o->have_filter) {
+        m->scene.camera.filter = o->filter;
+        m->scene.camera.filter_width = o->filter_width;
+    }
     if (scene_validate(&m->scene, err, sizeof err) != 0) {
         master_fail(m, "%s: %s", o->scene_path, err);
         return -1;
@@ -309,9 +316,11 @@ static int publish_manifest(struct master *m)
         h.size += pl + BLOB_HASH_SIZE;
     }
     char settings[256];
-    int sl = snprintf(settings, sizeof settings, "%ux%u spp=%u depth=%u seed=%llu sampler=%u photon_maps=%u passes=%u",
+    int sl = snprintf(settings, sizeof settings,
+                      "%ux%u spp=%u depth=%u seed=%llu sampler=%u photon_maps=%u passes=%u aovs=%u filter=%u/%.9g",
                       rs->width, rs->height, rs->spp, rs->max_depth, (unsigned long long)rs->seed,
-                      (unsigned)rs->sampler, m->photon_maps, m->passes);
+                      (unsigned)rs->sampler, m->photon_maps, m->passes, rs->aovs, m->scene.camera.filter,
+                      (double)m->scene.camera.filter_width);
     mem_grow((void **)&h.data, &h.cap, h.size + (size_t)sl, 1);
     memcpy(h.data + h.size, settings, (size_t)sl);
     h.size += (size_t)sl;
@@ -341,12 +350,12 @@ static void setup_tiles(struct master *m)
     m->num_units = m->num_tiles * m->passes;
     m->sched = sched_new(m->num_units);
     m->chunks = mem_calloc(m->num_tiles, sizeof *m->chunks);
-    m->decode_scratch = mem_alloc(sizeof(float) * rs->tile_size * rs->tile_size * FOLD_NUM_CHANNELS);
+    m->decode_scratch = mem_alloc(sizeof(float) * rs->tile_size * rs->tile_size * FOLD_MAX_CHANNELS);
     m->maps = mem_calloc(m->passes, sizeof *m->maps);
     m->out_desc = m->desc;
     if (m->passes > 1) {
         m->fold = fold_new(&m->desc, m->passes, m->spp_per_pass, integrator_streams(m->photon_maps > 0));
-        m->fold_out = mem_alloc(sizeof(float) * rs->tile_size * rs->tile_size * FOLD_NUM_CHANNELS);
+        m->fold_out = mem_alloc(sizeof(float) * rs->tile_size * rs->tile_size * FOLD_MAX_CHANNELS);
         fold_output_desc(&m->desc, &m->out_desc);
     }
     if (m->target_error > 0.0 || m->time_limit > 0.0 || m->max_rounds > 0) {
@@ -368,8 +377,8 @@ static void setup_tiles(struct master *m)
 static uint32_t unit_tile(const struct master *m, uint32_t u) { return u % m->num_tiles; }
 static uint32_t unit_pass(const struct master *m, uint32_t u) { return u / m->num_tiles; }
 
-/* --tiles: every other tile is a black, transparent chunk encoded here, so the output is
- * a complete EXR in which only the chosen tiles were rendered. */
+/* --tiles: every other tile is a black, transparent chunk encoded here (AOVs: nothing
+ * hit), so the output is a complete EXR in which only the chosen tiles were rendered. */
 static int restrict_tiles(struct master *m)
 {
     const struct master_opts *o = m->opts;
@@ -384,8 +393,9 @@ static int restrict_tiles(struct master *m)
         master_fail(m, "%s", err);
         return -1;
     }
-    size_t n = (size_t)m->scene.settings.tile_size * m->scene.settings.tile_size * FOLD_NUM_CHANNELS;
+    size_t n = (size_t)m->scene.settings.tile_size * m->scene.settings.tile_size * FOLD_MAX_CHANNELS;
     float *black = mem_calloc(n, sizeof *black);
+    aov_fill_miss(&m->out_desc, black, (size_t)m->scene.settings.tile_size * m->scene.settings.tile_size);
     uint32_t tiles_x = imgio_tiles_x(&m->desc);
     int rc = 0;
     for (uint32_t t = 0; t < m->num_tiles && rc == 0; t++) {
@@ -666,6 +676,9 @@ static void send_job(struct master *m, struct peer *p)
     j->tile_size = rs->tile_size;
     j->seed = rs->seed;
     j->sampler = rs->sampler;
+    j->aovs = rs->aovs;
+    j->filter = m->scene.camera.filter;
+    j->filter_width = m->scene.camera.filter_width;
     j->photon_maps = m->photon_maps;
     j->passes = m->passes;
     snprintf(j->scene_path, sizeof j->scene_path, "%s", m->scene_rel);
@@ -698,10 +711,10 @@ static void on_blob_req(struct master *m, struct peer *p, const struct msg_blob_
             p->map_bytes[pass] += r->length;
 }
 
-/* Decodes unit u's chunk into decode_scratch and checks it: finite pixels, and for a
- * pass of several a coverage in [0, 1] or PASS_ALPHA_NONE and no negative variance.
- * 1 when sane, 0 when not, -1 when it decodes but holds non-finite values (which the
- * scene may cause: see on_result). */
+/* Decodes unit u's chunk into decode_scratch and checks it: finite pixels (AOVs: as
+ * aov_pixel_valid allows), and for a pass of several a coverage in [0, 1] or
+ * PASS_ALPHA_NONE and no negative variance. 1 when sane, 0 when not, -1 when it decodes
+ * but holds non-finite values (which the scene may cause: see on_result). */
 static int chunk_is_sane(struct master *m, uint32_t unit, const uint8_t *chunk, size_t chunk_size, char *err,
                          size_t errlen)
 {
@@ -711,13 +724,22 @@ static int chunk_is_sane(struct master *m, uint32_t unit, const uint8_t *chunk, 
     imgio_tile_rect(&m->desc, tx, ty, &x0, &y0, &w, &h);
     if (imgio_decode_tile(&m->desc, tx, ty, chunk, chunk_size, m->decode_scratch, err, errlen) != 0)
         return 0;
-    for (size_t i = 0; i < (size_t)w * h * TILE_NUM_CHANNELS; i++)
-        if (!isfinite(m->decode_scratch[i])) {
-            str_fmt(err, errlen, "non-finite pixel value in tile %u", tile);
-            return -1;
+    struct tile_layout lay;
+    tile_layout_from_desc(&lay, &m->desc);
+    for (size_t i = 0; i < (size_t)w * h; i++) {
+        const float *px = &m->decode_scratch[i * lay.num_channels];
+        for (int c = 0; c < TILE_NUM_CHANNELS; c++)
+            if (!isfinite(px[c])) {
+                str_fmt(err, errlen, "non-finite pixel value in tile %u", tile);
+                return -1;
+            }
+        if (lay.aovs && !aov_pixel_valid(&lay, px, m->scene.num_meshes + m->scene.num_spheres, m->scene.num_materials)) {
+            str_fmt(err, errlen, "tile %u: AOV value out of range", tile);
+            return 0;
         }
+    }
     for (size_t i = 0; m->passes > 1 && i < (size_t)w * h; i++) {
-        const float *px = &m->decode_scratch[i * TILE_NUM_CHANNELS];
+        const float *px = &m->decode_scratch[i * lay.num_channels];
         if (!((px[CH_A] >= 0.0f && px[CH_A] <= 1.0f) || px[CH_A] == PASS_ALPHA_NONE) || px[CH_VAR_R] < 0.0f ||
             px[CH_VAR_G] < 0.0f || px[CH_VAR_B] < 0.0f) {
             str_fmt(err, errlen, "tile %u pass %u: coverage or variance out of range", tile, unit_pass(m, unit));
@@ -1294,7 +1316,10 @@ static int write_output(struct master *m, double seconds)
         a.rounds = m->adapt->round + 1;
         a.time_limited = (uint32_t)m->time_up;
     }
-    if (output_write_exr(m->out_path, &m->out_desc, &a, m->chunks, err, sizeof err) != 0) {
+    output_id_names(&m->scene, &a);
+    int rc = output_write_exr(m->out_path, &m->out_desc, &a, m->chunks, err, sizeof err);
+    output_id_names_free(&a);
+    if (rc != 0) {
         master_fail(m, "%s", err);
         return -1;
     }

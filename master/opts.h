@@ -27,6 +27,10 @@ struct master_opts {
     int have_spp, have_seed, have_tile, have_depth;
     int have_sampler;
     uint32_t sampler;           /* enum sampler_type, with have_sampler */
+    int have_aovs, have_filter;
+    uint32_t aovs;              /* --aovs: bit set of enum aov */
+    uint32_t filter;            /* --filter: enum pixel_filter */
+    float filter_width;
     uint32_t spp, tile, depth;
     uint64_t seed;
     int have_frames;            /* --frames A:B[:STEP]: a range, one numbered output per frame */

@@ -161,3 +161,38 @@ int output_write_json(const char *path, const json_t *root, char *err, size_t er
     }
     return publish(tmp, path, err, errlen);
 }
+
+static void add_string(struct image_attrs *a, const char *name, const char *value)
+{
+    a->string_names = mem_realloc(a->string_names, sizeof *a->string_names * (a->num_strings + 1));
+    a->string_values = mem_realloc(a->string_values, sizeof *a->string_values * (a->num_strings + 1));
+    a->string_names[a->num_strings] = mem_strdup(name);
+    a->string_values[a->num_strings] = mem_strdup(value);
+    a->num_strings++;
+}
+
+void output_id_names(const struct scene *sc, struct image_attrs *a)
+{
+    char name[64];
+    uint32_t aovs = sc->settings.aovs;
+    for (uint32_t i = 0; (aovs & (1u << AOV_ID_OBJECT)) && i < sc->num_meshes + sc->num_spheres; i++) {
+        snprintf(name, sizeof name, "id.object/%u", i);
+        add_string(a, name, i < sc->num_meshes ? sc->meshes[i].name : sc->spheres[i - sc->num_meshes].name);
+    }
+    for (uint32_t i = 0; (aovs & (1u << AOV_ID_MATERIAL)) && i < sc->num_materials; i++) {
+        snprintf(name, sizeof name, "id.material/%u", i);
+        add_string(a, name, sc->materials[i].name);
+    }
+}
+
+void output_id_names_free(struct image_attrs *a)
+{
+    for (uint32_t i = 0; i < a->num_strings; i++) {
+        free(a->string_names[i]);
+        free(a->string_values[i]);
+    }
+    free(a->string_names);
+    free(a->string_values);
+    a->string_names = a->string_values = NULL;
+    a->num_strings = 0;
+}

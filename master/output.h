@@ -8,6 +8,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "image/imgio.h"
+#include "scene/scene.h"
 
 /* A finished tile's EXR chunk as the worker encoded it (the master never re-encodes). */
 struct output_chunk {
@@ -37,5 +38,11 @@ int output_write_preview(const char *path, const struct image_desc *desc, const 
 int output_check_writable(const char *path, char *err, size_t errlen);
 /* Writes root as indented JSON to path atomically. 0 or -1. */
 int output_write_json(const char *path, const json_t *root, char *err, size_t errlen);
+
+/* The id AOVs' name tables as string attributes of a (id.object/N: the N-th mesh, then
+ * sphere, by name; id.material/N), for the AOVs the scene's settings ask for; free with
+ * output_id_names_free. */
+void output_id_names(const struct scene *sc, struct image_attrs *a);
+void output_id_names_free(struct image_attrs *a);
 
 #endif

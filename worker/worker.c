@@ -212,7 +212,7 @@ static void *pool_thread(void *arg)
     struct imgio_encoder *enc = imgio_encoder_new(p->desc, err, sizeof err);
     uint32_t tiles_x = imgio_tiles_x(p->desc);
     uint32_t spp = p->rjob->scene->settings.spp, passes = p->rjob->num_passes;
-    float *pixels = mem_alloc(sizeof(float) * p->desc->tile_size * p->desc->tile_size * TILE_NUM_CHANNELS);
+    float *pixels = mem_alloc(sizeof(float) * p->desc->tile_size * p->desc->tile_size * p->desc->num_channels);
     for (;;) {
         pthread_mutex_lock(&p->lock);
         while (!p->stop && p->count == 0)
@@ -240,7 +240,7 @@ static void *pool_thread(void *arg)
         uint32_t y = 0;
         for (; y < h && !g_stop; y++) { /* SIGINT / SIGTERM: the tile is dropped at the next row */
             struct tile_stats row;
-            float *rowpx = pixels + (size_t)y * w * TILE_NUM_CHANNELS;
+            float *rowpx = pixels + (size_t)y * w * p->desc->num_channels;
             if (passes > 1) /* one pass of the tile: the master folds the passes */
                 integrator_render_tile_pass(p->rjob, t.pass, x0, y0 + y, w, 1, rowpx, &row);
             else
@@ -446,6 +446,9 @@ static int load_job(struct worker *w)
     rs->tile_size = w->job.tile_size;
     rs->seed = w->job.seed;
     rs->sampler = (enum sampler_type)w->job.sampler;
+    rs->aovs = w->job.aovs;
+    w->scene.camera.filter = w->job.filter;
+    w->scene.camera.filter_width = w->job.filter_width;
     if (scene_validate(&w->scene, err, sizeof err) != 0 ||
         render_job_init(&w->rjob, &w->scene, w->job.frame, w->opts->threads, err, sizeof err) != 0) {
         photon_map_free(&map);

@@ -666,6 +666,8 @@ struct imgio_writer *imgio_writer_open(const char *path, const struct image_desc
         rv = exr_attr_set_int(w->ctx, 0, "brume_rounds", (int32_t)(a->rounds & INT32_MAX));
     if (rv == EXR_ERR_SUCCESS && a->time_limited)
         rv = exr_attr_set_int(w->ctx, 0, "brume_time_limited", 1);
+    for (uint32_t i = 0; rv == EXR_ERR_SUCCESS && i < a->num_strings; i++)
+        rv = exr_attr_set_string(w->ctx, 0, a->string_names[i], a->string_values[i]);
     if (rv == EXR_ERR_SUCCESS)
         rv = exr_write_header(w->ctx);
     if (rv != EXR_ERR_SUCCESS) {

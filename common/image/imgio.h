@@ -8,7 +8,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#define IMGIO_MAX_CHANNELS 8
+#define IMGIO_MAX_CHANNELS 24
 
 enum imgio_compression { IMGIO_NONE, IMGIO_ZIP, IMGIO_PIZ };
 
@@ -37,6 +37,9 @@ struct image_attrs {
     double target_error;    /* brume_target_error */
     uint32_t rounds;        /* brume_rounds: adaptive rounds rendered (--max-rounds reproduces a time-limited run) */
     uint32_t time_limited;  /* brume_time_limited: 1 when --time-limit ended the render */
+    /* Further string attributes (the AOVs' id name tables), written as given. */
+    uint32_t num_strings;
+    char **string_names, **string_values;
 };
 
 /* Tile grid helpers: number of tiles across and down, and a tile's pixel rectangle. */

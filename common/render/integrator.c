@@ -5,6 +5,7 @@
  * along the geometric normal (Waechter and Binder, Ray Tracing Gems ch. 6). */
 #include "render/integrator.h"
 #include "base/log.h"
+#include "render/aov.h"
 #include "render/media_integrator.h"
 #include "render/surface.h"
 #include "render/texshade.h"
@@ -28,8 +29,39 @@ static vec3 behind(const struct surface *s, vec3 ng)
     return offset_ray_origin(v3_sub(s->p, v3_scale(ng, s->p_err)), v3_neg(ng));
 }
 
+/* The AOVs of the first hit h of the camera ray (org, dir) at surface s, shading normal ns
+ * on the ray's side. */
+static void aov_first_hit(const struct render_job *job, const struct accel_hit *h, const struct surface *s, vec3 ns,
+                          struct aov_sample *aov)
+{
+    const struct scene *sc = job->scene;
+    aov->z = h->t; /* camera rays have unit directions */
+    aov->n = ns;
+    aov->p = v3((float)((double)s->p.x + sc->origin[0]), (float)((double)s->p.y + sc->origin[1]),
+                (float)((double)s->p.z + sc->origin[2]));
+    aov->id_object = (float)aov_object_id(sc, h->geom, job->accel.sphere_geom, h->prim);
+    aov->id_material = (float)s->material;
+}
+
+/* AOVs in media scenes: the first surface along the camera ray, media ignored, albedo
+ * of an untextured non-specular first hit (docs/scene-format.md). */
+static void aov_trace(const struct render_job *job, vec3 org, vec3 dir, float time01, struct aov_sample *aov)
+{
+    struct accel_hit h;
+    if (!accel_intersect(&job->accel, org, dir, INFINITY, time01, &h))
+        return;
+    struct surface s;
+    surface_from_hit(&job->accel, &job->lights, org, dir, &h, time01, &s);
+    aov_first_hit(job, &h, &s, v3_dot(s.ns, dir) > 0.0f ? v3_neg(s.ns) : s.ns, aov);
+    const struct material *mat = &job->scene->materials[s.material];
+    if (!material_is_delta(mat))
+        aov->albedo = aov_material_albedo(mat);
+}
+
+/* One camera sample's radiance; aov (NULL when the frame has no AOVs) gets its AOVs,
+ * set to a miss by the caller. */
 static vec3 sample_path(const struct render_job *job, uint32_t pass, uint32_t px, uint32_t py, struct sampler smp,
-                        uint64_t *rays, int *hit_any)
+                        uint64_t *rays, int *hit_any, struct aov_sample *aov)
 {
     const struct scene *sc = job->scene;
     const struct render_settings *rs = &sc->settings;
@@ -39,8 +71,11 @@ static vec3 sample_path(const struct render_job *job, uint32_t pass, uint32_t px
     camera_generate(&job->camera, &smp, job->frame, px, py, &cs);
     float time01 = cs.time01;
     vec3 org = cs.o, dir = cs.d;
-    if (job->media)
+    if (job->media) {
+        if (aov)
+            aov_trace(job, org, dir, time01, aov);
         return media_sample_path_pass(job, pass, &smp, px, py, org, dir, time01, rays, hit_any);
+    }
     struct raydiff rd;          /* texture footprints, only when a material has a texture */
     if (job->textured)
         texshade_camera(job, &cs, &smp, &rd);
@@ -99,6 +134,14 @@ static vec3 sample_path(const struct render_job *job, uint32_t pass, uint32_t px
         vec3 ns = v3_dot(s.ns, ng) < 0.0f ? v3_neg(s.ns) : s.ns;
         if (job->textured)
             ns = texshade_bump(sc, job->mips, mat, &dh, ng, ns);
+        if (aov) {
+            if (vertex == 1)
+                aov_first_hit(job, &h, &s, ns, aov);
+            if (!material_is_delta(mat)) { /* the first non-specular hit: albedo, then no more AOVs */
+                aov->albedo = v3_mul(beta, aov_material_albedo(mat));
+                aov = NULL;
+            }
+        }
         vec3 p_off = offset_ray_origin(v3_add(s.p, v3_scale(ng, s.p_err)), ng);
         uint32_t d0 = sampler_bounce_dim(vertex - 1, 0);
 
@@ -190,7 +233,8 @@ double pass_batch_var_of_mean(const struct pass_batch *b, int k)
  * sequence), and the pass's photon map. *n gets the samples kept (NaN and Inf are
  * dropped), m their mean, *cover the share that hit something. */
 static void render_pixel_pass(const struct render_job *job, struct sampler_pixel *sp, uint32_t pass, uint32_t px_x,
-                              uint32_t px_y, double m[3], double *cover, uint32_t *n, struct tile_stats *stats)
+                              uint32_t px_y, double m[3], double *cover, uint32_t *n, struct aov_accum *aacc,
+                              struct tile_stats *stats)
 {
     const uint32_t k = sp->spp; /* samples per pass: sampler_pixel_for set the pixel's pass size */
     double sum[3] = {0, 0, 0}, hits = 0.0;
@@ -200,9 +244,15 @@ static void render_pixel_pass(const struct render_job *job, struct sampler_pixel
     if (sp->streams != streams)
         sampler_pixel_set_streams(sp, streams);
     sampler_pixel_set_pass(sp, pass);
+    if (aacc)
+        aov_accum_reset(aacc);
     for (uint32_t si = pass * k; si < (pass + 1) * k; si++) {
         int hit_any;
-        vec3 l = sample_path(job, pass, px_x, px_y, sampler_start_pixel(sp, si), &stats->rays, &hit_any);
+        struct aov_sample as;
+        if (aacc)
+            aov_sample_miss(&as);
+        vec3 l = sample_path(job, pass, px_x, px_y, sampler_start_pixel(sp, si), &stats->rays, &hit_any,
+                             aacc ? &as : NULL);
         stats->samples++;
         if (!v3_is_finite(l)) {
             stats->nan_samples++;
@@ -213,6 +263,8 @@ static void render_pixel_pass(const struct render_job *job, struct sampler_pixel
         sum[2] += l.z;
         hits += hit_any;
         (*n)++;
+        if (aacc)
+            aov_accum_add(aacc, &as);
     }
     for (int c = 0; c < 3; c++)
         m[c] = *n ? sum[c] / *n : 0.0;
@@ -263,36 +315,51 @@ static void pass_pixel_channels(const double m[3], double cover, uint32_t n, flo
 /* A pixel rendered in all its passes: the pass means, rounded to float as a worker sends
  * them, folded in pass order exactly as the master folds units (pass_pixel_fold), so a
  * whole-tile render and a render unit by unit give the same bits. */
-static void render_pixel_passes(const struct render_job *job, uint32_t px_x, uint32_t px_y, float *px,
-                                struct tile_stats *stats)
+static void render_pixel_passes(const struct render_job *job, const struct tile_layout *lay, uint32_t px_x,
+                                uint32_t px_y, float *px, struct tile_stats *stats)
 {
     struct sampler_pixel sp;
     sampler_pixel_for(job, px_x, px_y, &sp);
     struct pass_pixel pp;
     memset(&pp, 0, sizeof pp);
+    struct aov_accum aacc;
+    struct aov_pixel ap;
+    aov_pixel_init(&ap);
     for (uint32_t p = 0; p < job->num_passes; p++) {
         double m[3], cover;
         uint32_t n;
-        float ch[TILE_NUM_CHANNELS];
-        render_pixel_pass(job, &sp, p, px_x, px_y, m, &cover, &n, stats);
+        float ch[TILE_MAX_CHANNELS];
+        render_pixel_pass(job, &sp, p, px_x, px_y, m, &cover, &n, lay->aovs ? &aacc : NULL, stats);
         pass_pixel_channels(m, cover, n, ch);
         pass_pixel_fold(&pp, p % sp.streams, ch);
+        if (lay->aovs) {
+            aov_accum_write(&aacc, n, lay, ch);
+            aov_pixel_fold(&ap, lay, ch);
+        }
     }
     pass_pixel_finish(&pp, px, stats);
+    if (lay->aovs)
+        aov_pixel_finish(&ap, lay, px);
 }
 
 void integrator_render_tile_pass(const struct render_job *job, uint32_t pass, uint32_t x0, uint32_t y0, uint32_t w,
                                  uint32_t h, float *pixels, struct tile_stats *stats)
 {
     memset(stats, 0, sizeof *stats);
+    struct tile_layout lay;
+    tile_layout_init(&lay, job->scene->settings.aovs);
+    struct aov_accum aacc;
     for (uint32_t y = 0; y < h; y++)
         for (uint32_t x = 0; x < w; x++) {
             struct sampler_pixel sp;
             double m[3], cover;
             uint32_t n;
+            float *px = &pixels[((size_t)y * w + x) * lay.num_channels];
             sampler_pixel_for(job, x0 + x, y0 + y, &sp);
-            render_pixel_pass(job, &sp, pass, x0 + x, y0 + y, m, &cover, &n, stats);
-            pass_pixel_channels(m, cover, n, &pixels[((size_t)y * w + x) * TILE_NUM_CHANNELS]);
+            render_pixel_pass(job, &sp, pass, x0 + x, y0 + y, m, &cover, &n, lay.aovs ? &aacc : NULL, stats);
+            pass_pixel_channels(m, cover, n, px);
+            if (lay.aovs)
+                aov_accum_write(&aacc, n, &lay, px);
         }
 }
 
@@ -302,12 +369,15 @@ void integrator_render_tile(const struct render_job *job, uint32_t x0, uint32_t 
     const struct render_settings *rs = &job->scene->settings;
     const uint32_t spp = rs->spp;
     memset(stats, 0, sizeof *stats);
+    struct tile_layout lay;
+    tile_layout_init(&lay, rs->aovs);
     if (job->num_passes > 1) {
         for (uint32_t y = 0; y < h; y++)
             for (uint32_t x = 0; x < w; x++)
-                render_pixel_passes(job, x0 + x, y0 + y, &pixels[((size_t)y * w + x) * TILE_NUM_CHANNELS], stats);
+                render_pixel_passes(job, &lay, x0 + x, y0 + y, &pixels[((size_t)y * w + x) * lay.num_channels], stats);
         return;
     }
+    struct aov_accum aacc;
     for (uint32_t y = 0; y < h; y++)
         for (uint32_t x = 0; x < w; x++) {
             double sum[3] = {0, 0, 0}, sum2[3] = {0, 0, 0}, lum_sum = 0.0, lum_sum2 = 0.0, cover = 0.0;
@@ -317,9 +387,15 @@ void integrator_render_tile(const struct render_job *job, uint32_t x0, uint32_t 
             struct sampler_pixel sp;
             sampler_pixel_init(&sp, rs->sampler, rs->seed, job->frame, (uint64_t)(y0 + y) * rs->width + (x0 + x),
                                spp);
+            if (lay.aovs)
+                aov_accum_reset(&aacc);
             for (uint32_t si = 0; si < spp; si++) {
                 int hit_any;
-                vec3 l = sample_path(job, 0, x0 + x, y0 + y, sampler_start_pixel(&sp, si), &stats->rays, &hit_any);
+                struct aov_sample as;
+                if (lay.aovs)
+                    aov_sample_miss(&as);
+                vec3 l = sample_path(job, 0, x0 + x, y0 + y, sampler_start_pixel(&sp, si), &stats->rays, &hit_any,
+                                     lay.aovs ? &as : NULL);
                 stats->samples++;
                 if (!v3_is_finite(l)) {
                     stats->nan_samples++;
@@ -335,8 +411,12 @@ void integrator_render_tile(const struct render_job *job, uint32_t x0, uint32_t 
                 lum_sum2 += lum * lum;
                 cover += hit_any;
                 n++;
+                if (lay.aovs)
+                    aov_accum_add(&aacc, &as);
             }
-            float *px = &pixels[((size_t)y * w + x) * TILE_NUM_CHANNELS];
+            float *px = &pixels[((size_t)y * w + x) * lay.num_channels];
+            if (lay.aovs)
+                aov_accum_write(&aacc, n, &lay, px);
             double mean[3], var_mean[3];
             for (int k = 0; k < 3; k++) {
                 mean[k] = n ? sum[k] / n : 0.0;

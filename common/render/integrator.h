@@ -10,8 +10,8 @@
 #include "scene/sampler.h"
 #include "render/tile.h"
 
-/* Renders the pixel rectangle [x0, x0+w) x [y0, y0+h) into pixels (w*h*TILE_NUM_CHANNELS
- * floats). Fills stats (render_ns excluded: the caller times). */
+/* Renders the pixel rectangle [x0, x0+w) x [y0, y0+h) into pixels (w*h*num_channels
+ * floats of the settings' tile_layout: the beauty, then the AOVs render.aovs asks for). Fills stats (render_ns excluded: the caller times). */
 void integrator_render_tile(const struct render_job *job, uint32_t x0, uint32_t y0, uint32_t w, uint32_t h,
                             float *pixels, struct tile_stats *stats);
 

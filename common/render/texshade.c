@@ -17,12 +17,14 @@ void texshade_camera(const struct render_job *job, const struct camera_sample *c
     uint32_t nx, ny;
     if (!sampler_pixel_cells(smp, &nx, &ny)) {
         /* No grid: an isotropic footprint of the pixel's area over spp, at the sample. */
-        raydiff_camera(&job->camera, &pose, cs->d, raydiff_spp_scale(job->scene->settings.spp), rd);
+        raydiff_camera(&job->camera, &pose, cs->d,
+                       raydiff_spp_scale(job->scene->settings.spp) * job->camera.filter_footprint, rd);
         return;
     }
-    /* The footprint is the sample's cell of the grid, centred on it. */
+    /* The footprint is the sample's cell of the grid, centred on it; a pixel filter wider
+     * than the box spreads the samples, and the cells, by its spread over the box's. */
     float sx = raydiff_cell_scale(nx), sy = raydiff_cell_scale(ny);
-    raydiff_camera(&job->camera, &pose, cs->d, 1.0f, rd);
+    raydiff_camera(&job->camera, &pose, cs->d, job->camera.filter_footprint, rd);
     rd->dddx = v3_scale(rd->dddx, sx);
     rd->dddy = v3_scale(rd->dddy, sy);
     raydiff_set_center(rd, cs->jx, cs->jy, nx, ny, sx, sy);

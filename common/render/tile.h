@@ -13,6 +13,24 @@
 enum tile_channel { CH_R, CH_G, CH_B, CH_A, CH_VAR_R, CH_VAR_G, CH_VAR_B, TILE_NUM_CHANNELS };
 extern const char *const tile_channel_names[TILE_NUM_CHANNELS];
 
+/* A frame's channels: the beauty channels above, then the AOVs the scene asks for
+ * (render.aovs), in enum aov order, each with 1 or 3 channels (tile_aov_names). Tile
+ * buffers hold num_channels floats a pixel. off[a] is AOV a's first channel, or -1. */
+#define TILE_MAX_AOV_CHANNELS 12
+#define TILE_MAX_CHANNELS (TILE_NUM_CHANNELS + TILE_MAX_AOV_CHANNELS)
+struct tile_layout {
+    uint32_t aovs;          /* bit set of enum aov */
+    uint32_t num_channels;  /* TILE_NUM_CHANNELS + the AOVs' channels */
+    int off[AOV_COUNT_];
+};
+/* An AOV's channel count and EXR channel names (the first is the AOV's name in
+ * render.aovs: Z, N.X, albedo.R, P.X, id.object, id.material). */
+uint32_t tile_aov_channels(enum aov a);
+const char *tile_aov_channel_name(enum aov a, uint32_t k);
+void tile_layout_init(struct tile_layout *l, uint32_t aovs);
+/* The layout of a frame's desc (tile_image_desc's channels, as named). */
+void tile_layout_from_desc(struct tile_layout *l, const struct image_desc *d);
+
 struct tile_stats {
     uint64_t samples;       /* camera samples traced */
     uint64_t rays;          /* all rays (camera, bounce, shadow) */

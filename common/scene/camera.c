@@ -80,6 +80,69 @@ static float pose_focus(const struct camera *cam, const struct camera_pose *p, f
     return f > 1e-6f && isfinite(f) ? f : 1e-6f;
 }
 
+double camera_filter_eval(uint32_t filter, float width, double x)
+{
+    double w = filter == FILTER_GAUSSIAN ? 3.0 * width : filter == FILTER_BLACKMAN_HARRIS ? 2.0 * width : 1.0;
+    if (!(fabs(x) <= 0.5 * w))
+        return 0.0;
+    switch (filter) {
+    case FILTER_GAUSSIAN: {
+        double v = x * 6.0 / w;
+        return exp(-2.0 * v * v);
+    }
+    case FILTER_BLACKMAN_HARRIS: {
+        double v = 2.0 * M_PI * (x / w + 0.5);
+        return 0.35875 - 0.48829 * cos(v) + 0.14128 * cos(2.0 * v) - 0.01168 * cos(3.0 * v);
+    }
+    default:
+        return 1.0;
+    }
+}
+
+/* The filter's CDF table (midpoint rule per cell, in double) and its spread. */
+static void filter_init(struct camera *cam, const struct camera_desc *d)
+{
+    cam->filter = d->filter < FILTER_COUNT_ ? d->filter : FILTER_BOX;
+    cam->filter_footprint = 1.0f;
+    if (cam->filter == FILTER_BOX || !(d->filter_width > 0.0f))
+        return;
+    double w = cam->filter == FILTER_GAUSSIAN ? 3.0 * d->filter_width : 2.0 * d->filter_width;
+    double r = 0.5 * w, dx = w / CAMERA_FILTER_TABLE, sum = 0.0, m2 = 0.0;
+    double cdf[CAMERA_FILTER_TABLE + 1];
+    cdf[0] = 0.0;
+    for (int i = 0; i < CAMERA_FILTER_TABLE; i++) {
+        double x = -r + (i + 0.5) * dx, f = camera_filter_eval(cam->filter, d->filter_width, x);
+        sum += f;
+        m2 += f * x * x;
+        cdf[i + 1] = sum;
+    }
+    for (int i = 0; i <= CAMERA_FILTER_TABLE; i++)
+        cam->filter_cdf[i] = (float)(cdf[i] / sum);
+    cam->filter_cdf[CAMERA_FILTER_TABLE] = 1.0f;
+    cam->filter_radius = (float)r;
+    double sd = sqrt(m2 / sum), box_sd = sqrt(1.0 / 12.0);
+    cam->filter_footprint = sd > box_sd ? (float)(sd / box_sd) : 1.0f;
+}
+
+float camera_filter_offset(const struct camera *cam, float u)
+{
+    if (cam->filter == FILTER_BOX)
+        return u - 0.5f;
+    /* The cell k with cdf[k] <= u < cdf[k + 1], then linear within it. */
+    const float *c = cam->filter_cdf;
+    int lo = 0, hi = CAMERA_FILTER_TABLE;
+    while (hi - lo > 1) {
+        int mid = (lo + hi) / 2;
+        if (c[mid] <= u)
+            lo = mid;
+        else
+            hi = mid;
+    }
+    float span = c[lo + 1] - c[lo], t = span > 0.0f ? (u - c[lo]) / span : 0.5f;
+    t = t < 0.0f ? 0.0f : t > 1.0f ? 1.0f : t;
+    return cam->filter_radius * (2.0f * ((float)lo + t) / CAMERA_FILTER_TABLE - 1.0f);
+}
+
 void camera_init(struct camera *cam, const struct camera_desc *d, uint32_t width, uint32_t height)
 {
     *cam = (struct camera){0};
@@ -96,6 +159,7 @@ void camera_init(struct camera *cam, const struct camera_desc *d, uint32_t width
         cam->blade_x[k] = (float)cos(a);
         cam->blade_y[k] = (float)sin(a);
     }
+    filter_init(cam, d);
     cam->has_focus_point = d->has_focus_point;
     cam->focus_point = d->focus_point;
     cam->focus_distance = d->focus_distance;
@@ -251,7 +315,14 @@ void camera_generate(const struct camera *cam, const struct sampler *smp, uint32
 {
     float ju, jv;
     sampler_get_2d(smp, DIM_PIXEL_X, &ju, &jv);
-    float fx = (float)px + ju, fy = (float)py + jv;
+    float fx, fy;
+    if (cam->filter == FILTER_BOX) { /* the pixel itself, bit for bit as without a filter */
+        fx = (float)px + ju;
+        fy = (float)py + jv;
+    } else {
+        fx = (float)px + 0.5f + camera_filter_offset(cam, ju);
+        fy = (float)py + 0.5f + camera_filter_offset(cam, jv);
+    }
     out->jx = ju, out->jy = jv;
     out->time01 = cam->uses_time ? camera_shutter_warp(cam, sampler_get(smp, DIM_TIME)) : 0.0f;
     out->time = (double)frame + cam->shutter_open + (double)out->time01 * (cam->shutter_close - cam->shutter_open);

@@ -1,3 +1,5 @@
+#define CAMERA_FILTER_TABLE 256
+
 /* Thin-lens camera with a shutter and keyframed motion: turns a continuous film position
  * (pixels, origin top-left, y down), a lens sample and a time sample into a world-space
  * ray. Built once per job from the scene's camera_desc; read-only afterwards. Aperture 0
@@ -38,6 +40,13 @@ struct camera {
     vec3 key_pos[CAMERA_MAX_KEYFRAMES];
     float key_rot[CAMERA_MAX_KEYFRAMES][4];   /* unit quaternion (x, y, z, w) of (right, up, -forward) */
     float key_dist[CAMERA_MAX_KEYFRAMES];     /* |look_at - position| */
+    /* Pixel filter (filter importance sampling): 0 = box; else the 1D CDF of the
+     * separable filter over [-filter_radius, filter_radius] at CAMERA_FILTER_TABLE + 1
+     * evenly spaced offsets, inverted piecewise-linearly (a piecewise-constant pdf). */
+    uint32_t filter;           /* enum pixel_filter */
+    float filter_radius;       /* pixels */
+    float filter_footprint;    /* the filter's standard deviation over the box's (>= 1): texture footprints scale by it */
+    float filter_cdf[CAMERA_FILTER_TABLE + 1];
 };
 
 /* What a camera ray carries: origin, unit direction, and its time, both as a fraction of
@@ -67,8 +76,16 @@ void camera_pose_at(const struct camera *cam, double t, struct camera_pose *pose
 /* Shutter curve: maps a uniform u to time01 in [0, 1]. */
 float camera_shutter_warp(const struct camera *cam, float u);
 
-/* The camera ray for sample smp of pixel (px, py) in frame `frame`: pixel jitter, lens and
- * time from the sampler's fixed dimensions. */
+/* The 1D filter's value at offset x (pixels) from the pixel centre, unnormalised, as
+ * Cycles defines it: gaussian exp(-2 (6 x / W)^2) over |x| <= W / 2 with W = 3 width;
+ * blackman-harris the 4-term window over W = 2 width; box 1 over |x| <= 1/2. */
+double camera_filter_eval(uint32_t filter, float width, double x);
+/* A uniform u in [0, 1) to a pixel offset from the pixel centre, distributed as the
+ * filter (the box: u - 1/2). */
+float camera_filter_offset(const struct camera *cam, float u);
+
+/* The camera ray for sample smp of pixel (px, py) in frame `frame`: pixel jitter (through
+ * the pixel filter), lens and time from the sampler's fixed dimensions. */
 void camera_generate(const struct camera *cam, const struct sampler *smp, uint32_t frame, uint32_t px, uint32_t py,
                      struct camera_sample *out);
 

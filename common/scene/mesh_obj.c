@@ -18,6 +18,37 @@
 
 #define NAME_LEN_MAX 1024
 #define DEFAULT_ALBEDO 0.8f
+/* Non-convex polygons are ear-clipped in O(n^2); longer ones are refused. */
+#define EAR_CLIP_MAX_CORNERS 512
+/* Warnings about materials no MTL defines, per file, before they are only counted. */
+#define UNKNOWN_MATERIAL_WARNINGS 5
+
+/* A path as exporters write it, made what asset_path_join takes: backslashes (Windows)
+ * become '/', "." components and repeated separators go. ".." stays, so a path that
+ * leaves the scene folder is still refused there. In place; n is the length. */
+static void path_normalise(char *p)
+{
+    for (char *q = p; *q; q++)
+        if (*q == '\\')
+            *q = '/';
+    char *out = p;
+    const char *in = p;
+    int absolute = *in == '/';
+    if (absolute)
+        *out++ = *in++; /* kept: asset_path_join refuses it by name */
+    while (*in) {
+        const char *e = strchr(in, '/');
+        size_t n = e ? (size_t)(e - in) : strlen(in);
+        if (!(n == 0 || (n == 1 && in[0] == '.'))) {
+            if (out > p && out[-1] != '/')
+                *out++ = '/';
+            memmove(out, in, n);
+            out += n;
+        }
+        in += n + (e != NULL);
+    }
+    *out = '\0';
+}
 
 struct mesh_obj_mtl {
     char path[ASSET_PATH_MAX];  /* relative to the scene folder */
@@ -362,6 +393,7 @@ static int mtl_map_kd(struct reader *r, struct scene *scene, const struct asset_
     dir[dl] = '\0';
     memcpy(name, file.p, file.n);
     name[file.n] = '\0';
+    path_normalise(name);
     if (asset_path_join(dir, name, rel, sizeof rel, why, sizeof why) != 0)
         return reader_fail(r, file.p, "%s: %s", what, why);
     char display[ASSET_PATH_MAX + 1024];
@@ -547,6 +579,10 @@ struct obj_state {
     size_t cap_poly;
     size_t *mtls;            /* cache indices named by mtllib */
     size_t num_mtls, cap_mtls;
+    uint32_t unknown_materials; /* usemtl names no MTL defines */
+    double *proj;            /* 2 per corner of the face being read: its projection (ear clipping) */
+    uint32_t *ring;          /* the corners left to clip */
+    size_t cap_proj, cap_ring;
 };
 
 static void obj_state_free(struct obj_state *s)
@@ -558,6 +594,8 @@ static void obj_state_free(struct obj_state *s)
     free(s->tri_mat);
     free(s->poly);
     free(s->mtls);
+    free(s->proj);
+    free(s->ring);
 }
 
 static int parse_index(struct reader *r, const char *p, size_t n, size_t count, const char *what, int32_t *out)
@@ -645,6 +683,143 @@ static const char *const obj_unsupported[] = {"l", "p", "vp", "cstype", "deg", "
                                               "usemap", "shadow_obj", "trace_obj", "ctech", "stech", "call",
                                               "csh"};
 
+static void add_triangle(struct obj_state *s, uint32_t a, uint32_t b, uint32_t c, uint32_t material)
+{
+    struct corner *t = &s->corners[3 * s->num_tris];
+    t[0] = s->poly[a];
+    t[1] = s->poly[b];
+    t[2] = s->poly[c];
+    s->tri_mat[s->num_tris++] = material;
+}
+
+/* Twice the signed area of the projected triangle (a, b, c); > 0 turning left. */
+static double proj_cross(const double *q, uint32_t a, uint32_t b, uint32_t c)
+{
+    return (q[2 * b] - q[2 * a]) * (q[2 * c + 1] - q[2 * a + 1]) - (q[2 * b + 1] - q[2 * a + 1]) * (q[2 * c] - q[2 * a]);
+}
+
+/* Projects the face's n corners onto the plane of its Newell normal (the best-fit plane's
+ * orientation, which also fits non-planar polygons), turned so the polygon winds
+ * counter-clockwise. 1 when it is convex (every turn left or straight, one turn around
+ * in all), so that a fan splits it exactly; 0 when it is not; -1 when it crosses itself
+ * (its turns add up to other than one turn around). A degenerate face (zero normal)
+ * counts as convex: its fan is the zero-area triangles it always gave. */
+static int polygon_project_convex(struct obj_state *s, size_t n)
+{
+    double nrm[3] = {0, 0, 0};
+    for (size_t i = 0; i < n; i++) {
+        const double *a = &s->pos[3 * (size_t)s->poly[i].v], *b = &s->pos[3 * (size_t)s->poly[(i + 1) % n].v];
+        nrm[0] += (a[1] - b[1]) * (a[2] + b[2]);
+        nrm[1] += (a[2] - b[2]) * (a[0] + b[0]);
+        nrm[2] += (a[0] - b[0]) * (a[1] + b[1]);
+    }
+    int k = fabs(nrm[0]) > fabs(nrm[1]) ? (fabs(nrm[0]) > fabs(nrm[2]) ? 0 : 2) : (fabs(nrm[1]) > fabs(nrm[2]) ? 1 : 2);
+    if (!(fabs(nrm[k]) > 0.0) || !isfinite(nrm[k]))
+        return 1;
+    int u = (k + 1) % 3, v = (k + 2) % 3;
+    double flip = nrm[k] < 0.0 ? -1.0 : 1.0;
+    mem_grow((void **)&s->proj, &s->cap_proj, 2 * n, sizeof *s->proj);
+    for (size_t i = 0; i < n; i++) {
+        const double *p = &s->pos[3 * (size_t)s->poly[i].v];
+        s->proj[2 * i] = flip * p[u];
+        s->proj[2 * i + 1] = p[v];
+    }
+    double turning = 0.0;
+    int convex = 1;
+    for (size_t i = 0; i < n; i++) {
+        uint32_t a = (uint32_t)((i + n - 1) % n), b = (uint32_t)i, c = (uint32_t)((i + 1) % n);
+        convex &= proj_cross(s->proj, a, b, c) >= 0.0;
+        double ex = s->proj[2 * b] - s->proj[2 * a], ey = s->proj[2 * b + 1] - s->proj[2 * a + 1];
+        double fx = s->proj[2 * c] - s->proj[2 * b], fy = s->proj[2 * c + 1] - s->proj[2 * b + 1];
+        turning += atan2(ex * fy - ey * fx, ex * fx + ey * fy);
+    }
+    if (fabs(turning - 2.0 * M_PI) > 0.5)
+        return -1; /* a star turns around more than once, a figure eight not at all */
+    return convex;
+}
+
+/* 1 when projected point p lies inside or on the triangle (a, b, c) (counter-clockwise). */
+static int proj_in_triangle(const double *q, uint32_t a, uint32_t b, uint32_t c, uint32_t p)
+{
+    return proj_cross(q, a, b, p) >= 0.0 && proj_cross(q, b, c, p) >= 0.0 && proj_cross(q, c, a, p) >= 0.0;
+}
+
+/* Ear clipping of the projected, counter-clockwise polygon: an ear is a corner turning
+ * left whose triangle holds no other corner; clipping keeps the polygon's winding, so
+ * every triangle faces the way the polygon does. Corners on a straight line are clipped
+ * last, as zero-area ears. -1 when no ear is left (a polygon that crosses itself). */
+static int ear_clip(struct obj_state *s, size_t n, uint32_t material)
+{
+    mem_grow((void **)&s->ring, &s->cap_ring, n, sizeof *s->ring);
+    uint32_t *ring = s->ring;
+    for (size_t i = 0; i < n; i++)
+        ring[i] = (uint32_t)i;
+    size_t m = n;
+    const double *q = s->proj;
+    while (m > 3) {
+        size_t found = SIZE_MAX;
+        for (int pass = 0; pass < 2 && found == SIZE_MAX; pass++)
+            for (size_t i = 0; i < m && found == SIZE_MAX; i++) {
+                uint32_t a = ring[(i + m - 1) % m], b = ring[i], c = ring[(i + 1) % m];
+                double cr = proj_cross(q, a, b, c);
+                if (pass == 0 ? !(cr > 0.0) : !(cr >= 0.0))
+                    continue;
+                int empty = 1;
+                for (size_t j = 0; j < m && empty; j++) {
+                    uint32_t p = ring[j];
+                    if (p == a || p == b || p == c)
+                        continue;
+                    const double *pp = &q[2 * p];
+                    if ((pp[0] == q[2 * a] && pp[1] == q[2 * a + 1]) || (pp[0] == q[2 * c] && pp[1] == q[2 * c + 1]))
+                        continue; /* a corner repeated where the polygon touches itself */
+                    empty = !(cr > 0.0 && proj_in_triangle(q, a, b, c, p));
+                }
+                if (empty)
+                    found = i;
+            }
+        if (found == SIZE_MAX)
+            return -1;
+        add_triangle(s, ring[(found + m - 1) % m], ring[found], ring[(found + 1) % m], material);
+        memmove(&ring[found], &ring[found + 1], (m - found - 1) * sizeof *ring);
+        m--;
+    }
+    add_triangle(s, ring[0], ring[1], ring[2], material);
+    return 0;
+}
+
+/* Triangles of the polygon in s->poly (n >= 3 corners) into s: a fan when it is convex,
+ * else ear clipping. -1 with the reason in why. */
+static int polygon_add(struct obj_state *s, size_t n, uint32_t material, char *why, size_t whylen)
+{
+    if (s->num_tris + (n - 2) > MESH_OBJ_MAX_ELEMENTS) {
+        str_fmt(why, whylen, "more than %u triangles", MESH_OBJ_MAX_ELEMENTS);
+        return -1;
+    }
+    mem_grow((void **)&s->corners, &s->cap_corners, 3 * (s->num_tris + n - 2), sizeof *s->corners);
+    mem_grow((void **)&s->tri_mat, &s->cap_tri, s->num_tris + n - 2, sizeof *s->tri_mat);
+    int shape = n == 3 ? 1 : polygon_project_convex(s, n);
+    if (shape < 0) {
+        str_fmt(why, whylen, "face with %zu corners crosses itself: it cannot be triangulated", n);
+        return -1;
+    }
+    if (shape == 1) {
+        /* Fan around the first corner: exact for convex polygons (most of what exporters write). */
+        for (size_t i = 1; i + 1 < n; i++)
+            add_triangle(s, 0, (uint32_t)i, (uint32_t)(i + 1), material);
+        return 0;
+    }
+    if (n > EAR_CLIP_MAX_CORNERS) {
+        str_fmt(why, whylen, "non-convex face with %zu corners (at most %d can be triangulated)", n,
+                EAR_CLIP_MAX_CORNERS);
+        return -1;
+    }
+    if (ear_clip(s, n, material) != 0) {
+        str_fmt(why, whylen, "face with %zu corners cannot be triangulated: it folds back on its plane", n);
+        return -1;
+    }
+    return 0;
+}
+
 static int obj_face(struct reader *r, struct obj_state *s, uint32_t material)
 {
     size_t n = 0;
@@ -663,18 +838,9 @@ static int obj_face(struct reader *r, struct obj_state *s, uint32_t material)
         return -1;
     if (n < 3)
         return reader_fail(r, n ? r->text + r->cur : start, "face needs at least 3 corners, got %zu", n);
-    if (s->num_tris + (n - 2) > MESH_OBJ_MAX_ELEMENTS)
-        return reader_fail(r, start, "more than %u triangles", MESH_OBJ_MAX_ELEMENTS);
-    mem_grow((void **)&s->corners, &s->cap_corners, 3 * (s->num_tris + n - 2), sizeof *s->corners);
-    mem_grow((void **)&s->tri_mat, &s->cap_tri, s->num_tris + n - 2, sizeof *s->tri_mat);
-    /* Fan around the first corner: exact for the convex polygons OBJ exporters write. */
-    for (size_t i = 1; i + 1 < n; i++) {
-        struct corner *c = &s->corners[3 * s->num_tris];
-        c[0] = s->poly[0];
-        c[1] = s->poly[i];
-        c[2] = s->poly[i + 1];
-        s->tri_mat[s->num_tris++] = material;
-    }
+    char why[160];
+    if (polygon_add(s, n, material, why, sizeof why) != 0)
+        return reader_fail(r, start, "%s", why);
     return 0;
 }
 
@@ -804,7 +970,12 @@ static void obj_build_mesh(struct obj_state *s, const struct mesh_obj_options *o
     s->cap_tri = 0;
 }
 
-static int obj_usemtl(struct reader *r, struct obj_state *s, struct mesh_obj_cache *cache, uint32_t *material)
+static uint32_t default_material(struct scene *scene, struct mesh_obj_cache *cache);
+
+/* usemtl: a name no MTL read so far defines gets the default grey material and a
+ * warning naming file:line (as Blender and Cycles load such files). */
+static int obj_usemtl(struct reader *r, struct obj_state *s, struct scene *scene, struct mesh_obj_cache *cache,
+                      uint32_t *material)
 {
     struct token name;
     if (reader_rest(r, &name, "usemtl") != 0)
@@ -817,8 +988,11 @@ static int obj_usemtl(struct reader *r, struct obj_state *s, struct mesh_obj_cac
                 return 0;
             }
     }
-    return reader_fail(r, name.p, "unknown material \"%.*s\" (not defined in any mtllib read so far)",
-                       (int)(name.n > 64 ? 64 : name.n), name.p);
+    if (s->unknown_materials++ < UNKNOWN_MATERIAL_WARNINGS)
+        log_warn("%s:%u:%u: unknown material \"%.*s\" (not defined in any mtllib read so far): the default grey "
+                 "material is used", r->file, r->line, reader_col(r, name.p), (int)(name.n > 64 ? 64 : name.n), name.p);
+    *material = default_material(scene, cache);
+    return 0;
 }
 
 static int obj_mtllib(struct reader *r, struct obj_state *s, struct scene *scene, struct mesh_obj_cache *cache,
@@ -833,6 +1007,7 @@ static int obj_mtllib(struct reader *r, struct obj_state *s, struct scene *scene
             return reader_fail(r, t.p, "mtllib path too long");
         memcpy(rel, t.p, t.n);
         rel[t.n] = '\0';
+        path_normalise(rel);
         if (asset_path_join(obj_dir, rel, path, sizeof path, why, sizeof why) != 0)
             return reader_fail(r, t.p, "mtllib \"%s\": %s", rel, why);
         size_t index = 0;
@@ -923,7 +1098,7 @@ int mesh_obj_parse(struct scene *scene, struct mesh_obj_cache *cache, const stru
                 r.cur = r.line_end;
                 continue;
             }
-            if (obj_usemtl(&r, &s, cache, &material) != 0)
+            if (obj_usemtl(&r, &s, scene, cache, &material) != 0)
                 goto done;
             have_material = true;
         } else if (token_is(&kw, "mtllib")) {
@@ -959,6 +1134,52 @@ int mesh_obj_parse(struct scene *scene, struct mesh_obj_cache *cache, const stru
     }
     rc = 0;
 done:
+    obj_state_free(&s);
+    return rc;
+}
+
+int mesh_obj_from_arrays(struct scene *scene, struct mesh_obj_cache *cache, const struct mesh_arrays *a,
+                         const struct mesh_obj_options *opt_in, const char *file, char *err, size_t errlen)
+{
+    struct mesh_obj_options opt = opt_in ? *opt_in : mesh_obj_default_options();
+    uint32_t material = opt.material_override != MESH_OBJ_NO_OVERRIDE ? opt.material_override
+                                                                       : default_material(scene, cache);
+    struct obj_state s;
+    memset(&s, 0, sizeof s);
+    /* Borrowed: the OBJ state's attribute arrays are the caller's (not freed below). */
+    s.pos = a->positions;
+    s.nrm = a->normals;
+    s.uv = a->uvs;
+    s.num_pos = a->num_vertices;
+    s.num_nrm = a->normals ? a->num_vertices : 0;
+    s.num_uv = a->uvs ? a->num_vertices : 0;
+    int rc = 0;
+    size_t at = 0;
+    for (size_t f = 0; f < a->num_faces && rc == 0; f++) {
+        size_t n = a->face_sizes[f];
+        mem_grow((void **)&s.poly, &s.cap_poly, n, sizeof *s.poly);
+        for (size_t k = 0; k < n; k++) {
+            int32_t v = (int32_t)a->face_corners[at + k];
+            s.poly[k] = (struct corner){v, a->uvs ? v : -1, a->normals ? v : -1};
+        }
+        at += n;
+        char why[160];
+        if (polygon_add(&s, n, material, why, sizeof why) != 0) {
+            str_fmt(err, errlen, "%s%s: face %zu: %s", opt.display_dir ? opt.display_dir : "", file, f, why);
+            rc = -1;
+        }
+    }
+    if (rc == 0 && s.num_tris > 0) {
+        struct mesh m;
+        char display[ASSET_PATH_MAX + 1024];
+        str_fmt(display, sizeof display, "%s%s", opt.display_dir ? opt.display_dir : "", file);
+        obj_build_mesh(&s, &opt, opt.mesh_name ? opt.mesh_name : file, display, &m);
+        scene_add_mesh(scene, &m);
+    } else if (rc == 0) {
+        log_warn("%s%s: no faces, nothing to render", opt.display_dir ? opt.display_dir : "", file);
+    }
+    s.pos = NULL;
+    s.nrm = s.uv = NULL;
     obj_state_free(&s);
     return rc;
 }

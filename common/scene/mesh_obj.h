@@ -49,4 +49,21 @@ int mesh_obj_parse(struct scene *scene, struct mesh_obj_cache *cache, const stru
                    const char *rel_path, const char *text, size_t len, const struct mesh_obj_options *opt,
                    char *err, size_t errlen);
 
+/* A mesh given as arrays (the PLY reader's): per-vertex positions (double, as read),
+ * optional normals and uvs, and polygons of face_sizes[f] corners each, their vertex
+ * indices (< num_vertices, checked by the caller) in face_corners. */
+struct mesh_arrays {
+    double *positions;      /* 3 * num_vertices */
+    float *normals, *uvs;   /* 3 / 2 * num_vertices, or NULL */
+    size_t num_vertices;
+    uint32_t *face_sizes;   /* >= 3 each */
+    uint32_t *face_corners; /* sum of face_sizes */
+    size_t num_faces;
+};
+/* Appends the mesh of a (polygons triangulated as OBJ faces are: fans for convex ones,
+ * ear clipping otherwise; opt's transform, material override or the default grey, mesh
+ * name) to scene. The arrays stay the caller's. 0, or -1 with "file: face N: why". */
+int mesh_obj_from_arrays(struct scene *scene, struct mesh_obj_cache *cache, const struct mesh_arrays *a,
+                         const struct mesh_obj_options *opt, const char *file, char *err, size_t errlen);
+
 #endif

@@ -107,7 +107,17 @@ struct camera_desc {
     vec3 focus_point;
     uint32_t num_keyframes; /* 0 = still camera at position / look_at / up; else sorted by time */
     struct camera_keyframe keyframes[CAMERA_MAX_KEYFRAMES];
+    /* Pixel reconstruction filter (render.filter), applied by filter importance sampling:
+     * the pixel sample is moved by the filter's inverse CDF (camera.c). width: the
+     * filter's width in pixels (box: 1; gaussian, blackman-harris: as Cycles counts it). */
+    uint32_t filter;        /* enum pixel_filter */
+    float filter_width;
 };
+
+enum pixel_filter { FILTER_BOX, FILTER_GAUSSIAN, FILTER_BLACKMAN_HARRIS, FILTER_COUNT_ };
+#define SCENE_FILTER_MIN_WIDTH 0.25f
+#define SCENE_FILTER_MAX_WIDTH 16.0f
+#define SCENE_FILTER_DEFAULT_WIDTH 1.5f /* Cycles' default */
 
 /* How the sample dimensions of a pixel are generated (sampler.h). */
 enum sampler_type { SAMPLER_INDEPENDENT, SAMPLER_STRATIFIED, SAMPLER_SOBOL, SAMPLER_COUNT_ };
@@ -117,6 +127,12 @@ enum sampler_type { SAMPLER_INDEPENDENT, SAMPLER_STRATIFIED, SAMPLER_SOBOL, SAMP
 #define SCENE_DEFAULT_SAMPLER SAMPLER_SOBOL
 
 #define SCENE_MAX_PASSES 1024u
+
+/* Arbitrary output variables (render.aovs), written next to the beauty (render/tile.h
+ * gives their channels): the first hit's camera distance, world shading normal, albedo
+ * of the first non-specular hit, world position, object and material ids. */
+enum aov { AOV_Z, AOV_N, AOV_ALBEDO, AOV_P, AOV_ID_OBJECT, AOV_ID_MATERIAL, AOV_COUNT_ };
+#define AOV_ALL ((1u << AOV_COUNT_) - 1u)
 
 struct render_settings {
     uint32_t width, height;
@@ -128,6 +144,7 @@ struct render_settings {
     uint32_t passes;        /* render.passes (1..SCENE_MAX_PASSES): passes (docs/media.md, docs/adaptive.md); 0 = default */
     float target_error;     /* render.target_error: adaptive to this relRMSE (docs/adaptive.md); 0 = none */
     float time_limit;       /* render.time_limit: seconds, adaptive, stops at a round boundary; 0 = none */
+    uint32_t aovs;          /* render.aovs: bit set of enum aov (render/tile.h); 0 = beauty only */
 };
 
 struct texture; /* texture.h */

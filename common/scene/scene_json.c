@@ -11,6 +11,7 @@
 #include "scene/grid.h"
 #include "scene/nvdb.h"
 #include "scene/mesh_obj.h"
+#include "scene/mesh_ply.h"
 #include "scene/motion.h"
 #include "scene/sampler.h"
 #include "image/image_load.h"
@@ -1214,12 +1215,127 @@ static int parse_camera(struct ctx *c, const struct member *cm)
     return 0;
 }
 
+const char *const scene_aov_names[AOV_COUNT_] = {"Z", "N", "albedo", "P", "id.object", "id.material"};
+static const char *const filter_names[FILTER_COUNT_] = {"box", "gaussian", "blackman-harris"};
+
+/* Index of name in names[0..n-1], or -1. */
+static int name_index(const char *const *names, int n, const char *name)
+{
+    for (int i = 0; i < n; i++)
+        if (!strcmp(name, names[i]))
+            return i;
+    return -1;
+}
+
+/* The first n bytes of s as a name of at most outlen - 1 bytes; -1 when empty or longer. */
+static int name_copy(const char *s, size_t n, char *out, size_t outlen)
+{
+    if (n == 0 || n >= outlen)
+        return -1;
+    memcpy(out, s, n);
+    out[n] = '\0';
+    return 0;
+}
+
+int scene_aov_from_name(const char *name) { return name_index(scene_aov_names, AOV_COUNT_, name); }
+
+int scene_aovs_from_list(const char *list, uint32_t *aovs)
+{
+    *aovs = 0;
+    if (!strcmp(list, "all")) {
+        *aovs = AOV_ALL;
+        return 0;
+    }
+    while (*list) {
+        size_t n = strcspn(list, ",");
+        char name[32];
+        if (name_copy(list, n, name, sizeof name) != 0)
+            return -1;
+        int a = scene_aov_from_name(name);
+        if (a < 0)
+            return -1;
+        *aovs |= 1u << a;
+        list += n + (list[n] == ',');
+    }
+    return 0;
+}
+
+int scene_filter_from_name(const char *name) { return name_index(filter_names, FILTER_COUNT_, name); }
+
+int scene_filter_from_spec(const char *spec, uint32_t *filter, float *width)
+{
+    char name[32];
+    size_t n = strcspn(spec, ":");
+    if (name_copy(spec, n, name, sizeof name) != 0)
+        return -1;
+    int f = scene_filter_from_name(name);
+    if (f < 0)
+        return -1;
+    *filter = (uint32_t)f;
+    *width = f == FILTER_BOX ? 1.0f : SCENE_FILTER_DEFAULT_WIDTH;
+    if (spec[n] == ':') {
+        char *end;
+        double w = strtod(spec + n + 1, &end);
+        if (f == FILTER_BOX || end == spec + n + 1 || *end || !(w >= SCENE_FILTER_MIN_WIDTH) ||
+            !(w <= SCENE_FILTER_MAX_WIDTH))
+            return -1;
+        *width = (float)w;
+    }
+    return 0;
+}
+
+/* render.aovs: a list of AOV names. */
+static int parse_aovs(struct ctx *c, const struct member *am, uint32_t *aovs)
+{
+    *aovs = 0;
+    if (!json_is_array(am->val))
+        return fail(c, &am->path, AT_VALUE, "aovs must be an array of AOV names");
+    for (size_t i = 0; i < json_array_size(am->val); i++) {
+        struct member e = {json_array_get(am->val, i), jpath_child(&am->path, (uint32_t)i)};
+        const char *name = NULL;
+        if (get_string(c, &e, "an AOV", &name) != 0)
+            return -1;
+        int a = scene_aov_from_name(name);
+        if (a < 0)
+            return fail(c, &e.path, AT_VALUE,
+                        "unknown AOV \"%s\" (Z, N, albedo, P, id.object or id.material)", name);
+        *aovs |= 1u << a;
+    }
+    return 0;
+}
+
+/* render.filter: {"type": "box" | "gaussian" | "blackman-harris", "width": pixels}. */
+static int parse_filter(struct ctx *c, const struct member *fm, struct camera_desc *cd)
+{
+    static const char *const keys[] = {"type", "width"};
+    struct member m[2];
+    const char *name = NULL;
+    if (object_members(c, fm->val, &fm->path, "filter", keys, 2, m) != 0 ||
+        require(c, &m[0], &fm->path, "filter", "type") != 0 || get_string(c, &m[0], "filter type", &name) != 0)
+        return -1;
+    int f = scene_filter_from_name(name);
+    if (f < 0)
+        return fail(c, &m[0].path, AT_VALUE, "unknown filter \"%s\" (box, gaussian or blackman-harris)", name);
+    cd->filter = (uint32_t)f;
+    cd->filter_width = f == FILTER_BOX ? 1.0f : SCENE_FILTER_DEFAULT_WIDTH;
+    if (m[1].val) {
+        if (f == FILTER_BOX)
+            return fail(c, &m[1].path, AT_VALUE, "the box filter is one pixel wide: it takes no width");
+        if (get_float(c, m[1].val, &m[1].path, "filter width", &cd->filter_width) != 0)
+            return -1;
+        if (!(cd->filter_width >= SCENE_FILTER_MIN_WIDTH && cd->filter_width <= SCENE_FILTER_MAX_WIDTH))
+            return fail(c, &m[1].path, AT_VALUE, "filter width must be in [%g, %g] pixels",
+                        (double)SCENE_FILTER_MIN_WIDTH, (double)SCENE_FILTER_MAX_WIDTH);
+    }
+    return 0;
+}
+
 static int parse_render(struct ctx *c, const struct member *rm)
 {
     static const char *const keys[] = {"width", "height", "spp", "max_depth", "seed", "tile_size", "sampler",
-                                       "passes", "target_error", "time_limit"};
-    struct member m[10];
-    if (object_members(c, rm->val, &rm->path, "render", keys, 10, m) != 0 ||
+                                       "passes", "target_error", "time_limit", "aovs", "filter"};
+    struct member m[12];
+    if (object_members(c, rm->val, &rm->path, "render", keys, 12, m) != 0 ||
         require(c, &m[0], &rm->path, "render", "width") != 0 ||
         require(c, &m[1], &rm->path, "render", "height") != 0)
         return -1;
@@ -1262,6 +1378,13 @@ static int parse_render(struct ctx *c, const struct member *rm)
         return -1;
     if (m[9].val && !(r->time_limit > 0.0f && r->time_limit < 1e9f))
         return fail(c, &m[9].path, AT_VALUE, "time_limit must be seconds > 0");
+    r->aovs = 0;
+    if (m[10].val && parse_aovs(c, &m[10], &r->aovs) != 0)
+        return -1;
+    c->scene->camera.filter = FILTER_BOX;
+    c->scene->camera.filter_width = 1.0f;
+    if (m[11].val && parse_filter(c, &m[11], &c->scene->camera) != 0)
+        return -1;
     return 0;
 }
 
@@ -1453,7 +1576,8 @@ static int parse_frames(struct ctx *c, const struct member *fm, const struct mem
     return 0;
 }
 
-static int parse_obj_object(struct ctx *c, json_t *obj, const struct jpath *p, const char *what)
+/* An "obj" or (ply set) "ply" object: a mesh file, its material, transform and motion. */
+static int parse_obj_object(struct ctx *c, json_t *obj, const struct jpath *p, const char *what, int ply)
 {
     static const char *const keys[] = {"type", "file", "material", "transform", "name", "keyframes", "frames",
                                        "frame_times", "medium"};
@@ -1463,6 +1587,9 @@ static int parse_obj_object(struct ctx *c, json_t *obj, const struct jpath *p, c
     uint32_t inside = MEDIUM_NONE;
     if (m[8].val && find_medium(c, &m[8], &inside) != 0)
         return -1;
+    if (ply && (m[6].val || m[7].val))
+        return fail(c, m[6].val ? &m[6].path : &m[7].path, AT_KEY,
+                    "%s: a deforming sequence (\"frames\") is read from OBJ files only", what);
     /* A deforming object names its OBJ sequence in "frames" instead of "file". */
     if (m[6].val) {
         if (m[1].val)
@@ -1506,16 +1633,17 @@ static int parse_obj_object(struct ctx *c, json_t *obj, const struct jpath *p, c
     if (!c->src || !c->src->read)
         return fail(c, &m[1].path, AT_VALUE, "cannot read OBJ file \"%s\": no asset source", file);
     if (c->src->read(c->src->ctx, file, &data, &size, why, sizeof why) != 0)
-        return fail(c, &m[1].path, AT_VALUE, "cannot read OBJ file: %s", why);
+        return fail(c, &m[1].path, AT_VALUE, "cannot read %s file: %s", ply ? "PLY" : "OBJ", why);
     uint32_t before = c->scene->num_meshes;
-    int rc = mesh_obj_parse(c->scene, &c->cache, c->src, file, data, size, &opt, c->err, c->errlen);
+    int rc = ply ? mesh_ply_parse(c->scene, &c->cache, file, (const uint8_t *)data, size, &opt, c->err, c->errlen)
+                 : mesh_obj_parse(c->scene, &c->cache, c->src, file, data, size, &opt, c->err, c->errlen);
     free(data);
     for (uint32_t i = before; rc == 0 && m[8].val && i < c->scene->num_meshes; i++)
         media_set_mesh(c->scene->media, i, inside);
     if (rc != 0 || (!m[5].val && !m[6].val))
         return rc;
     if (c->scene->num_meshes != before + 1)
-        return fail(c, &m[1].path, AT_VALUE, "a moving object needs an OBJ file with faces");
+        return fail(c, &m[1].path, AT_VALUE, "a moving object needs a mesh file with faces");
     struct mesh *mesh = &c->scene->meshes[before];
     if (m[5].val && parse_keyframes(c, &m[5], &mesh->keys, &mesh->num_keys) != 0)
         return -1;
@@ -1601,13 +1729,13 @@ static int parse_objects(struct ctx *c, const struct member *om)
         if (object_type(c, obj, &p, what, &tm, &type) != 0)
             return -1;
         int rc;
-        if (strcmp(type, "obj") == 0) {
-            rc = parse_obj_object(c, obj, &p, what);
+        if (strcmp(type, "obj") == 0 || strcmp(type, "ply") == 0) {
+            rc = parse_obj_object(c, obj, &p, what, strcmp(type, "ply") == 0);
         } else if (strcmp(type, "sphere") == 0) {
             rc = parse_sphere(c, obj, &p, what);
         } else {
             char tb[80];
-            rc = fail(c, &tm.path, AT_VALUE, "unknown object type \"%s\" (known: obj, sphere)",
+            rc = fail(c, &tm.path, AT_VALUE, "unknown object type \"%s\" (known: obj, ply, sphere)",
                       printable(type, tb, sizeof tb));
         }
         if (rc != 0)

@@ -20,4 +20,14 @@ int scene_json_parse(const char *name, const char *text, size_t len, const struc
 int scene_json_parse_origin(const char *name, const char *text, size_t len, const struct asset_source *src,
                             const double origin[3], struct scene *out, char *err, size_t errlen);
 
+/* AOV and filter names as render.aovs, render.filter, --aovs and --filter take them:
+ * an enum aov / enum pixel_filter, or -1. */
+extern const char *const scene_aov_names[AOV_COUNT_];
+int scene_aov_from_name(const char *name);
+int scene_filter_from_name(const char *name);
+/* "Z,N,albedo" or "all" into a bit set; 0 or -1. */
+int scene_aovs_from_list(const char *list, uint32_t *aovs);
+/* "gaussian", "gaussian:2.0" (width in pixels), "blackman-harris:1.5" or "box"; 0 or -1. */
+int scene_filter_from_spec(const char *spec, uint32_t *filter, float *width);
+
 #endif

@@ -54,6 +54,13 @@ static int check_job_settings(const struct msg_job *j, char *err, size_t errlen)
         str_fmt(err, errlen, "JOB: sampler %u unknown", j->sampler);
         return -1;
     }
+    if ((j->aovs & ~AOV_ALL) || j->filter >= FILTER_COUNT_ || !isfinite(j->filter_width) ||
+        (j->filter != FILTER_BOX &&
+         !(j->filter_width >= SCENE_FILTER_MIN_WIDTH && j->filter_width <= SCENE_FILTER_MAX_WIDTH))) {
+        str_fmt(err, errlen, "JOB: aovs 0x%x, filter %u or filter width %g out of range", j->aovs, j->filter,
+                (double)j->filter_width);
+        return -1;
+    }
     if (!j->width || !j->height || !j->spp || !j->tile_size) {
         str_fmt(err, errlen, "JOB: width %u, height %u, spp %u and tile_size %u must be > 0",
                 j->width, j->height, j->spp, j->tile_size);
@@ -199,6 +206,11 @@ int proto_encode(const struct proto_msg *msg, struct proto_buf *b)
         put_u32(b, m->tile_size);
         put_u64(b, m->seed);
         put_u32(b, m->sampler);
+        put_u32(b, m->aovs);
+        put_u32(b, m->filter);
+        uint32_t fw;
+        memcpy(&fw, &m->filter_width, 4); /* the float's bits: decoding and encoding again gives the same bytes */
+        put_u32(b, fw);
         put_u32(b, m->photon_maps);
         put_u32(b, m->passes);
         if (put_str(b, m->scene_path) < 0)
@@ -448,6 +460,10 @@ static void decode_job(struct reader *r, struct msg_job *m)
     m->tile_size = get_u32(r, "tile_size");
     m->seed = get_u64(r, "seed");
     m->sampler = get_u32(r, "sampler");
+    m->aovs = get_u32(r, "aovs");
+    m->filter = get_u32(r, "filter");
+    uint32_t fw = get_u32(r, "filter_width");
+    memcpy(&m->filter_width, &fw, 4);
     m->photon_maps = get_u32(r, "photon_maps");
     m->passes = get_u32(r, "passes");
     get_str(r, m->scene_path, "scene_path");

@@ -13,7 +13,7 @@
 #include "render/tile.h"
 
 #define PROTO_MAGIC 0x4d555242u /* "BRUM" little-endian */
-#define PROTO_VERSION 6 /* 2: HEARTBEAT carries samples_done; 3: JOB carries job_key, ACK, KEPT; 4: photon-map passes (JOB photon_maps, MAP); 5: JOB passes (passes without photon maps); 6: TILE and KEPT carry the holder's tag */
+#define PROTO_VERSION 7 /* 2: HEARTBEAT carries samples_done; 3: JOB carries job_key, ACK, KEPT; 4: photon-map passes (JOB photon_maps, MAP); 5: JOB passes (passes without photon maps); 6: TILE and KEPT carry the holder's tag; 7: JOB aovs, filter */
 #define PROTO_MAX_MESSAGE (64u * 1024u * 1024u) /* also ZMQ_MAXMSGSIZE */
 #define PROTO_MAX_STRING 1024
 #define PROTO_MAX_ASSETS 4096
@@ -61,6 +61,9 @@ struct msg_job {
     uint32_t width, height, spp, max_depth, tile_size;
     uint64_t seed;
     uint32_t sampler;                    /* enum sampler_type, < SAMPLER_COUNT_ */
+    uint32_t aovs;                       /* bit set of enum aov, within AOV_ALL */
+    uint32_t filter;                     /* enum pixel_filter, < FILTER_COUNT_ */
+    float filter_width;                  /* pixels, in [SCENE_FILTER_MIN_WIDTH, SCENE_FILTER_MAX_WIDTH] (box: any, ignored) */
     /* Photon maps: 0 (none; one pass) or P (1..PROTO_MAX_PASSES, spp a multiple of P): the
      * frame renders in P passes, pass p with map p, announced by MAP. With P >= 1 the
      * `tile` of TILE, RESULT, KEPT and ACK is a unit u = p * tiles + tile. */

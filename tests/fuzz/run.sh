@@ -19,7 +19,7 @@ seed_dir="$OUT/seed"
 rm -rf "$seed_dir"
 mkdir -p "$seed_dir"
 n=0
-for f in $(find scenes -type f \( -name '*.json' -o -name '*.obj' -o -name '*.mtl' -o -name '*.png' -o -name '*.jpg' -o -name '*.hdr' -o -name '*.exr' \) 2>/dev/null); do
+for f in $(find scenes -type f \( -name '*.json' -o -name '*.obj' -o -name '*.ply' -o -name '*.mtl' -o -name '*.png' -o -name '*.jpg' -o -name '*.hdr' -o -name '*.exr' \) 2>/dev/null); do
     n=$((n + 1))
     cp "$f" "$seed_dir/seed_${n}_$(basename "$f")"
 done

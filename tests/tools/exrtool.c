@@ -16,6 +16,10 @@
  *   exrtool average OUT.exr A.exr B.exr
  *                                writes (A + B) / 2 (R,G,B,A), variance (vA + vB) / 4
  *   exrtool chsum A.exr NAME     prints the sum over pixels of channel NAME (e.g. "samples")
+ *   exrtool chstat A.exr NAME [X0 Y0 W H]
+ *                                prints channel NAME's mean, min and max over the finite values of
+ *                                the image (or the rectangle), then the count of +inf and of NaN
+ *                                values (AOVs: Z is +inf where nothing is hit)
  *   exrtool synth OUT.exr W H V [--checker AMP] [--var VAR]
  *                                writes a test image: R,G,B = V (+AMP where x + y is even, -AMP
  *                                where odd, with --checker), A = 1, every variance channel = VAR
@@ -251,6 +255,45 @@ static int synth(int argc, char **argv)
     return 0;
 }
 
+/* chstat A.exr NAME [X0 Y0 W H]: statistics of one channel. */
+static int chstat(int argc, char **argv)
+{
+    const char *names[1] = {argv[3]};
+    uint32_t w, h;
+    float *px = load_channels(argv[2], names, 1, &w, &h);
+    uint32_t x0 = 0, y0 = 0, rw = w, rh = h;
+    if (argc == 8) {
+        x0 = (uint32_t)atoi(argv[4]), y0 = (uint32_t)atoi(argv[5]), rw = (uint32_t)atoi(argv[6]),
+        rh = (uint32_t)atoi(argv[7]);
+        if (x0 + rw > w || y0 + rh > h || !rw || !rh) {
+            fprintf(stderr, "exrtool: rectangle outside the image\n");
+            free(px);
+            return 2;
+        }
+    }
+    double sum = 0.0, lo = INFINITY, hi = -INFINITY;
+    uint64_t n = 0, infs = 0, nans = 0;
+    for (uint32_t y = y0; y < y0 + rh; y++)
+        for (uint32_t x = x0; x < x0 + rw; x++) {
+            float v = px[(size_t)y * w + x];
+            if (isnan(v)) {
+                nans++;
+            } else if (isinf(v)) {
+                infs += v > 0.0f;
+                nans += v < 0.0f; /* -inf: never written; counted as bad */
+            } else {
+                sum += v;
+                lo = v < lo ? v : lo;
+                hi = v > hi ? v : hi;
+                n++;
+            }
+        }
+    printf("%.9g %.9g %.9g %llu %llu\n", n ? sum / (double)n : 0.0, n ? lo : 0.0, n ? hi : 0.0,
+           (unsigned long long)infs, (unsigned long long)nans);
+    free(px);
+    return 0;
+}
+
 int main(int argc, char **argv)
 {
     if (argc >= 2 && !strcmp(argv[1], "relrmse"))
@@ -261,15 +304,12 @@ int main(int argc, char **argv)
         return average(argv[2], argv[3], argv[4]);
     if (argc >= 2 && !strcmp(argv[1], "synth"))
         return synth(argc, argv);
+    if ((argc == 4 || argc == 8) && !strcmp(argv[1], "chstat"))
+        return chstat(argc, argv);
     if (argc == 4 && !strcmp(argv[1], "chsum")) {
         const char *names[1] = {argv[3]};
-        float *px = NULL;
         uint32_t w, h;
-        char err[512];
-        if (imgio_read(argv[2], names, 1, &px, &w, &h, err, sizeof err) != 0) {
-            fprintf(stderr, "exrtool: %s\n", err);
-            return 2;
-        }
+        float *px = load_channels(argv[2], names, 1, &w, &h);
         double sum = 0.0;
         for (size_t i = 0; i < (size_t)w * h; i++)
             sum += px[i];

@@ -71,7 +71,9 @@ float *test_render_map(const struct scene *s, struct photon_map *map, uint32_t t
     int lent = map != NULL;
     render_job_set_photon_map(&job, &map);
     uint32_t w = s->settings.width, h = s->settings.height;
-    float *px = mem_alloc(sizeof(float) * w * h * TILE_NUM_CHANNELS);
+    struct tile_layout lay;
+    tile_layout_init(&lay, s->settings.aovs);
+    float *px = mem_alloc(sizeof(float) * w * h * lay.num_channels);
     integrator_render_tile(&job, 0, 0, w, h, px, st);
     /* lent: the slots go back to the caller as the chain it gave */
     for (uint32_t p = 0; lent && p < job.num_passes; p++) {

@@ -27,8 +27,8 @@ const char *test_scene_expect_error(const char *text, const struct mem_file *fil
 /* Quad a b c d as two triangles (a b c, a c d; with flip, a c b, a d c), material mat. */
 struct mesh test_quad(vec3 a, vec3 b, vec3 c, vec3 d, uint32_t mat, int flip);
 
-/* Renders all of s (frame 0) as one tile; returns mem_alloc'd pixels of TILE_NUM_CHANNELS
- * floats each. */
+/* Renders all of s (frame 0) as one tile; returns mem_alloc'd pixels of the settings'
+ * tile_layout (TILE_NUM_CHANNELS floats each without AOVs). */
 /* The same with the photon map `map` (or NULL) lent to the job for the render. */
 float *test_render_map(const struct scene *s, struct photon_map *map, uint32_t threads, struct tile_stats *st);
 float *test_render(const struct scene *s, uint32_t threads, struct tile_stats *st);

@@ -418,3 +418,111 @@ Test(camera_motion, half_turn_between_keys)
     cr_assert_float_eq(p.up.y, -1.0f, 1e-5f);
     all_rays_finite(&c, 0);
 }
+
+/* ---- Pixel filters (filter importance sampling) ---- */
+
+static struct camera make_filtered(uint32_t filter, float width)
+{
+    struct camera_desc d;
+    memset(&d, 0, sizeof d);
+    d.look_at = v3(0, 0, -1);
+    d.up = v3(0, 1, 0);
+    d.fov_y_deg = 40.0f;
+    d.filter = filter;
+    d.filter_width = width;
+    struct camera c;
+    camera_init(&c, &d, 64, 64);
+    return c;
+}
+
+static double splitmix01(uint64_t *s)
+{
+    uint64_t z = (*s += 0x9e3779b97f4a7c15ull);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+    return (double)((z ^ (z >> 31)) >> 11) * 0x1p-53;
+}
+
+/* Chi-square of N offsets in B bins over the filter's support against the filter's own
+ * density (Simpson's rule per bin), bins expecting fewer than 5 samples pooled with their
+ * neighbours; 1 when the statistic is below the p = 0.001 critical value
+ * (Wilson-Hilferty). */
+static int filter_chi2_ok(uint32_t filter, float width, double support, int bins, int n)
+{
+    struct camera c = make_filtered(filter, width);
+    double *obs = calloc((size_t)bins, sizeof *obs), *expect = calloc((size_t)bins, sizeof *expect), total = 0.0;
+    uint64_t s = 12345;
+    for (int i = 0; i < n; i++) {
+        float off = camera_filter_offset(&c, (float)splitmix01(&s));
+        cr_assert(fabs(off) <= support * 0.5 + 1e-5, "offset %g outside the support", (double)off);
+        int b = (int)floor((off + support * 0.5) / support * bins);
+        obs[b < 0 ? 0 : b >= bins ? bins - 1 : b]++;
+    }
+    for (int b = 0; b < bins; b++) {
+        double a = -support * 0.5 + support * b / bins, h = support / bins / 64.0, sum = 0.0;
+        for (int k = 0; k < 64; k++) {
+            double x = a + k * h;
+            sum += h / 6.0 *
+                   (camera_filter_eval(filter, width, x) + 4.0 * camera_filter_eval(filter, width, x + h / 2) +
+                    camera_filter_eval(filter, width, x + h));
+        }
+        expect[b] = sum;
+        total += sum;
+    }
+    double chi2 = 0.0, po = 0.0, pe = 0.0;
+    int df = -1;
+    for (int b = 0; b < bins; b++) {
+        po += obs[b];
+        pe += expect[b] / total * n;
+        if (pe >= 5.0 || b == bins - 1) {
+            chi2 += (po - pe) * (po - pe) / pe;
+            df++;
+            po = pe = 0.0;
+        }
+    }
+    free(obs);
+    free(expect);
+    double k = 2.0 / (9.0 * df), crit = df * pow(1.0 - k + 3.09 * sqrt(k), 3.0);
+    cr_log_info("chi-square %g over %d df (critical %g)", chi2, df, crit);
+    cr_assert_gt(df, 10);
+    return chi2 < crit;
+}
+
+Test(filter, gaussian_offsets_follow_the_filter)
+{
+    /* Cycles' Gaussian of width w: support 3 w, sigma w / 4. */
+    cr_assert(filter_chi2_ok(FILTER_GAUSSIAN, 1.5f, 4.5, 60, 200000));
+    cr_assert(filter_chi2_ok(FILTER_GAUSSIAN, 4.0f, 12.0, 60, 200000));
+}
+
+Test(filter, blackman_harris_offsets_follow_the_filter)
+{
+    /* Support 2 w. */
+    cr_assert(filter_chi2_ok(FILTER_BLACKMAN_HARRIS, 1.5f, 3.0, 40, 200000));
+    cr_assert(filter_chi2_ok(FILTER_BLACKMAN_HARRIS, 0.5f, 1.0, 40, 200000));
+}
+
+Test(filter, gaussian_moments)
+{
+    struct camera c = make_filtered(FILTER_GAUSSIAN, 2.0f);
+    double m1 = 0.0, m2 = 0.0;
+    const int n = 100000;
+    for (int i = 0; i < n; i++) {
+        double o = camera_filter_offset(&c, ((float)i + 0.5f) / n);
+        m1 += o;
+        m2 += o * o;
+    }
+    m1 /= n;
+    m2 /= n;
+    cr_assert_lt(fabs(m1), 1e-4, "mean offset %g", m1);
+    cr_assert_lt(fabs(sqrt(m2) - 0.5), 0.005, "standard deviation %g, want width / 4 = 0.5", sqrt(m2));
+    cr_assert_float_eq(c.filter_footprint, (float)(0.5 / sqrt(1.0 / 12.0)), 0.02f);
+}
+
+Test(filter, box_is_the_pixel_bit_for_bit)
+{
+    struct camera b = make_filtered(FILTER_BOX, 0.0f);
+    cr_assert_eq(b.filter_footprint, 1.0f);
+    for (int i = 0; i < 16; i++)
+        cr_assert_eq(camera_filter_offset(&b, i / 16.0f), i / 16.0f - 0.5f);
+}

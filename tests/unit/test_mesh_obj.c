@@ -2,7 +2,9 @@
  * indices, polygons, CRLF, transforms, materials, and that each error names the right
  * file:line:col. Files come from an in-memory asset source. */
 #include <criterion/criterion.h>
+#include <math.h>
 #include <stdio.h>
+#include <unistd.h>
 #include <string.h>
 #include "scene/mesh_obj.h"
 #include "helpers.h"
@@ -201,9 +203,160 @@ Test(mesh_obj, mtl_errors)
     expect_error("mtllib ../up.mtl\n", NULL, "m.obj:1:8: mtllib \"../up.mtl\"");
     expect_error("mtllib /etc/passwd\n", NULL, "m.obj:1:8: mtllib \"/etc/passwd\": absolute path");
     expect_error("mtllib\n", NULL, "m.obj:1:7: mtllib needs a file name");
-    static const struct mem_file ok[] = {{"m.mtl", "newmtl a\n", 0}, {NULL, NULL, 0}};
-    expect_error("mtllib m.mtl\nusemtl b\n", ok, "m.obj:2:8: unknown material \"b\"");
-    expect_error("usemtl a\n", NULL, "m.obj:1:8: unknown material \"a\"");
+    /* Escapes stay refused after "." components and backslashes are normalised. */
+    expect_error("mtllib .\\..\\up.mtl\n", NULL, "m.obj:1:8: mtllib \"../up.mtl\"");
+    expect_error("mtllib sub/./../../x.mtl\n", NULL, "m.obj:1:8: mtllib \"sub/../../x.mtl\"");
+    expect_error("mtllib \\etc\\passwd\n", NULL, "absolute path");
+}
+
+/* Runs parse with stderr (the log) captured into out (outlen bytes). */
+static int parse_capture(const char *text, const struct mem_file *files, struct scene *s, char *err, char *out,
+                         size_t outlen)
+{
+    fflush(stderr);
+    FILE *tmp = tmpfile();
+    cr_assert_not_null(tmp);
+    int saved = dup(2);
+    dup2(fileno(tmp), 2);
+    int rc = parse(text, files, NULL, s, err);
+    fflush(stderr);
+    dup2(saved, 2);
+    close(saved);
+    rewind(tmp);
+    size_t n = fread(out, 1, outlen - 1, tmp);
+    out[n] = '\0';
+    fclose(tmp);
+    return rc;
+}
+
+Test(mesh_obj, unknown_material_is_default_grey_with_a_warning)
+{
+    static const struct mem_file ok[] = {{"m.mtl", "newmtl a\nKd 1 0 0\n", 0}, {NULL, NULL, 0}};
+    struct scene s = {0};
+    char err[512], log[4096];
+    const char *text = "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl Default\nf 1 2 3\nusemtl a\nf 1 2 3\n";
+    cr_assert_eq(parse_capture(text, ok, &s, err, log, sizeof log), 0, "%s", err);
+    cr_expect(strstr(log, "m.obj:5:8: unknown material \"Default\"") != NULL, "log: %s", log);
+    const struct mesh *m = &s.meshes[0];
+    const struct material *grey = &s.materials[m->material_ids[0]];
+    cr_expect_str_eq(grey->name, "default");
+    cr_expect_float_eq(grey->albedo.x, 0.8f, 1e-6);
+    cr_expect_float_eq(grey->albedo.z, 0.8f, 1e-6);
+    cr_expect_str_eq(s.materials[m->material_ids[1]].name, "m.mtl:a");
+    scene_fini(&s);
+}
+
+Test(mesh_obj, dot_components_and_backslashes_in_paths)
+{
+    static const struct mem_file files[] = {{"sub/m.mtl", "newmtl a\nKd 0 1 0\n", 0}, {NULL, NULL, 0}};
+    const char *forms[] = {"./sub/m.mtl", ".\\sub\\m.mtl", "sub/./m.mtl", "sub//m.mtl", "./././sub\\.\\m.mtl"};
+    for (size_t i = 0; i < sizeof forms / sizeof *forms; i++) {
+        struct scene s = {0};
+        char err[512], text[256];
+        snprintf(text, sizeof text, "mtllib %s\nusemtl a\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", forms[i]);
+        cr_assert_eq(parse(text, files, NULL, &s, err), 0, "%s: %s", forms[i], err);
+        cr_expect_str_eq(s.materials[s.meshes[0].material_ids[0]].name, "sub/m.mtl:a", "%s", forms[i]);
+        scene_fini(&s);
+    }
+}
+
+/* Newell normal of triangle or polygon corners p[0..n-1] (xyz each). */
+static void newell(const float *p, int n, double out[3])
+{
+    out[0] = out[1] = out[2] = 0.0;
+    for (int i = 0; i < n; i++) {
+        const float *a = &p[3 * i], *b = &p[3 * ((i + 1) % n)];
+        out[0] += ((double)a[1] - b[1]) * ((double)a[2] + b[2]);
+        out[1] += ((double)a[2] - b[2]) * ((double)a[0] + b[0]);
+        out[2] += ((double)a[0] - b[0]) * ((double)a[1] + b[1]);
+    }
+}
+
+/* Triangulates the polygon pts (n corners, xyz) as one OBJ face; checks n - 2 triangles,
+ * each facing the polygon's way, whose areas add up to the polygon's. */
+static void check_polygon(const float *pts, int n)
+{
+    char text[8192];
+    size_t len = 0;
+    for (int i = 0; i < n; i++)
+        len += (size_t)snprintf(text + len, sizeof text - len, "v %.9g %.9g %.9g\n", pts[3 * i], pts[3 * i + 1],
+                                pts[3 * i + 2]);
+    len += (size_t)snprintf(text + len, sizeof text - len, "f");
+    for (int i = 0; i < n; i++)
+        len += (size_t)snprintf(text + len, sizeof text - len, " %d", i + 1);
+    snprintf(text + len, sizeof text - len, "\n");
+    struct scene s = {0};
+    char err[512];
+    cr_assert_eq(parse(text, NULL, NULL, &s, err), 0, "%s", err);
+    const struct mesh *m = &s.meshes[0];
+    cr_assert_eq(m->num_triangles, (uint32_t)n - 2);
+    double pn[3];
+    newell(pts, n, pn);
+    double plen = sqrt(pn[0] * pn[0] + pn[1] * pn[1] + pn[2] * pn[2]), area = 0.0;
+    for (uint32_t t = 0; t < m->num_triangles; t++) {
+        float tri[9];
+        for (int k = 0; k < 3; k++)
+            memcpy(&tri[3 * k], &m->positions[3 * m->indices[3 * t + k]], 3 * sizeof(float));
+        double tn[3];
+        newell(tri, 3, tn);
+        double along = (tn[0] * pn[0] + tn[1] * pn[1] + tn[2] * pn[2]) / plen;
+        cr_expect_gt(along, 0.0, "triangle %u faces away from the polygon", t);
+        area += along;
+    }
+    cr_expect(fabs(area - plen) < 1e-4 * plen, "triangles cover %g of the polygon's %g", area / 2, plen / 2);
+    scene_fini(&s);
+}
+
+Test(mesh_obj, concave_polygons_ear_clipped_facing_the_polygon)
+{
+    /* An L, an arrow whose notch is at the first corner (a fan from there folds over),
+     * and a comb of 16 teeth (64 corners) as a CAD exporter writes a cut-out; all in a
+     * tilted plane. */
+    const float el[] = {0, 0, 0, 2, 0, 0, 2, 1, 0, 1, 1, 0, 1, 2, 0, 0, 2, 0};
+    const float arrow[] = {0, 0.5f, 0, -1, -1, 0, 2, 0, 0, -1, 1, 0};
+    float comb[64 * 3];
+    int n = 0;
+    for (int t = 0; t < 16; t++) { /* teeth along x, up to y = 2, base at y = 0 */
+        float x = (float)t;
+        const float c[4][2] = {{x, 1}, {x + 0.25f, 2}, {x + 0.5f, 2}, {x + 0.75f, 1}};
+        for (int k = 0; k < 4; k++) {
+            comb[3 * n] = c[k][0];
+            comb[3 * n + 1] = c[k][1];
+            comb[3 * n + 2] = 0.3f * c[k][0] - 0.2f * c[k][1]; /* tilted plane */
+            n++;
+        }
+    }
+    /* close the comb through the base: replace the first and last corners' y by 0 */
+    comb[1] = 0.0f;
+    comb[2] = 0.0f;
+    comb[3 * 63 + 1] = 0.0f;
+    comb[3 * 63 + 2] = 0.3f * comb[3 * 63];
+    check_polygon(el, 6);
+    check_polygon(arrow, 4);
+    check_polygon(comb, 64);
+    /* Reversed winding: the triangles follow it. */
+    float rev[64 * 3];
+    for (int i = 0; i < 64; i++)
+        memcpy(&rev[3 * i], &comb[3 * (63 - i)], 3 * sizeof(float));
+    check_polygon(rev, 64);
+}
+
+Test(mesh_obj, non_planar_polygon_and_bad_ones)
+{
+    /* A concave hexagon bent out of its plane (z up to 0.2 over a span of 2). */
+    const float bent[] = {0, 0, 0, 2, 0, 0.2f, 2, 1, 0.1f, 1, 1, -0.1f, 1, 2, 0.15f, 0, 2, 0};
+    check_polygon(bent, 6);
+    /* A pentagram crosses itself: no ear to clip. */
+    char text[512];
+    size_t len = 0;
+    for (int i = 0; i < 5; i++) {
+        double a = 2.0 * M_PI * (2 * i) / 5.0;
+        len += (size_t)snprintf(text + len, sizeof text - len, "v %.6f %.6f 0\n", cos(a), sin(a));
+    }
+    snprintf(text + len, sizeof text - len, "f 1 2 3 4 5\n");
+    expect_error(text, NULL, "m.obj:6:2: face with 5 corners crosses itself");
+    /* So does an uneven bow tie. */
+    expect_error("v 0 0 0\nv 2 2 0\nv 2 0 0\nv 0 1 0\nf 1 2 3 4\n", NULL, "m.obj:5:2: face with 4 corners crosses itself");
 }
 
 /* Reads rel_path through src and parses it, as the scene reader does. */

@@ -52,6 +52,9 @@ static size_t make_samples(struct proto_msg out[MSG_TYPE_MAX_])
     out[n].u.job.tile_size = 32;
     out[n].u.job.seed = 0xdeadbeefcafef00dull;
     out[n].u.job.sampler = SAMPLER_SOBOL;
+    out[n].u.job.aovs = AOV_ALL;
+    out[n].u.job.filter = FILTER_GAUSSIAN;
+    out[n].u.job.filter_width = 1.5f;
     out[n].u.job.photon_maps = 8;
     out[n].u.job.passes = 8;
     strcpy(out[n].u.job.scene_path, "scene.json");
@@ -191,6 +194,9 @@ static void assert_msg_eq(const struct proto_msg *a, const struct proto_msg *b)
         cr_assert_eq(x->tile_size, y->tile_size);
         cr_assert_eq(x->seed, y->seed);
         cr_assert_eq(x->sampler, y->sampler);
+        cr_assert_eq(x->aovs, y->aovs);
+        cr_assert_eq(x->filter, y->filter);
+        cr_assert_eq(x->filter_width, y->filter_width);
         cr_assert_eq(x->photon_maps, y->photon_maps);
         cr_assert_eq(x->passes, y->passes);
         cr_assert_str_eq(x->scene_path, y->scene_path);
@@ -345,6 +351,9 @@ static void fb_job_prefix(struct fb *b, uint32_t width, uint32_t height, uint32_
     fb_u(b, tile, 4);
     fb_u(b, 1234, 8);
     fb_u(b, 0, 4); /* sampler */
+    fb_u(b, 0, 4); /* aovs */
+    fb_u(b, 0, 4); /* filter: box */
+    fb_u(b, 0, 4); /* filter_width (float bits) */
     fb_u(b, 0, 4); /* photon_maps */
     fb_u(b, 0, 4); /* passes */
     fb_u(b, 10, 2);

@@ -15,6 +15,10 @@ static const struct mem_file g_files[] = {
     {"b/m.mtl", "newmtl paint\nKd 0 1 0\n", 0},
     {"bad.obj", "v 0 0 0\nv 1 0 zz\n", 0},
     {"big.obj", "v 1e30 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\n", 0},
+    {"q.ply", "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+              "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n"
+              "4 0 1 2 3\n", 0},
+    {"bad.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\n0\n", 0},
     {NULL, NULL, 0}};
 
 /* A valid scene is HEAD + the text given + "}". */
@@ -448,4 +452,48 @@ Test(scene_json, positions_relative_to_the_camera)
     cr_expect_float_eq(s[1].meshes[2].keys[1].translate.x, (float)(-s[1].origin[0]), 0);
     scene_fini(&s[0]);
     scene_fini(&s[1]);
+}
+
+/* HEAD with more keys in the render block. */
+#define HEAD_RENDER(extra)                                                          \
+    "{\"version\": 1,\n"                                                            \
+    "\"camera\": {\"position\": [0, 0, -5], \"look_at\": [0, 0, 0], \"fov_y\": 40},\n" \
+    "\"render\": {\"width\": 64, \"height\": 48,\n" extra "}"
+
+Test(scene_json, aovs_filter_and_ply)
+{
+    struct scene s;
+    char err[512];
+    cr_assert_eq(test_scene_load(HEAD_RENDER("\"aovs\": [\"Z\", \"albedo\", \"id.object\"], "
+                                             "\"filter\": {\"type\": \"gaussian\", \"width\": 2}") ",\n"
+                                 "\"objects\": [{\"type\": \"ply\", \"file\": \"q.ply\", \"name\": \"quad\"}]}",
+                                 g_files, &s, err),
+                 0, "%s", err);
+    cr_expect_eq(s.settings.aovs, (1u << AOV_Z) | (1u << AOV_ALBEDO) | (1u << AOV_ID_OBJECT));
+    cr_expect_eq(s.camera.filter, FILTER_GAUSSIAN);
+    cr_expect_eq(s.camera.filter_width, 2.0f);
+    cr_assert_eq(s.num_meshes, 1);
+    cr_expect_eq(s.meshes[0].num_triangles, 2);
+    cr_expect_str_eq(s.meshes[0].name, "quad");
+    scene_fini(&s);
+    cr_assert_eq(test_scene_load(HEAD "}", g_files, &s, err), 0, "%s", err);
+    cr_expect_eq(s.settings.aovs, 0, "no AOVs by default");
+    cr_expect_eq(s.camera.filter, FILTER_BOX);
+    scene_fini(&s);
+
+    expect_error(HEAD_RENDER("\"aovs\": \"Z\"") "}", "scenes/t.json:4:9: aovs must be an array of AOV names");
+    expect_error(HEAD_RENDER("\"aovs\": [\"Z\", \"depth\"]") "}",
+                 "scenes/t.json:4:15: unknown AOV \"depth\" (Z, N, albedo, P, id.object or id.material)");
+    expect_error(HEAD_RENDER("\"filter\": {\"type\": \"mitchell\"}") "}",
+                 "scenes/t.json:4:20: unknown filter \"mitchell\" (box, gaussian or blackman-harris)");
+    expect_error(HEAD_RENDER("\"filter\": {\"type\": \"gaussian\", \"width\": 40}") "}",
+                 "scenes/t.json:4:41: filter width must be in [0.25, 16] pixels");
+    expect_error(HEAD_RENDER("\"filter\": {\"type\": \"box\", \"width\": 2}") "}",
+                 "the box filter is one pixel wide: it takes no width");
+    expect_error(HEAD_RENDER("\"filter\": {\"width\": 2}") "}", "filter: missing key \"type\"");
+    expect_error(HEAD ",\n\"objects\": [{\"type\": \"ply\", \"frames\": [\"q.ply\", \"q.ply\"]}]}",
+                 "objects[0]: a deforming sequence (\"frames\") is read from OBJ files only");
+    expect_error(HEAD ",\n\"objects\": [{\"type\": \"ply\", \"file\": \"bad.ply\"}]}",
+                 "scenes/bad.ply:3: element vertex: properties x, y and z are required");
+    expect_error(HEAD ",\n\"objects\": [{\"type\": \"ply\", \"file\": \"none.ply\"}]}", "cannot read PLY file");
 }

@@ -1,0 +1,95 @@
+#!/bin/sh
+# AOVs and pixel filters end to end, on an analytic scene: a camera at the origin looking
+# down -z at the plane z = -5 (below y = 0, normal +z, albedo 0.25 0.5 0.75), sky above.
+# Checks the EXR's channels and id name tables (exrheader, from openexr), the AOVs'
+# values against the geometry, Z = +inf and ids -1 on the sky, the same AOVs for any
+# worker count, tile size and passes, and the options' errors.
+# Ends with "integration: N passed, N failed". Usage: BUILD=build sh tests/integration/aovs.sh
+. "$(dirname "$0")/lib.sh"
+lib_init aovs
+S=tests/integration/aovs/aovs.json
+
+# within NAME "MEAN MIN MAX INF NAN" LO HI [INF]: min >= LO, max <= HI, no NaN, INF infinities
+within() {
+  if echo "$2" | awk -v lo="$3" -v hi="$4" -v inf="${5:-0}" '{ exit !(NF == 5 && $2 >= lo && $3 <= hi && $4 == inf && $5 == 0) }'; then
+    ok "$1: $2"
+  else
+    bad "$1: got '$2', want values in [$3, $4], $5 infinities"
+  fi
+}
+
+run $M $S -o "$T/a.exr" --workers 1 --threads 1 && ok "renders with every AOV" || bad "renders with every AOV"
+exrheader "$T/a.exr" >"$T/hdr" 2>&1
+n=0
+for c in Z N.X N.Y N.Z albedo.R albedo.G albedo.B P.X P.Y P.Z id.object id.material; do
+  grep -q "^    $c, 32-bit floating-point" "$T/hdr" && n=$((n + 1))
+done
+if [ $n = 12 ]; then ok "exrheader lists the 12 AOV channels"; else BAD_LOGS=hdr bad "exrheader lists the 12 AOV channels ($n found)"; fi
+if grep -q 'id.object/0 (type string): "plane.obj"' "$T/hdr" && grep -q 'id.material/1 (type string): "plane"' "$T/hdr"; then
+  ok "id name tables in the header"
+else
+  BAD_LOGS=hdr bad "id name tables in the header"
+fi
+
+# Rows 20..32 see only the plane: the farthest ray there leaves at most
+# atan(tan(10 deg) * sqrt(1 + 1)) off axis, so Z <= 5 / cos <= 5.16.
+R="0 20 33 13"
+within "Z on the plane" "$($X chstat "$T/a.exr" Z $R)" 5 5.16
+within "N.X" "$($X chstat "$T/a.exr" N.X $R)" 0 0
+within "N.Z = 1" "$($X chstat "$T/a.exr" N.Z $R)" 1 1
+within "albedo.R" "$($X chstat "$T/a.exr" albedo.R $R)" 0.25 0.25
+within "albedo.G" "$($X chstat "$T/a.exr" albedo.G $R)" 0.5 0.5
+within "albedo.B" "$($X chstat "$T/a.exr" albedo.B $R)" 0.75 0.75
+within "P.Z = -5" "$($X chstat "$T/a.exr" P.Z $R)" -5.0001 -4.9999
+within "P.Y below 0" "$($X chstat "$T/a.exr" P.Y $R)" -0.9 -0.1
+within "id.object 0" "$($X chstat "$T/a.exr" id.object $R)" 0 0
+within "id.material 1" "$($X chstat "$T/a.exr" id.material $R)" 1 1
+# Rows 0..15 see only the sky.
+R="0 0 33 16"
+within "Z = +inf on the sky" "$($X chstat "$T/a.exr" Z $R)" 0 0 528
+within "id.object -1 on the sky" "$($X chstat "$T/a.exr" id.object $R)" -1 -1
+within "N 0 on the sky" "$($X chstat "$T/a.exr" N.Z $R)" 0 0
+
+# The same AOVs for any worker count, thread count, tile size and passes.
+sums() { for c in Z N.Z albedo.G P.X P.Y id.object id.material; do $X chsum "$1" $c; done; }
+run $M $S -o "$T/p1.exr" --workers 1 --threads 2 --passes 2 && r1=0 || r1=1
+run $M $S -o "$T/p2.exr" --workers 2 --threads 1 --passes 2 --tile 8 && r2=0 || r2=1
+if [ $r1 = 0 ] && [ $r2 = 0 ] && [ "$(sums "$T/p1.exr")" = "$(sums "$T/p2.exr")" ] && $X cmp "$T/p1.exr" "$T/p2.exr"; then
+  ok "passes: AOVs identical for 1 and 2 workers, tiles 16 and 8"
+else
+  bad "passes: AOVs identical for 1 and 2 workers, tiles 16 and 8"
+fi
+within "passes: albedo.G folded" "$($X chstat "$T/p1.exr" albedo.G 0 20 33 13)" 0.5 0.5
+
+# Only what is asked for: --aovs overrides the scene; a scene without render.aovs pays nothing.
+run $M $S -o "$T/z.exr" --workers 1 --aovs Z,albedo && r=0 || r=1
+exrheader "$T/z.exr" >"$T/hdr" 2>&1
+if [ $r = 0 ] && grep -q "^    Z, " "$T/hdr" && grep -q "^    albedo.R, " "$T/hdr" && ! grep -q "^    N.X, " "$T/hdr" && ! grep -q "id.object" "$T/hdr"; then
+  ok "--aovs Z,albedo writes those only"
+else
+  BAD_LOGS="log hdr" bad "--aovs Z,albedo writes those only"
+fi
+sed 's/"aovs": \[[^]]*\]/"aovs": []/' $S >"$T/none.json" && cp tests/integration/aovs/plane.obj "$T/"
+run $M "$T/none.json" -o "$T/n.exr" --workers 1 && r=0 || r=1
+exrheader "$T/n.exr" >"$T/hdr" 2>&1
+if [ $r = 0 ] && ! grep -q "^    Z, " "$T/hdr" && $X cmp "$T/a.exr" "$T/n.exr"; then
+  ok "no AOVs: beauty alone, the same pixels"
+else
+  BAD_LOGS="log hdr" bad "no AOVs: beauty alone, the same pixels"
+fi
+if run $M $S -o "$T/x.exr" --aovs Z,depth; then bad "--aovs with an unknown name accepted"; else
+  grep -q "aovs" "$T/log" && ok "--aovs with an unknown name refused" || bad "--aovs error message"; fi
+sed 's/"Z", "N"/"Z", "normal"/' $S >"$T/badaov.json"
+if run $M "$T/badaov.json" -o "$T/x.exr"; then bad "render.aovs with an unknown name accepted"; else
+  grep -q 'badaov.json:[0-9]*:[0-9]*: unknown AOV "normal"' "$T/log" && ok "render.aovs: unknown name, file:line:col" || bad "render.aovs error message"; fi
+
+# Pixel filters: a Gaussian changes the pixels, the same for any worker count and tile size.
+run $M $S -o "$T/g1.exr" --workers 1 --filter gaussian:1.5 && r1=0 || r1=1
+run $M $S -o "$T/g2.exr" --workers 2 --threads 2 --tile 8 --filter gaussian:1.5 && r2=0 || r2=1
+if [ $r1 = 0 ] && [ $r2 = 0 ] && $X cmp "$T/g1.exr" "$T/g2.exr" && ! $X cmp "$T/a.exr" "$T/g1.exr" >/dev/null 2>&1; then
+  ok "gaussian filter: deterministic, differs from box"
+else
+  bad "gaussian filter: deterministic, differs from box"
+fi
+if run $M $S -o "$T/x.exr" --filter gaussian:0; then bad "--filter gaussian:0 accepted"; else ok "--filter gaussian:0 refused"; fi
+finish
