@@ -1434,9 +1434,19 @@ static void print_summary(struct master *m, double secs)
                m->time_up ? " (time limit)" : "", lo, pixels > 0 ? sum / pixels : 0.0, hi, m->scene.settings.spp,
                secs);
     }
-    for (uint32_t i = 0; i < m->num_peers; i++)
+    /* Peers that did no work (refused, flooding, or joined late) are counted, not listed:
+     * a flood of thousands of HELLOs must not bury the summary. Every peer is in the stats. */
+    uint32_t idle = 0;
+    for (uint32_t i = 0; i < m->num_peers; i++) {
+        if (m->sched->workers[i].tiles_done == 0 && m->num_peers > 16) {
+            idle++;
+            continue;
+        }
         printf("summary: worker %s: %u %s\n", m->peers[i].name, m->sched->workers[i].tiles_done,
                m->passes > 1 ? "units (tile passes)" : "tiles");
+    }
+    if (idle)
+        printf("summary: %u other peer(s) finished no work (listed in the stats)\n", idle);
     if (m->photon_maps) {
         uint64_t bytes = 0, wait = 0, live = 0;
         for (uint32_t i = 0; i < m->num_peers; i++) {
