@@ -1,5 +1,5 @@
 /* Camera paths through media (see media_integrator.h). VPT: closed-form or tracked free
- * flight, NEE with shadow transmittance and MIS (equiangular for point lights). March
+ * flight, NEE with shadow transmittance and MIS (equiangular toward point lights and points on emissive triangles). March
  * (Jensen): jittered steps, single scattering to every light when there are at most
  * MARCH_ALL_LIGHTS point lights + the k-nearest photon estimate; beam: one beam query per
  * segment; at the first diffuse vertex a final gather (surface photon map after one
@@ -55,9 +55,9 @@ static float equi_sample(const struct equi *e, float u)
 }
 
 /* The segment a distance sample ran over, for the MIS between its NEE and equiangular
- * sampling of point lights: VPT's free flight (trunc 0), or the final gather's one point
- * per segment (trunc 1: an exponential truncated to [0, tend), cut: phase without the
- * forward cone). */
+ * sampling of point and area lights: VPT's free flight (trunc 0; its NEE is also weighted
+ * against phase sampling), or the final gather's one point per segment (trunc 1: an
+ * exponential truncated to [0, tend), cut: phase without the forward cone). */
 struct flight_ctx { vec3 o, d; float tend, t; vec3 chan; const struct medium *md; float eps; int trunc, cut; };
 
 /* The truncated exponential's coefficient: sigma_t averaged over the channels (the weight
@@ -93,6 +93,14 @@ static float rnd(const struct rngs *r, uint32_t vertex, uint32_t k)
     return rng_uniform(r->key, vertex * DIMS_PER_VERTEX + k);
 }
 
+/* Whether the light that u_pick picks takes an equiangular sample: point (and spot)
+ * lights and emissive triangles, whose points are sampled whatever the shading point. */
+static int equi_light(const struct light_table *lt, float u_pick)
+{
+    enum light_kind k = lt->entries[light_pick(lt, u_pick)].kind;
+    return k == LK_POINT || k == LK_TRIANGLE;
+}
+
 /* Light arriving at x (in `medium`) from one sampled light, times the phase function for
  * light leaving along d_out (cut: without the forward cone, photon_map.h); *pdf_light
  * gets the sample's pdf for MIS (0 = delta). */
@@ -119,11 +127,13 @@ static vec3 scatter_nee(const struct render_job *job, vec3 x, vec3 d_out, uint32
         return v3(0, 0, 0);
     float w = (ls.is_delta || !mis) ? 1.0f : power_heuristic(ls.pdf, ph);
     struct equi e;
-    if (fc && ls.is_delta && equi_init(&e, fc->o, fc->d, ls.p, fc->tend, fc->eps) && fc->t < fc->tend) {
-        /* Balance heuristic against equiangular sampling of the same light (its pick
-         * probability is the same in both strategies and cancels). */
+    if (fc && equi_light(&job->lights, u0) && equi_init(&e, fc->o, fc->d, ls.p, fc->tend, fc->eps) &&
+        fc->t < fc->tend) {
+        /* Balance heuristic against equiangular sampling of the same light point (its
+         * density, the pick times 1 / area for a triangle, is the same in both strategies
+         * and cancels), within this NEE's share of the MIS against phase sampling. */
         float pf = flight_pdf(fc, fc->t), pe = equi_pdf(&e, fc->t);
-        w = pf / (pf + pe);
+        w *= pf / (pf + pe);
     }
     return v3_scale(v3_mul(ls.radiance, tr), ph * w / ls.pdf);
 }
@@ -300,8 +310,11 @@ static float march_reach(const struct media_job *mj, const struct medium *md, ve
     return reach > 0.0f ? t + reach : t;
 }
 
-/* Single scattering of one point light (picked as NEE picks) along the segment, sampled
- * equiangularly and weighted against free-flight NEE; times beta outside. */
+/* Single scattering of one light (picked as NEE picks) along the segment: a point light's
+ * position, or a point on an emissive triangle (uniform by area, as NEE samples it), then
+ * t sampled equiangularly toward that point, weighted against free-flight NEE (in VPT
+ * within NEE's share of the MIS against phase sampling); times beta outside. Spheres take
+ * none (NEE samples them by the cone seen from the shading point). */
 static vec3 equiangular(const struct render_job *job, const struct rngs *r, uint32_t vertex,
                         const struct flight_ctx *fc, uint32_t medium, float time01, uint64_t *rays)
 {
@@ -309,37 +322,58 @@ static vec3 equiangular(const struct render_job *job, const struct rngs *r, uint
     uint32_t i = light_pick(&job->lights, rnd(r, vertex, 8));
     const struct light_entry *e = &job->lights.entries[i];
     float pick = job->lights.pick_pdf[i];
-    if (e->kind != LK_POINT || !(pick > 0.0f))
+    if (!(pick > 0.0f) || (e->kind != LK_POINT && e->kind != LK_TRIANGLE))
         return v3(0, 0, 0);
-    const struct light *l = &sc->lights[e->index];
+    vec3 c, n = v3(0, 0, 0);
+    if (e->kind == LK_POINT) {
+        c = sc->lights[e->index].position;
+    } else {
+        uint64_t k = rng_mix64(r->key ^ (0x4154ull << 48) ^ vertex);
+        light_triangle_point(&job->lights, sc, i, rng_uniform(k, 0), rng_uniform(k, 1), &c, &n);
+    }
     struct equi q;
-    if (!equi_init(&q, fc->o, fc->d, l->position, fc->tend, fc->eps))
+    if (!equi_init(&q, fc->o, fc->d, c, fc->tend, fc->eps))
         return v3(0, 0, 0);
     float t = equi_sample(&q, rnd(r, vertex, 9));
     if (!(t >= 0.0f && t < fc->tend))
         return v3(0, 0, 0);
     float pe = equi_pdf(&q, t), pf = flight_pdf(fc, t);
     vec3 x = v3_add(fc->o, v3_scale(fc->d, t));
-    vec3 to = v3_sub(l->position, x);
+    vec3 to = v3_sub(c, x);
     float d2 = v3_dot(to, to);
     if (!(d2 > 0.0f) || !(pe > 0.0f))
         return v3(0, 0, 0);
-    vec3 li = v3_scale(e->emission, light_spot_falloff(l, v3_neg(to)) / d2);
+    vec3 wi = v3_scale(to, 1.0f / sqrtf(d2));
+    /* light travels along -wi, then back along -d toward the segment's origin */
+    float cos_t = v3_dot(wi, fc->d);
+    float ph = fc->cut ? phase_hg_cut(cos_t, fc->md->g) : phase_hg(cos_t, fc->md->g);
+    float w = pe / (pe + pf);
+    vec3 li, target = c;
+    if (e->kind == LK_POINT) {
+        /* I falloff / d^2 over the pick */
+        li = v3_scale(e->emission, light_spot_falloff(&sc->lights[e->index], v3_neg(to)) / (d2 * pick));
+    } else {
+        /* L_e G / (pick / area) = L_e / (the solid-angle pdf NEE would give this point) */
+        float lp = light_pdf(&job->lights, sc, i, x, c, n);
+        if (!(lp > 0.0f))
+            return v3(0, 0, 0);
+        li = v3_scale(e->emission, 1.0f / lp);
+        if (!fc->trunc)
+            w *= power_heuristic(lp, ph);
+        target = offset_ray_origin(c, v3_dot(n, wi) < 0.0f ? n : v3_neg(n));
+    }
     if (v3_is_black(li))
         return v3(0, 0, 0);
-    /* light travels along -to, then back along -d toward the segment's origin */
-    float cos_t = v3_dot(v3_scale(to, 1.0f / sqrtf(d2)), fc->d);
-    float ph = fc->cut ? phase_hg_cut(cos_t, fc->md->g) : phase_hg(cos_t, fc->md->g);
-    vec3 tr = media_shadow_transmittance(job->media, x, l->position, medium, time01,
+    vec3 tr = media_shadow_transmittance(job->media, x, target, medium, time01,
                                          rng_mix64(r->key ^ (0x4551ull << 48) ^ vertex), rays);
     vec3 f = v3_mul(v3_mul(medium_transmittance(fc->md, t), fc->md->sigma_s), v3_mul(li, tr));
-    return v3_scale(f, ph * (pe / (pe + pf)) / (pick * pe));
+    return v3_scale(f, ph * w / pe);
 }
 
 /* March and beam after the first non-delta bounce (the final gather's bounce and any
  * segment after it) in a homogeneous medium: single scattering from one point instead of
  * a march, t from an exponential truncated to the segment, NEE there weighted against one
- * equiangular sample toward a point light as in VPT, times Tr(t) / pdf(t): one or two
+ * equiangular sample toward a point light or a point on an area light as in VPT, times Tr(t) / pdf(t): one or two
  * shadow rays instead of one per step, and these paths, spread over the hemisphere,
  * average the extra noise away. Multiple scattering: the beam over the whole segment. */
 static vec3 gather_segment(const struct render_job *job, const struct media_job *mj, const struct rngs *r,
@@ -416,7 +450,8 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
                                                                    rng_mix64(r.key ^ (0x454dull << 48) ^ vertex))));
                 vec3 chan = beta;
                 int scatter = medium_sample_flight(md, org, dir, tmax, chan, rng_mix64(r.key ^ (0x464cull << 48) ^ vertex), &t, &w);
-                /* Homogeneous media: one equiangular sample toward a point light per segment. */
+                /* Homogeneous media: one equiangular sample toward a point light or a point on
+                 * an emissive triangle per segment. */
                 struct flight_ctx fc = {org, dir, hit ? h.t : exit_distance(mj, org, dir), t, chan, md,
                                         1e-7f * mj->scene_size, 0, 0};
                 int equi = !md->grid && !v3_is_black(md->sigma_s) && job->lights.num_entries > 0 && depth < rs->max_depth;
