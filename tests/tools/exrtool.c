@@ -23,7 +23,8 @@
  *   exrtool chsum A.exr NAME     prints the sum over pixels of channel NAME (e.g. "samples")
  *   exrtool synth OUT.exr W H V [--checker AMP] [--var VAR]
  *                                writes a test image: R,G,B = V (+AMP where x + y is even, -AMP
- *                                where odd, with --checker), A = 1, every variance channel = VAR
+ *                                where odd, with --checker; +AMP at pixel (1, 2) with --spot), A = 1,
+ *                                every variance channel = VAR
  * Reads files through imgio_read (OpenEXRCore); writes tiled EXRs through imgio's writer. */
 #include "image/imgio.h"
 #include "base/log.h"
@@ -270,16 +271,18 @@ static int average(const char *out, const char *pa, const char *pb)
 static int synth(int argc, char **argv)
 {
     if (argc < 6 || argc % 2) {
-        fprintf(stderr, "usage: exrtool synth OUT.exr W H V [--checker AMP] [--var VAR]\n");
+        fprintf(stderr, "usage: exrtool synth OUT.exr W H V [--checker AMP] [--var VAR] [--spot AMP]\n");
         return 2;
     }
     uint32_t w = (uint32_t)atoi(argv[3]), h = (uint32_t)atoi(argv[4]);
-    double v = atof(argv[5]), amp = 0, var = 0;
+    double v = atof(argv[5]), amp = 0, var = 0, spot = 0;
     for (int i = 6; i + 1 < argc; i += 2) {
         if (!strcmp(argv[i], "--checker"))
             amp = atof(argv[i + 1]);
         else if (!strcmp(argv[i], "--var"))
             var = atof(argv[i + 1]);
+        else if (!strcmp(argv[i], "--spot"))
+            spot = atof(argv[i + 1]);
         else {
             fprintf(stderr, "exrtool: unknown option %s\n", argv[i]);
             return 2;
@@ -294,7 +297,7 @@ static int synth(int argc, char **argv)
         for (uint32_t x = 0; x < w; x++) {
             float *p = &px[((size_t)y * w + x) * NCH];
             for (int c = 0; c < 3; c++) {
-                p[c] = (float)(v + ((x + y) % 2 ? -amp : amp));
+                p[c] = (float)(v + ((x + y) % 2 ? -amp : amp) + (x == 1 && y == 2 ? spot : 0.0));
                 p[4 + c] = (float)var;
             }
             p[3] = 1.0f;
