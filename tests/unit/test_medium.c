@@ -152,19 +152,39 @@ Test(medium, beer_lambert_slab)
 
 /* ---- single scattering: the airlight integral ---- */
 
-static double airlight(double I, double ss, double st, vec3 o, vec3 d, vec3 lp, double tmax)
+/* A single-scattering integrand along o + t d (|d| = 1) in an isotropic medium of sigma_s
+ * ss and sigma_t st, from a point light of intensity I at lp or from the lamp (LAMP_OBJ)
+ * of radiance I (lamp set), integrated by composite Simpson in double. */
+struct ss_case { double I, ss, st; vec3 o, d, lp; int lamp; };
+
+static double ss_integrand(const struct ss_case *c, double t)
 {
-    /* Composite Simpson in double on a fine grid (the integrand is smooth; its peak has
-     * the width of the ray's distance to the light). */
-    const int n = 2000000;
-    double h = tmax / n, sum = 0.0;
-    for (int i = 0; i <= n; i++) {
-        double t = i * h;
-        double x = o.x + t * d.x - lp.x, y = o.y + t * d.y - lp.y, z = o.z + t * d.z - lp.z;
-        double r2 = x * x + y * y + z * z;
-        double f = ss / (4 * M_PI) * I * exp(-st * t) * exp(-st * sqrt(r2)) / r2;
-        sum += f * (i == 0 || i == n ? 1 : (i % 2 ? 4 : 2));
+    double x = c->o.x + t * c->d.x, y = c->o.y + t * c->d.y, z = c->o.z + t * c->d.z;
+    double in = 0.0;
+    if (!c->lamp) {
+        double dx = x - c->lp.x, dy = y - c->lp.y, dz = z - c->lp.z, r2 = dx * dx + dy * dy + dz * dz;
+        in = exp(-c->st * sqrt(r2)) / r2;
+    } else {
+        /* midpoint rule on the lamp: L_e cos_l / r^2 dA */
+        const int m = 24;
+        double cell = 0.5 / m;
+        for (int a = 0; a < m; a++)
+            for (int b = 0; b < m; b++) {
+                double dx = x - (-0.25 + (a + 0.5) * cell), dy = y - 0.3, dz = z - (-0.25 + (b + 0.5) * cell);
+                double r2 = dx * dx + dy * dy + dz * dz, r = sqrt(r2);
+                if (dy < 0)
+                    in += exp(-c->st * r) * (-dy / r) / r2 * cell * cell;
+            }
     }
+    return c->ss / (4 * M_PI) * c->I * exp(-c->st * t) * in;
+}
+
+static double airlight(const struct ss_case *c, double tmax, int n)
+{
+    /* The integrand is smooth; its peak has the width of the ray's distance to the light. */
+    double h = tmax / n, sum = 0.0;
+    for (int i = 0; i <= n; i++)
+        sum += ss_integrand(c, i * h) * (i == 0 || i == n ? 1 : (i % 2 ? 4 : 2));
     return sum * h / 3.0;
 }
 
@@ -185,7 +205,8 @@ Test(medium, single_scattering_airlight)
     cr_assert_eq(job.media->camera_medium, 0u);
     vec3 o = v3(-5, 1, 0), d = v3(1, 0, 0);
     double tmax = 5.0 + sqrt(50.0 * 50.0 - 1.0);
-    double ref = airlight(10, 0.05, 0.1, o, d, v3(0, 0, 0), tmax);
+    struct ss_case c = {10, 0.05, 0.1, o, d, v3(0, 0, 0), 0};
+    double ref = airlight(&c, tmax, 2000000);
     double sum = 0.0;
     const int n = 64;
     uint64_t rays = 0;
@@ -215,28 +236,6 @@ Test(medium, single_scattering_airlight)
     scene_fini(&s);
 }
 
-/* Single scattering along o + t d (|d| = 1, t < tmax) of the lamp (LAMP_OBJ, radiance Le)
- * in an isotropic medium: the integral over t and the lamp's area of
- * ss / (4 pi) Le exp(-st t) exp(-st r) cos_l / r^2, Simpson in t, midpoint on the lamp. */
-static double airlight_lamp(double Le, double ss, double st, vec3 o, vec3 d, double tmax)
-{
-    const int n = 20000, m = 24;
-    double h = tmax / n, sum = 0.0, cell = 0.5 / m;
-    for (int i = 0; i <= n; i++) {
-        double t = i * h, x = o.x + t * d.x, y = o.y + t * d.y, z = o.z + t * d.z, in = 0.0;
-        for (int a = 0; a < m; a++)
-            for (int b = 0; b < m; b++) {
-                double lx = -0.25 + (a + 0.5) * cell, lz = -0.25 + (b + 0.5) * cell;
-                double dx = x - lx, dy = y - 0.3, dz = z - lz, r2 = dx * dx + dy * dy + dz * dz, r = sqrt(r2);
-                if (dy < 0)
-                    in += exp(-st * r) * (-dy / r) / r2;
-            }
-        double f = ss / (4 * M_PI) * Le * exp(-st * t) * in * cell * cell;
-        sum += f * (i == 0 || i == n ? 1 : (i % 2 ? 4 : 2));
-    }
-    return sum * h / 3.0;
-}
-
 Test(medium, single_scattering_area_light)
 {
     /* The camera ray passes 0.3 under a small lamp in an isotropic fog inside a black
@@ -256,7 +255,8 @@ Test(medium, single_scattering_area_light)
     struct render_job job;
     job_ok(&job, &s);
     vec3 o = v3(-5, 0, 0), d = v3(1, 0, 0);
-    double ref = airlight_lamp(10, 0.05, 0.1, o, d, 55.0);
+    struct ss_case c = {10, 0.05, 0.1, o, d, v3(0, 0, 0), 1};
+    double ref = airlight(&c, 55.0, 20000);
     double s1 = 0.0, s2 = 0.0;
     const int m = 100000;
     uint64_t rays = 0;
