@@ -61,7 +61,9 @@ pass_secs() { sed -n 's/.*photon pass: .* in \([0-9.]*\) s on.*/\1/p' "$1" | hea
 # is missing.
 reference() {
   sc=$1
-  key=$( (find "scenes/$sc" -type f | LC_ALL=C sort | xargs cat; echo "ref v1 $REF_SPP $PROBE_SPP $DEPTHS") | sha256sum | cut -c1-16)
+  # v2: VPT's area-light sampling changed (equiangular toward area lights, an emitter's
+  # light times the transmittance); v1 references of scenes with area lights were noisier.
+  key=$( (find "scenes/$sc" -type f | LC_ALL=C sort | xargs cat; echo "ref v2 $REF_SPP $PROBE_SPP $DEPTHS") | sha256sum | cut -c1-16)
   RDIR="$OUT/ref/$sc-$key"
   if [ "$REF_REDO" != 1 ] && [ -f "$RDIR/ref.txt" ] && [ -f "$RDIR/ref.exr" ]; then
     echo "media: $sc: cached reference $RDIR" >&2

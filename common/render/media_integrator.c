@@ -1,5 +1,5 @@
 /* Camera paths through media (see media_integrator.h). VPT: closed-form or tracked free
- * flight, NEE with shadow transmittance and MIS (equiangular for point lights). March
+ * flight, NEE with shadow transmittance and MIS (equiangular toward point lights and points on emissive triangles). March
  * (Jensen): jittered steps, single scattering to every light when there are at most
  * MARCH_ALL_LIGHTS point lights + the k-nearest photon estimate; beam: one beam query per
  * segment; at the first diffuse vertex a final gather (surface photon map after one
@@ -55,10 +55,12 @@ static float equi_sample(const struct equi *e, float u)
 }
 
 /* The segment a distance sample ran over, for the MIS between its NEE and equiangular
- * sampling of point lights: VPT's free flight (trunc 0), or the final gather's one point
- * per segment (trunc 1: an exponential truncated to [0, tend), cut: phase without the
- * forward cone). */
-struct flight_ctx { vec3 o, d; float tend, t; vec3 chan; const struct medium *md; float eps; int trunc, cut; };
+ * sampling of point and area lights: VPT's free flight (FL_FREE; its NEE is also weighted
+ * against phase sampling), the final gather's one point per segment (FL_TRUNC: an
+ * exponential truncated to [0, tend)), or march's jittered steps (FL_MARCH: one sample
+ * per dx, a density of 1 / dx); cut: phase without the forward cone. */
+enum { FL_FREE, FL_TRUNC, FL_MARCH };
+struct flight_ctx { vec3 o, d; float tend, t; vec3 chan; const struct medium *md; float eps; int trunc, cut; float dx; };
 
 /* The truncated exponential's coefficient: sigma_t averaged over the channels (the weight
  * Tr(t) / pdf(t) is per channel). */
@@ -85,12 +87,22 @@ static float trunc_sample(float s, float tend, float u)
 /* Density of the distance sample at t, for MIS. */
 static float flight_pdf(const struct flight_ctx *fc, float t)
 {
-    return fc->trunc ? trunc_pdf(trunc_sigma(fc->md), fc->tend, t) : medium_flight_pdf(fc->md, fc->chan, t);
+    if (fc->trunc == FL_MARCH)
+        return 1.0f / fc->dx;
+    return fc->trunc == FL_TRUNC ? trunc_pdf(trunc_sigma(fc->md), fc->tend, t) : medium_flight_pdf(fc->md, fc->chan, t);
 }
 
 static float rnd(const struct rngs *r, uint32_t vertex, uint32_t k)
 {
     return rng_uniform(r->key, vertex * DIMS_PER_VERTEX + k);
+}
+
+/* Whether the light that u_pick picks takes an equiangular sample: point (and spot)
+ * lights and emissive triangles, whose points are sampled whatever the shading point. */
+static int equi_light(const struct light_table *lt, float u_pick)
+{
+    enum light_kind k = lt->entries[light_pick(lt, u_pick)].kind;
+    return k == LK_POINT || k == LK_TRIANGLE;
 }
 
 /* Light arriving at x (in `medium`) from one sampled light, times the phase function for
@@ -119,11 +131,13 @@ static vec3 scatter_nee(const struct render_job *job, vec3 x, vec3 d_out, uint32
         return v3(0, 0, 0);
     float w = (ls.is_delta || !mis) ? 1.0f : power_heuristic(ls.pdf, ph);
     struct equi e;
-    if (fc && ls.is_delta && equi_init(&e, fc->o, fc->d, ls.p, fc->tend, fc->eps) && fc->t < fc->tend) {
-        /* Balance heuristic against equiangular sampling of the same light (its pick
-         * probability is the same in both strategies and cancels). */
+    if (fc && equi_light(&job->lights, u0) && equi_init(&e, fc->o, fc->d, ls.p, fc->tend, fc->eps) &&
+        fc->t < fc->tend) {
+        /* Balance heuristic against equiangular sampling of the same light point (its
+         * density, the pick times 1 / area for a triangle, is the same in both strategies
+         * and cancels), within this NEE's share of the MIS against phase sampling. */
         float pf = flight_pdf(fc, fc->t), pe = equi_pdf(&e, fc->t);
-        w = pf / (pf + pe);
+        w *= pf / (pf + pe);
     }
     return v3_scale(v3_mul(ls.radiance, tr), ph * w / ls.pdf);
 }
@@ -166,6 +180,66 @@ static vec3 point_lights_all(const struct render_job *job, vec3 x, vec3 d_out, u
         sum = v3_add(sum, v3_scale(v3_mul(li, tr), ph));
     }
     return sum;
+}
+
+/* Single scattering of one light (picked as NEE picks) along the segment: a point light's
+ * position, or a point on an emissive triangle (uniform by area, as NEE samples it), then
+ * t sampled equiangularly toward that point, weighted against free-flight NEE (in VPT
+ * within NEE's share of the MIS against phase sampling); times beta outside. Spheres take
+ * none (NEE samples them by the cone seen from the shading point). */
+static vec3 equiangular(const struct render_job *job, const struct rngs *r, uint32_t vertex,
+                        const struct flight_ctx *fc, uint32_t medium, float time01, uint64_t *rays)
+{
+    const struct scene *sc = job->scene;
+    uint32_t i = light_pick(&job->lights, rnd(r, vertex, 8));
+    const struct light_entry *e = &job->lights.entries[i];
+    float pick = job->lights.pick_pdf[i];
+    if (!(pick > 0.0f) || (e->kind != LK_POINT && e->kind != LK_TRIANGLE))
+        return v3(0, 0, 0);
+    vec3 c, n = v3(0, 0, 0);
+    if (e->kind == LK_POINT) {
+        c = sc->lights[e->index].position;
+    } else {
+        uint64_t k = rng_mix64(r->key ^ (0x4154ull << 48) ^ vertex);
+        light_triangle_point(&job->lights, sc, i, rng_uniform(k, 0), rng_uniform(k, 1), &c, &n);
+    }
+    struct equi q;
+    if (!equi_init(&q, fc->o, fc->d, c, fc->tend, fc->eps))
+        return v3(0, 0, 0);
+    float t = equi_sample(&q, rnd(r, vertex, 9));
+    if (!(t >= 0.0f && t < fc->tend))
+        return v3(0, 0, 0);
+    float pe = equi_pdf(&q, t), pf = flight_pdf(fc, t);
+    vec3 x = v3_add(fc->o, v3_scale(fc->d, t));
+    vec3 to = v3_sub(c, x);
+    float d2 = v3_dot(to, to);
+    if (!(d2 > 0.0f) || !(pe > 0.0f))
+        return v3(0, 0, 0);
+    vec3 wi = v3_scale(to, 1.0f / sqrtf(d2));
+    /* light travels along -wi, then back along -d toward the segment's origin */
+    float cos_t = v3_dot(wi, fc->d);
+    float ph = fc->cut ? phase_hg_cut(cos_t, fc->md->g) : phase_hg(cos_t, fc->md->g);
+    float w = pe / (pe + pf);
+    vec3 li, target = c;
+    if (e->kind == LK_POINT) {
+        /* I falloff / d^2 over the pick */
+        li = v3_scale(e->emission, light_spot_falloff(&sc->lights[e->index], v3_neg(to)) / (d2 * pick));
+    } else {
+        /* L_e G / (pick / area) = L_e / (the solid-angle pdf NEE would give this point) */
+        float lp = light_pdf(&job->lights, sc, i, x, c, n);
+        if (!(lp > 0.0f))
+            return v3(0, 0, 0);
+        li = v3_scale(e->emission, 1.0f / lp);
+        if (fc->trunc == FL_FREE)
+            w *= power_heuristic(lp, ph);
+        target = offset_ray_origin(c, v3_dot(n, wi) < 0.0f ? n : v3_neg(n));
+    }
+    if (v3_is_black(li))
+        return v3(0, 0, 0);
+    vec3 tr = media_shadow_transmittance(job->media, x, target, medium, time01,
+                                         rng_mix64(r->key ^ (0x4551ull << 48) ^ vertex), rays);
+    vec3 f = v3_mul(v3_mul(medium_transmittance(fc->md, t), fc->md->sigma_s), v3_mul(li, tr));
+    return v3_scale(f, ph * w / pe);
 }
 
 /* max_depth counts the scattering and surface events of the whole path. After `depth`
@@ -215,6 +289,13 @@ static vec3 march_segment(const struct render_job *job, const struct media_job *
     /* A few point lights: every one at every step (no pick noise; the shadow cache makes
      * each cheap). Otherwise one light picked in proportion to power. */
     const int all_points = march_all_points(job);
+    /* Homogeneous media, lights sampled one at a time: each step's NEE is weighted against
+     * one equiangular sample per segment (the steps' density is 1 / dx), which takes the
+     * 1/d^2 peak next to a point or area light. */
+    struct flight_ctx fc = {o, d, len, 0.0f, v3(1, 1, 1), md, 1e-7f * mj->scene_size, FL_MARCH, 1, dx};
+    const int equi = nee && !het && !all_points && job->lights.num_entries > 0;
+    if (equi)
+        L = v3_add(L, equiangular(job, r, vertex, &fc, medium, time01, rays));
     uint64_t seg_key = rng_mix64(r->key ^ ((uint64_t)(vertex + 1) << 40));
     float tau_tab[TAU_TABLE];   /* grids: optical depth (per unit sigma_t) at c0 + k dx */
     uint32_t ntab = 0;
@@ -245,11 +326,12 @@ static vec3 march_segment(const struct render_job *job, const struct media_job *
             break; /* nothing beyond reaches the camera */
         if (!(rho > 0.0f))
             continue;
+        fc.t = t;
         vec3 ls = !nee ? v3(0, 0, 0) : all_points ? point_lights_all(job, x, v3_neg(d), medium, md->g, time01,
                                                 rng_mix64(seg_key ^ (0x5348ull << 48) ^ k), rays)
                              : scatter_nee(job, x, v3_neg(d), medium, md->g, 1, rng_uniform(seg_key, 3 * k),
                                            rng_uniform(seg_key, 3 * k + 1), rng_uniform(seg_key, 3 * k + 2), time01,
-                                           rng_mix64(seg_key ^ (0x5348ull << 48) ^ k), rays, 0, NULL);
+                                           rng_mix64(seg_key ^ (0x5348ull << 48) ^ k), rays, 0, equi ? &fc : NULL);
         vec3 in = v3_scale(v3_mul(md->sigma_s, ls), rho);
         if (mj->sm->method == MEDIA_MARCH_STEPS && map)
             in = v3_add(in, photon_map_gather_knn(map, x, v3_neg(d), md->g, mj->sm->knn,
@@ -300,46 +382,10 @@ static float march_reach(const struct media_job *mj, const struct medium *md, ve
     return reach > 0.0f ? t + reach : t;
 }
 
-/* Single scattering of one point light (picked as NEE picks) along the segment, sampled
- * equiangularly and weighted against free-flight NEE; times beta outside. */
-static vec3 equiangular(const struct render_job *job, const struct rngs *r, uint32_t vertex,
-                        const struct flight_ctx *fc, uint32_t medium, float time01, uint64_t *rays)
-{
-    const struct scene *sc = job->scene;
-    uint32_t i = light_pick(&job->lights, rnd(r, vertex, 8));
-    const struct light_entry *e = &job->lights.entries[i];
-    float pick = job->lights.pick_pdf[i];
-    if (e->kind != LK_POINT || !(pick > 0.0f))
-        return v3(0, 0, 0);
-    const struct light *l = &sc->lights[e->index];
-    struct equi q;
-    if (!equi_init(&q, fc->o, fc->d, l->position, fc->tend, fc->eps))
-        return v3(0, 0, 0);
-    float t = equi_sample(&q, rnd(r, vertex, 9));
-    if (!(t >= 0.0f && t < fc->tend))
-        return v3(0, 0, 0);
-    float pe = equi_pdf(&q, t), pf = flight_pdf(fc, t);
-    vec3 x = v3_add(fc->o, v3_scale(fc->d, t));
-    vec3 to = v3_sub(l->position, x);
-    float d2 = v3_dot(to, to);
-    if (!(d2 > 0.0f) || !(pe > 0.0f))
-        return v3(0, 0, 0);
-    vec3 li = v3_scale(e->emission, light_spot_falloff(l, v3_neg(to)) / d2);
-    if (v3_is_black(li))
-        return v3(0, 0, 0);
-    /* light travels along -to, then back along -d toward the segment's origin */
-    float cos_t = v3_dot(v3_scale(to, 1.0f / sqrtf(d2)), fc->d);
-    float ph = fc->cut ? phase_hg_cut(cos_t, fc->md->g) : phase_hg(cos_t, fc->md->g);
-    vec3 tr = media_shadow_transmittance(job->media, x, l->position, medium, time01,
-                                         rng_mix64(r->key ^ (0x4551ull << 48) ^ vertex), rays);
-    vec3 f = v3_mul(v3_mul(medium_transmittance(fc->md, t), fc->md->sigma_s), v3_mul(li, tr));
-    return v3_scale(f, ph * (pe / (pe + pf)) / (pick * pe));
-}
-
 /* March and beam after the first non-delta bounce (the final gather's bounce and any
  * segment after it) in a homogeneous medium: single scattering from one point instead of
  * a march, t from an exponential truncated to the segment, NEE there weighted against one
- * equiangular sample toward a point light as in VPT, times Tr(t) / pdf(t): one or two
+ * equiangular sample toward a point light or a point on an area light as in VPT, times Tr(t) / pdf(t): one or two
  * shadow rays instead of one per step, and these paths, spread over the hemisphere,
  * average the extra noise away. Multiple scattering: the beam over the whole segment. */
 static vec3 gather_segment(const struct render_job *job, const struct media_job *mj, const struct rngs *r,
@@ -353,7 +399,8 @@ static vec3 gather_segment(const struct render_job *job, const struct media_job 
     int nee;
     const uint32_t kmax = volume_photon_depth_max(job->scene->settings.max_depth, depth, &nee);
     float s = trunc_sigma(md);
-    struct flight_ctx fc = {o, d, len, trunc_sample(s, len, rnd(r, vertex, 11)), chan, md, 1e-7f * mj->scene_size, 1, 1};
+    struct flight_ctx fc = {o, d, len, trunc_sample(s, len, rnd(r, vertex, 11)), chan, md, 1e-7f * mj->scene_size,
+                           FL_TRUNC, 1, 0.0f};
     vec3 x = v3_add(o, v3_scale(d, fc.t)), in = v3(0, 0, 0);
     if (nee && job->lights.num_entries > 0) {
         in = v3_mul(md->sigma_s, scatter_nee(job, x, v3_neg(d), medium, md->g, 1, rnd(r, vertex, 12),
@@ -367,6 +414,29 @@ static vec3 gather_segment(const struct render_job *job, const struct media_job 
     if (kmax > 0 && mj->map)
         L = v3_add(L, photon_map_beam(mj->map, o, d, len, md, NULL, kmax));
     return L;
+}
+
+/* The emission of the surface a ray along dir hit, MIS-weighted against NEE from the
+ * vertex before (prev_p; its sampling pdf prev_pdf unless it was a delta bounce). */
+static vec3 hit_emission(const struct render_job *job, const struct surface *s, vec3 dir, int prev_delta,
+                         float prev_pdf, vec3 prev_p)
+{
+    if (s->light == LIGHT_NONE || !(v3_dot(s->ng, dir) < 0.0f))
+        return v3(0, 0, 0);
+    const struct scene *sc = job->scene;
+    float w = 1.0f;
+    if (!prev_delta)
+        w = power_heuristic(prev_pdf, light_pdf(&job->lights, sc, s->light, prev_p, s->p, s->ng));
+    return v3_scale(sc->materials[s->material].emission, w);
+}
+
+/* Whether the light table holds emitting surfaces (triangles or spheres). */
+static int has_area_lights(const struct light_table *lt)
+{
+    for (uint32_t i = 0; i < lt->num_entries; i++)
+        if (lt->entries[i].kind != LK_POINT)
+            return 1;
+    return 0;
 }
 
 vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, uint32_t px, uint32_t py, vec3 org,
@@ -401,8 +471,11 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
     int spread = 0;         /* a non-delta bounce was taken: segments take one point (gather_segment) */
     vec3 seg_start = org;   /* exact start of the segment (boundary point, not the offset origin) */
     *hit_any = 0;
+    const int area_lights = has_area_lights(&job->lights);
     for (;;) {
         struct accel_hit h;
+        struct surface s;
+        int s_ready = 0, emitted = 0;
         (*rays)++;
         int hit = accel_intersect(&job->accel, org, dir, INFINITY, time01, &h);
         if (hit && vertex == 0 && crossings == 0)
@@ -416,12 +489,28 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
                                                                    rng_mix64(r.key ^ (0x454dull << 48) ^ vertex))));
                 vec3 chan = beta;
                 int scatter = medium_sample_flight(md, org, dir, tmax, chan, rng_mix64(r.key ^ (0x464cull << 48) ^ vertex), &t, &w);
-                /* Homogeneous media: one equiangular sample toward a point light per segment. */
+                /* Homogeneous media: one equiangular sample toward a point light or a point on
+                 * an emissive triangle per segment. */
                 struct flight_ctx fc = {org, dir, hit ? h.t : exit_distance(mj, org, dir), t, chan, md,
-                                        1e-7f * mj->scene_size, 0, 0};
+                                        1e-7f * mj->scene_size, FL_FREE, 0, 0.0f};
                 int equi = !md->grid && !v3_is_black(md->sigma_s) && job->lights.num_entries > 0 && depth < rs->max_depth;
                 if (equi)
                     L = v3_add(L, v3_mul(beta, equiangular(job, &r, vertex, &fc, medium, time01, rays)));
+                if (hit && !md->grid && area_lights) {
+                    /* An emitter at the segment's end: its light times the segment's
+                     * transmittance, the expected value of what the flight's pass-through
+                     * (probability and weight) would give it; the surface below then adds
+                     * no emission. Seen straight through a thin fog, the light otherwise
+                     * flickers with the flight's choice (the brightest pixels' noise). */
+                    surface_from_hit(&job->accel, &job->lights, org, dir, &h, time01, &s);
+                    s_ready = 1;
+                    if (!media_is_interface(job->media, s.material)) {
+                        emitted = 1;
+                        vec3 le = hit_emission(job, &s, dir, prev_delta, prev_pdf, prev_p);
+                        if (!v3_is_black(le))
+                            L = v3_add(L, v3_mul(v3_mul(beta, medium_transmittance(md, h.t)), le));
+                    }
+                }
                 beta = v3_mul(beta, w);
                 if (v3_is_black(beta) || !v3_is_finite(beta))
                     break;
@@ -474,8 +563,8 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
             }
             break;
         }
-        struct surface s;
-        surface_from_hit(&job->accel, &job->lights, org, dir, &h, time01, &s);
+        if (!s_ready)
+            surface_from_hit(&job->accel, &job->lights, org, dir, &h, time01, &s);
         if (media_is_interface(job->media, s.material)) {
             if (++crossings > MAX_CROSSINGS)
                 break;
@@ -487,15 +576,8 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
         }
         if (vertex == 0)
             *hit_any = 1;
-        if (s.light != LIGHT_NONE && v3_dot(s.ng, dir) < 0.0f) {
-            vec3 le = sc->materials[s.material].emission;
-            float w = 1.0f;
-            if (!prev_delta) {
-                float lp = light_pdf(&job->lights, sc, s.light, prev_p, s.p, s.ng);
-                w = power_heuristic(prev_pdf, lp);
-            }
-            L = v3_add(L, v3_mul(beta, v3_scale(le, w)));
-        }
+        if (!emitted)
+            L = v3_add(L, v3_mul(beta, hit_emission(job, &s, dir, prev_delta, prev_pdf, prev_p)));
         if (++depth > rs->max_depth)
             break;
         const struct material *mat = &sc->materials[s.material];

@@ -191,6 +191,18 @@ static float sphere_cone_one_minus_cos(float r, float dist)
     return sin2 / (1.0f + cos_max);
 }
 
+void light_triangle_point(const struct light_table *t, const struct scene *s, uint32_t entry, float u1, float u2,
+                          vec3 *p, vec3 *n)
+{
+    const struct light_entry *e = &t->entries[entry];
+    const struct mesh *m = &s->meshes[e->index];
+    vec3 a = tri_vertex(m, e->prim, 0), b = tri_vertex(m, e->prim, 1), c = tri_vertex(m, e->prim, 2);
+    float su = sqrtf(u1);
+    float b0 = 1.0f - su, b1 = u2 * su;
+    *p = v3_add(v3_add(v3_scale(a, b0), v3_scale(b, b1)), v3_scale(c, 1.0f - b0 - b1));
+    *n = v3_normalize(v3_cross(v3_sub(b, a), v3_sub(c, a)));
+}
+
 void light_sample(const struct light_table *t, const struct scene *s, vec3 ref, float u_pick, float u1,
                   float u2, struct light_sample *out)
 {
@@ -216,12 +228,8 @@ void light_sample(const struct light_table *t, const struct scene *s, vec3 ref, 
         return;
     }
     case LK_TRIANGLE: {
-        const struct mesh *m = &s->meshes[e->index];
-        vec3 a = tri_vertex(m, e->prim, 0), b = tri_vertex(m, e->prim, 1), c = tri_vertex(m, e->prim, 2);
-        float su = sqrtf(u1);
-        float b0 = 1.0f - su, b1 = u2 * su;
-        vec3 p = v3_add(v3_add(v3_scale(a, b0), v3_scale(b, b1)), v3_scale(c, 1.0f - b0 - b1));
-        vec3 n = v3_normalize(v3_cross(v3_sub(b, a), v3_sub(c, a)));
+        vec3 p, n;
+        light_triangle_point(t, s, i, u1, u2, &p, &n);
         out->p = p;
         out->n = n;
         out->pdf = light_pdf(t, s, i, ref, p, n);

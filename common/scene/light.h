@@ -60,6 +60,13 @@ void light_table_fini(struct light_table *t);
 void light_sample(const struct light_table *t, const struct scene *s, vec3 ref, float u_pick, float u1,
                   float u2, struct light_sample *out);
 
+/* A point on the emissive triangle `entry` (LK_TRIANGLE) from two uniforms, uniform by
+ * area (density pick_pdf / area with the pick), and its normal: the point light_sample
+ * takes, whatever the shading point; for callers that choose the light point first
+ * (equiangular sampling toward an area light). */
+void light_triangle_point(const struct light_table *t, const struct scene *s, uint32_t entry, float u1, float u2,
+                          vec3 *p, vec3 *n);
+
 /* Solid-angle pdf (pick included) that light_sample would have produced point p_light
  * with light normal n_light on emitter `entry`, seen from ref. */
 float light_pdf(const struct light_table *t, const struct scene *s, uint32_t entry, vec3 ref, vec3 p_light,

@@ -1,5 +1,5 @@
 #!/bin/sh
-# exrtool's error metrics (relrmse, relrmse --box, errest, semean, average) on synthetic
+# exrtool's error metrics (relrmse, relrmse --box, errtop, errest, semean, average) on synthetic
 # EXRs with known differences, written by `exrtool synth`.
 # Usage: BUILD=build sh tests/integration/exrtool.sh
 . "$(dirname "$0")/lib.sh"
@@ -37,6 +37,16 @@ near "semean: standard error sqrt(45 x 0.01) / 45" "${2:-}" "$(awk 'BEGIN { prin
 $X average "$T/m.exr" "$T/a.exr" "$T/ref.exr" || bad "average failed"
 near "average: relrmse halves" "$($X relrmse "$T/m.exr" "$T/ref.exr")" 0.1
 near "average: variance / 4" "$($X errest "$T/m.exr")" "$(awk 'BEGIN { print 0.05 / (45.1 / 45) }')"
+# errtop: the share of the squared error in the worst 0.1 % and 1 % of pixels (1 of 45
+# each here): even noise 1/45; one bright pixel over a faint checker nearly all.
+set -- $($X errtop "$T/a.exr" "$T/ref.exr")
+near "errtop: even checker, top 0.1 %" "${1:-}" "$(awk 'BEGIN { print 1 / 45 }')"
+near "errtop: even checker, top 1 %" "${2:-}" "$(awk 'BEGIN { print 1 / 45 }')"
+$X synth "$T/s.exr" 9 5 1 --checker 0.01 --spot 3 || bad "synth --spot failed"
+set -- $($X errtop "$T/s.exr" "$T/ref.exr" 1)
+# pixel (1, 2) is odd: 1 - 0.01 + 3; the 44 others err by 0.01
+near "errtop: a firefly's share" "${1:-}" "$(awk 'BEGIN { f = 2.99 * 2.99; print f / (f + 44 * 0.0001) }')"
+[ "${3:-} ${4:-}" = "1 2" ] && ok "errtop names the worst pixel (1, 2)" || bad "errtop's worst pixel: '${3:-} ${4:-}'"
 if $X relrmse "$T/a.exr" "$T/ref.exr" --box 0 >/dev/null 2>&1; then bad "--box 0 accepted"; else ok "--box 0 refused"; fi
 $X synth "$T/small.exr" 4 4 1
 if $X relrmse "$T/a.exr" "$T/small.exr" >/dev/null 2>&1; then bad "sizes that differ accepted"; else ok "sizes that differ refused"; fi

@@ -7,6 +7,11 @@
  *                                the mean of REF over pixels and R,G,B; with --box N both images are
  *                                first box-downsampled by N x N (a partial block at the right or
  *                                bottom edge is the mean of the pixels it holds): low-frequency error
+ *   exrtool errtop A.exr REF.exr [N]
+ *                                prints the share of the squared error (summed over R,G,B) held by the
+ *                                0.1 % and the 1 % of pixels with the largest squared error:
+ *                                near 0.001 and 0.01 for even noise, near 1 for fireflies; with N,
+ *                                then the N worst pixels, one a line: x y squared error, A's R, REF's R
  *   exrtool errest A.exr         prints the relative RMSE the image estimates for itself from its
  *                                variance.R/G/B channels (the variance of each pixel's mean):
  *                                sqrt(mean over pixels and R,G,B of the variance) / mean of R,G,B
@@ -22,7 +27,8 @@
  *                                values (AOVs: Z is +inf where nothing is hit)
  *   exrtool synth OUT.exr W H V [--checker AMP] [--var VAR]
  *                                writes a test image: R,G,B = V (+AMP where x + y is even, -AMP
- *                                where odd, with --checker), A = 1, every variance channel = VAR
+ *                                where odd, with --checker; +AMP at pixel (1, 2) with --spot), A = 1,
+ *                                every variance channel = VAR
  * Reads files through imgio_read (OpenEXRCore); writes tiled EXRs through imgio's writer. */
 #include "image/imgio.h"
 #include "base/log.h"
@@ -174,6 +180,54 @@ static int relrmse(int argc, char **argv)
     return 0;
 }
 
+static int cmp_desc(const void *x, const void *y)
+{
+    double a = *(const double *)x, b = *(const double *)y;
+    return (a < b) - (a > b);
+}
+
+/* errtop: how much of the squared error the worst pixels hold (fireflies). */
+struct pixerr { double e; uint32_t i; };
+
+static int cmp_pixerr(const void *x, const void *y)
+{
+    return cmp_desc(&((const struct pixerr *)x)->e, &((const struct pixerr *)y)->e);
+}
+
+static int errtop(const char *pa, const char *pref, int worst)
+{
+    uint32_t w, h;
+    float *a, *b;
+    load_pair(pa, pref, channels, 4, &a, &b, &w, &h);
+    size_t np = (size_t)w * h;
+    struct pixerr *e = malloc(np * sizeof *e);
+    double tot = 0;
+    for (size_t i = 0; i < np; i++) {
+        e[i].e = 0;
+        e[i].i = (uint32_t)i;
+        for (int c = 0; c < 3; c++) {
+            double d = (double)a[i * 4 + c] - b[i * 4 + c];
+            e[i].e += d * d;
+        }
+        tot += e[i].e;
+    }
+    qsort(e, np, sizeof *e, cmp_pixerr);
+    size_t k1 = (np + 999) / 1000, k2 = (np + 99) / 100;
+    double s1 = 0, s2 = 0;
+    for (size_t i = 0; i < k2 && i < np; i++) {
+        if (i < k1)
+            s1 += e[i].e;
+        s2 += e[i].e;
+    }
+    printf("%.6g %.6g\n", tot > 0 ? s1 / tot : 0.0, tot > 0 ? s2 / tot : 0.0);
+    for (size_t i = 0; i < (size_t)worst && i < np; i++)
+        printf("%u %u %.6g %.6g %.6g\n", e[i].i % w, e[i].i / w, e[i].e, (double)a[e[i].i * 4], (double)b[e[i].i * 4]);
+    free(a);
+    free(b);
+    free(e);
+    return 0;
+}
+
 /* errest and semean: the noise the image states for itself. */
 static int noise(const char *cmd, const char *path)
 {
@@ -221,16 +275,18 @@ static int average(const char *out, const char *pa, const char *pb)
 static int synth(int argc, char **argv)
 {
     if (argc < 6 || argc % 2) {
-        fprintf(stderr, "usage: exrtool synth OUT.exr W H V [--checker AMP] [--var VAR]\n");
+        fprintf(stderr, "usage: exrtool synth OUT.exr W H V [--checker AMP] [--var VAR] [--spot AMP]\n");
         return 2;
     }
     uint32_t w = (uint32_t)atoi(argv[3]), h = (uint32_t)atoi(argv[4]);
-    double v = atof(argv[5]), amp = 0, var = 0;
+    double v = atof(argv[5]), amp = 0, var = 0, spot = 0;
     for (int i = 6; i + 1 < argc; i += 2) {
         if (!strcmp(argv[i], "--checker"))
             amp = atof(argv[i + 1]);
         else if (!strcmp(argv[i], "--var"))
             var = atof(argv[i + 1]);
+        else if (!strcmp(argv[i], "--spot"))
+            spot = atof(argv[i + 1]);
         else {
             fprintf(stderr, "exrtool: unknown option %s\n", argv[i]);
             return 2;
@@ -245,7 +301,7 @@ static int synth(int argc, char **argv)
         for (uint32_t x = 0; x < w; x++) {
             float *p = &px[((size_t)y * w + x) * NCH];
             for (int c = 0; c < 3; c++) {
-                p[c] = (float)(v + ((x + y) % 2 ? -amp : amp));
+                p[c] = (float)(v + ((x + y) % 2 ? -amp : amp) + (x == 1 && y == 2 ? spot : 0.0));
                 p[4 + c] = (float)var;
             }
             p[3] = 1.0f;
@@ -298,6 +354,8 @@ int main(int argc, char **argv)
 {
     if (argc >= 2 && !strcmp(argv[1], "relrmse"))
         return relrmse(argc, argv);
+    if ((argc == 4 || argc == 5) && !strcmp(argv[1], "errtop"))
+        return errtop(argv[2], argv[3], argc == 5 ? atoi(argv[4]) : 0);
     if (argc == 3 && (!strcmp(argv[1], "errest") || !strcmp(argv[1], "semean")))
         return noise(argv[1], argv[2]);
     if (argc == 5 && !strcmp(argv[1], "average"))
@@ -348,7 +406,7 @@ int main(int argc, char **argv)
     }
     if (argc != 4 || (strcmp(argv[1], "cmp") && strcmp(argv[1], "rmse"))) {
         fprintf(stderr, "usage: exrtool cmp A.exr B.exr | rmse A.exr REF.exr | mean A.exr | cmprect A B X0 Y0 W H |\n"
-                        "       relrmse A.exr REF.exr [--box N] | errest A.exr | semean A.exr |\n"
+                        "       relrmse A.exr REF.exr [--box N] | errtop A.exr REF.exr [N] | errest A.exr | semean A.exr |\n"
                         "       average OUT.exr A.exr B.exr | synth OUT.exr W H V [--checker AMP] [--var VAR]\n");
         return 2;
     }

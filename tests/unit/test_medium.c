@@ -2,7 +2,8 @@
  * - Beer-Lambert through a homogeneous slab (shadow rays and camera rays), exact to float
  *   precision, for sigma_t from 1e-6 to 1e6;
  * - single scattering from a point light in an isotropic medium against the airlight
- *   integral (quadrature in double), within 1 %;
+ *   integral (quadrature in double), within 1 %, and from a small area light close to the
+ *   ray (equiangular sampling toward a point on the light) within noise;
  * - a media white furnace (albedo 1, uniform surroundings) with the volumetric path tracer;
  * - Henyey-Greenstein: normalisation and a chi-square test of sampling, g up to +-0.999;
  * - the photon map (beam and per-step estimates) against the path tracer on a
@@ -41,7 +42,10 @@
 static uint8_t g_grid[20 + 4 * GN * GN * GN];
 /* A white floor: the square y = -1.2, |x|, |z| <= 4, facing up. */
 #define FLOOR_OBJ "v -4 -1.2 -4\nv 4 -1.2 -4\nv 4 -1.2 4\nv -4 -1.2 4\nf 1 4 3 2\n"
+/* A small lamp: the square y = 0.3, |x|, |z| <= 0.25, emitting downwards (-y). */
+#define LAMP_OBJ "v -0.25 0.3 -0.25\nv 0.25 0.3 -0.25\nv 0.25 0.3 0.25\nv -0.25 0.3 0.25\nf 1 2 3 4\n"
 static struct mem_file g_files[] = {{"box.obj", BOX_OBJ, 0}, {"box_out.obj", BOX_OUT_OBJ, 0}, {"floor.obj", FLOOR_OBJ, 0},
+                                    {"lamp.obj", LAMP_OBJ, 0},
                                     {"g.grid", (const char *)g_grid, sizeof g_grid}, {NULL, NULL, 0}};
 
 static float grid_value(int x, int y, int z)
@@ -148,19 +152,39 @@ Test(medium, beer_lambert_slab)
 
 /* ---- single scattering: the airlight integral ---- */
 
-static double airlight(double I, double ss, double st, vec3 o, vec3 d, vec3 lp, double tmax)
+/* A single-scattering integrand along o + t d (|d| = 1) in an isotropic medium of sigma_s
+ * ss and sigma_t st, from a point light of intensity I at lp or from the lamp (LAMP_OBJ)
+ * of radiance I (lamp set), integrated by composite Simpson in double. */
+struct ss_case { double I, ss, st; vec3 o, d, lp; int lamp; };
+
+static double ss_integrand(const struct ss_case *c, double t)
 {
-    /* Composite Simpson in double on a fine grid (the integrand is smooth; its peak has
-     * the width of the ray's distance to the light). */
-    const int n = 2000000;
-    double h = tmax / n, sum = 0.0;
-    for (int i = 0; i <= n; i++) {
-        double t = i * h;
-        double x = o.x + t * d.x - lp.x, y = o.y + t * d.y - lp.y, z = o.z + t * d.z - lp.z;
-        double r2 = x * x + y * y + z * z;
-        double f = ss / (4 * M_PI) * I * exp(-st * t) * exp(-st * sqrt(r2)) / r2;
-        sum += f * (i == 0 || i == n ? 1 : (i % 2 ? 4 : 2));
+    double x = c->o.x + t * c->d.x, y = c->o.y + t * c->d.y, z = c->o.z + t * c->d.z;
+    double in = 0.0;
+    if (!c->lamp) {
+        double dx = x - c->lp.x, dy = y - c->lp.y, dz = z - c->lp.z, r2 = dx * dx + dy * dy + dz * dz;
+        in = exp(-c->st * sqrt(r2)) / r2;
+    } else {
+        /* midpoint rule on the lamp: L_e cos_l / r^2 dA */
+        const int m = 24;
+        double cell = 0.5 / m;
+        for (int a = 0; a < m; a++)
+            for (int b = 0; b < m; b++) {
+                double dx = x - (-0.25 + (a + 0.5) * cell), dy = y - 0.3, dz = z - (-0.25 + (b + 0.5) * cell);
+                double r2 = dx * dx + dy * dy + dz * dz, r = sqrt(r2);
+                if (dy < 0)
+                    in += exp(-c->st * r) * (-dy / r) / r2 * cell * cell;
+            }
     }
+    return c->ss / (4 * M_PI) * c->I * exp(-c->st * t) * in;
+}
+
+static double airlight(const struct ss_case *c, double tmax, int n)
+{
+    /* The integrand is smooth; its peak has the width of the ray's distance to the light. */
+    double h = tmax / n, sum = 0.0;
+    for (int i = 0; i <= n; i++)
+        sum += ss_integrand(c, i * h) * (i == 0 || i == n ? 1 : (i % 2 ? 4 : 2));
     return sum * h / 3.0;
 }
 
@@ -181,7 +205,8 @@ Test(medium, single_scattering_airlight)
     cr_assert_eq(job.media->camera_medium, 0u);
     vec3 o = v3(-5, 1, 0), d = v3(1, 0, 0);
     double tmax = 5.0 + sqrt(50.0 * 50.0 - 1.0);
-    double ref = airlight(10, 0.05, 0.1, o, d, v3(0, 0, 0), tmax);
+    struct ss_case c = {10, 0.05, 0.1, o, d, v3(0, 0, 0), 0};
+    double ref = airlight(&c, tmax, 2000000);
     double sum = 0.0;
     const int n = 64;
     uint64_t rays = 0;
@@ -207,6 +232,46 @@ Test(medium, single_scattering_airlight)
     }
     double mean = s1 / m, se = sqrt(fmax(0.0, s2 / m - mean * mean) / m);
     cr_assert(fabs(mean - ref) < 4 * se + 0.005 * ref, "vpt %g +- %g vs airlight %g", mean, se, ref);
+    render_job_fini(&job);
+    scene_fini(&s);
+}
+
+Test(medium, single_scattering_area_light)
+{
+    /* The camera ray passes 0.3 under a small lamp in an isotropic fog inside a black
+     * sphere: VPT at max_depth 1 (free flight + NEE, phase sampling, and one equiangular
+     * sample toward a point on the lamp, MIS-weighted) against the quadrature. Without the
+     * equiangular sample the points near the lamp (1/r^2) make the estimate heavy-tailed:
+     * its standard error here is 1.2 % of the mean (measured), with it 0.2 %. */
+    const char *text = HEAD("\"position\": [-5, 0, 0], \"look_at\": [0, 0, 0]", 1, 1, 1, 1)
+        ",\n\"materials\": {\"black\": {\"type\": \"diffuse\", \"albedo\": [0, 0, 0]},\n"
+        "  \"lamp\": {\"type\": \"diffuse\", \"albedo\": [0, 0, 0], \"emission\": [10, 10, 10]}},\n"
+        "\"media\": {\"fog\": {\"sigma_a\": [0.05, 0.05, 0.05], \"sigma_s\": [0.05, 0.05, 0.05]}},\n"
+        "\"volume\": {\"method\": \"vpt\", \"fog\": \"fog\"},\n"
+        "\"objects\": [{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 50, \"material\": \"black\"},\n"
+        "  {\"type\": \"obj\", \"file\": \"lamp.obj\", \"material\": \"lamp\"}]}";
+    struct scene s;
+    load_ok(text, &s);
+    struct render_job job;
+    job_ok(&job, &s);
+    vec3 o = v3(-5, 0, 0), d = v3(1, 0, 0);
+    struct ss_case c = {10, 0.05, 0.1, o, d, v3(0, 0, 0), 1};
+    double ref = airlight(&c, 55.0, 20000);
+    double s1 = 0.0, s2 = 0.0;
+    const int m = 100000;
+    uint64_t rays = 0;
+    for (int i = 0; i < m; i++) {
+        struct sampler smp = sampler_start(13, 0, 0, (uint32_t)i);
+        int hit;
+        double v = media_sample_path(&job, &smp, 0, 0, o, d, 0.0f, &rays, &hit).x;
+        cr_assert(isfinite(v));
+        s1 += v;
+        s2 += v * v;
+    }
+    double mean = s1 / m, se = sqrt(fmax(0.0, s2 / m - mean * mean) / m);
+    cr_log_info("area light single scattering: vpt %g +- %g, quadrature %g", mean, se, ref);
+    cr_assert(fabs(mean - ref) < 4 * se + 0.005 * ref, "vpt %g +- %g vs quadrature %g", mean, se, ref);
+    cr_assert(se < 0.005 * ref, "vpt's standard error %g is %g of the mean", se, se / ref);
     render_job_fini(&job);
     scene_fini(&s);
 }
