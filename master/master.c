@@ -1059,7 +1059,7 @@ static void result_nonfinite(struct master *m, int32_t pi, uint32_t u)
     if (first < 0) {
         log_warn("worker %s: tile %u has non-finite values; rendered again elsewhere to tell the scene from the worker",
                  m->peers[pi].name, u);
-        sched_result_nonfinite(m->sched, pi, u);
+        sched_result_nonfinite(m->sched, pi, u, net_now_ms());
         return;
     }
     uint32_t t = unit_tile(m, u), tiles_x = imgio_tiles_x(&m->desc), x0, y0, w, h;

@@ -316,7 +316,8 @@ int sched_assign_next(struct sched *s, uint64_t now_ms, struct sched_assignment 
         for (uint32_t qi = 0; qi < s->q_count; qi++) {
             uint32_t tile = s->queue[qi];
             if (tile >= s->released || (s->tiles[tile].crashes > 0 && w->in_flight > 0) ||
-                (s->tiles[tile].nonfinite_by == (int32_t)i + 1 && other_ready_worker(s, i)))
+                (s->tiles[tile].nonfinite_by == (int32_t)i + 1 &&
+                 (other_ready_worker(s, i) || now_ms < s->tiles[tile].nonfinite_ms + SCHED_NONFINITE_WAIT_MS)))
                 continue;
             queue_remove_at(s, qi);
             give(s, tile, (int32_t)i, 0, now_ms, a);
@@ -391,11 +392,12 @@ int sched_result_invalid(struct sched *s, int32_t wi, uint32_t tile, struct sche
     return sent_invalid(s, wi, ev);
 }
 
-void sched_result_nonfinite(struct sched *s, int32_t wi, uint32_t tile)
+void sched_result_nonfinite(struct sched *s, int32_t wi, uint32_t tile, uint64_t now_ms)
 {
     drop_holder(s, tile, wi);
     s->workers[wi].isolated = 0;
     s->tiles[tile].nonfinite_by = wi + 1;
+    s->tiles[tile].nonfinite_ms = now_ms;
 }
 
 int sched_worker_invalid(struct sched *s, int32_t wi, struct sched_eviction *ev)

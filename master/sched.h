@@ -27,6 +27,8 @@
 #define SCHED_MAX_HOLDERS 2     /* the first holder and one straggler copy */
 #define SCHED_CRASHES_TO_FAIL 3 /* distinct workers a tile may take down before the job fails */
 #define SCHED_FAILS_TO_BAN 3    /* invalid results in a row that ban a worker */
+#define SCHED_NONFINITE_WAIT_MS 10000 /* a tile returned non-finite waits this long for another
+                                       * worker before its only worker renders it again */
 
 /* SCHED_HELD: not wanted yet (adaptive rounds, sched_hold_all): in no queue, goes out
  * only after sched_unhold; a result or kept copy of it is stale. */
@@ -42,7 +44,9 @@ struct sched_tile {
     uint32_t crashes;               /* distinct workers that died holding it */
     int requeued;                   /* its next assignment is a re-issue */
     int32_t nonfinite_by;           /* 1 + the worker whose result was non-finite (it does not get the
-                                     * tile again while another worker lives), or 0 */
+                                     * tile again while another worker is ready, nor within
+                                     * SCHED_NONFINITE_WAIT_MS while none is), or 0 */
+    uint64_t nonfinite_ms;          /* when that result came */
 };
 
 struct sched_worker {
@@ -167,7 +171,7 @@ int sched_result_invalid(struct sched *s, int32_t w, uint32_t tile, struct sched
  * queue and, while another worker lives, goes to another worker; no blame yet. The
  * caller judges by the next result: non-finite again fails the job (the scene's), a
  * valid one from another worker blames w (sched_worker_invalid). */
-void sched_result_nonfinite(struct sched *s, int32_t w, uint32_t tile);
+void sched_result_nonfinite(struct sched *s, int32_t w, uint32_t tile, uint64_t now_ms);
 /* An invalid result of w found out later (its non-finite tile rendered finite elsewhere):
  * counts towards a ban like sched_result_invalid (same return and *ev). */
 int sched_worker_invalid(struct sched *s, int32_t w, struct sched_eviction *ev);

@@ -304,7 +304,8 @@ Test(sched, a_ban_after_three_invalid_results_in_a_row)
 }
 
 /* A non-finite result blames nobody yet: the tile goes to another ready worker (the one
- * that returned it gets it again only when it is the only one), and the streak is
+ * that returned it gets it again only when it is the only one, and after
+ * SCHED_NONFINITE_WAIT_MS, so that a worker about to join settles it), and the streak is
  * untouched; sched_worker_invalid counts later, like an invalid result. */
 Test(sched, a_nonfinite_tile_goes_to_another_worker_without_blame)
 {
@@ -313,7 +314,7 @@ Test(sched, a_nonfinite_tile_goes_to_another_worker_without_blame)
     cr_assert_eq(a.worker, 0);
     cr_assert_eq(b.worker, 1);
     sched_worker_credit(s, 0);
-    sched_result_nonfinite(s, 0, a.tile);
+    sched_result_nonfinite(s, 0, a.tile, 0);
     cr_assert_eq(s->workers[0].fail_streak, 0);
     cr_assert_eq(s->tiles[a.tile].nonfinite_by, 1);
     struct sched_assignment c = give_one(s, 1);
@@ -328,11 +329,12 @@ Test(sched, a_nonfinite_tile_goes_to_another_worker_without_blame)
     cr_assert_eq(s->workers[0].fail_streak, 1);
     sched_free(&s);
 
-    s = setup(2, 1, 1); /* the only worker gets it again */
+    s = setup(1, 1, 1); /* the only worker gets it again, once nobody else came */
     a = give_one(s, 0);
     sched_worker_credit(s, 0);
-    sched_result_nonfinite(s, 0, a.tile);
-    b = give_one(s, 1);
+    sched_result_nonfinite(s, 0, a.tile, 10);
+    assert_none(s, 10 + SCHED_NONFINITE_WAIT_MS - 1);
+    b = give_one(s, 10 + SCHED_NONFINITE_WAIT_MS);
     cr_assert_eq(b.tile, a.tile);
     cr_assert_eq(b.worker, 0);
     sched_free(&s);
