@@ -67,7 +67,7 @@ void fluid_init(struct fluid *f, const struct smoke_settings *s)
     }
     pthread_once(&fftw_once, fftw_setup);
     pthread_mutex_lock(&planner_lock);
-    fftwf_plan_with_nthreads((int)(s->fftw_threads ? s->fftw_threads : 1));
+    fftwf_plan_with_nthreads((int)(s->threads ? s->threads : 1));
     /* FFTW's row-major dims: z slowest, x fastest. ESTIMATE: no timing, same plan every run. */
     f->plan_fwd = fftwf_plan_dft_r2c_3d((int)f->nz, (int)f->ny, (int)f->nx, f->tmp[0], f->spec[0],
                                         FFTW_ESTIMATE);
@@ -91,6 +91,46 @@ void fluid_free(struct fluid *f)
     for (int c = 0; c < 3; c++)
         fftwf_free(f->spec[c]);
     memset(f, 0, sizeof *f);
+}
+
+/* ---- threads ---- */
+
+/* Runs fn over z slabs [k0, k1) on s.threads threads (the calling one included). Each
+ * voxel is written by one slab from inputs no slab writes, so the result does not depend
+ * on the thread count. */
+typedef void (*slab_fn)(const struct fluid *f, void *arg, uint32_t k0, uint32_t k1);
+struct slab_job {
+    const struct fluid *f;
+    void *arg;
+    slab_fn fn;
+    uint32_t k0, k1;
+};
+static void *slab_main(void *p)
+{
+    struct slab_job *j = p;
+    j->fn(j->f, j->arg, j->k0, j->k1);
+    return NULL;
+}
+#define MAX_SLAB_THREADS 64
+static void par_slabs(const struct fluid *f, slab_fn fn, void *arg)
+{
+    uint32_t t = f->s.threads < 1 ? 1 : f->s.threads;
+    t = t > MAX_SLAB_THREADS ? MAX_SLAB_THREADS : t;
+    t = t > f->nz ? f->nz : t;
+    if (t == 1) {
+        fn(f, arg, 0, f->nz);
+        return;
+    }
+    struct slab_job jobs[MAX_SLAB_THREADS] = {{0}};
+    pthread_t tid[MAX_SLAB_THREADS];
+    for (uint32_t i = 0; i < t; i++)
+        jobs[i] = (struct slab_job){f, arg, fn, (uint32_t)((uint64_t)f->nz * i / t),
+                                    (uint32_t)((uint64_t)f->nz * (i + 1) / t)};
+    for (uint32_t i = 1; i < t; i++)
+        CHECK(pthread_create(&tid[i], NULL, slab_main, &jobs[i]) == 0);
+    slab_main(&jobs[0]);
+    for (uint32_t i = 1; i < t; i++)
+        pthread_join(tid[i], NULL);
 }
 
 /* ---- advection ---- */
@@ -162,17 +202,29 @@ static void backtrace(const struct fluid *f, uint32_t i, uint32_t j, uint32_t k,
 }
 
 /* Advects count fields src[c] into dst[c] through the current velocity. */
-static void advect_fields(const struct fluid *f, const float *const *src, float *const *dst, int count, float dt)
+struct advect_arg {
+    const float *const *src;
+    float *const *dst;
+    int count;
+    float dt;
+};
+static void advect_slab(const struct fluid *f, void *p, uint32_t k0, uint32_t k1)
 {
-    size_t idx = 0;
-    for (uint32_t k = 0; k < f->nz; k++)
+    const struct advect_arg *a = p;
+    size_t idx = (size_t)k0 * f->nx * f->ny;
+    for (uint32_t k = k0; k < k1; k++)
         for (uint32_t j = 0; j < f->ny; j++)
             for (uint32_t i = 0; i < f->nx; i++, idx++) {
                 struct lerp l;
-                backtrace(f, i, j, k, idx, dt, &l);
-                for (int c = 0; c < count; c++)
-                    dst[c][idx] = lerp_get(&l, src[c]);
+                backtrace(f, i, j, k, idx, a->dt, &l);
+                for (int c = 0; c < a->count; c++)
+                    a->dst[c][idx] = lerp_get(&l, a->src[c]);
             }
+}
+static void advect_fields(const struct fluid *f, const float *const *src, float *const *dst, int count, float dt)
+{
+    struct advect_arg a = {src, dst, count, dt};
+    par_slabs(f, advect_slab, &a);
 }
 
 void fluid_advect_scalar(const struct fluid *f, const float *src, float *dst, float dt)
@@ -322,17 +374,14 @@ static inline size_t at(const struct fluid *f, uint32_t i, uint32_t j, uint32_t 
 
 /* Buoyancy (Fedkiw et al. 2001: f = (-alpha d + beta T) up, ambient temperature 0) and
  * vorticity confinement f = epsilon h (N x omega), N = grad|omega| / |grad|omega||, with
- * periodic central differences. */
-static void add_forces(struct fluid *f, float dt)
+ * periodic central differences. First pass: buoyancy and omega (into tmp[0..3]); second:
+ * the confinement force. */
+static void vorticity_slab(const struct fluid *f, void *arg, uint32_t k0, uint32_t k1)
 {
-    const struct smoke_settings *s = &f->s;
-    for (size_t i = 0; i < f->n; i++)
-        f->v[i] += dt * (-s->alpha * f->d[i] + s->beta * f->t[i]);
-    if (s->epsilon <= 0.0f)
-        return;
+    (void)arg;
     float inv2h = 0.5f / f->h;
     float *ox = f->tmp[0], *oy = f->tmp[1], *oz = f->tmp[2], *mag = f->tmp[3];
-    for (uint32_t k = 0; k < f->nz; k++) {
+    for (uint32_t k = k0; k < k1; k++) {
         uint32_t km = k ? k - 1 : f->nz - 1, kp = k + 1 == f->nz ? 0 : k + 1;
         for (uint32_t j = 0; j < f->ny; j++) {
             uint32_t jm = j ? j - 1 : f->ny - 1, jp = j + 1 == f->ny ? 0 : j + 1;
@@ -352,14 +401,25 @@ static void add_forces(struct fluid *f, float dt)
             }
         }
     }
+}
+
+static void force_slab(const struct fluid *f, void *arg, uint32_t k0, uint32_t k1)
+{
+    const struct smoke_settings *s = &f->s;
+    float dt = *(const float *)arg;
+    float inv2h = 0.5f / f->h;
+    const float *ox = f->tmp[0], *oy = f->tmp[1], *oz = f->tmp[2], *mag = f->tmp[3];
     float scale = s->epsilon * f->h * dt;
-    for (uint32_t k = 0; k < f->nz; k++) {
+    for (uint32_t k = k0; k < k1; k++) {
         uint32_t km = k ? k - 1 : f->nz - 1, kp = k + 1 == f->nz ? 0 : k + 1;
         for (uint32_t j = 0; j < f->ny; j++) {
             uint32_t jm = j ? j - 1 : f->ny - 1, jp = j + 1 == f->ny ? 0 : j + 1;
             for (uint32_t i = 0; i < f->nx; i++) {
-                uint32_t im = i ? i - 1 : f->nx - 1, ip = i + 1 == f->nx ? 0 : i + 1;
                 size_t c = at(f, i, j, k);
+                f->v[c] += dt * (-s->alpha * f->d[c] + s->beta * f->t[c]);
+                if (s->epsilon <= 0.0f)
+                    continue;
+                uint32_t im = i ? i - 1 : f->nx - 1, ip = i + 1 == f->nx ? 0 : i + 1;
                 float gx = (mag[at(f, ip, j, k)] - mag[at(f, im, j, k)]) * inv2h;
                 float gy = (mag[at(f, i, jp, k)] - mag[at(f, i, jm, k)]) * inv2h;
                 float gz = (mag[at(f, i, j, kp)] - mag[at(f, i, j, km)]) * inv2h;
@@ -375,6 +435,13 @@ static void add_forces(struct fluid *f, float dt)
             }
         }
     }
+}
+
+static void add_forces(struct fluid *f, float dt)
+{
+    if (f->s.epsilon > 0.0f)
+        par_slabs(f, vorticity_slab, &dt);
+    par_slabs(f, force_slab, &dt);
 }
 
 /* Damping rate at index m of n: strength ((W - e) / W)^2 where e is the distance to the

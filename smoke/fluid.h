@@ -27,7 +27,7 @@ struct fluid {
     double wall[PH_COUNT_];
 };
 
-/* Allocates the state (zero) and makes the FFTW plans with s->fftw_threads threads. */
+/* Allocates the state (zero) and makes the FFTW plans with s->threads threads. */
 void fluid_init(struct fluid *f, const struct smoke_settings *s);
 void fluid_free(struct fluid *f);
 /* One time step of s.dt: source, forces, advect velocity, sponge on velocity, diffuse and

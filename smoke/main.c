@@ -1,6 +1,6 @@
 /* smokesim: runs a stable-fluids smoke simulation from a JSON settings file and writes one
  * density grid per frame, resumably (docs/smoke.md).
- * Usage: smokesim SETTINGS.json [--out DIR] [--fftw-threads N] [--restart]
+ * Usage: smokesim SETTINGS.json [--out DIR] [--threads N] [--restart]
  *                 [--bench STEPS [--res N]] */
 #include "base/cli.h"
 #include "base/log.h"
@@ -23,7 +23,7 @@ static double now_s(void)
 
 static void usage(void)
 {
-    fprintf(stderr, "usage: smokesim SETTINGS.json [--out DIR] [--fftw-threads N] [--restart] "
+    fprintf(stderr, "usage: smokesim SETTINGS.json [--out DIR] [--threads N] [--restart] "
                     "[--bench STEPS [--res N]]\n");
     exit(2);
 }
@@ -72,7 +72,7 @@ int main(int argc, char **argv)
         const char *a = argv[i];
         if (strcmp(a, "--out") == 0 && i + 1 < argc) {
             out_dir = argv[++i];
-        } else if (strcmp(a, "--fftw-threads") == 0 && i + 1 < argc) {
+        } else if (strcmp(a, "--threads") == 0 && i + 1 < argc) {
             if (cli_parse_u64(a, argv[++i], 1, 256, &threads, err, sizeof err) != 0) {
                 fprintf(stderr, "smokesim: %s\n", err);
                 return 2;
@@ -111,7 +111,7 @@ int main(int argc, char **argv)
     }
     free(text);
     if (threads)
-        s.fftw_threads = (uint32_t)threads;
+        s.threads = (uint32_t)threads;
     if (res) {
         /* Bench: same physical setup at another resolution (sponge scaled with it). */
         s.sponge_width = (uint32_t)((uint64_t)s.sponge_width * res / s.res[0]);
@@ -135,9 +135,9 @@ int main(int argc, char **argv)
             cpu += f.cpu[p];
         struct rusage ru;
         getrusage(RUSAGE_SELF, &ru);
-        printf("res %ux%ux%u fftw_threads %u steps %llu wall_ms_per_step %.2f cpu_ms_per_step %.2f "
+        printf("res %ux%ux%u threads %u steps %llu wall_ms_per_step %.2f cpu_ms_per_step %.2f "
                "fft_share %.3f advect_share %.3f maxrss_kib %ld bytes_per_voxel %zu grid_bytes %zu\n",
-               f.nx, f.ny, f.nz, s.fftw_threads, (unsigned long long)bench, 1e3 * wall / (double)bench,
+               f.nx, f.ny, f.nz, s.threads, (unsigned long long)bench, 1e3 * wall / (double)bench,
                1e3 * cpu / (double)bench, cpu > 0 ? f.cpu[PH_FFT] / cpu : 0.0, cpu > 0 ? f.cpu[PH_ADVECT] / cpu : 0.0,
                ru.ru_maxrss, fluid_bytes_per_voxel(), store_grid_bytes(&f));
         phase_report(&f, bench);

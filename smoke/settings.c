@@ -32,7 +32,7 @@ void smoke_settings_default(struct smoke_settings *s)
     s->sponge_width = 4;
     s->sponge_strength = 20.0f;
     s->seed = 1;
-    s->fftw_threads = 1;
+    s->threads = 1;
     snprintf(s->output, sizeof s->output, "smoke.####.grid");
 }
 
@@ -234,7 +234,7 @@ static int check_keys(const struct ctx *c, json_t *obj, const char *parent, cons
 
 static const char *const top_keys[] = {"version", "resolution", "size", "frames", "steps_per_frame", "dt",
                                        "viscosity", "buoyancy", "confinement", "source", "sponge", "seed",
-                                       "fftw_threads", "output", NULL};
+                                       "threads", "output", NULL};
 static const char *const buoy_keys[] = {"alpha", "beta", NULL};
 static const char *const source_keys[] = {"center", "radius", "rate", "temperature", "velocity", "jitter", NULL};
 static const char *const sponge_keys[] = {"width", "strength", NULL};
@@ -321,10 +321,10 @@ static int parse_object(const struct ctx *c, json_t *root, struct smoke_settings
             return -1;
         s->seed = u;
     }
-    if (json_object_get(root, "fftw_threads")) {
-        if (get_uint(c, root, P1("fftw_threads"), 1, 1, 256, &u))
+    if (json_object_get(root, "threads")) {
+        if (get_uint(c, root, P1("threads"), 1, 1, 256, &u))
             return -1;
-        s->fftw_threads = (uint32_t)u;
+        s->threads = (uint32_t)u;
     }
     json_t *out = json_object_get(root, "output");
     if (out) {
@@ -374,8 +374,8 @@ int smoke_settings_check(const struct smoke_settings *s, char *err, size_t errle
                              "strength >= 0; jitter in [0, 1]");
         return -1;
     }
-    if (s->frames < 1 || s->steps_per_frame < 1 || s->fftw_threads < 1) {
-        str_fmt(err, errlen, "frames, steps_per_frame and fftw_threads must be >= 1");
+    if (s->frames < 1 || s->steps_per_frame < 1 || s->threads < 1) {
+        str_fmt(err, errlen, "frames, steps_per_frame and threads must be >= 1");
         return -1;
     }
     char name[300];

@@ -28,7 +28,7 @@ struct smoke_settings {
     uint32_t sponge_width;  /* voxels from each face */
     float sponge_strength;  /* damping rate (1/s) at the face */
     uint64_t seed;
-    uint32_t fftw_threads;  /* 1 by default (docs/smoke.md, determinism) */
+    uint32_t threads;       /* FFTW threads and slabs of the grid loops; 1 by default */
     char output[256];       /* pattern with one run of '#', relative to the settings' folder */
 };
 

@@ -87,7 +87,7 @@ uint64_t store_settings_hash(const struct smoke_settings *s)
 {
     struct smoke_settings c = *s;
     c.frames = 0;
-    c.fftw_threads = 0;
+    c.threads = 0;
     memset(c.output, 0, sizeof c.output);
     const uint8_t *p = (const uint8_t *)&c;
     uint64_t h = 0xcbf29ce484222325ull;  /* FNV-1a */

@@ -49,7 +49,7 @@ run $S "$T/c/sim.json" && same_frames "$T/a" "$T/c" 8 \
   || bad "resume after kill -9"
 
 settings "$T/d/sim.json" 8
-run $S "$T/d/sim.json" --fftw-threads 2 && same_frames "$T/a" "$T/d" 8 \
+run $S "$T/d/sim.json" --threads 2 && same_frames "$T/a" "$T/d" 8 \
   && ok "2 FFTW threads: frames bit-identical to 1" || bad "threads"
 
 printf '{\n  "resolution": [1, 1, 1]\n}\n' >"$T/bad.json"

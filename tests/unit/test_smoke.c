@@ -167,9 +167,9 @@ Test(smoke, threads_bit_identical)
     small_settings(&s, 32, 48, 32);
     s.source_center[1] = 0.3f;
     struct fluid a, b;
-    s.fftw_threads = 1;
+    s.threads = 1;
     run_steps(&s, 6, &a);
-    s.fftw_threads = 2;
+    s.threads = 2;
     run_steps(&s, 6, &b);
     double mass = 0.0;
     for (size_t i = 0; i < a.n; i++)
