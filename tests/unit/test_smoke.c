@@ -53,13 +53,19 @@ static void random_velocity(struct fluid *f, uint64_t seed, float amp)
         }
 }
 
-Test(smoke, projection_is_divergence_free)
+/* A fluid of nx ny nz voxels with default settings and random_velocity(seed, amp). */
+static void fluid_with_velocity(struct fluid *f, uint32_t nx, uint32_t ny, uint32_t nz, uint64_t seed, float amp)
 {
     struct smoke_settings s;
-    small_settings(&s, 16, 24, 12);
+    small_settings(&s, nx, ny, nz);
+    fluid_init(f, &s);
+    random_velocity(f, seed, amp);
+}
+
+Test(smoke, projection_is_divergence_free)
+{
     struct fluid f;
-    fluid_init(&f, &s);
-    random_velocity(&f, 3, 1.0f);
+    fluid_with_velocity(&f, 16, 24, 12, 3, 1.0f);
     double div0, vel0, div, vel;
     fluid_divergence(&f, &div0, &vel0);
     cr_assert_gt(div0, 0.1 * vel0, "the test field must start divergent (%g of %g)", div0, vel0);
@@ -102,11 +108,8 @@ Test(smoke, fourier_mode_decays_exactly)
 
 Test(smoke, constant_stays_constant)
 {
-    struct smoke_settings s;
-    small_settings(&s, 16, 16, 16);
     struct fluid f;
-    fluid_init(&f, &s);
-    random_velocity(&f, 5, 3.0f);
+    fluid_with_velocity(&f, 16, 16, 16, 5, 3.0f);
     for (size_t i = 0; i < f.n; i++)
         f.d[i] = 0.37f;
     fluid_advect_scalar(&f, f.d, f.tmp[3], 0.05f);
@@ -117,11 +120,8 @@ Test(smoke, constant_stays_constant)
 
 Test(smoke, density_conserved_without_sources)
 {
-    struct smoke_settings s;
-    small_settings(&s, 32, 32, 32);
     struct fluid f;
-    fluid_init(&f, &s);
-    random_velocity(&f, 9, 0.5f);
+    fluid_with_velocity(&f, 32, 32, 32, 9, 0.5f);
     fluid_project(&f, 0.0f, 0.0f);
     size_t idx = 0;
     for (uint32_t k = 0; k < f.nz; k++)
@@ -229,30 +229,32 @@ static int all_finite(const struct fluid *f)
     return 1;
 }
 
+/* 10 steps of s: every value finite. */
+static void assert_finite_after(struct smoke_settings *s, const char *what)
+{
+    struct fluid f;
+    run_steps(s, 10, &f);
+    cr_assert(all_finite(&f), "%s", what);
+    fluid_free(&f);
+}
+
 Test(smoke, hard_cases_stay_finite)
 {
     struct smoke_settings s;
-    struct fluid f;
     small_settings(&s, 16, 16, 16);
     s.viscosity = 0.0f;
     s.epsilon = 50.0f;
-    run_steps(&s, 10, &f);
-    cr_assert(all_finite(&f), "zero viscosity, strong confinement");
-    fluid_free(&f);
+    assert_finite_after(&s, "zero viscosity, strong confinement");
     small_settings(&s, 16, 16, 16);
     s.alpha = 1e6f;
     s.beta = 1e6f;
     s.source_rate = 1e4f;
-    run_steps(&s, 10, &f);
-    cr_assert(all_finite(&f), "huge buoyancy");
-    fluid_free(&f);
+    assert_finite_after(&s, "huge buoyancy");
     small_settings(&s, 16, 16, 16);
     s.source_center[0] = s.source_center[1] = s.source_center[2] = 0.0f;
     s.source_radius = 0.3f;
     s.source_velocity[0] = -5.0f;
-    run_steps(&s, 10, &f);
-    cr_assert(all_finite(&f), "source on the border");
-    fluid_free(&f);
+    assert_finite_after(&s, "source on the border");
 }
 
 static int parse(const char *text, char *err, size_t errlen)
