@@ -378,6 +378,14 @@ int smoke_settings_check(const struct smoke_settings *s, char *err, size_t errle
         str_fmt(err, errlen, "frames, steps_per_frame and threads must be >= 1");
         return -1;
     }
+    for (int a = 0; a < 3; a++) {
+        float len = s->size * (float)s->res[a] / (float)s->res[0];
+        if (s->source_center[a] < 0.0f || s->source_center[a] > len) {
+            str_fmt(err, errlen, "source centre %g along axis %d is outside the domain [0, %g]",
+                    (double)s->source_center[a], a, (double)len);
+            return -1;
+        }
+    }
     char name[300];
     if (smoke_frame_name(s->output, 1, name, sizeof name)) {
         str_fmt(err, errlen, "output pattern \"%s\" needs exactly one run of '#'", s->output);

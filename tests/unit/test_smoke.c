@@ -282,6 +282,8 @@ Test(smoke, settings_refused_with_positions)
     cr_assert_eq(parse("{\"sponge\": {\"width\": 40}}", err, sizeof err), -1);
     cr_assert(strstr(err, "sponge"), "%s", err);
     cr_assert_eq(parse("[1]", err, sizeof err), -1);
+    cr_assert_eq(parse("{\"source\": {\"center\": [0.5, 1.5, 0.5]}}", err, sizeof err), -1);
+    cr_assert(strstr(err, "outside the domain"), "%s", err);
     struct smoke_settings s;
     smoke_settings_default(&s);
     s.beta = NAN;
