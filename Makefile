@@ -19,7 +19,7 @@ endif
 
 DEB_PKGS := gcc make pkg-config libembree-dev libopenexr-dev openexr libzmq3-dev libjansson-dev \
             libsodium-dev libpng-dev libstb-dev libcriterion-dev embree-tools gnuplot-nox python3 clang \
-            procps openssh-client openssh-server libnanovdb-dev g++ zlib1g-dev libblosc-dev
+            procps openssh-client openssh-server libnanovdb-dev g++ zlib1g-dev libblosc-dev libfftw3-dev
 DEPS_STAMP := $(BUILD)/.deps-ok
 
 # One folder per layer under common/ (see README, "Tour of the source"); sources by pattern.
@@ -29,6 +29,10 @@ COMMON_OBJ := $(COMMON_SRC:%.c=$(BUILD)/obj/%.o)
 MASTER_OBJ := $(patsubst %.c,$(BUILD)/obj/%.o,$(wildcard master/*.c))
 MASTER_LIB_OBJ := $(filter-out %/main.o,$(MASTER_OBJ))
 WORKER_OBJ := $(patsubst %.c,$(BUILD)/obj/%.o,$(wildcard worker/*.c))
+# The smoke simulator (smoke/): its modules without main() also go into the unit tests.
+SMOKE_OBJ  := $(patsubst %.c,$(BUILD)/obj/%.o,$(wildcard smoke/*.c))
+SMOKE_LIB_OBJ := $(filter-out %/main.o,$(SMOKE_OBJ))
+FFTW_LIBS  := -lfftw3f_threads -lfftw3f
 UNIT_SRC   := $(wildcard tests/unit/test_*.c) tests/unit/helpers.c
 UNIT_OBJ   := $(UNIT_SRC:%.c=$(BUILD)/obj/%.o)
 # Test tools: one source each in tests/tools/, linked with the library.
@@ -36,8 +40,8 @@ TOOLS      := exrtool junkpeer replay maketex texbench meshload
 TOOL_BIN   := $(TOOLS:%=$(BUILD)/%)
 TOOL_OBJ   := $(TOOLS:%=$(BUILD)/obj/tests/tools/%.o)
 
-.PHONY: all deps test layers unit integration demo bench bench-media bench-adaptive bench-materials clean fuzz fuzz-ci tools stress test-slurm test-netns
-all: $(BUILD)/master $(BUILD)/worker $(TOOL_BIN)
+.PHONY: smoke-sim bench-smoke all deps test layers unit integration demo bench bench-media bench-adaptive bench-materials clean fuzz fuzz-ci tools stress test-slurm test-netns
+all: $(BUILD)/master $(BUILD)/worker $(BUILD)/smokesim $(TOOL_BIN)
 
 # Install what is missing; the stamp makes later builds skip the check.
 $(DEPS_STAMP): scripts/install-deps.sh
@@ -63,11 +67,17 @@ $(BUILD)/master: $(MASTER_OBJ) $(BUILD)/libbrume.a
 $(BUILD)/worker: $(WORKER_OBJ) $(BUILD)/libbrume.a
 	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
 
+$(BUILD)/libsmoke.a: $(SMOKE_LIB_OBJ)
+	rm -f $@ && ar rcs $@ $^
+
+$(BUILD)/smokesim: $(BUILD)/obj/smoke/main.o $(BUILD)/libsmoke.a $(BUILD)/libbrume.a
+	$(CC) $(LDFLAGS) -o $@ $^ $(FFTW_LIBS) $(LDLIBS)
+
 $(TOOL_BIN): $(BUILD)/%: $(BUILD)/obj/tests/tools/%.o $(BUILD)/libbrume.a
 	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
 
-$(BUILD)/unit_tests: $(UNIT_OBJ) $(BUILD)/libmaster.a $(BUILD)/libbrume.a
-	$(CC) $(LDFLAGS) -o $@ $^ -lcriterion $(LDLIBS)
+$(BUILD)/unit_tests: $(UNIT_OBJ) $(BUILD)/libmaster.a $(BUILD)/libsmoke.a $(BUILD)/libbrume.a
+	$(CC) $(LDFLAGS) -o $@ $^ -lcriterion $(FFTW_LIBS) $(LDLIBS)
 
 # NanoVDB test files, written by NanoVDB's own C++ writer (never committed; see make_nvdb.cpp).
 # Plain g++ even under SAN=: it is a generator, not code under test.
@@ -106,6 +116,14 @@ test-slurm: all
 test-netns: all
 	BUILD=$(BUILD) sh tests/netns/run.sh
 
+# The animated smoke scene's grids (scenes/smoke_anim/smoke.####.grid, not committed; resumable).
+smoke-sim: $(BUILD)/smokesim
+	$(BUILD)/smokesim scenes/smoke_anim/sim.json
+
+# Time per step at 64^3 and 128^3 with 1 and 2 FFTW threads (docs/smoke.md).
+bench-smoke: $(BUILD)/smokesim
+	BUILD=$(BUILD) sh scripts/bench_smoke.sh
+
 demo: all
 	@mkdir -p out
 	$(BUILD)/master scenes/cornell/cornell.json -o out/cornell.exr --workers 2 --preview out/cornell.png
@@ -143,4 +161,4 @@ fuzz: $(BUILD)/make_nvdb
 clean:
 	rm -rf build build-san
 
--include $(COMMON_OBJ:.o=.d) $(MASTER_OBJ:.o=.d) $(WORKER_OBJ:.o=.d) $(UNIT_OBJ:.o=.d) $(TOOL_OBJ:.o=.d)
+-include $(COMMON_OBJ:.o=.d) $(MASTER_OBJ:.o=.d) $(SMOKE_OBJ:.o=.d) $(WORKER_OBJ:.o=.d) $(UNIT_OBJ:.o=.d) $(TOOL_OBJ:.o=.d)

@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Checks the layering of the source: every quoted #include in common/<layer>/, master/ and
 worker/ runs downward in base <- image <- scene <- render <- wire <- master, worker (master
-and worker never include each other), and no circle joins modules (a module is a .c/.h
+and worker never include each other), smoke/ (the simulator) includes only base, scene and
+itself, and no circle joins modules (a module is a .c/.h
 pair; an include from either file is an arrow). Prints one line per violation, naming the
 file and line, and exits 1 if there is any. Run by `make test` (tests/layers/run.sh).
 Usage: check_layers.py [--root DIR] [--graph]"""
@@ -12,6 +13,8 @@ import sys
 LAYERS = ["base", "image", "scene", "render", "wire"]
 RANK = {name: i for i, name in enumerate(LAYERS)}
 RANK["master"] = RANK["worker"] = len(LAYERS)
+# Programs outside the render stack: the layers each may include, besides itself.
+SIDE = {"smoke": ("base", "scene")}
 INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"')
 
 
@@ -20,14 +23,14 @@ def layer_of(path):
     parts = path.split("/")
     if parts[0] == "common" and len(parts) == 3 and parts[1] in RANK:
         return parts[1]
-    if parts[0] in ("master", "worker") and len(parts) == 2:
+    if parts[0] in ("master", "worker") + tuple(SIDE) and len(parts) == 2:
         return parts[0]
     return None
 
 
 def sources(root):
     out = []
-    for top in ("common", "master", "worker"):
+    for top in ("common", "master", "worker") + tuple(SIDE):
         for dirpath, _, files in os.walk(os.path.join(root, top)):
             for f in sorted(files):
                 if f.endswith((".c", ".h")):
@@ -124,7 +127,7 @@ def main(argv):
         layer = layer_of(mod)
         graph.setdefault(mod, set())
         if layer is None:
-            problems.append("%s: not in a layer folder (common/<%s>/, master/, worker/)" % (src, "|".join(LAYERS)))
+            problems.append("%s: not in a layer folder (common/<%s>/, master/, worker/, %s)" % (src, "|".join(LAYERS), ", ".join(d + "/" for d in SIDE)))
             continue
         with open(os.path.join(root, src), encoding="utf-8", errors="replace") as fh:
             for lineno, line in enumerate(fh, 1):
@@ -142,6 +145,12 @@ def main(argv):
                     continue
                 if tmod != mod:
                     graph[mod].add(tmod)
+                if layer in SIDE or tlayer in SIDE:
+                    if tlayer != layer and tlayer not in SIDE.get(layer, ()):
+                        problems.append('%s:%d: include "%s" runs outside: %s may include only %s' % (
+                            src, lineno, m.group(1), layer,
+                            ", ".join(SIDE[layer] + (layer,)) if layer in SIDE else "the render stack"))
+                    continue
                 upward = RANK[tlayer] > RANK[layer]
                 sideways = RANK[tlayer] == RANK[layer] and tlayer != layer
                 if upward or sideways:

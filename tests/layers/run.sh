@@ -1,7 +1,7 @@
 #!/bin/sh
 # The layering check (scripts/check_layers.py) on this tree, and on copies of it with a
 # planted upward include, a sideways include between master and worker, an include of a
-# missing file and a circle: each must be caught, naming the file and line or the modules.
+# missing file, includes across smoke/ (the simulator) and a circle: each must be caught, naming the file and line or the modules.
 # Run by `make test`; ends with one line `layers: N passed, N failed`.
 set -u
 T=$(mktemp -d /tmp/brume-layers.XXXXXX)
@@ -17,7 +17,7 @@ else cat "$T/out"; bad "this tree has layering problems"; fi
 # with EXPECTED in the report.
 plant() {
   rm -rf "$T/tree"; mkdir -p "$T/tree"
-  cp -r common master worker "$T/tree/"
+  cp -r common master worker smoke "$T/tree/"
   printf '%s\n' "$3" >>"$T/tree/$2"
   if python3 scripts/check_layers.py --root "$T/tree" >"$T/out" 2>&1; then
     bad "$1: not caught"
@@ -35,6 +35,10 @@ plant "master includes worker" master/launch.c '#include "../worker/worker.h"' \
   'master/launch.c:[0-9]*: include "../worker/worker.h" runs sideways'
 plant "missing header" common/wire/net.c '#include "wire/nowhere.h"' \
   'common/wire/net.c:[0-9]*: include "wire/nowhere.h" names no file'
+plant "smoke includes render" smoke/fluid.c '#include "render/integrator.h"' \
+  'smoke/fluid.c:[0-9]*: include "render/integrator.h" runs outside'
+plant "scene includes smoke" common/scene/grid.c '#include "smoke/fluid.h"' \
+  'common/scene/grid.c:[0-9]*: include "smoke/fluid.h" runs outside'
 # The circle needs an arrow back: cli.h -> rng.h closes cli -> rng -> cli.
 rm -rf "$T/tree"; mkdir -p "$T/tree"; cp -r common master worker "$T/tree/"
 printf '#include "base/rng.h"\n' >>"$T/tree/common/base/cli.h"

@@ -1,0 +1,45 @@
+/* Stable fluids on a periodic 3D grid (Stam 1999 and 2001, Fedkiw, Stam and Jensen 2001):
+ * semi-Lagrangian advection (trilinear, midpoint backtrace), exact diffusion and pressure
+ * projection in Fourier space (FFTW single precision, real-to-complex, plans made once),
+ * buoyancy from density and temperature, vorticity confinement, a spherical source and a
+ * sponge layer at the borders (docs/smoke.md). The state is x fastest, then y (up), then z.
+ * Callers: smoke/main.c, tests/unit/test_smoke.c. */
+#ifndef BRUME_SMOKE_FLUID_H
+#define BRUME_SMOKE_FLUID_H
+#include <stddef.h>
+#include <stdint.h>
+#include "settings.h"
+
+enum fluid_phase { PH_SOURCE, PH_FORCES, PH_ADVECT, PH_FFT, PH_SPECTRAL, PH_SPONGE, PH_COUNT_ };
+extern const char *const fluid_phase_names[PH_COUNT_];
+
+struct fluid {
+    struct smoke_settings s;
+    uint32_t nx, ny, nz;
+    size_t n;                  /* voxels */
+    float h;                   /* voxel size (world units) */
+    float *u, *v, *w, *d, *t;  /* velocity (world units / s), density, temperature */
+    float *tmp[4];             /* scratch for advection and forces */
+    void *spec[3];             /* fftwf_complex, nz*ny*(nx/2+1) each */
+    void *plan_fwd, *plan_bwd;
+    uint64_t step;             /* steps done */
+    double cpu[PH_COUNT_];     /* CPU seconds per phase (all threads) */
+    double wall[PH_COUNT_];
+};
+
+/* Allocates the state (zero) and makes the FFTW plans with s->threads threads. */
+void fluid_init(struct fluid *f, const struct smoke_settings *s);
+void fluid_free(struct fluid *f);
+/* One time step of s.dt: source, forces, advect velocity, sponge on velocity, diffuse and
+ * project, advect density and temperature, sponge on them. */
+void fluid_step(struct fluid *f);
+
+/* Pieces, for the tests. */
+void fluid_project(struct fluid *f, float dt, float nu);  /* diffuse by nu over dt, then project */
+void fluid_advect_scalar(const struct fluid *f, const float *src, float *dst, float dt);
+/* Spectral divergence norm and velocity norm (root of the sum of squares over modes). */
+void fluid_divergence(struct fluid *f, double *div_norm, double *vel_norm);
+/* Bytes the state and scratch take per voxel. */
+size_t fluid_bytes_per_voxel(void);
+
+#endif
