@@ -65,6 +65,25 @@ if [ $r = 0 ] && [ "$(counter frames_skipped "$T/o1/f.exr")" = 2 ] && [ "$(count
   ! $X cmp "$T/f2_before.exr" "$T/o1/f.0002.exr" >/dev/null 2>&1; then
   ok "a changed grid re-renders its frame only"; else bad "a changed grid re-renders its frame only"; fi
 
+# A master killed along the way and restarted ends with the same frames: the finished
+# ones skipped, the half-done one resumed from its journal (its job key covers its grid).
+mkdir -p "$T/ref" "$T/kill"
+KARGS="--spp 32 --tile 8"
+run $M "$S/a.json" -o "$T/ref/f.exr" --frames 1:3 --workers 2 --threads 1 $KARGS && r=0 || r=1
+$M "$S/a.json" -o "$T/kill/f.exr" --frames 1:3 --workers 2 --threads 1 $KARGS >"$T/klog" 2>&1 &
+mpid=$!
+echo $mpid >"$T/pids"
+sleep 0.$(( $(od -An -N2 -tu2 /dev/urandom) % 4 + 2 ))
+kill -9 $mpid 2>/dev/null
+wait $mpid 2>/dev/null
+before=$(ls "$T/kill" | grep -c '^f\.[0-9]*\.exr$')
+run $M "$S/a.json" -o "$T/kill/f.exr" --frames 1:3 --workers 2 --threads 1 $KARGS || r=1
+same=0
+for f in 1 2 3; do $X cmp "$T/ref/f.000$f.exr" "$T/kill/f.000$f.exr" >/dev/null 2>&1 && same=$((same + 1)); done
+echo "framegrid: killed master: $before frame(s) done before the restart, $(counter tiles_from_journal "$T/kill/f.exr") tile(s) from the journal"
+if [ $r = 0 ] && [ $same = 3 ] && [ "$(counter frames_skipped "$T/kill/f.exr")" = "$before" ]; then
+  ok "a killed master resumes the range with the same frames"; else bad "a killed master resumes the range with the same frames"; fi
+
 # A missing frame's grid: the scene's file:line:col, the frame and the file.
 run $M "$S/a.json" -o "$T/o1/f.exr" --frames 1:4 --workers 1 --threads 1 $ARGS && r=0 || r=1
 if [ $r = 1 ] && grep -q "a.json:10:35: cannot read frame 4's grid \"g.0004.nvdb\"" "$T/log" && [ ! -e "$T/o1/f.0004.exr" ]; then
