@@ -196,6 +196,45 @@ static void master_fail(struct master *m, const char *fmt, ...)
     va_end(ap);
 }
 
+/* Per-frame files: every frame of the range has its own (checked before the first frame
+ * renders, so a missing grid does not stop a long range half way; up to FRAMES_CHECK_MAX
+ * frames, the rest when their frame starts). A missing one is reported as the parse of its
+ * frame reports it: the scene's file:line:col, the frame and the file. */
+#define FRAMES_CHECK_MAX 100000u
+static int check_frame_files(struct master *m, const char *text, size_t len)
+{
+    const struct master_opts *o = m->opts;
+    if (!o->have_frames || !m->scene.frame_files)
+        return 0;
+    uint64_t n = 0;
+    for (uint64_t f = o->frame_first; f <= o->frame_last && n < FRAMES_CHECK_MAX; f += o->frame_step, n++)
+        for (uint32_t i = 0; i < m->scene.frame_files; i++) {
+            char name[ASSET_PATH_MAX], path[sizeof m->assets.root + ASSET_PATH_MAX + 2];
+            struct stat st;
+            if (asset_frame_name(m->scene.frame_patterns[i], (uint32_t)f, name, sizeof name) < 0)
+                continue; /* the parse of that frame says so */
+            snprintf(path, sizeof path, "%s/%s", m->assets.root, name);
+            if (stat(path, &st) == 0 && S_ISREG(st.st_mode))
+                continue;
+            struct asset_dir dir;
+            struct scene sc;
+            char err[1024];
+            if (asset_dir_init(&dir, m->assets.root, err, sizeof err) == 0) {
+                struct asset_source src = asset_dir_source(&dir);
+                if (scene_json_parse_frame(o->scene_path, text, len, &src, NULL, (uint32_t)f, &sc, err, sizeof err) == 0) {
+                    scene_fini(&sc); /* there after all */
+                    err[0] = '\0';
+                }
+                asset_dir_fini(&dir);
+            }
+            if (err[0]) {
+                master_fail(m, "%s", err);
+                return -1;
+            }
+        }
+    return 0;
+}
+
 /* Parses the scene for `frame` (its per-frame files: scene.frame_files), applies the
  * command line, plans the passes and publishes the manifest. Called once before the first
  * frame, and again at each frame of a scene with per-frame files (scene_reload), where
@@ -222,11 +261,15 @@ static int load_scene(struct master *m, uint32_t frame)
     }
     struct asset_source src = asset_dir_source(&m->assets);
     int rc = scene_json_parse_frame(o->scene_path, text, len, &src, NULL, frame, &m->scene, err, sizeof err);
-    free(text);
     if (rc != 0 || outnames_check(o, &m->assets, err, sizeof err) != 0) {
+        free(text);
         master_fail(m, "%s", err);
         return -1;
     }
+    rc = m->scene_loaded ? 0 : check_frame_files(m, text, len);
+    free(text);
+    if (rc != 0)
+        return -1;
     /* The output's folder takes a new file: checked now, not after the render. */
     char first[4096];
     if (output_frame_path(o->output_path, o->have_frames, o->have_frames ? o->frame_first : 0, first, sizeof first) == 0 &&

@@ -822,8 +822,10 @@ static int parse_density(struct ctx *c, const struct member *dm, struct density_
     if (per_frame < 0)
         return fail(c, &m[0].path, AT_VALUE, "file: the name of frame %u's grid is too long", c->frame);
     if (per_frame) {
+        struct scene *sc = c->scene;
+        sc->frame_patterns = mem_realloc(sc->frame_patterns, (sc->frame_files + 1) * sizeof *sc->frame_patterns);
+        sc->frame_patterns[sc->frame_files++] = mem_strdup(file);
         file = frame_file;
-        c->scene->frame_files++;
     }
     float scale = 1.0f;
     if (m[1].val) {

@@ -4,7 +4,8 @@
 # --frames 1:3 gives the same pixels for 1 and 3 workers, frames that differ, each frame
 # identical to the scene naming that frame's grid directly; a worker fetches only the
 # grids of the frames it renders; a changed grid re-renders its frame only; a missing
-# frame's grid is an error naming the scene's file:line:col, the frame and the file.
+# frame's grid is an error naming the scene's file:line:col, the frame and the file,
+# before anything renders; a master killed mid-range resumes with the same frames.
 # Ends with "integration: N passed, N failed". Usage: BUILD=build sh tests/integration/framegrid.sh
 . "$(dirname "$0")/lib.sh"
 lib_init framegrid
@@ -85,8 +86,10 @@ if [ $r = 0 ] && [ $same = 3 ] && [ "$(counter frames_skipped "$T/kill/f.exr")" 
   ok "a killed master resumes the range with the same frames"; else bad "a killed master resumes the range with the same frames"; fi
 
 # A missing frame's grid: the scene's file:line:col, the frame and the file.
-run $M "$S/a.json" -o "$T/o1/f.exr" --frames 1:4 --workers 1 --threads 1 $ARGS && r=0 || r=1
-if [ $r = 1 ] && grep -q "a.json:10:35: cannot read frame 4's grid \"g.0004.nvdb\"" "$T/log" && [ ! -e "$T/o1/f.0004.exr" ]; then
+# Checked before the first frame renders: nothing is written.
+mkdir -p "$T/om"
+run $M "$S/a.json" -o "$T/om/f.exr" --frames 1:4 --workers 1 --threads 1 $ARGS && r=0 || r=1
+if [ $r = 1 ] && grep -q "a.json:10:35: cannot read frame 4's grid \"g.0004.nvdb\"" "$T/log" && [ -z "$(ls "$T/om" | grep '\.exr$')" ]; then
   ok "a missing frame's grid: a clear error"; else bad "a missing frame's grid: a clear error"; fi
 # Without --frames the scene is frame 0: g.0000.nvdb.
 run $M "$S/a.json" -o "$T/o1/plain.exr" --workers 1 --threads 1 $ARGS && r=0 || r=1

@@ -413,6 +413,7 @@ Test(medium, grid_per_frame)
     char err[512] = "";
     cr_assert_eq(scene_json_parse_frame("scenes/t.json", t, strlen(t), &src, world, 7, &s, err, sizeof err), 0, "%s", err);
     cr_expect_eq(s.frame_files, 1);
+    cr_expect_str_eq(s.frame_patterns[0], "g.####.grid");
     cr_expect_eq(s.media->media[0].grid->nx, GN);
     scene_fini(&s);
     cr_assert_eq(scene_json_parse_frame("scenes/t.json", t, strlen(t), &src, world, 12, &s, err, sizeof err), 0, "%s", err);
