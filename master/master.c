@@ -113,6 +113,8 @@ struct master {
     char base_hash[65];         /* names, contents and settings (a per-frame photon map: that frame's) */
     int map_per_frame;          /* the photon map depends on the frame (master_media_per_frame) */
     uint32_t map_frame;         /* the frame the photon maps are traced for */
+    uint32_t scene_frame;       /* the frame the scene was parsed for (its per-frame files) */
+    int scene_loaded;
     int maps_started;           /* a tracer was started (the maps of map_frame are being or were traced) */
     char scene_hash[65];        /* base_hash and the frame: what the output header records */
     struct scene scene;
@@ -194,7 +196,50 @@ static void master_fail(struct master *m, const char *fmt, ...)
     va_end(ap);
 }
 
-static int load_scene(struct master *m)
+/* Per-frame files: every frame of the range has its own (checked before the first frame
+ * renders, so a missing grid does not stop a long range half way; up to FRAMES_CHECK_MAX
+ * frames, the rest when their frame starts). A missing one is reported as the parse of its
+ * frame reports it: the scene's file:line:col, the frame and the file. */
+#define FRAMES_CHECK_MAX 100000u
+static int check_frame_files(struct master *m, const char *text, size_t len)
+{
+    const struct master_opts *o = m->opts;
+    if (!o->have_frames || !m->scene.frame_files)
+        return 0;
+    uint64_t n = 0;
+    for (uint64_t f = o->frame_first; f <= o->frame_last && n < FRAMES_CHECK_MAX; f += o->frame_step, n++)
+        for (uint32_t i = 0; i < m->scene.frame_files; i++) {
+            char name[ASSET_PATH_MAX], path[sizeof m->assets.root + ASSET_PATH_MAX + 2];
+            struct stat st;
+            if (asset_frame_name(m->scene.frame_patterns[i], (uint32_t)f, name, sizeof name) < 0)
+                continue; /* the parse of that frame says so */
+            snprintf(path, sizeof path, "%s/%s", m->assets.root, name);
+            if (stat(path, &st) == 0 && S_ISREG(st.st_mode))
+                continue;
+            struct asset_dir dir;
+            struct scene sc;
+            char err[1024];
+            if (asset_dir_init(&dir, m->assets.root, err, sizeof err) == 0) {
+                struct asset_source src = asset_dir_source(&dir);
+                if (scene_json_parse_frame(o->scene_path, text, len, &src, NULL, (uint32_t)f, &sc, err, sizeof err) == 0) {
+                    scene_fini(&sc); /* there after all */
+                    err[0] = '\0';
+                }
+                asset_dir_fini(&dir);
+            }
+            if (err[0]) {
+                master_fail(m, "%s", err);
+                return -1;
+            }
+        }
+    return 0;
+}
+
+/* Parses the scene for `frame` (its per-frame files: scene.frame_files), applies the
+ * command line, plans the passes and publishes the manifest. Called once before the first
+ * frame, and again at each frame of a scene with per-frame files (scene_reload), where
+ * everything but those files comes out the same. */
+static int load_scene(struct master *m, uint32_t frame)
 {
     const struct master_opts *o = m->opts;
     char err[1024];
@@ -215,12 +260,16 @@ static int load_scene(struct master *m)
         return -1;
     }
     struct asset_source src = asset_dir_source(&m->assets);
-    int rc = scene_json_parse(o->scene_path, text, len, &src, &m->scene, err, sizeof err);
-    free(text);
+    int rc = scene_json_parse_frame(o->scene_path, text, len, &src, NULL, frame, &m->scene, err, sizeof err);
     if (rc != 0 || outnames_check(o, &m->assets, err, sizeof err) != 0) {
+        free(text);
         master_fail(m, "%s", err);
         return -1;
     }
+    rc = m->scene_loaded ? 0 : check_frame_files(m, text, len);
+    free(text);
+    if (rc != 0)
+        return -1;
     /* The output's folder takes a new file: checked now, not after the render. */
     char first[4096];
     if (output_frame_path(o->output_path, o->have_frames, o->have_frames ? o->frame_first : 0, first, sizeof first) == 0 &&
@@ -249,7 +298,10 @@ static int load_scene(struct master *m)
         master_fail(m, "%s: %s", o->scene_path, err);
         return -1;
     }
-    m->map_frame = o->have_frames ? o->frame_first : 0;
+    if (!m->scene_loaded) /* a still scene's maps: the first frame's, even when it is skipped */
+        m->map_frame = frame;
+    m->scene_frame = frame;
+    m->scene_loaded = 1;
     uint32_t asked = o->have_passes ? o->passes : rs->passes;
     m->target_error = o->have_target_error ? o->target_error : rs->target_error;
     m->time_limit = o->have_time_limit ? o->time_limit : rs->time_limit;
@@ -263,7 +315,7 @@ static int load_scene(struct master *m)
             asked = (rs->spp + MASTER_ADAPT_PASS_SPP - 1) / MASTER_ADAPT_PASS_SPP;
         asked = asked < 2 ? 2 : asked > PROTO_MAX_PASSES ? PROTO_MAX_PASSES : asked;
     }
-    if (master_media_prepare(&m->scene, o, m->map_frame, &m->assets, asked, &m->photon_maps) != 0)
+    if (master_media_prepare(&m->scene, o, frame, &m->assets, asked, &m->photon_maps) != 0)
         return -1;
     m->passes = m->photon_maps ? m->photon_maps : asked > 1 ? asked : 1;
     if (!m->photon_maps && m->passes > SAMPLER_STREAMS && m->passes % SAMPLER_STREAMS) {
@@ -294,6 +346,8 @@ static int publish_manifest(struct master *m)
 {
     const struct master_opts *o = m->opts;
     const struct render_settings *rs = &m->scene.settings;
+    for (uint32_t i = 0; i < m->num_manifest; i++) /* the last frame's files (scene_reload) */
+        blob_store_drop(&m->blobs, &m->manifest[i].hash);
     free(m->manifest);
     m->manifest = NULL;
     m->num_manifest = (uint32_t)m->assets.num_files;
@@ -1754,12 +1808,36 @@ static void account_waits(struct master *m, uint64_t dt)
     }
 }
 
+/* A scene with per-frame files (a grid "smoke.####.nvdb") parsed again for m->frame: its
+ * manifest names this frame's files only, so a worker fetches the grids of the frames it
+ * renders, and the frame's hash covers them (a changed grid re-renders its frame). The
+ * last frame's photon tracer is done by now; the pass plan must come out the same. */
+static int scene_reload(struct master *m)
+{
+    photon_tracer_free(&m->tracer, 0);
+    uint32_t passes = m->passes, photon_maps = m->photon_maps, spp = m->scene.settings.spp;
+    asset_dir_fini(&m->assets);
+    scene_fini(&m->scene);
+    if (load_scene(m, m->frame) != 0)
+        return -1;
+    if (m->passes != passes || m->photon_maps != photon_maps || m->scene.settings.spp != spp) {
+        master_fail(m, "%s: frame %u plans %u pass(es), %u photon map(s), %u spp; the first frame (%u) %u, %u, %u: the frames "
+                       "of a range must agree (a grid so thin that its photon pass is skipped?)",
+                    m->opts->scene_path, m->frame, m->passes, m->photon_maps, m->scene.settings.spp, m->map_frame,
+                    passes, photon_maps, spp);
+        return -1;
+    }
+    return 0;
+}
+
 /* Starts frame m->frame: fresh tile slots, its journal, and a JOB for every worker
  * (which keeps its blobs and rebuilds only what depends on the frame). 1 when the frame
  * is done already (skipped), 0 when it is ready to render, -1 on error. */
 static int frame_begin(struct master *m, uint32_t frames_started)
 {
     const struct master_opts *o = m->opts;
+    if (m->scene.frame_files && m->frame != m->scene_frame && scene_reload(m) != 0)
+        return -1;
     if (output_frame_path(o->output_path, o->have_frames, m->frame, m->out_path, sizeof m->out_path) != 0) {
         master_fail(m, "-o %s: the output name for frame %u is too long", o->output_path, m->frame);
         return -1;
@@ -1776,7 +1854,7 @@ static int frame_begin(struct master *m, uint32_t frames_started)
         return 1;
     }
     if (m->photon_maps && (!m->maps_started || (m->map_per_frame && m->frame != m->map_frame)) &&
-        maps_start(m, m->maps_started ? m->frame : m->map_frame) != 0)
+        maps_start(m, m->map_per_frame ? m->frame : m->map_frame) != 0)
         return -1;
     for (uint32_t t = 0; t < m->num_tiles; t++)
         free(m->chunks[t].data);
@@ -1998,7 +2076,7 @@ int master_run(const struct master_opts *o)
         m.job_base = ((uint64_t)getpid() << 32) ^ net_now_ms();
     m.job_base &= ~((uint64_t)1 << 63); /* room for every frame's id above it */
     m.job_id = m.job_base;
-    if (load_scene(&m) != 0)
+    if (load_scene(&m, o->have_frames ? o->frame_first : 0) != 0)
         goto done;
     setup_tiles(&m);
     m.zctx = zmq_ctx_new();

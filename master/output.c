@@ -3,6 +3,7 @@
  * (or a restarted master deciding to skip a frame) never sees half a file. Called by
  * master/master.c. */
 #include "output.h"
+#include "base/asset.h"
 #include "base/log.h"
 #include <errno.h>
 #include <fcntl.h>
@@ -16,22 +17,15 @@ int output_frame_path(const char *pat, int have_frames, uint32_t frame, char *ou
 {
     if (!have_frames)
         return snprintf(out, outlen, "%s", pat) < (int)outlen ? 0 : -1;
-    const char *hash_end = strrchr(pat, '#');
+    if (strchr(pat, '#'))
+        return asset_frame_name(pat, frame, out, outlen) == 1 ? 0 : -1;
+    const char *slash = strrchr(pat, '/'), *dot = strrchr(pat, '.');
+    const char *base = slash ? slash + 1 : pat;
     int n;
-    if (hash_end) {
-        const char *hash_start = hash_end;
-        while (hash_start > pat && hash_start[-1] == '#')
-            hash_start--;
-        int digits = (int)(hash_end - hash_start) + 1;
-        n = snprintf(out, outlen, "%.*s%0*u%s", (int)(hash_start - pat), pat, digits, frame, hash_end + 1);
-    } else {
-        const char *slash = strrchr(pat, '/'), *dot = strrchr(pat, '.');
-        const char *base = slash ? slash + 1 : pat;
-        if (dot && dot > base)
-            n = snprintf(out, outlen, "%.*s.%04u%s", (int)(dot - pat), pat, frame, dot);
-        else
-            n = snprintf(out, outlen, "%s.%04u", pat, frame);
-    }
+    if (dot && dot > base)
+        n = snprintf(out, outlen, "%.*s.%04u%s", (int)(dot - pat), pat, frame, dot);
+    else
+        n = snprintf(out, outlen, "%s.%04u", pat, frame);
     return n > 0 && (size_t)n < outlen ? 0 : -1;
 }
 

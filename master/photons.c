@@ -42,6 +42,8 @@ int master_media_per_frame(const struct scene *scene)
     const struct scene_media *sm = scene->media;
     if (!sm || sm->method == MEDIA_VPT || sm->photons == 0)
         return 0;
+    if (scene->frame_files) /* a grid per frame */
+        return 1;
     for (uint32_t i = 0; i < scene->num_meshes; i++)
         if (scene->meshes[i].num_keys > 1 || scene->meshes[i].num_frames >= 2)
             return 1;

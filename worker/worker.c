@@ -409,7 +409,7 @@ static int load_job(struct worker *w)
     char *text = NULL;
     size_t len = 0;
     if (blob_source_read(&ctx, w->job.scene_path, &text, &len, err, sizeof err) != 0 ||
-        scene_json_parse(w->job.scene_path, text, len, &src, &w->scene, err, sizeof err) != 0) {
+        scene_json_parse_frame(w->job.scene_path, text, len, &src, NULL, w->job.frame, &w->scene, err, sizeof err) != 0) {
         free(text);
         send_error(w, err);
         log_error("%s", err);

@@ -8,6 +8,7 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <limits.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -303,4 +304,20 @@ long asset_dir_find(const struct asset_dir *dir, const char *path)
     }
     free(real);
     return found;
+}
+
+int asset_frame_name(const char *pat, uint32_t frame, char *out, size_t outlen)
+{
+    const char *hash_end = strrchr(pat, '#');
+    int n;
+    if (!hash_end) {
+        n = snprintf(out, outlen, "%s", pat);
+        return n >= 0 && (size_t)n < outlen ? 0 : -1;
+    }
+    const char *hash_start = hash_end;
+    while (hash_start > pat && hash_start[-1] == '#')
+        hash_start--;
+    int digits = (int)(hash_end - hash_start) + 1;
+    n = snprintf(out, outlen, "%.*s%0*u%s", (int)(hash_start - pat), pat, digits, frame, hash_end + 1);
+    return n > 0 && (size_t)n < outlen ? 1 : -1;
 }

@@ -33,6 +33,13 @@ int asset_path_check(const char *rel_path, char *err, size_t errlen);
  * asset_path_check. Returns 0 or -1. */
 int asset_path_join(const char *dir, const char *rel, char *out, size_t outlen, char *err, size_t errlen);
 
+/* A name for one frame of a sequence: the last run of '#' in pat replaced by frame,
+ * zero-padded to the run's width ("smoke.####.nvdb", 7 -> "smoke.0007.nvdb"; a frame
+ * wider than the run is written in full). 1 when pat has a run, 0 when it has none (out
+ * is pat), -1 when out is too small. The master's --frames output names and a scene's
+ * per-frame files (a grid "smoke.####.nvdb") both use it. */
+int asset_frame_name(const char *pat, uint32_t frame, char *out, size_t outlen);
+
 /* A source reading from a folder on disk; it also records every file read (path and
  * bytes), which the master publishes as blobs. Symlinks that resolve outside the folder
  * are refused; so is anything but a regular file, and opening never blocks (a FIFO named

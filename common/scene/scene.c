@@ -33,6 +33,9 @@ void scene_fini(struct scene *scene)
         texture_fini(&scene->textures[i]);
     free(scene->textures);
     envmap_free(&scene->env);
+    for (uint32_t i = 0; i < scene->frame_files; i++)
+        free(scene->frame_patterns[i]);
+    free(scene->frame_patterns);
     memset(scene, 0, sizeof *scene);
 }
 

@@ -171,6 +171,8 @@ struct scene {
     struct texture *textures;   /* texture.h; referenced by materials */
     uint32_t num_textures;
     struct environment *env;    /* envmap.h: the environment light, or NULL */
+    uint32_t frame_files;       /* files named per frame (a run of '#'): parsed again each frame */
+    char **frame_patterns;      /* their names as written ("smoke.####.nvdb"), frame_files of them */
 };
 
 /* Frees everything the scene owns and zeroes it. Safe on a zeroed scene. */

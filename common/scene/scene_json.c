@@ -48,6 +48,7 @@ struct ctx {
     char display_dir[1024];
     const double *origin;         /* scene.origin: subtracted from every position read */
     bool origin_given;            /* by the caller: the camera does not set it */
+    uint32_t frame;               /* the frame whose files a "#" pattern names */
 };
 
 static struct jpath jpath_child(const struct jpath *p, uint32_t ordinal)
@@ -815,6 +816,17 @@ static int parse_density(struct ctx *c, const struct member *dm, struct density_
         return -1;
     if (asset_path_check(file, why, sizeof why) != 0)
         return fail(c, &m[0].path, AT_VALUE, "file: %s", why);
+    /* A run of '#' names one grid per frame: this frame's (asset_frame_name). */
+    char frame_file[ASSET_PATH_MAX];
+    int per_frame = asset_frame_name(file, c->frame, frame_file, sizeof frame_file);
+    if (per_frame < 0)
+        return fail(c, &m[0].path, AT_VALUE, "file: the name of frame %u's grid is too long", c->frame);
+    if (per_frame) {
+        struct scene *sc = c->scene;
+        sc->frame_patterns = mem_realloc(sc->frame_patterns, (sc->frame_files + 1) * sizeof *sc->frame_patterns);
+        sc->frame_patterns[sc->frame_files++] = mem_strdup(file);
+        file = frame_file;
+    }
     float scale = 1.0f;
     if (m[1].val) {
         if (get_float(c, m[1].val, &m[1].path, "scale", &scale) != 0)
@@ -839,8 +851,11 @@ static int parse_density(struct ctx *c, const struct member *dm, struct density_
     size_t size = 0;
     if (!c->src || !c->src->read)
         return fail(c, &m[0].path, AT_VALUE, "cannot read grid \"%s\": no asset source", file);
-    if (c->src->read(c->src->ctx, file, &data, &size, why, sizeof why) != 0)
+    if (c->src->read(c->src->ctx, file, &data, &size, why, sizeof why) != 0) {
+        if (per_frame)
+            return fail(c, &m[0].path, AT_VALUE, "cannot read frame %u's grid \"%s\": %s", c->frame, file, why);
         return fail(c, &m[0].path, AT_VALUE, "cannot read grid: %s", why);
+    }
     struct density_grid *g = mem_calloc(1, sizeof *g);
     const uint8_t *bytes = (const uint8_t *)data;
     int rc;
@@ -1970,6 +1985,12 @@ int scene_json_parse(const char *name, const char *text, size_t len, const struc
 int scene_json_parse_origin(const char *name, const char *text, size_t len, const struct asset_source *src,
                             const double origin[3], struct scene *out, char *err, size_t errlen)
 {
+    return scene_json_parse_frame(name, text, len, src, origin, 0, out, err, errlen);
+}
+
+int scene_json_parse_frame(const char *name, const char *text, size_t len, const struct asset_source *src,
+                           const double origin[3], uint32_t frame, struct scene *out, char *err, size_t errlen)
+{
     memset(out, 0, sizeof *out);
     json_error_t jerr;
     json_t *root = json_loadb(text, len, JSON_REJECT_DUPLICATES, &jerr);
@@ -1987,6 +2008,7 @@ int scene_json_parse_origin(const char *name, const char *text, size_t len, cons
     c.errlen = errlen;
     c.scene = out;
     c.src = src;
+    c.frame = frame;
     c.origin = out->origin;
     if (origin) {
         memcpy(out->origin, origin, sizeof out->origin);

@@ -19,6 +19,12 @@ int scene_json_parse(const char *name, const char *text, size_t len, const struc
  * written in the file). origin NULL: scene_json_parse. */
 int scene_json_parse_origin(const char *name, const char *text, size_t len, const struct asset_source *src,
                             const double origin[3], struct scene *out, char *err, size_t errlen);
+/* The same for one frame of a sequence: a file name with a run of '#' (a density grid
+ * "smoke.####.nvdb") names that frame's file (asset_frame_name), and the scene counts
+ * such names in frame_files. The other two parse frame 0, the frame of a render without
+ * --frames. */
+int scene_json_parse_frame(const char *name, const char *text, size_t len, const struct asset_source *src,
+                           const double origin[3], uint32_t frame, struct scene *out, char *err, size_t errlen);
 
 /* AOV and filter names as render.aovs, render.filter, --aovs and --filter take them:
  * an enum aov / enum pixel_filter, or -1. */

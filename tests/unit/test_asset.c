@@ -208,3 +208,21 @@ Test(asset_dir, finds_a_read_file_by_any_name)
     cr_expect_eq(asset_dir_find(&dir, "no/such/folder/x.exr"), -1);
     asset_dir_fini(&dir);
 }
+
+Test(asset, frame_name)
+{
+    char out[64];
+    cr_expect_eq(asset_frame_name("smoke.####.nvdb", 7, out, sizeof out), 1);
+    cr_expect_str_eq(out, "smoke.0007.nvdb");
+    /* the last run only; a frame wider than the run is written in full */
+    cr_expect_eq(asset_frame_name("a#/b##.grid", 123, out, sizeof out), 1);
+    cr_expect_str_eq(out, "a#/b123.grid");
+    cr_expect_eq(asset_frame_name("#", 0, out, sizeof out), 1);
+    cr_expect_str_eq(out, "0");
+    cr_expect_eq(asset_frame_name("smoke.nvdb", 7, out, sizeof out), 0);
+    cr_expect_str_eq(out, "smoke.nvdb");
+    cr_expect_eq(asset_frame_name("s.##########.nvdb", UINT32_MAX, out, sizeof out), 1);
+    cr_expect_str_eq(out, "s.4294967295.nvdb");
+    cr_expect_eq(asset_frame_name("smoke.####.nvdb", 7, out, 15), -1, "too small for the name and its NUL");
+    cr_expect_eq(asset_frame_name("smoke.nvdb", 7, out, 10), -1);
+}

@@ -387,6 +387,49 @@ Test(medium, grid_transmittance)
     scene_fini(&s);
 }
 
+/* A density file with a run of '#' names one grid per frame; frames may differ in
+ * resolution; a missing frame's grid is an error naming the scene's file:line:col, the
+ * frame and the file; frame 0 is a render without --frames. */
+Test(medium, grid_per_frame)
+{
+    grid_bytes();
+    uint8_t small[20 + 4 * 8];
+    memcpy(small, GRID_MAGIC, 8);
+    for (int k = 0; k < 3; k++) {
+        uint32_t n = 2;
+        memcpy(small + 8 + 4 * k, &n, 4);
+    }
+    for (int i = 0; i < 8; i++) {
+        float v = (float)i;
+        memcpy(small + 20 + 4 * i, &v, 4);
+    }
+    const struct mem_file files[] = {{"g.0007.grid", g_grid, sizeof g_grid}, {"g.0012.grid", small, sizeof small},
+                                     {NULL, NULL, 0}};
+    const char *t = HEAD("\"position\": [-5, 0, 0], \"look_at\": [0, 0, 0]", 1, 1, 1, 1)
+        ",\n\"media\": {\"m\": {\"density\": {\"file\": \"g.####.grid\"}}}}";
+    struct asset_source src = {mem_read, (void *)(uintptr_t)files};
+    static const double world[3] = {0, 0, 0};
+    struct scene s;
+    char err[512] = "";
+    cr_assert_eq(scene_json_parse_frame("scenes/t.json", t, strlen(t), &src, world, 7, &s, err, sizeof err), 0, "%s", err);
+    cr_expect_eq(s.frame_files, 1);
+    cr_expect_str_eq(s.frame_patterns[0], "g.####.grid");
+    cr_expect_eq(s.media->media[0].grid->nx, GN);
+    scene_fini(&s);
+    cr_assert_eq(scene_json_parse_frame("scenes/t.json", t, strlen(t), &src, world, 12, &s, err, sizeof err), 0, "%s", err);
+    cr_expect_eq(s.media->media[0].grid->nx, 2);
+    cr_expect_eq(s.media->media[0].grid->max_density, 7.0f);
+    scene_fini(&s);
+    cr_assert_neq(scene_json_parse_frame("scenes/t.json", t, strlen(t), &src, world, 8, &s, err, sizeof err), 0);
+    cr_expect(strstr(err, "scenes/t.json:4:37: cannot read frame 8's grid \"g.0008.grid\"") != NULL, "%s", err);
+    cr_assert_neq(test_scene_load(t, files, &s, err), 0);
+    cr_expect(strstr(err, "cannot read frame 0's grid \"g.0000.grid\"") != NULL, "%s", err);
+    /* a bad grid of one frame is refused as any grid is */
+    small[20] = 0xff, small[21] = 0xff, small[22] = 0xff, small[23] = 0x7f; /* NaN */
+    cr_assert_neq(scene_json_parse_frame("scenes/t.json", t, strlen(t), &src, world, 12, &s, err, sizeof err), 0);
+    cr_expect(strstr(err, "scenes/t.json:4:37: ") != NULL, "%s", err);
+}
+
 Test(medium, grid_errors)
 {
     struct scene s;
