@@ -40,7 +40,7 @@ TOOLS      := exrtool junkpeer replay maketex texbench meshload
 TOOL_BIN   := $(TOOLS:%=$(BUILD)/%)
 TOOL_OBJ   := $(TOOLS:%=$(BUILD)/obj/tests/tools/%.o)
 
-.PHONY: smoke-sim bench-smoke all deps test layers unit integration demo bench bench-media bench-adaptive bench-materials clean fuzz fuzz-ci tools stress test-slurm test-netns
+.PHONY: smoke-sim smoke-demo bench-smoke all deps test layers unit integration demo bench bench-media bench-adaptive bench-materials clean fuzz fuzz-ci tools stress test-slurm test-netns
 all: $(BUILD)/master $(BUILD)/worker $(BUILD)/smokesim $(TOOL_BIN)
 
 # Install what is missing; the stamp makes later builds skip the check.
@@ -119,6 +119,12 @@ test-netns: all
 # The animated smoke scene's grids (scenes/smoke_anim/smoke.####.grid, not committed; resumable).
 smoke-sim: $(BUILD)/smokesim
 	$(BUILD)/smokesim scenes/smoke_anim/sim.json
+
+# Simulates the smoke (resumes a run already done), then renders every 12th of its 48 frames
+# with 2 local workers into out/smoke_anim.00NN.exr (docs/smoke.md).
+smoke-demo: smoke-sim all
+	mkdir -p out
+	$(BUILD)/master scenes/smoke_anim/smoke_anim.json -o out/smoke_anim.exr --frames 1:48:12 --workers 2
 
 # Time per step at 64^3 and 128^3 with 1 and 2 FFTW threads (docs/smoke.md).
 bench-smoke: $(BUILD)/smokesim
