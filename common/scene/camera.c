@@ -3,6 +3,7 @@
  * Keyframed orientation is slerped as quaternions (in double), so 180-degree turns and
  * keys at equal times stay finite; positions and focus distances are interpolated linearly. */
 #include "scene/camera.h"
+#include "base/cdf.h"
 #include <math.h>
 
 static void still_basis(vec3 pos, vec3 look, vec3 up_hint, struct camera_pose *p)
@@ -130,14 +131,7 @@ float camera_filter_offset(const struct camera *cam, float u)
         return u - 0.5f;
     /* The cell k with cdf[k] <= u < cdf[k + 1], then linear within it. */
     const float *c = cam->filter_cdf;
-    int lo = 0, hi = CAMERA_FILTER_TABLE;
-    while (hi - lo > 1) {
-        int mid = (lo + hi) / 2;
-        if (c[mid] <= u)
-            lo = mid;
-        else
-            hi = mid;
-    }
+    uint32_t lo = cdf_cell(c, CAMERA_FILTER_TABLE, u);
     float span = c[lo + 1] - c[lo], t = span > 0.0f ? (u - c[lo]) / span : 0.5f;
     t = t < 0.0f ? 0.0f : t > 1.0f ? 1.0f : t;
     return cam->filter_radius * (2.0f * ((float)lo + t) / CAMERA_FILTER_TABLE - 1.0f);

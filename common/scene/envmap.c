@@ -1,5 +1,6 @@
 /* The environment light's map and its sampling distribution (see envmap.h). */
 #include "scene/envmap.h"
+#include "base/cdf.h"
 #include "base/log.h"
 #include <math.h>
 #include <stdlib.h>
@@ -12,14 +13,7 @@ static float lum(const float *c)
 /* The cell i with cdf[i] <= u < cdf[i + 1] among n cells, skipping empty ones. */
 static uint32_t find_cell(const float *cdf, uint32_t n, float u)
 {
-    uint32_t lo = 0, hi = n;
-    while (hi - lo > 1) {
-        uint32_t mid = (lo + hi) / 2;
-        if (cdf[mid] <= u)
-            lo = mid;
-        else
-            hi = mid;
-    }
+    uint32_t lo = cdf_cell(cdf, n, u);
     while (lo + 1 < n && cdf[lo + 1] <= cdf[lo])
         lo++;
     return lo;
