@@ -4,11 +4,11 @@
  *           BLAKE2b-256 of everything before it in the record
  * A reader trusts nothing: sizes are checked against the file before use. */
 #include "journal.h"
+#include "base/asset.h"
 #include "base/bytes.h"
 #include "base/log.h"
 #include <errno.h>
 #include <fcntl.h>
-#include <libgen.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -59,17 +59,6 @@ static int read_file(int fd, uint8_t **data, size_t *size)
     return 0;
 }
 
-static void fsync_parent(const char *path)
-{
-    char buf[4096];
-    snprintf(buf, sizeof buf, "%s", path);
-    int fd = open(dirname(buf), O_RDONLY | O_DIRECTORY);
-    if (fd >= 0) {
-        fsync(fd);
-        close(fd);
-    }
-}
-
 static int start_fresh(struct journal *j, const struct blob_hash *key, uint32_t num_tiles, char *err, size_t errlen)
 {
     uint8_t h[HEADER_SIZE];
@@ -84,7 +73,7 @@ static int start_fresh(struct journal *j, const struct blob_hash *key, uint32_t 
         str_fmt(err, errlen, "%s: cannot write the journal header: %s", j->path, strerror(errno));
         return -1;
     }
-    fsync_parent(j->path);
+    asset_fsync_parent(j->path);
     j->end = j->synced = HEADER_SIZE;
     return 0;
 }
@@ -356,6 +345,6 @@ int journal_remove(struct journal **jp)
     if (!path[0])
         return 0;
     int rc = unlink(path);
-    fsync_parent(path);
+    asset_fsync_parent(path);
     return rc;
 }

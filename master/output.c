@@ -7,7 +7,6 @@
 #include "base/log.h"
 #include <errno.h>
 #include <fcntl.h>
-#include <libgen.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -49,18 +48,6 @@ int output_is_done(const char *path, const char *scene_hash, uint32_t spp, uint6
     return 1;
 }
 
-static int fsync_dir_of(const char *path)
-{
-    char buf[4096];
-    snprintf(buf, sizeof buf, "%s", path);
-    int fd = open(dirname(buf), O_RDONLY | O_DIRECTORY);
-    if (fd < 0)
-        return -1;
-    int rc = fsync(fd);
-    close(fd);
-    return rc;
-}
-
 /* The temporary file is renamed into place; the folder is synced so the rename lasts. */
 int output_check_writable(const char *path, char *err, size_t errlen)
 {
@@ -83,7 +70,7 @@ static int publish(const char *tmp, const char *path, char *err, size_t errlen)
         unlink(tmp);
         return -1;
     }
-    fsync_dir_of(path);
+    asset_fsync_parent(path);
     return 0;
 }
 

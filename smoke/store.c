@@ -1,11 +1,11 @@
 /* Grid and checkpoint files (see store.h). */
 #include "store.h"
+#include "base/asset.h"
 #include "base/bytes.h"
 #include "base/log.h"
 #include "scene/grid.h"
 #include <errno.h>
 #include <fcntl.h>
-#include <libgen.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -51,13 +51,7 @@ int store_write_atomic(const char *path, const void *data, size_t len, char *err
         unlink(tmp);
         return -1;
     }
-    char dir[1100];
-    snprintf(dir, sizeof dir, "%s", path);
-    int dfd = open(dirname(dir), O_RDONLY | O_DIRECTORY);
-    if (dfd >= 0) {
-        fsync(dfd);
-        close(dfd);
-    }
+    asset_fsync_parent(path);
     return 0;
 }
 

@@ -7,6 +7,7 @@
 #include "base/log.h"
 #include <errno.h>
 #include <fcntl.h>
+#include <libgen.h>
 #include <limits.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -320,4 +321,16 @@ int asset_frame_name(const char *pat, uint32_t frame, char *out, size_t outlen)
     int digits = (int)(hash_end - hash_start) + 1;
     n = snprintf(out, outlen, "%.*s%0*u%s", (int)(hash_start - pat), pat, digits, frame, hash_end + 1);
     return n > 0 && (size_t)n < outlen ? 1 : -1;
+}
+
+int asset_fsync_parent(const char *path)
+{
+    char buf[4096];
+    snprintf(buf, sizeof buf, "%s", path);
+    int fd = open(dirname(buf), O_RDONLY | O_DIRECTORY);
+    if (fd < 0)
+        return -1;
+    int rc = fsync(fd);
+    close(fd);
+    return rc;
 }
