@@ -167,6 +167,7 @@ struct master {
     struct pending_ack *acks;   /* tiles to acknowledge once the journal is synced */
     uint32_t num_acks, cap_acks;
     char local_key_path[400], local_pub_path[400];
+    struct net_key local_public; /* with CurveZMQ: the key the local workers prove ("" without) */
 };
 
 static volatile sig_atomic_t g_interrupted;
@@ -563,8 +564,11 @@ static void peer_evicted(struct master *m, int32_t pi, enum sched_evict_kind kin
     struct proto_msg bye = {.type = MSG_BYE};
     send_to(m, p, &bye);
     /* A local worker that went silent or stalled (stopped, swapped out, wedged) cannot
-     * read the BYE: end the process, so that it is reaped and started again. */
-    if (kind == SCHED_SILENT || kind == SCHED_STALLED)
+     * read the BYE: end the process, so that it is reaped and started again. The pid is
+     * what the HELLO claimed: only a peer that proved the local workers' key (with
+     * CurveZMQ; without it only the master's user can reach the ipc socket) is taken at
+     * its word, so that a remote peer claiming a local pid cannot get that worker killed. */
+    if ((kind == SCHED_SILENT || kind == SCHED_STALLED) && (!m->zap || !strcmp(p->user_id, m->local_public.z85)))
         for (uint32_t i = 0; i < m->num_local; i++)
             if (m->local_pids[i] > 0 && (uint32_t)m->local_pids[i] == p->pid) {
                 log_warn("local worker %u (pid %d) ended with SIGKILL", i, (int)m->local_pids[i]);
@@ -1637,15 +1641,14 @@ static int start_local_workers(struct master *m)
     if (m->zap) {
         /* The master's own local workers get a fresh key pair in the private (0700) folder. */
         char err[512];
-        struct net_key local_public;
         snprintf(m->local_key_path, sizeof m->local_key_path, "%s/worker.key", m->ipc_dir);
         snprintf(m->local_pub_path, sizeof m->local_pub_path, "%s/master.pub", m->ipc_dir);
-        if (zap_write_local_keys(m->local_key_path, m->local_pub_path, &m->curve_pub, &local_public, err,
+        if (zap_write_local_keys(m->local_key_path, m->local_pub_path, &m->curve_pub, &m->local_public, err,
                                  sizeof err) != 0) {
             master_fail(m, "%s", err);
             return -1;
         }
-        zap_allow_key(m->zap, &local_public);
+        zap_allow_key(m->zap, &m->local_public);
     }
     snprintf(m->ipc_endpoint, sizeof m->ipc_endpoint, "ipc://%s/master.sock", m->ipc_dir);
     if (bind_endpoint(m, m->ipc_endpoint) != 0)
