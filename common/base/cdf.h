@@ -1,6 +1,6 @@
-/* Tabulated piecewise-constant distributions (pixel filters, environment maps): the cell
- * of a cumulative table that a uniform number falls in. Callers: scene/camera.c,
- * scene/envmap.c. */
+/* Tabulated piecewise-constant distributions (light picking, pixel filters, environment
+ * maps): the cell of a cumulative table that a uniform number falls in. Callers:
+ * scene/light.c, scene/camera.c, scene/envmap.c. */
 #ifndef BRUME_CDF_H
 #define BRUME_CDF_H
 #include <stdint.h>

@@ -431,14 +431,6 @@ static vec3 hit_emission(const struct render_job *job, const struct surface *s, 
 }
 
 /* Whether the light table holds emitting surfaces (triangles or spheres). */
-static int has_area_lights(const struct light_table *lt)
-{
-    for (uint32_t i = 0; i < lt->num_entries; i++)
-        if (lt->entries[i].kind != LK_POINT)
-            return 1;
-    return 0;
-}
-
 vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, uint32_t px, uint32_t py, vec3 org,
                        vec3 dir, float time01, uint64_t *rays, int *hit_any)
 {
@@ -471,7 +463,6 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
     int spread = 0;         /* a non-delta bounce was taken: segments take one point (gather_segment) */
     vec3 seg_start = org;   /* exact start of the segment (boundary point, not the offset origin) */
     *hit_any = 0;
-    const int area_lights = has_area_lights(&job->lights);
     for (;;) {
         struct accel_hit h;
         struct surface s;
@@ -496,7 +487,7 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
                 int equi = !md->grid && !v3_is_black(md->sigma_s) && job->lights.num_entries > 0 && depth < rs->max_depth;
                 if (equi)
                     L = v3_add(L, v3_mul(beta, equiangular(job, &r, vertex, &fc, medium, time01, rays)));
-                if (hit && !md->grid && area_lights) {
+                if (hit && !md->grid && job->lights.num_surface > 0) {
                     /* An emitter at the segment's end: its light times the segment's
                      * transmittance, the expected value of what the flight's pass-through
                      * (probability and weight) would give it; the surface below then adds

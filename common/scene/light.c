@@ -2,6 +2,7 @@
  * uniformly by area; spheres by the cone of directions they subtend (uniform by area
  * when the shading point is inside), which is what light_pdf mirrors. */
 #include "scene/light.h"
+#include "base/cdf.h"
 #include "base/log.h"
 #include "scene/envmap.h"
 #include <math.h>
@@ -115,6 +116,7 @@ void light_table_init(struct light_table *t, const struct scene *s)
             }
             t->tri_light[mi][p] = t->num_entries;
             add_entry(t, &cap, (struct light_entry){LK_TRIANGLE, mi, p, em, area});
+            t->num_surface++;
         }
     }
     for (uint32_t i = 0; i < s->num_spheres; i++) {
@@ -129,6 +131,7 @@ void light_table_init(struct light_table *t, const struct scene *s)
         float r = s->spheres[i].radius;
         t->sphere_light[i] = t->num_entries;
         add_entry(t, &cap, (struct light_entry){LK_SPHERE, i, 0, em, 4.0f * (float)M_PI * r * r});
+        t->num_surface++;
     }
     if (s->env && s->env->marg_int > 0.0f && s->env->strength > 0.0f) {
         scene_sphere(s, &t->env_center, &t->env_radius);
@@ -169,14 +172,7 @@ void light_table_fini(struct light_table *t)
 
 uint32_t light_pick(const struct light_table *t, float u)
 {
-    uint32_t lo = 0, hi = t->num_entries; /* find i with cdf[i] <= u < cdf[i+1] */
-    while (hi - lo > 1) {
-        uint32_t mid = (lo + hi) / 2;
-        if (t->cdf[mid] <= u)
-            lo = mid;
-        else
-            hi = mid;
-    }
+    uint32_t lo = cdf_cell(t->cdf, t->num_entries, u);
     /* Skip zero-probability entries that float rounding could land on. */
     while (lo + 1 < t->num_entries && t->pick_pdf[lo] == 0.0f)
         lo++;

@@ -30,6 +30,7 @@ struct light_table {
     float *cdf;                 /* num_entries + 1, cdf[0] = 0, cdf[n] = 1 */
     float *pick_pdf;            /* per entry */
     uint32_t num_entries;
+    uint32_t num_surface;       /* entries that are emissive triangles or spheres (rays can hit them) */
     uint32_t **tri_light;       /* per mesh: per triangle entry index or LIGHT_NONE; NULL if none */
     uint32_t num_meshes;
     uint32_t *sphere_light;     /* per sphere, or NULL */
