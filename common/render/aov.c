@@ -3,6 +3,9 @@
 #include <math.h>
 #include <string.h>
 
+/* The vector AOVs, in the order of their 3-component slots in sums and means. */
+static const int vec_aov[3] = {AOV_N, AOV_ALBEDO, AOV_P};
+
 void aov_accum_reset(struct aov_accum *acc)
 {
     memset(acc->sum, 0, sizeof acc->sum);
@@ -14,7 +17,6 @@ void aov_accum_reset(struct aov_accum *acc)
 static void write_channels(const struct tile_layout *l, const double v[9], float z, float id_object,
                            float id_material, float *px)
 {
-    static const int vec_aov[3] = {AOV_N, AOV_ALBEDO, AOV_P};
     for (int k = 0; k < 3; k++)
         if (l->off[vec_aov[k]] >= 0)
             for (int c = 0; c < 3; c++)
@@ -46,7 +48,6 @@ void aov_pixel_fold(struct aov_pixel *ap, const struct tile_layout *l, const flo
 {
     if (px[CH_A] < 0.0f)
         return; /* the pass kept no sample (PASS_ALPHA_NONE) */
-    static const int vec_aov[3] = {AOV_N, AOV_ALBEDO, AOV_P};
     ap->n++;
     for (int k = 0; k < 3; k++)
         for (int c = 0; l->off[vec_aov[k]] >= 0 && c < 3; c++)
@@ -74,7 +75,6 @@ static int id_valid(float v, uint32_t count)
 
 int aov_pixel_valid(const struct tile_layout *l, const float *px, uint32_t num_objects, uint32_t num_materials)
 {
-    static const int vec_aov[3] = {AOV_N, AOV_ALBEDO, AOV_P};
     for (int k = 0; k < 3; k++)
         for (int c = 0; l->off[vec_aov[k]] >= 0 && c < 3; c++)
             if (!isfinite(px[l->off[vec_aov[k]] + c]))

@@ -10,15 +10,6 @@ static float lum(const float *c)
     return 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2];
 }
 
-/* The cell i with cdf[i] <= u < cdf[i + 1] among n cells, skipping empty ones. */
-static uint32_t find_cell(const float *cdf, uint32_t n, float u)
-{
-    uint32_t lo = cdf_cell(cdf, n, u);
-    while (lo + 1 < n && cdf[lo + 1] <= cdf[lo])
-        lo++;
-    return lo;
-}
-
 struct environment *envmap_new(float *rgb, uint32_t width, uint32_t height, float strength, float rotation)
 {
     struct environment *e = mem_calloc(1, sizeof *e);
@@ -28,7 +19,6 @@ struct environment *envmap_new(float *rgb, uint32_t width, uint32_t height, floa
     e->strength = strength;
     e->rotation = rotation;
     e->cond_cdf = mem_alloc(sizeof(float) * (size_t)height * (width + 1));
-    e->cond_int = mem_alloc(sizeof(float) * height);
     e->marg_cdf = mem_alloc(sizeof(float) * (height + 1));
     double mean[3] = {0, 0, 0}, marg = 0.0;
     double *row_int = mem_alloc(sizeof(double) * height);
@@ -46,7 +36,6 @@ struct environment *envmap_new(float *rgb, uint32_t width, uint32_t height, floa
         for (uint32_t x = 1; x <= width; x++)
             cdf[x] = acc > 0.0 ? (float)(cdf[x] / acc) : (float)x / width;
         cdf[width] = 1.0f;
-        e->cond_int[y] = (float)acc;
         row_int[y] = acc;
         marg += acc / height;
     }
@@ -74,7 +63,6 @@ void envmap_free(struct environment **pe)
         return;
     free(e->rgb);
     free(e->cond_cdf);
-    free(e->cond_int);
     free(e->marg_cdf);
     free(e);
     *pe = NULL;
@@ -123,11 +111,11 @@ float envmap_pdf_uv(const struct environment *e, float u, float v)
 
 void envmap_sample_uv(const struct environment *e, float u1, float u2, float *u, float *v, float *pdf)
 {
-    uint32_t y = find_cell(e->marg_cdf, e->height, u1);
+    uint32_t y = cdf_cell(e->marg_cdf, e->height, u1);
     float dy = e->marg_cdf[y + 1] - e->marg_cdf[y];
     float fy = dy > 0.0f ? (u1 - e->marg_cdf[y]) / dy : 0.5f;
     const float *cdf = &e->cond_cdf[(size_t)y * (e->width + 1)];
-    uint32_t x = find_cell(cdf, e->width, u2);
+    uint32_t x = cdf_cell(cdf, e->width, u2);
     float dx = cdf[x + 1] - cdf[x];
     float fx = dx > 0.0f ? (u2 - cdf[x]) / dx : 0.5f;
     *v = fminf((y + fminf(fmaxf(fy, 0.0f), 1.0f)) / e->height, 0x1.fffffep-1f);

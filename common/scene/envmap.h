@@ -21,7 +21,6 @@ struct environment {
     int uniform;            /* sample the sphere uniformly, not by the map */
     /* the distribution: */
     float *cond_cdf;        /* height rows of width + 1 */
-    float *cond_int;        /* height: each row's integral over u */
     float *marg_cdf;        /* height + 1 */
     float marg_int;         /* integral over [0, 1]^2; 0 = a black map */
     vec3 mean;              /* solid-angle mean radiance (strength included) */
