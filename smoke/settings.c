@@ -2,6 +2,7 @@
  * semantic error the (already valid) text is rescanned for the key path to report its
  * line:col. The settings are two levels deep at most (top level and "source"). */
 #include "settings.h"
+#include "base/asset.h"
 #include "base/log.h"
 #include <jansson.h>
 #include <math.h>
@@ -329,8 +330,7 @@ static int parse_object(const struct ctx *c, json_t *root, struct smoke_settings
     json_t *out = json_object_get(root, "output");
     if (out) {
         const char *o = json_string_value(out);
-        if (!o || strlen(o) >= sizeof s->output || !strchr(o, '#') || strstr(o, "..") || o[0] == '/' ||
-            strchr(o, '/'))
+        if (!o || strlen(o) >= sizeof s->output || !strchr(o, '#') || strstr(o, "..") || strchr(o, '/'))
             return fail(c, P1("output"), 1, false,
                         "\"output\" must be a file name (no folder) with a run of '#', e.g. \"smoke.####.grid\"");
         snprintf(s->output, sizeof s->output, "%s", o);
@@ -430,9 +430,7 @@ int smoke_frame_name(const char *pattern, uint32_t frame, char *out, size_t size
     const char *h = strchr(pattern, '#');
     if (!h)
         return -1;
-    size_t run = strspn(h, "#");
-    if (strchr(h + run, '#'))
+    if (strchr(h + strspn(h, "#"), '#'))
         return -1;  /* one run only */
-    int w = snprintf(out, size, "%.*s%0*u%s", (int)(h - pattern), pattern, (int)run, frame, h + run);
-    return w < 0 || (size_t)w >= size ? -1 : 0;
+    return asset_frame_name(pattern, frame, out, size) == 1 ? 0 : -1;
 }

@@ -38,10 +38,10 @@ int asset_path_join(const char *dir, const char *rel, char *out, size_t outlen, 
  * wider than the run is written in full). 1 when pat has a run, 0 when it has none (out
  * is pat), -1 when out is too small. The master's --frames output names and a scene's
  * per-frame files (a grid "smoke.####.nvdb") both use it. */
+int asset_frame_name(const char *pat, uint32_t frame, char *out, size_t outlen);
+
 /* fsync of the folder holding path, so that a rename into it lasts a crash; 0 or -1. */
 int asset_fsync_parent(const char *path);
-
-int asset_frame_name(const char *pat, uint32_t frame, char *out, size_t outlen);
 
 /* A source reading from a folder on disk; it also records every file read (path and
  * bytes), which the master publishes as blobs. Symlinks that resolve outside the folder

@@ -58,6 +58,7 @@ timeout 20 $BUILD/junkpeer "tcp://127.0.0.1:$((P + 2))" rogue >"$T/jp" 2>&1
 wait $mpid && r=0 || r=1
 echo "security: stranger on a default loopback bind: $(cat "$T/jp"), handshake failures $(counter handshake_failures "$T/d.exr")"
 if [ $r = 0 ] && grep -q "junkpeer: job no, blob bytes 0" "$T/jp" && grep -q "CurveZMQ on at" "$T/log" &&
+  [ "$(counter handshake_failures "$T/d.exr")" -ge 1 ] &&
   [ "$(counter tiles_from_kept "$T/d.exr")" = 0 ] && $X cmp "$T/sref.exr" "$T/d.exr" >/dev/null; then
   ok "loopback bind without keys: CurveZMQ on, a stranger gets no JOB, no blob, no tile in"
 else cat "$T/jp" >>"$T/log"; bad "loopback bind without keys: CurveZMQ on, a stranger gets no JOB, no blob, no tile in"; fi
@@ -112,7 +113,7 @@ timeout 100 $BUILD/junkpeer --key "$T/rogue.key" "$T/master.key.pub" "tcp://127.
 timeout 60 $W --connect "tcp://127.0.0.1:$((P + 6))" $WKEY >/dev/null 2>&1 && wr=0 || wr=1
 wait $mpid && r=0 || r=1
 echo "security: flood: $(cat "$T/jp") in $(($(date +%s) - t0)) s; joined $(counter workers_joined "$T/f.exr"), refused $(counter hellos_refused "$T/f.exr")"
-if [ $r = 0 ] && [ $wr = 0 ] && grep -q "4200 hellos sent" "$T/jp" && [ "$(counter hellos_refused "$T/f.exr")" -ge 1 ] &&
+if [ $r = 0 ] && [ $wr = 0 ] && [ "$(counter hellos_refused "$T/f.exr")" -ge 1 ] &&
   grep -q "worker $(hostname):[0-9]* joined" "$T/log" && $X cmp "$T/ref.exr" "$T/f.exr" >/dev/null; then
   ok "a HELLO flood from an allowed key and unauthenticated connects do not keep the real worker out"
 else bad "a HELLO flood from an allowed key and unauthenticated connects do not keep the real worker out (master rc $r, worker rc $wr)"; fi
