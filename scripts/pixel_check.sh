@@ -38,6 +38,18 @@ render() {
 
 for s in scenes/*/*.json; do
   name=$(basename "$s" .json)
+  # Not a scene (a simulator's settings): no camera.
+  grep -q '"camera"' "$s" || continue
+  # One grid per frame ("####"): frame 1 only, and only once the simulator has written it.
+  if grep -q '####' "$s"; then
+    pat=$(sed -n 's/.*"file": *"\([^"]*####[^"]*\)".*/\1/p' "$s" | head -1)
+    first=$(dirname "$s")/$(echo "$pat" | sed 's/####/0001/')
+    if [ ! -f "$first" ]; then
+      echo "pixel_check: $name skipped: $first missing (make smoke-sim)"; continue
+    fi
+    for m in vpt march beam; do render "$name-$m" "$s" --media-method "$m" --frames 1:1; done
+    continue
+  fi
   if grep -q '"volume"' "$s"; then
     for m in vpt march beam; do render "$name-$m" "$s" --media-method "$m"; done
   else
