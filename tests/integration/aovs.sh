@@ -50,6 +50,21 @@ within "Z = +inf on the sky" "$($X chstat "$T/a.exr" Z $R)" 0 0 528
 within "id.object -1 on the sky" "$($X chstat "$T/a.exr" id.object $R)" -1 -1
 within "N 0 on the sky" "$($X chstat "$T/a.exr" N.Z $R)" 0 0
 
+# A second object, a quad at z = -3 in front of the sky with the other material: its
+# pixels (columns 12..20, rows 5..11 lie inside it) hold object 1 and material 0.
+sed 's|{"type": "obj", "file": "plane.obj", "material": "plane"}|&, {"type": "obj", "file": "quad.obj", "material": "other"}|' $S >"$T/two.json"
+cp tests/integration/aovs/plane.obj "$T/"
+printf 'v -0.2 0.1 -3\nv 0.2 0.1 -3\nv 0.2 0.4 -3\nv -0.2 0.4 -3\nf 1 2 3 4\n' >"$T/quad.obj"
+run $M "$T/two.json" -o "$T/two.exr" --workers 1 && ok "renders two objects" || bad "renders two objects"
+R="12 5 9 7"
+within "id.object 1 on the second object" "$($X chstat "$T/two.exr" id.object $R)" 1 1
+within "id.material 0 on the second object" "$($X chstat "$T/two.exr" id.material $R)" 0 0
+within "Z = 3 on the second object" "$($X chstat "$T/two.exr" Z $R)" 3 3.05
+within "id.object 0 below" "$($X chstat "$T/two.exr" id.object 0 20 33 13)" 0 0
+exrheader "$T/two.exr" >"$T/hdr" 2>&1
+grep -q 'id.object/1 (type string): "quad.obj"' "$T/hdr" && ok "id name table names the second object" \
+  || BAD_LOGS=hdr bad "id name table names the second object"
+
 # The same AOVs for any worker count, thread count, tile size and passes.
 sums() { for c in Z N.Z albedo.G P.X P.Y id.object id.material; do $X chsum "$1" $c; done; }
 run $M $S -o "$T/p1.exr" --workers 1 --threads 2 --passes 2 && r1=0 || r1=1
