@@ -74,7 +74,17 @@ run $M "$S/a.json" -o "$T/ref/f.exr" --frames 1:3 --workers 2 --threads 1 $KARGS
 $M "$S/a.json" -o "$T/kill/f.exr" --frames 1:3 --workers 2 --threads 1 $KARGS >"$T/klog" 2>&1 &
 mpid=$!
 echo $mpid >"$T/pids"
-sleep 0.$(( $(od -An -N2 -tu2 /dev/urandom) % 4 + 2 ))
+# Killed as soon as frame 1 is written, so the restart has a finished frame to skip (and,
+# most times, frame 2's journal to resume from).
+i=0
+while [ ! -f "$T/kill/f.0001.exr" ] && [ $i -lt 3000 ] && kill -0 $mpid 2>/dev/null; do sleep 0.02; i=$((i + 1)); done
+# Then until frame 2's journal holds a tile more than it was created with.
+j="$T/kill/f.0002.exr.journal"
+i=0
+while [ ! -f "$j" ] && [ $i -lt 500 ] && kill -0 $mpid 2>/dev/null; do sleep 0.01; i=$((i + 1)); done
+s0=$(stat -c %s "$j" 2>/dev/null || echo 0)
+i=0
+while [ "$(stat -c %s "$j" 2>/dev/null || echo 0)" = "$s0" ] && [ $i -lt 500 ] && kill -0 $mpid 2>/dev/null; do sleep 0.01; i=$((i + 1)); done
 kill -9 $mpid 2>/dev/null
 wait $mpid 2>/dev/null
 before=$(ls "$T/kill" | grep -c '^f\.[0-9]*\.exr$')
@@ -82,7 +92,7 @@ run $M "$S/a.json" -o "$T/kill/f.exr" --frames 1:3 --workers 2 --threads 1 $KARG
 same=0
 for f in 1 2 3; do $X cmp "$T/ref/f.000$f.exr" "$T/kill/f.000$f.exr" >/dev/null 2>&1 && same=$((same + 1)); done
 echo "framegrid: killed master: $before frame(s) done before the restart, $(counter tiles_from_journal "$T/kill/f.exr") tile(s) from the journal"
-if [ $r = 0 ] && [ $same = 3 ] && [ "$(counter frames_skipped "$T/kill/f.exr")" = "$before" ]; then
+if [ $r = 0 ] && [ $same = 3 ] && [ "$before" -ge 1 ] && [ "$before" -le 2 ] && [ "$(counter frames_skipped "$T/kill/f.exr")" = "$before" ]; then
   ok "a killed master resumes the range with the same frames"; else bad "a killed master resumes the range with the same frames"; fi
 
 # A missing frame's grid: the scene's file:line:col, the frame and the file.
