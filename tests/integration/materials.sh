@@ -51,6 +51,10 @@ for mm in vpt march; do
   if [ $r1 = 0 ] && [ $r3 = 0 ] && [ "$nan" = 1 ] && $X cmp "$T/m1.exr" "$T/m3.exr"; then
     ok "materials: frosted glass with a medium ($mm): 1 vs 3 workers bit-identical, no NaN"
   else bad "materials: frosted glass with a medium ($mm): 1 vs 3 workers bit-identical, no NaN"; fi
+  # The medium is attached: the same render without it differs.
+  run $M "$T/tiny/materials.json" -o "$T/m0.exr" --workers 1 --threads 1 --spp 4 --media-method $mm && r=0 || r=1
+  if [ $r = 0 ] && ! $X cmp "$T/m0.exr" "$T/m1.exr" >/dev/null 2>&1; then
+    ok "materials: the medium changes the glass ($mm)"; else bad "materials: the medium changes the glass ($mm)"; fi
 done
 
 # --- a brighter sky changes the picture (the map is read, not a default) ---
