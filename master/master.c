@@ -1472,7 +1472,10 @@ static void print_summary(struct master *m, double secs)
     printf("summary: noise: mean relative standard error %.4f over %u lit pixels\n",
            s->rel_stderr_pixels ? s->sum_rel_stderr / s->rel_stderr_pixels : 0.0, s->rel_stderr_pixels);
     printf("summary: estimated relRMSE %.4f (sqrt(mean pixel variance of the mean) / image mean, RGB; %s)\n",
-           m->rel_rmse_est, m->passes > 1 ? "batch means over the streams of passes" : "sample variance");
+           m->rel_rmse_est, m->passes > 1 ? "batch means over the streams of passes"
+           : m->scene.settings.sampler != SAMPLER_INDEPENDENT
+               ? "sample variance: an upper bound for Sobol and stratified samples; --passes 2 estimates it"
+               : "sample variance");
     if (m->var_saturated)
         printf("summary: the variance of %llu pixel(s) is past float's range (saved as FLT_MAX): the estimate is a "
                "lower bound\n", (unsigned long long)m->var_saturated);
