@@ -172,18 +172,19 @@ int main(int argc, char **argv)
                                           s.steps_per_frame;
     size_t bytes = 0;
     for (uint32_t frame = done + 1; frame <= s.frames; frame++) {
+        size_t frame_bytes = 0;
         for (uint32_t k = 0; k < s.steps_per_frame; k++) {
             fluid_step(&f);
             steps_run++;
         }
         if (smoke_frame_name(pat, frame, path, sizeof path) != 0 ||
-            store_write_grid(path, &f, err, sizeof err) != 0 ||
+            store_write_frame(path, &f, &frame_bytes, err, sizeof err) != 0 ||
             store_write_checkpoint(ckpt, &f, frame, err, sizeof err) != 0) {
             fprintf(stderr, "smokesim: frame %u: %s\n", frame, err[0] ? err : "bad output name");
             fluid_free(&f);
             return 1;
         }
-        bytes += store_grid_bytes(&f);
+        bytes += frame_bytes;
         double el = now_s() - t0, per = el / (double)steps_run;
         double eta = per * (double)(total_steps - steps_run);
         fprintf(stderr, "smokesim: frame %u/%u step %llu/%llu %.1f ms/step ETA %dm%02ds %s\n", frame, s.frames,
@@ -191,9 +192,10 @@ int main(int argc, char **argv)
                 (int)(eta / 60), (int)eta % 60, path);
     }
     double el = now_s() - t0;
-    fprintf(stderr, "smokesim: done: %llu steps in %.1f s (%.1f ms/step), %zu bytes of grids written, %ux%ux%u, "
+    fprintf(stderr, "smokesim: done: %llu steps in %.1f s (%.1f ms/step), %zu bytes of grids written (dense: %zu), %ux%ux%u, "
                     "checkpoint %s\n",
-            (unsigned long long)steps_run, el, steps_run ? 1e3 * el / (double)steps_run : 0.0, bytes, f.nx, f.ny,
+            (unsigned long long)steps_run, el, steps_run ? 1e3 * el / (double)steps_run : 0.0, bytes,
+            store_grid_bytes(&f) * (s.frames - done), f.nx, f.ny,
             f.nz, ckpt);
     if (steps_run)
         phase_report(&f, steps_run);

@@ -35,6 +35,7 @@ void smoke_settings_default(struct smoke_settings *s)
     s->seed = 1;
     s->threads = 1;
     snprintf(s->output, sizeof s->output, "smoke.####.grid");
+    s->nvdb_threshold = 1e-4f;
 }
 
 /* ---- positions ---- */
@@ -235,7 +236,7 @@ static int check_keys(const struct ctx *c, json_t *obj, const char *parent, cons
 
 static const char *const top_keys[] = {"version", "resolution", "size", "frames", "steps_per_frame", "dt",
                                        "viscosity", "buoyancy", "confinement", "source", "sponge", "seed",
-                                       "threads", "output", NULL};
+                                       "threads", "output", "nvdb_threshold", NULL};
 static const char *const buoy_keys[] = {"alpha", "beta", NULL};
 static const char *const source_keys[] = {"center", "radius", "rate", "temperature", "velocity", "jitter", NULL};
 static const char *const sponge_keys[] = {"width", "strength", NULL};
@@ -330,11 +331,15 @@ static int parse_object(const struct ctx *c, json_t *root, struct smoke_settings
     json_t *out = json_object_get(root, "output");
     if (out) {
         const char *o = json_string_value(out);
-        if (!o || strlen(o) >= sizeof s->output || !strchr(o, '#') || strstr(o, "..") || strchr(o, '/'))
+        if (!o || strlen(o) >= sizeof s->output || !strchr(o, '#') || strstr(o, "..") || strchr(o, '/') ||
+            smoke_output_nvdb(o) < 0)
             return fail(c, P1("output"), 1, false,
-                        "\"output\" must be a file name (no folder) with a run of '#', e.g. \"smoke.####.grid\"");
+                        "\"output\" must be a file name (no folder) with a run of '#', ending in .nvdb or .grid, "
+                        "e.g. \"smoke.####.nvdb\"");
         snprintf(s->output, sizeof s->output, "%s", o);
     }
+    if (get_float(c, root, P1("nvdb_threshold"), 1, 0.0f, 1e6f, &s->nvdb_threshold))
+        return -1;
 #undef P1
 #undef P2
     char msg[400];
@@ -387,6 +392,14 @@ int smoke_settings_check(const struct smoke_settings *s, char *err, size_t errle
         }
     }
     char name[300];
+    if (smoke_output_nvdb(s->output) < 0) {
+        str_fmt(err, errlen, "output pattern \"%s\" must end in .nvdb or .grid", s->output);
+        return -1;
+    }
+    if (!(s->nvdb_threshold >= 0.0f) || !isfinite(s->nvdb_threshold)) {
+        str_fmt(err, errlen, "nvdb_threshold must be finite and >= 0");
+        return -1;
+    }
     if (smoke_frame_name(s->output, 1, name, sizeof name)) {
         str_fmt(err, errlen, "output pattern \"%s\" needs exactly one run of '#'", s->output);
         return -1;
@@ -423,6 +436,16 @@ int smoke_settings_parse(const char *name, const char *text, size_t len, struct 
     }
     json_decref(root);
     return rc;
+}
+
+int smoke_output_nvdb(const char *pattern)
+{
+    size_t n = strlen(pattern);
+    if (n >= 5 && strcmp(pattern + n - 5, ".nvdb") == 0)
+        return 1;
+    if (n >= 5 && strcmp(pattern + n - 5, ".grid") == 0)
+        return 0;
+    return -1;
 }
 
 int smoke_frame_name(const char *pattern, uint32_t frame, char *out, size_t size)
