@@ -122,7 +122,7 @@ test-slurm: all
 test-netns: all
 	BUILD=$(BUILD) sh tests/netns/run.sh
 
-# The animated smoke scene's grids (scenes/smoke_anim/smoke.####.grid, not committed; resumable).
+# The animated smoke scene's grids (scenes/smoke_anim/smoke.####.nvdb, not committed; resumable).
 smoke-sim: $(BUILD)/smokesim
 	$(BUILD)/smokesim scenes/smoke_anim/sim.json
 

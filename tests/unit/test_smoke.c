@@ -376,6 +376,11 @@ Test(smoke, settings_refused_with_positions)
     cr_assert(strstr(err, "sim.json:1:23:"), "%s", err);
     cr_assert_eq(parse("{\"output\": \"a.##.b.##\"}", err, sizeof err), -1);
     cr_assert_eq(parse("{\"output\": \"../x.####\"}", err, sizeof err), -1);
+    cr_assert_eq(parse("{\"output\": \"x.####.vdb\"}", err, sizeof err), -1);
+    cr_assert(strstr(err, "sim.json:1:12:") && strstr(err, ".nvdb or .grid"), "%s", err);
+    cr_assert_eq(parse("{\"output\": \"x.####.nvdb\", \"nvdb_threshold\": 0.01}", err, sizeof err), 0, "%s", err);
+    cr_assert_eq(parse("{\"nvdb_threshold\": -1}", err, sizeof err), -1);
+    cr_assert(strstr(err, "sim.json:1:20:"), "%s", err);
     cr_assert_eq(parse("{\"sponge\": {\"width\": 40}}", err, sizeof err), -1);
     cr_assert(strstr(err, "sponge"), "%s", err);
     cr_assert_eq(parse("[1]", err, sizeof err), -1);
