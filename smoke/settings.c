@@ -1,8 +1,9 @@
 /* Smoke settings (see settings.h). jansson checks the syntax and keeps no positions; on a
- * semantic error the (already valid) text is rescanned for the key path to report its
- * line:col. The settings are two levels deep at most (top level and "source"). */
+ * semantic error base/jsonpos.h finds the key path's line:col in the (already valid) text.
+ * The settings are two levels deep at most (top level and "source"). */
 #include "settings.h"
 #include "base/asset.h"
+#include "base/jsonpos.h"
 #include "base/log.h"
 #include <jansson.h>
 #include <math.h>
@@ -38,104 +39,6 @@ void smoke_settings_default(struct smoke_settings *s)
     s->nvdb_threshold = 1e-4f;
 }
 
-/* ---- positions ---- */
-
-struct scan {
-    const char *t;
-    size_t len, i;
-    uint32_t line, col;
-};
-
-static void adv(struct scan *s)
-{
-    if (s->t[s->i] == '\n') {
-        s->line++;
-        s->col = 1;
-    } else if (((unsigned char)s->t[s->i] & 0xc0) != 0x80) {
-        s->col++;  /* code points, as jansson counts */
-    }
-    s->i++;
-}
-static void ws(struct scan *s)
-{
-    while (s->i < s->len && strchr(" \t\r\n", s->t[s->i]))
-        adv(s);
-}
-/* Skips a string at s->i (a quote), copying up to size-1 raw bytes into out. */
-static void skip_string(struct scan *s, char *out, size_t size)
-{
-    size_t o = 0;
-    adv(s);
-    while (s->i < s->len && s->t[s->i] != '"') {
-        if (s->t[s->i] == '\\')
-            adv(s);
-        else if (out && o + 1 < size)
-            out[o++] = s->t[s->i];
-        if (s->i < s->len)
-            adv(s);
-    }
-    if (s->i < s->len)
-        adv(s);
-    if (out)
-        out[o] = '\0';
-}
-static void skip_value(struct scan *s)
-{
-    int depth = 0;
-    do {
-        if (s->i >= s->len)
-            return;
-        char ch = s->t[s->i];
-        if (ch == '"') {
-            skip_string(s, NULL, 0);
-            continue;
-        }
-        if (ch == '{' || ch == '[')
-            depth++;
-        else if (ch == '}' || ch == ']')
-            depth--;
-        else if (depth == 0 && (ch == ',' || strchr(" \t\r\n", ch)))
-            return;
-        adv(s);
-    } while (depth > 0 || (s->i < s->len && !strchr(",}] \t\r\n", s->t[s->i])));
-}
-/* Finds keys[0..n) in nested objects; line:col of the last key (at_key) or its value. */
-static bool locate(struct scan *s, const char *const *keys, int n, bool at_key)
-{
-    ws(s);
-    if (s->i >= s->len || s->t[s->i] != '{')
-        return false;
-    adv(s);
-    for (;;) {
-        ws(s);
-        if (s->i >= s->len || s->t[s->i] != '"')
-            return false;
-        uint32_t kl = s->line, kc = s->col;
-        char key[128];
-        skip_string(s, key, sizeof key);
-        ws(s);
-        if (s->i < s->len && s->t[s->i] == ':')
-            adv(s);
-        ws(s);
-        if (strcmp(key, keys[0]) == 0) {
-            if (n == 1) {
-                if (at_key) {
-                    s->line = kl;
-                    s->col = kc;
-                }
-                return true;
-            }
-            return locate(s, keys + 1, n - 1, at_key);
-        }
-        skip_value(s);
-        ws(s);
-        if (s->i < s->len && s->t[s->i] == ',')
-            adv(s);
-        else
-            return false;
-    }
-}
-
 struct ctx {
     const char *name, *text;
     size_t len;
@@ -146,15 +49,18 @@ struct ctx {
 __attribute__((format(printf, 5, 6))) static int fail(const struct ctx *c, const char *const *keys, int n,
                                                       bool at_key, const char *fmt, ...)
 {
-    struct scan s = {c->text, c->len, 0, 1, 1};
-    if (n == 0 || !locate(&s, keys, n, at_key))
-        s.line = s.col = 1;
+    struct json_step steps[2];
+    for (int i = 0; i < n && i < 2; i++)
+        steps[i] = (struct json_step){keys[i], 0};
+    uint32_t line = 1, col = 1;
+    if (n > 0)
+        json_locate(c->text, c->len, steps, n < 2 ? n : 2, at_key, &line, &col);
     char msg[512];
     va_list ap;
     va_start(ap, fmt);
     vsnprintf(msg, sizeof msg, fmt, ap);
     va_end(ap);
-    str_fmt(c->err, c->errlen, "%s:%u:%u: %s", c->name, s.line, s.col, msg);
+    str_fmt(c->err, c->errlen, "%s:%u:%u: %s", c->name, line, col, msg);
     return -1;
 }
 
