@@ -28,6 +28,7 @@
 #include "scene/grid.h"
 #include "scene/medium.h"
 #include "scene/nvdb.h"
+#include "helpers.h"
 
 static void small_settings(struct smoke_settings *s, uint32_t nx, uint32_t ny, uint32_t nz)
 {
@@ -429,20 +430,6 @@ Test(smoke, grid_file_reads_back)
     fluid_free(&f);
 }
 
-static uint8_t *read_whole(const char *path, size_t *len)
-{
-    FILE *fp = fopen(path, "rb");
-    cr_assert(fp, "%s", path);
-    fseek(fp, 0, SEEK_END);
-    long n = ftell(fp);
-    fseek(fp, 0, SEEK_SET);
-    uint8_t *buf = malloc((size_t)n + 1);
-    cr_assert_eq(fread(buf, 1, (size_t)n, fp), (size_t)n);
-    fclose(fp);
-    *len = (size_t)n;
-    return buf;
-}
-
 /* A frame of a non-cubic run written both ways: the .nvdb (NanoVDB's writer) reads back
  * through the renderer's NanoVDB parser, holds exactly the voxels above the threshold
  * (its bytes are not fewer at this size: a NanoVDB tree has a fixed cost of about 300 KB,
@@ -471,7 +458,7 @@ Test(smoke, nvdb_frame_samples_as_dense, .timeout = 60)
     cr_assert_eq(store_write_grid(dpath, &f, err, sizeof err), 0, "%s", err);
     cr_assert_eq(store_write_nvdb(npath, &f, &nbytes, &active, err, sizeof err), 0, "%s", err);
     size_t dlen, nlen;
-    uint8_t *dbuf = read_whole(dpath, &dlen), *nbuf = read_whole(npath, &nlen);
+    uint8_t *dbuf = test_read_file(dpath, &dlen, "written above"), *nbuf = test_read_file(npath, &nlen, "written above");
     unlink(dpath);
     unlink(npath);
     cr_assert_eq(nlen, nbytes);
