@@ -78,15 +78,20 @@ int store_write_grid(const char *path, const struct fluid *f, char *err, size_t 
     return rc;
 }
 
-int store_write_nvdb(const char *path, const struct fluid *f, size_t *bytes, uint64_t *active, char *err,
-                     size_t errlen)
+int store_encode_nvdb(const struct fluid *f, uint8_t **buf, size_t *len, uint64_t *active, char *err, size_t errlen)
 {
     const uint32_t n[3] = {f->nx, f->ny, f->nz};
     const double h = f->h;
     const double size[3] = {h, h, h}, origin[3] = {0.5 * h, 0.5 * h, 0.5 * h};
+    return nvdb_encode_fog(f->d, n, f->s.nvdb_threshold, size, origin, "density", buf, len, active, err, errlen);
+}
+
+int store_write_nvdb(const char *path, const struct fluid *f, size_t *bytes, uint64_t *active, char *err,
+                     size_t errlen)
+{
     uint8_t *buf = NULL;
     size_t len = 0;
-    if (nvdb_encode_fog(f->d, n, f->s.nvdb_threshold, size, origin, "density", &buf, &len, active, err, errlen) != 0)
+    if (store_encode_nvdb(f, &buf, &len, active, err, errlen) != 0)
         return -1;
     int rc = store_write_atomic(path, buf, len, err, errlen);
     free(buf);

@@ -11,6 +11,9 @@
 int store_write_atomic(const char *path, const void *data, size_t len, char *err, size_t errlen);
 /* The density as a BRGRID01 grid (negative values clamped to 0). 0 or -1. */
 int store_write_grid(const char *path, const struct fluid *f, char *err, size_t errlen);
+/* The density as the bytes of a NanoVDB file (store_write_nvdb's), malloc'd into *buf. */
+int store_encode_nvdb(const struct fluid *f, uint8_t **buf, size_t *len, uint64_t *active, char *err,
+                      size_t errlen);
 /* The density as a NanoVDB fog volume in the simulation's world units (voxel edge f->h,
  * voxel (i, j, k)'s centre at ((i, j, k) + 0.5) h, as the source's position is given),
  * storing the densities above s.nvdb_threshold. *bytes and *active (either may be NULL):
