@@ -201,45 +201,6 @@ static inline void cell_at(uint32_t nx, uint32_t ny, uint32_t nz, float x, float
     l->dz = (ptrdiff_t)(sz * (int64_t)sxy);
 }
 
-/* cell_at for p = (x, y, z, any) when every coordinate is in [0, n - 1) (nearly every
- * lookup), the three axes at once: 0 when it is not (then cell_at). hi = (nx - 1, ny - 1,
- * nz - 1, any). The same cell as cell_at's (lane-wise IEEE, truncation is the floor). */
-typedef int32_t v4i __attribute__((vector_size(16)));
-static inline int cell_fast(v4f p, v4f hi, uint32_t nx, size_t sxy, struct cell *l)
-{
-    const v4f zero = {0.0f, 0.0f, 0.0f, 0.0f};
-    v4i in = (p >= zero) & (p < hi);
-    if (!(in[0] & in[1] & in[2]))
-        return 0;
-    v4i ip = __builtin_convertvector(p, v4i);
-    v4f t = p - __builtin_convertvector(ip, v4f);
-    l->tx = t[0];
-    l->ty = t[1];
-    l->tz = t[2];
-    l->i = (uint32_t)ip[0];
-    l->j = (uint32_t)ip[1];
-    l->k = (uint32_t)ip[2];
-    l->wrapped = 0;
-    l->c = l->i + (size_t)l->j * nx + (size_t)l->k * sxy;
-    l->dx = 1;
-    l->dy = (ptrdiff_t)nx;
-    l->dz = (ptrdiff_t)sxy;
-    return 1;
-}
-
-/* cell_get4 for a cell cell_fast made: the strides are the loop's (1, nx, nx ny), which
- * the compiler keeps in registers. */
-static inline v4f cell_get4_fast(const struct cell *l, const v4f *q, ptrdiff_t dy, ptrdiff_t dz)
-{
-    const v4f *p0 = q + l->c, *p1 = p0 + dz;
-    v4f a0 = p0[0] + l->tx * (p0[1] - p0[0]);
-    v4f a1 = p0[dy] + l->tx * (p0[dy + 1] - p0[dy]);
-    v4f a2 = p1[0] + l->tx * (p1[1] - p1[0]);
-    v4f a3 = p1[dy] + l->tx * (p1[dy + 1] - p1[dy]);
-    v4f b0 = a0 + l->ty * (a1 - a0), b1 = a2 + l->ty * (a3 - a2);
-    return b0 + l->tz * (b1 - b0);
-}
-
 /* Trilinear lookups, written as a + t (b - a) so a constant field comes back exactly. */
 #define TRILERP(T, q, l)                                                                        \
     do {                                                                                        \
@@ -324,10 +285,76 @@ static struct box pack(const struct fluid *f, const float *scalar)
     return b;
 }
 
+/* One row's cells, x fastest: where every coordinate of point i lies in [0, n - 1) its
+ * cell is the truncation (lower corner index c, fractions t), with strides 1, nx, nx ny;
+ * elsewhere slow[i] is set and the cell comes from cell_at. Four points at a time with
+ * vector masks (the arrays have room for a row rounded up to 4, the tail kept finite). */
+typedef int32_t v4i __attribute__((vector_size(16)));
+struct row {
+    float x[SMOKE_MAX_RES], y[SMOKE_MAX_RES], z[SMOKE_MAX_RES];
+    float tx[SMOKE_MAX_RES], ty[SMOKE_MAX_RES], tz[SMOKE_MAX_RES];
+    int32_t c[SMOKE_MAX_RES];
+    int32_t slow[SMOKE_MAX_RES];
+    struct cell cell[SMOKE_MAX_RES];  /* the slow ones' */
+};
+static inline v4f load4(const float *p)
+{
+    v4f v;
+    memcpy(&v, p, sizeof v);
+    return v;
+}
+static inline void store4(void *p, const void *v) { memcpy(p, v, 16); }
+static void row_cells(struct row *r, uint32_t nx, uint32_t ny, uint32_t nz)
+{
+    const v4f zero = {0, 0, 0, 0};
+    const v4f xm = zero + (float)(nx - 1), ym = zero + (float)(ny - 1), zm = zero + (float)(nz - 1);
+    const v4i sy = (v4i){0, 0, 0, 0} + (int32_t)nx, sz = (v4i){0, 0, 0, 0} + (int32_t)(nx * ny);
+    v4i any = {0, 0, 0, 0};
+    for (uint32_t i = 0; i < nx; i += 4) {
+        v4f x = load4(r->x + i), y = load4(r->y + i), z = load4(r->z + i);
+        v4i in = (x >= zero) & (x < xm) & (y >= zero) & (y < ym) & (z >= zero) & (z < zm);
+        x = (v4f)((v4i)x & in);  /* 0 where slow, so the conversions stay in range */
+        y = (v4f)((v4i)y & in);
+        z = (v4f)((v4i)z & in);
+        v4i xi = __builtin_convertvector(x, v4i), yi = __builtin_convertvector(y, v4i);
+        v4i zi = __builtin_convertvector(z, v4i);
+        v4f tx = x - __builtin_convertvector(xi, v4f), ty = y - __builtin_convertvector(yi, v4f);
+        v4f tz = z - __builtin_convertvector(zi, v4f);
+        v4i c = xi + yi * sy + zi * sz, slow = ~in;
+        store4(r->tx + i, &tx);
+        store4(r->ty + i, &ty);
+        store4(r->tz + i, &tz);
+        store4(r->c + i, &c);
+        store4(r->slow + i, &slow);
+        any |= slow & (v4i){i < nx, i + 1 < nx, i + 2 < nx, i + 3 < nx};
+    }
+    if (any[0] | any[1] | any[2] | any[3])
+        for (uint32_t i = 0; i < nx; i++)
+            if (r->slow[i])
+                cell_at(nx, ny, nz, r->x[i], r->y[i], r->z[i], &r->cell[i]);
+}
+
+/* cell_get4 of row cell i. */
+static inline v4f row_get4(const struct row *r, uint32_t i, const v4f *q, ptrdiff_t dy, ptrdiff_t dz)
+{
+    if (r->slow[i])
+        return cell_get4(&r->cell[i], q);
+    const v4f *p0 = q + r->c[i], *p1 = p0 + dz;
+    float tx = r->tx[i], ty = r->ty[i], tz = r->tz[i];
+    v4f a0 = p0[0] + tx * (p0[1] - p0[0]);
+    v4f a1 = p0[dy] + tx * (p0[dy + 1] - p0[dy]);
+    v4f a2 = p1[0] + tx * (p1[1] - p1[0]);
+    v4f a3 = p1[dy] + tx * (p1[dy + 1] - p1[dy]);
+    v4f b0 = a0 + ty * (a1 - a0), b1 = a2 + ty * (a3 - a2);
+    return b0 + tz * (b1 - b0);
+}
+
 /* One pass for every advected field: the departure point of voxel (i, j, k) over dt by a
  * midpoint (RK2) backtrace through the packed velocity, in voxel units, then one cell
  * set-up for all fields: velocity and density into u v w d (vel set; the packed copy is
- * the input, so in place is safe), scalar `src` into `dst`. */
+ * the input, so in place is safe), scalar `src` into `dst` (0 where its cell lies outside
+ * the scalar's box). A row at a time in stages (points, cells, midpoint lookups, cells,
+ * lookups), so that the voxels of a stage do not wait on one another. */
 struct advect_arg {
     float *const *vel;  /* u v w d, or NULL: only the scalar */
     const float *src;
@@ -347,34 +374,53 @@ static void advect_slab(const struct fluid *f, void *p, uint32_t k0, uint32_t k1
     const size_t sxy = (size_t)nx * ny;
     const ptrdiff_t dy = (ptrdiff_t)nx, dz = (ptrdiff_t)sxy;
     const float s = a->dt / f->h, hs = 0.5f * s;
-    const v4f s4 = {s, s, s, 0.0f}, hs4 = {hs, hs, hs, 0.0f};
-    const v4f hi = {(float)(nx - 1), (float)(ny - 1), (float)(nz - 1), 1.0f};
-    size_t idx = (size_t)k0 * sxy;
+    const struct box *b = &a->src_box;
+    /* the scalar's box as bounds on a fast cell's point: its lower corner floor(x) is
+     * outside [lo - 1, hi] when x < lo - 1 or x >= hi + 1 */
+    const float blo[3] = {(float)b->lo[0] - 1.0f, (float)b->lo[1] - 1.0f, (float)b->lo[2] - 1.0f};
+    const float bhi[3] = {(float)b->hi[0] + 1.0f, (float)b->hi[1] + 1.0f, (float)b->hi[2] + 1.0f};
+    struct row *r = mem_alloc(sizeof *r);
+    memset(r, 0, sizeof *r);  /* the tail beyond nx (rounded up to 4) stays 0 */
     for (uint32_t k = k0; k < k1; k++)
-        for (uint32_t j = 0; j < ny; j++)
-            for (uint32_t i = 0; i < nx; i++, idx++) {
-                struct cell l;
-                const v4f ijk = {(float)i, (float)j, (float)k, 0.0f};
-                v4f p1 = ijk - hs4 * q[idx], um;
-                if (cell_fast(p1, hi, nx, sxy, &l)) {
-                    um = cell_get4_fast(&l, q, dy, dz);
-                } else {
-                    cell_at(nx, ny, nz, p1[0], p1[1], p1[2], &l);
-                    um = cell_get4(&l, q);
-                }
-                v4f p2 = ijk - s4 * um;
-                int fast = cell_fast(p2, hi, nx, sxy, &l);
-                if (!fast)
-                    cell_at(nx, ny, nz, p2[0], p2[1], p2[2], &l);
-                if (vu) {
-                    v4f r = fast ? cell_get4_fast(&l, q, dy, dz) : cell_get4(&l, q);
-                    vu[idx] = r[0];
-                    vv[idx] = r[1];
-                    vw[idx] = r[2];
-                    vd[idx] = r[3];
-                }
-                dst[idx] = cell_outside(&l, &a->src_box) ? 0.0f : cell_get(&l, src);
+        for (uint32_t j = 0; j < ny; j++) {
+            const size_t row = (size_t)k * sxy + (size_t)j * nx;
+            const v4f *qr = q + row;
+            for (uint32_t i = 0; i < nx; i++) {
+                r->x[i] = (float)i - hs * qr[i][0];
+                r->y[i] = (float)j - hs * qr[i][1];
+                r->z[i] = (float)k - hs * qr[i][2];
             }
+            row_cells(r, nx, ny, nz);
+            for (uint32_t i = 0; i < nx; i++) {
+                v4f um = row_get4(r, i, q, dy, dz);
+                r->x[i] = (float)i - s * um[0];
+                r->y[i] = (float)j - s * um[1];
+                r->z[i] = (float)k - s * um[2];
+            }
+            row_cells(r, nx, ny, nz);
+            if (vu)
+                for (uint32_t i = 0; i < nx; i++) {
+                    v4f v = row_get4(r, i, q, dy, dz);
+                    vu[row + i] = v[0];
+                    vv[row + i] = v[1];
+                    vw[row + i] = v[2];
+                    vd[row + i] = v[3];
+                }
+            for (uint32_t i = 0; i < nx; i++) {
+                int out = r->slow[i] ? cell_outside(&r->cell[i], b)
+                                     : (r->x[i] < blo[0]) | (r->x[i] >= bhi[0]) | (r->y[i] < blo[1]) |
+                                           (r->y[i] >= bhi[1]) | (r->z[i] < blo[2]) | (r->z[i] >= bhi[2]);
+                if (out) {
+                    dst[row + i] = 0.0f;
+                } else if (r->slow[i]) {
+                    dst[row + i] = cell_get(&r->cell[i], src);
+                } else {
+                    struct cell l = {r->c[i], 1, dy, dz, r->tx[i], r->ty[i], r->tz[i], 0, 0, 0, 0};
+                    dst[row + i] = cell_get(&l, src);
+                }
+            }
+        }
+    free(r);
 }
 
 void fluid_advect_scalar(const struct fluid *f, const float *src, float *dst, float dt)
