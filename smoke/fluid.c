@@ -288,13 +288,15 @@ static struct box pack(const struct fluid *f, const float *scalar)
 /* One row's cells, x fastest: where every coordinate of point i lies in [0, n - 1) its
  * cell is the truncation (lower corner index c, fractions t), with strides 1, nx, nx ny;
  * elsewhere slow[i] is set and the cell comes from cell_at. Four points at a time with
- * vector masks (the arrays have room for a row rounded up to 4, the tail kept finite). */
+ * vector masks (the arrays have room for a row rounded up to 4; the tail stays 0, a point
+ * inside, so it is never slow). */
 typedef int32_t v4i __attribute__((vector_size(16)));
 struct row {
     float x[SMOKE_MAX_RES], y[SMOKE_MAX_RES], z[SMOKE_MAX_RES];
     float tx[SMOKE_MAX_RES], ty[SMOKE_MAX_RES], tz[SMOKE_MAX_RES];
     int32_t c[SMOKE_MAX_RES];
     int32_t slow[SMOKE_MAX_RES];
+    int32_t group[SMOKE_MAX_RES / 4];  /* a slow point among points 4g..4g+3 */
     struct cell cell[SMOKE_MAX_RES];  /* the slow ones' */
 };
 static inline v4f load4(const float *p)
@@ -326,12 +328,15 @@ static void row_cells(struct row *r, uint32_t nx, uint32_t ny, uint32_t nz)
         store4(r->tz + i, &tz);
         store4(r->c + i, &c);
         store4(r->slow + i, &slow);
-        any |= slow & (v4i){i < nx, i + 1 < nx, i + 2 < nx, i + 3 < nx};
+        r->group[i / 4] = slow[0] | slow[1] | slow[2] | slow[3];
+        any |= slow;
     }
     if (any[0] | any[1] | any[2] | any[3])
-        for (uint32_t i = 0; i < nx; i++)
-            if (r->slow[i])
-                cell_at(nx, ny, nz, r->x[i], r->y[i], r->z[i], &r->cell[i]);
+        for (uint32_t g = 0; g < (nx + 3) / 4; g++)
+            if (r->group[g])
+                for (uint32_t i = 4 * g; i < 4 * g + 4 && i < nx; i++)
+                    if (r->slow[i])
+                        cell_at(nx, ny, nz, r->x[i], r->y[i], r->z[i], &r->cell[i]);
 }
 
 /* cell_get4 of row cell i. */
