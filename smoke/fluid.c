@@ -545,14 +545,32 @@ void fluid_divergence(struct fluid *f, double *div_norm, double *vel_norm)
 
 /* ---- source, forces, sponge ---- */
 
+/* Index range [*lo, *hi] of the voxels along one axis whose centres (m + 0.5) h may lie
+ * within r of c (one voxel of slack; the sphere test decides). */
+static inline size_t at(const struct fluid *f, uint32_t i, uint32_t j, uint32_t k)
+{
+    return i + (size_t)f->nx * (j + (size_t)f->ny * k);
+}
+
+static void source_span(float c, float r, float h, uint32_t n, uint32_t *lo, uint32_t *hi)
+{
+    float a = floorf((c - r) / h - 0.5f) - 1.0f, b = ceilf((c + r) / h - 0.5f) + 1.0f;
+    *lo = a <= 0.0f ? 0 : (a >= (float)(n - 1) ? n - 1 : (uint32_t)a);
+    *hi = b <= 0.0f ? 0 : (b >= (float)(n - 1) ? n - 1 : (uint32_t)b);
+}
+
 static void add_source(struct fluid *f, float dt)
 {
     const struct smoke_settings *s = &f->s;
     float r = s->source_radius, r2 = r * r;
-    size_t idx = 0;
-    for (uint32_t k = 0; k < f->nz; k++)
-        for (uint32_t j = 0; j < f->ny; j++)
-            for (uint32_t i = 0; i < f->nx; i++, idx++) {
+    uint32_t lo[3], hi[3];
+    const uint32_t n[3] = {f->nx, f->ny, f->nz};
+    for (int a = 0; a < 3; a++)
+        source_span(s->source_center[a], r, f->h, n[a], &lo[a], &hi[a]);
+    for (uint32_t k = lo[2]; k <= hi[2]; k++)
+        for (uint32_t j = lo[1]; j <= hi[1]; j++)
+            for (uint32_t i = lo[0]; i <= hi[0]; i++) {
+                size_t idx = at(f, i, j, k);
                 float dx = ((float)i + 0.5f) * f->h - s->source_center[0];
                 float dy = ((float)j + 0.5f) * f->h - s->source_center[1];
                 float dz = ((float)k + 0.5f) * f->h - s->source_center[2];
@@ -570,10 +588,6 @@ static void add_source(struct fluid *f, float dt)
             }
 }
 
-static inline size_t at(const struct fluid *f, uint32_t i, uint32_t j, uint32_t k)
-{
-    return i + (size_t)f->nx * (j + (size_t)f->ny * k);
-}
 
 /* Buoyancy (Fedkiw et al. 2001: f = (-alpha d + beta T) up, ambient temperature 0) and
  * vorticity confinement f = epsilon h (N x omega), N = grad|omega| / |grad|omega||, with
