@@ -354,6 +354,12 @@ static inline v4f row_get4(const struct row *r, uint32_t i, const v4f *q, ptrdif
     return b0 + tz * (b1 - b0);
 }
 
+/* Advected scalars (density, temperature) of magnitude below this become 0: far from the
+ * plume they would otherwise shrink step by step into subnormal floats, which the CPU
+ * handles many times slower, and keep the temperature's active box as large as the grid. */
+#define SCALAR_FLUSH 1e-20f
+static inline float flush(float x) { return fabsf(x) < SCALAR_FLUSH ? 0.0f : x; }
+
 /* One pass for every advected field: the departure point of voxel (i, j, k) over dt by a
  * midpoint (RK2) backtrace through the packed velocity, in voxel units, then one cell
  * set-up for all fields: velocity and density into u v w d (vel set; the packed copy is
@@ -409,7 +415,7 @@ static void advect_slab(const struct fluid *f, void *p, uint32_t k0, uint32_t k1
                     vu[row + i] = v[0];
                     vv[row + i] = v[1];
                     vw[row + i] = v[2];
-                    vd[row + i] = v[3];
+                    vd[row + i] = flush(v[3]);
                 }
             for (uint32_t i = 0; i < nx; i++) {
                 int out = r->slow[i] ? cell_outside(&r->cell[i], b)
@@ -418,10 +424,10 @@ static void advect_slab(const struct fluid *f, void *p, uint32_t k0, uint32_t k1
                 if (out) {
                     dst[row + i] = 0.0f;
                 } else if (r->slow[i]) {
-                    dst[row + i] = cell_get(&r->cell[i], src);
+                    dst[row + i] = flush(cell_get(&r->cell[i], src));
                 } else {
                     struct cell l = {r->c[i], 1, dy, dz, r->tx[i], r->ty[i], r->tz[i], 0, 0, 0, 0};
-                    dst[row + i] = cell_get(&l, src);
+                    dst[row + i] = flush(cell_get(&l, src));
                 }
             }
         }
