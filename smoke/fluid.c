@@ -344,14 +344,8 @@ static inline v4f row_get4(const struct row *r, uint32_t i, const v4f *q, ptrdif
 {
     if (r->slow[i])
         return cell_get4(&r->cell[i], q);
-    const v4f *p0 = q + r->c[i], *p1 = p0 + dz;
-    float tx = r->tx[i], ty = r->ty[i], tz = r->tz[i];
-    v4f a0 = p0[0] + tx * (p0[1] - p0[0]);
-    v4f a1 = p0[dy] + tx * (p0[dy + 1] - p0[dy]);
-    v4f a2 = p1[0] + tx * (p1[1] - p1[0]);
-    v4f a3 = p1[dy] + tx * (p1[dy + 1] - p1[dy]);
-    v4f b0 = a0 + ty * (a1 - a0), b1 = a2 + ty * (a3 - a2);
-    return b0 + tz * (b1 - b0);
+    const struct cell l = {(size_t)r->c[i], 1, dy, dz, r->tx[i], r->ty[i], r->tz[i], 0, 0, 0, 0};
+    return cell_get4(&l, q);
 }
 
 /* Advected scalars (density, temperature) of magnitude below this become 0: far from the
@@ -426,7 +420,7 @@ static void advect_slab(const struct fluid *f, void *p, uint32_t k0, uint32_t k1
                 } else if (r->slow[i]) {
                     dst[row + i] = flush(cell_get(&r->cell[i], src));
                 } else {
-                    struct cell l = {r->c[i], 1, dy, dz, r->tx[i], r->ty[i], r->tz[i], 0, 0, 0, 0};
+                    const struct cell l = {(size_t)r->c[i], 1, dy, dz, r->tx[i], r->ty[i], r->tz[i], 0, 0, 0, 0};
                     dst[row + i] = flush(cell_get(&l, src));
                 }
             }
