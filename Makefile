@@ -31,8 +31,10 @@ MASTER_LIB_OBJ := $(filter-out %/main.o,$(MASTER_OBJ))
 WORKER_OBJ := $(patsubst %.c,$(BUILD)/obj/%.o,$(wildcard worker/*.c))
 # The smoke simulator (smoke/): its modules without main() also go into the unit tests.
 SMOKE_OBJ  := $(patsubst %.c,$(BUILD)/obj/%.o,$(wildcard smoke/*.c))
-SMOKE_LIB_OBJ := $(filter-out %/main.o,$(SMOKE_OBJ))
-FFTW_LIBS  := -lfftw3f_threads -lfftw3f
+# Its NanoVDB writer is C++ (NanoVDB's own headers), shared with tests/tools/make_nvdb.cpp.
+SMOKE_NVDB_OBJ := $(BUILD)/obj/smoke/nvdb_out.o
+SMOKE_LIB_OBJ := $(filter-out %/main.o,$(SMOKE_OBJ)) $(SMOKE_NVDB_OBJ)
+FFTW_LIBS  := -lfftw3f_threads -lfftw3f -lstdc++
 UNIT_SRC   := $(wildcard tests/unit/test_*.c) tests/unit/helpers.c
 UNIT_OBJ   := $(UNIT_SRC:%.c=$(BUILD)/obj/%.o)
 # Test tools: one source each in tests/tools/, linked with the library.
@@ -67,6 +69,10 @@ $(BUILD)/master: $(MASTER_OBJ) $(BUILD)/libbrume.a
 $(BUILD)/worker: $(WORKER_OBJ) $(BUILD)/libbrume.a
 	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
 
+$(SMOKE_NVDB_OBJ): smoke/nvdb_out.cpp smoke/nvdb_out.h $(DEPS_STAMP)
+	@mkdir -p $(dir $@)
+	$(CXX) -std=c++17 -O2 -g -fno-fast-math -ffp-contract=off -Wall -Wextra -I. -pthread -c $< -o $@
+
 $(BUILD)/libsmoke.a: $(SMOKE_LIB_OBJ)
 	rm -f $@ && ar rcs $@ $^
 
@@ -81,8 +87,8 @@ $(BUILD)/unit_tests: $(UNIT_OBJ) $(BUILD)/libmaster.a $(BUILD)/libsmoke.a $(BUIL
 
 # NanoVDB test files, written by NanoVDB's own C++ writer (never committed; see make_nvdb.cpp).
 # Plain g++ even under SAN=: it is a generator, not code under test.
-$(BUILD)/make_nvdb: tests/tools/make_nvdb.cpp tests/tools/nvdb_values.h $(DEPS_STAMP)
-	$(CXX) -std=c++17 -O1 -DNANOVDB_USE_ZIP -DNANOVDB_USE_BLOSC $< -o $@ -lz -lblosc -pthread
+$(BUILD)/make_nvdb: tests/tools/make_nvdb.cpp tests/tools/nvdb_values.h $(SMOKE_NVDB_OBJ) $(DEPS_STAMP)
+	$(CXX) -std=c++17 -O1 -DNANOVDB_USE_ZIP -DNANOVDB_USE_BLOSC -I. $< $(SMOKE_NVDB_OBJ) -o $@ -lz -lblosc -pthread
 $(BUILD)/testdata/.stamp: $(BUILD)/make_nvdb
 	@mkdir -p $(BUILD)/testdata
 	$(BUILD)/make_nvdb $(BUILD)/testdata
@@ -116,7 +122,7 @@ test-slurm: all
 test-netns: all
 	BUILD=$(BUILD) sh tests/netns/run.sh
 
-# The animated smoke scene's grids (scenes/smoke_anim/smoke.####.grid, not committed; resumable).
+# The animated smoke scene's grids (scenes/smoke_anim/smoke.####.nvdb, not committed; resumable).
 smoke-sim: $(BUILD)/smokesim
 	$(BUILD)/smokesim scenes/smoke_anim/sim.json
 

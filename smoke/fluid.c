@@ -5,6 +5,7 @@
 #include <fftw3.h>
 #include <math.h>
 #include <pthread.h>
+#include <stdlib.h>
 #include <string.h>
 #include <time.h>
 
@@ -41,8 +42,9 @@ static size_t spec_len(const struct fluid *f) { return (size_t)f->nz * f->ny * (
 
 size_t fluid_bytes_per_voxel(void)
 {
-    /* five fields, four scratch, three half spectra (nx/2+1 complex per nx reals ~ 1 float) */
-    return 9 * sizeof(float) + 3 * sizeof(float) * 1;
+    /* five fields, a spare, a scratch block of four, three half spectra (nx/2+1 complex per
+     * nx reals ~ 1 float) */
+    return 10 * sizeof(float) + 3 * sizeof(float) * 1;
 }
 
 void fluid_init(struct fluid *f, const struct smoke_settings *s)
@@ -54,12 +56,15 @@ void fluid_init(struct fluid *f, const struct smoke_settings *s)
     f->nz = s->res[2];
     f->n = (size_t)f->nx * f->ny * f->nz;
     f->h = s->size / (float)f->nx;
-    float **fields[] = {&f->u, &f->v, &f->w, &f->d, &f->t, &f->tmp[0], &f->tmp[1], &f->tmp[2], &f->tmp[3]};
+    float **fields[] = {&f->u, &f->v, &f->w, &f->d, &f->t, &f->spare, &f->tmp[0]};
     for (size_t i = 0; i < sizeof fields / sizeof *fields; i++) {
-        *fields[i] = fftwf_malloc(f->n * sizeof(float));
+        size_t len = (i == 6 ? 4 : 1) * f->n;  /* the scratch block: tmp[0..3], or the packed fields */
+        *fields[i] = fftwf_malloc(len * sizeof(float));
         CHECK(*fields[i] != NULL);
-        memset(*fields[i], 0, f->n * sizeof(float));
+        memset(*fields[i], 0, len * sizeof(float));
     }
+    for (int c = 1; c < 4; c++)
+        f->tmp[c] = f->tmp[0] + (size_t)c * f->n;
     for (int c = 0; c < 3; c++) {
         f->spec[c] = fftwf_malloc(spec_len(f) * sizeof(fftwf_complex));
         CHECK(f->spec[c] != NULL);
@@ -85,7 +90,7 @@ void fluid_free(struct fluid *f)
     if (f->plan_bwd)
         fftwf_destroy_plan(f->plan_bwd);
     pthread_mutex_unlock(&planner_lock);
-    float *fields[] = {f->u, f->v, f->w, f->d, f->t, f->tmp[0], f->tmp[1], f->tmp[2], f->tmp[3]};
+    float *fields[] = {f->u, f->v, f->w, f->d, f->t, f->spare, f->tmp[0]};
     for (size_t i = 0; i < sizeof fields / sizeof *fields; i++)
         fftwf_free(fields[i]);
     for (int c = 0; c < 3; c++)
@@ -135,111 +140,310 @@ static void par_slabs(const struct fluid *f, slab_fn fn, void *arg)
 
 /* ---- advection ---- */
 
+/* Velocity and density of a voxel side by side, so one trilinear lookup of four floats
+ * serves all four (GCC vector extension; lane-wise IEEE operations, so the same bits as
+ * four scalar lookups). */
+typedef float v4f __attribute__((vector_size(16)));
+
 static inline uint32_t wrap(int64_t i, uint32_t n)
 {
     int64_t m = i % (int64_t)n;
     return (uint32_t)(m < 0 ? m + n : m);
 }
 
-/* Trilinear weights at voxel coordinates (x, y, z), voxel centres at integers, on the
- * periodic grid: the four x rows' starts, the two x indices and the fractions. */
-struct lerp {
-    size_t r[4];  /* rows (y0 z0) (y1 z0) (y0 z1) (y1 z1) */
-    uint32_t x0, x1;
+/* The cell holding a point (voxel centres at integers) on the periodic grid: the index of
+ * its lower corner, the steps to the upper neighbour along x, y and z (wrapped) and the
+ * fractions. */
+struct cell {
+    size_t c;
+    ptrdiff_t dx, dy, dz;
     float tx, ty, tz;
+    uint32_t i, j, k;  /* the lower corner */
+    int wrapped;       /* an upper corner wrapped around */
 };
 
-static inline uint32_t wrap_index(float c, uint32_t n)
+/* Lower corner, step to the upper one (in units of the axis stride) and fraction along one
+ * axis of n voxels. Inside [0, n - 1) (nearly every lookup) the truncation is the floor
+ * and nothing wraps; elsewhere the position is clamped (huge velocities) and wrapped,
+ * periodicity making any finite position valid. */
+static inline uint32_t axis_split(float x, uint32_t n, int64_t *step, float *t)
 {
-    int64_t i = (int64_t)c;
-    if (i >= 0 && i < (int64_t)n)
-        return (uint32_t)i;
-    return wrap(i, n);
-}
-
-static inline void lerp_at(const struct fluid *f, float x, float y, float z, struct lerp *l)
-{
-    /* Far outside (huge velocities): clamp before the integer conversion; periodicity
-     * makes any finite position valid. */
+    if (x >= 0.0f && x < (float)(n - 1)) {
+        uint32_t i = (uint32_t)x;
+        *t = x - (float)i;
+        *step = 1;
+        return i;
+    }
     const float lim = 1e6f;
-    x = fminf(fmaxf(x, -lim), lim);
-    y = fminf(fmaxf(y, -lim), lim);
-    z = fminf(fmaxf(z, -lim), lim);
-    float fx = floorf(x), fy = floorf(y), fz = floorf(z);
-    l->tx = x - fx;
-    l->ty = y - fy;
-    l->tz = z - fz;
-    l->x0 = wrap_index(fx, f->nx);
-    l->x1 = l->x0 + 1 == f->nx ? 0 : l->x0 + 1;
-    uint32_t y0 = wrap_index(fy, f->ny), y1 = y0 + 1 == f->ny ? 0 : y0 + 1;
-    uint32_t z0 = wrap_index(fz, f->nz), z1 = z0 + 1 == f->nz ? 0 : z0 + 1;
-    size_t sx = f->nx, sxy = (size_t)f->nx * f->ny;
-    l->r[0] = y0 * sx + z0 * sxy;
-    l->r[1] = y1 * sx + z0 * sxy;
-    l->r[2] = y0 * sx + z1 * sxy;
-    l->r[3] = y1 * sx + z1 * sxy;
+    x = x > -lim ? x : -lim;  /* NaN goes to -lim, as fmaxf would take it */
+    x = x < lim ? x : lim;
+    float fl = floorf(x);
+    *t = x - fl;
+    uint32_t i = wrap((int64_t)fl, n);
+    *step = i + 1 == n ? -(int64_t)i : 1;
+    return i;
 }
 
-/* Written as a + t (b - a), so a constant field comes back exactly. */
-static inline float lerp_get(const struct lerp *l, const float *q)
+static inline void cell_at(uint32_t nx, uint32_t ny, uint32_t nz, float x, float y, float z, struct cell *l)
 {
-    float a[4];
-    for (int i = 0; i < 4; i++)
-        a[i] = q[l->r[i] + l->x0] + l->tx * (q[l->r[i] + l->x1] - q[l->r[i] + l->x0]);
-    float b0 = a[0] + l->ty * (a[1] - a[0]), b1 = a[2] + l->ty * (a[3] - a[2]);
-    return b0 + l->tz * (b1 - b0);
+    int64_t sx, sy, sz;
+    uint32_t i = axis_split(x, nx, &sx, &l->tx);
+    uint32_t j = axis_split(y, ny, &sy, &l->ty);
+    uint32_t k = axis_split(z, nz, &sz, &l->tz);
+    size_t sxy = (size_t)nx * ny;
+    l->i = i;
+    l->j = j;
+    l->k = k;
+    l->wrapped = (sx != 1) | (sy != 1) | (sz != 1);
+    l->c = i + (size_t)j * nx + (size_t)k * sxy;
+    l->dx = (ptrdiff_t)sx;
+    l->dy = (ptrdiff_t)(sy * (int64_t)nx);
+    l->dz = (ptrdiff_t)(sz * (int64_t)sxy);
 }
 
-/* Departure point of voxel (i, j, k) over dt: midpoint (RK2) backtrace through the
- * current velocity, in voxel units; its weights in *l. */
-static void backtrace(const struct fluid *f, uint32_t i, uint32_t j, uint32_t k, size_t idx, float dt,
-                      struct lerp *l)
+/* Trilinear lookups, written as a + t (b - a) so a constant field comes back exactly. */
+#define TRILERP(T, q, l)                                                                        \
+    do {                                                                                        \
+        const T *p0 = (q) + (l)->c, *p1 = p0 + (l)->dz;                                         \
+        ptrdiff_t dx_ = (l)->dx, dy_ = (l)->dy;                                                  \
+        T a0 = p0[0] + (l)->tx * (p0[dx_] - p0[0]);                                             \
+        T a1 = p0[dy_] + (l)->tx * (p0[dy_ + dx_] - p0[dy_]);                                   \
+        T a2 = p1[0] + (l)->tx * (p1[dx_] - p1[0]);                                             \
+        T a3 = p1[dy_] + (l)->tx * (p1[dy_ + dx_] - p1[dy_]);                                   \
+        T b0 = a0 + (l)->ty * (a1 - a0), b1 = a2 + (l)->ty * (a3 - a2);                         \
+        return b0 + (l)->tz * (b1 - b0);                                                        \
+    } while (0)
+static inline float cell_get(const struct cell *l, const float *q) { TRILERP(float, q, l); }
+static inline v4f cell_get4(const struct cell *l, const v4f *q) { TRILERP(v4f, q, l); }
+
+/* The packed velocity and density live in the scratch block (tmp[0..3] are its quarters
+ * outside advection). */
+static v4f *packed(const struct fluid *f) { return (v4f *)(void *)f->tmp[0]; }
+
+/* Index box [lo, hi] per axis holding every non-zero value of a scalar (lo > hi: none).
+ * Lookups in cells wholly outside it give 0 exactly (a + t (b - a) of zeros), so they are
+ * skipped: the plume's temperature fills a small part of the domain. */
+struct box {
+    uint32_t lo[3], hi[3];
+};
+static void box_empty(struct box *b)
 {
-    float s = dt / f->h;
-    lerp_at(f, (float)i - 0.5f * s * f->u[idx], (float)j - 0.5f * s * f->v[idx], (float)k - 0.5f * s * f->w[idx], l);
-    float ux = lerp_get(l, f->u), vy = lerp_get(l, f->v), wz = lerp_get(l, f->w);
-    lerp_at(f, (float)i - s * ux, (float)j - s * vy, (float)k - s * wz, l);
+    for (int a = 0; a < 3; a++) {
+        b->lo[a] = UINT32_MAX;
+        b->hi[a] = 0;
+    }
+}
+static void box_add(struct box *b, const struct box *o)
+{
+    for (int a = 0; a < 3; a++) {
+        b->lo[a] = o->lo[a] < b->lo[a] ? o->lo[a] : b->lo[a];
+        b->hi[a] = o->hi[a] > b->hi[a] ? o->hi[a] : b->hi[a];
+    }
+}
+/* Whether the cell's 8 corners all lie outside the box. */
+static inline int cell_outside(const struct cell *l, const struct box *b)
+{
+    return !l->wrapped && (l->i > b->hi[0] || l->i + 1 < b->lo[0] || l->j > b->hi[1] || l->j + 1 < b->lo[1] ||
+                           l->k > b->hi[2] || l->k + 1 < b->lo[2]);
 }
 
-/* Advects count fields src[c] into dst[c] through the current velocity. */
+/* Packs u v w d and finds the box of the scalar's non-zero values, per z plane. */
+struct pack_arg {
+    const float *scalar;
+    struct box *plane;  /* nz */
+};
+static void pack_slab(const struct fluid *f, void *arg, uint32_t k0, uint32_t k1)
+{
+    struct pack_arg *a = arg;
+    v4f *q = packed(f);
+    size_t idx = (size_t)k0 * f->nx * f->ny;
+    for (uint32_t k = k0; k < k1; k++) {
+        struct box b;
+        box_empty(&b);
+        for (uint32_t j = 0; j < f->ny; j++)
+            for (uint32_t i = 0; i < f->nx; i++, idx++) {
+                q[idx] = (v4f){f->u[idx], f->v[idx], f->w[idx], f->d[idx]};
+                if (a->scalar[idx] != 0.0f) {
+                    const struct box one = {{i, j, k}, {i, j, k}};
+                    box_add(&b, &one);
+                }
+            }
+        a->plane[k] = b;
+    }
+}
+
+/* Packs, and returns the scalar's box. */
+static struct box pack(const struct fluid *f, const float *scalar)
+{
+    struct pack_arg a = {scalar, mem_alloc(f->nz * sizeof(struct box))};
+    par_slabs(f, pack_slab, &a);
+    struct box b;
+    box_empty(&b);
+    for (uint32_t k = 0; k < f->nz; k++)
+        box_add(&b, &a.plane[k]);
+    free(a.plane);
+    return b;
+}
+
+/* One row's cells, x fastest: where every coordinate of point i lies in [0, n - 1) its
+ * cell is the truncation (lower corner index c, fractions t), with strides 1, nx, nx ny;
+ * elsewhere slow[i] is set and the cell comes from cell_at. Four points at a time with
+ * vector masks (the arrays have room for a row rounded up to 4; the tail stays 0, a point
+ * inside, so it is never slow). */
+typedef int32_t v4i __attribute__((vector_size(16)));
+struct row {
+    float x[SMOKE_MAX_RES], y[SMOKE_MAX_RES], z[SMOKE_MAX_RES];
+    float tx[SMOKE_MAX_RES], ty[SMOKE_MAX_RES], tz[SMOKE_MAX_RES];
+    int32_t c[SMOKE_MAX_RES];
+    int32_t slow[SMOKE_MAX_RES];
+    int32_t group[SMOKE_MAX_RES / 4];  /* a slow point among points 4g..4g+3 */
+    struct cell cell[SMOKE_MAX_RES];  /* the slow ones' */
+};
+static inline v4f load4(const float *p)
+{
+    v4f v;
+    memcpy(&v, p, sizeof v);
+    return v;
+}
+static inline void store4(void *p, const void *v) { memcpy(p, v, 16); }
+static void row_cells(struct row *r, uint32_t nx, uint32_t ny, uint32_t nz)
+{
+    const v4f zero = {0, 0, 0, 0};
+    const v4f xm = zero + (float)(nx - 1), ym = zero + (float)(ny - 1), zm = zero + (float)(nz - 1);
+    const v4i sy = (v4i){0, 0, 0, 0} + (int32_t)nx, sz = (v4i){0, 0, 0, 0} + (int32_t)(nx * ny);
+    v4i any = {0, 0, 0, 0};
+    for (uint32_t i = 0; i < nx; i += 4) {
+        v4f x = load4(r->x + i), y = load4(r->y + i), z = load4(r->z + i);
+        v4i in = (x >= zero) & (x < xm) & (y >= zero) & (y < ym) & (z >= zero) & (z < zm);
+        x = (v4f)((v4i)x & in);  /* 0 where slow, so the conversions stay in range */
+        y = (v4f)((v4i)y & in);
+        z = (v4f)((v4i)z & in);
+        v4i xi = __builtin_convertvector(x, v4i), yi = __builtin_convertvector(y, v4i);
+        v4i zi = __builtin_convertvector(z, v4i);
+        v4f tx = x - __builtin_convertvector(xi, v4f), ty = y - __builtin_convertvector(yi, v4f);
+        v4f tz = z - __builtin_convertvector(zi, v4f);
+        v4i c = xi + yi * sy + zi * sz, slow = ~in;
+        store4(r->tx + i, &tx);
+        store4(r->ty + i, &ty);
+        store4(r->tz + i, &tz);
+        store4(r->c + i, &c);
+        store4(r->slow + i, &slow);
+        r->group[i / 4] = slow[0] | slow[1] | slow[2] | slow[3];
+        any |= slow;
+    }
+    if (any[0] | any[1] | any[2] | any[3])
+        for (uint32_t g = 0; g < (nx + 3) / 4; g++)
+            if (r->group[g])
+                for (uint32_t i = 4 * g; i < 4 * g + 4 && i < nx; i++)
+                    if (r->slow[i])
+                        cell_at(nx, ny, nz, r->x[i], r->y[i], r->z[i], &r->cell[i]);
+}
+
+/* cell_get4 of row cell i. */
+static inline v4f row_get4(const struct row *r, uint32_t i, const v4f *q, ptrdiff_t dy, ptrdiff_t dz)
+{
+    if (r->slow[i])
+        return cell_get4(&r->cell[i], q);
+    const struct cell l = {(size_t)r->c[i], 1, dy, dz, r->tx[i], r->ty[i], r->tz[i], 0, 0, 0, 0};
+    return cell_get4(&l, q);
+}
+
+/* Advected scalars (density, temperature) of magnitude below this become 0: far from the
+ * plume they would otherwise shrink step by step into subnormal floats, which the CPU
+ * handles many times slower, and keep the temperature's active box as large as the grid. */
+#define SCALAR_FLUSH 1e-20f
+static inline float flush(float x) { return fabsf(x) < SCALAR_FLUSH ? 0.0f : x; }
+
+/* One pass for every advected field: the departure point of voxel (i, j, k) over dt by a
+ * midpoint (RK2) backtrace through the packed velocity, in voxel units, then one cell
+ * set-up for all fields: velocity and density into u v w d (vel set; the packed copy is
+ * the input, so in place is safe), scalar `src` into `dst` (0 where its cell lies outside
+ * the scalar's box). A row at a time in stages (points, cells, midpoint lookups, cells,
+ * lookups), so that the voxels of a stage do not wait on one another. */
 struct advect_arg {
-    const float *const *src;
-    float *const *dst;
-    int count;
+    float *const *vel;  /* u v w d, or NULL: only the scalar */
+    const float *src;
+    float *dst;
     float dt;
+    struct box src_box;
 };
 static void advect_slab(const struct fluid *f, void *p, uint32_t k0, uint32_t k1)
 {
     const struct advect_arg *a = p;
-    size_t idx = (size_t)k0 * f->nx * f->ny;
+    const v4f *restrict q = packed(f);
+    const float *restrict src = a->src;
+    float *restrict dst = a->dst;
+    float *restrict vu = a->vel ? a->vel[0] : NULL, *restrict vv = a->vel ? a->vel[1] : NULL;
+    float *restrict vw = a->vel ? a->vel[2] : NULL, *restrict vd = a->vel ? a->vel[3] : NULL;
+    const uint32_t nx = f->nx, ny = f->ny, nz = f->nz;
+    const size_t sxy = (size_t)nx * ny;
+    const ptrdiff_t dy = (ptrdiff_t)nx, dz = (ptrdiff_t)sxy;
+    const float s = a->dt / f->h, hs = 0.5f * s;
+    const struct box *b = &a->src_box;
+    /* the scalar's box as bounds on a fast cell's point: its lower corner floor(x) is
+     * outside [lo - 1, hi] when x < lo - 1 or x >= hi + 1 */
+    const float blo[3] = {(float)b->lo[0] - 1.0f, (float)b->lo[1] - 1.0f, (float)b->lo[2] - 1.0f};
+    const float bhi[3] = {(float)b->hi[0] + 1.0f, (float)b->hi[1] + 1.0f, (float)b->hi[2] + 1.0f};
+    struct row *r = mem_alloc(sizeof *r);
+    memset(r, 0, sizeof *r);  /* the tail beyond nx (rounded up to 4) stays 0 */
     for (uint32_t k = k0; k < k1; k++)
-        for (uint32_t j = 0; j < f->ny; j++)
-            for (uint32_t i = 0; i < f->nx; i++, idx++) {
-                struct lerp l;
-                backtrace(f, i, j, k, idx, a->dt, &l);
-                for (int c = 0; c < a->count; c++)
-                    a->dst[c][idx] = lerp_get(&l, a->src[c]);
+        for (uint32_t j = 0; j < ny; j++) {
+            const size_t row = (size_t)k * sxy + (size_t)j * nx;
+            const v4f *qr = q + row;
+            for (uint32_t i = 0; i < nx; i++) {
+                r->x[i] = (float)i - hs * qr[i][0];
+                r->y[i] = (float)j - hs * qr[i][1];
+                r->z[i] = (float)k - hs * qr[i][2];
             }
-}
-static void advect_fields(const struct fluid *f, const float *const *src, float *const *dst, int count, float dt)
-{
-    struct advect_arg a = {src, dst, count, dt};
-    par_slabs(f, advect_slab, &a);
+            row_cells(r, nx, ny, nz);
+            for (uint32_t i = 0; i < nx; i++) {
+                v4f um = row_get4(r, i, q, dy, dz);
+                r->x[i] = (float)i - s * um[0];
+                r->y[i] = (float)j - s * um[1];
+                r->z[i] = (float)k - s * um[2];
+            }
+            row_cells(r, nx, ny, nz);
+            if (vu)
+                for (uint32_t i = 0; i < nx; i++) {
+                    v4f v = row_get4(r, i, q, dy, dz);
+                    vu[row + i] = v[0];
+                    vv[row + i] = v[1];
+                    vw[row + i] = v[2];
+                    vd[row + i] = flush(v[3]);
+                }
+            for (uint32_t i = 0; i < nx; i++) {
+                int out = r->slow[i] ? cell_outside(&r->cell[i], b)
+                                     : (r->x[i] < blo[0]) | (r->x[i] >= bhi[0]) | (r->y[i] < blo[1]) |
+                                           (r->y[i] >= bhi[1]) | (r->z[i] < blo[2]) | (r->z[i] >= bhi[2]);
+                if (out) {
+                    dst[row + i] = 0.0f;
+                } else if (r->slow[i]) {
+                    dst[row + i] = flush(cell_get(&r->cell[i], src));
+                } else {
+                    const struct cell l = {(size_t)r->c[i], 1, dy, dz, r->tx[i], r->ty[i], r->tz[i], 0, 0, 0, 0};
+                    dst[row + i] = flush(cell_get(&l, src));
+                }
+            }
+        }
+    free(r);
 }
 
 void fluid_advect_scalar(const struct fluid *f, const float *src, float *dst, float dt)
 {
-    advect_fields(f, &src, &dst, 1, dt);
+    struct advect_arg a = {NULL, src, dst, dt, pack(f, src)};
+    par_slabs(f, advect_slab, &a);
 }
 
-static void advect_velocity(struct fluid *f, float dt)
+/* Velocity, density and temperature through the current velocity; temperature goes to the
+ * spare array, which then becomes the temperature (a pointer swap). */
+static void advect_all(struct fluid *f, float dt)
 {
-    const float *src[3] = {f->u, f->v, f->w};
-    float *dst[3] = {f->tmp[0], f->tmp[1], f->tmp[2]};
-    advect_fields(f, src, dst, 3, dt);
-    memcpy(f->u, f->tmp[0], f->n * sizeof(float));
-    memcpy(f->v, f->tmp[1], f->n * sizeof(float));
-    memcpy(f->w, f->tmp[2], f->n * sizeof(float));
+    float *vel[4] = {f->u, f->v, f->w, f->d};
+    struct advect_arg a = {vel, f->t, f->spare, dt, pack(f, f->t)};
+    par_slabs(f, advect_slab, &a);
+    float *t = f->t;
+    f->t = f->spare;
+    f->spare = t;
 }
 
 /* ---- Fourier space ---- */
@@ -255,12 +459,11 @@ static float wavenumber(uint32_t m, uint32_t n, float len, int *nyquist)
 
 static void forward3(struct fluid *f)
 {
+    /* Out-of-place real-to-complex plans keep their input (FFTW_PRESERVE_INPUT is their
+     * default), so the velocity is transformed where it lies. */
     float *in[3] = {f->u, f->v, f->w};
-    for (int c = 0; c < 3; c++) {
-        /* r2c keeps its input with out-of-place plans only when told; copy to scratch. */
-        memcpy(f->tmp[0], in[c], f->n * sizeof(float));
-        fftwf_execute_dft_r2c(f->plan_fwd, f->tmp[0], f->spec[c]);
-    }
+    for (int c = 0; c < 3; c++)
+        fftwf_execute_dft_r2c(f->plan_fwd, in[c], f->spec[c]);
 }
 
 void fluid_project(struct fluid *f, float dt, float nu)
@@ -288,7 +491,7 @@ void fluid_project(struct fluid *f, float dt, float nu)
                         U[idx][r] = V[idx][r] = W[idx][r] = 0.0f;
                     continue;
                 }
-                float decay = inv_n * expf(-nu * k2 * dt);
+                float decay = nu > 0.0f ? inv_n * expf(-nu * k2 * dt) : inv_n;
                 for (int r = 0; r < 2; r++) {
                     float a = U[idx][r], b = V[idx][r], e = W[idx][r];
                     if (k2 > 0.0f) {
@@ -342,14 +545,32 @@ void fluid_divergence(struct fluid *f, double *div_norm, double *vel_norm)
 
 /* ---- source, forces, sponge ---- */
 
+/* Index range [*lo, *hi] of the voxels along one axis whose centres (m + 0.5) h may lie
+ * within r of c (one voxel of slack; the sphere test decides). */
+static inline size_t at(const struct fluid *f, uint32_t i, uint32_t j, uint32_t k)
+{
+    return i + (size_t)f->nx * (j + (size_t)f->ny * k);
+}
+
+static void source_span(float c, float r, float h, uint32_t n, uint32_t *lo, uint32_t *hi)
+{
+    float a = floorf((c - r) / h - 0.5f) - 1.0f, b = ceilf((c + r) / h - 0.5f) + 1.0f;
+    *lo = a <= 0.0f ? 0 : (a >= (float)(n - 1) ? n - 1 : (uint32_t)a);
+    *hi = b <= 0.0f ? 0 : (b >= (float)(n - 1) ? n - 1 : (uint32_t)b);
+}
+
 static void add_source(struct fluid *f, float dt)
 {
     const struct smoke_settings *s = &f->s;
     float r = s->source_radius, r2 = r * r;
-    size_t idx = 0;
-    for (uint32_t k = 0; k < f->nz; k++)
-        for (uint32_t j = 0; j < f->ny; j++)
-            for (uint32_t i = 0; i < f->nx; i++, idx++) {
+    uint32_t lo[3], hi[3];
+    const uint32_t n[3] = {f->nx, f->ny, f->nz};
+    for (int a = 0; a < 3; a++)
+        source_span(s->source_center[a], r, f->h, n[a], &lo[a], &hi[a]);
+    for (uint32_t k = lo[2]; k <= hi[2]; k++)
+        for (uint32_t j = lo[1]; j <= hi[1]; j++)
+            for (uint32_t i = lo[0]; i <= hi[0]; i++) {
+                size_t idx = at(f, i, j, k);
                 float dx = ((float)i + 0.5f) * f->h - s->source_center[0];
                 float dy = ((float)j + 0.5f) * f->h - s->source_center[1];
                 float dz = ((float)k + 0.5f) * f->h - s->source_center[2];
@@ -367,10 +588,6 @@ static void add_source(struct fluid *f, float dt)
             }
 }
 
-static inline size_t at(const struct fluid *f, uint32_t i, uint32_t j, uint32_t k)
-{
-    return i + (size_t)f->nx * (j + (size_t)f->ny * k);
-}
 
 /* Buoyancy (Fedkiw et al. 2001: f = (-alpha d + beta T) up, ambient temperature 0) and
  * vorticity confinement f = epsilon h (N x omega), N = grad|omega| / |grad|omega||, with
@@ -455,50 +672,61 @@ static float sponge_rate(const struct smoke_settings *s, uint32_t m, uint32_t n)
     return s->sponge_strength * r * r;
 }
 
+/* exp(-max(rates) dt) is the smallest of the per-axis factors exp(-rate dt) (exp falls):
+ * the factors are tabled per axis. */
+struct sponge_arg {
+    float *const *fields;
+    int count;
+    const float *damp[3];
+};
+static void sponge_slab(const struct fluid *f, void *p, uint32_t k0, uint32_t k1)
+{
+    const struct sponge_arg *a = p;
+    for (uint32_t k = k0; k < k1; k++) {
+        float dz = a->damp[2][k];
+        for (uint32_t j = 0; j < f->ny; j++) {
+            float dy = a->damp[1][j] < dz ? a->damp[1][j] : dz;
+            size_t row = at(f, 0, j, k);
+            for (uint32_t i = 0; i < f->nx; i++) {
+                float damp = a->damp[0][i] < dy ? a->damp[0][i] : dy;
+                if (damp == 1.0f)
+                    continue;
+                for (int c = 0; c < a->count; c++)
+                    a->fields[c][row + i] *= damp;
+            }
+        }
+    }
+}
+
 static void sponge(struct fluid *f, float *const *fields, int count, float dt)
 {
     if (f->s.sponge_width == 0 || f->s.sponge_strength <= 0.0f)
         return;
-    for (uint32_t k = 0; k < f->nz; k++) {
-        float rz = sponge_rate(&f->s, k, f->nz);
-        for (uint32_t j = 0; j < f->ny; j++) {
-            float ry = fmaxf(rz, sponge_rate(&f->s, j, f->ny));
-            size_t row = at(f, 0, j, k);
-            for (uint32_t i = 0; i < f->nx; i++) {
-                float rate = fmaxf(ry, sponge_rate(&f->s, i, f->nx));
-                if (rate <= 0.0f)
-                    continue;
-                float damp = expf(-rate * dt);
-                for (int c = 0; c < count; c++)
-                    fields[c][row + i] *= damp;
-            }
+    float *tab = mem_alloc(((size_t)f->nx + f->ny + f->nz) * sizeof(float));
+    const uint32_t n[3] = {f->nx, f->ny, f->nz};
+    for (uint32_t ax = 0, o = 0; ax < 3; o += n[ax++])
+        for (uint32_t m = 0; m < n[ax]; m++) {
+            float rate = sponge_rate(&f->s, m, n[ax]);
+            tab[o + m] = rate > 0.0f ? expf(-rate * dt) : 1.0f;
         }
-    }
+    struct sponge_arg a = {fields, count, {tab, tab + f->nx, tab + f->nx + f->ny}};
+    par_slabs(f, sponge_slab, &a);
+    free(tab);
 }
 
 void fluid_step(struct fluid *f)
 {
     float dt = f->s.dt;
     struct clocks c = clocks_now();
+    advect_all(f, dt);
+    lap(f, &c, PH_ADVECT);
     add_source(f, dt);
     lap(f, &c, PH_SOURCE);
     add_forces(f, dt);
     lap(f, &c, PH_FORCES);
-    advect_velocity(f, dt);
-    lap(f, &c, PH_ADVECT);
-    float *vel[3] = {f->u, f->v, f->w};
-    sponge(f, vel, 3, dt);
+    float *all[5] = {f->u, f->v, f->w, f->d, f->t};
+    sponge(f, all, 5, dt);
     lap(f, &c, PH_SPONGE);
     fluid_project(f, dt, f->s.viscosity);
-    c = clocks_now();
-    const float *src[2] = {f->d, f->t};
-    float *dst[2] = {f->tmp[0], f->tmp[1]};
-    advect_fields(f, src, dst, 2, dt);
-    memcpy(f->d, f->tmp[0], f->n * sizeof(float));
-    memcpy(f->t, f->tmp[1], f->n * sizeof(float));
-    lap(f, &c, PH_ADVECT);
-    float *sc[2] = {f->d, f->t};
-    sponge(f, sc, 2, dt);
-    lap(f, &c, PH_SPONGE);
     f->step++;
 }

@@ -19,7 +19,8 @@ struct fluid {
     size_t n;                  /* voxels */
     float h;                   /* voxel size (world units) */
     float *u, *v, *w, *d, *t;  /* velocity (world units / s), density, temperature */
-    float *tmp[4];             /* scratch for advection and forces */
+    float *spare;              /* the next temperature, swapped in after advection */
+    float *tmp[4];             /* scratch (one block; advection packs u v w d into it) */
     void *spec[3];             /* fftwf_complex, nz*ny*(nx/2+1) each */
     void *plan_fwd, *plan_bwd;
     uint64_t step;             /* steps done */
@@ -30,12 +31,13 @@ struct fluid {
 /* Allocates the state (zero) and makes the FFTW plans with s->threads threads. */
 void fluid_init(struct fluid *f, const struct smoke_settings *s);
 void fluid_free(struct fluid *f);
-/* One time step of s.dt: source, forces, advect velocity, sponge on velocity, diffuse and
- * project, advect density and temperature, sponge on them. */
+/* One time step of s.dt: advect velocity, density and temperature through the current
+ * (projected) velocity, add the source and the forces, sponge, diffuse and project. */
 void fluid_step(struct fluid *f);
 
 /* Pieces, for the tests. */
 void fluid_project(struct fluid *f, float dt, float nu);  /* diffuse by nu over dt, then project */
+/* Advects src into dst (neither in f->tmp) through the current velocity. */
 void fluid_advect_scalar(const struct fluid *f, const float *src, float *dst, float dt);
 /* Spectral divergence norm and velocity norm (root of the sum of squares over modes). */
 void fluid_divergence(struct fluid *f, double *div_norm, double *vel_norm);

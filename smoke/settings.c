@@ -1,8 +1,9 @@
 /* Smoke settings (see settings.h). jansson checks the syntax and keeps no positions; on a
- * semantic error the (already valid) text is rescanned for the key path to report its
- * line:col. The settings are two levels deep at most (top level and "source"). */
+ * semantic error base/jsonpos.h finds the key path's line:col in the (already valid) text.
+ * The settings are two levels deep at most (top level and "source"). */
 #include "settings.h"
 #include "base/asset.h"
+#include "base/jsonpos.h"
 #include "base/log.h"
 #include <jansson.h>
 #include <math.h>
@@ -35,104 +36,7 @@ void smoke_settings_default(struct smoke_settings *s)
     s->seed = 1;
     s->threads = 1;
     snprintf(s->output, sizeof s->output, "smoke.####.grid");
-}
-
-/* ---- positions ---- */
-
-struct scan {
-    const char *t;
-    size_t len, i;
-    uint32_t line, col;
-};
-
-static void adv(struct scan *s)
-{
-    if (s->t[s->i] == '\n') {
-        s->line++;
-        s->col = 1;
-    } else if (((unsigned char)s->t[s->i] & 0xc0) != 0x80) {
-        s->col++;  /* code points, as jansson counts */
-    }
-    s->i++;
-}
-static void ws(struct scan *s)
-{
-    while (s->i < s->len && strchr(" \t\r\n", s->t[s->i]))
-        adv(s);
-}
-/* Skips a string at s->i (a quote), copying up to size-1 raw bytes into out. */
-static void skip_string(struct scan *s, char *out, size_t size)
-{
-    size_t o = 0;
-    adv(s);
-    while (s->i < s->len && s->t[s->i] != '"') {
-        if (s->t[s->i] == '\\')
-            adv(s);
-        else if (out && o + 1 < size)
-            out[o++] = s->t[s->i];
-        if (s->i < s->len)
-            adv(s);
-    }
-    if (s->i < s->len)
-        adv(s);
-    if (out)
-        out[o] = '\0';
-}
-static void skip_value(struct scan *s)
-{
-    int depth = 0;
-    do {
-        if (s->i >= s->len)
-            return;
-        char ch = s->t[s->i];
-        if (ch == '"') {
-            skip_string(s, NULL, 0);
-            continue;
-        }
-        if (ch == '{' || ch == '[')
-            depth++;
-        else if (ch == '}' || ch == ']')
-            depth--;
-        else if (depth == 0 && (ch == ',' || strchr(" \t\r\n", ch)))
-            return;
-        adv(s);
-    } while (depth > 0 || (s->i < s->len && !strchr(",}] \t\r\n", s->t[s->i])));
-}
-/* Finds keys[0..n) in nested objects; line:col of the last key (at_key) or its value. */
-static bool locate(struct scan *s, const char *const *keys, int n, bool at_key)
-{
-    ws(s);
-    if (s->i >= s->len || s->t[s->i] != '{')
-        return false;
-    adv(s);
-    for (;;) {
-        ws(s);
-        if (s->i >= s->len || s->t[s->i] != '"')
-            return false;
-        uint32_t kl = s->line, kc = s->col;
-        char key[128];
-        skip_string(s, key, sizeof key);
-        ws(s);
-        if (s->i < s->len && s->t[s->i] == ':')
-            adv(s);
-        ws(s);
-        if (strcmp(key, keys[0]) == 0) {
-            if (n == 1) {
-                if (at_key) {
-                    s->line = kl;
-                    s->col = kc;
-                }
-                return true;
-            }
-            return locate(s, keys + 1, n - 1, at_key);
-        }
-        skip_value(s);
-        ws(s);
-        if (s->i < s->len && s->t[s->i] == ',')
-            adv(s);
-        else
-            return false;
-    }
+    s->nvdb_threshold = 1e-4f;
 }
 
 struct ctx {
@@ -145,15 +49,18 @@ struct ctx {
 __attribute__((format(printf, 5, 6))) static int fail(const struct ctx *c, const char *const *keys, int n,
                                                       bool at_key, const char *fmt, ...)
 {
-    struct scan s = {c->text, c->len, 0, 1, 1};
-    if (n == 0 || !locate(&s, keys, n, at_key))
-        s.line = s.col = 1;
+    struct json_step steps[2];
+    for (int i = 0; i < n && i < 2; i++)
+        steps[i] = (struct json_step){keys[i], 0};
+    uint32_t line = 1, col = 1;
+    if (n > 0)
+        json_locate(c->text, c->len, steps, n < 2 ? n : 2, at_key, &line, &col);
     char msg[512];
     va_list ap;
     va_start(ap, fmt);
     vsnprintf(msg, sizeof msg, fmt, ap);
     va_end(ap);
-    str_fmt(c->err, c->errlen, "%s:%u:%u: %s", c->name, s.line, s.col, msg);
+    str_fmt(c->err, c->errlen, "%s:%u:%u: %s", c->name, line, col, msg);
     return -1;
 }
 
@@ -235,7 +142,7 @@ static int check_keys(const struct ctx *c, json_t *obj, const char *parent, cons
 
 static const char *const top_keys[] = {"version", "resolution", "size", "frames", "steps_per_frame", "dt",
                                        "viscosity", "buoyancy", "confinement", "source", "sponge", "seed",
-                                       "threads", "output", NULL};
+                                       "threads", "output", "nvdb_threshold", NULL};
 static const char *const buoy_keys[] = {"alpha", "beta", NULL};
 static const char *const source_keys[] = {"center", "radius", "rate", "temperature", "velocity", "jitter", NULL};
 static const char *const sponge_keys[] = {"width", "strength", NULL};
@@ -330,11 +237,15 @@ static int parse_object(const struct ctx *c, json_t *root, struct smoke_settings
     json_t *out = json_object_get(root, "output");
     if (out) {
         const char *o = json_string_value(out);
-        if (!o || strlen(o) >= sizeof s->output || !strchr(o, '#') || strstr(o, "..") || strchr(o, '/'))
+        if (!o || strlen(o) >= sizeof s->output || !strchr(o, '#') || strstr(o, "..") || strchr(o, '/') ||
+            smoke_output_nvdb(o) < 0)
             return fail(c, P1("output"), 1, false,
-                        "\"output\" must be a file name (no folder) with a run of '#', e.g. \"smoke.####.grid\"");
+                        "\"output\" must be a file name (no folder) with a run of '#', ending in .nvdb or .grid, "
+                        "e.g. \"smoke.####.nvdb\"");
         snprintf(s->output, sizeof s->output, "%s", o);
     }
+    if (get_float(c, root, P1("nvdb_threshold"), 1, 0.0f, 1e6f, &s->nvdb_threshold))
+        return -1;
 #undef P1
 #undef P2
     char msg[400];
@@ -387,6 +298,14 @@ int smoke_settings_check(const struct smoke_settings *s, char *err, size_t errle
         }
     }
     char name[300];
+    if (smoke_output_nvdb(s->output) < 0) {
+        str_fmt(err, errlen, "output pattern \"%s\" must end in .nvdb or .grid", s->output);
+        return -1;
+    }
+    if (!(s->nvdb_threshold >= 0.0f) || !isfinite(s->nvdb_threshold)) {
+        str_fmt(err, errlen, "nvdb_threshold must be finite and >= 0");
+        return -1;
+    }
     if (smoke_frame_name(s->output, 1, name, sizeof name)) {
         str_fmt(err, errlen, "output pattern \"%s\" needs exactly one run of '#'", s->output);
         return -1;
@@ -423,6 +342,16 @@ int smoke_settings_parse(const char *name, const char *text, size_t len, struct 
     }
     json_decref(root);
     return rc;
+}
+
+int smoke_output_nvdb(const char *pattern)
+{
+    size_t n = strlen(pattern);
+    if (n >= 5 && strcmp(pattern + n - 5, ".nvdb") == 0)
+        return 1;
+    if (n >= 5 && strcmp(pattern + n - 5, ".grid") == 0)
+        return 0;
+    return -1;
 }
 
 int smoke_frame_name(const char *pattern, uint32_t frame, char *out, size_t size)

@@ -29,7 +29,9 @@ struct smoke_settings {
     float sponge_strength;  /* damping rate (1/s) at the face */
     uint64_t seed;
     uint32_t threads;       /* FFTW threads and slabs of the grid loops; 1 by default */
-    char output[256];       /* pattern with one run of '#', relative to the settings' folder */
+    char output[256];       /* pattern with one run of '#', relative to the settings' folder;
+                               ending in .nvdb (NanoVDB) or .grid (dense BRGRID01) */
+    float nvdb_threshold;   /* .nvdb frames store the densities above it only */
 };
 
 /* Built-in defaults (a 32^3 plume); the file overrides them key by key. */
@@ -40,6 +42,8 @@ int smoke_settings_parse(const char *name, const char *text, size_t len, struct 
                          size_t errlen);
 /* The same checks for settings built in code (tests): 0 or -1 with a message. */
 int smoke_settings_check(const struct smoke_settings *s, char *err, size_t errlen);
+/* 1 if the output pattern names NanoVDB files (.nvdb), 0 dense grids (.grid), -1 neither. */
+int smoke_output_nvdb(const char *pattern);
 /* Output path of frame `frame` from the pattern: the run of '#' becomes the zero-padded
  * number (wider if needed). 0 or -1. */
 int smoke_frame_name(const char *pattern, uint32_t frame, char *out, size_t size);

@@ -4,6 +4,7 @@
 #include "base/bytes.h"
 #include "base/log.h"
 #include "scene/grid.h"
+#include "nvdb_out.h"
 #include <errno.h>
 #include <fcntl.h>
 #include <math.h>
@@ -77,11 +78,43 @@ int store_write_grid(const char *path, const struct fluid *f, char *err, size_t 
     return rc;
 }
 
+int store_encode_nvdb(const struct fluid *f, uint8_t **buf, size_t *len, uint64_t *active, char *err, size_t errlen)
+{
+    const uint32_t n[3] = {f->nx, f->ny, f->nz};
+    const double h = f->h;
+    const double size[3] = {h, h, h}, origin[3] = {0.5 * h, 0.5 * h, 0.5 * h};
+    return nvdb_encode_fog(f->d, n, f->s.nvdb_threshold, size, origin, "density", buf, len, active, err, errlen);
+}
+
+int store_write_nvdb(const char *path, const struct fluid *f, size_t *bytes, uint64_t *active, char *err,
+                     size_t errlen)
+{
+    uint8_t *buf = NULL;
+    size_t len = 0;
+    if (store_encode_nvdb(f, &buf, &len, active, err, errlen) != 0)
+        return -1;
+    int rc = store_write_atomic(path, buf, len, err, errlen);
+    free(buf);
+    if (bytes)
+        *bytes = len;
+    return rc;
+}
+
+int store_write_frame(const char *path, const struct fluid *f, size_t *bytes, char *err, size_t errlen)
+{
+    if (smoke_output_nvdb(path) == 1)
+        return store_write_nvdb(path, f, bytes, NULL, err, errlen);
+    if (bytes)
+        *bytes = store_grid_bytes(f);
+    return store_write_grid(path, f, err, errlen);
+}
+
 uint64_t store_settings_hash(const struct smoke_settings *s)
 {
     struct smoke_settings c = *s;
     c.frames = 0;
     c.threads = 0;
+    c.nvdb_threshold = 0.0f;
     memset(c.output, 0, sizeof c.output);
     const uint8_t *p = (const uint8_t *)&c;
     uint64_t h = 0xcbf29ce484222325ull;  /* FNV-1a */

@@ -6,6 +6,7 @@
  * is rescanned along that path to find the line:col of the key or value. Errors are
  * reported on first occurrence. Called by the master and by workers. */
 #include "scene/scene_json.h"
+#include "base/jsonpos.h"
 #include "base/log.h"
 #include "scene/medium.h"
 #include "scene/grid.h"
@@ -59,124 +60,16 @@ static struct jpath jpath_child(const struct jpath *p, uint32_t ordinal)
     return c;
 }
 
-/* ---- Position lookup on valid JSON text ---- */
-
-struct scanner {
-    const char *t;
-    size_t len, i;
-    uint32_t line, col;
-};
-
-static void scan_advance(struct scanner *s)
-{
-    unsigned char c = (unsigned char)s->t[s->i++];
-    if (c == '\n') {
-        s->line++;
-        s->col = 1;
-    } else if ((c & 0xC0) != 0x80) {
-        s->col++;  /* columns count code points, as jansson's do */
-    }
-}
-
-static void scan_ws(struct scanner *s)
-{
-    while (s->i < s->len && (s->t[s->i] == ' ' || s->t[s->i] == '\t' || s->t[s->i] == '\n' || s->t[s->i] == '\r'))
-        scan_advance(s);
-}
-
-static void scan_string(struct scanner *s)
-{
-    scan_advance(s);  /* opening quote */
-    while (s->i < s->len && s->t[s->i] != '"') {
-        if (s->t[s->i] == '\\' && s->i + 1 < s->len)
-            scan_advance(s);
-        scan_advance(s);
-    }
-    if (s->i < s->len)
-        scan_advance(s);
-}
-
-static void scan_skip_value(struct scanner *s)
-{
-    if (s->i >= s->len)
-        return;
-    char c = s->t[s->i];
-    if (c == '"') {
-        scan_string(s);
-    } else if (c == '{' || c == '[') {
-        size_t depth = 0;
-        while (s->i < s->len) {
-            c = s->t[s->i];
-            if (c == '"') {
-                scan_string(s);
-                continue;
-            }
-            if (c == '{' || c == '[')
-                depth++;
-            else if ((c == '}' || c == ']') && --depth == 0) {
-                scan_advance(s);
-                return;
-            }
-            scan_advance(s);
-        }
-    } else {
-        while (s->i < s->len && !strchr(",]} \t\r\n", s->t[s->i]))
-            scan_advance(s);
-    }
-}
-
-/* s is at a value at depth `depth` of path p; finds the key or value p names. */
-static bool scan_locate(struct scanner *s, const struct jpath *p, int depth, bool want_key, uint32_t *line,
-                        uint32_t *col)
-{
-    scan_ws(s);
-    if (s->i >= s->len)
-        return false;
-    if (depth == p->n) {
-        *line = s->line;
-        *col = s->col;
-        return true;
-    }
-    char open = s->t[s->i];
-    if (open != '{' && open != '[')
-        return false;
-    scan_advance(s);
-    for (uint32_t k = 0;; k++) {
-        scan_ws(s);
-        if (s->i >= s->len || s->t[s->i] == '}' || s->t[s->i] == ']')
-            return false;
-        uint32_t kline = s->line, kcol = s->col;
-        if (open == '{') {
-            scan_string(s);
-            scan_ws(s);
-            if (s->i < s->len && s->t[s->i] == ':')
-                scan_advance(s);
-        }
-        if (k == p->comp[depth]) {
-            if (want_key && open == '{' && depth + 1 == p->n) {
-                *line = kline;
-                *col = kcol;
-                return true;
-            }
-            return scan_locate(s, p, depth + 1, want_key, line, col);
-        }
-        scan_ws(s);
-        scan_skip_value(s);
-        scan_ws(s);
-        if (s->i < s->len && s->t[s->i] == ',')
-            scan_advance(s);
-    }
-}
-
 enum at { AT_VALUE, AT_KEY };
 
 __attribute__((format(printf, 4, 5))) static int fail(struct ctx *c, const struct jpath *p, enum at at,
                                                       const char *fmt, ...)
 {
-    struct scanner s = {c->text, c->len, 0, 1, 1};
-    uint32_t line = 1, col = 1;
-    if (!scan_locate(&s, p, 0, at == AT_KEY, &line, &col))
-        line = col = 1;
+    struct json_step steps[JPATH_MAX];
+    for (int i = 0; i < p->n; i++)
+        steps[i] = (struct json_step){NULL, p->comp[i]};
+    uint32_t line, col;
+    json_locate(c->text, c->len, steps, p->n, at == AT_KEY, &line, &col);
     char msg[1024];
     va_list ap;
     va_start(ap, fmt);

@@ -5,7 +5,8 @@
 // integer index (ball_value etc., in nvdb_values.h, shared with test_nvdb.c), exact in float.
 // Usage: make_nvdb OUTDIR   (built by the Makefile with g++; ZIP and BLOSC for the refusals)
 //        make_nvdb --from-grid IN.grid OUT.nvdb   (a dense BRGRID01 grid as a NanoVDB fog
-//        volume whose map puts voxel centres where the dense grid has them in its unit cube)
+//        volume whose map puts voxel centres where the dense grid has them in its unit cube,
+//        by smoke/nvdb_out.cpp's nvdb_encode_fog)
 #include <nanovdb/util/GridBuilder.h>
 #include <nanovdb/util/IO.h>
 
@@ -24,6 +25,7 @@ using nanovdb::HostBuffer;
 using nanovdb::Map;
 
 #include "nvdb_values.h"
+#include "smoke/nvdb_out.h"  // the dense-to-NanoVDB writer smokesim uses too
 
 // The ball's index-to-world map: a shear, so that a transposed matrix shows.
 // world = A ijk + t with A = [[1/8, 0, 1/16], [0, 1/4, 0], [0, 0, 1/8]], t = (-1, 0.5, -0.75).
@@ -89,16 +91,23 @@ static int from_grid(const char *in, const char *out)
         std::fprintf(stderr, "make_nvdb: %s is truncated\n", in);
         return 1;
     }
-    nanovdb::GridBuilder<float> b(0.0f, GridClass::FogVolume);
-    b([&](const Coord &c) { return v[((size_t)c[2] * n[1] + (size_t)c[1]) * n[0] + (size_t)c[0]]; },
-      CoordBBox(Coord(0), Coord((int)n[0] - 1, (int)n[1] - 1, (int)n[2] - 1)));
     // Index i's centre at (i + 0.5) / n in the unit cube, as in the dense grid.
-    const double m[3][3] = {{1.0 / n[0], 0.0, 0.0}, {0.0, 1.0 / n[1], 0.0}, {0.0, 0.0, 1.0 / n[2]}};
-    const double inv[3][3] = {{(double)n[0], 0.0, 0.0}, {0.0, (double)n[1], 0.0}, {0.0, 0.0, (double)n[2]}};
-    const double t[3] = {0.5 / n[0], 0.5 / n[1], 0.5 / n[2]};
-    Map map;
-    map.set(m, inv, t, 1.0);
-    return write(out, one(b.getHandle(map, "density"))) ? 0 : 1;
+    const double size[3] = {1.0 / n[0], 1.0 / n[1], 1.0 / n[2]};
+    const double origin[3] = {0.5 / n[0], 0.5 / n[1], 0.5 / n[2]};
+    uint8_t *buf = nullptr;
+    size_t len = 0;
+    char err[256];
+    if (nvdb_encode_fog(v.data(), n, 0.0f, size, origin, "density", &buf, &len, nullptr, err, sizeof err) != 0) {
+        std::fprintf(stderr, "make_nvdb: %s: %s\n", in, err);
+        return 1;
+    }
+    std::FILE *o = std::fopen(out, "wb");
+    ok = o && std::fwrite(buf, 1, len, o) == len;
+    ok = (o && std::fclose(o) == 0) && ok;
+    std::free(buf);
+    if (!ok)
+        std::fprintf(stderr, "make_nvdb: cannot write %s\n", out);
+    return ok ? 0 : 1;
 }
 
 int main(int argc, char **argv)

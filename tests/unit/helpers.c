@@ -99,3 +99,17 @@ double test_channel_mean(const float *px, uint32_t w, uint32_t h, enum tile_chan
     *se = sqrt(var) / (w * h);
     return sum / (w * h);
 }
+
+uint8_t *test_read_file(const char *path, size_t *size, const char *hint)
+{
+    FILE *f = fopen(path, "rb");
+    cr_assert_not_null(f, "%s missing: %s", path, hint);
+    fseek(f, 0, SEEK_END);
+    long n = ftell(f);
+    fseek(f, 0, SEEK_SET);
+    uint8_t *d = malloc((size_t)n + 1);
+    cr_assert_eq(fread(d, 1, (size_t)n, f), (size_t)n);
+    fclose(f);
+    *size = (size_t)n;
+    return d;
+}

@@ -17,6 +17,10 @@ struct mem_file { const char *path; const void *data; size_t size; };
 /* The asset_source read function over a folder (ctx: its first mem_file). */
 int mem_read(void *ctx, const char *rel_path, char **data, size_t *size, char *err, size_t errlen);
 
+/* The whole file at path, malloc'd (one byte more, unset), its size in *size; fails the
+ * test naming the path and why (hint) when it cannot be read. */
+uint8_t *test_read_file(const char *path, size_t *size, const char *hint);
+
 /* Parses text as "scenes/t.json" with files (NULL: none) as its folder, in world space
  * (origin 0: positions stay as written); err holds 512 bytes. Returns the parser's rc. */
 int test_scene_load(const char *text, const struct mem_file *files, struct scene *s, char *err);

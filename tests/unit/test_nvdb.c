@@ -39,16 +39,7 @@ static uint8_t *read_testdata(const char *name, size_t *size)
     const char *dir = getenv("BRUME_TESTDATA");
     char path[1024];
     snprintf(path, sizeof path, "%s/%s", dir ? dir : "../../build/testdata", name);
-    FILE *f = fopen(path, "rb");
-    cr_assert_not_null(f, "%s missing: `make unit` writes it with build/make_nvdb", path);
-    fseek(f, 0, SEEK_END);
-    long n = ftell(f);
-    fseek(f, 0, SEEK_SET);
-    uint8_t *d = malloc((size_t)n + 1);
-    cr_assert_eq(fread(d, 1, (size_t)n, f), (size_t)n);
-    fclose(f);
-    *size = (size_t)n;
-    return d;
+    return test_read_file(path, size, "`make unit` writes it with build/make_nvdb");
 }
 
 /* Adds a file to the in-memory asset source under name (bytes are copied). */
