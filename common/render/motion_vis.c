@@ -655,7 +655,7 @@ uint32_t motion_vis_strata(const struct motion_vis *mv, const struct camera *cam
     st->n = 1, st->heaviest = 0;
     st->time01[0] = cs->time01;
     st->weight[0] = 1.0;
-    struct mv_cand cand[MV_MAX_CANDS];
+    static _Thread_local struct mv_cand cand[MV_MAX_CANDS]; /* 130 kB: off the render threads' stacks */
     struct mv_query q;
     rtcInitIntersectContext(&q.ctx);
     q.o[0] = cs->o.x, q.o[1] = cs->o.y, q.o[2] = cs->o.z;
