@@ -13,8 +13,9 @@ set -eu
 . scripts/lib.sh
 SCENES=${SCENES:-"edge fan motion dof_motion"}
 SPPS=${SPPS:-"1 4 16 64"}
-REF_SPP=${REF_SPP:-2048}
+REF_SPP=${REF_SPP:-8192}
 TOL=${TOL:-0.1}
+REPS=${REPS:-3}
 bench_init bench-motion-blur
 X=$BUILD/exrtool
 cpu() { cpu_secs "$BUILD/master" "$1" -o "$2" --workers 1 --spp "$3"; }
@@ -36,20 +37,28 @@ for sc in $SCENES; do
   for m in an sa; do
     spps=$SPPS
     [ $m = sa ] && spps="$SPPS $((largest * 4))"
+    f=$J
+    [ $m = an ] && f=$D/an.json
     for s in $spps; do
-      f=$J
-      [ $m = an ] && f=$D/an.json
-      t=$(cpu "$f" "$D/$m$s.exr" "$s")
+      logged "$BUILD/master" "$f" -o "$D/$m$s.exr" --workers 1 --spp "$s"
       em=$($X relrmse "$D/$m$s.exr" "$ref" --mask "$D/still.exr" --tol "$TOL" 2>"$D/maskinfo")
       ew=$($X relrmse "$D/$m$s.exr" "$ref")
-      echo "$m $s $t $em $ew" >>"$D/rows"
+      echo "$m $s $em $ew" >>"$D/rows"
     done
   done
-  # Cost per sample: slope of CPU time against spp (least squares), per method.
-  slope() { awk -v m="$1" '$1 == m { n++; sx += $2; sy += $3; sxx += $2 * $2; sxy += $2 * $3 }
-                         END { printf "%.6g\n", (n * sxy - sx * sy) / (n * sxx - sx * sx) }' "$D/rows"; }
-  ca=$(slope an)
-  cs=$(slope sa)
+  # Cost per camera sample: CPU seconds between 4 and HI spp over the spp between, median
+  # of REPS (renders are deterministic: only the timings repeat).
+  per_spp() {
+    i=0
+    while [ $i -lt "$REPS" ]; do
+      lo=$(cpu "$1" "$D/t.exr" 4)
+      hi=$(cpu "$1" "$D/t.exr" "$2")
+      awk -v lo="$lo" -v hi="$hi" -v n=$(($2 - 4)) 'BEGIN {printf "%.6g\n", (hi - lo) / n}'
+      i=$((i + 1))
+    done | median
+  }
+  ca=$(per_spp "$D/an.json" "$largest")
+  cs=$(per_spp "$J" $((largest * 4)))
   ratio=$(awk -v a="$ca" -v b="$cs" 'BEGIN {printf "%.3f", a / b}')
   px=$(sed -n 's/.*mask holds \([0-9]*\) of \([0-9]*\) pixels.*/\1 of \2/p' "$D/maskinfo")
   echo
@@ -57,16 +66,16 @@ for sc in $SCENES; do
   printf '%6s %12s %12s %12s %8s %12s %12s %8s\n' spp "an masked" "sa masked" "sa eq.time" ratio "an whole" "sa eq.time" ratio
   for s in $SPPS; do
     eq=$(awk -v s="$s" -v r="$ratio" 'BEGIN {print s * r}')
-    am=$(awk -v s="$s" '$1 == "an" && $2 == s {print $4}' "$D/rows")
-    aw=$(awk -v s="$s" '$1 == "an" && $2 == s {print $5}' "$D/rows")
-    sm=$(awk -v s="$s" '$1 == "sa" && $2 == s {print $4}' "$D/rows")
-    sme=$(awk '$1 == "sa" {print $2, $4}' "$D/rows" | loglog_interp "$eq")
-    swe=$(awk '$1 == "sa" {print $2, $5}' "$D/rows" | loglog_interp "$eq")
+    am=$(awk -v s="$s" '$1 == "an" && $2 == s {print $3}' "$D/rows")
+    aw=$(awk -v s="$s" '$1 == "an" && $2 == s {print $4}' "$D/rows")
+    sm=$(awk -v s="$s" '$1 == "sa" && $2 == s {print $3}' "$D/rows")
+    sme=$(awk '$1 == "sa" {print $2, $3}' "$D/rows" | loglog_interp "$eq")
+    swe=$(awk '$1 == "sa" {print $2, $4}' "$D/rows" | loglog_interp "$eq")
     printf '%6s %12.4g %12.4g %12s %8.3f %12.4g %12s %8.3f\n' "$s" "$am" "$sm" "$sme" \
       "$(awk -v a="$am" -v b="${sme%\*}" 'BEGIN {print a / b}')" "$aw" "$swe" "$(awk -v a="$aw" -v b="${swe%\*}" 'BEGIN {print a / b}')"
     echo "$sc $s $(awk -v s="$s" -v c="$ca" 'BEGIN {print s * c}') $am" >>"$T/plot_an"
   done
-  awk -v sc="$sc" -v c="$cs" '$1 == "sa" {print sc, $2, $2 * c, $4}' "$D/rows" >>"$T/plot_sa"
+  awk -v sc="$sc" -v c="$cs" '$1 == "sa" {print sc, $2, $2 * c, $3}' "$D/rows" >>"$T/plot_sa"
   cp "$D/rows" "$OUT/motion-blur-$sc.txt"
 done
 echo

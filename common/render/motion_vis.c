@@ -138,15 +138,36 @@ static void sphere_quadratic(const struct mv_cand *c, const double d[3], double 
 
 static double eval_q(const double q[3], double s) { return (q[0] * s + q[1]) * s + q[2]; }
 
+/* The sign of quadratic q over [0, 1]: 1 if > 0 throughout, -1 if < 0 throughout, else 0. */
+static int fixed_sign(const double q[3])
+{
+    double lo = fmin(q[2], q[0] + q[1] + q[2]), hi = fmax(q[2], q[0] + q[1] + q[2]);
+    if (q[0] != 0.0) {
+        double v = -q[1] / (2.0 * q[0]);
+        if (v > 0.0 && v < 1.0) {
+            double e = eval_q(q, v);
+            lo = fmin(lo, e), hi = fmax(hi, e);
+        }
+    }
+    return lo > 0.0 ? 1 : (hi < 0.0 ? -1 : 0);
+}
+
 void mv_cand_coverage(struct mv_cand *c, const double d[3])
 {
     double q[3][3], split[8];
     int nq = c->sphere ? 1 : 3, ns = 0;
+    c->niv = 0;
     if (c->sphere)
         sphere_quadratic(c, d, q[0]);
-    else
+    else {
         for (int e = 0; e < 3; e++)
             edge_quadratic(c, d, e, (e + 1) % 3, q[e]);
+        /* Most candidates from swept boxes never cover the ray: one edge keeps it outside
+         * on one side while another stays on the other side all segment long. */
+        int s0 = fixed_sign(q[0]), s1 = fixed_sign(q[1]), s2 = fixed_sign(q[2]);
+        if (s0 * s1 < 0 || s1 * s2 < 0 || s0 * s2 < 0)
+            return;
+    }
     split[ns++] = 0.0;
     for (int e = 0; e < nq; e++) {
         double r[2];
@@ -161,7 +182,6 @@ void mv_cand_coverage(struct mv_cand *c, const double d[3])
             double t = split[j];
             split[j] = split[j - 1], split[j - 1] = t;
         }
-    c->niv = 0;
     int zero = !(c->tb > c->ta);
     for (int i = 0; i + 1 < ns; i++) {
         if (!(split[i + 1] > split[i]) && !zero)
@@ -531,9 +551,14 @@ static void intersect_cb(const struct RTCIntersectFunctionNArguments *args)
         q->nc++;
 }
 
-static int cmp_cand(const void *a, const void *b)
+/* A candidate's place in the answer's order: object, triangle, segment. */
+struct mv_key {
+    uint32_t obj, prim, seg, idx;
+};
+
+static int cmp_key(const void *a, const void *b)
 {
-    const struct mv_cand *x = a, *y = b;
+    const struct mv_key *x = a, *y = b;
     if (x->obj != y->obj)
         return x->obj < y->obj ? -1 : 1;
     if (x->prim != y->prim)
@@ -655,7 +680,8 @@ uint32_t motion_vis_strata(const struct motion_vis *mv, const struct camera *cam
     st->n = 1, st->heaviest = 0;
     st->time01[0] = cs->time01;
     st->weight[0] = 1.0;
-    static _Thread_local struct mv_cand cand[MV_MAX_CANDS]; /* 130 kB: off the render threads' stacks */
+    /* 260 kB: off the render threads' stacks */
+    static _Thread_local struct mv_cand found[MV_MAX_CANDS], cand[MV_MAX_CANDS];
     struct mv_query q;
     rtcInitIntersectContext(&q.ctx);
     q.o[0] = cs->o.x, q.o[1] = cs->o.y, q.o[2] = cs->o.z;
@@ -663,7 +689,7 @@ uint32_t motion_vis_strata(const struct motion_vis *mv, const struct camera *cam
     double dl = sqrt(dot3(q.d, q.d));
     for (int k = 0; k < 3; k++)
         q.d[k] /= dl;
-    q.cand = cand, q.nc = 0, q.overflow = 0;
+    q.cand = found, q.nc = 0, q.overflow = 0;
     struct RTCRayHit rh;
     memset(&rh, 0, sizeof rh);
     rh.ray.org_x = cs->o.x, rh.ray.org_y = cs->o.y, rh.ray.org_z = cs->o.z;
@@ -675,11 +701,14 @@ uint32_t motion_vis_strata(const struct motion_vis *mv, const struct camera *cam
     if (q.overflow || q.nc == 0)
         return 1; /* nothing moving on this ray (or too much): time stays sampled */
     /* Embree's visiting order is not part of the answer: sort, drop repeated visits. */
-    qsort(cand, q.nc, sizeof *cand, cmp_cand);
+    struct mv_key key[MV_MAX_CANDS];
+    for (uint32_t i = 0; i < q.nc; i++)
+        key[i] = (struct mv_key){found[i].obj, found[i].prim, found[i].seg, i};
+    qsort(key, q.nc, sizeof *key, cmp_key);
     uint32_t nc = 0;
     for (uint32_t i = 0; i < q.nc; i++)
-        if (nc == 0 || cmp_cand(&cand[nc - 1], &cand[i]) != 0)
-            cand[nc++] = cand[i];
+        if (i == 0 || cmp_key(&key[i - 1], &key[i]) != 0)
+            cand[nc++] = found[key[i].idx];
     double sd = still_depth(mv, cs->o, cs->d);
     if (isnan(sd))
         return 1;

@@ -14,7 +14,7 @@
 #define MV_MAX_IV 4          /* coverage intervals of one candidate segment at most */
 #define MV_MAX_STRATA 8      /* shaded strata per camera sample at most (the rest merge) */
 #define MV_STILL UINT32_MAX  /* a piece where no moving surface is in front */
-#define MV_MAX_ANGLE_DEG 6.0 /* rotation per linear segment at most (docs/motion.md: the bound) */
+#define MV_MAX_ANGLE_DEG 4.0 /* rotation per linear segment at most (docs/motion.md: the bound) */
 
 /* One moving triangle (or sphere) over one linear segment [ta, tb] of the shutter (time01):
  * positions relative to the ray origin at ta (p0) and tb (p1), linear in between. A
