@@ -14,7 +14,13 @@
 
 #define MV_MAX_CANDS 512   /* candidates of one ray at most; beyond, the ray samples time */
 #define MV_MAX_PIECES 256
+#define MV_MAX_PRIMS (1u << 22)     /* swept boxes of one object at most (when rotation splits) */
+#define MV_MAX_DOUBLES (1u << 24)   /* resampled positions of one object at most */
 #define MV_BISECT 48       /* halvings that locate a depth crossing (to 2^-48 of its interval) */
+
+/* Ternary min / max: fmin and fmax are library calls without -ffast-math. */
+static inline double min2(double a, double b) { return a < b ? a : b; }
+static inline double max2(double a, double b) { return a > b ? a : b; }
 
 static double dot3(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 
@@ -37,7 +43,7 @@ int mv_quadratic_roots(double a, double b, double c, double r[2])
 {
     /* Scale so the largest coefficient is 1: no overflow of b^2 at 1e6 units, no
      * underflow of 4ac for 1e-7 triangles. */
-    double m = fmax(fabs(a), fmax(fabs(b), fabs(c)));
+    double m = max2(fabs(a), max2(fabs(b), fabs(c)));
     if (!(m > 0.0) || !isfinite(m))
         return 0;
     a /= m, b /= m, c /= m;
@@ -141,12 +147,12 @@ static double eval_q(const double q[3], double s) { return (q[0] * s + q[1]) * s
 /* The sign of quadratic q over [0, 1]: 1 if > 0 throughout, -1 if < 0 throughout, else 0. */
 static int fixed_sign(const double q[3])
 {
-    double lo = fmin(q[2], q[0] + q[1] + q[2]), hi = fmax(q[2], q[0] + q[1] + q[2]);
+    double lo = min2(q[2], q[0] + q[1] + q[2]), hi = max2(q[2], q[0] + q[1] + q[2]);
     if (q[0] != 0.0) {
         double v = -q[1] / (2.0 * q[0]);
         if (v > 0.0 && v < 1.0) {
             double e = eval_q(q, v);
-            lo = fmin(lo, e), hi = fmax(hi, e);
+            lo = min2(lo, e), hi = max2(hi, e);
         }
     }
     return lo > 0.0 ? 1 : (hi < 0.0 ? -1 : 0);
@@ -154,7 +160,7 @@ static int fixed_sign(const double q[3])
 
 void mv_cand_coverage(struct mv_cand *c, const double d[3])
 {
-    double q[3][3], split[8];
+    double q[3][3] = {{0}}, split[8];
     int nq = c->sphere ? 1 : 3, ns = 0;
     c->niv = 0;
     if (c->sphere)
@@ -411,6 +417,7 @@ struct motion_vis {
 struct mv_query {
     struct RTCIntersectContext ctx; /* first: Embree hands it back to the callback */
     double o[3], d[3];
+    double u[3], v[3];      /* completes d to an orthonormal, right-handed basis (u, v, d) */
     struct mv_cand *cand;
     uint32_t nc;
     int overflow;
@@ -431,7 +438,7 @@ static void apply_key(const struct motion_key *k, const double p[3], double out[
  * turns more than MV_MAX_ANGLE_DEG (the chord's distance from the arc is then at most
  * R (1 - cos(MV_MAX_ANGLE_DEG / 2)) for a point at R from the axis). */
 static uint32_t object_segments(const struct motion_key *keys, uint32_t nkeys, const float *ftimes, uint32_t nframes,
-                                double t0, double t1)
+                                double t0, double t1, uint32_t num_vertices, uint32_t num_prims)
 {
     uint32_t steps = 2;
     if (nkeys > 0 && !motion_keys_still(keys, nkeys, t0, t1))
@@ -454,6 +461,12 @@ static uint32_t object_segments(const struct motion_key *keys, uint32_t nkeys, c
         }
         sub = (uint32_t)ceil(worst / MV_MAX_ANGLE_DEG);
         sub = sub < 1 ? 1 : (sub * base > 1024 ? 1024 / base : sub);
+        /* Memory: at most MV_MAX_PRIMS swept boxes and MV_MAX_DOUBLES positions an object
+         * (a coarser cut costs noise, not bias). */
+        uint64_t by_prims = MV_MAX_PRIMS / ((uint64_t)base * num_prims + 1);
+        uint64_t by_pos = MV_MAX_DOUBLES / ((uint64_t)base * 3 * num_vertices + 1);
+        uint64_t cap = by_prims < by_pos ? by_prims : by_pos;
+        sub = sub > cap ? (cap > 1 ? (uint32_t)cap : 1) : sub;
     }
     return base * sub;
 }
@@ -535,11 +548,41 @@ static void bounds_cb(const struct RTCBoundsFunctionArguments *args)
     args->bounds_o->lower_z = (float)lo[2] - pad[2], args->bounds_o->upper_z = (float)hi[2] + pad[2];
 }
 
+/* 1 when triangle prim of ob cannot cover the query's ray during its segment: two edges
+ * keep it on opposite sides all along (fixed_sign). In the plane across d (basis u, v),
+ * d . (a x b) is the 2D cross product of the projections: cheaper than the triple products
+ * of mv_cand_coverage, which most candidates never reach. */
+static int quick_reject(const struct mv_object *ob, uint32_t prim, const struct mv_query *q)
+{
+    uint32_t tri = prim / ob->segs, seg = prim % ob->segs, stride = 3 * ob->num_vertices;
+    const double *base = ob->pos + (size_t)seg * stride;
+    double a[3][2], b[3][2];
+    for (int i = 0; i < 3; i++) {
+        const double *pa = base + 3 * ob->indices[3 * tri + i], *pb = pa + stride;
+        double x0[3] = {pa[0] - q->o[0], pa[1] - q->o[1], pa[2] - q->o[2]};
+        double x1[3] = {pb[0] - q->o[0], pb[1] - q->o[1], pb[2] - q->o[2]};
+        a[i][0] = dot3(q->u, x0), a[i][1] = dot3(q->v, x0);
+        b[i][0] = dot3(q->u, x1) - a[i][0], b[i][1] = dot3(q->v, x1) - a[i][1];
+    }
+    int sg[3];
+    for (int e = 0; e < 3; e++) {
+        int i = e, j = (e + 1) % 3;
+        double c[3] = {b[i][0] * b[j][1] - b[i][1] * b[j][0],
+                       a[i][0] * b[j][1] - a[i][1] * b[j][0] + b[i][0] * a[j][1] - b[i][1] * a[j][0],
+                       a[i][0] * a[j][1] - a[i][1] * a[j][0]};
+        sg[e] = fixed_sign(c);
+    }
+    return sg[0] * sg[1] < 0 || sg[1] * sg[2] < 0 || sg[0] * sg[2] < 0;
+}
+
 static void intersect_cb(const struct RTCIntersectFunctionNArguments *args)
 {
     if (!args->valid[0])
         return;
     struct mv_query *q = (struct mv_query *)args->context;
+    const struct mv_object *ob = args->geometryUserPtr;
+    if (!ob->sphere && quick_reject(ob, args->primID, q))
+        return;
     if (q->nc >= MV_MAX_CANDS) {
         q->overflow = 1;
         return;
@@ -604,7 +647,8 @@ struct motion_vis *motion_vis_new(const struct accel *a, const struct scene *s, 
         ob->obj = i;
         ob->num_vertices = m->num_vertices;
         ob->indices = m->indices;
-        ob->segs = object_segments(m->keys, m->num_keys, m->frame_times, m->num_frames, t0, t1);
+        ob->segs = object_segments(m->keys, m->num_keys, m->frame_times, m->num_frames, t0, t1, m->num_vertices,
+                                   m->num_triangles);
         object_fill(ob, m->positions, m->keys, m->num_keys, m->frame_positions, m->frame_times, m->num_frames, t0, t1,
                     0.0f);
         add_object(mv, ob, m->num_triangles * ob->segs);
@@ -617,7 +661,7 @@ struct motion_vis *motion_vis_new(const struct accel *a, const struct scene *s, 
         ob->obj = s->num_meshes + i;
         ob->sphere = 1;
         ob->num_vertices = 1;
-        ob->segs = object_segments(sp->keys, sp->num_keys, NULL, 0, t0, t1);
+        ob->segs = object_segments(sp->keys, sp->num_keys, NULL, 0, t0, t1, 1, 1);
         float c[3] = {sp->center.x, sp->center.y, sp->center.z};
         object_fill(ob, c, sp->keys, sp->num_keys, NULL, NULL, 0, t0, t1, sp->radius);
         add_object(mv, ob, ob->segs);
@@ -689,6 +733,10 @@ uint32_t motion_vis_strata(const struct motion_vis *mv, const struct camera *cam
     double dl = sqrt(dot3(q.d, q.d));
     for (int k = 0; k < 3; k++)
         q.d[k] /= dl;
+    /* Duff et al., "Building an Orthonormal Basis, Revisited" (JCGT 2017). */
+    double sgn = copysign(1.0, q.d[2]), ia = -1.0 / (sgn + q.d[2]), ib = q.d[0] * q.d[1] * ia;
+    q.u[0] = 1.0 + sgn * q.d[0] * q.d[0] * ia, q.u[1] = sgn * ib, q.u[2] = -sgn * q.d[0];
+    q.v[0] = ib, q.v[1] = sgn + q.d[1] * q.d[1] * ia, q.v[2] = -q.d[1];
     q.cand = found, q.nc = 0, q.overflow = 0;
     struct RTCRayHit rh;
     memset(&rh, 0, sizeof rh);

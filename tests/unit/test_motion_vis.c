@@ -351,17 +351,9 @@ static void edge_scene(struct scene *s, uint32_t w, uint32_t spp, int analytic, 
     }
     q.num_keys = 2;
     scene_add_mesh(s, &q);
-    float aspect = (float)w / 4.0f;
-    s->camera = (struct camera_desc){.position = v3(0, 0, 10), .look_at = v3(0, 0, 0), .up = v3(0, 1, 0)};
-    s->camera.fov_y_deg = 2.0f * atanf(2.0f / (10.0f * aspect)) * 180.0f / (float)M_PI;
+    test_ramp_camera(s, w, spp);
     s->camera.shutter_close = close;
     s->camera.motion_blur = analytic ? MOTION_BLUR_ANALYTIC : MOTION_BLUR_SAMPLED;
-    s->settings.width = w;
-    s->settings.height = 4;
-    s->settings.spp = spp;
-    s->settings.max_depth = 1;
-    s->settings.seed = 3;
-    s->settings.tile_size = 16;
 }
 
 Test(motion_vis, analytic_moving_edge_has_no_time_noise)
