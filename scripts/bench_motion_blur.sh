@@ -81,7 +81,7 @@ done
 echo
 echo "ratio: analytic's relRMSE over sampled's at equal CPU time (* = sampled extrapolated); target <= 0.25 in the mask at 1-16 spp"
 {
-  echo "set terminal png size 1000,800; set output '$OUT/motion_blur.png'"
+  echo "set terminal png size 1000,800 noenhanced; set output '$OUT/motion_blur.png'"
   echo "set multiplot layout 2,2; set logscale xy; set xlabel 'CPU s (fixed cost removed)'; set ylabel 'relRMSE, moving pixels'; set key bottom left"
   for sc in $SCENES; do
     echo "set title '$sc'"
