@@ -189,6 +189,11 @@ void mv_cand_coverage(struct mv_cand *c, const double d[3])
             split[j] = split[j - 1], split[j - 1] = t;
         }
     int zero = !(c->tb > c->ta);
+    /* Every vertex in front of the origin at both ends: any hit is in front (a covered
+     * triangle that is not edge-on has a finite depth). */
+    int front = !c->sphere;
+    for (int i = 0; i < 3 && front; i++)
+        front = dot3(c->p0[i], d) > 0.0 && dot3(c->p1[i], d) > 0.0;
     for (int i = 0; i + 1 < ns; i++) {
         if (!(split[i + 1] > split[i]) && !zero)
             continue;
@@ -203,7 +208,7 @@ void mv_cand_coverage(struct mv_cand *c, const double d[3])
             covered = (e0 >= 0.0 && e1 >= 0.0 && e2 >= 0.0 && (e0 > 0.0 || e1 > 0.0 || e2 > 0.0)) ||
                       (e0 <= 0.0 && e1 <= 0.0 && e2 <= 0.0 && (e0 < 0.0 || e1 < 0.0 || e2 < 0.0));
         }
-        if (!covered || depth_at_s(c, d, m) == INFINITY)
+        if (!covered || (!front && depth_at_s(c, d, m) == INFINITY))
             continue;
         double t0 = c->ta + split[i] * (c->tb - c->ta), t1 = c->ta + split[i + 1] * (c->tb - c->ta);
         if (i + 1 == ns - 1)
@@ -280,7 +285,15 @@ uint32_t mv_resolve(const struct mv_cand *c, uint32_t nc, const double d[3], dou
                 ev[ne++] = (struct mv_event){c[i].iv[k][0], i, 1};
                 ev[ne++] = (struct mv_event){c[i].iv[k][1], i, 0};
             }
-    qsort(ev, ne, sizeof *ev, cmp_event);
+    if (ne <= 32) { /* the usual few: insertion sort beats qsort's set-up */
+        for (uint32_t i = 1; i < ne; i++)
+            for (uint32_t j = i; j > 0 && cmp_event(&ev[j], &ev[j - 1]) < 0; j--) {
+                struct mv_event t = ev[j];
+                ev[j] = ev[j - 1], ev[j - 1] = t;
+            }
+    } else {
+        qsort(ev, ne, sizeof *ev, cmp_event);
+    }
     /* Sweep: between consecutive event times the active set (candidates covering the ray)
      * is fixed. */
     uint32_t act[MV_MAX_CANDS];
@@ -752,7 +765,15 @@ uint32_t motion_vis_strata(const struct motion_vis *mv, const struct camera *cam
     struct mv_key key[MV_MAX_CANDS];
     for (uint32_t i = 0; i < q.nc; i++)
         key[i] = (struct mv_key){found[i].obj, found[i].prim, found[i].seg, i};
-    qsort(key, q.nc, sizeof *key, cmp_key);
+    if (q.nc <= 16) {
+        for (uint32_t i = 1; i < q.nc; i++)
+            for (uint32_t j = i; j > 0 && cmp_key(&key[j], &key[j - 1]) < 0; j--) {
+                struct mv_key t = key[j];
+                key[j] = key[j - 1], key[j - 1] = t;
+            }
+    } else {
+        qsort(key, q.nc, sizeof *key, cmp_key);
+    }
     uint32_t nc = 0;
     for (uint32_t i = 0; i < q.nc; i++)
         if (i == 0 || cmp_key(&key[i - 1], &key[i]) != 0)
