@@ -42,7 +42,7 @@ TOOLS      := exrtool junkpeer replay maketex texbench meshload
 TOOL_BIN   := $(TOOLS:%=$(BUILD)/%)
 TOOL_OBJ   := $(TOOLS:%=$(BUILD)/obj/tests/tools/%.o)
 
-.PHONY: smoke-sim smoke-demo bench-smoke all deps test layers unit integration demo bench bench-media bench-adaptive bench-materials clean fuzz fuzz-ci tools stress test-slurm test-netns
+.PHONY: smoke-sim smoke-demo bench-smoke all deps test layers unit integration demo bench bench-motion bench-media bench-adaptive bench-materials clean fuzz fuzz-ci tools stress test-slurm test-netns
 all: $(BUILD)/master $(BUILD)/worker $(BUILD)/smokesim $(TOOL_BIN)
 
 # Install what is missing; the stamp makes later builds skip the check.
@@ -144,11 +144,18 @@ bench: all
 	BUILD=$(BUILD) sh scripts/bench.sh
 	BUILD=$(BUILD) sh scripts/bench_sampling.sh
 	BUILD=$(BUILD) sh scripts/bench_motion.sh
+	BUILD=$(BUILD) sh scripts/bench_motion_blur.sh
 	BUILD=$(BUILD) sh scripts/bench_media.sh
 	BUILD=$(BUILD) sh scripts/bench_textures.sh
 	BUILD=$(BUILD) sh scripts/bench_io.sh
 	BUILD=$(BUILD) sh scripts/bench_adaptive.sh
 	BUILD=$(BUILD) sh scripts/bench_materials.sh
+
+# Motion blur: the cost of motion (moving / still throughput), then analytic against
+# sampled visibility at equal CPU time on four scenes, with a plot (docs/motion.md).
+bench-motion: all
+	BUILD=$(BUILD) sh scripts/bench_motion.sh
+	BUILD=$(BUILD) sh scripts/bench_motion_blur.sh
 
 # Media: error against time for vpt and the photon method against an honest VPT reference
 # (docs/benchmarks.md); quick run: SCENES=fog_spot BUDGETS="2 6" REF_SPP=256 make bench-media

@@ -7,6 +7,7 @@
 #include "base/log.h"
 #include "render/aov.h"
 #include "render/media_integrator.h"
+#include "render/motion_vis.h"
 #include "render/surface.h"
 #include "render/texshade.h"
 #include "scene/material.h"
@@ -58,17 +59,15 @@ static void aov_trace(const struct render_job *job, vec3 org, vec3 dir, float ti
         aov->albedo = aov_material_albedo(mat);
 }
 
-/* One camera sample's radiance; aov (NULL when the frame has no AOVs) gets its AOVs,
+/* The radiance along camera ray cs; aov (NULL when the frame has no AOVs) gets its AOVs,
  * set to a miss by the caller. */
-static vec3 sample_path(const struct render_job *job, uint32_t pass, uint32_t px, uint32_t py, struct sampler smp,
-                        uint64_t *rays, int *hit_any, struct aov_sample *aov)
+static vec3 camera_path(const struct render_job *job, uint32_t pass, uint32_t px, uint32_t py, struct sampler smp,
+                        struct camera_sample cs, uint64_t *rays, int *hit_any, struct aov_sample *aov)
 {
     const struct scene *sc = job->scene;
     const struct render_settings *rs = &sc->settings;
-    /* Pixel jitter, lens and shutter time; time01 is the ray's time in [0, 1] across the
-     * shutter (0 when nothing needs time), for motion-blurred geometry. */
-    struct camera_sample cs;
-    camera_generate(&job->camera, &smp, job->frame, px, py, &cs);
+    /* time01 is the ray's time in [0, 1] across the shutter (0 when nothing needs time),
+     * for motion-blurred geometry. */
     float time01 = cs.time01;
     vec3 org = cs.o, dir = cs.d;
     if (job->media) {
@@ -187,6 +186,34 @@ static vec3 sample_path(const struct render_job *job, uint32_t pass, uint32_t px
         /* A refracted ray leaves from the other side of the surface. */
         org = bs.transmitted ? behind(&s, ng) : p_off;
         dir = bs.wi;
+    }
+    return L;
+}
+
+/* One camera sample's radiance: pixel jitter, lens and shutter time. With analytic motion
+ * blur the ray's pixel and lens point stay and the shutter is cut where the visible
+ * object changes; each part is shaded at a time inside it, weighted by its share of the
+ * shutter curve (motion_vis.h). The heaviest part gives the AOVs and the coverage. */
+static vec3 sample_path(const struct render_job *job, uint32_t pass, uint32_t px, uint32_t py, struct sampler smp,
+                        uint64_t *rays, int *hit_any, struct aov_sample *aov)
+{
+    struct camera_sample cs;
+    camera_generate(&job->camera, &smp, job->frame, px, py, &cs);
+    struct mv_strata st;
+    if (!job->motion_vis ||
+        motion_vis_strata(job->motion_vis, &job->camera, &cs, sampler_get(&smp, DIM_TIME), &st) <= 1)
+        return camera_path(job, pass, px, py, smp, cs, rays, hit_any, aov);
+    vec3 L = v3(0, 0, 0);
+    for (uint32_t k = 0; k < st.n; k++) {
+        struct camera_sample ck = cs;
+        int hit;
+        ck.time01 = st.time01[k];
+        ck.time = (double)job->frame + job->camera.shutter_open +
+                  (double)ck.time01 * (job->camera.shutter_close - job->camera.shutter_open);
+        vec3 l = camera_path(job, pass, px, py, smp, ck, rays, &hit, k == st.heaviest ? aov : NULL);
+        L = v3_add(L, v3_scale(l, (float)st.weight[k]));
+        if (k == st.heaviest)
+            *hit_any = hit;
     }
     return L;
 }

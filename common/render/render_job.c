@@ -5,6 +5,7 @@
 #include "base/log.h"
 #include "image/mip.h"
 #include "render/media_track.h"
+#include "render/motion_vis.h"
 #include "render/photon_map.h"
 #include "scene/texture.h"
 #include <stdlib.h>
@@ -84,6 +85,7 @@ static int frame_init(struct render_job *job, uint32_t frame, uint32_t threads, 
         return -1;
     camera_init(&job->camera, &scene->camera, scene->settings.width, scene->settings.height);
     camera_set_scene_motion(&job->camera, job->accel.has_motion);
+    job->motion_vis = motion_vis_new(&job->accel, scene, &job->camera, frame);
     if (scene->media)
         job->media = media_job_new(&job->accel, &job->lights, job->pass_maps ? job->pass_maps[0] : NULL);
     passes_update(job);
@@ -106,6 +108,7 @@ int render_job_init(struct render_job *job, const struct scene *scene, uint32_t 
 
 int render_job_reframe(struct render_job *job, uint32_t frame, uint32_t threads, char *err, size_t errlen)
 {
+    motion_vis_free(&job->motion_vis);
     accel_fini(&job->accel);
     media_job_free(&job->media);
     free(job->pass_media);
@@ -163,6 +166,7 @@ void render_job_fini(struct render_job *job)
     if (!job->scene)
         return;
     mips_fini(job);
+    motion_vis_free(&job->motion_vis);
     accel_fini(&job->accel);
     light_table_fini(&job->lights);
     media_job_free(&job->media);

@@ -14,6 +14,7 @@
 
 struct media_job;
 struct mip;
+struct motion_vis;
 struct photon_map;
 
 struct render_job {
@@ -23,6 +24,7 @@ struct render_job {
     struct camera camera;
     uint32_t frame;
     struct media_job *media; /* media_track.h; NULL when the scene has no media */
+    struct motion_vis *motion_vis; /* analytic motion blur (motion_vis.h); NULL: camera rays sample time */
     struct mip *mips;       /* per scene texture (NULL entries for checkers), NULL when no material has one */
     int textured;           /* a material uses a texture: rays carry differentials */
     struct photon_map **pass_maps; /* owned: the master's photon maps, one slot per pass (NULL: not installed),

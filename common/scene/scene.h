@@ -91,6 +91,10 @@ struct camera_keyframe {
     vec3 position, look_at, up;
 };
 
+/* camera.motion_blur: "sampled" draws one time per camera ray; "analytic" computes the
+ * visible surfaces over the shutter per ray and shades each (render/motion_vis.h). */
+enum motion_blur { MOTION_BLUR_SAMPLED, MOTION_BLUR_ANALYTIC };
+
 /* Camera as described; camera.c turns it into a ray generator. aperture 0 = pinhole. */
 struct camera_desc {
     vec3 position, look_at, up;
@@ -101,6 +105,7 @@ struct camera_desc {
      * motion blur (and no time dimension is consumed). */
     float shutter_open, shutter_close;
     float shutter_ramp;     /* trapezoid shutter: open/close ramp fraction in [0, 0.5]; 0 = box */
+    uint32_t motion_blur;   /* enum motion_blur: how camera rays see moving geometry */
     uint32_t blades;        /* polygonal aperture with this many blades (>= 3); 0 = circle */
     float blade_rotation_deg;
     int has_focus_point;    /* focus on the plane through focus_point (overrides focus_distance) */

@@ -985,11 +985,11 @@ static int parse_camera_key(struct ctx *c, json_t *obj, const struct jpath *p, s
 static int parse_camera(struct ctx *c, const struct member *cm)
 {
     enum { POS, LOOK, UP, FOV, APERTURE, FOCUS_DIST, F_NUMBER, FOCAL_MM, FOCUS_POINT, BLADES, BLADE_ROT, S_OPEN,
-           S_CLOSE, S_CURVE, S_RAMP, KEYS, NKEYS };
+           S_CLOSE, S_CURVE, S_RAMP, KEYS, MBLUR, NKEYS };
     static const char *const keys[NKEYS] = {"position", "look_at", "up", "fov_y", "aperture", "focus_distance",
                                             "f_number", "focal_length_mm", "focus_point", "blades",
                                             "blade_rotation", "shutter_open", "shutter_close", "shutter_curve",
-                                            "shutter_ramp", "keyframes"};
+                                            "shutter_ramp", "keyframes", "motion_blur"};
     struct member m[NKEYS];
     if (object_members(c, cm->val, &cm->path, "camera", keys, NKEYS, m) != 0)
         return -1;
@@ -1119,6 +1119,16 @@ static int parse_camera(struct ctx *c, const struct member *cm)
             return -1;
         if (!(cd->shutter_ramp >= 0.0f && cd->shutter_ramp <= 0.5f))
             return fail(c, &m[S_RAMP].path, AT_VALUE, "shutter_ramp must be in [0, 0.5]");
+    }
+    cd->motion_blur = MOTION_BLUR_SAMPLED;
+    if (m[MBLUR].val) {
+        const char *mb = NULL;
+        if (get_string(c, &m[MBLUR], "motion_blur", &mb) != 0)
+            return -1;
+        if (strcmp(mb, "analytic") == 0)
+            cd->motion_blur = MOTION_BLUR_ANALYTIC;
+        else if (strcmp(mb, "sampled") != 0)
+            return fail(c, &m[MBLUR].path, AT_VALUE, "motion_blur must be \"analytic\" or \"sampled\"");
     }
     return 0;
 }

@@ -2,11 +2,14 @@
  *   exrtool cmp A.exr B.exr      exit 0 if R,G,B,A are bit-identical, else 1 (prints differences)
  *   exrtool rmse A.exr REF.exr   prints the RMSE of R,G,B against REF
  *   exrtool mean A.exr           prints the mean of R,G,B,A
- *   exrtool relrmse A.exr REF.exr [--box N]
+ *   exrtool relrmse A.exr REF.exr [--box N | --mask S.exr [--tol T]]
  *                                prints the relative RMSE: RMS over pixels and R,G,B of A - REF over
  *                                the mean of REF over pixels and R,G,B; with --box N both images are
  *                                first box-downsampled by N x N (a partial block at the right or
- *                                bottom edge is the mean of the pixels it holds): low-frequency error
+ *                                bottom edge is the mean of the pixels it holds): low-frequency error;
+ *                                with --mask only over the pixels where REF and S differ by more than
+ *                                T (0.1) times REF's mean in a channel (S: a still render, so the
+ *                                pixels that see motion)
  *   exrtool errtop A.exr REF.exr [N]
  *                                prints the share of the squared error (summed over R,G,B) held by the
  *                                0.1 % and the 1 % of pixels with the largest squared error:
@@ -148,35 +151,69 @@ static void box_down(float **px, uint32_t *w, uint32_t *h, uint32_t n)
 static int relrmse(int argc, char **argv)
 {
     uint32_t n = 1;
-    if (argc == 6 && !strcmp(argv[4], "--box") && atoi(argv[5]) >= 1)
-        n = (uint32_t)atoi(argv[5]);
-    else if (argc != 4) {
-        fprintf(stderr, "usage: exrtool relrmse A.exr REF.exr [--box N]\n");
+    const char *mask_path = NULL;
+    double tol = 0.1;
+    int ok = argc >= 4;
+    for (int i = 4; ok && i < argc; i += 2) {
+        if (i + 1 >= argc)
+            ok = 0;
+        else if (!strcmp(argv[i], "--box") && atoi(argv[i + 1]) >= 1)
+            n = (uint32_t)atoi(argv[i + 1]);
+        else if (!strcmp(argv[i], "--mask"))
+            mask_path = argv[i + 1];
+        else if (!strcmp(argv[i], "--tol") && atof(argv[i + 1]) > 0.0)
+            tol = atof(argv[i + 1]);
+        else
+            ok = 0;
+    }
+    if (!ok || (mask_path && n > 1)) {
+        fprintf(stderr, "usage: exrtool relrmse A.exr REF.exr [--box N | --mask S.exr [--tol T]]\n");
         return 2;
     }
     uint32_t wa, ha;
-    float *a, *b;
+    float *a, *b, *m = NULL;
     load_pair(argv[2], argv[3], channels, 4, &a, &b, &wa, &ha);
     if (n > 1) {
         uint32_t wb = wa, hb = ha;
         box_down(&a, &wa, &ha, n);
         box_down(&b, &wb, &hb, n);
     }
-    double se = 0, sr = 0;
-    size_t np = (size_t)wa * ha;
+    size_t np = (size_t)wa * ha, nm = 0;
+    double ref_mean = 0;
     for (size_t i = 0; i < np; i++)
+        for (int c = 0; c < 3; c++)
+            ref_mean += b[i * 4 + c] / (3.0 * np);
+    if (mask_path) {
+        float *r2;
+        uint32_t wm, hm;
+        load_pair(argv[3], mask_path, channels, 4, &r2, &m, &wm, &hm);
+        free(r2);
+    }
+    double se = 0, sr = 0;
+    for (size_t i = 0; i < np; i++) {
+        /* The mask: pixels where REF and S differ by more than tol times REF's image mean. */
+        int in = !m;
+        for (int c = 0; c < 3 && !in; c++)
+            in = fabs((double)b[i * 4 + c] - m[i * 4 + c]) > tol * ref_mean;
+        if (!in)
+            continue;
+        nm++;
         for (int c = 0; c < 3; c++) {
             double d = (double)a[i * 4 + c] - b[i * 4 + c];
             se += d * d;
             sr += b[i * 4 + c];
         }
+    }
     free(a);
     free(b);
+    free(m);
     if (!(sr > 0)) {
-        fprintf(stderr, "exrtool: the reference's mean is not positive\n");
+        fprintf(stderr, "exrtool: the reference's mean is not positive%s\n", mask_path ? " in the mask" : "");
         return 1;
     }
-    printf("%.9g\n", sqrt(se / (3.0 * np)) / (sr / (3.0 * np)));
+    if (mask_path)
+        fprintf(stderr, "exrtool: mask holds %zu of %zu pixels\n", nm, np);
+    printf("%.9g\n", sqrt(se / (3.0 * nm)) / (sr / (3.0 * nm)));
     return 0;
 }
 
@@ -406,7 +443,7 @@ int main(int argc, char **argv)
     }
     if (argc != 4 || (strcmp(argv[1], "cmp") && strcmp(argv[1], "rmse"))) {
         fprintf(stderr, "usage: exrtool cmp A.exr B.exr | rmse A.exr REF.exr | mean A.exr | cmprect A B X0 Y0 W H |\n"
-                        "       relrmse A.exr REF.exr [--box N] | errtop A.exr REF.exr [N] | errest A.exr | semean A.exr |\n"
+                        "       relrmse A.exr REF.exr [--box N | --mask S.exr [--tol T]] | errtop A.exr REF.exr [N] | errest A.exr | semean A.exr |\n"
                         "       average OUT.exr A.exr B.exr | synth OUT.exr W H V [--checker AMP] [--var VAR]\n");
         return 2;
     }

@@ -113,3 +113,18 @@ uint8_t *test_read_file(const char *path, size_t *size, const char *hint)
     *size = (size_t)n;
     return d;
 }
+
+void test_ramp_camera(struct scene *s, uint32_t w, uint32_t spp)
+{
+    float aspect = (float)w / 4.0f, half_w = 2.0f;
+    s->camera = (struct camera_desc){.position = v3(0, 0, 10), .look_at = v3(0, 0, 0), .up = v3(0, 1, 0)};
+    s->camera.fov_y_deg = 2.0f * atanf(half_w / (10.0f * aspect)) * 180.0f / (float)M_PI;
+    s->camera.shutter_open = 0.0f;
+    s->camera.shutter_close = 1.0f;
+    s->settings.width = w;
+    s->settings.height = 4;
+    s->settings.spp = spp;
+    s->settings.max_depth = 1;
+    s->settings.seed = 3;
+    s->settings.tile_size = 16;
+}

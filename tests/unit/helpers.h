@@ -39,5 +39,8 @@ float *test_render(const struct scene *s, uint32_t threads, struct tile_stats *s
 /* Mean of colour channel ch (CH_R, CH_G or CH_B) over a w x h render and its standard error,
  * from the matching variance channel. */
 double test_channel_mean(const float *px, uint32_t w, uint32_t h, enum tile_channel ch, double *se);
+/* Camera at z = 10 looking down -z: a w x 4 image spans x in [-2, 2] at z = 0; shutter
+ * [0, 1], spp, max_depth 1, seed 3 (the moving-edge ramp tests). */
+void test_ramp_camera(struct scene *s, uint32_t w, uint32_t spp);
 
 #endif

@@ -66,22 +66,6 @@ static struct motion_key *keys2(struct motion_key a, struct motion_key b)
     return k;
 }
 
-/* Camera at z = 10 looking down -z; a W x 4 image spans x in [-2, 2] at z = 0. */
-static void ramp_camera(struct scene *s, uint32_t w, uint32_t spp)
-{
-    float aspect = (float)w / 4.0f, half_w = 2.0f;
-    s->camera = (struct camera_desc){.position = v3(0, 0, 10), .look_at = v3(0, 0, 0), .up = v3(0, 1, 0)};
-    s->camera.fov_y_deg = 2.0f * atanf(half_w / (10.0f * aspect)) * 180.0f / (float)M_PI;
-    s->camera.shutter_open = 0.0f;
-    s->camera.shutter_close = 1.0f;
-    s->settings.width = w;
-    s->settings.height = 4;
-    s->settings.spp = spp;
-    s->settings.max_depth = 1;
-    s->settings.seed = 3;
-    s->settings.tile_size = 16;
-}
-
 static int scene_has_motion(const struct scene *s, uint32_t frame)
 {
     struct accel a;
@@ -116,7 +100,7 @@ static void check_ramp(struct scene *s, struct mesh *q)
 {
     enum { W = 64 };
     scene_add_mesh(s, q);
-    ramp_camera(s, W, 256);
+    test_ramp_camera(s, W, 256);
     cr_assert_eq(scene_has_motion(s, 0), 1);
     double alpha[W], red[W];
     uint64_t nans;
@@ -188,7 +172,7 @@ Test(motion, still_scenes_get_no_time_steps)
     scene_add_mesh(&s, &q);
     struct sphere sp = {"ball", v3(0, 0, -2), 0.5f, lamp, NULL, 0};
     scene_add_sphere(&s, &sp);
-    ramp_camera(&s, 16, 1);
+    test_ramp_camera(&s, 16, 1);
     cr_assert_eq(scene_has_motion(&s, 0), 0, "nothing moves");
     /* Identical keys count as still, also when they rotate and move the object. */
     s.spheres[0].keys = keys2(key(0, v3(1, 2, 3), v3(0, 1, 0), 30), key(1, v3(1, 2, 3), v3(0, 1, 0), 30));
@@ -214,7 +198,7 @@ Test(motion, zero_length_shutter_freezes_at_open)
     q.keys = keys2(key(0, v3(-1, 0, 0), v3(0, 0, 1), 0), key(1, v3(1, 0, 0), v3(0, 0, 1), 0));
     q.num_keys = 2;
     scene_add_mesh(&s, &q);
-    ramp_camera(&s, 64, 16);
+    test_ramp_camera(&s, 64, 16);
     s.camera.shutter_open = s.camera.shutter_close = 0.75f; /* edge at x = 0.5 */
     cr_assert_eq(scene_has_motion(&s, 0), 0);
     double alpha[64], red[64];
@@ -271,7 +255,7 @@ Test(motion, rebuilt_hits_lie_on_the_ray)
     q.keys = keys2(key(0, v3(0, 0, 0), v3(0, 1, 0.2f), -80), key(1, v3(0.5f, 0, 0), v3(0, 1, 0.2f), 100));
     q.num_keys = 2;
     scene_add_mesh(&s, &q);
-    ramp_camera(&s, 16, 1);
+    test_ramp_camera(&s, 16, 1);
     struct accel a;
     char err[256];
     cr_assert_eq(accel_init(&a, &s, 0, 1, err, sizeof err), 0, "%s", err);
@@ -403,7 +387,7 @@ Test(motion, reframed_job_equals_a_fresh_one)
     for (int k = 0; k < 4; k++)
         wall.positions[3 * k + 2] = -1.0f;
     scene_add_mesh(&s, &wall);
-    ramp_camera(&s, 32, 4);
+    test_ramp_camera(&s, 32, 4);
     s.settings.max_depth = 2;
     struct render_job a, b;
     char err[256];
