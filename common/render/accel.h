@@ -53,6 +53,12 @@ void accel_fini(struct accel *a);
 
 /* Closest hit in (0, tmax) at time01 in [0, 1] across the shutter; returns 1 on a hit. */
 int accel_intersect(const struct accel *a, vec3 org, vec3 dir, float tmax, float time01, struct accel_hit *hit);
+/* Closest hits of n <= ACCEL_PACKET camera-like rays in (0, inf), traced together as one
+ * Embree packet (coherent rays share the BVH traversal): found[k] and hits[k] as
+ * accel_intersect gives them for ray k, bit for bit (tests/integration/packets.sh). */
+#define ACCEL_PACKET 16
+void accel_intersect_packet(const struct accel *a, uint32_t n, const vec3 *org, const vec3 *dir,
+                            const float *time01, struct accel_hit *hits, int *found);
 /* 1 if anything blocks the segment (0, tmax) at time01. */
 int accel_occluded(const struct accel *a, vec3 org, vec3 dir, float tmax, float time01);
 

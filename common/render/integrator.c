@@ -7,6 +7,7 @@
 #include "base/log.h"
 #include "render/aov.h"
 #include "render/media_integrator.h"
+#include "render/packet.h"
 #include "render/surface.h"
 #include "render/texshade.h"
 #include "scene/material.h"
@@ -59,16 +60,21 @@ static void aov_trace(const struct render_job *job, vec3 org, vec3 dir, float ti
 }
 
 /* One camera sample's radiance; aov (NULL when the frame has no AOVs) gets its AOVs,
- * set to a miss by the caller. */
+ * set to a miss by the caller. cp: NULL, or the packet whose slot holds this sample's
+ * camera sample and first hit (packet.h). */
 static vec3 sample_path(const struct render_job *job, uint32_t pass, uint32_t px, uint32_t py, struct sampler smp,
-                        uint64_t *rays, int *hit_any, struct aov_sample *aov)
+                        const struct camera_packet *cp, uint32_t slot, uint64_t *rays, int *hit_any,
+                        struct aov_sample *aov)
 {
     const struct scene *sc = job->scene;
     const struct render_settings *rs = &sc->settings;
     /* Pixel jitter, lens and shutter time; time01 is the ray's time in [0, 1] across the
      * shutter (0 when nothing needs time), for motion-blurred geometry. */
     struct camera_sample cs;
-    camera_generate(&job->camera, &smp, job->frame, px, py, &cs);
+    if (cp)
+        cs = cp->cs[slot];
+    else
+        camera_generate(&job->camera, &smp, job->frame, px, py, &cs);
     float time01 = cs.time01;
     vec3 org = cs.o, dir = cs.d;
     if (job->media) {
@@ -88,7 +94,14 @@ static vec3 sample_path(const struct render_job *job, uint32_t pass, uint32_t px
     for (uint32_t vertex = 1;; vertex++) {
         struct accel_hit h;
         (*rays)++;
-        if (!accel_intersect(&job->accel, org, dir, INFINITY, time01, &h)) {
+        int found;
+        if (vertex == 1 && cp) {
+            found = cp->found[slot];
+            h = cp->hit[slot];
+        } else {
+            found = accel_intersect(&job->accel, org, dir, INFINITY, time01, &h);
+        }
+        if (!found) {
             /* Escaped: the environment light, weighted against its light samples. */
             if (sc->env) {
                 vec3 le = light_env_radiance(&job->lights, sc, dir);
@@ -251,7 +264,7 @@ static void render_pixel_pass(const struct render_job *job, struct sampler_pixel
         struct aov_sample as;
         if (aacc)
             aov_sample_miss(&as);
-        vec3 l = sample_path(job, pass, px_x, px_y, sampler_start_pixel(sp, si), &stats->rays, &hit_any,
+        vec3 l = sample_path(job, pass, px_x, px_y, sampler_start_pixel(sp, si), NULL, 0, &stats->rays, &hit_any,
                              aacc ? &as : NULL);
         stats->samples++;
         if (!v3_is_finite(l)) {
@@ -378,6 +391,8 @@ void integrator_render_tile(const struct render_job *job, uint32_t x0, uint32_t 
         return;
     }
     struct aov_accum aacc;
+    struct camera_packet cp; /* camera rays in packets (packet.h); media scenes trace their own */
+    const int packets = !job->media && camera_packets_enabled();
     for (uint32_t y = 0; y < h; y++)
         for (uint32_t x = 0; x < w; x++) {
             double sum[3] = {0, 0, 0}, sum2[3] = {0, 0, 0}, lum_sum = 0.0, lum_sum2 = 0.0, cover = 0.0;
@@ -394,8 +409,12 @@ void integrator_render_tile(const struct render_job *job, uint32_t x0, uint32_t 
                 struct aov_sample as;
                 if (lay.aovs)
                     aov_sample_miss(&as);
-                vec3 l = sample_path(job, 0, x0 + x, y0 + y, sampler_start_pixel(&sp, si), &stats->rays, &hit_any,
-                                     lay.aovs ? &as : NULL);
+                uint32_t slot = si % ACCEL_PACKET;
+                if (packets && slot == 0)
+                    camera_packet_trace(job, &sp, x0 + x, y0 + y, si,
+                                        spp - si < ACCEL_PACKET ? spp - si : ACCEL_PACKET, &cp);
+                vec3 l = sample_path(job, 0, x0 + x, y0 + y, packets ? cp.smp[slot] : sampler_start_pixel(&sp, si),
+                                     packets ? &cp : NULL, slot, &stats->rays, &hit_any, lay.aovs ? &as : NULL);
                 stats->samples++;
                 if (!v3_is_finite(l)) {
                     stats->nan_samples++;

@@ -24,7 +24,7 @@
 
 float material_fresnel_dielectric(float cos_i, float eta)
 {
-    cos_i = fminf(fmaxf(cos_i, 0.0f), 1.0f);
+    cos_i = f_min(f_max(cos_i, 0.0f), 1.0f);
     float sin2_t = (1.0f - cos_i * cos_i) / (eta * eta);
     if (sin2_t >= 1.0f)
         return 1.0f;
@@ -38,7 +38,7 @@ float material_fresnel_dielectric(float cos_i, float eta)
 /* Unpolarised reflectance of a conductor of complex index eta + i k (from outside, index 1). */
 static float fresnel_complex(float cos_i, float eta, float k)
 {
-    cos_i = fminf(fmaxf(cos_i, 0.0f), 1.0f);
+    cos_i = f_min(f_max(cos_i, 0.0f), 1.0f);
     double complex n = eta + k * I;
     double ci = cos_i, s2 = 1.0 - ci * ci;
     double complex s2t = s2 / (n * n), ct = csqrt(1.0 - s2t);
@@ -52,7 +52,7 @@ vec3 material_fresnel_conductor(const struct material *m, float cos_i)
     if (m->type == MATERIAL_MIRROR)
         return m->reflectance;
     if (m->schlick) {
-        float c = 1.0f - fminf(fmaxf(cos_i, 0.0f), 1.0f), c5 = c * c * c * c * c;
+        float c = 1.0f - f_min(f_max(cos_i, 0.0f), 1.0f), c5 = c * c * c * c * c;
         vec3 f0 = m->reflectance;
         return v3(f0.x + (1.0f - f0.x) * c5, f0.y + (1.0f - f0.y) * c5, f0.z + (1.0f - f0.z) * c5);
     }
@@ -87,7 +87,7 @@ static void no_sample(struct bsdf_sample *out)
 
 int material_is_smooth(const struct material *m)
 {
-    return fmaxf(m->alpha_x, m->alpha_y) < MICROFACET_SMOOTH_ALPHA;
+    return f_max(m->alpha_x, m->alpha_y) < MICROFACET_SMOOTH_ALPHA;
 }
 
 /* The shading frame: x and y the anisotropy axes, z the normal. */
@@ -115,7 +115,7 @@ static vec3 to_world(const struct frame *f, vec3 v)
 
 static struct ggx ggx_of(const struct material *m)
 {
-    struct ggx g = {fmaxf(m->alpha_x, MICROFACET_SMOOTH_ALPHA), fmaxf(m->alpha_y, MICROFACET_SMOOTH_ALPHA)};
+    struct ggx g = {f_max(m->alpha_x, MICROFACET_SMOOTH_ALPHA), f_max(m->alpha_y, MICROFACET_SMOOTH_ALPHA)};
     return g;
 }
 
@@ -395,7 +395,7 @@ void material_sample(const struct material *m, vec3 n, vec3 wo, int front, float
         } else {
             float r = sqrtf(u1), sp, cp;
             sincos_2pi(u2, &sp, &cp);
-            li = v3(r * cp, r * sp, sqrtf(fmaxf(0.0f, 1.0f - u1)));
+            li = v3(r * cp, r * sp, sqrtf(f_max(0.0f, 1.0f - u1)));
         }
         finish_rough(m, &fr, n, wo, li, front, out);
         return;
