@@ -223,6 +223,7 @@ int accel_init(struct accel *a, const struct scene *s, uint32_t frame, uint32_t 
         return -1;
     }
     a->desc = s;
+    a->packets_exact = s->num_spheres == 0 && !a->mesh_motion && !a->has_motion;
     a->face_normals = mem_calloc(s->num_meshes ? s->num_meshes : 1, sizeof *a->face_normals);
     for (uint32_t i = 0; i < s->num_meshes; i++) {
         const struct mesh *m = &s->meshes[i];

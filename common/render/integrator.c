@@ -391,8 +391,8 @@ void integrator_render_tile(const struct render_job *job, uint32_t x0, uint32_t 
         return;
     }
     struct aov_accum aacc;
-    struct camera_packet cp; /* camera rays in packets (packet.h); media scenes trace their own */
-    const int packets = !job->media && camera_packets_enabled();
+    struct camera_packet cp; /* camera rays in packets (packet.h) where they give the same hits */
+    const int packets = !job->media && job->accel.packets_exact && camera_packets_enabled();
     for (uint32_t y = 0; y < h; y++)
         for (uint32_t x = 0; x < w; x++) {
             double sum[3] = {0, 0, 0}, sum2[3] = {0, 0, 0}, lum_sum = 0.0, lum_sum2 = 0.0, cover = 0.0;

@@ -3,7 +3,10 @@
  * them, and their first hits from one Embree packet (rays of one pixel share nearly all of
  * their BVH traversal). The path tracer takes a slot's camera sample and first hit in place
  * of making and tracing its own, so pixels are bit-identical with and without packets
- * (tests/integration/packets.sh). Used by integrator.c for scenes without media. */
+ * (tests/integration/packets.sh). Used by integrator.c for scenes without media whose
+ * accel is packets_exact (triangles only, nothing moving or instanced): Embree's packet
+ * kernels round t by an ulp differently for spheres and for motion, which would move a
+ * pixel. */
 #ifndef BRUME_PACKET_H
 #define BRUME_PACKET_H
 #include <stdint.h>
