@@ -119,10 +119,11 @@ static struct ggx ggx_of(const struct material *m)
     return g;
 }
 
-/* Density of sampling normal wm from wo (local) by the material's strategy. */
-static float normal_pdf(const struct material *m, const struct ggx *g, vec3 wo, vec3 wm)
+/* Density of sampling normal wm from wo (local) by the material's strategy, from
+ * d = ggx_d(wm) and lo = ggx_lambda(wo). */
+static float normal_pdf_dl(const struct material *m, vec3 wo, vec3 wm, float d, float lo)
 {
-    return m->sample_all ? ggx_d(g, wm) * wm.z : ggx_d_visible(g, wo, wm);
+    return m->sample_all ? d * wm.z : ggx_d_visible_dl(wo, wm, d, lo);
 }
 
 static vec3 sample_normal(const struct material *m, const struct ggx *g, vec3 wo, float u1, float u2)
@@ -151,9 +152,9 @@ static float coat_pick(const struct material *m, float fo)
  * wo . wm: f cos_i, and the pdf of sampling wi through the normal. */
 static vec3 glossy_eval(const struct material *m, const struct ggx *g, vec3 wo, vec3 wi, vec3 fr, vec3 wm, float *pdf)
 {
-    float c = v3_dot(wo, wm);
-    *pdf = normal_pdf(m, g, wo, wm) / (4.0f * c);
-    return v3_scale(fr, ggx_d(g, wm) * ggx_g(g, wo, wi) / (4.0f * wo.z));
+    float c = v3_dot(wo, wm), d = ggx_d(g, wm), lo = ggx_lambda(g, wo); /* each once: pdf and f share them */
+    *pdf = normal_pdf_dl(m, wo, wm, d, lo) / (4.0f * c);
+    return v3_scale(fr, d * ggx_g_lambdas(lo, ggx_lambda(g, wi)) / (4.0f * wo.z));
 }
 
 /* Rough dielectric (Walter et al. 2007, as pbrt-v4's DielectricBxDF), local frame, wo.z > 0;
@@ -182,9 +183,9 @@ static vec3 dielectric_eval(const struct material *m, const struct ggx *g, vec3 
     }
     float denom = ci + co / eta;
     denom *= denom;
-    float t = 1.0f - f;
-    *pdf = normal_pdf(m, g, wo, wm) * fabsf(ci) / denom * t;
-    float v = t * ggx_d(g, wm) * ggx_g(g, wo, wi) * fabsf(ci * co / (wo.z * denom)) / (eta * eta);
+    float t = 1.0f - f, d = ggx_d(g, wm), lo = ggx_lambda(g, wo);
+    *pdf = normal_pdf_dl(m, wo, wm, d, lo) * fabsf(ci) / denom * t;
+    float v = t * d * ggx_g_lambdas(lo, ggx_lambda(g, wi)) * fabsf(ci * co / (wo.z * denom)) / (eta * eta);
     return v3_scale(m->transmittance, v);
 }
 
