@@ -97,11 +97,11 @@ static float rnd(const struct rngs *r, uint32_t vertex, uint32_t k)
     return rng_uniform(r->key, vertex * DIMS_PER_VERTEX + k);
 }
 
-/* Whether the light that u_pick picks takes an equiangular sample: point (and spot)
- * lights and emissive triangles, whose points are sampled whatever the shading point. */
-static int equi_light(const struct light_table *lt, float u_pick)
+/* Whether light table entry i takes an equiangular sample: point (and spot) lights and
+ * emissive triangles, whose points are sampled whatever the shading point. */
+static int equi_light(const struct light_table *lt, uint32_t i)
 {
-    enum light_kind k = lt->entries[light_pick(lt, u_pick)].kind;
+    enum light_kind k = lt->entries[i].kind;
     return k == LK_POINT || k == LK_TRIANGLE;
 }
 
@@ -131,7 +131,7 @@ static vec3 scatter_nee(const struct render_job *job, vec3 x, vec3 d_out, uint32
         return v3(0, 0, 0);
     float w = (ls.is_delta || !mis) ? 1.0f : power_heuristic(ls.pdf, ph);
     struct equi e;
-    if (fc && equi_light(&job->lights, u0) && equi_init(&e, fc->o, fc->d, ls.p, fc->tend, fc->eps) &&
+    if (fc && equi_light(&job->lights, ls.entry) && equi_init(&e, fc->o, fc->d, ls.p, fc->tend, fc->eps) &&
         fc->t < fc->tend) {
         /* Balance heuristic against equiangular sampling of the same light point (its
          * density, the pick times 1 / area for a triangle, is the same in both strategies

@@ -210,6 +210,7 @@ void light_sample(const struct light_table *t, const struct scene *s, vec3 ref, 
     float pick_pdf = t->pick_pdf[i];
     if (pick_pdf <= 0.0f)
         return;
+    out->entry = i;
     switch (e->kind) {
     case LK_POINT: {
         vec3 p = s->lights[e->index].position;
