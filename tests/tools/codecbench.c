@@ -46,14 +46,13 @@ int main(int argc, char **argv)
            4 * nc, reps);
     printf("%-6s %16s %16s %12s\n", "codec", "encode ns/px", "decode ns/px", "bytes/px");
     for (size_t c = 0; c < sizeof codecs / sizeof codecs[0]; c++) {
+        struct render_settings rs;
+        memset(&rs, 0, sizeof rs);
+        rs.width = w;
+        rs.height = h;
+        rs.tile_size = ts;
         struct image_desc d;
-        memset(&d, 0, sizeof d);
-        d.width = w;
-        d.height = h;
-        d.tile_size = ts;
-        d.num_channels = nc;
-        for (uint32_t k = 0; k < nc; k++)
-            snprintf(d.channel_names[k], sizeof d.channel_names[k], "%s", tile_channel_names[k]);
+        tile_image_desc(&d, &rs); /* a worker's frame description, without AOVs */
         d.compression = codecs[c].c;
         struct imgio_encoder *e = imgio_encoder_new(&d, err, sizeof err);
         if (!e) {
