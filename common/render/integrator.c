@@ -45,18 +45,20 @@ static void aov_first_hit(const struct render_job *job, const struct accel_hit *
 }
 
 /* AOVs in media scenes: the first surface along the camera ray, media ignored, albedo
- * of an untextured non-specular first hit (docs/scene-format.md). */
-static void aov_trace(const struct render_job *job, vec3 org, vec3 dir, float time01, struct aov_sample *aov)
+ * of an untextured non-specular first hit (docs/scene-format.md). Returns whether the ray
+ * hit, and the hit in *h, for the path to start from. */
+static int aov_trace(const struct render_job *job, vec3 org, vec3 dir, float time01, struct aov_sample *aov,
+                     struct accel_hit *h)
 {
-    struct accel_hit h;
-    if (!accel_intersect(&job->accel, org, dir, INFINITY, time01, &h))
-        return;
+    if (!accel_intersect(&job->accel, org, dir, INFINITY, time01, h))
+        return 0;
     struct surface s;
-    surface_from_hit(&job->accel, &job->lights, org, dir, &h, time01, &s);
-    aov_first_hit(job, &h, &s, v3_dot(s.ns, dir) > 0.0f ? v3_neg(s.ns) : s.ns, aov);
+    surface_from_hit(&job->accel, &job->lights, org, dir, h, time01, &s);
+    aov_first_hit(job, h, &s, v3_dot(s.ns, dir) > 0.0f ? v3_neg(s.ns) : s.ns, aov);
     const struct material *mat = &job->scene->materials[s.material];
     if (!material_is_delta(mat))
         aov->albedo = aov_material_albedo(mat);
+    return 1;
 }
 
 /* One camera sample's radiance; aov (NULL when the frame has no AOVs) gets its AOVs,
@@ -78,9 +80,10 @@ static vec3 sample_path(const struct render_job *job, uint32_t pass, uint32_t px
     float time01 = cs.time01;
     vec3 org = cs.o, dir = cs.d;
     if (job->media) {
-        if (aov)
-            aov_trace(job, org, dir, time01, aov);
-        return media_sample_path_pass(job, pass, &smp, px, py, org, dir, time01, rays, hit_any);
+        struct accel_hit h0;
+        int found0 = aov ? aov_trace(job, org, dir, time01, aov, &h0) : 0;
+        return media_sample_path_pass(job, pass, &smp, px, py, org, dir, time01, aov ? &h0 : NULL, found0, rays,
+                                      hit_any);
     }
     struct raydiff rd;          /* texture footprints, only when a material has a texture */
     if (job->textured)

@@ -434,11 +434,12 @@ static vec3 hit_emission(const struct render_job *job, const struct surface *s, 
 vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, uint32_t px, uint32_t py, vec3 org,
                        vec3 dir, float time01, uint64_t *rays, int *hit_any)
 {
-    return media_sample_path_pass(job, 0, smp, px, py, org, dir, time01, rays, hit_any);
+    return media_sample_path_pass(job, 0, smp, px, py, org, dir, time01, NULL, 0, rays, hit_any);
 }
 
 vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const struct sampler *smp, uint32_t px,
-                            uint32_t py, vec3 org, vec3 dir, float time01, uint64_t *rays, int *hit_any)
+                            uint32_t py, vec3 org, vec3 dir, float time01, const struct accel_hit *first,
+                            int first_found, uint64_t *rays, int *hit_any)
 {
     const struct scene *sc = job->scene;
     const struct media_job *mj = render_job_pass_media(job, pass); /* the pass's photon map */
@@ -468,7 +469,15 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
         struct surface s;
         int s_ready = 0, emitted = 0;
         (*rays)++;
-        int hit = accel_intersect(&job->accel, org, dir, INFINITY, time01, &h);
+        int hit;
+        if (first) { /* the camera ray, traced by the caller */
+            hit = first_found;
+            if (hit)
+                h = *first;
+            first = NULL;
+        } else {
+            hit = accel_intersect(&job->accel, org, dir, INFINITY, time01, &h);
+        }
         if (hit && vertex == 0 && crossings == 0)
             *hit_any = 1;
         if (medium != MEDIUM_NONE) {
