@@ -207,6 +207,26 @@ static vec3 sample_path(const struct render_job *job, uint32_t pass, uint32_t px
     return L;
 }
 
+/* Whether camera rays go in packets (packet.h): where they give the same hits. */
+static int packets_on(const struct render_job *job)
+{
+    return !job->media && job->accel.packets_exact && camera_packets_enabled();
+}
+
+/* The sampler of sample si of a pixel's run of samples [s0, end); with packets, taken from
+ * the packet cp that holds si's camera ray (slot (si - s0) mod ACCEL_PACKET), traced when
+ * si starts one. */
+static struct sampler sample_start(const struct render_job *job, int packets, struct sampler_pixel *sp, uint32_t px,
+                                   uint32_t py, uint32_t s0, uint32_t end, uint32_t si, struct camera_packet *cp)
+{
+    if (!packets)
+        return sampler_start_pixel(sp, si);
+    uint32_t slot = (si - s0) % ACCEL_PACKET;
+    if (slot == 0)
+        camera_packet_trace(job, sp, px, py, si, end - si < ACCEL_PACKET ? end - si : ACCEL_PACKET, cp);
+    return cp->smp[slot];
+}
+
 void pass_batch_add(struct pass_batch *b, uint32_t stream, const double m[3])
 {
     CHECK(stream < SAMPLER_MAX_STREAMS);
@@ -262,12 +282,15 @@ static void render_pixel_pass(const struct render_job *job, struct sampler_pixel
     sampler_pixel_set_pass(sp, pass);
     if (aacc)
         aov_accum_reset(aacc);
+    struct camera_packet cp;
+    const int packets = packets_on(job);
     for (uint32_t si = pass * k; si < (pass + 1) * k; si++) {
         int hit_any;
         struct aov_sample as;
         if (aacc)
             aov_sample_miss(&as);
-        vec3 l = sample_path(job, pass, px_x, px_y, sampler_start_pixel(sp, si), NULL, 0, &stats->rays, &hit_any,
+        vec3 l = sample_path(job, pass, px_x, px_y, sample_start(job, packets, sp, px_x, px_y, pass * k, (pass + 1) * k, si, &cp),
+                             packets ? &cp : NULL, (si - pass * k) % ACCEL_PACKET, &stats->rays, &hit_any,
                              aacc ? &as : NULL);
         stats->samples++;
         if (!v3_is_finite(l)) {
@@ -394,8 +417,8 @@ void integrator_render_tile(const struct render_job *job, uint32_t x0, uint32_t 
         return;
     }
     struct aov_accum aacc;
-    struct camera_packet cp; /* camera rays in packets (packet.h) where they give the same hits */
-    const int packets = !job->media && job->accel.packets_exact && camera_packets_enabled();
+    struct camera_packet cp;
+    const int packets = packets_on(job);
     for (uint32_t y = 0; y < h; y++)
         for (uint32_t x = 0; x < w; x++) {
             double sum[3] = {0, 0, 0}, sum2[3] = {0, 0, 0}, lum_sum = 0.0, lum_sum2 = 0.0, cover = 0.0;
@@ -412,12 +435,8 @@ void integrator_render_tile(const struct render_job *job, uint32_t x0, uint32_t 
                 struct aov_sample as;
                 if (lay.aovs)
                     aov_sample_miss(&as);
-                uint32_t slot = si % ACCEL_PACKET;
-                if (packets && slot == 0)
-                    camera_packet_trace(job, &sp, x0 + x, y0 + y, si,
-                                        spp - si < ACCEL_PACKET ? spp - si : ACCEL_PACKET, &cp);
-                vec3 l = sample_path(job, 0, x0 + x, y0 + y, packets ? cp.smp[slot] : sampler_start_pixel(&sp, si),
-                                     packets ? &cp : NULL, slot, &stats->rays, &hit_any, lay.aovs ? &as : NULL);
+                vec3 l = sample_path(job, 0, x0 + x, y0 + y, sample_start(job, packets, &sp, x0 + x, y0 + y, 0, spp, si, &cp),
+                                     packets ? &cp : NULL, si % ACCEL_PACKET, &stats->rays, &hit_any, lay.aovs ? &as : NULL);
                 stats->samples++;
                 if (!v3_is_finite(l)) {
                     stats->nan_samples++;

@@ -17,9 +17,10 @@ CHANNELS="variance.R variance.G variance.B Z N.X N.Y N.Z P.X P.Y P.Z albedo.R al
 
 # same NAME JSON SPP: the render with packets and the one without are bit-identical.
 same() {
-  run $M "$2" -o "$T/p.exr" --workers 1 --threads 2 --spp "$3" --aovs all && r1=0 || r1=1
+  # shellcheck disable=SC2086 # $3: the spp and further options
+  run $M "$2" -o "$T/p.exr" --workers 1 --threads 2 --spp $3 --aovs all && r1=0 || r1=1
   cp "$T/log" "$T/log.p"
-  BRUME_PACKETS=0 run $M "$2" -o "$T/s.exr" --workers 1 --threads 2 --spp "$3" --aovs all && r0=0 || r0=1
+  BRUME_PACKETS=0 run $M "$2" -o "$T/s.exr" --workers 1 --threads 2 --spp $3 --aovs all && r0=0 || r0=1
   d=0
   for c in $CHANNELS; do
     [ "$($X chsum "$T/p.exr" "$c")" = "$($X chsum "$T/s.exr" "$c")" ] || { echo "channel $c differs" >>"$T/cmp"; d=1; }
@@ -60,4 +61,7 @@ for name in tiny textured dof_motion; do
   same "$name without spheres or motion" "$T/s/$name.json" 21
   same "$name without spheres or motion, 3 spp" "$T/s/$name.json" 3
 done
+# Passes (the adaptive renderer's units): packets over each pass's samples.
+shrink scenes/cornell cornell
+same "cornell in 4 passes" "$T/s/cornell.json" "40 --passes 4"
 finish
