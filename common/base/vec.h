@@ -25,13 +25,18 @@ static inline vec3 v3_normalize(vec3 a)
     float l = v3_length(a);
     return l > 0.0f ? v3_scale(a, 1.0f / l) : a;
 }
+/* fmaxf and fminf bit for bit as glibc computes them (the other operand when one is NaN,
+ * the first when they compare equal, so +0 or -0 as given), inlined: without -ffast-math
+ * GCC calls libm for them, a call per use in hot code. */
+static inline float f_max(float a, float b) { return ((a >= b || b != b) && a == a) ? a : b; }
+static inline float f_min(float a, float b) { return ((a <= b || b != b) && a == a) ? a : b; }
 /* Plain comparisons, not fmaxf: inlined, and callers never pass NaN here. */
 static inline float v3_max_component(vec3 a)
 {
     float m = a.x > a.y ? a.x : a.y;
     return m > a.z ? m : a.z;
 }
-static inline float v3_max_abs(vec3 a) { return fmaxf(fabsf(a.x), fmaxf(fabsf(a.y), fabsf(a.z))); }
+static inline float v3_max_abs(vec3 a) { return f_max(fabsf(a.x), f_max(fabsf(a.y), fabsf(a.z))); }
 static inline int v3_is_finite(vec3 a) { return isfinite(a.x) && isfinite(a.y) && isfinite(a.z); }
 static inline int v3_is_black(vec3 a) { return a.x == 0.0f && a.y == 0.0f && a.z == 0.0f; }
 
@@ -167,7 +172,7 @@ static inline float float_bits_offset(float p, int delta)
 __attribute__((always_inline)) static inline vec3 offset_ray_origin(vec3 p, vec3 n)
 {
     const float origin = 1.0f / 32.0f, int_scale = 256.0f;
-    float float_scale = fminf(1.0f / 65536.0f, fmaxf(fmaxf(fabsf(p.x), fabsf(p.y)), fabsf(p.z)) * 0x1p-15f);
+    float float_scale = f_min(1.0f / 65536.0f, f_max(f_max(fabsf(p.x), fabsf(p.y)), fabsf(p.z)) * 0x1p-15f);
     int ox = (int)(int_scale * n.x), oy = (int)(int_scale * n.y), oz = (int)(int_scale * n.z);
     vec3 pi = v3(float_bits_offset(p.x, ox), float_bits_offset(p.y, oy), float_bits_offset(p.z, oz));
     return v3(fabsf(p.x) < origin ? p.x + float_scale * n.x : pi.x,
@@ -183,8 +188,8 @@ static inline int f_clip_slab(float o, float d, float l, float h, float *t0, flo
     if (d == 0.0f)
         return !(o < l || o > h);
     float ta = (l - o) / d, tb = (h - o) / d;
-    *t0 = fmaxf(*t0, fminf(ta, tb));
-    *t1 = fminf(*t1, fmaxf(ta, tb));
+    *t0 = f_max(*t0, f_min(ta, tb));
+    *t1 = f_min(*t1, f_max(ta, tb));
     return 1;
 }
 

@@ -240,7 +240,8 @@ static int desc_check(const struct image_desc *d, char *err, size_t errlen)
         set_err(err, errlen, "imgio: bad channel count %u", d->num_channels);
         return -1;
     }
-    if (d->compression != IMGIO_NONE && d->compression != IMGIO_ZIP && d->compression != IMGIO_PIZ) {
+    if (d->compression != IMGIO_NONE && d->compression != IMGIO_ZIP && d->compression != IMGIO_PIZ &&
+        d->compression != IMGIO_RLE && d->compression != IMGIO_ZIPS) {
         set_err(err, errlen, "imgio: bad compression %d", (int)d->compression);
         return -1;
     }
@@ -266,6 +267,10 @@ static exr_compression_t to_exr_compression(enum imgio_compression c)
         return EXR_COMPRESSION_ZIP;
     case IMGIO_PIZ:
         return EXR_COMPRESSION_PIZ;
+    case IMGIO_RLE:
+        return EXR_COMPRESSION_RLE;
+    case IMGIO_ZIPS:
+        return EXR_COMPRESSION_ZIPS;
     case IMGIO_NONE:
     default:
         return EXR_COMPRESSION_NONE;

@@ -10,7 +10,9 @@
 
 #define IMGIO_MAX_CHANNELS 24
 
-enum imgio_compression { IMGIO_NONE, IMGIO_ZIP, IMGIO_PIZ };
+/* Tile codecs (OpenEXRCore's lossless ones; render tiles use ZIP, docs/benchmarks.md
+ * compares them). */
+enum imgio_compression { IMGIO_NONE, IMGIO_ZIP, IMGIO_PIZ, IMGIO_RLE, IMGIO_ZIPS };
 
 /* Everything that fixes the bytes of a tile chunk and the file header. Channels are
  * given in the renderer's order; pixel buffers are interleaved in that order:

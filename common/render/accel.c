@@ -6,6 +6,7 @@
 #include "render/accel.h"
 #include "base/log.h"
 #include "scene/motion.h"
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -222,6 +223,7 @@ int accel_init(struct accel *a, const struct scene *s, uint32_t frame, uint32_t 
         return -1;
     }
     a->desc = s;
+    a->packets_exact = s->num_spheres == 0 && !a->mesh_motion && !a->has_motion;
     a->face_normals = mem_calloc(s->num_meshes ? s->num_meshes : 1, sizeof *a->face_normals);
     for (uint32_t i = 0; i < s->num_meshes; i++) {
         const struct mesh *m = &s->meshes[i];
@@ -267,6 +269,21 @@ void accel_fini(struct accel *a)
     memset(a, 0, sizeof *a);
 }
 
+/* The hit as the renderer names it: mesh and triangle, or sphere_geom and sphere index. */
+static void hit_from_embree(const struct accel *a, unsigned geom_id, unsigned inst_id, unsigned prim_id, float t,
+                            float u, float v, vec3 ng, struct accel_hit *hit)
+{
+    unsigned top = inst_id != RTC_INVALID_GEOMETRY_ID ? inst_id : geom_id;
+    hit->t = t;
+    hit->geom = a->top_mesh[top];
+    hit->prim = prim_id;
+    if (hit->geom == a->sphere_geom)
+        hit->prim = a->top_sphere[top] != UINT32_MAX ? a->top_sphere[top] : a->still_sphere[prim_id];
+    hit->u = u;
+    hit->v = v;
+    hit->ng = ng;
+}
+
 int accel_intersect(const struct accel *a, vec3 o, vec3 d, float tmax, float time01, struct accel_hit *hit)
 {
     struct RTCIntersectContext ctx;
@@ -285,16 +302,57 @@ int accel_intersect(const struct accel *a, vec3 o, vec3 d, float tmax, float tim
     rtcIntersect1(a->scene, &ctx, &rh);
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID)
         return 0;
-    unsigned top = rh.hit.instID[0] != RTC_INVALID_GEOMETRY_ID ? rh.hit.instID[0] : rh.hit.geomID;
-    hit->t = rh.ray.tfar;
-    hit->geom = a->top_mesh[top];
-    hit->prim = rh.hit.primID;
-    if (hit->geom == a->sphere_geom)
-        hit->prim = a->top_sphere[top] != UINT32_MAX ? a->top_sphere[top] : a->still_sphere[rh.hit.primID];
-    hit->u = rh.hit.u;
-    hit->v = rh.hit.v;
-    hit->ng = v3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z);
+    hit_from_embree(a, rh.hit.geomID, rh.hit.instID[0], rh.hit.primID, rh.ray.tfar, rh.hit.u, rh.hit.v,
+                    v3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z), hit);
     return 1;
+}
+
+/* The packet as Embree's RTCRayHitN of width w (4, 8 or 16): its arrays of w floats or
+ * ints in the order of RTCRayHit16's fields, so one layout serves every width. */
+#define PK_ALIGN 64
+void accel_intersect_packet(const struct accel *a, uint32_t n, const vec3 *org, const vec3 *dir,
+                            const float *time01, struct accel_hit *hits, int *found)
+{
+    CHECK(n >= 1 && n <= ACCEL_PACKET);
+    const uint32_t w = n <= 4 ? 4 : n <= 8 ? 8 : 16; /* the narrowest packet holding the rays */
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    /* RTCRayHitNt: org xyz, tnear, dir xyz, time, tfar, mask, id, flags; Ng xyz, u, v, primID,
+     * geomID, instID[1]; each an array of w. */
+    union {
+        _Alignas(PK_ALIGN) float f[20 * 16];
+        unsigned u[20 * 16];
+    } buf; /* floats and ints share the packet (a union: C11 type punning) */
+    _Alignas(PK_ALIGN) int valid[16];
+    float *f = buf.f;
+    unsigned *ui = buf.u;
+    for (uint32_t k = 0; k < w; k++) {
+        uint32_t i = k < n ? k : 0; /* lanes past n repeat ray 0, masked off */
+        valid[k] = k < n ? -1 : 0;
+        f[0 * w + k] = org[i].x, f[1 * w + k] = org[i].y, f[2 * w + k] = org[i].z;
+        f[3 * w + k] = 0.0f;
+        f[4 * w + k] = dir[i].x, f[5 * w + k] = dir[i].y, f[6 * w + k] = dir[i].z;
+        f[7 * w + k] = time01[i];
+        f[8 * w + k] = INFINITY;
+        ui[9 * w + k] = 0xffffffffu;
+        ui[10 * w + k] = k;
+        ui[11 * w + k] = 0;
+        ui[18 * w + k] = RTC_INVALID_GEOMETRY_ID;
+        ui[19 * w + k] = RTC_INVALID_GEOMETRY_ID;
+    }
+    if (w == 4)
+        rtcIntersect4(valid, a->scene, &ctx, (struct RTCRayHit4 *)&buf);
+    else if (w == 8)
+        rtcIntersect8(valid, a->scene, &ctx, (struct RTCRayHit8 *)&buf);
+    else
+        rtcIntersect16(valid, a->scene, &ctx, (struct RTCRayHit16 *)&buf);
+    for (uint32_t k = 0; k < n; k++) {
+        found[k] = ui[18 * w + k] != RTC_INVALID_GEOMETRY_ID;
+        if (found[k])
+            hit_from_embree(a, ui[18 * w + k], ui[19 * w + k], ui[17 * w + k], f[8 * w + k], f[15 * w + k],
+                            f[16 * w + k], v3(f[12 * w + k], f[13 * w + k], f[14 * w + k]), &hits[k]);
+    }
 }
 
 int accel_occluded(const struct accel *a, vec3 o, vec3 d, float tmax, float time01)

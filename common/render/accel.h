@@ -26,6 +26,9 @@ struct accel {
     uint32_t sphere_geom;   /* the accel_hit.geom of spheres: == num_meshes */
     uint32_t num_spheres;
     int has_motion;         /* something has time steps: rays must carry their time */
+    int packets_exact;      /* accel_intersect_packet gives accel_intersect's hits bit for bit:
+                             * only triangles, none instanced or with time steps (Embree's
+                             * packet kernels for spheres and motion round t differently) */
     uint32_t num_top;       /* top-level geometries */
     uint32_t *top_mesh;     /* per top-level geometry: mesh index, or sphere_geom for the still spheres */
     uint32_t *top_sphere;   /* per top-level geometry: the sphere of a rigid sphere instance, or UINT32_MAX */
@@ -53,6 +56,13 @@ void accel_fini(struct accel *a);
 
 /* Closest hit in (0, tmax) at time01 in [0, 1] across the shutter; returns 1 on a hit. */
 int accel_intersect(const struct accel *a, vec3 org, vec3 dir, float tmax, float time01, struct accel_hit *hit);
+/* Closest hits of n <= ACCEL_PACKET camera-like rays in (0, inf), traced together as one
+ * Embree packet (coherent rays share the BVH traversal): found[k] and hits[k] as
+ * accel_intersect gives them for ray k, bit for bit where packets_exact
+ * (tests/integration/packets.sh). */
+#define ACCEL_PACKET 16
+void accel_intersect_packet(const struct accel *a, uint32_t n, const vec3 *org, const vec3 *dir,
+                            const float *time01, struct accel_hit *hits, int *found);
 /* 1 if anything blocks the segment (0, tmax) at time01. */
 int accel_occluded(const struct accel *a, vec3 org, vec3 dir, float tmax, float time01);
 

@@ -8,6 +8,7 @@
 #include "render/aov.h"
 #include "render/media_integrator.h"
 #include "render/motion_vis.h"
+#include "render/packet.h"
 #include "render/surface.h"
 #include "render/texshade.h"
 #include "scene/material.h"
@@ -45,24 +46,28 @@ static void aov_first_hit(const struct render_job *job, const struct accel_hit *
 }
 
 /* AOVs in media scenes: the first surface along the camera ray, media ignored, albedo
- * of an untextured non-specular first hit (docs/scene-format.md). */
-static void aov_trace(const struct render_job *job, vec3 org, vec3 dir, float time01, struct aov_sample *aov)
+ * of an untextured non-specular first hit (docs/scene-format.md). Returns whether the ray
+ * hit, and the hit in *h, for the path to start from. */
+static int aov_trace(const struct render_job *job, vec3 org, vec3 dir, float time01, struct aov_sample *aov,
+                     struct accel_hit *h)
 {
-    struct accel_hit h;
-    if (!accel_intersect(&job->accel, org, dir, INFINITY, time01, &h))
-        return;
+    if (!accel_intersect(&job->accel, org, dir, INFINITY, time01, h))
+        return 0;
     struct surface s;
-    surface_from_hit(&job->accel, &job->lights, org, dir, &h, time01, &s);
-    aov_first_hit(job, &h, &s, v3_dot(s.ns, dir) > 0.0f ? v3_neg(s.ns) : s.ns, aov);
+    surface_from_hit(&job->accel, &job->lights, org, dir, h, time01, &s);
+    aov_first_hit(job, h, &s, v3_dot(s.ns, dir) > 0.0f ? v3_neg(s.ns) : s.ns, aov);
     const struct material *mat = &job->scene->materials[s.material];
     if (!material_is_delta(mat))
         aov->albedo = aov_material_albedo(mat);
+    return 1;
 }
 
 /* The radiance along camera ray cs; aov (NULL when the frame has no AOVs) gets its AOVs,
- * set to a miss by the caller. */
+ * set to a miss by the caller. cp: NULL, or the packet whose slot holds cs and its first
+ * hit (packet.h). */
 static vec3 camera_path(const struct render_job *job, uint32_t pass, uint32_t px, uint32_t py, struct sampler smp,
-                        struct camera_sample cs, uint64_t *rays, int *hit_any, struct aov_sample *aov)
+                        struct camera_sample cs, const struct camera_packet *cp, uint32_t slot, uint64_t *rays,
+                        int *hit_any, struct aov_sample *aov)
 {
     const struct scene *sc = job->scene;
     const struct render_settings *rs = &sc->settings;
@@ -71,9 +76,10 @@ static vec3 camera_path(const struct render_job *job, uint32_t pass, uint32_t px
     float time01 = cs.time01;
     vec3 org = cs.o, dir = cs.d;
     if (job->media) {
-        if (aov)
-            aov_trace(job, org, dir, time01, aov);
-        return media_sample_path_pass(job, pass, &smp, px, py, org, dir, time01, rays, hit_any);
+        struct accel_hit h0;
+        int found0 = aov ? aov_trace(job, org, dir, time01, aov, &h0) : 0;
+        return media_sample_path_pass(job, pass, &smp, px, py, org, dir, time01, aov ? &h0 : NULL, found0, rays,
+                                      hit_any);
     }
     struct raydiff rd;          /* texture footprints, only when a material has a texture */
     if (job->textured)
@@ -87,7 +93,14 @@ static vec3 camera_path(const struct render_job *job, uint32_t pass, uint32_t px
     for (uint32_t vertex = 1;; vertex++) {
         struct accel_hit h;
         (*rays)++;
-        if (!accel_intersect(&job->accel, org, dir, INFINITY, time01, &h)) {
+        int found;
+        if (vertex == 1 && cp) {
+            found = cp->found[slot];
+            h = cp->hit[slot];
+        } else {
+            found = accel_intersect(&job->accel, org, dir, INFINITY, time01, &h);
+        }
+        if (!found) {
             /* Escaped: the environment light, weighted against its light samples. */
             if (sc->env) {
                 vec3 le = light_env_radiance(&job->lights, sc, dir);
@@ -193,16 +206,20 @@ static vec3 camera_path(const struct render_job *job, uint32_t pass, uint32_t px
 /* One camera sample's radiance: pixel jitter, lens and shutter time. With analytic motion
  * blur the ray's pixel and lens point stay and the shutter is cut where the visible
  * object changes; each part is shaded at a time inside it, weighted by its share of the
- * shutter curve (motion_vis.h). The heaviest part gives the AOVs and the coverage. */
+ * shutter curve (motion_vis.h). The heaviest part gives the AOVs and the coverage.
+ * cp: NULL, or the packet whose slot holds this sample's camera sample and first hit. */
 static vec3 sample_path(const struct render_job *job, uint32_t pass, uint32_t px, uint32_t py, struct sampler smp,
-                        uint64_t *rays, int *hit_any, struct aov_sample *aov)
+                        const struct camera_packet *cp, uint32_t slot, uint64_t *rays, int *hit_any,
+                        struct aov_sample *aov)
 {
     struct camera_sample cs;
+    if (cp) /* packets only where nothing moves: no strata */
+        return camera_path(job, pass, px, py, smp, cp->cs[slot], cp, slot, rays, hit_any, aov);
     camera_generate(&job->camera, &smp, job->frame, px, py, &cs);
     struct mv_strata st;
     if (!job->motion_vis ||
         motion_vis_strata(job->motion_vis, &job->camera, &cs, sampler_get(&smp, DIM_TIME), &st) <= 1)
-        return camera_path(job, pass, px, py, smp, cs, rays, hit_any, aov);
+        return camera_path(job, pass, px, py, smp, cs, NULL, 0, rays, hit_any, aov);
     vec3 L = v3(0, 0, 0);
     for (uint32_t k = 0; k < st.n; k++) {
         struct camera_sample ck = cs;
@@ -210,12 +227,32 @@ static vec3 sample_path(const struct render_job *job, uint32_t pass, uint32_t px
         ck.time01 = st.time01[k];
         ck.time = (double)job->frame + job->camera.shutter_open +
                   (double)ck.time01 * (job->camera.shutter_close - job->camera.shutter_open);
-        vec3 l = camera_path(job, pass, px, py, smp, ck, rays, &hit, k == st.heaviest ? aov : NULL);
+        vec3 l = camera_path(job, pass, px, py, smp, ck, NULL, 0, rays, &hit, k == st.heaviest ? aov : NULL);
         L = v3_add(L, v3_scale(l, (float)st.weight[k]));
         if (k == st.heaviest)
             *hit_any = hit;
     }
     return L;
+}
+
+/* Whether camera rays go in packets (packet.h): where they give the same hits. */
+static int packets_on(const struct render_job *job)
+{
+    return !job->media && job->accel.packets_exact && camera_packets_enabled();
+}
+
+/* The sampler of sample si of a pixel's run of samples [s0, end); with packets, taken from
+ * the packet cp that holds si's camera ray (slot (si - s0) mod ACCEL_PACKET), traced when
+ * si starts one. */
+static struct sampler sample_start(const struct render_job *job, int packets, struct sampler_pixel *sp, uint32_t px,
+                                   uint32_t py, uint32_t s0, uint32_t end, uint32_t si, struct camera_packet *cp)
+{
+    if (!packets)
+        return sampler_start_pixel(sp, si);
+    uint32_t slot = (si - s0) % ACCEL_PACKET;
+    if (slot == 0)
+        camera_packet_trace(job, sp, px, py, si, end - si < ACCEL_PACKET ? end - si : ACCEL_PACKET, cp);
+    return cp->smp[slot];
 }
 
 void pass_batch_add(struct pass_batch *b, uint32_t stream, const double m[3])
@@ -273,12 +310,15 @@ static void render_pixel_pass(const struct render_job *job, struct sampler_pixel
     sampler_pixel_set_pass(sp, pass);
     if (aacc)
         aov_accum_reset(aacc);
+    struct camera_packet cp;
+    const int packets = packets_on(job);
     for (uint32_t si = pass * k; si < (pass + 1) * k; si++) {
         int hit_any;
         struct aov_sample as;
         if (aacc)
             aov_sample_miss(&as);
-        vec3 l = sample_path(job, pass, px_x, px_y, sampler_start_pixel(sp, si), &stats->rays, &hit_any,
+        vec3 l = sample_path(job, pass, px_x, px_y, sample_start(job, packets, sp, px_x, px_y, pass * k, (pass + 1) * k, si, &cp),
+                             packets ? &cp : NULL, (si - pass * k) % ACCEL_PACKET, &stats->rays, &hit_any,
                              aacc ? &as : NULL);
         stats->samples++;
         if (!v3_is_finite(l)) {
@@ -405,6 +445,8 @@ void integrator_render_tile(const struct render_job *job, uint32_t x0, uint32_t 
         return;
     }
     struct aov_accum aacc;
+    struct camera_packet cp;
+    const int packets = packets_on(job);
     for (uint32_t y = 0; y < h; y++)
         for (uint32_t x = 0; x < w; x++) {
             double sum[3] = {0, 0, 0}, sum2[3] = {0, 0, 0}, lum_sum = 0.0, lum_sum2 = 0.0, cover = 0.0;
@@ -421,8 +463,8 @@ void integrator_render_tile(const struct render_job *job, uint32_t x0, uint32_t 
                 struct aov_sample as;
                 if (lay.aovs)
                     aov_sample_miss(&as);
-                vec3 l = sample_path(job, 0, x0 + x, y0 + y, sampler_start_pixel(&sp, si), &stats->rays, &hit_any,
-                                     lay.aovs ? &as : NULL);
+                vec3 l = sample_path(job, 0, x0 + x, y0 + y, sample_start(job, packets, &sp, x0 + x, y0 + y, 0, spp, si, &cp),
+                                     packets ? &cp : NULL, si % ACCEL_PACKET, &stats->rays, &hit_any, lay.aovs ? &as : NULL);
                 stats->samples++;
                 if (!v3_is_finite(l)) {
                     stats->nan_samples++;

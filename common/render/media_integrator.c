@@ -97,11 +97,11 @@ static float rnd(const struct rngs *r, uint32_t vertex, uint32_t k)
     return rng_uniform(r->key, vertex * DIMS_PER_VERTEX + k);
 }
 
-/* Whether the light that u_pick picks takes an equiangular sample: point (and spot)
- * lights and emissive triangles, whose points are sampled whatever the shading point. */
-static int equi_light(const struct light_table *lt, float u_pick)
+/* Whether light table entry i takes an equiangular sample: point (and spot) lights and
+ * emissive triangles, whose points are sampled whatever the shading point. */
+static int equi_light(const struct light_table *lt, uint32_t i)
 {
-    enum light_kind k = lt->entries[light_pick(lt, u_pick)].kind;
+    enum light_kind k = lt->entries[i].kind;
     return k == LK_POINT || k == LK_TRIANGLE;
 }
 
@@ -131,7 +131,7 @@ static vec3 scatter_nee(const struct render_job *job, vec3 x, vec3 d_out, uint32
         return v3(0, 0, 0);
     float w = (ls.is_delta || !mis) ? 1.0f : power_heuristic(ls.pdf, ph);
     struct equi e;
-    if (fc && equi_light(&job->lights, u0) && equi_init(&e, fc->o, fc->d, ls.p, fc->tend, fc->eps) &&
+    if (fc && equi_light(&job->lights, ls.entry) && equi_init(&e, fc->o, fc->d, ls.p, fc->tend, fc->eps) &&
         fc->t < fc->tend) {
         /* Balance heuristic against equiangular sampling of the same light point (its
          * density, the pick times 1 / area for a triangle, is the same in both strategies
@@ -434,11 +434,12 @@ static vec3 hit_emission(const struct render_job *job, const struct surface *s, 
 vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, uint32_t px, uint32_t py, vec3 org,
                        vec3 dir, float time01, uint64_t *rays, int *hit_any)
 {
-    return media_sample_path_pass(job, 0, smp, px, py, org, dir, time01, rays, hit_any);
+    return media_sample_path_pass(job, 0, smp, px, py, org, dir, time01, NULL, 0, rays, hit_any);
 }
 
 vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const struct sampler *smp, uint32_t px,
-                            uint32_t py, vec3 org, vec3 dir, float time01, uint64_t *rays, int *hit_any)
+                            uint32_t py, vec3 org, vec3 dir, float time01, const struct accel_hit *first,
+                            int first_found, uint64_t *rays, int *hit_any)
 {
     const struct scene *sc = job->scene;
     const struct media_job *mj = render_job_pass_media(job, pass); /* the pass's photon map */
@@ -468,7 +469,15 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
         struct surface s;
         int s_ready = 0, emitted = 0;
         (*rays)++;
-        int hit = accel_intersect(&job->accel, org, dir, INFINITY, time01, &h);
+        int hit;
+        if (first) { /* the camera ray, traced by the caller */
+            hit = first_found;
+            if (hit)
+                h = *first;
+            first = NULL;
+        } else {
+            hit = accel_intersect(&job->accel, org, dir, INFINITY, time01, &h);
+        }
         if (hit && vertex == 0 && crossings == 0)
             *hit_any = 1;
         if (medium != MEDIUM_NONE) {

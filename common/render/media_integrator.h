@@ -13,8 +13,11 @@
  * photon map of the first pass. */
 vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, uint32_t px, uint32_t py, vec3 org,
                        vec3 dir, float time01, uint64_t *rays, int *hit_any);
-/* The same with the photon map of pass `pass` (< job->num_passes; render_job_pass_media). */
+/* The same with the photon map of pass `pass` (< job->num_passes; render_job_pass_media).
+ * first: NULL, or the camera ray's closest hit already traced (for AOVs), valid when
+ * first_found; the path then starts from it instead of tracing the ray again. */
 vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const struct sampler *smp, uint32_t px,
-                            uint32_t py, vec3 org, vec3 dir, float time01, uint64_t *rays, int *hit_any);
+                            uint32_t py, vec3 org, vec3 dir, float time01, const struct accel_hit *first,
+                            int first_found, uint64_t *rays, int *hit_any);
 
 #endif

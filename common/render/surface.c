@@ -43,9 +43,9 @@ static float triangle_p_err(vec3 p, uint32_t geom, uint32_t prim, const struct a
             const float *a = &m->positions[3 * idx[k]];
             v = v3(a[0], a[1], a[2]);
         }
-        mag = fmaxf(mag, v3_max_abs(v));
+        mag = f_max(mag, v3_max_abs(v));
     }
-    return fminf(mag, 0.5f) * 0x1p-20f;
+    return f_min(mag, 0.5f) * 0x1p-20f;
 }
 
 /* The hit as a surface point at the ray's time. Still geometry: barycentrics of the

@@ -48,6 +48,13 @@ struct environment *envmap_new(float *rgb, uint32_t width, uint32_t height, floa
     e->marg_cdf[height] = 1.0f;
     e->marg_int = (float)marg;
     free(row_int);
+    e->cell_pdf = mem_alloc(sizeof(float) * (size_t)width * height);
+    for (uint32_t y = 0; y < height; y++) {
+        float st = sinf((float)M_PI * (y + 0.5f) / e->height);
+        for (uint32_t x = 0; x < width; x++)
+            e->cell_pdf[(size_t)y * width + x] =
+                e->marg_int > 0.0f ? fmaxf(0.0f, lum(&rgb[3 * ((size_t)y * width + x)])) * st / e->marg_int : 0.0f;
+    }
     /* Solid-angle mean: sum of L sin(theta) dtheta dphi / 4 pi, with sum of sin over rows ~ 2 h / pi. */
     double wsum = 0.0;
     for (uint32_t y = 0; y < height; y++)
@@ -64,6 +71,7 @@ void envmap_free(struct environment **pe)
     free(e->rgb);
     free(e->cond_cdf);
     free(e->marg_cdf);
+    free(e->cell_pdf);
     free(e);
     *pe = NULL;
 }
@@ -104,9 +112,7 @@ float envmap_pdf_uv(const struct environment *e, float u, float v)
     uint32_t x = (uint32_t)(u * e->width), y = (uint32_t)(v * e->height);
     x = x < e->width ? x : e->width - 1;
     y = y < e->height ? y : e->height - 1;
-    const float *c = &e->rgb[3 * ((size_t)y * e->width + x)];
-    float st = sinf((float)M_PI * (y + 0.5f) / e->height);
-    return fmaxf(0.0f, lum(c)) * st / e->marg_int;
+    return e->cell_pdf[(size_t)y * e->width + x];
 }
 
 void envmap_sample_uv(const struct environment *e, float u1, float u2, float *u, float *v, float *pdf)
@@ -121,9 +127,7 @@ void envmap_sample_uv(const struct environment *e, float u1, float u2, float *u,
     *v = fminf((y + fminf(fmaxf(fy, 0.0f), 1.0f)) / e->height, 0x1.fffffep-1f);
     *u = fminf((x + fminf(fmaxf(fx, 0.0f), 1.0f)) / e->width, 0x1.fffffep-1f);
     /* The cell's density, from the cell indices (not the rounded point). */
-    const float *c = &e->rgb[3 * ((size_t)y * e->width + x)];
-    float st = sinf((float)M_PI * (y + 0.5f) / e->height);
-    *pdf = e->marg_int > 0.0f ? fmaxf(0.0f, lum(c)) * st / e->marg_int : 0.0f;
+    *pdf = e->cell_pdf[(size_t)y * e->width + x];
 }
 
 vec3 envmap_sample(const struct environment *e, float u1, float u2, float *pdf)

@@ -23,6 +23,8 @@ struct environment {
     float *cond_cdf;        /* height rows of width + 1 */
     float *marg_cdf;        /* height + 1 */
     float marg_int;         /* integral over [0, 1]^2; 0 = a black map */
+    float *cell_pdf;        /* width * height: each cell's density over [0, 1]^2, kept so that a
+                             * pdf query (every escaped ray, every light sample) is a lookup */
     vec3 mean;              /* solid-angle mean radiance (strength included) */
 };
 

@@ -57,8 +57,8 @@ static void add_entry(struct light_table *t, size_t *cap, struct light_entry e)
 static void scene_sphere(const struct scene *s, vec3 *center, float *radius)
 {
     vec3 lo = v3(INFINITY, INFINITY, INFINITY), hi = v3(-INFINITY, -INFINITY, -INFINITY);
-#define GROW(p) (lo = v3(fminf(lo.x, (p).x), fminf(lo.y, (p).y), fminf(lo.z, (p).z)), \
-                 hi = v3(fmaxf(hi.x, (p).x), fmaxf(hi.y, (p).y), fmaxf(hi.z, (p).z)))
+#define GROW(p) (lo = v3(f_min(lo.x, (p).x), f_min(lo.y, (p).y), f_min(lo.z, (p).z)), \
+                 hi = v3(f_max(hi.x, (p).x), f_max(hi.y, (p).y), f_max(hi.z, (p).z)))
     for (uint32_t mi = 0; mi < s->num_meshes; mi++) {
         const struct mesh *m = &s->meshes[mi];
         const float *pos = m->num_frames > 1 && m->frame_positions ? m->frame_positions : m->positions;
@@ -183,7 +183,7 @@ uint32_t light_pick(const struct light_table *t, float u)
 static float sphere_cone_one_minus_cos(float r, float dist)
 {
     float sin2 = (r * r) / (dist * dist);
-    float cos_max = sqrtf(fmaxf(0.0f, 1.0f - sin2));
+    float cos_max = sqrtf(f_max(0.0f, 1.0f - sin2));
     return sin2 / (1.0f + cos_max);
 }
 
@@ -210,6 +210,7 @@ void light_sample(const struct light_table *t, const struct scene *s, vec3 ref, 
     float pick_pdf = t->pick_pdf[i];
     if (pick_pdf <= 0.0f)
         return;
+    out->entry = i;
     switch (e->kind) {
     case LK_POINT: {
         vec3 p = s->lights[e->index].position;
@@ -239,14 +240,14 @@ void light_sample(const struct light_table *t, const struct scene *s, vec3 ref, 
         vec3 p;
         if (dc <= sp->radius * 1.0001f) {
             /* Inside (or on) the sphere: uniform by area. */
-            float z = 1.0f - 2.0f * u1, r = sqrtf(fmaxf(0.0f, 1.0f - z * z)), sphi, cphi;
+            float z = 1.0f - 2.0f * u1, r = sqrtf(f_max(0.0f, 1.0f - z * z)), sphi, cphi;
             sincos_2pi(u2, &sphi, &cphi);
             p = v3_add(sp->center, v3_scale(v3(r * cphi, r * sphi, z), sp->radius));
         } else {
             float omc = sphere_cone_one_minus_cos(sp->radius, dc);
             float one_minus_cos = u1 * omc;
             float cos_t = 1.0f - one_minus_cos;
-            float sin_t = sqrtf(fmaxf(0.0f, one_minus_cos * (2.0f - one_minus_cos)));
+            float sin_t = sqrtf(f_max(0.0f, one_minus_cos * (2.0f - one_minus_cos)));
             float sphi, cphi;
             sincos_2pi(u2, &sphi, &cphi);
             vec3 w = v3_scale(to_c, 1.0f / dc), tx, ty;
@@ -254,7 +255,7 @@ void light_sample(const struct light_table *t, const struct scene *s, vec3 ref, 
             vec3 dir = v3_add(v3_scale(w, cos_t), v3_add(v3_scale(tx, sin_t * cphi), v3_scale(ty, sin_t * sphi)));
             /* Nearest intersection of the sampled direction with the sphere. */
             float disc = sp->radius * sp->radius - dc * dc * sin_t * sin_t;
-            float ds = dc * cos_t - sqrtf(fmaxf(0.0f, disc));
+            float ds = dc * cos_t - sqrtf(f_max(0.0f, disc));
             p = v3_add(ref, v3_scale(dir, ds));
         }
         vec3 n = v3_normalize(v3_sub(p, sp->center));

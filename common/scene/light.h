@@ -48,6 +48,7 @@ struct light_sample {
     vec3 radiance;      /* emitted radiance toward the shading point, or I / d^2 for points */
     float pdf;          /* solid-angle pdf including the pick probability; 0 = no sample */
     int is_delta;
+    uint32_t entry;     /* the light table entry picked (valid when pdf > 0) */
 };
 
 /* A spot light's falloff toward dir (from the light, any length): 0 outside the outer cone,

@@ -24,7 +24,7 @@
 
 float material_fresnel_dielectric(float cos_i, float eta)
 {
-    cos_i = fminf(fmaxf(cos_i, 0.0f), 1.0f);
+    cos_i = f_min(f_max(cos_i, 0.0f), 1.0f);
     float sin2_t = (1.0f - cos_i * cos_i) / (eta * eta);
     if (sin2_t >= 1.0f)
         return 1.0f;
@@ -38,7 +38,7 @@ float material_fresnel_dielectric(float cos_i, float eta)
 /* Unpolarised reflectance of a conductor of complex index eta + i k (from outside, index 1). */
 static float fresnel_complex(float cos_i, float eta, float k)
 {
-    cos_i = fminf(fmaxf(cos_i, 0.0f), 1.0f);
+    cos_i = f_min(f_max(cos_i, 0.0f), 1.0f);
     double complex n = eta + k * I;
     double ci = cos_i, s2 = 1.0 - ci * ci;
     double complex s2t = s2 / (n * n), ct = csqrt(1.0 - s2t);
@@ -52,7 +52,7 @@ vec3 material_fresnel_conductor(const struct material *m, float cos_i)
     if (m->type == MATERIAL_MIRROR)
         return m->reflectance;
     if (m->schlick) {
-        float c = 1.0f - fminf(fmaxf(cos_i, 0.0f), 1.0f), c5 = c * c * c * c * c;
+        float c = 1.0f - f_min(f_max(cos_i, 0.0f), 1.0f), c5 = c * c * c * c * c;
         vec3 f0 = m->reflectance;
         return v3(f0.x + (1.0f - f0.x) * c5, f0.y + (1.0f - f0.y) * c5, f0.z + (1.0f - f0.z) * c5);
     }
@@ -87,7 +87,7 @@ static void no_sample(struct bsdf_sample *out)
 
 int material_is_smooth(const struct material *m)
 {
-    return fmaxf(m->alpha_x, m->alpha_y) < MICROFACET_SMOOTH_ALPHA;
+    return f_max(m->alpha_x, m->alpha_y) < MICROFACET_SMOOTH_ALPHA;
 }
 
 /* The shading frame: x and y the anisotropy axes, z the normal. */
@@ -115,14 +115,15 @@ static vec3 to_world(const struct frame *f, vec3 v)
 
 static struct ggx ggx_of(const struct material *m)
 {
-    struct ggx g = {fmaxf(m->alpha_x, MICROFACET_SMOOTH_ALPHA), fmaxf(m->alpha_y, MICROFACET_SMOOTH_ALPHA)};
+    struct ggx g = {f_max(m->alpha_x, MICROFACET_SMOOTH_ALPHA), f_max(m->alpha_y, MICROFACET_SMOOTH_ALPHA)};
     return g;
 }
 
-/* Density of sampling normal wm from wo (local) by the material's strategy. */
-static float normal_pdf(const struct material *m, const struct ggx *g, vec3 wo, vec3 wm)
+/* Density of sampling normal wm from wo (local) by the material's strategy, from
+ * d = ggx_d(wm) and lo = ggx_lambda(wo). */
+static float normal_pdf_dl(const struct material *m, vec3 wo, vec3 wm, float d, float lo)
 {
-    return m->sample_all ? ggx_d(g, wm) * wm.z : ggx_d_visible(g, wo, wm);
+    return m->sample_all ? d * wm.z : ggx_d_visible_dl(wo, wm, d, lo);
 }
 
 static vec3 sample_normal(const struct material *m, const struct ggx *g, vec3 wo, float u1, float u2)
@@ -151,9 +152,9 @@ static float coat_pick(const struct material *m, float fo)
  * wo . wm: f cos_i, and the pdf of sampling wi through the normal. */
 static vec3 glossy_eval(const struct material *m, const struct ggx *g, vec3 wo, vec3 wi, vec3 fr, vec3 wm, float *pdf)
 {
-    float c = v3_dot(wo, wm);
-    *pdf = normal_pdf(m, g, wo, wm) / (4.0f * c);
-    return v3_scale(fr, ggx_d(g, wm) * ggx_g(g, wo, wi) / (4.0f * wo.z));
+    float c = v3_dot(wo, wm), d = ggx_d(g, wm), lo = ggx_lambda(g, wo); /* each once: pdf and f share them */
+    *pdf = normal_pdf_dl(m, wo, wm, d, lo) / (4.0f * c);
+    return v3_scale(fr, d * ggx_g_lambdas(lo, ggx_lambda(g, wi)) / (4.0f * wo.z));
 }
 
 /* Rough dielectric (Walter et al. 2007, as pbrt-v4's DielectricBxDF), local frame, wo.z > 0;
@@ -182,9 +183,9 @@ static vec3 dielectric_eval(const struct material *m, const struct ggx *g, vec3 
     }
     float denom = ci + co / eta;
     denom *= denom;
-    float t = 1.0f - f;
-    *pdf = normal_pdf(m, g, wo, wm) * fabsf(ci) / denom * t;
-    float v = t * ggx_d(g, wm) * ggx_g(g, wo, wi) * fabsf(ci * co / (wo.z * denom)) / (eta * eta);
+    float t = 1.0f - f, d = ggx_d(g, wm), lo = ggx_lambda(g, wo);
+    *pdf = normal_pdf_dl(m, wo, wm, d, lo) * fabsf(ci) / denom * t;
+    float v = t * d * ggx_g_lambdas(lo, ggx_lambda(g, wi)) * fabsf(ci * co / (wo.z * denom)) / (eta * eta);
     return v3_scale(m->transmittance, v);
 }
 
@@ -395,7 +396,7 @@ void material_sample(const struct material *m, vec3 n, vec3 wo, int front, float
         } else {
             float r = sqrtf(u1), sp, cp;
             sincos_2pi(u2, &sp, &cp);
-            li = v3(r * cp, r * sp, sqrtf(fmaxf(0.0f, 1.0f - u1)));
+            li = v3(r * cp, r * sp, sqrtf(f_max(0.0f, 1.0f - u1)));
         }
         finish_rough(m, &fr, n, wo, li, front, out);
         return;

@@ -28,15 +28,20 @@ float ggx_g1(const struct ggx *g, vec3 w)
 
 float ggx_g(const struct ggx *g, vec3 wo, vec3 wi)
 {
-    return 1.0f / (1.0f + ggx_lambda(g, wo) + ggx_lambda(g, wi));
+    return ggx_g_lambdas(ggx_lambda(g, wo), ggx_lambda(g, wi));
 }
 
 float ggx_d_visible(const struct ggx *g, vec3 wo, vec3 wm)
 {
+    return ggx_d_visible_dl(wo, wm, ggx_d(g, wm), ggx_lambda(g, wo));
+}
+
+float ggx_d_visible_dl(vec3 wo, vec3 wm, float d, float lambda_o)
+{
     float c = v3_dot(wo, wm);
     if (!(wo.z > 0.0f) || !(c > 0.0f))
         return 0.0f;
-    return ggx_g1(g, wo) * c * ggx_d(g, wm) / wo.z;
+    return 1.0f / (1.0f + lambda_o) * c * d / wo.z;
 }
 
 vec3 ggx_sample_visible(const struct ggx *g, vec3 wo, float u1, float u2)

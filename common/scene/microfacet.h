@@ -31,8 +31,12 @@ float ggx_lambda(const struct ggx *g, vec3 w);
 float ggx_g1(const struct ggx *g, vec3 w);
 /* Height-correlated masking-shadowing of the pair (Heitz 2014, eq. 99). */
 float ggx_g(const struct ggx *g, vec3 wo, vec3 wi);
+/* ggx_g from the two Lambdas, for callers that have them (evaluation shares them with the pdf). */
+static inline float ggx_g_lambdas(float lambda_o, float lambda_i) { return 1.0f / (1.0f + lambda_o + lambda_i); }
 /* Density of the visible normal wm seen from wo (wo.z > 0): G1(wo) max(0, wo.wm) D(wm) / wo.z. */
 float ggx_d_visible(const struct ggx *g, vec3 wo, vec3 wm);
+/* The same from d = D(wm) and lambda_o = Lambda(wo), bit for bit. */
+float ggx_d_visible_dl(vec3 wo, vec3 wm, float d, float lambda_o);
 /* A visible normal of wo (wo.z > 0) from two uniforms; pdf ggx_d_visible. */
 vec3 ggx_sample_visible(const struct ggx *g, vec3 wo, float u1, float u2);
 /* A normal with density D(wm) wm.z (all normals, visible or not). */

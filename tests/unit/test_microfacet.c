@@ -416,3 +416,20 @@ Test(microfacet, scene_keys)
     snprintf(text, sizeof text, "%s\"materials\": {\"a\": {\"type\": \"plastic\", \"roughness\": \"nope\"}}}", head);
     test_scene_expect_error(text, NULL, "unknown texture \"nope\"");
 }
+
+/* The shared-term forms glossy and dielectric evaluation use give the plain ones' bits. */
+Test(microfacet, shared_terms_bit_identical)
+{
+    struct ggx g = {0.3f, 0.07f};
+    for (uint32_t i = 0; i < 2000; i++) {
+        vec3 wo = v3_normalize(v3(2.0f * rng_uniform(11, 3 * i) - 1.0f, 2.0f * rng_uniform(12, 3 * i) - 1.0f,
+                                  rng_uniform(13, 3 * i)));
+        vec3 wi = v3_normalize(v3(2.0f * rng_uniform(14, 3 * i) - 1.0f, 2.0f * rng_uniform(15, 3 * i) - 1.0f,
+                                  rng_uniform(16, 3 * i)));
+        vec3 wm = v3_normalize(v3_add(wo, wi));
+        float d = ggx_d(&g, wm), lo = ggx_lambda(&g, wo), li = ggx_lambda(&g, wi);
+        float a = ggx_d_visible(&g, wo, wm), b = ggx_d_visible_dl(wo, wm, d, lo);
+        float ga = ggx_g(&g, wo, wi), gb = ggx_g_lambdas(lo, li);
+        cr_assert(memcmp(&a, &b, sizeof a) == 0 && memcmp(&ga, &gb, sizeof ga) == 0, "sample %u", i);
+    }
+}
