@@ -92,7 +92,7 @@ $W --connect "tcp://127.0.0.1:$((P + 5))" $WKEY --threads 1 --timeout-ms 20000 >
 wpid=$!
 echo "$wpid" >>"$T/pids"
 i=0
-while ! grep -q "joined" "$T/log" && [ $i -lt 100 ]; do sleep 0.1; i=$((i + 1)); done
+while ! grep -q "joined" "$T/log" && [ $i -lt 600 ]; do sleep 0.1; i=$((i + 1)); done
 who=$(sed -n 's/.*worker \(.*\) joined.*/\1/p' "$T/log" | head -1)
 timeout 20 $BUILD/junkpeer --key "$T/rogue.key" "$T/master.key.pub" "tcp://127.0.0.1:$((P + 5))" hello-as "${who%:*}" "${who##*:}" >/dev/null 2>&1
 wait $mpid && r=0 || r=1
