@@ -40,7 +40,7 @@ TOOLS      := exrtool junkpeer replay maketex texbench meshload
 TOOL_BIN   := $(TOOLS:%=$(BUILD)/%)
 TOOL_OBJ   := $(TOOLS:%=$(BUILD)/obj/tests/tools/%.o)
 
-.PHONY: smoke-sim smoke-demo showcase-assets showcase showcase-movie bench-smoke all deps test layers unit integration demo bench bench-media bench-adaptive bench-materials clean fuzz fuzz-ci tools stress test-slurm test-netns
+.PHONY: smoke-sim smoke-demo showcase-assets showcase showcase-movie showcase-bunny bench-smoke all deps test layers unit integration demo bench bench-media bench-adaptive bench-materials clean fuzz fuzz-ci tools stress test-slurm test-netns
 all: $(BUILD)/master $(BUILD)/worker $(BUILD)/smokesim $(TOOL_BIN)
 
 # Install what is missing; the stamp makes later builds skip the check.
@@ -136,6 +136,10 @@ showcase: showcase-assets all
 	mkdir -p out
 	$(BUILD)/master scenes/showcase/showcase.json -o out/showcase.exr --frames 72:72 --workers 2 \
 	  --worker-timeout-ms 120000 --preview out/showcase.png
+# Rewrites the committed scenes/showcase/bunny.obj from the npm package (needs npm).
+showcase-bunny:
+	d=$$(mktemp -d) && (cd $$d && npm pack bunny@1.0.1 >/dev/null && tar xzf bunny-1.0.1.tgz) && \
+	  python3 scripts/gen_bunny.py $$d/package/index.js scenes/showcase/bunny.obj 0.55; rc=$$?; rm -rf $$d; exit $$rc
 showcase-movie: showcase-assets all
 	mkdir -p out
 	BUILD=$(BUILD) sh scripts/make_movie.sh out/showcase.webp out/movie

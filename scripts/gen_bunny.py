@@ -1,11 +1,12 @@
 #!/usr/bin/env python3
-"""Converts the Stanford bunny of the npm package `bunny` (1.0.1, Public Domain; its
-index.js holds `exports.positions=[[x,y,z],...]` and `exports.cells=[[a,b,c],...]`, the
-Stanford 3D Scanning Repository's reconstruction decimated to 2503 vertices) into an OBJ
-with smooth (area-weighted) vertex normals, scaled to HEIGHT with its lowest point at y = 0
-and centred in x and z. Every index is checked against the vertex count and every number
-for finiteness before use.
-Usage: gen_bunny.py INDEX_JS OUT.obj [HEIGHT]   (make showcase-assets fetches INDEX_JS with npm pack)"""
+"""Converts the Stanford bunny of the npm package `bunny` (1.0.1, licence "Public Domain";
+its index.js holds `exports.positions=[[x,y,z],...]` and `exports.cells=[[a,b,c],...]`: the
+Stanford 3D Scanning Repository's bunny, decimated to 1839 vertices and 3674 triangles, open
+at the base as the scan is) into an OBJ with smooth (area-weighted) vertex normals, scaled
+to HEIGHT with its lowest point at y = 0 and centred in x and z. Every index is checked
+against the vertex count and every number for finiteness before use.
+Usage: gen_bunny.py INDEX_JS OUT.obj [HEIGHT]   (`make showcase-bunny` fetches INDEX_JS with
+npm pack and rewrites scenes/showcase/bunny.obj)"""
 import json
 import math
 import re
