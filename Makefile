@@ -129,7 +129,7 @@ smoke-demo: smoke-sim all
 # The showcase (scenes/showcase/README.md): the glass sculpture's mesh and the smoke's grids
 # (not committed: 15 MB and 72 x 1.5 MB), then the still with 2 local workers, or the movie.
 scenes/showcase/scherk.obj: scripts/gen_scherk.py
-	python3 scripts/gen_scherk.py $@ --thickness 0.11 --cell 0.028
+	python3 scripts/gen_scherk.py $@
 showcase-assets: $(BUILD)/smokesim scenes/showcase/scherk.obj
 	$(BUILD)/smokesim scenes/showcase/sim.json
 showcase: showcase-assets all

@@ -17,8 +17,8 @@ signed volume is positive (outward normals). Python 3, standard library only.
 
 Usage: gen_scherk.py OUT.obj [--saddles N] [--branches B] [--twist TURNS] [--radius R]
        [--tube T] [--thickness W] [--cell H]
-(defaults: 8 saddles, 2 branches, 0.5 turns, radius 1, tube 0.42, thickness 0.07,
-cell 0.022: about 200k triangles). The ring closes only when 2 B TURNS is an integer of
+(defaults, those of scenes/showcase: 8 saddles, 2 branches, 0.5 turns, radius 1, tube
+0.42, thickness 0.11, cell 0.028: 212468 triangles, genus 9, about a minute). The ring closes only when 2 B TURNS is an integer of
 the same parity as N; other combinations are refused."""
 import argparse
 import math
@@ -227,8 +227,8 @@ def main():
     p.add_argument("--twist", type=float, default=0.5, help="turns of the cross-section per revolution")
     p.add_argument("--radius", type=float, default=1.0, help="radius of the ring's core circle")
     p.add_argument("--tube", type=float, default=0.42, help="radius at which the wings are cut")
-    p.add_argument("--thickness", type=float, default=0.07, help="thickness of the slab")
-    p.add_argument("--cell", type=float, default=0.022, help="grid cell of the polygoniser")
+    p.add_argument("--thickness", type=float, default=0.11, help="thickness of the slab")
+    p.add_argument("--cell", type=float, default=0.028, help="grid cell of the polygoniser")
     a = p.parse_args()
     if a.saddles < 1 or a.branches < 1 or a.branches > 8:
         sys.exit("gen_scherk: --saddles must be >= 1 and --branches in [1, 8]")
