@@ -42,7 +42,7 @@ TOOLS      := exrtool junkpeer replay maketex texbench meshload codecbench
 TOOL_BIN   := $(TOOLS:%=$(BUILD)/%)
 TOOL_OBJ   := $(TOOLS:%=$(BUILD)/obj/tests/tools/%.o)
 
-.PHONY: smoke-sim smoke-demo bench-smoke all deps test layers unit integration demo bench bench-motion bench-media bench-adaptive bench-materials clean fuzz fuzz-ci tools stress test-slurm test-netns
+.PHONY: smoke-sim smoke-demo showcase-assets showcase showcase-movie showcase-bunny bench-smoke all deps test layers unit integration demo bench bench-motion bench-media bench-adaptive bench-materials clean fuzz fuzz-ci tools stress test-slurm test-netns
 all: $(BUILD)/master $(BUILD)/worker $(BUILD)/smokesim $(TOOL_BIN)
 
 # Install what is missing; the stamp makes later builds skip the check.
@@ -131,6 +131,24 @@ smoke-sim: $(BUILD)/smokesim
 smoke-demo: smoke-sim all
 	mkdir -p out
 	$(BUILD)/master scenes/smoke_anim/smoke_anim.json -o out/smoke_anim.exr --frames 1:48:12 --workers 2
+
+# The showcase (scenes/showcase/README.md): the glass sculpture's mesh and the smoke's grids
+# (not committed: 15 MB and 72 x 1.5 MB), then the still with 2 local workers, or the movie.
+scenes/showcase/scherk.obj: scripts/gen_scherk.py
+	python3 scripts/gen_scherk.py $@
+showcase-assets: $(BUILD)/smokesim scenes/showcase/scherk.obj
+	$(BUILD)/smokesim scenes/showcase/sim.json
+showcase: showcase-assets all
+	mkdir -p out
+	$(BUILD)/master scenes/showcase/showcase.json -o out/showcase.exr --frames 72:72 --workers 2 \
+	  --worker-timeout-ms 120000 --preview out/showcase.png
+# Rewrites the committed scenes/showcase/bunny.obj from the npm package (needs npm).
+showcase-bunny:
+	d=$$(mktemp -d) && (cd $$d && npm pack bunny@1.0.1 >/dev/null && tar xzf bunny-1.0.1.tgz) && \
+	  python3 scripts/gen_bunny.py $$d/package/index.js scenes/showcase/bunny.obj 0.55; rc=$$?; rm -rf $$d; exit $$rc
+showcase-movie: showcase-assets all
+	mkdir -p out
+	BUILD=$(BUILD) sh scripts/make_movie.sh out/showcase.webp out/movie
 
 # Time per step at 64^3 and 128^3 with 1 and 2 FFTW threads (docs/smoke.md).
 bench-smoke: $(BUILD)/smokesim
