@@ -29,7 +29,7 @@ static void usage(FILE *f)
             "  --filter F[:W]         pixel filter box, gaussian or blackman-harris, W pixels wide\n"
             "                         (overrides render.filter)\n"
             "  --bind ENDPOINT        also accept workers at ENDPOINT, e.g. tcp://127.0.0.1:5555\n"
-            "  --preview OUT.png      also write a tone-mapped sRGB PNG preview\n"
+            "  --preview OUT.png      also write a tone-mapped sRGB PNG preview (per frame with --frames, named like -o)\n"
             "  --worker-exe PATH      worker binary for local workers (default: next to master)\n"
             "  --worker-timeout-ms MS evict a worker silent for MS milliseconds (default 10000)\n"
             "  --stall-ms MS          evict a worker whose render threads finish no work for MS ms (default 30000)\n"

@@ -1386,7 +1386,9 @@ static int write_output(struct master *m, double seconds)
         m->c.journal_syncs += m->journal->syncs;
         journal_remove(&m->journal);
     }
-    if (o->preview_path && output_write_preview(o->preview_path, &m->out_desc, m->chunks, err, sizeof err) != 0)
+    char preview[4200];
+    if (o->preview_path && (output_frame_path(o->preview_path, o->have_frames, m->frame, preview, sizeof preview) != 0 ||
+                            output_write_preview(preview, &m->out_desc, m->chunks, err, sizeof err) != 0))
         log_warn("preview: %s", err);
     return 0;
 }

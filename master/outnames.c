@@ -32,6 +32,9 @@ static int check_frame(const struct master_opts *o, const struct asset_dir *inpu
     snprintf(journal, sizeof journal, "%s.journal", out);
     if (check_name(inputs, out, "output", err, errlen) != 0 || check_name(inputs, journal, "journal", err, errlen) != 0)
         return -1;
+    if (o->preview_path && output_frame_path(o->preview_path, o->have_frames, frame, out, sizeof out) == 0 &&
+        check_name(inputs, out, "preview", err, errlen) != 0)
+        return -1;
     return 0;
 }
 
@@ -62,8 +65,6 @@ int outnames_check(const struct master_opts *o, const struct asset_dir *inputs, 
     char stats[4200];
     snprintf(stats, sizeof stats, "%s.stats.json", o->output_path);
     if (check_name(inputs, stats, "stats file", err, errlen) != 0)
-        return -1;
-    if (o->preview_path && check_name(inputs, o->preview_path, "preview", err, errlen) != 0)
         return -1;
     if (!o->have_frames)
         return check_frame(o, inputs, 0, err, errlen);

@@ -83,4 +83,11 @@ echo "frames: master killed mid-range: $good of $FRAME_TRIALS trials exact; $ski
 if [ $good = "$FRAME_TRIALS" ]; then ok "range with a worker and the master killed: exactly the requested frames, identical"
 else bad "range with a worker and the master killed: exactly the requested frames, identical"; fi
 
+# --preview with a range: one PNG per frame, named like the EXRs.
+mkdir -p "$T/pv"
+timeout 60 $M $SCENE -o "$T/pv/f.exr" --frames 1:2 --workers 1 --spp 1 --preview "$T/pv/p.png" >"$T/log" 2>&1 && r=0 || r=1
+if [ $r = 0 ] && [ -s "$T/pv/p.0001.png" ] && [ -s "$T/pv/p.0002.png" ] && ! cmp -s "$T/pv/p.0001.png" "$T/pv/p.0002.png" &&
+  [ ! -e "$T/pv/p.png" ]; then
+  ok "--preview with --frames: one PNG per frame"; else bad "--preview with --frames: one PNG per frame"; fi
+
 finish
