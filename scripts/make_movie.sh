@@ -1,9 +1,9 @@
 #!/bin/sh
 # Renders the showcase movie and assembles it into an animated WebP (img2webp, Debian
 # package `webp`, installed through scripts/install-deps.sh when missing).
-# Each frame is one master run with --frames F:F and its own --preview PNG, from a copy of the scene at the movie's size written beside
-# it (scenes/showcase/movie.json, not committed). Frames whose PNG exists are skipped, so a
-# killed run resumes. The smoke grids must exist (make showcase-assets).
+# Each frame is one master run with --frames F:F and its own --preview PNG, from a copy of
+# the scene at the movie's size written beside it (scenes/showcase/movie.json, not
+# committed). Frames whose PNG exists are skipped, so a killed run resumes. The smoke grids must exist (make showcase-assets).
 # Usage: [BUILD=build] [WIDTH=320 HEIGHT=180 SPP=2 FIRST=25 LAST=72 STEP=1 WORKERS=2 FPS=12]
 #        sh scripts/make_movie.sh OUT.webp [FRAMES_DIR]
 set -eu
