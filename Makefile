@@ -36,7 +36,7 @@ FFTW_LIBS  := -lfftw3f_threads -lfftw3f
 UNIT_SRC   := $(wildcard tests/unit/test_*.c) tests/unit/helpers.c
 UNIT_OBJ   := $(UNIT_SRC:%.c=$(BUILD)/obj/%.o)
 # Test tools: one source each in tests/tools/, linked with the library.
-TOOLS      := exrtool junkpeer replay maketex texbench meshload
+TOOLS      := exrtool junkpeer replay maketex texbench meshload loadpeers
 TOOL_BIN   := $(TOOLS:%=$(BUILD)/%)
 TOOL_OBJ   := $(TOOLS:%=$(BUILD)/obj/tests/tools/%.o)
 

@@ -14,6 +14,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <sys/eventfd.h>
 #include <unistd.h>
 
 #define HEADER_BODY (8 + BLOB_HASH_SIZE + 4)
@@ -157,13 +158,11 @@ struct journal *journal_open(const char *path, const struct blob_hash *key, uint
     return j;
 }
 
-int journal_write(struct journal *j, uint32_t tile, const struct tile_stats *st, const uint8_t *chunk,
-                  uint32_t chunk_size, char *err, size_t errlen)
+uint8_t *journal_record(uint32_t tile, const struct tile_stats *st, const uint8_t *chunk, uint32_t chunk_size,
+                        size_t *size)
 {
-    if (chunk_size > JOURNAL_MAX_CHUNK) {
-        str_fmt(err, errlen, "%s: tile %u chunk of %u bytes is too large", j->path, tile, chunk_size);
-        return -1;
-    }
+    if (chunk_size > JOURNAL_MAX_CHUNK)
+        return NULL;
     size_t n = REC_HEAD + chunk_size + BLOB_HASH_SIZE;
     uint8_t *r = mem_alloc(n);
     bytes_put_u32(r, REC_MAGIC);
@@ -182,17 +181,36 @@ int journal_write(struct journal *j, uint32_t tile, const struct tile_stats *st,
     struct blob_hash sum;
     blob_hash_compute(r, REC_HEAD + chunk_size, &sum);
     memcpy(r + REC_HEAD + chunk_size, sum.bytes, BLOB_HASH_SIZE);
-    int rc = write_all(j->fd, r, n);
-    free(r);
-    if (rc != 0) {
+    *size = n;
+    return r;
+}
+
+int journal_write_record(struct journal *j, uint32_t tile, const uint8_t *record, size_t size, char *err,
+                         size_t errlen)
+{
+    if (write_all(j->fd, record, size) != 0) {
         str_fmt(err, errlen, "%s: cannot append tile %u to the journal: %s", j->path, tile, strerror(errno));
         /* Leave no half record for the next append to follow. */
         if (ftruncate(j->fd, (off_t)j->end) == 0)
             lseek(j->fd, (off_t)j->end, SEEK_SET);
         return -1;
     }
-    j->end += n;
+    j->end += size;
     return 0;
+}
+
+int journal_write(struct journal *j, uint32_t tile, const struct tile_stats *st, const uint8_t *chunk,
+                  uint32_t chunk_size, char *err, size_t errlen)
+{
+    size_t n;
+    uint8_t *r = journal_record(tile, st, chunk, chunk_size, &n);
+    if (!r) {
+        str_fmt(err, errlen, "%s: tile %u chunk of %u bytes is too large", j->path, tile, chunk_size);
+        return -1;
+    }
+    int rc = journal_write_record(j, tile, r, n, err, errlen);
+    free(r);
+    return rc;
 }
 
 int journal_sync(struct journal *j, char *err, size_t errlen)
@@ -248,6 +266,9 @@ static void *syncer_main(void *arg)
             j->sync_errno = e;
         else if (j->synced < target)
             j->synced = target;
+        uint64_t one = 1;
+        if (write(j->done_fd, &one, sizeof one) != sizeof one)
+            log_debug("journal: eventfd write failed");
     }
     pthread_mutex_unlock(&j->lock);
     return NULL;
@@ -262,8 +283,11 @@ int journal_syncer_start(struct journal *j, char *err, size_t errlen)
     j->syncer_stop = 0;
     j->sync_errno = 0;
     j->sync_want = j->synced;
-    int rc = pthread_create(&j->syncer, NULL, syncer_main, j);
+    j->done_fd = eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
+    int rc = j->done_fd < 0 ? errno : pthread_create(&j->syncer, NULL, syncer_main, j);
     if (rc != 0) {
+        if (j->done_fd >= 0)
+            close(j->done_fd);
         pthread_mutex_destroy(&j->lock);
         pthread_cond_destroy(&j->cond);
         str_fmt(err, errlen, "%s: cannot start the journal's sync thread: %s", j->path, strerror(rc));
@@ -285,6 +309,8 @@ void journal_sync_async(struct journal *j)
     pthread_mutex_unlock(&j->lock);
 }
 
+int journal_sync_fd(const struct journal *j) { return j->syncer_on ? j->done_fd : -1; }
+
 int64_t journal_durable(struct journal *j, char *err, size_t errlen)
 {
     if (!j->syncer_on)
@@ -292,6 +318,9 @@ int64_t journal_durable(struct journal *j, char *err, size_t errlen)
     pthread_mutex_lock(&j->lock);
     uint64_t synced = j->synced;
     int e = j->sync_errno;
+    uint64_t v;
+    if (read(j->done_fd, &v, sizeof v) < 0) /* nothing new: EAGAIN */
+        v = 0;
     pthread_mutex_unlock(&j->lock);
     if (e) {
         str_fmt(err, errlen, "%s: cannot sync the journal: %s", j->path, strerror(e));
@@ -309,6 +338,7 @@ static void syncer_stop(struct journal *j)
     pthread_cond_signal(&j->cond);
     pthread_mutex_unlock(&j->lock);
     pthread_join(j->syncer, NULL);
+    close(j->done_fd);
     pthread_mutex_destroy(&j->lock);
     pthread_cond_destroy(&j->cond);
     j->syncer_on = 0;

@@ -24,6 +24,7 @@ struct journal {
     uint64_t sync_want;     /* sync at least this far */
     uint64_t syncs;         /* fdatasync calls made */
     pthread_t syncer;
+    int done_fd;            /* eventfd: readable after a sync of the syncer ended (journal_sync_fd) */
     pthread_mutex_t lock;
     pthread_cond_t cond;
 };
@@ -51,6 +52,13 @@ int journal_append(struct journal *j, uint32_t tile, const struct tile_stats *st
  * handling as journal_append. */
 int journal_write(struct journal *j, uint32_t tile, const struct tile_stats *stats, const uint8_t *chunk,
                   uint32_t chunk_size, char *err, size_t errlen);
+/* The same in two steps: journal_record builds unit tile's record (pure: any thread; NULL
+ * when the chunk is too large; *size its bytes, free the result), journal_write_record
+ * appends it. */
+uint8_t *journal_record(uint32_t tile, const struct tile_stats *stats, const uint8_t *chunk, uint32_t chunk_size,
+                        size_t *size);
+int journal_write_record(struct journal *j, uint32_t tile, const uint8_t *record, size_t size, char *err,
+                         size_t errlen);
 int journal_sync(struct journal *j, char *err, size_t errlen);
 /* Group commit that does not block the caller: a thread runs fdatasync whenever
  * journal_sync_async asked for more than is on disk, so the caller keeps working (and
@@ -60,6 +68,9 @@ int journal_sync(struct journal *j, char *err, size_t errlen);
  * the caller syncs with journal_sync). */
 int journal_syncer_start(struct journal *j, char *err, size_t errlen);
 void journal_sync_async(struct journal *j);
+/* Readable (POLLIN) once a sync of the thread ended since the last journal_durable, so
+ * that the caller's poll wakes for the ACKs it allows; -1 without a thread. */
+int journal_sync_fd(const struct journal *j);
 int64_t journal_durable(struct journal *j, char *err, size_t errlen);
 /* Stops the syncer, closes the file and frees the journal; *jp becomes NULL (NULL is
  * fine). The file stays for the next master. */
