@@ -420,9 +420,9 @@ int main(int argc, char **argv)
     uint64_t last_beat = g.start_ms;
     uint32_t byes = 0;
     /* Ends at every peer's BYE, or once every unit is acknowledged and the master has been
-     * silent for 2 s (it closes with LINGER 0: its BYEs may be lost). */
+     * silent for 1 s (it closes with LINGER 0: its BYEs may be lost). */
     while (byes < n && net_now_ms() - g.start_ms < timeout_ms &&
-           !(g.num_units && g.acked_units == g.num_units && net_now_ms() - g.last_ack_ms > 2000)) {
+           !(g.num_units && g.acked_units == g.num_units && net_now_ms() - g.last_ack_ms > 1000)) {
         if (zmq_poll(items, (int)n, 100) < 0)
             continue;
         for (uint32_t i = 0; i < n; i++) {
