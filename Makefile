@@ -40,7 +40,7 @@ TOOLS      := exrtool junkpeer replay maketex texbench meshload loadpeers
 TOOL_BIN   := $(TOOLS:%=$(BUILD)/%)
 TOOL_OBJ   := $(TOOLS:%=$(BUILD)/obj/tests/tools/%.o)
 
-.PHONY: smoke-sim smoke-demo bench-smoke all deps test layers unit integration demo bench bench-media bench-adaptive bench-materials clean fuzz fuzz-ci tools stress test-slurm test-netns
+.PHONY: smoke-sim smoke-demo bench-smoke all deps test layers unit integration demo bench bench-master bench-media bench-adaptive bench-materials clean fuzz fuzz-ci tools stress test-slurm test-netns
 all: $(BUILD)/master $(BUILD)/worker $(BUILD)/smokesim $(TOOL_BIN)
 
 # Install what is missing; the stamp makes later builds skip the check.
@@ -141,8 +141,14 @@ bench: all
 	BUILD=$(BUILD) sh scripts/bench_media.sh
 	BUILD=$(BUILD) sh scripts/bench_textures.sh
 	BUILD=$(BUILD) sh scripts/bench_io.sh
+	BUILD=$(BUILD) sh scripts/bench_master.sh
 	BUILD=$(BUILD) sh scripts/bench_adaptive.sh
 	BUILD=$(BUILD) sh scripts/bench_materials.sh
+
+# The master's capacity: fake workers (build/loadpeers), blob delivery, scaling, the model
+# (docs/cluster.md); quick run: SPP=8 REPS=1 BCAST_NS="1 4" make bench-master
+bench-master: all
+	BUILD=$(BUILD) sh scripts/bench_master.sh
 
 # Media: error against time for vpt and the photon method against an honest VPT reference
 # (docs/benchmarks.md); quick run: SCENES=fog_spot BUDGETS="2 6" REF_SPP=256 make bench-media

@@ -1,16 +1,18 @@
 /* loadpeers: N fake workers in one process, built from the real protocol code, against a
  * real master over loopback, to measure what one master can serve (docs/cluster.md).
  *   loadpeers ENDPOINT [-n N] [--credits C] [--key KEYFILE MASTER.pub] [--image REF.exr]
- *                      [--master-pid PID] [--no-fetch] [--timeout-ms MS]
+ *                      [--master-pid PID] [--no-fetch] [--hold-ready] [--timeout-ms MS]
  * Each fake worker says HELLO (host "loadpeers-PID", pid = its index: distinct names),
  * fetches every blob the JOB and MAP messages name through BLOB_REQ (hash checked by
- * blob_recv_finish), says READY with C credits and answers every TILE at once with a
+ * blob_recv_finish; none with --no-fetch), says READY with C credits (with --hold-ready
+ * only once every peer has its blobs: a delivery benchmark) and answers every TILE at once with a
  * RESULT whose chunk is a valid EXR tile chunk of the job's layout (tile_image_desc),
  * encoded once per tile at first use: pixels from REF.exr (channels R G B A
  * variance.R/G/B; repeated when the job is larger) or, without it, a smooth deterministic pattern
  * with noise. Heartbeats every second keep it alive; BYE ends a peer. At the end it prints
  *   loadpeers: granted G results R acked A acked_twice D unacked U peers P
- *   loadpeers: fetch N bytes B first_ms F last_ms L
+ *   loadpeers: fetch N bytes B first_ms F last_ms L   (N peers fetched B bytes in all; the
+ *     first and last finished F and L ms after the first JOB arrived)
  *   loadpeers: tiles_per_s X over S s
  *   loadpeers: master_cpu_us_per_tile Y loop_cpu_us_per_tile Z
  *     (with --master-pid: user+sys CPU from the first TILE to the last ACK per unit
@@ -41,13 +43,17 @@ struct lpeer {
     int have_job, ready_sent, bye;
     struct fetch *fetches;
     uint32_t num_fetches;
+    uint64_t job_ms;        /* when its first JOB arrived */
     uint64_t fetch_done_ms; /* when its last blob arrived */
     uint64_t samples_done;
+    int fetched;            /* every blob named so far is in */
 };
 
 static struct {
     struct net_key pub, sec, server;
-    int curve, no_fetch;
+    int curve, no_fetch, hold_ready;
+    struct lpeer *peers;
+    uint32_t num_peers, peers_fetched;
     uint32_t credits;
     const char *image_path;
     float *image;           /* REF.exr pixels, 7 channels */
@@ -211,12 +217,25 @@ static void fetch_pump(struct lpeer *p)
             f->in_flight++;
         }
     }
-    if (!pending && p->have_job && !p->ready_sent) {
+    if (pending || !p->have_job || p->ready_sent)
+        return;
+    if (!p->fetched) {
+        p->fetched = 1;
+        g.peers_fetched++;
+    }
+    /* --hold-ready: nobody renders before every peer has the blobs (a delivery benchmark:
+     * the frame must not end before the last fetch does) */
+    if (g.hold_ready && g.peers_fetched < g.num_peers)
+        return;
+    for (uint32_t i = 0; i < g.num_peers; i++) {
+        struct lpeer *q = g.hold_ready ? &g.peers[i] : p;
+        if (q->ready_sent || !q->fetched)
+            continue;
         struct proto_msg m = {.type = MSG_READY};
-        m.u.ready.job_id = p->job_id;
+        m.u.ready.job_id = q->job_id;
         m.u.ready.credits = g.credits;
-        send_msg(p, &m);
-        p->ready_sent = 1;
+        send_msg(q, &m);
+        q->ready_sent = 1;
     }
 }
 
@@ -291,6 +310,8 @@ static void on_message(struct lpeer *p, const uint8_t *data, size_t size)
         if (job_layout(&m.u.job) != 0)
             exit(1);
         p->job_id = m.u.job.job_id;
+        if (!p->job_ms)
+            p->job_ms = net_now_ms();
         p->have_job = 1;
         p->ready_sent = 0;
         for (uint32_t i = 0; !g.no_fetch && i < m.u.job.num_assets; i++)
@@ -336,7 +357,7 @@ static void on_message(struct lpeer *p, const uint8_t *data, size_t size)
 static void usage(void)
 {
     fprintf(stderr, "usage: loadpeers ENDPOINT [-n N] [--credits C] [--key KEYFILE MASTER.pub] [--image REF.exr]\n"
-                    "                 [--master-pid PID] [--no-fetch] [--timeout-ms MS]\n");
+                    "                 [--master-pid PID] [--no-fetch] [--hold-ready] [--timeout-ms MS]\n");
     exit(2);
 }
 
@@ -359,6 +380,8 @@ int main(int argc, char **argv)
             timeout_ms = strtoull(argv[++i], NULL, 10);
         else if (!strcmp(argv[i], "--no-fetch"))
             g.no_fetch = 1;
+        else if (!strcmp(argv[i], "--hold-ready"))
+            g.hold_ready = 1;
         else if (!strcmp(argv[i], "--key") && i + 2 < argc) {
             char err[256];
             if (net_key_pair_load(argv[i + 1], &g.pub, &g.sec, err, sizeof err) != 0 ||
@@ -391,6 +414,8 @@ int main(int argc, char **argv)
     void *ctx = zmq_ctx_new();
     zmq_ctx_set(ctx, ZMQ_MAX_SOCKETS, (int)n + 16);
     struct lpeer *peers = mem_calloc(n, sizeof *peers);
+    g.peers = peers;
+    g.num_peers = n;
     zmq_pollitem_t *items = mem_calloc(n, sizeof *items);
     char host[64];
     snprintf(host, sizeof host, "loadpeers-%ld", (long)getpid());
@@ -453,11 +478,15 @@ int main(int argc, char **argv)
             }
         }
     }
-    uint64_t first_fetch = 0, last_fetch = 0, fetched = 0;
+    /* Fetch times from the first JOB any peer got (the master has loaded the scene). */
+    uint64_t first_fetch = 0, last_fetch = 0, fetched = 0, first_job = UINT64_MAX;
+    for (uint32_t i = 0; i < n; i++)
+        if (peers[i].job_ms && peers[i].job_ms < first_job)
+            first_job = peers[i].job_ms;
     for (uint32_t i = 0; i < n; i++) {
         if (!peers[i].fetch_done_ms)
             continue;
-        uint64_t d = peers[i].fetch_done_ms - g.start_ms;
+        uint64_t d = peers[i].fetch_done_ms - first_job;
         first_fetch = !fetched || d < first_fetch ? d : first_fetch;
         last_fetch = d > last_fetch ? d : last_fetch;
         fetched++;
