@@ -12,8 +12,8 @@
 #    1, 4, 16 and 64 fake workers (--hold-ready: nobody renders before every peer has it),
 #    time until the last has it (hash checked) and bytes the master sent.
 # 4. Scaling: master + 2 workers x 1 thread against master + 1 worker x 2 threads, Cornell
-#    at SCALE_SPP spp, REPS runs each, alternating, wall time (medians); efficiency = the
-#    second's time / the first's.
+#    at SCALE_SPP spp, REPS runs each, alternating, wall and CPU time (medians); efficiency
+#    = the second's time / the first's.
 # 5. A model of the speed-up at 16, 64, 256 and 1024 workers from 1-3 (see the doc).
 # Environment: SPP (64), N (fake workers, 16), SCALE_SPP (16), REPS (3), BCAST_NS
 # ("1 4 16 64"), MESH_N (880). Output: bench-out/bench_master.txt.
@@ -105,20 +105,22 @@ for n in $BCAST_NS; do
   say "$n | $1 | $2 | $(echo "$1 / $one" | bc -l | xargs printf %.2f)"
 done
 
-# 4. scaling on this machine
+# 4. scaling on this machine: wall and CPU s of each run (time -f "%e %U %S")
 : >"$T/two_workers"
 : >"$T/one_worker"
 for i in $(seq "$REPS"); do
-  wall_secs $BUILD/master scenes/cornell/cornell.json -o "$T/s2.exr" --workers 2 --threads 1 --spp "$SCALE_SPP" >>"$T/two_workers"
-  wall_secs $BUILD/master scenes/cornell/cornell.json -o "$T/s1.exr" --workers 1 --threads 2 --spp "$SCALE_SPP" >>"$T/one_worker"
+  logged /usr/bin/time -f "%e %U %S" -o "$T/t" $BUILD/master scenes/cornell/cornell.json -o "$T/s2.exr" --workers 2 --threads 1 --spp "$SCALE_SPP"
+  cat "$T/t" >>"$T/two_workers"
+  logged /usr/bin/time -f "%e %U %S" -o "$T/t" $BUILD/master scenes/cornell/cornell.json -o "$T/s1.exr" --workers 1 --threads 2 --spp "$SCALE_SPP"
+  cat "$T/t" >>"$T/one_worker"
 done
-t2=$(median <"$T/two_workers")
-t1=$(median <"$T/one_worker")
+w2=$(awk '{print $1}' "$T/two_workers" | median) c2=$(awk '{print $2 + $3}' "$T/two_workers" | median)
+w1=$(awk '{print $1}' "$T/one_worker" | median) c1=$(awk '{print $2 + $3}' "$T/one_worker" | median)
 say ""
-say "scaling: scenes/cornell at $SCALE_SPP spp, wall s (median of $REPS, alternating; the machine has $CORES cores, shared with other work)"
-say "master + 2 workers x 1 thread: $t2 s  [$(tr '\n' ' ' <"$T/two_workers")]"
-say "master + 1 worker x 2 threads: $t1 s  [$(tr '\n' ' ' <"$T/one_worker")]"
-say "efficiency (1 x 2 threads / 2 x 1 thread): $(echo "$t1 / $t2" | bc -l | xargs printf %.3f) (target 0.95)"
+say "scaling: scenes/cornell at $SCALE_SPP spp, median of $REPS alternating runs (the machine has $CORES cores, shared with other work: wall time is noisy, CPU time less so)"
+say "master + 2 workers x 1 thread: wall $w2 s, CPU $c2 s"
+say "master + 1 worker x 2 threads: wall $w1 s, CPU $c1 s"
+say "efficiency (1 worker x 2 threads / 2 workers x 1 thread): wall $(echo "$w1 / $w2" | bc -l | xargs printf %.3f), CPU $(echo "$c1 / $c2" | bc -l | xargs printf %.3f) (target 0.95)"
 
 # 5. the model: a frame of F tiles (32 px, this scene's cost) on W workers: the blob goes
 # out first (point to point: W times the one-worker delivery; broadcast: the 1-worker time),

@@ -207,11 +207,8 @@ static void fetch_pump(struct lpeer *p)
             continue;
         pending = 1;
         while (f->in_flight < FETCH_WINDOW && f->next_offset < f->recv.size) {
-            struct proto_msg m = {.type = MSG_BLOB_REQ};
-            m.u.blob_req.hash = f->recv.hash;
-            m.u.blob_req.offset = f->next_offset;
-            uint64_t left = f->recv.size - f->next_offset;
-            m.u.blob_req.length = (uint32_t)(left < BLOB_CHUNK_SIZE ? left : BLOB_CHUNK_SIZE);
+            struct proto_msg m;
+            proto_blob_req_at(&f->recv.hash, f->recv.size, f->next_offset, &m);
             send_msg(p, &m);
             f->next_offset += m.u.blob_req.length;
             f->in_flight++;
