@@ -950,12 +950,14 @@ static int unit_keep(struct master *m, uint32_t unit, const struct tile_stats *s
     return tile_encode_folded(m, tile);
 }
 
-/* Keeps an accepted unit: journal first (written here, from the record the checker built
- * when it did, synced by commit_and_ack before anyone is told), then the caller marks it
- * done in the scheduler. */
+/* Keeps an accepted unit: journal first (appended here, from the record the checker built
+ * when it did, which this takes over; written and synced by the journal's thread before
+ * commit_and_ack tells anyone), then the caller marks it done in the scheduler. */
 static int tile_accept(struct master *m, uint32_t unit, const struct tile_stats *st, const uint8_t *chunk,
-                       size_t chunk_size, const uint8_t *record, size_t record_size)
+                       size_t chunk_size, uint8_t *record, size_t record_size)
 {
+    if (!m->journal)
+        free(record);
     if (m->journal) {
         char err[512];
         if (record ? journal_write_record(m->journal, unit, record, record_size, err, sizeof err) != 0
@@ -1112,7 +1114,7 @@ static void result_nonfinite(struct master *m, int32_t pi, uint32_t u)
 
 static void result_verdict(struct master *m, int32_t pi, uint32_t unit, uint64_t job_id, uint32_t frame,
                            const struct tile_stats *st, const uint8_t *chunk, uint32_t chunk_size, int sane,
-                           const char *err, const uint8_t *record, size_t record_size);
+                           const char *err, uint8_t *record, size_t record_size);
 
 /* Whether a result for unit (attempt) of peer pi counts now: CHECK, or it was counted
  * (duplicate: acknowledged when we have the unit; stale: dropped). */
@@ -1198,8 +1200,10 @@ static void result_checked(struct master *m, struct check_item *it)
     float *px = m->decode_scratch;
     m->decode_scratch = it->pixels;
     it->pixels = px;
+    uint8_t *record = it->record; /* result_verdict takes it over */
+    it->record = NULL;
     result_verdict(m, pi, it->unit, it->job_id, it->frame, &it->stats, it->chunk, it->chunk_size, it->verdict,
-                   it->err, it->record, it->record_size);
+                   it->err, record, it->record_size);
 }
 
 /* Takes every verdict the pool has ready (wait: first every one still being checked). */
@@ -1222,7 +1226,7 @@ static void checks_drain(struct master *m, int wait)
  * towards the worker's ban). Pixels decoded in decode_scratch. */
 static void result_verdict(struct master *m, int32_t pi, uint32_t unit, uint64_t job_id, uint32_t frame,
                            const struct tile_stats *st, const uint8_t *chunk, uint32_t chunk_size, int sane,
-                           const char *err, const uint8_t *record, size_t record_size)
+                           const char *err, uint8_t *record, size_t record_size)
 {
     struct peer *p = &m->peers[pi];
     if (sane == -1) {
