@@ -16,7 +16,7 @@
 #    = the second's time / the first's.
 # 5. A model of the speed-up at 16, 64, 256 and 1024 workers from 1-3 (see the doc).
 # Environment: SPP (64), N (fake workers, 16), SCALE_SPP (16), REPS (3), BCAST_NS
-# ("1 4 16 64"), MESH_N (880). Output: bench-out/bench_master.txt.
+# ("1 4 16 64"), MESH_N (880); WT_US and LOOP_US (both: skip parts 1-2, use these). Output: bench-out/bench_master.txt.
 # Usage: BUILD=build sh scripts/bench_master.sh
 set -eu
 . scripts/lib.sh
@@ -32,7 +32,9 @@ L=$BUILD/loadpeers
 : >"$R"
 say() { echo "$*" | tee -a "$R"; }
 
-# 1. the worker's time per tile
+# 1. the worker's time per tile (WT_US and LOOP_US given: parts 1 and 2 are skipped, the
+# rest uses them)
+if [ -z "${WT_US:-}" ] || [ -z "${LOOP_US:-}" ]; then
 cpu=$(cpu_secs $BUILD/master scenes/cornell/cornell.json -o "$T/ref.exr" --workers 1 --threads 1 --spp "$SPP" --tile 32)
 tiles=$(( (512 / 32) * (512 / 32) ))
 wt_us=$(echo "$cpu * 1000000 / $tiles" | bc -l)
@@ -78,6 +80,10 @@ for tile in 16 32 64; do
   done
 done
 say "headline (32 px, tcp + CurveZMQ, journal): the loop takes $loop32 us per tile: one master keeps $(printf %.0f "$busy32") workers busy (target 1000)"
+else
+  wt_us=$WT_US loop32=$LOOP_US
+  say "given: worker $wt_us us per 32 px tile, the master's loop $loop32 us per tile"
+fi
 
 # 3. blob delivery, point to point
 mkdir -p "$T/bc"
@@ -94,7 +100,10 @@ say "workers | last has it (s) | bytes sent by the master | ratio to 1 worker"
 one=
 for n in $BCAST_NS; do
   rm -f "$T/o.exr"*
-  $BUILD/master "$T/bc/tiny.json" -o "$T/o.exr" --workers 0 --bind "ipc://$T/b.sock" --no-journal >"$T/mlog" 2>&1 &
+  # a long heartbeat timeout: on a loaded machine 64 fetches at once can delay a fake
+  # worker's heartbeats past the default 10 s
+  $BUILD/master "$T/bc/tiny.json" -o "$T/o.exr" --workers 0 --bind "ipc://$T/b.sock" --no-journal \
+    --worker-timeout-ms 120000 >"$T/mlog" 2>&1 &
   mp=$!
   $L "ipc://$T/b.sock" -n "$n" --hold-ready >"$T/llog" 2>&1 || { cat "$T/llog" "$T/mlog" >&2; exit 1; }
   wait $mp
