@@ -111,7 +111,7 @@ static void free_list(struct check_item *it)
 {
     while (it) {
         struct check_item *next = it->next;
-        free(it->payload);
+        net_payload_free(&it->payload);
         free(it->record);
         free(it->pixels);
         free(it);
@@ -179,9 +179,8 @@ struct check_item *checker_item_new(struct checker *c)
 
 void checker_item_free(struct checker *c, struct check_item *it)
 {
-    free(it->payload);
+    net_payload_free(&it->payload);
     free(it->record);
-    it->payload = NULL;
     it->record = NULL;
     it->next = c->free_items;
     c->free_items = it;

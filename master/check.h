@@ -38,7 +38,7 @@ struct check_item {
     uint64_t job_id;
     uint32_t frame, unit, attempt;
     struct tile_stats stats;
-    uint8_t *payload;
+    struct net_payload *payload;
     const uint8_t *chunk;
     uint32_t chunk_size;
     float *pixels;            /* decoded, tile_size^2 x FOLD_MAX_CHANNELS floats */

@@ -921,18 +921,27 @@ static int adapt_round_end(struct master *m)
 }
 
 /* A unit whose chunk chunk_is_sane has just decoded into decode_scratch: with one pass
- * the chunk is the tile's; with several it is folded (fold.h), and once the tile's last
- * pass is in (adaptive: once the rounds end), the folded tile is encoded as the tile's
- * chunk. */
+ * the chunk is the tile's (held: the received frame it lies in, or NULL; the tile takes
+ * the frame over instead of copying the chunk); with several it is folded (fold.h), and
+ * once the tile's last pass is in (adaptive: once the rounds end), the folded tile is
+ * encoded as the tile's chunk. */
 static int unit_keep(struct master *m, uint32_t unit, const struct tile_stats *st, const uint8_t *chunk,
-                     size_t chunk_size)
+                     size_t chunk_size, struct net_payload **held)
 {
     uint32_t tile = unit_tile(m, unit);
     tile_stats_add(&m->stats, st);
     if (m->passes == 1) {
-        m->chunks[tile].data = mem_alloc(chunk_size ? chunk_size : 1);
-        memcpy(m->chunks[tile].data, chunk, chunk_size);
-        m->chunks[tile].size = chunk_size;
+        struct output_chunk *c = &m->chunks[tile];
+        if (held && *held) { /* chunk lies in the received frame: kept as it is, not copied */
+            uint8_t *base = net_payload_data(*held);
+            c->data = base + (chunk - base);
+            c->payload = *held;
+            *held = NULL;
+        } else {
+            c->data = mem_alloc(chunk_size ? chunk_size : 1);
+            memcpy(c->data, chunk, chunk_size);
+        }
+        c->size = chunk_size;
         return 0;
     }
     if (m->adapt) {
@@ -954,7 +963,7 @@ static int unit_keep(struct master *m, uint32_t unit, const struct tile_stats *s
  * when it did, which this takes over; written and synced by the journal's thread before
  * commit_and_ack tells anyone), then the caller marks it done in the scheduler. */
 static int tile_accept(struct master *m, uint32_t unit, const struct tile_stats *st, const uint8_t *chunk,
-                       size_t chunk_size, uint8_t *record, size_t record_size)
+                       size_t chunk_size, uint8_t *record, size_t record_size, struct net_payload **held)
 {
     if (!m->journal)
         free(record);
@@ -967,7 +976,7 @@ static int tile_accept(struct master *m, uint32_t unit, const struct tile_stats 
         }
     }
     m->c.tiles_done++;
-    return unit_keep(m, unit, st, chunk, chunk_size);
+    return unit_keep(m, unit, st, chunk, chunk_size, held);
 }
 
 /* An invalid tile from peer pi was counted by the scheduler; a ban (SCHED_FAILS_TO_BAN in
@@ -1053,7 +1062,7 @@ static void on_kept(struct master *m, int32_t pi, const struct msg_kept *k)
         peer_sent_invalid(m, pi, banned, &ev);
         return;
     }
-    if (tile_accept(m, k->tile, &k->stats, k->chunk, k->chunk_size, NULL, 0) != 0)
+    if (tile_accept(m, k->tile, &k->stats, k->chunk, k->chunk_size, NULL, 0, NULL) != 0)
         return;
     sched_kept_valid(m->sched, pi, k->tile);
     ack_push(m, pi, k->job_id, k->frame, k->tile);
@@ -1114,7 +1123,7 @@ static void result_nonfinite(struct master *m, int32_t pi, uint32_t u)
 
 static void result_verdict(struct master *m, int32_t pi, uint32_t unit, uint64_t job_id, uint32_t frame,
                            const struct tile_stats *st, const uint8_t *chunk, uint32_t chunk_size, int sane,
-                           const char *err, uint8_t *record, size_t record_size);
+                           const char *err, uint8_t *record, size_t record_size, struct net_payload **held);
 
 /* Whether a result for unit (attempt) of peer pi counts now: CHECK, or it was counted
  * (duplicate: acknowledged when we have the unit; stale: dropped). */
@@ -1173,14 +1182,14 @@ static void on_result(struct master *m, int32_t pi, const struct msg_result *r, 
         it->stats = r->stats;
         it->chunk = r->chunk;
         it->chunk_size = r->chunk_size;
-        it->payload = f->data; /* the chunk lives in it */
-        f->data = NULL;
+        it->payload = net_frame_take(f); /* the chunk lives in it */
         checker_submit(m->checker, it);
         return;
     }
     char err[256];
     int sane = chunk_is_sane(m, r->tile, r->chunk, r->chunk_size, err, sizeof err);
-    result_verdict(m, pi, r->tile, r->job_id, r->frame, &r->stats, r->chunk, r->chunk_size, sane, err, NULL, 0);
+    result_verdict(m, pi, r->tile, r->job_id, r->frame, &r->stats, r->chunk, r->chunk_size, sane, err, NULL, 0,
+                   &f->payload);
 }
 
 /* A checked item from the pool: the scheduler may have moved on while it was checked (the
@@ -1203,7 +1212,7 @@ static void result_checked(struct master *m, struct check_item *it)
     uint8_t *record = it->record; /* result_verdict takes it over */
     it->record = NULL;
     result_verdict(m, pi, it->unit, it->job_id, it->frame, &it->stats, it->chunk, it->chunk_size, it->verdict,
-                   it->err, record, it->record_size);
+                   it->err, record, it->record_size, &it->payload);
 }
 
 /* Takes every verdict the pool has ready (wait: first every one still being checked). */
@@ -1226,7 +1235,7 @@ static void checks_drain(struct master *m, int wait)
  * towards the worker's ban). Pixels decoded in decode_scratch. */
 static void result_verdict(struct master *m, int32_t pi, uint32_t unit, uint64_t job_id, uint32_t frame,
                            const struct tile_stats *st, const uint8_t *chunk, uint32_t chunk_size, int sane,
-                           const char *err, uint8_t *record, size_t record_size)
+                           const char *err, uint8_t *record, size_t record_size, struct net_payload **held)
 {
     struct peer *p = &m->peers[pi];
     if (sane == -1) {
@@ -1240,7 +1249,7 @@ static void result_verdict(struct master *m, int32_t pi, uint32_t unit, uint64_t
         peer_sent_invalid(m, pi, banned, &ev);
         return;
     }
-    if (tile_accept(m, unit, st, chunk, chunk_size, record, record_size) != 0)
+    if (tile_accept(m, unit, st, chunk, chunk_size, record, record_size, held) != 0)
         return;
     int32_t wrong = m->sched->tiles[unit].nonfinite_by - 1;
     if (wrong >= 0 && wrong != pi && !m->sched->workers[wrong].gone) {
@@ -1370,7 +1379,7 @@ static int replay_tile(void *ctx, uint32_t unit, const struct tile_stats *st, co
                  unit_tile(m, unit), unit_pass(m, unit), err);
         return -1;
     }
-    if (unit_keep(m, unit, st, chunk, size) != 0)
+    if (unit_keep(m, unit, st, chunk, size, NULL) != 0)
         return -1;
     sched_tile_set_done(m->sched, unit);
     m->c.tiles_from_journal++;
@@ -1926,8 +1935,7 @@ static int frame_begin(struct master *m, uint32_t frames_started)
         maps_start(m, m->map_per_frame ? m->frame : m->map_frame) != 0)
         return -1;
     for (uint32_t t = 0; t < m->num_tiles; t++)
-        free(m->chunks[t].data);
-    memset(m->chunks, 0, sizeof *m->chunks * m->num_tiles);
+        output_chunk_free(&m->chunks[t]);
     sched_frame_begin(m->sched);
     if (m->photon_maps) /* a pass's units go out once its map is published */
         sched_release(m->sched, m->maps_published * m->num_tiles);
@@ -2236,7 +2244,7 @@ done:
     if (rc != 0 && m.fatal[0])
         log_error("%s", m.fatal);
     for (uint32_t t = 0; t < m.num_tiles && m.chunks; t++)
-        free(m.chunks[t].data);
+        output_chunk_free(&m.chunks[t]);
     free(m.chunks);
     sched_free(&m.sched);
     for (uint32_t i = 0; i < m.num_peers; i++) {

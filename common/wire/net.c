@@ -52,6 +52,8 @@ static void drain(void *sock)
     }
 }
 
+struct net_payload { zmq_msg_t msg; };
+
 int net_recv(void *sock, int with_identity, struct net_frame *f)
 {
     memset(f, 0, sizeof *f);
@@ -86,16 +88,41 @@ int net_recv(void *sock, int with_identity, struct net_frame *f)
     const char *uid = zmq_msg_gets(&m, "User-Id");
     if (uid && strlen(uid) == NET_Z85_KEY_LEN)
         memcpy(f->user_id, uid, NET_Z85_KEY_LEN + 1);
-    f->size = zmq_msg_size(&m);
-    f->data = mem_alloc(f->size ? f->size : 1);
-    memcpy(f->data, zmq_msg_data(&m), f->size);
+    /* The message itself becomes the payload (moved, not copied; a heap zmq_msg_t, so
+     * that data stays where it is even for libzmq's small messages held inside it). */
+    f->payload = mem_alloc(sizeof *f->payload);
+    zmq_msg_init(&f->payload->msg);
+    zmq_msg_move(&f->payload->msg, &m);
     zmq_msg_close(&m);
+    f->size = zmq_msg_size(&f->payload->msg);
+    f->data = zmq_msg_data(&f->payload->msg);
     return 1;
+}
+
+void net_payload_free(struct net_payload **p)
+{
+    if (!*p)
+        return;
+    zmq_msg_close(&(*p)->msg);
+    free(*p);
+    *p = NULL;
+}
+
+uint8_t *net_payload_data(struct net_payload *p)
+{
+    return zmq_msg_data(&p->msg);
+}
+
+struct net_payload *net_frame_take(struct net_frame *f)
+{
+    struct net_payload *p = f->payload;
+    f->payload = NULL;
+    return p;
 }
 
 void net_frame_fini(struct net_frame *f)
 {
-    free(f->data);
+    net_payload_free(&f->payload);
     f->data = NULL;
     f->size = 0;
 }
