@@ -53,6 +53,7 @@ static void drain(void *sock)
 }
 
 struct net_payload { zmq_msg_t msg; };
+#define NET_RECV_COPY_BELOW 8192 /* libzmq's default ZMQ_IN_BATCH_SIZE */
 
 int net_recv(void *sock, int with_identity, struct net_frame *f)
 {
@@ -88,11 +89,20 @@ int net_recv(void *sock, int with_identity, struct net_frame *f)
     const char *uid = zmq_msg_gets(&m, "User-Id");
     if (uid && strlen(uid) == NET_Z85_KEY_LEN)
         memcpy(f->user_id, uid, NET_Z85_KEY_LEN + 1);
-    /* The message itself becomes the payload (moved, not copied; a heap zmq_msg_t, so
-     * that data stays where it is even for libzmq's small messages held inside it). */
+    /* The message itself becomes the payload (moved, not copied), in a heap zmq_msg_t so
+     * that data stays where it is. Except a small one: libzmq receives into batches of
+     * 8 KiB (ZMQ_IN_BATCH_SIZE) and hands a message that fits in one out as a slice of it,
+     * so that holding the message would hold the whole batch (the master keeps chunks for
+     * the frame: 16 px tiles over ipc took twice the memory); those are copied. */
     f->payload = mem_alloc(sizeof *f->payload);
-    zmq_msg_init(&f->payload->msg);
-    zmq_msg_move(&f->payload->msg, &m);
+    size_t n = zmq_msg_size(&m);
+    if (n < NET_RECV_COPY_BELOW) {
+        CHECK(zmq_msg_init_size(&f->payload->msg, n) == 0);
+        memcpy(zmq_msg_data(&f->payload->msg), zmq_msg_data(&m), n);
+    } else {
+        zmq_msg_init(&f->payload->msg);
+        zmq_msg_move(&f->payload->msg, &m);
+    }
     zmq_msg_close(&m);
     f->size = zmq_msg_size(&f->payload->msg);
     f->data = zmq_msg_data(&f->payload->msg);
