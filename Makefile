@@ -38,11 +38,11 @@ FFTW_LIBS  := -lfftw3f_threads -lfftw3f -lstdc++
 UNIT_SRC   := $(wildcard tests/unit/test_*.c) tests/unit/helpers.c
 UNIT_OBJ   := $(UNIT_SRC:%.c=$(BUILD)/obj/%.o)
 # Test tools: one source each in tests/tools/, linked with the library.
-TOOLS      := exrtool junkpeer replay maketex texbench meshload codecbench
+TOOLS      := exrtool junkpeer replay maketex texbench meshload codecbench loadpeers
 TOOL_BIN   := $(TOOLS:%=$(BUILD)/%)
 TOOL_OBJ   := $(TOOLS:%=$(BUILD)/obj/tests/tools/%.o)
 
-.PHONY: smoke-sim smoke-demo showcase-assets showcase showcase-movie showcase-bunny bench-smoke all deps test layers unit integration demo bench bench-motion bench-media bench-adaptive bench-materials clean fuzz fuzz-ci tools stress test-slurm test-netns
+.PHONY: smoke-sim smoke-demo showcase-assets showcase showcase-movie showcase-bunny bench-smoke all deps test layers unit integration demo bench bench-master bench-motion bench-media bench-adaptive bench-materials clean fuzz fuzz-ci tools stress test-slurm test-netns
 all: $(BUILD)/master $(BUILD)/worker $(BUILD)/smokesim $(TOOL_BIN)
 
 # Install what is missing; the stamp makes later builds skip the check.
@@ -166,6 +166,7 @@ bench: all
 	BUILD=$(BUILD) sh scripts/bench_media.sh
 	BUILD=$(BUILD) sh scripts/bench_textures.sh
 	BUILD=$(BUILD) sh scripts/bench_io.sh
+	BUILD=$(BUILD) sh scripts/bench_master.sh
 	BUILD=$(BUILD) sh scripts/bench_adaptive.sh
 	BUILD=$(BUILD) sh scripts/bench_materials.sh
 
@@ -174,6 +175,11 @@ bench: all
 bench-motion: all
 	BUILD=$(BUILD) sh scripts/bench_motion.sh
 	BUILD=$(BUILD) sh scripts/bench_motion_blur.sh
+
+# The master's capacity: fake workers (build/loadpeers), blob delivery, scaling, the model
+# (docs/cluster.md); quick run: SPP=8 REPS=1 BCAST_NS="1 4" make bench-master
+bench-master: all
+	BUILD=$(BUILD) sh scripts/bench_master.sh
 
 # Media: error against time for vpt and the photon method against an honest VPT reference
 # (docs/benchmarks.md); quick run: SCENES=fog_spot BUDGETS="2 6" REF_SPP=256 make bench-media

@@ -14,6 +14,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <sys/eventfd.h>
 #include <unistd.h>
 
 #define HEADER_BODY (8 + BLOB_HASH_SIZE + 4)
@@ -74,7 +75,7 @@ static int start_fresh(struct journal *j, const struct blob_hash *key, uint32_t 
         return -1;
     }
     asset_fsync_parent(j->path);
-    j->end = j->synced = HEADER_SIZE;
+    j->end = j->written = j->synced = HEADER_SIZE;
     return 0;
 }
 
@@ -153,17 +154,15 @@ struct journal *journal_open(const char *path, const struct blob_hash *key, uint
         journal_free(&j);
         return NULL;
     }
-    j->end = j->synced = pos;
+    j->end = j->written = j->synced = pos;
     return j;
 }
 
-int journal_write(struct journal *j, uint32_t tile, const struct tile_stats *st, const uint8_t *chunk,
-                  uint32_t chunk_size, char *err, size_t errlen)
+uint8_t *journal_record(uint32_t tile, const struct tile_stats *st, const uint8_t *chunk, uint32_t chunk_size,
+                        size_t *size)
 {
-    if (chunk_size > JOURNAL_MAX_CHUNK) {
-        str_fmt(err, errlen, "%s: tile %u chunk of %u bytes is too large", j->path, tile, chunk_size);
-        return -1;
-    }
+    if (chunk_size > JOURNAL_MAX_CHUNK)
+        return NULL;
     size_t n = REC_HEAD + chunk_size + BLOB_HASH_SIZE;
     uint8_t *r = mem_alloc(n);
     bytes_put_u32(r, REC_MAGIC);
@@ -182,17 +181,57 @@ int journal_write(struct journal *j, uint32_t tile, const struct tile_stats *st,
     struct blob_hash sum;
     blob_hash_compute(r, REC_HEAD + chunk_size, &sum);
     memcpy(r + REC_HEAD + chunk_size, sum.bytes, BLOB_HASH_SIZE);
-    int rc = write_all(j->fd, r, n);
-    free(r);
-    if (rc != 0) {
-        str_fmt(err, errlen, "%s: cannot append tile %u to the journal: %s", j->path, tile, strerror(errno));
-        /* Leave no half record for the next append to follow. */
-        if (ftruncate(j->fd, (off_t)j->end) == 0)
-            lseek(j->fd, (off_t)j->end, SEEK_SET);
+    *size = n;
+    return r;
+}
+
+/* Appends a record to the file (the writing thread's side). 0, or errno with the file cut
+ * back to its last intact record (no half record for the next append to follow). */
+static int append_now(struct journal *j, const uint8_t *record, size_t size)
+{
+    if (write_all(j->fd, record, size) != 0) {
+        int e = errno;
+        if (ftruncate(j->fd, (off_t)j->written) == 0)
+            lseek(j->fd, (off_t)j->written, SEEK_SET);
+        return e;
+    }
+    j->written += size;
+    return 0;
+}
+
+int journal_write_record(struct journal *j, uint32_t tile, uint8_t *record, size_t size, char *err,
+                         size_t errlen)
+{
+    if (j->syncer_on) {
+        struct journal_rec *r = mem_alloc(sizeof *r);
+        *r = (struct journal_rec){record, size, tile, NULL};
+        pthread_mutex_lock(&j->lock);
+        *j->queue_tail = r;
+        j->queue_tail = &r->next;
+        j->end += size;
+        pthread_mutex_unlock(&j->lock);
+        return 0;
+    }
+    int e = append_now(j, record, size);
+    free(record);
+    if (e) {
+        str_fmt(err, errlen, "%s: cannot append tile %u to the journal: %s", j->path, tile, strerror(e));
         return -1;
     }
-    j->end += n;
+    j->end = j->written;
     return 0;
+}
+
+int journal_write(struct journal *j, uint32_t tile, const struct tile_stats *st, const uint8_t *chunk,
+                  uint32_t chunk_size, char *err, size_t errlen)
+{
+    size_t n;
+    uint8_t *r = journal_record(tile, st, chunk, chunk_size, &n);
+    if (!r) {
+        str_fmt(err, errlen, "%s: tile %u chunk of %u bytes is too large", j->path, tile, chunk_size);
+        return -1;
+    }
+    return journal_write_record(j, tile, r, n, err, errlen);
 }
 
 int journal_sync(struct journal *j, char *err, size_t errlen)
@@ -208,26 +247,29 @@ int journal_sync(struct journal *j, char *err, size_t errlen)
         j->synced = j->end;
         return 0;
     }
-    /* With a syncer: sync here too (fdatasync may run in two threads at once). */
-    uint64_t target = j->end;
+    /* With a syncer: it writes what is queued and syncs; wait for it. */
     pthread_mutex_lock(&j->lock);
-    int done = j->synced >= target, e = j->sync_errno;
-    if (!done && !e)
-        j->syncs++;
-    pthread_mutex_unlock(&j->lock);
-    if (!done && !e && fdatasync(j->fd) != 0)
-        e = errno;
-    pthread_mutex_lock(&j->lock);
-    if (e && !j->sync_errno)
-        j->sync_errno = e;
-    else if (!e && j->synced < target)
-        j->synced = target;
-    pthread_mutex_unlock(&j->lock);
-    if (e) {
-        str_fmt(err, errlen, "%s: cannot sync the journal: %s", j->path, strerror(e));
-        return -1;
+    if (j->sync_want < j->end) {
+        j->sync_want = j->end;
+        pthread_cond_signal(&j->cond);
     }
-    return 0;
+    while (!j->sync_errno && j->synced < j->end)
+        pthread_cond_wait(&j->done_cond, &j->lock);
+    int e = j->sync_errno;
+    if (e)
+        str_fmt(err, errlen, "%s", j->sync_error);
+    pthread_mutex_unlock(&j->lock);
+    return e ? -1 : 0;
+}
+
+static void free_queue(struct journal_rec *r)
+{
+    while (r) {
+        struct journal_rec *next = r->next;
+        free(r->data);
+        free(r);
+        r = next;
+    }
 }
 
 static void *syncer_main(void *arg)
@@ -239,15 +281,34 @@ static void *syncer_main(void *arg)
             pthread_cond_wait(&j->cond, &j->lock);
         if (j->syncer_stop)
             break;
-        uint64_t target = j->sync_want;
+        /* Every record of the sync_want bytes is written already or in the queue now. */
+        struct journal_rec *q = j->queue;
+        j->queue = NULL;
+        j->queue_tail = &j->queue;
         j->syncs++;
         pthread_mutex_unlock(&j->lock);
-        int rc = fdatasync(j->fd), e = errno;
+        int e = 0;
+        uint32_t tile = 0;
+        for (struct journal_rec *r = q; r && !e; r = r->next)
+            if ((e = append_now(j, r->data, r->size)) != 0)
+                tile = r->tile;
+        free_queue(q);
+        char why[600];
+        if (e)
+            str_fmt(why, sizeof why, "%s: cannot append tile %u to the journal: %s", j->path, tile, strerror(e));
+        else if (fdatasync(j->fd) != 0 && (e = errno) != 0)
+            str_fmt(why, sizeof why, "%s: cannot sync the journal: %s", j->path, strerror(e));
         pthread_mutex_lock(&j->lock);
-        if (rc != 0)
+        if (e) {
             j->sync_errno = e;
-        else if (j->synced < target)
-            j->synced = target;
+            memcpy(j->sync_error, why, sizeof why);
+        } else if (j->synced < j->written) {
+            j->synced = j->written;
+        }
+        pthread_cond_broadcast(&j->done_cond);
+        uint64_t one = 1;
+        if (write(j->done_fd, &one, sizeof one) != sizeof one)
+            log_debug("journal: eventfd write failed");
     }
     pthread_mutex_unlock(&j->lock);
     return NULL;
@@ -259,13 +320,21 @@ int journal_syncer_start(struct journal *j, char *err, size_t errlen)
         return 0;
     pthread_mutex_init(&j->lock, NULL);
     pthread_cond_init(&j->cond, NULL);
+    pthread_cond_init(&j->done_cond, NULL);
+    j->queue = NULL;
+    j->queue_tail = &j->queue;
+    j->written = j->end;
     j->syncer_stop = 0;
     j->sync_errno = 0;
     j->sync_want = j->synced;
-    int rc = pthread_create(&j->syncer, NULL, syncer_main, j);
+    j->done_fd = eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
+    int rc = j->done_fd < 0 ? errno : pthread_create(&j->syncer, NULL, syncer_main, j);
     if (rc != 0) {
+        if (j->done_fd >= 0)
+            close(j->done_fd);
         pthread_mutex_destroy(&j->lock);
         pthread_cond_destroy(&j->cond);
+        pthread_cond_destroy(&j->done_cond);
         str_fmt(err, errlen, "%s: cannot start the journal's sync thread: %s", j->path, strerror(rc));
         return -1;
     }
@@ -285,6 +354,8 @@ void journal_sync_async(struct journal *j)
     pthread_mutex_unlock(&j->lock);
 }
 
+int journal_sync_fd(const struct journal *j) { return j->syncer_on ? j->done_fd : -1; }
+
 int64_t journal_durable(struct journal *j, char *err, size_t errlen)
 {
     if (!j->syncer_on)
@@ -292,9 +363,14 @@ int64_t journal_durable(struct journal *j, char *err, size_t errlen)
     pthread_mutex_lock(&j->lock);
     uint64_t synced = j->synced;
     int e = j->sync_errno;
+    uint64_t v;
+    if (read(j->done_fd, &v, sizeof v) < 0) /* nothing new: EAGAIN */
+        v = 0;
     pthread_mutex_unlock(&j->lock);
     if (e) {
-        str_fmt(err, errlen, "%s: cannot sync the journal: %s", j->path, strerror(e));
+        pthread_mutex_lock(&j->lock);
+        str_fmt(err, errlen, "%s", j->sync_error);
+        pthread_mutex_unlock(&j->lock);
         return -1;
     }
     return (int64_t)synced;
@@ -309,6 +385,12 @@ static void syncer_stop(struct journal *j)
     pthread_cond_signal(&j->cond);
     pthread_mutex_unlock(&j->lock);
     pthread_join(j->syncer, NULL);
+    close(j->done_fd);
+    free_queue(j->queue);
+    j->queue = NULL;
+    j->queue_tail = &j->queue;
+    j->end = j->written;
+    pthread_cond_destroy(&j->done_cond);
     pthread_mutex_destroy(&j->lock);
     pthread_cond_destroy(&j->cond);
     j->syncer_on = 0;

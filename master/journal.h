@@ -14,9 +14,13 @@
 
 #define JOURNAL_MAX_CHUNK (48u * 1024u * 1024u)
 
+/* A record waiting for the sync thread to write it. */
+struct journal_rec { uint8_t *data; size_t size; uint32_t tile; struct journal_rec *next; };
+
 struct journal {
     int fd;
-    uint64_t end;           /* bytes of intact records written (the next append starts here) */
+    uint64_t end;           /* bytes of records appended: written, or queued for the sync thread */
+    uint64_t written;       /* bytes of intact records in the file (the sync thread's, while it runs) */
     uint64_t synced;        /* bytes known to be on disk (under lock while a syncer runs) */
     char path[4096];
     /* the background syncer (journal_syncer_start) */
@@ -24,6 +28,10 @@ struct journal {
     uint64_t sync_want;     /* sync at least this far */
     uint64_t syncs;         /* fdatasync calls made */
     pthread_t syncer;
+    struct journal_rec *queue, **queue_tail; /* records for the thread to write, in order (under lock) */
+    char sync_error[600];   /* with sync_errno: what failed */
+    pthread_cond_t done_cond; /* a round of the thread ended */
+    int done_fd;            /* eventfd: readable after a sync of the syncer ended (journal_sync_fd) */
     pthread_mutex_t lock;
     pthread_cond_t cond;
 };
@@ -51,15 +59,29 @@ int journal_append(struct journal *j, uint32_t tile, const struct tile_stats *st
  * handling as journal_append. */
 int journal_write(struct journal *j, uint32_t tile, const struct tile_stats *stats, const uint8_t *chunk,
                   uint32_t chunk_size, char *err, size_t errlen);
+/* The same in two steps: journal_record builds unit tile's record (pure: any thread; NULL
+ * when the chunk is too large; *size its bytes, free the result), journal_write_record
+ * appends it and takes it over. With the sync thread running, both only queue the record:
+ * the thread writes it before its next fdatasync (in order), so the caller never waits
+ * for the file; a failed write (a full disk) is then reported by journal_durable and
+ * journal_sync, naming the tile, and the file is cut back to its last intact record. */
+uint8_t *journal_record(uint32_t tile, const struct tile_stats *stats, const uint8_t *chunk, uint32_t chunk_size,
+                        size_t *size);
+int journal_write_record(struct journal *j, uint32_t tile, uint8_t *record, size_t size, char *err,
+                         size_t errlen);
 int journal_sync(struct journal *j, char *err, size_t errlen);
-/* Group commit that does not block the caller: a thread runs fdatasync whenever
- * journal_sync_async asked for more than is on disk, so the caller keeps working (and
- * handing out tiles) while the disk catches up. journal_durable returns the bytes known
- * to be on disk, or -1 with the reason once a sync failed. journal_sync (blocking) works
- * alongside; journal_free stops the thread. 0, or -1 when no thread can start (then
+/* Group commit that does not block the caller: a thread writes the queued records and
+ * runs fdatasync whenever journal_sync_async asked for more than is on disk, so the caller
+ * keeps working (and handing out tiles) while the disk catches up. journal_durable returns
+ * the bytes known to be on disk, or -1 with the reason once a write or sync failed.
+ * journal_sync (blocking) waits for the thread to get that far; journal_free stops it
+ * (records still queued are dropped, as a killed master's would be). 0, or -1 when no thread can start (then
  * the caller syncs with journal_sync). */
 int journal_syncer_start(struct journal *j, char *err, size_t errlen);
 void journal_sync_async(struct journal *j);
+/* Readable (POLLIN) once a sync of the thread ended since the last journal_durable, so
+ * that the caller's poll wakes for the ACKs it allows; -1 without a thread. */
+int journal_sync_fd(const struct journal *j);
 int64_t journal_durable(struct journal *j, char *err, size_t errlen);
 /* Stops the syncer, closes the file and frees the journal; *jp becomes NULL (NULL is
  * fine). The file stays for the next master. */

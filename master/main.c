@@ -38,6 +38,8 @@ static void usage(FILE *f)
             "                         output exists with the same scene and settings are skipped\n"
             "  --tiles N[,M..]        render only these tiles (the others are left black); no journal\n"
             "  --no-journal           do not keep OUT.exr.journal (a killed master then starts over)\n"
+            "  --check-threads N      threads that decode-check result chunks off the master's loop\n"
+            "                         (default: cores - 1, 1..8; 0 = in the loop)\n"
             "  --curve-secret KEYFILE CurveZMQ: the master's key pair (from --keygen); needs --allow\n"
             "  --allow FILE           public keys of the workers allowed in, one per line\n"
             "                         (a tcp:// --bind without them: CurveZMQ with throw-away keys, so only\n"
@@ -142,6 +144,7 @@ int main(int argc, char **argv)
         NUM_OPT("--worker-timeout-ms", 100, 86400000, o.worker_timeout_ms, dummy)
         NUM_OPT("--stall-ms", 100, 86400000, o.stall_ms, dummy)
         NUM_OPT("--photon-threads", 1, 1024, o.photon_threads, dummy)
+        NUM_OPT("--check-threads", 0, 64, o.check_threads, o.have_check_threads)
         NUM_OPT("--photons", 0, 1ull << 32, o.photons, o.have_photons)
         NUM_OPT("--passes", 1, 1024, o.passes, o.have_passes)
         NUM_OPT("--max-rounds", 1, 1024, o.max_rounds, o.have_max_rounds)
@@ -315,6 +318,10 @@ int main(int argc, char **argv)
     }
     if (!o.photon_threads)
         o.photon_threads = cli_num_cores();
+    if (!o.have_check_threads) { /* the loop's core stays the loop's */
+        uint32_t cores = cli_num_cores();
+        o.check_threads = cores <= 2 ? 1 : cores - 1 < 8 ? cores - 1 : 8;
+    }
     if (!have_threads) {
         uint32_t cores = cli_num_cores();
         o.threads = o.workers > 0 && cores / o.workers > 0 ? cores / o.workers : 1;

@@ -21,6 +21,7 @@
 #include "adapt.h"
 #include "photons.h"
 #include "sched.h"
+#include "check.h"
 #include "render/aov.h"
 #include "render/integrator.h"
 #include "render/media_integrator.h"
@@ -158,6 +159,8 @@ struct master {
     double rel_rmse_est;        /* the last frame's estimated relRMSE from its variance channels (error_estimate) */
     uint64_t var_saturated;     /* its pixels whose variance channel is saturated (tile_variance_value) */
     float *decode_scratch;
+    struct check_ctx check_ctx; /* what chunks of this frame must be (chunk_check) */
+    struct checker *checker;    /* checks RESULT chunks off the loop (--check-threads), or NULL: in the loop */
     char ipc_dir[256];
     char ipc_endpoint[320];
     struct journal *journal;    /* this frame's, or NULL (--no-journal, --tiles, after the output is in place) */
@@ -769,42 +772,13 @@ static void on_blob_req(struct master *m, struct peer *p, const struct msg_blob_
             p->map_bytes[pass] += r->length;
 }
 
-/* Decodes unit u's chunk into decode_scratch and checks it: finite pixels (AOVs: as
- * aov_pixel_valid allows), and for a pass of several a coverage in [0, 1] or
- * PASS_ALPHA_NONE and no negative variance. 1 when sane, 0 when not, -1 when it decodes
- * but holds non-finite values (which the scene may cause: see on_result). */
+/* Decodes unit u's chunk into decode_scratch and checks it (chunk_check): 1 when sane, 0
+ * when not, -1 when it decodes but holds non-finite values (which the scene may cause:
+ * see on_result). */
 static int chunk_is_sane(struct master *m, uint32_t unit, const uint8_t *chunk, size_t chunk_size, char *err,
                          size_t errlen)
 {
-    uint32_t tile = unit_tile(m, unit);
-    uint32_t tiles_x = imgio_tiles_x(&m->desc);
-    uint32_t tx = tile % tiles_x, ty = tile / tiles_x, x0, y0, w, h;
-    imgio_tile_rect(&m->desc, tx, ty, &x0, &y0, &w, &h);
-    if (imgio_decode_tile(&m->desc, tx, ty, chunk, chunk_size, m->decode_scratch, err, errlen) != 0)
-        return 0;
-    struct tile_layout lay;
-    tile_layout_from_desc(&lay, &m->desc);
-    for (size_t i = 0; i < (size_t)w * h; i++) {
-        const float *px = &m->decode_scratch[i * lay.num_channels];
-        for (int c = 0; c < TILE_NUM_CHANNELS; c++)
-            if (!isfinite(px[c])) {
-                str_fmt(err, errlen, "non-finite pixel value in tile %u", tile);
-                return -1;
-            }
-        if (lay.aovs && !aov_pixel_valid(&lay, px, m->scene.num_meshes + m->scene.num_spheres, m->scene.num_materials)) {
-            str_fmt(err, errlen, "tile %u: AOV value out of range", tile);
-            return 0;
-        }
-    }
-    for (size_t i = 0; m->passes > 1 && i < (size_t)w * h; i++) {
-        const float *px = &m->decode_scratch[i * lay.num_channels];
-        if (!((px[CH_A] >= 0.0f && px[CH_A] <= 1.0f) || px[CH_A] == PASS_ALPHA_NONE) || px[CH_VAR_R] < 0.0f ||
-            px[CH_VAR_G] < 0.0f || px[CH_VAR_B] < 0.0f) {
-            str_fmt(err, errlen, "tile %u pass %u: coverage or variance out of range", tile, unit_pass(m, unit));
-            return 0;
-        }
-    }
-    return 1;
+    return chunk_check(&m->check_ctx, unit, chunk, chunk_size, m->decode_scratch, err, errlen);
 }
 
 /* Logs a dropped message of a peer; after a few, only counts (a peer cannot flood the log). */
@@ -947,18 +921,27 @@ static int adapt_round_end(struct master *m)
 }
 
 /* A unit whose chunk chunk_is_sane has just decoded into decode_scratch: with one pass
- * the chunk is the tile's; with several it is folded (fold.h), and once the tile's last
- * pass is in (adaptive: once the rounds end), the folded tile is encoded as the tile's
- * chunk. */
+ * the chunk is the tile's (held: the received frame it lies in, or NULL; the tile takes
+ * the frame over instead of copying the chunk); with several it is folded (fold.h), and
+ * once the tile's last pass is in (adaptive: once the rounds end), the folded tile is
+ * encoded as the tile's chunk. */
 static int unit_keep(struct master *m, uint32_t unit, const struct tile_stats *st, const uint8_t *chunk,
-                     size_t chunk_size)
+                     size_t chunk_size, struct net_payload **held)
 {
     uint32_t tile = unit_tile(m, unit);
     tile_stats_add(&m->stats, st);
     if (m->passes == 1) {
-        m->chunks[tile].data = mem_alloc(chunk_size ? chunk_size : 1);
-        memcpy(m->chunks[tile].data, chunk, chunk_size);
-        m->chunks[tile].size = chunk_size;
+        struct output_chunk *c = &m->chunks[tile];
+        if (held && *held) { /* chunk lies in the received frame: kept as it is, not copied */
+            uint8_t *base = net_payload_data(*held);
+            c->data = base + (chunk - base);
+            c->payload = *held;
+            *held = NULL;
+        } else {
+            c->data = mem_alloc(chunk_size ? chunk_size : 1);
+            memcpy(c->data, chunk, chunk_size);
+        }
+        c->size = chunk_size;
         return 0;
     }
     if (m->adapt) {
@@ -976,20 +959,24 @@ static int unit_keep(struct master *m, uint32_t unit, const struct tile_stats *s
     return tile_encode_folded(m, tile);
 }
 
-/* Keeps an accepted unit: journal first (written here, synced by commit_and_ack before
- * anyone is told), then the caller marks it done in the scheduler. */
+/* Keeps an accepted unit: journal first (appended here, from the record the checker built
+ * when it did, which this takes over; written and synced by the journal's thread before
+ * commit_and_ack tells anyone), then the caller marks it done in the scheduler. */
 static int tile_accept(struct master *m, uint32_t unit, const struct tile_stats *st, const uint8_t *chunk,
-                       size_t chunk_size)
+                       size_t chunk_size, uint8_t *record, size_t record_size, struct net_payload **held)
 {
+    if (!m->journal)
+        free(record);
     if (m->journal) {
         char err[512];
-        if (journal_write(m->journal, unit, st, chunk, (uint32_t)chunk_size, err, sizeof err) != 0) {
+        if (record ? journal_write_record(m->journal, unit, record, record_size, err, sizeof err) != 0
+                   : journal_write(m->journal, unit, st, chunk, (uint32_t)chunk_size, err, sizeof err) != 0) {
             snprintf(m->fatal, sizeof m->fatal, "%s", err);
             return -1;
         }
     }
     m->c.tiles_done++;
-    return unit_keep(m, unit, st, chunk, chunk_size);
+    return unit_keep(m, unit, st, chunk, chunk_size, held);
 }
 
 /* An invalid tile from peer pi was counted by the scheduler; a ban (SCHED_FAILS_TO_BAN in
@@ -1075,7 +1062,7 @@ static void on_kept(struct master *m, int32_t pi, const struct msg_kept *k)
         peer_sent_invalid(m, pi, banned, &ev);
         return;
     }
-    if (tile_accept(m, k->tile, &k->stats, k->chunk, k->chunk_size) != 0)
+    if (tile_accept(m, k->tile, &k->stats, k->chunk, k->chunk_size, NULL, 0, NULL) != 0)
         return;
     sched_kept_valid(m->sched, pi, k->tile);
     ack_push(m, pi, k->job_id, k->frame, k->tile);
@@ -1134,7 +1121,33 @@ static void result_nonfinite(struct master *m, int32_t pi, uint32_t u)
                 brightest);
 }
 
-static void on_result(struct master *m, int32_t pi, const struct msg_result *r)
+static void result_verdict(struct master *m, int32_t pi, uint32_t unit, uint64_t job_id, uint32_t frame,
+                           const struct tile_stats *st, const uint8_t *chunk, uint32_t chunk_size, int sane,
+                           const char *err, uint8_t *record, size_t record_size, struct net_payload **held);
+
+/* Whether a result for unit (attempt) of peer pi counts now: CHECK, or it was counted
+ * (duplicate: acknowledged when we have the unit; stale: dropped). */
+static enum sched_result_verdict result_counts(struct master *m, int32_t pi, uint64_t job_id, uint32_t frame,
+                                               uint32_t unit, uint32_t attempt)
+{
+    enum sched_result_verdict v = sched_result(m->sched, pi, unit, attempt);
+    if (v == SCHED_RESULT_CHECK)
+        return v;
+    if (v == SCHED_RESULT_DUPLICATE)
+        m->c.results_duplicate++;
+    else
+        m->c.results_stale++;
+    if (m->sched->tiles[unit].state == SCHED_DONE) /* we have it: the worker need not keep its copy */
+        ack_push(m, pi, job_id, frame, unit);
+    if (v == SCHED_RESULT_STALE && peer_should_log_drop(&m->peers[pi]))
+        log_warn("worker %s: result for tile %u attempt %u is stale or not assigned to it; dropped", m->peers[pi].name,
+                 unit, attempt);
+    return v;
+}
+
+/* A RESULT: ids checked, then its chunk checked, in the loop or by the checker pool (which
+ * then owns the received frame f: its payload holds the chunk). */
+static void on_result(struct master *m, int32_t pi, const struct msg_result *r, struct net_frame *f)
 {
     struct peer *p = &m->peers[pi];
     sched_worker_progress(m->sched, pi, net_now_ms());
@@ -1155,45 +1168,100 @@ static void on_result(struct master *m, int32_t pi, const struct msg_result *r)
         m->c.results_not_ours++;
         return;
     }
-    enum sched_result_verdict v = sched_result(m->sched, pi, r->tile, r->attempt);
-    if (v != SCHED_RESULT_CHECK) {
-        if (v == SCHED_RESULT_DUPLICATE)
-            m->c.results_duplicate++;
-        else
-            m->c.results_stale++;
-        if (m->sched->tiles[r->tile].state == SCHED_DONE) /* we have it: the worker need not keep its copy */
-            ack_push(m, pi, r->job_id, r->frame, r->tile);
-        if (v == SCHED_RESULT_STALE && peer_should_log_drop(p))
-            log_warn("worker %s: result for tile %u attempt %u is stale or not assigned to it; dropped", p->name,
-                     r->tile, r->attempt);
+    if (result_counts(m, pi, r->job_id, r->frame, r->tile, r->attempt) != SCHED_RESULT_CHECK)
+        return;
+    if (m->checker) {
+        struct check_item *it = checker_item_new(m->checker);
+        it->peer = pi;
+        memcpy(it->peer_id, p->id, p->id_len);
+        it->peer_id_len = p->id_len;
+        it->job_id = r->job_id;
+        it->frame = r->frame;
+        it->unit = r->tile;
+        it->attempt = r->attempt;
+        it->stats = r->stats;
+        it->chunk = r->chunk;
+        it->chunk_size = r->chunk_size;
+        it->payload = net_frame_take(f); /* the chunk lives in it */
+        checker_submit(m->checker, it);
         return;
     }
     char err[256];
     int sane = chunk_is_sane(m, r->tile, r->chunk, r->chunk_size, err, sizeof err);
+    result_verdict(m, pi, r->tile, r->job_id, r->frame, &r->stats, r->chunk, r->chunk_size, sane, err, NULL, 0,
+                   &f->payload);
+}
+
+/* A checked item from the pool: the scheduler may have moved on while it was checked (the
+ * unit done by a straggler copy, the worker evicted, the frame over), so it counts only if
+ * it still would now. Its decoded pixels become decode_scratch (same size). */
+static void result_checked(struct master *m, struct check_item *it)
+{
+    int32_t pi = it->peer;
+    if (it->job_id != m->job_id || it->frame != m->frame || (uint32_t)pi >= m->num_peers ||
+        m->sched->workers[pi].gone || m->peers[pi].id_len != it->peer_id_len ||
+        memcmp(m->peers[pi].id, it->peer_id, it->peer_id_len) != 0) {
+        m->c.results_stale++;
+        return;
+    }
+    if (result_counts(m, pi, it->job_id, it->frame, it->unit, it->attempt) != SCHED_RESULT_CHECK)
+        return;
+    float *px = m->decode_scratch;
+    m->decode_scratch = it->pixels;
+    it->pixels = px;
+    uint8_t *record = it->record; /* result_verdict takes it over */
+    it->record = NULL;
+    result_verdict(m, pi, it->unit, it->job_id, it->frame, &it->stats, it->chunk, it->chunk_size, it->verdict,
+                   it->err, record, it->record_size, &it->payload);
+}
+
+/* Takes every verdict the pool has ready (wait: first every one still being checked). */
+static void checks_drain(struct master *m, int wait)
+{
+    if (!m->checker)
+        return;
+    if (wait)
+        checker_wait_idle(m->checker);
+    struct check_item *it;
+    while ((it = checker_take(m->checker))) {
+        if (!m->fatal[0])
+            result_checked(m, it);
+        checker_item_free(m->checker, it);
+    }
+}
+
+/* What a checked chunk of unit (from the current holder pi) leads to: accepted (journal,
+ * fold, ACK once synced), non-finite (settled by another render), or invalid (re-queued,
+ * towards the worker's ban). Pixels decoded in decode_scratch. */
+static void result_verdict(struct master *m, int32_t pi, uint32_t unit, uint64_t job_id, uint32_t frame,
+                           const struct tile_stats *st, const uint8_t *chunk, uint32_t chunk_size, int sane,
+                           const char *err, uint8_t *record, size_t record_size, struct net_payload **held)
+{
+    struct peer *p = &m->peers[pi];
     if (sane == -1) {
-        result_nonfinite(m, pi, r->tile);
+        result_nonfinite(m, pi, unit);
         return;
     }
     if (sane != 1) {
-        log_warn("worker %s: tile %u rejected: %s; re-queued", p->name, r->tile, err);
+        log_warn("worker %s: tile %u rejected: %s; re-queued", p->name, unit, err);
         struct sched_eviction ev;
-        int banned = sched_result_invalid(m->sched, pi, r->tile, &ev);
+        int banned = sched_result_invalid(m->sched, pi, unit, &ev);
         peer_sent_invalid(m, pi, banned, &ev);
         return;
     }
-    if (tile_accept(m, r->tile, &r->stats, r->chunk, r->chunk_size) != 0)
+    if (tile_accept(m, unit, st, chunk, chunk_size, record, record_size, held) != 0)
         return;
-    int32_t wrong = m->sched->tiles[r->tile].nonfinite_by - 1;
+    int32_t wrong = m->sched->tiles[unit].nonfinite_by - 1;
     if (wrong >= 0 && wrong != pi && !m->sched->workers[wrong].gone) {
         /* Its non-finite tile is finite here: that worker got it wrong. */
         log_warn("worker %s: its non-finite tile %u renders finite on %s: counted as invalid", m->peers[wrong].name,
-                 r->tile, p->name);
+                 unit, p->name);
         struct sched_eviction ev;
         int banned = sched_worker_invalid(m->sched, wrong, &ev);
         peer_sent_invalid(m, wrong, banned, &ev);
     }
-    sched_result_valid(m->sched, pi, r->tile);
-    ack_push(m, pi, r->job_id, r->frame, r->tile);
+    sched_result_valid(m->sched, pi, unit);
+    ack_push(m, pi, job_id, frame, unit);
 }
 
 /* Sends every tile the scheduler hands out now. */
@@ -1261,7 +1329,7 @@ static void handle_message(struct master *m, struct net_frame *f)
         }
         break;
     case MSG_RESULT:
-        on_result(m, pi, &msg.u.result);
+        on_result(m, pi, &msg.u.result, f);
         break;
     case MSG_KEPT:
         on_kept(m, pi, &msg.u.kept);
@@ -1311,7 +1379,7 @@ static int replay_tile(void *ctx, uint32_t unit, const struct tile_stats *st, co
                  unit_tile(m, unit), unit_pass(m, unit), err);
         return -1;
     }
-    if (unit_keep(m, unit, st, chunk, size) != 0)
+    if (unit_keep(m, unit, st, chunk, size, NULL) != 0)
         return -1;
     sched_tile_set_done(m->sched, unit);
     m->c.tiles_from_journal++;
@@ -1846,6 +1914,13 @@ static int frame_begin(struct master *m, uint32_t frames_started)
     const struct master_opts *o = m->opts;
     if (m->scene.frame_files && m->frame != m->scene_frame && scene_reload(m) != 0)
         return -1;
+    m->check_ctx = (struct check_ctx){.desc = m->desc, .num_tiles = m->num_tiles, .passes = m->passes,
+                                      .num_objects = m->scene.num_meshes + m->scene.num_spheres,
+                                      .num_materials = m->scene.num_materials,
+                                      .journal = !o->no_journal && !o->only_tiles};
+    if (m->checker) /* idle: the last frame drained it */
+        checker_set_ctx(m->checker, &m->check_ctx,
+                        (size_t)m->scene.settings.tile_size * m->scene.settings.tile_size * FOLD_MAX_CHANNELS);
     if (output_frame_path(o->output_path, o->have_frames, m->frame, m->out_path, sizeof m->out_path) != 0) {
         master_fail(m, "-o %s: the output name for frame %u is too long", o->output_path, m->frame);
         return -1;
@@ -1865,8 +1940,7 @@ static int frame_begin(struct master *m, uint32_t frames_started)
         maps_start(m, m->map_per_frame ? m->frame : m->map_frame) != 0)
         return -1;
     for (uint32_t t = 0; t < m->num_tiles; t++)
-        free(m->chunks[t].data);
-    memset(m->chunks, 0, sizeof *m->chunks * m->num_tiles);
+        output_chunk_free(&m->chunks[t]);
     sched_frame_begin(m->sched);
     if (m->photon_maps) /* a pass's units go out once its map is published */
         sched_release(m->sched, m->maps_published * m->num_tiles);
@@ -1930,16 +2004,27 @@ static int frame_render(struct master *m, uint64_t *last_beat)
         if (m->fatal[0])
             return -1;
         void *zap_sock = m->zap ? zap_socket(m->zap) : NULL, *mon = m->zap ? zap_monitor_socket(m->zap) : NULL;
-        zmq_pollitem_t items[3] = {{m->sock, 0, ZMQ_POLLIN, 0}, {zap_sock, 0, ZMQ_POLLIN, 0}, {mon, 0, ZMQ_POLLIN, 0}};
-        int nitems = mon ? 3 : zap_sock ? 2 : 1;
-        /* ACKs waiting for the sync thread: look again soon */
-        if (zmq_poll(items, nitems, m->num_acks ? 2 : 100) < 0 && errno != EINTR) {
+        /* the socket, ZAP and its monitor (when CurveZMQ is on), the checker's verdicts */
+        zmq_pollitem_t items[5] = {{m->sock, 0, ZMQ_POLLIN, 0}};
+        int nitems = 1, izap = -1, imon = -1;
+        if (zap_sock)
+            items[izap = nitems++] = (zmq_pollitem_t){zap_sock, 0, ZMQ_POLLIN, 0};
+        if (mon)
+            items[imon = nitems++] = (zmq_pollitem_t){mon, 0, ZMQ_POLLIN, 0};
+        if (m->checker)
+            items[nitems++] = (zmq_pollitem_t){NULL, checker_fd(m->checker), ZMQ_POLLIN, 0};
+        /* ACKs waiting for the sync thread: it wakes us when a sync ends (or, without the
+         * thread, look again soon) */
+        int sync_fd = m->journal ? journal_sync_fd(m->journal) : -1;
+        if (sync_fd >= 0)
+            items[nitems++] = (zmq_pollitem_t){NULL, sync_fd, ZMQ_POLLIN, 0};
+        if (zmq_poll(items, nitems, m->num_acks && sync_fd < 0 ? 2 : 100) < 0 && errno != EINTR) {
             snprintf(m->fatal, sizeof m->fatal, "poll: %s", zmq_strerror(errno));
             return -1;
         }
-        if (nitems > 1 && (items[1].revents & ZMQ_POLLIN))
+        if (izap >= 0 && (items[izap].revents & ZMQ_POLLIN))
             m->c.auth_rejects += (uint64_t)zap_handle(m->zap);
-        if (nitems > 2 && (items[2].revents & ZMQ_POLLIN))
+        if (imon >= 0 && (items[imon].revents & ZMQ_POLLIN))
             m->c.handshake_failures += zap_monitor_drain(m->zap);
         if (items[0].revents & ZMQ_POLLIN) {
             struct net_frame f;
@@ -1955,6 +2040,7 @@ static int frame_render(struct master *m, uint64_t *last_beat)
                 net_frame_fini(&f);
             }
         }
+        checks_drain(m, 0);
         uint64_t now = net_now_ms();
         if (m->adapt && m->time_limit > 0.0 && !m->time_up && (double)(now - start) >= m->time_limit * 1000.0) {
             m->time_up = 1; /* the one decision that depends on timing (docs/adaptive.md) */
@@ -1996,6 +2082,7 @@ static int frame_render(struct master *m, uint64_t *last_beat)
             last_progress = now;
         }
     }
+    checks_drain(m, 1); /* straggler copies still being checked: duplicates now */
     commit_and_ack(m, 1); /* the frame's last records on disk, every worker told */
     if (m->fatal[0]) /* e.g. the last journal sync failed */
         return -1;
@@ -2087,6 +2174,8 @@ int master_run(const struct master_opts *o)
     if (load_scene(&m, o->have_frames ? o->frame_first : 0) != 0)
         goto done;
     setup_tiles(&m);
+    if (o->check_threads)
+        m.checker = checker_new(o->check_threads);
     m.zctx = zmq_ctx_new();
     m.sock = zmq_socket(m.zctx, ZMQ_ROUTER);
     net_socket_setup(m.sock);
@@ -2144,6 +2233,7 @@ done:
         journal_free(&m.journal);
     }
     photon_tracer_free(&m.tracer, 1);
+    checker_free(&m.checker);
     zap_free(&m.zap);
     if (m.sock)
         zmq_close(m.sock);
@@ -2159,7 +2249,7 @@ done:
     if (rc != 0 && m.fatal[0])
         log_error("%s", m.fatal);
     for (uint32_t t = 0; t < m.num_tiles && m.chunks; t++)
-        free(m.chunks[t].data);
+        output_chunk_free(&m.chunks[t]);
     free(m.chunks);
     sched_free(&m.sched);
     for (uint32_t i = 0; i < m.num_peers; i++) {

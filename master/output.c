@@ -5,6 +5,7 @@
 #include "output.h"
 #include "base/asset.h"
 #include "base/log.h"
+#include "wire/net.h"
 #include <errno.h>
 #include <fcntl.h>
 #include <stdio.h>
@@ -176,4 +177,14 @@ void output_id_names_free(struct image_attrs *a)
     free(a->string_values);
     a->string_names = a->string_values = NULL;
     a->num_strings = 0;
+}
+
+void output_chunk_free(struct output_chunk *c)
+{
+    if (c->payload)
+        net_payload_free(&c->payload);
+    else
+        free(c->data);
+    c->data = NULL;
+    c->size = 0;
 }

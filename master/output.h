@@ -11,10 +11,14 @@
 #include "scene/scene.h"
 
 /* A finished tile's EXR chunk as the worker encoded it (the master never re-encodes). */
+struct net_payload;
 struct output_chunk {
     uint8_t *data;
     size_t size;
+    struct net_payload *payload; /* data lies in this received frame, or NULL: data is mem_alloc'd */
 };
+/* Frees what c holds and clears it. */
+void output_chunk_free(struct output_chunk *c);
 
 /* The output file of one frame: the last run of '#' in pattern becomes the zero-padded
  * frame number (as many digits as '#'s, more if needed); without one, ".NNNN" goes in

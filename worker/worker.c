@@ -488,11 +488,8 @@ static int load_job(struct worker *w)
 static void request_chunks(struct worker *w, struct fetch *f)
 {
     while (f->in_flight < FETCH_WINDOW && f->next_offset < f->recv.size) {
-        struct proto_msg m = {.type = MSG_BLOB_REQ};
-        m.u.blob_req.hash = f->recv.hash;
-        m.u.blob_req.offset = f->next_offset;
-        uint64_t left = f->recv.size - f->next_offset;
-        m.u.blob_req.length = (uint32_t)(left < BLOB_CHUNK_SIZE ? left : BLOB_CHUNK_SIZE);
+        struct proto_msg m;
+        proto_blob_req_at(&f->recv.hash, f->recv.size, f->next_offset, &m);
         if (worker_send(w, &m) != 0)
             return;
         f->next_offset += m.u.blob_req.length;

@@ -52,6 +52,9 @@ static void drain(void *sock)
     }
 }
 
+struct net_payload { zmq_msg_t msg; };
+#define NET_RECV_COPY_BELOW 8192 /* libzmq's default ZMQ_IN_BATCH_SIZE */
+
 int net_recv(void *sock, int with_identity, struct net_frame *f)
 {
     memset(f, 0, sizeof *f);
@@ -86,16 +89,50 @@ int net_recv(void *sock, int with_identity, struct net_frame *f)
     const char *uid = zmq_msg_gets(&m, "User-Id");
     if (uid && strlen(uid) == NET_Z85_KEY_LEN)
         memcpy(f->user_id, uid, NET_Z85_KEY_LEN + 1);
-    f->size = zmq_msg_size(&m);
-    f->data = mem_alloc(f->size ? f->size : 1);
-    memcpy(f->data, zmq_msg_data(&m), f->size);
+    /* The message itself becomes the payload (moved, not copied), in a heap zmq_msg_t so
+     * that data stays where it is. Except a small one: libzmq receives into batches of
+     * 8 KiB (ZMQ_IN_BATCH_SIZE) and hands a message that fits in one out as a slice of it,
+     * so that holding the message would hold the whole batch (the master keeps chunks for
+     * the frame: 16 px tiles over ipc took twice the memory); those are copied. */
+    f->payload = mem_alloc(sizeof *f->payload);
+    size_t n = zmq_msg_size(&m);
+    if (n < NET_RECV_COPY_BELOW) {
+        CHECK(zmq_msg_init_size(&f->payload->msg, n) == 0);
+        memcpy(zmq_msg_data(&f->payload->msg), zmq_msg_data(&m), n);
+    } else {
+        zmq_msg_init(&f->payload->msg);
+        zmq_msg_move(&f->payload->msg, &m);
+    }
     zmq_msg_close(&m);
+    f->size = zmq_msg_size(&f->payload->msg);
+    f->data = zmq_msg_data(&f->payload->msg);
     return 1;
+}
+
+void net_payload_free(struct net_payload **p)
+{
+    if (!*p)
+        return;
+    zmq_msg_close(&(*p)->msg);
+    free(*p);
+    *p = NULL;
+}
+
+uint8_t *net_payload_data(struct net_payload *p)
+{
+    return zmq_msg_data(&p->msg);
+}
+
+struct net_payload *net_frame_take(struct net_frame *f)
+{
+    struct net_payload *p = f->payload;
+    f->payload = NULL;
+    return p;
 }
 
 void net_frame_fini(struct net_frame *f)
 {
-    free(f->data);
+    net_payload_free(&f->payload);
     f->data = NULL;
     f->size = 0;
 }

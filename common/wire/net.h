@@ -16,12 +16,16 @@ void net_socket_setup(void *sock);
  * (logged at debug level, errno set) when it cannot be queued (no peer, queue full). */
 int net_send(void *sock, const uint8_t *id, size_t id_len, const struct proto_msg *msg, struct proto_buf *scratch);
 
+/* A received payload frame as libzmq delivered it (not copied): whoever holds it frees
+ * it with net_payload_free. */
+struct net_payload;
 /* One received message: identity (ROUTER only) and the payload frame. */
 struct net_frame {
     uint8_t id[NET_MAX_IDENTITY];
     size_t id_len;
-    uint8_t *data;      /* mem_alloc'd copy of the payload, freed by net_frame_free */
+    const uint8_t *data; /* the payload's bytes, inside payload */
     size_t size;
+    struct net_payload *payload; /* freed by net_frame_fini, unless net_frame_take took it */
     /* Who the peer is: with CurveZMQ, the Z85 public key its handshake proved (the ZAP
      * handler's User-Id); "" without CurveZMQ. Set by libzmq, never by the peer. */
     char user_id[NET_Z85_KEY_LEN + 1];
@@ -31,6 +35,11 @@ struct net_frame {
  * nothing was there, -1 on a malformed envelope (wrong frame count: drained and dropped). */
 int net_recv(void *sock, int with_identity, struct net_frame *f);
 void net_frame_fini(struct net_frame *f);
+/* Takes the payload over from f: data stays valid until net_payload_free. */
+struct net_payload *net_frame_take(struct net_frame *f);
+/* The payload's bytes (the same as the frame's data), writable for its holder. */
+uint8_t *net_payload_data(struct net_payload *p);
+void net_payload_free(struct net_payload **p);
 
 /* CurveZMQ keys are 40-character Z85 strings. A key pair file holds the public key on
  * its first line and the secret key on its second; a public key file (and each line of

@@ -647,3 +647,13 @@ int proto_decode(const uint8_t *frame, size_t size, struct proto_msg *msg, char 
     }
     return 0;
 }
+
+void proto_blob_req_at(const struct blob_hash *hash, uint64_t size, uint64_t offset, struct proto_msg *out)
+{
+    memset(out, 0, sizeof *out);
+    out->type = MSG_BLOB_REQ;
+    out->u.blob_req.hash = *hash;
+    out->u.blob_req.offset = offset;
+    uint64_t left = size - offset;
+    out->u.blob_req.length = (uint32_t)(left < BLOB_CHUNK_SIZE ? left : BLOB_CHUNK_SIZE);
+}

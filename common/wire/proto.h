@@ -184,6 +184,10 @@ struct proto_msg {
     } u;
 };
 
+/* The BLOB_REQ for the chunk of blob (hash, size) at offset (< size): at most
+ * BLOB_CHUNK_SIZE bytes. Fetchers (worker, tests/tools/loadpeers) keep a window of them. */
+void proto_blob_req_at(const struct blob_hash *hash, uint64_t size, uint64_t offset, struct proto_msg *out);
+
 /* A growable output buffer for encoding. */
 struct proto_buf { uint8_t *data; size_t size, cap; };
 void proto_buf_fini(struct proto_buf *b);

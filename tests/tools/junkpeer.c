@@ -69,7 +69,7 @@ static void send_hello(void *s, const char *host, uint32_t pid, struct proto_buf
 }
 
 /* Waits up to ms for one message; 1 with it decoded into *m (a JOB owns its assets). */
-static int recv_msg(void *s, int ms, struct proto_msg *m, uint8_t **frame)
+static int recv_msg(void *s, int ms, struct proto_msg *m, struct net_payload **frame)
 {
     zmq_pollitem_t it = {s, 0, ZMQ_POLLIN, 0};
     if (zmq_poll(&it, 1, ms) <= 0)
@@ -82,7 +82,7 @@ static int recv_msg(void *s, int ms, struct proto_msg *m, uint8_t **frame)
         net_frame_fini(&f);
         return 0;
     }
-    *frame = f.data;
+    *frame = net_frame_take(&f);
     return 1;
 }
 
@@ -129,14 +129,14 @@ static int rogue(void *s, struct proto_buf *b)
 {
     send_hello(s, "rogue", 4242, b);
     struct proto_msg job;
-    uint8_t *frame = NULL;
+    struct net_payload *frame = NULL;
     int have_job = 0;
     for (int i = 0; i < 20 && !have_job; i++) {
         if (!recv_msg(s, 100, &job, &frame))
             continue;
         have_job = job.type == MSG_JOB;
         if (!have_job)
-            free(frame);
+            net_payload_free(&frame);
     }
     uint64_t blob_bytes = 0;
     if (have_job) {
@@ -189,7 +189,7 @@ static int rogue(void *s, struct proto_buf *b)
             send_msg(s, &q, b);
         }
         proto_job_fini(&job.u.job);
-        free(frame);
+        net_payload_free(&frame);
     } else {
         /* Without a JOB there is no job key; ask for blobs blindly all the same. */
         struct proto_msg q = {.type = MSG_BLOB_REQ};
@@ -203,7 +203,7 @@ static int rogue(void *s, struct proto_buf *b)
                 blob_bytes += m.u.blob_data.length;
             if (m.type == MSG_JOB)
                 proto_job_fini(&m.u.job);
-            free(frame);
+            net_payload_free(&frame);
         }
     printf("junkpeer: job %s, blob bytes %llu\n", have_job ? "yes" : "no", (unsigned long long)blob_bytes);
     fflush(stdout);

@@ -1,0 +1,225 @@
+/* The chunk check and its thread pool (check.h). Items move todo -> a checking thread ->
+ * done under one mutex; an eventfd is readable exactly while done is not empty, so the
+ * master's zmq_poll wakes for verdicts. Decode buffers are reused through a free list. */
+#include "check.h"
+#include "journal.h"
+#include "base/log.h"
+#include "render/aov.h"
+#include "render/integrator.h"
+#include <math.h>
+#include <pthread.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/eventfd.h>
+#include <unistd.h>
+
+int chunk_check(const struct check_ctx *c, uint32_t unit, const uint8_t *chunk, size_t chunk_size, float *out,
+                char *err, size_t errlen)
+{
+    uint32_t tile = unit % c->num_tiles;
+    uint32_t tiles_x = imgio_tiles_x(&c->desc);
+    uint32_t tx = tile % tiles_x, ty = tile / tiles_x, x0, y0, w, h;
+    imgio_tile_rect(&c->desc, tx, ty, &x0, &y0, &w, &h);
+    if (imgio_decode_tile(&c->desc, tx, ty, chunk, chunk_size, out, err, errlen) != 0)
+        return 0;
+    struct tile_layout lay;
+    tile_layout_from_desc(&lay, &c->desc);
+    for (size_t i = 0; i < (size_t)w * h; i++) {
+        const float *px = &out[i * lay.num_channels];
+        for (int ch = 0; ch < TILE_NUM_CHANNELS; ch++)
+            if (!isfinite(px[ch])) {
+                str_fmt(err, errlen, "non-finite pixel value in tile %u", tile);
+                return -1;
+            }
+        if (lay.aovs && !aov_pixel_valid(&lay, px, c->num_objects, c->num_materials)) {
+            str_fmt(err, errlen, "tile %u: AOV value out of range", tile);
+            return 0;
+        }
+    }
+    for (size_t i = 0; c->passes > 1 && i < (size_t)w * h; i++) {
+        const float *px = &out[i * lay.num_channels];
+        if (!((px[CH_A] >= 0.0f && px[CH_A] <= 1.0f) || px[CH_A] == PASS_ALPHA_NONE) || px[CH_VAR_R] < 0.0f ||
+            px[CH_VAR_G] < 0.0f || px[CH_VAR_B] < 0.0f) {
+            str_fmt(err, errlen, "tile %u pass %u: coverage or variance out of range", tile, unit / c->num_tiles);
+            return 0;
+        }
+    }
+    return 1;
+}
+
+struct checker {
+    pthread_mutex_t mu;
+    pthread_cond_t todo_cv, idle_cv;
+    struct check_item *todo, **todo_tail, *done, *free_items;
+    uint32_t checking, pending;
+    int stop, efd;
+    struct check_ctx ctx;
+    size_t pixels_per_item;
+    pthread_t *threads;
+    uint32_t num_threads;
+};
+
+static void *check_thread(void *arg)
+{
+    struct checker *c = arg;
+    pthread_mutex_lock(&c->mu);
+    for (;;) {
+        while (!c->todo && !c->stop)
+            pthread_cond_wait(&c->todo_cv, &c->mu);
+        if (!c->todo)
+            break;
+        struct check_item *it = c->todo;
+        c->todo = it->next;
+        if (!c->todo)
+            c->todo_tail = &c->todo;
+        c->checking++;
+        pthread_mutex_unlock(&c->mu);
+        it->verdict = chunk_check(&c->ctx, it->unit, it->chunk, it->chunk_size, it->pixels, it->err, sizeof it->err);
+        if (it->verdict == 1 && c->ctx.journal)
+            it->record = journal_record(it->unit, &it->stats, it->chunk, it->chunk_size, &it->record_size);
+        pthread_mutex_lock(&c->mu);
+        c->checking--;
+        it->next = c->done;
+        c->done = it;
+        uint64_t one = 1;
+        if (write(c->efd, &one, sizeof one) != sizeof one)
+            log_debug("checker: eventfd write failed");
+        if (!c->todo && !c->checking)
+            pthread_cond_broadcast(&c->idle_cv);
+    }
+    pthread_mutex_unlock(&c->mu);
+    return NULL;
+}
+
+struct checker *checker_new(uint32_t threads)
+{
+    struct checker *c = mem_calloc(1, sizeof *c);
+    pthread_mutex_init(&c->mu, NULL);
+    pthread_cond_init(&c->todo_cv, NULL);
+    pthread_cond_init(&c->idle_cv, NULL);
+    c->todo_tail = &c->todo;
+    c->efd = eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
+    CHECK(c->efd >= 0);
+    c->threads = mem_calloc(threads, sizeof *c->threads);
+    for (uint32_t i = 0; i < threads; i++)
+        CHECK(pthread_create(&c->threads[i], NULL, check_thread, c) == 0);
+    c->num_threads = threads;
+    return c;
+}
+
+static void free_list(struct check_item *it)
+{
+    while (it) {
+        struct check_item *next = it->next;
+        net_payload_free(&it->payload);
+        free(it->record);
+        free(it->pixels);
+        free(it);
+        it = next;
+    }
+}
+
+void checker_free(struct checker **cp)
+{
+    struct checker *c = *cp;
+    if (!c)
+        return;
+    pthread_mutex_lock(&c->mu);
+    c->stop = 1;
+    pthread_cond_broadcast(&c->todo_cv);
+    pthread_mutex_unlock(&c->mu);
+    for (uint32_t i = 0; i < c->num_threads; i++)
+        pthread_join(c->threads[i], NULL);
+    free_list(c->todo);
+    free_list(c->done);
+    free_list(c->free_items);
+    close(c->efd);
+    pthread_cond_destroy(&c->todo_cv);
+    pthread_cond_destroy(&c->idle_cv);
+    pthread_mutex_destroy(&c->mu);
+    free(c->threads);
+    free(c);
+    *cp = NULL;
+}
+
+void checker_wait_idle(struct checker *c)
+{
+    pthread_mutex_lock(&c->mu);
+    while (c->todo || c->checking)
+        pthread_cond_wait(&c->idle_cv, &c->mu);
+    pthread_mutex_unlock(&c->mu);
+}
+
+void checker_set_ctx(struct checker *c, const struct check_ctx *ctx, size_t pixels_per_item)
+{
+    checker_wait_idle(c);
+    c->ctx = *ctx;
+    if (pixels_per_item != c->pixels_per_item) {
+        free_list(c->free_items);
+        c->free_items = NULL;
+        c->pixels_per_item = pixels_per_item;
+    }
+}
+
+/* Items and the free list belong to the loop's thread; only todo/done cross threads. */
+struct check_item *checker_item_new(struct checker *c)
+{
+    struct check_item *it = c->free_items;
+    if (it) {
+        c->free_items = it->next;
+        float *px = it->pixels;
+        memset(it, 0, sizeof *it);
+        it->pixels = px;
+    } else {
+        it = mem_calloc(1, sizeof *it);
+        it->pixels = mem_alloc(sizeof(float) * (c->pixels_per_item ? c->pixels_per_item : 1));
+    }
+    return it;
+}
+
+void checker_item_free(struct checker *c, struct check_item *it)
+{
+    net_payload_free(&it->payload);
+    free(it->record);
+    it->record = NULL;
+    it->next = c->free_items;
+    c->free_items = it;
+}
+
+void checker_submit(struct checker *c, struct check_item *it)
+{
+    it->next = NULL;
+    pthread_mutex_lock(&c->mu);
+    *c->todo_tail = it;
+    c->todo_tail = &it->next;
+    c->pending++;
+    pthread_cond_signal(&c->todo_cv);
+    pthread_mutex_unlock(&c->mu);
+}
+
+struct check_item *checker_take(struct checker *c)
+{
+    pthread_mutex_lock(&c->mu);
+    struct check_item *it = c->done;
+    if (it) {
+        c->done = it->next;
+        c->pending--;
+        if (!c->done) {
+            uint64_t v;
+            if (read(c->efd, &v, sizeof v) != sizeof v)
+                log_debug("checker: eventfd read failed");
+        }
+    }
+    pthread_mutex_unlock(&c->mu);
+    return it;
+}
+
+int checker_fd(const struct checker *c) { return c->efd; }
+
+uint32_t checker_pending(struct checker *c)
+{
+    pthread_mutex_lock(&c->mu);
+    uint32_t n = c->pending;
+    pthread_mutex_unlock(&c->mu);
+    return n;
+}

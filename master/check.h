@@ -1,0 +1,72 @@
+/* The decode check of tile chunks, and a pool of threads that runs it off the master's
+ * loop. A chunk is checked (chunk_check: it decodes in the frame's layout, finite pixels,
+ * AOVs and pass values in range) before the master journals or acknowledges it; with a
+ * pool the loop submits a RESULT and takes its verdict later, in any order, and decides
+ * then, against the scheduler's state at that time, whether it still counts (master.c).
+ * The pool also builds the journal record of a sane chunk, so the loop only appends it.
+ * The context (layout, counts) changes only while the pool is idle (checker_wait_idle).
+ * Used by master/master.c; tested by tests/unit/test_check.c. */
+#ifndef BRUME_CHECK_H
+#define BRUME_CHECK_H
+#include <stddef.h>
+#include <stdint.h>
+#include "image/imgio.h"
+#include "render/tile.h"
+#include "wire/net.h"
+
+/* What a chunk of unit u must be: u's tile is u % num_tiles of desc. */
+struct check_ctx {
+    struct image_desc desc;
+    uint32_t num_tiles;
+    uint32_t passes;          /* > 1: coverage in [0, 1] or PASS_ALPHA_NONE, variance >= 0 */
+    uint32_t num_objects, num_materials; /* for the id AOVs */
+    int journal;              /* the pool also builds a sane chunk's journal record (journal_record) */
+};
+
+/* Decodes unit's chunk into out (tile_size^2 x desc.num_channels floats) and checks it.
+ * 1 when sane; 0 when not (err says why); -1 when it decodes but holds non-finite values
+ * (which the scene may cause). Pure apart from out and err. */
+int chunk_check(const struct check_ctx *c, uint32_t unit, const uint8_t *chunk, size_t chunk_size, float *out,
+                char *err, size_t errlen);
+
+/* A RESULT waiting for or holding its verdict. The item owns the received frame (payload):
+ * chunk points into it. */
+struct check_item {
+    int32_t peer;
+    uint8_t peer_id[NET_MAX_IDENTITY]; /* the connection it came from (a reused slot is another) */
+    size_t peer_id_len;
+    uint64_t job_id;
+    uint32_t frame, unit, attempt;
+    struct tile_stats stats;
+    struct net_payload *payload;
+    const uint8_t *chunk;
+    uint32_t chunk_size;
+    float *pixels;            /* decoded, tile_size^2 x FOLD_MAX_CHANNELS floats */
+    int verdict;              /* chunk_check's */
+    uint8_t *record;          /* with ctx.journal and a sane chunk: its journal record, record_size bytes */
+    size_t record_size;
+    char err[256];
+    struct check_item *next;
+};
+
+struct checker;
+/* A pool of threads (>= 1) checking threads. */
+struct checker *checker_new(uint32_t threads);
+void checker_free(struct checker **c);
+/* Sets the context for the next items, each with a decode buffer of pixels_per_item
+ * floats; waits until none is being checked first. */
+void checker_set_ctx(struct checker *c, const struct check_ctx *ctx, size_t pixels_per_item);
+/* Queues an item (taken over; its pixels buffer is the checker's). */
+struct check_item *checker_item_new(struct checker *c);
+void checker_submit(struct checker *c, struct check_item *it);
+/* A checked item, or NULL when none is ready now; give it back with checker_item_free. */
+struct check_item *checker_take(struct checker *c);
+void checker_item_free(struct checker *c, struct check_item *it);
+/* Readable (POLLIN) while checked items wait to be taken. */
+int checker_fd(const struct checker *c);
+/* Items submitted and not yet taken. */
+uint32_t checker_pending(struct checker *c);
+/* Blocks until every submitted item is checked (then checker_take returns them all). */
+void checker_wait_idle(struct checker *c);
+
+#endif

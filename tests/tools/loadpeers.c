@@ -1,0 +1,520 @@
+/* loadpeers: N fake workers in one process, built from the real protocol code, against a
+ * real master over loopback, to measure what one master can serve (docs/cluster.md).
+ *   loadpeers ENDPOINT [-n N] [--credits C] [--key KEYFILE MASTER.pub] [--image REF.exr]
+ *                      [--master-pid PID] [--no-fetch] [--hold-ready] [--timeout-ms MS]
+ * Each fake worker says HELLO (host "loadpeers-PID", pid = its index: distinct names),
+ * fetches every blob the JOB and MAP messages name through BLOB_REQ (hash checked by
+ * blob_recv_finish; none with --no-fetch), says READY with C credits (with --hold-ready
+ * only once every peer has its blobs: a delivery benchmark) and answers every TILE at once with a
+ * RESULT whose chunk is a valid EXR tile chunk of the job's layout (tile_image_desc),
+ * encoded once per tile at first use: pixels from REF.exr (channels R G B A
+ * variance.R/G/B; repeated when the job is larger) or, without it, a smooth deterministic pattern
+ * with noise. Heartbeats every second keep it alive; BYE ends a peer. At the end it prints
+ *   loadpeers: granted G results R acked A acked_twice D unacked U peers P
+ *   loadpeers: fetch N bytes B first_ms F last_ms L   (N peers fetched B bytes in all; the
+ *     first and last finished F and L ms after the first JOB arrived)
+ *   loadpeers: tiles_per_s X over S s
+ *   loadpeers: master_cpu_us_per_tile Y loop_cpu_us_per_tile Z
+ *     (with --master-pid: user+sys CPU from the first TILE to the last ACK per unit
+ *     acknowledged, of the master's whole process and of its main thread, the loop)
+ * and exits 0 when every unit of the job was acknowledged, 1 otherwise (timeout). */
+#include "base/log.h"
+#include "image/imgio.h"
+#include "render/tile.h"
+#include "scene/scene.h"
+#include "wire/blob.h"
+#include "wire/net.h"
+#include "wire/proto.h"
+#include <inttypes.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/resource.h>
+#include <unistd.h>
+#include <zmq.h>
+
+#define FETCH_WINDOW 16 /* as the worker's */
+
+struct fetch { struct blob_recv recv; uint64_t next_offset; uint32_t in_flight; int done; };
+
+struct lpeer {
+    void *sock;
+    uint64_t job_id;
+    int have_job, ready_sent, bye;
+    struct fetch *fetches;
+    uint32_t num_fetches;
+    uint64_t job_ms;        /* when its first JOB arrived */
+    uint64_t fetch_done_ms; /* when its last blob arrived */
+    uint64_t samples_done;
+    int fetched;            /* every blob named so far is in */
+};
+
+static struct {
+    struct net_key pub, sec, server;
+    int curve, no_fetch, hold_ready;
+    struct lpeer *peers;
+    uint32_t num_peers, peers_fetched;
+    uint32_t credits;
+    const char *image_path;
+    float *image;           /* REF.exr pixels, 7 channels */
+    uint32_t image_w, image_h;
+    struct proto_buf out;
+    /* the job's layout (one job at a time: every peer gets the same JOB) */
+    uint64_t job_id;
+    struct image_desc desc;
+    uint32_t num_tiles, spp_per_unit;
+    struct imgio_encoder *enc;
+    uint8_t **chunks;
+    size_t *chunk_sizes;
+    uint8_t *acked;         /* per unit: ACKs seen */
+    uint32_t num_units;
+    /* counters */
+    uint64_t granted, results, acked_units, acked_twice, fetch_bytes;
+    uint64_t first_tile_ms, last_ack_ms, start_ms;
+    long master_pid;
+    double master_cpu_first[2], master_cpu_last[2]; /* process, main thread */
+} g;
+
+/* CPU seconds (user + system) of the master's process (thread 0: all threads) or of its
+ * main thread (the loop: thread 1), from /proc. */
+static double master_cpu(int main_thread)
+{
+    char path[96], buf[1024];
+    if (main_thread)
+        snprintf(path, sizeof path, "/proc/%ld/task/%ld/stat", g.master_pid, g.master_pid);
+    else
+        snprintf(path, sizeof path, "/proc/%ld/stat", g.master_pid);
+    FILE *f = fopen(path, "r");
+    if (!f)
+        return -1.0;
+    size_t n = fread(buf, 1, sizeof buf - 1, f);
+    fclose(f);
+    buf[n] = '\0';
+    const char *p = strrchr(buf, ')'); /* the command name may hold spaces */
+    unsigned long long ut = 0, st = 0;
+    if (!p || sscanf(p + 2, "%*c %*d %*d %*d %*d %*d %*u %*u %*u %*u %*u %llu %llu", &ut, &st) != 2)
+        return -1.0;
+    return (double)(ut + st) / (double)sysconf(_SC_CLK_TCK);
+}
+
+static void send_msg(struct lpeer *p, const struct proto_msg *m)
+{
+    if (proto_encode(m, &g.out) == 0)
+        zmq_send(p->sock, g.out.data, g.out.size, ZMQ_DONTWAIT);
+}
+
+/* A pixel of the synthetic pattern: smooth shading plus hashed noise, so that chunks
+ * compress about as a rendered tile does rather than as a constant. */
+static void pattern_pixel(uint32_t x, uint32_t y, float *px)
+{
+    uint32_t h = x * 73856093u ^ y * 19349663u;
+    h ^= h >> 13;
+    h *= 0x5bd1e995u;
+    h ^= h >> 15;
+    float noise = (float)(h & 0xffff) / 65535.0f;
+    float base = 0.3f + 0.2f * (float)((x / 37 + y / 53) % 3);
+    px[CH_R] = base * (0.8f + 0.4f * noise);
+    px[CH_G] = base * (0.7f + 0.5f * noise);
+    px[CH_B] = base * (0.9f + 0.2f * noise);
+    px[CH_A] = 1.0f;
+    px[CH_VAR_R] = px[CH_VAR_G] = px[CH_VAR_B] = 1e-4f * noise;
+}
+
+/* The chunk of tile t, encoded at its first use. */
+static int tile_chunk(uint32_t t, const uint8_t **chunk, size_t *size)
+{
+    if (!g.chunks[t]) {
+        uint32_t tiles_x = imgio_tiles_x(&g.desc), tx = t % tiles_x, ty = t / tiles_x, x0, y0, w, h;
+        imgio_tile_rect(&g.desc, tx, ty, &x0, &y0, &w, &h);
+        float *px = mem_alloc(sizeof(float) * w * h * TILE_NUM_CHANNELS);
+        for (uint32_t y = 0; y < h; y++)
+            for (uint32_t x = 0; x < w; x++) {
+                float *d = &px[((size_t)y * w + x) * TILE_NUM_CHANNELS];
+                if (g.image)
+                    memcpy(d, &g.image[((size_t)((y0 + y) % g.image_h) * g.image_w + (x0 + x) % g.image_w) * TILE_NUM_CHANNELS],
+                           sizeof(float) * TILE_NUM_CHANNELS);
+                else
+                    pattern_pixel(x0 + x, y0 + y, d);
+            }
+        char err[256];
+        int rc = imgio_encode_tile(g.enc, tx, ty, px, &g.chunks[t], &g.chunk_sizes[t], err, sizeof err);
+        free(px);
+        if (rc != 0) {
+            fprintf(stderr, "loadpeers: tile %u: %s\n", t, err);
+            return -1;
+        }
+    }
+    *chunk = g.chunks[t];
+    *size = g.chunk_sizes[t];
+    return 0;
+}
+
+/* The layout of the job's chunks, once per job id. */
+static int job_layout(const struct msg_job *j)
+{
+    if (g.enc && g.job_id == j->job_id)
+        return 0;
+    if (j->aovs) {
+        fprintf(stderr, "loadpeers: jobs with AOVs are not supported\n");
+        return -1;
+    }
+    for (uint32_t t = 0; g.chunks && t < g.num_tiles; t++)
+        free(g.chunks[t]);
+    free(g.chunks);
+    free(g.chunk_sizes);
+    free(g.acked);
+    imgio_encoder_free(&g.enc);
+    struct render_settings rs = {.width = j->width, .height = j->height, .spp = j->spp, .tile_size = j->tile_size};
+    tile_image_desc(&g.desc, &rs);
+    char err[256];
+    if (!(g.enc = imgio_encoder_new(&g.desc, err, sizeof err))) {
+        fprintf(stderr, "loadpeers: %s\n", err);
+        return -1;
+    }
+    uint32_t passes = j->passes > 1 ? j->passes : 1;
+    g.job_id = j->job_id;
+    g.num_tiles = imgio_tiles_x(&g.desc) * imgio_tiles_y(&g.desc);
+    g.num_units = g.num_tiles * passes;
+    g.spp_per_unit = j->spp / passes;
+    g.chunks = mem_calloc(g.num_tiles, sizeof *g.chunks);
+    g.chunk_sizes = mem_calloc(g.num_tiles, sizeof *g.chunk_sizes);
+    g.acked = mem_calloc(g.num_units, 1);
+    return 0;
+}
+
+static void fetch_add(struct lpeer *p, const struct blob_hash *hash, uint64_t size)
+{
+    for (uint32_t i = 0; i < p->num_fetches; i++)
+        if (blob_hash_equal(&p->fetches[i].recv.hash, hash))
+            return;
+    p->fetches = mem_realloc(p->fetches, sizeof *p->fetches * (p->num_fetches + 1));
+    struct fetch *f = &p->fetches[p->num_fetches++];
+    memset(f, 0, sizeof *f);
+    char err[256];
+    if (blob_recv_init(&f->recv, hash, size, err, sizeof err) != 0) {
+        fprintf(stderr, "loadpeers: %s\n", err);
+        exit(1);
+    }
+}
+
+/* Requests chunks of unfinished fetches; READY once every blob is in. */
+static void fetch_pump(struct lpeer *p)
+{
+    int pending = 0;
+    for (uint32_t i = 0; i < p->num_fetches; i++) {
+        struct fetch *f = &p->fetches[i];
+        if (f->done)
+            continue;
+        pending = 1;
+        while (f->in_flight < FETCH_WINDOW && f->next_offset < f->recv.size) {
+            struct proto_msg m;
+            proto_blob_req_at(&f->recv.hash, f->recv.size, f->next_offset, &m);
+            send_msg(p, &m);
+            f->next_offset += m.u.blob_req.length;
+            f->in_flight++;
+        }
+    }
+    if (pending || !p->have_job || p->ready_sent)
+        return;
+    if (!p->fetched) {
+        p->fetched = 1;
+        g.peers_fetched++;
+    }
+    /* --hold-ready: nobody renders before every peer has the blobs (a delivery benchmark:
+     * the frame must not end before the last fetch does) */
+    if (g.hold_ready && g.peers_fetched < g.num_peers)
+        return;
+    for (uint32_t i = 0; i < g.num_peers; i++) {
+        struct lpeer *q = g.hold_ready ? &g.peers[i] : p;
+        if (q->ready_sent || !q->fetched)
+            continue;
+        struct proto_msg m = {.type = MSG_READY};
+        m.u.ready.job_id = q->job_id;
+        m.u.ready.credits = g.credits;
+        send_msg(q, &m);
+        q->ready_sent = 1;
+    }
+}
+
+static void on_blob_data(struct lpeer *p, const struct msg_blob_data *d)
+{
+    for (uint32_t i = 0; i < p->num_fetches; i++) {
+        struct fetch *f = &p->fetches[i];
+        if (f->done || !blob_hash_equal(&f->recv.hash, &d->hash))
+            continue;
+        char err[256];
+        if (blob_recv_put(&f->recv, d->offset, d->bytes, d->length, err, sizeof err) != 0) {
+            fprintf(stderr, "loadpeers: BLOB_DATA refused: %s\n", err);
+            exit(1);
+        }
+        f->in_flight--;
+        g.fetch_bytes += d->length;
+        if (blob_recv_complete(&f->recv)) {
+            uint8_t *data;
+            if (blob_recv_finish(&f->recv, &data, err, sizeof err) != 0) {
+                fprintf(stderr, "loadpeers: %s\n", err);
+                exit(1);
+            }
+            free(data);
+            f->done = 1;
+            p->fetch_done_ms = net_now_ms();
+        }
+        return;
+    }
+}
+
+static void on_tile(struct lpeer *p, const struct msg_tile *t)
+{
+    if (t->job_id != g.job_id || t->tile >= g.num_units) {
+        fprintf(stderr, "loadpeers: TILE for job %" PRIu64 " unit %u is not of the job\n", t->job_id, t->tile);
+        return;
+    }
+    g.granted++;
+    if (!g.first_tile_ms) {
+        g.first_tile_ms = net_now_ms();
+        for (int k = 0; g.master_pid && k < 2; k++)
+            g.master_cpu_first[k] = master_cpu(k);
+    }
+    struct proto_msg m = {.type = MSG_RESULT};
+    struct msg_result *r = &m.u.result;
+    r->job_id = t->job_id;
+    r->frame = t->frame;
+    r->tile = t->tile;
+    r->attempt = t->attempt;
+    size_t size;
+    if (tile_chunk(t->tile % g.num_tiles, &r->chunk, &size) != 0)
+        exit(1);
+    r->chunk_size = (uint32_t)size;
+    uint32_t tiles_x = imgio_tiles_x(&g.desc), tt = t->tile % g.num_tiles, x0, y0, w, h;
+    imgio_tile_rect(&g.desc, tt % tiles_x, tt / tiles_x, &x0, &y0, &w, &h);
+    r->stats.samples = (uint64_t)w * h * g.spp_per_unit;
+    r->stats.rays = r->stats.samples;
+    p->samples_done += r->stats.samples;
+    send_msg(p, &m);
+    g.results++;
+}
+
+static void on_message(struct lpeer *p, const uint8_t *data, size_t size)
+{
+    struct proto_msg m;
+    char err[256];
+    if (proto_decode(data, size, &m, err, sizeof err) != 0) {
+        fprintf(stderr, "loadpeers: undecodable message from the master: %s\n", err);
+        return;
+    }
+    switch (m.type) {
+    case MSG_JOB:
+        if (job_layout(&m.u.job) != 0)
+            exit(1);
+        p->job_id = m.u.job.job_id;
+        if (!p->job_ms)
+            p->job_ms = net_now_ms();
+        p->have_job = 1;
+        p->ready_sent = 0;
+        for (uint32_t i = 0; !g.no_fetch && i < m.u.job.num_assets; i++)
+            fetch_add(p, &m.u.job.assets[i].hash, m.u.job.assets[i].size);
+        proto_job_fini(&m.u.job);
+        break;
+    case MSG_MAP:
+        if (!g.no_fetch)
+            fetch_add(p, &m.u.map.hash, m.u.map.size);
+        break;
+    case MSG_BLOB_DATA:
+        on_blob_data(p, &m.u.blob_data);
+        break;
+    case MSG_TILE:
+        on_tile(p, &m.u.tile);
+        break;
+    case MSG_ACK:
+        for (uint32_t i = 0; m.u.ack.job_id == g.job_id && i < m.u.ack.count; i++) {
+            uint32_t u = m.u.ack.tiles[i];
+            if (u >= g.num_units)
+                continue;
+            if (g.acked[u]++)
+                g.acked_twice++;
+            else
+                g.acked_units++;
+        }
+        g.last_ack_ms = net_now_ms();
+        for (int k = 0; g.master_pid && k < 2; k++) {
+            double c = master_cpu(k);
+            if (c >= 0.0)
+                g.master_cpu_last[k] = c;
+        }
+        break;
+    case MSG_BYE:
+        p->bye = 1;
+        break;
+    default:
+        break;
+    }
+    fetch_pump(p);
+}
+
+static void usage(void)
+{
+    fprintf(stderr, "usage: loadpeers ENDPOINT [-n N] [--credits C] [--key KEYFILE MASTER.pub] [--image REF.exr]\n"
+                    "                 [--master-pid PID] [--no-fetch] [--hold-ready] [--timeout-ms MS]\n");
+    exit(2);
+}
+
+int main(int argc, char **argv)
+{
+    const char *endpoint = NULL;
+    uint32_t n = 16;
+    uint64_t timeout_ms = 120000;
+    g.credits = 2;
+    for (int i = 1; i < argc; i++) {
+        if (!strcmp(argv[i], "-n") && i + 1 < argc)
+            n = (uint32_t)strtoul(argv[++i], NULL, 10);
+        else if (!strcmp(argv[i], "--credits") && i + 1 < argc)
+            g.credits = (uint32_t)strtoul(argv[++i], NULL, 10);
+        else if (!strcmp(argv[i], "--image") && i + 1 < argc)
+            g.image_path = argv[++i];
+        else if (!strcmp(argv[i], "--master-pid") && i + 1 < argc)
+            g.master_pid = strtol(argv[++i], NULL, 10);
+        else if (!strcmp(argv[i], "--timeout-ms") && i + 1 < argc)
+            timeout_ms = strtoull(argv[++i], NULL, 10);
+        else if (!strcmp(argv[i], "--no-fetch"))
+            g.no_fetch = 1;
+        else if (!strcmp(argv[i], "--hold-ready"))
+            g.hold_ready = 1;
+        else if (!strcmp(argv[i], "--key") && i + 2 < argc) {
+            char err[256];
+            if (net_key_pair_load(argv[i + 1], &g.pub, &g.sec, err, sizeof err) != 0 ||
+                net_key_public_load(argv[i + 2], &g.server, err, sizeof err) != 0) {
+                fprintf(stderr, "loadpeers: %s\n", err);
+                return 2;
+            }
+            g.curve = 1;
+            i += 2;
+        } else if (argv[i][0] != '-' && !endpoint)
+            endpoint = argv[i];
+        else
+            usage();
+    }
+    if (!endpoint || n == 0 || n > 4096 || g.credits == 0 || g.credits > 64)
+        usage();
+    if (g.image_path) {
+        char err[256];
+        if (imgio_read(g.image_path, tile_channel_names, TILE_NUM_CHANNELS, &g.image, &g.image_w, &g.image_h, err,
+                       sizeof err) != 0) {
+            fprintf(stderr, "loadpeers: %s\n", err);
+            return 1;
+        }
+    }
+    struct rlimit rl;
+    if (getrlimit(RLIMIT_NOFILE, &rl) == 0 && rl.rlim_cur < rl.rlim_max) { /* a few fds per socket */
+        rl.rlim_cur = rl.rlim_max;
+        setrlimit(RLIMIT_NOFILE, &rl);
+    }
+    void *ctx = zmq_ctx_new();
+    zmq_ctx_set(ctx, ZMQ_MAX_SOCKETS, (int)n + 16);
+    struct lpeer *peers = mem_calloc(n, sizeof *peers);
+    g.peers = peers;
+    g.num_peers = n;
+    zmq_pollitem_t *items = mem_calloc(n, sizeof *items);
+    char host[64];
+    snprintf(host, sizeof host, "loadpeers-%ld", (long)getpid());
+    for (uint32_t i = 0; i < n; i++) {
+        struct lpeer *p = &peers[i];
+        if (!(p->sock = zmq_socket(ctx, ZMQ_DEALER))) {
+            fprintf(stderr, "loadpeers: socket %u: %s\n", i, zmq_strerror(zmq_errno()));
+            return 1;
+        }
+        net_socket_setup(p->sock);
+        if (g.curve && net_curve_client(p->sock, &g.server, &g.pub, &g.sec) != 0) {
+            fprintf(stderr, "loadpeers: cannot set the CurveZMQ keys\n");
+            return 1;
+        }
+        if (zmq_connect(p->sock, endpoint) != 0) {
+            fprintf(stderr, "loadpeers: cannot connect to %s: %s\n", endpoint, zmq_strerror(zmq_errno()));
+            return 1;
+        }
+        struct proto_msg h = {.type = MSG_HELLO};
+        h.u.hello.threads = 1;
+        h.u.hello.pid = i;
+        snprintf(h.u.hello.host, sizeof h.u.hello.host, "%s", host);
+        send_msg(p, &h);
+        items[i] = (zmq_pollitem_t){p->sock, 0, ZMQ_POLLIN, 0};
+    }
+    g.start_ms = net_now_ms();
+    uint64_t last_beat = g.start_ms;
+    uint32_t byes = 0;
+    /* Ends at every peer's BYE, or once every unit is acknowledged and the master has been
+     * silent for 1 s (it closes with LINGER 0: its BYEs may be lost). */
+    while (byes < n && net_now_ms() - g.start_ms < timeout_ms &&
+           !(g.num_units && g.acked_units == g.num_units && net_now_ms() - g.last_ack_ms > 1000)) {
+        if (zmq_poll(items, (int)n, 100) < 0)
+            continue;
+        for (uint32_t i = 0; i < n; i++) {
+            if (!(items[i].revents & ZMQ_POLLIN))
+                continue;
+            zmq_msg_t msg;
+            zmq_msg_init(&msg);
+            while (zmq_msg_recv(&msg, peers[i].sock, ZMQ_DONTWAIT) >= 0) {
+                if (!peers[i].bye)
+                    on_message(&peers[i], zmq_msg_data(&msg), zmq_msg_size(&msg));
+                byes += peers[i].bye && items[i].events;
+                if (peers[i].bye)
+                    items[i].events = 0;
+            }
+            zmq_msg_close(&msg);
+        }
+        uint64_t now = net_now_ms();
+        if (now - last_beat >= 1000) {
+            last_beat = now;
+            for (uint32_t i = 0; i < n; i++) {
+                if (peers[i].bye)
+                    continue;
+                struct proto_msg hb = {.type = MSG_HEARTBEAT};
+                hb.u.heartbeat.job_id = peers[i].job_id;
+                hb.u.heartbeat.samples_done = peers[i].samples_done + 1;
+                peers[i].samples_done++;
+                send_msg(&peers[i], &hb);
+            }
+        }
+    }
+    /* Fetch times from the first JOB any peer got (the master has loaded the scene). */
+    uint64_t first_fetch = 0, last_fetch = 0, fetched = 0, first_job = UINT64_MAX;
+    for (uint32_t i = 0; i < n; i++)
+        if (peers[i].job_ms && peers[i].job_ms < first_job)
+            first_job = peers[i].job_ms;
+    for (uint32_t i = 0; i < n; i++) {
+        if (!peers[i].fetch_done_ms)
+            continue;
+        uint64_t d = peers[i].fetch_done_ms - first_job;
+        first_fetch = !fetched || d < first_fetch ? d : first_fetch;
+        last_fetch = d > last_fetch ? d : last_fetch;
+        fetched++;
+    }
+    double secs = g.last_ack_ms > g.first_tile_ms ? (double)(g.last_ack_ms - g.first_tile_ms) * 1e-3 : 0.0;
+    printf("loadpeers: granted %" PRIu64 " results %" PRIu64 " acked %" PRIu64 " acked_twice %" PRIu64
+           " unacked %" PRIu64 " peers %u byes %u\n",
+           g.granted, g.results, g.acked_units, g.acked_twice, (uint64_t)g.num_units - g.acked_units, n, byes);
+    printf("loadpeers: fetch %" PRIu64 " bytes %" PRIu64 " first_ms %" PRIu64 " last_ms %" PRIu64 "\n", fetched,
+           g.fetch_bytes, first_fetch, last_fetch);
+    printf("loadpeers: tiles_per_s %.1f over %.3f s\n", secs > 0.0 ? (double)g.acked_units / secs : 0.0, secs);
+    if (g.master_pid && g.acked_units && g.master_cpu_first[0] >= 0.0 && g.master_cpu_first[1] >= 0.0)
+        printf("loadpeers: master_cpu_us_per_tile %.1f loop_cpu_us_per_tile %.1f\n",
+               (g.master_cpu_last[0] - g.master_cpu_first[0]) * 1e6 / (double)g.acked_units,
+               (g.master_cpu_last[1] - g.master_cpu_first[1]) * 1e6 / (double)g.acked_units);
+    for (uint32_t i = 0; i < n; i++) {
+        for (uint32_t k = 0; k < peers[i].num_fetches; k++)
+            blob_recv_fini(&peers[i].fetches[k].recv);
+        free(peers[i].fetches);
+        zmq_close(peers[i].sock);
+    }
+    for (uint32_t t = 0; g.chunks && t < g.num_tiles; t++)
+        free(g.chunks[t]);
+    free(g.chunks);
+    free(g.chunk_sizes);
+    free(g.acked);
+    free(g.image);
+    free(peers);
+    free(items);
+    imgio_encoder_free(&g.enc);
+    proto_buf_fini(&g.out);
+    zmq_ctx_term(ctx);
+    return g.num_units && g.acked_units == g.num_units ? 0 : 1;
+}

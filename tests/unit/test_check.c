@@ -1,0 +1,115 @@
+/* Unit tests for the chunk check and its thread pool (master/check.c): a valid chunk
+ * passes and decodes to its pixels, a non-finite one is -1, garbage and a chunk of
+ * another tile are refused, pass values out of range are refused; the pool gives every
+ * submitted item back once, with the verdict chunk_check gives in the caller's thread,
+ * and the journal record journal_record builds. Run by `make unit`. */
+#include <criterion/criterion.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include "master/check.h"
+#include "master/fold.h"
+#include "master/journal.h"
+
+static void make_ctx(struct check_ctx *c, uint32_t passes)
+{
+    memset(c, 0, sizeof *c);
+    struct render_settings rs;
+    memset(&rs, 0, sizeof rs);
+    rs.width = 20;
+    rs.height = 13;
+    rs.tile_size = 8;
+    tile_image_desc(&c->desc, &rs);
+    c->num_tiles = imgio_tiles_x(&c->desc) * imgio_tiles_y(&c->desc);
+    c->passes = passes;
+}
+
+/* Tile t's chunk of values from `value` (NAN or INFINITY reach the pixels as given). */
+static uint8_t *chunk_of(const struct check_ctx *c, uint32_t t, float value, size_t *size)
+{
+    float px[64 * TILE_NUM_CHANNELS];
+    for (size_t i = 0; i < 64; i++)
+        for (int k = 0; k < TILE_NUM_CHANNELS; k++)
+            px[i * TILE_NUM_CHANNELS + k] = k == CH_A ? 1.0f : value + 0.01f * (float)(i + k + t);
+    char err[256];
+    struct imgio_encoder *e = imgio_encoder_new(&c->desc, err, sizeof err);
+    cr_assert(e, "%s", err);
+    uint32_t tx = imgio_tiles_x(&c->desc);
+    uint8_t *chunk = NULL;
+    cr_assert_eq(imgio_encode_tile(e, t % tx, t / tx, px, &chunk, size, err, sizeof err), 0, "%s", err);
+    imgio_encoder_free(&e);
+    return chunk;
+}
+
+Test(check, verdicts)
+{
+    struct check_ctx c;
+    make_ctx(&c, 1);
+    float out[64 * FOLD_MAX_CHANNELS];
+    char err[256];
+    size_t n;
+    uint8_t *good = chunk_of(&c, 4, 0.5f, &n);
+    cr_assert_eq(chunk_check(&c, 4, good, n, out, err, sizeof err), 1, "%s", err);
+    cr_assert_float_eq(out[CH_R], 0.5f + 0.04f, 1e-6f);
+    /* the same chunk named as another tile: its header says tile 4 */
+    cr_assert_eq(chunk_check(&c, 5, good, n, out, err, sizeof err), 0);
+    uint8_t junk[64] = {1, 2, 3};
+    cr_assert_eq(chunk_check(&c, 4, junk, sizeof junk, out, err, sizeof err), 0);
+    uint8_t *nan = chunk_of(&c, 2, NAN, &n);
+    cr_assert_eq(chunk_check(&c, 2, nan, n, out, err, sizeof err), -1);
+    free(nan);
+    /* with passes, a negative variance is out of range; unit 4 + tiles is tile 4's pass 1 */
+    make_ctx(&c, 2);
+    uint8_t *neg = chunk_of(&c, 4, -0.5f, &n);
+    cr_assert_eq(chunk_check(&c, 4 + c.num_tiles, neg, n, out, err, sizeof err), 0);
+    free(neg);
+    free(good);
+}
+
+Test(check, pool_returns_every_item_with_its_verdict)
+{
+    struct check_ctx c;
+    make_ctx(&c, 1);
+    c.journal = 1;
+    struct checker *k = checker_new(3);
+    checker_set_ctx(k, &c, 64 * FOLD_MAX_CHANNELS);
+    enum { N = 60 };
+    int seen[N] = {0};
+    for (uint32_t i = 0; i < N; i++) {
+        struct check_item *it = checker_item_new(k);
+        size_t n;
+        uint32_t t = i % c.num_tiles;
+        it->unit = t;
+        it->peer = (int32_t)i; /* the item's name in this test */
+        it->stats.samples = i;
+        it->payload = chunk_of(&c, t, i % 3 == 0 ? INFINITY : 0.25f, &n);
+        it->chunk = it->payload;
+        it->chunk_size = (uint32_t)n;
+        checker_submit(k, it);
+    }
+    checker_wait_idle(k);
+    cr_assert_eq(checker_pending(k), N);
+    struct check_item *it;
+    uint32_t taken = 0;
+    while ((it = checker_take(k))) {
+        uint32_t i = (uint32_t)it->peer;
+        cr_assert(i < N && !seen[i]);
+        seen[i] = 1;
+        cr_assert_eq(it->verdict, i % 3 == 0 ? -1 : 1);
+        if (it->verdict == 1) {
+            size_t n;
+            uint8_t *rec = journal_record(it->unit, &it->stats, it->chunk, it->chunk_size, &n);
+            cr_assert_eq(it->record_size, n);
+            cr_assert_eq(memcmp(it->record, rec, n), 0);
+            free(rec);
+        } else {
+            cr_assert_null(it->record);
+        }
+        checker_item_free(k, it);
+        taken++;
+    }
+    cr_assert_eq(taken, N);
+    cr_assert_eq(checker_pending(k), 0);
+    checker_free(&k);
+    cr_assert_null(k);
+}
