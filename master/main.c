@@ -27,7 +27,8 @@ static void usage(FILE *f)
             "  --aovs LIST            AOVs beside the beauty: Z,N,albedo,P,id.object,id.material or all\n"
             "                         (overrides render.aovs)\n"
             "  --filter F[:W]         pixel filter box, gaussian or blackman-harris, W pixels wide\n"
-            "                         (overrides render.filter)\n"
+            "                         (overrides render.filter)\n");
+    fprintf(f,
             "  --bind ENDPOINT        also accept workers at ENDPOINT, e.g. tcp://127.0.0.1:5555\n"
             "  --preview OUT.png      also write a tone-mapped sRGB PNG preview (per frame with --frames, named like -o)\n"
             "  --worker-exe PATH      worker binary for local workers (default: next to master)\n"
