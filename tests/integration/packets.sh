@@ -52,7 +52,9 @@ PY
 
 for dir in scenes/*/; do
   name=$(basename "$dir")
-  [ -f "$dir/$name.json" ] && [ "$name" != smoke_anim ] || continue
+  # Scenes with one grid per frame ("####": smoke_anim, showcase) need the simulator's
+  # output first; their own tests render them.
+  [ -f "$dir/$name.json" ] && ! grep -q '####' "$dir/$name.json" || continue
   shrink "$dir" "$name"
   same "$name" "$T/s/$name.json" 21
 done
