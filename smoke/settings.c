@@ -52,15 +52,10 @@ __attribute__((format(printf, 5, 6))) static int fail(const struct ctx *c, const
     struct json_step steps[2];
     for (int i = 0; i < n && i < 2; i++)
         steps[i] = (struct json_step){keys[i], 0};
-    uint32_t line = 1, col = 1;
-    if (n > 0)
-        json_locate(c->text, c->len, steps, n < 2 ? n : 2, at_key, &line, &col);
-    char msg[512];
     va_list ap;
     va_start(ap, fmt);
-    vsnprintf(msg, sizeof msg, fmt, ap);
+    json_error_at(c->err, c->errlen, c->name, c->text, c->len, steps, n < 2 ? n : 2, at_key, fmt, ap);
     va_end(ap);
-    str_fmt(c->err, c->errlen, "%s:%u:%u: %s", c->name, line, col, msg);
     return -1;
 }
 

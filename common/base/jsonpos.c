@@ -1,6 +1,8 @@
 /* Positions in JSON text (see jsonpos.h). */
 #include "base/jsonpos.h"
+#include "base/log.h"
 #include <stdbool.h>
+#include <stdio.h>
 #include <string.h>
 
 struct scanner {
@@ -124,4 +126,16 @@ int json_locate(const char *text, size_t len, const struct json_step *path, int 
         return 0;
     }
     return 1;
+}
+
+int json_error_at(char *err, size_t errlen, const char *name, const char *text, size_t len,
+                  const struct json_step *path, int n, int want_key, const char *fmt, va_list ap)
+{
+    uint32_t line = 1, col = 1;
+    if (n > 0)
+        json_locate(text, len, path, n, want_key, &line, &col);
+    char msg[1024];
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    str_fmt(err, errlen, "%s:%u:%u: %s", name, line, col, msg);
+    return -1;
 }

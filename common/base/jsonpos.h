@@ -4,6 +4,7 @@
  * smoke/settings.c. */
 #ifndef BRUME_JSONPOS_H
 #define BRUME_JSONPOS_H
+#include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
 
@@ -19,5 +20,11 @@ struct json_step {
  * 1 if found; 0 if not (then 1:1). */
 int json_locate(const char *text, size_t len, const struct json_step *path, int n, int want_key, uint32_t *line,
                 uint32_t *col);
+
+/* "name:line:col: message" into err, the position that of json_locate (1:1 when n is 0 or
+ * the path is not found), the message from fmt and ap. Returns -1, for `return` in parsers. */
+int json_error_at(char *err, size_t errlen, const char *name, const char *text, size_t len,
+                  const struct json_step *path, int n, int want_key, const char *fmt, va_list ap)
+    __attribute__((format(printf, 9, 0)));
 
 #endif

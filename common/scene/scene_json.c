@@ -68,14 +68,10 @@ __attribute__((format(printf, 4, 5))) static int fail(struct ctx *c, const struc
     struct json_step steps[JPATH_MAX];
     for (int i = 0; i < p->n; i++)
         steps[i] = (struct json_step){NULL, p->comp[i]};
-    uint32_t line, col;
-    json_locate(c->text, c->len, steps, p->n, at == AT_KEY, &line, &col);
-    char msg[1024];
     va_list ap;
     va_start(ap, fmt);
-    vsnprintf(msg, sizeof msg, fmt, ap);
+    json_error_at(c->err, c->errlen, c->name, c->text, c->len, steps, p->n, at == AT_KEY, fmt, ap);
     va_end(ap);
-    str_fmt(c->err, c->errlen, "%s:%u:%u: %s", c->name, line, col, msg);
     return -1;
 }
 
