@@ -206,31 +206,55 @@ static vec3 camera_path(const struct render_job *job, uint32_t pass, uint32_t px
 /* One camera sample's radiance: pixel jitter, lens and shutter time. With analytic motion
  * blur the ray's pixel and lens point stay and the shutter is cut where the visible
  * object changes; each part is shaded at a time inside it, weighted by its share of the
- * shutter curve (motion_vis.h). The heaviest part gives the AOVs and the coverage.
+ * shutter curve (motion_vis.h). *cover gets the share of the sample that hit something (0
+ * or 1 with one time). With parts, aov gets their AOVs weighted the same way (N, albedo, P),
+ * and Z with the ids of the nearest part's hit, as a pixel folds its samples (aov.h).
  * cp: NULL, or the packet whose slot holds this sample's camera sample and first hit. */
 static vec3 sample_path(const struct render_job *job, uint32_t pass, uint32_t px, uint32_t py, struct sampler smp,
-                        const struct camera_packet *cp, uint32_t slot, uint64_t *rays, int *hit_any,
+                        const struct camera_packet *cp, uint32_t slot, uint64_t *rays, double *cover,
                         struct aov_sample *aov)
 {
     struct camera_sample cs;
-    if (cp) /* packets only where nothing moves: no strata */
-        return camera_path(job, pass, px, py, smp, cp->cs[slot], cp, slot, rays, hit_any, aov);
+    int hit;
+    vec3 L;
+    if (cp) { /* packets only where nothing moves: no strata */
+        L = camera_path(job, pass, px, py, smp, cp->cs[slot], cp, slot, rays, &hit, aov);
+        *cover = hit;
+        return L;
+    }
     camera_generate(&job->camera, &smp, job->frame, px, py, &cs);
     struct mv_strata st;
     if (!job->motion_vis ||
-        motion_vis_strata(job->motion_vis, &job->camera, &cs, sampler_get(&smp, DIM_TIME), &st) <= 1)
-        return camera_path(job, pass, px, py, smp, cs, NULL, 0, rays, hit_any, aov);
-    vec3 L = v3(0, 0, 0);
+        motion_vis_strata(job->motion_vis, &job->camera, &cs, sampler_get(&smp, DIM_TIME), &st) <= 1) {
+        L = camera_path(job, pass, px, py, smp, cs, NULL, 0, rays, &hit, aov);
+        *cover = hit;
+        return L;
+    }
+    L = v3(0, 0, 0);
+    *cover = 0.0;
     for (uint32_t k = 0; k < st.n; k++) {
         struct camera_sample ck = cs;
-        int hit;
+        struct aov_sample ak;
+        if (aov)
+            aov_sample_miss(&ak);
         ck.time01 = st.time01[k];
         ck.time = (double)job->frame + job->camera.shutter_open +
                   (double)ck.time01 * (job->camera.shutter_close - job->camera.shutter_open);
-        vec3 l = camera_path(job, pass, px, py, smp, ck, NULL, 0, rays, &hit, k == st.heaviest ? aov : NULL);
-        L = v3_add(L, v3_scale(l, (float)st.weight[k]));
-        if (k == st.heaviest)
-            *hit_any = hit;
+        vec3 l = camera_path(job, pass, px, py, smp, ck, NULL, 0, rays, &hit, aov ? &ak : NULL);
+        const float w = (float)st.weight[k];
+        L = v3_add(L, v3_scale(l, w));
+        *cover += st.weight[k] * hit;
+        if (aov) {
+            /* aov arrives set to a miss: zero vectors, Z +inf, ids -1. */
+            aov->n = v3_add(aov->n, v3_scale(ak.n, w));
+            aov->albedo = v3_add(aov->albedo, v3_scale(ak.albedo, w));
+            aov->p = v3_add(aov->p, v3_scale(ak.p, w));
+            if (ak.z < aov->z) {
+                aov->z = ak.z;
+                aov->id_object = ak.id_object;
+                aov->id_material = ak.id_material;
+            }
+        }
     }
     return L;
 }
@@ -313,7 +337,7 @@ static void render_pixel_pass(const struct render_job *job, struct sampler_pixel
     struct camera_packet cp;
     const int packets = packets_on(job);
     for (uint32_t si = pass * k; si < (pass + 1) * k; si++) {
-        int hit_any;
+        double hit_any;
         struct aov_sample as;
         if (aacc)
             aov_sample_miss(&as);
@@ -459,7 +483,7 @@ void integrator_render_tile(const struct render_job *job, uint32_t x0, uint32_t 
             if (lay.aovs)
                 aov_accum_reset(&aacc);
             for (uint32_t si = 0; si < spp; si++) {
-                int hit_any;
+                double hit_any;
                 struct aov_sample as;
                 if (lay.aovs)
                     aov_sample_miss(&as);

@@ -94,12 +94,11 @@ int net_recv(void *sock, int with_identity, struct net_frame *f)
      * 8 KiB (ZMQ_IN_BATCH_SIZE) and hands a message that fits in one out as a slice of it,
      * so that holding the message would hold the whole batch (the master keeps chunks for
      * the frame: 16 px tiles over ipc took twice the memory); those are copied. */
-    f->payload = mem_alloc(sizeof *f->payload);
     size_t n = zmq_msg_size(&m);
     if (n < NET_RECV_COPY_BELOW) {
-        CHECK(zmq_msg_init_size(&f->payload->msg, n) == 0);
-        memcpy(zmq_msg_data(&f->payload->msg), zmq_msg_data(&m), n);
+        f->payload = net_payload_copy(zmq_msg_data(&m), n);
     } else {
+        f->payload = mem_alloc(sizeof *f->payload);
         zmq_msg_init(&f->payload->msg);
         zmq_msg_move(&f->payload->msg, &m);
     }
@@ -107,6 +106,15 @@ int net_recv(void *sock, int with_identity, struct net_frame *f)
     f->size = zmq_msg_size(&f->payload->msg);
     f->data = zmq_msg_data(&f->payload->msg);
     return 1;
+}
+
+struct net_payload *net_payload_copy(const void *data, size_t size)
+{
+    struct net_payload *p = mem_alloc(sizeof *p);
+    CHECK(zmq_msg_init_size(&p->msg, size) == 0);
+    if (size)
+        memcpy(zmq_msg_data(&p->msg), data, size);
+    return p;
 }
 
 void net_payload_free(struct net_payload **p)

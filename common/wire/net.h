@@ -37,6 +37,8 @@ int net_recv(void *sock, int with_identity, struct net_frame *f);
 void net_frame_fini(struct net_frame *f);
 /* Takes the payload over from f: data stays valid until net_payload_free. */
 struct net_payload *net_frame_take(struct net_frame *f);
+/* A payload holding a copy of size bytes at data (for what did not come from net_recv). */
+struct net_payload *net_payload_copy(const void *data, size_t size);
 /* The payload's bytes (the same as the frame's data), writable for its holder. */
 uint8_t *net_payload_data(struct net_payload *p);
 void net_payload_free(struct net_payload **p);

@@ -82,8 +82,10 @@ Test(check, pool_returns_every_item_with_its_verdict)
         it->unit = t;
         it->peer = (int32_t)i; /* the item's name in this test */
         it->stats.samples = i;
-        it->payload = chunk_of(&c, t, i % 3 == 0 ? INFINITY : 0.25f, &n);
-        it->chunk = it->payload;
+        uint8_t *chunk = chunk_of(&c, t, i % 3 == 0 ? INFINITY : 0.25f, &n);
+        it->payload = net_payload_copy(chunk, n);
+        free(chunk);
+        it->chunk = net_payload_data(it->payload);
         it->chunk_size = (uint32_t)n;
         checker_submit(k, it);
     }

@@ -367,17 +367,23 @@ Test(motion_vis, analytic_moving_edge_has_no_time_noise)
     struct tile_stats st;
     float *px = test_render(&s, 2, &st);
     cr_assert_eq(st.nan_samples, 0);
-    double worst = 0;
+    double worst = 0, worst_alpha = 0;
     for (int x = 0; x < W; x++) {
         double xc = -2.0 + 4.0 * (x + 0.5) / W, half_px = 2.0 / W;
         if (fabs(xc) > 1.0 - half_px)
             continue;
-        double red = 0;
-        for (int y = 0; y < 4; y++)
+        double red = 0, alpha = 0;
+        for (int y = 0; y < 4; y++) {
             red += px[(y * W + x) * TILE_NUM_CHANNELS + CH_R] / 4.0;
+            alpha += px[(y * W + x) * TILE_NUM_CHANNELS + CH_A] / 4.0;
+        }
         worst = fmax(worst, fabs(red / 2.0 - (1.0 - xc) / 2.0));
+        /* Coverage is the covered share of the shutter too (over the empty background),
+         * not the hit of one stratum. */
+        worst_alpha = fmax(worst_alpha, fabs(alpha - (1.0 - xc) / 2.0));
     }
     cr_assert(worst < 0.01, "worst column error %.4f", worst);
+    cr_assert(worst_alpha < 0.01, "worst column alpha error %.4f", worst_alpha);
     free(px);
     scene_fini(&s);
 }
