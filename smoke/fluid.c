@@ -3,6 +3,7 @@
 #include "base/log.h"
 #include "base/rng.h"
 #include <fftw3.h>
+#include <immintrin.h>  /* SSE2 (every x86-64): movemask, 4x4 transposes */
 #include <math.h>
 #include <pthread.h>
 #include <stdlib.h>
@@ -144,6 +145,7 @@ static void par_slabs(const struct fluid *f, slab_fn fn, void *arg)
  * serves all four (GCC vector extension; lane-wise IEEE operations, so the same bits as
  * four scalar lookups). */
 typedef float v4f __attribute__((vector_size(16)));
+typedef int32_t v4i __attribute__((vector_size(16)));
 
 static inline uint32_t wrap(int64_t i, uint32_t n)
 {
@@ -285,81 +287,163 @@ static struct box pack(const struct fluid *f, const float *scalar)
     return b;
 }
 
-/* One row's cells, x fastest: where every coordinate of point i lies in [0, n - 1) its
- * cell is the truncation (lower corner index c, fractions t), with strides 1, nx, nx ny;
- * elsewhere slow[i] is set and the cell comes from cell_at. Four points at a time with
- * vector masks (the arrays have room for a row rounded up to 4; the tail stays 0, a point
- * inside, so it is never slow). */
-typedef int32_t v4i __attribute__((vector_size(16)));
-struct row {
-    float x[SMOKE_MAX_RES], y[SMOKE_MAX_RES], z[SMOKE_MAX_RES];
-    float tx[SMOKE_MAX_RES], ty[SMOKE_MAX_RES], tz[SMOKE_MAX_RES];
-    int32_t c[SMOKE_MAX_RES];
-    int32_t slow[SMOKE_MAX_RES];
-    int32_t group[SMOKE_MAX_RES / 4];  /* a slow point among points 4g..4g+3 */
-    struct cell cell[SMOKE_MAX_RES];  /* the slow ones' */
-};
-static inline v4f load4(const float *p)
-{
-    v4f v;
-    memcpy(&v, p, sizeof v);
-    return v;
-}
-static inline void store4(void *p, const void *v) { memcpy(p, v, 16); }
-static void row_cells(struct row *r, uint32_t nx, uint32_t ny, uint32_t nz)
-{
-    const v4f zero = {0, 0, 0, 0};
-    const v4f xm = zero + (float)(nx - 1), ym = zero + (float)(ny - 1), zm = zero + (float)(nz - 1);
-    const v4i sy = (v4i){0, 0, 0, 0} + (int32_t)nx, sz = (v4i){0, 0, 0, 0} + (int32_t)(nx * ny);
-    v4i any = {0, 0, 0, 0};
-    for (uint32_t i = 0; i < nx; i += 4) {
-        v4f x = load4(r->x + i), y = load4(r->y + i), z = load4(r->z + i);
-        v4i in = (x >= zero) & (x < xm) & (y >= zero) & (y < ym) & (z >= zero) & (z < zm);
-        x = (v4f)((v4i)x & in);  /* 0 where slow, so the conversions stay in range */
-        y = (v4f)((v4i)y & in);
-        z = (v4f)((v4i)z & in);
-        v4i xi = __builtin_convertvector(x, v4i), yi = __builtin_convertvector(y, v4i);
-        v4i zi = __builtin_convertvector(z, v4i);
-        v4f tx = x - __builtin_convertvector(xi, v4f), ty = y - __builtin_convertvector(yi, v4f);
-        v4f tz = z - __builtin_convertvector(zi, v4f);
-        v4i c = xi + yi * sy + zi * sz, slow = ~in;
-        store4(r->tx + i, &tx);
-        store4(r->ty + i, &ty);
-        store4(r->tz + i, &tz);
-        store4(r->c + i, &c);
-        store4(r->slow + i, &slow);
-        r->group[i / 4] = slow[0] | slow[1] | slow[2] | slow[3];
-        any |= slow;
-    }
-    if (any[0] | any[1] | any[2] | any[3])
-        for (uint32_t g = 0; g < (nx + 3) / 4; g++)
-            if (r->group[g])
-                for (uint32_t i = 4 * g; i < 4 * g + 4 && i < nx; i++)
-                    if (r->slow[i])
-                        cell_at(nx, ny, nz, r->x[i], r->y[i], r->z[i], &r->cell[i]);
-}
-
-/* cell_get4 of row cell i. */
-static inline v4f row_get4(const struct row *r, uint32_t i, const v4f *q, ptrdiff_t dy, ptrdiff_t dz)
-{
-    if (r->slow[i])
-        return cell_get4(&r->cell[i], q);
-    const struct cell l = {(size_t)r->c[i], 1, dy, dz, r->tx[i], r->ty[i], r->tz[i], 0, 0, 0, 0};
-    return cell_get4(&l, q);
-}
-
 /* Advected scalars (density, temperature) of magnitude below this become 0: far from the
  * plume they would otherwise shrink step by step into subnormal floats, which the CPU
  * handles many times slower, and keep the temperature's active box as large as the grid. */
 #define SCALAR_FLUSH 1e-20f
 static inline float flush(float x) { return fabsf(x) < SCALAR_FLUSH ? 0.0f : x; }
+static inline v4f flush4(v4f x)
+{
+    const v4f lim = {SCALAR_FLUSH, SCALAR_FLUSH, SCALAR_FLUSH, SCALAR_FLUSH};
+    const v4i abs_mask = {INT32_MAX, INT32_MAX, INT32_MAX, INT32_MAX};
+    return (v4f)((v4i)x & ~((v4f)((v4i)x & abs_mask) < lim));  /* flush, lane-wise */
+}
+
+/* What every voxel of an advection pass shares: the packed input q (velocity and density),
+ * the scalar src and its box, the outputs, and the grid. */
+struct advect_ctx {
+    const v4f *q;
+    const float *src;
+    float *dst;
+    float *vu, *vv, *vw, *vd;  /* NULL: only the scalar */
+    uint32_t nx, ny, nz;
+    ptrdiff_t dy, dz;
+    float s, hs;  /* dt / h and half of it: velocity to voxels per step */
+    const struct box *b;
+    v4f blo[3], bhi[3];  /* the box as bounds on a fast cell's point (see advect4) */
+    v4f lim[3];          /* n - 1 per axis */
+    v4i sy, sz;          /* strides nx, nx ny */
+};
+
+/* One voxel, any point: the general cells (wrapping, clamping). */
+static void advect1(const struct advect_ctx *x, size_t idx, uint32_t i, uint32_t j, uint32_t k)
+{
+    const v4f q0 = x->q[idx];
+    struct cell l;
+    cell_at(x->nx, x->ny, x->nz, (float)i - x->hs * q0[0], (float)j - x->hs * q0[1], (float)k - x->hs * q0[2], &l);
+    const v4f um = cell_get4(&l, x->q);
+    cell_at(x->nx, x->ny, x->nz, (float)i - x->s * um[0], (float)j - x->s * um[1], (float)k - x->s * um[2], &l);
+    if (x->vu) {
+        const v4f v = cell_get4(&l, x->q);
+        x->vu[idx] = v[0];
+        x->vv[idx] = v[1];
+        x->vw[idx] = v[2];
+        x->vd[idx] = flush(v[3]);
+    }
+    x->dst[idx] = cell_outside(&l, x->b) ? 0.0f : flush(cell_get(&l, x->src));
+}
+
+/* The cells of four points when every coordinate of each lies in [0, n - 1) (nearly
+ * every point): the truncation is the floor and nothing wraps, so the lower corner is
+ * c (strides 1, nx, nx ny) and the fractions are t. 0 when a point lies elsewhere. */
+static inline int cells4(const struct advect_ctx *x, v4f px, v4f py, v4f pz, v4i *c, v4f *tx, v4f *ty, v4f *tz)
+{
+    const v4f zero = {0, 0, 0, 0};
+    v4i in = (px >= zero) & (px < x->lim[0]) & (py >= zero) & (py < x->lim[1]) & (pz >= zero) & (pz < x->lim[2]);
+    if (_mm_movemask_ps((__m128)in) != 15)
+        return 0;
+    v4i xi = __builtin_convertvector(px, v4i), yi = __builtin_convertvector(py, v4i);
+    v4i zi = __builtin_convertvector(pz, v4i);
+    *tx = px - __builtin_convertvector(xi, v4f);
+    *ty = py - __builtin_convertvector(yi, v4f);
+    *tz = pz - __builtin_convertvector(zi, v4f);
+    *c = xi + yi * x->sy + zi * x->sz;
+    return 1;
+}
+
+/* cell_get4 / cell_get of a fast cell (lower corner c, fractions tx ty tz). */
+static inline v4f fast_get4(const struct advect_ctx *x, int32_t c, float tx, float ty, float tz)
+{
+    const struct cell l = {(size_t)c, 1, x->dy, x->dz, tx, ty, tz, 0, 0, 0, 0};
+    return cell_get4(&l, x->q);
+}
+static inline float fast_get(const struct advect_ctx *x, int32_t c, float tx, float ty, float tz)
+{
+    const struct cell l = {(size_t)c, 1, x->dy, x->dz, tx, ty, tz, 0, 0, 0, 0};
+    return cell_get(&l, x->src);
+}
+
+/* A row of voxels goes through the stages of advect1 one stage at a time, four voxels side
+ * by side (transposes of the packed lookups' results), so that no voxel waits on the one
+ * before: departure points and cells of the midpoints, midpoint lookups, points and cells of
+ * the departure points, final lookups. Each voxel gets exactly advect1's operations. A group
+ * of four with a point outside the fast cells' range (rare: near the faces, or huge
+ * velocities) goes through advect1 voxel by voxel, and so do the row's last nx % 4. */
+struct row {
+    v4i c[SMOKE_MAX_RES / 4];
+    v4f tx[SMOKE_MAX_RES / 4], ty[SMOKE_MAX_RES / 4], tz[SMOKE_MAX_RES / 4];
+    v4f m[SMOKE_MAX_RES];        /* midpoint lookups */
+    int slow[SMOKE_MAX_RES / 4]; /* a group that takes advect1 */
+    int out[SMOKE_MAX_RES / 4];  /* lanes whose scalar lookup is 0 (movemask bits) */
+};
+static void advect_row(const struct advect_ctx *x, struct row *r, size_t row, uint32_t j, uint32_t k)
+{
+    const uint32_t groups = x->nx / 4;
+    const float fj = (float)j, fk = (float)k;
+    for (uint32_t g = 0; g < groups; g++) {
+        const size_t idx = row + 4 * g;
+        __m128 a0 = (__m128)x->q[idx], a1 = (__m128)x->q[idx + 1], a2 = (__m128)x->q[idx + 2];
+        __m128 a3 = (__m128)x->q[idx + 3];
+        _MM_TRANSPOSE4_PS(a0, a1, a2, a3);  /* a0 a1 a2: u v w of the four voxels */
+        const v4f fi = __builtin_convertvector(((v4i){0, 1, 2, 3} + (int32_t)(4 * g)), v4f);
+        r->slow[g] = !cells4(x, fi - x->hs * (v4f)a0, fj - x->hs * (v4f)a1, fk - x->hs * (v4f)a2, &r->c[g],
+                             &r->tx[g], &r->ty[g], &r->tz[g]);
+    }
+    for (uint32_t g = 0; g < groups; g++)
+        if (!r->slow[g])
+            for (int l = 0; l < 4; l++)
+                r->m[4 * g + l] = fast_get4(x, r->c[g][l], r->tx[g][l], r->ty[g][l], r->tz[g][l]);
+    for (uint32_t g = 0; g < groups; g++) {
+        if (r->slow[g])
+            continue;
+        __m128 m0 = (__m128)r->m[4 * g], m1 = (__m128)r->m[4 * g + 1], m2 = (__m128)r->m[4 * g + 2];
+        __m128 m3 = (__m128)r->m[4 * g + 3];
+        _MM_TRANSPOSE4_PS(m0, m1, m2, m3);
+        const v4f fi = __builtin_convertvector(((v4i){0, 1, 2, 3} + (int32_t)(4 * g)), v4f);
+        const v4f px = fi - x->s * (v4f)m0, py = fj - x->s * (v4f)m1, pz = fk - x->s * (v4f)m2;
+        r->slow[g] = !cells4(x, px, py, pz, &r->c[g], &r->tx[g], &r->ty[g], &r->tz[g]);
+        /* the scalar: its lower corner floor(p) lies outside [lo - 1, hi] when p < lo - 1
+         * or p >= hi + 1, and then the lookup is 0 */
+        const v4i out = (px < x->blo[0]) | (px >= x->bhi[0]) | (py < x->blo[1]) | (py >= x->bhi[1]) |
+                        (pz < x->blo[2]) | (pz >= x->bhi[2]);
+        r->out[g] = _mm_movemask_ps((__m128)out);
+    }
+    for (uint32_t g = 0; g < groups; g++) {
+        const size_t idx = row + 4 * g;
+        if (r->slow[g]) {
+            for (uint32_t l = 0; l < 4; l++)
+                advect1(x, idx + l, 4 * g + l, j, k);
+            continue;
+        }
+        const v4i c = r->c[g];
+        const v4f tx = r->tx[g], ty = r->ty[g], tz = r->tz[g];
+        if (x->vu) {
+            __m128 r0 = (__m128)fast_get4(x, c[0], tx[0], ty[0], tz[0]);
+            __m128 r1 = (__m128)fast_get4(x, c[1], tx[1], ty[1], tz[1]);
+            __m128 r2 = (__m128)fast_get4(x, c[2], tx[2], ty[2], tz[2]);
+            __m128 r3 = (__m128)fast_get4(x, c[3], tx[3], ty[3], tz[3]);
+            _MM_TRANSPOSE4_PS(r0, r1, r2, r3);
+            _mm_storeu_ps(x->vu + idx, r0);
+            _mm_storeu_ps(x->vv + idx, r1);
+            _mm_storeu_ps(x->vw + idx, r2);
+            _mm_storeu_ps(x->vd + idx, (__m128)flush4((v4f)r3));
+        }
+        v4f t = {0, 0, 0, 0};
+        if (r->out[g] != 15)
+            for (int l = 0; l < 4; l++)
+                if (!(r->out[g] >> l & 1))
+                    t[l] = flush(fast_get(x, c[l], tx[l], ty[l], tz[l]));
+        _mm_storeu_ps(x->dst + idx, (__m128)t);
+    }
+    for (uint32_t i = 4 * groups; i < x->nx; i++)
+        advect1(x, row + i, i, j, k);
+}
 
 /* One pass for every advected field: the departure point of voxel (i, j, k) over dt by a
  * midpoint (RK2) backtrace through the packed velocity, in voxel units, then one cell
  * set-up for all fields: velocity and density into u v w d (vel set; the packed copy is
  * the input, so in place is safe), scalar `src` into `dst` (0 where its cell lies outside
- * the scalar's box). A row at a time in stages (points, cells, midpoint lookups, cells,
- * lookups), so that the voxels of a stage do not wait on one another. */
+ * the scalar's box). A row at a time (advect_row). */
 struct advect_arg {
     float *const *vel;  /* u v w d, or NULL: only the scalar */
     const float *src;
@@ -370,61 +454,30 @@ struct advect_arg {
 static void advect_slab(const struct fluid *f, void *p, uint32_t k0, uint32_t k1)
 {
     const struct advect_arg *a = p;
-    const v4f *restrict q = packed(f);
-    const float *restrict src = a->src;
-    float *restrict dst = a->dst;
-    float *restrict vu = a->vel ? a->vel[0] : NULL, *restrict vv = a->vel ? a->vel[1] : NULL;
-    float *restrict vw = a->vel ? a->vel[2] : NULL, *restrict vd = a->vel ? a->vel[3] : NULL;
-    const uint32_t nx = f->nx, ny = f->ny, nz = f->nz;
-    const size_t sxy = (size_t)nx * ny;
-    const ptrdiff_t dy = (ptrdiff_t)nx, dz = (ptrdiff_t)sxy;
-    const float s = a->dt / f->h, hs = 0.5f * s;
-    const struct box *b = &a->src_box;
-    /* the scalar's box as bounds on a fast cell's point: its lower corner floor(x) is
-     * outside [lo - 1, hi] when x < lo - 1 or x >= hi + 1 */
-    const float blo[3] = {(float)b->lo[0] - 1.0f, (float)b->lo[1] - 1.0f, (float)b->lo[2] - 1.0f};
-    const float bhi[3] = {(float)b->hi[0] + 1.0f, (float)b->hi[1] + 1.0f, (float)b->hi[2] + 1.0f};
+    struct advect_ctx x = {
+        .q = packed(f), .src = a->src, .dst = a->dst, .nx = f->nx, .ny = f->ny, .nz = f->nz,
+        .dy = (ptrdiff_t)f->nx, .dz = (ptrdiff_t)((size_t)f->nx * f->ny), .s = a->dt / f->h, .b = &a->src_box,
+    };
+    x.hs = 0.5f * x.s;
+    if (a->vel) {
+        x.vu = a->vel[0];
+        x.vv = a->vel[1];
+        x.vw = a->vel[2];
+        x.vd = a->vel[3];
+    }
+    const uint32_t n[3] = {f->nx, f->ny, f->nz};
+    for (int ax = 0; ax < 3; ax++) {
+        const v4f zero = {0, 0, 0, 0};
+        x.blo[ax] = zero + ((float)a->src_box.lo[ax] - 1.0f);
+        x.bhi[ax] = zero + ((float)a->src_box.hi[ax] + 1.0f);
+        x.lim[ax] = zero + (float)(n[ax] - 1);
+    }
+    x.sy = (v4i){0, 0, 0, 0} + (int32_t)x.dy;
+    x.sz = (v4i){0, 0, 0, 0} + (int32_t)x.dz;
     struct row *r = mem_alloc(sizeof *r);
-    memset(r, 0, sizeof *r);  /* the tail beyond nx (rounded up to 4) stays 0 */
     for (uint32_t k = k0; k < k1; k++)
-        for (uint32_t j = 0; j < ny; j++) {
-            const size_t row = (size_t)k * sxy + (size_t)j * nx;
-            const v4f *qr = q + row;
-            for (uint32_t i = 0; i < nx; i++) {
-                r->x[i] = (float)i - hs * qr[i][0];
-                r->y[i] = (float)j - hs * qr[i][1];
-                r->z[i] = (float)k - hs * qr[i][2];
-            }
-            row_cells(r, nx, ny, nz);
-            for (uint32_t i = 0; i < nx; i++) {
-                v4f um = row_get4(r, i, q, dy, dz);
-                r->x[i] = (float)i - s * um[0];
-                r->y[i] = (float)j - s * um[1];
-                r->z[i] = (float)k - s * um[2];
-            }
-            row_cells(r, nx, ny, nz);
-            if (vu)
-                for (uint32_t i = 0; i < nx; i++) {
-                    v4f v = row_get4(r, i, q, dy, dz);
-                    vu[row + i] = v[0];
-                    vv[row + i] = v[1];
-                    vw[row + i] = v[2];
-                    vd[row + i] = flush(v[3]);
-                }
-            for (uint32_t i = 0; i < nx; i++) {
-                int out = r->slow[i] ? cell_outside(&r->cell[i], b)
-                                     : (r->x[i] < blo[0]) | (r->x[i] >= bhi[0]) | (r->y[i] < blo[1]) |
-                                           (r->y[i] >= bhi[1]) | (r->z[i] < blo[2]) | (r->z[i] >= bhi[2]);
-                if (out) {
-                    dst[row + i] = 0.0f;
-                } else if (r->slow[i]) {
-                    dst[row + i] = flush(cell_get(&r->cell[i], src));
-                } else {
-                    const struct cell l = {(size_t)r->c[i], 1, dy, dz, r->tx[i], r->ty[i], r->tz[i], 0, 0, 0, 0};
-                    dst[row + i] = flush(cell_get(&l, src));
-                }
-            }
-        }
+        for (uint32_t j = 0; j < f->ny; j++)
+            advect_row(&x, r, (size_t)k * (size_t)x.dz + (size_t)j * f->nx, j, k);
     free(r);
 }
 
