@@ -99,6 +99,11 @@ void fluid_free(struct fluid *f)
     memset(f, 0, sizeof *f);
 }
 
+static inline size_t at(const struct fluid *f, uint32_t i, uint32_t j, uint32_t k)
+{
+    return i + (size_t)f->nx * (j + (size_t)f->ny * k);
+}
+
 /* ---- threads ---- */
 
 /* Runs fn over z slabs [k0, k1) on s.threads threads (the calling one included). Each
@@ -258,18 +263,40 @@ static void pack_slab(const struct fluid *f, void *arg, uint32_t k0, uint32_t k1
 {
     struct pack_arg *a = arg;
     v4f *q = packed(f);
-    size_t idx = (size_t)k0 * f->nx * f->ny;
     for (uint32_t k = k0; k < k1; k++) {
         struct box b;
         box_empty(&b);
-        for (uint32_t j = 0; j < f->ny; j++)
-            for (uint32_t i = 0; i < f->nx; i++, idx++) {
-                q[idx] = (v4f){f->u[idx], f->v[idx], f->w[idx], f->d[idx]};
-                if (a->scalar[idx] != 0.0f) {
-                    const struct box one = {{i, j, k}, {i, j, k}};
-                    box_add(&b, &one);
+        for (uint32_t j = 0; j < f->ny; j++) {
+            const size_t row = at(f, 0, j, k);
+            uint32_t first = UINT32_MAX, last = 0, i = 0;  /* the row's non-zero scalars */
+            for (; i + 4 <= f->nx; i += 4) {  /* four voxels: a transpose */
+                const size_t idx = row + i;
+                __m128 u = _mm_loadu_ps(f->u + idx), v = _mm_loadu_ps(f->v + idx);
+                __m128 w = _mm_loadu_ps(f->w + idx), d = _mm_loadu_ps(f->d + idx);
+                _MM_TRANSPOSE4_PS(u, v, w, d);
+                q[idx] = (v4f)u;
+                q[idx + 1] = (v4f)v;
+                q[idx + 2] = (v4f)w;
+                q[idx + 3] = (v4f)d;
+                const int nz = _mm_movemask_ps(_mm_cmpneq_ps(_mm_loadu_ps(a->scalar + idx), _mm_setzero_ps()));
+                if (nz) {
+                    first = first < UINT32_MAX ? first : i + (uint32_t)__builtin_ctz((unsigned)nz);
+                    last = i + 31 - (uint32_t)__builtin_clz((unsigned)nz);
                 }
             }
+            for (; i < f->nx; i++) {
+                const size_t idx = row + i;
+                q[idx] = (v4f){f->u[idx], f->v[idx], f->w[idx], f->d[idx]};
+                if (a->scalar[idx] != 0.0f) {
+                    first = first < UINT32_MAX ? first : i;
+                    last = i;
+                }
+            }
+            if (first != UINT32_MAX) {
+                const struct box one = {{first, j, k}, {last, j, k}};
+                box_add(&b, &one);
+            }
+        }
         a->plane[k] = b;
     }
 }
@@ -333,22 +360,32 @@ static void advect1(const struct advect_ctx *x, size_t idx, uint32_t i, uint32_t
     x->dst[idx] = cell_outside(&l, x->b) ? 0.0f : flush(cell_get(&l, x->src));
 }
 
-/* The cells of four points when every coordinate of each lies in [0, n - 1) (nearly
- * every point): the truncation is the floor and nothing wraps, so the lower corner is
- * c (strides 1, nx, nx ny) and the fractions are t. 0 when a point lies elsewhere. */
-static inline int cells4(const struct advect_ctx *x, v4f px, v4f py, v4f pz, v4i *c, v4f *tx, v4f *ty, v4f *tz)
+/* The cells of four points. Where every coordinate of a point lies in [0, n - 1) (nearly
+ * every point) the truncation is the floor and nothing wraps, so the lower corner is c
+ * (strides 1, nx, nx ny) and the fractions are t; the other points (near the faces, or
+ * thrown far by huge velocities) get cell_at's general cells in cell[0..3]. Returns the
+ * mask of those (bit l: point l). */
+static inline int cells4(const struct advect_ctx *x, v4f px, v4f py, v4f pz, v4i *c, v4f *tx, v4f *ty, v4f *tz,
+                         struct cell *cell)
 {
     const v4f zero = {0, 0, 0, 0};
     v4i in = (px >= zero) & (px < x->lim[0]) & (py >= zero) & (py < x->lim[1]) & (pz >= zero) & (pz < x->lim[2]);
-    if (_mm_movemask_ps((__m128)in) != 15)
-        return 0;
+    int slow = _mm_movemask_ps((__m128)in) ^ 15;
+    if (slow) {
+        for (int l = 0; l < 4; l++)
+            if (slow >> l & 1)
+                cell_at(x->nx, x->ny, x->nz, px[l], py[l], pz[l], &cell[l]);
+        px = (v4f)((v4i)px & in);  /* 0 where slow, so the conversions stay in range */
+        py = (v4f)((v4i)py & in);
+        pz = (v4f)((v4i)pz & in);
+    }
     v4i xi = __builtin_convertvector(px, v4i), yi = __builtin_convertvector(py, v4i);
     v4i zi = __builtin_convertvector(pz, v4i);
     *tx = px - __builtin_convertvector(xi, v4f);
     *ty = py - __builtin_convertvector(yi, v4f);
     *tz = pz - __builtin_convertvector(zi, v4f);
     *c = xi + yi * x->sy + zi * x->sz;
-    return 1;
+    return slow;
 }
 
 /* cell_get4 / cell_get of a fast cell (lower corner c, fractions tx ty tz). */
@@ -366,16 +403,23 @@ static inline float fast_get(const struct advect_ctx *x, int32_t c, float tx, fl
 /* A row of voxels goes through the stages of advect1 one stage at a time, four voxels side
  * by side (transposes of the packed lookups' results), so that no voxel waits on the one
  * before: departure points and cells of the midpoints, midpoint lookups, points and cells of
- * the departure points, final lookups. Each voxel gets exactly advect1's operations. A group
- * of four with a point outside the fast cells' range (rare: near the faces, or huge
- * velocities) goes through advect1 voxel by voxel, and so do the row's last nx % 4. */
+ * the departure points, final lookups. Each voxel gets exactly advect1's operations. The
+ * row's last nx % 4 voxels go through advect1. */
 struct row {
     v4i c[SMOKE_MAX_RES / 4];
     v4f tx[SMOKE_MAX_RES / 4], ty[SMOKE_MAX_RES / 4], tz[SMOKE_MAX_RES / 4];
-    v4f m[SMOKE_MAX_RES];        /* midpoint lookups */
-    int slow[SMOKE_MAX_RES / 4]; /* a group that takes advect1 */
-    int out[SMOKE_MAX_RES / 4];  /* lanes whose scalar lookup is 0 (movemask bits) */
+    int slow[SMOKE_MAX_RES / 4];         /* cells4's mask: lanes with a general cell */
+    int out[SMOKE_MAX_RES / 4];          /* lanes whose scalar lookup is 0 */
+    v4f m[SMOKE_MAX_RES];                /* midpoint lookups */
+    struct cell cell[SMOKE_MAX_RES];     /* the general cells */
 };
+/* The packed lookup at lane l of group g. */
+static inline v4f row_get4(const struct advect_ctx *x, const struct row *r, uint32_t g, int l)
+{
+    if (r->slow[g] >> l & 1)
+        return cell_get4(&r->cell[4 * g + l], x->q);
+    return fast_get4(x, r->c[g][l], r->tx[g][l], r->ty[g][l], r->tz[g][l]);
+}
 static void advect_row(const struct advect_ctx *x, struct row *r, size_t row, uint32_t j, uint32_t k)
 {
     const uint32_t groups = x->nx / 4;
@@ -386,42 +430,34 @@ static void advect_row(const struct advect_ctx *x, struct row *r, size_t row, ui
         __m128 a3 = (__m128)x->q[idx + 3];
         _MM_TRANSPOSE4_PS(a0, a1, a2, a3);  /* a0 a1 a2: u v w of the four voxels */
         const v4f fi = __builtin_convertvector(((v4i){0, 1, 2, 3} + (int32_t)(4 * g)), v4f);
-        r->slow[g] = !cells4(x, fi - x->hs * (v4f)a0, fj - x->hs * (v4f)a1, fk - x->hs * (v4f)a2, &r->c[g],
-                             &r->tx[g], &r->ty[g], &r->tz[g]);
+        r->slow[g] = cells4(x, fi - x->hs * (v4f)a0, fj - x->hs * (v4f)a1, fk - x->hs * (v4f)a2, &r->c[g],
+                            &r->tx[g], &r->ty[g], &r->tz[g], &r->cell[4 * g]);
     }
     for (uint32_t g = 0; g < groups; g++)
-        if (!r->slow[g])
-            for (int l = 0; l < 4; l++)
-                r->m[4 * g + l] = fast_get4(x, r->c[g][l], r->tx[g][l], r->ty[g][l], r->tz[g][l]);
+        for (int l = 0; l < 4; l++)
+            r->m[4 * g + l] = row_get4(x, r, g, l);
     for (uint32_t g = 0; g < groups; g++) {
-        if (r->slow[g])
-            continue;
         __m128 m0 = (__m128)r->m[4 * g], m1 = (__m128)r->m[4 * g + 1], m2 = (__m128)r->m[4 * g + 2];
         __m128 m3 = (__m128)r->m[4 * g + 3];
         _MM_TRANSPOSE4_PS(m0, m1, m2, m3);
         const v4f fi = __builtin_convertvector(((v4i){0, 1, 2, 3} + (int32_t)(4 * g)), v4f);
         const v4f px = fi - x->s * (v4f)m0, py = fj - x->s * (v4f)m1, pz = fk - x->s * (v4f)m2;
-        r->slow[g] = !cells4(x, px, py, pz, &r->c[g], &r->tx[g], &r->ty[g], &r->tz[g]);
-        /* the scalar: its lower corner floor(p) lies outside [lo - 1, hi] when p < lo - 1
-         * or p >= hi + 1, and then the lookup is 0 */
+        const int slow = cells4(x, px, py, pz, &r->c[g], &r->tx[g], &r->ty[g], &r->tz[g], &r->cell[4 * g]);
+        r->slow[g] = slow;
+        /* the scalar: a fast cell's lower corner floor(p) lies outside [lo - 1, hi] when
+         * p < lo - 1 or p >= hi + 1, and then the lookup is 0 */
         const v4i out = (px < x->blo[0]) | (px >= x->bhi[0]) | (py < x->blo[1]) | (py >= x->bhi[1]) |
                         (pz < x->blo[2]) | (pz >= x->bhi[2]);
-        r->out[g] = _mm_movemask_ps((__m128)out);
+        r->out[g] = _mm_movemask_ps((__m128)out) & ~slow;
+        for (int l = 0; l < 4; l++)
+            if (slow >> l & 1)
+                r->out[g] |= cell_outside(&r->cell[4 * g + l], x->b) << l;
     }
     for (uint32_t g = 0; g < groups; g++) {
         const size_t idx = row + 4 * g;
-        if (r->slow[g]) {
-            for (uint32_t l = 0; l < 4; l++)
-                advect1(x, idx + l, 4 * g + l, j, k);
-            continue;
-        }
-        const v4i c = r->c[g];
-        const v4f tx = r->tx[g], ty = r->ty[g], tz = r->tz[g];
         if (x->vu) {
-            __m128 r0 = (__m128)fast_get4(x, c[0], tx[0], ty[0], tz[0]);
-            __m128 r1 = (__m128)fast_get4(x, c[1], tx[1], ty[1], tz[1]);
-            __m128 r2 = (__m128)fast_get4(x, c[2], tx[2], ty[2], tz[2]);
-            __m128 r3 = (__m128)fast_get4(x, c[3], tx[3], ty[3], tz[3]);
+            __m128 r0 = (__m128)row_get4(x, r, g, 0), r1 = (__m128)row_get4(x, r, g, 1);
+            __m128 r2 = (__m128)row_get4(x, r, g, 2), r3 = (__m128)row_get4(x, r, g, 3);
             _MM_TRANSPOSE4_PS(r0, r1, r2, r3);
             _mm_storeu_ps(x->vu + idx, r0);
             _mm_storeu_ps(x->vv + idx, r1);
@@ -432,7 +468,8 @@ static void advect_row(const struct advect_ctx *x, struct row *r, size_t row, ui
         if (r->out[g] != 15)
             for (int l = 0; l < 4; l++)
                 if (!(r->out[g] >> l & 1))
-                    t[l] = flush(fast_get(x, c[l], tx[l], ty[l], tz[l]));
+                    t[l] = flush(r->slow[g] >> l & 1 ? cell_get(&r->cell[4 * g + l], x->src)
+                                                     : fast_get(x, r->c[g][l], r->tx[g][l], r->ty[g][l], r->tz[g][l]));
         _mm_storeu_ps(x->dst + idx, (__m128)t);
     }
     for (uint32_t i = 4 * groups; i < x->nx; i++)
@@ -600,10 +637,6 @@ void fluid_divergence(struct fluid *f, double *div_norm, double *vel_norm)
 
 /* Index range [*lo, *hi] of the voxels along one axis whose centres (m + 0.5) h may lie
  * within r of c (one voxel of slack; the sphere test decides). */
-static inline size_t at(const struct fluid *f, uint32_t i, uint32_t j, uint32_t k)
-{
-    return i + (size_t)f->nx * (j + (size_t)f->ny * k);
-}
 
 static void source_span(float c, float r, float h, uint32_t n, uint32_t *lo, uint32_t *hi)
 {
