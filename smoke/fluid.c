@@ -388,11 +388,23 @@ static inline int cells4(const struct advect_ctx *x, v4f px, v4f py, v4f pz, v4i
     return slow;
 }
 
-/* cell_get4 / cell_get of a fast cell (lower corner c, fractions tx ty tz). */
+/* cell_get4 of a fast cell (lower corner c, fractions tx ty tz) with the corners below and
+ * above in z side by side in 8 floats: 4 lerps of 8 floats instead of 7 of 4, the same
+ * operations lane by lane (so the same bits), one AVX instruction each where the CPU has
+ * AVX (advect_row's clones). */
+typedef float v8f __attribute__((vector_size(32)));
 static inline v4f fast_get4(const struct advect_ctx *x, int32_t c, float tx, float ty, float tz)
 {
-    const struct cell l = {(size_t)c, 1, x->dy, x->dz, tx, ty, tz, 0, 0, 0, 0};
-    return cell_get4(&l, x->q);
+    const v4f *p0 = x->q + c, *p1 = p0 + x->dz;
+    const ptrdiff_t dy = x->dy;
+    const v8f a = __builtin_shufflevector(p0[0], p1[0], 0, 1, 2, 3, 4, 5, 6, 7);
+    const v8f b = __builtin_shufflevector(p0[1], p1[1], 0, 1, 2, 3, 4, 5, 6, 7);
+    const v8f e = __builtin_shufflevector(p0[dy], p1[dy], 0, 1, 2, 3, 4, 5, 6, 7);
+    const v8f g = __builtin_shufflevector(p0[dy + 1], p1[dy + 1], 0, 1, 2, 3, 4, 5, 6, 7);
+    const v8f lo = a + tx * (b - a), hi = e + tx * (g - e);  /* along x: (a0, a2), (a1, a3) */
+    const v8f m = lo + ty * (hi - lo);                         /* along y: (b0, b1) */
+    const v4f m0 = __builtin_shufflevector(m, m, 0, 1, 2, 3), m1 = __builtin_shufflevector(m, m, 4, 5, 6, 7);
+    return m0 + tz * (m1 - m0);
 }
 static inline float fast_get(const struct advect_ctx *x, int32_t c, float tx, float ty, float tz)
 {
@@ -420,7 +432,7 @@ static inline v4f row_get4(const struct advect_ctx *x, const struct row *r, uint
         return cell_get4(&r->cell[4 * g + l], x->q);
     return fast_get4(x, r->c[g][l], r->tx[g][l], r->ty[g][l], r->tz[g][l]);
 }
-static void advect_row(const struct advect_ctx *x, struct row *r, size_t row, uint32_t j, uint32_t k)
+__attribute__((target_clones("avx", "default"))) static void advect_row(const struct advect_ctx *x, struct row *r, size_t row, uint32_t j, uint32_t k)
 {
     const uint32_t groups = x->nx / 4;
     const float fj = (float)j, fk = (float)k;
