@@ -43,9 +43,9 @@ static size_t spec_len(const struct fluid *f) { return (size_t)f->nz * f->ny * (
 
 size_t fluid_bytes_per_voxel(void)
 {
-    /* five fields, a spare, a scratch block of four, three half spectra (nx/2+1 complex per
-     * nx reals ~ 1 float) */
-    return 10 * sizeof(float) + 3 * sizeof(float) * 1;
+    /* five fields, a spare, a scratch block of five (the padded copies: about one voxel more
+     * per row, column and plane), three half spectra (nx/2+1 complex per nx reals ~ 1 float) */
+    return 11 * sizeof(float) + 3 * sizeof(float) * 1;
 }
 
 void fluid_init(struct fluid *f, const struct smoke_settings *s)
@@ -59,7 +59,10 @@ void fluid_init(struct fluid *f, const struct smoke_settings *s)
     f->h = s->size / (float)f->nx;
     float **fields[] = {&f->u, &f->v, &f->w, &f->d, &f->t, &f->spare, &f->tmp[0]};
     for (size_t i = 0; i < sizeof fields / sizeof *fields; i++) {
-        size_t len = (i == 6 ? 4 : 1) * f->n;  /* the scratch block: tmp[0..3], or the packed fields */
+        /* the scratch block: tmp[0..3], or the padded copies advection reads (4 + 1 floats a
+         * padded voxel) */
+        size_t pad = (size_t)(f->nx + 2) * (f->ny + 2) * (f->nz + 2);
+        size_t len = i == 6 ? (4 * f->n > 5 * pad ? 4 * f->n : 5 * pad) : f->n;
         *fields[i] = fftwf_malloc(len * sizeof(float));
         CHECK(*fields[i] != NULL);
         memset(*fields[i], 0, len * sizeof(float));
@@ -151,6 +154,7 @@ static void par_slabs(const struct fluid *f, slab_fn fn, void *arg)
  * four scalar lookups). */
 typedef float v4f __attribute__((vector_size(16)));
 typedef int32_t v4i __attribute__((vector_size(16)));
+typedef float v8f __attribute__((vector_size(32)));
 
 static inline uint32_t wrap(int64_t i, uint32_t n)
 {
@@ -158,74 +162,38 @@ static inline uint32_t wrap(int64_t i, uint32_t n)
     return (uint32_t)(m < 0 ? m + n : m);
 }
 
-/* The cell holding a point (voxel centres at integers) on the periodic grid: the index of
- * its lower corner, the steps to the upper neighbour along x, y and z (wrapped) and the
- * fractions. */
+/* Advection reads padded copies: the packed velocity and density and the advected scalar,
+ * each with a halo of one voxel on every side holding the periodic neighbours, so that a
+ * cell whose upper corner lies across a face (or whose lower one lies one voxel before it)
+ * needs no wrapped index: every cell is a lower corner and the strides 1, nx + 2,
+ * (nx + 2)(ny + 2). They live in the scratch block (tmp[0..3] are its first quarters of n
+ * floats outside advection). */
+static size_t padded_count(const struct fluid *f) { return (size_t)(f->nx + 2) * (f->ny + 2) * (f->nz + 2); }
+static size_t padded_origin(const struct fluid *f) { return 1 + (size_t)(f->nx + 2) * (1 + (size_t)(f->ny + 2)); }
+static v4f *packed(const struct fluid *f) { return (v4f *)(void *)f->tmp[0]; }
+static float *packed_scalar(const struct fluid *f) { return f->tmp[0] + 4 * padded_count(f); }
+
+/* The cell holding a point (voxel centres at integers) on the periodic grid: its lower
+ * corner as an index of the padded copies relative to voxel (0, 0, 0), that corner's voxel
+ * (wrapped into the grid) and the fractions. */
 struct cell {
-    size_t c;
-    ptrdiff_t dx, dy, dz;
+    ptrdiff_t c;
     float tx, ty, tz;
-    uint32_t i, j, k;  /* the lower corner */
-    int wrapped;       /* an upper corner wrapped around */
+    uint32_t i, j, k;
+    int wrapped;  /* on some axis the upper corner is the halo (voxel 0 across the face) */
 };
 
-/* Lower corner, step to the upper one (in units of the axis stride) and fraction along one
- * axis of n voxels. Inside [0, n - 1) (nearly every lookup) the truncation is the floor
- * and nothing wraps; elsewhere the position is clamped (huge velocities) and wrapped,
- * periodicity making any finite position valid. */
-static inline uint32_t axis_split(float x, uint32_t n, int64_t *step, float *t)
+/* Lower corner and fraction along one axis of n voxels: the floor, clamped (huge
+ * velocities) and wrapped, periodicity making any finite position valid. */
+static inline uint32_t axis_split(float x, uint32_t n, float *t)
 {
-    if (x >= 0.0f && x < (float)(n - 1)) {
-        uint32_t i = (uint32_t)x;
-        *t = x - (float)i;
-        *step = 1;
-        return i;
-    }
     const float lim = 1e6f;
     x = x > -lim ? x : -lim;  /* NaN goes to -lim, as fmaxf would take it */
     x = x < lim ? x : lim;
     float fl = floorf(x);
     *t = x - fl;
-    uint32_t i = wrap((int64_t)fl, n);
-    *step = i + 1 == n ? -(int64_t)i : 1;
-    return i;
+    return wrap((int64_t)fl, n);
 }
-
-static inline void cell_at(uint32_t nx, uint32_t ny, uint32_t nz, float x, float y, float z, struct cell *l)
-{
-    int64_t sx, sy, sz;
-    uint32_t i = axis_split(x, nx, &sx, &l->tx);
-    uint32_t j = axis_split(y, ny, &sy, &l->ty);
-    uint32_t k = axis_split(z, nz, &sz, &l->tz);
-    size_t sxy = (size_t)nx * ny;
-    l->i = i;
-    l->j = j;
-    l->k = k;
-    l->wrapped = (sx != 1) | (sy != 1) | (sz != 1);
-    l->c = i + (size_t)j * nx + (size_t)k * sxy;
-    l->dx = (ptrdiff_t)sx;
-    l->dy = (ptrdiff_t)(sy * (int64_t)nx);
-    l->dz = (ptrdiff_t)(sz * (int64_t)sxy);
-}
-
-/* Trilinear lookups, written as a + t (b - a) so a constant field comes back exactly. */
-#define TRILERP(T, q, l)                                                                        \
-    do {                                                                                        \
-        const T *p0 = (q) + (l)->c, *p1 = p0 + (l)->dz;                                         \
-        ptrdiff_t dx_ = (l)->dx, dy_ = (l)->dy;                                                  \
-        T a0 = p0[0] + (l)->tx * (p0[dx_] - p0[0]);                                             \
-        T a1 = p0[dy_] + (l)->tx * (p0[dy_ + dx_] - p0[dy_]);                                   \
-        T a2 = p1[0] + (l)->tx * (p1[dx_] - p1[0]);                                             \
-        T a3 = p1[dy_] + (l)->tx * (p1[dy_ + dx_] - p1[dy_]);                                   \
-        T b0 = a0 + (l)->ty * (a1 - a0), b1 = a2 + (l)->ty * (a3 - a2);                         \
-        return b0 + (l)->tz * (b1 - b0);                                                        \
-    } while (0)
-static inline float cell_get(const struct cell *l, const float *q) { TRILERP(float, q, l); }
-static inline v4f cell_get4(const struct cell *l, const v4f *q) { TRILERP(v4f, q, l); }
-
-/* The packed velocity and density live in the scratch block (tmp[0..3] are its quarters
- * outside advection). */
-static v4f *packed(const struct fluid *f) { return (v4f *)(void *)f->tmp[0]; }
 
 /* Index box [lo, hi] per axis holding every non-zero value of a scalar (lo > hi: none).
  * Lookups in cells wholly outside it give 0 exactly (a + t (b - a) of zeros), so they are
@@ -254,48 +222,67 @@ static inline int cell_outside(const struct cell *l, const struct box *b)
                            l->k > b->hi[2] || l->k + 1 < b->lo[2]);
 }
 
-/* Packs u v w d and finds the box of the scalar's non-zero values, per z plane. */
+/* One padded row (pj, pk) of the packed fields and of the scalar: source row ((pj - 1) mod
+ * ny, (pk - 1) mod nz), its last voxel before it and its first after it. The interior rows
+ * also extend the box of the scalar's non-zero values. */
 struct pack_arg {
     const float *scalar;
     struct box *plane;  /* nz */
 };
+static void pack_row(const struct fluid *f, const struct pack_arg *a, uint32_t pj, uint32_t pk, struct box *b)
+{
+    const uint32_t nx = f->nx, j = pj == 0 ? f->ny - 1 : (pj - 1) % f->ny, k = pk == 0 ? f->nz - 1 : (pk - 1) % f->nz;
+    const size_t src = at(f, 0, j, k), dst = (size_t)pj * (nx + 2) + (size_t)pk * (nx + 2) * (f->ny + 2);
+    v4f *q = packed(f) + dst + 1;
+    float *t = packed_scalar(f) + dst + 1;
+    const float *u = f->u + src, *v = f->v + src, *w = f->w + src, *d = f->d + src, *s = a->scalar + src;
+    const int interior = pj >= 1 && pj <= f->ny && pk >= 1 && pk <= f->nz;
+    uint32_t first = UINT32_MAX, last = 0, i = 0;  /* the row's non-zero scalars */
+    for (; i + 4 <= nx; i += 4) {                 /* four voxels: a transpose */
+        __m128 a0 = _mm_loadu_ps(u + i), a1 = _mm_loadu_ps(v + i), a2 = _mm_loadu_ps(w + i), a3 = _mm_loadu_ps(d + i);
+        _MM_TRANSPOSE4_PS(a0, a1, a2, a3);
+        q[i] = (v4f)a0;
+        q[i + 1] = (v4f)a1;
+        q[i + 2] = (v4f)a2;
+        q[i + 3] = (v4f)a3;
+        const __m128 sc = _mm_loadu_ps(s + i);
+        _mm_storeu_ps(t + i, sc);
+        const int nz = _mm_movemask_ps(_mm_cmpneq_ps(sc, _mm_setzero_ps()));
+        if (nz) {
+            first = first < UINT32_MAX ? first : i + (uint32_t)__builtin_ctz((unsigned)nz);
+            last = i + 31 - (uint32_t)__builtin_clz((unsigned)nz);
+        }
+    }
+    for (; i < nx; i++) {
+        q[i] = (v4f){u[i], v[i], w[i], d[i]};
+        t[i] = s[i];
+        if (s[i] != 0.0f) {
+            first = first < UINT32_MAX ? first : i;
+            last = i;
+        }
+    }
+    q[-1] = q[nx - 1];
+    q[nx] = q[0];
+    t[-1] = t[nx - 1];
+    t[nx] = t[0];
+    if (interior && first != UINT32_MAX) {
+        const struct box one = {{first, j, k}, {last, j, k}};
+        box_add(b, &one);
+    }
+}
+/* Planes k0..k1 - 1 (padded k + 1), and the halo planes next to them across the faces. */
 static void pack_slab(const struct fluid *f, void *arg, uint32_t k0, uint32_t k1)
 {
-    struct pack_arg *a = arg;
-    v4f *q = packed(f);
+    const struct pack_arg *a = arg;
     for (uint32_t k = k0; k < k1; k++) {
         struct box b;
         box_empty(&b);
-        for (uint32_t j = 0; j < f->ny; j++) {
-            const size_t row = at(f, 0, j, k);
-            uint32_t first = UINT32_MAX, last = 0, i = 0;  /* the row's non-zero scalars */
-            for (; i + 4 <= f->nx; i += 4) {  /* four voxels: a transpose */
-                const size_t idx = row + i;
-                __m128 u = _mm_loadu_ps(f->u + idx), v = _mm_loadu_ps(f->v + idx);
-                __m128 w = _mm_loadu_ps(f->w + idx), d = _mm_loadu_ps(f->d + idx);
-                _MM_TRANSPOSE4_PS(u, v, w, d);
-                q[idx] = (v4f)u;
-                q[idx + 1] = (v4f)v;
-                q[idx + 2] = (v4f)w;
-                q[idx + 3] = (v4f)d;
-                const int nz = _mm_movemask_ps(_mm_cmpneq_ps(_mm_loadu_ps(a->scalar + idx), _mm_setzero_ps()));
-                if (nz) {
-                    first = first < UINT32_MAX ? first : i + (uint32_t)__builtin_ctz((unsigned)nz);
-                    last = i + 31 - (uint32_t)__builtin_clz((unsigned)nz);
-                }
-            }
-            for (; i < f->nx; i++) {
-                const size_t idx = row + i;
-                q[idx] = (v4f){f->u[idx], f->v[idx], f->w[idx], f->d[idx]};
-                if (a->scalar[idx] != 0.0f) {
-                    first = first < UINT32_MAX ? first : i;
-                    last = i;
-                }
-            }
-            if (first != UINT32_MAX) {
-                const struct box one = {{first, j, k}, {last, j, k}};
-                box_add(&b, &one);
-            }
+        for (uint32_t pj = 0; pj < f->ny + 2; pj++) {
+            pack_row(f, a, pj, k + 1, &b);
+            if (k == 0)
+                pack_row(f, a, pj, f->nz + 1, &b);
+            if (k == f->nz - 1)
+                pack_row(f, a, pj, 0, &b);
         }
         a->plane[k] = b;
     }
@@ -326,74 +313,38 @@ static inline v4f flush4(v4f x)
     return (v4f)((v4i)x & ~((v4f)((v4i)x & abs_mask) < lim));  /* flush, lane-wise */
 }
 
-/* What every voxel of an advection pass shares: the packed input q (velocity and density),
- * the scalar src and its box, the outputs, and the grid. */
+/* What every voxel of an advection pass shares: the padded inputs at voxel (0, 0, 0), the
+ * scalar's box, the outputs, and the grid. */
 struct advect_ctx {
-    const v4f *q;
-    const float *src;
+    const v4f *q;      /* packed velocity and density */
+    const float *src;  /* the scalar */
     float *dst;
     float *vu, *vv, *vw, *vd;  /* NULL: only the scalar */
     uint32_t nx, ny, nz;
-    ptrdiff_t dy, dz;
-    float s, hs;  /* dt / h and half of it: velocity to voxels per step */
+    ptrdiff_t dy, dz;  /* padded strides */
+    float s, hs;       /* dt / h and half of it: velocity to voxels per step */
     const struct box *b;
-    v4f blo[3], bhi[3];  /* the box as bounds on a fast cell's point (see advect4) */
-    v4f lim[3];          /* n - 1 per axis */
-    v4i sy, sz;          /* strides nx, nx ny */
+    v4f blo[3], bhi[3];  /* the box as bounds on a point (see advect_row) */
+    v4f top[3];          /* n per axis: fast cells' points lie in [-1, n) */
+    v4f inner[3];        /* n - 1 per axis: cells wholly inside the grid's voxels, [0, n - 1) */
+    v4i sy, sz;          /* dy, dz */
 };
 
-/* One voxel, any point: the general cells (wrapping, clamping). */
-static void advect1(const struct advect_ctx *x, size_t idx, uint32_t i, uint32_t j, uint32_t k)
+static inline void cell_at(const struct advect_ctx *x, float px, float py, float pz, struct cell *l)
 {
-    const v4f q0 = x->q[idx];
-    struct cell l;
-    cell_at(x->nx, x->ny, x->nz, (float)i - x->hs * q0[0], (float)j - x->hs * q0[1], (float)k - x->hs * q0[2], &l);
-    const v4f um = cell_get4(&l, x->q);
-    cell_at(x->nx, x->ny, x->nz, (float)i - x->s * um[0], (float)j - x->s * um[1], (float)k - x->s * um[2], &l);
-    if (x->vu) {
-        const v4f v = cell_get4(&l, x->q);
-        x->vu[idx] = v[0];
-        x->vv[idx] = v[1];
-        x->vw[idx] = v[2];
-        x->vd[idx] = flush(v[3]);
-    }
-    x->dst[idx] = cell_outside(&l, x->b) ? 0.0f : flush(cell_get(&l, x->src));
+    l->i = axis_split(px, x->nx, &l->tx);
+    l->j = axis_split(py, x->ny, &l->ty);
+    l->k = axis_split(pz, x->nz, &l->tz);
+    l->wrapped = (l->i + 1 == x->nx) | (l->j + 1 == x->ny) | (l->k + 1 == x->nz);
+    l->c = (ptrdiff_t)l->i + (ptrdiff_t)l->j * x->dy + (ptrdiff_t)l->k * x->dz;
 }
 
-/* The cells of four points. Where every coordinate of a point lies in [0, n - 1) (nearly
- * every point) the truncation is the floor and nothing wraps, so the lower corner is c
- * (strides 1, nx, nx ny) and the fractions are t; the other points (near the faces, or
- * thrown far by huge velocities) get cell_at's general cells in cell[0..3]. Returns the
- * mask of those (bit l: point l). */
-static inline int cells4(const struct advect_ctx *x, v4f px, v4f py, v4f pz, v4i *c, v4f *tx, v4f *ty, v4f *tz,
-                         struct cell *cell)
-{
-    const v4f zero = {0, 0, 0, 0};
-    v4i in = (px >= zero) & (px < x->lim[0]) & (py >= zero) & (py < x->lim[1]) & (pz >= zero) & (pz < x->lim[2]);
-    int slow = _mm_movemask_ps((__m128)in) ^ 15;
-    if (slow) {
-        for (int l = 0; l < 4; l++)
-            if (slow >> l & 1)
-                cell_at(x->nx, x->ny, x->nz, px[l], py[l], pz[l], &cell[l]);
-        px = (v4f)((v4i)px & in);  /* 0 where slow, so the conversions stay in range */
-        py = (v4f)((v4i)py & in);
-        pz = (v4f)((v4i)pz & in);
-    }
-    v4i xi = __builtin_convertvector(px, v4i), yi = __builtin_convertvector(py, v4i);
-    v4i zi = __builtin_convertvector(pz, v4i);
-    *tx = px - __builtin_convertvector(xi, v4f);
-    *ty = py - __builtin_convertvector(yi, v4f);
-    *tz = pz - __builtin_convertvector(zi, v4f);
-    *c = xi + yi * x->sy + zi * x->sz;
-    return slow;
-}
-
-/* cell_get4 of a fast cell (lower corner c, fractions tx ty tz) with the corners below and
- * above in z side by side in 8 floats: 4 lerps of 8 floats instead of 7 of 4, the same
- * operations lane by lane (so the same bits), one AVX instruction each where the CPU has
- * AVX (advect_row's clones). */
-typedef float v8f __attribute__((vector_size(32)));
-static inline v4f fast_get4(const struct advect_ctx *x, int32_t c, float tx, float ty, float tz)
+/* Trilinear lookups in the cell of lower corner c with fractions tx ty tz, written
+ * a + t (b - a) so a constant field comes back exactly: along x, then y, then z. The
+ * packed one has the corners below and above in z side by side in 8 floats: 4 lerps of 8
+ * floats instead of 7 of 4, the same operations lane by lane (so the same bits), one AVX
+ * instruction each where the CPU has AVX (advect_row's clones). */
+static inline v4f lookup4(const struct advect_ctx *x, ptrdiff_t c, float tx, float ty, float tz)
 {
     const v4f *p0 = x->q + c, *p1 = p0 + x->dz;
     const ptrdiff_t dy = x->dy;
@@ -406,10 +357,71 @@ static inline v4f fast_get4(const struct advect_ctx *x, int32_t c, float tx, flo
     const v4f m0 = __builtin_shufflevector(m, m, 0, 1, 2, 3), m1 = __builtin_shufflevector(m, m, 4, 5, 6, 7);
     return m0 + tz * (m1 - m0);
 }
-static inline float fast_get(const struct advect_ctx *x, int32_t c, float tx, float ty, float tz)
+static inline float lookup(const struct advect_ctx *x, ptrdiff_t c, float tx, float ty, float tz)
 {
-    const struct cell l = {(size_t)c, 1, x->dy, x->dz, tx, ty, tz, 0, 0, 0, 0};
-    return cell_get(&l, x->src);
+    const float *p0 = x->src + c, *p1 = p0 + x->dz;
+    const ptrdiff_t dy = x->dy;
+    float a0 = p0[0] + tx * (p0[1] - p0[0]), a1 = p0[dy] + tx * (p0[dy + 1] - p0[dy]);
+    float a2 = p1[0] + tx * (p1[1] - p1[0]), a3 = p1[dy] + tx * (p1[dy + 1] - p1[dy]);
+    float b0 = a0 + ty * (a1 - a0), b1 = a2 + ty * (a3 - a2);
+    return b0 + tz * (b1 - b0);
+}
+
+/* One voxel (output index idx), any point: the general cells. */
+static void advect1(const struct advect_ctx *x, size_t idx, uint32_t i, uint32_t j, uint32_t k)
+{
+    const v4f q0 = x->q[(ptrdiff_t)i + (ptrdiff_t)j * x->dy + (ptrdiff_t)k * x->dz];
+    struct cell l;
+    cell_at(x, (float)i - x->hs * q0[0], (float)j - x->hs * q0[1], (float)k - x->hs * q0[2], &l);
+    const v4f um = lookup4(x, l.c, l.tx, l.ty, l.tz);
+    cell_at(x, (float)i - x->s * um[0], (float)j - x->s * um[1], (float)k - x->s * um[2], &l);
+    if (x->vu) {
+        const v4f v = lookup4(x, l.c, l.tx, l.ty, l.tz);
+        x->vu[idx] = v[0];
+        x->vv[idx] = v[1];
+        x->vw[idx] = v[2];
+        x->vd[idx] = flush(v[3]);
+    }
+    x->dst[idx] = cell_outside(&l, x->b) ? 0.0f : flush(lookup(x, l.c, l.tx, l.ty, l.tz));
+}
+
+/* The cells of four points. Where every coordinate of a point lies in [-1, n) (nearly every
+ * point; the halo holds the neighbours across the faces) the lower corner is the floor,
+ * (the truncation, less 1 below 0), c = floor x + floor y dy + floor z dz, and the fractions
+ * p - floor p, as cell_at makes them; the other points (thrown far by huge velocities) get
+ * cell_at's general cells, into their lanes and cell[l]. Returns the mask of those. */
+static inline v4i floor4(v4f p)
+{
+    const v4i i = __builtin_convertvector(p, v4i);
+    return i + (v4i)(p < __builtin_convertvector(i, v4f));  /* true is -1 */
+}
+static inline int cells4(const struct advect_ctx *x, v4f px, v4f py, v4f pz, v4i *c, v4f *tx, v4f *ty, v4f *tz,
+                         struct cell *cell)
+{
+    const v4f m1 = {-1, -1, -1, -1};
+    v4i in = (px >= m1) & (px < x->top[0]) & (py >= m1) & (py < x->top[1]) & (pz >= m1) & (pz < x->top[2]);
+    const int slow = _mm_movemask_ps((__m128)in) ^ 15;
+    v4f qx = px, qy = py, qz = pz;
+    if (slow) {
+        qx = (v4f)((v4i)px & in);  /* 0 where slow, so the conversions stay in range */
+        qy = (v4f)((v4i)py & in);
+        qz = (v4f)((v4i)pz & in);
+    }
+    const v4i xi = floor4(qx), yi = floor4(qy), zi = floor4(qz);
+    *tx = qx - __builtin_convertvector(xi, v4f);
+    *ty = qy - __builtin_convertvector(yi, v4f);
+    *tz = qz - __builtin_convertvector(zi, v4f);
+    *c = xi + yi * x->sy + zi * x->sz;
+    if (slow)
+        for (int l = 0; l < 4; l++)
+            if (slow >> l & 1) {
+                cell_at(x, px[l], py[l], pz[l], &cell[l]);
+                (*c)[l] = (int32_t)cell[l].c;
+                (*tx)[l] = cell[l].tx;
+                (*ty)[l] = cell[l].ty;
+                (*tz)[l] = cell[l].tz;
+            }
+    return slow;
 }
 
 /* A row of voxels goes through the stages of advect1 one stage at a time, four voxels side
@@ -420,56 +432,52 @@ static inline float fast_get(const struct advect_ctx *x, int32_t c, float tx, fl
 struct row {
     v4i c[SMOKE_MAX_RES / 4];
     v4f tx[SMOKE_MAX_RES / 4], ty[SMOKE_MAX_RES / 4], tz[SMOKE_MAX_RES / 4];
-    int slow[SMOKE_MAX_RES / 4];         /* cells4's mask: lanes with a general cell */
-    int out[SMOKE_MAX_RES / 4];          /* lanes whose scalar lookup is 0 */
-    v4f m[SMOKE_MAX_RES];                /* midpoint lookups */
-    struct cell cell[SMOKE_MAX_RES];     /* the general cells */
+    int out[SMOKE_MAX_RES / 4];  /* lanes whose scalar lookup is 0 */
+    v4f m[SMOKE_MAX_RES];        /* midpoint lookups */
 };
-/* The packed lookup at lane l of group g. */
-static inline v4f row_get4(const struct advect_ctx *x, const struct row *r, uint32_t g, int l)
-{
-    if (r->slow[g] >> l & 1)
-        return cell_get4(&r->cell[4 * g + l], x->q);
-    return fast_get4(x, r->c[g][l], r->tx[g][l], r->ty[g][l], r->tz[g][l]);
-}
-__attribute__((target_clones("avx", "default"))) static void advect_row(const struct advect_ctx *x, struct row *r, size_t row, uint32_t j, uint32_t k)
+#define ROW_GET4(x, r, g, l) lookup4((x), (r)->c[g][l], (r)->tx[g][l], (r)->ty[g][l], (r)->tz[g][l])
+__attribute__((target_clones("avx", "default"))) static void advect_row(const struct advect_ctx *x, struct row *r,
+                                                                        size_t row, uint32_t j, uint32_t k)
 {
     const uint32_t groups = x->nx / 4;
     const float fj = (float)j, fk = (float)k;
+    const v4f *qrow = x->q + (ptrdiff_t)j * x->dy + (ptrdiff_t)k * x->dz;
+    struct cell cell[4];
     for (uint32_t g = 0; g < groups; g++) {
-        const size_t idx = row + 4 * g;
-        __m128 a0 = (__m128)x->q[idx], a1 = (__m128)x->q[idx + 1], a2 = (__m128)x->q[idx + 2];
-        __m128 a3 = (__m128)x->q[idx + 3];
+        __m128 a0 = (__m128)qrow[4 * g], a1 = (__m128)qrow[4 * g + 1], a2 = (__m128)qrow[4 * g + 2];
+        __m128 a3 = (__m128)qrow[4 * g + 3];
         _MM_TRANSPOSE4_PS(a0, a1, a2, a3);  /* a0 a1 a2: u v w of the four voxels */
         const v4f fi = __builtin_convertvector(((v4i){0, 1, 2, 3} + (int32_t)(4 * g)), v4f);
-        r->slow[g] = cells4(x, fi - x->hs * (v4f)a0, fj - x->hs * (v4f)a1, fk - x->hs * (v4f)a2, &r->c[g],
-                            &r->tx[g], &r->ty[g], &r->tz[g], &r->cell[4 * g]);
+        cells4(x, fi - x->hs * (v4f)a0, fj - x->hs * (v4f)a1, fk - x->hs * (v4f)a2, &r->c[g], &r->tx[g], &r->ty[g],
+               &r->tz[g], cell);
     }
     for (uint32_t g = 0; g < groups; g++)
         for (int l = 0; l < 4; l++)
-            r->m[4 * g + l] = row_get4(x, r, g, l);
+            r->m[4 * g + l] = ROW_GET4(x, r, g, l);
     for (uint32_t g = 0; g < groups; g++) {
         __m128 m0 = (__m128)r->m[4 * g], m1 = (__m128)r->m[4 * g + 1], m2 = (__m128)r->m[4 * g + 2];
         __m128 m3 = (__m128)r->m[4 * g + 3];
         _MM_TRANSPOSE4_PS(m0, m1, m2, m3);
         const v4f fi = __builtin_convertvector(((v4i){0, 1, 2, 3} + (int32_t)(4 * g)), v4f);
         const v4f px = fi - x->s * (v4f)m0, py = fj - x->s * (v4f)m1, pz = fk - x->s * (v4f)m2;
-        const int slow = cells4(x, px, py, pz, &r->c[g], &r->tx[g], &r->ty[g], &r->tz[g], &r->cell[4 * g]);
-        r->slow[g] = slow;
-        /* the scalar: a fast cell's lower corner floor(p) lies outside [lo - 1, hi] when
-         * p < lo - 1 or p >= hi + 1, and then the lookup is 0 */
-        const v4i out = (px < x->blo[0]) | (px >= x->bhi[0]) | (py < x->blo[1]) | (py >= x->bhi[1]) |
-                        (pz < x->blo[2]) | (pz >= x->bhi[2]);
+        const int slow = cells4(x, px, py, pz, &r->c[g], &r->tx[g], &r->ty[g], &r->tz[g], cell);
+        /* the scalar: on an axis where a fast cell lies inside the grid's voxels (p in
+         * [0, n - 1)), its lower corner floor(p) lies outside [lo - 1, hi] when p < lo - 1
+         * or p >= hi + 1, and then the lookup is 0 */
+        const v4f zero = {0, 0, 0, 0};
+        const v4i out = ((px >= zero) & (px < x->inner[0]) & ((px < x->blo[0]) | (px >= x->bhi[0]))) |
+                        ((py >= zero) & (py < x->inner[1]) & ((py < x->blo[1]) | (py >= x->bhi[1]))) |
+                        ((pz >= zero) & (pz < x->inner[2]) & ((pz < x->blo[2]) | (pz >= x->bhi[2])));
         r->out[g] = _mm_movemask_ps((__m128)out) & ~slow;
         for (int l = 0; l < 4; l++)
             if (slow >> l & 1)
-                r->out[g] |= cell_outside(&r->cell[4 * g + l], x->b) << l;
+                r->out[g] |= cell_outside(&cell[l], x->b) << l;
     }
     for (uint32_t g = 0; g < groups; g++) {
         const size_t idx = row + 4 * g;
         if (x->vu) {
-            __m128 r0 = (__m128)row_get4(x, r, g, 0), r1 = (__m128)row_get4(x, r, g, 1);
-            __m128 r2 = (__m128)row_get4(x, r, g, 2), r3 = (__m128)row_get4(x, r, g, 3);
+            __m128 r0 = (__m128)ROW_GET4(x, r, g, 0), r1 = (__m128)ROW_GET4(x, r, g, 1);
+            __m128 r2 = (__m128)ROW_GET4(x, r, g, 2), r3 = (__m128)ROW_GET4(x, r, g, 3);
             _MM_TRANSPOSE4_PS(r0, r1, r2, r3);
             _mm_storeu_ps(x->vu + idx, r0);
             _mm_storeu_ps(x->vv + idx, r1);
@@ -480,8 +488,7 @@ __attribute__((target_clones("avx", "default"))) static void advect_row(const st
         if (r->out[g] != 15)
             for (int l = 0; l < 4; l++)
                 if (!(r->out[g] >> l & 1))
-                    t[l] = flush(r->slow[g] >> l & 1 ? cell_get(&r->cell[4 * g + l], x->src)
-                                                     : fast_get(x, r->c[g][l], r->tx[g][l], r->ty[g][l], r->tz[g][l]));
+                    t[l] = flush(lookup(x, r->c[g][l], r->tx[g][l], r->ty[g][l], r->tz[g][l]));
         _mm_storeu_ps(x->dst + idx, (__m128)t);
     }
     for (uint32_t i = 4 * groups; i < x->nx; i++)
@@ -495,7 +502,6 @@ __attribute__((target_clones("avx", "default"))) static void advect_row(const st
  * the scalar's box). A row at a time (advect_row). */
 struct advect_arg {
     float *const *vel;  /* u v w d, or NULL: only the scalar */
-    const float *src;
     float *dst;
     float dt;
     struct box src_box;
@@ -503,9 +509,11 @@ struct advect_arg {
 static void advect_slab(const struct fluid *f, void *p, uint32_t k0, uint32_t k1)
 {
     const struct advect_arg *a = p;
+    const size_t o = padded_origin(f);
     struct advect_ctx x = {
-        .q = packed(f), .src = a->src, .dst = a->dst, .nx = f->nx, .ny = f->ny, .nz = f->nz,
-        .dy = (ptrdiff_t)f->nx, .dz = (ptrdiff_t)((size_t)f->nx * f->ny), .s = a->dt / f->h, .b = &a->src_box,
+        .q = packed(f) + o, .src = packed_scalar(f) + o, .dst = a->dst, .nx = f->nx, .ny = f->ny, .nz = f->nz,
+        .dy = (ptrdiff_t)f->nx + 2, .dz = ((ptrdiff_t)f->nx + 2) * ((ptrdiff_t)f->ny + 2), .s = a->dt / f->h,
+        .b = &a->src_box,
     };
     x.hs = 0.5f * x.s;
     if (a->vel) {
@@ -519,20 +527,21 @@ static void advect_slab(const struct fluid *f, void *p, uint32_t k0, uint32_t k1
         const v4f zero = {0, 0, 0, 0};
         x.blo[ax] = zero + ((float)a->src_box.lo[ax] - 1.0f);
         x.bhi[ax] = zero + ((float)a->src_box.hi[ax] + 1.0f);
-        x.lim[ax] = zero + (float)(n[ax] - 1);
+        x.top[ax] = zero + (float)n[ax];
+        x.inner[ax] = zero + (float)(n[ax] - 1);
     }
     x.sy = (v4i){0, 0, 0, 0} + (int32_t)x.dy;
     x.sz = (v4i){0, 0, 0, 0} + (int32_t)x.dz;
     struct row *r = mem_alloc(sizeof *r);
     for (uint32_t k = k0; k < k1; k++)
         for (uint32_t j = 0; j < f->ny; j++)
-            advect_row(&x, r, (size_t)k * (size_t)x.dz + (size_t)j * f->nx, j, k);
+            advect_row(&x, r, at(f, 0, j, k), j, k);
     free(r);
 }
 
 void fluid_advect_scalar(const struct fluid *f, const float *src, float *dst, float dt)
 {
-    struct advect_arg a = {NULL, src, dst, dt, pack(f, src)};
+    struct advect_arg a = {NULL, dst, dt, pack(f, src)};
     par_slabs(f, advect_slab, &a);
 }
 
@@ -541,7 +550,7 @@ void fluid_advect_scalar(const struct fluid *f, const float *src, float *dst, fl
 static void advect_all(struct fluid *f, float dt)
 {
     float *vel[4] = {f->u, f->v, f->w, f->d};
-    struct advect_arg a = {vel, f->t, f->spare, dt, pack(f, f->t)};
+    struct advect_arg a = {vel, f->spare, dt, pack(f, f->t)};
     par_slabs(f, advect_slab, &a);
     float *t = f->t;
     f->t = f->spare;
