@@ -407,7 +407,17 @@ static inline int cells4(const struct advect_ctx *x, v4f px, v4f py, v4f pz, v4i
         qy = (v4f)((v4i)py & in);
         qz = (v4f)((v4i)pz & in);
     }
-    const v4i xi = floor4(qx), yi = floor4(qy), zi = floor4(qz);
+    v4i xi, yi, zi;
+    const v4f zero = {0, 0, 0, 0};
+    if (_mm_movemask_ps((__m128)((qx < zero) | (qy < zero) | (qz < zero)))) {
+        xi = floor4(qx);
+        yi = floor4(qy);
+        zi = floor4(qz);
+    } else {  /* the truncation is the floor */
+        xi = __builtin_convertvector(qx, v4i);
+        yi = __builtin_convertvector(qy, v4i);
+        zi = __builtin_convertvector(qz, v4i);
+    }
     *tx = qx - __builtin_convertvector(xi, v4f);
     *ty = qy - __builtin_convertvector(yi, v4f);
     *tz = qz - __builtin_convertvector(zi, v4f);
@@ -469,9 +479,10 @@ __attribute__((target_clones("avx", "default"))) static void advect_row(const st
                         ((py >= zero) & (py < x->inner[1]) & ((py < x->blo[1]) | (py >= x->bhi[1]))) |
                         ((pz >= zero) & (pz < x->inner[2]) & ((pz < x->blo[2]) | (pz >= x->bhi[2])));
         r->out[g] = _mm_movemask_ps((__m128)out) & ~slow;
-        for (int l = 0; l < 4; l++)
-            if (slow >> l & 1)
-                r->out[g] |= cell_outside(&cell[l], x->b) << l;
+        if (slow)
+            for (int l = 0; l < 4; l++)
+                if (slow >> l & 1)
+                    r->out[g] |= cell_outside(&cell[l], x->b) << l;
     }
     for (uint32_t g = 0; g < groups; g++) {
         const size_t idx = row + 4 * g;
