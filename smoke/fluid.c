@@ -860,12 +860,22 @@ struct sponge_arg {
 static void sponge_slab(const struct fluid *f, void *p, uint32_t k0, uint32_t k1)
 {
     const struct sponge_arg *a = p;
+    /* [xa, xb): the voxels of a row that the x faces' sponge leaves alone */
+    uint32_t xa = 0, xb = f->nx;
+    while (xa < f->nx && a->damp[0][xa] != 1.0f)
+        xa++;
+    while (xb > xa && a->damp[0][xb - 1] != 1.0f)
+        xb--;
     for (uint32_t k = k0; k < k1; k++) {
         float dz = a->damp[2][k];
         for (uint32_t j = 0; j < f->ny; j++) {
             float dy = a->damp[1][j] < dz ? a->damp[1][j] : dz;
             size_t row = at(f, 0, j, k);
             for (uint32_t i = 0; i < f->nx; i++) {
+                if (dy == 1.0f && i == xa)
+                    i = xb;  /* nothing to damp between */
+                if (i == f->nx)
+                    break;
                 float damp = a->damp[0][i] < dy ? a->damp[0][i] : dy;
                 if (damp == 1.0f)
                     continue;
