@@ -326,7 +326,6 @@ struct advect_ctx {
     const struct box *b;
     v4f blo[3], bhi[3];  /* the box as bounds on a point (see advect_row) */
     v4f top[3];          /* n per axis: fast cells' points lie in [-1, n) */
-    v4f inner[3];        /* n - 1 per axis: cells wholly inside the grid's voxels, [0, n - 1) */
     v4i sy, sz;          /* dy, dz */
 };
 
@@ -471,13 +470,11 @@ __attribute__((target_clones("avx", "default"))) static void advect_row(const st
         const v4f fi = __builtin_convertvector(((v4i){0, 1, 2, 3} + (int32_t)(4 * g)), v4f);
         const v4f px = fi - x->s * (v4f)m0, py = fj - x->s * (v4f)m1, pz = fk - x->s * (v4f)m2;
         const int slow = cells4(x, px, py, pz, &r->c[g], &r->tx[g], &r->ty[g], &r->tz[g], cell);
-        /* the scalar: on an axis where a fast cell lies inside the grid's voxels (p in
-         * [0, n - 1)), its lower corner floor(p) lies outside [lo - 1, hi] when p < lo - 1
-         * or p >= hi + 1, and then the lookup is 0 */
-        const v4f zero = {0, 0, 0, 0};
-        const v4i out = ((px >= zero) & (px < x->inner[0]) & ((px < x->blo[0]) | (px >= x->bhi[0]))) |
-                        ((py >= zero) & (py < x->inner[1]) & ((py < x->blo[1]) | (py >= x->bhi[1]))) |
-                        ((pz >= zero) & (pz < x->inner[2]) & ((pz < x->blo[2]) | (pz >= x->bhi[2])));
+        /* the scalar: a fast cell's lower corner floor(p) lies outside [lo - 1, hi] when
+         * p < lo - 1 or p >= hi + 1, and then the lookup is 0 (see advect_slab for an axis
+         * where the box touches a face) */
+        const v4i out = (px < x->blo[0]) | (px >= x->bhi[0]) | (py < x->blo[1]) | (py >= x->bhi[1]) |
+                        (pz < x->blo[2]) | (pz >= x->bhi[2]);
         r->out[g] = _mm_movemask_ps((__m128)out) & ~slow;
         if (slow)
             for (int l = 0; l < 4; l++)
@@ -535,11 +532,15 @@ static void advect_slab(const struct fluid *f, void *p, uint32_t k0, uint32_t k1
     }
     const uint32_t n[3] = {f->nx, f->ny, f->nz};
     for (int ax = 0; ax < 3; ax++) {
+        /* A fast cell with p in [-1, 0) or [n - 1, n) has the corners n - 1 and 0: outside
+         * the box when lo >= 1 and hi <= n - 2, as the bounds say; where the box reaches a
+         * face, no cell is outside along that axis (-inf, inf; an empty box has lo > hi). */
         const v4f zero = {0, 0, 0, 0};
-        x.blo[ax] = zero + ((float)a->src_box.lo[ax] - 1.0f);
-        x.bhi[ax] = zero + ((float)a->src_box.hi[ax] + 1.0f);
+        const struct box *b = &a->src_box;
+        const int clear = b->lo[ax] > b->hi[ax] || (b->lo[ax] >= 1 && b->hi[ax] + 2 <= n[ax]);
+        x.blo[ax] = zero + (clear ? (float)b->lo[ax] - 1.0f : -INFINITY);
+        x.bhi[ax] = zero + (clear ? (float)b->hi[ax] + 1.0f : INFINITY);
         x.top[ax] = zero + (float)n[ax];
-        x.inner[ax] = zero + (float)(n[ax] - 1);
     }
     x.sy = (v4i){0, 0, 0, 0} + (int32_t)x.dy;
     x.sz = (v4i){0, 0, 0, 0} + (int32_t)x.dz;
