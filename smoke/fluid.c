@@ -339,11 +339,30 @@ static inline void cell_at(const struct advect_ctx *x, float px, float py, float
 }
 
 /* Trilinear lookups in the cell of lower corner c with fractions tx ty tz, written
- * a + t (b - a) so a constant field comes back exactly: along x, then y, then z. The
- * packed one has the corners below and above in z side by side in 8 floats: 4 lerps of 8
- * floats instead of 7 of 4, the same operations lane by lane (so the same bits), one AVX
- * instruction each where the CPU has AVX (advect_row's clones). */
+ * a + t (b - a) so a constant field comes back exactly: along x, then y, then z. */
+#define TRILERP(p0, p1, dy, tx, ty, tz)                                                         \
+    do {                                                                                        \
+        const __typeof__(*(p0)) a0_ = (p0)[0] + (tx) * ((p0)[1] - (p0)[0]);                     \
+        const __typeof__(*(p0)) a1_ = (p0)[dy] + (tx) * ((p0)[(dy) + 1] - (p0)[dy]);            \
+        const __typeof__(*(p0)) a2_ = (p1)[0] + (tx) * ((p1)[1] - (p1)[0]);                     \
+        const __typeof__(*(p0)) a3_ = (p1)[dy] + (tx) * ((p1)[(dy) + 1] - (p1)[dy]);            \
+        const __typeof__(*(p0)) b0_ = a0_ + (ty) * (a1_ - a0_), b1_ = a2_ + (ty) * (a3_ - a2_); \
+        return b0_ + (tz) * (b1_ - b0_);                                                        \
+    } while (0)
+static inline float lookup(const struct advect_ctx *x, ptrdiff_t c, float tx, float ty, float tz)
+{
+    TRILERP(x->src + c, x->src + c + x->dz, x->dy, tx, ty, tz);
+}
 static inline v4f lookup4(const struct advect_ctx *x, ptrdiff_t c, float tx, float ty, float tz)
+{
+    TRILERP(x->q + c, x->q + c + x->dz, x->dy, tx, ty, tz);
+}
+/* lookup4 with the corners below and above in z side by side in 8 floats: 4 lerps of 8
+ * floats instead of 7 of 4, the same operations lane by lane (so the same bits), one
+ * instruction each with AVX (advect_row_avx only: without AVX, GCC's 8-float code is
+ * many times slower than lookup4). */
+__attribute__((target("avx"), always_inline)) static inline v4f lookup4_avx(const struct advect_ctx *x, ptrdiff_t c,
+                                                                           float tx, float ty, float tz)
 {
     const v4f *p0 = x->q + c, *p1 = p0 + x->dz;
     const ptrdiff_t dy = x->dy;
@@ -355,15 +374,6 @@ static inline v4f lookup4(const struct advect_ctx *x, ptrdiff_t c, float tx, flo
     const v8f m = lo + ty * (hi - lo);                         /* along y: (b0, b1) */
     const v4f m0 = __builtin_shufflevector(m, m, 0, 1, 2, 3), m1 = __builtin_shufflevector(m, m, 4, 5, 6, 7);
     return m0 + tz * (m1 - m0);
-}
-static inline float lookup(const struct advect_ctx *x, ptrdiff_t c, float tx, float ty, float tz)
-{
-    const float *p0 = x->src + c, *p1 = p0 + x->dz;
-    const ptrdiff_t dy = x->dy;
-    float a0 = p0[0] + tx * (p0[1] - p0[0]), a1 = p0[dy] + tx * (p0[dy + 1] - p0[dy]);
-    float a2 = p1[0] + tx * (p1[1] - p1[0]), a3 = p1[dy] + tx * (p1[dy + 1] - p1[dy]);
-    float b0 = a0 + ty * (a1 - a0), b1 = a2 + ty * (a3 - a2);
-    return b0 + tz * (b1 - b0);
 }
 
 /* One voxel (output index idx), any point: the general cells. */
@@ -444,9 +454,10 @@ struct row {
     int out[SMOKE_MAX_RES / 4];  /* lanes whose scalar lookup is 0 */
     v4f m[SMOKE_MAX_RES];        /* midpoint lookups */
 };
-#define ROW_GET4(x, r, g, l) lookup4((x), (r)->c[g][l], (r)->tx[g][l], (r)->ty[g][l], (r)->tz[g][l])
-__attribute__((target_clones("avx", "default"))) static void advect_row(const struct advect_ctx *x, struct row *r,
-                                                                        size_t row, uint32_t j, uint32_t k)
+typedef v4f (*lookup4_fn)(const struct advect_ctx *x, ptrdiff_t c, float tx, float ty, float tz);
+#define ROW_GET4(x, r, g, l) get4((x), (r)->c[g][l], (r)->tx[g][l], (r)->ty[g][l], (r)->tz[g][l])
+__attribute__((always_inline)) static inline void advect_row(const struct advect_ctx *x, struct row *r, size_t row,
+                                                             uint32_t j, uint32_t k, lookup4_fn get4)
 {
     const uint32_t groups = x->nx / 4;
     const float fj = (float)j, fk = (float)k;
@@ -502,6 +513,16 @@ __attribute__((target_clones("avx", "default"))) static void advect_row(const st
     for (uint32_t i = 4 * groups; i < x->nx; i++)
         advect1(x, row + i, i, j, k);
 }
+/* advect_row with each lookup, the AVX one compiled for AVX (chosen where the CPU has it). */
+__attribute__((target("avx"))) static void advect_row_avx(const struct advect_ctx *x, struct row *r, size_t row,
+                                                          uint32_t j, uint32_t k)
+{
+    advect_row(x, r, row, j, k, lookup4_avx);
+}
+static void advect_row_sse(const struct advect_ctx *x, struct row *r, size_t row, uint32_t j, uint32_t k)
+{
+    advect_row(x, r, row, j, k, lookup4);
+}
 
 /* One pass for every advected field: the departure point of voxel (i, j, k) over dt by a
  * midpoint (RK2) backtrace through the packed velocity, in voxel units, then one cell
@@ -545,9 +566,14 @@ static void advect_slab(const struct fluid *f, void *p, uint32_t k0, uint32_t k1
     x.sy = (v4i){0, 0, 0, 0} + (int32_t)x.dy;
     x.sz = (v4i){0, 0, 0, 0} + (int32_t)x.dz;
     struct row *r = mem_alloc(sizeof *r);
+    const int avx = __builtin_cpu_supports("avx");
     for (uint32_t k = k0; k < k1; k++)
-        for (uint32_t j = 0; j < f->ny; j++)
-            advect_row(&x, r, at(f, 0, j, k), j, k);
+        for (uint32_t j = 0; j < f->ny; j++) {
+            if (avx)
+                advect_row_avx(&x, r, at(f, 0, j, k), j, k);
+            else
+                advect_row_sse(&x, r, at(f, 0, j, k), j, k);
+        }
     free(r);
 }
 
