@@ -41,6 +41,8 @@ void fluid_project(struct fluid *f, float dt, float nu);  /* diffuse by nu over 
 void fluid_advect_scalar(const struct fluid *f, const float *src, float *dst, float dt);
 /* Spectral divergence norm and velocity norm (root of the sum of squares over modes). */
 void fluid_divergence(struct fluid *f, double *div_norm, double *vel_norm);
+/* Tests: non-zero makes advection take its SSE2 path on a CPU with AVX too (the same bits). */
+extern int fluid_no_avx;
 /* Bytes the state and scratch take per voxel. */
 size_t fluid_bytes_per_voxel(void);
 
