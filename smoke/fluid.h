@@ -20,7 +20,9 @@ struct fluid {
     float h;                   /* voxel size (world units) */
     float *u, *v, *w, *d, *t;  /* velocity (world units / s), density, temperature */
     float *spare;              /* the next temperature, swapped in after advection */
-    float *tmp[4];             /* scratch (one block; advection packs u v w d into it) */
+    float *tmp[4];             /* scratch: four arrays of n floats in one block of at least
+                                  5 (nx + 2)(ny + 2)(nz + 2) floats, where advection packs
+                                  u v w d and copies the scalar, each with a one-voxel halo */
     void *spec[3];             /* fftwf_complex, nz*ny*(nx/2+1) each */
     void *plan_fwd, *plan_bwd;
     uint64_t step;             /* steps done */
