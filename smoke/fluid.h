@@ -20,7 +20,9 @@ struct fluid {
     float h;                   /* voxel size (world units) */
     float *u, *v, *w, *d, *t;  /* velocity (world units / s), density, temperature */
     float *spare;              /* the next temperature, swapped in after advection */
-    float *tmp[4];             /* scratch (one block; advection packs u v w d into it) */
+    float *tmp[4];             /* scratch: four arrays of n floats in one block of at least
+                                  5 (nx + 2)(ny + 2)(nz + 2) floats, where advection packs
+                                  u v w d and copies the scalar, each with a one-voxel halo */
     void *spec[3];             /* fftwf_complex, nz*ny*(nx/2+1) each */
     void *plan_fwd, *plan_bwd;
     uint64_t step;             /* steps done */
@@ -41,6 +43,8 @@ void fluid_project(struct fluid *f, float dt, float nu);  /* diffuse by nu over 
 void fluid_advect_scalar(const struct fluid *f, const float *src, float *dst, float dt);
 /* Spectral divergence norm and velocity norm (root of the sum of squares over modes). */
 void fluid_divergence(struct fluid *f, double *div_norm, double *vel_norm);
+/* Tests: non-zero makes advection take its SSE2 path on a CPU with AVX too (the same bits). */
+extern int fluid_no_avx;
 /* Bytes the state and scratch take per voxel. */
 size_t fluid_bytes_per_voxel(void);
 

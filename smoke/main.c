@@ -157,12 +157,13 @@ int main(int argc, char **argv)
         free(nv);
         printf("res %ux%ux%u threads %u warmup %llu steps %llu wall_ms_per_step %.2f cpu_ms_per_step %.2f "
                "fft_ms %.2f advect_ms %.2f fft_share %.3f advect_share %.3f maxrss_kib %ld bytes_per_voxel %zu "
-               "grid_bytes %zu nvdb_bytes %zu nvdb_voxels %llu\n",
+               "grid_bytes %zu nvdb_bytes %zu nvdb_voxels %llu fft_wall_ms %.2f advect_wall_ms %.2f\n",
                f.nx, f.ny, f.nz, s.threads, (unsigned long long)warmup, (unsigned long long)bench,
                1e3 * wall / (double)bench, 1e3 * cpu / (double)bench, 1e3 * f.cpu[PH_FFT] / (double)bench,
                1e3 * f.cpu[PH_ADVECT] / (double)bench, cpu > 0 ? f.cpu[PH_FFT] / cpu : 0.0,
                cpu > 0 ? f.cpu[PH_ADVECT] / cpu : 0.0, ru.ru_maxrss, fluid_bytes_per_voxel(), store_grid_bytes(&f),
-               nv_bytes, (unsigned long long)active);
+               nv_bytes, (unsigned long long)active, 1e3 * f.wall[PH_FFT] / (double)bench,
+               1e3 * f.wall[PH_ADVECT] / (double)bench);
         phase_report(&f, bench);
         fluid_free(&f);
         return 0;
