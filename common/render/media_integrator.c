@@ -5,7 +5,8 @@
  * segment; at the first diffuse vertex a final gather (surface photon map after one
  * bounce) or, with path-traced indirect light, VPT from there on. Random numbers: one key
  * per (seed, frame, pixel, sample) and a fixed layout of dimensions per vertex, so pixels
- * do not depend on threads, tiles or workers. */
+ * do not depend on threads, tiles or workers. Surfaces take their textures (texshade.h)
+ * over footprints of the camera's ray differentials carried along the path. */
 #include "render/media_integrator.h"
 #include "render/media_track.h"
 #include "render/photon_map.h"

@@ -75,7 +75,7 @@ if ! run $M "$T/bad/materials.json" -o "$T/x.exr" && grep -qE "materials.json:[0
 
 
 # --- a glossy floor under a sky, a spot and a fog column (scenes/glossy_fog): no fireflies ---
-# The sky's power through the scene's bounding disc once left the spot one NEE pick in 650:
+# The sky's power through the scene's bounding disc once left the spot about one NEE pick in 650:
 # its light on the floor came as rare bright pixels (7 of 48 blocks held a pixel above 20x
 # the block's mean, relRMSE 1.3). Now: at most 2 such blocks, and relRMSE against 64 spp
 # of VPT below 0.5 (0.14 VPT, 0.21 beam at 8 spp), for VPT and the beam.
