@@ -75,15 +75,15 @@ static vec3 camera_path(const struct render_job *job, uint32_t pass, uint32_t px
      * for motion-blurred geometry. */
     float time01 = cs.time01;
     vec3 org = cs.o, dir = cs.d;
-    if (job->media) {
-        struct accel_hit h0;
-        int found0 = aov ? aov_trace(job, org, dir, time01, aov, &h0) : 0;
-        return media_sample_path_pass(job, pass, &smp, px, py, org, dir, time01, aov ? &h0 : NULL, found0, rays,
-                                      hit_any);
-    }
     struct raydiff rd;          /* texture footprints, only when a material has a texture */
     if (job->textured)
         texshade_camera(job, &cs, &smp, &rd);
+    if (job->media) {
+        struct accel_hit h0;
+        int found0 = aov ? aov_trace(job, org, dir, time01, aov, &h0) : 0;
+        return media_sample_path_pass(job, pass, &smp, px, py, org, dir, time01, aov ? &h0 : NULL, found0,
+                                      job->textured ? &rd : NULL, rays, hit_any);
+    }
 
     vec3 L = v3(0, 0, 0), beta = v3(1, 1, 1);
     float prev_pdf = 0.0f;      /* solid-angle pdf of the BSDF sample that produced dir */

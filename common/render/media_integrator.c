@@ -5,12 +5,14 @@
  * segment; at the first diffuse vertex a final gather (surface photon map after one
  * bounce) or, with path-traced indirect light, VPT from there on. Random numbers: one key
  * per (seed, frame, pixel, sample) and a fixed layout of dimensions per vertex, so pixels
- * do not depend on threads, tiles or workers. */
+ * do not depend on threads, tiles or workers. Surfaces take their textures (texshade.h)
+ * over footprints of the camera's ray differentials carried along the path. */
 #include "render/media_integrator.h"
 #include "render/media_track.h"
 #include "render/photon_map.h"
 #include "render/photon_trace.h"
 #include "render/surface.h"
+#include "render/texshade.h"
 #include "base/rng.h"
 #include "scene/grid.h"
 #include "scene/material.h"
@@ -434,12 +436,12 @@ static vec3 hit_emission(const struct render_job *job, const struct surface *s, 
 vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, uint32_t px, uint32_t py, vec3 org,
                        vec3 dir, float time01, uint64_t *rays, int *hit_any)
 {
-    return media_sample_path_pass(job, 0, smp, px, py, org, dir, time01, NULL, 0, rays, hit_any);
+    return media_sample_path_pass(job, 0, smp, px, py, org, dir, time01, NULL, 0, NULL, rays, hit_any);
 }
 
 vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const struct sampler *smp, uint32_t px,
                             uint32_t py, vec3 org, vec3 dir, float time01, const struct accel_hit *first,
-                            int first_found, uint64_t *rays, int *hit_any)
+                            int first_found, const struct raydiff *camera_rd, uint64_t *rays, int *hit_any)
 {
     const struct scene *sc = job->scene;
     const struct media_job *mj = render_job_pass_media(job, pass); /* the pass's photon map */
@@ -463,6 +465,13 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
     int gathered = 0;       /* the final gather's bounce is taken: the next diffuse vertex looks up */
     int spread = 0;         /* a non-delta bounce was taken: segments take one point (gather_segment) */
     vec3 seg_start = org;   /* exact start of the segment (boundary point, not the offset origin) */
+    /* Textures: the ray's differentials, carried as integrator.c carries them, and across
+     * media boundaries and volume scattering (texshade.h); zero without the camera's. */
+    struct raydiff rd;
+    if (job->textured) {
+        static const struct raydiff point;
+        rd = camera_rd ? *camera_rd : point;
+    }
     *hit_any = 0;
     for (;;) {
         struct accel_hit h;
@@ -530,6 +539,8 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
                             break;
                         beta = v3_scale(beta, 1.0f / (1.0f - q));
                     }
+                    if (job->textured)
+                        texshade_scatter_volume(&rd, dir, t, nd);
                     prev_pdf = ph;
                     prev_p = x;
                     prev_delta = 0;
@@ -570,6 +581,8 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
                 break;
             medium = media_after_crossing(job->media, &h, s.ng, dir);
             vec3 n = v3_dot(dir, s.ng) > 0.0f ? s.ng : v3_neg(s.ng);
+            if (job->textured)
+                texshade_cross(&rd, dir, h.t, s.ng);
             org = offset_ray_origin(v3_add(s.p, v3_scale(n, s.p_err)), n);
             seg_start = s.p;
             continue;
@@ -581,6 +594,10 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
         if (++depth > rs->max_depth)
             break;
         const struct material *mat = &sc->materials[s.material];
+        struct material tex_mat;
+        struct raydiff_hit dh;
+        if (job->textured)
+            mat = texshade_surface(job, org, dir, &h, time01, &rd, &s, mat, &tex_mat, &dh);
         vec3 wo = v3_neg(dir);
         int front = v3_dot(s.ng, wo) >= 0.0f;
         vec3 ng = front ? s.ng : v3_neg(s.ng);
@@ -647,6 +664,8 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
         }
         if (v3_is_black(beta))
             break;
+        if (job->textured)
+            texshade_scatter(&rd, mat, &bs, front, dir, ns, &dh);
         prev_pdf = bs.pdf;
         prev_p = s.p;
         prev_delta = bs.is_delta || bs.transmitted; /* NEE samples wo's side only (surface.h) */

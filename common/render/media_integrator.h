@@ -5,6 +5,7 @@
  * every camera sample of a scene with media. */
 #ifndef BRUME_MEDIA_INTEGRATOR_H
 #define BRUME_MEDIA_INTEGRATOR_H
+#include "render/raydiff.h"
 #include "render/render_job.h"
 #include "scene/medium.h"  /* media settings, for callers that pick the method */
 #include "scene/sampler.h"
@@ -15,9 +16,11 @@ vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, 
                        vec3 dir, float time01, uint64_t *rays, int *hit_any);
 /* The same with the photon map of pass `pass` (< job->num_passes; render_job_pass_media).
  * first: NULL, or the camera ray's closest hit already traced (for AOVs), valid when
- * first_found; the path then starts from it instead of tracing the ray again. */
+ * first_found; the path then starts from it instead of tracing the ray again. rd: the
+ * camera ray's differentials (texshade_camera) when the job has textures, or NULL (point
+ * lookups). */
 vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const struct sampler *smp, uint32_t px,
                             uint32_t py, vec3 org, vec3 dir, float time01, const struct accel_hit *first,
-                            int first_found, uint64_t *rays, int *hit_any);
+                            int first_found, const struct raydiff *rd, uint64_t *rays, int *hit_any);
 
 #endif

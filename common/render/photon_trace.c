@@ -10,6 +10,7 @@
 #include "render/photon_map.h"
 #include "render/render_job.h"
 #include "render/surface.h"
+#include "render/texshade.h"
 #include "scene/grid.h"
 #include "scene/material.h"
 #include <math.h>
@@ -286,6 +287,8 @@ static void trace_photon(const struct trace_ctx *tc, uint64_t index, struct phot
             continue;
         }
         const struct material *mat = &sc->materials[s.material];
+        struct material tex_mat; /* textures: point lookups, and s.ns bumped (texshade.h) */
+        mat = texshade_surface(job, o, d, &h, time01, NULL, &s, mat, &tex_mat, NULL);
         /* Light reaching a diffuse surface after an interaction: its indirect light (what
          * arrives straight from a light, next-event estimation computes). */
         if (surf && indirect && mat->type == MATERIAL_DIFFUSE && !v3_is_black(mat->albedo))

@@ -182,3 +182,34 @@ void texshade_scatter(struct raydiff *rd, const struct material *mat, const stru
         raydiff_reflect(rd, dir, bs->wi, ns, dndx, dndy, dh->dpdx, dh->dpdy);
     }
 }
+
+const struct material *texshade_surface(const struct render_job *job, vec3 org, vec3 dir, const struct accel_hit *h,
+                                        float time01, const struct raydiff *rd, struct surface *s,
+                                        const struct material *mat, struct material *buf, struct raydiff_hit *dh)
+{
+    if (!job->textured)
+        return mat;
+    static const struct raydiff point; /* all zero: a point lookup */
+    struct raydiff_hit local;
+    if (!dh)
+        dh = &local;
+    texshade_hit(job, org, dir, h, time01, rd ? rd : &point, dh);
+    mat = texshade_material(job, mat, dh, buf);
+    s->ns = texshade_bump(job->scene, job->mips, mat, dh, s->ng, s->ns);
+    return mat;
+}
+
+void texshade_cross(struct raydiff *rd, vec3 dir, float t, vec3 n)
+{
+    vec3 dpdx, dpdy;
+    raydiff_transfer(rd, dir, t, n, &dpdx, &dpdy);
+    rd->dodx = dpdx;
+    rd->dody = dpdy;
+}
+
+void texshade_scatter_volume(struct raydiff *rd, vec3 dir, float t, vec3 d_out)
+{
+    vec3 dpdx, dpdy;
+    raydiff_transfer(rd, dir, t, dir, &dpdx, &dpdy);
+    raydiff_diffuse(rd, d_out, dpdx, dpdy);
+}

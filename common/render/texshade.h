@@ -1,11 +1,14 @@
 /* Textures in the path tracer: the glue between a render_job and the ray differential
  * maths (raydiff.c) and texture lookups (texture.c) in the job's MIP pyramids (built by
  * render_job.c). Only scenes whose materials use a texture pay for it (render_job.textured);
- * others never call in here, so their images are unchanged bit for bit. Callers: integrator.c. */
+ * others never call in here, so their images are unchanged bit for bit. Callers: integrator.c,
+ * media_integrator.c (camera paths through media) and photon_trace.c (photon hits, without
+ * a footprint). */
 #ifndef BRUME_TEXSHADE_H
 #define BRUME_TEXSHADE_H
 #include "render/raydiff.h"
 #include "render/render_job.h"
+#include "render/surface.h"
 #include "scene/material.h"
 #include "scene/sampler.h"
 
@@ -33,5 +36,21 @@ vec3 texshade_bump(const struct scene *scene, const struct mip *mips, const stru
  * material_sample. */
 void texshade_scatter(struct raydiff *rd, const struct material *mat, const struct bsdf_sample *bs, int front,
                       vec3 dir, vec3 ns, const struct raydiff_hit *dh);
+
+/* A hit's textures in one call, for paths through media and photon paths: the material
+ * with its albedo and roughness textures looked up (a copy in *buf, or mat itself), and
+ * s->ns (on s->ng's side) perturbed by its bump or normal map. rd: the ray's differentials,
+ * or NULL for point lookups (photons carry no footprint). dh (NULL: not wanted) gets the
+ * hit's differential geometry for texshade_scatter. mat itself, s untouched, when the job
+ * has no textures. */
+const struct material *texshade_surface(const struct render_job *job, vec3 org, vec3 dir, const struct accel_hit *h,
+                                        float time01, const struct raydiff *rd, struct surface *s,
+                                        const struct material *mat, struct material *buf, struct raydiff_hit *dh);
+/* rd carried t along its ray (unit direction dir) to where the ray crosses a surface of
+ * normal n without bending (a medium's boundary): the origin derivatives there. */
+void texshade_cross(struct raydiff *rd, vec3 dir, float t, vec3 n);
+/* rd carried t along its ray (unit direction dir) to a scattering in a medium, then out
+ * along d_out as the conservative cone of a diffuse bounce (whatever the phase function). */
+void texshade_scatter_volume(struct raydiff *rd, vec3 dir, float t, vec3 d_out);
 
 #endif

@@ -142,15 +142,26 @@ void light_table_init(struct light_table *t, const struct scene *s)
     if (t->num_entries == 0)
         return;
     /* Summed in double so the cdf of many small emitters stays monotone and ends at 1. */
-    double total = 0.0;
+    double total = 0.0, env_power = 0.0;
     for (uint32_t i = 0; i < t->num_entries; i++)
         total += emitted_power(&t->entries[i]);
+    /* The environment's share is at most LIGHT_ENV_MAX_PICK when other lights exist (light.h). */
+    if (t->env_entry != LIGHT_NONE && t->num_entries > 1 && total > 0.0 && isfinite(total)) {
+        env_power = emitted_power(&t->entries[t->env_entry]);
+        double rest = total - env_power;
+        if (rest > 0.0 && env_power / total > LIGHT_ENV_MAX_PICK)
+            total = rest / (1.0 - LIGHT_ENV_MAX_PICK);
+        else
+            env_power = 0.0;
+    }
     t->cdf = mem_alloc(sizeof(float) * (t->num_entries + 1));
     t->pick_pdf = mem_alloc(sizeof(float) * t->num_entries);
     double acc = 0.0;
     t->cdf[0] = 0.0f;
     for (uint32_t i = 0; i < t->num_entries; i++) {
         double p = total > 0.0 && isfinite(total) ? emitted_power(&t->entries[i]) / total : 1.0 / t->num_entries;
+        if (env_power > 0.0 && i == t->env_entry)
+            p = LIGHT_ENV_MAX_PICK;
         t->pick_pdf[i] = (float)p;
         acc += p;
         t->cdf[i + 1] = (float)acc;

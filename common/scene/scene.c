@@ -254,12 +254,5 @@ int scene_validate(const struct scene *s, char *err, size_t errlen)
             return -1;
         }
     }
-    /* The media integrator shades surfaces without textures: refuse rather than ignore. */
-    for (uint32_t i = 0; s->media && i < s->num_materials; i++)
-        if (s->materials[i].albedo_tex || s->materials[i].bump_tex || s->materials[i].normal_tex) {
-            str_fmt(err, errlen, "material \"%s\": textures in a scene with participating media are not supported yet",
-                    s->materials[i].name);
-            return -1;
-        }
     return media_validate(s, err, errlen);
 }

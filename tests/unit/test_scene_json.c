@@ -306,16 +306,29 @@ Test(scene_json, validate_runs_last)
                  "scenes/t.json: mesh \"big.obj\": non-finite vertex position");
 }
 
-Test(scene_json, textures_with_media_refused)
+Test(scene_json, textures_with_media_accepted)
 {
-    /* The media integrator does not apply textures: a clear error, not a silently
-     * untextured image. */
-    expect_error(HEAD ",\n\"textures\": {\"c\": {\"type\": \"checker\"}},\n"
-                      "\"materials\": {\"m\": {\"type\": \"diffuse\", \"albedo_texture\": \"c\"}},\n"
-                      "\"media\": {\"fog\": {\"sigma_a\": [0.1, 0.1, 0.1], \"sigma_s\": [0.1, 0.1, 0.1]}},\n"
-                      "\"volume\": {\"fog\": \"fog\"},\n"
-                      "\"objects\": [{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1, \"material\": \"m\"}]}",
-                 "material \"m\": textures in a scene with participating media are not supported yet");
+    /* The media integrator applies textures (media_integrator.c, texshade.h): a scene with
+     * media and every texture kind loads. */
+    struct scene s;
+    char err[512];
+    cr_assert_eq(test_scene_load(HEAD ",\n\"textures\": {\"c\": {\"type\": \"checker\"}},\n"
+                                      "\"materials\": {\"m\": {\"type\": \"plastic\", \"albedo_texture\": \"c\", "
+                                      "\"roughness\": \"c\", \"bump_texture\": \"c\"},"
+                                      " \"n\": {\"type\": \"diffuse\", \"normal_texture\": \"c\"}},\n"
+                                      "\"media\": {\"fog\": {\"sigma_a\": [0.1, 0.1, 0.1], \"sigma_s\": [0.1, 0.1, 0.1]}},\n"
+                                      "\"volume\": {\"fog\": \"fog\"},\n"
+                                      "\"objects\": [{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1, \"material\": \"m\"},"
+                                      " {\"type\": \"sphere\", \"center\": [3, 0, 0], \"radius\": 1, \"material\": \"n\"}]}",
+                                 g_files, &s, err),
+                 0, "%s", err);
+    int albedo = 0, normal = 0;
+    for (uint32_t i = 0; i < s.num_materials; i++) {
+        albedo |= s.materials[i].albedo_tex != 0 && s.materials[i].roughness_tex != 0 && s.materials[i].bump_tex != 0;
+        normal |= s.materials[i].normal_tex != 0;
+    }
+    cr_expect(albedo && normal && s.media != NULL);
+    scene_fini(&s);
 }
 
 static int load_file(const char *path, struct scene *s, char *err, size_t errlen)
