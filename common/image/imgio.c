@@ -358,15 +358,17 @@ static exr_result_t zip_compress_chunk(exr_encode_pipeline_t *p)
         e->zip_out = mem_alloc(bound);
         e->zip_out_cap = bound;
     }
-    uint8_t *t = e->zip_tmp, *even = t, *odd = t + (n + 1) / 2;
-    for (size_t i = 0; i + 1 < n; i += 2) {
-        *even++ = src[i];
-        *odd++ = src[i + 1];
-    }
-    if (n & 1)
-        *even = src[n - 1];
-    for (size_t i = n - 1; i > 0; i--)
-        t[i] = (uint8_t)(t[i] - t[i - 1] + 128u);
+    /* Both steps in one pass: t = src's bytes at even offsets then those at odd ones, t[0]
+     * kept and t[i] replaced by t[i] - t[i - 1] + 128 (h: the number of even offsets). */
+    uint8_t *t = e->zip_tmp;
+    size_t h = (n + 1) / 2;
+    t[0] = src[0];
+    for (size_t k = 1; k < h; k++)
+        t[k] = (uint8_t)(src[2 * k] - src[2 * k - 2] + 128u);
+    if (n > 1)
+        t[h] = (uint8_t)(src[1] - src[2 * h - 2] + 128u);
+    for (size_t k = 1; h + k < n; k++)
+        t[h + k] = (uint8_t)(src[2 * k + 1] - src[2 * k - 1] + 128u);
     size_t z = libdeflate_zlib_compress(e->deflater, t, n, e->zip_out, e->zip_out_cap);
     if (z > 0 && z < n) {
         p->compressed_buffer = e->zip_out;
@@ -582,16 +584,16 @@ static exr_result_t zip_decompress_chunk(exr_decode_pipeline_t *p)
     if (libdeflate_zlib_decompress(z->inflater, p->packed_buffer, packed, z->tmp, n, &got) != LIBDEFLATE_SUCCESS ||
         got != n)
         return EXR_ERR_CORRUPT_CHUNK;
-    uint8_t *t = z->tmp;
-    for (size_t i = 1; i < n; i++)
-        t[i] = (uint8_t)(t[i - 1] + t[i] - 128u);
-    const uint8_t *even = t, *odd = t + (n + 1) / 2;
-    for (size_t i = 0; i + 1 < n; i += 2) {
-        dst[i] = *even++;
-        dst[i + 1] = *odd++;
-    }
-    if (n & 1)
-        dst[n - 1] = *even;
+    /* Both steps undone in one pass: running sums of the differences, written straight to
+     * the even offsets, then (going on from the last even byte) to the odd ones. */
+    const uint8_t *t = z->tmp;
+    size_t h = (n + 1) / 2;
+    uint8_t v = t[0];
+    dst[0] = v;
+    for (size_t k = 1; k < h; k++)
+        dst[2 * k] = v = (uint8_t)(v + t[k] - 128u);
+    for (size_t k = 0; h + k < n; k++)
+        dst[2 * k + 1] = v = (uint8_t)(v + t[h + k] - 128u);
     return EXR_ERR_SUCCESS;
 }
 
