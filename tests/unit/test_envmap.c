@@ -243,7 +243,7 @@ Test(envmap, photon_emission_power)
  * The floor makes the scene's sphere large and the media's small in it, so half of the
  * sky's photons are aimed at the media. (Over a grey floor, where light bounced off the
  * floor is a third of the image, the beam estimate's RMSE over 24 seeds is 8 %: see
- * ENV_AIM_SHARE in photon_trace.c.) */
+ * ENV_AIM_SHARE in photon_trace.c.) The map's bytes are the same for 1 and 2 threads. */
 #define ENV_MEDIUM_SCENE(method)                                                                             \
     "{\"version\": 1, \"camera\": {\"position\": [0, 0, -4], \"look_at\": [0, 0, 0], \"fov_y\": 18},\n"        \
     "\"render\": {\"width\": 12, \"height\": 12, \"spp\": 1, \"max_depth\": 64, \"tile_size\": 8},\n"           \
@@ -282,6 +282,13 @@ Test(envmap, photons_in_medium_match_vpt, .timeout = 120)
     size_t n = 0;
     struct photon_pass_stats st;
     cr_assert_eq(photon_trace_map(&job, 1, 2, &blob, &n, &st, err, sizeof err), 0, "%s", err);
+    /* The same bytes from one thread (photon i draws only from its own random numbers). */
+    uint8_t *blob1 = NULL;
+    size_t n1 = 0;
+    struct photon_pass_stats st1;
+    cr_assert_eq(photon_trace_map(&job, 1, 1, &blob1, &n1, &st1, err, sizeof err), 0, "%s", err);
+    cr_assert(n1 == n && memcmp(blob1, blob, n) == 0, "1 and 2 threads give different maps");
+    free(blob1);
     render_job_fini(&job);
     struct photon_map *map = NULL;
     cr_assert_eq(photon_map_decode(blob, n, &map, err, sizeof err), 0, "%s", err);
