@@ -381,7 +381,6 @@ static exr_result_t zip_compress_chunk(exr_encode_pipeline_t *p)
     return EXR_ERR_SUCCESS;
 }
 
-
 /* Replaces the pipeline's default write: takes the same buffer and byte count that the
  * default would pass to exr_write_tile_chunk (compressed_buffer, which the pipeline points
  * at the packed bytes when nothing was compressed), so the master can write it unchanged. */
@@ -564,8 +563,10 @@ static exr_result_t zip_decompress_chunk(exr_decode_pipeline_t *p)
     size_t n = (size_t)p->chunk.unpacked_size, packed = (size_t)p->chunk.packed_size, got = 0;
     if (!z || !p->packed_buffer)
         return EXR_ERR_INVALID_ARGUMENT;
-    if (n == 0 || packed == 0)
+    if (n == 0)
         return EXR_ERR_SUCCESS;
+    if (packed == 0)
+        return EXR_ERR_CORRUPT_CHUNK;
     if (!p->unpacked_buffer) { /* ours; the pipeline frees only what it allocated */
         free(z->out);
         z->out = mem_alloc(n);
@@ -580,9 +581,12 @@ static exr_result_t zip_decompress_chunk(exr_decode_pipeline_t *p)
     }
     free(z->tmp);
     z->tmp = mem_alloc(n);
-    /* The stream must inflate to exactly the chunk's unpacked size. */
-    if (libdeflate_zlib_decompress(z->inflater, p->packed_buffer, packed, z->tmp, n, &got) != LIBDEFLATE_SUCCESS ||
-        got != n)
+    /* The stream must fill the chunk exactly and inflate to exactly its unpacked size (no
+     * trailing bytes: the master writes a chunk's bytes into the file as they are). */
+    size_t used = 0;
+    if (libdeflate_zlib_decompress_ex(z->inflater, p->packed_buffer, packed, z->tmp, n, &used, &got) !=
+            LIBDEFLATE_SUCCESS ||
+        got != n || used != packed)
         return EXR_ERR_CORRUPT_CHUNK;
     /* Both steps undone in one pass: running sums of the differences, written straight to
      * the even offsets, then (going on from the last even byte) to the odd ones. */
