@@ -10,7 +10,7 @@ OPT     ?= -O3
 WARN    := -Wall -Wextra -Wpedantic -Wshadow -Wstrict-prototypes -Wmissing-prototypes \
            -Wpointer-arith -Wcast-qual -Wwrite-strings -Wformat=2 -Wundef -Wvla
 CFLAGS  := -std=c11 -D_GNU_SOURCE $(OPT) -g -fno-fast-math -ffp-contract=off -fno-math-errno $(WARN) -Icommon -I. -pthread
-LDLIBS  := -lembree3 -lOpenEXRCore-3_1 -lzmq -ljansson -lsodium -lpng -lstb -lm -pthread
+LDLIBS  := -lembree3 -lOpenEXRCore-3_1 -ldeflate -lzmq -ljansson -lsodium -lpng -lstb -lm -pthread
 ifneq ($(SAN),)
 CFLAGS  += -fsanitize=$(SAN) -fno-omit-frame-pointer -fno-sanitize-recover=undefined
 LDFLAGS += -fsanitize=$(SAN)
@@ -19,7 +19,8 @@ endif
 
 DEB_PKGS := gcc make pkg-config libembree-dev libopenexr-dev openexr libzmq3-dev libjansson-dev \
             libsodium-dev libpng-dev libstb-dev libcriterion-dev embree-tools gnuplot-nox python3 clang \
-            procps openssh-client openssh-server libnanovdb-dev g++ zlib1g-dev libblosc-dev libfftw3-dev
+            procps openssh-client openssh-server libnanovdb-dev g++ zlib1g-dev libblosc-dev libfftw3-dev \
+            libdeflate-dev openimageio-tools
 DEPS_STAMP := $(BUILD)/.deps-ok
 
 # One folder per layer under common/ (see README, "Tour of the source"); sources by pattern.

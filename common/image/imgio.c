@@ -25,6 +25,7 @@
 #include <OpenEXR/openexr.h>
 #include <png.h>
 #pragma GCC diagnostic pop
+#include <libdeflate.h>
 
 /* Chunk leader of a single-part tiled file: tile x, y, level x, level y, data size. */
 #define TILE_LEADER_BYTES 20
@@ -312,12 +313,73 @@ struct imgio_encoder {
     struct image_desc desc;
     struct imgio_stream stream; /* discards everything: the context never writes a chunk */
     exr_context_t ctx;
+    /* ZIP and ZIPS chunks: compressed here with libdeflate (zip_compress_chunk), reusing
+     * the compressor and the two buffers from tile to tile. */
+    struct libdeflate_compressor *deflater;
+    uint8_t *zip_tmp, *zip_out;
+    size_t zip_cap, zip_out_cap;
 };
 
+/* The ZIP codec of OpenEXR (the same bytes for ZIP's 16 and ZIPS's 1 scanline per block:
+ * a tile chunk is one block) is a zlib stream of the packed chunk after two reversible
+ * steps that make float and half data compressible: the bytes are split into those at
+ * even and those at odd offsets, one half after the other, and each byte but the first
+ * is replaced by its difference from the previous one plus 128 (mod 256). OpenEXRCore
+ * 3.1 compresses with zlib's compress2 (level 6 by default, about 75 instructions a
+ * byte on render tiles even at level 1); libdeflate at level 1 writes a valid zlib stream
+ * of about the same size (docs/benchmarks.md, "AOVs") in a third of the instructions and
+ * is deterministic, so every worker still sends the same bytes for a tile. Readers,
+ * OpenEXRCore's decode check included, inflate it like any ZIP chunk. */
+#define IMGIO_DEFLATE_LEVEL 1
+
+/* The pipeline's user data while a tile is encoded: where the chunk goes, and the encoder. */
 struct chunk_capture {
     uint8_t *bytes;
     size_t size;
+    struct imgio_encoder *enc;
 };
+
+static exr_result_t zip_compress_chunk(exr_encode_pipeline_t *p)
+{
+    struct chunk_capture *cap = p->encoding_user_data;
+    struct imgio_encoder *e = cap ? cap->enc : NULL;
+    size_t n = (size_t)p->packed_bytes;
+    const uint8_t *src = p->packed_buffer;
+    if (!e || !src || n == 0)
+        return EXR_ERR_INVALID_ARGUMENT;
+    size_t bound = libdeflate_zlib_compress_bound(e->deflater, n);
+    if (n > e->zip_cap) {
+        free(e->zip_tmp);
+        e->zip_tmp = mem_alloc(n);
+        e->zip_cap = n;
+    }
+    if (bound > e->zip_out_cap) {
+        free(e->zip_out);
+        e->zip_out = mem_alloc(bound);
+        e->zip_out_cap = bound;
+    }
+    /* Both steps in one pass: t = src's bytes at even offsets then those at odd ones, t[0]
+     * kept and t[i] replaced by t[i] - t[i - 1] + 128 (h: the number of even offsets). */
+    uint8_t *t = e->zip_tmp;
+    size_t h = (n + 1) / 2;
+    t[0] = src[0];
+    for (size_t k = 1; k < h; k++)
+        t[k] = (uint8_t)(src[2 * k] - src[2 * k - 2] + 128u);
+    if (n > 1)
+        t[h] = (uint8_t)(src[1] - src[2 * h - 2] + 128u);
+    for (size_t k = 1; h + k < n; k++)
+        t[h + k] = (uint8_t)(src[2 * k + 1] - src[2 * k - 1] + 128u);
+    size_t z = libdeflate_zlib_compress(e->deflater, t, n, e->zip_out, e->zip_out_cap);
+    if (z > 0 && z < n) {
+        p->compressed_buffer = e->zip_out;
+        p->compressed_bytes = z;
+    } else { /* incompressible: OpenEXR stores the packed bytes as they are */
+        p->compressed_buffer = p->packed_buffer;
+        p->compressed_bytes = n;
+    }
+    p->compressed_alloc_size = 0; /* ours (or the packed buffer): the pipeline frees neither */
+    return EXR_ERR_SUCCESS;
+}
 
 /* Replaces the pipeline's default write: takes the same buffer and byte count that the
  * default would pass to exr_write_tile_chunk (compressed_buffer, which the pipeline points
@@ -346,6 +408,9 @@ struct imgio_encoder *imgio_encoder_new(const struct image_desc *d, char *err, s
         rv = define_part(e->ctx, d, d->width, d->height);
     if (rv == EXR_ERR_SUCCESS)
         rv = exr_write_header(e->ctx);
+    if (rv == EXR_ERR_SUCCESS && (d->compression == IMGIO_ZIP || d->compression == IMGIO_ZIPS) &&
+        !(e->deflater = libdeflate_alloc_compressor(IMGIO_DEFLATE_LEVEL)))
+        rv = EXR_ERR_OUT_OF_MEMORY;
     if (rv != EXR_ERR_SUCCESS) {
         lib_err(err, errlen, &e->stream, rv, "imgio: cannot set up tile encoder");
         imgio_encoder_free(&e);
@@ -375,7 +440,7 @@ int imgio_encode_tile(struct imgio_encoder *e, uint32_t tx, uint32_t ty, const f
 
     exr_chunk_info_t cinfo;
     exr_encode_pipeline_t enc = EXR_ENCODE_PIPELINE_INITIALIZER;
-    struct chunk_capture cap = {NULL, 0};
+    struct chunk_capture cap = {NULL, 0, e};
     bool pipe_ok = false;
     exr_result_t rv = exr_write_tile_chunk_info(e->ctx, 0, (int)tx, (int)ty, 0, 0, &cinfo);
     if (rv == EXR_ERR_SUCCESS)
@@ -403,6 +468,8 @@ int imgio_encode_tile(struct imgio_encoder *e, uint32_t tx, uint32_t ty, const f
         rv = exr_encoding_choose_default_routines(e->ctx, 0, &enc);
     if (rv == EXR_ERR_SUCCESS) {
         enc.encoding_user_data = &cap;
+        if (e->deflater)
+            enc.compress_fn = zip_compress_chunk;
         enc.write_fn = capture_chunk;
         /* The default yield checks write ordering of a real file; nothing is written here. */
         enc.yield_until_ready_fn = NULL;
@@ -428,6 +495,10 @@ void imgio_encoder_free(struct imgio_encoder **e)
         return;
     if ((*e)->ctx)
         exr_finish(&(*e)->ctx); /* its offset table goes to the discarding stream */
+    if ((*e)->deflater)
+        libdeflate_free_compressor((*e)->deflater);
+    free((*e)->zip_tmp);
+    free((*e)->zip_out);
     free(*e);
     *e = NULL;
 }
@@ -478,6 +549,58 @@ struct decode_target {
     const char *const *names;
 };
 
+/* ZIP and ZIPS chunks are inflated with libdeflate (in about half of zlib's instructions),
+ * then the two steps of zip_compress_chunk are undone. The pipeline's user data while a
+ * chunk is decoded: the decompressor and a buffer for the inflated bytes. */
+struct zip_inflate {
+    struct libdeflate_decompressor *inflater;
+    uint8_t *tmp, *out;
+};
+
+static exr_result_t zip_decompress_chunk(exr_decode_pipeline_t *p)
+{
+    struct zip_inflate *z = p->decoding_user_data;
+    size_t n = (size_t)p->chunk.unpacked_size, packed = (size_t)p->chunk.packed_size, got = 0;
+    if (!z || !p->packed_buffer)
+        return EXR_ERR_INVALID_ARGUMENT;
+    if (n == 0)
+        return EXR_ERR_SUCCESS;
+    if (packed == 0)
+        return EXR_ERR_CORRUPT_CHUNK;
+    if (!p->unpacked_buffer) { /* ours; the pipeline frees only what it allocated */
+        free(z->out);
+        z->out = mem_alloc(n);
+        p->unpacked_buffer = z->out;
+        p->unpacked_alloc_size = 0;
+    }
+    uint8_t *dst = p->unpacked_buffer;
+    if (packed == n) { /* stored as it was: not compressed */
+        if ((void *)dst != p->packed_buffer)
+            memcpy(dst, p->packed_buffer, n);
+        return EXR_ERR_SUCCESS;
+    }
+    free(z->tmp);
+    z->tmp = mem_alloc(n);
+    /* The stream must fill the chunk exactly and inflate to exactly its unpacked size (no
+     * trailing bytes: the master writes a chunk's bytes into the file as they are). */
+    size_t used = 0;
+    if (libdeflate_zlib_decompress_ex(z->inflater, p->packed_buffer, packed, z->tmp, n, &used, &got) !=
+            LIBDEFLATE_SUCCESS ||
+        got != n || used != packed)
+        return EXR_ERR_CORRUPT_CHUNK;
+    /* Both steps undone in one pass: running sums of the differences, written straight to
+     * the even offsets, then (going on from the last even byte) to the odd ones. */
+    const uint8_t *t = z->tmp;
+    size_t h = (n + 1) / 2;
+    uint8_t v = t[0];
+    dst[0] = v;
+    for (size_t k = 1; k < h; k++)
+        dst[2 * k] = v = (uint8_t)(v + t[k] - 128u);
+    for (size_t k = 0; h + k < n; k++)
+        dst[2 * k + 1] = v = (uint8_t)(v + t[h + k] - 128u);
+    return EXR_ERR_SUCCESS;
+}
+
 static exr_result_t decode_chunk(exr_context_t ctx, const exr_chunk_info_t *cinfo, const struct decode_target *t,
                                  size_t ox, size_t oy)
 {
@@ -505,9 +628,21 @@ static exr_result_t decode_chunk(exr_context_t ctx, const exr_chunk_info_t *cinf
         return EXR_ERR_INVALID_ARGUMENT;
     }
     rv = exr_decoding_choose_default_routines(ctx, 0, &dec);
+    exr_compression_t comp = EXR_COMPRESSION_NONE;
+    struct zip_inflate zi = {NULL, NULL, NULL};
+    if (rv == EXR_ERR_SUCCESS && dec.decompress_fn && exr_get_compression(ctx, 0, &comp) == EXR_ERR_SUCCESS &&
+        (comp == EXR_COMPRESSION_ZIP || comp == EXR_COMPRESSION_ZIPS) &&
+        (zi.inflater = libdeflate_alloc_decompressor())) {
+        dec.decoding_user_data = &zi;
+        dec.decompress_fn = zip_decompress_chunk;
+    }
     if (rv == EXR_ERR_SUCCESS)
         rv = exr_decoding_run(ctx, 0, &dec);
     exr_decoding_destroy(ctx, &dec);
+    if (zi.inflater)
+        libdeflate_free_decompressor(zi.inflater);
+    free(zi.tmp);
+    free(zi.out);
     return rv;
 }
 

@@ -34,12 +34,19 @@ struct trace_ctx {
     struct photon_list *blocks;     /* volume photons per block of indices */
     struct photon_list *surface;    /* surface photons per block (NULL: none kept) */
     vec3 keep_lo, keep_hi;  /* photons are stored inside this box (the bounds rule) */
-    int aim;                /* point lights aim most photons at the media's bounding sphere */
+    int aim;                /* point lights and the sky aim photons at the media's bounding sphere */
     vec3 aim_center;
     float aim_radius;
 };
 
 #define AIM_SHARE 0.75f     /* photons of a point light sent into the cone toward the media */
+/* Sky photons aimed at the media's bounding sphere. The rest cross the whole scene: they
+ * carry the light that reaches the media after a surface bounce (and the surface map's),
+ * each with power 1 / (1 - share) of an unaimed one. On a scattering sphere over a floor
+ * under a uniform sky (test_envmap.c's scene, 100,000 photons, 24 seeds) the beam
+ * estimate's RMSE against VPT was, for shares 0 / 0.5 / 0.75: 0.054 / 0.040 / 0.053
+ * with a floor of albedo 0.5, 0.052 / 0.011 / 0.010 with a black one. */
+#define ENV_AIM_SHARE 0.5f
 
 /* Bounding sphere of where media are (grids' occupied boxes, medium spheres and meshes);
  * 0 when a homogeneous fog fills everything (nothing to aim at). */
@@ -195,20 +202,14 @@ static int emit(const struct trace_ctx *tc, uint64_t key, vec3 *o, vec3 *d, vec3
         return 1;
     }
     case LK_ENV: {
-        /* A direction w toward the sky by the light's own sampling, then a point on the
-         * disc of the scene's bounding sphere facing it: flux L(w) pi r^2 / pdf(w). */
-        float pdf;
-        vec3 w = envmap_sample(sc->env, u1, u2, &pdf);
-        if (!(pdf > 0.0f))
-            return 0;
-        vec3 t, b;
-        v3_basis(w, &t, &b);
-        float r = lt->env_radius * sqrtf(u3), sp, cp;
-        sincos_2pi(u4, &sp, &cp);
-        *o = v3_add(v3_add(lt->env_center, v3_scale(w, lt->env_radius)), v3_add(v3_scale(t, r * cp), v3_scale(b, r * sp)));
-        *d = v3_neg(w);
-        *power = v3_scale(envmap_eval(sc->env, w), e->area / (pdf * pick) * tc->photon_scale);
-        return 1;
+        /* A line from the sky across the scene's bounding sphere (envmap_emit); when media
+         * have bounds (tc->aim), ENV_AIM_SHARE of the lines cross the media's bounding
+         * sphere instead. Unbiased: the power is divided by the mixture's density. */
+        const float u[5] = {u1, u2, u3, u4, rng_uniform(key, 5)};
+        vec3 flux = envmap_emit(sc->env, lt->env_center, lt->env_radius, tc->aim_center, tc->aim_radius,
+                                tc->aim ? ENV_AIM_SHARE : 0.0f, u, o, d);
+        *power = v3_scale(flux, tc->photon_scale / pick);
+        return !v3_is_black(*power);
     }
     }
     return 0;

@@ -2,6 +2,7 @@
 #include "scene/envmap.h"
 #include "base/cdf.h"
 #include "base/log.h"
+#include <float.h>
 #include <math.h>
 #include <stdlib.h>
 
@@ -153,4 +154,39 @@ float envmap_pdf(const struct environment *e, vec3 d)
     dir_to_uv(e, d, &u, &v);
     float st = sinf(v * (float)M_PI);
     return st > 0.0f ? envmap_pdf_uv(e, u, v) / (2.0f * (float)(M_PI * M_PI) * st) : 0.0f;
+}
+
+vec3 envmap_emit(const struct environment *e, vec3 center, float radius, vec3 aim_center, float aim_radius,
+                 float aim_share, const float u[5], vec3 *o, vec3 *d)
+{
+    float pdf;
+    vec3 w = envmap_sample(e, u[0], u[1], &pdf);
+    if (!(pdf > 0.0f) || !(radius > 0.0f))
+        return v3(0, 0, 0);
+    int can_aim = aim_share > 0.0f && aim_radius > 0.0f;
+    int aimed = can_aim && u[4] < aim_share;
+    vec3 t, b;
+    v3_basis(w, &t, &b);
+    /* Plane coordinates (along t, b) relative to center; the aimed disc's centre. */
+    vec3 rel = v3_sub(aim_center, center);
+    float ax = can_aim ? v3_dot(rel, t) : 0.0f, ay = can_aim ? v3_dot(rel, b) : 0.0f;
+    float r = (aimed ? aim_radius : radius) * sqrtf(u[2]), sp, cp;
+    sincos_2pi(u[3], &sp, &cp);
+    float x = r * cp + (aimed ? ax : 0.0f), y = r * sp + (aimed ? ay : 0.0f);
+    /* The mixture's density at x; the bounds are widened by a few ulps so that a point drawn
+     * on a disc's rim always counts as inside it. */
+    const float grow = 1.0f + 4.0f * FLT_EPSILON;
+    double dens = 0.0;
+    if (!can_aim || aim_share < 1.0f)
+        if (x * x + y * y <= radius * radius * grow)
+            dens += (1.0 - (can_aim ? aim_share : 0.0f)) / (M_PI * (double)radius * radius);
+    if (can_aim && (x - ax) * (x - ax) + (y - ay) * (y - ay) <= aim_radius * aim_radius * grow)
+        dens += aim_share / (M_PI * (double)aim_radius * aim_radius);
+    if (!(dens > 0.0))
+        return v3(0, 0, 0);
+    /* Start beyond both spheres, so the photon crosses everything on its line. */
+    float far = can_aim ? fmaxf(radius, v3_length(rel) + aim_radius) : radius;
+    *o = v3_add(v3_add(center, v3_scale(w, far)), v3_add(v3_scale(t, x), v3_scale(b, y)));
+    *d = v3_neg(w);
+    return v3_scale(envmap_eval(e, w), (float)(1.0 / ((double)pdf * dens)));
 }

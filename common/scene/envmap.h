@@ -38,6 +38,20 @@ vec3 envmap_eval(const struct environment *e, vec3 d);
 vec3 envmap_sample(const struct environment *e, float u1, float u2, float *pdf);
 float envmap_pdf(const struct environment *e, vec3 d);
 
+/* A photon from the environment (photon_trace.c), from five uniforms u: a direction w by
+ * envmap_sample (u[0], u[1]), and the line of direction -w through a point x of the plane
+ * through `center` perpendicular to w, uniform on the disc of radius `radius` (the scene's
+ * bounding sphere seen along w) or, when u[4] < aim_share, uniform on the disc of the
+ * sphere (aim_center, aim_radius) seen along w (where media are; aim_share 0: none).
+ * *o lies on the line outside both spheres, *d = -w. Returns the power of the photon for
+ * a budget of one: L(w) / (pdf(w) p(x)), p the mixture's density over the plane (each
+ * disc's uniform density times its share, summed over the discs holding x), so that the
+ * expected power of the lines crossing any region inside the union of the two spheres is
+ * the sky's power through it (pi r^2 times the integral of L over the sphere, for a ball
+ * of radius r): unbiased for any share. 0 when nothing is emitted. */
+vec3 envmap_emit(const struct environment *e, vec3 center, float radius, vec3 aim_center, float aim_radius,
+                 float aim_share, const float u[5], vec3 *o, vec3 *d);
+
 /* The continuous 2D distribution alone, on [0, 1)^2 (tests): a point and its density. */
 void envmap_sample_uv(const struct environment *e, float u1, float u2, float *u, float *v, float *pdf);
 float envmap_pdf_uv(const struct environment *e, float u, float v);

@@ -64,7 +64,7 @@ fuzz_run fuzz_proto "protocol decoder" corpus run.log
 fuzz_build fuzz_mesh_ply "tests/fuzz/fuzz_mesh_ply.c common/scene/mesh_ply.c common/scene/mesh_obj.c
   common/scene/scene.c common/scene/envmap.c common/scene/texture.c common/scene/motion.c common/scene/medium.c common/image/image_load.c
   common/image/imgio.c common/image/hdr.c common/image/mip.c common/base/asset.c common/base/log.c" \
-  "common/scene/*.h common/image/*.h common/base/*.h" "-lOpenEXRCore-3_1 -lpng -lstb"
+  "common/scene/*.h common/image/*.h common/base/*.h" "-lOpenEXRCore-3_1 -ldeflate -lpng -lstb"
 rm -rf "$OUT/ply-corpus"
 mkdir -p "$OUT/ply-corpus"
 if ! python3 scripts/gen_mesh.py 2 "$OUT/ply-corpus/tri" || ! python3 scripts/gen_mesh.py 2 "$OUT/ply-corpus/quad" --quads; then

@@ -12,7 +12,7 @@ BUILD=${BUILD:-build}
 CC_FUZZ=${CC_FUZZ:-clang}
 OUT="$BUILD/fuzz"
 mkdir -p "$OUT"
-LIBS="-lembree3 -lOpenEXRCore-3_1 -lzmq -ljansson -lsodium -lpng -lstb -lm -pthread"
+LIBS="-lembree3 -lOpenEXRCore-3_1 -ldeflate -lzmq -ljansson -lsodium -lpng -lstb -lm -pthread"
 CFLAGS_FUZZ="-g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined -std=c11 -D_GNU_SOURCE -Icommon"
 
 seed_dir="$OUT/seed"

@@ -1,8 +1,8 @@
 #!/bin/sh
 # AOVs and pixel filters end to end, on an analytic scene: a camera at the origin looking
 # down -z at the plane z = -5 (below y = 0, normal +z, albedo 0.25 0.5 0.75), sky above.
-# Checks the EXR's channels and id name tables (exrheader, from openexr), the AOVs'
-# values against the geometry, Z = +inf and ids -1 on the sky, the same AOVs for any
+# Checks the EXR's channels and id name tables (exrheader, from openexr; iinfo and oiiotool,
+# from OpenImageIO, as compositors read them), the AOVs' values against the geometry, Z = +inf and ids -1 on the sky, the same AOVs for any
 # worker count, tile size and passes, and the options' errors.
 # Ends with "integration: N passed, N failed". Usage: BUILD=build sh tests/integration/aovs.sh
 . "$(dirname "$0")/lib.sh"
@@ -49,6 +49,51 @@ R="0 0 33 16"
 within "Z = +inf on the sky" "$($X chstat "$T/a.exr" Z $R)" 0 0 528
 within "id.object -1 on the sky" "$($X chstat "$T/a.exr" id.object $R)" -1 -1
 within "N 0 on the sky" "$($X chstat "$T/a.exr" N.Z $R)" 0 0
+
+# The same file as compositors read it, through OpenImageIO (oiiotool, iinfo): the channel
+# names they expect, and the values on the analytic plane. Pixel (16, 26) sees the plane
+# at x in 5 t [2c/33 - 1, 2(c+1)/33 - 1] (c = 16) and y likewise (r = 26, downward), with
+# t = tan(10 deg): its nearest hit Z lies between 5 sqrt(1 + x^2 + y^2) at the pixel's
+# nearest and farthest corners, its mean P.X and P.Y between the pixel's edges.
+if command -v oiiotool >/dev/null && command -v iinfo >/dev/null; then
+  iinfo -v "$T/a.exr" >"$T/iinfo" 2>&1
+  want="R, G, B, A, Z, N.X, N.Y, N.Z, P.X, P.Y, P.Z, albedo.R, albedo.G, albedo.B, id.material, id.object, variance.R, variance.G, variance.B"
+  if grep -q "33 x   33, 19 channel, float openexr" "$T/iinfo" && grep -qF "channel list: $want" "$T/iinfo" \
+    && grep -q 'id.object/0: "plane.obj"' "$T/iinfo" && grep -q 'id.material/1: "plane"' "$T/iinfo"; then
+    ok "iinfo: 19 float channels named Z, N.X/Y/Z, P.X/Y/Z, albedo.R/G/B, id.*; id name tables"
+  else
+    BAD_LOGS=iinfo bad "iinfo: channel names and id name tables"
+  fi
+  # oistats RECT CHANNELS: the Min, Max, InfCount and FiniteCount lines of oiiotool --printstats
+  oistats() { oiiotool "$T/a.exr" --ch "$2" --cut "$1" --printstats 2>&1 | awk '/Stats (Min|Max|InfCount|FiniteCount):/ { sub(/^ *Stats /, ""); sub(/ \(float\)/, ""); print }'; }
+  st=$(oistats 33x13+0+20 N.X,N.Y,N.Z,albedo.R,albedo.G,albedo.B,P.Z,id.object,id.material)
+  if [ "$(echo "$st" | sed -n 1p)" = "Min: 0.000000 0.000000 1.000000 0.250000 0.500000 0.750000 -5.000000 0.000000 1.000000" ] \
+    && [ "$(echo "$st" | sed -n 2p)" = "Max: 0.000000 0.000000 1.000000 0.250000 0.500000 0.750000 -5.000000 0.000000 1.000000" ]; then
+    ok "oiiotool: on the plane N = (0, 0, 1), albedo = (0.25, 0.5, 0.75), P.Z = -5, ids 0 and 1"
+  else
+    echo "$st" >"$T/st"; BAD_LOGS=st bad "oiiotool: N, albedo, P.Z and ids on the plane"
+  fi
+  st=$(oistats 1x1+16+26 Z,P.X,P.Y | sed -n 1p)
+  if echo "$st" | awk -v c=16 -v r=26 'BEGIN { t = sin(10 * atan2(0, -1) / 180) / cos(10 * atan2(0, -1) / 180) }
+      { x0 = 5 * t * (2 * c / 33 - 1); x1 = 5 * t * (2 * (c + 1) / 33 - 1)
+        y0 = -5 * t * (2 * r / 33 - 1); y1 = -5 * t * (2 * (r + 1) / 33 - 1)
+        ax = x0 * x0 > x1 * x1 ? x0 : x1
+        zlo = sqrt(25 + (x0 * x1 < 0 ? 0 : x0 * x0) + y0 * y0); zhi = sqrt(25 + ax * ax + y1 * y1)
+        exit !($2 >= zlo - 1e-5 && $2 <= zhi + 1e-5 && $3 >= x0 - 1e-5 && $3 <= x1 + 1e-5 && $4 <= y0 + 1e-5 && $4 >= y1 - 1e-5) }'; then
+    ok "oiiotool: pixel (16, 26): Z, P.X, P.Y within the pixel's analytic bounds ($st)"
+  else
+    bad "oiiotool: pixel (16, 26): Z, P.X, P.Y outside the analytic bounds ($st)"
+  fi
+  st=$(oistats 33x16+0+0 Z,id.object,id.material)
+  if echo "$st" | grep -q "^InfCount: 528 0 0 *$" && echo "$st" | grep -q "^FiniteCount: 0 528 528 *$" \
+    && echo "$st" | grep -q "^Max: [0-9.]* -1.000000 -1.000000$"; then
+    ok "oiiotool: on the sky Z = inf, ids -1"
+  else
+    echo "$st" >"$T/st"; BAD_LOGS=st bad "oiiotool: Z and ids on the sky"
+  fi
+else
+  bad "oiiotool / iinfo not installed (openimageio-tools; make deps)"
+fi
 
 # A second object, a quad at z = -3 in front of the sky with the other material: its
 # pixels (columns 12..20, rows 5..11 lie inside it) hold object 1 and material 0.

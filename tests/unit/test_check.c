@@ -75,6 +75,7 @@ Test(check, pool_returns_every_item_with_its_verdict)
     checker_set_ctx(k, &c, 64 * FOLD_MAX_CHANNELS);
     enum { N = 60 };
     int seen[N] = {0};
+    uint8_t *chunks[N];
     for (uint32_t i = 0; i < N; i++) {
         struct check_item *it = checker_item_new(k);
         size_t n;
@@ -82,10 +83,7 @@ Test(check, pool_returns_every_item_with_its_verdict)
         it->unit = t;
         it->peer = (int32_t)i; /* the item's name in this test */
         it->stats.samples = i;
-        uint8_t *chunk = chunk_of(&c, t, i % 3 == 0 ? INFINITY : 0.25f, &n);
-        it->payload = net_payload_copy(chunk, n);
-        free(chunk);
-        it->chunk = net_payload_data(it->payload);
+        it->chunk = chunks[i] = chunk_of(&c, t, i % 3 == 0 ? INFINITY : 0.25f, &n); /* no payload: freed below */
         it->chunk_size = (uint32_t)n;
         checker_submit(k, it);
     }
@@ -108,6 +106,7 @@ Test(check, pool_returns_every_item_with_its_verdict)
             cr_assert_null(it->record);
         }
         checker_item_free(k, it);
+        free(chunks[i]);
         taken++;
     }
     cr_assert_eq(taken, N);
