@@ -424,7 +424,7 @@ static void setup_tiles(struct master *m)
             imgio_tile_rect(&m->desc, t % tiles_x, t / tiles_x, &x0, &y0, &w, &h);
             pixels[t] = w * h;
         }
-        m->adapt = adapt_new(m->num_tiles, pixels, m->passes, integrator_streams(m->photon_maps > 0), m->target_error,
+        m->adapt = adapt_new(m->num_tiles, tiles_x, pixels, m->passes, integrator_streams(m->photon_maps > 0), m->target_error,
                              m->max_rounds);
         m->round_from = mem_calloc(m->num_tiles, sizeof *m->round_from);
         free(pixels);
@@ -895,17 +895,19 @@ static int adapt_round_end(struct master *m)
 {
     struct adapt *a = m->adapt;
     for (uint32_t t = 0; t < m->num_tiles; t++)
-        fold_tile_sums(m->fold, t, &a->tiles[t].sum_var, &a->tiles[t].sum_mean);
+        fold_tile_sums(m->fold, t, &a->tiles[t].sum_var, &a->tiles[t].sum_var_sq, &a->tiles[t].sum_mean);
     uint32_t round = a->round;
     if (adapt_decide(a, m->time_up, m->stats.samples)) {
         uint64_t units = a->outstanding;
         adapt_release(m);
-        log_info("adaptive: round %u: estimated relRMSE %.4f (target %g); round %u: %llu more units", round, a->est,
-                 m->target_error, a->round, (unsigned long long)units);
+        log_info("adaptive: round %u: estimated relRMSE %.4f (tiles alone %.4f, %.0f dof; target %g, aim %.4f); round %u: "
+                 "%llu more units", round, a->est, a->est_raw, a->dof, m->target_error, a->aim, a->round,
+                 (unsigned long long)units);
         return 0;
     }
-    log_info("adaptive: round %u: estimated relRMSE %.4f (target %g): %s", round, a->est, m->target_error,
-             m->time_up ? "time limit reached" : a->target > 0.0 && a->est <= a->target ? "target met"
+    log_info("adaptive: round %u: estimated relRMSE %.4f (tiles alone %.4f, %.0f dof; target %g, aim %.4f): %s", round,
+             a->est, a->est_raw, a->dof, m->target_error, a->aim,
+             m->time_up ? "time limit reached" : a->target > 0.0 && a->est <= a->aim ? "target met"
              : a->max_rounds && round + 1 >= a->max_rounds ? "round cap reached" : "every tile at its pass cap");
     for (uint32_t t = 0; t < m->num_tiles; t++) {
         if (m->chunks[t].data) /* --tiles: a black tile */

@@ -76,6 +76,8 @@ static void run_rounds(struct adapt *a, const double *per_pass)
         cr_assert(rounds < 20);
         for (uint32_t t = 0; t < a->num_tiles; t++) {
             a->tiles[t].sum_var = per_pass[t] / a->tiles[t].passes;
+            /* every pixel alike, one degree of freedom each: sum_var has `pixels` */
+            a->tiles[t].sum_var_sq = a->tiles[t].sum_var * a->tiles[t].sum_var / a->tiles[t].pixels;
             a->tiles[t].sum_mean = 64.0;
             a->tiles[t].samples = a->tiles[t].passes * 64ull;
             a->tiles[t].rays = a->tiles[t].samples * 3;
@@ -97,7 +99,7 @@ Test(adapt, rounds_reach_the_target_and_stop)
         pixels[t] = 64;
         per_pass[t] = t < 4 ? 64.0 * 0.5 : 64.0 * 0.01; /* 4 noisy tiles, 12 quiet ones */
     }
-    struct adapt *a = adapt_new(T, pixels, 512, 4, 0.02, 0);
+    struct adapt *a = adapt_new(T, 4, pixels, 512, 4, 0.02, 0);
     adapt_begin(a);
     cr_assert_eq(a->outstanding, T * ADAPT_FIRST_PASSES);
     run_rounds(a, per_pass);
@@ -122,7 +124,7 @@ Test(adapt, rounds_reach_the_target_and_stop)
     adapt_begin(a);
     cr_assert_eq(adapt_decide(a, 1, 1), 0);
     adapt_free(&a);
-    a = adapt_new(T, pixels, 512, 4, 0.02, 1);
+    a = adapt_new(T, 4, pixels, 512, 4, 0.02, 1);
     adapt_begin(a);
     cr_assert_eq(adapt_decide(a, 0, 1), 0, "--max-rounds 1: round 0 is the last");
     adapt_free(&a);
@@ -155,11 +157,11 @@ Test(adapt, allocation_in_multiples_of_the_streams)
     cr_assert(n[0] == 8 && n[1] == 16 && n[2] == 32);
     /* Round 0 of a frame: the first passes are a multiple of the step too. */
     uint32_t pixels[2] = {16, 16};
-    struct adapt *a = adapt_new(2, pixels, 48, 8, 0.01, 0);
+    struct adapt *a = adapt_new(2, 2, pixels, 48, 8, 0.01, 0);
     adapt_begin(a);
     cr_assert_eq(a->tiles[0].passes, 8);
     adapt_free(&a);
-    a = adapt_new(2, pixels, 6, 4, 0.01, 0); /* a cap that is no multiple: step 1 */
+    a = adapt_new(2, 2, pixels, 6, 4, 0.01, 0); /* a cap that is no multiple: step 1 */
     adapt_begin(a);
     cr_assert_eq(a->step, 1);
     cr_assert_eq(a->tiles[1].passes, ADAPT_FIRST_PASSES);
