@@ -19,6 +19,8 @@ struct adapt *adapt_new(uint32_t num_tiles, uint32_t tiles_x, const uint32_t *pi
     a->step = step && max_passes % step == 0 ? step : 1;
     a->target = target;
     a->max_rounds = max_rounds;
+    a->prior_dof = ADAPT_PRIOR_DOF;
+    a->confidence_z = ADAPT_CONFIDENCE_Z;
     a->tiles = mem_calloc(num_tiles ? num_tiles : 1, sizeof *a->tiles);
     for (uint32_t t = 0; t < num_tiles; t++)
         a->tiles[t].pixels = pixels[t];
@@ -154,12 +156,12 @@ double adapt_pool(const struct adapt *a, double *v, double *dof)
         }
         double prior = nv > 0.0 && nm2 > 0.0 ? nv / nm2 * mean_sq(at) : 0.0;
         double d = at->sum_var > 0.0 && at->sum_var_sq > 0.0 ? at->sum_var * at->sum_var / at->sum_var_sq : 0.0;
-        double k = ADAPT_PRIOR_DOF;
-        double own = at->sum_var > 0.0 ? at->sum_var : 0.0, pooled = (d * own + k * prior) / (d + k);
+        double k = a->prior_dof > 0.0 ? a->prior_dof : 0.0;
+        double own = at->sum_var > 0.0 ? at->sum_var : 0.0, pooled = d + k > 0.0 ? (d * own + k * prior) / (d + k) : own;
         /* Only ever raised: a tile's own figure is unbiased, and lowering the few tiles
          * whose bright pixels carry the image's error would hide it. */
         v[t] = pooled > own ? pooled : own;
-        dof[t] = d + k;
+        dof[t] = d + k > 0.0 ? d + k : 1.0;
         sum += v[t];
         sum_sq += v[t] * v[t] / dof[t];
     }
@@ -181,7 +183,7 @@ int adapt_decide(struct adapt *a, int stop, uint64_t samples_total)
         pixels += a->tiles[t].pixels;
     }
     a->est = pixels > 0.0 && mean > 0.0 ? sqrt(var / pixels) / (mean / pixels) : 0.0;
-    a->aim = a->target > 0.0 ? a->target / (1.0 + ADAPT_CONFIDENCE_Z / sqrt(2.0 * (a->dof > 0.5 ? a->dof : 0.5)))
+    a->aim = a->target > 0.0 ? a->target / (1.0 + a->confidence_z / sqrt(2.0 * (a->dof > 0.5 ? a->dof : 0.5)))
                              : 0.5 * a->est; /* a time limit alone: each round aims at half the error */
     if (a->num_history < ADAPT_MAX_HISTORY) {
         a->hist_samples[a->num_history] = (double)samples_total;

@@ -40,6 +40,7 @@ struct adapt {
     double est_raw;         /* the same from the tiles' own variances (what the EXR's channels say) */
     double dof;             /* the effective degrees of freedom of est's variance */
     double aim;             /* what est must reach: the target less est's own uncertainty */
+    double prior_dof, confidence_z; /* ADAPT_PRIOR_DOF, ADAPT_CONFIDENCE_Z (0, 0: the tiles' own figures) */
     uint32_t num_history;   /* (samples, estimate) at each decision: the ETA's fit */
     double hist_samples[ADAPT_MAX_HISTORY], hist_est[ADAPT_MAX_HISTORY];
     struct adapt_tile *tiles;
@@ -73,7 +74,7 @@ double adapt_image_estimate(const struct adapt *a);
  * raised toward a prior from its neighbours (the 3x3 tiles around it, or the whole image
  * when they show none): their pooled relative variance (sum var / sum of mean^2 per pixel)
  * times its own mean^2 per pixel. v[t] = max(v_t, (d v_t + K prior) / (d + K)), K =
- * ADAPT_PRIOR_DOF; dof[t] = d + K. Returns the effective degrees of freedom of sum v
+ * a->prior_dof; dof[t] = d + K. Returns the effective degrees of freedom of sum v
  * (Welch-Satterthwaite). A tile that missed a rare bright path its neighbours found so
  * still gets passes; one whose own pixels show it keeps its figure. */
 double adapt_pool(const struct adapt *a, double *v, double *dof);
@@ -82,7 +83,7 @@ double adapt_pool(const struct adapt *a, double *v, double *dof);
  * pass), 0 when the frame is finished (target met, every tile at max_passes, max_rounds
  * reached, or stop set: the time limit). The target is met when the pooled estimate est
  * is at most aim = target / (1 + Z / sqrt(2 dof)): a relRMSE estimated from dof degrees
- * of freedom is off by about 1 / sqrt(2 dof) of itself, Z = ADAPT_CONFIDENCE_Z. The
+ * of freedom is off by about 1 / sqrt(2 dof) of itself, Z = a->confidence_z. The
  * allocation aims at the same figure. */
 int adapt_decide(struct adapt *a, int stop, uint64_t samples_total);
 /* Samples in all at which the fitted decay of the estimate (est ~ samples^-b over the
