@@ -21,6 +21,7 @@ struct adapt *adapt_new(uint32_t num_tiles, uint32_t tiles_x, const uint32_t *pi
     a->max_rounds = max_rounds;
     a->prior_dof = ADAPT_PRIOR_DOF;
     a->confidence_z = ADAPT_CONFIDENCE_Z;
+    a->first_passes = ADAPT_FIRST_PASSES;
     a->tiles = mem_calloc(num_tiles ? num_tiles : 1, sizeof *a->tiles);
     for (uint32_t t = 0; t < num_tiles; t++)
         a->tiles[t].pixels = pixels[t];
@@ -36,9 +37,16 @@ void adapt_free(struct adapt **ap)
     *ap = NULL;
 }
 
+void adapt_set_pass_spp(struct adapt *a, uint32_t spp_per_pass)
+{
+    uint32_t k = spp_per_pass ? spp_per_pass : 1;
+    a->first_passes = (ADAPT_FIRST_SPP + k - 1) / k;
+}
+
 void adapt_begin(struct adapt *a)
 {
-    uint32_t first = (ADAPT_FIRST_PASSES + a->step - 1) / a->step * a->step;
+    uint32_t first = a->first_passes ? a->first_passes : 1;
+    first = (first + a->step - 1) / a->step * a->step;
     first = a->max_passes < first ? a->max_passes : first;
     a->round = 0;
     a->finished = 0;

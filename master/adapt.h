@@ -9,7 +9,8 @@
 #define BRUME_ADAPT_H
 #include <stdint.h>
 
-#define ADAPT_FIRST_PASSES 4u   /* passes every tile gets before its batch-means estimate counts */
+#define ADAPT_FIRST_PASSES 4u   /* passes every tile gets before its batch-means estimate counts... */
+#define ADAPT_FIRST_SPP 32u     /* ...or as many as make these samples per pixel (adapt_set_pass_spp) */
 #define ADAPT_GROWTH 2u         /* a tile's passes at most double per round: early estimates are rough */
 #define ADAPT_MAX_HISTORY 256u
 /* The pooled estimate (adapt_pool): a tile's variance is shrunk toward its neighbours' as
@@ -41,6 +42,7 @@ struct adapt {
     double dof;             /* the effective degrees of freedom of est's variance */
     double aim;             /* what est must reach: the target less est's own uncertainty */
     double prior_dof, confidence_z; /* ADAPT_PRIOR_DOF, ADAPT_CONFIDENCE_Z (0, 0: the tiles' own figures) */
+    uint32_t first_passes;  /* round 0's passes (before rounding up to step) */
     uint32_t num_history;   /* (samples, estimate) at each decision: the ETA's fit */
     double hist_samples[ADAPT_MAX_HISTORY], hist_est[ADAPT_MAX_HISTORY];
     struct adapt_tile *tiles;
@@ -54,9 +56,12 @@ struct adapt {
 struct adapt *adapt_new(uint32_t num_tiles, uint32_t tiles_x, const uint32_t *pixels, uint32_t max_passes, uint32_t step,
                         double target, uint32_t max_rounds);
 void adapt_free(struct adapt **a);
-/* A new frame: round 0, every tile ADAPT_FIRST_PASSES passes (rounded up to a multiple of
- * step, at most max_passes). The
- * caller releases units (t, p) for p < tiles[t].passes. */
+/* Passes of spp_per_pass samples: round 0 gives ceil(ADAPT_FIRST_SPP / spp_per_pass) passes
+ * (at least 1) instead of ADAPT_FIRST_PASSES, so that a high --spp cap (which makes the
+ * passes larger, at most PROTO_MAX_PASSES of them) does not make round 0 overshoot. */
+void adapt_set_pass_spp(struct adapt *a, uint32_t spp_per_pass);
+/* A new frame: round 0, every tile first_passes passes (rounded up to a multiple of step,
+ * at most max_passes). The caller releases units (t, p) for p < tiles[t].passes. */
 void adapt_begin(struct adapt *a);
 /* The allocation rule. Tiles of sum variance v[t] (pixel variances of the mean summed,
  * after m[t] passes), cost per pass c[t] > 0: the fewest-cost passes n[t] >= m[t] (at most

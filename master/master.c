@@ -322,6 +322,8 @@ static int load_scene(struct master *m, uint32_t frame)
     if (master_media_prepare(&m->scene, o, frame, &m->assets, asked, &m->photon_maps) != 0)
         return -1;
     m->passes = m->photon_maps ? m->photon_maps : asked > 1 ? asked : 1;
+    if (!m->photon_maps && !asked && rs->spp >= SAMPLER_STREAMS && rs->spp % SAMPLER_STREAMS == 0)
+        m->passes = SAMPLER_STREAMS; /* default: one pass per stream, a truthful estimate (docs/adaptive.md) */
     if (!m->photon_maps && m->passes > SAMPLER_STREAMS && m->passes % SAMPLER_STREAMS) {
         /* Every stream holds as many passes (docs/adaptive.md). */
         uint32_t p = (m->passes + SAMPLER_STREAMS - 1) / SAMPLER_STREAMS * SAMPLER_STREAMS;
@@ -426,6 +428,7 @@ static void setup_tiles(struct master *m)
         }
         m->adapt = adapt_new(m->num_tiles, tiles_x, pixels, m->passes, integrator_streams(m->photon_maps > 0), m->target_error,
                              m->max_rounds);
+        adapt_set_pass_spp(m->adapt, m->spp_per_pass);
         m->round_from = mem_calloc(m->num_tiles, sizeof *m->round_from);
         free(pixels);
     }

@@ -166,6 +166,22 @@ Test(adapt, allocation_in_multiples_of_the_streams)
     cr_assert_eq(a->step, 1);
     cr_assert_eq(a->tiles[1].passes, ADAPT_FIRST_PASSES);
     adapt_free(&a);
+    /* Round 0 gives ADAPT_FIRST_SPP samples per pixel in passes of any size: 16-spp passes
+     * (a --spp 16384 cap) take 2, 8-spp ones 4, 5-spp ones 7 rounded up to the step 2. */
+    a = adapt_new(2, 2, pixels, 1024, 2, 0.01, 0);
+    adapt_set_pass_spp(a, 16);
+    adapt_begin(a);
+    cr_assert_eq(a->tiles[0].passes * 16, ADAPT_FIRST_SPP);
+    adapt_set_pass_spp(a, 8);
+    adapt_begin(a);
+    cr_assert_eq(a->tiles[0].passes * 8, ADAPT_FIRST_SPP);
+    adapt_set_pass_spp(a, 5);
+    adapt_begin(a);
+    cr_assert_eq(a->tiles[0].passes, 8);
+    adapt_set_pass_spp(a, 64);
+    adapt_begin(a);
+    cr_assert_eq(a->tiles[0].passes, 2, "one pass per stream at least");
+    adapt_free(&a);
 }
 
 Test(adapt, held_units_go_out_only_when_released)
