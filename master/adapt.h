@@ -16,7 +16,7 @@
 /* The pooled estimate (adapt_pool): a tile's variance is shrunk toward its neighbours' as
  * if they were ADAPT_PRIOR_DOF degrees of freedom of evidence; and the rounds aim below the
  * target by ADAPT_CONFIDENCE_Z standard deviations of the image estimate's own error. */
-#define ADAPT_PRIOR_DOF 8.0
+#define ADAPT_PRIOR_DOF 4.0
 #define ADAPT_CONFIDENCE_Z 1.0
 
 /* A tile's state as the rounds see it. */
