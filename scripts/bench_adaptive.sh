@@ -191,7 +191,7 @@ fi
 cat "$TXT"
 
 {
-  echo "set terminal pngcairo size 1200,800; set output '$OUT/adaptive.png'"
+  echo "set terminal pngcairo size 1200,800 noenhanced; set output '$OUT/adaptive.png'"
   echo "set logscale xy; set xlabel 'CPU seconds'; set ylabel 'true relRMSE'; set key outside"
   printf "plot "
   sep=""
