@@ -9,15 +9,19 @@
 #include <stdlib.h>
 #include <string.h>
 
-struct adapt *adapt_new(uint32_t num_tiles, const uint32_t *pixels, uint32_t max_passes, uint32_t step,
+struct adapt *adapt_new(uint32_t num_tiles, uint32_t tiles_x, const uint32_t *pixels, uint32_t max_passes, uint32_t step,
                         double target, uint32_t max_rounds)
 {
     struct adapt *a = mem_calloc(1, sizeof *a);
     a->num_tiles = num_tiles;
+    a->tiles_x = tiles_x && tiles_x <= num_tiles ? tiles_x : (num_tiles ? num_tiles : 1);
     a->max_passes = max_passes;
     a->step = step && max_passes % step == 0 ? step : 1;
     a->target = target;
     a->max_rounds = max_rounds;
+    a->prior_dof = ADAPT_PRIOR_DOF;
+    a->confidence_z = ADAPT_CONFIDENCE_Z;
+    a->first_passes = ADAPT_FIRST_PASSES;
     a->tiles = mem_calloc(num_tiles ? num_tiles : 1, sizeof *a->tiles);
     for (uint32_t t = 0; t < num_tiles; t++)
         a->tiles[t].pixels = pixels[t];
@@ -33,13 +37,20 @@ void adapt_free(struct adapt **ap)
     *ap = NULL;
 }
 
+void adapt_set_pass_spp(struct adapt *a, uint32_t spp_per_pass)
+{
+    uint32_t k = spp_per_pass ? spp_per_pass : 1;
+    a->first_passes = (ADAPT_FIRST_SPP + k - 1) / k;
+}
+
 void adapt_begin(struct adapt *a)
 {
-    uint32_t first = (ADAPT_FIRST_PASSES + a->step - 1) / a->step * a->step;
+    uint32_t first = a->first_passes ? a->first_passes : 1;
+    first = (first + a->step - 1) / a->step * a->step;
     first = a->max_passes < first ? a->max_passes : first;
     a->round = 0;
     a->finished = 0;
-    a->est = 0.0;
+    a->est = a->est_raw = a->dof = a->aim = 0.0;
     a->num_history = 0;
     a->outstanding = 0;
     for (uint32_t t = 0; t < a->num_tiles; t++) {
@@ -120,46 +131,96 @@ double adapt_image_estimate(const struct adapt *a)
     return pixels > 0.0 && mean > 0.0 ? sqrt(var / pixels) / (mean / pixels) : 0.0;
 }
 
+/* Per pixel, the sum of the mean^2 (the scale of a tile's relative variance). */
+static double mean_sq(const struct adapt_tile *at)
+{
+    return at->pixels ? at->sum_mean * at->sum_mean / at->pixels : 0.0;
+}
+
+double adapt_pool(const struct adapt *a, double *v, double *dof)
+{
+    uint32_t tx = a->tiles_x, ty = (a->num_tiles + tx - 1) / tx;
+    double all_v = 0.0, all_m2 = 0.0;
+    for (uint32_t t = 0; t < a->num_tiles; t++) {
+        all_v += a->tiles[t].sum_var;
+        all_m2 += mean_sq(&a->tiles[t]);
+    }
+    double sum = 0.0, sum_sq = 0.0;
+    for (uint32_t t = 0; t < a->num_tiles; t++) {
+        const struct adapt_tile *at = &a->tiles[t];
+        uint32_t x = t % tx, y = t / tx;
+        double nv = 0.0, nm2 = 0.0;
+        for (uint32_t j = y ? y - 1 : 0; j <= y + 1 && j < ty; j++)
+            for (uint32_t i = x ? x - 1 : 0; i <= x + 1 && i < tx; i++) {
+                uint32_t u = j * tx + i;
+                if (u == t || u >= a->num_tiles)
+                    continue;
+                nv += a->tiles[u].sum_var;
+                nm2 += mean_sq(&a->tiles[u]);
+            }
+        if (!(nv > 0.0 && nm2 > 0.0)) { /* neighbours without variance: the image's */
+            nv = all_v - at->sum_var;
+            nm2 = all_m2 - mean_sq(at);
+        }
+        double prior = nv > 0.0 && nm2 > 0.0 ? nv / nm2 * mean_sq(at) : 0.0;
+        double d = at->sum_var > 0.0 && at->sum_var_sq > 0.0 ? at->sum_var * at->sum_var / at->sum_var_sq : 0.0;
+        double k = a->prior_dof > 0.0 ? a->prior_dof : 0.0;
+        double own = at->sum_var > 0.0 ? at->sum_var : 0.0, pooled = d + k > 0.0 ? (d * own + k * prior) / (d + k) : own;
+        /* Only ever raised: a tile's own figure is unbiased, and lowering the few tiles
+         * whose bright pixels carry the image's error would hide it. */
+        v[t] = pooled > own ? pooled : own;
+        dof[t] = d + k > 0.0 ? d + k : 1.0;
+        sum += v[t];
+        sum_sq += v[t] * v[t] / dof[t];
+    }
+    return sum_sq > 0.0 ? sum * sum / sum_sq : 0.0;
+}
+
 int adapt_decide(struct adapt *a, int stop, uint64_t samples_total)
 {
-    a->est = adapt_image_estimate(a);
+    uint32_t n_tiles = a->num_tiles;
+    double *v = mem_alloc(sizeof *v * (n_tiles ? n_tiles : 1)), *c = mem_alloc(sizeof *c * (n_tiles ? n_tiles : 1));
+    double *dof = mem_alloc(sizeof *dof * (n_tiles ? n_tiles : 1));
+    uint32_t *m = mem_alloc(sizeof *m * (n_tiles ? n_tiles : 1)), *n = mem_alloc(sizeof *n * (n_tiles ? n_tiles : 1));
+    a->est_raw = adapt_image_estimate(a);
+    a->dof = adapt_pool(a, v, dof);
+    double var = 0.0, mean = 0.0, pixels = 0.0;
+    for (uint32_t t = 0; t < n_tiles; t++) {
+        var += v[t];
+        mean += a->tiles[t].sum_mean;
+        pixels += a->tiles[t].pixels;
+    }
+    a->est = pixels > 0.0 && mean > 0.0 ? sqrt(var / pixels) / (mean / pixels) : 0.0;
+    a->aim = a->target > 0.0 ? a->target / (1.0 + a->confidence_z / sqrt(2.0 * (a->dof > 0.5 ? a->dof : 0.5)))
+                             : 0.5 * a->est; /* a time limit alone: each round aims at half the error */
     if (a->num_history < ADAPT_MAX_HISTORY) {
         a->hist_samples[a->num_history] = (double)samples_total;
         a->hist_est[a->num_history++] = a->est;
     }
-    if (stop || a->est <= 0.0 || (a->target > 0.0 && a->est <= a->target) ||
-        (a->max_rounds && a->round + 1 >= a->max_rounds)) {
-        a->finished = 1;
-        return 0;
-    }
-    /* Without a target (a time limit alone) each round aims at half the error. */
-    double target = a->target > 0.0 ? a->target : 0.5 * a->est;
-    double mean = 0.0, pixels = 0.0;
-    uint32_t n_tiles = a->num_tiles;
-    double *v = mem_alloc(sizeof *v * (n_tiles ? n_tiles : 1)), *c = mem_alloc(sizeof *c * (n_tiles ? n_tiles : 1));
-    uint32_t *m = mem_alloc(sizeof *m * (n_tiles ? n_tiles : 1)), *n = mem_alloc(sizeof *n * (n_tiles ? n_tiles : 1));
-    for (uint32_t t = 0; t < n_tiles; t++) {
-        const struct adapt_tile *at = &a->tiles[t];
-        mean += at->sum_mean;
-        pixels += at->pixels;
-        v[t] = at->sum_var;
-        m[t] = at->passes;
-        /* Rays (every bounce and shadow ray) plus one per camera sample: what a pass of
-         * this tile costs, counted, not timed. */
-        c[t] = at->passes ? (double)(at->rays + at->samples) / at->passes : 1.0;
-        if (!(c[t] > 0.0))
-            c[t] = 1.0;
-    }
-    /* relRMSE^2 = (sum var / pixels) / (sum mean / pixels)^2 <= target^2 */
-    double budget = target * target * mean * mean / pixels;
-    uint64_t added = adapt_allocate(n_tiles, v, c, m, budget, a->max_passes, ADAPT_GROWTH, a->step, n);
-    a->outstanding = 0;
-    for (uint32_t t = 0; t < n_tiles; t++) {
-        a->outstanding += n[t] - a->tiles[t].passes;
-        a->tiles[t].passes = n[t];
+    uint64_t added = 0;
+    if (!(stop || a->est <= 0.0 || (a->target > 0.0 && a->est <= a->aim) ||
+          (a->max_rounds && a->round + 1 >= a->max_rounds))) {
+        for (uint32_t t = 0; t < n_tiles; t++) {
+            const struct adapt_tile *at = &a->tiles[t];
+            m[t] = at->passes;
+            /* Rays (every bounce and shadow ray) plus one per camera sample: what a pass of
+             * this tile costs, counted, not timed. */
+            c[t] = at->passes ? (double)(at->rays + at->samples) / at->passes : 1.0;
+            if (!(c[t] > 0.0))
+                c[t] = 1.0;
+        }
+        /* relRMSE^2 = (sum var / pixels) / (sum mean / pixels)^2 <= aim^2 */
+        double budget = a->aim * a->aim * mean * mean / pixels;
+        added = adapt_allocate(n_tiles, v, c, m, budget, a->max_passes, ADAPT_GROWTH, a->step, n);
+        a->outstanding = 0;
+        for (uint32_t t = 0; t < n_tiles; t++) {
+            a->outstanding += n[t] - a->tiles[t].passes;
+            a->tiles[t].passes = n[t];
+        }
     }
     free(v);
     free(c);
+    free(dof);
     free(m);
     free(n);
     if (added == 0) {
@@ -172,7 +233,7 @@ int adapt_decide(struct adapt *a, int stop, uint64_t samples_total)
 
 double adapt_eta_samples(const struct adapt *a)
 {
-    if (!(a->target > 0.0) || a->num_history == 0 || !(a->est > 0.0))
+    if (!(a->target > 0.0) || a->num_history == 0 || !(a->est > 0.0) || !(a->aim > 0.0))
         return 0.0;
     double sx = 0, sy = 0, sxx = 0, sxy = 0;
     uint32_t k = 0;
@@ -188,5 +249,5 @@ double adapt_eta_samples(const struct adapt *a)
         b = -(sxy * k - sx * sy) / (sxx * k - sx * sx);
     b = b < 0.25 ? 0.25 : b > 1.0 ? 1.0 : b;
     double last = a->hist_samples[a->num_history - 1];
-    return a->est <= a->target ? last : last * pow(a->est / a->target, 1.0 / b);
+    return a->est <= a->aim ? last : last * pow(a->est / a->aim, 1.0 / b);
 }

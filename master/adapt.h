@@ -9,42 +9,59 @@
 #define BRUME_ADAPT_H
 #include <stdint.h>
 
-#define ADAPT_FIRST_PASSES 4u   /* passes every tile gets before its batch-means estimate counts */
+#define ADAPT_FIRST_PASSES 4u   /* passes every tile gets before its batch-means estimate counts... */
+#define ADAPT_FIRST_SPP 32u     /* ...or as many as make these samples per pixel (adapt_set_pass_spp) */
 #define ADAPT_GROWTH 2u         /* a tile's passes at most double per round: early estimates are rough */
 #define ADAPT_MAX_HISTORY 256u
+/* The pooled estimate (adapt_pool): a tile's variance is shrunk toward its neighbours' as
+ * if they were ADAPT_PRIOR_DOF degrees of freedom of evidence; and the rounds aim below the
+ * target by ADAPT_CONFIDENCE_Z standard deviations of the image estimate's own error. */
+#define ADAPT_PRIOR_DOF 4.0
+#define ADAPT_CONFIDENCE_Z 1.0
 
 /* A tile's state as the rounds see it. */
 struct adapt_tile {
     uint32_t pixels;
     uint32_t passes;        /* passes released so far (its units 0..passes-1) */
     double sum_var;         /* over its pixels: variance of the pixel mean (mean of R, G, B), after `passes` */
+    double sum_var_sq;      /* over its pixels: v^2 / (q - 1), v a pixel's variance from q stream means, so
+                             * that sum_var has sum_var^2 / sum_var_sq degrees of freedom (Welch-Satterthwaite) */
     double sum_mean;        /* over its pixels: the pixel mean (mean of R, G, B) */
     uint64_t samples, rays; /* traced so far (deterministic: the cost measure, never time) */
 };
 
 struct adapt {
-    uint32_t num_tiles, max_passes, max_rounds;
+    uint32_t num_tiles, tiles_x, max_passes, max_rounds;
     uint32_t step;          /* a tile's passes are a multiple of step (the sampler's streams) */
     double target;          /* relRMSE to reach; 0: none (time limit or max_rounds only) */
     uint32_t round;         /* rounds released so far (round 0 = the first passes) */
     uint32_t outstanding;   /* units of the current round not yet folded */
     int finished;           /* no more passes: the frame ends once outstanding is 0 */
-    double est;             /* the image's estimated relRMSE at the last decision */
+    double est;             /* the image's estimated relRMSE at the last decision (pooled tiles, adapt_pool) */
+    double est_raw;         /* the same from the tiles' own variances (what the EXR's channels say) */
+    double dof;             /* the effective degrees of freedom of est's variance */
+    double aim;             /* what est must reach: the target less est's own uncertainty */
+    double prior_dof, confidence_z; /* ADAPT_PRIOR_DOF, ADAPT_CONFIDENCE_Z (0, 0: the tiles' own figures) */
+    uint32_t first_passes;  /* round 0's passes (before rounding up to step) */
     uint32_t num_history;   /* (samples, estimate) at each decision: the ETA's fit */
     double hist_samples[ADAPT_MAX_HISTORY], hist_est[ADAPT_MAX_HISTORY];
     struct adapt_tile *tiles;
 };
 
-/* max_passes (>= 2) passes at most per tile; pixels[t] the pixel count of tile t; step:
+/* Tiles in rows of tiles_x (neighbours for adapt_pool); max_passes (>= 2) passes at most per
+ * tile; pixels[t] the pixel count of tile t; step:
  * passes go in multiples of it (SAMPLER_STREAMS, so that every stream of a tile holds as
  * many passes and the batch means weigh them equally), 1 when max_passes is not a
  * multiple of it. */
-struct adapt *adapt_new(uint32_t num_tiles, const uint32_t *pixels, uint32_t max_passes, uint32_t step,
+struct adapt *adapt_new(uint32_t num_tiles, uint32_t tiles_x, const uint32_t *pixels, uint32_t max_passes, uint32_t step,
                         double target, uint32_t max_rounds);
 void adapt_free(struct adapt **a);
-/* A new frame: round 0, every tile ADAPT_FIRST_PASSES passes (rounded up to a multiple of
- * step, at most max_passes). The
- * caller releases units (t, p) for p < tiles[t].passes. */
+/* Passes of spp_per_pass samples: round 0 gives ceil(ADAPT_FIRST_SPP / spp_per_pass) passes
+ * (at least 1) instead of ADAPT_FIRST_PASSES, so that a high --spp cap (which makes the
+ * passes larger, at most PROTO_MAX_PASSES of them) does not make round 0 overshoot. */
+void adapt_set_pass_spp(struct adapt *a, uint32_t spp_per_pass);
+/* A new frame: round 0, every tile first_passes passes (rounded up to a multiple of step,
+ * at most max_passes). The caller releases units (t, p) for p < tiles[t].passes. */
 void adapt_begin(struct adapt *a);
 /* The allocation rule. Tiles of sum variance v[t] (pixel variances of the mean summed,
  * after m[t] passes), cost per pass c[t] > 0: the fewest-cost passes n[t] >= m[t] (at most
@@ -57,13 +74,25 @@ uint64_t adapt_allocate(uint32_t num_tiles, const double *v, const double *c, co
 /* The image's estimated relRMSE from the tiles' sums: sqrt(sum var / pixels) / (sum mean /
  * pixels); 0 for a black image. */
 double adapt_image_estimate(const struct adapt *a);
+/* Tile variances that resist selection: a tile whose own estimate rests on few degrees of
+ * freedom (d = sum_var^2 / sum_var_sq: a few bright pixels, or no variance seen at all) is
+ * raised toward a prior from its neighbours (the 3x3 tiles around it, or the whole image
+ * when they show none): their pooled relative variance (sum var / sum of mean^2 per pixel)
+ * times its own mean^2 per pixel. v[t] = max(v_t, (d v_t + K prior) / (d + K)), K =
+ * a->prior_dof; dof[t] = d + K. Returns the effective degrees of freedom of sum v
+ * (Welch-Satterthwaite). A tile that missed a rare bright path its neighbours found so
+ * still gets passes; one whose own pixels show it keeps its figure. */
+double adapt_pool(const struct adapt *a, double *v, double *dof);
 /* The decision at a round's end (every tile's sums up to date): 1 when a new round is
  * released (tiles' passes raised: the caller releases units [old, new) of each, pass by
  * pass), 0 when the frame is finished (target met, every tile at max_passes, max_rounds
- * reached, or stop set: the time limit). */
+ * reached, or stop set: the time limit). The target is met when the pooled estimate est
+ * is at most aim = target / (1 + Z / sqrt(2 dof)): a relRMSE estimated from dof degrees
+ * of freedom is off by about 1 / sqrt(2 dof) of itself, Z = a->confidence_z. The
+ * allocation aims at the same figure. */
 int adapt_decide(struct adapt *a, int stop, uint64_t samples_total);
 /* Samples in all at which the fitted decay of the estimate (est ~ samples^-b over the
- * decisions so far) reaches the target; 0 when it cannot be told (no target, one point). */
+ * decisions so far) reaches the aim; 0 when it cannot be told (no target, one point). */
 double adapt_eta_samples(const struct adapt *a);
 
 #endif

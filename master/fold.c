@@ -182,17 +182,23 @@ int fold_add(struct fold *f, uint32_t tile, uint32_t pass, const float *px, floa
     return 1;
 }
 
-void fold_tile_sums(const struct fold *f, uint32_t tile, double *sum_var, double *sum_mean)
+void fold_tile_sums(const struct fold *f, uint32_t tile, double *sum_var, double *sum_var_sq, double *sum_mean)
 {
     CHECK(tile < f->num_tiles);
     const struct fold_tile *t = &f->tiles[tile];
-    double v = 0.0, mu = 0.0;
+    double v = 0.0, v2 = 0.0, mu = 0.0;
     size_t pixels = tile_pixels(f, tile);
     for (size_t i = 0; t->acc && i < pixels; i++) {
         const struct pass_batch *b = &t->acc[i].b;
-        v += (pass_batch_var_of_mean(b, 0) + pass_batch_var_of_mean(b, 1) + pass_batch_var_of_mean(b, 2)) / 3.0;
+        double pv = (pass_batch_var_of_mean(b, 0) + pass_batch_var_of_mean(b, 1) + pass_batch_var_of_mean(b, 2)) / 3.0;
+        uint32_t q = 0;
+        for (uint32_t s = 0; s < SAMPLER_MAX_STREAMS; s++)
+            q += b->count[s] > 0;
+        v += pv;
+        v2 += q > 1 ? pv * pv / (q - 1) : 0.0;
         mu += (b->mean[0] + b->mean[1] + b->mean[2]) / 3.0;
     }
     *sum_var = v;
+    *sum_var_sq = v2;
     *sum_mean = mu;
 }

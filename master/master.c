@@ -322,6 +322,8 @@ static int load_scene(struct master *m, uint32_t frame)
     if (master_media_prepare(&m->scene, o, frame, &m->assets, asked, &m->photon_maps) != 0)
         return -1;
     m->passes = m->photon_maps ? m->photon_maps : asked > 1 ? asked : 1;
+    if (!m->photon_maps && !asked && rs->spp >= SAMPLER_STREAMS && rs->spp % SAMPLER_STREAMS == 0)
+        m->passes = SAMPLER_STREAMS; /* default: one pass per stream, a truthful estimate (docs/adaptive.md) */
     if (!m->photon_maps && m->passes > SAMPLER_STREAMS && m->passes % SAMPLER_STREAMS) {
         /* Every stream holds as many passes (docs/adaptive.md). */
         uint32_t p = (m->passes + SAMPLER_STREAMS - 1) / SAMPLER_STREAMS * SAMPLER_STREAMS;
@@ -424,8 +426,9 @@ static void setup_tiles(struct master *m)
             imgio_tile_rect(&m->desc, t % tiles_x, t / tiles_x, &x0, &y0, &w, &h);
             pixels[t] = w * h;
         }
-        m->adapt = adapt_new(m->num_tiles, pixels, m->passes, integrator_streams(m->photon_maps > 0), m->target_error,
+        m->adapt = adapt_new(m->num_tiles, tiles_x, pixels, m->passes, integrator_streams(m->photon_maps > 0), m->target_error,
                              m->max_rounds);
+        adapt_set_pass_spp(m->adapt, m->spp_per_pass);
         m->round_from = mem_calloc(m->num_tiles, sizeof *m->round_from);
         free(pixels);
     }
@@ -895,17 +898,19 @@ static int adapt_round_end(struct master *m)
 {
     struct adapt *a = m->adapt;
     for (uint32_t t = 0; t < m->num_tiles; t++)
-        fold_tile_sums(m->fold, t, &a->tiles[t].sum_var, &a->tiles[t].sum_mean);
+        fold_tile_sums(m->fold, t, &a->tiles[t].sum_var, &a->tiles[t].sum_var_sq, &a->tiles[t].sum_mean);
     uint32_t round = a->round;
     if (adapt_decide(a, m->time_up, m->stats.samples)) {
         uint64_t units = a->outstanding;
         adapt_release(m);
-        log_info("adaptive: round %u: estimated relRMSE %.4f (target %g); round %u: %llu more units", round, a->est,
-                 m->target_error, a->round, (unsigned long long)units);
+        log_info("adaptive: round %u: estimated relRMSE %.4f (tiles alone %.4f, %.0f dof; target %g, aim %.4f); round %u: "
+                 "%llu more units", round, a->est, a->est_raw, a->dof, m->target_error, a->aim, a->round,
+                 (unsigned long long)units);
         return 0;
     }
-    log_info("adaptive: round %u: estimated relRMSE %.4f (target %g): %s", round, a->est, m->target_error,
-             m->time_up ? "time limit reached" : a->target > 0.0 && a->est <= a->target ? "target met"
+    log_info("adaptive: round %u: estimated relRMSE %.4f (tiles alone %.4f, %.0f dof; target %g, aim %.4f): %s", round,
+             a->est, a->est_raw, a->dof, m->target_error, a->aim,
+             m->time_up ? "time limit reached" : a->target > 0.0 && a->est <= a->aim ? "target met"
              : a->max_rounds && round + 1 >= a->max_rounds ? "round cap reached" : "every tile at its pass cap");
     for (uint32_t t = 0; t < m->num_tiles; t++) {
         if (m->chunks[t].data) /* --tiles: a black tile */

@@ -12,12 +12,17 @@
 #     settings (REF_REDO=1 redoes).
 #  2. Adaptive: --target-error E (seed SEED, --spp cap CAP, tiles of ADAPT_TILE px): CPU
 #     seconds, true relRMSE, its ratio to E (the calibration), the estimate, the mean spp.
+#     With CALIB_SEEDS (e.g. "18 19 20 21 22"), the same again with each of those seeds: a
+#     "calibration" line per scene and target gives each run's true / target and their RMS
+#     (on a scene whose error is a few bright pixels one image's true error scatters by
+#     tens of percent between seeds at any settings, so one seed says little).
 #  3. Uniform, the same mechanism: --passes STREAMS (one pass per sampler stream, what a
 #     tile of the adaptive render is) at spp 8, 16, 32, ... until the true error is below
 #     0.9 x the smallest adaptive one (at most MAX_UNIFORM_SPP); and plain uniform Sobol
 #     (one pass) likewise. The uniform CPU time at the adaptive render's true error is
 #     interpolated on the log-log error-time curve ('*': extrapolated); the ratios
-#     adaptive / uniform are the equal-error time ratios.
+#     adaptive / uniform are the equal-error time ratios. SWEEP=0 skips this (calibration
+#     only; the ratio columns are then nan).
 #  4. Overhead on uniform noise: OVERHEAD_SCENE (the plain Cornell box at 128x128) at 64 spp
 #     uniform (streams, and one pass), then adaptive with the target set to the streamed
 #     render's true error.
@@ -28,7 +33,7 @@
 #   env: SCENES ("dof_motion motion:64x48 textured:160x90 cornell_glass:64x64:0.05 fog_spot:40x30:0.05"),
 #        TARGETS ("0.05 0.02 0.01"), REF_SPP (16384), REF_PASSES (16), CAP (16384), SEED (17),
 #        MAX_UNIFORM_SPP (16384), STREAMS (2: the sampler's SAMPLER_STREAMS), ADAPT_TILE (8),
-#        OVERHEAD (1), OVERHEAD_REF_SPP (4096), REF_REDO (0)
+#        OVERHEAD (1), OVERHEAD_REF_SPP (4096), REF_REDO (0), CALIB_SEEDS (none), SWEEP (1)
 set -eu
 . scripts/lib.sh
 SCENES=${SCENES:-"dof_motion motion:64x48 textured:160x90 cornell_glass:64x64:0.05 fog_spot:40x30:0.05"}
@@ -42,6 +47,8 @@ STREAMS=${STREAMS:-2}
 ADAPT_TILE=${ADAPT_TILE:-8}
 OVERHEAD=${OVERHEAD:-1}
 REF_REDO=${REF_REDO:-0}
+CALIB_SEEDS=${CALIB_SEEDS:-}
+SWEEP=${SWEEP:-1}
 bench_init badaptive gnuplot-nox
 M="$BUILD/master"
 X="$BUILD/exrtool"
@@ -93,7 +100,7 @@ sweep() {
 }
 # at_error DAT ERR: the CPU seconds interpolated at ERR on DAT's uniform curve.
 at_error() { awk '{ print $3, $2 }' "$1" | loglog_interp "$2"; }
-ratio() { awk -v a="$1" -v u="${2%\*}" 'BEGIN { printf "%.3f\n", (u > 0) ? a / u : 0 }'; }
+ratio() { awk -v a="$1" -v u="${2%\*}" 'BEGIN { if (u == "nan" || !(u + 0 > 0)) print "nan"; else printf "%.3f\n", a / u }'; }
 
 {
   echo "# bench_adaptive: CPU seconds, true relRMSE (reference error removed), on $(nproc) cores;"
@@ -117,16 +124,35 @@ for entry in $SCENES; do
   DAT="$OUT/adaptive-$s.dat"
   : >"$DAT.a"
   minerr=1
+  : >"$T/calib"
   for E in $tg; do
-    c=$(run "$J" "$T/a.exr" --target-error "$E" --spp "$CAP" --seed "$SEED" --tile "$ADAPT_TILE")
-    e=$(truerr "$T/a.exr" "$RD/ref.exr" "$referr")
-    est=$($X errest "$T/a.exr")
-    sppm=$(sed -n 's/.*spp min [0-9]* mean \([0-9.]*\) max.*/\1/p' "$T/log")
-    echo "$E $c $e $est $sppm" >>"$DAT.a"
-    minerr=$(awk -v a="$minerr" -v b="$e" 'BEGIN { print (b < a) ? b : a }')
+    first=1
+    for sd in $SEED $CALIB_SEEDS; do
+      c=$(run "$J" "$T/a.exr" --target-error "$E" --spp "$CAP" --seed "$sd" --tile "$ADAPT_TILE")
+      e=$(truerr "$T/a.exr" "$RD/ref.exr" "$referr")
+      est=$($X errest "$T/a.exr")
+      sppm=$(sed -n 's/.*spp min [0-9]* mean \([0-9.]*\) max.*/\1/p' "$T/log")
+      if [ $first = 1 ]; then
+        echo "$E $c $e $est $sppm" >>"$DAT.a"
+        minerr=$(awk -v a="$minerr" -v b="$e" 'BEGIN { print (b < a) ? b : a }')
+        first=0
+      fi
+      echo "$E $sd $e $c $sppm" >>"$T/calib"
+    done
   done
-  sweep "$J" "$RD/ref.exr" "$referr" "$DAT.s" "$minerr" --passes "$STREAMS"
-  sweep "$J" "$RD/ref.exr" "$referr" "$DAT.1" "$minerr" --passes 1
+  if [ -n "$CALIB_SEEDS" ]; then
+    # Calibration over the seeds: each run's true / target, and their RMS.
+    awk -v s="$s${res:+@$res}" '{ r = $3 / $1; k[$1] = k[$1] sprintf(" %.2f", r); ss[$1] += r * r; n[$1]++
+                                   c[$1] += $4; sp[$1] += $5; if (!($1 in o)) o[$1] = ++no }
+      END { for (e in o) printf "calibration %s %s: true/target per seed%s; RMS %.3f; mean CPU %.2f s, mean spp %.1f\n",
+                                 s, e, k[e], sqrt(ss[e] / n[e]), c[e] / n[e], sp[e] / n[e] }' "$T/calib" | sort -k3,3gr >>"$T/calib.txt"
+  fi
+  : >"$DAT.s"
+  : >"$DAT.1"
+  if [ "$SWEEP" = 1 ]; then
+    sweep "$J" "$RD/ref.exr" "$referr" "$DAT.s" "$minerr" --passes "$STREAMS"
+    sweep "$J" "$RD/ref.exr" "$referr" "$DAT.1" "$minerr" --passes 1
+  fi
   while read -r E c e est sppm; do
     us=$(at_error "$DAT.s" "$e")
     u1=$(at_error "$DAT.1" "$e")
@@ -161,10 +187,11 @@ if [ "$OVERHEAD" = 1 ]; then
     echo "reference cornell128: own relRMSE $cref"
   } >>"$TXT"
 fi
+[ ! -f "$T/calib.txt" ] || cat "$T/calib.txt" >>"$TXT"
 cat "$TXT"
 
 {
-  echo "set terminal pngcairo size 1200,800; set output '$OUT/adaptive.png'"
+  echo "set terminal pngcairo size 1200,800 noenhanced; set output '$OUT/adaptive.png'"
   echo "set logscale xy; set xlabel 'CPU seconds'; set ylabel 'true relRMSE'; set key outside"
   printf "plot "
   sep=""

@@ -3,8 +3,9 @@
 # with 1 and 3 workers (and another tile order) is bit-identical; a master killed with
 # kill -9 after round 0 and restarted resumes from its journal to identical pixels; the
 # samples channel sums to the samples the run reports; a --time-limit run records its
-# rounds and --max-rounds reproduces it; passes apply to a scene without photon maps; a
-# tile's m passes are the uniform render with m passes.
+# rounds and --max-rounds reproduces it; passes apply to a scene without photon maps; plain
+# renders default to one pass per stream; a tile's m passes are the uniform render with m
+# passes.
 # Ends with "integration: N passed, N failed". Usage: BUILD=build sh tests/integration/adaptive.sh
 . "$(dirname "$0")/lib.sh"
 lib_init adaptive
@@ -73,6 +74,19 @@ run $M $S -o "$T/p2.exr" --spp 16 --passes 4 --no-journal --workers 2 --threads 
 if [ $p1 = 0 ] && [ $p2 = 0 ] && grep -q "batch means over the streams of passes" "$T/log" && $X cmp "$T/p1.exr" "$T/p2.exr"; then
   ok "4 passes without photon maps: batch means, 1 vs 2 workers identical"
 else bad "4 passes without photon maps: batch means, 1 vs 2 workers identical"; fi
+
+# Default passes: a plain render with an even spp is 2 passes (one per sampler stream, a
+# batch-means estimate); --passes 1 and an odd spp are one pass. 2 passes = --passes 2.
+passes() { python3 -c 'import json, sys; print(json.load(open(sys.argv[1] + ".stats.json"))["passes"])' "$1" 2>/dev/null; }
+run $M $S -o "$T/d2.exr" --spp 16 --no-journal --workers 1 --threads 1 && d1=0 || d1=1
+grep -q "batch means over the streams of passes" "$T/log" && dm=1 || dm=0
+run $M $S -o "$T/e2.exr" --spp 16 --passes 2 --no-journal --workers 2 --threads 1 --tile 8 && d2=0 || d2=1
+run $M $S -o "$T/d1.exr" --spp 16 --passes 1 --no-journal --workers 1 --threads 1 && d3=0 || d3=1
+run $M $S -o "$T/d3.exr" --spp 3 --no-journal --workers 1 --threads 1 && d4=0 || d4=1
+if [ $d1$d2$d3$d4 = 0000 ] && [ $dm = 1 ] && [ "$(passes "$T/d2.exr")" = 2 ] && [ "$(passes "$T/d1.exr")" = 1 ] &&
+   [ "$(passes "$T/d3.exr")" = 1 ] && $X cmp "$T/d2.exr" "$T/e2.exr" && ! $X cmp "$T/d2.exr" "$T/d1.exr" >/dev/null 2>&1; then
+  ok "default passes: 2 streams for an even spp (= --passes 2), 1 with --passes 1 or an odd spp"
+else bad "default passes: 2 streams for an even spp, 1 with --passes 1 or an odd spp (rc $d1$d2$d3$d4)"; fi
 
 # A tile that got m passes is the uniform render with --spp 8m --passes m: round 0 (4
 # passes of 8 spp per tile) against --spp 32 --passes 4, bit for bit, samples included.

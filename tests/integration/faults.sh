@@ -147,8 +147,8 @@ while [ $i -lt "$TRIALS" ]; do
     truncate -s "$cut" "$out.journal"; }   # a torn journal, cut at a random byte
   timeout 120 $M $SCENE -o "$out" --workers 2 --threads 1 $ARGS >"$T/log" 2>&1 && r=0 || r=1
   fj=$(counter tiles_from_journal "$out"); as=$(counter tiles_assigned "$out"); sc=$(counter straggler_copies "$out")
-  # every tile not from the journal was assigned exactly once (plus straggler copies)
-  nt=$(sed -n "s/^summary: .* spp, \([0-9]*\) tiles.*/\1/p" "$T/log")
+  # every unit (tile, pass) not from the journal was assigned exactly once (plus straggler copies)
+  nt=$(python3 -c 'import json, sys; s = json.load(open(sys.argv[1])); print(s["tiles"] * s["passes"])' "$out.stats.json" 2>/dev/null)
   if [ $r = 0 ] && [ -n "$nt" ] && [ $((fj + as - sc)) = "$nt" ] && [ ! -e "$out.journal" ] && $X cmp "$T/ref.exr" "$out" >/dev/null; then
     good=$((good + 1)); from_journal_total=$((from_journal_total + fj)); else cat "$T/klog" >>"$T/log"; fi
 done

@@ -16,9 +16,10 @@ BAD_TAIL=15
 wait_for() { n=0; while ! grep -q "$1" "$3" 2>/dev/null && [ $n -lt "$2" ]; do sleep 0.1; n=$((n + 1)); done; grep -q "$1" "$3" 2>/dev/null; }
 SCENE=scenes/cornell/cornell.json
 ARGS="--spp 32 --tile 32"
-NT=256
 
 timeout 120 $M $SCENE -o "$T/ref.exr" --workers 1 --threads 1 $ARGS >"$T/log" 2>&1 || bad "reference render"
+# the frame's units: (tile, pass) pairs, 256 tiles in the reference's passes
+NT=$(python3 -c 'import json, sys; s = json.load(open(sys.argv[1])); print(s["tiles"] * s["passes"])' "$T/ref.exr.stats.json")
 
 # One trial: $1 = extra arguments of the restarted master, $2 = output name.
 trial() {

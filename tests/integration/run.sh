@@ -64,8 +64,9 @@ shown = dict(re.findall(r"^summary: counter (\w+) (\d+)$", open(sys.argv[2]).rea
 c = st["counters"]
 assert st["ok"] is True and st["error"] is None and st["output"].endswith("v.exr")
 assert len(shown) >= 30 and {k: str(v) for k, v in c.items()} == shown, (c, shown)
-assert st["tiles"] > 0 and c["tiles_done"] == st["tiles"] and c["tiles_assigned"] >= st["tiles"]
-assert sum(w["tiles"] for w in st["workers"]) == st["tiles"] and c["workers_joined"] == len(st["workers"]) >= 1
+units = st["tiles"] * st["passes"]  # the units are (tile, pass) pairs
+assert st["tiles"] > 0 and st["passes"] >= 1 and c["tiles_done"] == units and c["tiles_assigned"] >= units
+assert sum(w["tiles"] for w in st["workers"]) == units and c["workers_joined"] == len(st["workers"]) >= 1
 assert st["samples"] > 0 and "wall_seconds" in st and "mean_rel_stderr" in st and st["nan_samples"] == 0
 EOF
 then ok "stats JSON written, counters match --verbose and the run; none on screen by default"

@@ -130,7 +130,7 @@ if [ -n "$rc" ] && [ "$rc" != 0 ] && [ "$(errors "$T/int.log")" = 1 ] && grep -q
   ok "SIGTERM while rendering: exit within 10 s, non-zero, one error line, no output, journal kept, workers gone"
 else BAD_LOGS=int.log bad "SIGTERM while rendering: exit within 10 s (rc ${rc:-none}), non-zero, one error line, no output, journal kept, workers gone ($left left)"; fi
 run $M "$T/big/smoke.json" -o "$T/int.exr" $R && r1=0 || r1=1
-resumed=$(sed -n 's/.* tiles (\([0-9]*\) from the journal).*/\1/p' "$T/log" | head -1)
+resumed=$(sed -n 's/.* \(tiles\|units\) (\([0-9]*\) from the journal).*/\2/p' "$T/log" | head -1)
 run $M "$T/big/smoke.json" -o "$T/ref.exr" $R --no-journal && r2=0 || r2=1
 if [ $r1 = 0 ] && [ $r2 = 0 ] && [ "${resumed:-0}" -gt 0 ] && $X cmp "$T/int.exr" "$T/ref.exr"; then
   ok "restart after SIGTERM: $resumed tiles from the journal, bit-identical with an uninterrupted render"
