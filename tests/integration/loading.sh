@@ -15,7 +15,7 @@ run $M $SCENE -o "$T/ref.exr" --workers 1 --threads 1 $ARGS || bad "reference re
 run $M $SCENE -o "$T/reff.exr" --frames 1:3 --workers 1 --threads 1 $ARGS || bad "reference render of frames 1:3"
 
 # --- a load of 5 s against a 1.5 s silence timeout: not evicted, identical pixels ---
-timeout 120 $M $SCENE -o "$T/slow.exr" --workers 0 --bind "ipc://$T/s.sock" $ARGS --worker-timeout-ms 1500 >"$T/log" 2>&1 &
+timeout 120 $M $SCENE -o "$T/slow.exr" --workers 0 --bind "ipc://$T/s.sock" $ARGS --worker-timeout-ms 3000 >"$T/log" 2>&1 &
 mpid=$!
 timeout 120 $W --connect "ipc://$T/s.sock" --threads 1 --fault slow-load:5000 >"$T/wlog" 2>&1 &
 wpid=$!
@@ -24,16 +24,16 @@ wait $mpid && r=0 || r=1
 wait $wpid && wr=0 || wr=1
 if [ $r = 0 ] && [ $wr = 0 ] && [ "$(counter evicted_silent "$T/slow.exr")" = 0 ] &&
   [ "$(counter workers_joined "$T/slow.exr")" = 1 ] && $X cmp "$T/ref.exr" "$T/slow.exr" >/dev/null; then
-  ok "a worker loading for 5 s is not evicted at --worker-timeout-ms 1500; identical pixels"
+  ok "a worker loading for 5 s is not evicted at --worker-timeout-ms 3000; identical pixels"
 else
-  bad "a worker loading for 5 s is not evicted at --worker-timeout-ms 1500; identical pixels"
+  bad "a worker loading for 5 s is not evicted at --worker-timeout-ms 3000; identical pixels"
 fi
 
 # --- frames 1:3 of one scene: a local worker renders every frame while the slow one still
 # loads; the next frames' JOBs wait for that load (same scene: its parse is kept), the BYE
 # at the end cancels it ---
 timeout 120 $M $SCENE -o "$T/fr.exr" --frames 1:3 --workers 1 --threads 1 --bind "ipc://$T/f.sock" $ARGS \
-  --worker-timeout-ms 1500 >"$T/log" 2>&1 &
+  --worker-timeout-ms 3000 >"$T/log" 2>&1 &
 mpid=$!
 timeout 120 $W --connect "ipc://$T/f.sock" --threads 1 --fault slow-load:100000 >"$T/wlog" 2>&1 &
 wpid=$!
@@ -63,7 +63,7 @@ echo "$mpid $wpid" >"$T/pids"
 n=0; while ! grep -q "joined" "$T/log1" && [ $n -lt 300 ]; do sleep 0.1; n=$((n + 1)); done
 kill -9 $mpid; wait $mpid 2>/dev/null
 timeout 120 $M $SCENE -o "$T/c2.exr" --workers 0 --bind "ipc://$T/c.sock" --tile 128 --spp 4 --seed 2 \
-  --worker-timeout-ms 1500 >"$T/log" 2>&1 &
+  --worker-timeout-ms 3000 >"$T/log" 2>&1 &
 mpid=$!
 timeout 120 $W --connect "ipc://$T/c.sock" --threads 1 --fault slow:1000 >/dev/null 2>&1 &
 echo "$mpid $wpid $!" >"$T/pids"
