@@ -11,17 +11,24 @@ BAD_LOGS="log wlog"
 SCENE=scenes/cornell/cornell.json
 ARGS="--spp 4 --tile 64"
 
+# both "MASTER ARGS" "WORKER ARGS": a master on $SCENE and one worker (words split; $T has
+# no spaces); r and wr are their exit codes, the logs $T/log and $T/wlog
+both() {
+  timeout 120 $M $SCENE $1 >"$T/log" 2>&1 &
+  mpid=$!
+  timeout 120 $W $2 >"$T/wlog" 2>&1 &
+  wpid=$!
+  echo "$mpid $wpid" >"$T/pids"
+  wait $mpid && r=0 || r=1
+  wait $wpid && wr=0 || wr=1
+}
+
 run $M $SCENE -o "$T/ref.exr" --workers 1 --threads 1 $ARGS || bad "reference render"
 run $M $SCENE -o "$T/reff.exr" --frames 1:3 --workers 1 --threads 1 $ARGS || bad "reference render of frames 1:3"
 
 # --- a load of 5 s against a 1.5 s silence timeout: not evicted, identical pixels ---
-timeout 120 $M $SCENE -o "$T/slow.exr" --workers 0 --bind "ipc://$T/s.sock" $ARGS --worker-timeout-ms 3000 >"$T/log" 2>&1 &
-mpid=$!
-timeout 120 $W --connect "ipc://$T/s.sock" --threads 1 --fault slow-load:5000 >"$T/wlog" 2>&1 &
-wpid=$!
-echo "$mpid $wpid" >"$T/pids"
-wait $mpid && r=0 || r=1
-wait $wpid && wr=0 || wr=1
+both "-o $T/slow.exr --workers 0 --bind ipc://$T/s.sock $ARGS --worker-timeout-ms 3000" \
+  "--connect ipc://$T/s.sock --threads 1 --fault slow-load:5000"
 if [ $r = 0 ] && [ $wr = 0 ] && [ "$(counter evicted_silent "$T/slow.exr")" = 0 ] &&
   [ "$(counter workers_joined "$T/slow.exr")" = 1 ] && $X cmp "$T/ref.exr" "$T/slow.exr" >/dev/null; then
   ok "a worker loading for 5 s is not evicted at --worker-timeout-ms 3000; identical pixels"
@@ -32,14 +39,8 @@ fi
 # --- frames 1:3 of one scene: a local worker renders every frame while the slow one still
 # loads; the next frames' JOBs wait for that load (same scene: its parse is kept), the BYE
 # at the end cancels it ---
-timeout 120 $M $SCENE -o "$T/fr.exr" --frames 1:3 --workers 1 --threads 1 --bind "ipc://$T/f.sock" $ARGS \
-  --worker-timeout-ms 3000 >"$T/log" 2>&1 &
-mpid=$!
-timeout 120 $W --connect "ipc://$T/f.sock" --threads 1 --fault slow-load:100000 >"$T/wlog" 2>&1 &
-wpid=$!
-echo "$mpid $wpid" >"$T/pids"
-wait $mpid && r=0 || r=1
-wait $wpid && wr=0 || wr=1
+both "-o $T/fr.exr --frames 1:3 --workers 1 --threads 1 --bind ipc://$T/f.sock $ARGS --worker-timeout-ms 3000" \
+  "--connect ipc://$T/f.sock --threads 1 --fault slow-load:100000"
 cancelled=$(grep -c "load of job .* cancelled" "$T/wlog")
 kept=$(grep -c "the same scene, kept for it" "$T/wlog")
 same=1
