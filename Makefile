@@ -142,7 +142,7 @@ showcase-assets: $(BUILD)/smokesim scenes/showcase/scherk.obj
 showcase: showcase-assets all
 	mkdir -p out
 	$(BUILD)/master scenes/showcase/showcase.json -o out/showcase.exr --frames 72:72 --workers 2 \
-	  --worker-timeout-ms 120000 --preview out/showcase.png
+	  --preview out/showcase.png
 # Rewrites the committed scenes/showcase/bunny.obj from the npm package (needs npm).
 showcase-bunny:
 	d=$$(mktemp -d) && (cd $$d && npm pack bunny@1.0.1 >/dev/null && tar xzf bunny-1.0.1.tgz) && \

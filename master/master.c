@@ -22,6 +22,7 @@
 #include "photons.h"
 #include "sched.h"
 #include "check.h"
+#include "peerindex.h"
 #include "render/aov.h"
 #include "render/integrator.h"
 #include "render/media_integrator.h"
@@ -130,6 +131,7 @@ struct master {
     uint32_t num_tiles;
     struct peer *peers;
     uint32_t num_peers;
+    struct peer_index peer_index; /* peers by routing id (find_peer), every slot that holds one */
     pid_t *local_pids;
     uint32_t num_local, local_alive;
     uint32_t local_restarts;    /* local workers started again after one died or was evicted */
@@ -491,21 +493,23 @@ static int peer_is(const struct peer *p, const struct net_frame *f)
     return p->id_len == f->id_len && memcmp(p->id, f->id, f->id_len) == 0 && strcmp(p->user_id, f->user_id) == 0;
 }
 
+/* Looked up by routing id (a hash, peerindex.h): every message needs its sender. */
 static int32_t find_peer(const struct master *m, const struct net_frame *f)
 {
-    for (uint32_t i = 0; i < m->num_peers; i++)
+    for (int32_t i = peer_index_first(&m->peer_index, f->id, f->id_len); i >= 0; i = peer_index_next(&m->peer_index, i))
         if (!m->sched->workers[i].gone && peer_is(&m->peers[i], f))
-            return (int32_t)i;
+            return i;
     return -1;
 }
 
-/* A peer we evicted (its late messages are stale, not strangers'). */
+/* A peer we evicted (its late messages are stale, not strangers'): the newest slot. */
 static int32_t find_gone_peer(const struct master *m, const struct net_frame *f)
 {
-    for (uint32_t i = m->num_peers; i-- > 0;)
-        if (m->sched->workers[i].gone && peer_is(&m->peers[i], f))
-            return (int32_t)i;
-    return -1;
+    int32_t found = -1;
+    for (int32_t i = peer_index_first(&m->peer_index, f->id, f->id_len); i >= 0; i = peer_index_next(&m->peer_index, i))
+        if (i > found && m->sched->workers[i].gone && peer_is(&m->peers[i], f))
+            found = i;
+    return found;
 }
 
 static void send_to(struct master *m, const struct peer *p, const struct proto_msg *msg)
@@ -653,6 +657,7 @@ static int32_t peer_slot(struct master *m)
         free(m->peers[i].map_bytes);
         free(m->peers[i].wait_ms);
         memset(&m->peers[i], 0, sizeof *m->peers);
+        peer_index_remove(&m->peer_index, (int32_t)i);
         return (int32_t)i;
     }
     return -1;
@@ -704,6 +709,7 @@ static void on_hello(struct master *m, const struct net_frame *f, const struct m
     struct peer *p = &m->peers[slot];
     memcpy(p->id, f->id, f->id_len);
     p->id_len = f->id_len;
+    peer_index_add(&m->peer_index, slot, p->id, p->id_len);
     memcpy(p->user_id, f->user_id, sizeof p->user_id);
     p->pid = h->pid;
     p->map_bytes = mem_calloc(m->passes, sizeof *p->map_bytes);
@@ -2176,6 +2182,7 @@ int master_run(const struct master_opts *o)
         m.job_base = ((uint64_t)getpid() << 32) ^ net_now_ms();
     m.job_base &= ~((uint64_t)1 << 63); /* room for every frame's id above it */
     m.job_id = m.job_base;
+    peer_index_init(&m.peer_index, MAX_SLOTS);
     if (load_scene(&m, o->have_frames ? o->frame_first : 0) != 0)
         goto done;
     setup_tiles(&m);
@@ -2262,6 +2269,7 @@ done:
         free(m.peers[i].wait_ms);
     }
     free(m.peers);
+    peer_index_fini(&m.peer_index);
     fold_free(&m.fold);
     adapt_free(&m.adapt);
     free(m.round_from);

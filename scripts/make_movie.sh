@@ -28,7 +28,7 @@ while [ "$f" -le "$LAST" ]; do
   png=$(printf '%s/frame.%04d.png' "$DIR" "$f")
   if [ ! -s "$png" ]; then
     "$BUILD/master" "$SCENE" -o "$DIR/frame.exr" --frames "$f:$f" --workers "$WORKERS" \
-      --worker-timeout-ms 120000 --no-journal --preview "$png.tmp.png" >"$DIR/render.log" 2>&1 ||
+      --no-journal --preview "$png.tmp.png" >"$DIR/render.log" 2>&1 ||
       { tail -5 "$DIR/render.log" >&2; echo "make_movie: frame $f failed (log: $DIR/render.log)" >&2; exit 1; }
     grep -q "NaN/Inf samples dropped: 0" "$DIR/render.log" ||
       echo "make_movie: frame $f: $(grep 'NaN/Inf' "$DIR/render.log")" >&2

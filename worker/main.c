@@ -21,7 +21,7 @@ static void usage(FILE *f)
             "  --server-key F      the master's public key file (KEYFILE.pub of the master's pair)\n"
             "  --exit-with-parent  exit when the process that started us dies (local workers)\n"
             "  --fault KIND[:N]    tests only: hang-after:N, crash-tile:N, garbage, slow:MS,\n"
-            "                      nonfinite-tile:N\n"
+            "                      nonfinite-tile:N, slow-load:MS\n"
             "  --verbose           debug logging\n");
 }
 
@@ -29,7 +29,8 @@ static int parse_fault(const char *s, struct worker_opts *o)
 {
     static const struct { const char *name; enum worker_fault f; int needs_n; } kinds[] = {
         {"hang-after", FAULT_HANG_AFTER, 1}, {"crash-tile", FAULT_CRASH_TILE, 1},
-        {"garbage", FAULT_GARBAGE, 0}, {"slow", FAULT_SLOW, 1}, {"nonfinite-tile", FAULT_NONFINITE_TILE, 1}};
+        {"garbage", FAULT_GARBAGE, 0}, {"slow-load", FAULT_SLOW_LOAD, 1}, {"slow", FAULT_SLOW, 1},
+        {"nonfinite-tile", FAULT_NONFINITE_TILE, 1}};
     for (size_t i = 0; i < sizeof kinds / sizeof kinds[0]; i++) {
         size_t n = strlen(kinds[i].name);
         if (strncmp(s, kinds[i].name, n) != 0)
@@ -75,7 +76,7 @@ int main(int argc, char **argv)
             o.server_key = argv[++i];
         } else if (i + 1 < argc && !strcmp(a, "--fault")) {
             if (parse_fault(argv[++i], &o) != 0) {
-                log_error("--fault: \"%s\" is not hang-after:N, crash-tile:N, garbage, slow:MS or nonfinite-tile:N", argv[i]);
+                log_error("--fault: \"%s\" is not hang-after:N, crash-tile:N, garbage, slow:MS, nonfinite-tile:N or slow-load:MS", argv[i]);
                 return 2;
             }
         } else if (i + 1 < argc && !strcmp(a, "--threads")) {

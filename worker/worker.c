@@ -27,6 +27,7 @@
 #include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/eventfd.h>
 #include <time.h>
 #include <unistd.h>
 #include <zmq.h>
@@ -35,6 +36,7 @@
 #define TILES_PER_THREAD 2      /* credits: tiles queued or rendering per thread */
 #define HEARTBEAT_MS 1000
 #define MASTER_LOST_MS 4000     /* no word from the master this long: reconnect */
+#define DRAIN_MAX_MS 200        /* reading messages this long in a row: go round the loop (heartbeats) */
 #define BACKOFF_FIRST_MS 1000   /* then a fresh attempt after 1, 2, 4, 8, 8, ... s */
 #define BACKOFF_MAX_MS 8000
 #define KEPT_MAX_TILES 4096     /* kept tiles beyond these (oldest first) are dropped */
@@ -112,6 +114,31 @@ struct pass_map {
     struct fetch fetch;         /* fetch.recv.data while fetching */
 };
 
+/* A job's scene loaded beside the main loop (load_thread): parsing the scene, building the
+ * render job and its BVH take seconds for a big scene, and the main thread keeps
+ * heartbeating and answering meanwhile. While it runs the thread alone writes w->scene,
+ * w->rjob and w->desc, and the main thread neither changes w->job nor drops the job's blobs
+ * (it reads them from `blobs`, a copy of the cache's entries: adopting a map blob may move
+ * the cache's array, never the data). A newer JOB waits in `pending` until the load ends;
+ * one naming another scene (or a BYE, a signal, a fatal error) cancels the load first. */
+enum load_kind { LOAD_SCENE, LOAD_REFRAME };
+struct loader {
+    int running;                /* a thread was started and not joined yet */
+    enum load_kind kind;
+    pthread_t thread;
+    int efd;                    /* eventfd: the thread is done */
+    volatile sig_atomic_t cancel; /* also the asset stop flag: the parsers stop at their next check */
+    struct blob_store blobs;    /* entries copied from the cache (not owned: only the array is freed) */
+    int rc;                     /* the thread's result: 0, or -1 with err */
+    char err[512];
+    uint64_t started_ms;
+    int have_pending;           /* a JOB that came while loading */
+    struct msg_job pending;
+    uint32_t pending_conn;      /* the connection it came on */
+    struct msg_map *pending_maps; /* MAPs that came after it (they name its job) */
+    size_t num_pending_maps, cap_pending_maps;
+};
+
 struct worker {
     const struct worker_opts *opts;
     void *zctx, *sock, *results;
@@ -145,6 +172,7 @@ struct worker {
     size_t num_parked, cap_parked;
     uint64_t map_wait_ms;       /* this job: ms with parked units and nothing to render */
     uint64_t map_bytes;         /* this job: bytes of photon maps fetched */
+    struct loader load;
 };
 
 static volatile sig_atomic_t g_stop;
@@ -195,6 +223,7 @@ static void fault_before_tile(struct pool *p, const struct tile_task *t)
     case FAULT_NONE:
     case FAULT_GARBAGE:
     case FAULT_NONFINITE_TILE:
+    case FAULT_SLOW_LOAD:
         break;
     }
 }
@@ -379,8 +408,14 @@ static void send_error(struct worker *w, const char *text)
 
 static void maps_reset(struct worker *w, int keep_installed);
 
+static void load_discard(struct worker *w);
+
 static void unload_job(struct worker *w)
 {
+    if (w->load.running) { /* a load under way: stopped, and what it built freed */
+        w->load.cancel = 1;
+        load_discard(w);
+    }
     pool_stop(&w->pool);
     maps_reset(w, 0);
     if (w->loaded) {
@@ -400,19 +435,43 @@ static void unload_job(struct worker *w)
 
 static int map_install(struct worker *w, uint32_t pass);
 
-/* Builds scene, Embree scene and thread pool once every blob is here; sends READY. */
-static int load_job(struct worker *w)
+/* The scene, its render job and BVH are built and may render (not while a load runs). */
+static int job_ready(const struct worker *w)
 {
-    char err[512];
-    struct blob_source_ctx ctx = {&w->job, &w->cache};
+    return w->loaded && !w->load.running;
+}
+
+/* Test-only (worker --fault slow-load:MS): the load takes MS longer, as a big scene's does
+ * on a loaded machine; a cancelled load stops waiting at once. */
+static void fault_slow_load(struct worker *w)
+{
+    if (w->opts->fault != FAULT_SLOW_LOAD)
+        return;
+    uint64_t until = net_now_ms() + w->opts->fault_arg;
+    while (!w->load.cancel && net_now_ms() < until) {
+        struct timespec nap = {0, 20 * 1000000L};
+        nanosleep(&nap, NULL);
+    }
+}
+
+/* Parses the scene from the job's blobs and builds its render job (Embree scene, lights,
+ * textures): on the loader thread. 0, or -1 with load.err (nothing left built). */
+static int load_scene(struct worker *w)
+{
+    char *err = w->load.err;
+    size_t errlen = sizeof w->load.err;
+    struct blob_source_ctx ctx = {&w->job, &w->load.blobs};
     struct asset_source src = {blob_source_read, &ctx};
     char *text = NULL;
     size_t len = 0;
-    if (blob_source_read(&ctx, w->job.scene_path, &text, &len, err, sizeof err) != 0 ||
-        scene_json_parse_frame(w->job.scene_path, text, len, &src, NULL, w->job.frame, &w->scene, err, sizeof err) != 0) {
+    fault_slow_load(w);
+    if (w->load.cancel) {
+        str_fmt(err, errlen, "cancelled");
+        return -1;
+    }
+    if (blob_source_read(&ctx, w->job.scene_path, &text, &len, err, errlen) != 0 ||
+        scene_json_parse_frame(w->job.scene_path, text, len, &src, NULL, w->job.frame, &w->scene, err, errlen) != 0) {
         free(text);
-        send_error(w, err);
-        log_error("%s", err);
         return -1;
     }
     free(text);
@@ -422,19 +481,17 @@ static int load_job(struct worker *w)
     if (w->scene.media) {
         char *vb = NULL;
         size_t vbs = 0;
-        int rc = blob_source_read(&ctx, MEDIA_PHOTON_ASSET, &vb, &vbs, err, sizeof err);
+        int rc = blob_source_read(&ctx, MEDIA_PHOTON_ASSET, &vb, &vbs, err, errlen);
         if (rc == 0)
-            rc = volume_blob_apply(&w->scene, (const uint8_t *)vb, vbs, &map, err, sizeof err);
+            rc = volume_blob_apply(&w->scene, (const uint8_t *)vb, vbs, &map, err, errlen);
         free(vb);
         if (rc == 0 && map) { /* maps travel one blob per pass, announced by MAP */
             photon_map_free(&map);
-            str_fmt(err, sizeof err, "volume blob: it carries photon maps; this worker takes them from MAP messages");
+            str_fmt(err, errlen, "volume blob: it carries photon maps; this worker takes them from MAP messages");
             rc = -1;
         }
         if (rc != 0) {
             scene_fini(&w->scene);
-            send_error(w, err);
-            log_error("%s", err);
             return -1;
         }
     }
@@ -449,38 +506,169 @@ static int load_job(struct worker *w)
     rs->aovs = w->job.aovs;
     w->scene.camera.filter = w->job.filter;
     w->scene.camera.filter_width = w->job.filter_width;
-    if (scene_validate(&w->scene, err, sizeof err) != 0 ||
-        render_job_init(&w->rjob, &w->scene, w->job.frame, w->opts->threads, err, sizeof err) != 0) {
-        photon_map_free(&map);
+    if (w->load.cancel) {
         scene_fini(&w->scene);
-        send_error(w, err);
-        log_error("%s", err);
+        str_fmt(err, errlen, "cancelled");
+        return -1;
+    }
+    if (scene_validate(&w->scene, err, errlen) != 0 ||
+        render_job_init(&w->rjob, &w->scene, w->job.frame, w->opts->threads, err, errlen) != 0) {
+        scene_fini(&w->scene);
         return -1;
     }
     /* Progressive passes: one map slot per pass (proto checked that they divide spp),
      * filled as the maps arrive. */
     if (w->job.photon_maps && !w->scene.media) {
-        str_fmt(err, sizeof err, "job: %u photon maps for a scene without media", w->job.photon_maps);
+        str_fmt(err, errlen, "job: %u photon maps for a scene without media", w->job.photon_maps);
         render_job_fini(&w->rjob);
         scene_fini(&w->scene);
-        send_error(w, err);
-        log_error("%s", err);
         return -1;
     }
     /* Passes without photon maps get empty map slots: nothing waits for a MAP. */
     render_job_set_passes(&w->rjob, w->job.photon_maps ? w->job.photon_maps : w->job.passes > 1 ? w->job.passes : 0);
-    w->loaded = 1;
     tile_image_desc(&w->desc, rs);
-    pool_start(w);
-    for (uint32_t p = 0; p < w->num_maps; p++) /* maps announced and fetched while the scene loaded */
-        if (map_install(w, p) != 0)
+    return 0;
+}
+
+static void *load_thread(void *arg)
+{
+    struct worker *w = arg;
+    if (w->load.kind == LOAD_SCENE)
+        w->load.rc = load_scene(w);
+    else /* the next frame of the loaded scene; on failure the render job is freed */
+        w->load.rc = render_job_reframe(&w->rjob, w->job.frame, w->opts->threads, w->load.err, sizeof w->load.err);
+    uint64_t one = 1;
+    CHECK(write(w->load.efd, &one, sizeof one) == (ssize_t)sizeof one);
+    return NULL;
+}
+
+/* Starts loading the current job (LOAD_SCENE: every blob is here; LOAD_REFRAME: the
+ * loaded scene moves to the job's frame) beside the main loop; load_finish sends READY. */
+static void load_start(struct worker *w, enum load_kind kind)
+{
+    CHECK(!w->load.running);
+    w->load.kind = kind;
+    w->load.cancel = 0;
+    w->load.rc = -1;
+    w->load.err[0] = '\0';
+    w->load.started_ms = net_now_ms();
+    w->load.blobs.count = w->load.blobs.cap = w->cache.count;
+    w->load.blobs.entries = mem_alloc(sizeof *w->load.blobs.entries * (w->cache.count ? w->cache.count : 1));
+    memcpy(w->load.blobs.entries, w->cache.entries, sizeof *w->cache.entries * w->cache.count);
+    CHECK(pthread_create(&w->load.thread, NULL, load_thread, w) == 0);
+    w->load.running = 1;
+}
+
+/* Waits for the loader thread (at once when it said it is done) and clears its state. */
+static void load_join(struct worker *w)
+{
+    pthread_join(w->load.thread, NULL);
+    w->load.running = 0;
+    uint64_t v;
+    while (read(w->load.efd, &v, sizeof v) == (ssize_t)sizeof v) {
+    }
+    free(w->load.blobs.entries);
+    memset(&w->load.blobs, 0, sizeof w->load.blobs);
+}
+
+/* A load that ended (or failed) after it was cancelled: what it built is freed. A cancelled
+ * LOAD_REFRAME that succeeded leaves the scene loaded (for another frame of it). */
+static void load_drop_result(struct worker *w)
+{
+    if (w->load.kind == LOAD_SCENE && w->load.rc == 0) {
+        render_job_fini(&w->rjob);
+        scene_fini(&w->scene);
+    } else if (w->load.kind == LOAD_REFRAME && w->load.rc != 0) {
+        scene_fini(&w->scene);
+        w->loaded = 0;
+    }
+}
+
+static void pending_drop(struct worker *w)
+{
+    if (w->load.have_pending)
+        proto_job_fini(&w->load.pending);
+    w->load.have_pending = 0;
+    w->load.num_pending_maps = 0;
+}
+
+/* Stops a load under way (load.cancel set by the caller) and frees what it built; a JOB
+ * waiting for it is dropped. */
+static void load_discard(struct worker *w)
+{
+    load_join(w);
+    load_drop_result(w);
+    pending_drop(w);
+    log_info("load of job %llu cancelled after %.3f s", (unsigned long long)w->job.job_id,
+             (double)(net_now_ms() - w->load.started_ms) * 1e-3);
+}
+
+static int on_job(struct worker *w, struct msg_job *job);
+static int on_map(struct worker *w, const struct msg_map *mm);
+static void offer_kept(struct worker *w, int new_job_same_conn, uint64_t old_job_id);
+
+/* The loader thread is done: READY for the job it loaded, or its error to the master
+ * (fatal, as a failed load always was), or, when a newer JOB came meanwhile, that job.
+ * 0, or -1 when the worker must stop. */
+static int load_finish(struct worker *w)
+{
+    load_join(w);
+    if (w->load.cancel || w->load.have_pending) {
+        /* Superseded: a JOB came while loading. Without cancel it names the same scene,
+         * whose parse is kept (the JOB then only moves it to its frame). */
+        if (w->load.cancel || w->load.rc != 0) {
+            log_info("load of job %llu cancelled after %.3f s: a newer job came", (unsigned long long)w->job.job_id,
+                     (double)(net_now_ms() - w->load.started_ms) * 1e-3);
+            load_drop_result(w);
+        } else if (w->load.kind == LOAD_SCENE) {
+            w->loaded = 1;
+        }
+        struct msg_job job = w->load.pending;
+        int have = w->load.have_pending, from_conn = w->load.pending_conn == w->conn;
+        w->load.have_pending = 0;
+        if (!have)
+            return 0;
+        if (!from_conn) { /* it came on a connection since lost: the next one brings its own */
+            proto_job_fini(&job);
+            w->load.num_pending_maps = 0;
+            return 0;
+        }
+        if (on_job(w, &job) != 0)
             return -1;
+        /* on_job may have started another load: MAPs then wait again behind it, handled
+         * like any other (on_map keeps announcements while loading) */
+        size_t n = w->load.num_pending_maps;
+        w->load.num_pending_maps = 0;
+        for (size_t i = 0; i < n; i++)
+            if (on_map(w, &w->load.pending_maps[i]) != 0)
+                return -1;
+        return 0;
+    }
+    if (w->load.rc != 0) {
+        if (w->load.kind == LOAD_REFRAME) {
+            scene_fini(&w->scene);
+            w->loaded = 0;
+        }
+        send_error(w, w->load.err);
+        log_error("%s", w->load.err);
+        return -1;
+    }
+    w->loaded = 1;
+    pool_start(w);
+    if (w->load.kind == LOAD_SCENE)
+        for (uint32_t p = 0; p < w->num_maps; p++) /* maps announced and fetched while the scene loaded */
+            if (map_install(w, p) != 0)
+                return -1;
     struct proto_msg m = {.type = MSG_READY};
     m.u.ready.job_id = w->job.job_id;
     m.u.ready.credits = w->opts->threads * TILES_PER_THREAD;
-    log_info("job %llu loaded: %ux%u, %u spp in %u pass(es), %u threads; %llu bytes of assets fetched and the scene built in %.3f s",
-             (unsigned long long)w->job.job_id, rs->width, rs->height, rs->spp, w->rjob.num_passes, w->opts->threads,
-             (unsigned long long)w->fetch_bytes, (double)(net_now_ms() - w->job_at_ms) * 1e-3);
+    if (w->load.kind == LOAD_SCENE)
+        log_info("job %llu loaded: %ux%u, %u spp in %u pass(es), %u threads; %llu bytes of assets fetched and the scene built in %.3f s",
+                 (unsigned long long)w->job.job_id, w->scene.settings.width, w->scene.settings.height,
+                 w->scene.settings.spp, w->rjob.num_passes, w->opts->threads, (unsigned long long)w->fetch_bytes,
+                 (double)(net_now_ms() - w->job_at_ms) * 1e-3);
+    else
+        log_info("job %llu: frame %u (scene kept)", (unsigned long long)w->job.job_id, w->job.frame);
     worker_send(w, &m);
     return 0;
 }
@@ -541,40 +729,48 @@ static void cache_keep_only(struct blob_store *c, const struct msg_job *job)
 
 /* The next frame of the loaded scene: keep the parsed scene, rebuild what depends on the
  * frame (Embree scene with its motion steps, camera at the frame's time). */
-static int switch_frame(struct worker *w, struct msg_job *job, int same_conn, uint64_t old_job)
+static void switch_frame(struct worker *w, struct msg_job *job, int same_conn, uint64_t old_job)
 {
-    char err[512];
     pool_stop(&w->pool); /* tiles being rendered finish and go out under their old job id */
     maps_reset(w, 1); /* the maps stay until this job announces others */
     proto_job_fini(&w->job);
     w->job = *job;
     /* Kept tiles go before READY: the master must not hand them out meanwhile. */
     offer_kept(w, same_conn, old_job);
-    /* Texture pyramids and the light table stay; the frame's geometry and camera are new. */
-    if (render_job_reframe(&w->rjob, w->job.frame, w->opts->threads, err, sizeof err) != 0) {
-        scene_fini(&w->scene);
-        w->loaded = 0;
-        send_error(w, err);
-        log_error("%s", err);
-        return -1;
-    }
-    pool_start(w);
-    struct proto_msg m = {.type = MSG_READY};
-    m.u.ready.job_id = w->job.job_id;
-    m.u.ready.credits = w->opts->threads * TILES_PER_THREAD;
-    log_info("job %llu: frame %u (scene kept)", (unsigned long long)w->job.job_id, w->job.frame);
-    worker_send(w, &m);
-    return 0;
+    /* Texture pyramids and the light table stay; the frame's geometry and camera are new
+     * (the BVH is built again, beside the main loop; load_finish sends READY). */
+    load_start(w, LOAD_REFRAME);
+}
+
+/* A JOB while a load runs waits for it (the newest one only, with the MAPs after it); one
+ * that names another scene or other settings cancels the load, whose result it cannot use. */
+static void job_defer(struct worker *w, struct msg_job *job)
+{
+    int cancel = !job_same_scene(&w->job, job);
+    pending_drop(w);
+    w->load.pending = *job; /* takes ownership of the asset array */
+    w->load.have_pending = 1;
+    w->load.pending_conn = w->conn;
+    if (cancel)
+        w->load.cancel = 1;
+    log_info("job %llu came while job %llu loads: %s", (unsigned long long)job->job_id,
+             (unsigned long long)w->job.job_id, cancel ? "that load is cancelled" : "the same scene, kept for it");
 }
 
 static int on_job(struct worker *w, struct msg_job *job)
 {
+    if (w->load.running) {
+        job_defer(w, job);
+        return 0;
+    }
     /* A new job on the connection that brought the last one: that frame is done. */
     int same_conn = w->have_job && w->job_conn == w->conn && job->job_id != w->job.job_id;
     uint64_t old_job = w->have_job ? w->job.job_id : 0;
     w->job_conn = w->conn;
-    if (w->loaded && w->have_job && job_same_scene(&w->job, job))
-        return switch_frame(w, job, same_conn, old_job);
+    if (w->loaded && w->have_job && job_same_scene(&w->job, job)) {
+        switch_frame(w, job, same_conn, old_job);
+        return 0;
+    }
     unload_job(w);
     w->job = *job;   /* takes ownership of the asset array */
     w->have_job = 1;
@@ -615,7 +811,7 @@ static int on_job(struct worker *w, struct msg_job *job)
         request_chunks(w, f);
     }
     if (!fetches_pending(w))
-        return load_job(w);
+        load_start(w, LOAD_SCENE);
     return 0;
 }
 
@@ -649,10 +845,10 @@ static int on_blob_data(struct worker *w, const struct msg_blob_data *d)
             blob_recv_fini(&f->recv);
             if (map_pass >= 0) {
                 w->map_bytes += size;
-                return w->loaded ? map_install(w, (uint32_t)map_pass) : 0;
+                return job_ready(w) ? map_install(w, (uint32_t)map_pass) : 0;
             }
-            if (!fetches_pending(w))
-                return load_job(w);
+            if (!fetches_pending(w) && !w->load.running && !w->loaded)
+                load_start(w, LOAD_SCENE);
         }
         return 0;
     }
@@ -664,9 +860,9 @@ static void map_fetch_start(struct worker *w, uint32_t pass);
 
 static void on_tile(struct worker *w, const struct msg_tile *t)
 {
-    uint32_t ntiles = w->loaded ? imgio_tiles_x(&w->desc) * imgio_tiles_y(&w->desc) : 0;
+    uint32_t ntiles = job_ready(w) ? imgio_tiles_x(&w->desc) * imgio_tiles_y(&w->desc) : 0;
     uint64_t nunits = (uint64_t)ntiles * (w->job.passes > 1 ? w->job.passes : 1);
-    if (!w->loaded || t->job_id != w->job.job_id || t->frame != w->job.frame || t->tile >= nunits) {
+    if (!job_ready(w) || t->job_id != w->job.job_id || t->frame != w->job.frame || t->tile >= nunits) {
         log_warn("dropping TILE %u for job %llu frame %u: not part of the loaded job", t->tile,
                  (unsigned long long)t->job_id, t->frame);
         return;
@@ -788,6 +984,14 @@ static int map_install(struct worker *w, uint32_t pass)
  * unit of it comes (a worker joining late fetches only what it renders). */
 static int on_map(struct worker *w, const struct msg_map *mm)
 {
+    if (w->load.have_pending) { /* it names the JOB waiting for the load under way */
+        if (w->load.num_pending_maps == w->load.cap_pending_maps) {
+            w->load.cap_pending_maps = w->load.cap_pending_maps ? w->load.cap_pending_maps * 2 : 8;
+            w->load.pending_maps = mem_realloc(w->load.pending_maps, sizeof *w->load.pending_maps * w->load.cap_pending_maps);
+        }
+        w->load.pending_maps[w->load.num_pending_maps++] = *mm;
+        return 0;
+    }
     if (!w->have_job || mm->job_id != w->job.job_id || mm->pass >= w->num_maps) {
         log_warn("master: MAP for job %llu pass %u dropped: not a pass of the current job (%u photon maps)",
                  (unsigned long long)mm->job_id, mm->pass, w->num_maps);
@@ -804,7 +1008,7 @@ static int on_map(struct worker *w, const struct msg_map *mm)
             map_fetch_start(w, mm->pass);
             break;
         }
-    return w->loaded ? map_install(w, mm->pass) : 0;
+    return job_ready(w) ? map_install(w, mm->pass) : 0;
 }
 
 /* After the messages at hand: the newest announced map is fetched ahead of its units
@@ -999,6 +1203,12 @@ int worker_run(const struct worker_opts *opts)
             goto done;
         }
     }
+    w.load.efd = eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
+    if (w.load.efd < 0) {
+        log_error("eventfd: %s", strerror(errno));
+        goto done;
+    }
+    asset_set_stop_flag(&w.load.cancel); /* the scene parsers stop early when a load is cancelled */
     if (zmq_bind(w.results, "inproc://results") != 0) {
         log_error("cannot bind the results socket: %s", zmq_strerror(errno));
         goto done;
@@ -1008,8 +1218,9 @@ int worker_run(const struct worker_opts *opts)
 
     uint64_t last_heard = net_now_ms(), last_beat = net_now_ms(), last_tick = net_now_ms();
     while (!g_stop) {
-        zmq_pollitem_t items[2] = {{w.sock, 0, ZMQ_POLLIN, 0}, {w.results, 0, ZMQ_POLLIN, 0}};
-        int n = zmq_poll(items, 2, 200);
+        zmq_pollitem_t items[3] = {{w.sock, 0, ZMQ_POLLIN, 0}, {w.results, 0, ZMQ_POLLIN, 0},
+                                   {NULL, w.load.efd, ZMQ_POLLIN, 0}};
+        int n = zmq_poll(items, 3, 200);
         if (n < 0 && errno != EINTR) {
             log_error("poll: %s", zmq_strerror(errno));
             goto done;
@@ -1020,10 +1231,14 @@ int worker_run(const struct worker_opts *opts)
         last_tick = now;
         if (items[1].revents & ZMQ_POLLIN)
             drain_results(&w);
+        if ((items[2].revents & ZMQ_POLLIN) && w.load.running && load_finish(&w) != 0)
+            goto done;
         if (items[0].revents & ZMQ_POLLIN) {
             struct net_frame f;
             int got;
-            while ((got = net_recv(w.sock, 0, &f)) != 0) {
+            /* At most DRAIN_MAX_MS of messages in a row (a blob fetch keeps them coming):
+             * then the heartbeat below goes out, and the poll finds the rest at once. */
+            while (net_now_ms() - now < DRAIN_MAX_MS && (got = net_recv(w.sock, 0, &f)) != 0) {
                 if (got < 0) {
                     log_warn("master: malformed envelope dropped");
                     continue;
@@ -1073,6 +1288,7 @@ int worker_run(const struct worker_opts *opts)
             }
         }
         maps_prefetch(&w);
+        now = net_now_ms();
         if (!w.lost && now - last_heard > MASTER_LOST_MS && now - w.conn_at_ms > MASTER_LOST_MS) {
             log_warn("no word from the master at %s for %llu ms; reconnecting (%zu finished tile(s) kept)",
                      opts->endpoint, (unsigned long long)(now - last_heard), w.num_kept);
@@ -1115,6 +1331,11 @@ done:
     log_info("rendered %u tile(s); %u offered again to a master that came back; %u reconnection(s)",
              atomic_load(&w.tiles_rendered), w.kept_delivered, w.reconnects);
     unload_job(&w);
+    pending_drop(&w);
+    free(w.load.pending_maps);
+    if (w.load.efd > 0)
+        close(w.load.efd);
+    asset_set_stop_flag(NULL);
     free(w.parked);
     while (w.num_kept > 0)
         kept_free_at(&w, w.num_kept - 1);

@@ -12,7 +12,8 @@ enum worker_fault {
     FAULT_CRASH_TILE,   /* abort() when asked to render tile N */
     FAULT_GARBAGE,      /* every result carries a NaN pixel (the master must reject it) */
     FAULT_SLOW,         /* sleep N ms before each tile (a straggler) */
-    FAULT_NONFINITE_TILE /* tile (unit) N carries an infinite pixel, as a scene past float's range would */
+    FAULT_NONFINITE_TILE, /* tile (unit) N carries an infinite pixel, as a scene past float's range would */
+    FAULT_SLOW_LOAD     /* loading a job's scene takes N ms longer (a big scene on a loaded machine) */
 };
 
 struct worker_opts {

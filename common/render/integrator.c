@@ -259,10 +259,11 @@ static vec3 sample_path(const struct render_job *job, uint32_t pass, uint32_t px
     return L;
 }
 
-/* Whether camera rays go in packets (packet.h): where they give the same hits. */
+/* Whether camera rays go in packets (packet.h): where they give the same hits (decided
+ * when the job's frame is set up, render_job.c). */
 static int packets_on(const struct render_job *job)
 {
-    return !job->media && job->accel.packets_exact && camera_packets_enabled();
+    return job->packets;
 }
 
 /* The sampler of sample si of a pixel's run of samples [s0, end); with packets, taken from

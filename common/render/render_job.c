@@ -6,6 +6,7 @@
 #include "image/mip.h"
 #include "render/media_track.h"
 #include "render/motion_vis.h"
+#include "render/packet.h"
 #include "render/photon_map.h"
 #include "scene/texture.h"
 #include <stdlib.h>
@@ -88,6 +89,7 @@ static int frame_init(struct render_job *job, uint32_t frame, uint32_t threads, 
     job->motion_vis = motion_vis_new(&job->accel, scene, &job->camera, frame);
     if (scene->media)
         job->media = media_job_new(&job->accel, &job->lights, job->pass_maps ? job->pass_maps[0] : NULL);
+    job->packets = !job->media && job->accel.packets_exact && camera_packets_enabled();
     passes_update(job);
     return 0;
 }

@@ -32,6 +32,8 @@ struct render_job {
     uint32_t num_passes;        /* progressive photon-map passes (slots of pass_maps); 1 without a map */
     struct media_job *pass_media; /* per pass: a view of *media whose map (and radius) is that pass's; NULL
                                    * without media. Views share media's pointers and own nothing. */
+    int packets;            /* camera rays go in packets (packet.h): no media, accel.packets_exact and
+                             * BRUME_PACKETS not 0 (read once per frame here, not per tile) */
 };
 
 int render_job_init(struct render_job *job, const struct scene *scene, uint32_t frame, uint32_t threads,

@@ -7,7 +7,7 @@ set -u
 pass=0
 fail=0
 rc=0
-for s in run.sh loadpeers.sh packets.sh faults.sh frames.sh framegrid.sh security.sh reconnect.sh ssh.sh media.sh textures.sh stability.sh exrtool.sh safety.sh adaptive.sh materials.sh aovs.sh meshes.sh smoke.sh motion.sh showcase.sh; do
+for s in run.sh loadpeers.sh packets.sh faults.sh frames.sh framegrid.sh security.sh reconnect.sh ssh.sh media.sh textures.sh stability.sh exrtool.sh safety.sh adaptive.sh materials.sh aovs.sh meshes.sh smoke.sh motion.sh showcase.sh loading.sh; do
   out=$(mktemp /tmp/brume-all.XXXXXX)
   sh "$(dirname "$0")/$s" 2>&1 | tee "$out" | sed 's/^integration: /part '"$s"': /'
   line=$(grep "^integration: " "$out" | tail -1)
