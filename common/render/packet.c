@@ -3,12 +3,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-int camera_packets_enabled(void)
-{
-    const char *e = getenv("BRUME_PACKETS");
-    return !(e && strcmp(e, "0") == 0);
-}
-
 void camera_packet_trace(const struct render_job *job, struct sampler_pixel *sp, uint32_t px, uint32_t py,
                          uint32_t s0, uint32_t n, struct camera_packet *cp)
 {

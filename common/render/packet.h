@@ -21,9 +21,6 @@ struct camera_packet {
     int found[ACCEL_PACKET];
 };
 
-/* 1 unless the environment sets BRUME_PACKETS=0 (single rays, for comparisons). */
-int camera_packets_enabled(void);
-
 /* Samples [s0, s0 + n) of pixel (px, py), n <= ACCEL_PACKET, sp set up for the pixel. */
 void camera_packet_trace(const struct render_job *job, struct sampler_pixel *sp, uint32_t px, uint32_t py,
                          uint32_t s0, uint32_t n, struct camera_packet *cp);

@@ -6,11 +6,17 @@
 #include "image/mip.h"
 #include "render/media_track.h"
 #include "render/motion_vis.h"
-#include "render/packet.h"
 #include "render/photon_map.h"
 #include "scene/texture.h"
 #include <stdlib.h>
 #include <string.h>
+
+/* BRUME_PACKETS=0 turns camera packets off (tests compare the two). */
+static int packets_env_enabled(void)
+{
+    const char *e = getenv("BRUME_PACKETS");
+    return !(e && strcmp(e, "0") == 0);
+}
 
 /* MIP pyramids of the scene's image textures, once per job, only when a material uses a
  * texture (others never look one up, so their images are unchanged bit for bit). */
@@ -89,7 +95,7 @@ static int frame_init(struct render_job *job, uint32_t frame, uint32_t threads, 
     job->motion_vis = motion_vis_new(&job->accel, scene, &job->camera, frame);
     if (scene->media)
         job->media = media_job_new(&job->accel, &job->lights, job->pass_maps ? job->pass_maps[0] : NULL);
-    job->packets = !job->media && job->accel.packets_exact && camera_packets_enabled();
+    job->packets = !job->media && job->accel.packets_exact && packets_env_enabled();
     passes_update(job);
     return 0;
 }
