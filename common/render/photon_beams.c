@@ -8,6 +8,7 @@
 #include <embree3/rtcore.h>
 #include <math.h>
 #include <pthread.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -33,6 +34,10 @@ struct photon_beams {
     struct pb_decoded *beams;
     struct pb_chunk *chunks;
     RTCScene scene;     /* NULL when there are no chunks */
+    /* The chunks and BVH are built by the first query (on a render thread, so a worker's
+     * decoding stays quick and its heartbeats flow) or by photon_beams_set_radius. */
+    pthread_mutex_t lock;
+    _Atomic int built;
 };
 
 /* ---- writing ---- */
@@ -184,7 +189,7 @@ static void intersect_cb(const struct RTCIntersectFunctionNArguments *args)
     q->hits[q->n++] = h;
 }
 
-static void build(struct photon_beams *pb)
+static void build_now(struct photon_beams *pb)
 {
     if (pb->scene) {
         rtcReleaseScene(pb->scene);
@@ -233,6 +238,29 @@ static void build(struct photon_beams *pb)
     rtcAttachGeometry(pb->scene, g);
     rtcReleaseGeometry(g);
     rtcCommitScene(pb->scene);
+}
+
+static void ensure_built(struct photon_beams *pb)
+{
+    if (atomic_load_explicit(&pb->built, memory_order_acquire))
+        return;
+    pthread_mutex_lock(&pb->lock);
+    if (!atomic_load_explicit(&pb->built, memory_order_relaxed)) {
+        build_now(pb);
+        atomic_store_explicit(&pb->built, 1, memory_order_release);
+    }
+    pthread_mutex_unlock(&pb->lock);
+}
+
+static struct photon_beams *beams_new(uint32_t n, float radius)
+{
+    struct photon_beams *pb = mem_calloc(1, sizeof *pb);
+    pb->n = n;
+    pb->radius = radius;
+    pb->beams = mem_alloc(sizeof *pb->beams * (n ? n : 1));
+    pthread_mutex_init(&pb->lock, NULL);
+    atomic_init(&pb->built, 0);
+    return pb;
 }
 
 /* ---- reading ---- */
@@ -290,35 +318,28 @@ int photon_beams_decode(const uint8_t *data, size_t size, struct photon_beams **
             return -1;
         }
     }
-    struct photon_beams *pb = mem_calloc(1, sizeof *pb);
-    pb->n = n;
+    struct photon_beams *pb = beams_new(n, radius);
     pb->emitted = emitted;
-    pb->radius = radius;
-    pb->beams = mem_alloc(sizeof *pb->beams * (n ? n : 1));
     for (uint32_t i = 0; i < n; i++)
         decode_beam(&wire[i], &pb->beams[i]);
     free(wire);
-    build(pb);
     *out = pb;
     return 0;
 }
 
 struct photon_beams *photon_beams_from(const struct photon_beam *beams, uint32_t n, float radius)
 {
-    struct photon_beams *pb = mem_calloc(1, sizeof *pb);
-    pb->n = n;
-    pb->radius = radius;
-    pb->beams = mem_alloc(sizeof *pb->beams * (n ? n : 1));
+    struct photon_beams *pb = beams_new(n, radius);
     for (uint32_t i = 0; i < n; i++)
         decode_beam(&beams[i], &pb->beams[i]);
-    build(pb);
     return pb;
 }
 
 void photon_beams_set_radius(struct photon_beams *pb, float radius)
 {
     pb->radius = radius;
-    build(pb);
+    build_now(pb);
+    atomic_store_explicit(&pb->built, 1, memory_order_release);
 }
 
 void photon_beams_free(struct photon_beams **pp)
@@ -331,6 +352,7 @@ void photon_beams_free(struct photon_beams **pp)
         rtcReleaseScene(pb->scene);
     free(pb->chunks);
     free(pb->beams);
+    pthread_mutex_destroy(&pb->lock);
     free(pb);
 }
 
@@ -396,12 +418,13 @@ static void query_init(struct pb_query *q, const struct photon_beams *pb, vec3 o
 static _Thread_local struct pb_hit *tl_hits;
 static _Thread_local uint32_t tl_cap;
 
-vec3 photon_beams_estimate(const struct photon_beams *pb, vec3 o, vec3 d, float t1, const struct medium *md,
+vec3 photon_beams_estimate(struct photon_beams *pb, vec3 o, vec3 d, float t1, const struct medium *md,
                            const struct photon_tau *tau, uint32_t depth_max)
 {
-    if (!pb || !pb->scene || !(t1 > 0.0f) || !isfinite(t1) || !v3_is_finite(o) || !v3_is_finite(d) ||
+    if (!pb || pb->n == 0 || !(t1 > 0.0f) || !isfinite(t1) || !v3_is_finite(o) || !v3_is_finite(d) ||
         v3_is_black(md->sigma_s))
         return v3(0, 0, 0);
+    ensure_built(pb);
     struct pb_query q;
     query_init(&q, pb, o, d, t1, md, depth_max);
     q.hits = tl_hits, q.cap = tl_cap;
@@ -418,11 +441,12 @@ vec3 photon_beams_estimate(const struct photon_beams *pb, vec3 o, vec3 d, float 
     return sum_hits(pb, q.hits, q.n, o, d, md, tau);
 }
 
-vec3 photon_beams_estimate_brute(const struct photon_beams *pb, vec3 o, vec3 d, float t1, const struct medium *md,
+vec3 photon_beams_estimate_brute(struct photon_beams *pb, vec3 o, vec3 d, float t1, const struct medium *md,
                                  const struct photon_tau *tau, uint32_t depth_max)
 {
     if (!pb || !(t1 > 0.0f) || !isfinite(t1) || v3_is_black(md->sigma_s))
         return v3(0, 0, 0);
+    ensure_built(pb);
     struct pb_query q;
     query_init(&q, pb, o, d, t1, md, depth_max);
     struct pb_hit *hits = mem_alloc(sizeof *hits * (pb->num_chunks ? pb->num_chunks : 1));

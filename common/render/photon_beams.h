@@ -67,13 +67,13 @@ void photon_beams_set_radius(struct photon_beams *pb, float radius);
 /* Builds a set from beams in memory (tests). */
 struct photon_beams *photon_beams_from(const struct photon_beam *beams, uint32_t n, float radius);
 
-/* The beam x beam estimate of the light in-scattered toward o along o + t d, t in [0, t1)
+/* The beam x beam estimate (the first call builds the BVH, thread-safely) of the light in-scattered toward o along o + t d, t in [0, t1)
  * (d unit) in medium md: the sum above over beams of depth <= depth_max. tau: the camera
  * ray's transmittance from a marched table (grids), or NULL for the closed form; sigma_s
  * times the grid's density at the closest point for grids. */
-vec3 photon_beams_estimate(const struct photon_beams *pb, vec3 o, vec3 d, float t1, const struct medium *md,
+vec3 photon_beams_estimate(struct photon_beams *pb, vec3 o, vec3 d, float t1, const struct medium *md,
                            const struct photon_tau *tau, uint32_t depth_max);
 /* The same by a loop over every beam (tests). */
-vec3 photon_beams_estimate_brute(const struct photon_beams *pb, vec3 o, vec3 d, float t1, const struct medium *md,
+vec3 photon_beams_estimate_brute(struct photon_beams *pb, vec3 o, vec3 d, float t1, const struct medium *md,
                                  const struct photon_tau *tau, uint32_t depth_max);
 #endif
