@@ -22,9 +22,13 @@ struct pb_decoded {
     uint32_t depth;
 };
 
+/* A chunk holds what its exact test reads (one cache line's worth), so a query touches the
+ * beams themselves only for its hits; chunks are stored in Morton order of their centres. */
 struct pb_chunk {
-    uint32_t beam;
-    float v0, v1;
+    float a[3], u[3];   /* the beam's start and direction */
+    float v0, v1;       /* its part of the beam */
+    uint32_t beam, depth;
+    float power[3];
 };
 
 struct photon_beams {
@@ -102,9 +106,8 @@ static void pb_device_init(void)
 static void chunk_bounds(const struct photon_beams *pb, uint32_t i, float lo[3], float hi[3])
 {
     const struct pb_chunk *c = &pb->chunks[i];
-    const struct pb_decoded *b = &pb->beams[c->beam];
     for (int k = 0; k < 3; k++) {
-        float p0 = b->a[k] + b->u[k] * c->v0, p1 = b->a[k] + b->u[k] * c->v1;
+        float p0 = c->a[k] + c->u[k] * c->v0, p1 = c->a[k] + c->u[k] * c->v1;
         float l = fminf(p0, p1), h = fmaxf(p0, p1);
         float pad = pb->radius * 1.0001f + 1e-6f * (fabsf(l) + fabsf(h)) + 1e-30f;
         lo[k] = l - pad, hi[k] = h + pad;
@@ -143,12 +146,11 @@ static int chunk_test(const struct pb_query *q, uint32_t i, struct pb_hit *h)
 {
     const struct photon_beams *pb = q->pb;
     const struct pb_chunk *c = &pb->chunks[i];
-    const struct pb_decoded *b = &pb->beams[c->beam];
-    if (b->depth > q->depth_max)
+    if (c->depth > q->depth_max)
         return 0;
     const double *d = q->d;
-    double u[3] = {b->u[0], b->u[1], b->u[2]};
-    double W[3] = {q->o[0] - b->a[0], q->o[1] - b->a[1], q->o[2] - b->a[2]};
+    double u[3] = {c->u[0], c->u[1], c->u[2]};
+    double W[3] = {q->o[0] - c->a[0], q->o[1] - c->a[1], q->o[2] - c->a[2]};
     double cr[3] = {d[1] * u[2] - d[2] * u[1], d[2] * u[0] - d[0] * u[2], d[0] * u[1] - d[1] * u[0]};
     double s2 = cr[0] * cr[0] + cr[1] * cr[1] + cr[2] * cr[2];
     if (!(s2 >= (double)PB_MIN_SIN * PB_MIN_SIN))
@@ -189,6 +191,61 @@ static void intersect_cb(const struct RTCIntersectFunctionNArguments *args)
     q->hits[q->n++] = h;
 }
 
+/* 10 bits of x in every third bit. */
+static uint32_t spread3(uint32_t x)
+{
+    x &= 1023u;
+    x = (x | x << 16) & 0x030000ffu;
+    x = (x | x << 8) & 0x0300f00fu;
+    x = (x | x << 4) & 0x030c30c3u;
+    x = (x | x << 2) & 0x09249249u;
+    return x;
+}
+
+struct morton_key {
+    uint32_t code, index;
+};
+
+static int cmp_morton(const void *a, const void *b)
+{
+    const struct morton_key *x = a, *y = b;
+    if (x->code != y->code)
+        return x->code < y->code ? -1 : 1;
+    return x->index < y->index ? -1 : x->index > y->index;
+}
+
+/* Reorders chunks by the Morton code of their centres (ties by their order before), so
+ * that chunks near in space are near in memory. Deterministic. */
+static void morton_order(struct pb_chunk *c, uint32_t n)
+{
+    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    float *ctr = mem_alloc(sizeof *ctr * 3 * (size_t)n);
+    for (uint32_t i = 0; i < n; i++)
+        for (int k = 0; k < 3; k++) {
+            float x = c[i].a[k] + c[i].u[k] * 0.5f * (c[i].v0 + c[i].v1);
+            ctr[3 * (size_t)i + k] = x;
+            lo[k] = fminf(lo[k], x), hi[k] = fmaxf(hi[k], x);
+        }
+    struct morton_key *key = mem_alloc(sizeof *key * n);
+    for (uint32_t i = 0; i < n; i++) {
+        uint32_t code = 0;
+        for (int k = 0; k < 3; k++) {
+            float ext = hi[k] - lo[k], f = ext > 0.0f ? (ctr[3 * (size_t)i + k] - lo[k]) / ext : 0.0f;
+            uint32_t q = f > 0.0f ? (uint32_t)fminf(f * 1023.0f, 1023.0f) : 0u;
+            code |= spread3(q) << k;
+        }
+        key[i] = (struct morton_key){code, i};
+    }
+    qsort(key, n, sizeof *key, cmp_morton);
+    struct pb_chunk *tmp = mem_alloc(sizeof *tmp * n);
+    for (uint32_t i = 0; i < n; i++)
+        tmp[i] = c[key[i].index];
+    memcpy(c, tmp, sizeof *tmp * n);
+    free(tmp);
+    free(key);
+    free(ctr);
+}
+
 static void build_now(struct photon_beams *pb)
 {
     if (pb->scene) {
@@ -220,10 +277,13 @@ static void build_now(struct photon_beams *pb)
         for (uint32_t j = 0; j < nc; j++) {
             float v0 = j == 0 ? 0.0f : (float)((double)len * j / nc);
             float v1 = j + 1 == nc ? len : (float)((double)len * (j + 1) / nc);
-            pb->chunks[m++] = (struct pb_chunk){i, v0, v1};
+            const struct pb_decoded *b = &pb->beams[i];
+            pb->chunks[m++] = (struct pb_chunk){{b->a[0], b->a[1], b->a[2]}, {b->u[0], b->u[1], b->u[2]}, v0, v1, i,
+                                                b->depth, {b->power[0], b->power[1], b->power[2]}};
         }
     }
     pb->num_chunks = m;
+    morton_order(pb->chunks, m);
     pthread_once(&pb_once, pb_device_init);
     CHECK(pb_device != NULL); /* Embree could not start */
     pb->scene = rtcNewScene(pb_device);
@@ -361,30 +421,51 @@ float photon_beams_radius(const struct photon_beams *pb) { return pb ? pb->radiu
 
 /* ---- the estimate ---- */
 
-static int cmp_hit(const void *a, const void *b)
+/* Sorts hits by chunk: insertion sort for a few, else an LSD radix sort (8 bits a pass,
+ * stable) through the thread's scratch array. */
+static _Thread_local struct pb_hit *tl_tmp;
+static _Thread_local size_t tl_tmp_cap;
+
+static void sort_hits(struct pb_hit *h, uint32_t n)
 {
-    const struct pb_hit *x = a, *y = b;
-    return x->chunk < y->chunk ? -1 : x->chunk > y->chunk;
+    if (n <= 32) {
+        for (uint32_t i = 1; i < n; i++)
+            for (uint32_t j = i; j > 0 && h[j].chunk < h[j - 1].chunk; j--) {
+                struct pb_hit t = h[j];
+                h[j] = h[j - 1], h[j - 1] = t;
+            }
+        return;
+    }
+    mem_grow((void **)&tl_tmp, &tl_tmp_cap, n, sizeof *tl_tmp);
+    uint32_t top = 0;
+    for (uint32_t i = 0; i < n; i++)
+        top |= h[i].chunk;
+    struct pb_hit *a = h, *b = tl_tmp;
+    for (int shift = 0; shift < 32 && (top >> shift) != 0; shift += 8) {
+        uint32_t count[257] = {0};
+        for (uint32_t i = 0; i < n; i++)
+            count[(a[i].chunk >> shift & 255) + 1]++;
+        for (int k = 0; k < 256; k++)
+            count[k + 1] += count[k];
+        for (uint32_t i = 0; i < n; i++)
+            b[count[a[i].chunk >> shift & 255]++] = a[i];
+        struct pb_hit *t = a;
+        a = b, b = t;
+    }
+    if (a != h)
+        memcpy(h, a, sizeof *h * n);
 }
 
 /* Sums the hits in chunk order (each chunk once). */
 static vec3 sum_hits(const struct photon_beams *pb, struct pb_hit *h, uint32_t n, vec3 o, vec3 d,
                      const struct medium *md, const struct photon_tau *tau)
 {
-    if (n <= 16) {
-        for (uint32_t i = 1; i < n; i++)
-            for (uint32_t j = i; j > 0 && h[j].chunk < h[j - 1].chunk; j--) {
-                struct pb_hit t = h[j];
-                h[j] = h[j - 1], h[j - 1] = t;
-            }
-    } else {
-        qsort(h, n, sizeof *h, cmp_hit);
-    }
+    sort_hits(h, n);
     double acc[3] = {0, 0, 0};
     for (uint32_t i = 0; i < n; i++) {
         if (i > 0 && h[i].chunk == h[i - 1].chunk)
             continue;
-        const struct pb_decoded *b = &pb->beams[pb->chunks[h[i].chunk].beam];
+        const struct pb_chunk *b = &pb->chunks[h[i].chunk];
         float w = h[i].w;
         vec3 ss = md->sigma_s;
         if (md->grid) {
