@@ -16,7 +16,7 @@
  * on Embree's traversal order or thread count.
  *
  * Wire: a section after the photon map(s) of a pass, "BVPB0001", u32 count, u32 0, u64
- * emitted, f32 radius, 12 zero bytes (32 bytes), then count 32-byte beams (below). */
+ * emitted, f32 radius, u32 0 (32 bytes), then count 32-byte beams (below). */
 #ifndef BRUME_PHOTON_BEAMS_H
 #define BRUME_PHOTON_BEAMS_H
 #include <stddef.h>
