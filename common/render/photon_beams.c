@@ -6,6 +6,7 @@
 #include "base/log.h"
 #include "scene/grid.h"
 #include <embree3/rtcore.h>
+#include <float.h>
 #include <math.h>
 #include <pthread.h>
 #include <stdatomic.h>
@@ -110,7 +111,7 @@ static void chunk_bounds(const struct photon_beams *pb, uint32_t i, float lo[3],
         float p0 = c->a[k] + c->u[k] * c->v0, p1 = c->a[k] + c->u[k] * c->v1;
         float l = fminf(p0, p1), h = fmaxf(p0, p1);
         float pad = pb->radius * 1.0001f + 1e-6f * (fabsf(l) + fabsf(h)) + 1e-30f;
-        lo[k] = l - pad, hi[k] = h + pad;
+        lo[k] = fmaxf(l - pad, -FLT_MAX), hi[k] = fminf(h + pad, FLT_MAX); /* finite for Embree */
     }
 }
 

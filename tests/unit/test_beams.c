@@ -224,3 +224,18 @@ Test(beams, section_roundtrip_and_refusals)
     free(vm);
     free(s);
 }
+
+/* Extreme radii and coordinates stay finite (the BVH's boxes are clamped to finite floats). */
+Test(beams, extreme_values_finite)
+{
+    struct medium md = grey(0.5f, 0.6f, 0.2f);
+    struct photon_beam b[2] = {make_beam(v3(-1e38f, 0, 0), v3(1e38f, 0, 1), v3(1, 1, 1), 1),
+                               make_beam(v3(0, 0, 0), v3(0, 1e-30f, 0), v3(1e30f, 1, 1), 1)};
+    const float radii[] = {1e-30f, 1.0f, 3e38f};
+    for (int i = 0; i < 3; i++) {
+        struct photon_beams *pb = photon_beams_from(b, 2, radii[i]);
+        vec3 e = photon_beams_estimate(pb, v3(0, -1, 0.5f), v3(0, 1, 0), 2.0f, &md, NULL, PHOTON_DEPTH_ANY);
+        cr_assert(v3_is_finite(e) && e.x >= 0.0f, "radius %g: %g", (double)radii[i], (double)e.x);
+        photon_beams_free(&pb);
+    }
+}
