@@ -47,7 +47,7 @@ static void usage(FILE *f)
             "                         the local workers can join)\n"
             "  --insecure             a tcp:// --bind without CurveZMQ: anyone who reaches it can join (warned)\n"
             "  --keygen KEYFILE       write a new key pair to KEYFILE and KEYFILE.pub, then exit\n"
-            "  --media-method NAME    vpt, march or beam: how media are rendered (overrides the scene)\n"
+            "  --media-method NAME    vpt, march, beam or beams: how media are rendered (overrides the scene)\n"
             "  --indirect NAME        gather or path: march and beam's indirect light at diffuse\n"
             "                         surfaces (overrides volume.indirect)\n"
             "  --photons N            photons the photon pass emits, per pass (overrides the scene)\n"
@@ -202,7 +202,7 @@ int main(int argc, char **argv)
             enum media_method mm = MEDIA_VPT;
             enum media_indirect mi = MEDIA_INDIRECT_GATHER;
             if (method ? media_method_from_name(t, &mm) != 0 : media_indirect_from_name(t, &mi) != 0) {
-                log_error("%s: \"%s\" is not %s", a, t, method ? "vpt, march or beam" : "gather or path");
+                log_error("%s: \"%s\" is not %s", a, t, method ? "vpt, march, beam or beams" : "gather or path");
                 return 2;
             }
             if (method) {

@@ -81,6 +81,9 @@ static int set_surface_radius(uint8_t **map, size_t *size, float radius, char *e
         return 0;
     }
     size_t vbytes = 48 + sizeof(struct photon) * (size_t)m->num_photons + 4 * ((size_t)m->table_size + 1);
+    size_t old_sbytes = 48 + sizeof(struct photon) * (size_t)m->surface->num_photons +
+                        4 * ((size_t)m->surface->table_size + 1);
+    size_t tail = *size - vbytes - old_sbytes; /* the photon beams' section, if any */
     struct photon_list block = {NULL, m->surface->num_photons, m->surface->num_photons};
     block.a = mem_alloc(sizeof *block.a * (block.n ? block.n : 1));
     memcpy(block.a, m->surface->photons, sizeof *block.a * block.n);
@@ -91,13 +94,15 @@ static int set_surface_radius(uint8_t **map, size_t *size, float radius, char *e
     photon_map_free(&m);
     if (rc != 0)
         return -1;
-    uint8_t *joined = mem_alloc(vbytes + sbytes);
+    uint8_t *joined = mem_alloc(vbytes + sbytes + tail);
     memcpy(joined, *map, vbytes);
     memcpy(joined + vbytes, smap, sbytes);
+    if (tail)
+        memcpy(joined + vbytes + sbytes, *map + vbytes + old_sbytes, tail);
     free(smap);
     free(*map);
     *map = joined;
-    *size = vbytes + sbytes;
+    *size = vbytes + sbytes + tail;
     return 0;
 }
 
@@ -297,9 +302,9 @@ static int trace_one(struct photon_tracer *t, struct render_job *job, float r0, 
     char hex[65];
     blob_hash_compute(out->data, out->size, &h);
     blob_hash_hex(&h, hex);
-    log_info("media: photon map %u of %u: %llu emitted, %llu stored (%llu on surfaces) in %.3f s on %u thread(s), "
+    log_info("media: photon map %u of %u: %llu emitted, %llu stored (%llu on surfaces, %llu beams) in %.3f s on %u thread(s), "
              "%zu bytes, radius %g (surface %g), map %.16s", p, t->passes, (unsigned long long)st.emitted,
-             (unsigned long long)st.stored, (unsigned long long)st.stored_surface, out->seconds, t->threads, out->size,
+             (unsigned long long)st.stored, (unsigned long long)st.stored_surface, (unsigned long long)st.stored_beams, out->seconds, t->threads, out->size,
              (double)rv, (double)rsurf, hex);
     return 0;
 }

@@ -30,7 +30,10 @@
 #   env: SCENES ("fog_spot cornell_fog smoke"), BUDGETS (photon method spp, "2 8 30 100"; at 1 spp
 #        the variance channels, hence errest, are 0),
 #        REF_SPP (4096), PROBE_SPP (64), DEPTHS ("8 16 32 64"), BOX (8), SEED (11),
-#        VPT_DEPTH ("ref", or "scene" for the scene's own max_depth), REF_REDO (0)
+#        VPT_DEPTH ("ref", or "scene" for the scene's own max_depth), REF_REDO (0),
+#        TIME ("wall", or "cpu": user + system seconds of the master and its worker, steadier on a
+#        loaded machine), EXTRA (more photon methods, e.g. "beams", rendered with --media-method at
+#        the same BUDGETS; each gets its rows, slope and ratio to VPT)
 set -eu
 . scripts/lib.sh
 SCENES=${SCENES:-"fog_spot cornell_fog smoke"}
@@ -42,6 +45,8 @@ BOX=${BOX:-8}
 SEED=${SEED:-11}
 VPT_DEPTH=${VPT_DEPTH:-ref}
 REF_REDO=${REF_REDO:-0}
+TIME=${TIME:-wall}
+EXTRA=${EXTRA:-}
 CAL_SPP=8
 bench_init bmedia gnuplot-nox bc
 M="$BUILD/master"
@@ -52,7 +57,8 @@ mkdir -p "$OUT/ref"
 # to exit, photon pass included).
 render() {
   r_s=$1; r_o=$2; r_spp=$3; r_seed=$4; shift 4
-  wall_secs "$M" "scenes/$r_s/$r_s.json" -o "$r_o" --workers 1 --threads "$CORES" --no-journal --spp "$r_spp" \
+  if [ "$TIME" = cpu ]; then tsecs=cpu_secs; else tsecs=wall_secs; fi
+  $tsecs "$M" "scenes/$r_s/$r_s.json" -o "$r_o" --workers 1 --threads "$CORES" --no-journal --spp "$r_spp" \
     --seed "$r_seed" "$@"
 }
 pass_secs() { sed -n 's/.*photon pass: .* in \([0-9.]*\) s on.*/\1/p' "$1" | head -1; }
@@ -129,6 +135,14 @@ for sc in $SCENES; do
     ps=$(pass_secs "$T/log")
     echo "$pm $spp $t $("$X" relrmse "$T/p.exr" "$REF") $("$X" relrmse "$T/p.exr" "$REF" --box "$BOX") $("$X" errest "$T/p.exr") ${ps:-0}" >>"$T/rows-$sc"
   done
+  for xm in $EXTRA; do
+    for spp in $BUDGETS; do
+      echo "media: $sc: $xm, $spp spp (max_depth $vdepth)" >&2
+      t=$(render "$sc" "$T/p.exr" "$spp" "$SEED" --max-depth "$vdepth" --media-method "$xm")
+      ps=$(pass_secs "$T/log")
+      echo "$xm $spp $t $("$X" relrmse "$T/p.exr" "$REF") $("$X" relrmse "$T/p.exr" "$REF" --box "$BOX") $("$X" errest "$T/p.exr") ${ps:-0}" >>"$T/rows-$sc"
+    done
+  done
   # VPT: spp for the same times, from one calibration render at CAL_SPP spp.
   tc=$(render "$sc" "$T/c.exr" "$CAL_SPP" "$SEED" --media-method vpt --max-depth "$vdepth")
   for t in $(awk -v m="$pm" '$1 == m {print $3}' "$T/rows-$sc"); do
@@ -166,13 +180,18 @@ for sc in $SCENES; do
         'BEGIN { printf "%-6s %5d %8.3f %9.5f %9.5f %9.5f %9.5f %9.5f %8s %9.5f %9.5f %8s %8s\n", m, spp, t, r, tr, lf, tl, e,
                  (tr > 0 && e > 0 ? sprintf("%.3f", e / tr) : "-"), rr, rl, (q == "" ? "-" : q), (m == "vpt" ? "-" : sprintf("%.3f", ps)) }'
     done <"$T/rows-$sc"
-    for m in "$pm" vpt; do
+    for m in "$pm" $EXTRA vpt; do
       sl=$(awk -v m="$m" '$1 == m {print $3, $8}' "$T/rows-$sc" | loglog_slope)
       sll=$(awk -v m="$m" '$1 == m {print $3, $9}' "$T/rows-$sc" | loglog_slope)
       span=$(awk -v m="$m" '$1 == m { if (!n++ || $3 < lo) lo = $3; if ($3 > hi) hi = $3 } END { printf "%.1f", hi / lo }' "$T/rows-$sc")
       echo "   $m: log-log slope of the true relRMSE against time $sl (low-frequency $sll), over a time span of ${span}x (-0.5: unbiased Monte Carlo)"
     done
     echo "   $pm / vpt true relRMSE at matched time: $gm (geometric mean over the budgets; low-frequency $gml); below 1: $pm wins"
+    for xm in $EXTRA; do
+      pm0=$pm; pm=$xm
+      echo "   $xm / vpt true relRMSE at matched time: $(matched 8 "$T/vcurve") (low-frequency $(matched 9 "$T/vcurve-lf"))"
+      pm=$pm0
+    done
     echo
   } | tee -a "$OUT/media.txt"
   echo "$sc $pm $dref $rrel $gm $gml" >>"$T/summary"

@@ -10,6 +10,7 @@
 #include "render/media_integrator.h"
 #include "render/media_track.h"
 #include "render/photon_map.h"
+#include "render/photon_beams.h"
 #include "render/photon_trace.h"
 #include "render/surface.h"
 #include "render/texshade.h"
@@ -342,20 +343,25 @@ static vec3 march_segment(const struct render_job *job, const struct media_job *
     }
     if (het)
         *seg_tr = v3(expf(-md->sigma_t.x * tau), expf(-md->sigma_t.y * tau), expf(-md->sigma_t.z * tau));
-    if (mj->sm->method == MEDIA_MARCH_BEAM && map) {
+    if ((mj->sm->method == MEDIA_MARCH_BEAM || mj->sm->method == MEDIA_MARCH_BEAMS) && map) {
         if (het) {
-            /* Photons lie in the occupied box (stored only where the density is non-zero):
-             * the beam need only walk the part of the ray within r of its world box. */
+            /* Photons and beams lie in the occupied box (stored only where the density is
+             * non-zero): the query need only walk the part of the ray within r of its box. */
             vec3 blo, bhi;
             grid_world_box(md->grid, &blo, &bhi);
             float rad = map->radius, e0 = 0.0f, e1 = len;
             vec3 pad = v3(rad, rad, rad);
             if (v3_clip_box(o, d, v3_sub(blo, pad), v3_add(bhi, pad), &e0, &e1) && e0 < e1) {
                 struct photon_tau tt = {tau_tab, ntab, c0 - e0, dx};
-                L = v3_add(L, photon_map_beam(map, v3_add(o, v3_scale(d, e0)), d, e1 - e0, md, &tt, kmax));
+                vec3 oe = v3_add(o, v3_scale(d, e0));
+                L = v3_add(L, photon_map_beam(map, oe, d, e1 - e0, md, &tt, kmax));
+                if (map->beams)
+                    L = v3_add(L, photon_beams_estimate(map->beams, oe, d, e1 - e0, md, &tt, kmax));
             }
         } else {
             L = v3_add(L, photon_map_beam(map, o, d, len, md, NULL, kmax));
+            if (map->beams)
+                L = v3_add(L, photon_beams_estimate(map->beams, o, d, len, md, NULL, kmax));
         }
     }
     return L;
@@ -413,8 +419,11 @@ static vec3 gather_segment(const struct render_job *job, const struct media_job 
     L = v3_add(L, v3_scale(v3_mul(medium_transmittance(md, fc.t), in), 1.0f / trunc_pdf(s, len, fc.t)));
     /* Multiple scattering keeps the beam: a one-point estimate, photons within r of a
      * single point, made the sample values heavy-tailed where photons are sparse. */
-    if (kmax > 0 && mj->map)
+    if (kmax > 0 && mj->map) {
         L = v3_add(L, photon_map_beam(mj->map, o, d, len, md, NULL, kmax));
+        if (mj->map->beams)
+            L = v3_add(L, photon_beams_estimate(mj->map->beams, o, d, len, md, NULL, kmax));
+    }
     return L;
 }
 

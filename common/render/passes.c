@@ -9,7 +9,8 @@ int passes_volume_kernel_dim(enum media_method method)
     /* The beam estimate gathers the photons within r of the camera ray: its kernel blurs
      * only across the ray, so its variance grows as 1 / r^2 against an r^2 bias, and the
      * radius rule that balances the two is the 2D one (Jarosz et al. 2011). */
-    return method == MEDIA_MARCH_BEAM ? 2 : 3;
+    /* Photon beams' 1D kernel blurs along one axis only (1 / r variance against an r bias). */
+    return method == MEDIA_MARCH_BEAMS ? 1 : method == MEDIA_MARCH_BEAM ? 2 : 3;
 }
 
 int passes_plan(uint32_t spp, uint32_t asked, uint64_t photons, int photons_given, uint64_t pixels,

@@ -2,6 +2,7 @@
  * written by the master and decoded (every size and index checked) by workers, and the
  * radiance estimates. No tracing here: photon_trace.c fills the lists this serialises. */
 #include "render/photon_map.h"
+#include "render/photon_beams.h"
 #include "base/bytes.h"
 #include "base/log.h"
 #include <math.h>
@@ -224,22 +225,32 @@ int photon_map_decode(const uint8_t *data, size_t size, struct photon_map **out,
     size_t used = 0, used2 = 0;
     if (decode_one(data, size, &used, out, err, errlen) != 0)
         return -1;
-    if (used == size) {
-        (*out)->beam = beam_grid_build(*out);
-        return 0;
+    /* What may follow: a surface map (the same photon count; its radius may differ:
+     * progressive passes shrink it by the 2D rule, the volume map's by the 3D or 1D one),
+     * then the photon beams' section (photon_beams.h), each at most once, in this order. */
+    if (used < size && !photon_beams_is_section(data + used, size - used)) {
+        struct photon_map *s = NULL;
+        if (decode_one(data + used, size - used, &used2, &s, err, errlen) != 0 || s->num_emitted != (*out)->num_emitted) {
+            if (s)
+                str_fmt(err, errlen, "photon map: the surface map does not fit the blob or the volume map");
+            photon_map_free(&s);
+            photon_map_free(out);
+            return -1;
+        }
+        (*out)->surface = s;
+        used += used2;
     }
-    /* A surface map follows: exactly one more map, with the same photon count (its radius
-     * may differ: progressive passes shrink it by the 2D rule, the volume map's by the 3D). */
-    struct photon_map *s = NULL;
-    if (decode_one(data + used, size - used, &used2, &s, err, errlen) != 0 || used2 != size - used ||
-        s->num_emitted != (*out)->num_emitted) {
-        if (s || used2)
-            str_fmt(err, errlen, "photon map: the surface map does not fit the blob or the volume map");
-        photon_map_free(&s);
-        photon_map_free(out);
-        return -1;
+    if (used < size) {
+        if (!photon_beams_is_section(data + used, size - used)) {
+            str_fmt(err, errlen, "photon map: %zu unknown bytes after the maps", size - used);
+            photon_map_free(out);
+            return -1;
+        }
+        if (photon_beams_decode(data + used, size - used, &(*out)->beams, err, errlen) != 0) {
+            photon_map_free(out);
+            return -1;
+        }
     }
-    (*out)->surface = s;
     (*out)->beam = beam_grid_build(*out);
     return 0;
 }
@@ -251,6 +262,7 @@ void photon_map_free(struct photon_map **pm)
     while (m) { /* the passes' chain, iteratively (up to VOLUME_BLOB_MAX_MAPS long) */
         struct photon_map *next = m->next_pass;
         photon_map_free(&m->surface);
+        photon_beams_free(&m->beams);
         free(m->decoded);
         free(m->photons);
         free(m->bucket_start);
@@ -654,7 +666,7 @@ static void beam_grid_free(struct photon_beam_grid *g)
     free(g);
 }
 
-static vec3 tau_tr(const struct photon_tau *tt, const struct medium *md, float t)
+vec3 photon_tau_transmittance(const struct photon_tau *tt, const struct medium *md, float t)
 {
     float x = (t - tt->t0) / tt->dt, tau;
     if (!(x > 0.0f))
@@ -696,7 +708,7 @@ static inline void beam_add(const struct photon_map *m, uint32_t i, const float 
     vec3 perp = v3_sub(dp, v3_scale(br->d, t));
     if (v3_dot(perp, perp) > br->r2 || m->photons[i].depth > br->depth_max)
         return;
-    vec3 tr = br->tau ? tau_tr(br->tau, br->md, t) : medium_transmittance(br->md, t);
+    vec3 tr = br->tau ? photon_tau_transmittance(br->tau, br->md, t) : medium_transmittance(br->md, t);
     vec3 c = v3_mul(photon_contrib(m, i, br->d_out, br->md->g), tr);
     acc[0] += c.x, acc[1] += c.y, acc[2] += c.z;
 }

@@ -14,6 +14,7 @@
 #include "base/vec.h"
 
 struct photon_beam_grid;
+struct photon_beams;
 
 struct photon {
     float p[3];
@@ -42,6 +43,7 @@ struct photon_map {
     struct photon_beam_grid *beam; /* the beam query's rows of photons (photon_map.c), built by
                                     * photon_map_decode for a volume map; NULL: the query reads
                                     * every photon (maps built by hand in tests) */
+    struct photon_beams *beams; /* the `beams` method's photon beams (photon_beams.h), or NULL */
     struct photon_map *surface; /* the volume map's companion: photons on diffuse surfaces, or NULL */
     struct photon_map *next_pass; /* the next pass's map (progressive passes, volume blob), or NULL; owned */
 };
@@ -96,6 +98,8 @@ struct photon_tau {
     uint32_t n;
     float t0, dt;
 };
+/* Transmittance at t from a marched table. */
+vec3 photon_tau_transmittance(const struct photon_tau *tt, const struct medium *md, float t);
 /* tau: transmittance from a marched table (heterogeneous media), or NULL for the closed form. */
 vec3 photon_map_beam(const struct photon_map *m, vec3 o, vec3 d, float t1, const struct medium *md,
                      const struct photon_tau *tau, uint32_t depth_max);

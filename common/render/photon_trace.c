@@ -8,6 +8,7 @@
 #include "base/rng.h"
 #include "render/media_track.h"
 #include "render/photon_map.h"
+#include "render/photon_beams.h"
 #include "render/render_job.h"
 #include "render/surface.h"
 #include "render/texshade.h"
@@ -33,6 +34,7 @@ struct trace_ctx {
     _Atomic uint32_t next_block;
     struct photon_list *blocks;     /* volume photons per block of indices */
     struct photon_list *surface;    /* surface photons per block (NULL: none kept) */
+    struct photon_beam_list *beams; /* the beams method: photon beams per block (NULL: points only) */
     vec3 keep_lo, keep_hi;  /* photons are stored inside this box (the bounds rule) */
     int aim;                /* point lights and the sky aim photons at the media's bounding sphere */
     vec3 aim_center;
@@ -231,7 +233,7 @@ static void store(struct photon_list *l, vec3 p, vec3 d, vec3 power, uint32_t de
 /* Traces photon `index`: volume photons into vol; when surf is non-NULL, photons arriving
  * at diffuse surfaces after any interaction into surf. */
 static void trace_photon(const struct trace_ctx *tc, uint64_t index, struct photon_list *vol,
-                         struct photon_list *surf)
+                         struct photon_list *surf, struct photon_beam_list *beams)
 {
     const struct render_job *job = tc->job;
     const struct scene *sc = job->scene;
@@ -257,9 +259,20 @@ static void trace_photon(const struct trace_ctx *tc, uint64_t index, struct phot
             int scatter = medium_sample_flight(md, o, d, hit ? h.t : INFINITY, power, rng_mix64(key ^ ((uint64_t)dim << 32)), &t, &w);
             vec3 before = power;
             power = v3_mul(power, w);
+            /* The beams method in a grey medium (the flight's length then has P(length > v)
+             * = Tr(v) on every channel): the flight as a short beam with the power it
+             * started with, over the part inside the medium's occupied box and the bounds
+             * rule's box; other media keep points. */
+            int as_beam = beams && md->sigma_t.x == md->sigma_t.y && md->sigma_t.x == md->sigma_t.z;
+            if (as_beam && indirect) {
+                float c0, c1;
+                if (medium_clip(md, o, d, t, &c0, &c1) && v3_clip_box(o, d, tc->keep_lo, tc->keep_hi, &c0, &c1) &&
+                    c0 < c1 && c1 < INFINITY)
+                    photon_beam_store(beams, v3_add(o, v3_scale(d, c0)), v3_add(o, v3_scale(d, c1)), before, depth);
+            }
             if (scatter) {
                 vec3 x = v3_add(o, v3_scale(d, t));
-                if (indirect && !outside_keep(tc, x))
+                if (indirect && !as_beam && !outside_keep(tc, x))
                     store(vol, x, d, power, depth);
                 /* Russian roulette keeps the power of survivors near what it was. */
                 float q = fminf(1.0f, v3_max_component(power) / fmaxf(v3_max_component(before), 1e-30f));
@@ -344,7 +357,8 @@ static void *trace_thread(void *arg)
         uint64_t first = (uint64_t)b * PM_BLOCK, last = first + PM_BLOCK;
         last = last < tc->emitted ? last : tc->emitted;
         for (uint64_t i = first; i < last && !stopping(); i++)
-            trace_photon(tc, i, &tc->blocks[b], tc->surface ? &tc->surface[b] : NULL);
+            trace_photon(tc, i, &tc->blocks[b], tc->surface ? &tc->surface[b] : NULL,
+                         tc->beams ? &tc->beams[b] : NULL);
     }
     return NULL;
 }
@@ -402,6 +416,8 @@ int photon_trace_map(const struct render_job *job, uint64_t seed, uint32_t threa
     tc.blocks = mem_calloc(tc.num_blocks ? tc.num_blocks : 1, sizeof *tc.blocks);
     if (media_wants_surface_photons(sm))
         tc.surface = mem_calloc(tc.num_blocks ? tc.num_blocks : 1, sizeof *tc.surface);
+    if (sm->method == MEDIA_MARCH_BEAMS)
+        tc.beams = mem_calloc(tc.num_blocks ? tc.num_blocks : 1, sizeof *tc.beams);
     threads = threads < 1 ? 1 : (threads > 256 ? 256 : threads);
     pthread_t *th = mem_alloc(sizeof *th * threads);
     uint32_t started = 0;
@@ -419,37 +435,48 @@ int photon_trace_map(const struct render_job *job, uint64_t seed, uint32_t threa
             free(tc.blocks[b].a);
             if (tc.surface)
                 free(tc.surface[b].a);
+            if (tc.beams)
+                free(tc.beams[b].a);
         }
         free(tc.blocks);
         free(tc.surface);
+        free(tc.beams);
         str_fmt(err, errlen, "photon pass interrupted (by a signal) before its %llu photons were traced",
                 (unsigned long long)tc.emitted);
         return -1;
     }
     float radius = job->media->radius;
-    size_t vbytes = 0, sbytes = 0;
-    uint32_t vn = 0, sn = 0;
-    uint8_t *vmap = NULL, *smap = NULL;
+    size_t vbytes = 0, sbytes = 0, bbytes = 0;
+    uint32_t vn = 0, sn = 0, bn = 0;
+    uint8_t *vmap = NULL, *smap = NULL, *bmap = NULL;
     int rc = photon_map_serialise(tc.blocks, tc.num_blocks, radius, tc.emitted, &vmap, &vbytes, &vn, err, errlen);
     if (tc.surface)
         rc |= photon_map_serialise(tc.surface, tc.num_blocks, radius, tc.emitted, &smap, &sbytes, &sn, err, errlen);
+    if (tc.beams)
+        rc |= photon_beams_serialise(tc.beams, tc.num_blocks, radius, tc.emitted, &bmap, &bbytes, &bn, err, errlen);
     free(tc.blocks);
     free(tc.surface);
+    free(tc.beams);
     if (rc != 0) {
         free(vmap);
         free(smap);
+        free(bmap);
         return -1;
     }
-    /* The volume map, then the surface map when there is one. */
-    size_t bytes = vbytes + sbytes;
+    /* The volume map, then the surface map and the beams when there are any. */
+    size_t bytes = vbytes + sbytes + bbytes;
     uint8_t *out = mem_alloc(bytes);
     memcpy(out, vmap, vbytes);
     if (smap)
         memcpy(out + vbytes, smap, sbytes);
+    if (bmap)
+        memcpy(out + vbytes + sbytes, bmap, bbytes);
     free(vmap);
     free(smap);
-    uint32_t n = vn + sn;
+    free(bmap);
+    uint32_t n = vn + sn + bn;
     stats->stored_surface = sn;
+    stats->stored_beams = bn;
     *blob = out;
     *size = bytes;
     clock_gettime(CLOCK_MONOTONIC, &t1);

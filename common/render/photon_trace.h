@@ -18,6 +18,7 @@ struct photon_pass_stats {
     double seconds;
     uint64_t emitted, stored;  /* stored: volume and surface photons */
     uint64_t stored_surface;
+    uint64_t stored_beams;    /* of stored: photon beams (the beams method) */
     size_t bytes;
 };
 

@@ -68,7 +68,7 @@ uint32_t media_sphere_inside(const struct scene_media *m, uint32_t idx)
     return m && idx < m->num_sphere_medium ? m->sphere_medium[idx] : MEDIUM_NONE;
 }
 
-static const char *const method_names[MEDIA_METHOD_COUNT_] = {"vpt", "march", "beam"};
+static const char *const method_names[MEDIA_METHOD_COUNT_] = {"vpt", "march", "beam", "beams"};
 
 const char *media_method_name(enum media_method m)
 {

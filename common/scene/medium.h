@@ -45,6 +45,7 @@ enum media_method {
     MEDIA_VPT,          /* volumetric path tracing: free-flight sampling, NEE with transmittance */
     MEDIA_MARCH_STEPS,  /* Jensen ray marching, a photon-map lookup per step */
     MEDIA_MARCH_BEAM,   /* Jensen ray marching for single scattering, beam radiance estimate */
+    MEDIA_MARCH_BEAMS,  /* the same single scattering, photon beams (beam x beam) for multiple scattering */
     MEDIA_METHOD_COUNT_
 };
 

@@ -881,7 +881,7 @@ static int parse_volume(struct ctx *c, const struct member *vm)
         if (get_string(c, &m[0], "method", &name) != 0)
             return -1;
         if (media_method_from_name(name, &sm->method) != 0)
-            return fail(c, &m[0].path, AT_VALUE, "method must be \"vpt\", \"march\" or \"beam\"");
+            return fail(c, &m[0].path, AT_VALUE, "method must be \"vpt\", \"march\", \"beam\" or \"beams\"");
     }
     if (m[1].val && find_medium(c, &m[1], &sm->fog) != 0)
         return -1;

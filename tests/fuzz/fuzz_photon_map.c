@@ -6,7 +6,8 @@
  * "BVPM0001" magic. The raw input is also decoded as it is, and as a volume blob (the
  * progressive passes' maps behind a "BVOL0002" header), and the built map is wrapped in
  * a volume blob of up to three passes whose header fields and map sizes the input also
- * sets. A decoded map then answers every lookup at a few points. Built and run by
+ * sets; the input also serves as photon beams (a beams section behind an empty map). A
+ * decoded map then answers every lookup at a few points. Built and run by
  * tests/fuzz/run.sh. */
 #include <math.h>
 #include <stdint.h>
@@ -14,6 +15,7 @@
 #include <string.h>
 #include "base/log.h"
 #include "render/photon_map.h"
+#include "render/photon_beams.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
@@ -40,8 +42,37 @@ static void exercise(const uint8_t *blob, size_t n)
         (void)photon_map_gather_knn(m, x, v3(0, 1, 0), -0.2f, 8, 4.0f * m->radius, PHOTON_DEPTH_ANY);
         (void)photon_map_beam(m, x, v3(0, 0, 1), 2.0f, &md, NULL, PHOTON_DEPTH_ANY);
         (void)photon_map_surface(m, x, v3(0, 1, 0), PHOTON_DEPTH_ANY);
+        if (m->beams) {
+            (void)photon_beams_estimate(m->beams, x, v3(0, 0, 1), 2.0f, &md, NULL, PHOTON_DEPTH_ANY);
+            (void)photon_beams_estimate(m->beams, x, v3_normalize(v3(1, -1, 0.5f)), 1e3f, &md, NULL, 3);
+        }
     }
     photon_map_free(&m);
+}
+
+/* The input as photon beams behind an empty volume map: the beams' section with its header
+ * (count from the input's length, sometimes one off) and the input's bytes as beams. */
+static void exercise_beams(const uint8_t *data, size_t size)
+{
+    if (size < 1)
+        return;
+    uint32_t n = (uint32_t)((size - 1) / sizeof(struct photon_beam));
+    size_t map = 48 + 8, sec = PB_HEADER + sizeof(struct photon_beam) * (size_t)n, total = map + sec;
+    uint8_t *b = mem_calloc(total, 1);
+    memcpy(b, "BVPM0001", 8);
+    put_u32(b + 12, 1); /* table size */
+    b[16] = 100;
+    float r = 0.25f, c = 0.5f, rb = data[0] & 1 ? 0.05f : 3.0f;
+    memcpy(b + 24, &r, 4);
+    memcpy(b + 28, &c, 4);
+    uint8_t *s = b + map;
+    memcpy(s, PB_MAGIC, 8);
+    put_u32(s + 8, n + (data[0] & 0x80 ? 1 : 0));
+    s[16] = 100;
+    memcpy(s + 24, &rb, 4);
+    memcpy(s + PB_HEADER, data + 1, sec - PB_HEADER);
+    exercise(b, total);
+    free(b);
 }
 
 /* A volume blob: every map of the chain answers the lookups. */
@@ -74,6 +105,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     exercise(data, size);
     exercise_blob(data, size);
+    exercise_beams(data, size);
     if (size < 2)
         return 0;
     uint32_t n = data[0], table = 1u << (data[1] % 8);
@@ -100,7 +132,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     size_t vsize = 48 + passes * (8 + total);
     uint8_t *vb = mem_calloc(vsize, 1);
     memcpy(vb, "BVOL0002", 8);
-    put_u32(vb + 8, data[1] % 4);                      /* method (3: out of range) */
+    put_u32(vb + 8, data[1] % 5);                      /* method (4: out of range) */
     memcpy(vb + 16, &r, 4);                            /* radius */
     put_u32(vb + 20, passes + (data[1] >> 7));         /* sometimes one map more than there are */
     float alpha = 2.0f / 3.0f;

@@ -19,6 +19,7 @@
 #include "render/media_integrator.h"
 #include "scene/medium.h"
 #include "render/photon_map.h"
+#include "render/photon_beams.h"
 #include "render/photon_trace.h"
 #include "render/media_track.h"
 #include "scene/grid.h"
@@ -1372,3 +1373,73 @@ Test(medium, path_indirect_matches_vpt, .timeout = 240)
     photon_methods_match_vpt("fog box, path, max_depth 2", FOG_BOX_SCENE(2), FOG_BOX_SCENE_AS(2, "path"), 8);
 }
 
+
+/* ---- photon beams (the beams method; estimator tests in test_beams.c) ---- */
+
+/* A grey grid cloud (the test grid, 3 units wide) over a white floor, a point light. */
+#define GRID_CLOUD_SCENE(method)                                                                            \
+    HEAD("\"position\": [0, 1, -6], \"look_at\": [0, -0.2, 0]", 12, 9, 1, 64)                               \
+    ",\n\"materials\": {\"white\": {\"type\": \"diffuse\", \"albedo\": [0.6, 0.6, 0.6]}},\n"                 \
+    "\"media\": {\"c\": {\"sigma_a\": [0.1, 0.1, 0.1], \"sigma_s\": [0.9, 0.9, 0.9], \"g\": 0.3, "           \
+    "\"density\": {\"file\": \"g.grid\", \"transform\": {\"scale\": 3, \"translate\": [-1.5, -1, -1.5]}}}},\n" \
+    "\"volume\": {\"method\": \"" method "\", \"fog\": \"c\", \"photons\": 30000, \"radius\": 0.1, "          \
+    "\"step\": 0.05},\n"                                                                                     \
+    "\"objects\": [{\"type\": \"obj\", \"file\": \"floor.obj\", \"material\": \"white\"}],\n"                \
+    "\"lights\": [{\"type\": \"point\", \"position\": [1.5, 3, -1.5], \"intensity\": [20, 20, 20]}]}"
+
+/* Beams (8 spp, one map per seed) against VPT (64 spp) over 4 seeds, within 4 standard
+ * errors plus the stated 3 % kernel bias; the map stores beams, not points, in a grey
+ * medium; without the beams the image is darker (they carry the multiple scattering). */
+static void beams_match_vpt(const char *what, const char *text)
+{
+    double se_v, vpt = seeds_mean(text, MEDIA_VPT, 64, 4, &se_v);
+    double se_b, beams = seeds_mean(text, MEDIA_MARCH_BEAMS, 8, 4, &se_b);
+    fprintf(stderr, "%s: vpt %g +- %g, beams %g +- %g\n", what, vpt, se_v, beams, se_b);
+    cr_assert(vpt > 0.01);
+    agree("beams", beams, se_b, vpt, se_v, 0.03);
+    struct scene s;
+    load_ok(text, &s);
+    s.media->method = MEDIA_MARCH_BEAMS;
+    struct photon_map *m = seeded_map(&s, 1);
+    cr_assert(photon_beams_count(m->beams) > 1000, "%u beams", photon_beams_count(m->beams));
+    cr_assert_eq(m->num_photons, 0);
+    double se_w, with = render_mean(&s, m, 4, &se_w);
+    photon_beams_free(&m->beams);
+    double se_n, without = render_mean(&s, m, 4, &se_n);
+    cr_assert(without < with - 4.0 * sqrt(se_w * se_w + se_n * se_n), "with %g, without %g", with, without);
+    photon_map_free(&m);
+    scene_fini(&s);
+}
+
+Test(medium, beams_match_vpt_homogeneous, .timeout = 240)
+{
+    beams_match_vpt("open fog, beams", OPEN_FOG_SCENE);
+}
+
+Test(medium, beams_match_vpt_grid, .timeout = 240)
+{
+    beams_match_vpt("grid cloud, beams", GRID_CLOUD_SCENE("beams"));
+}
+
+/* The beams map: the same bytes for 1 and 2 tracing threads. */
+Test(medium, beams_map_same_bytes_any_threads)
+{
+    struct scene s;
+    load_ok(GRID_CLOUD_SCENE("beams"), &s);
+    uint8_t *blob[2];
+    size_t n[2];
+    for (uint32_t t = 0; t < 2; t++) {
+        struct render_job job;
+        job_ok(&job, &s);
+        struct photon_pass_stats st;
+        char err[256];
+        cr_assert_eq(photon_trace_map(&job, 1, t + 1, &blob[t], &n[t], &st, err, sizeof err), 0, "%s", err);
+        cr_assert(st.stored_beams > 1000);
+        render_job_fini(&job);
+    }
+    cr_assert_eq(n[0], n[1]);
+    cr_assert_eq(memcmp(blob[0], blob[1], n[0]), 0);
+    free(blob[0]);
+    free(blob[1]);
+    scene_fini(&s);
+}
