@@ -1,7 +1,7 @@
 /* Photon beams (see photon_beams.h): the wire section, its bounded decoding, the chunks'
  * Embree BVH and the beam x beam estimate. */
 #include "render/photon_beams.h"
-#include "render/photon_map.h"
+#include "render/photon_codec.h"
 #include "base/bytes.h"
 #include "base/log.h"
 #include "scene/grid.h"

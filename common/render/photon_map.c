@@ -19,30 +19,6 @@ _Static_assert(sizeof(struct photon) == 20, "photons are 20 bytes on the wire");
 
 /* ---- encodings ---- */
 
-void photon_rgbe_encode(vec3 c, uint8_t out[4])
-{
-    float m = v3_max_component(c);
-    if (!(m > 1e-32f) || !isfinite(m)) {
-        memset(out, 0, 4);
-        return;
-    }
-    int e;
-    float f = frexpf(m, &e) * 256.0f / m; /* m = f' 2^e, f' in [0.5, 1) */
-    out[0] = (uint8_t)fminf(c.x * f, 255.0f);
-    out[1] = (uint8_t)fminf(c.y * f, 255.0f);
-    out[2] = (uint8_t)fminf(c.z * f, 255.0f);
-    out[3] = (uint8_t)(e + 128);
-}
-
-vec3 photon_rgbe_decode(const uint8_t in[4])
-{
-    if (in[3] == 0)
-        return v3(0, 0, 0);
-    float f = ldexpf(1.0f, (int)in[3] - (128 + 8));
-    /* +0.5: the centre of the quantisation bin, so the code is unbiased on average. */
-    return v3(((float)in[0] + 0.5f) * f, ((float)in[1] + 0.5f) * f, ((float)in[2] + 0.5f) * f);
-}
-
 uint16_t photon_dir_encode(vec3 d)
 {
     float s = fabsf(d.x) + fabsf(d.y) + fabsf(d.z);
@@ -664,24 +640,6 @@ static void beam_grid_free(struct photon_beam_grid *g)
     free(g->rows);
     free(g->rec);
     free(g);
-}
-
-vec3 photon_tau_transmittance(const struct photon_tau *tt, const struct medium *md, float t)
-{
-    float x = (t - tt->t0) / tt->dt, tau;
-    if (!(x > 0.0f))
-        tau = 0.0f;
-    else if (!(x < (float)(tt->n - 1)))
-        tau = tt->tau[tt->n - 1];
-    else {
-        uint32_t i = (uint32_t)x;
-        float f = x - (float)i;
-        tau = tt->tau[i] * (1.0f - f) + tt->tau[i + 1] * f;
-    }
-    float ex = expf(-md->sigma_t.x * tau);
-    if (md->sigma_t.y == md->sigma_t.x && md->sigma_t.z == md->sigma_t.x)
-        return v3(ex, ex, ex); /* grey: the same value, one exponential */
-    return v3(ex, expf(-md->sigma_t.y * tau), expf(-md->sigma_t.z * tau));
 }
 
 /* Plain comparisons: the operands are never NaN here, and libm's fminf is a call. */

@@ -12,6 +12,7 @@
 #include "scene/medium.h"
 #include "scene/scene.h"
 #include "base/vec.h"
+#include "render/photon_codec.h"
 
 struct photon_beam_grid;
 struct photon_beams;
@@ -24,7 +25,6 @@ struct photon {
                          * 1..PHOTON_DEPTH_MAX: lookups leave out photons that would make the
                          * camera path plus the light path longer than max_depth */
 };
-#define PHOTON_DEPTH_MAX 1024u  /* volume.max_photon_depth's bound */
 /* A lookup's depth_max that keeps every photon. */
 #define PHOTON_DEPTH_ANY UINT32_MAX
 
@@ -93,20 +93,11 @@ vec3 photon_map_gather_knn(const struct photon_map *m, vec3 x, vec3 d_out, float
 /* Beam radiance estimate (Jarosz et al. 2008) along o + t d, t in [0, t1), in homogeneous
  * medium md: sum over photons within r of the ray of K(r) Tr(t_i) phase power, K = 1 /
  * (pi r^2). One query for the whole segment. */
-struct photon_tau {
-    const float *tau;   /* optical depth per unit sigma_t at t0 + k dt, k < n */
-    uint32_t n;
-    float t0, dt;
-};
-/* Transmittance at t from a marched table. */
-vec3 photon_tau_transmittance(const struct photon_tau *tt, const struct medium *md, float t);
 /* tau: transmittance from a marched table (heterogeneous media), or NULL for the closed form. */
 vec3 photon_map_beam(const struct photon_map *m, vec3 o, vec3 d, float t1, const struct medium *md,
                      const struct photon_tau *tau, uint32_t depth_max);
 
 /* Encodings, exposed for tests. */
-void photon_rgbe_encode(vec3 c, uint8_t out[4]);
-vec3 photon_rgbe_decode(const uint8_t in[4]);
 uint16_t photon_dir_encode(vec3 d);
 vec3 photon_dir_decode(uint16_t e);
 
