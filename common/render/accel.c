@@ -389,3 +389,16 @@ int accel_object_xform(const struct accel *a, uint32_t geom, uint32_t prim, floa
     memcpy(out->m, m, sizeof m);
     return 1;
 }
+
+void accel_attach_user_geometry(RTCDevice dev, RTCScene s, uint32_t n, void *user, RTCBoundsFunction bounds,
+                                RTCIntersectFunctionN intersect)
+{
+    RTCGeometry g = rtcNewGeometry(dev, RTC_GEOMETRY_TYPE_USER);
+    rtcSetGeometryUserPrimitiveCount(g, n);
+    rtcSetGeometryUserData(g, user);
+    rtcSetGeometryBoundsFunction(g, bounds, NULL);
+    rtcSetGeometryIntersectFunction(g, intersect);
+    rtcCommitGeometry(g);
+    rtcAttachGeometry(s, g);
+    rtcReleaseGeometry(g);
+}

@@ -68,6 +68,11 @@ int accel_occluded(const struct accel *a, vec3 org, vec3 dir, float tmax, float 
 
 /* Object to world transform of a rigidly moving mesh or sphere (geom, prim as in a hit) at
  * time01; returns 0 (and leaves out alone) for geometry without an instance. */
+/* Attaches to scene s a user geometry of n primitives sharing user data `user`, with
+ * Embree's bounds and intersect callbacks: the way a query collects every primitive whose
+ * box a ray meets (motion_vis.c, photon_beams.c). */
+void accel_attach_user_geometry(RTCDevice dev, RTCScene s, uint32_t n, void *user, RTCBoundsFunction bounds,
+                                RTCIntersectFunctionN intersect);
 int accel_object_xform(const struct accel *a, uint32_t geom, uint32_t prim, float time01, struct xform *out);
 
 #endif

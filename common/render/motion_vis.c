@@ -624,14 +624,7 @@ static int cmp_key(const void *a, const void *b)
 
 static void add_object(struct motion_vis *mv, struct mv_object *ob, uint32_t prims)
 {
-    RTCGeometry g = rtcNewGeometry(mv->accel->device, RTC_GEOMETRY_TYPE_USER);
-    rtcSetGeometryUserPrimitiveCount(g, prims);
-    rtcSetGeometryUserData(g, ob);
-    rtcSetGeometryBoundsFunction(g, bounds_cb, NULL);
-    rtcSetGeometryIntersectFunction(g, intersect_cb);
-    rtcCommitGeometry(g);
-    rtcAttachGeometry(mv->scene, g);
-    rtcReleaseGeometry(g);
+    accel_attach_user_geometry(mv->accel->device, mv->scene, prims, ob, bounds_cb, intersect_cb);
 }
 
 struct motion_vis *motion_vis_new(const struct accel *a, const struct scene *s, const struct camera *cam,

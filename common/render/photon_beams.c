@@ -2,6 +2,7 @@
  * Embree BVH and the beam x beam estimate. */
 #include "render/photon_beams.h"
 #include "render/photon_codec.h"
+#include "render/accel.h"
 #include "base/bytes.h"
 #include "base/log.h"
 #include "scene/grid.h"
@@ -290,14 +291,7 @@ static void build_now(struct photon_beams *pb)
     pb->scene = rtcNewScene(pb_device);
     rtcSetSceneBuildQuality(pb->scene, RTC_BUILD_QUALITY_MEDIUM);
     rtcSetSceneFlags(pb->scene, RTC_SCENE_FLAG_ROBUST);
-    RTCGeometry g = rtcNewGeometry(pb_device, RTC_GEOMETRY_TYPE_USER);
-    rtcSetGeometryUserPrimitiveCount(g, m);
-    rtcSetGeometryUserData(g, pb);
-    rtcSetGeometryBoundsFunction(g, bounds_cb, NULL);
-    rtcSetGeometryIntersectFunction(g, intersect_cb);
-    rtcCommitGeometry(g);
-    rtcAttachGeometry(pb->scene, g);
-    rtcReleaseGeometry(g);
+    accel_attach_user_geometry(pb_device, pb->scene, m, pb, bounds_cb, intersect_cb);
     rtcCommitScene(pb->scene);
 }
 
