@@ -57,10 +57,11 @@ within "N 0 on the sky" "$($X chstat "$T/a.exr" N.Z $R)" 0 0
 # nearest and farthest corners, its mean P.X and P.Y between the pixel's edges.
 if command -v oiiotool >/dev/null && command -v iinfo >/dev/null; then
   iinfo -v "$T/a.exr" >"$T/iinfo" 2>&1
-  want="R, G, B, A, Z, N.X, N.Y, N.Z, P.X, P.Y, P.Z, albedo.R, albedo.G, albedo.B, id.material, id.object, variance.R, variance.G, variance.B"
-  if grep -q "33 x   33, 19 channel, float openexr" "$T/iinfo" && grep -qF "channel list: $want" "$T/iinfo" \
+  # (a render in passes, the default for an even spp, also has the per-pixel "samples" count)
+  want="R, G, B, A, Z, samples, N.X, N.Y, N.Z, P.X, P.Y, P.Z, albedo.R, albedo.G, albedo.B, id.material, id.object, variance.R, variance.G, variance.B"
+  if grep -q "33 x   33, 20 channel, float openexr" "$T/iinfo" && grep -qF "channel list: $want" "$T/iinfo" \
     && grep -q 'id.object/0: "plane.obj"' "$T/iinfo" && grep -q 'id.material/1: "plane"' "$T/iinfo"; then
-    ok "iinfo: 19 float channels named Z, N.X/Y/Z, P.X/Y/Z, albedo.R/G/B, id.*; id name tables"
+    ok "iinfo: 20 float channels named Z, samples, N.X/Y/Z, P.X/Y/Z, albedo.R/G/B, id.*; id name tables"
   else
     BAD_LOGS=iinfo bad "iinfo: channel names and id name tables"
   fi

@@ -80,8 +80,10 @@ timeout 20 $BUILD/junkpeer --key "$T/rogue.key" "$T/master.key.pub" "tcp://127.0
 timeout 60 $W --connect "tcp://127.0.0.1:$((P + 4))" $WKEY >/dev/null 2>&1
 wait $mpid && r=0 || r=1
 echo "security: authenticated rogue: $(cat "$T/jp"); kept untied $(counter kept_untied "$T/k.exr"), results stale $(counter results_stale "$T/k.exr")"
-if [ $r = 0 ] && grep -q "junkpeer: job yes" "$T/jp" && [ "$(counter tiles_from_kept "$T/k.exr")" = 0 ] &&
-  [ "$(counter kept_untied "$T/k.exr")" = 4 ] && [ "$(counter results_stale "$T/k.exr")" = 12 ] && $X cmp "$T/ref.exr" "$T/k.exr" >/dev/null; then
+# (junkpeer sends one KEPT and three RESULTs per unit: a (tile, pass) pair)
+nu=$(python3 -c 'import json, sys; s = json.load(open(sys.argv[1])); print(s["tiles"] * s["passes"])' "$T/k.exr.stats.json" 2>/dev/null)
+if [ $r = 0 ] && grep -q "junkpeer: job yes" "$T/jp" && [ "$(counter tiles_from_kept "$T/k.exr")" = 0 ] && [ -n "$nu" ] &&
+  [ "$(counter kept_untied "$T/k.exr")" = "$nu" ] && [ "$(counter results_stale "$T/k.exr")" = $((3 * nu)) ] && $X cmp "$T/ref.exr" "$T/k.exr" >/dev/null; then
   ok "an allowed rogue's KEPT and RESULT for tiles it does not hold are dropped; image identical"
 else cat "$T/jp" >>"$T/log"; bad "an allowed rogue's KEPT and RESULT for tiles it does not hold are dropped; image identical"; fi
 

@@ -254,6 +254,8 @@ int main(int argc, char **argv)
     }
     uint32_t tiles_x = (job.width + job.tile_size - 1) / job.tile_size;
     uint32_t tiles_y = (job.height + job.tile_size - 1) / job.tile_size, num_tiles = tiles_x * tiles_y;
+    /* The job's units are (tile, pass) pairs: a unit at or past num_units is nobody's. */
+    uint32_t num_units = num_tiles * (job.passes > 1 ? job.passes : 1);
 
     /* every proper prefix and one trailing byte, of every type */
     for (int t = MSG_HELLO; t < MSG_TYPE_MAX_; t++) {
@@ -364,7 +366,7 @@ int main(int argc, char **argv)
         sample(MSG_RESULT, job.job_id, v % num_tiles, &m);
         m.u.result.frame = job.frame + 1 + v;
         send_msg(&m, EX_NOT_OURS);
-        sample(MSG_RESULT, job.job_id, num_tiles + v * 977, &m);
+        sample(MSG_RESULT, job.job_id, num_units + v * 977, &m);
         m.u.result.frame = job.frame;
         send_msg(&m, EX_NOT_OURS);
     }
@@ -379,7 +381,7 @@ int main(int argc, char **argv)
         m.u.kept.job_id = job.job_id + 1 + v;
         send_msg(&m, EX_NOT_OURS);
         m.u.kept.job_id = job.job_id;
-        m.u.kept.tile = num_tiles + v * 977;
+        m.u.kept.tile = num_units + v * 977;
         send_msg(&m, EX_NOT_OURS);
     }
     for (uint32_t v = 0; v < 10; v++) { /* a RESULT for a tile never given to us (attempt 0: never issued) */
