@@ -1,10 +1,13 @@
 /* Pass folding (see fold.h). Per tile: how many passes are folded, the running per-pixel
  * batch means, and copies of passes that arrived before an earlier one; both are freed
- * once the tile is final. */
+ * once the tile is final. The error estimate's sums (fold_est) run over final tiles in tile
+ * order. */
 #include "fold.h"
 #include "base/log.h"
 #include "render/aov.h"
 #include "render/integrator.h"
+#include <float.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -201,4 +204,112 @@ void fold_tile_sums(const struct fold *f, uint32_t tile, double *sum_var, double
     *sum_var = v;
     *sum_var_sq = v2;
     *sum_mean = mu;
+}
+
+struct fold_est {
+    struct image_desc desc;
+    uint32_t num_tiles, tiles_x;
+    uint32_t next;              /* tiles 0..next-1 are given and summed */
+    uint8_t *given;             /* per tile */
+    double **terms;             /* per tile given before its turn: per pixel (variance, mean), else NULL */
+    double sum_var, sum_mean;   /* over the pixels of tiles 0..next-1 */
+    uint64_t pixels, saturated; /* pixels summed; pixels of every given tile with a saturated variance */
+};
+
+struct fold_est *fold_est_new(const struct image_desc *desc)
+{
+    struct fold_est *e = mem_calloc(1, sizeof *e);
+    e->desc = *desc;
+    e->tiles_x = imgio_tiles_x(desc);
+    e->num_tiles = e->tiles_x * imgio_tiles_y(desc);
+    e->given = mem_calloc(e->num_tiles ? e->num_tiles : 1, 1);
+    e->terms = mem_calloc(e->num_tiles ? e->num_tiles : 1, sizeof *e->terms);
+    return e;
+}
+
+void fold_est_reset(struct fold_est *e)
+{
+    for (uint32_t t = 0; t < e->num_tiles; t++) {
+        free(e->terms[t]);
+        e->terms[t] = NULL;
+    }
+    memset(e->given, 0, e->num_tiles ? e->num_tiles : 1);
+    e->next = 0;
+    e->sum_var = e->sum_mean = 0.0;
+    e->pixels = e->saturated = 0;
+}
+
+void fold_est_free(struct fold_est **ep)
+{
+    struct fold_est *e = *ep;
+    if (!e)
+        return;
+    fold_est_reset(e);
+    free(e->given);
+    free(e->terms);
+    free(e);
+    *ep = NULL;
+}
+
+static size_t est_tile_pixels(const struct fold_est *e, uint32_t tile)
+{
+    uint32_t x0, y0, w, h;
+    imgio_tile_rect(&e->desc, tile % e->tiles_x, tile / e->tiles_x, &x0, &y0, &w, &h);
+    return (size_t)w * h;
+}
+
+/* Adds a waiting tile's terms to the sums, in pixel order. */
+static void est_sum_terms(const double *terms, size_t pixels, double *sum_var, double *sum_mean)
+{
+    for (size_t i = 0; i < pixels; i++) {
+        *sum_var += terms[2 * i];
+        *sum_mean += terms[2 * i + 1];
+    }
+}
+
+void fold_est_add(struct fold_est *e, uint32_t tile, const float *px)
+{
+    CHECK(tile < e->num_tiles && !e->given[tile]);
+    e->given[tile] = 1;
+    size_t pixels = est_tile_pixels(e, tile), nc = e->desc.num_channels;
+    double *terms = tile == e->next ? NULL : mem_alloc(sizeof(double) * 2 * (pixels ? pixels : 1));
+    for (size_t i = 0; i < pixels; i++) {
+        const float *p = &px[i * nc];
+        double v = ((double)p[CH_VAR_R] + p[CH_VAR_G] + p[CH_VAR_B]) / 3.0;
+        double mu = ((double)p[CH_R] + p[CH_G] + p[CH_B]) / 3.0;
+        e->saturated += p[CH_VAR_R] == FLT_MAX || p[CH_VAR_G] == FLT_MAX || p[CH_VAR_B] == FLT_MAX;
+        if (terms) {
+            terms[2 * i] = v;
+            terms[2 * i + 1] = mu;
+        } else {
+            e->sum_var += v;
+            e->sum_mean += mu;
+        }
+    }
+    if (terms) {
+        e->terms[tile] = terms;
+        return;
+    }
+    e->pixels += pixels;
+    for (e->next++; e->next < e->num_tiles && e->given[e->next]; e->next++) {
+        size_t n = est_tile_pixels(e, e->next);
+        est_sum_terms(e->terms[e->next], n, &e->sum_var, &e->sum_mean);
+        e->pixels += n;
+        free(e->terms[e->next]);
+        e->terms[e->next] = NULL;
+    }
+}
+
+double fold_est_result(const struct fold_est *e, uint64_t *saturated)
+{
+    double sum_var = e->sum_var, sum_mean = e->sum_mean;
+    uint64_t pixels = e->pixels;
+    for (uint32_t t = e->next; t < e->num_tiles; t++) /* past a tile never given */
+        if (e->terms[t]) {
+            size_t n = est_tile_pixels(e, t);
+            est_sum_terms(e->terms[t], n, &sum_var, &sum_mean);
+            pixels += n;
+        }
+    *saturated = e->saturated;
+    return pixels && sum_mean > 0.0 ? sqrt(sum_var / (double)pixels) / (sum_mean / (double)pixels) : 0.0;
 }

@@ -46,4 +46,23 @@ int fold_add(struct fold *f, uint32_t tile, uint32_t pass, const float *px, floa
  * summary's relRMSE counts them). */
 void fold_tile_sums(const struct fold *f, uint32_t tile, double *sum_var, double *sum_var_sq, double *sum_mean);
 
+/* The image's estimated relRMSE (the summary's figure, the EXR's brume_est_rel_rmse) from
+ * its final tiles' pixels, as they lie in the output (with one pass the workers' tiles,
+ * else the folded ones; black --tiles fillers too): sqrt(mean over pixels of the variance
+ * channels' mean over R, G, B) / (mean over pixels of the mean of R, G and B). Each tile is
+ * given once, in any order, when its pixels are decoded or folded anyway; the pixels are
+ * summed in tile order, then pixel order (a tile that comes before its turn waits as its
+ * per-pixel terms), so the figure has the same bits for any arrival order, worker count or
+ * journal replay. */
+struct fold_est;
+struct fold_est *fold_est_new(const struct image_desc *desc);
+void fold_est_free(struct fold_est **e);
+/* A new frame: no tile given. */
+void fold_est_reset(struct fold_est *e);
+/* Tile's final pixels: its w*h pixels of desc->num_channels (desc as given to fold_est_new). */
+void fold_est_add(struct fold_est *e, uint32_t tile, const float *px);
+/* The estimate over the tiles given so far (0 for none or a black image); *saturated: their
+ * pixels whose variance channel is FLT_MAX (past float's range). */
+double fold_est_result(const struct fold_est *e, uint64_t *saturated);
+
 #endif

@@ -159,6 +159,7 @@ struct master {
     uint32_t maps_frame;        /* the frame the maps are traced for */
     struct photon_tracer *tracer; /* tracing the rest of the maps, or NULL */
     double rel_rmse_est;        /* the last frame's estimated relRMSE from its variance channels (error_estimate) */
+    struct fold_est *est;       /* its sums, fed each final tile's pixels as they are decoded or folded */
     uint64_t var_saturated;     /* its pixels whose variance channel is saturated (tile_variance_value) */
     float *decode_scratch;
     struct check_ctx check_ctx; /* what chunks of this frame must be (chunk_check) */
@@ -420,6 +421,7 @@ static void setup_tiles(struct master *m)
         m->fold_out = mem_alloc(sizeof(float) * rs->tile_size * rs->tile_size * FOLD_MAX_CHANNELS);
         fold_output_desc(&m->desc, &m->out_desc);
     }
+    m->est = fold_est_new(&m->out_desc);
     if (m->target_error > 0.0 || m->time_limit > 0.0 || m->max_rounds > 0) {
         uint32_t *pixels = mem_alloc(sizeof *pixels * m->num_tiles);
         uint32_t tiles_x = imgio_tiles_x(&m->desc);
@@ -471,6 +473,8 @@ static int restrict_tiles(struct master *m)
                               sizeof err) != 0) {
             master_fail(m, "%s", err);
             rc = -1;
+        } else {
+            fold_est_add(m->est, t, black);
         }
         for (uint32_t p = 0; p < m->passes; p++)
             sched_tile_set_done(m->sched, p * m->num_tiles + t);
@@ -861,7 +865,8 @@ static void commit_and_ack(struct master *m, int wait)
     }
 }
 
-/* Encodes the folded tile in fold_out as the tile's output chunk. */
+/* Encodes the folded tile in fold_out as the tile's output chunk (and counts its pixels in
+ * the error estimate). */
 static int tile_encode_folded(struct master *m, uint32_t tile)
 {
     char err[256];
@@ -875,6 +880,7 @@ static int tile_encode_folded(struct master *m, uint32_t tile)
         master_fail(m, "%s", err);
         return -1;
     }
+    fold_est_add(m->est, tile, m->fold_out);
     return 0;
 }
 
@@ -953,6 +959,7 @@ static int unit_keep(struct master *m, uint32_t unit, const struct tile_stats *s
             memcpy(c->data, chunk, chunk_size);
         }
         c->size = chunk_size;
+        fold_est_add(m->est, tile, m->decode_scratch);
         return 0;
     }
     if (m->adapt) {
@@ -1508,32 +1515,12 @@ static void print_progress(struct master *m, uint64_t start_ms, int tty, int fin
 
 /* The image's estimated relative RMSE: sqrt(mean over pixels of the variance of the pixel
  * mean, averaged over R, G, B) / (mean of R, G, B over the image), from the variance
- * channels of the finished tiles. With progressive passes they hold batch means, so the
- * estimate includes the photon maps' error. 0 for a black image. */
+ * channels of the finished tiles, summed as each was decoded or folded (fold_est). With
+ * progressive passes they hold batch means, so the estimate includes the photon maps'
+ * error. 0 for a black image. */
 static double error_estimate(struct master *m)
 {
-    double sum_var = 0.0, sum_mean = 0.0;
-    m->var_saturated = 0;
-    uint64_t pixels = 0;
-    uint32_t tiles_x = imgio_tiles_x(&m->desc);
-    for (uint32_t t = 0; t < m->num_tiles; t++) {
-        uint32_t x0, y0, w, h;
-        char err[256];
-        if (!m->chunks[t].data)
-            continue;
-        imgio_tile_rect(&m->desc, t % tiles_x, t / tiles_x, &x0, &y0, &w, &h);
-        if (imgio_decode_tile(&m->out_desc, t % tiles_x, t / tiles_x, m->chunks[t].data, m->chunks[t].size,
-                              m->decode_scratch, err, sizeof err) != 0)
-            continue; /* checked when accepted: cannot happen */
-        for (size_t i = 0; i < (size_t)w * h; i++) {
-            const float *px = &m->decode_scratch[i * m->out_desc.num_channels];
-            sum_var += ((double)px[CH_VAR_R] + px[CH_VAR_G] + px[CH_VAR_B]) / 3.0;
-            m->var_saturated += px[CH_VAR_R] == FLT_MAX || px[CH_VAR_G] == FLT_MAX || px[CH_VAR_B] == FLT_MAX;
-            sum_mean += ((double)px[CH_R] + px[CH_G] + px[CH_B]) / 3.0;
-        }
-        pixels += (uint64_t)w * h;
-    }
-    return pixels && sum_mean > 0.0 ? sqrt(sum_var / (double)pixels) / (sum_mean / (double)pixels) : 0.0;
+    return fold_est_result(m->est, &m->var_saturated);
 }
 
 static void print_summary(struct master *m, double secs)
@@ -1957,6 +1944,7 @@ static int frame_begin(struct master *m, uint32_t frames_started)
         sched_release(m->sched, m->maps_published * m->num_tiles);
     if (m->fold)
         fold_reset(m->fold);
+    fold_est_reset(m->est);
     memset(&m->stats, 0, sizeof m->stats);
     if (m->adapt) { /* units go out round by round (adapt.h); round 0 now */
         sched_hold_all(m->sched);
@@ -2271,6 +2259,7 @@ done:
     free(m.peers);
     peer_index_fini(&m.peer_index);
     fold_free(&m.fold);
+    fold_est_free(&m.est);
     adapt_free(&m.adapt);
     free(m.round_from);
     imgio_encoder_free(&m.enc);
