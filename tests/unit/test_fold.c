@@ -2,6 +2,7 @@
  * the same bits as in pass order, a pass without samples is left out, and the result is
  * the batch-means mean and variance of the pass means. Run by `make unit`. */
 #include <criterion/criterion.h>
+#include <float.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -131,4 +132,111 @@ Test(fold, batch_means_of_the_passes_with_samples)
     cr_assert(fabs(o[CH_A] - cover / n) < 1e-6);
     free(order);
     free(out);
+}
+
+/* Tile t's final pixels for the error estimate: magnitudes over several decades, so that
+ * summing them in another order rounds differently. */
+static void est_pixels(uint32_t t, size_t n, uint32_t nc, float *px)
+{
+    for (size_t i = 0; i < n; i++) {
+        float *c = &px[i * nc];
+        for (int k = 0; k < 3; k++) {
+            double s = sin(0.7 * (double)(t * 97 + i * 13 + k * 5));
+            c[CH_R + k] = (float)(pow(10.0, 3.0 * s) * (1.0 + 0.1 * k));
+            c[CH_VAR_R + k] = (float)(pow(10.0, -2.0 + 4.0 * cos(0.3 * (double)(t * 31 + i * 3 + k))));
+        }
+        c[CH_A] = 1.0f;
+    }
+}
+
+/* What the estimate must be: every given tile's pixels summed in tile order, then pixel
+ * order, as one running sum. */
+static double est_reference(const struct image_desc *d, const uint8_t *given, const float *const *px)
+{
+    uint32_t tiles = imgio_tiles_x(d) * imgio_tiles_y(d);
+    double var = 0.0, mean = 0.0;
+    uint64_t pixels = 0;
+    for (uint32_t t = 0; t < tiles; t++) {
+        if (!given[t])
+            continue;
+        uint32_t x0, y0, w, h;
+        imgio_tile_rect(d, t % imgio_tiles_x(d), t / imgio_tiles_x(d), &x0, &y0, &w, &h);
+        for (size_t i = 0; i < (size_t)w * h; i++) {
+            const float *c = &px[t][i * d->num_channels];
+            var += ((double)c[CH_VAR_R] + c[CH_VAR_G] + c[CH_VAR_B]) / 3.0;
+            mean += ((double)c[CH_R] + c[CH_G] + c[CH_B]) / 3.0;
+        }
+        pixels += (uint64_t)w * h;
+    }
+    return sqrt(var / (double)pixels) / (mean / (double)pixels);
+}
+
+Test(fold, error_estimate_has_the_same_bits_for_any_tile_order)
+{
+    struct image_desc d;
+    struct render_settings rs;
+    memset(&rs, 0, sizeof rs);
+    rs.width = 37;
+    rs.height = 29;
+    rs.tile_size = 8;
+    tile_image_desc(&d, &rs);
+    uint32_t tiles = imgio_tiles_x(&d) * imgio_tiles_y(&d);
+    float **px = malloc(sizeof *px * tiles);
+    uint32_t *order = malloc(sizeof *order * tiles);
+    uint8_t *given = malloc(tiles);
+    for (uint32_t t = 0; t < tiles; t++) {
+        px[t] = malloc(sizeof(float) * 64 * d.num_channels);
+        est_pixels(t, 64, d.num_channels, px[t]);
+        order[t] = t;
+    }
+    struct fold_est *e = fold_est_new(&d);
+    uint64_t sat = 99, x = 777;
+    cr_assert_eq(fold_est_result(e, &sat), 0.0, "no tile: 0");
+    cr_assert_eq(sat, 0u);
+    for (int trial = 0; trial < 24; trial++) {
+        for (uint32_t i = tiles - 1; i > 0 && trial > 0; i--) {
+            x = x * 6364136223846793005ull + 1442695040888963407ull;
+            uint32_t j = (uint32_t)((x >> 33) % (i + 1));
+            uint32_t tmp = order[i];
+            order[i] = order[j];
+            order[j] = tmp;
+        }
+        /* Odd trials leave a tile out (a frame cut short): the tiles after it still count. */
+        uint32_t missing = trial % 2 ? (uint32_t)(x >> 40) % tiles : tiles;
+        memset(given, 0, tiles);
+        fold_est_reset(e);
+        for (uint32_t i = 0; i < tiles; i++)
+            if (order[i] != missing) {
+                fold_est_add(e, order[i], px[order[i]]);
+                given[order[i]] = 1;
+            }
+        double want = est_reference(&d, given, (const float *const *)px);
+        double got = fold_est_result(e, &sat);
+        cr_assert(memcmp(&want, &got, sizeof want) == 0, "trial %d (tile %u missing): %.17g, expected %.17g", trial,
+                  missing, got, want);
+        cr_assert_eq(sat, 0u);
+        cr_assert_eq(fold_est_result(e, &sat), got, "the result leaves the sums as they are");
+    }
+    /* A saturated variance is counted; a black image estimates 0. */
+    fold_est_reset(e);
+    px[5][3 * d.num_channels + CH_VAR_G] = FLT_MAX;
+    for (uint32_t t = 0; t < tiles; t++) {
+        if (t != 5)
+            memset(px[t], 0, sizeof(float) * 64 * d.num_channels);
+        fold_est_add(e, tiles - 1 - t, px[tiles - 1 - t]);
+    }
+    fold_est_result(e, &sat);
+    cr_assert_eq(sat, 1u);
+    fold_est_reset(e);
+    memset(px[5], 0, sizeof(float) * 64 * d.num_channels);
+    for (uint32_t t = 0; t < tiles; t++)
+        fold_est_add(e, t, px[t]);
+    cr_assert_eq(fold_est_result(e, &sat), 0.0, "black: 0");
+    fold_est_free(&e);
+    cr_assert_null(e);
+    for (uint32_t t = 0; t < tiles; t++)
+        free(px[t]);
+    free(px);
+    free(order);
+    free(given);
 }
