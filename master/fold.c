@@ -113,12 +113,15 @@ void fold_free(struct fold **fp)
     *fp = NULL;
 }
 
-static size_t tile_pixels(const struct fold *f, uint32_t tile)
+/* Pixels of tile (in rows of tiles_x) of desc. */
+static size_t desc_tile_pixels(const struct image_desc *desc, uint32_t tiles_x, uint32_t tile)
 {
     uint32_t x0, y0, w, h;
-    imgio_tile_rect(&f->desc, tile % f->tiles_x, tile / f->tiles_x, &x0, &y0, &w, &h);
+    imgio_tile_rect(desc, tile % tiles_x, tile / tiles_x, &x0, &y0, &w, &h);
     return (size_t)w * h;
 }
+
+static size_t tile_pixels(const struct fold *f, uint32_t tile) { return desc_tile_pixels(&f->desc, f->tiles_x, tile); }
 
 static void fold_pass(const struct fold *f, struct fold_tile *t, size_t pixels, const float *px)
 {
@@ -253,9 +256,7 @@ void fold_est_free(struct fold_est **ep)
 
 static size_t est_tile_pixels(const struct fold_est *e, uint32_t tile)
 {
-    uint32_t x0, y0, w, h;
-    imgio_tile_rect(&e->desc, tile % e->tiles_x, tile / e->tiles_x, &x0, &y0, &w, &h);
-    return (size_t)w * h;
+    return desc_tile_pixels(&e->desc, e->tiles_x, tile);
 }
 
 /* Adds a waiting tile's terms to the sums, in pixel order. */
