@@ -212,11 +212,9 @@ void fold_tile_sums(const struct fold *f, uint32_t tile, double *sum_var, double
 struct fold_est {
     struct image_desc desc;
     uint32_t num_tiles, tiles_x;
-    uint32_t next;              /* tiles 0..next-1 are given and summed */
     uint8_t *given;             /* per tile */
-    double **terms;             /* per tile given before its turn: per pixel (variance, mean), else NULL */
-    double sum_var, sum_mean;   /* over the pixels of tiles 0..next-1 */
-    uint64_t pixels, saturated; /* pixels summed; pixels of every given tile with a saturated variance */
+    double (*sums)[2];          /* per given tile: its pixels' sums of (variance, mean), in pixel order */
+    uint64_t saturated;         /* pixels of every given tile with a saturated variance */
 };
 
 struct fold_est *fold_est_new(const struct image_desc *desc)
@@ -226,20 +224,14 @@ struct fold_est *fold_est_new(const struct image_desc *desc)
     e->tiles_x = imgio_tiles_x(desc);
     e->num_tiles = e->tiles_x * imgio_tiles_y(desc);
     e->given = mem_calloc(e->num_tiles ? e->num_tiles : 1, 1);
-    e->terms = mem_calloc(e->num_tiles ? e->num_tiles : 1, sizeof *e->terms);
+    e->sums = mem_calloc(e->num_tiles ? e->num_tiles : 1, sizeof *e->sums);
     return e;
 }
 
 void fold_est_reset(struct fold_est *e)
 {
-    for (uint32_t t = 0; t < e->num_tiles; t++) {
-        free(e->terms[t]);
-        e->terms[t] = NULL;
-    }
     memset(e->given, 0, e->num_tiles ? e->num_tiles : 1);
-    e->next = 0;
-    e->sum_var = e->sum_mean = 0.0;
-    e->pixels = e->saturated = 0;
+    e->saturated = 0;
 }
 
 void fold_est_free(struct fold_est **ep)
@@ -247,69 +239,37 @@ void fold_est_free(struct fold_est **ep)
     struct fold_est *e = *ep;
     if (!e)
         return;
-    fold_est_reset(e);
     free(e->given);
-    free(e->terms);
+    free(e->sums);
     free(e);
     *ep = NULL;
-}
-
-static size_t est_tile_pixels(const struct fold_est *e, uint32_t tile)
-{
-    return desc_tile_pixels(&e->desc, e->tiles_x, tile);
-}
-
-/* Adds a waiting tile's terms to the sums, in pixel order. */
-static void est_sum_terms(const double *terms, size_t pixels, double *sum_var, double *sum_mean)
-{
-    for (size_t i = 0; i < pixels; i++) {
-        *sum_var += terms[2 * i];
-        *sum_mean += terms[2 * i + 1];
-    }
 }
 
 void fold_est_add(struct fold_est *e, uint32_t tile, const float *px)
 {
     CHECK(tile < e->num_tiles && !e->given[tile]);
     e->given[tile] = 1;
-    size_t pixels = est_tile_pixels(e, tile), nc = e->desc.num_channels;
-    double *terms = tile == e->next ? NULL : mem_alloc(sizeof(double) * 2 * (pixels ? pixels : 1));
+    size_t pixels = desc_tile_pixels(&e->desc, e->tiles_x, tile), nc = e->desc.num_channels;
+    double sv = 0.0, sm = 0.0;
     for (size_t i = 0; i < pixels; i++) {
         const float *p = &px[i * nc];
-        double v = ((double)p[CH_VAR_R] + p[CH_VAR_G] + p[CH_VAR_B]) / 3.0;
-        double mu = ((double)p[CH_R] + p[CH_G] + p[CH_B]) / 3.0;
+        sv += ((double)p[CH_VAR_R] + p[CH_VAR_G] + p[CH_VAR_B]) / 3.0;
+        sm += ((double)p[CH_R] + p[CH_G] + p[CH_B]) / 3.0;
         e->saturated += p[CH_VAR_R] == FLT_MAX || p[CH_VAR_G] == FLT_MAX || p[CH_VAR_B] == FLT_MAX;
-        if (terms) {
-            terms[2 * i] = v;
-            terms[2 * i + 1] = mu;
-        } else {
-            e->sum_var += v;
-            e->sum_mean += mu;
-        }
     }
-    if (terms) {
-        e->terms[tile] = terms;
-        return;
-    }
-    e->pixels += pixels;
-    for (e->next++; e->next < e->num_tiles && e->given[e->next]; e->next++) {
-        size_t n = est_tile_pixels(e, e->next);
-        est_sum_terms(e->terms[e->next], n, &e->sum_var, &e->sum_mean);
-        e->pixels += n;
-        free(e->terms[e->next]);
-        e->terms[e->next] = NULL;
-    }
+    e->sums[tile][0] = sv;
+    e->sums[tile][1] = sm;
 }
 
 double fold_est_result(const struct fold_est *e, uint64_t *saturated)
 {
-    double sum_var = e->sum_var, sum_mean = e->sum_mean;
-    uint64_t pixels = e->pixels;
-    for (uint32_t t = e->next; t < e->num_tiles; t++) /* past a tile never given */
-        if (e->terms[t]) {
-            size_t n = est_tile_pixels(e, t);
-            est_sum_terms(e->terms[t], n, &sum_var, &sum_mean);
-            pixels += n;
+    double sum_var = 0.0, sum_mean = 0.0;
+    uint64_t pixels = 0;
+    for (uint32_t t = 0; t < e->num_tiles; t++) /* tile order: the same bits for any arrival order */
+        if (e->given[t]) {
+            sum_var += e->sums[t][0];
+            sum_mean += e->sums[t][1];
+            pixels += desc_tile_pixels(&e->desc, e->tiles_x, t);
         }
     *saturated = e->saturated;
     return pixels && sum_mean > 0.0 ? sqrt(sum_var / (double)pixels) / (sum_mean / (double)pixels) : 0.0;

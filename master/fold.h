@@ -50,9 +50,9 @@ void fold_tile_sums(const struct fold *f, uint32_t tile, double *sum_var, double
  * its final tiles' pixels, as they lie in the output (with one pass the workers' tiles,
  * else the folded ones; black --tiles fillers too): sqrt(mean over pixels of the variance
  * channels' mean over R, G, B) / (mean over pixels of the mean of R, G and B). Each tile is
- * given once, in any order, when its pixels are decoded or folded anyway; the pixels are
- * summed in tile order, then pixel order (a tile that comes before its turn waits as its
- * per-pixel terms), so the figure has the same bits for any arrival order, worker count or
+ * given once, in any order, when its pixels are decoded or folded anyway; each tile's
+ * pixels are summed in pixel order, and the tiles' sums in tile order at the end (two
+ * doubles a tile), so the figure has the same bits for any arrival order, worker count or
  * journal replay. */
 struct fold_est;
 struct fold_est *fold_est_new(const struct image_desc *desc);

@@ -156,16 +156,19 @@ static double est_reference(const struct image_desc *d, const uint8_t *given, co
     uint32_t tiles = imgio_tiles_x(d) * imgio_tiles_y(d);
     double var = 0.0, mean = 0.0;
     uint64_t pixels = 0;
-    for (uint32_t t = 0; t < tiles; t++) {
+    for (uint32_t t = 0; t < tiles; t++) { /* per tile in pixel order, then the tiles in order */
         if (!given[t])
             continue;
         uint32_t x0, y0, w, h;
         imgio_tile_rect(d, t % imgio_tiles_x(d), t / imgio_tiles_x(d), &x0, &y0, &w, &h);
+        double tv = 0.0, tm = 0.0;
         for (size_t i = 0; i < (size_t)w * h; i++) {
             const float *c = &px[t][i * d->num_channels];
-            var += ((double)c[CH_VAR_R] + c[CH_VAR_G] + c[CH_VAR_B]) / 3.0;
-            mean += ((double)c[CH_R] + c[CH_G] + c[CH_B]) / 3.0;
+            tv += ((double)c[CH_VAR_R] + c[CH_VAR_G] + c[CH_VAR_B]) / 3.0;
+            tm += ((double)c[CH_R] + c[CH_G] + c[CH_B]) / 3.0;
         }
+        var += tv;
+        mean += tm;
         pixels += (uint64_t)w * h;
     }
     return sqrt(var / (double)pixels) / (mean / (double)pixels);
