@@ -12,13 +12,13 @@
  * surfaces near it far more than its power share says (a spot lighting a 24 x 36 m floor
  * was picked once in 86 samples, so its light came as rare bright pixels). The cap costs
  * sky-lit points at most twice the variance of always picking the sky. */
-#define LIGHT_ENV_MAX_PICK 0.5
 #ifndef BRUME_LIGHT_H
 #define BRUME_LIGHT_H
 #include <stdint.h>
 #include "scene/scene.h"
 #include "base/vec.h"
 
+#define LIGHT_ENV_MAX_PICK 0.5
 #define LIGHT_NONE UINT32_MAX
 
 enum light_kind { LK_POINT, LK_TRIANGLE, LK_SPHERE, LK_ENV };
