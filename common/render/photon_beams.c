@@ -417,9 +417,7 @@ float photon_beams_radius(const struct photon_beams *pb) { return pb ? pb->radiu
 /* ---- the estimate ---- */
 
 /* Sorts hits by chunk: insertion sort for a few, else an LSD radix sort (8 bits a pass,
- * stable) through the thread's scratch array. */
-static _Thread_local struct pb_hit *tl_tmp;
-static _Thread_local size_t tl_tmp_cap;
+ * stable) through a scratch array. */
 
 static void sort_hits(struct pb_hit *h, uint32_t n)
 {
@@ -431,11 +429,11 @@ static void sort_hits(struct pb_hit *h, uint32_t n)
             }
         return;
     }
-    mem_grow((void **)&tl_tmp, &tl_tmp_cap, n, sizeof *tl_tmp);
+    struct pb_hit *tmp = mem_alloc(sizeof *tmp * n);
     uint32_t top = 0;
     for (uint32_t i = 0; i < n; i++)
         top |= h[i].chunk;
-    struct pb_hit *a = h, *b = tl_tmp;
+    struct pb_hit *a = h, *b = tmp;
     for (int shift = 0; shift < 32 && (top >> shift) != 0; shift += 8) {
         uint32_t count[257] = {0};
         for (uint32_t i = 0; i < n; i++)
@@ -449,6 +447,7 @@ static void sort_hits(struct pb_hit *h, uint32_t n)
     }
     if (a != h)
         memcpy(h, a, sizeof *h * n);
+    free(tmp);
 }
 
 /* Sums the hits in chunk order (each chunk once). */
@@ -491,9 +490,6 @@ static void query_init(struct pb_query *q, const struct photon_beams *pb, vec3 o
     q->depth_max = depth_max;
 }
 
-static _Thread_local struct pb_hit *tl_hits;
-static _Thread_local uint32_t tl_cap;
-
 vec3 photon_beams_estimate(struct photon_beams *pb, vec3 o, vec3 d, float t1, const struct medium *md,
                            const struct photon_tau *tau, uint32_t depth_max)
 {
@@ -503,7 +499,6 @@ vec3 photon_beams_estimate(struct photon_beams *pb, vec3 o, vec3 d, float t1, co
     ensure_built(pb);
     struct pb_query q;
     query_init(&q, pb, o, d, t1, md, depth_max);
-    q.hits = tl_hits, q.cap = tl_cap;
     struct RTCRayHit rh;
     memset(&rh, 0, sizeof rh);
     rh.ray.org_x = o.x, rh.ray.org_y = o.y, rh.ray.org_z = o.z;
@@ -513,8 +508,9 @@ vec3 photon_beams_estimate(struct photon_beams *pb, vec3 o, vec3 d, float t1, co
     rh.ray.mask = 0xffffffffu;
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     rtcIntersect1(pb->scene, &q.ctx, &rh);
-    tl_hits = q.hits, tl_cap = q.cap; /* kept for the thread's next query */
-    return sum_hits(pb, q.hits, q.n, o, d, md, tau);
+    vec3 r = sum_hits(pb, q.hits, q.n, o, d, md, tau);
+    free(q.hits); /* per query: a query tests hundreds of chunks, the allocation is noise */
+    return r;
 }
 
 vec3 photon_beams_estimate_brute(struct photon_beams *pb, vec3 o, vec3 d, float t1, const struct medium *md,
