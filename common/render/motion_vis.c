@@ -381,7 +381,6 @@ void mv_strata_from_pieces(const struct camera *cam, const struct mv_piece *p, u
         w[j] += mv_shutter_cdf(r, p[i].t1) - mv_shutter_cdf(r, p[i].t0);
     }
     st->n = 0;
-    st->heaviest = 0;
     for (uint32_t j = 0; j < nk; j++) {
         if (!(w[j] > 0.0))
             continue;
@@ -401,8 +400,6 @@ void mv_strata_from_pieces(const struct camera *cam, const struct mv_piece *p, u
         }
         st->time01[st->n] = (float)t;
         st->weight[st->n] = w[j];
-        if (w[j] > st->weight[st->heaviest])
-            st->heaviest = st->n;
         st->n++;
     }
 }
@@ -727,7 +724,7 @@ static double still_depth(const struct motion_vis *mv, vec3 o, vec3 d)
 uint32_t motion_vis_strata(const struct motion_vis *mv, const struct camera *cam, const struct camera_sample *cs,
                            float u, struct mv_strata *st)
 {
-    st->n = 1, st->heaviest = 0;
+    st->n = 1;
     st->time01[0] = cs->time01;
     st->weight[0] = 1.0;
     /* 260 kB: off the render threads' stacks */
@@ -780,7 +777,7 @@ uint32_t motion_vis_strata(const struct motion_vis *mv, const struct camera *cam
         return 1;
     mv_strata_from_pieces(cam, pieces, np, cand, u, st);
     if (st->n <= 1) {
-        st->n = 1, st->heaviest = 0;
+        st->n = 1;
         st->time01[0] = cs->time01;
         st->weight[0] = 1.0;
     }

@@ -36,10 +36,10 @@ struct mv_piece {
 };
 
 /* What the integrator shades: n strata, each at time01[k] with weight[k] (the shutter
- * curve's integral over the stratum; the weights sum to 1). heaviest: the stratum that
- * gives the AOVs and the coverage. n == 1: shade the camera sample as it is. */
+ * curve's integral over the stratum; the weights sum to 1). n == 1: shade the camera
+ * sample as it is. */
 struct mv_strata {
-    uint32_t n, heaviest;
+    uint32_t n;
     float time01[MV_MAX_STRATA];
     double weight[MV_MAX_STRATA];
 };
