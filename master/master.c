@@ -176,7 +176,7 @@ struct master {
     struct net_key local_public; /* with CurveZMQ: the key the local workers prove ("" without) */
 };
 
-static volatile sig_atomic_t g_interrupted;
+static atomic_int g_interrupted; /* lock-free: safe in the handler (asset.h) */
 /* SIGINT / SIGTERM: the render loop polls the flag; a photon pass stops at its next photon. */
 static void on_signal(int sig)
 {

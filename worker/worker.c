@@ -127,7 +127,7 @@ struct loader {
     enum load_kind kind;
     pthread_t thread;
     int efd;                    /* eventfd: the thread is done */
-    volatile sig_atomic_t cancel; /* also the asset stop flag: the parsers stop at their next check */
+    atomic_int cancel;          /* set by the main thread, read by the loader; also the asset stop flag */
     struct blob_store blobs;    /* entries copied from the cache (not owned: only the array is freed) */
     int rc;                     /* the thread's result: 0, or -1 with err */
     char err[512];

@@ -18,11 +18,12 @@
 /* Same cap as a blob (blob.h): a larger file could never reach a worker anyway. */
 #define ASSET_MAX_FILE_SIZE (1ull << 32)
 
-static const volatile sig_atomic_t *stop_flag;
+_Static_assert(ATOMIC_INT_LOCK_FREE == 2, "the stop flag is written by signal handlers");
+static const atomic_int *stop_flag;
 
-void asset_set_stop_flag(const volatile sig_atomic_t *flag) { stop_flag = flag; }
+void asset_set_stop_flag(const atomic_int *flag) { stop_flag = flag; }
 
-int asset_stop_requested(void) { return stop_flag && *stop_flag; }
+int asset_stop_requested(void) { return stop_flag && atomic_load(stop_flag); }
 
 int asset_path_check(const char *rel_path, char *err, size_t errlen)
 {

@@ -5,7 +5,7 @@
  * scene cannot name a file outside its folder. */
 #ifndef BRUME_ASSET_H
 #define BRUME_ASSET_H
-#include <signal.h>
+#include <stdatomic.h>
 #include <stddef.h>
 #include <stdint.h>
 
@@ -18,11 +18,13 @@ struct asset_source {
     void *ctx;
 };
 
-/* The process's stop flag for scene loading (the master's SIGINT / SIGTERM flag; NULL,
- * the default, for none). Once it is set, asset_dir_read and the parsers that can run
+/* The process's stop flag for scene loading (the master's SIGINT / SIGTERM flag, the
+ * worker's cancel of a load on its loader thread; NULL, the default, for none). Atomic:
+ * set by a signal handler or by another thread than the one loading, and a lock-free
+ * atomic is safe for both. Once it is set, asset_dir_read and the parsers that can run
  * long (OBJ, every few thousand lines) fail with "interrupted", so a signal ends a load
  * within moments whatever the scene's size. */
-void asset_set_stop_flag(const volatile sig_atomic_t *flag);
+void asset_set_stop_flag(const atomic_int *flag);
 int asset_stop_requested(void);
 
 /* 0 if rel_path is a safe relative path (see above), else -1 with the reason in err. */

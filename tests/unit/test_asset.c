@@ -171,7 +171,7 @@ Test(asset_dir, refuses_a_fifo_without_blocking, .timeout = 10)
 
 Test(asset_dir, a_signal_stops_reading)
 {
-    static volatile sig_atomic_t stop;
+    static atomic_int stop;
     stop = 1;
     asset_set_stop_flag(&stop);
     expect_read_fails("a.obj", "a.obj: interrupted");
