@@ -45,18 +45,49 @@ static void aov_first_hit(const struct render_job *job, const struct accel_hit *
     aov->id_material = (float)s->material;
 }
 
-/* AOVs in media scenes: the first surface along the camera ray, media ignored, albedo
- * of an untextured non-specular first hit (docs/scene-format.md). Returns whether the ray
- * hit, and the hit in *h, for the path to start from. */
-static int aov_trace(const struct render_job *job, vec3 org, vec3 dir, float time01, struct aov_sample *aov,
-                     struct accel_hit *h)
+/* The shading set-up of hit h of the ray (org, dir) at surface s, as the path tracer
+ * shades every vertex: front (wo outside), the geometric and shading normals on wo's side
+ * (ns with the bump or normal map) and the material with its textures looked up (in *buf).
+ * rd: the ray's differentials when the job is textured; dh gets the hit's differential
+ * geometry then. */
+static const struct material *shade_hit(const struct render_job *job, vec3 org, vec3 dir, const struct accel_hit *h,
+                                        float time01, const struct surface *s, const struct raydiff *rd,
+                                        struct material *buf, struct raydiff_hit *dh, int *front, vec3 *ng, vec3 *ns)
+{
+    const struct scene *sc = job->scene;
+    const struct material *mat = &sc->materials[s->material];
+    if (job->textured) {
+        texshade_hit(job, org, dir, h, time01, rd, dh);
+        mat = texshade_material(job, mat, dh, buf);
+    }
+    /* Shade on the side the ray came from: surfaces are two-sided for reflection;
+     * front (wo outside) tells a dielectric which index is on which side. */
+    *front = v3_dot(s->ng, v3_neg(dir)) >= 0.0f;
+    *ng = *front ? s->ng : v3_neg(s->ng);
+    *ns = v3_dot(s->ns, *ng) < 0.0f ? v3_neg(s->ns) : s->ns;
+    if (job->textured)
+        *ns = texshade_bump(sc, job->mips, mat, dh, *ng, *ns);
+    return mat;
+}
+
+/* AOVs in media scenes: the first surface along the camera ray, media ignored, shaded as
+ * the path tracer shades its first hit (textures, bump and normal maps; rd: the camera
+ * ray's differentials when the job is textured), the albedo of a non-specular first hit
+ * (docs/scene-format.md). Returns whether the ray hit, and the hit in *h, for the path to
+ * start from. */
+static int aov_trace(const struct render_job *job, vec3 org, vec3 dir, float time01, const struct raydiff *rd,
+                     struct aov_sample *aov, struct accel_hit *h)
 {
     if (!accel_intersect(&job->accel, org, dir, INFINITY, time01, h))
         return 0;
     struct surface s;
     surface_from_hit(&job->accel, &job->lights, org, dir, h, time01, &s);
-    aov_first_hit(job, h, &s, v3_dot(s.ns, dir) > 0.0f ? v3_neg(s.ns) : s.ns, aov);
-    const struct material *mat = &job->scene->materials[s.material];
+    struct material tex_mat;
+    struct raydiff_hit dh;
+    int front;
+    vec3 ng, ns;
+    const struct material *mat = shade_hit(job, org, dir, h, time01, &s, rd, &tex_mat, &dh, &front, &ng, &ns);
+    aov_first_hit(job, h, &s, ns, aov);
     if (!material_is_delta(mat))
         aov->albedo = aov_material_albedo(mat);
     return 1;
@@ -80,7 +111,7 @@ static vec3 camera_path(const struct render_job *job, uint32_t pass, uint32_t px
         texshade_camera(job, &cs, &smp, &rd);
     if (job->media) {
         struct accel_hit h0;
-        int found0 = aov ? aov_trace(job, org, dir, time01, aov, &h0) : 0;
+        int found0 = aov ? aov_trace(job, org, dir, time01, job->textured ? &rd : NULL, aov, &h0) : 0;
         return media_sample_path_pass(job, pass, &smp, px, py, org, dir, time01, aov ? &h0 : NULL, found0,
                                       job->textured ? &rd : NULL, rays, hit_any);
     }
@@ -131,21 +162,11 @@ static vec3 camera_path(const struct render_job *job, uint32_t pass, uint32_t px
         if (vertex > rs->max_depth)
             break;
 
-        const struct material *mat = &sc->materials[s.material];
         struct material tex_mat;
         struct raydiff_hit dh;
-        if (job->textured) {
-            texshade_hit(job, org, dir, &h, time01, &rd, &dh);
-            mat = texshade_material(job, mat, &dh, &tex_mat);
-        }
-        vec3 wo = v3_neg(dir);
-        /* Shade on the side the ray came from: surfaces are two-sided for reflection;
-         * front (wo outside) tells a dielectric which index is on which side. */
-        int front = v3_dot(s.ng, wo) >= 0.0f;
-        vec3 ng = front ? s.ng : v3_neg(s.ng);
-        vec3 ns = v3_dot(s.ns, ng) < 0.0f ? v3_neg(s.ns) : s.ns;
-        if (job->textured)
-            ns = texshade_bump(sc, job->mips, mat, &dh, ng, ns);
+        int front;
+        vec3 ng, ns, wo = v3_neg(dir);
+        const struct material *mat = shade_hit(job, org, dir, &h, time01, &s, &rd, &tex_mat, &dh, &front, &ng, &ns);
         if (aov) {
             if (vertex == 1)
                 aov_first_hit(job, &h, &s, ns, aov);

@@ -144,6 +144,35 @@ sed 's/"Z", "N"/"Z", "normal"/' $S >"$T/badaov.json"
 if run $M "$T/badaov.json" -o "$T/x.exr"; then bad "render.aovs with an unknown name accepted"; else
   grep -q 'badaov.json:[0-9]*:[0-9]*: unknown AOV "normal"' "$T/log" && ok "render.aovs: unknown name, file:line:col" || bad "render.aovs error message"; fi
 
+# Textured albedo in media scenes: the plane with uvs and a checker albedo (squares of 0.5
+# x 0.25, colours (0.2, 0.4, 0.6) and (0.8, 0.6, 0.3)), with and without a fog of density
+# ~0 (VPT). The media integrator shades its AOV hit as the path tracer shades its first hit
+# (same camera differentials, same filtered lookup), so the albedo AOV is the same to the
+# bit, and it holds both colours of the checker.
+printf 'v -100 -100 -5\nv 100 -100 -5\nv 100 0 -5\nv -100 0 -5\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 2/2 3/3 4/4\n' >"$T/plane_uv.obj"
+python3 - $S "$T" <<'PY'
+import json, sys
+s = json.load(open(sys.argv[1]))
+s["textures"] = {"checks": {"type": "checker", "scale": [400, 400], "color0": [0.2, 0.4, 0.6], "color1": [0.8, 0.6, 0.3]}}
+s["materials"]["plane"] = {"type": "diffuse", "albedo_texture": "checks"}
+s["objects"] = [{"type": "obj", "file": "plane_uv.obj", "material": "plane"}]
+json.dump(s, open(sys.argv[2] + "/tex.json", "w"))
+s["media"] = {"fog": {"sigma_a": [1e-7, 1e-7, 1e-7], "sigma_s": [1e-7, 1e-7, 1e-7], "g": 0}}
+s["volume"] = {"method": "vpt", "fog": "fog", "photons": 4000}
+json.dump(s, open(sys.argv[2] + "/texfog.json", "w"))
+PY
+run $M "$T/tex.json" -o "$T/tex.exr" --workers 1 && r1=0 || r1=1
+run $M "$T/texfog.json" -o "$T/texfog.exr" --workers 1 && r2=0 || r2=1
+albs() { for c in albedo.R albedo.G albedo.B N.Z; do echo "$c $($X chsum "$1" $c) $($X chstat "$1" $c 0 20 33 13)"; done; }
+if [ $r1 = 0 ] && [ $r2 = 0 ] && [ "$(albs "$T/tex.exr")" = "$(albs "$T/texfog.exr")" ]; then
+  ok "media scene: textured albedo AOV identical to the scene without fog"
+else
+  albs "$T/tex.exr" >"$T/alb"; albs "$T/texfog.exr" >>"$T/alb"; BAD_LOGS=alb bad "media scene: textured albedo AOV identical to the scene without fog"
+fi
+$X chstat "$T/texfog.exr" albedo.R 0 20 33 13 | awk '{ exit !($2 < 0.2001 && $3 > 0.7999) }' \
+  && ok "media scene: albedo.R reaches 0.2 and 0.8 (the texture, not the material's constant)" \
+  || bad "media scene: albedo.R reaches 0.2 and 0.8 (the texture, not the material's constant)"
+
 # Pixel filters: a Gaussian changes the pixels, the same for any worker count and tile size.
 run $M $S -o "$T/g1.exr" --workers 1 --filter gaussian:1.5 && r1=0 || r1=1
 run $M $S -o "$T/g2.exr" --workers 2 --threads 2 --tile 8 --filter gaussian:1.5 && r2=0 || r2=1
