@@ -50,7 +50,10 @@ void fold_output_desc(const struct image_desc *desc, struct image_desc *out)
     out->num_channels = desc->num_channels + 1;
     snprintf(out->channel_names[FOLD_CH_SAMPLES], sizeof out->channel_names[FOLD_CH_SAMPLES], "%s",
              fold_samples_channel);
-    for (uint32_t c = TILE_NUM_CHANNELS; c < desc->num_channels; c++) /* the AOVs follow the samples */
+    /* The AOVs follow the samples (FLOAT), their HALF bits with them. */
+    uint32_t below = (1u << FOLD_CH_SAMPLES) - 1u;
+    out->half_mask = (desc->half_mask & below) | (desc->half_mask & ~below) << 1;
+    for (uint32_t c = TILE_NUM_CHANNELS; c < desc->num_channels; c++)
         memcpy(out->channel_names[c + 1], desc->channel_names[c], sizeof out->channel_names[c]);
 }
 

@@ -16,13 +16,16 @@ enum imgio_compression { IMGIO_NONE, IMGIO_ZIP, IMGIO_PIZ, IMGIO_RLE, IMGIO_ZIPS
 
 /* Everything that fixes the bytes of a tile chunk and the file header. Channels are
  * given in the renderer's order; pixel buffers are interleaved in that order:
- * pixels[((y * tile_w) + x) * num_channels + c]. All channels are 32-bit float. */
+ * pixels[((y * tile_w) + x) * num_channels + c]. Pixel buffers are always 32-bit float;
+ * in the file and its chunks a channel is FLOAT, or HALF where its bit in half_mask is
+ * set (encoding rounds to the nearest half, as OpenEXR does; decoding widens exactly). */
 struct image_desc {
     uint32_t width, height;
     uint32_t tile_size;
     uint32_t num_channels;
     char channel_names[IMGIO_MAX_CHANNELS][32];
     enum imgio_compression compression;
+    uint32_t half_mask;     /* bit c: channel c is stored as HALF */
 };
 
 /* Metadata written into the header of the final file. */

@@ -70,15 +70,22 @@ void aov_pixel_finish(const struct aov_pixel *ap, const struct tile_layout *l, f
 
 static int id_valid(float v, uint32_t count)
 {
-    return v == -1.0f || (v >= 0.0f && v < (float)count && v == floorf(v));
+    /* In range first, so the conversion is defined (no floorf call: an integer test). */
+    return v == -1.0f || (v >= 0.0f && v < (float)count && (float)(int32_t)v == v);
 }
 
 int aov_pixel_valid(const struct tile_layout *l, const float *px, uint32_t num_objects, uint32_t num_materials)
 {
+    /* x * 0 is 0 for a finite x and NaN for an infinite or NaN one: their sum is 0 exactly
+     * when all 9 are finite (the master checks every pixel of every pass). */
+    float z = 0.0f;
     for (int k = 0; k < 3; k++)
-        for (int c = 0; l->off[vec_aov[k]] >= 0 && c < 3; c++)
-            if (!isfinite(px[l->off[vec_aov[k]] + c]))
-                return 0;
+        if (l->off[vec_aov[k]] >= 0) {
+            const float *v = &px[l->off[vec_aov[k]]];
+            z += v[0] * 0.0f + v[1] * 0.0f + v[2] * 0.0f;
+        }
+    if (z != 0.0f)
+        return 0;
     if (l->off[AOV_Z] >= 0 && !(px[l->off[AOV_Z]] >= 0.0f))
         return 0;
     if (l->off[AOV_ID_OBJECT] >= 0 && !id_valid(px[l->off[AOV_ID_OBJECT]], num_objects))

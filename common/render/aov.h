@@ -12,14 +12,22 @@
 #include "scene/material.h"
 #include "scene/scene.h"
 #include <math.h>
+#include <stddef.h>
+#include <string.h>
 
 /* One camera sample's AOVs. */
 struct aov_sample {
     float z;                    /* camera distance of the first hit; INFINITY on a miss */
-    vec3 n, p;                  /* first hit: shading normal (facing the ray), world position */
+    /* n, albedo and p lie next to each other, in the order of aov_accum's sums, so that
+     * aov_accum_add adds them as one array of 9 (vectorised). */
+    vec3 n;                     /* first hit's shading normal (facing the ray) */
     vec3 albedo;                /* first non-specular hit's albedo times the specular bounces' weight */
+    vec3 p;                     /* first hit's world position */
     float id_object, id_material; /* first hit's; -1 on a miss */
 };
+_Static_assert(offsetof(struct aov_sample, albedo) == offsetof(struct aov_sample, n) + 3 * sizeof(float) &&
+                   offsetof(struct aov_sample, p) == offsetof(struct aov_sample, n) + 6 * sizeof(float),
+               "aov_sample: n, albedo, p contiguous");
 static inline void aov_sample_miss(struct aov_sample *a)
 {
     a->z = INFINITY;
@@ -62,12 +70,10 @@ struct aov_accum {
 void aov_accum_reset(struct aov_accum *acc);
 static inline void aov_accum_add(struct aov_accum *acc, const struct aov_sample *s)
 {
-    const vec3 v[3] = {s->n, s->albedo, s->p};
-    for (int k = 0; k < 3; k++) {
-        acc->sum[3 * k] += v[k].x;
-        acc->sum[3 * k + 1] += v[k].y;
-        acc->sum[3 * k + 2] += v[k].z;
-    }
+    float v[9];
+    memcpy(v, &s->n, sizeof v); /* n, albedo, p: contiguous (asserted above) */
+    for (int i = 0; i < 9; i++)
+        acc->sum[i] += v[i];
     if (s->z < acc->z) {
         acc->z = s->z;
         acc->id_object = s->id_object;

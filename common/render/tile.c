@@ -68,8 +68,11 @@ void tile_image_desc(struct image_desc *d, const struct render_settings *rs)
     tile_layout_init(&l, rs->aovs);
     d->num_channels = TILE_NUM_CHANNELS;
     for (int a = 0; a < AOV_COUNT_; a++)
-        for (uint32_t k = 0; l.off[a] >= 0 && k < tile_aov_channels((enum aov)a); k++)
+        for (uint32_t k = 0; l.off[a] >= 0 && k < tile_aov_channels((enum aov)a); k++) {
+            if (a == AOV_N || a == AOV_ALBEDO) /* HALF: as OIDN and compositors take them */
+                d->half_mask |= 1u << d->num_channels;
             snprintf(d->channel_names[d->num_channels++], sizeof d->channel_names[0], "%s",
                      aov_channel_names[a][k]);
+        }
     d->compression = IMGIO_ZIP;
 }

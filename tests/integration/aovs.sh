@@ -20,11 +20,15 @@ within() {
 
 run $M $S -o "$T/a.exr" --workers 1 --threads 1 && ok "renders with every AOV" || bad "renders with every AOV"
 exrheader "$T/a.exr" >"$T/hdr" 2>&1
+# Z, P and the ids FLOAT; N and albedo HALF (as OIDN and compositors take them).
 n=0
-for c in Z N.X N.Y N.Z albedo.R albedo.G albedo.B P.X P.Y P.Z id.object id.material; do
+for c in Z P.X P.Y P.Z id.object id.material; do
   grep -q "^    $c, 32-bit floating-point" "$T/hdr" && n=$((n + 1))
 done
-if [ $n = 12 ]; then ok "exrheader lists the 12 AOV channels"; else BAD_LOGS=hdr bad "exrheader lists the 12 AOV channels ($n found)"; fi
+for c in N.X N.Y N.Z albedo.R albedo.G albedo.B; do
+  grep -q "^    $c, 16-bit floating-point" "$T/hdr" && n=$((n + 1))
+done
+if [ $n = 12 ]; then ok "exrheader lists the 12 AOV channels (N, albedo half)"; else BAD_LOGS=hdr bad "exrheader lists the 12 AOV channels, N and albedo half ($n found)"; fi
 if grep -q 'id.object/0 (type string): "plane.obj"' "$T/hdr" && grep -q 'id.material/1 (type string): "plane"' "$T/hdr"; then
   ok "id name tables in the header"
 else
@@ -59,9 +63,10 @@ if command -v oiiotool >/dev/null && command -v iinfo >/dev/null; then
   iinfo -v "$T/a.exr" >"$T/iinfo" 2>&1
   # (a render in passes, the default for an even spp, also has the per-pixel "samples" count)
   want="R, G, B, A, Z, samples, N.X, N.Y, N.Z, P.X, P.Y, P.Z, albedo.R, albedo.G, albedo.B, id.material, id.object, variance.R, variance.G, variance.B"
-  if grep -q "33 x   33, 20 channel, float openexr" "$T/iinfo" && grep -qF "channel list: $want" "$T/iinfo" \
+  want="R (float), G (float), B (float), A (float), Z (float), samples (float), N.X (half), N.Y (half), N.Z (half), P.X (float), P.Y (float), P.Z (float), albedo.R (half), albedo.G (half), albedo.B (half), id.material (float), id.object (float), variance.R (float), variance.G (float), variance.B (float)"
+  if grep -q "33 x   33, 20 channel, float/float/float/float/float/float/half/half/half/float/float/float/half/half/half/float/float/float/float/float openexr" "$T/iinfo" && grep -qF "channel list: $want" "$T/iinfo" \
     && grep -q 'id.object/0: "plane.obj"' "$T/iinfo" && grep -q 'id.material/1: "plane"' "$T/iinfo"; then
-    ok "iinfo: 20 float channels named Z, samples, N.X/Y/Z, P.X/Y/Z, albedo.R/G/B, id.*; id name tables"
+    ok "iinfo: 20 channels named Z, samples, N.X/Y/Z, P.X/Y/Z, albedo.R/G/B, id.*, N and albedo half; id name tables"
   else
     BAD_LOGS=iinfo bad "iinfo: channel names and id name tables"
   fi
@@ -148,7 +153,7 @@ if run $M "$T/badaov.json" -o "$T/x.exr"; then bad "render.aovs with an unknown 
 # x 0.25, colours (0.2, 0.4, 0.6) and (0.8, 0.6, 0.3)), with and without a fog of density
 # ~0 (VPT). The media integrator shades its AOV hit as the path tracer shades its first hit
 # (same camera differentials, same filtered lookup), so the albedo AOV is the same to the
-# bit, and it holds both colours of the checker.
+# bit, and it holds both colours of the checker (as half: 0.19995 and 0.79980).
 printf 'v -100 -100 -5\nv 100 -100 -5\nv 100 0 -5\nv -100 0 -5\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 2/2 3/3 4/4\n' >"$T/plane_uv.obj"
 python3 - $S "$T" <<'PY'
 import json, sys
@@ -169,7 +174,7 @@ if [ $r1 = 0 ] && [ $r2 = 0 ] && [ "$(albs "$T/tex.exr")" = "$(albs "$T/texfog.e
 else
   albs "$T/tex.exr" >"$T/alb"; albs "$T/texfog.exr" >>"$T/alb"; BAD_LOGS=alb bad "media scene: textured albedo AOV identical to the scene without fog"
 fi
-$X chstat "$T/texfog.exr" albedo.R 0 20 33 13 | awk '{ exit !($2 < 0.2001 && $3 > 0.7999) }' \
+$X chstat "$T/texfog.exr" albedo.R 0 20 33 13 | awk '{ exit !($2 < 0.2002 && $3 > 0.7997) }' \
   && ok "media scene: albedo.R reaches 0.2 and 0.8 (the texture, not the material's constant)" \
   || bad "media scene: albedo.R reaches 0.2 and 0.8 (the texture, not the material's constant)"
 
