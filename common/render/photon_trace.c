@@ -312,7 +312,7 @@ static void trace_photon(const struct trace_ctx *tc, uint64_t index, struct phot
         vec3 ng = front ? s.ng : v3_neg(s.ng);
         vec3 ns = v3_dot(s.ns, ng) < 0.0f ? v3_neg(s.ns) : s.ns;
         struct bsdf_sample bs;
-        material_sample(mat, ns, wo, front, rng_uniform(key, dim + 5), rng_uniform(key, dim + 6), &bs);
+        material_sample(mat, ns, s.dpdu, wo, front, rng_uniform(key, dim + 5), rng_uniform(key, dim + 6), &bs);
         float side = v3_dot(bs.wi, ng);
         if (bs.pdf <= 0.0f || (bs.transmitted ? side >= 0.0f : side <= 0.0f))
             return;

@@ -6,7 +6,8 @@
  * index change, L / n^2 is (Veach 1997, 5.2). A white furnace therefore stays white.
  *
  * Rough lobes (alpha above MICROFACET_SMOOTH_ALPHA) are single-scattering GGX microfacet
- * BSDFs in the frame (v3_basis(n), n), sampled through the visible normals (microfacet.h):
+ * BSDFs in the frame (v3_basis(n), n) (anisotropic ones: the uv map's u axis made
+ * orthogonal to n, material_frame), sampled through the visible normals (microfacet.h):
  * mirror and conductor reflect, f = D G F / (4 cos_o cos_i); the rough dielectric reflects
  * or refracts (Walter et al. 2007), picking reflection with probability F(wo . wm) like the
  * smooth one. Plastic is a dielectric coat (index ior, smooth or GGX) over Lambert:
@@ -95,11 +96,31 @@ struct frame {
     vec3 t, b, n;
 };
 
-static struct frame frame_of(vec3 n)
+void material_frame(vec3 n, vec3 tu, vec3 *x, vec3 *y)
+{
+    float l2u = v3_dot(tu, tu);
+    if (l2u > 0.0f && isfinite(l2u)) {
+        vec3 t = v3_sub(tu, v3_scale(n, v3_dot(n, tu)));
+        float l2 = v3_dot(t, t);
+        if (l2 > 1e-8f * l2u && isfinite(l2)) {
+            *x = v3_scale(t, 1.0f / sqrtf(l2));
+            *y = v3_cross(n, *x);
+            return;
+        }
+    }
+    v3_basis(n, x, y);
+}
+
+/* The rough lobes' frame of m at n: oriented by tu when m is anisotropic, else the
+ * arbitrary frame (isotropic lobes do not depend on it; their samples keep their bits). */
+static struct frame frame_of(const struct material *m, vec3 n, vec3 tu)
 {
     struct frame f;
     f.n = n;
-    v3_basis(n, &f.t, &f.b);
+    if (material_is_anisotropic(m))
+        material_frame(n, tu, &f.t, &f.b);
+    else
+        v3_basis(n, &f.t, &f.b);
     return f;
 }
 
@@ -189,7 +210,7 @@ static vec3 dielectric_eval(const struct material *m, const struct ggx *g, vec3 
     return v3_scale(m->transmittance, v);
 }
 
-vec3 material_eval(const struct material *m, vec3 n, vec3 wo, vec3 wi, int front, float *pdf)
+vec3 material_eval(const struct material *m, vec3 n, vec3 tu, vec3 wo, vec3 wi, int front, float *pdf)
 {
     *pdf = 0.0f;
     switch (m->type) {
@@ -205,7 +226,7 @@ vec3 material_eval(const struct material *m, vec3 n, vec3 wo, vec3 wi, int front
     case MATERIAL_DIELECTRIC: {
         if (material_is_smooth(m))
             break; /* a delta BSDF is zero for every direction a light sample can pick */
-        struct frame fr = frame_of(n);
+        struct frame fr = frame_of(m, n, tu);
         struct ggx g = ggx_of(m);
         vec3 lo = to_local(&fr, wo), li = to_local(&fr, wi);
         if (!(lo.z > 0.0f))
@@ -229,7 +250,7 @@ vec3 material_eval(const struct material *m, vec3 n, vec3 wo, vec3 wi, int front
         vec3 f = v3_scale(m->albedo, (float)M_1_PI * (1.0f - fo) * (1.0f - fi) * ci);
         *pdf = (1.0f - pc) * ci * (float)M_1_PI;
         if (!material_is_smooth(m)) {
-            struct frame fr = frame_of(n);
+            struct frame fr = frame_of(m, n, tu);
             struct ggx g = ggx_of(m);
             vec3 lo = to_local(&fr, wo), li = to_local(&fr, wi), wm = v3_normalize(v3_add(lo, li));
             float fm = material_fresnel_dielectric(v3_dot(lo, wm), m->ior), cp;
@@ -243,12 +264,12 @@ vec3 material_eval(const struct material *m, vec3 n, vec3 wo, vec3 wi, int front
 }
 
 /* A rough lobe sample (local frame), completed with the evaluated weight. */
-static void finish_rough(const struct material *m, const struct frame *fr, vec3 n, vec3 wo, vec3 li, int front,
-                         struct bsdf_sample *out)
+static void finish_rough(const struct material *m, const struct frame *fr, vec3 n, vec3 tu, vec3 wo, vec3 li,
+                         int front, struct bsdf_sample *out)
 {
     out->wi = v3_normalize(to_world(fr, li));
     float pdf;
-    vec3 f = material_eval(m, n, wo, out->wi, front, &pdf);
+    vec3 f = material_eval(m, n, tu, wo, out->wi, front, &pdf);
     if (!(pdf > 0.0f) || v3_is_black(f)) {
         no_sample(out);
         return;
@@ -264,10 +285,10 @@ static void finish_rough(const struct material *m, const struct frame *fr, vec3 
     }
 }
 
-static void sample_rough(const struct material *m, vec3 n, vec3 wo, int front, float u1, float u2,
+static void sample_rough(const struct material *m, vec3 n, vec3 tu, vec3 wo, int front, float u1, float u2,
                          struct bsdf_sample *out)
 {
-    struct frame fr = frame_of(n);
+    struct frame fr = frame_of(m, n, tu);
     struct ggx g = ggx_of(m);
     vec3 lo = to_local(&fr, wo);
     if (!(lo.z > 0.0f)) {
@@ -293,10 +314,10 @@ static void sample_rough(const struct material *m, vec3 n, vec3 wo, int front, f
             return;
         }
     }
-    finish_rough(m, &fr, n, wo, li, front, out);
+    finish_rough(m, &fr, n, tu, wo, li, front, out);
 }
 
-void material_sample(const struct material *m, vec3 n, vec3 wo, int front, float u1, float u2,
+void material_sample(const struct material *m, vec3 n, vec3 tu, vec3 wo, int front, float u1, float u2,
                      struct bsdf_sample *out)
 {
     out->eta2 = 1.0f;
@@ -323,7 +344,7 @@ void material_sample(const struct material *m, vec3 n, vec3 wo, int front, float
     case MATERIAL_MIRROR:
     case MATERIAL_CONDUCTOR: {
         if (!material_is_smooth(m)) {
-            sample_rough(m, n, wo, front, u1, u2, out);
+            sample_rough(m, n, tu, wo, front, u1, u2, out);
             return;
         }
         float c = v3_dot(wo, n);
@@ -340,7 +361,7 @@ void material_sample(const struct material *m, vec3 n, vec3 wo, int front, float
     }
     case MATERIAL_DIELECTRIC: {
         if (!material_is_smooth(m)) {
-            sample_rough(m, n, wo, front, u1, u2, out);
+            sample_rough(m, n, tu, wo, front, u1, u2, out);
             return;
         }
         float c = v3_dot(wo, n);
@@ -382,7 +403,7 @@ void material_sample(const struct material *m, vec3 n, vec3 wo, int front, float
             out->transmitted = 0;
             return;
         }
-        struct frame fr = frame_of(n);
+        struct frame fr = frame_of(m, n, tu);
         vec3 lo = to_local(&fr, wo), li;
         if (uc < pc) {
             struct ggx g = ggx_of(m);
@@ -398,7 +419,7 @@ void material_sample(const struct material *m, vec3 n, vec3 wo, int front, float
             sincos_2pi(u2, &sp, &cp);
             li = v3(r * cp, r * sp, sqrtf(f_max(0.0f, 1.0f - u1)));
         }
-        finish_rough(m, &fr, n, wo, li, front, out);
+        finish_rough(m, &fr, n, tu, wo, li, front, out);
         return;
     }
     }
