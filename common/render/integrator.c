@@ -177,6 +177,8 @@ static vec3 camera_path(const struct render_job *job, uint32_t pass, uint32_t px
         vec3 ns = v3_dot(s.ns, ng) < 0.0f ? v3_neg(s.ns) : s.ns;
         if (job->textured)
             ns = texshade_bump(sc, job->mips, mat, &dh, ng, ns);
+        if (material_is_anisotropic(mat)) /* the roughness axes follow the uv map */
+            mat = material_with_axis(mat, surface_dpdu(&job->accel, org, dir, &h, time01), &tex_mat);
         if (aov) {
             if (vertex == 1)
                 aov_first_hit(job, &h, &s, ns, aov);
@@ -193,7 +195,7 @@ static vec3 camera_path(const struct render_job *job, uint32_t pass, uint32_t px
             float lu, lv;
             sampler_get_2d(&smp, d0 + DIM_LIGHT_U, &lu, &lv);
             struct nee_sample n;
-            if (nee_prepare(&job->lights, sc, mat, s.p, ns, s.dpdu, ng, wo, front, 1, sampler_get(&smp, d0 + DIM_LIGHT_PICK), lu, lv, &n)) {
+            if (nee_prepare(&job->lights, sc, mat, s.p, ns, ng, wo, front, 1, sampler_get(&smp, d0 + DIM_LIGHT_PICK), lu, lv, &n)) {
                 (*rays)++;
                 vec3 o = n.transmitted ? behind(&s, ng) : p_off;
                 if (!accel_occluded(&job->accel, o, v3_sub(n.target, o), 1.0f - 0x1p-12f, time01)) {
@@ -207,7 +209,7 @@ static vec3 camera_path(const struct render_job *job, uint32_t pass, uint32_t px
         struct bsdf_sample bs;
         float bu, bv;
         sampler_get_2d(&smp, d0 + DIM_BSDF_U, &bu, &bv);
-        material_sample(mat, ns, s.dpdu, wo, front, bu, bv, &bs);
+        material_sample(mat, ns, wo, front, bu, bv, &bs);
         /* A direction on the wrong side of the true surface (shading normals) ends the path. */
         float side = v3_dot(bs.wi, ng);
         if (bs.pdf <= 0.0f || (bs.transmitted ? side >= 0.0f : side <= 0.0f))

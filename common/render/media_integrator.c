@@ -607,6 +607,8 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
         struct raydiff_hit dh;
         if (job->textured)
             mat = texshade_surface(job, org, dir, &h, time01, &rd, &s, mat, &tex_mat, &dh);
+        if (material_is_anisotropic(mat)) /* the roughness axes follow the uv map */
+            mat = material_with_axis(mat, surface_dpdu(&job->accel, org, dir, &h, time01), &tex_mat);
         vec3 wo = v3_neg(dir);
         int front = v3_dot(s.ng, wo) >= 0.0f;
         vec3 ng = front ? s.ng : v3_neg(s.ng);
@@ -634,7 +636,7 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
                     continue;
                 vec3 wi = v3_scale(to, 1.0f / sqrtf(d2));
                 float bpdf;
-                vec3 f = v3_dot(wi, ng) > 0.0f ? material_eval(mat, ns, s.dpdu, wo, wi, front, &bpdf) : v3(0, 0, 0);
+                vec3 f = v3_dot(wi, ng) > 0.0f ? material_eval(mat, ns, wo, wi, front, &bpdf) : v3(0, 0, 0);
                 vec3 rad = v3_scale(job->lights.entries[li].emission, light_spot_falloff(l, v3_neg(to)) / d2);
                 if (v3_is_black(f) || v3_is_black(rad))
                     continue;
@@ -644,7 +646,7 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
             }
         } else if (job->lights.num_entries > 0 && !material_is_delta(mat)) {
             struct nee_sample n;
-            if (nee_prepare(&job->lights, sc, mat, s.p, ns, s.dpdu, ng, wo, front, 0, rnd(&r, vertex, 2), rnd(&r, vertex, 3), rnd(&r, vertex, 4), &n)) {
+            if (nee_prepare(&job->lights, sc, mat, s.p, ns, ng, wo, front, 0, rnd(&r, vertex, 2), rnd(&r, vertex, 3), rnd(&r, vertex, 4), &n)) {
                 vec3 tr = media_shadow_transmittance(job->media, p_off, n.target, medium, time01,
                                                      rng_mix64(r.key ^ (0x5353ull << 48) ^ vertex), rays);
                 if (!v3_is_black(tr)) {
@@ -660,7 +662,7 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
             break;
         }
         struct bsdf_sample bs;
-        material_sample(mat, ns, s.dpdu, wo, front, rnd(&r, vertex, 5), rnd(&r, vertex, 6), &bs);
+        material_sample(mat, ns, wo, front, rnd(&r, vertex, 5), rnd(&r, vertex, 6), &bs);
         float side = v3_dot(bs.wi, ng);
         if (bs.pdf <= 0.0f || (bs.transmitted ? side >= 0.0f : side <= 0.0f))
             break;

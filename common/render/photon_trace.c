@@ -303,6 +303,8 @@ static void trace_photon(const struct trace_ctx *tc, uint64_t index, struct phot
         const struct material *mat = &sc->materials[s.material];
         struct material tex_mat; /* textures: point lookups, and s.ns bumped (texshade.h) */
         mat = texshade_surface(job, o, d, &h, time01, NULL, &s, mat, &tex_mat, NULL);
+        if (material_is_anisotropic(mat)) /* the roughness axes follow the uv map */
+            mat = material_with_axis(mat, surface_dpdu(&job->accel, o, d, &h, time01), &tex_mat);
         /* Light reaching a diffuse surface after an interaction: its indirect light (what
          * arrives straight from a light, next-event estimation computes). */
         if (surf && indirect && mat->type == MATERIAL_DIFFUSE && !v3_is_black(mat->albedo))
@@ -312,7 +314,7 @@ static void trace_photon(const struct trace_ctx *tc, uint64_t index, struct phot
         vec3 ng = front ? s.ng : v3_neg(s.ng);
         vec3 ns = v3_dot(s.ns, ng) < 0.0f ? v3_neg(s.ns) : s.ns;
         struct bsdf_sample bs;
-        material_sample(mat, ns, s.dpdu, wo, front, rng_uniform(key, dim + 5), rng_uniform(key, dim + 6), &bs);
+        material_sample(mat, ns, wo, front, rng_uniform(key, dim + 5), rng_uniform(key, dim + 6), &bs);
         float side = v3_dot(bs.wi, ng);
         if (bs.pdf <= 0.0f || (bs.transmitted ? side >= 0.0f : side <= 0.0f))
             return;

@@ -48,19 +48,6 @@ static float triangle_p_err(vec3 p, uint32_t geom, uint32_t prim, const struct a
     return f_min(mag, 0.5f) * 0x1p-20f;
 }
 
-/* dP/du of the triangle (a, b, c) with texture coordinates uv (3 pairs): e1 dv2 - e2 dv1
- * over the uv triangle's determinant; zero when the uv triangle has no area. */
-static vec3 triangle_dpdu(vec3 a, vec3 b, vec3 c, const float *uv0, const float *uv1, const float *uv2)
-{
-    float du1 = uv1[0] - uv0[0], dv1 = uv1[1] - uv0[1], du2 = uv2[0] - uv0[0], dv2 = uv2[1] - uv0[1];
-    float det = du1 * dv2 - du2 * dv1, scale = fmaxf(fabsf(du1 * dv2), fabsf(du2 * dv1));
-    if (!(fabsf(det) > 1e-6f * scale) || !isfinite(det))
-        return v3(0, 0, 0);
-    vec3 e1 = v3_sub(b, a), e2 = v3_sub(c, a);
-    vec3 t = v3_scale(v3_sub(v3_scale(e1, dv2), v3_scale(e2, dv1)), 1.0f / det);
-    return v3_is_finite(t) ? t : v3(0, 0, 0);
-}
-
 /* The hit as a surface point at the ray's time. Still geometry: barycentrics of the
  * stored vertices (exact to rounding). Rigid motion: the same in object space, then the
  * instance transform at time01 (from Embree, so it matches what was intersected), normals
@@ -71,19 +58,18 @@ void surface_from_hit(const struct accel *acc, const struct light_table *lt, vec
     const struct scene *sc = acc->desc;
     struct xform x;
     s->p_err = 0.0f;
-    s->dpdu = v3(0, 0, 0);
     int moving = accel_object_xform(acc, h->geom, h->prim, time01, &x);
     if (h->geom == acc->sphere_geom && sc->num_spheres > 0) {
         const struct sphere *sp = &sc->spheres[h->prim];
-        vec3 p = v3_add(org, v3_scale(dir, h->t)), n;
+        vec3 p = v3_add(org, v3_scale(dir, h->t));
         if (moving) {
             struct xform xi = motion_xform_inverse(&x);
-            n = v3_normalize(v3_sub(xform_point(&xi, p), sp->center));
+            vec3 n = v3_normalize(v3_sub(xform_point(&xi, p), sp->center));
             s->p = xform_point(&x, v3_add(sp->center, v3_scale(n, sp->radius)));
             s->ng = s->ns = v3_normalize(motion_xform_normal(&x, n));
             s->p_err = (v3_max_abs(s->p) + v3_max_abs(sp->center) + sp->radius) * 0x1p-20f;
         } else {
-            n = v3_normalize(v3_sub(p, sp->center));
+            vec3 n = v3_normalize(v3_sub(p, sp->center));
             s->p = v3_add(sp->center, v3_scale(n, sp->radius)); /* re-project onto the surface */
             s->ng = s->ns = n;
             /* center + r n rounds at the scale of |center| and r, not of |p|: a floor made of
@@ -91,12 +77,6 @@ void surface_from_hit(const struct accel *acc, const struct light_table *lt, vec
             s->p_err = (v3_max_abs(sp->center) + sp->radius) * 0x1p-21f;
         }
         s->material = sp->material_id;
-        if (material_is_anisotropic(&sc->materials[s->material])) {
-            /* dP/du of u = 0.5 + atan2(x, z) / 2 pi: 2 pi r (z, 0, -x) / |n|, in object space;
-             * zero at the poles. */
-            vec3 t = v3_scale(v3(n.z, 0.0f, -n.x), 2.0f * (float)M_PI * sp->radius);
-            s->dpdu = moving ? xform_vector(&x, t) : t;
-        }
         s->light = lt->sphere_light ? lt->sphere_light[h->prim] : LIGHT_NONE;
         return;
     }
@@ -104,22 +84,16 @@ void surface_from_hit(const struct accel *acc, const struct light_table *lt, vec
     const uint32_t *idx = &m->indices[3 * h->prim];
     const struct accel_motion *mo = acc->mesh_motion ? &acc->mesh_motion[h->geom] : NULL;
     float w = 1.0f - h->u - h->v;
-    s->material = m->material_ids[h->prim];
-    const int tangent = m->uvs && material_is_anisotropic(&sc->materials[s->material]);
     if (mo && mo->num_steps > 0) {
         vec3 va = step_vertex(mo, m->num_vertices, idx[0], time01), vb = step_vertex(mo, m->num_vertices, idx[1], time01),
              vc = step_vertex(mo, m->num_vertices, idx[2], time01);
         s->p = v3_add(v3_add(v3_scale(va, w), v3_scale(vb, h->u)), v3_scale(vc, h->v));
         s->ng = v3_normalize(v3_cross(v3_sub(vb, va), v3_sub(vc, va)));
         s->ns = s->ng;
-        if (tangent)
-            s->dpdu = triangle_dpdu(va, vb, vc, &m->uvs[2 * idx[0]], &m->uvs[2 * idx[1]], &m->uvs[2 * idx[2]]);
     } else {
         const float *a = &m->positions[3 * idx[0]], *b = &m->positions[3 * idx[1]], *c = &m->positions[3 * idx[2]];
         vec3 va = v3(a[0], a[1], a[2]), vb = v3(b[0], b[1], b[2]), vc = v3(c[0], c[1], c[2]);
         s->p = v3_add(v3_add(v3_scale(va, w), v3_scale(vb, h->u)), v3_scale(vc, h->v));
-        if (tangent)
-            s->dpdu = triangle_dpdu(va, vb, vc, &m->uvs[2 * idx[0]], &m->uvs[2 * idx[1]], &m->uvs[2 * idx[2]]);
         s->ng = acc->face_normals[h->geom][h->prim];
         s->ns = s->ng;
         if (m->normals) {
@@ -135,15 +109,64 @@ void surface_from_hit(const struct accel *acc, const struct light_table *lt, vec
         s->p = xform_point(&x, s->p);
         s->ng = v3_normalize(motion_xform_normal(&x, s->ng));
         s->ns = v3_normalize(motion_xform_normal(&x, s->ns));
-        if (tangent)
-            s->dpdu = xform_vector(&x, s->dpdu);
     }
     s->p_err = triangle_p_err(s->p, h->geom, h->prim, acc, mo, time01);
+    s->material = m->material_ids[h->prim];
     s->light = lt->tri_light && lt->tri_light[h->geom] ? lt->tri_light[h->geom][h->prim] : LIGHT_NONE;
 }
 
+/* dP/du of the triangle (a, b, c) with texture coordinates uv0..2: e1 dv2 - e2 dv1 over
+ * the uv triangle's determinant; zero when the uv triangle has no area. */
+static vec3 triangle_dpdu(vec3 a, vec3 b, vec3 c, const float *uv0, const float *uv1, const float *uv2)
+{
+    float du1 = uv1[0] - uv0[0], dv1 = uv1[1] - uv0[1], du2 = uv2[0] - uv0[0], dv2 = uv2[1] - uv0[1];
+    float det = du1 * dv2 - du2 * dv1, scale = fmaxf(fabsf(du1 * dv2), fabsf(du2 * dv1));
+    if (!(fabsf(det) > 1e-6f * scale) || !isfinite(det))
+        return v3(0, 0, 0);
+    vec3 e1 = v3_sub(b, a), e2 = v3_sub(c, a);
+    vec3 t = v3_scale(v3_sub(v3_scale(e1, dv2), v3_scale(e2, dv1)), 1.0f / det);
+    return v3_is_finite(t) ? t : v3(0, 0, 0);
+}
+
+vec3 surface_dpdu(const struct accel *acc, vec3 org, vec3 dir, const struct accel_hit *h, float time01)
+{
+    const struct scene *sc = acc->desc;
+    struct xform x;
+    int moving = accel_object_xform(acc, h->geom, h->prim, time01, &x);
+    vec3 t;
+    if (h->geom == acc->sphere_geom && sc->num_spheres > 0) {
+        const struct sphere *sp = &sc->spheres[h->prim];
+        vec3 p = v3_add(org, v3_scale(dir, h->t));
+        struct xform xi;
+        if (moving) {
+            xi = motion_xform_inverse(&x);
+            p = xform_point(&xi, p);
+        }
+        /* dP/du of u = 0.5 + atan2(x, z) / 2 pi: 2 pi r (z, 0, -x) / |q| in object space */
+        vec3 n = v3_normalize(v3_sub(p, sp->center));
+        t = v3_scale(v3(n.z, 0.0f, -n.x), 2.0f * (float)M_PI * sp->radius);
+    } else {
+        const struct mesh *m = &sc->meshes[h->geom];
+        if (!m->uvs)
+            return v3(0, 0, 0);
+        const uint32_t *idx = &m->indices[3 * h->prim];
+        const struct accel_motion *mo = acc->mesh_motion ? &acc->mesh_motion[h->geom] : NULL;
+        vec3 v[3];
+        for (int k = 0; k < 3; k++) {
+            if (mo && mo->num_steps > 0) {
+                v[k] = step_vertex(mo, m->num_vertices, idx[k], time01);
+            } else {
+                const float *a = &m->positions[3 * idx[k]];
+                v[k] = v3(a[0], a[1], a[2]);
+            }
+        }
+        t = triangle_dpdu(v[0], v[1], v[2], &m->uvs[2 * idx[0]], &m->uvs[2 * idx[1]], &m->uvs[2 * idx[2]]);
+    }
+    return moving ? xform_vector(&x, t) : t;
+}
+
 int nee_prepare(const struct light_table *lt, const struct scene *sc, const struct material *mat, vec3 p, vec3 ns,
-                vec3 tu, vec3 ng, vec3 wo, int front, int through, float pick, float u, float v, struct nee_sample *n)
+                vec3 ng, vec3 wo, int front, int through, float pick, float u, float v, struct nee_sample *n)
 {
     light_sample(lt, sc, p, pick, u, v, &n->ls);
     if (!(n->ls.pdf > 0.0f) || v3_is_black(n->ls.radiance))
@@ -154,7 +177,7 @@ int nee_prepare(const struct light_table *lt, const struct scene *sc, const stru
     float side = v3_dot(wi, ng);
     n->transmitted = side < 0.0f;
     int ok = side > 0.0f || (through && side < 0.0f && mat->type == MATERIAL_DIELECTRIC);
-    n->f = ok ? material_eval(mat, ns, tu, wo, wi, front, &n->bsdf_pdf) : v3(0, 0, 0);
+    n->f = ok ? material_eval(mat, ns, wo, wi, front, &n->bsdf_pdf) : v3(0, 0, 0);
     if (v3_is_black(n->f))
         return 0;
     const struct light_sample *ls = &n->ls;

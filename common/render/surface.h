@@ -18,23 +18,25 @@ struct surface {
     uint32_t material;
     uint32_t light;     /* light entry, or LIGHT_NONE */
     float p_err;        /* bound on how far p may lie off the true surface (triangles: only near the origin) */
-    vec3 dpdu;          /* where the material is anisotropic: dP/du of the uv map at p (world space, not
-                         * unit; the u axis of the roughness), else zero; zero too without uvs or where the
-                         * map is degenerate (the lobe then takes the arbitrary frame) */
 };
 
 /* Hit h of the ray (org, dir) at time01 of accel acc as a surface point; lt gives the
- * emitter entry of the hit primitive. dP/du of triangles: per triangle, from its vertices
- * (as the ray sees them at time01: blended time steps of a deforming mesh, the instance
- * transform of a rigid one) and uvs, as pbrt-v4 and Cycles take the tangent; spheres: the
- * longitude direction of their parametrisation (u = 0.5 + atan2(x, z) / 2 pi about the
- * object's y axis, raydiff_sphere_uv), zero at the poles. */
+ * emitter entry of the hit primitive. */
 void surface_from_hit(const struct accel *acc, const struct light_table *lt, vec3 org, vec3 dir,
                       const struct accel_hit *h, float time01, struct surface *s);
 
+/* dP/du of the uv map at hit h of the ray (org, dir) at time01 (world space, not unit): the
+ * u axis of anisotropic roughness (material_with_axis), computed only for anisotropic
+ * materials. Triangles: per triangle, from its vertices as the ray sees them at time01
+ * (blended time steps of a deforming mesh, the instance transform of a rigid one) and
+ * their uvs, as pbrt-v4 and Cycles take the tangent; zero without uvs or where the uv
+ * triangle has no area. Spheres: the longitude direction of their parametrisation
+ * (u = 0.5 + atan2(x, z) / 2 pi about the object's y axis, as raydiff_sphere_uv), zero at
+ * the poles. Zero means the arbitrary frame (material_frame). */
+vec3 surface_dpdu(const struct accel *acc, vec3 org, vec3 dir, const struct accel_hit *h, float time01);
+
 /* Next-event estimation toward one light point sampled with (pick, u, v) from surface point
- * p (material mat, shading normal ns, u axis tu (surface.dpdu) and geometric normal ng on
- * wo's side): the sample, the
+ * p (material mat, shading normal ns and geometric normal ng on wo's side): the sample, the
  * BSDF value f toward it (cosine included) and its pdf, and the point a shadow ray aims at
  * (off an area light's surface). 0 when no light can arrive that way. Visibility is the
  * caller's: an occlusion ray (integrator.c) or transmittance (media_integrator.c). With
@@ -48,7 +50,7 @@ struct nee_sample {
     int transmitted;
 };
 int nee_prepare(const struct light_table *lt, const struct scene *sc, const struct material *mat, vec3 p, vec3 ns,
-                vec3 tu, vec3 ng, vec3 wo, int front, int through, float pick, float u, float v, struct nee_sample *n);
+                vec3 ng, vec3 wo, int front, int through, float pick, float u, float v, struct nee_sample *n);
 
 /* Power heuristic (beta = 2) of MIS between the strategies with pdfs a (the one taken) and b. */
 static inline float power_heuristic(float a, float b)

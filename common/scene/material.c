@@ -6,8 +6,8 @@
  * index change, L / n^2 is (Veach 1997, 5.2). A white furnace therefore stays white.
  *
  * Rough lobes (alpha above MICROFACET_SMOOTH_ALPHA) are single-scattering GGX microfacet
- * BSDFs in the frame (v3_basis(n), n) (anisotropic ones: the uv map's u axis made
- * orthogonal to n, material_frame), sampled through the visible normals (microfacet.h):
+ * BSDFs in the frame (v3_basis(n), n) (anisotropic ones: m->u_axis, the uv map's u axis,
+ * made orthogonal to n, material_frame), sampled through the visible normals (microfacet.h):
  * mirror and conductor reflect, f = D G F / (4 cos_o cos_i); the rough dielectric reflects
  * or refracts (Walter et al. 2007), picking reflection with probability F(wo . wm) like the
  * smooth one. Plastic is a dielectric coat (index ior, smooth or GGX) over Lambert:
@@ -111,14 +111,22 @@ void material_frame(vec3 n, vec3 tu, vec3 *x, vec3 *y)
     v3_basis(n, x, y);
 }
 
-/* The rough lobes' frame of m at n: oriented by tu when m is anisotropic, else the
+const struct material *material_with_axis(const struct material *m, vec3 tu, struct material *buf)
+{
+    if (m != buf)
+        *buf = *m;
+    buf->u_axis = tu;
+    return buf;
+}
+
+/* The rough lobes' frame of m at n: oriented by m->u_axis when m is anisotropic, else the
  * arbitrary frame (isotropic lobes do not depend on it; their samples keep their bits). */
-static struct frame frame_of(const struct material *m, vec3 n, vec3 tu)
+static struct frame frame_of(const struct material *m, vec3 n)
 {
     struct frame f;
     f.n = n;
     if (material_is_anisotropic(m))
-        material_frame(n, tu, &f.t, &f.b);
+        material_frame(n, m->u_axis, &f.t, &f.b);
     else
         v3_basis(n, &f.t, &f.b);
     return f;
@@ -210,23 +218,35 @@ static vec3 dielectric_eval(const struct material *m, const struct ggx *g, vec3 
     return v3_scale(m->transmittance, v);
 }
 
-vec3 material_eval(const struct material *m, vec3 n, vec3 tu, vec3 wo, vec3 wi, int front, float *pdf)
+/* The glossy types of material_eval, out of line: their frames and Fresnel terms need a
+ * large stack frame that the Lambertian case, the most common, should not set up. */
+__attribute__((noinline)) static vec3 eval_glossy(const struct material *m, vec3 n, vec3 wo, vec3 wi, int front,
+                                                  float *pdf);
+
+vec3 material_eval(const struct material *m, vec3 n, vec3 wo, vec3 wi, int front, float *pdf)
 {
     *pdf = 0.0f;
-    switch (m->type) {
-    case MATERIAL_DIFFUSE: {
+    if (m->type == MATERIAL_DIFFUSE) {
         float c = v3_dot(n, wi);
         if (c <= 0.0f)
             return v3(0, 0, 0);
         *pdf = c * (float)M_1_PI;
         return v3_scale(m->albedo, c * (float)M_1_PI);
     }
+    return eval_glossy(m, n, wo, wi, front, pdf);
+}
+
+static vec3 eval_glossy(const struct material *m, vec3 n, vec3 wo, vec3 wi, int front, float *pdf)
+{
+    switch (m->type) {
+    case MATERIAL_DIFFUSE:
+        break; /* material_eval's */
     case MATERIAL_MIRROR:
     case MATERIAL_CONDUCTOR:
     case MATERIAL_DIELECTRIC: {
         if (material_is_smooth(m))
             break; /* a delta BSDF is zero for every direction a light sample can pick */
-        struct frame fr = frame_of(m, n, tu);
+        struct frame fr = frame_of(m, n);
         struct ggx g = ggx_of(m);
         vec3 lo = to_local(&fr, wo), li = to_local(&fr, wi);
         if (!(lo.z > 0.0f))
@@ -250,7 +270,7 @@ vec3 material_eval(const struct material *m, vec3 n, vec3 tu, vec3 wo, vec3 wi, 
         vec3 f = v3_scale(m->albedo, (float)M_1_PI * (1.0f - fo) * (1.0f - fi) * ci);
         *pdf = (1.0f - pc) * ci * (float)M_1_PI;
         if (!material_is_smooth(m)) {
-            struct frame fr = frame_of(m, n, tu);
+            struct frame fr = frame_of(m, n);
             struct ggx g = ggx_of(m);
             vec3 lo = to_local(&fr, wo), li = to_local(&fr, wi), wm = v3_normalize(v3_add(lo, li));
             float fm = material_fresnel_dielectric(v3_dot(lo, wm), m->ior), cp;
@@ -264,12 +284,12 @@ vec3 material_eval(const struct material *m, vec3 n, vec3 tu, vec3 wo, vec3 wi, 
 }
 
 /* A rough lobe sample (local frame), completed with the evaluated weight. */
-static void finish_rough(const struct material *m, const struct frame *fr, vec3 n, vec3 tu, vec3 wo, vec3 li,
-                         int front, struct bsdf_sample *out)
+static void finish_rough(const struct material *m, const struct frame *fr, vec3 n, vec3 wo, vec3 li, int front,
+                         struct bsdf_sample *out)
 {
     out->wi = v3_normalize(to_world(fr, li));
     float pdf;
-    vec3 f = material_eval(m, n, tu, wo, out->wi, front, &pdf);
+    vec3 f = material_eval(m, n, wo, out->wi, front, &pdf);
     if (!(pdf > 0.0f) || v3_is_black(f)) {
         no_sample(out);
         return;
@@ -285,10 +305,10 @@ static void finish_rough(const struct material *m, const struct frame *fr, vec3 
     }
 }
 
-static void sample_rough(const struct material *m, vec3 n, vec3 tu, vec3 wo, int front, float u1, float u2,
+static void sample_rough(const struct material *m, vec3 n, vec3 wo, int front, float u1, float u2,
                          struct bsdf_sample *out)
 {
-    struct frame fr = frame_of(m, n, tu);
+    struct frame fr = frame_of(m, n);
     struct ggx g = ggx_of(m);
     vec3 lo = to_local(&fr, wo);
     if (!(lo.z > 0.0f)) {
@@ -314,15 +334,18 @@ static void sample_rough(const struct material *m, vec3 n, vec3 tu, vec3 wo, int
             return;
         }
     }
-    finish_rough(m, &fr, n, tu, wo, li, front, out);
+    finish_rough(m, &fr, n, wo, li, front, out);
 }
 
-void material_sample(const struct material *m, vec3 n, vec3 tu, vec3 wo, int front, float u1, float u2,
+/* The glossy types of material_sample, out of line (as eval_glossy). */
+__attribute__((noinline)) static void sample_glossy(const struct material *m, vec3 n, vec3 wo, int front, float u1,
+                                                    float u2, struct bsdf_sample *out);
+
+void material_sample(const struct material *m, vec3 n, vec3 wo, int front, float u1, float u2,
                      struct bsdf_sample *out)
 {
     out->eta2 = 1.0f;
-    switch (m->type) {
-    case MATERIAL_DIFFUSE: {
+    if (m->type == MATERIAL_DIFFUSE) {
         float r = sqrtf(u1), sp, cp;
         sincos_2pi(u2, &sp, &cp);
         float x = r * cp, y = r * sp, z = sqrtf(1.0f - u1); /* u1 < 1 */
@@ -341,10 +364,19 @@ void material_sample(const struct material *m, vec3 n, vec3 tu, vec3 wo, int fro
         out->weight = m->albedo;
         return;
     }
+    sample_glossy(m, n, wo, front, u1, u2, out);
+}
+
+static void sample_glossy(const struct material *m, vec3 n, vec3 wo, int front, float u1, float u2,
+                          struct bsdf_sample *out)
+{
+    switch (m->type) {
+    case MATERIAL_DIFFUSE:
+        break; /* material_sample's */
     case MATERIAL_MIRROR:
     case MATERIAL_CONDUCTOR: {
         if (!material_is_smooth(m)) {
-            sample_rough(m, n, tu, wo, front, u1, u2, out);
+            sample_rough(m, n, wo, front, u1, u2, out);
             return;
         }
         float c = v3_dot(wo, n);
@@ -361,7 +393,7 @@ void material_sample(const struct material *m, vec3 n, vec3 tu, vec3 wo, int fro
     }
     case MATERIAL_DIELECTRIC: {
         if (!material_is_smooth(m)) {
-            sample_rough(m, n, tu, wo, front, u1, u2, out);
+            sample_rough(m, n, wo, front, u1, u2, out);
             return;
         }
         float c = v3_dot(wo, n);
@@ -403,7 +435,7 @@ void material_sample(const struct material *m, vec3 n, vec3 tu, vec3 wo, int fro
             out->transmitted = 0;
             return;
         }
-        struct frame fr = frame_of(m, n, tu);
+        struct frame fr = frame_of(m, n);
         vec3 lo = to_local(&fr, wo), li;
         if (uc < pc) {
             struct ggx g = ggx_of(m);
@@ -419,7 +451,7 @@ void material_sample(const struct material *m, vec3 n, vec3 tu, vec3 wo, int fro
             sincos_2pi(u2, &sp, &cp);
             li = v3(r * cp, r * sp, sqrtf(f_max(0.0f, 1.0f - u1)));
         }
-        finish_rough(m, &fr, n, tu, wo, li, front, out);
+        finish_rough(m, &fr, n, wo, li, front, out);
         return;
     }
     }

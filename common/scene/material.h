@@ -29,7 +29,7 @@ static inline int material_is_delta(const struct material *m)
 }
 
 /* Anisotropic roughness (alpha_x != alpha_y): the lobe's widths lie along the u and v
- * axes of the surface's uv map. */
+ * axes of the surface's uv map (m->u_axis, set per hit by material_with_axis). */
 static inline int material_is_anisotropic(const struct material *m)
 {
     return m->alpha_x != m->alpha_y;
@@ -37,16 +37,20 @@ static inline int material_is_anisotropic(const struct material *m)
 
 /* The rough lobes' frame (x, y the anisotropy axes, z = n): x is tu made orthogonal to n
  * (Gram-Schmidt) and normalised, y = n x x; where tu is zero or (nearly) parallel to n, the
- * arbitrary frame v3_basis(n). Pure and deterministic. */
+ * arbitrary frame v3_basis(n). Pure and deterministic. Anisotropic lobes take it with
+ * tu = m->u_axis; isotropic ones always the arbitrary frame (they do not depend on it). */
 void material_frame(vec3 n, vec3 tu, vec3 *x, vec3 *y);
+
+/* m with its u axis set to tu (the surface's dP/du at the hit, surface_dpdu), in *buf (m
+ * itself may be buf, e.g. a textured copy). Callers do this only where
+ * material_is_anisotropic(m): other scenes never copy. */
+const struct material *material_with_axis(const struct material *m, vec3 tu, struct material *buf);
 
 /* front: wo is on the outside (the side the geometric normal points to); dielectrics and
  * plastic care (it decides which index of refraction is on which side). eval returns the
- * reflection lobe when wi is on n's side, else the transmission lobe (rough dielectric).
- * tu: the direction of the surface's u axis (dP/du, surface.h), which orients anisotropic
- * lobes (material_frame); zero for the arbitrary frame. Isotropic lobes never look at it. */
-vec3 material_eval(const struct material *m, vec3 n, vec3 tu, vec3 wo, vec3 wi, int front, float *pdf);
-void material_sample(const struct material *m, vec3 n, vec3 tu, vec3 wo, int front, float u1, float u2,
+ * reflection lobe when wi is on n's side, else the transmission lobe (rough dielectric). */
+vec3 material_eval(const struct material *m, vec3 n, vec3 wo, vec3 wi, int front, float *pdf);
+void material_sample(const struct material *m, vec3 n, vec3 wo, int front, float u1, float u2,
                      struct bsdf_sample *out);
 
 /* Fresnel reflectance of unpolarised light at a smooth dielectric boundary. cos_i in

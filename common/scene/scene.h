@@ -30,7 +30,7 @@ struct material {
     float ior;          /* dielectric, plastic: index of refraction inside / outside (the side
                          * the geometric normal points to is outside) */
     float alpha_x, alpha_y; /* mirror, conductor, dielectric, plastic: GGX widths along the
-                             * shading frame's axes (v3_basis of the normal); 0 = smooth */
+                             * shading frame's axes (u_axis and its completion, material.h); 0 = smooth */
     vec3 eta, k;        /* conductor: complex index of refraction per channel */
     int schlick;        /* conductor: Schlick's Fresnel with F0 = reflectance, not eta and k */
     int sample_all;     /* GGX lobes: sample D cos (all normals), not the visible normals */
@@ -40,6 +40,8 @@ struct material {
     uint32_t bump_tex;   /* any type: 1 + index of a height texture perturbing the shading normal; 0 = none */
     float bump_scale;    /* height units per texture value (in scene units) */
     uint32_t normal_tex; /* any type: 1 + index of a tangent-space normal map (RGB = 2 n - 1); 0 = none */
+    vec3 u_axis;         /* anisotropic lobes: the surface's u direction at the hit shaded (set on a
+                          * per-hit copy, material_with_axis); zero in the scene: the arbitrary frame */
 };
 
 /* A triangle mesh in the render frame. normals and uvs are per vertex and may be NULL. */

@@ -100,7 +100,7 @@ static int wi_of(const struct chi_ctx *c, double a, double b, int t, double wi[3
 static double pdf_at(const struct chi_ctx *c, const double wi[3])
 {
     float pdf;
-    material_eval(c->m, v3(0, 0, 1), v3(0, 0, 0), c->wo, v3((float)wi[0], (float)wi[1], (float)wi[2]), c->front, &pdf);
+    material_eval(c->m, v3(0, 0, 1), c->wo, v3((float)wi[0], (float)wi[1], (float)wi[2]), c->front, &pdf);
     return pdf;
 }
 
@@ -176,7 +176,7 @@ static void chi_square(const struct material *m, vec3 wo, int front, const char 
     int got = 0;
     for (int s = 0; s < N; s++) {
         struct bsdf_sample bs;
-        material_sample(m, v3(0, 0, 1), v3(0, 0, 0), wo, front, rng_uniform(key, 2 * (uint32_t)s), rng_uniform(key, 2 * (uint32_t)s + 1), &bs);
+        material_sample(m, v3(0, 0, 1), wo, front, rng_uniform(key, 2 * (uint32_t)s), rng_uniform(key, 2 * (uint32_t)s + 1), &bs);
         if (!(bs.pdf > 0.0f))
             continue;
         int t, b = bin_of(&c, bs.wi, &t);
@@ -254,12 +254,12 @@ Test(microfacet, sample_weight_is_eval_over_pdf)
                 vec3 wo = dir_of(85.0f * rng_uniform(key, 4 * (uint32_t)s), 360.0f * rng_uniform(key, 4 * (uint32_t)s + 1));
                 int front = s & 1;
                 struct bsdf_sample bs;
-                material_sample(&m, v3(0, 0, 1), v3(0, 0, 0), wo, front, rng_uniform(key, 4 * (uint32_t)s + 2),
+                material_sample(&m, v3(0, 0, 1), wo, front, rng_uniform(key, 4 * (uint32_t)s + 2),
                                 rng_uniform(key, 4 * (uint32_t)s + 3), &bs);
                 if (!(bs.pdf > 0.0f))
                     continue;
                 float pdf;
-                vec3 f = material_eval(&m, v3(0, 0, 1), v3(0, 0, 0), wo, bs.wi, front, &pdf);
+                vec3 f = material_eval(&m, v3(0, 0, 1), wo, bs.wi, front, &pdf);
                 cr_assert(fabsf(pdf - bs.pdf) <= 1e-4f * pdf, "type %d: pdf %g against %g", t, (double)pdf, (double)bs.pdf);
                 cr_assert(fabsf(f.y / pdf - bs.weight.y) <= 1e-4f * bs.weight.y + 1e-7f, "type %d", t);
                 cr_assert(bs.is_delta == 0);
@@ -277,7 +277,7 @@ Test(microfacet, reciprocity)
         const enum material_type types[] = {MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, MATERIAL_PLASTIC};
         for (int t = 0; t < 3; t++) {
             struct material m = rough(types[t], r, 0.7f * r);
-            vec3 fab = material_eval(&m, v3(0, 0, 1), v3(0, 0, 0), a, b, 1, &p1), fba = material_eval(&m, v3(0, 0, 1), v3(0, 0, 0), b, a, 1, &p2);
+            vec3 fab = material_eval(&m, v3(0, 0, 1), a, b, 1, &p1), fba = material_eval(&m, v3(0, 0, 1), b, a, 1, &p2);
             double x = fab.y / b.z, y = fba.y / a.z;
             cr_assert(fabs(x - y) <= 2e-4 * fmax(x, y) + 1e-9, "type %d: %g against %g", t, x, y);
         }
@@ -286,7 +286,7 @@ Test(microfacet, reciprocity)
          * surface, n 1.5), f1 n_i^2 / n_o^2 = f2, the reverse query shading from inside. */
         struct material m = rough(MATERIAL_DIELECTRIC, r, r);
         vec3 bi = v3(b.x, b.y, -b.z);
-        vec3 f1 = material_eval(&m, v3(0, 0, 1), v3(0, 0, 0), a, bi, 1, &p1), f2 = material_eval(&m, v3(0, 0, -1), v3(0, 0, 0), bi, a, 0, &p2);
+        vec3 f1 = material_eval(&m, v3(0, 0, 1), a, bi, 1, &p1), f2 = material_eval(&m, v3(0, 0, -1), bi, a, 0, &p2);
         double x = f1.y / fabs(bi.z) * (1.5 * 1.5), y = f2.y / fabs(a.z);
         cr_assert(fabs(x - y) <= 1e-2 * fmax(x, y) + 1e-6, "transmission: %g against %g", x, y);
     }
@@ -311,7 +311,7 @@ Test(microfacet, energy_white_furnace)
                 double sum = 0.0, sum2 = 0.0;
                 for (int s = 0; s < N; s++) {
                     struct bsdf_sample bs;
-                    material_sample(&m, v3(0, 0, 1), v3(0, 0, 0), wo, 1, rng_uniform(key, 2 * (uint32_t)s), rng_uniform(key, 2 * (uint32_t)s + 1), &bs);
+                    material_sample(&m, v3(0, 0, 1), wo, 1, rng_uniform(key, 2 * (uint32_t)s), rng_uniform(key, 2 * (uint32_t)s + 1), &bs);
                     double w = bs.pdf > 0.0f ? bs.weight.y / bs.eta2 : 0.0;
                     sum += w;
                     sum2 += w * w;
@@ -337,8 +337,8 @@ Test(microfacet, smooth_limits)
             struct material smooth = rough(t ? MATERIAL_DIELECTRIC : MATERIAL_MIRROR, 0.0f, 0.0f);
             struct material below = rough(t ? MATERIAL_DIELECTRIC : MATERIAL_MIRROR, 0.003f, 0.002f);
             struct bsdf_sample a, b, c;
-            material_sample(&smooth, v3(0, 0, 1), v3(0, 0, 0), wo, front, u1, u2, &a);
-            material_sample(&below, v3(0, 0, 1), v3(0, 0, 0), wo, front, u1, u2, &b);
+            material_sample(&smooth, v3(0, 0, 1), wo, front, u1, u2, &a);
+            material_sample(&below, v3(0, 0, 1), wo, front, u1, u2, &b);
             cr_assert(material_is_delta(&below) && a.is_delta);
             cr_assert(memcmp(&a, &b, sizeof a) == 0, "type %d: not today's delta sample", t);
             /* Today's mirror: the mirror direction, weight the reflectance. */
@@ -349,7 +349,7 @@ Test(microfacet, smooth_limits)
              * direction when it picks the same side. */
             struct material above = rough(t ? MATERIAL_DIELECTRIC : MATERIAL_MIRROR, 0.0033f, 0.0033f);
             cr_assert(!material_is_delta(&above));
-            material_sample(&above, v3(0, 0, 1), v3(0, 0, 0), wo, front, u1, u2, &c);
+            material_sample(&above, v3(0, 0, 1), wo, front, u1, u2, &c);
             if (c.pdf > 0.0f && c.transmitted == a.transmitted && a.pdf > 0.0f)
                 cr_assert(v3_dot(c.wi, a.wi) > 1.0f - 1e-6f, "type %d: rough sample %g off", t, (double)acosf(fminf(1.0f, v3_dot(c.wi, a.wi))));
         }
@@ -357,8 +357,8 @@ Test(microfacet, smooth_limits)
         struct material cm = rough(MATERIAL_CONDUCTOR, 0.0f, 0.0f), mm = rough(MATERIAL_MIRROR, 0.0f, 0.0f);
         cm.schlick = 1;
         struct bsdf_sample a, b;
-        material_sample(&cm, v3(0, 0, 1), v3(0, 0, 0), wo, 1, u1, u2, &a);
-        material_sample(&mm, v3(0, 0, 1), v3(0, 0, 0), wo, 1, u1, u2, &b);
+        material_sample(&cm, v3(0, 0, 1), wo, 1, u1, u2, &a);
+        material_sample(&mm, v3(0, 0, 1), wo, 1, u1, u2, &b);
         cr_assert(memcmp(&a, &b, sizeof a) == 0);
     }
 }

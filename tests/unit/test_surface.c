@@ -1,5 +1,5 @@
-/* The surface interaction's u axis (surface.dpdu, render/surface.c) and the anisotropic
- * lobes' frame built on it (material_frame, scene/material.c): the roughness axes follow
+/* The surface's u axis (surface_dpdu, render/surface.c) and the anisotropic lobes' frame
+ * built on it (material_with_axis, material_frame, scene/material.c): the roughness axes follow
  * the mesh's uv map (swapping u and v turns them 90 degrees), the sphere's longitude, the
  * rigid motion at the ray's time; the arbitrary frame where there are no uvs. And a
  * render: an anisotropic highlight on a quad stretches along the uv map's u axis. */
@@ -7,10 +7,12 @@
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 #include "helpers.h"
 #include "base/log.h"
 #include "render/render_job.h"
 #include "render/surface.h"
+#include "base/rng.h"
 #include "scene/material.h"
 
 #define QUAD_V "v -2 -2 0\nv 2 -2 0\nv 2 2 0\nv -2 2 0\n"
@@ -41,8 +43,14 @@ static void load(const char *objects, uint32_t size, uint32_t spp, struct scene 
     cr_assert_eq(test_scene_load(text, files, s, err), 0, "%s", err);
 }
 
-/* The surface where the ray from (x, y, 4) down -z meets the scene at time01. */
-static struct surface hit_at(const char *objects, float x, float y, float time01)
+struct hit {
+    struct surface s;
+    vec3 dpdu;
+};
+
+/* The surface where the ray from (x, y, 4) down -z meets the scene at time01, and its dP/du
+ * where the material is anisotropic (as the integrators ask for it). */
+static struct hit hit_at(const char *objects, float x, float y, float time01)
 {
     log_set_level(LOG_ERROR);
     struct scene s;
@@ -53,11 +61,13 @@ static struct surface hit_at(const char *objects, float x, float y, float time01
     struct accel_hit h;
     vec3 o = v3(x, y, 4), d = v3(0, 0, -1);
     cr_assert(accel_intersect(&job.accel, o, d, INFINITY, time01, &h));
-    struct surface sf;
-    surface_from_hit(&job.accel, &job.lights, o, d, &h, time01, &sf);
+    struct hit r;
+    surface_from_hit(&job.accel, &job.lights, o, d, &h, time01, &r.s);
+    r.dpdu = material_is_anisotropic(&s.materials[r.s.material]) ? surface_dpdu(&job.accel, o, d, &h, time01)
+                                                                  : v3(0, 0, 0);
     render_job_fini(&job);
     scene_fini(&s);
-    return sf;
+    return r;
 }
 
 /* v is a positive multiple of the unit vector want (to float rounding). */
@@ -72,32 +82,30 @@ static void assert_along(vec3 v, vec3 want, const char *what)
 
 Test(surface, dpdu_follows_the_uv_map)
 {
-    struct surface a = hit_at("{\"type\": \"obj\", \"file\": \"uv.obj\", \"material\": \"brushed\"}", 0.3f, 0.2f, 0.0f);
+    struct hit a = hit_at("{\"type\": \"obj\", \"file\": \"uv.obj\", \"material\": \"brushed\"}", 0.3f, 0.2f, 0.0f);
     assert_along(a.dpdu, v3(1, 0, 0), "u along x");
     cr_assert_float_eq(v3_length(a.dpdu), 4.0f, 1e-5f); /* the quad is 4 wide over u in [0, 1] */
-    struct surface b = hit_at("{\"type\": \"obj\", \"file\": \"swap.obj\", \"material\": \"brushed\"}", 0.3f, 0.2f, 0.0f);
+    struct hit b = hit_at("{\"type\": \"obj\", \"file\": \"swap.obj\", \"material\": \"brushed\"}", 0.3f, 0.2f, 0.0f);
     assert_along(b.dpdu, v3(0, 1, 0), "u and v swapped: u along y");
     /* Other side of the quad's diagonal (the other triangle): the same axis. */
-    struct surface c = hit_at("{\"type\": \"obj\", \"file\": \"uv.obj\", \"material\": \"brushed\"}", -0.5f, 0.7f, 0.0f);
+    struct hit c = hit_at("{\"type\": \"obj\", \"file\": \"uv.obj\", \"material\": \"brushed\"}", -0.5f, 0.7f, 0.0f);
     assert_along(c.dpdu, v3(1, 0, 0), "second triangle");
 }
 
-Test(surface, dpdu_zero_without_uvs_or_anisotropy)
+Test(surface, dpdu_zero_without_uvs)
 {
-    struct surface a = hit_at("{\"type\": \"obj\", \"file\": \"nouv.obj\", \"material\": \"brushed\"}", 0.3f, 0.2f, 0.0f);
+    struct hit a = hit_at("{\"type\": \"obj\", \"file\": \"nouv.obj\", \"material\": \"brushed\"}", 0.3f, 0.2f, 0.0f);
     cr_assert(a.dpdu.x == 0.0f && a.dpdu.y == 0.0f && a.dpdu.z == 0.0f, "no uvs: the arbitrary frame");
-    struct surface b = hit_at("{\"type\": \"obj\", \"file\": \"uv.obj\", \"material\": \"round\"}", 0.3f, 0.2f, 0.0f);
-    cr_assert(b.dpdu.x == 0.0f && b.dpdu.y == 0.0f && b.dpdu.z == 0.0f, "isotropic: not computed");
 }
 
 Test(surface, dpdu_of_a_sphere_is_its_longitude)
 {
     const char *sp = "{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1, \"material\": \"brushed\"}";
-    struct surface a = hit_at(sp, 0.0f, 0.0f, 0.0f);
+    struct hit a = hit_at(sp, 0.0f, 0.0f, 0.0f);
     assert_along(a.dpdu, v3(1, 0, 0), "sphere at +z");
-    struct surface b = hit_at(sp, 0.6f, 0.0f, 0.0f); /* n = (0.6, 0, 0.8) */
+    struct hit b = hit_at(sp, 0.6f, 0.0f, 0.0f); /* n = (0.6, 0, 0.8) */
     assert_along(b.dpdu, v3(0.8f, 0, -0.6f), "sphere at (0.6, 0, 0.8)");
-    cr_assert(fabsf(v3_dot(b.dpdu, b.ns)) < 1e-5f * v3_length(b.dpdu), "tangent to the sphere");
+    cr_assert(fabsf(v3_dot(b.dpdu, b.s.ns)) < 1e-5f * v3_length(b.dpdu), "tangent to the sphere");
 }
 
 Test(surface, dpdu_turns_with_rigid_motion)
@@ -119,11 +127,11 @@ Test(surface, frame_gram_schmidt_against_the_shading_normal)
     vec3 x, y;
     /* Smooth normals: the uv axis stays the surface's dP/du; the frame makes it orthogonal
      * to whatever shading normal the lobe uses, keeping it in the plane of (tu, n). */
-    struct surface s = hit_at("{\"type\": \"obj\", \"file\": \"smooth.obj\", \"material\": \"brushed\"}", 0.3f, 0.2f, 0.0f);
+    struct hit s = hit_at("{\"type\": \"obj\", \"file\": \"smooth.obj\", \"material\": \"brushed\"}", 0.3f, 0.2f, 0.0f);
     assert_along(s.dpdu, v3(1, 0, 0), "smooth quad: dP/du");
-    cr_assert(s.ns.x > 0.4f, "tilted shading normal");
-    material_frame(s.ns, s.dpdu, &x, &y);
-    cr_assert(fabsf(v3_dot(x, s.ns)) < 1e-6f && fabsf(v3_dot(y, s.ns)) < 1e-6f && fabsf(v3_dot(x, y)) < 1e-6f);
+    cr_assert(s.s.ns.x > 0.4f, "tilted shading normal");
+    material_frame(s.s.ns, s.dpdu, &x, &y);
+    cr_assert(fabsf(v3_dot(x, s.s.ns)) < 1e-6f && fabsf(v3_dot(y, s.s.ns)) < 1e-6f && fabsf(v3_dot(x, y)) < 1e-6f);
     cr_assert(fabsf(v3_length(x) - 1.0f) < 1e-6f && fabsf(v3_length(y) - 1.0f) < 1e-6f);
     cr_assert(fabsf(x.y) < 1e-6f && x.x > 0.0f, "x in the plane of dP/du and n");
     assert_along(y, v3(0, 1, 0), "y = n x x");
@@ -138,7 +146,8 @@ Test(surface, frame_gram_schmidt_against_the_shading_normal)
 
 Test(surface, anisotropic_lobe_turns_with_the_axis)
 {
-    struct material m = {0};
+    struct material m, mx, my;
+    memset(&m, 0, sizeof m);
     m.type = MATERIAL_CONDUCTOR;
     m.schlick = 1;
     m.reflectance = v3(0.9f, 0.9f, 0.9f);
@@ -154,13 +163,13 @@ Test(surface, anisotropic_lobe_turns_with_the_axis)
         vec3 wo = v3(sa * cosf(a), sa * sinf(a), ca), wi = v3(sb * cosf(b), sb * sinf(b), cb);
         vec3 rwo = v3(-wo.y, wo.x, wo.z), rwi = v3(-wi.y, wi.x, wi.z);
         float p1, p2;
-        vec3 f1 = material_eval(&m, n, v3(1, 0, 0), wo, wi, 1, &p1);
-        vec3 f2 = material_eval(&m, n, v3(0, 2, 0), rwo, rwi, 1, &p2);
+        vec3 f1 = material_eval(material_with_axis(&m, v3(1, 0, 0), &mx), n, wo, wi, 1, &p1);
+        vec3 f2 = material_eval(material_with_axis(&m, v3(0, 2, 0), &my), n, rwo, rwi, 1, &p2);
         cr_assert(fabsf(f1.x - f2.x) <= 1e-5f * fmaxf(1.0f, f1.x) && fabsf(p1 - p2) <= 1e-5f * fmaxf(1.0f, p1),
                   "pair %u: %g %g, pdf %g %g", i, f1.x, f2.x, p1, p2);
         struct bsdf_sample s1, s2;
-        material_sample(&m, n, v3(1, 0, 0), wo, 1, rng_uniform(key, 1000 + i), rng_uniform(key, 2000 + i), &s1);
-        material_sample(&m, n, v3(0, 2, 0), rwo, 1, rng_uniform(key, 1000 + i), rng_uniform(key, 2000 + i), &s2);
+        material_sample(&mx, n, wo, 1, rng_uniform(key, 1000 + i), rng_uniform(key, 2000 + i), &s1);
+        material_sample(&my, n, rwo, 1, rng_uniform(key, 1000 + i), rng_uniform(key, 2000 + i), &s2);
         cr_assert((s1.pdf > 0.0f) == (s2.pdf > 0.0f), "sample %u: one failed, not the other", i);
         cr_assert(!(s1.pdf > 0.0f) || (fabsf(s2.wi.x + s1.wi.y) < 1e-5f && fabsf(s2.wi.y - s1.wi.x) < 1e-5f && fabsf(s2.wi.z - s1.wi.z) < 1e-5f),
                   "sample %u turns with the axis", i);
@@ -169,15 +178,15 @@ Test(surface, anisotropic_lobe_turns_with_the_axis)
      * is brighter with u along x than with u along y. */
     vec3 wo = v3(0, 0, 1), wi = v3_normalize(v3(0.4f, 0, 1));
     float p;
-    float along = material_eval(&m, n, v3(1, 0, 0), wo, wi, 1, &p).x;
-    float across = material_eval(&m, n, v3(0, 1, 0), wo, wi, 1, &p).x;
+    float along = material_eval(material_with_axis(&m, v3(1, 0, 0), &mx), n, wo, wi, 1, &p).x;
+    float across = material_eval(material_with_axis(&m, v3(0, 1, 0), &my), n, wo, wi, 1, &p).x;
     cr_assert(along > 10.0f * across, "along u %g, across %g", along, across);
     /* An isotropic lobe ignores the axis, bit for bit. */
     m.alpha_x = m.alpha_y = 0.09f;
     vec3 tn = v3_normalize(v3(0.2f, 0.1f, 1.0f));
     struct bsdf_sample s1, s2;
-    material_sample(&m, tn, v3(0, 0, 0), wo, 1, 0.3f, 0.6f, &s1);
-    material_sample(&m, tn, v3(0.3f, 0.7f, 0.1f), wo, 1, 0.3f, 0.6f, &s2);
+    material_sample(&m, tn, wo, 1, 0.3f, 0.6f, &s1);
+    material_sample(material_with_axis(&m, v3(0.3f, 0.7f, 0.1f), &mx), tn, wo, 1, 0.3f, 0.6f, &s2);
     cr_assert(s1.wi.x == s2.wi.x && s1.wi.y == s2.wi.y && s1.wi.z == s2.wi.z && s1.pdf == s2.pdf);
 }
 
