@@ -251,3 +251,33 @@ double adapt_eta_samples(const struct adapt *a)
     double last = a->hist_samples[a->num_history - 1];
     return a->est <= a->aim ? last : last * pow(a->est / a->aim, 1.0 / b);
 }
+
+uint32_t adapt_tile_units(const uint32_t *old, const uint32_t *now, uint32_t nb)
+{
+    uint32_t lo = UINT32_MAX, hi = 0, units = 0;
+    for (uint32_t b = 0; b < nb; b++)
+        if (now[b] > old[b]) {
+            lo = old[b] < lo ? old[b] : lo;
+            hi = now[b] > hi ? now[b] : hi;
+        }
+    for (uint32_t p = lo; p < hi; p++)
+        for (uint32_t b = 0; b < nb; b++)
+            if (old[b] <= p && p < now[b]) {
+                units++;
+                break;
+            }
+    return units;
+}
+
+uint32_t adapt_fit_units(const uint32_t *old, uint32_t *now, uint32_t nb, uint32_t room)
+{
+    uint32_t units;
+    while ((units = adapt_tile_units(old, now, nb)) > room) {
+        uint32_t lowest = nb;
+        for (uint32_t b = 0; b < nb; b++)
+            if (now[b] > old[b] && (lowest == nb || old[b] < old[lowest]))
+                lowest = b;
+        now[lowest] = old[lowest];
+    }
+    return units;
+}

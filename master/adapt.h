@@ -19,7 +19,9 @@
 #define ADAPT_PRIOR_DOF 4.0
 #define ADAPT_CONFIDENCE_Z 1.0
 
-/* A tile's state as the rounds see it. */
+/* A tile's state as the rounds see it. The master's "tiles" here are the pixel blocks of
+ * the render's tiles (render/tile.h: a unit renders some blocks of a tile), in a grid of
+ * tiles_x blocks a row; a block past the image's edge has no pixels and gets nothing. */
 struct adapt_tile {
     uint32_t pixels;
     uint32_t passes;        /* passes released so far (its units 0..passes-1) */
@@ -91,6 +93,14 @@ double adapt_pool(const struct adapt *a, double *v, double *dof);
  * of freedom is off by about 1 / sqrt(2 dof) of itself, Z = a->confidence_z. The
  * allocation aims at the same figure. */
 int adapt_decide(struct adapt *a, int stop, uint64_t samples_total);
+/* Units that take one tile's blocks from old[b] to now[b] passes (b < nb): one unit per
+ * pass p some block gets (old[b] <= p < now[b]), rendering the blocks that get it. */
+uint32_t adapt_tile_units(const uint32_t *old, const uint32_t *now, uint32_t nb);
+/* A tile holds at most as many units as the frame's passes (its slots); a round that would
+ * need more than `room` units for a tile (blocks far apart in passes each need their own)
+ * keeps the growing block with the fewest passes (the lowest index first) where it is,
+ * again until it fits. Returns the units the round now needs. */
+uint32_t adapt_fit_units(const uint32_t *old, uint32_t *now, uint32_t nb, uint32_t room);
 /* Samples in all at which the fitted decay of the estimate (est ~ samples^-b over the
  * decisions so far) reaches the aim; 0 when it cannot be told (no target, one point). */
 double adapt_eta_samples(const struct adapt *a);

@@ -358,3 +358,63 @@ Test(adapt, pooled_estimate_resists_selection_bias)
     cr_assert(own > 1.25, "the simulation shows no selection bias (%.3f): it tests nothing", own);
     cr_assert(pooled >= 0.8 && pooled <= 1.1, "pooled: true / target %.3f, not within 0.8-1.1", pooled);
 }
+
+/* Per pixel block: tiles of 2x2 blocks, one noisy block in each. Allocated per block (64
+ * blocks of 64 pixels) the rounds reach the target with fewer samples than allocated per
+ * tile (16 tiles of 256 pixels, each the sum of its blocks), and the noisy blocks get
+ * more passes than their quiet neighbours in the same tile. */
+Test(adapt, blocks_reach_the_target_with_fewer_samples_than_tiles)
+{
+    enum { B = 64, T = 16 };
+    uint32_t bpx[B], tpx[T];
+    double bvar[B], tvar[T] = {0};
+    for (uint32_t b = 0; b < B; b++) {
+        uint32_t x = b % 8, y = b / 8, t = y / 2 * 4 + x / 2;
+        bpx[b] = 64;
+        bvar[b] = x % 2 == 0 && y % 2 == 0 ? 64.0 * 0.5 : 64.0 * 0.01;
+        tvar[t] += bvar[b];
+    }
+    for (uint32_t t = 0; t < T; t++)
+        tpx[t] = 256;
+    /* run_rounds takes a tile's sum of means as 64: per pixel 1 for the blocks; the tiles'
+     * per-pass variance scaled by (64 / 256)^2 gives them the same relative error. */
+    for (uint32_t t = 0; t < T; t++)
+        tvar[t] /= 16.0;
+    struct adapt *ab = adapt_new(B, 8, bpx, 512, 2, 0.02, 0), *at = adapt_new(T, 4, tpx, 512, 2, 0.02, 0);
+    adapt_begin(ab);
+    adapt_begin(at);
+    run_rounds(ab, bvar);
+    run_rounds(at, tvar);
+    cr_assert(ab->finished && at->finished);
+    cr_assert(ab->est <= 0.02 && at->est <= 0.02, "both meet the target: %g %g", ab->est, at->est);
+    uint64_t sb = 0, st = 0;
+    for (uint32_t b = 0; b < B; b++)
+        sb += (uint64_t)ab->tiles[b].passes * bpx[b];
+    for (uint32_t t = 0; t < T; t++)
+        st += (uint64_t)at->tiles[t].passes * tpx[t];
+    cr_assert(sb * 10 < st * 7, "per block %llu pixel passes, per tile %llu", (unsigned long long)sb,
+              (unsigned long long)st);
+    cr_assert(ab->tiles[0].passes > ab->tiles[1].passes && ab->tiles[0].passes > ab->tiles[8].passes,
+              "the noisy block of a tile gets more than its neighbours: %u %u %u", ab->tiles[0].passes,
+              ab->tiles[1].passes, ab->tiles[8].passes);
+    adapt_free(&ab);
+    adapt_free(&at);
+}
+
+/* A tile's units in a round: one per pass some block gets; a tile that has fewer slots
+ * left keeps its lowest growing blocks where they are until it fits. */
+Test(adapt, units_of_a_tile_and_their_room)
+{
+    uint32_t old[4] = {4, 8, 4, 16}, now[4] = {8, 16, 4, 16};
+    cr_assert_eq(adapt_tile_units(old, now, 4), 12, "passes 4..15: blocks 0 and 1 share none but 8..15");
+    uint32_t same[4] = {8, 8, 8, 8}, grow[4] = {16, 16, 12, 8};
+    cr_assert_eq(adapt_tile_units(same, grow, 4), 8);
+    cr_assert_eq(adapt_tile_units(same, same, 4), 0);
+    uint32_t n2[4] = {8, 16, 4, 16};
+    cr_assert_eq(adapt_fit_units(old, n2, 4, 12), 12, "room enough: unchanged");
+    cr_assert(n2[0] == 8 && n2[1] == 16);
+    cr_assert_eq(adapt_fit_units(old, n2, 4, 10), 8, "block 0 (4 passes) stays: passes 8..15 for block 1");
+    cr_assert(n2[0] == 4 && n2[1] == 16);
+    cr_assert_eq(adapt_fit_units(old, n2, 4, 3), 0, "no room: nothing grows");
+    cr_assert(n2[1] == 8);
+}
