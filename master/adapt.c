@@ -62,6 +62,41 @@ void adapt_begin(struct adapt *a)
     }
 }
 
+/* Per candidate up[i]: the variance its step up removes per cost, indexed by i. */
+static double *step_gain(uint32_t num_up, const uint32_t *up, const double *v, const double *c, const uint32_t *m,
+                              const uint32_t *n, const double *hi)
+{
+    double *gain = mem_alloc(sizeof *gain * (num_up ? num_up : 1));
+    for (uint32_t i = 0; i < num_up; i++) {
+        uint32_t t = up[i];
+        gain[i] = (v[t] * m[t] / n[t] - v[t] * m[t] / hi[t]) / (c[t] * (hi[t] - n[t]));
+    }
+    return gain;
+}
+
+/* up (tile indices) sorted by gain (parallel to up) descending, then by tile index: a
+ * merge sort on the pairs, a total order, so the same inputs give the same order. */
+static void sort_by_gain(uint32_t *up, double *gain, uint32_t n)
+{
+    uint32_t *tu = mem_alloc(sizeof *tu * (n ? n : 1));
+    double *tg = mem_alloc(sizeof *tg * (n ? n : 1));
+    for (uint32_t width = 1; width < n; width *= 2) {
+        for (uint32_t lo = 0; lo < n; lo += 2 * width) {
+            uint32_t mid = lo + width < n ? lo + width : n, hi = lo + 2 * width < n ? lo + 2 * width : n;
+            uint32_t i = lo, j = mid, k = lo;
+            while (i < mid || j < hi) {
+                int take_i = j >= hi || (i < mid && (gain[i] > gain[j] || (gain[i] == gain[j] && up[i] < up[j])));
+                tu[k] = take_i ? up[i] : up[j];
+                tg[k++] = take_i ? gain[i++] : gain[j++];
+            }
+        }
+        memcpy(up, tu, sizeof *up * n);
+        memcpy(gain, tg, sizeof *gain * n);
+    }
+    free(tu);
+    free(tg);
+}
+
 uint64_t adapt_allocate(uint32_t num_tiles, const double *v, const double *c, const uint32_t *m, double budget,
                         uint32_t max_passes, uint32_t growth, uint32_t step, uint32_t *n)
 {
@@ -106,15 +141,40 @@ uint64_t adapt_allocate(uint32_t num_tiles, const double *v, const double *c, co
         if (!changed || !(free_budget > 0.0))
             break;
     }
-    uint64_t added = 0;
+    /* Rounding to the step: every tile down (an optimum on a step stays), then one step up
+     * for the tiles whose step buys the most variance per cost, until the budget is met:
+     * the projected variance lands on the budget instead of past it by a step a tile. */
+    uint32_t *up = mem_alloc(sizeof *up * (num_tiles ? num_tiles : 1)), num_up = 0;
+    double proj = 0.0;
     for (uint32_t t = 0; t < num_tiles; t++) {
         double cap = (double)m[t] * growth < max_passes ? (double)m[t] * growth : max_passes;
-        double w = ceil((want[t] - 1e-9) / step) * step; /* an optimum on a step stays */
-        if (w > cap)
-            w = cap;
-        n[t] = w > m[t] ? (uint32_t)w : m[t];
-        added += n[t] - m[t];
+        double lo = floor((want[t] + 1e-9) / step) * step, hi = ceil((want[t] - 1e-9) / step) * step;
+        lo = lo > cap ? cap : lo;
+        hi = hi > cap ? cap : hi;
+        n[t] = lo > m[t] ? (uint32_t)lo : m[t];
+        uint32_t nh = hi > m[t] ? (uint32_t)hi : m[t];
+        want[t] = nh; /* from here: the step up */
+        if (v[t] > 0.0) {
+            proj += v[t] * m[t] / n[t];
+            if (nh > n[t])
+                up[num_up++] = t;
+        }
     }
+    if (proj > budget && num_up) {
+        /* by gain per cost, then tile index: the same order for the same inputs */
+        double *gain = step_gain(num_up, up, v, c, m, n, want);
+        sort_by_gain(up, gain, num_up);
+        for (uint32_t i = 0; i < num_up && proj > budget; i++) {
+            uint32_t t = up[i];
+            proj -= v[t] * m[t] / n[t] - v[t] * m[t] / want[t];
+            n[t] = (uint32_t)want[t];
+        }
+        free(gain);
+    }
+    uint64_t added = 0;
+    for (uint32_t t = 0; t < num_tiles; t++)
+        added += n[t] - m[t];
+    free(up);
     free(want);
     free(fixed);
     return added;

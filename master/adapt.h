@@ -68,8 +68,10 @@ void adapt_begin(struct adapt *a);
 /* The allocation rule. Tiles of sum variance v[t] (pixel variances of the mean summed,
  * after m[t] passes), cost per pass c[t] > 0: the fewest-cost passes n[t] >= m[t] (at most
  * max_passes) with sum_t v[t] m[t] / n[t] <= budget, by Lagrange: n[t] proportional to
- * sqrt(v[t] m[t] / c[t]) (the error per unit cost equalised), rounded up to a multiple of
- * step, then each at most growth x m[t]. m[t] and max_passes are multiples of step. Writes
+ * sqrt(v[t] m[t] / c[t]) (the error per unit cost equalised), each at most growth x m[t],
+ * rounded to a multiple of step: down, then up for the tiles whose step removes the most
+ * variance per cost until the budget is met (so the projection lands on the budget, not a
+ * step past it in every tile). m[t] and max_passes are multiples of step. Writes
  * n; returns the passes added. */
 uint64_t adapt_allocate(uint32_t num_tiles, const double *v, const double *c, const uint32_t *m, double budget,
                         uint32_t max_passes, uint32_t growth, uint32_t step, uint32_t *n);
