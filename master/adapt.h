@@ -26,7 +26,8 @@ struct adapt_tile {
     uint32_t pixels;
     uint32_t passes;        /* passes released so far (its units 0..passes-1) */
     double sum_var;         /* over its pixels: variance of the pixel mean (mean of R, G, B), after `passes` */
-    double sum_var_sq;      /* over its pixels: v^2 / (q - 1), v a pixel's variance from q stream means, so
+    double sum_var_sq;      /* over its pixels: v^2 / (q + 1), v a pixel's variance from q stream means (an
+                             * unbiased estimate of sigma^4 / (q - 1)), so
                              * that sum_var has sum_var^2 / sum_var_sq degrees of freedom (Welch-Satterthwaite) */
     double sum_mean;        /* over its pixels: the pixel mean (mean of R, G, B) */
     uint64_t samples, rays; /* traced so far (deterministic: the cost measure, never time) */

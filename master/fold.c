@@ -254,7 +254,10 @@ void fold_block_sums(const struct fold *f, uint32_t tile, uint64_t mask, double 
         for (uint32_t s = 0; s < SAMPLER_MAX_STREAMS; s++)
             q += b->count[s] > 0;
         v += pv;
-        v2 += q > 1 ? pv * pv / (q - 1) : 0.0;
+        /* sigma^4 / (q - 1) estimated without bias: a variance s^2 from q - 1 degrees of
+         * freedom has E[s^4] = sigma^4 (q + 1) / (q - 1), so s^4 / (q + 1). (s^4 / (q - 1)
+         * counted a pixel's noise 3x over with 2 streams: a third of the degrees of freedom.) */
+        v2 += q > 1 ? pv * pv / (q + 1) : 0.0;
         mu += (b->mean[0] + b->mean[1] + b->mean[2]) / 3.0;
     }
     *sum_var = v;

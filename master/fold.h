@@ -48,8 +48,8 @@ void fold_finish(struct fold *f, uint32_t tile, float *out, struct tile_stats *s
  * missing. */
 int fold_add(struct fold *f, uint32_t tile, uint32_t pass, const float *px, float *out, struct tile_stats *stats);
 /* Over the tile's pixels after its folded passes: the sum of the variance of the pixel
- * mean (s^2 / q over its q stream means), the sum of its square over q - 1 (the variance's
- * degrees of freedom), and the sum of the pixel mean, each the mean of R, G and B (as the
+ * mean (s^2 / q over its q stream means), the sum of its square over q + 1 (an unbiased
+ * estimate of its true square over q - 1: the variance's degrees of freedom), and the sum of the pixel mean, each the mean of R, G and B (as the
  * summary's relRMSE counts them). */
 void fold_tile_sums(const struct fold *f, uint32_t tile, double *sum_var, double *sum_var_sq, double *sum_mean);
 /* The same over the pixels of the blocks in mask only (one block: 1 << b). */
