@@ -62,6 +62,41 @@ void adapt_begin(struct adapt *a)
     }
 }
 
+/* Per candidate up[i]: the variance its step up removes per cost, indexed by i. */
+static double *step_gain(uint32_t num_up, const uint32_t *up, const double *v, const double *c, const uint32_t *m,
+                              const uint32_t *n, const double *hi)
+{
+    double *gain = mem_alloc(sizeof *gain * (num_up ? num_up : 1));
+    for (uint32_t i = 0; i < num_up; i++) {
+        uint32_t t = up[i];
+        gain[i] = (v[t] * m[t] / n[t] - v[t] * m[t] / hi[t]) / (c[t] * (hi[t] - n[t]));
+    }
+    return gain;
+}
+
+/* up (tile indices) sorted by gain (parallel to up) descending, then by tile index: a
+ * merge sort on the pairs, a total order, so the same inputs give the same order. */
+static void sort_by_gain(uint32_t *up, double *gain, uint32_t n)
+{
+    uint32_t *tu = mem_alloc(sizeof *tu * (n ? n : 1));
+    double *tg = mem_alloc(sizeof *tg * (n ? n : 1));
+    for (uint32_t width = 1; width < n; width *= 2) {
+        for (uint32_t lo = 0; lo < n; lo += 2 * width) {
+            uint32_t mid = lo + width < n ? lo + width : n, hi = lo + 2 * width < n ? lo + 2 * width : n;
+            uint32_t i = lo, j = mid, k = lo;
+            while (i < mid || j < hi) {
+                int take_i = j >= hi || (i < mid && (gain[i] > gain[j] || (gain[i] == gain[j] && up[i] < up[j])));
+                tu[k] = take_i ? up[i] : up[j];
+                tg[k++] = take_i ? gain[i++] : gain[j++];
+            }
+        }
+        memcpy(up, tu, sizeof *up * n);
+        memcpy(gain, tg, sizeof *gain * n);
+    }
+    free(tu);
+    free(tg);
+}
+
 uint64_t adapt_allocate(uint32_t num_tiles, const double *v, const double *c, const uint32_t *m, double budget,
                         uint32_t max_passes, uint32_t growth, uint32_t step, uint32_t *n)
 {
@@ -106,15 +141,40 @@ uint64_t adapt_allocate(uint32_t num_tiles, const double *v, const double *c, co
         if (!changed || !(free_budget > 0.0))
             break;
     }
-    uint64_t added = 0;
+    /* Rounding to the step: every tile down (an optimum on a step stays), then one step up
+     * for the tiles whose step buys the most variance per cost, until the budget is met:
+     * the projected variance lands on the budget instead of past it by a step a tile. */
+    uint32_t *up = mem_alloc(sizeof *up * (num_tiles ? num_tiles : 1)), num_up = 0;
+    double proj = 0.0;
     for (uint32_t t = 0; t < num_tiles; t++) {
         double cap = (double)m[t] * growth < max_passes ? (double)m[t] * growth : max_passes;
-        double w = ceil((want[t] - 1e-9) / step) * step; /* an optimum on a step stays */
-        if (w > cap)
-            w = cap;
-        n[t] = w > m[t] ? (uint32_t)w : m[t];
-        added += n[t] - m[t];
+        double lo = floor((want[t] + 1e-9) / step) * step, hi = ceil((want[t] - 1e-9) / step) * step;
+        lo = lo > cap ? cap : lo;
+        hi = hi > cap ? cap : hi;
+        n[t] = lo > m[t] ? (uint32_t)lo : m[t];
+        uint32_t nh = hi > m[t] ? (uint32_t)hi : m[t];
+        want[t] = nh; /* from here: the step up */
+        if (v[t] > 0.0) {
+            proj += v[t] * m[t] / n[t];
+            if (nh > n[t])
+                up[num_up++] = t;
+        }
     }
+    if (proj > budget && num_up) {
+        /* by gain per cost, then tile index: the same order for the same inputs */
+        double *gain = step_gain(num_up, up, v, c, m, n, want);
+        sort_by_gain(up, gain, num_up);
+        for (uint32_t i = 0; i < num_up && proj > budget; i++) {
+            uint32_t t = up[i];
+            proj -= v[t] * m[t] / n[t] - v[t] * m[t] / want[t];
+            n[t] = (uint32_t)want[t];
+        }
+        free(gain);
+    }
+    uint64_t added = 0;
+    for (uint32_t t = 0; t < num_tiles; t++)
+        added += n[t] - m[t];
+    free(up);
     free(want);
     free(fixed);
     return added;
@@ -250,4 +310,34 @@ double adapt_eta_samples(const struct adapt *a)
     b = b < 0.25 ? 0.25 : b > 1.0 ? 1.0 : b;
     double last = a->hist_samples[a->num_history - 1];
     return a->est <= a->aim ? last : last * pow(a->est / a->aim, 1.0 / b);
+}
+
+uint32_t adapt_tile_units(const uint32_t *old, const uint32_t *now, uint32_t nb)
+{
+    uint32_t lo = UINT32_MAX, hi = 0, units = 0;
+    for (uint32_t b = 0; b < nb; b++)
+        if (now[b] > old[b]) {
+            lo = old[b] < lo ? old[b] : lo;
+            hi = now[b] > hi ? now[b] : hi;
+        }
+    for (uint32_t p = lo; p < hi; p++)
+        for (uint32_t b = 0; b < nb; b++)
+            if (old[b] <= p && p < now[b]) {
+                units++;
+                break;
+            }
+    return units;
+}
+
+uint32_t adapt_fit_units(const uint32_t *old, uint32_t *now, uint32_t nb, uint32_t room)
+{
+    uint32_t units;
+    while ((units = adapt_tile_units(old, now, nb)) > room) {
+        uint32_t lowest = nb;
+        for (uint32_t b = 0; b < nb; b++)
+            if (now[b] > old[b] && (lowest == nb || old[b] < old[lowest]))
+                lowest = b;
+        now[lowest] = old[lowest];
+    }
+    return units;
 }

@@ -19,12 +19,15 @@
 #define ADAPT_PRIOR_DOF 4.0
 #define ADAPT_CONFIDENCE_Z 1.0
 
-/* A tile's state as the rounds see it. */
+/* A tile's state as the rounds see it. The master's "tiles" here are the pixel blocks of
+ * the render's tiles (render/tile.h: a unit renders some blocks of a tile), in a grid of
+ * tiles_x blocks a row; a block past the image's edge has no pixels and gets nothing. */
 struct adapt_tile {
     uint32_t pixels;
     uint32_t passes;        /* passes released so far (its units 0..passes-1) */
     double sum_var;         /* over its pixels: variance of the pixel mean (mean of R, G, B), after `passes` */
-    double sum_var_sq;      /* over its pixels: v^2 / (q - 1), v a pixel's variance from q stream means, so
+    double sum_var_sq;      /* over its pixels: v^2 / (q + 1), v a pixel's variance from q stream means (an
+                             * unbiased estimate of sigma^4 / (q - 1)), so
                              * that sum_var has sum_var^2 / sum_var_sq degrees of freedom (Welch-Satterthwaite) */
     double sum_mean;        /* over its pixels: the pixel mean (mean of R, G, B) */
     uint64_t samples, rays; /* traced so far (deterministic: the cost measure, never time) */
@@ -66,8 +69,10 @@ void adapt_begin(struct adapt *a);
 /* The allocation rule. Tiles of sum variance v[t] (pixel variances of the mean summed,
  * after m[t] passes), cost per pass c[t] > 0: the fewest-cost passes n[t] >= m[t] (at most
  * max_passes) with sum_t v[t] m[t] / n[t] <= budget, by Lagrange: n[t] proportional to
- * sqrt(v[t] m[t] / c[t]) (the error per unit cost equalised), rounded up to a multiple of
- * step, then each at most growth x m[t]. m[t] and max_passes are multiples of step. Writes
+ * sqrt(v[t] m[t] / c[t]) (the error per unit cost equalised), each at most growth x m[t],
+ * rounded to a multiple of step: down, then up for the tiles whose step removes the most
+ * variance per cost until the budget is met (so the projection lands on the budget, not a
+ * step past it in every tile). m[t] and max_passes are multiples of step. Writes
  * n; returns the passes added. */
 uint64_t adapt_allocate(uint32_t num_tiles, const double *v, const double *c, const uint32_t *m, double budget,
                         uint32_t max_passes, uint32_t growth, uint32_t step, uint32_t *n);
@@ -91,6 +96,14 @@ double adapt_pool(const struct adapt *a, double *v, double *dof);
  * of freedom is off by about 1 / sqrt(2 dof) of itself, Z = a->confidence_z. The
  * allocation aims at the same figure. */
 int adapt_decide(struct adapt *a, int stop, uint64_t samples_total);
+/* Units that take one tile's blocks from old[b] to now[b] passes (b < nb): one unit per
+ * pass p some block gets (old[b] <= p < now[b]), rendering the blocks that get it. */
+uint32_t adapt_tile_units(const uint32_t *old, const uint32_t *now, uint32_t nb);
+/* A tile holds at most as many units as the frame's passes (its slots); a round that would
+ * need more than `room` units for a tile (blocks far apart in passes each need their own)
+ * keeps the growing block with the fewest passes (the lowest index first) where it is,
+ * again until it fits. Returns the units the round now needs. */
+uint32_t adapt_fit_units(const uint32_t *old, uint32_t *now, uint32_t nb, uint32_t room);
 /* Samples in all at which the fitted decay of the estimate (est ~ samples^-b over the
  * decisions so far) reaches the aim; 0 when it cannot be told (no target, one point). */
 double adapt_eta_samples(const struct adapt *a);

@@ -14,11 +14,19 @@
 
 const char *const fold_samples_channel = "samples";
 
+/* A unit that came before its turn: a copy of its pixels, its pass and its blocks. */
+struct fold_early {
+    float *px;
+    uint32_t pass;
+    uint64_t mask;
+};
+
 struct fold_tile {
-    uint32_t folded;            /* passes 0..folded-1 are in acc */
+    uint32_t folded;            /* slots 0..folded-1 are in acc */
     int final;                  /* finished: takes nothing more */
     struct pass_pixel *acc;     /* per pixel, NULL before the first pass */
-    float **early;              /* per pass: a copy of a pass that came before its turn, or NULL */
+    struct fold_early *early;   /* per slot */
+    uint32_t block_passes[TILE_MAX_BLOCKS_SIDE * TILE_MAX_BLOCKS_SIDE]; /* passes folded into each block */
     struct aov_pixel *aov;      /* per pixel, with AOVs, NULL before the first pass */
 };
 
@@ -94,7 +102,7 @@ static void tile_clear(struct fold *f, struct fold_tile *t)
     free(t->acc);
     free(t->aov);
     for (uint32_t p = 0; t->early && p < f->passes; p++)
-        free(t->early[p]);
+        free(t->early[p].px);
     free(t->early);
     memset(t, 0, sizeof *t);
 }
@@ -126,17 +134,48 @@ static size_t desc_tile_pixels(const struct image_desc *desc, uint32_t tiles_x, 
 
 static size_t tile_pixels(const struct fold *f, uint32_t tile) { return desc_tile_pixels(&f->desc, f->tiles_x, tile); }
 
-static void fold_pass(const struct fold *f, struct fold_tile *t, size_t pixels, const float *px)
+/* The width of tile; the block of its pixel i (in pixel order) is tile_pixel_block of its place. */
+static uint32_t tile_width(const struct fold *f, uint32_t tile)
 {
-    for (size_t i = 0; i < pixels; i++)
-        pass_pixel_fold(&t->acc[i], t->folded % f->streams, &px[i * f->lay.num_channels]);
-    fold_aovs_pass(f, t, pixels, px);
+    uint32_t x0, y0, w, h;
+    imgio_tile_rect(&f->desc, tile % f->tiles_x, tile / f->tiles_x, &x0, &y0, &w, &h);
+    return w;
+}
+
+static uint32_t pixel_block(const struct fold *f, uint32_t w, size_t i)
+{
+    return tile_pixel_block(f->desc.tile_size, (uint32_t)(i % w), (uint32_t)(i / w));
+}
+
+static void fold_pass(const struct fold *f, uint32_t tile, struct fold_tile *t, size_t pixels, uint32_t pass, uint64_t mask,
+                      const float *px)
+{
+    if (mask == TILE_MASK_ALL) {
+        for (size_t i = 0; i < pixels; i++)
+            pass_pixel_fold(&t->acc[i], pass % f->streams, &px[i * f->lay.num_channels]);
+        fold_aovs_pass(f, t, pixels, px);
+    } else { /* the mask's blocks only: the others' pixels of this unit are not rendered */
+        uint32_t w = tile_width(f, tile);
+        for (size_t i = 0; i < pixels; i++)
+            if (mask >> pixel_block(f, w, i) & 1) {
+                pass_pixel_fold(&t->acc[i], pass % f->streams, &px[i * f->lay.num_channels]);
+                if (t->aov)
+                    aov_pixel_fold(&t->aov[i], &f->lay, &px[i * f->lay.num_channels]);
+            }
+    }
+    for (uint32_t b = 0; b < TILE_MAX_BLOCKS_SIDE * TILE_MAX_BLOCKS_SIDE; b++)
+        t->block_passes[b] += (uint32_t)(mask >> b & 1);
     t->folded++;
 }
 
 uint32_t fold_add_unit(struct fold *f, uint32_t tile, uint32_t pass, const float *px)
 {
-    CHECK(tile < f->num_tiles && pass < f->passes);
+    return fold_add_slot(f, tile, pass, pass, TILE_MASK_ALL, px);
+}
+
+uint32_t fold_add_slot(struct fold *f, uint32_t tile, uint32_t slot, uint32_t pass, uint64_t mask, const float *px)
+{
+    CHECK(tile < f->num_tiles && slot < f->passes && pass < f->passes);
     struct fold_tile *t = &f->tiles[tile];
     CHECK(!t->final);
     size_t pixels = tile_pixels(f, tile);
@@ -145,18 +184,20 @@ uint32_t fold_add_unit(struct fold *f, uint32_t tile, uint32_t pass, const float
         t->early = mem_calloc(f->passes, sizeof *t->early);
         fold_aovs_start(f, t, pixels);
     }
-    if (pass != t->folded) {
-        CHECK(pass > t->folded && !t->early[pass]);
-        t->early[pass] = mem_alloc(sizeof(float) * pixels * f->lay.num_channels);
-        memcpy(t->early[pass], px, sizeof(float) * pixels * f->lay.num_channels);
+    if (slot != t->folded) {
+        CHECK(slot > t->folded && !t->early[slot].px);
+        t->early[slot].px = mem_alloc(sizeof(float) * pixels * f->lay.num_channels);
+        memcpy(t->early[slot].px, px, sizeof(float) * pixels * f->lay.num_channels);
+        t->early[slot].pass = pass;
+        t->early[slot].mask = mask;
         return t->folded;
     }
-    fold_pass(f, t, pixels, px);
-    while (t->folded < f->passes && t->early[t->folded]) {
-        float *e = t->early[t->folded];
-        t->early[t->folded] = NULL;
-        fold_pass(f, t, pixels, e);
-        free(e);
+    fold_pass(f, tile, t, pixels, pass, mask, px);
+    while (t->folded < f->passes && t->early[t->folded].px) {
+        struct fold_early e = t->early[t->folded];
+        t->early[t->folded].px = NULL;
+        fold_pass(f, tile, t, pixels, e.pass, e.mask, e.px);
+        free(e.px);
     }
     return t->folded;
 }
@@ -168,6 +209,9 @@ void fold_finish(struct fold *f, uint32_t tile, float *out, struct tile_stats *s
     CHECK(!t->final);
     size_t pixels = tile_pixels(f, tile);
     uint32_t folded = t->folded;
+    uint32_t block_passes[TILE_MAX_BLOCKS_SIDE * TILE_MAX_BLOCKS_SIDE];
+    memcpy(block_passes, t->block_passes, sizeof block_passes);
+    uint32_t w = tile_width(f, tile);
     for (size_t i = 0; i < pixels; i++) {
         float *px = &out[i * (f->lay.num_channels + 1)];
         if (t->acc) {
@@ -175,7 +219,7 @@ void fold_finish(struct fold *f, uint32_t tile, float *out, struct tile_stats *s
         } else {
             memset(px, 0, sizeof(float) * TILE_NUM_CHANNELS);
         }
-        px[FOLD_CH_SAMPLES] = (float)((double)folded * f->spp_per_pass);
+        px[FOLD_CH_SAMPLES] = (float)((double)block_passes[pixel_block(f, w, i)] * f->spp_per_pass);
     }
     fold_aovs_finish(f, t, pixels, out);
     tile_clear(f, t);
@@ -193,18 +237,30 @@ int fold_add(struct fold *f, uint32_t tile, uint32_t pass, const float *px, floa
 
 void fold_tile_sums(const struct fold *f, uint32_t tile, double *sum_var, double *sum_var_sq, double *sum_mean)
 {
+    fold_block_sums(f, tile, TILE_MASK_ALL, sum_var, sum_var_sq, sum_mean);
+}
+
+void fold_block_sums(const struct fold *f, uint32_t tile, uint64_t mask, double *sum_var, double *sum_var_sq,
+                     double *sum_mean)
+{
     CHECK(tile < f->num_tiles);
     const struct fold_tile *t = &f->tiles[tile];
     double v = 0.0, v2 = 0.0, mu = 0.0;
     size_t pixels = tile_pixels(f, tile);
+    uint32_t w = tile_width(f, tile);
     for (size_t i = 0; t->acc && i < pixels; i++) {
+        if (mask != TILE_MASK_ALL && !(mask >> pixel_block(f, w, i) & 1))
+            continue;
         const struct pass_batch *b = &t->acc[i].b;
         double pv = (pass_batch_var_of_mean(b, 0) + pass_batch_var_of_mean(b, 1) + pass_batch_var_of_mean(b, 2)) / 3.0;
         uint32_t q = 0;
         for (uint32_t s = 0; s < SAMPLER_MAX_STREAMS; s++)
             q += b->count[s] > 0;
         v += pv;
-        v2 += q > 1 ? pv * pv / (q - 1) : 0.0;
+        /* sigma^4 / (q - 1) estimated without bias: a variance s^2 from q - 1 degrees of
+         * freedom has E[s^4] = sigma^4 (q + 1) / (q - 1), so s^4 / (q + 1). (s^4 / (q - 1)
+         * counted a pixel's noise 3x over with 2 streams: a third of the degrees of freedom.) */
+        v2 += q > 1 ? pv * pv / (q + 1) : 0.0;
         mu += (b->mean[0] + b->mean[1] + b->mean[2]) / 3.0;
     }
     *sum_var = v;

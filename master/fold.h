@@ -33,18 +33,28 @@ void fold_output_desc(const struct image_desc *desc, struct image_desc *out);
  * is given once (the scheduler's done state guarantees it). Returns the passes folded
  * now: passes 0..n-1 are in, later ones buffered. */
 uint32_t fold_add_unit(struct fold *f, uint32_t tile, uint32_t pass, const float *px);
+/* An adaptive render's unit: the tile's slot-th unit (slots arrive in any order and are
+ * folded in slot order, at most `passes` of them), which rendered sample pass `pass` for
+ * the pixel blocks of mask (render/tile.h) only: its other pixels are ignored. Each
+ * block's passes must come in increasing pass order over the slots (adapt's release
+ * gives them so), so that every pixel folds its passes in pass order, as a uniform
+ * render would. fold_add_unit is the slot = pass, every block case. */
+uint32_t fold_add_slot(struct fold *f, uint32_t tile, uint32_t slot, uint32_t pass, uint64_t mask, const float *px);
 /* A tile's final pixels from its folded passes (mean, coverage, batch-means variance,
- * samples) into out (w*h pixels of desc->num_channels + 1), its relative standard errors
+ * samples: the passes each pixel's block received) into out (w*h pixels of desc->num_channels + 1), its relative standard errors
  * added to stats; the tile then takes nothing more. */
 void fold_finish(struct fold *f, uint32_t tile, float *out, struct tile_stats *stats);
 /* fold_add_unit, and fold_finish once all `passes` are in: 1 then, 0 while passes are
  * missing. */
 int fold_add(struct fold *f, uint32_t tile, uint32_t pass, const float *px, float *out, struct tile_stats *stats);
 /* Over the tile's pixels after its folded passes: the sum of the variance of the pixel
- * mean (s^2 / q over its q stream means), the sum of its square over q - 1 (the variance's
- * degrees of freedom), and the sum of the pixel mean, each the mean of R, G and B (as the
+ * mean (s^2 / q over its q stream means), the sum of its square over q + 1 (an unbiased
+ * estimate of its true square over q - 1: the variance's degrees of freedom), and the sum of the pixel mean, each the mean of R, G and B (as the
  * summary's relRMSE counts them). */
 void fold_tile_sums(const struct fold *f, uint32_t tile, double *sum_var, double *sum_var_sq, double *sum_mean);
+/* The same over the pixels of the blocks in mask only (one block: 1 << b). */
+void fold_block_sums(const struct fold *f, uint32_t tile, uint64_t mask, double *sum_var, double *sum_var_sq,
+                     double *sum_mean);
 
 /* The image's estimated relRMSE (the summary's figure, the EXR's brume_est_rel_rmse) from
  * its final tiles' pixels, as they lie in the output (with one pass the workers' tiles,

@@ -149,8 +149,12 @@ struct master {
     double target_error, time_limit; /* adaptive settings (0: none) */
     uint32_t max_rounds;
     int time_up;                /* the time limit passed: the round under way is the last */
-    uint32_t *round_from;       /* per tile: its passes before the round being released */
-    uint32_t num_units;         /* units (tile, pass): u = pass * num_tiles + tile */
+    uint32_t *round_from;       /* per block (adapt's tiles): its passes before the round being released */
+    uint32_t blocks_side, num_cells; /* adaptive: blocks in a tile's row (render/tile.h), blocks of the frame */
+    uint32_t *slots_used;       /* adaptive, per tile: its units released so far (slots 0..n-1) */
+    uint32_t *slot_pass;        /* adaptive, per unit: the sample pass it renders */
+    uint64_t *slot_mask;        /* adaptive, per unit: the tile's blocks it renders */
+    uint32_t num_units;         /* units (tile, pass): u = pass * num_tiles + tile (adaptive: slot * num_tiles + tile) */
     struct fold *fold;          /* passes >= 2: a tile's pass means folded in pass order */
     struct imgio_encoder *enc;  /* encodes folded tiles */
     float *fold_out;
@@ -405,6 +409,13 @@ static void frame_hash(struct master *m)
     blob_hash_hex(&h, m->scene_hash);
 }
 
+/* Adaptive: the block (adapt's tile) of block b of tile t. */
+static uint32_t cell_of(const struct master *m, uint32_t t, uint32_t b)
+{
+    uint32_t tiles_x = imgio_tiles_x(&m->desc), side = m->blocks_side;
+    return ((t / tiles_x) * side + b / side) * (tiles_x * side) + (t % tiles_x) * side + b % side;
+}
+
 static void setup_tiles(struct master *m)
 {
     const struct render_settings *rs = &m->scene.settings;
@@ -423,24 +434,37 @@ static void setup_tiles(struct master *m)
     }
     m->est = fold_est_new(&m->out_desc);
     if (m->target_error > 0.0 || m->time_limit > 0.0 || m->max_rounds > 0) {
-        uint32_t *pixels = mem_alloc(sizeof *pixels * m->num_tiles);
-        uint32_t tiles_x = imgio_tiles_x(&m->desc);
+        /* The rounds allocate per pixel block: adapt's "tiles" are the blocks of every tile,
+         * in a grid of tiles_x x side blocks a row (docs/adaptive.md). */
+        uint32_t tiles_x = imgio_tiles_x(&m->desc), side = tile_blocks_side(rs->tile_size);
+        uint32_t bs = tile_block_size(rs->tile_size), cells_x = tiles_x * side;
+        m->blocks_side = side;
+        m->num_cells = m->num_tiles * side * side;
+        uint32_t *pixels = mem_calloc(m->num_cells, sizeof *pixels);
         for (uint32_t t = 0; t < m->num_tiles; t++) {
             uint32_t x0, y0, w, h;
             imgio_tile_rect(&m->desc, t % tiles_x, t / tiles_x, &x0, &y0, &w, &h);
-            pixels[t] = w * h;
+            for (uint32_t b = 0; b < side * side; b++) {
+                uint32_t bx = b % side * bs, by = b / side * bs;
+                uint32_t bw = bx < w ? (w - bx < bs ? w - bx : bs) : 0, bh = by < h ? (h - by < bs ? h - by : bs) : 0;
+                pixels[cell_of(m, t, b)] = bw * bh;
+            }
         }
-        m->adapt = adapt_new(m->num_tiles, tiles_x, pixels, m->passes, integrator_streams(m->photon_maps > 0), m->target_error,
-                             m->max_rounds);
+        m->adapt = adapt_new(m->num_cells, cells_x, pixels, m->passes, integrator_streams(m->photon_maps > 0),
+                             m->target_error, m->max_rounds);
         adapt_set_pass_spp(m->adapt, m->spp_per_pass);
-        m->round_from = mem_calloc(m->num_tiles, sizeof *m->round_from);
+        m->round_from = mem_calloc(m->num_cells, sizeof *m->round_from);
+        m->slots_used = mem_calloc(m->num_tiles, sizeof *m->slots_used);
+        m->slot_pass = mem_calloc(m->num_units, sizeof *m->slot_pass);
+        m->slot_mask = mem_calloc(m->num_units, sizeof *m->slot_mask);
         free(pixels);
     }
 }
 
-/* Tile and pass of unit u. */
+/* Tile, pass and blocks of unit u (adaptive: what its slot was released for). */
 static uint32_t unit_tile(const struct master *m, uint32_t u) { return u % m->num_tiles; }
-static uint32_t unit_pass(const struct master *m, uint32_t u) { return u / m->num_tiles; }
+static uint32_t unit_pass(const struct master *m, uint32_t u) { return m->adapt ? m->slot_pass[u] : u / m->num_tiles; }
+static uint64_t unit_mask(const struct master *m, uint32_t u) { return m->adapt ? m->slot_mask[u] : TILE_MASK_ALL; }
 
 /* --tiles: every other tile is a black, transparent chunk encoded here (AOVs: nothing
  * hit), so the output is a complete EXR in which only the chosen tiles were rendered. */
@@ -478,10 +502,8 @@ static int restrict_tiles(struct master *m)
         }
         for (uint32_t p = 0; p < m->passes; p++)
             sched_tile_set_done(m->sched, p * m->num_tiles + t);
-        if (m->adapt) { /* not rendered: no passes, no variance */
-            m->adapt->outstanding -= m->adapt->tiles[t].passes;
-            m->adapt->tiles[t].passes = 0;
-        }
+        for (uint32_t b = 0; m->adapt && b < m->blocks_side * m->blocks_side; b++)
+            m->adapt->tiles[cell_of(m, t, b)].passes = 0; /* not rendered: no passes, no variance */
     }
     free(black);
     imgio_encoder_free(&enc);
@@ -885,22 +907,50 @@ static int tile_encode_folded(struct master *m, uint32_t tile)
 }
 
 /* Queues the units of the round just decided, pass by pass (so folding proceeds in
- * order): tile t's passes [round_from[t], its new count). */
+ * order): for each pass p some block of tile t gets (round_from <= p < its new count), the
+ * tile's next slot renders p for those blocks. A tile whose blocks would need more units
+ * than it has slots left keeps some where they are (adapt_fit_units). The round's units
+ * are what adapt waits for. */
 static void adapt_release(struct master *m)
 {
-    const struct adapt *a = m->adapt;
-    uint32_t lo = m->passes, hi = 0;
-    for (uint32_t t = 0; t < m->num_tiles; t++)
-        if (a->tiles[t].passes > m->round_from[t]) {
-            lo = m->round_from[t] < lo ? m->round_from[t] : lo;
-            hi = a->tiles[t].passes > hi ? a->tiles[t].passes : hi;
+    struct adapt *a = m->adapt;
+    uint32_t nb = m->blocks_side * m->blocks_side, lo = m->passes, hi = 0, units = 0;
+    uint32_t old[TILE_MAX_BLOCKS_SIDE * TILE_MAX_BLOCKS_SIDE], now[TILE_MAX_BLOCKS_SIDE * TILE_MAX_BLOCKS_SIDE];
+    for (uint32_t t = 0; t < m->num_tiles; t++) {
+        for (uint32_t b = 0; b < nb; b++) {
+            old[b] = m->round_from[cell_of(m, t, b)];
+            now[b] = a->tiles[cell_of(m, t, b)].passes;
         }
+        adapt_fit_units(old, now, nb, m->passes - m->slots_used[t]);
+        for (uint32_t b = 0; b < nb; b++) {
+            a->tiles[cell_of(m, t, b)].passes = now[b];
+            if (now[b] > old[b]) {
+                lo = old[b] < lo ? old[b] : lo;
+                hi = now[b] > hi ? now[b] : hi;
+            }
+        }
+    }
     for (uint32_t p = lo; p < hi; p++)
-        for (uint32_t t = 0; t < m->num_tiles; t++)
-            if (p >= m->round_from[t] && p < a->tiles[t].passes)
-                sched_unhold(m->sched, p * m->num_tiles + t);
-    for (uint32_t t = 0; t < m->num_tiles; t++)
-        m->round_from[t] = a->tiles[t].passes;
+        for (uint32_t t = 0; t < m->num_tiles; t++) {
+            uint64_t mask = 0;
+            for (uint32_t b = 0; b < nb; b++) {
+                uint32_t c = cell_of(m, t, b);
+                if (p >= m->round_from[c] && p < a->tiles[c].passes)
+                    mask |= (uint64_t)1 << b;
+            }
+            if (!mask)
+                continue;
+            CHECK(m->slots_used[t] < m->passes);
+            uint32_t u = m->slots_used[t]++ * m->num_tiles + t;
+            /* every block of the tile in the mask: the EXR chunk check and the fold see a whole tile */
+            m->slot_mask[u] = mask == ((nb == 64 ? 0 : (uint64_t)1 << nb) - 1) ? TILE_MASK_ALL : mask;
+            m->slot_pass[u] = p;
+            sched_unhold(m->sched, u);
+            units++;
+        }
+    for (uint32_t c = 0; c < m->num_cells; c++)
+        m->round_from[c] = a->tiles[c].passes;
+    a->outstanding = units;
 }
 
 /* A round's last unit is folded: the decision, from the folded passes only (the same after
@@ -910,20 +960,30 @@ static int adapt_round_end(struct master *m)
 {
     struct adapt *a = m->adapt;
     for (uint32_t t = 0; t < m->num_tiles; t++)
-        fold_tile_sums(m->fold, t, &a->tiles[t].sum_var, &a->tiles[t].sum_var_sq, &a->tiles[t].sum_mean);
+        for (uint32_t b = 0; b < m->blocks_side * m->blocks_side; b++) {
+            struct adapt_tile *at = &a->tiles[cell_of(m, t, b)];
+            fold_block_sums(m->fold, t, (uint64_t)1 << b, &at->sum_var, &at->sum_var_sq, &at->sum_mean);
+        }
     uint32_t round = a->round;
+    const char *why = NULL;
     if (adapt_decide(a, m->time_up, m->stats.samples)) {
-        uint64_t units = a->outstanding;
         adapt_release(m);
-        log_info("adaptive: round %u: estimated relRMSE %.4f (tiles alone %.4f, %.0f dof; target %g, aim %.4f); round %u: "
-                 "%llu more units", round, a->est, a->est_raw, a->dof, m->target_error, a->aim, a->round,
-                 (unsigned long long)units);
-        return 0;
+        uint64_t units = a->outstanding;
+        if (units > 0) {
+            log_info("adaptive: round %u: estimated relRMSE %.4f (tiles alone %.4f, %.0f dof; target %g, aim %.4f); round %u: "
+                     "%llu more units", round, a->est, a->est_raw, a->dof, m->target_error, a->aim, a->round,
+                     (unsigned long long)units);
+            return 0;
+        }
+        a->finished = 1;
+        a->round--;
+        why = "every growing tile out of units";
     }
+    if (!why)
+        why = m->time_up ? "time limit reached" : a->target > 0.0 && a->est <= a->aim ? "target met"
+              : a->max_rounds && round + 1 >= a->max_rounds ? "round cap reached" : "every block at its pass cap";
     log_info("adaptive: round %u: estimated relRMSE %.4f (tiles alone %.4f, %.0f dof; target %g, aim %.4f): %s", round,
-             a->est, a->est_raw, a->dof, m->target_error, a->aim,
-             m->time_up ? "time limit reached" : a->target > 0.0 && a->est <= a->aim ? "target met"
-             : a->max_rounds && round + 1 >= a->max_rounds ? "round cap reached" : "every tile at its pass cap");
+             a->est, a->est_raw, a->dof, m->target_error, a->aim, why);
     for (uint32_t t = 0; t < m->num_tiles; t++) {
         if (m->chunks[t].data) /* --tiles: a black tile */
             continue;
@@ -964,9 +1024,19 @@ static int unit_keep(struct master *m, uint32_t unit, const struct tile_stats *s
     }
     if (m->adapt) {
         struct adapt *a = m->adapt;
-        fold_add_unit(m->fold, tile, unit_pass(m, unit), m->decode_scratch);
-        a->tiles[tile].samples += st->samples;
-        a->tiles[tile].rays += st->rays;
+        uint64_t mask = unit_mask(m, unit);
+        fold_add_slot(m->fold, tile, unit / m->num_tiles, unit_pass(m, unit), mask, m->decode_scratch);
+        /* The unit's cost, counted by the worker for its blocks together, shared by pixels. */
+        double px_all = 0.0;
+        for (uint32_t b = 0; b < m->blocks_side * m->blocks_side; b++)
+            if (mask >> b & 1)
+                px_all += a->tiles[cell_of(m, tile, b)].pixels;
+        for (uint32_t b = 0; b < m->blocks_side * m->blocks_side && px_all > 0.0; b++)
+            if (mask >> b & 1) {
+                struct adapt_tile *at = &a->tiles[cell_of(m, tile, b)];
+                at->samples += (uint64_t)llround((double)st->samples * at->pixels / px_all);
+                at->rays += (uint64_t)llround((double)st->rays * at->pixels / px_all);
+            }
         CHECK(a->outstanding > 0);
         if (--a->outstanding == 0)
             return adapt_round_end(m);
@@ -1295,6 +1365,8 @@ static void assign_tiles(struct master *m)
         msg.u.tile.frame = m->frame;
         msg.u.tile.tile = a.tile;
         msg.u.tile.attempt = a.attempt;
+        msg.u.tile.pass = unit_pass(m, a.tile);
+        msg.u.tile.mask = unit_mask(m, a.tile);
         tile_tag(m, a.tile, m->peers[a.worker].user_id, &msg.u.tile.tag);
         send_to(m, &m->peers[a.worker], &msg);
     }
@@ -1414,6 +1486,8 @@ static void compute_job_key(struct master *m)
                      "brume-journal-2 %s tile=%u sampler=%u frame=%u tiles=%u passes=%u target=%.17g rounds=%u",
                      m->scene_hash, rs->tile_size, (unsigned)rs->sampler, m->frame, m->num_tiles, m->passes,
                      m->target_error, m->max_rounds);
+    if (m->adapt) /* units are (tile, slot) pairs of pixel blocks */
+        n += snprintf(ident + n, sizeof ident - (size_t)n, " blocks=%u", m->blocks_side);
     blob_hash_compute(ident, (size_t)n, &m->job_key);
 }
 
@@ -1550,9 +1624,11 @@ static void print_summary(struct master *m, double secs)
     if (m->adapt) {
         uint32_t lo = UINT32_MAX, hi = 0;
         double sum = 0.0, pixels = 0.0;
-        for (uint32_t t = 0; t < m->num_tiles; t++) {
+        for (uint32_t t = 0; t < m->adapt->num_tiles; t++) { /* per block */
             const struct adapt_tile *at = &m->adapt->tiles[t];
             uint32_t spp = at->passes * m->spp_per_pass;
+            if (!at->pixels) /* past the image's edge */
+                continue;
             lo = spp < lo ? spp : lo;
             hi = spp > hi ? spp : hi;
             sum += (double)spp * at->pixels;
@@ -1949,7 +2025,8 @@ static int frame_begin(struct master *m, uint32_t frames_started)
     if (m->adapt) { /* units go out round by round (adapt.h); round 0 now */
         sched_hold_all(m->sched);
         adapt_begin(m->adapt);
-        memset(m->round_from, 0, sizeof *m->round_from * m->num_tiles);
+        memset(m->round_from, 0, sizeof *m->round_from * m->num_cells);
+        memset(m->slots_used, 0, sizeof *m->slots_used * m->num_tiles);
         m->time_up = 0;
     }
     if (o->only_tiles && restrict_tiles(m) != 0)
@@ -2262,6 +2339,9 @@ done:
     fold_est_free(&m.est);
     adapt_free(&m.adapt);
     free(m.round_from);
+    free(m.slots_used);
+    free(m.slot_pass);
+    free(m.slot_mask);
     imgio_encoder_free(&m.enc);
     free(m.fold_out);
     free(m.maps);

@@ -23,6 +23,9 @@
 #     interpolated on the log-log error-time curve ('*': extrapolated); the ratios
 #     adaptive / uniform are the equal-error time ratios. SWEEP=0 skips this (calibration
 #     only; the ratio columns are then nan).
+#  With BASE (a folder holding another build's master and worker, e.g. the commit before a
+#  change), each adaptive render of seed SEED runs again with that master (tiles of
+#  BASE_TILE px) against the same references and uniform curves: "base" lines.
 #  4. Overhead on uniform noise: OVERHEAD_SCENE (the plain Cornell box at 128x128) at 64 spp
 #     uniform (streams, and one pass), then adaptive with the target set to the streamed
 #     render's true error.
@@ -32,7 +35,8 @@
 # Usage: BUILD=build sh scripts/bench_adaptive.sh
 #   env: SCENES ("dof_motion motion:64x48 textured:160x90 cornell_glass:64x64:0.05 fog_spot:40x30:0.05"),
 #        TARGETS ("0.05 0.02 0.01"), REF_SPP (16384), REF_PASSES (16), CAP (16384), SEED (17),
-#        MAX_UNIFORM_SPP (16384), STREAMS (2: the sampler's SAMPLER_STREAMS), ADAPT_TILE (8),
+#        MAX_UNIFORM_SPP (16384), STREAMS (2: the sampler's SAMPLER_STREAMS), ADAPT_TILE (32),
+#        BASE (none), BASE_TILE (8),
 #        OVERHEAD (1), OVERHEAD_REF_SPP (4096), REF_REDO (0), CALIB_SEEDS (none), SWEEP (1)
 set -eu
 . scripts/lib.sh
@@ -44,7 +48,9 @@ CAP=${CAP:-16384}
 SEED=${SEED:-17}
 MAX_UNIFORM_SPP=${MAX_UNIFORM_SPP:-16384}
 STREAMS=${STREAMS:-2}
-ADAPT_TILE=${ADAPT_TILE:-8}
+ADAPT_TILE=${ADAPT_TILE:-32}
+BASE=${BASE:-}
+BASE_TILE=${BASE_TILE:-8}
 OVERHEAD=${OVERHEAD:-1}
 REF_REDO=${REF_REDO:-0}
 CALIB_SEEDS=${CALIB_SEEDS:-}
@@ -57,6 +63,8 @@ TXT="$OUT/adaptive.txt"
 
 # run SCENE_JSON OUT [args]: CPU seconds of one master run with one local worker.
 run() { r_j=$1; r_o=$2; shift 2; cpu_secs "$M" "$r_j" -o "$r_o" --workers 1 --threads "$CORES" --no-journal "$@"; }
+# run_base: the same with BASE's master.
+run_base() { r_j=$1; r_o=$2; shift 2; cpu_secs "$BASE/master" "$r_j" -o "$r_o" --workers 1 --threads "$CORES" --no-journal "$@"; }
 # truerr IMG REF REFERR: relRMSE against the reference with the reference's own error removed.
 truerr() { awk -v a="$($X relrmse "$1" "$2")" -v r="$3" 'BEGIN { d = a * a - r * r; printf "%.5f\n", (d > 0) ? sqrt(d) : 0 }'; }
 # scene_at NAME WxH DIR: a copy of scenes/NAME in DIR with the render resolution WxH
@@ -106,6 +114,7 @@ ratio() { awk -v a="$1" -v u="${2%\*}" 'BEGIN { if (u == "nan" || !(u + 0 > 0)) 
   echo "# bench_adaptive: CPU seconds, true relRMSE (reference error removed), on $(nproc) cores;"
   echo "# uniform_s: --passes $STREAMS (the same streams); uniform_1: one pass; adaptive tiles of $ADAPT_TILE px"
   echo "# scene target cpu_adaptive true true/target est spp_mean uniform_s_cpu ratio_s uniform_1_cpu ratio_1"
+  echo "# base scene target cpu true true/target spp_mean uniform_s_cpu ratio_s uniform_1_cpu ratio_1 (BASE=$BASE, tiles of $BASE_TILE px)"
 } >"$TXT"
 for entry in $SCENES; do
   s=${entry%%:*}
@@ -123,6 +132,7 @@ for entry in $SCENES; do
   referr=$($X errest "$RD/ref.exr")
   DAT="$OUT/adaptive-$s.dat"
   : >"$DAT.a"
+  : >"$DAT.b"
   minerr=1
   : >"$T/calib"
   for E in $tg; do
@@ -134,6 +144,12 @@ for entry in $SCENES; do
       sppm=$(sed -n 's/.*spp min [0-9]* mean \([0-9.]*\) max.*/\1/p' "$T/log")
       if [ $first = 1 ]; then
         echo "$E $c $e $est $sppm" >>"$DAT.a"
+        if [ -n "$BASE" ]; then
+          cb=$(run_base "$J" "$T/b.exr" --target-error "$E" --spp "$CAP" --seed "$sd" --tile "$BASE_TILE")
+          eb=$(truerr "$T/b.exr" "$RD/ref.exr" "$referr")
+          sppb=$(sed -n 's/.*spp min [0-9]* mean \([0-9.]*\) max.*/\1/p' "$T/log")
+          echo "$E $cb $eb $sppb" >>"$DAT.b"
+        fi
         minerr=$(awk -v a="$minerr" -v b="$e" 'BEGIN { print (b < a) ? b : a }')
         first=0
       fi
@@ -160,12 +176,19 @@ for entry in $SCENES; do
       "$(awk -v e="$e" -v t="$E" 'BEGIN { print e / t }')" "$est" "$sppm" "$us" "$(ratio "$c" "$us")" "$u1" \
       "$(ratio "$c" "$u1")" >>"$TXT"
   done <"$DAT.a"
+  while read -r E cb eb sppb; do
+    us=$(at_error "$DAT.s" "$eb")
+    u1=$(at_error "$DAT.1" "$eb")
+    printf "base %s %s %s %s %.3f %s %s %s %s %s\n" "$s${res:+@$res}" "$E" "$cb" "$eb" \
+      "$(awk -v e="$eb" -v t="$E" 'BEGIN { print e / t }')" "$sppb" "$us" "$(ratio "$cb" "$us")" "$u1" \
+      "$(ratio "$cb" "$u1")" >>"$TXT"
+  done <"$DAT.b"
   {
     echo "# uniform, $STREAMS streams: spp cpu true"; cat "$DAT.s"; echo; echo
     echo "# adaptive: target cpu true est spp_mean"; cat "$DAT.a"; echo; echo
     echo "# uniform, one pass: spp cpu true"; cat "$DAT.1"
   } >"$DAT"
-  rm -f "$DAT.s" "$DAT.a" "$DAT.1"
+  rm -f "$DAT.s" "$DAT.a" "$DAT.1" "$DAT.b"
   echo "reference $s${res:+@$res}: own relRMSE $referr" >>"$TXT"
 done
 
@@ -180,10 +203,17 @@ if [ "$OVERHEAD" = 1 ]; then
   e1=$(truerr "$T/u1.exr" "$CR/ref.exr" "$cref")
   ca=$(run "$CJ" "$T/a64.exr" --target-error "$es" --spp "$CAP" --seed "$SEED" --tile "$ADAPT_TILE")
   ea=$(truerr "$T/a64.exr" "$CR/ref.exr" "$cref")
+  sa=$(sed -n 's/.*spp min [0-9]* mean \([0-9.]*\) max.*/\1/p' "$T/log")
   {
     echo "overhead cornell128: uniform 64 spp in $STREAMS streams $cs s true $es; one pass $c1 s true $e1;" \
       "adaptive to $es: $ca s true $ea; ratio to streams $(ratio "$ca" "$cs"), to one pass at equal error" \
       "$(awk -v a="$ca" -v u="$c1" -v ea="$ea" -v e1="$e1" 'BEGIN { printf "%.3f", a / (u * (e1 / ea) ^ 2) }') (one pass scaled by (e1/ea)^2)"
+    echo "overhead cornell128: adaptive mean spp $sa (tiles of $ADAPT_TILE px), true / target $(awk -v a="$ea" -v e="$es" 'BEGIN { printf "%.3f", a / e }')"
+    if [ -n "$BASE" ]; then
+      cb=$(run_base "$CJ" "$T/b64.exr" --target-error "$es" --spp "$CAP" --seed "$SEED" --tile "$BASE_TILE")
+      eb=$(truerr "$T/b64.exr" "$CR/ref.exr" "$cref")
+      echo "overhead cornell128, base (tiles of $BASE_TILE px): adaptive to $es: $cb s true $eb; ratio to streams $(ratio "$cb" "$cs")"
+    fi
     echo "reference cornell128: own relRMSE $cref"
   } >>"$TXT"
 fi

@@ -52,6 +52,7 @@ struct tile_task {
     struct blob_hash job_key;
     uint32_t conn;
     uint32_t image_tile, pass;
+    uint64_t mask;          /* the tile's pixel blocks to render (render/tile.h); the rest stay zero */
     struct blob_hash tag;   /* the master's tag of the assignment, returned in KEPT */
 };
 
@@ -266,16 +267,32 @@ static void *pool_thread(void *arg)
         clock_gettime(CLOCK_MONOTONIC, &a);
         /* Row by row: pixels are pure functions of their coordinates, so this is the same
          * image, and each row is a proof of progress for the heartbeat. */
-        uint32_t y = 0;
+        uint32_t y = 0, bs = tile_block_size(p->desc->tile_size);
         for (; y < h && !g_stop; y++) { /* SIGINT / SIGTERM: the tile is dropped at the next row */
-            struct tile_stats row;
             float *rowpx = pixels + (size_t)y * w * p->desc->num_channels;
-            if (passes > 1) /* one pass of the tile: the master folds the passes */
-                integrator_render_tile_pass(p->rjob, t.pass, x0, y0 + y, w, 1, rowpx, &row);
-            else
-                integrator_render_tile(p->rjob, x0, y0 + y, w, 1, rowpx, &row);
-            tile_stats_add(&d->stats, &row);
-            atomic_fetch_add(&prog->samples, (uint64_t)w * spp / passes);
+            /* Only the blocks of the mask (an adaptive unit): each run of them in the row is
+             * rendered as the whole tile would render it (pixels are pure functions of their
+             * coordinates), the other pixels are zero: the master folds only the mask's. */
+            if (t.mask != TILE_MASK_ALL)
+                memset(rowpx, 0, sizeof(float) * w * p->desc->num_channels);
+            for (uint32_t xa = 0; xa < w;) {
+                uint32_t xb = xa;
+                while (xb < w && (t.mask >> tile_pixel_block(p->desc->tile_size, xb, y) & 1))
+                    xb = (xb / bs + 1) * bs < w ? (xb / bs + 1) * bs : w;
+                if (xb == xa) {
+                    xa = (xa / bs + 1) * bs;
+                    continue;
+                }
+                struct tile_stats row;
+                float *runpx = rowpx + (size_t)xa * p->desc->num_channels;
+                if (passes > 1) /* one pass of the tile: the master folds the passes */
+                    integrator_render_tile_pass(p->rjob, t.pass, x0 + xa, y0 + y, xb - xa, 1, runpx, &row);
+                else
+                    integrator_render_tile(p->rjob, x0 + xa, y0 + y, xb - xa, 1, runpx, &row);
+                tile_stats_add(&d->stats, &row);
+                atomic_fetch_add(&prog->samples, (uint64_t)(xb - xa) * spp / passes);
+                xa = xb;
+            }
             atomic_store(&prog->last_ms, net_now_ms());
         }
         if (y < h) {
@@ -862,13 +879,15 @@ static void on_tile(struct worker *w, const struct msg_tile *t)
 {
     uint32_t ntiles = job_ready(w) ? imgio_tiles_x(&w->desc) * imgio_tiles_y(&w->desc) : 0;
     uint64_t nunits = (uint64_t)ntiles * (w->job.passes > 1 ? w->job.passes : 1);
-    if (!job_ready(w) || t->job_id != w->job.job_id || t->frame != w->job.frame || t->tile >= nunits) {
+    uint32_t npasses = w->job.passes > 1 ? w->job.passes : 1;
+    if (!job_ready(w) || t->job_id != w->job.job_id || t->frame != w->job.frame || t->tile >= nunits ||
+        t->pass >= npasses) {
         log_warn("dropping TILE %u for job %llu frame %u: not part of the loaded job", t->tile,
                  (unsigned long long)t->job_id, t->frame);
         return;
     }
     struct tile_task task = {t->job_id, t->frame, t->tile, t->attempt, w->job.job_key, w->conn, t->tile % ntiles,
-                             t->tile / ntiles, t->tag};
+                             t->pass, t->mask, t->tag};
     if (w->num_maps && !map_ready(w, task.pass)) {
         struct pass_map *pm = &w->maps[task.pass];
         if (!pm->announced) {

@@ -51,6 +51,31 @@ static inline float tile_variance_value(double v)
     return v > (double)FLT_MAX ? FLT_MAX : (float)v;
 }
 
+/* Pixel blocks of a tile: the unit of an adaptive render's allocation (docs/adaptive.md).
+ * Blocks are squares of tile_block_size(tile_size) pixels (TILE_BLOCK_MIN, or more for
+ * tiles over TILE_BLOCK_MIN x TILE_MAX_BLOCKS_SIDE), tile_blocks_side of them in a row of
+ * the tile (an edge tile's last ones are cut or empty), block b of a tile at row
+ * b / side, column b % side: a 64-bit mask names any set of them (TILE's mask). */
+#define TILE_BLOCK_MIN 8u
+#define TILE_MAX_BLOCKS_SIDE 8u
+#define TILE_MASK_ALL (~(uint64_t)0)
+static inline uint32_t tile_block_size(uint32_t tile_size)
+{
+    uint32_t b = (tile_size + TILE_MAX_BLOCKS_SIDE - 1) / TILE_MAX_BLOCKS_SIDE;
+    return b > TILE_BLOCK_MIN ? b : TILE_BLOCK_MIN;
+}
+static inline uint32_t tile_blocks_side(uint32_t tile_size)
+{
+    uint32_t b = tile_block_size(tile_size);
+    return (tile_size + b - 1) / b;
+}
+/* The block of pixel (x, y) of a tile (coordinates within the tile). */
+static inline uint32_t tile_pixel_block(uint32_t tile_size, uint32_t x, uint32_t y)
+{
+    uint32_t b = tile_block_size(tile_size);
+    return y / b * tile_blocks_side(tile_size) + x / b;
+}
+
 /* The EXR layout of a frame: tiles of the render's tile size, the channels above, ZIP.
  * Master and workers both derive it from the settings, so their chunks agree. */
 void tile_image_desc(struct image_desc *d, const struct render_settings *rs);

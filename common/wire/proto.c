@@ -252,6 +252,8 @@ int proto_encode(const struct proto_msg *msg, struct proto_buf *b)
         put_u32(b, msg->u.tile.frame);
         put_u32(b, msg->u.tile.tile);
         put_u32(b, msg->u.tile.attempt);
+        put_u32(b, msg->u.tile.pass);
+        put_u64(b, msg->u.tile.mask);
         put_hash(b, &msg->u.tile.tag);
         return 0;
     case MSG_RESULT: {
@@ -568,6 +570,12 @@ int proto_decode(const uint8_t *frame, size_t size, struct proto_msg *msg, char 
         msg->u.tile.frame = get_u32(r, "frame");
         msg->u.tile.tile = get_u32(r, "tile");
         msg->u.tile.attempt = get_u32(r, "attempt");
+        msg->u.tile.pass = get_u32(r, "pass");
+        msg->u.tile.mask = get_u64(r, "mask");
+        if (!r->failed && msg->u.tile.pass >= PROTO_MAX_PASSES)
+            fail(r, "pass %u exceeds the %u passes a job may have", msg->u.tile.pass, PROTO_MAX_PASSES);
+        if (!r->failed && msg->u.tile.mask == 0)
+            fail(r, "a tile with no pixel block to render");
         get_hash(r, &msg->u.tile.tag, "tag");
         break;
     case MSG_RESULT: {

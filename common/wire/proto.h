@@ -13,7 +13,7 @@
 #include "render/tile.h"
 
 #define PROTO_MAGIC 0x4d555242u /* "BRUM" little-endian */
-#define PROTO_VERSION 7 /* 2: HEARTBEAT carries samples_done; 3: JOB carries job_key, ACK, KEPT; 4: photon-map passes (JOB photon_maps, MAP); 5: JOB passes (passes without photon maps); 6: TILE and KEPT carry the holder's tag; 7: JOB aovs, filter */
+#define PROTO_VERSION 7 /* 2: HEARTBEAT carries samples_done; 3: JOB carries job_key, ACK, KEPT; 4: photon-map passes (JOB photon_maps, MAP); 5: JOB passes (passes without photon maps); 6: TILE and KEPT carry the holder's tag; 7: JOB aovs, filter; 8: TILE pass and block mask */
 #define PROTO_MAX_MESSAGE (64u * 1024u * 1024u) /* also ZMQ_MAXMSGSIZE */
 #define PROTO_MAX_STRING 1024
 #define PROTO_MAX_ASSETS 4096
@@ -101,6 +101,13 @@ struct msg_tile {
     uint32_t frame;
     uint32_t tile;      /* index: ty * tiles_x + tx; with photon maps the unit pass * tiles + tile */
     uint32_t attempt;
+    /* The sample pass the unit renders (< the JOB's passes, or 0 with one pass) and the
+     * pixel blocks of the tile it renders (bit b: block b of tile_block_size pixels, in
+     * rows of tile_blocks_side, render/tile.h); the other pixels are zero. A plain render
+     * sends every bit; an adaptive one renders a tile's blocks with their own pass counts,
+     * so its unit u = slot * tiles + tile names a slot whose pass and mask the master chose. */
+    uint32_t pass;
+    uint64_t mask;
     /* The master's MAC over (job key, tile, the holder's public key): the worker keeps it
      * with the finished tile and returns it in KEPT, so that a master that comes back
      * takes a kept tile only from the identity it was assigned to. */

@@ -53,7 +53,8 @@ static int msg_eq(const struct proto_msg *a, const struct proto_msg *b)
         return a->u.ready.job_id == b->u.ready.job_id && a->u.ready.credits == b->u.ready.credits;
     case MSG_TILE:
         return a->u.tile.job_id == b->u.tile.job_id && a->u.tile.frame == b->u.tile.frame &&
-               a->u.tile.tile == b->u.tile.tile && a->u.tile.attempt == b->u.tile.attempt;
+               a->u.tile.tile == b->u.tile.tile && a->u.tile.attempt == b->u.tile.attempt &&
+               a->u.tile.pass == b->u.tile.pass && a->u.tile.mask == b->u.tile.mask;
     case MSG_RESULT: {
         const struct msg_result *x = &a->u.result, *y = &b->u.result;
         return x->job_id == y->job_id && x->frame == y->frame && x->tile == y->tile &&

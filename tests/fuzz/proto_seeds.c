@@ -32,7 +32,7 @@ int main(int argc, char **argv)
         case MSG_BLOB_REQ: m.u.blob_req.length = 16; break;
         case MSG_BLOB_DATA: m.u.blob_data.total_size = sizeof bytes; m.u.blob_data.bytes = bytes; m.u.blob_data.length = sizeof bytes; break;
         case MSG_READY: m.u.ready.job_id = 5; m.u.ready.credits = 2; break;
-        case MSG_TILE: m.u.tile.job_id = 5; m.u.tile.tile = 3; m.u.tile.attempt = 1; break;
+        case MSG_TILE: m.u.tile.job_id = 5; m.u.tile.tile = 3; m.u.tile.attempt = 1; m.u.tile.pass = 1; m.u.tile.mask = 0x8421; break;
         case MSG_RESULT: m.u.result.job_id = 5; m.u.result.tile = 3; m.u.result.attempt = 1; m.u.result.chunk = bytes; m.u.result.chunk_size = sizeof bytes; break;
         case MSG_ERROR: m.u.error.job_id = 5; snprintf(m.u.error.text, sizeof m.u.error.text, "x"); break;
         case MSG_HEARTBEAT: m.u.heartbeat.job_id = 5; m.u.heartbeat.samples_done = 9; break;

@@ -119,6 +119,7 @@ static void sample(enum proto_type t, uint64_t job_id, uint32_t variant, struct 
         m->u.tile.job_id = job_id;
         m->u.tile.tile = variant;
         m->u.tile.attempt = 1;
+        m->u.tile.mask = TILE_MASK_ALL; /* a well-formed TILE (mask 0 does not decode) */
         break;
     case MSG_RESULT:
         m->u.result.job_id = job_id;

@@ -131,9 +131,9 @@ Test(adapt, rounds_reach_the_target_and_stop)
     cr_assert_null(a);
 }
 
-/* Passes go in multiples of the step (the sampler's streams): the optimum rounded up to
- * the next multiple, within the cap and the growth limit, and a tile whose optimum is on a
- * multiple keeps it. */
+/* Passes go in multiples of the step (the sampler's streams): the optimum rounded to a
+ * neighbouring multiple (up only where the budget needs it), within the cap and the growth
+ * limit, and a tile whose optimum is on a multiple keeps it. */
 Test(adapt, allocation_in_multiples_of_the_streams)
 {
     const double v[4] = {1.0, 4.0, 16.0, 0.0}, c[4] = {1.0, 1.0, 1.0, 1.0};
@@ -144,13 +144,21 @@ Test(adapt, allocation_in_multiples_of_the_streams)
         adapt_allocate(4, v, c, m, budget, 64, 1000, 4, n);
         for (int t = 0; t < 4; t++) {
             cr_assert_eq(n[t] % 4, 0, "budget %g tile %d: %u passes", budget, t, n[t]);
-            cr_assert(n[t] >= n1[t] && n[t] < n1[t] + 4, "budget %g tile %d: %u, unrounded %u", budget, t, n[t], n1[t]);
+            cr_assert(n[t] + 4 >= n1[t] && n[t] <= n1[t] + 4, "budget %g tile %d: %u, unrounded %u", budget, t, n[t],
+                      n1[t]);
         }
-        /* More passes than the unrounded rule: its budget stays met (where the cap let it). */
+        /* The budget stays met wherever the unrounded rule met it (the cap allowing). */
         if (projected(4, v, m, n1) <= budget * (1 + 1e-12))
             cr_assert(projected(4, v, m, n) <= budget * (1 + 1e-12));
         cr_assert_eq(n[3], 4, "a black tile keeps its passes");
     }
+    /* Four alike tiles whose optimum is 5 passes each (budget 16 / 5): rounded up, all
+     * would take 8 (variance 2, far below the budget); down then up by gain, two take 8
+     * (the lower indices: a tie) and the budget is met with 3.0. */
+    const double va[4] = {1.0, 1.0, 1.0, 1.0};
+    adapt_allocate(4, va, c, m, 16.0 / 5.0, 64, 1000, 4, n);
+    cr_assert(n[0] == 8 && n[1] == 8 && n[2] == 4 && n[3] == 4, "%u %u %u %u", n[0], n[1], n[2], n[3]);
+    cr_assert(projected(4, va, m, n) <= 16.0 / 5.0);
     /* The optimum 8, 16, 32 is on multiples of 4 and stays. */
     const uint32_t m4[3] = {4, 4, 4};
     adapt_allocate(3, v, c, m4, 14.0 * 14.0 / 56.0, 1000, 100, 4, n);
@@ -357,4 +365,64 @@ Test(adapt, pooled_estimate_resists_selection_bias)
     cr_log_info("firefly tiles: true / target %.3f with the tiles' own figures, %.3f pooled", own, pooled);
     cr_assert(own > 1.25, "the simulation shows no selection bias (%.3f): it tests nothing", own);
     cr_assert(pooled >= 0.8 && pooled <= 1.1, "pooled: true / target %.3f, not within 0.8-1.1", pooled);
+}
+
+/* Per pixel block: tiles of 2x2 blocks, one noisy block in each. Allocated per block (64
+ * blocks of 64 pixels) the rounds reach the target with fewer samples than allocated per
+ * tile (16 tiles of 256 pixels, each the sum of its blocks), and the noisy blocks get
+ * more passes than their quiet neighbours in the same tile. */
+Test(adapt, blocks_reach_the_target_with_fewer_samples_than_tiles)
+{
+    enum { B = 64, T = 16 };
+    uint32_t bpx[B], tpx[T];
+    double bvar[B], tvar[T] = {0};
+    for (uint32_t b = 0; b < B; b++) {
+        uint32_t x = b % 8, y = b / 8, t = y / 2 * 4 + x / 2;
+        bpx[b] = 64;
+        bvar[b] = x % 2 == 0 && y % 2 == 0 ? 64.0 * 0.5 : 64.0 * 0.01;
+        tvar[t] += bvar[b];
+    }
+    for (uint32_t t = 0; t < T; t++)
+        tpx[t] = 256;
+    /* run_rounds takes a tile's sum of means as 64: per pixel 1 for the blocks; the tiles'
+     * per-pass variance scaled by (64 / 256)^2 gives them the same relative error. */
+    for (uint32_t t = 0; t < T; t++)
+        tvar[t] /= 16.0;
+    struct adapt *ab = adapt_new(B, 8, bpx, 512, 2, 0.02, 0), *at = adapt_new(T, 4, tpx, 512, 2, 0.02, 0);
+    adapt_begin(ab);
+    adapt_begin(at);
+    run_rounds(ab, bvar);
+    run_rounds(at, tvar);
+    cr_assert(ab->finished && at->finished);
+    cr_assert(ab->est <= 0.02 && at->est <= 0.02, "both meet the target: %g %g", ab->est, at->est);
+    uint64_t sb = 0, st = 0;
+    for (uint32_t b = 0; b < B; b++)
+        sb += (uint64_t)ab->tiles[b].passes * bpx[b];
+    for (uint32_t t = 0; t < T; t++)
+        st += (uint64_t)at->tiles[t].passes * tpx[t];
+    cr_assert(sb * 10 < st * 7, "per block %llu pixel passes, per tile %llu", (unsigned long long)sb,
+              (unsigned long long)st);
+    cr_assert(ab->tiles[0].passes > ab->tiles[1].passes && ab->tiles[0].passes > ab->tiles[8].passes,
+              "the noisy block of a tile gets more than its neighbours: %u %u %u", ab->tiles[0].passes,
+              ab->tiles[1].passes, ab->tiles[8].passes);
+    adapt_free(&ab);
+    adapt_free(&at);
+}
+
+/* A tile's units in a round: one per pass some block gets; a tile that has fewer slots
+ * left keeps its lowest growing blocks where they are until it fits. */
+Test(adapt, units_of_a_tile_and_their_room)
+{
+    uint32_t old[4] = {4, 8, 4, 16}, now[4] = {8, 16, 4, 16};
+    cr_assert_eq(adapt_tile_units(old, now, 4), 12, "passes 4..15: blocks 0 and 1 share none but 8..15");
+    uint32_t same[4] = {8, 8, 8, 8}, grow[4] = {16, 16, 12, 8};
+    cr_assert_eq(adapt_tile_units(same, grow, 4), 8);
+    cr_assert_eq(adapt_tile_units(same, same, 4), 0);
+    uint32_t n2[4] = {8, 16, 4, 16};
+    cr_assert_eq(adapt_fit_units(old, n2, 4, 12), 12, "room enough: unchanged");
+    cr_assert(n2[0] == 8 && n2[1] == 16);
+    cr_assert_eq(adapt_fit_units(old, n2, 4, 10), 8, "block 0 (4 passes) stays: passes 8..15 for block 1");
+    cr_assert(n2[0] == 4 && n2[1] == 16);
+    cr_assert_eq(adapt_fit_units(old, n2, 4, 3), 0, "no room: nothing grows");
+    cr_assert(n2[1] == 8);
 }

@@ -86,6 +86,8 @@ static size_t make_samples(struct proto_msg out[MSG_TYPE_MAX_])
     out[n].u.tile.frame = 3;
     out[n].u.tile.tile = 1234;
     out[n].u.tile.attempt = 2;
+    out[n].u.tile.pass = 1023;
+    out[n].u.tile.mask = 0x8000000000000001ull;
     out[n].u.tile.tag = make_hash(91);
     n++;
 
@@ -229,6 +231,8 @@ static void assert_msg_eq(const struct proto_msg *a, const struct proto_msg *b)
         cr_assert_eq(a->u.tile.frame, b->u.tile.frame);
         cr_assert_eq(a->u.tile.tile, b->u.tile.tile);
         cr_assert_eq(a->u.tile.attempt, b->u.tile.attempt);
+        cr_assert_eq(a->u.tile.pass, b->u.tile.pass);
+        cr_assert_eq(a->u.tile.mask, b->u.tile.mask);
         assert_hash_eq(&a->u.tile.tag, &b->u.tile.tag);
         break;
     case MSG_RESULT: {
@@ -816,6 +820,32 @@ Test(proto, map_and_passes_limits)
     m.u.job.photon_maps = m.u.job.passes = PROTO_MAX_PASSES * 2;
     cr_assert_eq(proto_encode(&m, &b), -1, "too many passes");
     proto_buf_fini(&b);
+}
+
+Test(proto, tile_pass_and_mask_limits)
+{
+    struct fb f = {0};
+    fb_header(&f, MSG_TILE);
+    fb_u(&f, 1, 8);
+    fb_u(&f, 0, 4);
+    fb_u(&f, 3, 4);
+    fb_u(&f, 1, 4);
+    fb_u(&f, PROTO_MAX_PASSES, 4);
+    fb_u(&f, 1, 8);
+    fb_fill(&f, 0, BLOB_HASH_SIZE);
+    const char *err = expect_reject(f.d, f.n);
+    cr_assert(strstr(err, "pass"), "%s", err);
+    fb_header(&f, MSG_TILE);
+    fb_u(&f, 1, 8);
+    fb_u(&f, 0, 4);
+    fb_u(&f, 3, 4);
+    fb_u(&f, 1, 4);
+    fb_u(&f, 2, 4);
+    fb_u(&f, 0, 8);
+    fb_fill(&f, 0, BLOB_HASH_SIZE);
+    err = expect_reject(f.d, f.n);
+    cr_assert(strstr(err, "block"), "%s", err);
+    free(f.d);
 }
 
 Test(proto, oversized_frame_rejected)
