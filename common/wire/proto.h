@@ -13,7 +13,7 @@
 #include "render/tile.h"
 
 #define PROTO_MAGIC 0x4d555242u /* "BRUM" little-endian */
-#define PROTO_VERSION 7 /* 2: HEARTBEAT carries samples_done; 3: JOB carries job_key, ACK, KEPT; 4: photon-map passes (JOB photon_maps, MAP); 5: JOB passes (passes without photon maps); 6: TILE and KEPT carry the holder's tag; 7: JOB aovs, filter */
+#define PROTO_VERSION 8 /* 2: HEARTBEAT carries samples_done; 3: JOB carries job_key, ACK, KEPT; 4: photon-map passes (JOB photon_maps, MAP); 5: JOB passes (passes without photon maps); 6: TILE and KEPT carry the holder's tag; 7: JOB aovs, filter; 8: CHUNKS_REQ, CHUNKS (broadcast blobs) */
 #define PROTO_MAX_MESSAGE (64u * 1024u * 1024u) /* also ZMQ_MAXMSGSIZE */
 #define PROTO_MAX_STRING 1024
 #define PROTO_MAX_ASSETS 4096
@@ -35,7 +35,9 @@ enum proto_type {
     MSG_ACK = 11,       /* m->w: these tiles of (job, frame) are safe (journal synced): forget them */
     MSG_KEPT = 12,      /* w->m: a finished tile kept for a job of this job_key (a master that came back) */
     MSG_MAP = 13,       /* m->w: pass `pass`'s photon map is published as blob hash (size bytes) */
-    MSG_TYPE_MAX_ = 14
+    MSG_CHUNKS_REQ = 14, /* w->m: the chunk list of blob hash, please */
+    MSG_CHUNKS = 15,    /* m->w: its chunk hashes, and whether it is broadcast (where) */
+    MSG_TYPE_MAX_ = 16
 };
 
 struct msg_hello {
@@ -89,6 +91,27 @@ struct msg_blob_data {
     uint64_t total_size;
     const uint8_t *bytes;   /* points into the decoded frame */
     uint32_t length;
+};
+
+struct msg_chunks_req {
+    struct blob_hash hash;
+};
+
+/* The chunk list of blob hash (size bytes): the BLAKE2b-256 of each BLOB_CHUNK_SIZE chunk,
+ * count = blob_num_chunks(size) of them (checked on decode). With PROTO_CHUNKS_BCAST the
+ * master streams the blob's chunks on its broadcast socket (net_bcast_endpoint: beside the
+ * ROUTER's ipc socket, or on bcast_port of the same tcp host) to subscribers of the
+ * hash; a worker takes them (each checked against its hash) and fetches what it lacks
+ * point to point. */
+#define PROTO_CHUNKS_BCAST 1u
+#define PROTO_MAX_CHUNK_LIST (BLOB_MAX_SIZE / BLOB_CHUNK_SIZE)
+struct msg_chunks {
+    struct blob_hash hash;
+    uint64_t size;
+    uint32_t flags;             /* PROTO_CHUNKS_BCAST or 0 */
+    uint16_t bcast_port;        /* tcp: the broadcast socket's port (0: none) */
+    uint32_t count;             /* == blob_num_chunks(size) */
+    const uint8_t *hashes;      /* count * BLOB_HASH_SIZE bytes, points into the frame */
 };
 
 struct msg_ready {
@@ -181,12 +204,55 @@ struct proto_msg {
         struct msg_ack ack;
         struct msg_kept kept;
         struct msg_map map;
+        struct msg_chunks_req chunks_req;
+        struct msg_chunks chunks;
     } u;
 };
 
 /* The BLOB_REQ for the chunk of blob (hash, size) at offset (< size): at most
  * BLOB_CHUNK_SIZE bytes. Fetchers (worker, tests/tools/loadpeers) keep a window of them. */
 void proto_blob_req_at(const struct blob_hash *hash, uint64_t size, uint64_t offset, struct proto_msg *out);
+
+/* Fetching one blob, shared by the worker and tests/tools/loadpeers: CHUNKS_REQ first;
+ * with the chunk list, the broadcast (when the master has one: the caller subscribes to
+ * the hash) and, for what it did not bring within PROTO_BCAST_IDLE_MS of the last chunk
+ * (a late join, a full queue, a bad chunk), point-to-point BLOB_REQs, a window of
+ * PROTO_FETCH_WINDOW. Every chunk is checked against the list; the blob's hash at the end
+ * (blob_recv_finish). Pure: the caller sends what it is told and passes the time. */
+#define PROTO_FETCH_WINDOW 16       /* BLOB_REQs in flight */
+#define PROTO_BCAST_IDLE_MS 1000    /* no broadcast chunk for this long: fetch the rest point to point */
+#define PROTO_FETCH_MAX_ROUNDS 8    /* passes over the missing chunks before a fetch gives up */
+enum proto_fetch_phase { FETCH_LIST, FETCH_BCAST, FETCH_P2P };
+struct proto_fetch {
+    struct blob_recv recv;
+    enum proto_fetch_phase phase;
+    uint64_t next_chunk;            /* point to point: the next chunk index to look at */
+    uint32_t in_flight;
+    uint32_t rounds;
+    uint64_t last_bcast_ms;         /* when the broadcast last brought a chunk (or it began) */
+    uint64_t chunks_bcast, chunks_p2p; /* chunks kept from each path */
+};
+/* Starts a fetch of (hash, size) and fills *req with the CHUNKS_REQ to send. 0, or -1
+ * (the size is past the limit). */
+int proto_fetch_start(struct proto_fetch *f, const struct blob_hash *hash, uint64_t size, struct proto_msg *req,
+                      char *err, size_t errlen);
+/* The CHUNKS for this fetch: 1 when the caller should subscribe to the broadcast, 0 when
+ * not, -1 when the list does not fit the blob (the fetch goes on point to point). */
+int proto_fetch_on_chunks(struct proto_fetch *f, const struct msg_chunks *c, uint64_t now_ms, char *err,
+                          size_t errlen);
+/* A BLOB_DATA for this fetch (the caller matched the hash), from the broadcast (which
+ * counts as the stream being alive, whatever the chunk is worth) or as an
+ * answer to a BLOB_REQ. 0 when kept (or a duplicate), -1 when refused (bad size, offset,
+ * hash: nothing kept, the chunk will be fetched again). */
+int proto_fetch_on_data(struct proto_fetch *f, const struct msg_blob_data *d, int via_bcast, uint64_t now_ms,
+                        char *err, size_t errlen);
+/* The next BLOB_REQ to send, if any (1), else 0; -1 when the missing chunks were asked
+ * for PROTO_FETCH_MAX_ROUNDS times in vain. */
+int proto_fetch_next_req(struct proto_fetch *f, uint64_t now_ms, struct proto_msg *req);
+/* The broadcast socket has messages waiting (the caller's poll said so): the stream is not
+ * quiet, however slowly the caller reads it. */
+void proto_fetch_bcast_alive(struct proto_fetch *f, uint64_t now_ms);
+void proto_fetch_fini(struct proto_fetch *f);
 
 /* A growable output buffer for encoding. */
 struct proto_buf { uint8_t *data; size_t size, cap; };
