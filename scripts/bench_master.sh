@@ -83,7 +83,7 @@ for tile in 16 32 64; do
   done
 done
 say "headline (32 px, tcp + CurveZMQ, journal): the loop takes $loop32 us per tile: one master keeps $(printf %.0f "$busy32") workers busy (target 1000)"
-else
+elif [ -z "${DELIVERY_ONLY:-}" ]; then
   wt_us=$WT_US loop32=$LOOP_US
   say "given: worker $wt_us us per 32 px tile, the master's loop $loop32 us per tile"
 fi

@@ -19,6 +19,7 @@
 #include "wire/net.h"
 #include "render/photon_map.h"
 #include "wire/proto.h"
+#include "wire/fetch.h"
 #include "scene/scene_json.h"
 #include <errno.h>
 #include <math.h>

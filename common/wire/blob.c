@@ -59,11 +59,6 @@ int blob_mac_equal(const struct blob_hash *a, const struct blob_hash *b)
 
 /* ---- chunked receive ---- */
 
-uint64_t blob_num_chunks(uint64_t size)
-{
-    return (size + BLOB_CHUNK_SIZE - 1) / BLOB_CHUNK_SIZE;
-}
-
 void blob_chunk_hashes(const uint8_t *data, uint64_t size, struct blob_hash **hashes, uint64_t *count)
 {
     CHECK(size <= BLOB_MAX_SIZE);

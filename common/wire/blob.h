@@ -25,7 +25,7 @@ int blob_mac_equal(const struct blob_hash *a, const struct blob_hash *b);
 /* The BLAKE2b-256 of every BLOB_CHUNK_SIZE chunk of a blob, in order: *hashes is
  * mem_alloc'd, *count = blob_num_chunks(size). A receiver checks each chunk against it
  * before keeping it (broadcast chunks come from a stream shared by every worker). */
-uint64_t blob_num_chunks(uint64_t size);
+static inline uint64_t blob_num_chunks(uint64_t size) { return (size + BLOB_CHUNK_SIZE - 1) / BLOB_CHUNK_SIZE; }
 void blob_chunk_hashes(const uint8_t *data, uint64_t size, struct blob_hash **hashes, uint64_t *count);
 
 /* A blob being received in chunks: the buffer is allocated from the announced size

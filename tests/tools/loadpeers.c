@@ -32,6 +32,7 @@
 #include "wire/blob.h"
 #include "wire/net.h"
 #include "wire/proto.h"
+#include "wire/fetch.h"
 #include <inttypes.h>
 #include <stdio.h>
 #include <stdlib.h>

@@ -9,6 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include "wire/proto.h"
+#include "wire/fetch.h"
 
 static const uint8_t k_blob_bytes[] = {1, 2, 3, 4, 5, 0, 255, 7};
 static const uint8_t k_chunk_bytes[] = "not really an EXR chunk";
