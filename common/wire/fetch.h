@@ -16,7 +16,7 @@
  * PROTO_FETCH_WINDOW. Every chunk is checked against the list; the blob's hash at the end
  * (blob_recv_finish). Pure: the caller sends what it is told and passes the time. */
 #define PROTO_FETCH_WINDOW 16       /* BLOB_REQs in flight */
-#define PROTO_BCAST_IDLE_MS 1000    /* no broadcast chunk for this long: fetch the rest point to point */
+#define PROTO_BCAST_IDLE_MS 3000    /* no broadcast chunk for this long: fetch the rest point to point */
 #define PROTO_FETCH_MAX_ROUNDS 8    /* passes over the missing chunks before a fetch gives up */
 enum proto_fetch_phase { FETCH_LIST, FETCH_BCAST, FETCH_P2P };
 struct proto_fetch {
