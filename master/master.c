@@ -938,10 +938,9 @@ static int bcast_bind(struct master *m, const char *endpoint)
         return -1;
     }
     if (!strncmp(ep, "tcp://", 6)) {
-        char last[400];
-        size_t len = sizeof last;
-        if (zmq_getsockopt(m->bcast, ZMQ_LAST_ENDPOINT, last, &len) == 0)
-            m->bcast_port = net_endpoint_port(last);
+        size_t len = sizeof ep;
+        if (zmq_getsockopt(m->bcast, ZMQ_LAST_ENDPOINT, ep, &len) == 0)
+            m->bcast_port = net_endpoint_port(ep);
     } else {
         for (int i = 0; i < 2; i++)
             if (!m->bcast_ipc[i][0]) {

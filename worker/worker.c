@@ -98,10 +98,6 @@ struct pool {
     _Atomic uint32_t *tiles_rendered;
 };
 
-/* A blob being fetched: its chunk list, then the broadcast and point-to-point requests
- * for the rest (proto_fetch). */
-#define fetch proto_fetch
-
 /* A pass's photon map: announced by MAP for the current job, fetched as a blob, decoded
  * into the render job's slot for the pass (installed). */
 struct pass_map {
@@ -110,7 +106,7 @@ struct pass_map {
     int announced;
     int installed;              /* the render job's slot holds the map of installed_hash */
     struct blob_hash installed_hash;
-    struct fetch fetch;         /* fetch.recv.data while fetching */
+    struct proto_fetch fetch;         /* fetch.recv.data while fetching */
 };
 
 /* A job's scene loaded beside the main loop (load_thread): parsing the scene, building the
@@ -147,7 +143,7 @@ struct worker {
     struct blob_store cache;
     struct msg_job job;
     int have_job, loaded;
-    struct fetch *fetches;
+    struct proto_fetch *fetches;
     size_t num_fetches;
     struct scene scene;
     struct render_job rjob;
@@ -677,13 +673,16 @@ static int load_finish(struct worker *w)
 /* Sends the BLOB_REQs the fetch wants now (none while the list is on its way or the
  * broadcast brings chunks). -1 after an ERROR to the master: chunks asked for again and
  * again came back bad. */
-static int request_chunks(struct worker *w, struct fetch *f)
+static int request_chunks(struct worker *w, struct proto_fetch *f)
 {
     struct proto_msg m;
     int rc;
     while ((rc = proto_fetch_next_req(f, net_now_ms(), &m)) > 0)
-        if (worker_send(w, &m) != 0)
+        if (worker_send(w, &m) != 0) { /* not queued: asked for again next time */
+            f->in_flight--;
+            f->next_chunk = m.u.blob_req.offset / BLOB_CHUNK_SIZE;
             return 0;
+        }
     if (rc < 0) {
         char err[256], hex[65];
         blob_hash_hex(&f->recv.hash, hex);
@@ -698,7 +697,7 @@ static int request_chunks(struct worker *w, struct fetch *f)
 }
 
 /* Starts fetching (hash, size): CHUNKS_REQ, the rest when the list comes. */
-static int fetch_begin(struct worker *w, struct fetch *f, const struct blob_hash *hash, uint64_t size, char *err,
+static int fetch_begin(struct worker *w, struct proto_fetch *f, const struct blob_hash *hash, uint64_t size, char *err,
                        size_t errlen)
 {
     struct proto_msg req;
@@ -710,11 +709,11 @@ static int fetch_begin(struct worker *w, struct fetch *f, const struct blob_hash
 }
 
 /* The fetch of blob hash under way, if any; *map_pass: its pass for a photon map, else -1. */
-static struct fetch *fetch_find(struct worker *w, const struct blob_hash *hash, int *map_pass)
+static struct proto_fetch *fetch_find(struct worker *w, const struct blob_hash *hash, int *map_pass)
 {
     for (size_t i = 0; i < w->num_fetches + w->num_maps; i++) {
         *map_pass = i >= w->num_fetches ? (int)(i - w->num_fetches) : -1;
-        struct fetch *f = *map_pass >= 0 ? &w->maps[*map_pass].fetch : &w->fetches[i];
+        struct proto_fetch *f = *map_pass >= 0 ? &w->maps[*map_pass].fetch : &w->fetches[i];
         if (f->recv.data && blob_hash_equal(&f->recv.hash, hash))
             return f;
     }
@@ -726,7 +725,7 @@ static struct fetch *fetch_find(struct worker *w, const struct blob_hash *hash, 
 static int on_chunks(struct worker *w, const struct msg_chunks *c)
 {
     int map_pass;
-    struct fetch *f = fetch_find(w, &c->hash, &map_pass);
+    struct proto_fetch *f = fetch_find(w, &c->hash, &map_pass);
     if (!f)
         return 0;
     char err[256];
@@ -866,7 +865,7 @@ static int on_job(struct worker *w, struct msg_job *job)
         if (dup)
             continue;
         char err[256];
-        struct fetch *f = &w->fetches[w->num_fetches];
+        struct proto_fetch *f = &w->fetches[w->num_fetches];
         if (fetch_begin(w, f, &a->hash, a->size, err, sizeof err) != 0) {
             log_error("asset %s: %s", a->path, err);
             send_error(w, err);
@@ -894,7 +893,7 @@ static int on_job(struct worker *w, struct msg_job *job)
 static int on_blob_data(struct worker *w, const struct msg_blob_data *d, int via_bcast)
 {
     int map_pass;
-    struct fetch *f = fetch_find(w, &d->hash, &map_pass);
+    struct proto_fetch *f = fetch_find(w, &d->hash, &map_pass);
     if (f) {
         char err[256];
         if (proto_fetch_on_data(f, d, via_bcast, net_now_ms(), err, sizeof err) != 0 && ++w->bcast_bad <= 5)
@@ -931,7 +930,7 @@ static int on_blob_data(struct worker *w, const struct msg_blob_data *d, int via
 static int fetches_pump(struct worker *w)
 {
     for (size_t i = 0; i < w->num_fetches + w->num_maps; i++) {
-        struct fetch *f = i >= w->num_fetches ? &w->maps[i - w->num_fetches].fetch : &w->fetches[i];
+        struct proto_fetch *f = i >= w->num_fetches ? &w->maps[i - w->num_fetches].fetch : &w->fetches[i];
         if (f->recv.data && request_chunks(w, f) != 0)
             return -1;
     }

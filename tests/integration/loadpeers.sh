@@ -4,6 +4,8 @@
 # master, over ipc and over tcp with CurveZMQ. Every unit is done and acknowledged
 # exactly once, nothing is rejected, and the output decodes to the very pixels the fake
 # workers were given (a real render's), for the checker pool and for checks in the loop.
+# Over tcp, two strangers subscribed to everything on the broadcast socket (one without
+# CurveZMQ, one with a key the allow-list lacks) receive nothing.
 # Blob delivery: 16 fake workers take a 3.6 MB PLY from the master's broadcast (the
 # master sends about one copy, against 16 point to point), and a fake worker that loses
 # or gets corrupted broadcast chunks refuses them by their hash and fetches them point to
@@ -28,6 +30,7 @@ load() {
   timeout 120 $L "$ep" -n 16 --image "$T/ref.exr" --master-pid $mp $KEYARGS >"$T/log" 2>&1 && lr=0 || lr=1
   wait $mp && mr=0 || mr=1
   cat "$T/m.log" >>"$T/log"
+  cp "$T/log" "$T/$name.llog"
   units=256
   if [ $lr = 0 ] && [ $mr = 0 ] && grep -q "acked $units acked_twice [0-9]* unacked 0 peers 16" "$T/log" &&
     [ "$(counter tiles_done "$T/$name.exr")" = $units ] && [ "$(counter workers_joined "$T/$name.exr")" = 16 ]; then
@@ -55,8 +58,10 @@ load inloop "ipc://$T/m2.sock" --check-threads 0 --no-journal
 
 $M --keygen "$T/master.key" >/dev/null && $M --keygen "$T/w.key" >/dev/null
 cp "$T/w.key.pub" "$T/allow"
-KEYARGS="--key $T/w.key $T/master.key.pub"
+KEYARGS="--key $T/w.key $T/master.key.pub --strangers"
 load curve "tcp://127.0.0.1:$(port)" --curve-secret "$T/master.key" --allow "$T/allow"
+if grep -q "^loadpeers: strangers received 0$" "$T/curve.llog" && grep -q "^loadpeers: chunks bcast [1-9]" "$T/curve.llog"; then
+  ok "curve: the broadcast reached the allowed fake workers, not a subscriber without CurveZMQ or with a key not allowed"; else bad "curve: the broadcast reached the allowed fake workers only ($(grep strangers "$T/curve.llog"))"; fi
 
 # Blob delivery to 16 fake workers (--hold-ready: none renders before all have the blobs).
 mkdir -p "$T/bc"

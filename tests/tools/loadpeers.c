@@ -2,13 +2,16 @@
  * real master over loopback, to measure what one master can serve (docs/cluster.md).
  *   loadpeers ENDPOINT [-n N] [--credits C] [--key KEYFILE MASTER.pub] [--image REF.exr]
  *                      [--master-pid PID] [--no-fetch] [--hold-ready] [--timeout-ms MS]
- *                      [--no-bcast] [--drop-bcast K] [--corrupt-bcast K]
+ *                      [--no-bcast] [--drop-bcast K] [--corrupt-bcast K] [--strangers]
  * Each fake worker says HELLO (host "loadpeers-PID", pid = its index: distinct names),
  * fetches every blob the JOB and MAP messages name as a worker does (proto_fetch: the
  * chunk list, the master's broadcast on a SUB socket of its own, BLOB_REQ for the rest;
  * every chunk checked against the list, the blob's hash at the end; none with
  * --no-fetch; point to point only with --no-bcast; fake worker 0 drops, or flips a byte
- * of, every K-th broadcast chunk it receives with --drop-bcast / --corrupt-bcast), says READY with C credits (with --hold-ready
+ * of, every K-th broadcast chunk it receives with --drop-bcast / --corrupt-bcast; with
+ * --strangers two more SUB sockets subscribe to everything on the broadcast as soon as its
+ * endpoint is known, one without CurveZMQ and one with a fresh key pair no allow-list
+ * holds, and count what reaches them), says READY with C credits (with --hold-ready
  * only once every peer has its blobs: a delivery benchmark) and answers every TILE at once with a
  * RESULT whose chunk is a valid EXR tile chunk of the job's layout (tile_image_desc),
  * encoded once per tile at first use: pixels from REF.exr (channels R G B A
@@ -20,6 +23,7 @@
  *   loadpeers: chunks bcast X p2p Y bad Z fallbacks F   (chunks kept from the broadcast
  *     and point to point, refused by their hash, and fetches whose broadcast went quiet
  *     before they were complete, over every peer)
+ *   loadpeers: strangers received N   (with --strangers: frames that reached them)
  *   loadpeers: tiles_per_s X over S s
  *   loadpeers: master_cpu_us_per_tile Y loop_cpu_us_per_tile Z
  *     (with --master-pid: user+sys CPU from the first TILE to the last ACK per unit
@@ -59,11 +63,12 @@ struct lpeer {
 
 static struct {
     struct net_key pub, sec, server;
-    int curve, no_fetch, hold_ready, no_bcast;
+    int curve, no_fetch, hold_ready, no_bcast, strangers;
+    void *stranger[2];      /* --strangers: without CurveZMQ; with a key pair nobody allowed */
     uint32_t drop_bcast, corrupt_bcast;
     const char *endpoint;
     void *ctx;
-    uint64_t chunks_bcast, chunks_p2p, chunks_bad, fallbacks;
+    uint64_t chunks_bcast, chunks_p2p, chunks_bad, fallbacks, stranger_frames;
     struct lpeer *peers;
     uint32_t num_peers, peers_fetched;
     uint32_t credits;
@@ -252,6 +257,17 @@ static void on_chunks(struct lpeer *p, const struct msg_chunks *c)
         }
     }
     zmq_setsockopt(p->sub, ZMQ_SUBSCRIBE, c->hash.bytes, BLOB_HASH_SIZE);
+    for (int k = 0; g.strangers && k < 2 && !g.stranger[k]; k++) {
+        void *st = g.stranger[k] = zmq_socket(g.ctx, ZMQ_SUB);
+        net_socket_setup(st);
+        if (k == 1 && g.curve) {
+            struct net_key pub, sec;
+            if (zmq_curve_keypair(pub.z85, sec.z85) != 0 || net_curve_client(st, &g.server, &pub, &sec) != 0)
+                exit(1);
+        }
+        zmq_setsockopt(st, ZMQ_SUBSCRIBE, "", 0);
+        zmq_connect(st, ep);
+    }
 }
 
 /* Requests chunks of unfinished fetches; READY once every blob is in. */
@@ -453,7 +469,7 @@ static void usage(void)
 {
     fprintf(stderr, "usage: loadpeers ENDPOINT [-n N] [--credits C] [--key KEYFILE MASTER.pub] [--image REF.exr]\n"
                     "                 [--master-pid PID] [--no-fetch] [--hold-ready] [--timeout-ms MS]\n"
-                    "                 [--no-bcast] [--drop-bcast K] [--corrupt-bcast K]\n");
+                    "                 [--no-bcast] [--drop-bcast K] [--corrupt-bcast K] [--strangers]\n");
     exit(2);
 }
 
@@ -480,6 +496,8 @@ int main(int argc, char **argv)
             g.hold_ready = 1;
         else if (!strcmp(argv[i], "--no-bcast"))
             g.no_bcast = 1;
+        else if (!strcmp(argv[i], "--strangers"))
+            g.strangers = 1;
         else if (!strcmp(argv[i], "--drop-bcast") && i + 1 < argc)
             g.drop_bcast = (uint32_t)strtoul(argv[++i], NULL, 10);
         else if (!strcmp(argv[i], "--corrupt-bcast") && i + 1 < argc)
@@ -589,6 +607,13 @@ int main(int argc, char **argv)
             }
             zmq_msg_close(&msg);
         }
+        for (int k = 0; k < 2; k++) { /* what reached the strangers (nothing, if the broadcast is secured) */
+            zmq_msg_t sm;
+            zmq_msg_init(&sm);
+            while (g.stranger[k] && zmq_msg_recv(&sm, g.stranger[k], ZMQ_DONTWAIT) >= 0)
+                g.stranger_frames++;
+            zmq_msg_close(&sm);
+        }
         for (uint32_t i = 0; i < n; i++) /* a broadcast gone quiet: the rest point to point */
             if (!peers[i].bye)
                 fetch_pump(&peers[i]);
@@ -627,6 +652,8 @@ int main(int argc, char **argv)
            g.fetch_bytes, first_fetch, last_fetch);
     printf("loadpeers: chunks bcast %" PRIu64 " p2p %" PRIu64 " bad %" PRIu64 " fallbacks %" PRIu64 "\n",
            g.chunks_bcast, g.chunks_p2p, g.chunks_bad, g.fallbacks);
+    if (g.strangers)
+        printf("loadpeers: strangers received %" PRIu64 "\n", g.stranger_frames);
     printf("loadpeers: tiles_per_s %.1f over %.3f s\n", secs > 0.0 ? (double)g.acked_units / secs : 0.0, secs);
     if (g.master_pid && g.acked_units && g.master_cpu_first[0] >= 0.0 && g.master_cpu_first[1] >= 0.0)
         printf("loadpeers: master_cpu_us_per_tile %.1f loop_cpu_us_per_tile %.1f\n",
@@ -640,6 +667,9 @@ int main(int argc, char **argv)
             zmq_close(peers[i].sub);
         zmq_close(peers[i].sock);
     }
+    for (int k = 0; k < 2; k++)
+        if (g.stranger[k])
+            zmq_close(g.stranger[k]);
     for (uint32_t t = 0; g.chunks && t < g.num_tiles; t++)
         free(g.chunks[t]);
     free(g.chunks);
