@@ -64,7 +64,8 @@ struct peer {
     char name[300];         /* host:pid it claims, for messages only: never who it is */
     uint32_t pid;
     uint32_t dropped;       /* messages of this peer dropped; only the first few are logged */
-    uint64_t *map_bytes;    /* per pass: bytes of that pass's map blob served to it */
+    uint64_t *map_bytes;    /* per pass: bytes of that pass's map blob it fetched (asked the chunk list of: the
+                             * broadcast or point to point brings them) */
     uint64_t *wait_ms;      /* per pass: ms it was ready with credits while that pass's map was not published */
     uint64_t live_ms;       /* ms it was a ready worker of a frame */
     uint64_t fetch_wait_ms; /* ms it reported waiting for a map fetch with nothing to render (heartbeats) */
@@ -903,6 +904,9 @@ static void on_chunks_req(struct master *m, struct peer *p, const struct msg_chu
     c.u.chunks.count = (uint32_t)s->num_chunks;
     c.u.chunks.hashes = s->chunk_hashes[0].bytes;
     send_to(m, p, &c);
+    for (uint32_t pass = 0; pass < m->maps_published; pass++)
+        if (blob_hash_equal(&m->maps[pass].hash, &r->hash))
+            p->map_bytes[pass] += e->size;
 }
 
 /* The broadcast socket beside the ROUTER's endpoint (net_bcast_endpoint), secured the
@@ -922,6 +926,8 @@ static int bcast_bind(struct master *m, const char *endpoint)
             master_fail(m, "cannot enable CurveZMQ on the broadcast socket: %s", zmq_strerror(errno));
             return -1;
         }
+        if (m->zap && zap_watch(m->zap, m->zctx, m->bcast) != 0)
+            log_warn("the broadcast socket's failed handshakes are not counted (no monitor)");
         m->bcast_last_ms = net_now_ms();
     }
     char ep[400];
@@ -969,9 +975,6 @@ static void on_blob_req(struct master *m, struct peer *p, const struct msg_blob_
     d.u.blob_data.length = r->length;
     send_to(m, p, &d);
     m->c.blob_bytes_p2p += r->length;
-    for (uint32_t pass = 0; pass < m->maps_published; pass++)
-        if (blob_hash_equal(&m->maps[pass].hash, &r->hash))
-            p->map_bytes[pass] += r->length;
 }
 
 /* Decodes unit u's chunk into decode_scratch and checks it (chunk_check): 1 when sane, 0
@@ -2197,8 +2200,11 @@ static int frame_render(struct master *m, uint64_t *last_beat)
             return -1;
         void *zap_sock = m->zap ? zap_socket(m->zap) : NULL, *mon = m->zap ? zap_monitor_socket(m->zap) : NULL;
         /* the socket, ZAP and its monitor (when CurveZMQ is on), the checker's verdicts */
-        zmq_pollitem_t items[6] = {{m->sock, 0, ZMQ_POLLIN, 0}};
-        int nitems = 1, izap = -1, imon = -1, ibc = -1;
+        void *mon2 = m->zap ? zap_monitor2_socket(m->zap) : NULL;
+        zmq_pollitem_t items[7] = {{m->sock, 0, ZMQ_POLLIN, 0}};
+        int nitems = 1, izap = -1, imon = -1, imon2 = -1, ibc = -1;
+        if (mon2)
+            items[imon2 = nitems++] = (zmq_pollitem_t){mon2, 0, ZMQ_POLLIN, 0};
         if (m->bcast)
             items[ibc = nitems++] = (zmq_pollitem_t){m->bcast, 0, ZMQ_POLLIN, 0};
         if (zap_sock)
@@ -2218,7 +2224,7 @@ static int frame_render(struct master *m, uint64_t *last_beat)
         }
         if (izap >= 0 && (items[izap].revents & ZMQ_POLLIN))
             m->c.auth_rejects += (uint64_t)zap_handle(m->zap);
-        if (imon >= 0 && (items[imon].revents & ZMQ_POLLIN))
+        if ((imon >= 0 && (items[imon].revents & ZMQ_POLLIN)) || (imon2 >= 0 && (items[imon2].revents & ZMQ_POLLIN)))
             m->c.handshake_failures += zap_monitor_drain(m->zap);
         if (items[0].revents & ZMQ_POLLIN) {
             struct net_frame f;
