@@ -38,7 +38,7 @@ load() {
   rej=0
   for c in results_invalid results_stale results_not_ours results_nonfinite rejected_decode rejected_envelope \
     rejected_unknown_peer rejected_unexpected rejected_wrong_job rejected_blob_req tiles_reissued evicted_silent \
-    evicted_stalled auth_rejects; do
+    evicted_stalled $AUTHC; do
     v=$(counter $c "$T/$name.exr")
     [ "$v" = 0 ] || { echo "  $c = $v"; rej=1; }
   done
@@ -52,16 +52,19 @@ load() {
     ok "$name: the output holds every tile, bit-identical to the pixels sent"; else bad "$name: the output holds every tile, bit-identical to the pixels sent"; fi
 }
 
-KEYARGS=
+KEYARGS= AUTHC=auth_rejects
 load ipc "ipc://$T/m.sock"
 load inloop "ipc://$T/m2.sock" --check-threads 0 --no-journal
 
 $M --keygen "$T/master.key" >/dev/null && $M --keygen "$T/w.key" >/dev/null
 cp "$T/w.key.pub" "$T/allow"
-KEYARGS="--key $T/w.key $T/master.key.pub --strangers"
+KEYARGS="--key $T/w.key $T/master.key.pub --strangers" AUTHC= # the strangers are refused: counted below
 load curve "tcp://127.0.0.1:$(port)" --curve-secret "$T/master.key" --allow "$T/allow"
-if grep -q "^loadpeers: strangers received 0$" "$T/curve.llog" && grep -q "^loadpeers: chunks bcast [1-9]" "$T/curve.llog"; then
-  ok "curve: the broadcast reached the allowed fake workers, not a subscriber without CurveZMQ or with a key not allowed"; else bad "curve: the broadcast reached the allowed fake workers only ($(grep strangers "$T/curve.llog"))"; fi
+ar=$(counter auth_rejects "$T/curve.exr") hf=$(counter handshake_failures "$T/curve.exr")
+if grep -q "^loadpeers: strangers received 0$" "$T/curve.llog" && grep -q "^loadpeers: chunks bcast [1-9]" "$T/curve.llog" &&
+  [ "${ar:-0}" -ge 1 ] && [ "${hf:-0}" -ge 1 ]; then
+  ok "curve: the broadcast reached the allowed fake workers, not a subscriber without CurveZMQ or with a key not allowed (refused: $ar by ZAP, $hf handshakes)"
+else bad "curve: the broadcast reached the allowed fake workers only ($(grep strangers "$T/curve.llog"), auth_rejects ${ar:-?}, handshake_failures ${hf:-?})"; fi
 
 # Blob delivery to 16 fake workers (--hold-ready: none renders before all have the blobs).
 mkdir -p "$T/bc"
