@@ -39,6 +39,8 @@ static void usage(FILE *f)
             "                         output exists with the same scene and settings are skipped\n"
             "  --tiles N[,M..]        render only these tiles (the others are left black); no journal\n"
             "  --no-journal           do not keep OUT.exr.journal (a killed master then starts over)\n"
+            "  --bcast-mbps R         stream blobs to every worker at once at R MB/s (default 1000; 0: each\n"
+            "                         worker fetches every blob point to point, docs/cluster.md)\n"
             "  --check-threads N      threads that decode-check result chunks off the master's loop\n"
             "                         (default: cores - 1, 1..8; 0 = in the loop)\n"
             "  --curve-secret KEYFILE CurveZMQ: the master's key pair (from --keygen); needs --allow\n"
@@ -105,6 +107,7 @@ int main(int argc, char **argv)
     o.workers = 1;
     o.worker_timeout_ms = 10000;
     o.stall_ms = 30000;
+    o.bcast_mbps = 1000;
     o.argc = argc;
     o.argv = argv;
     int have_threads = 0;
@@ -144,6 +147,7 @@ int main(int argc, char **argv)
         NUM_OPT("--max-depth", 1, 1024, o.depth, o.have_depth)
         NUM_OPT("--worker-timeout-ms", 100, 86400000, o.worker_timeout_ms, dummy)
         NUM_OPT("--stall-ms", 100, 86400000, o.stall_ms, dummy)
+        NUM_OPT("--bcast-mbps", 0, 1000000, o.bcast_mbps, dummy)
         NUM_OPT("--photon-threads", 1, 1024, o.photon_threads, dummy)
         NUM_OPT("--check-threads", 0, 64, o.check_threads, o.have_check_threads)
         NUM_OPT("--photons", 0, 1ull << 32, o.photons, o.have_photons)

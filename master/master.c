@@ -64,7 +64,8 @@ struct peer {
     char name[300];         /* host:pid it claims, for messages only: never who it is */
     uint32_t pid;
     uint32_t dropped;       /* messages of this peer dropped; only the first few are logged */
-    uint64_t *map_bytes;    /* per pass: bytes of that pass's map blob served to it */
+    uint64_t *map_bytes;    /* per pass: bytes of that pass's map blob it fetched (asked the chunk list of: the
+                             * broadcast or point to point brings them) */
     uint64_t *wait_ms;      /* per pass: ms it was ready with credits while that pass's map was not published */
     uint64_t live_ms;       /* ms it was a ready worker of a frame */
     uint64_t fetch_wait_ms; /* ms it reported waiting for a map fetch with nothing to render (heartbeats) */
@@ -88,7 +89,8 @@ struct pass_map {
     X(rejected_blob_req) X(rejected_banned) X(auth_rejects) X(handshake_failures) X(evicted_silent)                \
     X(evicted_stalled) X(evicted_died) X(evicted_error) X(workers_banned) X(workers_joined) X(ready_stale)         \
     X(local_restarts) X(kept_untied) X(results_nonfinite) X(hellos_refused)                                       \
-    X(frames_done) X(frames_skipped) X(tiles_from_kept) X(kept_duplicate) X(acks_sent) X(journal_syncs)
+    X(frames_done) X(frames_skipped) X(tiles_from_kept) X(kept_duplicate) X(acks_sent) X(journal_syncs)                   \
+    X(blob_bytes_p2p) X(blob_bytes_bcast) X(bcast_subscriptions)
 struct counters {
 #define X(n) uint64_t n;
     COUNTERS(X)
@@ -98,9 +100,28 @@ struct counters {
 /* A tile a worker may forget once the journal is on disk up to byte `need`. */
 struct pending_ack { int32_t peer; uint64_t job_id; uint32_t frame, tile; uint64_t need; };
 
+/* A blob on the broadcast socket: its chunk list, and the stream's place. A subscription
+ * to the hash (re)starts it: BCAST_GATHER_MS later, so that the workers given the same
+ * JOB share one pass; one arriving during a pass extends it by a full cycle from there. */
+struct bcast_stream {
+    struct blob_hash hash;
+    uint64_t size, num_chunks;
+    struct blob_hash *chunk_hashes;
+    uint64_t cursor;            /* the next chunk to send */
+    uint64_t remaining;         /* chunks left in this pass (0: idle) */
+    uint64_t start_ms;          /* a pass waiting to start: when (0: none) */
+};
+
 struct master {
     const struct master_opts *opts;
     void *zctx, *sock;
+    void *bcast;                /* the XPUB socket blobs are streamed on, or NULL (docs/cluster.md) */
+    uint16_t bcast_port;        /* its tcp port (0: no tcp endpoint) */
+    char bcast_ipc[2][400];     /* its socket files (removed at the end) */
+    struct bcast_stream *streams;
+    size_t num_streams, cap_streams;
+    double bcast_tokens;        /* bytes the pacing allows now */
+    uint64_t bcast_last_ms;
     struct zap *zap;            /* CurveZMQ admission, or NULL */
     struct net_key curve_pub, curve_sec; /* the master's key pair, with zap */
     struct blob_hash tag_key;   /* MAC key of TILE tags: from the master's secret key (random without one) */
@@ -786,6 +807,179 @@ static void send_job(struct master *m, struct peer *p)
         send_map(m, p, pass);
 }
 
+/* ---- broadcast of blobs ---- */
+
+#define BCAST_HWM 256               /* chunks queued per subscriber before the XPUB drops for it (shared, 64 MiB at most) */
+#define BCAST_GATHER_MS 100         /* a pass starts this long after the subscription that asked for it */
+#define BCAST_BURST (16.0 * BLOB_CHUNK_SIZE) /* the most the pacing lets out in one pass of the loop */
+
+/* The stream of blob e (made, with its chunk list, on first use). */
+static struct bcast_stream *stream_get(struct master *m, const struct blob_entry *e)
+{
+    for (size_t i = 0; i < m->num_streams; i++)
+        if (blob_hash_equal(&m->streams[i].hash, &e->hash))
+            return &m->streams[i];
+    mem_grow((void **)&m->streams, &m->cap_streams, m->num_streams + 1, sizeof *m->streams);
+    struct bcast_stream *s = &m->streams[m->num_streams++];
+    memset(s, 0, sizeof *s);
+    s->hash = e->hash;
+    s->size = e->size;
+    blob_chunk_hashes(e->data, e->size, &s->chunk_hashes, &s->num_chunks);
+    return s;
+}
+
+/* Subscriptions arrive on the XPUB (verbose: every subscriber's): 1 + a 32-byte hash.
+ * They are network input from admitted peers (ZAP, or the socket file's permissions);
+ * anything else is ignored. A subscription to a blob we serve starts or extends its pass. */
+static void bcast_read(struct master *m, uint64_t now)
+{
+    for (;;) {
+        zmq_msg_t msg;
+        zmq_msg_init(&msg);
+        if (zmq_msg_recv(&msg, m->bcast, ZMQ_DONTWAIT) < 0) {
+            zmq_msg_close(&msg);
+            return;
+        }
+        const uint8_t *d = zmq_msg_data(&msg);
+        if (zmq_msg_size(&msg) == 1 + BLOB_HASH_SIZE && d[0] == 1 && !zmq_msg_more(&msg)) {
+            struct blob_hash h;
+            memcpy(h.bytes, d + 1, BLOB_HASH_SIZE);
+            const struct blob_entry *e = blob_store_get(&m->blobs, &h);
+            if (e && e->size > 0) {
+                struct bcast_stream *s = stream_get(m, e);
+                m->c.bcast_subscriptions++;
+                if (s->remaining > 0)
+                    s->remaining = s->num_chunks; /* a full cycle from here for the newcomer */
+                else if (!s->start_ms)
+                    s->start_ms = now + BCAST_GATHER_MS;
+            }
+        }
+        zmq_msg_close(&msg);
+    }
+}
+
+/* Sends what the pacing (--bcast-mbps) allows of every stream's pass; never blocks (the
+ * XPUB drops for a subscriber whose queue is full: it fetches those chunks point to point).
+ * 1 while a stream has work left (the loop then polls briefly). */
+static int bcast_pump(struct master *m, uint64_t now)
+{
+    if (!m->bcast)
+        return 0;
+    double rate = (double)m->opts->bcast_mbps * 1e6 / 1000.0; /* bytes per ms */
+    m->bcast_tokens += rate * (double)(now - m->bcast_last_ms);
+    if (m->bcast_tokens > BCAST_BURST)
+        m->bcast_tokens = BCAST_BURST;
+    m->bcast_last_ms = now;
+    int busy = 0;
+    for (size_t i = 0; i < m->num_streams;) {
+        struct bcast_stream *s = &m->streams[i];
+        const struct blob_entry *e = blob_store_get(&m->blobs, &s->hash);
+        if (!e) { /* the blob left the store (an earlier frame's): so does its stream */
+            free(s->chunk_hashes);
+            m->streams[i] = m->streams[--m->num_streams];
+            continue;
+        }
+        i++;
+        if (s->start_ms && now >= s->start_ms) {
+            s->start_ms = 0;
+            s->remaining = s->num_chunks;
+        }
+        while (s->remaining > 0 && m->bcast_tokens > 0) {
+            struct proto_msg d = {.type = MSG_BLOB_DATA};
+            uint64_t off = s->cursor * BLOB_CHUNK_SIZE, left = e->size - off;
+            d.u.blob_data.hash = s->hash;
+            d.u.blob_data.offset = off;
+            d.u.blob_data.total_size = e->size;
+            d.u.blob_data.bytes = e->data + off;
+            d.u.blob_data.length = (uint32_t)(left < BLOB_CHUNK_SIZE ? left : BLOB_CHUNK_SIZE);
+            /* the topic (the hash) and the message; an XPUB send does not block */
+            if (proto_encode(&d, &m->out) == 0 &&
+                zmq_send(m->bcast, s->hash.bytes, BLOB_HASH_SIZE, ZMQ_SNDMORE | ZMQ_DONTWAIT) == BLOB_HASH_SIZE &&
+                zmq_send(m->bcast, m->out.data, m->out.size, ZMQ_DONTWAIT) >= 0)
+                m->c.blob_bytes_bcast += d.u.blob_data.length;
+            m->bcast_tokens -= d.u.blob_data.length;
+            s->cursor = (s->cursor + 1) % s->num_chunks;
+            s->remaining--;
+        }
+        busy |= s->remaining > 0 || s->start_ms != 0;
+    }
+    return busy;
+}
+
+/* CHUNKS_REQ: the chunk list of a blob the peer may have (it was sent the JOB), and where
+ * the blob is broadcast. */
+static void on_chunks_req(struct master *m, struct peer *p, const struct msg_chunks_req *r)
+{
+    const struct blob_entry *e = p->job_sent ? blob_store_get(&m->blobs, &r->hash) : NULL;
+    if (!e) {
+        m->c.rejected_blob_req++;
+        if (p->dropped < 5)
+            log_warn("worker %s: CHUNKS_REQ for an unknown blob dropped", p->name);
+        return;
+    }
+    struct bcast_stream *s = stream_get(m, e);
+    struct proto_msg c = {.type = MSG_CHUNKS};
+    c.u.chunks.hash = e->hash;
+    c.u.chunks.size = e->size;
+    c.u.chunks.flags = m->bcast ? PROTO_CHUNKS_BCAST : 0;
+    c.u.chunks.bcast_port = m->bcast_port;
+    c.u.chunks.count = (uint32_t)s->num_chunks;
+    c.u.chunks.hashes = s->chunk_hashes[0].bytes;
+    send_to(m, p, &c);
+    for (uint32_t pass = 0; pass < m->maps_published; pass++)
+        if (blob_hash_equal(&m->maps[pass].hash, &r->hash))
+            p->map_bytes[pass] += e->size;
+}
+
+/* The broadcast socket beside the ROUTER's endpoint (net_bcast_endpoint), secured the
+ * same way: CurveZMQ with the same ZAP handler and allow-list when the ROUTER has it, a
+ * socket file of mode 0600 for ipc. Made on first use; --bcast-mbps 0: none. */
+static int bcast_bind(struct master *m, const char *endpoint)
+{
+    if (!endpoint || m->opts->bcast_mbps == 0)
+        return 0;
+    if (!m->bcast) {
+        m->bcast = zmq_socket(m->zctx, ZMQ_XPUB);
+        net_socket_setup(m->bcast);
+        int one = 1, hwm = BCAST_HWM;
+        zmq_setsockopt(m->bcast, ZMQ_XPUB_VERBOSE, &one, sizeof one);
+        zmq_setsockopt(m->bcast, ZMQ_SNDHWM, &hwm, sizeof hwm);
+        if (m->zap && net_curve_server(m->bcast, &m->curve_sec) != 0) {
+            master_fail(m, "cannot enable CurveZMQ on the broadcast socket: %s", zmq_strerror(errno));
+            return -1;
+        }
+        if (m->zap && zap_watch(m->zap, m->zctx, m->bcast) != 0)
+            log_warn("the broadcast socket's failed handshakes are not counted (no monitor)");
+        m->bcast_last_ms = net_now_ms();
+    }
+    char ep[400];
+    if (net_bcast_endpoint(endpoint, 0, ep, sizeof ep) != 0) {
+        log_info("no blob broadcast beside %s (its transport): workers there fetch point to point", endpoint);
+        return 0;
+    }
+    mode_t old = umask(077);
+    int rc = zmq_bind(m->bcast, ep);
+    int e = errno;
+    umask(old);
+    if (rc != 0) {
+        master_fail(m, "cannot bind the broadcast socket %s: %s", ep, zmq_strerror(e));
+        return -1;
+    }
+    if (!strncmp(ep, "tcp://", 6)) {
+        size_t len = sizeof ep;
+        if (zmq_getsockopt(m->bcast, ZMQ_LAST_ENDPOINT, ep, &len) == 0)
+            m->bcast_port = net_endpoint_port(ep);
+    } else {
+        for (int i = 0; i < 2; i++)
+            if (!m->bcast_ipc[i][0]) {
+                snprintf(m->bcast_ipc[i], sizeof m->bcast_ipc[i], "%s", ep + 6);
+                break;
+            }
+    }
+    log_debug("blobs are broadcast on %s", ep);
+    return 0;
+}
+
 static void on_blob_req(struct master *m, struct peer *p, const struct msg_blob_req *r)
 {
     const struct blob_entry *e = p->job_sent ? blob_store_get(&m->blobs, &r->hash) : NULL;
@@ -802,9 +996,7 @@ static void on_blob_req(struct master *m, struct peer *p, const struct msg_blob_
     d.u.blob_data.bytes = e->data + r->offset;
     d.u.blob_data.length = r->length;
     send_to(m, p, &d);
-    for (uint32_t pass = 0; pass < m->maps_published; pass++)
-        if (blob_hash_equal(&m->maps[pass].hash, &r->hash))
-            p->map_bytes[pass] += r->length;
+    m->c.blob_bytes_p2p += r->length;
 }
 
 /* Decodes unit u's chunk into decode_scratch and checks it (chunk_check): 1 when sane, 0
@@ -1409,6 +1601,9 @@ static void handle_message(struct master *m, struct net_frame *f)
     case MSG_BLOB_REQ:
         on_blob_req(m, p, &msg.u.blob_req);
         break;
+    case MSG_CHUNKS_REQ:
+        on_chunks_req(m, p, &msg.u.chunks_req);
+        break;
     case MSG_READY:
         if (msg.u.ready.job_id == m->job_id && sched_worker_ready(m->sched, pi, msg.u.ready.credits) == 0) {
             /* credits set */
@@ -1798,7 +1993,7 @@ static int start_local_workers(struct master *m)
         zap_allow_key(m->zap, &m->local_public);
     }
     snprintf(m->ipc_endpoint, sizeof m->ipc_endpoint, "ipc://%s/master.sock", m->ipc_dir);
-    if (bind_endpoint(m, m->ipc_endpoint) != 0)
+    if (bind_endpoint(m, m->ipc_endpoint) != 0 || bcast_bind(m, m->ipc_endpoint) != 0)
         return -1;
     m->local_pids = mem_calloc(o->workers, sizeof *m->local_pids);
     for (uint32_t i = 0; i < o->workers; i++) {
@@ -2063,6 +2258,7 @@ static int frame_render(struct master *m, uint64_t *last_beat)
     const struct master_opts *o = m->opts;
     int tty = isatty(2);
     uint64_t start = net_now_ms(), last_progress = start, last_tick = start;
+    int bcast_busy = 0;
     while (m->sched->tiles_done < m->num_units) {
         if (g_interrupted) {
             if (m->tracer && m->sched->tiles_done == 0) {
@@ -2081,8 +2277,13 @@ static int frame_render(struct master *m, uint64_t *last_beat)
             return -1;
         void *zap_sock = m->zap ? zap_socket(m->zap) : NULL, *mon = m->zap ? zap_monitor_socket(m->zap) : NULL;
         /* the socket, ZAP and its monitor (when CurveZMQ is on), the checker's verdicts */
-        zmq_pollitem_t items[5] = {{m->sock, 0, ZMQ_POLLIN, 0}};
-        int nitems = 1, izap = -1, imon = -1;
+        void *mon2 = m->zap ? zap_monitor2_socket(m->zap) : NULL;
+        zmq_pollitem_t items[7] = {{m->sock, 0, ZMQ_POLLIN, 0}};
+        int nitems = 1, izap = -1, imon = -1, imon2 = -1, ibc = -1;
+        if (mon2)
+            items[imon2 = nitems++] = (zmq_pollitem_t){mon2, 0, ZMQ_POLLIN, 0};
+        if (m->bcast)
+            items[ibc = nitems++] = (zmq_pollitem_t){m->bcast, 0, ZMQ_POLLIN, 0};
         if (zap_sock)
             items[izap = nitems++] = (zmq_pollitem_t){zap_sock, 0, ZMQ_POLLIN, 0};
         if (mon)
@@ -2094,13 +2295,13 @@ static int frame_render(struct master *m, uint64_t *last_beat)
         int sync_fd = m->journal ? journal_sync_fd(m->journal) : -1;
         if (sync_fd >= 0)
             items[nitems++] = (zmq_pollitem_t){NULL, sync_fd, ZMQ_POLLIN, 0};
-        if (zmq_poll(items, nitems, m->num_acks && sync_fd < 0 ? 2 : 100) < 0 && errno != EINTR) {
+        if (zmq_poll(items, nitems, bcast_busy ? 1 : m->num_acks && sync_fd < 0 ? 2 : 100) < 0 && errno != EINTR) {
             snprintf(m->fatal, sizeof m->fatal, "poll: %s", zmq_strerror(errno));
             return -1;
         }
         if (izap >= 0 && (items[izap].revents & ZMQ_POLLIN))
             m->c.auth_rejects += (uint64_t)zap_handle(m->zap);
-        if (imon >= 0 && (items[imon].revents & ZMQ_POLLIN))
+        if ((imon >= 0 && (items[imon].revents & ZMQ_POLLIN)) || (imon2 >= 0 && (items[imon2].revents & ZMQ_POLLIN)))
             m->c.handshake_failures += zap_monitor_drain(m->zap);
         if (items[0].revents & ZMQ_POLLIN) {
             struct net_frame f;
@@ -2118,6 +2319,9 @@ static int frame_render(struct master *m, uint64_t *last_beat)
         }
         checks_drain(m, 0);
         uint64_t now = net_now_ms();
+        if (ibc >= 0 && (items[ibc].revents & ZMQ_POLLIN))
+            bcast_read(m, now);
+        bcast_busy = bcast_pump(m, now);
         if (m->adapt && m->time_limit > 0.0 && !m->time_up && (double)(now - start) >= m->time_limit * 1000.0) {
             m->time_up = 1; /* the one decision that depends on timing (docs/adaptive.md) */
             log_info("adaptive: time limit %g s reached; the render stops at the end of round %u", m->time_limit,
@@ -2258,7 +2462,7 @@ int master_run(const struct master_opts *o)
     net_socket_setup(m.sock);
     int mandatory = 1;
     zmq_setsockopt(m.sock, ZMQ_ROUTER_MANDATORY, &mandatory, sizeof mandatory);
-    if (auth_setup(&m) != 0 || bind_endpoint(&m, o->bind) != 0)
+    if (auth_setup(&m) != 0 || bind_endpoint(&m, o->bind) != 0 || bcast_bind(&m, o->bind) != 0)
         goto done;
     uint32_t first = o->have_frames ? o->frame_first : 0, last = o->have_frames ? o->frame_last : 0;
     uint32_t step = o->have_frames ? o->frame_step : 1, started = 0;
@@ -2296,6 +2500,9 @@ done:
         char sockpath[400];
         snprintf(sockpath, sizeof sockpath, "%s/master.sock", m.ipc_dir);
         unlink(sockpath);
+        for (int i = 0; i < 2; i++)
+            if (m.bcast_ipc[i][0] && !strncmp(m.bcast_ipc[i], m.ipc_dir, strlen(m.ipc_dir)))
+                unlink(m.bcast_ipc[i]);
         if (m.local_key_path[0]) {
             unlink(m.local_key_path);
             char pub[420];
@@ -2312,6 +2519,11 @@ done:
     photon_tracer_free(&m.tracer, 1);
     checker_free(&m.checker);
     zap_free(&m.zap);
+    if (m.bcast)
+        zmq_close(m.bcast);
+    for (size_t i = 0; i < m.num_streams; i++)
+        free(m.streams[i].chunk_hashes);
+    free(m.streams);
     if (m.sock)
         zmq_close(m.sock);
     if (m.zctx)

@@ -16,6 +16,7 @@ struct master_opts {
     uint32_t worker_timeout_ms; /* evict a worker silent this long */
     uint32_t stall_ms;          /* evict a worker whose render threads make no progress this long */
     int no_journal;             /* do not keep OUT.journal (measurements only) */
+    uint32_t bcast_mbps;        /* --bcast-mbps: pace of the blob broadcast, MB/s (0: none, point to point only) */
     uint32_t check_threads;     /* --check-threads: threads checking RESULT chunks off the loop (0: in the loop) */
     int have_check_threads;
     int verbose;                /* also print every counter (they always go to OUT.stats.json) */

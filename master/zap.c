@@ -11,6 +11,7 @@
 
 struct zap {
     void *rep, *monitor;
+    void *monitor2;             /* the broadcast socket's (zap_watch), or NULL */
     uint8_t (*allowed)[32];     /* allowed CURVE public keys, binary */
     size_t num_allowed;
     uint64_t refused;           /* only the first few are logged */
@@ -25,6 +26,19 @@ void zap_allow_key(struct zap *z, const struct net_key *k)
 size_t zap_num_allowed(const struct zap *z) { return z->num_allowed; }
 void *zap_socket(const struct zap *z) { return z->rep; }
 void *zap_monitor_socket(const struct zap *z) { return z->monitor; }
+void *zap_monitor2_socket(const struct zap *z) { return z->monitor2; }
+
+int zap_watch(struct zap *z, void *zctx, void *sock)
+{
+    if (z->monitor2 || zmq_socket_monitor(sock, "inproc://brume-monitor-2",
+                                          ZMQ_EVENT_HANDSHAKE_FAILED_NO_DETAIL | ZMQ_EVENT_HANDSHAKE_FAILED_PROTOCOL |
+                                              ZMQ_EVENT_HANDSHAKE_FAILED_AUTH) != 0)
+        return -1;
+    int linger = 0;
+    z->monitor2 = zmq_socket(zctx, ZMQ_PAIR);
+    zmq_setsockopt(z->monitor2, ZMQ_LINGER, &linger, sizeof linger);
+    return zmq_connect(z->monitor2, "inproc://brume-monitor-2");
+}
 
 int zap_write_local_keys(const char *key_path, const char *pub_path, const struct net_key *master_public,
                          struct net_key *local_public, char *err, size_t errlen)
@@ -88,6 +102,8 @@ void zap_free(struct zap **zp)
         return;
     if (z->monitor)
         zmq_close(z->monitor);
+    if (z->monitor2)
+        zmq_close(z->monitor2);
     if (z->rep)
         zmq_close(z->rep);
     free(z->allowed);
@@ -148,13 +164,20 @@ int zap_handle(struct zap *z)
     return !ok;
 }
 
+static unsigned monitor_drain(void *monitor);
+
 unsigned zap_monitor_drain(struct zap *z)
+{
+    return (z->monitor ? monitor_drain(z->monitor) : 0) + (z->monitor2 ? monitor_drain(z->monitor2) : 0);
+}
+
+static unsigned monitor_drain(void *monitor)
 {
     unsigned failures = 0;
     for (;;) {
         zmq_msg_t ev, addr;
         zmq_msg_init(&ev);
-        if (zmq_msg_recv(&ev, z->monitor, ZMQ_DONTWAIT) < 0) {
+        if (zmq_msg_recv(&ev, monitor, ZMQ_DONTWAIT) < 0) {
             zmq_msg_close(&ev);
             return failures;
         }
@@ -168,7 +191,7 @@ unsigned zap_monitor_drain(struct zap *z)
         zmq_msg_close(&ev);
         if (more) {
             zmq_msg_init(&addr);
-            zmq_msg_recv(&addr, z->monitor, ZMQ_DONTWAIT);
+            zmq_msg_recv(&addr, monitor, ZMQ_DONTWAIT);
             zmq_msg_close(&addr);
         }
     }

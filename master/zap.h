@@ -1,8 +1,9 @@
-/* Keeping strangers out: CurveZMQ on the master's ROUTER socket with a ZAP handler (RFC 27)
- * that admits only allow-listed worker public keys, and a socket monitor that counts
- * handshakes failing before ZAP. Invariant: the handler is bound before the socket binds
- * or connects, so no peer is ever admitted unchecked. Called by master/master.c, which
- * polls zap_socket/zap_monitor_socket and calls zap_handle/zap_monitor_drain. */
+/* Keeping strangers out: CurveZMQ on the master's ROUTER socket and its blob broadcast
+ * with a ZAP handler (RFC 27) that admits only allow-listed worker public keys, and socket
+ * monitors that count handshakes failing before ZAP. Invariant: the handler is bound
+ * before the sockets bind or connect, so no peer is ever admitted unchecked. Called by
+ * master/master.c, which polls zap_socket and the monitor sockets and calls
+ * zap_handle/zap_monitor_drain. */
 #ifndef BRUME_ZAP_H
 #define BRUME_ZAP_H
 #include <stddef.h>
@@ -26,9 +27,13 @@ int zap_write_local_keys(const char *key_path, const char *pub_path, const struc
                          struct net_key *local_public, char *err, size_t errlen);
 void *zap_socket(const struct zap *z);
 void *zap_monitor_socket(const struct zap *z); /* NULL when the monitor could not start */
+/* Counts the failed handshakes of a second CURVE socket (the blob broadcast) too: its
+ * monitor is zap_monitor2_socket (NULL before or when it could not start). 0 or -1. */
+int zap_watch(struct zap *z, void *zctx, void *sock);
+void *zap_monitor2_socket(const struct zap *z);
 /* Answers one ZAP request; 1 when it refused a key (the first few are logged), else 0. */
 int zap_handle(struct zap *z);
-/* Reads the monitor's events; the handshakes that failed before ZAP (those refused by ZAP
+/* Reads the monitors' events; the handshakes that failed before ZAP (those refused by ZAP
  * are counted by zap_handle). */
 unsigned zap_monitor_drain(struct zap *z);
 

@@ -10,13 +10,16 @@
 #    = worker time per tile (scaled by pixels from 32 px) / the loop's time per tile.
 # 3. Blob delivery: a binary PLY of about 45 MB (scripts/gen_mesh.py 880) in a scene, to
 #    1, 4, 16 and 64 fake workers (--hold-ready: nobody renders before every peer has it),
-#    time until the last has it (hash checked) and bytes the master sent.
+#    point to point (--bcast-mbps 0) and by the broadcast (the default), one after the
+#    other for each N: time until the last has it (every chunk and the blob's hash
+#    checked), bytes the master sent on each path (its counters) and its CPU s.
 # 4. Scaling: master + 2 workers x 1 thread against master + 1 worker x 2 threads, Cornell
 #    at SCALE_SPP spp, REPS runs each, alternating, wall and CPU time (medians); efficiency
 #    = the second's time / the first's.
 # 5. A model of the speed-up at 16, 64, 256 and 1024 workers from 1-3 (see the doc).
 # Environment: SPP (64), N (fake workers, 16), SCALE_SPP (16), REPS (3), BCAST_NS
-# ("1 4 16 64"), MESH_N (880); WT_US and LOOP_US (both: skip parts 1-2, use these). Output: bench-out/bench_master.txt.
+# ("1 4 16 64"), MESH_N (880); WT_US and LOOP_US (both: skip parts 1-2, use these);
+# DELIVERY_ONLY=1: part 3 alone. Output: bench-out/bench_master.txt.
 # Usage: BUILD=build sh scripts/bench_master.sh
 set -eu
 . scripts/lib.sh
@@ -34,7 +37,7 @@ say() { echo "$*" | tee -a "$R"; }
 
 # 1. the worker's time per tile (WT_US and LOOP_US given: parts 1 and 2 are skipped, the
 # rest uses them)
-if [ -z "${WT_US:-}" ] || [ -z "${LOOP_US:-}" ]; then
+if [ -z "${DELIVERY_ONLY:-}" ] && { [ -z "${WT_US:-}" ] || [ -z "${LOOP_US:-}" ]; }; then
 cpu=$(cpu_secs $BUILD/master scenes/cornell/cornell.json -o "$T/ref.exr" --workers 1 --threads 1 --spp "$SPP" --tile 32)
 tiles=$(( (512 / 32) * (512 / 32) ))
 wt_us=$(echo "$cpu * 1000000 / $tiles" | bc -l)
@@ -80,12 +83,12 @@ for tile in 16 32 64; do
   done
 done
 say "headline (32 px, tcp + CurveZMQ, journal): the loop takes $loop32 us per tile: one master keeps $(printf %.0f "$busy32") workers busy (target 1000)"
-else
+elif [ -z "${DELIVERY_ONLY:-}" ]; then
   wt_us=$WT_US loop32=$LOOP_US
   say "given: worker $wt_us us per 32 px tile, the master's loop $loop32 us per tile"
 fi
 
-# 3. blob delivery, point to point
+# 3. blob delivery, point to point and by the broadcast
 mkdir -p "$T/bc"
 python3 scripts/gen_mesh.py "$MESH_N" "$T/bc/big" >/dev/null
 rm -f "$T/bc/big.obj" "$T/bc/big.ascii.ply" "$T/bc/big.be.ply"
@@ -94,26 +97,38 @@ python3 -c 'import json, sys
 d = json.load(open(sys.argv[1])); d["objects"].append({"type": "ply", "file": "big.ply", "transform": {"translate": [-3, 0, 2]}})
 json.dump(d, open(sys.argv[1], "w"), indent=1)' "$T/bc/tiny.json"
 bytes=$(stat -c %s "$T/bc/big.ply")
+scene_bytes=$(cat "$T/bc"/* | wc -c)
 say ""
-say "blob delivery (point to point, BLOB_REQ/BLOB_DATA over ipc): a $bytes-byte PLY and the small scene files to N fake workers"
-say "workers | last has it (s) | bytes sent by the master | ratio to 1 worker"
-one=
+say "blob delivery over ipc: a $bytes-byte PLY and the small scene files ($scene_bytes bytes in all) to N fake workers"
+say "workers | path | last has it (s) | bytes the master sent (point to point + broadcast) | copies | master CPU s | time / one worker's (same path)"
+one_p2p= one_bc=
 for n in $BCAST_NS; do
-  rm -f "$T/o.exr"*
-  # a long heartbeat timeout: on a loaded machine 64 fetches at once can delay a fake
-  # worker's heartbeats past the default 10 s
-  $BUILD/master "$T/bc/tiny.json" -o "$T/o.exr" --workers 0 --bind "ipc://$T/b.sock" --no-journal \
-    --worker-timeout-ms 120000 >"$T/mlog" 2>&1 &
-  mp=$!
-  $L "ipc://$T/b.sock" -n "$n" --hold-ready >"$T/llog" 2>&1 || { cat "$T/llog" "$T/mlog" >&2; exit 1; }
-  wait $mp
-  set -- $(awk '/fetch/ {print $9 / 1000, $5}' "$T/llog")
-  [ -n "$one" ] || one=$1
-  [ "$n" = 1 ] && bc1=$1
-  [ "$n" = 64 ] && bc64=$1
-  # (a blob too small to time for one worker: no ratio)
-  say "$n | $1 | $2 | $(awk -v t="$1" -v o="$one" 'BEGIN { if (o > 0) printf "%.2f", t / o; else print "-" }')"
+  for path in p2p bcast; do
+    rm -f "$T/o.exr"*
+    [ $path = p2p ] && mb=0 || mb=1000
+    # a long heartbeat timeout: on a loaded machine 64 fetches at once can delay a fake
+    # worker's heartbeats past the default 10 s
+    /usr/bin/time -f "%U %S" -o "$T/mt" $BUILD/master "$T/bc/tiny.json" -o "$T/o.exr" --workers 0 \
+      --bind "ipc://$T/b.sock" --no-journal --worker-timeout-ms 120000 --bcast-mbps $mb >"$T/mlog" 2>&1 &
+    mp=$!
+    $L "ipc://$T/b.sock" -n "$n" --hold-ready >"$T/llog" 2>&1 || { cat "$T/llog" "$T/mlog" >&2; exit 1; }
+    wait $mp
+    secs=$(awk '/^loadpeers: fetch/ {print $9 / 1000}' "$T/llog")
+    p2p=$(python3 -c 'import json, sys; print(json.load(open(sys.argv[1]))["counters"]["blob_bytes_p2p"])' "$T/o.exr.stats.json")
+    bc=$(python3 -c 'import json, sys; print(json.load(open(sys.argv[1]))["counters"]["blob_bytes_bcast"])' "$T/o.exr.stats.json")
+    mcpu=$(awk '{printf "%.2f", $1 + $2}' "$T/mt")
+    if [ $path = p2p ]; then
+      [ -n "$one_p2p" ] || one_p2p=$secs
+      one=$one_p2p
+      [ "$n" = 1 ] && bc1=$secs
+    else
+      [ -n "$one_bc" ] || one_bc=$secs
+      one=$one_bc
+    fi
+    say "$n | $path | $secs | $p2p + $bc | $(awk -v b=$((p2p + bc)) -v s="$scene_bytes" 'BEGIN { printf "%.2f", b / s }') | $mcpu | $(awk -v t="$secs" -v o="$one" 'BEGIN { if (o > 0) printf "%.2f", t / o; else print "-" }')"
+  done
 done
+[ -z "${DELIVERY_ONLY:-}" ] || { echo "bench_master: $R"; exit 0; }
 
 # 4. scaling on this machine: wall and CPU s of each run (time -f "%e %U %S")
 : >"$T/two_workers"

@@ -19,6 +19,7 @@
 #include "wire/net.h"
 #include "render/photon_map.h"
 #include "wire/proto.h"
+#include "wire/fetch.h"
 #include "scene/scene_json.h"
 #include <errno.h>
 #include <math.h>
@@ -32,7 +33,7 @@
 #include <unistd.h>
 #include <zmq.h>
 
-#define FETCH_WINDOW 16         /* blob chunk requests in flight */
+#define BCAST_RCVHWM 64         /* broadcast chunks queued for us (16 MiB); past it the master's queue fills and drops */
 #define TILES_PER_THREAD 2      /* credits: tiles queued or rendering per thread */
 #define HEARTBEAT_MS 1000
 #define MASTER_LOST_MS 4000     /* no word from the master this long: reconnect */
@@ -98,12 +99,6 @@ struct pool {
     _Atomic uint32_t *tiles_rendered;
 };
 
-struct fetch {
-    struct blob_recv recv;
-    uint64_t next_offset;   /* next chunk to request */
-    uint32_t in_flight;
-};
-
 /* A pass's photon map: announced by MAP for the current job, fetched as a blob, decoded
  * into the render job's slot for the pass (installed). */
 struct pass_map {
@@ -112,7 +107,7 @@ struct pass_map {
     int announced;
     int installed;              /* the render job's slot holds the map of installed_hash */
     struct blob_hash installed_hash;
-    struct fetch fetch;         /* fetch.recv.data while fetching */
+    struct proto_fetch fetch;         /* fetch.recv.data while fetching */
 };
 
 /* A job's scene loaded beside the main loop (load_thread): parsing the scene, building the
@@ -143,11 +138,13 @@ struct loader {
 struct worker {
     const struct worker_opts *opts;
     void *zctx, *sock, *results;
+    void *sub;                  /* the master's blob broadcast (SUB), connected at the first CHUNKS that names one */
+    uint64_t bcast_bad;         /* broadcast frames or chunks refused (the first few are logged) */
     struct proto_buf out;
     struct blob_store cache;
     struct msg_job job;
     int have_job, loaded;
-    struct fetch *fetches;
+    struct proto_fetch *fetches;
     size_t num_fetches;
     struct scene scene;
     struct render_job rjob;
@@ -690,16 +687,93 @@ static int load_finish(struct worker *w)
     return 0;
 }
 
-static void request_chunks(struct worker *w, struct fetch *f)
+/* Sends the BLOB_REQs the fetch wants now (none while the list is on its way or the
+ * broadcast brings chunks). -1 after an ERROR to the master: chunks asked for again and
+ * again came back bad. */
+static int request_chunks(struct worker *w, struct proto_fetch *f)
 {
-    while (f->in_flight < FETCH_WINDOW && f->next_offset < f->recv.size) {
-        struct proto_msg m;
-        proto_blob_req_at(&f->recv.hash, f->recv.size, f->next_offset, &m);
-        if (worker_send(w, &m) != 0)
-            return;
-        f->next_offset += m.u.blob_req.length;
-        f->in_flight++;
+    struct proto_msg m;
+    int rc;
+    while ((rc = proto_fetch_next_req(f, net_now_ms(), &m)) > 0)
+        if (worker_send(w, &m) != 0) { /* not queued: asked for again next time */
+            f->in_flight--;
+            f->next_chunk = m.u.blob_req.offset / BLOB_CHUNK_SIZE;
+            return 0;
+        }
+    if (rc < 0) {
+        char err[256], hex[65];
+        blob_hash_hex(&f->recv.hash, hex);
+        str_fmt(err, sizeof err, "blob %.16s: %llu chunks still bad after %d requests each", hex,
+                (unsigned long long)(f->recv.num_chunks - f->recv.chunks_have), PROTO_FETCH_MAX_ROUNDS);
+        log_error("%s", err);
+        send_error(w, err);
+        proto_fetch_fini(f);
+        return -1;
     }
+    return 0;
+}
+
+/* Starts fetching (hash, size): CHUNKS_REQ, the rest when the list comes. */
+static int fetch_begin(struct worker *w, struct proto_fetch *f, const struct blob_hash *hash, uint64_t size, char *err,
+                       size_t errlen)
+{
+    struct proto_msg req;
+    if (proto_fetch_start(f, hash, size, &req, err, errlen) != 0)
+        return -1;
+    if (size > 0)
+        worker_send(w, &req);
+    return 0;
+}
+
+/* The fetch of blob hash under way, if any; *map_pass: its pass for a photon map, else -1. */
+static struct proto_fetch *fetch_find(struct worker *w, const struct blob_hash *hash, int *map_pass)
+{
+    for (size_t i = 0; i < w->num_fetches + w->num_maps; i++) {
+        *map_pass = i >= w->num_fetches ? (int)(i - w->num_fetches) : -1;
+        struct proto_fetch *f = *map_pass >= 0 ? &w->maps[*map_pass].fetch : &w->fetches[i];
+        if (f->recv.data && blob_hash_equal(&f->recv.hash, hash))
+            return f;
+    }
+    return NULL;
+}
+
+/* CHUNKS: the list goes into the fetch; with a broadcast, we subscribe to the hash (the
+ * SUB socket is connected at the first: beside our ROUTER endpoint, secured the same way). */
+static int on_chunks(struct worker *w, const struct msg_chunks *c)
+{
+    int map_pass;
+    struct proto_fetch *f = fetch_find(w, &c->hash, &map_pass);
+    if (!f)
+        return 0;
+    char err[256];
+    int rc = proto_fetch_on_chunks(f, c, net_now_ms(), err, sizeof err);
+    if (rc < 0)
+        log_warn("master: %s (fetching it point to point)", err);
+    if (rc > 0) {
+        char ep[1200];
+        int ok = net_bcast_endpoint(w->opts->endpoint, c->bcast_port, ep, sizeof ep) == 0 &&
+                 (strncmp(ep, "tcp://", 6) != 0 || c->bcast_port != 0);
+        if (ok && !w->sub) {
+            w->sub = zmq_socket(w->zctx, ZMQ_SUB);
+            net_socket_setup(w->sub);
+            int hwm = BCAST_RCVHWM;
+            zmq_setsockopt(w->sub, ZMQ_RCVHWM, &hwm, sizeof hwm);
+            ok = (!w->opts->curve_secret ||
+                  net_curve_client(w->sub, &w->curve_server, &w->curve_pub, &w->curve_sec) == 0) &&
+                 zmq_connect(w->sub, ep) == 0;
+            if (!ok) {
+                log_warn("cannot subscribe to the blob broadcast at %s: %s (fetching point to point)", ep,
+                         zmq_strerror(errno));
+                zmq_close(w->sub);
+                w->sub = NULL;
+            }
+        }
+        if (ok && w->sub && zmq_setsockopt(w->sub, ZMQ_SUBSCRIBE, c->hash.bytes, BLOB_HASH_SIZE) == 0)
+            log_debug("blob of %llu bytes: taking the broadcast", (unsigned long long)c->size);
+        else
+            f->phase = FETCH_P2P;
+    }
+    return request_chunks(w, f);
 }
 
 static int fetches_pending(const struct worker *w)
@@ -808,8 +882,8 @@ static int on_job(struct worker *w, struct msg_job *job)
         if (dup)
             continue;
         char err[256];
-        struct fetch *f = &w->fetches[w->num_fetches];
-        if (blob_recv_init(&f->recv, &a->hash, a->size, err, sizeof err) != 0) {
+        struct proto_fetch *f = &w->fetches[w->num_fetches];
+        if (fetch_begin(w, f, &a->hash, a->size, err, sizeof err) != 0) {
             log_error("asset %s: %s", a->path, err);
             send_error(w, err);
             return -1;
@@ -825,30 +899,24 @@ static int on_job(struct worker *w, struct msg_job *job)
             blob_store_adopt(&w->cache, &a->hash, data, 0);
             continue;
         }
-        request_chunks(w, f);
     }
     if (!fetches_pending(w))
         load_start(w, LOAD_SCENE);
     return 0;
 }
 
-static int on_blob_data(struct worker *w, const struct msg_blob_data *d)
+/* A chunk, answering a BLOB_REQ or from the broadcast (via_bcast): kept once checked
+ * against the chunk list; a bad one is dropped and asked for again. */
+static int on_blob_data(struct worker *w, const struct msg_blob_data *d, int via_bcast)
 {
-    size_t nf = w->num_fetches + w->num_maps;
-    for (size_t i = 0; i < nf; i++) {
-        int map_pass = i >= w->num_fetches ? (int)(i - w->num_fetches) : -1;
-        struct fetch *f = map_pass >= 0 ? &w->maps[map_pass].fetch : &w->fetches[i];
-        if (!f->recv.data || !blob_hash_equal(&f->recv.hash, &d->hash))
-            continue;
+    int map_pass;
+    struct proto_fetch *f = fetch_find(w, &d->hash, &map_pass);
+    if (f) {
         char err[256];
-        if (d->total_size != f->recv.size ||
-            blob_recv_put(&f->recv, d->offset, d->bytes, d->length, err, sizeof err) != 0) {
-            log_warn("master sent a bad blob chunk (dropped): %s", d->total_size != f->recv.size ? "size differs" : err);
-            return 0;
-        }
-        if (f->in_flight)
-            f->in_flight--;
-        request_chunks(w, f);
+        if (proto_fetch_on_data(f, d, via_bcast, net_now_ms(), err, sizeof err) != 0 && ++w->bcast_bad <= 5)
+            log_warn("master sent a bad blob chunk%s (dropped, fetched again): %s", via_bcast ? " (broadcast)" : "", err);
+        if (request_chunks(w, f) != 0)
+            return -1;
         if (blob_recv_complete(&f->recv)) {
             uint8_t *data;
             uint64_t size = f->recv.size;
@@ -859,7 +927,11 @@ static int on_blob_data(struct worker *w, const struct msg_blob_data *d)
                 return -1;
             }
             blob_store_adopt(&w->cache, &h, data, size);
-            blob_recv_fini(&f->recv);
+            log_debug("blob of %llu bytes in: %llu chunks from the broadcast, %llu point to point",
+                      (unsigned long long)size, (unsigned long long)f->chunks_bcast, (unsigned long long)f->chunks_p2p);
+            proto_fetch_fini(f);
+            if (w->sub)
+                zmq_setsockopt(w->sub, ZMQ_UNSUBSCRIBE, h.bytes, BLOB_HASH_SIZE);
             if (map_pass >= 0) {
                 w->map_bytes += size;
                 return job_ready(w) ? map_install(w, (uint32_t)map_pass) : 0;
@@ -867,9 +939,36 @@ static int on_blob_data(struct worker *w, const struct msg_blob_data *d)
             if (!fetches_pending(w) && !w->load.running && !w->loaded)
                 load_start(w, LOAD_SCENE);
         }
-        return 0;
     }
     return 0; /* a chunk we no longer want (e.g. a duplicate): harmless */
+}
+
+/* Each pass of the loop: fetches whose broadcast went quiet ask for the rest. */
+static int fetches_pump(struct worker *w)
+{
+    for (size_t i = 0; i < w->num_fetches + w->num_maps; i++) {
+        struct proto_fetch *f = i >= w->num_fetches ? &w->maps[i - w->num_fetches].fetch : &w->fetches[i];
+        if (f->recv.data && request_chunks(w, f) != 0)
+            return -1;
+    }
+    return 0;
+}
+
+/* One frame off the broadcast: the topic (a hash) and a BLOB_DATA of that hash. */
+static int on_bcast_frame(struct worker *w, const struct net_frame *fr)
+{
+    struct proto_msg m;
+    char err[256] = "";
+    int decoded = proto_decode(fr->data, fr->size, &m, err, sizeof err) == 0;
+    if (!decoded || m.type != MSG_BLOB_DATA || fr->id_len != BLOB_HASH_SIZE ||
+        memcmp(fr->id, m.u.blob_data.hash.bytes, BLOB_HASH_SIZE) != 0) {
+        if (decoded && m.type == MSG_JOB)
+            proto_job_fini(&m.u.job);
+        if (++w->bcast_bad <= 5)
+            log_warn("broadcast: message dropped: %s", err[0] ? err : "not a chunk of its topic");
+        return 0;
+    }
+    return on_blob_data(w, &m.u.blob_data, 1);
 }
 
 static int map_ready(const struct worker *w, uint32_t pass);
@@ -940,13 +1039,11 @@ static void map_fetch_start(struct worker *w, uint32_t pass)
     if (!pm->announced || map_ready(w, pass) || pm->fetch.recv.data || blob_store_get(&w->cache, &pm->hash))
         return;
     char err[256];
-    if (blob_recv_init(&pm->fetch.recv, &pm->hash, pm->size, err, sizeof err) != 0) {
+    if (fetch_begin(w, &pm->fetch, &pm->hash, pm->size, err, sizeof err) != 0) {
         log_error("photon map of pass %u: %s", pass, err);
         send_error(w, err);
         return;
     }
-    pm->fetch.next_offset = 0;
-    pm->fetch.in_flight = 0;
     if (pm->size == 0) { /* never a valid map: let the decoder say why */
         uint8_t *data;
         if (blob_recv_finish(&pm->fetch.recv, &data, err, sizeof err) == 0)
@@ -954,7 +1051,6 @@ static void map_fetch_start(struct worker *w, uint32_t pass)
         blob_recv_fini(&pm->fetch.recv);
         return;
     }
-    request_chunks(w, &pm->fetch);
 }
 
 /* Pass `pass`'s map, once its blob is in the cache: decoded (every size and index
@@ -1179,6 +1275,10 @@ static int connect_master(struct worker *w)
 {
     if (w->sock)
         zmq_close(w->sock);
+    if (w->sub) { /* the next master may broadcast elsewhere */
+        zmq_close(w->sub);
+        w->sub = NULL;
+    }
     w->sock = zmq_socket(w->zctx, ZMQ_DEALER);
     net_socket_setup(w->sock);
     if (w->opts->curve_secret && net_curve_client(w->sock, &w->curve_server, &w->curve_pub, &w->curve_sec) != 0) {
@@ -1237,9 +1337,9 @@ int worker_run(const struct worker_opts *opts)
 
     uint64_t last_heard = net_now_ms(), last_beat = net_now_ms(), last_tick = net_now_ms();
     while (!g_stop) {
-        zmq_pollitem_t items[3] = {{w.sock, 0, ZMQ_POLLIN, 0}, {w.results, 0, ZMQ_POLLIN, 0},
-                                   {NULL, w.load.efd, ZMQ_POLLIN, 0}};
-        int n = zmq_poll(items, 3, 200);
+        zmq_pollitem_t items[4] = {{w.sock, 0, ZMQ_POLLIN, 0}, {w.results, 0, ZMQ_POLLIN, 0},
+                                   {NULL, w.load.efd, ZMQ_POLLIN, 0}, {w.sub, 0, ZMQ_POLLIN, 0}};
+        int n = zmq_poll(items, w.sub ? 4 : 3, 200);
         if (n < 0 && errno != EINTR) {
             log_error("poll: %s", zmq_strerror(errno));
             goto done;
@@ -1283,7 +1383,10 @@ int worker_run(const struct worker_opts *opts)
                     on_ack(&w, &m.u.ack);
                     break;
                 case MSG_BLOB_DATA:
-                    fatal = on_blob_data(&w, &m.u.blob_data) != 0;
+                    fatal = on_blob_data(&w, &m.u.blob_data, 0) != 0;
+                    break;
+                case MSG_CHUNKS:
+                    fatal = on_chunks(&w, &m.u.chunks) != 0;
                     break;
                 case MSG_TILE:
                     on_tile(&w, &m.u.tile);
@@ -1306,7 +1409,21 @@ int worker_run(const struct worker_opts *opts)
                     goto done;
             }
         }
+        if (w.sub && (items[3].revents & ZMQ_POLLIN)) {
+            for (size_t i = 0; i < w.num_fetches + w.num_maps; i++)
+                proto_fetch_bcast_alive(i >= w.num_fetches ? &w.maps[i - w.num_fetches].fetch : &w.fetches[i], now);
+            struct net_frame f;
+            int got;
+            while (net_now_ms() - now < DRAIN_MAX_MS && w.sub && (got = net_recv(w.sub, 1, &f)) != 0) {
+                int fatal = got > 0 && on_bcast_frame(&w, &f) != 0;
+                net_frame_fini(&f);
+                if (fatal)
+                    goto done;
+            }
+        }
         maps_prefetch(&w);
+        if (fetches_pump(&w) != 0)
+            goto done;
         now = net_now_ms();
         if (!w.lost && now - last_heard > MASTER_LOST_MS && now - w.conn_at_ms > MASTER_LOST_MS) {
             log_warn("no word from the master at %s for %llu ms; reconnecting (%zu finished tile(s) kept)",
@@ -1362,6 +1479,8 @@ done:
     blob_store_fini(&w.cache);
     proto_buf_fini(&w.out);
     zmq_close(w.results);
+    if (w.sub)
+        zmq_close(w.sub);
     if (w.sock)
         zmq_close(w.sock);
     zmq_ctx_term(w.zctx);

@@ -59,6 +59,63 @@ int blob_mac_equal(const struct blob_hash *a, const struct blob_hash *b)
 
 /* ---- chunked receive ---- */
 
+void blob_chunk_hashes(const uint8_t *data, uint64_t size, struct blob_hash **hashes, uint64_t *count)
+{
+    CHECK(size <= BLOB_MAX_SIZE);
+    uint64_t n = blob_num_chunks(size);
+    *hashes = mem_alloc((size_t)(n ? n : 1) * sizeof **hashes);
+    for (uint64_t i = 0; i < n; i++) {
+        uint64_t off = i * BLOB_CHUNK_SIZE, left = size - off;
+        blob_hash_compute(data + off, (size_t)(left < BLOB_CHUNK_SIZE ? left : BLOB_CHUNK_SIZE), &(*hashes)[i]);
+    }
+    *count = n;
+}
+
+static size_t chunk_len(const struct blob_recv *r, uint64_t idx)
+{
+    uint64_t left = r->size - idx * BLOB_CHUNK_SIZE;
+    return (size_t)(left < BLOB_CHUNK_SIZE ? left : BLOB_CHUNK_SIZE);
+}
+
+static int chunk_matches(const struct blob_recv *r, uint64_t idx, const uint8_t *bytes, size_t len)
+{
+    struct blob_hash h;
+    blob_hash_compute(bytes, len, &h);
+    return blob_hash_equal(&h, &r->chunk_hashes[idx]);
+}
+
+int blob_recv_set_chunks(struct blob_recv *r, const uint8_t *hashes, uint64_t count, char *err, size_t errlen)
+{
+    if (!r->data && r->size) {
+        str_fmt(err, errlen, "chunk list for a blob not being received");
+        return -1;
+    }
+    if (count != r->num_chunks) {
+        str_fmt(err, errlen, "chunk list of %llu hashes for a blob of %llu chunks", (unsigned long long)count,
+                (unsigned long long)r->num_chunks);
+        return -1;
+    }
+    free(r->chunk_hashes);
+    r->chunk_hashes = mem_alloc((size_t)(count ? count : 1) * sizeof *r->chunk_hashes);
+    if (count)
+        memcpy(r->chunk_hashes, hashes, (size_t)count * BLOB_HASH_SIZE);
+    for (uint64_t i = 0; i < count; i++)
+        if (r->have[i] && !chunk_matches(r, i, r->data + i * BLOB_CHUNK_SIZE, chunk_len(r, i))) {
+            r->have[i] = 0;
+            r->chunks_have--;
+            r->chunks_bad++;
+        }
+    return 0;
+}
+
+uint64_t blob_recv_next_missing(const struct blob_recv *r, uint64_t from)
+{
+    uint64_t i = from;
+    while (i < r->num_chunks && r->have[i])
+        i++;
+    return i < r->num_chunks ? i : r->num_chunks;
+}
+
 int blob_recv_init(struct blob_recv *r, const struct blob_hash *hash, uint64_t size, char *err, size_t errlen)
 {
     memset(r, 0, sizeof *r);
@@ -70,7 +127,7 @@ int blob_recv_init(struct blob_recv *r, const struct blob_hash *hash, uint64_t s
     }
     r->hash = *hash;
     r->size = size;
-    r->num_chunks = (size + BLOB_CHUNK_SIZE - 1) / BLOB_CHUNK_SIZE;
+    r->num_chunks = blob_num_chunks(size);
     r->data = mem_alloc((size_t)size);
     r->have = mem_calloc((size_t)r->num_chunks, 1);
     r->chunks_have = 0;
@@ -96,6 +153,17 @@ int blob_recv_put(struct blob_recv *r, uint64_t offset, const uint8_t *bytes, si
         return -1;
     }
     uint64_t idx = offset / BLOB_CHUNK_SIZE;
+    if (r->chunk_hashes) {
+        /* Checked chunks are final: a duplicate costs nothing, a bad chunk is dropped (the
+         * caller fetches it again). */
+        if (r->have[idx])
+            return 0;
+        if (!chunk_matches(r, idx, bytes, len)) {
+            r->chunks_bad++;
+            str_fmt(err, errlen, "blob chunk at offset %llu does not match its hash", (unsigned long long)offset);
+            return -1;
+        }
+    }
     /* A duplicate (a re-sent request) overwrites with what must be the same bytes; if a
      * peer lied, the hash check in blob_recv_finish catches it either way. */
     memcpy(r->data + offset, bytes, len);
@@ -131,6 +199,8 @@ int blob_recv_finish(struct blob_recv *r, uint8_t **data, char *err, size_t errl
     r->data = NULL;
     free(r->have);
     r->have = NULL;
+    free(r->chunk_hashes);
+    r->chunk_hashes = NULL;
     return 0;
 }
 
@@ -138,8 +208,10 @@ void blob_recv_fini(struct blob_recv *r)
 {
     free(r->data);
     free(r->have);
+    free(r->chunk_hashes);
     r->data = NULL;
     r->have = NULL;
+    r->chunk_hashes = NULL;
     r->num_chunks = r->chunks_have = 0;
 }
 

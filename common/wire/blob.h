@@ -22,22 +22,37 @@ int blob_hash_equal(const struct blob_hash *a, const struct blob_hash *b);
 void blob_mac_compute(const struct blob_hash *key, const void *data, size_t size, struct blob_hash *out);
 int blob_mac_equal(const struct blob_hash *a, const struct blob_hash *b);
 
+/* The BLAKE2b-256 of every BLOB_CHUNK_SIZE chunk of a blob, in order: *hashes is
+ * mem_alloc'd, *count = blob_num_chunks(size). A receiver checks each chunk against it
+ * before keeping it (broadcast chunks come from a stream shared by every worker). */
+static inline uint64_t blob_num_chunks(uint64_t size) { return (size + BLOB_CHUNK_SIZE - 1) / BLOB_CHUNK_SIZE; }
+void blob_chunk_hashes(const uint8_t *data, uint64_t size, struct blob_hash **hashes, uint64_t *count);
+
 /* A blob being received in chunks: the buffer is allocated from the announced size
  * (checked against BLOB_MAX_SIZE first), chunks may arrive in any order and more than
  * once, and the blob is complete when every byte arrived; blob_recv_finish then checks
- * the hash. */
+ * the hash. With a chunk list (blob_recv_set_chunks) every chunk is checked against its
+ * hash before it is kept, and a chunk already kept is not touched again. */
 struct blob_recv {
     struct blob_hash hash;
     uint64_t size;
     uint8_t *data;
     uint8_t *have;          /* one flag per chunk */
     uint64_t num_chunks, chunks_have;
+    struct blob_hash *chunk_hashes; /* NULL, or num_chunks hashes */
+    uint64_t chunks_bad;    /* chunks refused by their hash */
 };
 int blob_recv_init(struct blob_recv *r, const struct blob_hash *hash, uint64_t size, char *err, size_t errlen);
 /* Stores chunk bytes at offset; offset must be a multiple of BLOB_CHUNK_SIZE and the
  * length exactly the chunk's length. Returns 0, or -1 with a reason (nothing stored). */
 int blob_recv_put(struct blob_recv *r, uint64_t offset, const uint8_t *bytes, size_t len, char *err, size_t errlen);
 int blob_recv_complete(const struct blob_recv *r);
+/* Sets the chunk list: count must be the blob's chunk count; hashes are copied (32 bytes
+ * each, as they came off the wire). 0, or -1 with a reason. Chunks kept before are
+ * checked again and dropped when they do not match. */
+int blob_recv_set_chunks(struct blob_recv *r, const uint8_t *hashes, uint64_t count, char *err, size_t errlen);
+/* The index of the first chunk at or after `from` that is missing (num_chunks: none). */
+uint64_t blob_recv_next_missing(const struct blob_recv *r, uint64_t from);
 /* Verifies the hash of a complete blob; on success hands the data to *data (caller owns)
  * and returns 0. */
 int blob_recv_finish(struct blob_recv *r, uint8_t **data, char *err, size_t errlen);

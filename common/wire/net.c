@@ -330,3 +330,33 @@ int net_endpoint_is_local(const char *e)
     e += 6;
     return !strncmp(e, "127.", 4) || !strncmp(e, "localhost:", 10) || !strncmp(e, "[::1]:", 6);
 }
+
+int net_bcast_endpoint(const char *endpoint, uint16_t bcast_port, char *out, size_t outlen)
+{
+    int n;
+    if (!strncmp(endpoint, "ipc://", 6)) {
+        n = snprintf(out, outlen, "%s.bcast", endpoint);
+    } else if (!strncmp(endpoint, "tcp://", 6)) {
+        const char *colon = strrchr(endpoint + 6, ':');
+        if (!colon)
+            return -1;
+        int host_len = (int)(colon - endpoint);
+        n = bcast_port ? snprintf(out, outlen, "%.*s:%u", host_len, endpoint, (unsigned)bcast_port)
+                       : snprintf(out, outlen, "%.*s:*", host_len, endpoint);
+    } else {
+        return -1;
+    }
+    return n < 0 || (size_t)n >= outlen ? -1 : 0;
+}
+
+uint16_t net_endpoint_port(const char *endpoint)
+{
+    if (strncmp(endpoint, "tcp://", 6) != 0)
+        return 0;
+    const char *colon = strrchr(endpoint + 6, ':');
+    if (!colon || !colon[1])
+        return 0;
+    char *end;
+    unsigned long v = strtoul(colon + 1, &end, 10);
+    return *end == '\0' && v > 0 && v <= 65535 ? (uint16_t)v : 0;
+}

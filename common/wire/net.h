@@ -66,6 +66,13 @@ int net_endpoint_is_tcp(const char *endpoint);
 /* True for endpoints only this machine can reach (ipc, inproc, tcp on loopback). */
 int net_endpoint_is_local(const char *endpoint);
 
+/* The broadcast (PUB) endpoint beside a ROUTER endpoint: ipc://PATH -> ipc://PATH.bcast,
+ * tcp://HOST:PORT -> tcp://HOST:bcast_port (bcast_port 0: tcp://HOST:*, for binding to a
+ * free port). 0, or -1 for another transport or when out[outlen] is too small. */
+int net_bcast_endpoint(const char *endpoint, uint16_t bcast_port, char *out, size_t outlen);
+/* The port of a tcp://HOST:PORT endpoint (e.g. ZMQ_LAST_ENDPOINT), 0 when none. */
+uint16_t net_endpoint_port(const char *endpoint);
+
 /* Monotonic milliseconds. */
 uint64_t net_now_ms(void);
 

@@ -34,6 +34,8 @@ const char *proto_type_name(enum proto_type t)
     case MSG_ACK: return "ACK";
     case MSG_KEPT: return "KEPT";
     case MSG_MAP: return "MAP";
+    case MSG_CHUNKS_REQ: return "CHUNKS_REQ";
+    case MSG_CHUNKS: return "CHUNKS";
     case MSG_TYPE_MAX_: break;
     }
     return "UNKNOWN";
@@ -310,6 +312,22 @@ int proto_encode(const struct proto_msg *msg, struct proto_buf *b)
         put_u32(b, m->pass);
         put_hash(b, &m->hash);
         put_u64(b, m->size);
+        return 0;
+    }
+    case MSG_CHUNKS_REQ:
+        put_hash(b, &msg->u.chunks_req.hash);
+        return 0;
+    case MSG_CHUNKS: {
+        const struct msg_chunks *m = &msg->u.chunks;
+        if (m->size > BLOB_MAX_SIZE || m->count != blob_num_chunks(m->size) || (m->flags & ~PROTO_CHUNKS_BCAST) ||
+            (m->count && !m->hashes))
+            return -1;
+        put_hash(b, &m->hash);
+        put_u64(b, m->size);
+        put_u32(b, m->flags);
+        put_u16(b, m->bcast_port);
+        put_u32(b, m->count);
+        put_bytes(b, m->hashes, (size_t)m->count * BLOB_HASH_SIZE);
         return 0;
     }
     case MSG_TYPE_MAX_:
@@ -637,6 +655,30 @@ int proto_decode(const uint8_t *frame, size_t size, struct proto_msg *msg, char 
         else if (!r->failed && m->size > BLOB_MAX_SIZE)
             fail(r, "size %llu exceeds the limit of %llu", (unsigned long long)m->size,
                  (unsigned long long)BLOB_MAX_SIZE);
+        break;
+    }
+    case MSG_CHUNKS_REQ:
+        get_hash(r, &msg->u.chunks_req.hash, "hash");
+        break;
+    case MSG_CHUNKS: {
+        struct msg_chunks *m = &msg->u.chunks;
+        get_hash(r, &m->hash, "hash");
+        m->size = get_u64(r, "size");
+        m->flags = get_u32(r, "flags");
+        m->bcast_port = get_u16(r, "bcast_port");
+        m->count = get_u32(r, "count");
+        m->hashes = NULL;
+        if (r->failed)
+            break;
+        if (m->size > BLOB_MAX_SIZE)
+            fail(r, "size %llu exceeds the limit of %llu", (unsigned long long)m->size,
+                 (unsigned long long)BLOB_MAX_SIZE);
+        else if (m->flags & ~PROTO_CHUNKS_BCAST)
+            fail(r, "unknown flags 0x%x", m->flags);
+        else if (m->count != blob_num_chunks(m->size))
+            fail(r, "%u chunk hashes for a blob of %llu bytes", m->count, (unsigned long long)m->size);
+        else
+            m->hashes = take(r, (size_t)m->count * BLOB_HASH_SIZE, "hashes");
         break;
     }
     case MSG_BYE:

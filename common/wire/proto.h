@@ -13,7 +13,7 @@
 #include "render/tile.h"
 
 #define PROTO_MAGIC 0x4d555242u /* "BRUM" little-endian */
-#define PROTO_VERSION 7 /* 2: HEARTBEAT carries samples_done; 3: JOB carries job_key, ACK, KEPT; 4: photon-map passes (JOB photon_maps, MAP); 5: JOB passes (passes without photon maps); 6: TILE and KEPT carry the holder's tag; 7: JOB aovs, filter; 8: TILE pass and block mask */
+#define PROTO_VERSION 9 /* 2: HEARTBEAT carries samples_done; 3: JOB carries job_key, ACK, KEPT; 4: photon-map passes (JOB photon_maps, MAP); 5: JOB passes (passes without photon maps); 6: TILE and KEPT carry the holder's tag; 7: JOB aovs, filter; 8: TILE pass and block mask; 9: CHUNKS_REQ, CHUNKS (broadcast blobs) */
 #define PROTO_MAX_MESSAGE (64u * 1024u * 1024u) /* also ZMQ_MAXMSGSIZE */
 #define PROTO_MAX_STRING 1024
 #define PROTO_MAX_ASSETS 4096
@@ -35,7 +35,9 @@ enum proto_type {
     MSG_ACK = 11,       /* m->w: these tiles of (job, frame) are safe (journal synced): forget them */
     MSG_KEPT = 12,      /* w->m: a finished tile kept for a job of this job_key (a master that came back) */
     MSG_MAP = 13,       /* m->w: pass `pass`'s photon map is published as blob hash (size bytes) */
-    MSG_TYPE_MAX_ = 14
+    MSG_CHUNKS_REQ = 14, /* w->m: the chunk list of blob hash, please */
+    MSG_CHUNKS = 15,    /* m->w: its chunk hashes, and whether it is broadcast (where) */
+    MSG_TYPE_MAX_ = 16
 };
 
 struct msg_hello {
@@ -89,6 +91,27 @@ struct msg_blob_data {
     uint64_t total_size;
     const uint8_t *bytes;   /* points into the decoded frame */
     uint32_t length;
+};
+
+struct msg_chunks_req {
+    struct blob_hash hash;
+};
+
+/* The chunk list of blob hash (size bytes): the BLAKE2b-256 of each BLOB_CHUNK_SIZE chunk,
+ * count = blob_num_chunks(size) of them (checked on decode). With PROTO_CHUNKS_BCAST the
+ * master streams the blob's chunks on its broadcast socket (net_bcast_endpoint: beside the
+ * ROUTER's ipc socket, or on bcast_port of the same tcp host) to subscribers of the
+ * hash; a worker takes them (each checked against its hash) and fetches what it lacks
+ * point to point. */
+#define PROTO_CHUNKS_BCAST 1u
+#define PROTO_MAX_CHUNK_LIST (BLOB_MAX_SIZE / BLOB_CHUNK_SIZE)
+struct msg_chunks {
+    struct blob_hash hash;
+    uint64_t size;
+    uint32_t flags;             /* PROTO_CHUNKS_BCAST or 0 */
+    uint16_t bcast_port;        /* tcp: the broadcast socket's port (0: none) */
+    uint32_t count;             /* == blob_num_chunks(size) */
+    const uint8_t *hashes;      /* count * BLOB_HASH_SIZE bytes, points into the frame */
 };
 
 struct msg_ready {
@@ -188,6 +211,8 @@ struct proto_msg {
         struct msg_ack ack;
         struct msg_kept kept;
         struct msg_map map;
+        struct msg_chunks_req chunks_req;
+        struct msg_chunks chunks;
     } u;
 };
 

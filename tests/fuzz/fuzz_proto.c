@@ -94,6 +94,14 @@ static int msg_eq(const struct proto_msg *a, const struct proto_msg *b)
     case MSG_MAP:
         return a->u.map.job_id == b->u.map.job_id && a->u.map.pass == b->u.map.pass &&
                hash_eq(&a->u.map.hash, &b->u.map.hash) && a->u.map.size == b->u.map.size;
+    case MSG_CHUNKS_REQ:
+        return hash_eq(&a->u.chunks_req.hash, &b->u.chunks_req.hash);
+    case MSG_CHUNKS: {
+        const struct msg_chunks *x = &a->u.chunks, *y = &b->u.chunks;
+        return hash_eq(&x->hash, &y->hash) && x->size == y->size && x->flags == y->flags &&
+               x->bcast_port == y->bcast_port && x->count == y->count &&
+               bytes_eq(x->hashes, y->hashes, x->count * BLOB_HASH_SIZE);
+    }
     case MSG_TYPE_MAX_:
         break;
     }

@@ -12,6 +12,7 @@ int main(int argc, char **argv)
         return 2;
     }
     static const uint8_t bytes[48] = {1, 2, 3, 4, 5, 6, 7, 8};
+    static const uint8_t chunk_hashes[2 * BLOB_HASH_SIZE] = {3, 1, 4, 1, 5, 9, 2, 6};
     static struct proto_asset assets[2];
     snprintf(assets[0].path, sizeof assets[0].path, "scene.json");
     assets[0].size = 100;
@@ -39,6 +40,10 @@ int main(int argc, char **argv)
         case MSG_ACK: m.u.ack.job_id = 5; m.u.ack.count = 3; m.u.ack.tiles[1] = 1; m.u.ack.tiles[2] = 2; break;
         case MSG_KEPT: m.u.kept.job_id = 5; m.u.kept.tile = 3; m.u.kept.chunk = bytes; m.u.kept.chunk_size = sizeof bytes; break;
         case MSG_MAP: m.u.map.job_id = 5; m.u.map.pass = 2; m.u.map.size = 1000; break;
+        case MSG_CHUNKS_REQ: m.u.chunks_req.hash.bytes[0] = 9; break;
+        case MSG_CHUNKS: /* a blob of one chunk and a bit: two hashes (48 bytes of `bytes` and 16 more) */
+            m.u.chunks.size = BLOB_CHUNK_SIZE + 1; m.u.chunks.flags = PROTO_CHUNKS_BCAST; m.u.chunks.bcast_port = 5556;
+            m.u.chunks.count = 2; m.u.chunks.hashes = chunk_hashes; break;
         case MSG_BYE: case MSG_TYPE_MAX_: break;
         }
         char path[4096];

@@ -4,6 +4,12 @@
 # master, over ipc and over tcp with CurveZMQ. Every unit is done and acknowledged
 # exactly once, nothing is rejected, and the output decodes to the very pixels the fake
 # workers were given (a real render's), for the checker pool and for checks in the loop.
+# Over tcp, two strangers subscribed to everything on the broadcast socket (one without
+# CurveZMQ, one with a key the allow-list lacks) receive nothing.
+# Blob delivery: 16 fake workers take a 3.6 MB PLY from the master's broadcast (the
+# master sends about one copy, against 16 point to point), and a fake worker that loses
+# or gets corrupted broadcast chunks refuses them by their hash and fetches them point to
+# point.
 # Usage: BUILD=build sh tests/integration/loadpeers.sh
 . "$(dirname "$0")/lib.sh"
 lib_init load
@@ -24,6 +30,7 @@ load() {
   timeout 120 $L "$ep" -n 16 --image "$T/ref.exr" --master-pid $mp $KEYARGS >"$T/log" 2>&1 && lr=0 || lr=1
   wait $mp && mr=0 || mr=1
   cat "$T/m.log" >>"$T/log"
+  cp "$T/log" "$T/$name.llog"
   units=256
   if [ $lr = 0 ] && [ $mr = 0 ] && grep -q "acked $units acked_twice [0-9]* unacked 0 peers 16" "$T/log" &&
     [ "$(counter tiles_done "$T/$name.exr")" = $units ] && [ "$(counter workers_joined "$T/$name.exr")" = 16 ]; then
@@ -31,23 +38,70 @@ load() {
   rej=0
   for c in results_invalid results_stale results_not_ours results_nonfinite rejected_decode rejected_envelope \
     rejected_unknown_peer rejected_unexpected rejected_wrong_job rejected_blob_req tiles_reissued evicted_silent \
-    evicted_stalled auth_rejects; do
+    evicted_stalled $AUTHC; do
     v=$(counter $c "$T/$name.exr")
     [ "$v" = 0 ] || { echo "  $c = $v"; rej=1; }
   done
   dup=$(counter results_duplicate "$T/$name.exr") cp=$(counter straggler_copies "$T/$name.exr")
   if [ $rej = 0 ] && [ -n "$dup" ] && [ "$dup" -le "$cp" ]; then
     ok "$name: nothing rejected, duplicates ($dup) only from straggler copies ($cp)"; else bad "$name: nothing rejected, duplicates ($dup) only from straggler copies ($cp)"; fi
+  bc=$(counter blob_bytes_bcast "$T/$name.exr")
+  if [ -n "$bc" ] && [ "$bc" -gt 0 ] && [ "$(counter blob_bytes_p2p "$T/$name.exr")" = 0 ]; then
+    ok "$name: the fake workers took the scene's blobs from the broadcast ($bc bytes sent)"; else bad "$name: the fake workers took the scene's blobs from the broadcast"; fi
   if $X cmp "$T/ref.exr" "$T/$name.exr" >"$T/log" 2>&1; then
     ok "$name: the output holds every tile, bit-identical to the pixels sent"; else bad "$name: the output holds every tile, bit-identical to the pixels sent"; fi
 }
 
-KEYARGS=
+KEYARGS= AUTHC=auth_rejects
 load ipc "ipc://$T/m.sock"
 load inloop "ipc://$T/m2.sock" --check-threads 0 --no-journal
 
 $M --keygen "$T/master.key" >/dev/null && $M --keygen "$T/w.key" >/dev/null
 cp "$T/w.key.pub" "$T/allow"
-KEYARGS="--key $T/w.key $T/master.key.pub"
+KEYARGS="--key $T/w.key $T/master.key.pub --strangers" AUTHC= # the strangers are refused: counted below
 load curve "tcp://127.0.0.1:$(port)" --curve-secret "$T/master.key" --allow "$T/allow"
+ar=$(counter auth_rejects "$T/curve.exr") hf=$(counter handshake_failures "$T/curve.exr")
+if grep -q "^loadpeers: strangers received 0$" "$T/curve.llog" && grep -q "^loadpeers: chunks bcast [1-9]" "$T/curve.llog" &&
+  [ "${ar:-0}" -ge 1 ] && [ "${hf:-0}" -ge 1 ]; then
+  ok "curve: the broadcast reached the allowed fake workers, not a subscriber without CurveZMQ or with a key not allowed (refused: $ar by ZAP, $hf handshakes)"
+else bad "curve: the broadcast reached the allowed fake workers only ($(grep strangers "$T/curve.llog"), auth_rejects ${ar:-?}, handshake_failures ${hf:-?})"; fi
+
+# Blob delivery to 16 fake workers (--hold-ready: none renders before all have the blobs).
+mkdir -p "$T/bc"
+python3 scripts/gen_mesh.py 250 "$T/bc/big" >/dev/null
+rm -f "$T/bc/big.obj" "$T/bc/big.ascii.ply" "$T/bc/big.be.ply"
+cp scenes/tiny/tiny.json scenes/tiny/tiny.obj scenes/tiny/tiny.mtl scenes/tiny/lamp.obj "$T/bc/"
+python3 -c 'import json, sys
+d = json.load(open(sys.argv[1])); d["objects"].append({"type": "ply", "file": "big.ply", "transform": {"translate": [-3, 0, 2]}})
+json.dump(d, open(sys.argv[1], "w"), indent=1)' "$T/bc/tiny.json"
+S=$(cat "$T/bc"/* | wc -c) # one copy of every blob
+# deliver NAME MASTER_OPTIONS -- LOADPEERS_OPTIONS: sets P2P, BC (bytes the master sent)
+deliver() {
+  name=$1
+  shift
+  mo=
+  while [ "$1" != -- ]; do mo="$mo $1"; shift; done
+  shift
+  timeout 120 $M "$T/bc/tiny.json" -o "$T/$name.exr" --workers 0 --bind "ipc://$T/$name.sock" --no-journal \
+    --worker-timeout-ms 60000 $mo >"$T/m.log" 2>&1 &
+  mp=$!
+  echo $mp >>"$T/pids"
+  timeout 120 $L "ipc://$T/$name.sock" -n 16 --hold-ready "$@" >"$T/log" 2>&1 && lr=0 || lr=1
+  wait $mp && mr=0 || mr=1
+  cat "$T/m.log" >>"$T/log"
+  P2P=$(counter blob_bytes_p2p "$T/$name.exr") BC=$(counter blob_bytes_bcast "$T/$name.exr")
+  if [ $lr = 0 ] && [ $mr = 0 ] && grep -q "^loadpeers: fetch 16 " "$T/log" && grep -q " unacked 0 peers 16" "$T/log"; then
+    ok "$name: 16 fake workers have every blob (hashes checked) and the frame is done"; else bad "$name: 16 fake workers have every blob and the frame is done"; fi
+}
+deliver p2p --bcast-mbps 0 --
+if [ "$P2P" = $((16 * S)) ] && [ "$BC" = 0 ]; then
+  ok "point to point: the master sent 16 copies ($P2P bytes)"; else bad "point to point: the master sent 16 copies of $S bytes (p2p $P2P, broadcast $BC)"; fi
+deliver bcast --
+if [ -n "$P2P" ] && [ -n "$BC" ] && [ "$BC" -ge "$S" ] && [ $((P2P + BC)) -le $((3 * S)) ] &&
+  grep -q "^loadpeers: chunks bcast [1-9][0-9]* p2p [0-9]* bad 0 " "$T/log"; then
+  ok "broadcast: the master sent $((P2P + BC)) bytes for 16 workers, at most 3 copies of $S"; else bad "broadcast: the master sent at most 3 copies of $S bytes (p2p $P2P, broadcast $BC)"; fi
+deliver faulty -- --corrupt-bcast 3 --drop-bcast 5
+bad_chunks=$(awk '/^loadpeers: chunks/ {print $8}' "$T/log") p2p_chunks=$(awk '/^loadpeers: chunks/ {print $6}' "$T/log")
+if [ "${bad_chunks:-0}" -gt 0 ] && [ "${p2p_chunks:-0}" -gt 0 ] && [ -n "$P2P" ] && [ "$P2P" -gt 0 ]; then
+  ok "broadcast chunks corrupted ($bad_chunks refused by their hash) or dropped: fetched point to point ($p2p_chunks chunks)"; else bad "corrupted or dropped broadcast chunks fetched point to point (bad ${bad_chunks:-?}, p2p ${p2p_chunks:-?}, master p2p ${P2P:-?})"; fi
 finish

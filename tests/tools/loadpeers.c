@@ -2,9 +2,16 @@
  * real master over loopback, to measure what one master can serve (docs/cluster.md).
  *   loadpeers ENDPOINT [-n N] [--credits C] [--key KEYFILE MASTER.pub] [--image REF.exr]
  *                      [--master-pid PID] [--no-fetch] [--hold-ready] [--timeout-ms MS]
+ *                      [--no-bcast] [--drop-bcast K] [--corrupt-bcast K] [--strangers]
  * Each fake worker says HELLO (host "loadpeers-PID", pid = its index: distinct names),
- * fetches every blob the JOB and MAP messages name through BLOB_REQ (hash checked by
- * blob_recv_finish; none with --no-fetch), says READY with C credits (with --hold-ready
+ * fetches every blob the JOB and MAP messages name as a worker does (proto_fetch: the
+ * chunk list, the master's broadcast on a SUB socket of its own, BLOB_REQ for the rest;
+ * every chunk checked against the list, the blob's hash at the end; none with
+ * --no-fetch; point to point only with --no-bcast; fake worker 0 drops, or flips a byte
+ * of, every K-th broadcast chunk it receives with --drop-bcast / --corrupt-bcast; with
+ * --strangers two more SUB sockets subscribe to everything on the broadcast as soon as its
+ * endpoint is known, one without CurveZMQ and one with a fresh key pair no allow-list
+ * holds, and count what reaches them), says READY with C credits (with --hold-ready
  * only once every peer has its blobs: a delivery benchmark) and answers every TILE at once with a
  * RESULT whose chunk is a valid EXR tile chunk of the job's layout (tile_image_desc),
  * encoded once per tile at first use: pixels from REF.exr (channels R G B A
@@ -13,6 +20,10 @@
  *   loadpeers: granted G results R acked A acked_twice D unacked U peers P
  *   loadpeers: fetch N bytes B first_ms F last_ms L   (N peers fetched B bytes in all; the
  *     first and last finished F and L ms after the first JOB arrived)
+ *   loadpeers: chunks bcast X p2p Y bad Z fallbacks F   (chunks kept from the broadcast
+ *     and point to point, refused by their hash, and fetches whose broadcast went quiet
+ *     before they were complete, over every peer)
+ *   loadpeers: strangers received N   (with --strangers: frames that reached them)
  *   loadpeers: tiles_per_s X over S s
  *   loadpeers: master_cpu_us_per_tile Y loop_cpu_us_per_tile Z
  *     (with --master-pid: user+sys CPU from the first TILE to the last ACK per unit
@@ -25,6 +36,7 @@
 #include "wire/blob.h"
 #include "wire/net.h"
 #include "wire/proto.h"
+#include "wire/fetch.h"
 #include <inttypes.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -33,12 +45,12 @@
 #include <unistd.h>
 #include <zmq.h>
 
-#define FETCH_WINDOW 16 /* as the worker's */
-
-struct fetch { struct blob_recv recv; uint64_t next_offset; uint32_t in_flight; int done; };
+struct fetch { struct proto_fetch pf; int done; };
 
 struct lpeer {
     void *sock;
+    void *sub;              /* the master's broadcast, once a CHUNKS names it */
+    uint64_t bcast_seen;    /* broadcast chunks received (for --drop-bcast / --corrupt-bcast) */
     uint64_t job_id;
     int have_job, ready_sent, bye;
     struct fetch *fetches;
@@ -51,7 +63,12 @@ struct lpeer {
 
 static struct {
     struct net_key pub, sec, server;
-    int curve, no_fetch, hold_ready;
+    int curve, no_fetch, hold_ready, no_bcast, strangers;
+    void *stranger[2];      /* --strangers: without CurveZMQ; with a key pair nobody allowed */
+    uint32_t drop_bcast, corrupt_bcast;
+    const char *endpoint;
+    void *ctx;
+    uint64_t chunks_bcast, chunks_p2p, chunks_bad, fallbacks, stranger_frames;
     struct lpeer *peers;
     uint32_t num_peers, peers_fetched;
     uint32_t credits;
@@ -185,15 +202,71 @@ static int job_layout(const struct msg_job *j)
 static void fetch_add(struct lpeer *p, const struct blob_hash *hash, uint64_t size)
 {
     for (uint32_t i = 0; i < p->num_fetches; i++)
-        if (blob_hash_equal(&p->fetches[i].recv.hash, hash))
+        if (blob_hash_equal(&p->fetches[i].pf.recv.hash, hash))
             return;
     p->fetches = mem_realloc(p->fetches, sizeof *p->fetches * (p->num_fetches + 1));
     struct fetch *f = &p->fetches[p->num_fetches++];
     memset(f, 0, sizeof *f);
     char err[256];
-    if (blob_recv_init(&f->recv, hash, size, err, sizeof err) != 0) {
+    struct proto_msg req;
+    if (proto_fetch_start(&f->pf, hash, size, &req, err, sizeof err) != 0) {
         fprintf(stderr, "loadpeers: %s\n", err);
         exit(1);
+    }
+    if (size == 0) {
+        proto_fetch_fini(&f->pf);
+        f->done = 1;
+        return;
+    }
+    send_msg(p, &req);
+}
+
+static struct fetch *fetch_find(struct lpeer *p, const struct blob_hash *hash)
+{
+    for (uint32_t i = 0; i < p->num_fetches; i++)
+        if (!p->fetches[i].done && blob_hash_equal(&p->fetches[i].pf.recv.hash, hash))
+            return &p->fetches[i];
+    return NULL;
+}
+
+/* CHUNKS: the list, and the broadcast (this peer's SUB socket, as the worker's). */
+static void on_chunks(struct lpeer *p, const struct msg_chunks *c)
+{
+    struct fetch *f = fetch_find(p, &c->hash);
+    if (!f)
+        return;
+    char err[256], ep[600];
+    int rc = proto_fetch_on_chunks(&f->pf, c, net_now_ms(), err, sizeof err);
+    if (rc < 0)
+        fprintf(stderr, "loadpeers: %s\n", err);
+    if (rc <= 0)
+        return;
+    if (g.no_bcast || net_bcast_endpoint(g.endpoint, c->bcast_port, ep, sizeof ep) != 0 ||
+        (!strncmp(ep, "tcp://", 6) && c->bcast_port == 0)) {
+        f->pf.phase = FETCH_P2P;
+        return;
+    }
+    if (!p->sub) {
+        p->sub = zmq_socket(g.ctx, ZMQ_SUB);
+        net_socket_setup(p->sub);
+        int hwm = 64; /* as the worker's */
+        zmq_setsockopt(p->sub, ZMQ_RCVHWM, &hwm, sizeof hwm);
+        if ((g.curve && net_curve_client(p->sub, &g.server, &g.pub, &g.sec) != 0) || zmq_connect(p->sub, ep) != 0) {
+            fprintf(stderr, "loadpeers: cannot connect to the broadcast at %s: %s\n", ep, zmq_strerror(zmq_errno()));
+            exit(1);
+        }
+    }
+    zmq_setsockopt(p->sub, ZMQ_SUBSCRIBE, c->hash.bytes, BLOB_HASH_SIZE);
+    for (int k = 0; g.strangers && k < 2 && !g.stranger[k]; k++) {
+        void *st = g.stranger[k] = zmq_socket(g.ctx, ZMQ_SUB);
+        net_socket_setup(st);
+        if (k == 1 && g.curve) {
+            struct net_key pub, sec;
+            if (zmq_curve_keypair(pub.z85, sec.z85) != 0 || net_curve_client(st, &g.server, &pub, &sec) != 0)
+                exit(1);
+        }
+        zmq_setsockopt(st, ZMQ_SUBSCRIBE, "", 0);
+        zmq_connect(st, ep);
     }
 }
 
@@ -206,12 +279,20 @@ static void fetch_pump(struct lpeer *p)
         if (f->done)
             continue;
         pending = 1;
-        while (f->in_flight < FETCH_WINDOW && f->next_offset < f->recv.size) {
-            struct proto_msg m;
-            proto_blob_req_at(&f->recv.hash, f->recv.size, f->next_offset, &m);
+        struct proto_msg m;
+        int rc, was_bcast = f->pf.phase == FETCH_BCAST;
+        while ((rc = proto_fetch_next_req(&f->pf, net_now_ms(), &m)) > 0)
             send_msg(p, &m);
-            f->next_offset += m.u.blob_req.length;
-            f->in_flight++;
+        if (was_bcast && f->pf.phase == FETCH_P2P) {
+            g.fallbacks++;
+            if (g.fallbacks <= 3)
+                fprintf(stderr, "loadpeers: peer %u: the broadcast went quiet for %d ms with %" PRIu64 " of %" PRIu64
+                        " chunks in; the rest point to point\n", (unsigned)(p - g.peers), PROTO_BCAST_IDLE_MS,
+                        f->pf.recv.chunks_have, f->pf.recv.num_chunks);
+        }
+        if (rc < 0) {
+            fprintf(stderr, "loadpeers: a blob's chunks stayed bad after %d requests\n", PROTO_FETCH_MAX_ROUNDS);
+            exit(1);
         }
     }
     if (pending || !p->have_job || p->ready_sent)
@@ -236,31 +317,61 @@ static void fetch_pump(struct lpeer *p)
     }
 }
 
-static void on_blob_data(struct lpeer *p, const struct msg_blob_data *d)
+static void on_blob_data(struct lpeer *p, const struct msg_blob_data *d, int via_bcast)
 {
-    for (uint32_t i = 0; i < p->num_fetches; i++) {
-        struct fetch *f = &p->fetches[i];
-        if (f->done || !blob_hash_equal(&f->recv.hash, &d->hash))
-            continue;
-        char err[256];
-        if (blob_recv_put(&f->recv, d->offset, d->bytes, d->length, err, sizeof err) != 0) {
-            fprintf(stderr, "loadpeers: BLOB_DATA refused: %s\n", err);
-            exit(1);
-        }
-        f->in_flight--;
-        g.fetch_bytes += d->length;
-        if (blob_recv_complete(&f->recv)) {
-            uint8_t *data;
-            if (blob_recv_finish(&f->recv, &data, err, sizeof err) != 0) {
-                fprintf(stderr, "loadpeers: %s\n", err);
-                exit(1);
-            }
-            free(data);
-            f->done = 1;
-            p->fetch_done_ms = net_now_ms();
-        }
+    struct fetch *f = fetch_find(p, &d->hash);
+    if (!f)
+        return;
+    char err[256];
+    uint64_t b = f->pf.chunks_bcast, q = f->pf.chunks_p2p;
+    if (proto_fetch_on_data(&f->pf, d, via_bcast, net_now_ms(), err, sizeof err) != 0) {
+        g.chunks_bad++; /* dropped: fetched again point to point */
         return;
     }
+    g.chunks_bcast += f->pf.chunks_bcast - b;
+    g.chunks_p2p += f->pf.chunks_p2p - q;
+    g.fetch_bytes += d->length;
+    if (blob_recv_complete(&f->pf.recv)) {
+        uint8_t *data;
+        if (blob_recv_finish(&f->pf.recv, &data, err, sizeof err) != 0) {
+            fprintf(stderr, "loadpeers: %s\n", err);
+            exit(1);
+        }
+        free(data);
+        struct blob_hash h = f->pf.recv.hash;
+        proto_fetch_fini(&f->pf);
+        f->done = 1;
+        if (p->sub)
+            zmq_setsockopt(p->sub, ZMQ_UNSUBSCRIBE, h.bytes, BLOB_HASH_SIZE);
+        p->fetch_done_ms = net_now_ms();
+    }
+}
+
+/* A frame off the broadcast: topic (hash) and BLOB_DATA; the fault knobs act on peer 0. */
+static void on_bcast(struct lpeer *p, const struct net_frame *fr)
+{
+    struct proto_msg m;
+    char err[256] = "";
+    int decoded = proto_decode(fr->data, fr->size, &m, err, sizeof err) == 0;
+    if (!decoded || m.type != MSG_BLOB_DATA || fr->id_len != BLOB_HASH_SIZE ||
+        memcmp(fr->id, m.u.blob_data.hash.bytes, BLOB_HASH_SIZE) != 0) {
+        if (decoded && m.type == MSG_JOB)
+            proto_job_fini(&m.u.job);
+        fprintf(stderr, "loadpeers: broadcast message dropped: %s\n", err[0] ? err : "not a chunk of its topic");
+        return;
+    }
+    p->bcast_seen++;
+    if (p == &g.peers[0] && g.drop_bcast && p->bcast_seen % g.drop_bcast == 0)
+        return;
+    uint8_t *copy = NULL;
+    if (p == &g.peers[0] && g.corrupt_bcast && p->bcast_seen % g.corrupt_bcast == 0 && m.u.blob_data.length) {
+        copy = mem_alloc(m.u.blob_data.length);
+        memcpy(copy, m.u.blob_data.bytes, m.u.blob_data.length);
+        copy[m.u.blob_data.length / 2] ^= 0x40;
+        m.u.blob_data.bytes = copy;
+    }
+    on_blob_data(p, &m.u.blob_data, 1);
+    free(copy);
 }
 
 static void on_tile(struct lpeer *p, const struct msg_tile *t)
@@ -320,7 +431,10 @@ static void on_message(struct lpeer *p, const uint8_t *data, size_t size)
             fetch_add(p, &m.u.map.hash, m.u.map.size);
         break;
     case MSG_BLOB_DATA:
-        on_blob_data(p, &m.u.blob_data);
+        on_blob_data(p, &m.u.blob_data, 0);
+        break;
+    case MSG_CHUNKS:
+        on_chunks(p, &m.u.chunks);
         break;
     case MSG_TILE:
         on_tile(p, &m.u.tile);
@@ -354,7 +468,8 @@ static void on_message(struct lpeer *p, const uint8_t *data, size_t size)
 static void usage(void)
 {
     fprintf(stderr, "usage: loadpeers ENDPOINT [-n N] [--credits C] [--key KEYFILE MASTER.pub] [--image REF.exr]\n"
-                    "                 [--master-pid PID] [--no-fetch] [--hold-ready] [--timeout-ms MS]\n");
+                    "                 [--master-pid PID] [--no-fetch] [--hold-ready] [--timeout-ms MS]\n"
+                    "                 [--no-bcast] [--drop-bcast K] [--corrupt-bcast K] [--strangers]\n");
     exit(2);
 }
 
@@ -379,6 +494,14 @@ int main(int argc, char **argv)
             g.no_fetch = 1;
         else if (!strcmp(argv[i], "--hold-ready"))
             g.hold_ready = 1;
+        else if (!strcmp(argv[i], "--no-bcast"))
+            g.no_bcast = 1;
+        else if (!strcmp(argv[i], "--strangers"))
+            g.strangers = 1;
+        else if (!strcmp(argv[i], "--drop-bcast") && i + 1 < argc)
+            g.drop_bcast = (uint32_t)strtoul(argv[++i], NULL, 10);
+        else if (!strcmp(argv[i], "--corrupt-bcast") && i + 1 < argc)
+            g.corrupt_bcast = (uint32_t)strtoul(argv[++i], NULL, 10);
         else if (!strcmp(argv[i], "--key") && i + 2 < argc) {
             char err[256];
             if (net_key_pair_load(argv[i + 1], &g.pub, &g.sec, err, sizeof err) != 0 ||
@@ -409,11 +532,13 @@ int main(int argc, char **argv)
         setrlimit(RLIMIT_NOFILE, &rl);
     }
     void *ctx = zmq_ctx_new();
-    zmq_ctx_set(ctx, ZMQ_MAX_SOCKETS, (int)n + 16);
+    zmq_ctx_set(ctx, ZMQ_MAX_SOCKETS, 2 * (int)n + 16);
+    g.ctx = ctx;
+    g.endpoint = endpoint;
     struct lpeer *peers = mem_calloc(n, sizeof *peers);
     g.peers = peers;
     g.num_peers = n;
-    zmq_pollitem_t *items = mem_calloc(n, sizeof *items);
+    zmq_pollitem_t *items = mem_calloc(2 * (size_t)n, sizeof *items);
     char host[64];
     snprintf(host, sizeof host, "loadpeers-%ld", (long)getpid());
     for (uint32_t i = 0; i < n; i++) {
@@ -445,8 +570,29 @@ int main(int argc, char **argv)
      * silent for 1 s (it closes with LINGER 0: its BYEs may be lost). */
     while (byes < n && net_now_ms() - g.start_ms < timeout_ms &&
            !(g.num_units && g.acked_units == g.num_units && net_now_ms() - g.last_ack_ms > 1000)) {
-        if (zmq_poll(items, (int)n, 100) < 0)
+        /* the DEALERs, then the SUBs connected so far */
+        int nsub = 0;
+        for (uint32_t i = 0; i < n; i++)
+            if (peers[i].sub)
+                items[n + nsub++] = (zmq_pollitem_t){peers[i].sub, 0, ZMQ_POLLIN, 0};
+        if (zmq_poll(items, (int)n + nsub, 100) < 0)
             continue;
+        for (uint32_t i = 0, k = 0; i < n; i++) {
+            if (!peers[i].sub)
+                continue;
+            if (items[n + k++].revents & ZMQ_POLLIN) {
+                for (uint32_t j = 0; j < peers[i].num_fetches; j++)
+                    proto_fetch_bcast_alive(&peers[i].fetches[j].pf, net_now_ms());
+                struct net_frame f;
+                int got;
+                for (int budget = 8; budget > 0 && (got = net_recv(peers[i].sub, 1, &f)) != 0; budget--) {
+                    if (got > 0 && !peers[i].bye)
+                        on_bcast(&peers[i], &f);
+                    net_frame_fini(&f);
+                }
+                fetch_pump(&peers[i]);
+            }
+        }
         for (uint32_t i = 0; i < n; i++) {
             if (!(items[i].revents & ZMQ_POLLIN))
                 continue;
@@ -461,6 +607,16 @@ int main(int argc, char **argv)
             }
             zmq_msg_close(&msg);
         }
+        for (int k = 0; k < 2; k++) { /* what reached the strangers (nothing, if the broadcast is secured) */
+            zmq_msg_t sm;
+            zmq_msg_init(&sm);
+            while (g.stranger[k] && zmq_msg_recv(&sm, g.stranger[k], ZMQ_DONTWAIT) >= 0)
+                g.stranger_frames++;
+            zmq_msg_close(&sm);
+        }
+        for (uint32_t i = 0; i < n; i++) /* a broadcast gone quiet: the rest point to point */
+            if (!peers[i].bye)
+                fetch_pump(&peers[i]);
         uint64_t now = net_now_ms();
         if (now - last_beat >= 1000) {
             last_beat = now;
@@ -494,6 +650,10 @@ int main(int argc, char **argv)
            g.granted, g.results, g.acked_units, g.acked_twice, (uint64_t)g.num_units - g.acked_units, n, byes);
     printf("loadpeers: fetch %" PRIu64 " bytes %" PRIu64 " first_ms %" PRIu64 " last_ms %" PRIu64 "\n", fetched,
            g.fetch_bytes, first_fetch, last_fetch);
+    printf("loadpeers: chunks bcast %" PRIu64 " p2p %" PRIu64 " bad %" PRIu64 " fallbacks %" PRIu64 "\n",
+           g.chunks_bcast, g.chunks_p2p, g.chunks_bad, g.fallbacks);
+    if (g.strangers)
+        printf("loadpeers: strangers received %" PRIu64 "\n", g.stranger_frames);
     printf("loadpeers: tiles_per_s %.1f over %.3f s\n", secs > 0.0 ? (double)g.acked_units / secs : 0.0, secs);
     if (g.master_pid && g.acked_units && g.master_cpu_first[0] >= 0.0 && g.master_cpu_first[1] >= 0.0)
         printf("loadpeers: master_cpu_us_per_tile %.1f loop_cpu_us_per_tile %.1f\n",
@@ -501,10 +661,15 @@ int main(int argc, char **argv)
                (g.master_cpu_last[1] - g.master_cpu_first[1]) * 1e6 / (double)g.acked_units);
     for (uint32_t i = 0; i < n; i++) {
         for (uint32_t k = 0; k < peers[i].num_fetches; k++)
-            blob_recv_fini(&peers[i].fetches[k].recv);
+            proto_fetch_fini(&peers[i].fetches[k].pf);
         free(peers[i].fetches);
+        if (peers[i].sub)
+            zmq_close(peers[i].sub);
         zmq_close(peers[i].sock);
     }
+    for (int k = 0; k < 2; k++)
+        if (g.stranger[k])
+            zmq_close(g.stranger[k]);
     for (uint32_t t = 0; g.chunks && t < g.num_tiles; t++)
         free(g.chunks[t]);
     free(g.chunks);

@@ -153,6 +153,17 @@ static void sample(enum proto_type t, uint64_t job_id, uint32_t variant, struct 
         m->u.map.hash.bytes[0] = (uint8_t)variant;
         m->u.map.size = 64;
         break;
+    case MSG_CHUNKS_REQ:
+        m->u.chunks_req.hash.bytes[0] = (uint8_t)variant;
+        break;
+    case MSG_CHUNKS: {
+        static const uint8_t hashes[BLOB_HASH_SIZE] = {7};
+        m->u.chunks.hash.bytes[0] = (uint8_t)variant;
+        m->u.chunks.size = 64;
+        m->u.chunks.count = 1;
+        m->u.chunks.hashes = hashes;
+        break;
+    }
     case MSG_BYE:
     case MSG_TYPE_MAX_:
         break;

@@ -241,3 +241,56 @@ Test(blob, store_put_get_adopt)
     cr_assert_eq(s.count, 0);
     cr_assert_null(s.entries);
 }
+
+/* A chunk list: every chunk checked before it is kept, a kept one never overwritten, and a
+ * list that arrives after chunks drops those that do not match it. */
+Test(blob, chunk_list_checks_every_chunk)
+{
+    size_t size = 3 * BLOB_CHUNK_SIZE + 10;
+    uint8_t *data = pattern(size, 5);
+    struct blob_hash h, *list;
+    uint64_t count;
+    blob_hash_compute(data, size, &h);
+    blob_chunk_hashes(data, size, &list, &count);
+    cr_assert_eq(count, 4);
+    cr_assert_eq(blob_num_chunks(size), 4);
+    cr_assert_eq(blob_num_chunks(0), 0);
+    cr_assert_eq(blob_num_chunks(BLOB_CHUNK_SIZE), 1);
+    struct blob_hash one;
+    blob_hash_compute(data + 3 * BLOB_CHUNK_SIZE, 10, &one);
+    cr_assert(blob_hash_equal(&one, &list[3]), "the last chunk's hash covers its 10 bytes");
+
+    struct blob_recv r;
+    char err[256];
+    cr_assert_eq(blob_recv_init(&r, &h, size, err, sizeof err), 0);
+    uint8_t *bad = pattern(BLOB_CHUNK_SIZE, 9);
+    /* before the list: chunk 1 arrives corrupted, chunk 0 fine */
+    cr_assert_eq(blob_recv_put(&r, BLOB_CHUNK_SIZE, bad, BLOB_CHUNK_SIZE, err, sizeof err), 0);
+    cr_assert_eq(blob_recv_put(&r, 0, data, BLOB_CHUNK_SIZE, err, sizeof err), 0);
+    cr_assert_eq(blob_recv_set_chunks(&r, list[0].bytes, 3, err, sizeof err), -1, "a count that does not fit");
+    cr_assert_eq(blob_recv_set_chunks(&r, list[0].bytes, count, err, sizeof err), 0, "%s", err);
+    cr_assert_eq(r.chunks_have, 1, "the bad chunk kept before the list is dropped");
+    cr_assert_eq(r.chunks_bad, 1);
+    cr_assert_eq(blob_recv_next_missing(&r, 0), 1);
+    cr_assert_eq(blob_recv_put(&r, BLOB_CHUNK_SIZE, bad, BLOB_CHUNK_SIZE, err, sizeof err), -1);
+    cr_assert(strstr(err, "hash"), "%s", err);
+    cr_assert_eq(r.chunks_bad, 2);
+    cr_assert_eq(blob_recv_next_missing(&r, 0), 1, "nothing kept");
+    for (uint64_t i = 1; i < count; i++) {
+        uint64_t off = i * BLOB_CHUNK_SIZE;
+        size_t len = i == 3 ? 10 : BLOB_CHUNK_SIZE;
+        cr_assert_eq(blob_recv_put(&r, off, data + off, len, err, sizeof err), 0, "%s", err);
+    }
+    cr_assert_eq(blob_recv_next_missing(&r, 0), 4);
+    /* a kept chunk is final: a later bad copy changes nothing */
+    cr_assert_eq(blob_recv_put(&r, 0, bad, BLOB_CHUNK_SIZE, err, sizeof err), 0);
+    cr_assert(blob_recv_complete(&r));
+    uint8_t *out;
+    cr_assert_eq(blob_recv_finish(&r, &out, err, sizeof err), 0, "%s", err);
+    cr_assert(memcmp(out, data, size) == 0);
+    free(out);
+    blob_recv_fini(&r);
+    free(bad);
+    free(list);
+    free(data);
+}

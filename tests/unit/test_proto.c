@@ -9,10 +9,12 @@
 #include <stdlib.h>
 #include <string.h>
 #include "wire/proto.h"
+#include "wire/fetch.h"
 
 static const uint8_t k_blob_bytes[] = {1, 2, 3, 4, 5, 0, 255, 7};
 static const uint8_t k_chunk_bytes[] = "not really an EXR chunk";
 static struct proto_asset k_assets[3];
+static uint8_t k_chunk_hashes[3 * BLOB_HASH_SIZE];
 
 static struct blob_hash make_hash(uint8_t seed)
 {
@@ -153,6 +155,21 @@ static size_t make_samples(struct proto_msg out[MSG_TYPE_MAX_])
     out[n].u.kept.chunk = k_chunk_bytes;
     out[n].u.kept.chunk_size = sizeof k_chunk_bytes;
     n++;
+
+    out[n].type = MSG_CHUNKS_REQ;
+    out[n].u.chunks_req.hash = make_hash(44);
+    n++;
+
+    for (size_t i = 0; i < sizeof k_chunk_hashes; i++)
+        k_chunk_hashes[i] = (uint8_t)(i * 7 + 1);
+    out[n].type = MSG_CHUNKS;
+    out[n].u.chunks.hash = make_hash(45);
+    out[n].u.chunks.size = 2ull * BLOB_CHUNK_SIZE + 0x0102;
+    out[n].u.chunks.flags = PROTO_CHUNKS_BCAST;
+    out[n].u.chunks.bcast_port = 0xa1b2;
+    out[n].u.chunks.count = 3;
+    out[n].u.chunks.hashes = k_chunk_hashes;
+    n++;
     return n;
 }
 
@@ -277,6 +294,17 @@ static void assert_msg_eq(const struct proto_msg *a, const struct proto_msg *b)
         cr_assert_eq(a->u.map.pass, b->u.map.pass);
         assert_hash_eq(&a->u.map.hash, &b->u.map.hash);
         cr_assert_eq(a->u.map.size, b->u.map.size);
+        break;
+    case MSG_CHUNKS_REQ:
+        assert_hash_eq(&a->u.chunks_req.hash, &b->u.chunks_req.hash);
+        break;
+    case MSG_CHUNKS:
+        assert_hash_eq(&a->u.chunks.hash, &b->u.chunks.hash);
+        cr_assert_eq(a->u.chunks.size, b->u.chunks.size);
+        cr_assert_eq(a->u.chunks.flags, b->u.chunks.flags);
+        cr_assert_eq(a->u.chunks.bcast_port, b->u.chunks.bcast_port);
+        cr_assert_eq(a->u.chunks.count, b->u.chunks.count);
+        cr_assert(memcmp(a->u.chunks.hashes, b->u.chunks.hashes, (size_t)a->u.chunks.count * BLOB_HASH_SIZE) == 0);
         break;
     case MSG_BYE:
     case MSG_TYPE_MAX_:
@@ -530,6 +558,8 @@ Test(proto, type_names)
     cr_assert_str_eq(proto_type_name(MSG_BYE), "BYE");
     cr_assert_str_eq(proto_type_name(MSG_ACK), "ACK");
     cr_assert_str_eq(proto_type_name(MSG_KEPT), "KEPT");
+    cr_assert_str_eq(proto_type_name(MSG_CHUNKS_REQ), "CHUNKS_REQ");
+    cr_assert_str_eq(proto_type_name(MSG_CHUNKS), "CHUNKS");
     cr_assert_str_eq(proto_type_name(MSG_TYPE_MAX_), "UNKNOWN");
     cr_assert_str_eq(proto_type_name((enum proto_type)0), "UNKNOWN");
 }
@@ -846,6 +876,188 @@ Test(proto, tile_pass_and_mask_limits)
     err = expect_reject(f.d, f.n);
     cr_assert(strstr(err, "block"), "%s", err);
     free(f.d);
+}
+
+/* CHUNKS: the count must be the blob's chunk count, the size within BLOB_MAX_SIZE (checked
+ * before the count is used as a length), unknown flags refused. */
+static void fb_chunks(struct fb *f, uint64_t size, uint32_t flags, uint32_t count, size_t hash_bytes)
+{
+    fb_header(f, MSG_CHUNKS);
+    fb_fill(f, 5, BLOB_HASH_SIZE);
+    fb_u(f, size, 8);
+    fb_u(f, flags, 4);
+    fb_u(f, 5556, 2);
+    fb_u(f, count, 4);
+    fb_fill(f, 9, hash_bytes);
+}
+
+Test(proto, chunks_limits)
+{
+    struct fb f = {0};
+    fb_chunks(&f, BLOB_CHUNK_SIZE + 1, PROTO_CHUNKS_BCAST, 2, 2 * BLOB_HASH_SIZE);
+    expect_accept(&f);
+    fb_chunks(&f, 0, 0, 0, 0);
+    expect_accept(&f);
+    fb_chunks(&f, BLOB_CHUNK_SIZE + 1, 0, 1, BLOB_HASH_SIZE);
+    const char *err = expect_reject(f.d, f.n);
+    cr_assert(strstr(err, "chunk hashes"), "%s", err);
+    fb_chunks(&f, BLOB_CHUNK_SIZE, 0, 0xffffffffu, 0);
+    err = expect_reject(f.d, f.n);
+    cr_assert(strstr(err, "chunk hashes"), "a huge count is refused before it is read: %s", err);
+    fb_chunks(&f, BLOB_MAX_SIZE + 1, 0, (uint32_t)(BLOB_MAX_SIZE / BLOB_CHUNK_SIZE + 1), 0);
+    err = expect_reject(f.d, f.n);
+    cr_assert(strstr(err, "size") && strstr(err, "limit"), "%s", err);
+    fb_chunks(&f, 10, 2, 1, BLOB_HASH_SIZE);
+    err = expect_reject(f.d, f.n);
+    cr_assert(strstr(err, "flags"), "%s", err);
+    fb_chunks(&f, 3 * BLOB_CHUNK_SIZE, 0, 3, 2 * BLOB_HASH_SIZE);
+    err = expect_reject(f.d, f.n);
+    cr_assert(strstr(err, "truncated"), "fewer hashes than the count: %s", err);
+    free(f.d);
+    struct proto_msg m = {.type = MSG_CHUNKS};
+    struct proto_buf b = {0};
+    m.u.chunks.size = 10;
+    m.u.chunks.count = 2;
+    m.u.chunks.hashes = k_chunk_hashes;
+    cr_assert_eq(proto_encode(&m, &b), -1, "a count that does not fit the size");
+    m.u.chunks.count = 1;
+    m.u.chunks.hashes = NULL;
+    cr_assert_eq(proto_encode(&m, &b), -1, "no hashes");
+    proto_buf_fini(&b);
+}
+
+/* ---- proto_fetch: the chunk list, the broadcast, point to point for the rest ---- */
+
+struct fetch_blob { uint8_t *data; uint64_t size; struct blob_hash hash, *chunks; uint64_t count; };
+
+static struct fetch_blob fetch_blob_make(uint64_t size)
+{
+    struct fetch_blob fb = {.size = size};
+    fb.data = malloc(size);
+    for (uint64_t i = 0; i < size; i++)
+        fb.data[i] = (uint8_t)(i * 2654435761u >> 13);
+    blob_hash_compute(fb.data, size, &fb.hash);
+    blob_chunk_hashes(fb.data, size, &fb.chunks, &fb.count);
+    return fb;
+}
+
+static struct msg_chunks fetch_chunks_msg(const struct fetch_blob *fb, uint32_t flags)
+{
+    struct msg_chunks c = {.hash = fb->hash, .size = fb->size, .flags = flags, .count = (uint32_t)fb->count};
+    c.hashes = fb->chunks[0].bytes;
+    return c;
+}
+
+static struct msg_blob_data fetch_chunk(const struct fetch_blob *fb, uint64_t i)
+{
+    uint64_t off = i * BLOB_CHUNK_SIZE, left = fb->size - off;
+    struct msg_blob_data d = {.hash = fb->hash, .offset = off, .total_size = fb->size, .bytes = fb->data + off};
+    d.length = (uint32_t)(left < BLOB_CHUNK_SIZE ? left : BLOB_CHUNK_SIZE);
+    return d;
+}
+
+Test(proto, fetch_broadcast_then_point_to_point)
+{
+    struct fetch_blob fb = fetch_blob_make(5 * BLOB_CHUNK_SIZE + 77); /* 6 chunks */
+    struct proto_fetch f;
+    struct proto_msg req;
+    char err[256];
+    cr_assert_eq(proto_fetch_start(&f, &fb.hash, fb.size, &req, err, sizeof err), 0);
+    cr_assert_eq(req.type, MSG_CHUNKS_REQ);
+    cr_assert_eq(proto_fetch_next_req(&f, 0, &req), 0, "nothing before the list");
+    struct msg_chunks c = fetch_chunks_msg(&fb, PROTO_CHUNKS_BCAST);
+    cr_assert_eq(proto_fetch_on_chunks(&f, &c, 1000, err, sizeof err), 1, "subscribe");
+    /* the broadcast brings chunks 0, 2 (twice) and a corrupted 3 */
+    struct msg_blob_data d = fetch_chunk(&fb, 0);
+    cr_assert_eq(proto_fetch_on_data(&f, &d, 1, 1010, err, sizeof err), 0);
+    d = fetch_chunk(&fb, 2);
+    cr_assert_eq(proto_fetch_on_data(&f, &d, 1, 1020, err, sizeof err), 0);
+    cr_assert_eq(proto_fetch_on_data(&f, &d, 1, 1030, err, sizeof err), 0, "a duplicate is harmless");
+    uint8_t bad[BLOB_CHUNK_SIZE];
+    d = fetch_chunk(&fb, 3);
+    memcpy(bad, d.bytes, d.length);
+    bad[100] ^= 1;
+    d.bytes = bad;
+    cr_assert_eq(proto_fetch_on_data(&f, &d, 1, 1040, err, sizeof err), -1, "a chunk off its hash is refused");
+    cr_assert(strstr(err, "hash"), "%s", err);
+    cr_assert_eq(f.recv.chunks_have, 2);
+    cr_assert_eq(f.recv.chunks_bad, 1);
+    /* quiet for less than PROTO_BCAST_IDLE_MS: no request; the socket still has data: none either */
+    cr_assert_eq(proto_fetch_next_req(&f, 1040 + PROTO_BCAST_IDLE_MS - 1, &req), 0, "the last chunk came at 1040");
+    proto_fetch_bcast_alive(&f, 1040 + PROTO_BCAST_IDLE_MS - 1);
+    cr_assert_eq(proto_fetch_next_req(&f, 1040 + PROTO_BCAST_IDLE_MS + 10, &req), 0);
+    /* then quiet: the missing chunks 1, 3, 4, 5 point to point, each once */
+    uint64_t t = 1040 + 2 * PROTO_BCAST_IDLE_MS, want[] = {1, 3, 4, 5};
+    for (int i = 0; i < 4; i++) {
+        cr_assert_eq(proto_fetch_next_req(&f, t, &req), 1);
+        cr_assert_eq(req.type, MSG_BLOB_REQ);
+        cr_assert_eq(req.u.blob_req.offset, want[i] * BLOB_CHUNK_SIZE);
+        cr_assert_eq(req.u.blob_req.length, want[i] == 5 ? 77u : BLOB_CHUNK_SIZE);
+    }
+    cr_assert_eq(proto_fetch_next_req(&f, t, &req), 0, "all asked for, answers pending");
+    cr_assert_eq(f.in_flight, 4);
+    /* answers: 1 and 4 good, 3 bad again, 5 good; then 3 is asked for again */
+    uint64_t answer[] = {1, 4, 5};
+    for (int i = 0; i < 3; i++) {
+        d = fetch_chunk(&fb, answer[i]);
+        cr_assert_eq(proto_fetch_on_data(&f, &d, 0, t, err, sizeof err), 0);
+    }
+    d = fetch_chunk(&fb, 3);
+    d.bytes = bad;
+    cr_assert_eq(proto_fetch_on_data(&f, &d, 0, t, err, sizeof err), -1);
+    cr_assert_eq(f.in_flight, 0);
+    cr_assert_eq(proto_fetch_next_req(&f, t, &req), 1);
+    cr_assert_eq(req.u.blob_req.offset, 3ull * BLOB_CHUNK_SIZE);
+    d = fetch_chunk(&fb, 3);
+    cr_assert_eq(proto_fetch_on_data(&f, &d, 0, t, err, sizeof err), 0);
+    cr_assert(blob_recv_complete(&f.recv));
+    cr_assert_eq(f.chunks_bcast, 2);
+    cr_assert_eq(f.chunks_p2p, 4);
+    cr_assert_eq(proto_fetch_next_req(&f, t, &req), 0);
+    uint8_t *data;
+    cr_assert_eq(blob_recv_finish(&f.recv, &data, err, sizeof err), 0, "%s", err);
+    cr_assert(memcmp(data, fb.data, fb.size) == 0);
+    free(data);
+    proto_fetch_fini(&f);
+    cr_assert(blob_hash_equal(&f.recv.hash, &fb.hash), "the hash stays for look-ups after fini");
+    free(fb.data);
+    free(fb.chunks);
+}
+
+Test(proto, fetch_without_broadcast_and_giving_up)
+{
+    struct fetch_blob fb = fetch_blob_make(BLOB_CHUNK_SIZE + 5); /* 2 chunks */
+    struct proto_fetch f;
+    struct proto_msg req;
+    char err[256];
+    cr_assert_eq(proto_fetch_start(&f, &fb.hash, fb.size, &req, err, sizeof err), 0);
+    struct msg_chunks c = fetch_chunks_msg(&fb, 0);
+    c.count = 1;
+    cr_assert_eq(proto_fetch_on_chunks(&f, &c, 0, err, sizeof err), -1, "a list that does not fit the blob");
+    cr_assert_eq(f.phase, FETCH_P2P);
+    proto_fetch_fini(&f);
+    cr_assert_eq(proto_fetch_start(&f, &fb.hash, fb.size, &req, err, sizeof err), 0);
+    c = fetch_chunks_msg(&fb, 0);
+    cr_assert_eq(proto_fetch_on_chunks(&f, &c, 0, err, sizeof err), 0, "no broadcast: point to point at once");
+    /* a master that answers chunk 1 wrongly every time: the fetch gives up */
+    int rc = 0, rounds = 0;
+    uint8_t bad[8] = {0};
+    while ((rc = proto_fetch_next_req(&f, 0, &req)) > 0 && rounds < 100) {
+        struct msg_blob_data d = fetch_chunk(&fb, req.u.blob_req.offset / BLOB_CHUNK_SIZE);
+        if (d.offset)
+            d.bytes = bad;
+        proto_fetch_on_data(&f, &d, 0, 0, err, sizeof err);
+        rounds++;
+    }
+    cr_assert_eq(rc, -1, "gives up");
+    cr_assert_eq(rounds, PROTO_FETCH_MAX_ROUNDS + 1, "chunks 0 and 1, then chunk 1 again in each later round: %d",
+                 rounds);
+    struct msg_blob_data d = fetch_chunk(&fb, 0);
+    d.total_size = 1;
+    cr_assert_eq(proto_fetch_on_data(&f, &d, 0, 0, err, sizeof err), -1, "another size");
+    proto_fetch_fini(&f);
+    free(fb.data);
+    free(fb.chunks);
 }
 
 Test(proto, oversized_frame_rejected)

@@ -1,0 +1,53 @@
+/* Fetching one blob from the master (docs/cluster.md, "Delivering blobs to many
+ * workers"): the chunk list, the broadcast, point to point for the rest; every chunk
+ * checked against the list, the blob's hash at the end. Pure (no sockets, no clock): the
+ * caller sends what it is told and passes the time. Used by worker/worker.c and
+ * tests/tools/loadpeers.c. */
+#ifndef BRUME_FETCH_H
+#define BRUME_FETCH_H
+#include <stdint.h>
+#include "wire/blob.h"
+#include "wire/proto.h"
+
+/* Fetching one blob, shared by the worker and tests/tools/loadpeers: CHUNKS_REQ first;
+ * with the chunk list, the broadcast (when the master has one: the caller subscribes to
+ * the hash) and, for what it did not bring within PROTO_BCAST_IDLE_MS of the last chunk
+ * (a late join, a full queue, a bad chunk), point-to-point BLOB_REQs, a window of
+ * PROTO_FETCH_WINDOW. Every chunk is checked against the list; the blob's hash at the end
+ * (blob_recv_finish). Pure: the caller sends what it is told and passes the time. */
+#define PROTO_FETCH_WINDOW 16       /* BLOB_REQs in flight */
+#define PROTO_BCAST_IDLE_MS 3000    /* no broadcast chunk for this long: fetch the rest point to point */
+#define PROTO_FETCH_MAX_ROUNDS 8    /* passes over the missing chunks before a fetch gives up */
+enum proto_fetch_phase { FETCH_LIST, FETCH_BCAST, FETCH_P2P };
+struct proto_fetch {
+    struct blob_recv recv;
+    enum proto_fetch_phase phase;
+    uint64_t next_chunk;            /* point to point: the next chunk index to look at */
+    uint32_t in_flight;
+    uint32_t rounds;
+    uint64_t last_bcast_ms;         /* when the broadcast last brought a chunk (or it began) */
+    uint64_t chunks_bcast, chunks_p2p; /* chunks kept from each path */
+};
+/* Starts a fetch of (hash, size) and fills *req with the CHUNKS_REQ to send. 0, or -1
+ * (the size is past the limit). */
+int proto_fetch_start(struct proto_fetch *f, const struct blob_hash *hash, uint64_t size, struct proto_msg *req,
+                      char *err, size_t errlen);
+/* The CHUNKS for this fetch: 1 when the caller should subscribe to the broadcast, 0 when
+ * not, -1 when the list does not fit the blob (the fetch goes on point to point). */
+int proto_fetch_on_chunks(struct proto_fetch *f, const struct msg_chunks *c, uint64_t now_ms, char *err,
+                          size_t errlen);
+/* A BLOB_DATA for this fetch (the caller matched the hash), from the broadcast (which
+ * counts as the stream being alive, whatever the chunk is worth) or as an
+ * answer to a BLOB_REQ. 0 when kept (or a duplicate), -1 when refused (bad size, offset,
+ * hash: nothing kept, the chunk will be fetched again). */
+int proto_fetch_on_data(struct proto_fetch *f, const struct msg_blob_data *d, int via_bcast, uint64_t now_ms,
+                        char *err, size_t errlen);
+/* The next BLOB_REQ to send, if any (1), else 0; -1 when the missing chunks were asked
+ * for PROTO_FETCH_MAX_ROUNDS times in vain. */
+int proto_fetch_next_req(struct proto_fetch *f, uint64_t now_ms, struct proto_msg *req);
+/* The broadcast socket has messages waiting (the caller's poll said so): the stream is not
+ * quiet, however slowly the caller reads it. */
+void proto_fetch_bcast_alive(struct proto_fetch *f, uint64_t now_ms);
+void proto_fetch_fini(struct proto_fetch *f);
+
+#endif
