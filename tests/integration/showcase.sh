@@ -4,7 +4,8 @@
 # that cannot close the ring; the committed sky is the script's output; then the scene, with
 # a coarse sculpture and a tiny simulated plume in place of the make-target assets, renders
 # at 64x48, 1 spp, bit-identical for 1 worker and for 3 workers with 16-pixel tiles, with no
-# NaN/Inf samples. Ends with "integration: N passed, N failed".
+# NaN/Inf samples; and scripts/make_movie.sh joins 2 tiny frames into an animated WebP.
+# Ends with "integration: N passed, N failed".
 # Usage: BUILD=build sh tests/integration/showcase.sh
 . "$(dirname "$0")/lib.sh"
 lib_init showcase
@@ -47,4 +48,17 @@ nan=$(grep -c "NaN/Inf samples dropped: 0" "$T/log")
 run $M "$S/showcase.json" -o "$T/a3.exr" --frames 2:2 --workers 3 --tile 16 && r3=0 || r3=1
 if [ $r1 = 0 ] && [ $r3 = 0 ] && $X cmp "$T/a1.0002.exr" "$T/a3.0002.exr"; then ok "showcase: 64x48, 1 spp: 1 vs 3 workers bit-identical"; else bad "showcase: 64x48, 1 spp: 1 vs 3 workers bit-identical"; fi
 if [ "$nan" = 1 ] && grep -q "NaN/Inf samples dropped: 0" "$T/log"; then ok "showcase: no NaN/Inf samples"; else bad "showcase: no NaN/Inf samples"; fi
+
+# The movie script at a tiny size: 2 frames of the tiny plume, each its own numbered PNG
+# preview, joined into an animated WebP (img2webp: Debian webp; skipped where missing).
+if command -v img2webp >/dev/null 2>&1; then
+  run env SCENE="$S/showcase.json" WIDTH=32 HEIGHT=24 SPP=1 FIRST=1 LAST=2 WORKERS=1 BUILD="$BUILD" \
+    sh scripts/make_movie.sh "$T/m.webp" "$T/movie" && r=0 || r=1
+  if [ $r = 0 ] && [ -s "$T/movie/frame.0001.png" ] && [ -s "$T/movie/frame.0002.png" ] &&
+    [ "$(head -c 4 "$T/m.webp")" = RIFF ] && grep -q "2 frames" "$T/log"; then
+    ok "showcase: make_movie.sh renders 2 frames into an animated WebP"
+  else bad "showcase: make_movie.sh renders 2 frames into an animated WebP"; fi
+else
+  echo "skip: showcase: make_movie.sh (no img2webp; Debian package webp)"
+fi
 finish
