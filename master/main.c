@@ -39,8 +39,8 @@ static void usage(FILE *f)
             "                         output exists with the same scene and settings are skipped\n"
             "  --tiles N[,M..]        render only these tiles (the others are left black); no journal\n"
             "  --no-journal           do not keep OUT.exr.journal (a killed master then starts over)\n"
-            "  --bcast-mbps R         stream blobs to every worker at once at R MB/s (default 1000; 0: each\n"
-            "                         worker fetches every blob point to point, docs/cluster.md)\n"
+            "  --bcast-mbps R         stream blobs to every worker at once at R MB/s (default 0: each\n"
+            "                         worker fetches every blob point to point; docs/cluster.md)\n"
             "  --check-threads N      threads that decode-check result chunks off the master's loop\n"
             "                         (default: cores - 1, 1..8; 0 = in the loop)\n"
             "  --curve-secret KEYFILE CurveZMQ: the master's key pair (from --keygen); needs --allow\n"
@@ -107,7 +107,7 @@ int main(int argc, char **argv)
     o.workers = 1;
     o.worker_timeout_ms = 10000;
     o.stall_ms = 30000;
-    o.bcast_mbps = 1000;
+    o.bcast_mbps = 0; /* off: see docs/cluster.md for why, measured */
     o.argc = argc;
     o.argv = argv;
     int have_threads = 0;

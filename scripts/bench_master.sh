@@ -10,7 +10,7 @@
 #    = worker time per tile (scaled by pixels from 32 px) / the loop's time per tile.
 # 3. Blob delivery: a binary PLY of about 45 MB (scripts/gen_mesh.py 880) in a scene, to
 #    1, 4, 16 and 64 fake workers (--hold-ready: nobody renders before every peer has it),
-#    point to point (--bcast-mbps 0) and by the broadcast (the default), one after the
+#    point to point (--bcast-mbps 0) and by the broadcast (--bcast-mbps 1000), one after the
 #    other for each N: time until the last has it (every chunk and the blob's hash
 #    checked), bytes the master sent on each path (its counters) and its CPU s.
 # 4. Scaling: master + 2 workers x 1 thread against master + 1 worker x 2 threads, Cornell

@@ -53,13 +53,13 @@ load() {
 }
 
 KEYARGS= AUTHC=auth_rejects
-load ipc "ipc://$T/m.sock"
-load inloop "ipc://$T/m2.sock" --check-threads 0 --no-journal
+load ipc "ipc://$T/m.sock" --bcast-mbps 1000
+load inloop "ipc://$T/m2.sock" --check-threads 0 --no-journal --bcast-mbps 1000
 
 $M --keygen "$T/master.key" >/dev/null && $M --keygen "$T/w.key" >/dev/null
 cp "$T/w.key.pub" "$T/allow"
 KEYARGS="--key $T/w.key $T/master.key.pub --strangers" AUTHC= # the strangers are refused: counted below
-load curve "tcp://127.0.0.1:$(port)" --curve-secret "$T/master.key" --allow "$T/allow"
+load curve "tcp://127.0.0.1:$(port)" --curve-secret "$T/master.key" --allow "$T/allow" --bcast-mbps 1000
 ar=$(counter auth_rejects "$T/curve.exr") hf=$(counter handshake_failures "$T/curve.exr")
 if grep -q "^loadpeers: strangers received 0$" "$T/curve.llog" && grep -q "^loadpeers: chunks bcast [1-9]" "$T/curve.llog" &&
   [ "${ar:-0}" -ge 1 ] && [ "${hf:-0}" -ge 1 ]; then
@@ -96,11 +96,11 @@ deliver() {
 deliver p2p --bcast-mbps 0 --
 if [ "$P2P" = $((16 * S)) ] && [ "$BC" = 0 ]; then
   ok "point to point: the master sent 16 copies ($P2P bytes)"; else bad "point to point: the master sent 16 copies of $S bytes (p2p $P2P, broadcast $BC)"; fi
-deliver bcast --
+deliver bcast --bcast-mbps 1000 --
 if [ -n "$P2P" ] && [ -n "$BC" ] && [ "$BC" -ge "$S" ] && [ $((P2P + BC)) -le $((3 * S)) ] &&
   grep -q "^loadpeers: chunks bcast [1-9][0-9]* p2p [0-9]* bad 0 " "$T/log"; then
   ok "broadcast: the master sent $((P2P + BC)) bytes for 16 workers, at most 3 copies of $S"; else bad "broadcast: the master sent at most 3 copies of $S bytes (p2p $P2P, broadcast $BC)"; fi
-deliver faulty -- --corrupt-bcast 3 --drop-bcast 5
+deliver faulty --bcast-mbps 1000 -- --corrupt-bcast 3 --drop-bcast 5
 bad_chunks=$(awk '/^loadpeers: chunks/ {print $8}' "$T/log") p2p_chunks=$(awk '/^loadpeers: chunks/ {print $6}' "$T/log")
 if [ "${bad_chunks:-0}" -gt 0 ] && [ "${p2p_chunks:-0}" -gt 0 ] && [ -n "$P2P" ] && [ "$P2P" -gt 0 ]; then
   ok "broadcast chunks corrupted ($bad_chunks refused by their hash) or dropped: fetched point to point ($p2p_chunks chunks)"; else bad "corrupted or dropped broadcast chunks fetched point to point (bad ${bad_chunks:-?}, p2p ${p2p_chunks:-?}, master p2p ${P2P:-?})"; fi
