@@ -24,17 +24,22 @@ int chunk_check(const struct check_ctx *c, uint32_t unit, const uint8_t *chunk, 
         return 0;
     struct tile_layout lay;
     tile_layout_from_desc(&lay, &c->desc);
-    for (size_t i = 0; i < (size_t)w * h; i++) {
+    /* The first pixel with a non-finite beauty value or bad AOVs decides (the beauty first
+     * on the same pixel). */
+    size_t pixels = (size_t)w * h, bad_aov = lay.aovs ? aov_tile_first_invalid(&lay, out, pixels, c->num_objects,
+                                                                             c->num_materials)
+                                                     : pixels;
+    for (size_t i = 0; i < pixels && i <= bad_aov; i++) {
         const float *px = &out[i * lay.num_channels];
         for (int ch = 0; ch < TILE_NUM_CHANNELS; ch++)
             if (!isfinite(px[ch])) {
                 str_fmt(err, errlen, "non-finite pixel value in tile %u", tile);
                 return -1;
             }
-        if (lay.aovs && !aov_pixel_valid(&lay, px, c->num_objects, c->num_materials)) {
-            str_fmt(err, errlen, "tile %u: AOV value out of range", tile);
-            return 0;
-        }
+    }
+    if (bad_aov < pixels) {
+        str_fmt(err, errlen, "tile %u: AOV value out of range", tile);
+        return 0;
     }
     for (size_t i = 0; c->passes > 1 && i < (size_t)w * h; i++) {
         const float *px = &out[i * lay.num_channels];

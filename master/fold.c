@@ -72,14 +72,13 @@ static void fold_aovs_start(const struct fold *f, struct fold_tile *t, size_t pi
     if (!f->lay.aovs)
         return;
     t->aov = mem_alloc(pixels * sizeof *t->aov);
-    for (size_t i = 0; i < pixels; i++)
-        aov_pixel_init(&t->aov[i]);
+    aov_tile_init(t->aov, pixels);
 }
 
 static void fold_aovs_pass(const struct fold *f, struct fold_tile *t, size_t pixels, const float *px)
 {
-    for (size_t i = 0; t->aov && i < pixels; i++)
-        aov_pixel_fold(&t->aov[i], &f->lay, &px[i * f->lay.num_channels]);
+    if (t->aov)
+        aov_tile_fold(t->aov, &f->lay, px, pixels);
 }
 
 static void fold_aovs_finish(const struct fold *f, const struct fold_tile *t, size_t pixels, float *out)
@@ -90,11 +89,7 @@ static void fold_aovs_finish(const struct fold *f, const struct fold_tile *t, si
     for (int a = 0; a < AOV_COUNT_; a++)
         ol.off[a] += ol.off[a] >= 0;
     ol.num_channels++;
-    for (size_t i = 0; i < pixels; i++) {
-        struct aov_pixel none;
-        aov_pixel_init(&none);
-        aov_pixel_finish(t->aov ? &t->aov[i] : &none, &ol, &out[i * ol.num_channels]);
-    }
+    aov_tile_finish(t->aov, &ol, out, pixels);
 }
 
 static void tile_clear(struct fold *f, struct fold_tile *t)

@@ -323,7 +323,7 @@ static size_t desc_pixel_bytes(const struct image_desc *d)
 static int desc_channel_index(const struct image_desc *d, const char *name)
 {
     for (uint32_t c = 0; c < d->num_channels; c++)
-        if (name && strcmp(d->channel_names[c], name) == 0)
+        if (name && d->channel_names[c][0] == name[0] && strcmp(d->channel_names[c], name) == 0)
             return (int)c;
     return -1;
 }
@@ -360,6 +360,201 @@ struct chunk_capture {
     size_t size;
     struct imgio_encoder *enc;
 };
+
+/* ---------------------------------------------------------------------------------------
+ * Packing and unpacking of chunks whose channels are all HALF or FLOAT, unsampled, read
+ * from and written to interleaved FLOAT tiles (all Brume writes; what decode_chunk asks
+ * for). The packed bytes are, line after line, each channel's w little-endian values in
+ * the file's channel order. OpenEXRCore's generic routines convert a value at a time
+ * through a type dispatch once the channel types are mixed; these do the same conversions
+ * (HALF: round to nearest even, as OpenEXRCore does; back: exact), a plain copy for FLOAT. */
+
+static float bits_float(uint32_t b)
+{
+    float f;
+    memcpy(&f, &b, sizeof f);
+    return f;
+}
+
+static uint32_t float_bits(float f)
+{
+    uint32_t b;
+    memcpy(&b, &f, sizeof b);
+    return b;
+}
+
+/* float -> HALF bits, round to nearest even; overflow to infinity; NaN stays NaN with the
+ * top of its payload (at least one bit set), as OpenEXRCore's conversion keeps it. */
+static uint16_t float_to_half_bits(float f)
+{
+    uint32_t x = float_bits(f), a = x & 0x7fffffffu;
+    uint16_t sign = (uint16_t)(x >> 16 & 0x8000u);
+    if (a >= 0x38800000u && a < 0x477ff000u) { /* a normal half: rebias 127 -> 15, RNE */
+        uint32_t r = a - 0x38000000u;
+        r += 0x0fffu + (r >> 13 & 1u);
+        return (uint16_t)(sign | r >> 13);
+    }
+    if (a < 0x38800000u) /* below 2^-14: adding 0.5 rounds to a multiple of 2^-24 (RNE), exactly the subnormal */
+        return (uint16_t)(sign | (float_bits(bits_float(a) + 0.5f) - 0x3f000000u));
+    if (a <= 0x7f800000u) /* 65520 and up, infinity */
+        return (uint16_t)(sign | 0x7c00u);
+    uint32_t m = (a & 0x7fffffu) >> 13; /* NaN */
+    return (uint16_t)(sign | 0x7c00u | m | (m == 0));
+}
+
+/* HALF bits -> float (exact): the bits moved into place and scaled by 2^112 (normals and
+ * subnormals alike); infinity and NaN (payload kept) set apart. */
+static float half_bits_to_float(uint16_t h)
+{
+    uint32_t o = (uint32_t)(h & 0x7fffu) << 13, sign = (uint32_t)(h & 0x8000u) << 16;
+    if (o >= 0x0f800000u)
+        return bits_float(sign | 0x7f800000u | o);
+    return bits_float(sign | float_bits(bits_float(o) * 0x1p112f));
+}
+
+#ifdef __SSE2__
+/* Four at a time, the same bits: float_to_half_bits on four floats into dst (8 bytes), or 0
+ * (nothing written) when one is a NaN, left to the scalar conversion. */
+static int float4_to_half_bits(__m128 f, uint8_t *dst)
+{
+    __m128i x = _mm_castps_si128(f), a = _mm_and_si128(x, _mm_set1_epi32(0x7fffffff));
+    if (_mm_movemask_epi8(_mm_cmpgt_epi32(a, _mm_set1_epi32(0x7f800000))))
+        return 0;
+    __m128i r = _mm_sub_epi32(a, _mm_set1_epi32(0x38000000));
+    r = _mm_add_epi32(r, _mm_add_epi32(_mm_set1_epi32(0x0fff), _mm_and_si128(_mm_srli_epi32(r, 13), _mm_set1_epi32(1))));
+    r = _mm_srli_epi32(r, 13);
+    __m128i sub = _mm_sub_epi32(_mm_castps_si128(_mm_add_ps(_mm_castsi128_ps(a), _mm_set1_ps(0.5f))),
+                                _mm_set1_epi32(0x3f000000));
+    __m128i is_sub = _mm_cmplt_epi32(a, _mm_set1_epi32(0x38800000)), is_inf = _mm_cmpgt_epi32(a, _mm_set1_epi32(0x477fefff));
+    r = _mm_or_si128(_mm_and_si128(is_sub, sub), _mm_andnot_si128(is_sub, r));
+    r = _mm_or_si128(_mm_and_si128(is_inf, _mm_set1_epi32(0x7c00)), _mm_andnot_si128(is_inf, r));
+    __m128i hi = _mm_srai_epi32(x, 16); /* the sign in bit 15 once packed to 16 bits */
+    __m128i h = _mm_or_si128(_mm_packs_epi32(r, r), _mm_and_si128(_mm_packs_epi32(hi, hi), _mm_set1_epi16(-0x8000)));
+    _mm_storel_epi64((__m128i *)dst, h);
+    return 1;
+}
+
+/* half_bits_to_float on four HALFs at src (8 bytes) into dst, dst + ps, dst + 2 ps, dst + 3 ps. */
+static void half4_bits_to_float(const uint8_t *src, float *dst, size_t ps)
+{
+    __m128i h = _mm_unpacklo_epi16(_mm_loadl_epi64((const __m128i *)src), _mm_setzero_si128());
+    __m128i o = _mm_slli_epi32(_mm_and_si128(h, _mm_set1_epi32(0x7fff)), 13);
+    __m128i fin = _mm_castps_si128(_mm_mul_ps(_mm_castsi128_ps(o), _mm_set1_ps(0x1p112f)));
+    __m128i special = _mm_cmpgt_epi32(o, _mm_set1_epi32(0x0f7fffff));
+    __m128i r = _mm_or_si128(_mm_and_si128(special, _mm_or_si128(o, _mm_set1_epi32(0x7f800000))),
+                             _mm_andnot_si128(special, fin));
+    __m128 f = _mm_castsi128_ps(_mm_or_si128(r, _mm_slli_epi32(_mm_and_si128(h, _mm_set1_epi32(0x8000)), 16)));
+    _mm_store_ss(dst, f);
+    _mm_store_ss(dst + ps, _mm_shuffle_ps(f, f, 1));
+    _mm_store_ss(dst + 2 * ps, _mm_shuffle_ps(f, f, 2));
+    _mm_store_ss(dst + 3 * ps, _mm_shuffle_ps(f, f, 3));
+}
+#endif
+
+/* 1 when the channels (n of them, a chunk of w x h) take the routines below. */
+static int float_channels_fit(const exr_coding_channel_info_t *chans, int16_t n, int32_t w, int32_t h, int decode)
+{
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+    for (int16_t c = 0; c < n; c++) {
+        const exr_coding_channel_info_t *ch = &chans[c];
+        const uint8_t *ptr = decode ? ch->decode_to_ptr : ch->encode_from_ptr;
+        if ((ch->data_type != EXR_PIXEL_HALF && ch->data_type != EXR_PIXEL_FLOAT) || ch->x_samples != 1 ||
+            ch->y_samples != 1 || ch->height != h || ch->width != w ||
+            ch->bytes_per_element != (ch->data_type == EXR_PIXEL_HALF ? 2 : 4) ||
+            (ptr && (ch->user_data_type != EXR_PIXEL_FLOAT || ch->user_bytes_per_element != 4 ||
+                     ch->user_pixel_stride % 4 != 0 || ch->user_line_stride % 4 != 0 || (uintptr_t)ptr % 4 != 0)))
+            return 0;
+    }
+    return 1;
+#else
+    (void)chans, (void)n, (void)w, (void)h, (void)decode;
+    return 0;
+#endif
+}
+
+/* n floats (4 bytes each) from src to dst, ss and ds bytes apart. */
+static void copy_floats(uint8_t *dst, size_t ds, const uint8_t *src, size_t ss, size_t n)
+{
+    size_t x = 0;
+    for (; x + 4 <= n; x += 4, dst += 4 * ds, src += 4 * ss) {
+        memcpy(dst, src, 4);
+        memcpy(dst + ds, src + ss, 4);
+        memcpy(dst + 2 * ds, src + 2 * ss, 4);
+        memcpy(dst + 3 * ds, src + 3 * ss, 4);
+    }
+    for (; x < n; x++, dst += ds, src += ss)
+        memcpy(dst, src, 4);
+}
+
+static exr_result_t pack_float_chunk(exr_encode_pipeline_t *p)
+{
+    uint8_t *dst = p->packed_buffer;
+    size_t w = (size_t)p->chunk.width, need = 0;
+    for (int16_t c = 0; c < p->channel_count; c++)
+        need += w * (size_t)p->chunk.height * (size_t)p->channels[c].bytes_per_element;
+    if (!dst || need > p->packed_alloc_size)
+        return EXR_ERR_INVALID_ARGUMENT;
+    for (int32_t y = 0; y < p->chunk.height; y++)
+        for (int16_t c = 0; c < p->channel_count; c++) {
+            const exr_coding_channel_info_t *ch = &p->channels[c];
+            const float *src = (const float *)(ch->encode_from_ptr + (size_t)y * (size_t)ch->user_line_stride);
+            size_t ps = (size_t)ch->user_pixel_stride / 4;
+            if (ch->data_type == EXR_PIXEL_HALF) {
+                size_t x = 0;
+#ifdef __SSE2__
+                for (; x + 4 <= w; x += 4) {
+                    const float *q = src + x * ps;
+                    if (!float4_to_half_bits(_mm_set_ps(q[3 * ps], q[2 * ps], q[ps], q[0]), dst + 2 * x))
+                        break; /* a NaN: the rest one by one */
+                }
+#endif
+                for (; x < w; x++) {
+                    uint16_t hb = float_to_half_bits(src[x * ps]);
+                    memcpy(dst + 2 * x, &hb, 2);
+                }
+                dst += 2 * w;
+            } else {
+                copy_floats(dst, 4, (const uint8_t *)src, 4 * ps, w);
+                dst += 4 * w;
+            }
+        }
+    p->packed_bytes = need;
+    return EXR_ERR_SUCCESS;
+}
+
+static exr_result_t unpack_float_chunk(exr_decode_pipeline_t *p)
+{
+    const uint8_t *src = p->unpacked_buffer;
+    size_t w = (size_t)p->chunk.width, need = 0;
+    for (int16_t c = 0; c < p->channel_count; c++)
+        need += w * (size_t)p->chunk.height * (size_t)p->channels[c].bytes_per_element;
+    if (!src || need > (size_t)p->chunk.unpacked_size)
+        return EXR_ERR_CORRUPT_CHUNK;
+    for (int32_t y = 0; y < p->chunk.height; y++)
+        for (int16_t c = 0; c < p->channel_count; c++) {
+            const exr_coding_channel_info_t *ch = &p->channels[c];
+            size_t bytes = (size_t)ch->bytes_per_element;
+            if (ch->decode_to_ptr) {
+                float *dst = (float *)(ch->decode_to_ptr + (size_t)y * (size_t)ch->user_line_stride);
+                size_t ps = (size_t)ch->user_pixel_stride / 4;
+                if (bytes == 2) {
+                    size_t x = 0;
+#ifdef __SSE2__
+                    for (; x + 4 <= w; x += 4)
+                        half4_bits_to_float(src + 2 * x, dst + x * ps, ps);
+#endif
+                    for (; x < w; x++) {
+                        uint16_t hb;
+                        memcpy(&hb, src + 2 * x, 2);
+                        dst[x * ps] = half_bits_to_float(hb);
+                    }
+                } else
+                    copy_floats((uint8_t *)dst, 4 * ps, src, 4, w);
+            }
+            src += w * bytes;
+        }
+    return EXR_ERR_SUCCESS;
+}
 
 static exr_result_t zip_compress_chunk(exr_encode_pipeline_t *p)
 {
@@ -492,6 +687,8 @@ int imgio_encode_tile(struct imgio_encoder *e, uint32_t tx, uint32_t ty, const f
         enc.encoding_user_data = &cap;
         if (e->deflater)
             enc.compress_fn = zip_compress_chunk;
+        if (float_channels_fit(enc.channels, enc.channel_count, enc.chunk.width, enc.chunk.height, 0))
+            enc.convert_and_pack_fn = pack_float_chunk;
         enc.write_fn = capture_chunk;
         /* The default yield checks write ordering of a real file; nothing is written here. */
         enc.yield_until_ready_fn = NULL;
@@ -669,7 +866,8 @@ static exr_result_t decode_chunk(exr_context_t ctx, const exr_chunk_info_t *cinf
         exr_coding_channel_info_t *ch = &dec.channels[i];
         ch->decode_to_ptr = NULL; /* channels nobody asked for are skipped */
         for (uint32_t c = 0; c < t->nc; c++) {
-            if (!ch->channel_name || strcmp(ch->channel_name, t->names[c]) != 0)
+            if (!ch->channel_name || ch->channel_name[0] != t->names[c][0] ||
+                strcmp(ch->channel_name, t->names[c]) != 0)
                 continue;
             ch->user_bytes_per_element = 4;
             ch->user_data_type = EXR_PIXEL_FLOAT;
@@ -691,6 +889,9 @@ static exr_result_t decode_chunk(exr_context_t ctx, const exr_chunk_info_t *cinf
         (zi.inflater = libdeflate_alloc_decompressor())) {
         dec.decoding_user_data = &zi;
         dec.decompress_fn = zip_decompress_chunk;
+        /* (our decompress_fn always leaves the unpacked bytes in unpacked_buffer) */
+        if (float_channels_fit(dec.channels, dec.channel_count, dec.chunk.width, dec.chunk.height, 1))
+            dec.unpack_and_convert_fn = unpack_float_chunk;
     }
     if (rv == EXR_ERR_SUCCESS)
         rv = exr_decoding_run(ctx, 0, &dec);

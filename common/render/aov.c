@@ -13,28 +13,20 @@ void aov_accum_reset(struct aov_accum *acc)
     acc->id_object = acc->id_material = -1.0f;
 }
 
-/* N, albedo and P (9 values, in that order) and the nearest hit into px at l's offsets. */
-static void write_channels(const struct tile_layout *l, const double v[9], float z, float id_object,
-                           float id_material, float *px)
-{
-    for (int k = 0; k < 3; k++)
-        if (l->off[vec_aov[k]] >= 0)
-            for (int c = 0; c < 3; c++)
-                px[l->off[vec_aov[k]] + c] = (float)v[3 * k + c];
-    if (l->off[AOV_Z] >= 0)
-        px[l->off[AOV_Z]] = z;
-    if (l->off[AOV_ID_OBJECT] >= 0)
-        px[l->off[AOV_ID_OBJECT]] = id_object;
-    if (l->off[AOV_ID_MATERIAL] >= 0)
-        px[l->off[AOV_ID_MATERIAL]] = id_material;
-}
-
 void aov_accum_write(const struct aov_accum *acc, uint32_t n, const struct tile_layout *l, float *px)
 {
-    double m[9];
-    for (int i = 0; i < 9; i++)
-        m[i] = n ? acc->sum[i] / n : 0.0;
-    write_channels(l, m, acc->z, acc->id_object, acc->id_material, px);
+    const double dn = n;
+    for (int k = 0; k < 3; k++) {
+        int o = l->off[vec_aov[k]];
+        for (int c = 0; o >= 0 && c < 3; c++)
+            px[o + c] = n ? (float)(acc->sum[3 * k + c] / dn) : 0.0f;
+    }
+    if (l->off[AOV_Z] >= 0)
+        px[l->off[AOV_Z]] = acc->z;
+    if (l->off[AOV_ID_OBJECT] >= 0)
+        px[l->off[AOV_ID_OBJECT]] = acc->id_object;
+    if (l->off[AOV_ID_MATERIAL] >= 0)
+        px[l->off[AOV_ID_MATERIAL]] = acc->id_material;
 }
 
 void aov_pixel_init(struct aov_pixel *ap)
@@ -46,26 +38,87 @@ void aov_pixel_init(struct aov_pixel *ap)
 
 void aov_pixel_fold(struct aov_pixel *ap, const struct tile_layout *l, const float *px)
 {
-    if (px[CH_A] < 0.0f)
-        return; /* the pass kept no sample (PASS_ALPHA_NONE) */
-    ap->n++;
-    for (int k = 0; k < 3; k++)
-        for (int c = 0; l->off[vec_aov[k]] >= 0 && c < 3; c++)
-            ap->mean[3 * k + c] += ((double)px[l->off[vec_aov[k]] + c] - ap->mean[3 * k + c]) / ap->n;
-    /* The nearest hit over the passes; without a Z channel the first pass's ids. */
-    float z = l->off[AOV_Z] >= 0 ? px[l->off[AOV_Z]] : (ap->n == 1 ? 0.0f : INFINITY);
-    if (z < ap->z) {
-        ap->z = z;
-        if (l->off[AOV_ID_OBJECT] >= 0)
-            ap->id_object = px[l->off[AOV_ID_OBJECT]];
-        if (l->off[AOV_ID_MATERIAL] >= 0)
-            ap->id_material = px[l->off[AOV_ID_MATERIAL]];
-    }
+    aov_tile_fold(ap, l, px, 1);
 }
 
 void aov_pixel_finish(const struct aov_pixel *ap, const struct tile_layout *l, float *px)
 {
-    write_channels(l, ap->mean, ap->z, ap->id_object, ap->id_material, px);
+    aov_tile_finish(ap, l, px, 1);
+}
+
+/* A layout's AOV offsets, looked up once for a tile: the vector AOVs present (vec: their
+ * first channels, slot: their 3-component slot in sums and means) and the scalar ones. */
+struct aov_offsets {
+    int nv, vec[3], slot[3], z, id_object, id_material;
+};
+static void aov_offsets(const struct tile_layout *l, struct aov_offsets *o)
+{
+    o->nv = 0;
+    for (int k = 0; k < 3; k++)
+        if (l->off[vec_aov[k]] >= 0) {
+            o->vec[o->nv] = l->off[vec_aov[k]];
+            o->slot[o->nv++] = 3 * k;
+        }
+    o->z = l->off[AOV_Z];
+    o->id_object = l->off[AOV_ID_OBJECT];
+    o->id_material = l->off[AOV_ID_MATERIAL];
+}
+
+void aov_tile_init(struct aov_pixel *ap, size_t pixels)
+{
+    struct aov_pixel none;
+    aov_pixel_init(&none);
+    for (size_t i = 0; i < pixels; i++)
+        ap[i] = none;
+}
+
+/* aov_pixel_fold's arithmetic, value for value (the same bits). */
+void aov_tile_fold(struct aov_pixel *ap, const struct tile_layout *l, const float *px, size_t pixels)
+{
+    struct aov_offsets o;
+    aov_offsets(l, &o);
+    size_t nc = l->num_channels;
+    for (size_t i = 0; i < pixels; i++, px += nc) {
+        struct aov_pixel *a = &ap[i];
+        if (px[CH_A] < 0.0f)
+            continue; /* the pass kept no sample (PASS_ALPHA_NONE) */
+        a->n++;
+        for (int k = 0; k < o.nv; k++) {
+            const float *v = &px[o.vec[k]];
+            double *m = &a->mean[o.slot[k]];
+            for (int c = 0; c < 3; c++)
+                m[c] += ((double)v[c] - m[c]) / a->n;
+        }
+        float z = o.z >= 0 ? px[o.z] : (a->n == 1 ? 0.0f : INFINITY);
+        if (z < a->z) {
+            a->z = z;
+            if (o.id_object >= 0)
+                a->id_object = px[o.id_object];
+            if (o.id_material >= 0)
+                a->id_material = px[o.id_material];
+        }
+    }
+}
+
+void aov_tile_finish(const struct aov_pixel *ap, const struct tile_layout *ol, float *out, size_t pixels)
+{
+    struct aov_offsets o;
+    aov_offsets(ol, &o);
+    struct aov_pixel none;
+    aov_pixel_init(&none);
+    size_t nc = ol->num_channels;
+    for (size_t i = 0; i < pixels; i++, out += nc) {
+        const struct aov_pixel *a = ap ? &ap[i] : &none;
+        for (int k = 0; k < o.nv; k++)
+            for (int c = 0; c < 3; c++)
+                out[o.vec[k] + c] = (float)a->mean[o.slot[k] + c];
+        if (o.z >= 0)
+            out[o.z] = a->z;
+        if (o.id_object >= 0)
+            out[o.id_object] = a->id_object;
+        if (o.id_material >= 0)
+            out[o.id_material] = a->id_material;
+    }
 }
 
 static int id_valid(float v, uint32_t count)
@@ -76,23 +129,7 @@ static int id_valid(float v, uint32_t count)
 
 int aov_pixel_valid(const struct tile_layout *l, const float *px, uint32_t num_objects, uint32_t num_materials)
 {
-    /* x * 0 is 0 for a finite x and NaN for an infinite or NaN one: their sum is 0 exactly
-     * when all 9 are finite (the master checks every pixel of every pass). */
-    float z = 0.0f;
-    for (int k = 0; k < 3; k++)
-        if (l->off[vec_aov[k]] >= 0) {
-            const float *v = &px[l->off[vec_aov[k]]];
-            z += v[0] * 0.0f + v[1] * 0.0f + v[2] * 0.0f;
-        }
-    if (z != 0.0f)
-        return 0;
-    if (l->off[AOV_Z] >= 0 && !(px[l->off[AOV_Z]] >= 0.0f))
-        return 0;
-    if (l->off[AOV_ID_OBJECT] >= 0 && !id_valid(px[l->off[AOV_ID_OBJECT]], num_objects))
-        return 0;
-    if (l->off[AOV_ID_MATERIAL] >= 0 && !id_valid(px[l->off[AOV_ID_MATERIAL]], num_materials))
-        return 0;
-    return 1;
+    return aov_tile_first_invalid(l, px, 1, num_objects, num_materials) == 1;
 }
 
 void aov_fill_miss(const struct image_desc *d, float *px, size_t pixels)
@@ -103,4 +140,24 @@ void aov_fill_miss(const struct image_desc *d, float *px, size_t pixels)
         for (size_t i = 0; v != 0.0f && i < pixels; i++)
             px[i * d->num_channels + c] = v;
     }
+}
+
+size_t aov_tile_first_invalid(const struct tile_layout *l, const float *px, size_t pixels, uint32_t num_objects,
+                              uint32_t num_materials)
+{
+    struct aov_offsets o;
+    aov_offsets(l, &o);
+    size_t nc = l->num_channels;
+    for (size_t i = 0; i < pixels; i++, px += nc) {
+        float z = 0.0f; /* as in aov_pixel_valid: 0 exactly when all are finite */
+        for (int k = 0; k < o.nv; k++) {
+            const float *v = &px[o.vec[k]];
+            z += v[0] * 0.0f + v[1] * 0.0f + v[2] * 0.0f;
+        }
+        if (z != 0.0f || (o.z >= 0 && !(px[o.z] >= 0.0f)) ||
+            (o.id_object >= 0 && !id_valid(px[o.id_object], num_objects)) ||
+            (o.id_material >= 0 && !id_valid(px[o.id_material], num_materials)))
+            return i;
+    }
+    return pixels;
 }

@@ -94,9 +94,20 @@ void aov_pixel_init(struct aov_pixel *ap);
 void aov_pixel_fold(struct aov_pixel *ap, const struct tile_layout *l, const float *px);
 void aov_pixel_finish(const struct aov_pixel *ap, const struct tile_layout *l, float *px);
 
+/* The same over a tile's pixels (interleaved, l->num_channels floats a pixel; the
+ * layout's offsets looked up once): init, fold one pass's pixels, write the final channels
+ * into out (laid out as ol; ap NULL: as if no pass was folded). */
+void aov_tile_init(struct aov_pixel *ap, size_t pixels);
+void aov_tile_fold(struct aov_pixel *ap, const struct tile_layout *l, const float *px, size_t pixels);
+void aov_tile_finish(const struct aov_pixel *ap, const struct tile_layout *ol, float *out, size_t pixels);
+
 /* 1 when a worker's pixel holds plausible AOVs: Z >= 0 or +inf, N, albedo and P finite,
  * ids -1 or integers below num_objects / num_materials. */
 int aov_pixel_valid(const struct tile_layout *l, const float *px, uint32_t num_objects, uint32_t num_materials);
+/* The first of a tile's pixels (l->num_channels floats each) that aov_pixel_valid rejects,
+ * or pixels when none. */
+size_t aov_tile_first_invalid(const struct tile_layout *l, const float *px, size_t pixels, uint32_t num_objects,
+                              uint32_t num_materials);
 
 /* Sets the AOV channels of pixels (interleaved as d says, any layout: found by name) to
  * what a pixel where nothing is hit holds: Z +inf, ids -1 (the rest is left alone). */

@@ -636,6 +636,19 @@ Test(imgio, png_preview)
     cr_assert_eq(rmdir(dir), 0);
 }
 
+/* Tile (0,0) of d encoded from px (returned, its size in *size) and decoded into out. */
+static uint8_t *round_trip_tile00(const struct image_desc *d, const float *px, float *out, size_t *size)
+{
+    char err[256];
+    struct imgio_encoder *e = imgio_encoder_new(d, err, sizeof err);
+    cr_assert_not_null(e, "%s", err);
+    uint8_t *chunk;
+    cr_assert_eq(imgio_encode_tile(e, 0, 0, px, &chunk, size, err, sizeof err), 0, "%s", err);
+    imgio_encoder_free(&e);
+    cr_assert_eq(imgio_decode_tile(d, 0, 0, chunk, *size, out, err, sizeof err), 0, "%s", err);
+    return chunk;
+}
+
 /* HALF channels (image_desc.half_mask): the chunk rounds to the nearest half (ties to
  * even, overflow to infinity, subnormals), decodes back exactly, and a file of such
  * chunks reads the same through OpenEXRCore's own unpacking (imgio_read) as through the
@@ -658,12 +671,8 @@ Test(imgio, half_channels_round_to_nearest_even)
         for (uint32_t c = 0; c < K_NC; c++)
             px[i * K_NC + c] = (c == 5 || c == 1) ? in[i % n][0] : pixel_value((uint32_t)i % 8, (uint32_t)i / 8, c, 1);
     char err[256];
-    struct imgio_encoder *e = imgio_encoder_new(&d, err, sizeof err);
-    cr_assert_not_null(e, "%s", err);
-    uint8_t *chunk;
     size_t size;
-    cr_assert_eq(imgio_encode_tile(e, 0, 0, px, &chunk, &size, err, sizeof err), 0, "%s", err);
-    cr_assert_eq(imgio_decode_tile(&d, 0, 0, chunk, size, out, err, sizeof err), 0, "%s", err);
+    uint8_t *chunk = round_trip_tile00(&d, px, out, &size);
     for (size_t i = 0; i < 8 * 4; i++)
         for (uint32_t c = 0; c < K_NC; c++) {
             float want = (c == 5 || c == 1) ? in[i % n][1] : px[i * K_NC + c], got = out[i * K_NC + c];
@@ -692,5 +701,66 @@ Test(imgio, half_channels_round_to_nearest_even)
     /* A half_mask naming a channel past num_channels is refused. */
     d.half_mask = 1u << K_NC;
     cr_assert_null(imgio_encoder_new(&d, err, sizeof err));
-    imgio_encoder_free(&e);
+}
+
+/* The nearest half to f, ties to even, from its value (in double, independent of bit
+ * tricks): f scaled to 11 significant bits (10 below 2^-14, where halves are subnormal),
+ * rounded with nearbyint; 65520 and beyond round to infinity. */
+static float half_reference(float f)
+{
+    if (isnan(f) || fabsf(f) >= 65520.0f)
+        return isnan(f) ? f : copysignf(INFINITY, f);
+    if (f == 0.0f)
+        return f;
+    int e = ilogbf(f);
+    if (e < -14)
+        e = -14;
+    double r = nearbyint(ldexp((double)f, 10 - e));
+    return (float)copysign(ldexp(r, e - 10), (double)f);
+}
+
+/* Every HALF bit pattern decodes to its exact value and encodes back to itself (NaNs stay
+ * NaNs of their sign), and floats across the whole half range (normal, subnormal, ties,
+ * overflow) round as half_reference says, in a chunk that mixes HALF and FLOAT channels. */
+Test(imgio, half_conversion_exhaustive)
+{
+    const uint32_t W = 255, H = 258; /* 65536 pixels and more, rows not a multiple of 4 */
+    struct image_desc d = make_desc(IMGIO_ZIP, W, H, 258);
+    d.half_mask = 1u << 2 | 1u << 4;
+    float *px = malloc(sizeof(float) * W * H * K_NC), *out = malloc(sizeof(float) * W * H * K_NC);
+    cr_assert(px && out);
+    uint32_t s = 7;
+    for (uint32_t i = 0; i < W * H; i++) {
+        /* Channel 2: the value of half bits i (sign, 5 exponent and 10 mantissa bits). */
+        uint32_t e = i >> 10 & 0x1fu, m = i & 0x3ffu; /* i & 0xffff: every pattern at least once */
+        float v = e == 0x1fu ? (m ? NAN : INFINITY)
+                  : e        ? ldexpf(1.0f + m / 1024.0f, (int)e - 15)
+                             : ldexpf((float)m, -24);
+        px[i * K_NC + 2] = (i & 0x8000u) && !(i & 0x10000u) ? -v : v;
+        /* Channel 4: floats spread over 0 .. 2^17, both signs, ties included. */
+        uint32_t bits = 0x33000000u + (uint32_t)(((uint64_t)i * 0x14800000u) >> 16);
+        if (i % 7 == 3)
+            bits = (bits & ~0x1fffu) | 0x1000u; /* a tie between two normal halves */
+        bits |= (lcg(&s) & 1u) << 31;
+        memcpy(&px[i * K_NC + 4], &bits, 4);
+        for (uint32_t c = 0; c < K_NC; c++)
+            if (c != 2 && c != 4)
+                px[i * K_NC + c] = pixel_value(i % W, i / W, c, 3);
+    }
+    size_t size;
+    uint8_t *chunk = round_trip_tile00(&d, px, out, &size);
+    for (uint32_t i = 0; i < W * H; i++)
+        for (uint32_t c = 0; c < K_NC; c++) {
+            float in = px[i * K_NC + c], got = out[i * K_NC + c];
+            float want = c == 2 ? in : c == 4 ? half_reference(in) : in;
+            if (isnan(want))
+                cr_assert(isnan(got) && signbit(got) == signbit(want), "pixel %u ch %u: NaN became %a", i, c,
+                          (double)got);
+            else
+                cr_assert(memcmp(&want, &got, 4) == 0, "pixel %u ch %u: %a from %a, want %a", i, c, (double)got,
+                          (double)in, (double)want);
+        }
+    free(chunk);
+    free(px);
+    free(out);
 }
