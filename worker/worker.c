@@ -958,14 +958,10 @@ static int fetches_pump(struct worker *w)
 static int on_bcast_frame(struct worker *w, const struct net_frame *fr)
 {
     struct proto_msg m;
-    char err[256] = "";
-    int decoded = proto_decode(fr->data, fr->size, &m, err, sizeof err) == 0;
-    if (!decoded || m.type != MSG_BLOB_DATA || fr->id_len != BLOB_HASH_SIZE ||
-        memcmp(fr->id, m.u.blob_data.hash.bytes, BLOB_HASH_SIZE) != 0) {
-        if (decoded && m.type == MSG_JOB)
-            proto_job_fini(&m.u.job);
+    char err[256];
+    if (proto_fetch_decode_bcast(fr->id, fr->id_len, fr->data, fr->size, &m, err, sizeof err) != 0) {
         if (++w->bcast_bad <= 5)
-            log_warn("broadcast: message dropped: %s", err[0] ? err : "not a chunk of its topic");
+            log_warn("broadcast: message dropped: %s", err);
         return 0;
     }
     return on_blob_data(w, &m.u.blob_data, 1);

@@ -3,6 +3,7 @@
  * chunk that keeps coming back bad ends the fetch after PROTO_FETCH_MAX_ROUNDS rounds. */
 #include "wire/fetch.h"
 #include "base/log.h"
+#include <stdio.h>
 #include <string.h>
 
 int proto_fetch_start(struct proto_fetch *f, const struct blob_hash *hash, uint64_t size, struct proto_msg *req,
@@ -106,4 +107,20 @@ void proto_fetch_fini(struct proto_fetch *f)
     f->next_chunk = 0;
     f->in_flight = 0;
     f->rounds = 0;
+}
+
+int proto_fetch_decode_bcast(const uint8_t *topic, size_t topic_len, const uint8_t *data, size_t size,
+                             struct proto_msg *m, char *err, size_t errlen)
+{
+    if (errlen)
+        err[0] = '\0';
+    int decoded = proto_decode(data, size, m, err, errlen) == 0;
+    if (decoded && m->type == MSG_BLOB_DATA && topic_len == BLOB_HASH_SIZE &&
+        memcmp(topic, m->u.blob_data.hash.bytes, BLOB_HASH_SIZE) == 0)
+        return 0;
+    if (decoded && m->type == MSG_JOB)
+        proto_job_fini(&m->u.job);
+    if (decoded || !err[0])
+        snprintf(err, errlen, "not a chunk of its topic");
+    return -1;
 }

@@ -49,5 +49,10 @@ int proto_fetch_next_req(struct proto_fetch *f, uint64_t now_ms, struct proto_ms
  * quiet, however slowly the caller reads it. */
 void proto_fetch_bcast_alive(struct proto_fetch *f, uint64_t now_ms);
 void proto_fetch_fini(struct proto_fetch *f);
+/* One message off the broadcast: its topic (topic_len bytes) and its payload. 0 when it is
+ * a BLOB_DATA of the hash its topic names (in *m, pointing into data), else -1 with the
+ * reason in err (anything else decoded is freed). */
+int proto_fetch_decode_bcast(const uint8_t *topic, size_t topic_len, const uint8_t *data, size_t size,
+                             struct proto_msg *m, char *err, size_t errlen);
 
 #endif

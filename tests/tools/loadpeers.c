@@ -351,13 +351,9 @@ static void on_blob_data(struct lpeer *p, const struct msg_blob_data *d, int via
 static void on_bcast(struct lpeer *p, const struct net_frame *fr)
 {
     struct proto_msg m;
-    char err[256] = "";
-    int decoded = proto_decode(fr->data, fr->size, &m, err, sizeof err) == 0;
-    if (!decoded || m.type != MSG_BLOB_DATA || fr->id_len != BLOB_HASH_SIZE ||
-        memcmp(fr->id, m.u.blob_data.hash.bytes, BLOB_HASH_SIZE) != 0) {
-        if (decoded && m.type == MSG_JOB)
-            proto_job_fini(&m.u.job);
-        fprintf(stderr, "loadpeers: broadcast message dropped: %s\n", err[0] ? err : "not a chunk of its topic");
+    char err[256];
+    if (proto_fetch_decode_bcast(fr->id, fr->id_len, fr->data, fr->size, &m, err, sizeof err) != 0) {
+        fprintf(stderr, "loadpeers: broadcast message dropped: %s\n", err);
         return;
     }
     p->bcast_seen++;

@@ -956,6 +956,37 @@ static struct msg_blob_data fetch_chunk(const struct fetch_blob *fb, uint64_t i)
     return d;
 }
 
+/* A broadcast message is kept only as a BLOB_DATA of the hash its topic names. */
+Test(proto, fetch_decode_bcast_checks_the_topic)
+{
+    struct fetch_blob fb = fetch_blob_make(BLOB_CHUNK_SIZE + 5);
+    struct proto_msg m = {.type = MSG_BLOB_DATA}, out;
+    m.u.blob_data = fetch_chunk(&fb, 1);
+    struct proto_buf b = {0};
+    cr_assert_eq(proto_encode(&m, &b), 0);
+    char err[256];
+    cr_assert_eq(proto_fetch_decode_bcast(fb.hash.bytes, BLOB_HASH_SIZE, b.data, b.size, &out, err, sizeof err), 0,
+                 "%s", err);
+    cr_assert_eq(out.u.blob_data.offset, BLOB_CHUNK_SIZE);
+    cr_assert_eq(out.u.blob_data.length, 5);
+    uint8_t other[BLOB_HASH_SIZE];
+    memcpy(other, fb.hash.bytes, sizeof other);
+    other[0] ^= 1;
+    cr_assert_eq(proto_fetch_decode_bcast(other, BLOB_HASH_SIZE, b.data, b.size, &out, err, sizeof err), -1);
+    cr_assert(strstr(err, "topic"), "%s", err);
+    cr_assert_eq(proto_fetch_decode_bcast(fb.hash.bytes, BLOB_HASH_SIZE - 1, b.data, b.size, &out, err, sizeof err), -1);
+    cr_assert_eq(proto_fetch_decode_bcast(fb.hash.bytes, BLOB_HASH_SIZE, b.data, b.size - 1, &out, err, sizeof err), -1,
+                 "a truncated message");
+    cr_assert(err[0]);
+    struct proto_msg hb = {.type = MSG_HEARTBEAT};
+    cr_assert_eq(proto_encode(&hb, &b), 0);
+    cr_assert_eq(proto_fetch_decode_bcast(fb.hash.bytes, BLOB_HASH_SIZE, b.data, b.size, &out, err, sizeof err), -1,
+                 "not a BLOB_DATA");
+    proto_buf_fini(&b);
+    free(fb.data);
+    free(fb.chunks);
+}
+
 Test(proto, fetch_broadcast_then_point_to_point)
 {
     struct fetch_blob fb = fetch_blob_make(5 * BLOB_CHUNK_SIZE + 77); /* 6 chunks */
