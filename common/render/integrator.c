@@ -45,33 +45,8 @@ static void aov_first_hit(const struct render_job *job, const struct accel_hit *
     aov->id_material = (float)s->material;
 }
 
-/* The shading set-up of hit h of the ray (org, dir) at surface s, as the path tracer
- * shades every vertex (camera_path writes the same steps out): front (wo outside), the geometric and shading normals on wo's side
- * (ns with the bump or normal map) and the material with its textures looked up (in *buf).
- * rd: the ray's differentials when the job is textured; dh gets the hit's differential
- * geometry then. */
-static const struct material *shade_hit(const struct render_job *job, vec3 org, vec3 dir, const struct accel_hit *h,
-                                        float time01, const struct surface *s, const struct raydiff *rd,
-                                        struct material *buf, struct raydiff_hit *dh, int *front, vec3 *ng, vec3 *ns)
-{
-    const struct scene *sc = job->scene;
-    const struct material *mat = &sc->materials[s->material];
-    if (job->textured) {
-        texshade_hit(job, org, dir, h, time01, rd, dh);
-        mat = texshade_material(job, mat, dh, buf);
-    }
-    /* Shade on the side the ray came from: surfaces are two-sided for reflection;
-     * front (wo outside) tells a dielectric which index is on which side. */
-    *front = v3_dot(s->ng, v3_neg(dir)) >= 0.0f;
-    *ng = *front ? s->ng : v3_neg(s->ng);
-    *ns = v3_dot(s->ns, *ng) < 0.0f ? v3_neg(s->ns) : s->ns;
-    if (job->textured)
-        *ns = texshade_bump(sc, job->mips, mat, dh, *ng, *ns);
-    return mat;
-}
-
 /* AOVs in media scenes: the first surface along the camera ray, media ignored, shaded as
- * the path tracer shades its first hit (textures, bump and normal maps; rd: the camera
+ * the media integrator shades its first hit (texshade_surface) (textures, bump and normal maps; rd: the camera
  * ray's differentials when the job is textured), the albedo of a non-specular first hit
  * (docs/scene-format.md). Returns whether the ray hit, and the hit in *h, for the path to
  * start from. */
@@ -83,11 +58,9 @@ static int aov_trace(const struct render_job *job, vec3 org, vec3 dir, float tim
     struct surface s;
     surface_from_hit(&job->accel, &job->lights, org, dir, h, time01, &s);
     struct material tex_mat;
-    struct raydiff_hit dh;
-    int front;
-    vec3 ng, ns;
-    const struct material *mat = shade_hit(job, org, dir, h, time01, &s, rd, &tex_mat, &dh, &front, &ng, &ns);
-    aov_first_hit(job, h, &s, ns, aov);
+    const struct material *mat =
+        texshade_surface(job, org, dir, h, time01, rd, &s, &job->scene->materials[s.material], &tex_mat, NULL);
+    aov_first_hit(job, h, &s, v3_dot(s.ns, dir) > 0.0f ? v3_neg(s.ns) : s.ns, aov);
     if (!material_is_delta(mat))
         aov->albedo = aov_material_albedo(mat);
     return 1;
@@ -162,8 +135,6 @@ static vec3 camera_path(const struct render_job *job, uint32_t pass, uint32_t px
         if (vertex > rs->max_depth)
             break;
 
-        /* Shading as shade_hit does it, written out: the hot loop keeps its locals in
-         * registers this way (about 8 instructions a vertex fewer). */
         const struct material *mat = &sc->materials[s.material];
         struct material tex_mat;
         struct raydiff_hit dh;
@@ -172,6 +143,8 @@ static vec3 camera_path(const struct render_job *job, uint32_t pass, uint32_t px
             mat = texshade_material(job, mat, &dh, &tex_mat);
         }
         vec3 wo = v3_neg(dir);
+        /* Shade on the side the ray came from: surfaces are two-sided for reflection;
+         * front (wo outside) tells a dielectric which index is on which side. */
         int front = v3_dot(s.ng, wo) >= 0.0f;
         vec3 ng = front ? s.ng : v3_neg(s.ng);
         vec3 ns = v3_dot(s.ns, ng) < 0.0f ? v3_neg(s.ns) : s.ns;
