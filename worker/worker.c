@@ -673,6 +673,16 @@ static int load_finish(struct worker *w)
         for (uint32_t p = 0; p < w->num_maps; p++) /* maps announced and fetched while the scene loaded */
             if (map_install(w, p) != 0)
                 return -1;
+    if (w->job_conn != w->conn) {
+        /* The JOB came on a connection since lost. The master that hears us now has sent
+         * (or will send) its own JOB on this one, which moves the loaded scene to its frame
+         * and says READY then. A READY now would get tiles that arrive while that JOB's
+         * reload runs, and a tile the worker cannot render then is lost until the master
+         * evicts us. */
+        log_info("job %llu loaded after a reconnection: READY waits for this connection's JOB",
+                 (unsigned long long)w->job.job_id);
+        return 0;
+    }
     struct proto_msg m = {.type = MSG_READY};
     m.u.ready.job_id = w->job.job_id;
     m.u.ready.credits = w->opts->threads * TILES_PER_THREAD;

@@ -73,4 +73,33 @@ if [ $r = 0 ] && [ $wr = 0 ] && [ -n "$kept" ] && [ "$kept" -ge 1 ] && [ "$fk" =
   ok "a master restarted on another job gets none of the kept tiles; its image is its own"
 else bad "a master restarted on another job gets none of the kept tiles; its image is its own (master rc $r, worker rc $wr)"; fi
 
+# A load that ends after a reconnection: the worker loads slowly while the master is frozen,
+# reconnects (at 4, 5 and 7 s of silence), and the load ends (8.5 s) on a connection whose
+# HELLO the master has not read yet. That master then sends its JOB on it, whose reload runs
+# while the first TILEs arrive: a READY for the old connection's load must not go out on
+# the new one, or those TILEs are dropped and the master waits for them until it evicts us.
+timeout 120 $M $SCENE -o "$T/lref.exr" --workers 1 --threads 1 --spp 4 --tile 64 --no-journal >"$T/log" 2>&1 || bad "reference render (slow load)"
+rm -f "$T/late.exr"
+$M $SCENE -o "$T/late.exr" --workers 0 --bind "ipc://$T/l.sock" --spp 4 --tile 64 --no-journal >"$T/log1" 2>&1 &
+mpid=$!
+$W --connect "ipc://$T/l.sock" --threads 1 --fault slow-load:8500 --timeout-ms 60000 >"$T/wlog" 2>&1 &
+wpid=$!
+echo "$mpid $wpid" >"$T/pids"
+wait_for "joined" 100 "$T/log1"
+kill -STOP $mpid
+sleep 9.5
+kill -CONT $mpid
+# without a TILE lost, the frame ends in seconds; a lost one waits for the stall eviction
+( sleep 25; ours $mpid && kill $mpid 2>/dev/null ) &
+guard=$!
+wait $mpid
+r=$?
+kill $guard 2>/dev/null
+wait $wpid
+wr=$?
+if [ $r = 0 ] && [ $wr = 0 ] && grep -q "loaded after a reconnection: READY waits" "$T/wlog" &&
+  ! grep -q "dropping TILE" "$T/wlog" && $X cmp "$T/lref.exr" "$T/late.exr" >/dev/null; then
+  ok "a load that ends after a reconnection waits for the new connection's JOB: no TILE dropped, identical pixels"
+else bad "a load that ends after a reconnection: no TILE dropped (master rc $r, worker rc $wr)"; fi
+
 finish
