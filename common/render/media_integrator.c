@@ -2,7 +2,8 @@
  * flight, NEE with shadow transmittance and MIS (equiangular toward point lights and points on emissive triangles). March
  * (Jensen): jittered steps, single scattering to every light when there are at most
  * MARCH_ALL_LIGHTS point lights + the k-nearest photon estimate; beam: one beam query per
- * segment; at the first diffuse vertex a final gather (surface photon map after one
+ * segment (in homogeneous media camera segments take points instead of a march when lights
+ * are picked one at a time, and long segments' beams one random piece); at the first diffuse vertex a final gather (surface photon map after one
  * bounce) or, with path-traced indirect light, VPT from there on. Random numbers: one key
  * per (seed, frame, pixel, sample) and a fixed layout of dimensions per vertex, so pixels
  * do not depend on threads, tiles or workers. Surfaces take their textures (texshade.h)
@@ -22,6 +23,13 @@
 #define MAX_CROSSINGS 256
 #define MAX_STEPS 100000
 #define DIMS_PER_VERTEX 16
+/* Single-scattering points on a camera segment in a homogeneous medium (beam, lights picked
+ * one at a time; gather_segment). */
+#define CAMERA_POINTS 8u
+/* gather_segment's beam query: at most BEAM_PIECES pieces, each at least BEAM_PIECE_RADII
+ * gather radii long. */
+#define BEAM_PIECES 4u
+#define BEAM_PIECE_RADII 8.0f
 /* Jensen's per-step estimate: maximum radius of the k-nearest query, in gather radii. */
 #define KNN_RADIUS_FACTOR 4.0f
 
@@ -63,7 +71,9 @@ static float equi_sample(const struct equi *e, float u)
  * exponential truncated to [0, tend)), or march's jittered steps (FL_MARCH: one sample
  * per dx, a density of 1 / dx); cut: phase without the forward cone. */
 enum { FL_FREE, FL_TRUNC, FL_MARCH };
-struct flight_ctx { vec3 o, d; float tend, t; vec3 chan; const struct medium *md; float eps; int trunc, cut; float dx; };
+/* count: FL_TRUNC's number of stratified points on the segment (their joint density is
+ * count x the truncated exponential's). */
+struct flight_ctx { vec3 o, d; float tend, t; vec3 chan; const struct medium *md; float eps; int trunc, cut; float dx; float count; };
 
 /* The truncated exponential's coefficient: sigma_t averaged over the channels (the weight
  * Tr(t) / pdf(t) is per channel). */
@@ -92,7 +102,8 @@ static float flight_pdf(const struct flight_ctx *fc, float t)
 {
     if (fc->trunc == FL_MARCH)
         return 1.0f / fc->dx;
-    return fc->trunc == FL_TRUNC ? trunc_pdf(trunc_sigma(fc->md), fc->tend, t) : medium_flight_pdf(fc->md, fc->chan, t);
+    return fc->trunc == FL_TRUNC ? fc->count * trunc_pdf(trunc_sigma(fc->md), fc->tend, t)
+                                 : medium_flight_pdf(fc->md, fc->chan, t);
 }
 
 static float rnd(const struct rngs *r, uint32_t vertex, uint32_t k)
@@ -295,7 +306,7 @@ static vec3 march_segment(const struct render_job *job, const struct media_job *
     /* Homogeneous media, lights sampled one at a time: each step's NEE is weighted against
      * one equiangular sample per segment (the steps' density is 1 / dx), which takes the
      * 1/d^2 peak next to a point or area light. */
-    struct flight_ctx fc = {o, d, len, 0.0f, v3(1, 1, 1), md, 1e-7f * mj->scene_size, FL_MARCH, 1, dx};
+    struct flight_ctx fc = {o, d, len, 0.0f, v3(1, 1, 1), md, 1e-7f * mj->scene_size, FL_MARCH, 1, dx, 1.0f};
     const int equi = nee && !het && !all_points && job->lights.num_entries > 0;
     if (equi)
         L = v3_add(L, equiangular(job, r, vertex, &fc, medium, time01, rays));
@@ -390,15 +401,20 @@ static float march_reach(const struct media_job *mj, const struct medium *md, ve
     return reach > 0.0f ? t + reach : t;
 }
 
-/* March and beam after the first non-delta bounce (the final gather's bounce and any
- * segment after it) in a homogeneous medium: single scattering from one point instead of
- * a march, t from an exponential truncated to the segment, NEE there weighted against one
- * equiangular sample toward a point light or a point on an area light as in VPT, times Tr(t) / pdf(t): one or two
- * shadow rays instead of one per step, and these paths, spread over the hemisphere,
- * average the extra noise away. Multiple scattering: the beam over the whole segment. */
+/* March and beam in a homogeneous medium wherever a march is not needed: single
+ * scattering from `points` points instead of a march, t stratified in an exponential
+ * truncated to the segment (so the points lie inside it even in thin fog), NEE at each
+ * weighted against one equiangular sample toward a point light or a point on an area light
+ * as in VPT, times Tr(t) / (points pdf(t)). After the first non-delta bounce (the final
+ * gather's bounce and any segment after it) one point: these paths, spread over the
+ * hemisphere, average the extra noise away. On camera segments when lights are picked one
+ * at a time, CAMERA_POINTS points: a march's step takes one shadow ray per step (about 170
+ * on cornell_fog's camera rays), while the equiangular sample carries the light's 1/d^2
+ * peak and the rest of the in-scattering is smooth along the segment. Multiple
+ * scattering: the beam, over one random piece of a long segment (below). */
 static vec3 gather_segment(const struct render_job *job, const struct media_job *mj, const struct rngs *r,
                            uint32_t vertex, uint32_t depth, vec3 o, vec3 d, float len, uint32_t medium, vec3 chan,
-                           float time01, uint64_t *rays)
+                           float time01, uint32_t points, uint64_t *rays)
 {
     const struct medium *md = &mj->cut[medium];
     vec3 L = medium_emission_integral(md, len);
@@ -406,23 +422,55 @@ static vec3 gather_segment(const struct render_job *job, const struct media_job 
         return L;
     int nee;
     const uint32_t kmax = volume_photon_depth_max(job->scene->settings.max_depth, depth, &nee);
-    float s = trunc_sigma(md);
-    struct flight_ctx fc = {o, d, len, trunc_sample(s, len, rnd(r, vertex, 11)), chan, md, 1e-7f * mj->scene_size,
-                           FL_TRUNC, 1, 0.0f};
-    vec3 x = v3_add(o, v3_scale(d, fc.t)), in = v3(0, 0, 0);
+    float s = trunc_sigma(md), jitter = rnd(r, vertex, 11);
+    struct flight_ctx fc = {o, d, len, 0.0f, chan, md, 1e-7f * mj->scene_size, FL_TRUNC, 1, 0.0f, (float)points};
     if (nee && job->lights.num_entries > 0) {
-        in = v3_mul(md->sigma_s, scatter_nee(job, x, v3_neg(d), medium, md->g, 1, rnd(r, vertex, 12),
-                                             rnd(r, vertex, 13), rnd(r, vertex, 14), time01,
-                                             rng_mix64(r->key ^ (0x4753ull << 48) ^ vertex), rays, 0, &fc));
+        vec3 ss = v3(0, 0, 0);
+        for (uint32_t k = 0; k < points; k++) {
+            /* stratum k of the truncated exponential's CDF (one point: the plain sample) */
+            fc.t = trunc_sample(s, len, ((float)k + jitter) / (float)points);
+            vec3 x = v3_add(o, v3_scale(d, fc.t));
+            float u0, u1, u2;
+            uint64_t skey = rng_mix64(r->key ^ (0x4753ull << 48) ^ vertex);
+            if (k == 0) {
+                u0 = rnd(r, vertex, 12), u1 = rnd(r, vertex, 13), u2 = rnd(r, vertex, 14);
+            } else {
+                uint64_t pk = rng_mix64(r->key ^ (0x4750ull << 48) ^ ((uint64_t)vertex << 24) ^ k);
+                u0 = rng_uniform(pk, 0), u1 = rng_uniform(pk, 1), u2 = rng_uniform(pk, 2);
+                skey = rng_mix64(skey ^ ((uint64_t)k << 32));
+            }
+            vec3 in = v3_mul(md->sigma_s, scatter_nee(job, x, v3_neg(d), medium, md->g, 1, u0, u1, u2, time01, skey,
+                                                      rays, 0, &fc));
+            ss = v3_add(ss, v3_scale(v3_mul(medium_transmittance(md, fc.t), in),
+                                     1.0f / ((float)points * trunc_pdf(s, len, fc.t))));
+        }
         L = v3_add(L, equiangular(job, r, vertex, &fc, medium, time01, rays));
+        L = v3_add(L, ss);
     }
-    L = v3_add(L, v3_scale(v3_mul(medium_transmittance(md, fc.t), in), 1.0f / trunc_pdf(s, len, fc.t)));
-    /* Multiple scattering keeps the beam: a one-point estimate, photons within r of a
-     * single point, made the sample values heavy-tailed where photons are sparse. */
+    /* Multiple scattering keeps the beam (a one-point estimate, photons within r of a
+     * single point, made the sample values heavy-tailed where photons are sparse). */
     if (kmax > 0 && mj->map) {
-        L = v3_add(L, photon_map_beam(mj->map, o, d, len, md, NULL, kmax));
-        if (mj->map->beams)
-            L = v3_add(L, photon_beams_estimate(mj->map->beams, o, d, len, md, NULL, kmax));
+        /* The beam over one of `pieces` parts of the segment of equal transmittance mass,
+         * picked at random, times `pieces`: the query's cost follows the length it walks,
+         * and the in-scattered radiance varies slowly along a segment, so the pick adds
+         * little noise. Segments shorter than BEAM_PIECE_RADII gather radii a piece take
+         * the whole beam. */
+        float rad = mj->map->radius, nf = rad > 0.0f ? floorf(len / (BEAM_PIECE_RADII * rad)) : 1.0f;
+        uint32_t pieces = mj->map->beams || !(nf > 1.0f) ? 1u : nf < (float)BEAM_PIECES ? (uint32_t)nf : BEAM_PIECES;
+        if (pieces > 1) {
+            float u = rnd(r, vertex, 15) * (float)pieces;
+            uint32_t k = u < (float)pieces ? (uint32_t)u : pieces - 1;
+            float t0 = k == 0 ? 0.0f : trunc_sample(s, len, (float)k / (float)pieces);
+            float t1 = k + 1 == pieces ? len : trunc_sample(s, len, (float)(k + 1) / (float)pieces);
+            if (t1 > t0) {
+                vec3 b = photon_map_beam(mj->map, v3_add(o, v3_scale(d, t0)), d, t1 - t0, md, NULL, kmax);
+                L = v3_add(L, v3_scale(v3_mul(medium_transmittance(md, t0), b), (float)pieces));
+            }
+        } else {
+            L = v3_add(L, photon_map_beam(mj->map, o, d, len, md, NULL, kmax));
+            if (mj->map->beams)
+                L = v3_add(L, photon_beams_estimate(mj->map->beams, o, d, len, md, NULL, kmax));
+        }
     }
     return L;
 }
@@ -441,7 +489,6 @@ static vec3 hit_emission(const struct render_job *job, const struct surface *s, 
     return v3_scale(sc->materials[s->material].emission, w);
 }
 
-/* Whether the light table holds emitting surfaces (triangles or spheres). */
 vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, uint32_t px, uint32_t py, vec3 org,
                        vec3 dir, float time01, uint64_t *rays, int *hit_any)
 {
@@ -465,6 +512,8 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
     int vpt = sm->method == MEDIA_VPT;
     const int path_indirect = !vpt && sm->indirect == MEDIA_INDIRECT_PATH;
     const int few_points = march_all_points(job);
+    const uint32_t camera_points =
+        !vpt && sm->method != MEDIA_MARCH_STEPS && !few_points && job->lights.num_entries > 0 ? CAMERA_POINTS : 0;
     uint32_t medium = mj->camera_medium;
     vec3 L = v3(0, 0, 0), beta = v3(1, 1, 1);
     float prev_pdf = 0.0f;
@@ -510,7 +559,7 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
                 /* Homogeneous media: one equiangular sample toward a point light or a point on
                  * an emissive triangle per segment. */
                 struct flight_ctx fc = {org, dir, hit ? h.t : exit_distance(mj, org, dir), t, chan, md,
-                                        1e-7f * mj->scene_size, FL_FREE, 0, 0.0f};
+                                        1e-7f * mj->scene_size, FL_FREE, 0, 0.0f, 1.0f};
                 int equi = !md->grid && !v3_is_black(md->sigma_s) && job->lights.num_entries > 0 && depth < rs->max_depth;
                 if (equi)
                     L = v3_add(L, v3_mul(beta, equiangular(job, &r, vertex, &fc, medium, time01, rays)));
@@ -563,9 +612,14 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
                 const struct medium *mdc = &mj->cut[medium];
                 float len = hit ? h.t : march_reach(mj, mdc, org, dir);
                 vec3 seg_tr = v3(1, 1, 1);
-                if (spread && !md->grid)
+                /* Points instead of a march (gather_segment): after a non-delta bounce, and
+                 * on camera segments when lights are picked one at a time (the equiangular
+                 * sample then takes the light's peak); `march` needs its steps (a photon
+                 * lookup at each). */
+                uint32_t points = spread ? 1u : camera_points;
+                if (!md->grid && points > 0)
                     L = v3_add(L, v3_mul(beta, gather_segment(job, mj, &r, vertex, depth, org, dir, len, medium, beta,
-                                                              time01, rays)));
+                                                              time01, points, rays)));
                 else
                     L = v3_add(L, v3_mul(beta, march_segment(job, mj, &r, vertex, depth, org, dir, len, medium, time01,
                                                              rays, &seg_tr)));

@@ -277,6 +277,50 @@ Test(medium, single_scattering_area_light)
     scene_fini(&s);
 }
 
+Test(medium, camera_points_area_light)
+{
+    /* The same ray and lamp with beam, single scattering only (no photons, max_depth 1):
+     * the camera segment takes its single scattering at CAMERA_POINTS points stratified in
+     * a truncated exponential, each NEE weighted (balance heuristic, the points' density
+     * counted CAMERA_POINTS times) against one equiangular sample toward a point on the
+     * lamp, instead of a march. Its mean must be the quadrature's (a wrong MIS weight or
+     * density shows as a bias of several per cent), with few shadow rays per sample. */
+    const char *text = HEAD("\"position\": [-5, 0, 0], \"look_at\": [0, 0, 0]", 1, 1, 1, 1)
+        ",\n\"materials\": {\"black\": {\"type\": \"diffuse\", \"albedo\": [0, 0, 0]},\n"
+        "  \"lamp\": {\"type\": \"diffuse\", \"albedo\": [0, 0, 0], \"emission\": [10, 10, 10]}},\n"
+        "\"media\": {\"fog\": {\"sigma_a\": [0.05, 0.05, 0.05], \"sigma_s\": [0.05, 0.05, 0.05]}},\n"
+        "\"volume\": {\"method\": \"beam\", \"fog\": \"fog\", \"photons\": 0, \"step\": 0.05},\n"
+        "\"objects\": [{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 50, \"material\": \"black\"},\n"
+        "  {\"type\": \"obj\", \"file\": \"lamp.obj\", \"material\": \"lamp\"}]}";
+    struct scene s;
+    load_ok(text, &s);
+    struct render_job job;
+    job_ok(&job, &s);
+    vec3 o = v3(-5, 0, 0), d = v3(1, 0, 0);
+    struct ss_case c = {10, 0.05, 0.1, o, d, v3(0, 0, 0), 1};
+    double ref = airlight(&c, 55.0, 20000);
+    double s1 = 0.0, s2 = 0.0;
+    const int m = 40000;
+    uint64_t rays = 0;
+    for (int i = 0; i < m; i++) {
+        struct sampler smp = sampler_start(17, 0, 0, (uint32_t)i);
+        int hit;
+        double v = media_sample_path(&job, &smp, 0, 0, o, d, 0.0f, &rays, &hit).x;
+        cr_assert(isfinite(v));
+        s1 += v;
+        s2 += v * v;
+    }
+    double mean = s1 / m, se = sqrt(fmax(0.0, s2 / m - mean * mean) / m);
+    cr_log_info("area light single scattering: beam %g +- %g, quadrature %g, %g rays per sample", mean, se, ref,
+                (double)rays / m);
+    cr_assert(fabs(mean - ref) < 4 * se + 0.005 * ref, "beam %g +- %g vs quadrature %g", mean, se, ref);
+    cr_assert(se < 0.005 * ref, "beam's standard error %g is %g of the mean", se, se / ref);
+    /* a march at this step would cast about 1100 shadow rays per sample */
+    cr_assert((double)rays / m < 16.0, "%g rays per sample", (double)rays / m);
+    render_job_fini(&job);
+    scene_fini(&s);
+}
+
 /* ---- white furnace ---- */
 
 static void furnace(const char *medium_json, const char *camera, int fog)
