@@ -11,7 +11,9 @@
 #     Cached under bench-out/ref-adaptive/ by the scene's files, the resolution and these
 #     settings (REF_REDO=1 redoes).
 #  2. Adaptive: --target-error E (seed SEED, --spp cap CAP, tiles of ADAPT_TILE px): CPU
-#     seconds, true relRMSE, its ratio to E (the calibration), the estimate, the mean spp.
+#     seconds, true relRMSE, its ratio to E (the calibration), the estimate, the mean spp, the
+#     work (rays + camera samples, from the render's stats: a cost the machine's load does
+#     not move).
 #     With CALIB_SEEDS (e.g. "18 19 20 21 22"), the same again with each of those seeds: a
 #     "calibration" line per scene and target gives each run's true / target and their RMS
 #     (on a scene whose error is a few bright pixels one image's true error scatters by
@@ -20,8 +22,8 @@
 #     tile of the adaptive render is) at spp 8, 16, 32, ... until the true error is below
 #     0.9 x the smallest adaptive one (at most MAX_UNIFORM_SPP); and plain uniform Sobol
 #     (one pass) likewise. The uniform CPU time at the adaptive render's true error is
-#     interpolated on the log-log error-time curve ('*': extrapolated); the ratios
-#     adaptive / uniform are the equal-error time ratios. SWEEP=0 skips this (calibration
+#     interpolated on the log-log error-time curve ('*': extrapolated), and so is its work;
+#     the ratios adaptive / uniform are the equal-error time (and work) ratios. SWEEP=0 skips this (calibration
 #     only; the ratio columns are then nan).
 #  With BASE (a folder holding another build's master and worker, e.g. the commit before a
 #  change), each adaptive render of seed SEED runs again with that master (tiles of
@@ -67,19 +69,6 @@ run() { r_j=$1; r_o=$2; shift 2; cpu_secs "$M" "$r_j" -o "$r_o" --workers 1 --th
 run_base() { r_j=$1; r_o=$2; shift 2; cpu_secs "$BASE/master" "$r_j" -o "$r_o" --workers 1 --threads "$CORES" --no-journal "$@"; }
 # truerr IMG REF REFERR: relRMSE against the reference with the reference's own error removed.
 truerr() { awk -v a="$($X relrmse "$1" "$2")" -v r="$3" 'BEGIN { d = a * a - r * r; printf "%.5f\n", (d > 0) ? sqrt(d) : 0 }'; }
-# scene_at NAME WxH DIR: a copy of scenes/NAME in DIR with the render resolution WxH
-# (the scene's own when WxH is empty); prints the JSON's path.
-scene_at() {
-  mkdir -p "$3"
-  cp -r "scenes/$1/." "$3/"
-  if [ -n "$2" ]; then
-    python3 -c 'import json, sys
-p, w, h = sys.argv[1], int(sys.argv[2].split("x")[0]), int(sys.argv[2].split("x")[1])
-d = json.load(open(p)); d["render"]["width"] = w; d["render"]["height"] = h
-json.dump(d, open(p, "w"), indent=1)' "$3/$1.json" "$2"
-  fi
-  echo "$3/$1.json"
-}
 # reference JSON NAME: renders (or finds cached) the reference of JSON; prints its folder.
 reference() {
   rkey=$(files_key "$(dirname "$1")"/* | cut -c1-12)
@@ -92,7 +81,7 @@ reference() {
   echo "$rd"
 }
 # sweep JSON REF REFERR DAT MINERR [args]: uniform renders at spp 8, 16, ... into DAT
-# ("spp cpu true") until the error is below 0.9 MINERR or MAX_UNIFORM_SPP.
+# ("spp cpu true work") until the error is below 0.9 MINERR or MAX_UNIFORM_SPP.
 sweep() {
   w_j=$1 w_r=$2 w_e=$3 w_d=$4 w_m=$5
   shift 5
@@ -101,20 +90,27 @@ sweep() {
   while [ "$spp" -le "$MAX_UNIFORM_SPP" ]; do
     c=$(run "$w_j" "$T/u.exr" --spp "$spp" --seed "$SEED" "$@")
     e=$(truerr "$T/u.exr" "$w_r" "$w_e")
-    echo "$spp $c $e" >>"$w_d"
+    echo "$spp $c $e $(work "$T/u.exr")" >>"$w_d"
     awk -v e="$e" -v m="$w_m" 'BEGIN { exit !(e < 0.9 * m) }' && break
     spp=$((spp * 2))
   done
 }
 # at_error DAT ERR: the CPU seconds interpolated at ERR on DAT's uniform curve.
 at_error() { awk '{ print $3, $2 }' "$1" | loglog_interp "$2"; }
+# work IMG: the rays plus camera samples the render of IMG traced (its stats), a cost that the
+# machine's load does not move (it leaves out what a unit costs beyond its rays: encoding,
+# folding).
+work() { python3 -c 'import json, sys; d = json.load(open(sys.argv[1])); print(d["rays"] + d["samples"])' "$1.stats.json"; }
+# at_work DAT ERR: the work interpolated at ERR on DAT's uniform curve.
+at_work() { awk '{ print $3, $4 }' "$1" | loglog_interp "$2"; }
 ratio() { awk -v a="$1" -v u="${2%\*}" 'BEGIN { if (u == "nan" || !(u + 0 > 0)) print "nan"; else printf "%.3f\n", a / u }'; }
 
 {
   echo "# bench_adaptive: CPU seconds, true relRMSE (reference error removed), on $(nproc) cores;"
   echo "# uniform_s: --passes $STREAMS (the same streams); uniform_1: one pass; adaptive tiles of $ADAPT_TILE px"
-  echo "# scene target cpu_adaptive true true/target est spp_mean uniform_s_cpu ratio_s uniform_1_cpu ratio_1"
-  echo "# base scene target cpu true true/target spp_mean uniform_s_cpu ratio_s uniform_1_cpu ratio_1 (BASE=$BASE, tiles of $BASE_TILE px)"
+  echo "# work: rays + camera samples (the renders' stats); work_s, work_1: the work ratios adaptive / uniform at equal error"
+  echo "# scene target cpu_adaptive true true/target est spp_mean uniform_s_cpu ratio_s uniform_1_cpu ratio_1 work_s work_1"
+  echo "# base scene target cpu true true/target spp_mean uniform_s_cpu ratio_s uniform_1_cpu ratio_1 work_s work_1 (BASE=$BASE, tiles of $BASE_TILE px)"
 } >"$TXT"
 for entry in $SCENES; do
   s=${entry%%:*}
@@ -143,12 +139,12 @@ for entry in $SCENES; do
       est=$($X errest "$T/a.exr")
       sppm=$(sed -n 's/.*spp min [0-9]* mean \([0-9.]*\) max.*/\1/p' "$T/log")
       if [ $first = 1 ]; then
-        echo "$E $c $e $est $sppm" >>"$DAT.a"
+        echo "$E $c $e $est $sppm $(work "$T/a.exr")" >>"$DAT.a"
         if [ -n "$BASE" ]; then
           cb=$(run_base "$J" "$T/b.exr" --target-error "$E" --spp "$CAP" --seed "$sd" --tile "$BASE_TILE")
           eb=$(truerr "$T/b.exr" "$RD/ref.exr" "$referr")
           sppb=$(sed -n 's/.*spp min [0-9]* mean \([0-9.]*\) max.*/\1/p' "$T/log")
-          echo "$E $cb $eb $sppb" >>"$DAT.b"
+          echo "$E $cb $eb $sppb $(work "$T/b.exr")" >>"$DAT.b"
         fi
         minerr=$(awk -v a="$minerr" -v b="$e" 'BEGIN { print (b < a) ? b : a }')
         first=0
@@ -169,24 +165,24 @@ for entry in $SCENES; do
     sweep "$J" "$RD/ref.exr" "$referr" "$DAT.s" "$minerr" --passes "$STREAMS"
     sweep "$J" "$RD/ref.exr" "$referr" "$DAT.1" "$minerr" --passes 1
   fi
-  while read -r E c e est sppm; do
+  while read -r E c e est sppm wk; do
     us=$(at_error "$DAT.s" "$e")
     u1=$(at_error "$DAT.1" "$e")
-    printf "%s %s %s %s %.3f %s %s %s %s %s %s\n" "$s${res:+@$res}" "$E" "$c" "$e" \
+    printf "%s %s %s %s %.3f %s %s %s %s %s %s %s %s\n" "$s${res:+@$res}" "$E" "$c" "$e" \
       "$(awk -v e="$e" -v t="$E" 'BEGIN { print e / t }')" "$est" "$sppm" "$us" "$(ratio "$c" "$us")" "$u1" \
-      "$(ratio "$c" "$u1")" >>"$TXT"
+      "$(ratio "$c" "$u1")" "$(ratio "$wk" "$(at_work "$DAT.s" "$e")")" "$(ratio "$wk" "$(at_work "$DAT.1" "$e")")" >>"$TXT"
   done <"$DAT.a"
-  while read -r E cb eb sppb; do
+  while read -r E cb eb sppb wk; do
     us=$(at_error "$DAT.s" "$eb")
     u1=$(at_error "$DAT.1" "$eb")
-    printf "base %s %s %s %s %.3f %s %s %s %s %s\n" "$s${res:+@$res}" "$E" "$cb" "$eb" \
+    printf "base %s %s %s %s %.3f %s %s %s %s %s %s %s\n" "$s${res:+@$res}" "$E" "$cb" "$eb" \
       "$(awk -v e="$eb" -v t="$E" 'BEGIN { print e / t }')" "$sppb" "$us" "$(ratio "$cb" "$us")" "$u1" \
-      "$(ratio "$cb" "$u1")" >>"$TXT"
+      "$(ratio "$cb" "$u1")" "$(ratio "$wk" "$(at_work "$DAT.s" "$eb")")" "$(ratio "$wk" "$(at_work "$DAT.1" "$eb")")" >>"$TXT"
   done <"$DAT.b"
   {
-    echo "# uniform, $STREAMS streams: spp cpu true"; cat "$DAT.s"; echo; echo
-    echo "# adaptive: target cpu true est spp_mean"; cat "$DAT.a"; echo; echo
-    echo "# uniform, one pass: spp cpu true"; cat "$DAT.1"
+    echo "# uniform, $STREAMS streams: spp cpu true work"; cat "$DAT.s"; echo; echo
+    echo "# adaptive: target cpu true est spp_mean work"; cat "$DAT.a"; echo; echo
+    echo "# uniform, one pass: spp cpu true work"; cat "$DAT.1"
   } >"$DAT"
   rm -f "$DAT.s" "$DAT.a" "$DAT.1" "$DAT.b"
   echo "reference $s${res:+@$res}: own relRMSE $referr" >>"$TXT"
@@ -201,6 +197,7 @@ if [ "$OVERHEAD" = 1 ]; then
   es=$(truerr "$T/us.exr" "$CR/ref.exr" "$cref")
   c1=$(run "$CJ" "$T/u1.exr" --spp 64 --seed "$SEED" --passes 1)
   e1=$(truerr "$T/u1.exr" "$CR/ref.exr" "$cref")
+  ws=$(work "$T/us.exr")
   ca=$(run "$CJ" "$T/a64.exr" --target-error "$es" --spp "$CAP" --seed "$SEED" --tile "$ADAPT_TILE")
   ea=$(truerr "$T/a64.exr" "$CR/ref.exr" "$cref")
   sa=$(sed -n 's/.*spp min [0-9]* mean \([0-9.]*\) max.*/\1/p' "$T/log")
@@ -208,11 +205,11 @@ if [ "$OVERHEAD" = 1 ]; then
     echo "overhead cornell128: uniform 64 spp in $STREAMS streams $cs s true $es; one pass $c1 s true $e1;" \
       "adaptive to $es: $ca s true $ea; ratio to streams $(ratio "$ca" "$cs"), to one pass at equal error" \
       "$(awk -v a="$ca" -v u="$c1" -v ea="$ea" -v e1="$e1" 'BEGIN { printf "%.3f", a / (u * (e1 / ea) ^ 2) }') (one pass scaled by (e1/ea)^2)"
-    echo "overhead cornell128: adaptive mean spp $sa (tiles of $ADAPT_TILE px), true / target $(awk -v a="$ea" -v e="$es" 'BEGIN { printf "%.3f", a / e }')"
+    echo "overhead cornell128: adaptive mean spp $sa (tiles of $ADAPT_TILE px), true / target $(awk -v a="$ea" -v e="$es" 'BEGIN { printf "%.3f", a / e }'), work ratio to streams $(ratio "$(work "$T/a64.exr")" "$ws")"
     if [ -n "$BASE" ]; then
       cb=$(run_base "$CJ" "$T/b64.exr" --target-error "$es" --spp "$CAP" --seed "$SEED" --tile "$BASE_TILE")
       eb=$(truerr "$T/b64.exr" "$CR/ref.exr" "$cref")
-      echo "overhead cornell128, base (tiles of $BASE_TILE px): adaptive to $es: $cb s true $eb; ratio to streams $(ratio "$cb" "$cs")"
+      echo "overhead cornell128, base (tiles of $BASE_TILE px): adaptive to $es: $cb s true $eb; ratio to streams $(ratio "$cb" "$cs"), work ratio $(ratio "$(work "$T/b64.exr")" "$ws")"
     fi
     echo "reference cornell128: own relRMSE $cref"
   } >>"$TXT"

@@ -77,3 +77,17 @@ loglog_interp() {
           f = (x[i + 1] == x[i]) ? 0 : (lq - x[i]) / (x[i + 1] - x[i])
           printf "%.6g%s\n", exp(y[i] + f * (y[i + 1] - y[i])), (lq < x[1] || lq > x[n]) ? "*" : "" }'
 }
+
+# scene_at NAME WxH DIR: a copy of scenes/NAME in DIR with the render resolution WxH
+# (the scene's own when WxH is empty); prints the JSON's path.
+scene_at() {
+  mkdir -p "$3"
+  cp -r "scenes/$1/." "$3/"
+  if [ -n "$2" ]; then
+    python3 -c 'import json, sys
+p, w, h = sys.argv[1], int(sys.argv[2].split("x")[0]), int(sys.argv[2].split("x")[1])
+d = json.load(open(p)); d["render"]["width"] = w; d["render"]["height"] = h
+json.dump(d, open(p, "w"), indent=1)' "$3/$1.json" "$2"
+  fi
+  echo "$3/$1.json"
+}

@@ -55,8 +55,10 @@ static inline float tile_variance_value(double v)
  * Blocks are squares of tile_block_size(tile_size) pixels (TILE_BLOCK_MIN, or more for
  * tiles over TILE_BLOCK_MIN x TILE_MAX_BLOCKS_SIDE), tile_blocks_side of them in a row of
  * the tile (an edge tile's last ones are cut or empty), block b of a tile at row
- * b / side, column b % side: a 64-bit mask names any set of them (TILE's mask). */
-#define TILE_BLOCK_MIN 8u
+ * b / side, column b % side: a 64-bit mask names any set of them (TILE's mask). 4 px, the
+ * finest a 32-px tile's mask allows: the finer the blocks, the less the best allocation
+ * costs (docs/adaptive.md, "Oracle"). */
+#define TILE_BLOCK_MIN 4u
 #define TILE_MAX_BLOCKS_SIDE 8u
 #define TILE_MASK_ALL (~(uint64_t)0)
 static inline uint32_t tile_block_size(uint32_t tile_size)

@@ -1,8 +1,8 @@
 #!/bin/sh
 # Adaptive rendering to a target error (docs/adaptive.md): the same --target-error run
-# with 1 and 3 workers (and another tile order) is bit-identical, with one block per tile
-# and with units of some 8x8 blocks of a tile (each block then the uniform render of its
-# passes); a master killed with
+# with 1 and 3 workers (and another tile order) is bit-identical, with tiles of 8 px (2x2
+# blocks) and 32 px (8x8 blocks), units rendering some 4x4 blocks of a tile (each block then
+# the uniform render of its passes); a master killed with
 # kill -9 after round 0 and restarted resumes from its journal to identical pixels; the
 # samples channel sums to the samples the run reports; a --time-limit run records its
 # rounds and --max-rounds reproduces it; passes apply to a scene without photon maps; plain
@@ -32,7 +32,7 @@ else bad "samples channel sums to the samples reported ($ns vs $cs)"; fi
 if ! $X cmp "$T/a1.exr" "$T/a3.exr" >/dev/null 2>&1 || [ "$($X chsum "$T/a1.exr" samples)" != "$($X chsum "$T/a3.exr" samples)" ]; then
   bad "samples channel identical for 1 and 3 workers"; else ok "samples channel identical for 1 and 3 workers"; fi
 
-# Per pixel block: with tiles of 16 and 32 px a unit renders some 8x8 blocks of its tile.
+# Per pixel block: a unit renders some 4x4-pixel blocks of its tile (8x8 of them in a tile of 32 px).
 # 1 vs 3 workers bit-identical, the samples channel sums to the samples reported, and
 # blocks got different counts.
 BD="--target-error 0.03 --tile 32 --spp 2048"
@@ -46,23 +46,23 @@ if [ $b1 = 0 ] && [ $b3 = 0 ] && $X cmp "$T/b1.exr" "$T/b3.exr" && [ -n "$ns" ] 
    [ "$cs" = "$($X chsum "$T/b3.exr" samples)" ] && [ -n "$lohi" ] && awk -v a="${lohi% *}" -v b="${lohi#* }" 'BEGIN { exit !(a < b) }'; then
   ok "blocks of 32-px tiles: 1 vs 3 workers bit-identical, samples channel sums to $ns, spp min/max $lohi"
 else bad "blocks of 32-px tiles: 1 vs 3 workers identical, samples $ns vs $cs, spp min/max $lohi (rc $b1 $b3)"; fi
-# Each 8x8 block that got n passes is the uniform render with --spp 8n --passes n, bit for
-# bit: two rounds leave the blocks at 4, 6 or 8 passes.
+# Each 4x4 block (tiles of 16 px: 4x4 blocks) that got n passes is the uniform render with
+# --spp 8n --passes n, bit for bit: two rounds leave the blocks at 4, 6 or 8 passes.
 run $M $S -o "$T/c2.exr" --target-error 0.15 --max-rounds 2 --tile 16 --spp 2048 --no-journal --workers 2 --threads 1 && c2=0 || c2=1
 for n in 4 6 8; do
   run $M $S -o "$T/u$n.exr" --spp $((8 * n)) --passes $n --no-journal --workers 1 --threads 2 || c2=1
 done
 matched=0 kinds=""
-for by in 0 8 16; do for bx in 0 8 16 24; do
+for by in 0 4 8 12 16 20; do for bx in 0 4 8 12 16 20 24 28; do
   for n in 4 6 8; do
-    if $X cmprect "$T/c2.exr" "$T/u$n.exr" $bx $by 8 8 >/dev/null 2>&1; then
+    if $X cmprect "$T/c2.exr" "$T/u$n.exr" $bx $by 4 4 >/dev/null 2>&1; then
       matched=$((matched + 1)); case " $kinds " in *" $n "*) ;; *) kinds="$kinds $n";; esac; break
     fi
   done
 done; done
-if [ $c2 = 0 ] && [ $matched = 12 ] && [ $(echo $kinds | wc -w) -ge 2 ]; then
-  ok "every 8x8 block with n passes = --spp 8n --passes n, bit for bit (12 blocks; n in$kinds)"
-else bad "every 8x8 block with n passes = the uniform render with n passes ($matched of 12 matched; n in$kinds; rc $c2)"; fi
+if [ $c2 = 0 ] && [ $matched = 48 ] && [ $(echo $kinds | wc -w) -ge 2 ]; then
+  ok "every 4x4 block with n passes = --spp 8n --passes n, bit for bit (48 blocks; n in$kinds)"
+else bad "every 4x4 block with n passes = the uniform render with n passes ($matched of 48 matched; n in$kinds; rc $c2)"; fi
 
 # Killed after round 0 (the journal holds a unit of slot 4 or later), restarted: identical,
 # with units of pixel blocks (tiles of 16 px).
@@ -79,7 +79,7 @@ while at + 12 <= len(d) and d[at:at + 4] == b"TREC":
     top = max(top, unit // tiles); at += 12 + 44 + size + 32
 print(top)' "$1" "$2"
 }
-KD="--target-error 0.01 --tile 16 --spp 4096" # 4 tiles of 2x2 blocks
+KD="--target-error 0.01 --tile 16 --spp 4096" # 4 tiles of 4x4 blocks
 run $M $S -o "$T/k0.exr" $KD --no-journal --workers 2 --threads 1 && r0=0 || r0=1
 $M $S -o "$T/k.exr" $KD --workers 2 --threads 1 >"$T/klog" 2>&1 &
 mpid=$!

@@ -1,5 +1,5 @@
 #!/bin/sh
-# exrtool's error metrics (relrmse, relrmse --box, errtop, errest, semean, average) on synthetic
+# exrtool's error metrics (relrmse, relrmse --box, errtop, errest, semean, average, oracle) on synthetic
 # EXRs with known differences, written by `exrtool synth`.
 # Usage: BUILD=build sh tests/integration/exrtool.sh
 . "$(dirname "$0")/lib.sh"
@@ -8,6 +8,15 @@ lib_init exrtool
 # near NAME GOT WANT: |GOT - WANT| <= 1e-5 (1 + |WANT|)
 near() {
   if awk -v g="$2" -v w="$3" 'BEGIN { d = g - w; if (d < 0) d = -d; a = w < 0 ? -w : w; exit !(g != "" && d <= 1e-5 * (1 + a)) }'; then
+    ok "$1: $2"
+  else
+    bad "$1: got '$2', want $3"
+  fi
+}
+
+# near3 NAME GOT WANT: |GOT - WANT| <= 1e-3 (1 + |WANT|) (figures printed with 3 decimals)
+near3() {
+  if awk -v g="$2" -v w="$3" 'BEGIN { d = g - w; if (d < 0) d = -d; a = w < 0 ? -w : w; exit !(g != "" && d <= 1e-3 * (1 + a)) }'; then
     ok "$1: $2"
   else
     bad "$1: got '$2', want $3"
@@ -47,6 +56,27 @@ set -- $($X errtop "$T/s.exr" "$T/ref.exr" 1)
 # pixel (1, 2) is odd: 1 - 0.01 + 3; the 44 others err by 0.01
 near "errtop: a firefly's share" "${1:-}" "$(awk 'BEGIN { f = 2.99 * 2.99; print f / (f + 44 * 0.0001) }')"
 [ "${3:-} ${4:-}" = "1 2" ] && ok "errtop names the worst pixel (1, 2)" || bad "errtop's worst pixel: '${3:-} ${4:-}'"
+# oracle: 4 "renders" of 16x16. Even noise (every pixel 1.0, 1.1, 1.2 or 1.3): no
+# allocation gains (1 at every size). One noisy pixel (1, 2) among still ones: the best
+# allocation costs what its unit's pixels cost, s^2 / 256 for units of s px (1 from 16 px).
+# oracle_at OUTPUT LINE SIZE: the figure after "SIZEpx" on the line starting with LINE.
+oracle_at() { printf '%s\n' "$1" | awk -v l="$2" -v s="$3px" 'index($0, l) == 1 { for (i = 1; i < NF; i++) if ($i == s) { print $(i + 1); exit } }'; }
+for k in 0 1 2 3; do
+  $X synth "$T/o$k.exr" 16 16 1.$k && $X synth "$T/q$k.exr" 16 16 1 --spot $k || bad "synth for oracle failed"
+done
+even=$($X oracle --spp 1 --floor 4 --target 0.1 --target 0.01 "$T"/o[0-3].exr)
+spot=$($X oracle --spp 1 "$T"/q[0-3].exr)
+for sz in 1 2 4 8 16 32; do
+  near "oracle: even noise, bound at ${sz}px" "$(oracle_at "$even" bound "$sz")" 1
+  near3 "oracle: one noisy pixel, bound at ${sz}px" "$(oracle_at "$spot" bound "$sz")" \
+    "$(awk -v s="$sz" 'BEGIN { r = s * s / 256; print r < 1 ? r : 1 }')"
+done
+# even noise: v = var{1, 1.1, 1.2, 1.3} = 1/60 a sample; E = 0.1 needs v / (E mean)^2 = 1.26 spp
+# uniform, so the 4-spp floor costs 4 / 1.26 of it; E = 0.01 (126 spp): no gain, no loss.
+near3 "oracle: a floor above uniform's spp costs floor / uniform" "$(oracle_at "$even" "target 0.1 " 8 | cut -d/ -f1)" \
+  "$(awk 'BEGIN { print 4 / ((1 / 60) / (0.01 * 1.15 * 1.15)) }')"
+near3 "oracle: even noise at 126 spp, halves" "$(oracle_at "$even" "target 0.01 " 8 | cut -d/ -f2)" 1
+if $X oracle --spp 1 "$T"/o[0-2].exr >/dev/null 2>&1; then bad "oracle with 3 renders accepted"; else ok "oracle needs 4 renders"; fi
 if $X relrmse "$T/a.exr" "$T/ref.exr" --box 0 >/dev/null 2>&1; then bad "--box 0 accepted"; else ok "--box 0 refused"; fi
 $X synth "$T/small.exr" 4 4 1
 if $X relrmse "$T/a.exr" "$T/small.exr" >/dev/null 2>&1; then bad "sizes that differ accepted"; else ok "sizes that differ refused"; fi

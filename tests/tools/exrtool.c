@@ -32,6 +32,27 @@
  *                                writes a test image: R,G,B = V (+AMP where x + y is even, -AMP
  *                                where odd, with --checker; +AMP at pixel (1, 2) with --spot), A = 1,
  *                                every variance channel = VAR
+ *   exrtool oracle --spp N [--floor N0] [--target E]... [--alloc S.exr]... A1.exr ... AK.exr
+ *                                what any allocation of samples could gain (docs/adaptive.md,
+ *                                "Oracle"): A1..AK (K >= 4) are renders of one scene at N spp that
+ *                                differ only in their seed. Per pixel v = N times the spread of its
+ *                                value over the K renders (the mean over R,G,B of the variance of
+ *                                one render), so v / n is the error variance at n spp. Uniform cost
+ *                                per sample. For square units of 1, 2, 4, 8, 16 and 32 pixels (a
+ *                                grid from the image's corner: the adaptive render's blocks are 8,
+ *                                its tiles 32) prints the best equal-error time ratio of any
+ *                                allocation to uniform spp, (sum sqrt(V_u P_u))^2 / (sum V * pixels)
+ *                                (V_u: the unit's v summed, P_u its pixels, as its cost); with
+ *                                --target E (RMS error over pixels and R,G,B over the image mean,
+ *                                the relRMSE) and --floor N0 (every unit gets at least N0 spp, as an
+ *                                adaptive render's first round gives), the cost of the best
+ *                                allocation reaching E against uniform's, in-sample and with the
+ *                                allocation chosen on half the renders and judged on the other
+ *                                half (both ways, averaged: free of the optimism of choosing and
+ *                                judging on the same noisy v); with --alloc S.exr (an adaptive
+ *                                render of the scene) its allocation, the samples channel, judged
+ *                                on v: its mean spp, its expected relRMSE, its cost over uniform's
+ *                                at that error, and the best 8 px allocation's (with the floor)
  * Reads files through imgio_read (OpenEXRCore); writes tiled EXRs through imgio's writer. */
 #include "image/imgio.h"
 #include "base/log.h"
@@ -387,8 +408,213 @@ static int chstat(int argc, char **argv)
     return 0;
 }
 
+
+/* oracle: the best equal-error time ratio of any allocation of samples. */
+enum { ORACLE_SIZES = 6, ORACLE_MAX_TARGETS = 8 };
+static const uint32_t oracle_sizes[ORACLE_SIZES] = {1, 2, 4, 8, 16, 32};
+
+/* Per-pixel v summed into s x s units (a grid from the corner): V[u] and pixels P[u]. */
+static size_t oracle_units(const double *v, uint32_t w, uint32_t h, uint32_t s, double *V, double *P)
+{
+    uint32_t ux = (w + s - 1) / s, uy = (h + s - 1) / s;
+    memset(V, 0, sizeof(double) * ux * uy);
+    memset(P, 0, sizeof(double) * ux * uy);
+    for (uint32_t y = 0; y < h; y++)
+        for (uint32_t x = 0; x < w; x++) {
+            size_t u = (size_t)(y / s) * ux + x / s;
+            V[u] += v[(size_t)y * w + x];
+            P[u] += 1.0;
+        }
+    return (size_t)ux * uy;
+}
+
+/* The error variance sum_u Vj[u] / n_u of the allocation n_u = max(floor, lam sqrt(Vi[u] / P[u])). */
+static double oracle_err(const double *Vi, const double *Vj, const double *P, size_t nu, double fl, double lam)
+{
+    double e = 0;
+    for (size_t u = 0; u < nu; u++) {
+        if (!(Vj[u] > 0))
+            continue;
+        double n = fmax(fl, lam * sqrt(Vi[u] / P[u]));
+        e += n > 0 ? Vj[u] / n : INFINITY;
+    }
+    return e;
+}
+
+/* Samples in all that the allocation shaped by Vi (floor fl per pixel) needs for the error
+ * variance judged by Vj to reach budget; INFINITY when it cannot. */
+static double oracle_cost(const double *Vi, const double *Vj, const double *P, size_t nu, double fl, double budget)
+{
+    double lam;
+    if (oracle_err(Vi, Vj, P, nu, fl, 0.0) <= budget) {
+        lam = 0.0; /* the floor alone meets it */
+    } else {
+        double lo = 1.0, hi = 1.0;
+        int k = 0;
+        while (oracle_err(Vi, Vj, P, nu, fl, hi) > budget && k++ < 400)
+            hi *= 2.0;
+        if (k > 400)
+            return INFINITY;
+        while (oracle_err(Vi, Vj, P, nu, fl, lo) <= budget && lo > 1e-300)
+            lo *= 0.5;
+        for (int i = 0; i < 200; i++) {
+            double mid = sqrt(lo * hi);
+            if (oracle_err(Vi, Vj, P, nu, fl, mid) > budget)
+                lo = mid;
+            else
+                hi = mid;
+        }
+        lam = hi;
+    }
+    double c = 0;
+    for (size_t u = 0; u < nu; u++)
+        c += P[u] * fmax(fl, lam * sqrt(Vi[u] / P[u]));
+    return c;
+}
+
+static int oracle(int argc, char **argv)
+{
+    double spp = 0, fl = 0, targets[ORACLE_MAX_TARGETS];
+    const char *alloc[ORACLE_MAX_TARGETS];
+    int nt = 0, na = 0, i = 2;
+    for (; i + 1 < argc && !strncmp(argv[i], "--", 2); i += 2) {
+        if (!strcmp(argv[i], "--alloc") && na < ORACLE_MAX_TARGETS)
+            alloc[na++] = argv[i + 1];
+        else if (!strcmp(argv[i], "--spp"))
+            spp = atof(argv[i + 1]);
+        else if (!strcmp(argv[i], "--floor"))
+            fl = atof(argv[i + 1]);
+        else if (!strcmp(argv[i], "--target") && nt < ORACLE_MAX_TARGETS && atof(argv[i + 1]) > 0)
+            targets[nt++] = atof(argv[i + 1]);
+        else
+            break;
+    }
+    int k = argc - i;
+    if (k < 4 || !(spp > 0) || !(fl >= 0) || (i < argc && !strncmp(argv[i], "--", 2))) {
+        fprintf(stderr, "usage: exrtool oracle --spp N [--floor N0] [--target E]... [--alloc S.exr]... A1.exr ... AK.exr (K >= 4)\n");
+        return 2;
+    }
+    uint32_t w = 0, h = 0;
+    size_t np = 0;
+    /* Per pixel and channel: sums of the value and its square, over all renders and each half. */
+    double *sum = NULL, *sq = NULL, *hsum[2] = {NULL, NULL}, *hsq[2] = {NULL, NULL};
+    int half_k[2] = {k / 2, k - k / 2};
+    for (int r = 0; r < k; r++) {
+        uint32_t wr, hr;
+        float *a = load(argv[i + r], &wr, &hr);
+        if (r == 0) {
+            w = wr, h = hr, np = (size_t)w * h;
+            sum = calloc(np * 3, sizeof *sum), sq = calloc(np * 3, sizeof *sq);
+            for (int j = 0; j < 2; j++)
+                hsum[j] = calloc(np * 3, sizeof(double)), hsq[j] = calloc(np * 3, sizeof(double));
+        } else if (wr != w || hr != h) {
+            fprintf(stderr, "exrtool: sizes differ: %ux%u vs %ux%u\n", w, h, wr, hr);
+            return 1;
+        }
+        int j = r < half_k[0] ? 0 : 1;
+        for (size_t p = 0; p < np; p++)
+            for (int c = 0; c < 3; c++) {
+                double x = a[p * 4 + c];
+                sum[p * 3 + c] += x, sq[p * 3 + c] += x * x;
+                hsum[j][p * 3 + c] += x, hsq[j][p * 3 + c] += x * x;
+            }
+        free(a);
+    }
+    /* v: N x the variance of one render's pixel (mean over R, G, B), from all renders and each half. */
+    double *v = malloc(np * sizeof *v), *hv[2] = {malloc(np * sizeof(double)), malloc(np * sizeof(double))};
+    double mean = 0, var_one = 0;
+    for (size_t p = 0; p < np; p++) {
+        v[p] = hv[0][p] = hv[1][p] = 0;
+        for (int c = 0; c < 3; c++) {
+            size_t q = p * 3 + c;
+            double m = sum[q] / k;
+            v[p] += fmax(0.0, (sq[q] - k * m * m) / (k - 1)) / 3.0;
+            mean += m / (3.0 * np);
+            for (int j = 0; j < 2; j++) {
+                double mh = hsum[j][q] / half_k[j];
+                hv[j][p] += fmax(0.0, (hsq[j][q] - half_k[j] * mh * mh) / (half_k[j] - 1)) / 3.0;
+            }
+        }
+        var_one += v[p] / np;
+        v[p] *= spp, hv[0][p] *= spp, hv[1][p] *= spp;
+    }
+    if (!(mean > 0)) {
+        fprintf(stderr, "exrtool: the image's mean is not positive\n");
+        return 1;
+    }
+    printf("oracle: %d renders %ux%u at %g spp, image mean %.6g, relRMSE of one render %.5g (their spread)\n", k, w, h,
+           spp, mean, sqrt(var_one) / mean);
+    size_t maxu = np;
+    double *V = malloc(maxu * sizeof *V), *P = malloc(maxu * sizeof *P);
+    double *VA = malloc(maxu * sizeof *VA), *VB = malloc(maxu * sizeof *VB);
+    printf("bound (no floor):");
+    for (int si = 0; si < ORACLE_SIZES; si++) {
+        size_t nu = oracle_units(v, w, h, oracle_sizes[si], V, P);
+        double ssq = 0, sv = 0;
+        for (size_t u = 0; u < nu; u++)
+            ssq += sqrt(V[u] * P[u]), sv += V[u];
+        printf(" %upx %.3f", oracle_sizes[si], sv > 0 ? ssq * ssq / (sv * (double)np) : 1.0);
+    }
+    printf("\n");
+    for (int t = 0; t < nt; t++) {
+        double budget = targets[t] * targets[t] * mean * mean * (double)np;
+        double sv = 0;
+        for (size_t p = 0; p < np; p++)
+            sv += v[p];
+        printf("target %g (uniform %.1f spp, floor %g spp), in-sample / halves:", targets[t], sv / budget, fl);
+        for (int si = 0; si < ORACLE_SIZES; si++) {
+            size_t nu = oracle_units(v, w, h, oracle_sizes[si], V, P);
+            double in = oracle_cost(V, V, P, nu, fl, budget) / (sv / budget * (double)np), halves = 0;
+            oracle_units(hv[0], w, h, oracle_sizes[si], VA, P);
+            oracle_units(hv[1], w, h, oracle_sizes[si], VB, P);
+            double sa = 0, sb = 0;
+            for (size_t u = 0; u < nu; u++)
+                sa += VA[u], sb += VB[u];
+            halves = 0.5 * (oracle_cost(VA, VB, P, nu, fl, budget) / (sb / budget * (double)np) +
+                            oracle_cost(VB, VA, P, nu, fl, budget) / (sa / budget * (double)np));
+            printf(" %upx %.3f/%.3f", oracle_sizes[si], in, halves);
+        }
+        printf("\n");
+    }
+    for (int t = 0; t < na; t++) {
+        /* An adaptive render's allocation (its samples channel) judged on v: its expected
+         * error (variance v / n a pixel), and what uniform spp and the best 8 px allocation
+         * with the floor would cost to reach that error. */
+        const char *names[1] = {"samples"};
+        uint32_t wa, ha;
+        float *n = load_channels(alloc[t], names, 1, &wa, &ha);
+        if (wa != w || ha != h) {
+            fprintf(stderr, "exrtool: sizes differ: %ux%u vs %ux%u\n", w, h, wa, ha);
+            return 1;
+        }
+        double err = 0, cost = 0, sv = 0;
+        int ok = 1;
+        for (size_t p = 0; p < np; p++) {
+            ok &= n[p] > 0 || !(v[p] > 0);
+            err += n[p] > 0 ? v[p] / n[p] : 0.0;
+            cost += n[p], sv += v[p];
+        }
+        free(n);
+        if (!ok) {
+            fprintf(stderr, "exrtool: %s: a pixel with variance got no samples\n", alloc[t]);
+            return 1;
+        }
+        size_t nu = oracle_units(v, w, h, 8, V, P);
+        double uniform = sv / err * (double)np;
+        printf("allocation %s: mean %.1f spp, expected relRMSE %.5g; / uniform at that error %.3f, best 8px "
+               "(floor %g) / uniform %.3f\n", alloc[t], cost / (double)np, sqrt(err / (double)np) / mean, cost / uniform,
+               fl, oracle_cost(V, V, P, nu, fl, err) / uniform);
+    }
+    free(sum), free(sq), free(v), free(V), free(P), free(VA), free(VB);
+    for (int j = 0; j < 2; j++)
+        free(hsum[j]), free(hsq[j]), free(hv[j]);
+    return 0;
+}
+
 int main(int argc, char **argv)
 {
+    if (argc >= 2 && !strcmp(argv[1], "oracle"))
+        return oracle(argc, argv);
     if (argc >= 2 && !strcmp(argv[1], "relrmse"))
         return relrmse(argc, argv);
     if ((argc == 4 || argc == 5) && !strcmp(argv[1], "errtop"))
@@ -444,7 +670,8 @@ int main(int argc, char **argv)
     if (argc != 4 || (strcmp(argv[1], "cmp") && strcmp(argv[1], "rmse"))) {
         fprintf(stderr, "usage: exrtool cmp A.exr B.exr | rmse A.exr REF.exr | mean A.exr | cmprect A B X0 Y0 W H |\n"
                         "       relrmse A.exr REF.exr [--box N | --mask S.exr [--tol T]] | errtop A.exr REF.exr [N] | errest A.exr | semean A.exr |\n"
-                        "       average OUT.exr A.exr B.exr | synth OUT.exr W H V [--checker AMP] [--var VAR]\n");
+                        "       average OUT.exr A.exr B.exr | synth OUT.exr W H V [--checker AMP] [--var VAR] |\n"
+                        "       oracle --spp N [--floor N0] [--target E]... [--alloc S.exr]... A1.exr ... AK.exr\n");
         return 2;
     }
     uint32_t wa, ha;

@@ -244,22 +244,22 @@ Test(fold, error_estimate_has_the_same_bits_for_any_tile_order)
     free(given);
 }
 
-/* Units of some pixel blocks of a tile (an adaptive render's slots): a 16-px tile of 2x2
- * blocks of 8 px; blocks 0..3 get 4, 2, 6 and 2 passes in slots released round by round
+/* Units of some pixel blocks of a tile (an adaptive render's slots): an 8-px tile of 2x2
+ * blocks of 4 px; blocks 0..3 get 4, 2, 6 and 2 passes in slots released round by round
  * (passes 0-1 every block, 2-3 blocks 0 and 2, 4-5 block 2), arriving last slot first.
  * Each block's pixels, samples included, have the bits of a plain fold of its passes. */
 Test(fold, slots_of_blocks_fold_as_each_block_s_own_passes)
 {
     struct render_settings rs;
     memset(&rs, 0, sizeof rs);
-    rs.width = rs.height = rs.tile_size = 16;
+    rs.width = rs.height = rs.tile_size = 8;
     struct image_desc d;
     tile_image_desc(&d, &rs);
-    cr_assert_eq(tile_blocks_side(16), 2);
+    cr_assert_eq(tile_blocks_side(8), 2);
     const uint32_t slot_pass[6] = {0, 1, 2, 3, 4, 5};
     const uint64_t slot_mask[6] = {TILE_MASK_ALL, TILE_MASK_ALL, 0x5, 0x5, 0x4, 0x4};
     const uint32_t block_passes[4] = {4, 2, 6, 2};
-    enum { N = 256 };
+    enum { N = 64 };
     float *px = malloc(sizeof(float) * N * TILE_NUM_CHANNELS), *out = malloc(sizeof(float) * N * FOLD_NUM_CHANNELS),
           *ref = malloc(sizeof(float) * N * FOLD_NUM_CHANNELS);
     struct fold *f = fold_new(&d, 8, 3, SAMPLER_STREAMS);
@@ -267,7 +267,7 @@ Test(fold, slots_of_blocks_fold_as_each_block_s_own_passes)
     for (int s = 5; s >= 0; s--) {
         pass_pixels(0, slot_pass[s], N, px);
         for (size_t i = 0; i < N; i++) /* what a worker sends outside the mask: zeros */
-            if (!(slot_mask[s] >> tile_pixel_block(16, (uint32_t)(i % 16), (uint32_t)(i / 16)) & 1))
+            if (!(slot_mask[s] >> tile_pixel_block(8, (uint32_t)(i % 8), (uint32_t)(i / 8)) & 1))
                 memset(&px[i * TILE_NUM_CHANNELS], 0, sizeof(float) * TILE_NUM_CHANNELS);
         cr_assert_eq(fold_add_slot(f, 0, (uint32_t)s, slot_pass[s], slot_mask[s], px), s == 0 ? 6u : 0u);
     }
@@ -291,7 +291,7 @@ Test(fold, slots_of_blocks_fold_as_each_block_s_own_passes)
         fold_finish(g, 0, ref, &gs);
         fold_free(&g);
         for (size_t i = 0; i < N; i++) {
-            if (tile_pixel_block(16, (uint32_t)(i % 16), (uint32_t)(i / 16)) != b)
+            if (tile_pixel_block(8, (uint32_t)(i % 8), (uint32_t)(i / 8)) != b)
                 continue;
             cr_assert(memcmp(&out[i * FOLD_NUM_CHANNELS], &ref[i * FOLD_NUM_CHANNELS], sizeof(float) * FOLD_NUM_CHANNELS) == 0,
                       "block %u pixel %zu differs from %u plain passes", b, i, block_passes[b]);
