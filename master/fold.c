@@ -1,6 +1,7 @@
 /* Pass folding (see fold.h). Per tile: how many passes are folded, the running per-pixel
- * batch means, and copies of passes that arrived before an earlier one; both are freed
- * once the tile is final. The error estimate's sums (fold_est) run over final tiles in tile
+ * batch means, and copies of passes that arrived before an earlier one; both are given up
+ * once the tile is final (the batch means' buffer is kept for the next tile: a fresh one
+ * costs page faults, per tile, in the master's loop). The error estimate's sums (fold_est) run over final tiles in tile
  * order. */
 #include "fold.h"
 #include "base/log.h"
@@ -35,6 +36,10 @@ struct fold {
     uint32_t passes, spp_per_pass, num_tiles, tiles_x, streams;
     struct tile_layout lay;     /* the units' channels (beauty, AOVs) */
     struct fold_tile *tiles;
+    /* accumulators of finished tiles, kept for the next tiles (tile_size^2 pixels each):
+     * reused, a tile's start costs a memset, not fresh pages */
+    struct pass_pixel **spare;
+    uint32_t num_spare, cap_spare;
 };
 
 struct fold *fold_new(const struct image_desc *desc, uint32_t passes, uint32_t spp_per_pass, uint32_t streams)
@@ -92,9 +97,32 @@ static void fold_aovs_finish(const struct fold *f, const struct fold_tile *t, si
     aov_tile_finish(t->aov, &ol, out, pixels);
 }
 
+static size_t full_tile_pixels(const struct fold *f) { return (size_t)f->desc.tile_size * f->desc.tile_size; }
+
+/* A zeroed accumulator for `pixels` pixels (at most a full tile's): a spare one if any. */
+static struct pass_pixel *acc_get(struct fold *f, size_t pixels)
+{
+    if (!f->num_spare)
+        return mem_calloc(full_tile_pixels(f), sizeof(struct pass_pixel));
+    struct pass_pixel *a = f->spare[--f->num_spare];
+    memset(a, 0, pixels * sizeof *a);
+    return a;
+}
+
+static void acc_put(struct fold *f, struct pass_pixel *a)
+{
+    if (!a)
+        return;
+    if (f->num_spare == f->cap_spare) {
+        f->cap_spare = f->cap_spare ? 2 * f->cap_spare : 64;
+        f->spare = mem_realloc(f->spare, f->cap_spare * sizeof *f->spare);
+    }
+    f->spare[f->num_spare++] = a;
+}
+
 static void tile_clear(struct fold *f, struct fold_tile *t)
 {
-    free(t->acc);
+    acc_put(f, t->acc);
     free(t->aov);
     for (uint32_t p = 0; t->early && p < f->passes; p++)
         free(t->early[p].px);
@@ -114,6 +142,9 @@ void fold_free(struct fold **fp)
     if (!f)
         return;
     fold_reset(f);
+    for (uint32_t i = 0; i < f->num_spare; i++)
+        free(f->spare[i]);
+    free(f->spare);
     free(f->tiles);
     free(f);
     *fp = NULL;
@@ -175,7 +206,7 @@ uint32_t fold_add_slot(struct fold *f, uint32_t tile, uint32_t slot, uint32_t pa
     CHECK(!t->final);
     size_t pixels = tile_pixels(f, tile);
     if (!t->acc) {
-        t->acc = mem_calloc(pixels, sizeof *t->acc);
+        t->acc = acc_get(f, pixels);
         t->early = mem_calloc(f->passes, sizeof *t->early);
         fold_aovs_start(f, t, pixels);
     }

@@ -1080,9 +1080,23 @@ static void commit_and_ack(struct master *m, int wait)
 }
 
 /* Encodes the folded tile in fold_out as the tile's output chunk (and counts its pixels in
- * the error estimate). */
+ * the error estimate). With the checker pool the encoding runs there: fold_out goes with
+ * the item (the loop takes the item's buffer instead), and the chunk is in place once
+ * checks_drain took the item (the frame's output waits for checks_drain(m, 1)). */
 static int tile_encode_folded(struct master *m, uint32_t tile)
 {
+    fold_est_add(m->est, tile, m->fold_out);
+    if (m->checker) {
+        struct check_item *it = checker_item_new(m->checker);
+        it->kind = CHECK_ENCODE;
+        it->peer = -1;
+        it->unit = tile;
+        float *px = it->pixels; /* the same size: tile_size^2 x FOLD_MAX_CHANNELS floats */
+        it->pixels = m->fold_out;
+        m->fold_out = px;
+        checker_submit(m->checker, it);
+        return 0;
+    }
     char err[256];
     uint32_t tiles_x = imgio_tiles_x(&m->desc);
     if (!m->enc && !(m->enc = imgio_encoder_new(&m->out_desc, err, sizeof err))) {
@@ -1094,7 +1108,6 @@ static int tile_encode_folded(struct master *m, uint32_t tile)
         master_fail(m, "%s", err);
         return -1;
     }
-    fold_est_add(m->est, tile, m->fold_out);
     return 0;
 }
 
@@ -1477,6 +1490,16 @@ static void on_result(struct master *m, int32_t pi, const struct msg_result *r, 
  * it still would now. Its decoded pixels become decode_scratch (same size). */
 static void result_checked(struct master *m, struct check_item *it)
 {
+    if (it->kind == CHECK_ENCODE) { /* a folded tile (tile_encode_folded) */
+        if (it->verdict != 1) {
+            master_fail(m, "%s", it->err);
+            return;
+        }
+        m->chunks[it->unit].data = it->record;
+        m->chunks[it->unit].size = it->record_size;
+        it->record = NULL;
+        return;
+    }
     int32_t pi = it->peer;
     if (it->job_id != m->job_id || it->frame != m->frame || (uint32_t)pi >= m->num_peers ||
         m->sched->workers[pi].gone || m->peers[pi].id_len != it->peer_id_len ||
@@ -2186,7 +2209,8 @@ static int frame_begin(struct master *m, uint32_t frames_started)
     m->check_ctx = (struct check_ctx){.desc = m->desc, .num_tiles = m->num_tiles, .passes = m->passes,
                                       .num_objects = m->scene.num_meshes + m->scene.num_spheres,
                                       .num_materials = m->scene.num_materials,
-                                      .journal = !o->no_journal && !o->only_tiles};
+                                      .journal = !o->no_journal && !o->only_tiles,
+                                      .out_desc = m->fold ? m->out_desc : m->desc};
     if (m->checker) /* idle: the last frame drained it */
         checker_set_ctx(m->checker, &m->check_ctx,
                         (size_t)m->scene.settings.tile_size * m->scene.settings.tile_size * FOLD_MAX_CHANNELS);
