@@ -24,6 +24,7 @@ struct fold_early {
 
 struct fold_tile {
     uint32_t folded;            /* slots 0..folded-1 are in acc */
+    uint32_t in;                /* slots given */
     int final;                  /* finished: takes nothing more */
     struct pass_pixel *acc;     /* per pixel, NULL before the first pass */
     struct fold_early *early;   /* per slot */
@@ -40,7 +41,10 @@ struct fold {
      * reused, a tile's start costs a memset, not fresh pages */
     struct pass_pixel **spare;
     uint32_t num_spare, cap_spare;
+    int defer;                  /* fold_defer */
 };
+
+void fold_defer(struct fold *f, int on) { f->defer = on; }
 
 struct fold *fold_new(const struct image_desc *desc, uint32_t passes, uint32_t spp_per_pass, uint32_t streams)
 {
@@ -199,26 +203,39 @@ uint32_t fold_add_unit(struct fold *f, uint32_t tile, uint32_t pass, const float
     return fold_add_slot(f, tile, pass, pass, TILE_MASK_ALL, px);
 }
 
+/* Keeps a copy of a unit that is not folded now. */
+static void keep_early(const struct fold *f, struct fold_tile *t, size_t pixels, uint32_t slot, uint32_t pass,
+                       uint64_t mask, const float *px)
+{
+    CHECK(slot >= t->folded && !t->early[slot].px);
+    t->early[slot].px = mem_alloc(sizeof(float) * pixels * f->lay.num_channels);
+    memcpy(t->early[slot].px, px, sizeof(float) * pixels * f->lay.num_channels);
+    t->early[slot].pass = pass;
+    t->early[slot].mask = mask;
+}
+
 uint32_t fold_add_slot(struct fold *f, uint32_t tile, uint32_t slot, uint32_t pass, uint64_t mask, const float *px)
 {
     CHECK(tile < f->num_tiles && slot < f->passes && pass < f->passes);
     struct fold_tile *t = &f->tiles[tile];
     CHECK(!t->final);
     size_t pixels = tile_pixels(f, tile);
+    if (!t->early)
+        t->early = mem_calloc(f->passes, sizeof *t->early);
+    t->in++;
+    if (!t->acc && f->defer && t->in < f->passes) { /* folded with the last one */
+        keep_early(f, t, pixels, slot, pass, mask, px);
+        return t->folded;
+    }
     if (!t->acc) {
         t->acc = acc_get(f, pixels);
-        t->early = mem_calloc(f->passes, sizeof *t->early);
         fold_aovs_start(f, t, pixels);
     }
     if (slot != t->folded) {
-        CHECK(slot > t->folded && !t->early[slot].px);
-        t->early[slot].px = mem_alloc(sizeof(float) * pixels * f->lay.num_channels);
-        memcpy(t->early[slot].px, px, sizeof(float) * pixels * f->lay.num_channels);
-        t->early[slot].pass = pass;
-        t->early[slot].mask = mask;
-        return t->folded;
+        keep_early(f, t, pixels, slot, pass, mask, px);
+    } else {
+        fold_pass(f, tile, t, pixels, pass, mask, px);
     }
-    fold_pass(f, tile, t, pixels, pass, mask, px);
     while (t->folded < f->passes && t->early[t->folded].px) {
         struct fold_early e = t->early[t->folded];
         t->early[t->folded].px = NULL;

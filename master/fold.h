@@ -24,6 +24,13 @@ struct fold;
  * pass p in stream p mod streams (integrator_streams). */
 struct fold *fold_new(const struct image_desc *desc, uint32_t passes, uint32_t spp_per_pass, uint32_t streams);
 void fold_free(struct fold **f);
+/* on: a tile's units are kept as they come (copies: w*h pixels of the unit's channels,
+ * less than a tenth of the per-pixel batch sums) and folded, in slot order, only when its
+ * last one is in, so a tile waiting for its other passes holds little memory and the
+ * batch sums are a reused buffer. The same bits; for renders whose every tile gets all
+ * `passes` units and that read no sums of unfinished tiles (fold_block_sums): not
+ * adaptive ones. */
+void fold_defer(struct fold *f, int on);
 /* A new frame: nothing folded or buffered. */
 void fold_reset(struct fold *f);
 /* The output layout: desc's beauty channels, the samples channel, desc's AOVs. */

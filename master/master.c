@@ -480,6 +480,8 @@ static void setup_tiles(struct master *m)
         m->slot_mask = mem_calloc(m->num_units, sizeof *m->slot_mask);
         free(pixels);
     }
+    if (m->fold && !m->adapt) /* every tile gets its passes; nobody reads an unfinished tile's sums */
+        fold_defer(m->fold, 1);
 }
 
 /* Tile, pass and blocks of unit u (adaptive: what its slot was released for). */
