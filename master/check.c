@@ -91,6 +91,8 @@ static void *check_thread(void *arg)
     struct checker *c = arg;
     struct imgio_encoder *enc = NULL;
     uint64_t enc_gen = 0;
+    void *scratch = NULL; /* fold_run's */
+    size_t scratch_size = 0;
     pthread_mutex_lock(&c->mu);
     for (;;) {
         while (!c->todo && !c->stop)
@@ -104,7 +106,11 @@ static void *check_thread(void *arg)
         c->checking++;
         uint64_t gen = c->gen;
         pthread_mutex_unlock(&c->mu);
-        if (it->kind == CHECK_ENCODE) {
+        if (it->kind == CHECK_FOLD) {
+            fold_run(c->ctx.fold, it->units, &scratch, &scratch_size, it->pixels, &it->stats);
+            fold_units_free(&it->units);
+            encode_item(c, it, &enc, &enc_gen, gen);
+        } else if (it->kind == CHECK_ENCODE) {
             encode_item(c, it, &enc, &enc_gen, gen);
         } else {
             it->verdict = chunk_check(&c->ctx, it->unit, it->chunk, it->chunk_size, it->pixels, it->err,
@@ -124,6 +130,7 @@ static void *check_thread(void *arg)
     }
     pthread_mutex_unlock(&c->mu);
     imgio_encoder_free(&enc);
+    free(scratch);
     return NULL;
 }
 
@@ -149,6 +156,7 @@ static void free_list(struct check_item *it)
     while (it) {
         struct check_item *next = it->next;
         net_payload_free(&it->payload);
+        fold_units_free(&it->units);
         free(it->record);
         free(it->pixels);
         free(it);
@@ -221,6 +229,7 @@ struct check_item *checker_item_new(struct checker *c)
 void checker_item_free(struct checker *c, struct check_item *it)
 {
     net_payload_free(&it->payload);
+    fold_units_free(&it->units);
     free(it->record);
     it->record = NULL;
     it->next = c->free_items;

@@ -4,7 +4,7 @@
  * pool the loop submits a RESULT and takes its verdict later, in any order, and decides
  * then, against the scheduler's state at that time, whether it still counts (master.c).
  * The pool also builds the journal record of a sane chunk, so the loop only appends it,
- * and encodes the master's folded tiles (CHECK_ENCODE items). The loop's side batches:
+ * and folds and encodes the master's multi-pass tiles (CHECK_FOLD, CHECK_ENCODE items). The loop's side batches:
  * items submitted in a pass reach the threads together (one lock, one wake-up) at its next
  * checker_take, checker_flush or checker_wait_idle, and checker_take takes every ready
  * verdict under one lock. The context (layout, counts) changes only while the pool is idle
@@ -16,6 +16,7 @@
 #include "image/imgio.h"
 #include "render/tile.h"
 #include "wire/net.h"
+#include "fold.h"
 
 /* What a chunk of unit u must be: u's tile is u % num_tiles of desc. */
 struct check_ctx {
@@ -25,6 +26,7 @@ struct check_ctx {
     uint32_t num_objects, num_materials; /* for the id AOVs */
     int journal;              /* the pool also builds a sane chunk's journal record (journal_record) */
     struct image_desc out_desc; /* the layout CHECK_ENCODE items are encoded in (the folded tiles') */
+    const struct fold *fold;  /* what CHECK_FOLD items fold with (fold_run: its settings only) */
 };
 
 /* Decodes unit's chunk into out (tile_size^2 x desc.num_channels floats) and checks it.
@@ -35,8 +37,10 @@ int chunk_check(const struct check_ctx *c, uint32_t unit, const uint8_t *chunk, 
 
 enum check_kind {
     CHECK_RESULT,             /* a RESULT's chunk: chunk_check (and its journal record) */
-    CHECK_ENCODE              /* a folded tile: pixels (unit is the tile, ctx.out_desc's layout) encoded into
+    CHECK_ENCODE,             /* a folded tile: pixels (unit is the tile, ctx.out_desc's layout) encoded into
                                * record (the chunk, record_size bytes); verdict 1, or 0 with err */
+    CHECK_FOLD                /* a tile's units (fold_add_take): folded into pixels (fold_run; their relative
+                               * errors added to stats, zero before), then encoded as CHECK_ENCODE */
 };
 
 /* A RESULT waiting for or holding its verdict, or a tile to encode. The item owns the
@@ -55,6 +59,7 @@ struct check_item {
     float *pixels;            /* decoded, tile_size^2 x FOLD_MAX_CHANNELS floats */
     int verdict;              /* chunk_check's */
     uint8_t *record;          /* with ctx.journal and a sane chunk: its journal record, record_size bytes */
+    struct fold_units *units; /* CHECK_FOLD: taken over (freed by the pool) */
     size_t record_size;
     char err[256];
     struct check_item *next;

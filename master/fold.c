@@ -245,15 +245,11 @@ uint32_t fold_add_slot(struct fold *f, uint32_t tile, uint32_t slot, uint32_t pa
     return t->folded;
 }
 
-void fold_finish(struct fold *f, uint32_t tile, float *out, struct tile_stats *stats)
+/* Tile's final pixels from t's folded passes into out (fold_finish). */
+static void finish_pixels(const struct fold *f, uint32_t tile, const struct fold_tile *t, float *out,
+                          struct tile_stats *stats)
 {
-    CHECK(tile < f->num_tiles);
-    struct fold_tile *t = &f->tiles[tile];
-    CHECK(!t->final);
     size_t pixels = tile_pixels(f, tile);
-    uint32_t folded = t->folded;
-    uint32_t block_passes[TILE_MAX_BLOCKS_SIDE * TILE_MAX_BLOCKS_SIDE];
-    memcpy(block_passes, t->block_passes, sizeof block_passes);
     uint32_t w = tile_width(f, tile);
     for (size_t i = 0; i < pixels; i++) {
         float *px = &out[i * (f->lay.num_channels + 1)];
@@ -262,12 +258,80 @@ void fold_finish(struct fold *f, uint32_t tile, float *out, struct tile_stats *s
         } else {
             memset(px, 0, sizeof(float) * TILE_NUM_CHANNELS);
         }
-        px[FOLD_CH_SAMPLES] = (float)((double)block_passes[pixel_block(f, w, i)] * f->spp_per_pass);
+        px[FOLD_CH_SAMPLES] = (float)((double)t->block_passes[pixel_block(f, w, i)] * f->spp_per_pass);
     }
     fold_aovs_finish(f, t, pixels, out);
+}
+
+void fold_finish(struct fold *f, uint32_t tile, float *out, struct tile_stats *stats)
+{
+    CHECK(tile < f->num_tiles);
+    struct fold_tile *t = &f->tiles[tile];
+    CHECK(!t->final);
+    uint32_t folded = t->folded;
+    finish_pixels(f, tile, t, out, stats);
     tile_clear(f, t);
     t->folded = folded;
     t->final = 1;
+}
+
+struct fold_units {
+    uint32_t tile, count;
+    struct fold_early unit[];   /* per slot: a copy of its pixels, its pass and blocks */
+};
+
+struct fold_units *fold_add_take(struct fold *f, uint32_t tile, uint32_t pass, const float *px)
+{
+    CHECK(f->defer && tile < f->num_tiles && pass < f->passes);
+    struct fold_tile *t = &f->tiles[tile];
+    CHECK(!t->final && !t->acc);
+    if (!t->early)
+        t->early = mem_calloc(f->passes, sizeof *t->early);
+    keep_early(f, t, tile_pixels(f, tile), pass, pass, TILE_MASK_ALL, px);
+    if (++t->in < f->passes)
+        return NULL;
+    struct fold_units *u = mem_alloc(sizeof *u + f->passes * sizeof u->unit[0]);
+    u->tile = tile;
+    u->count = f->passes;
+    memcpy(u->unit, t->early, f->passes * sizeof u->unit[0]);
+    free(t->early);
+    memset(t, 0, sizeof *t);
+    t->folded = f->passes;
+    t->final = 1;
+    return u;
+}
+
+void fold_run(const struct fold *f, struct fold_units *u, void **scratch, size_t *scratch_size, float *out,
+              struct tile_stats *stats)
+{
+    size_t pixels = tile_pixels(f, u->tile), need = pixels * sizeof(struct pass_pixel);
+    if (*scratch_size < need) {
+        free(*scratch);
+        *scratch = mem_alloc(need);
+        *scratch_size = need;
+    }
+    struct fold_tile t;
+    memset(&t, 0, sizeof t);
+    t.acc = *scratch;
+    memset(t.acc, 0, need);
+    fold_aovs_start(f, &t, pixels);
+    for (uint32_t i = 0; i < u->count; i++)
+        fold_pass(f, u->tile, &t, pixels, u->unit[i].pass, u->unit[i].mask, u->unit[i].px);
+    finish_pixels(f, u->tile, &t, out, stats);
+    free(t.aov);
+}
+
+uint32_t fold_units_tile(const struct fold_units *u) { return u->tile; }
+
+void fold_units_free(struct fold_units **up)
+{
+    struct fold_units *u = *up;
+    if (!u)
+        return;
+    for (uint32_t i = 0; i < u->count; i++)
+        free(u->unit[i].px);
+    free(u);
+    *up = NULL;
 }
 
 int fold_add(struct fold *f, uint32_t tile, uint32_t pass, const float *px, float *out, struct tile_stats *stats)

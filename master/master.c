@@ -1208,7 +1208,9 @@ static int adapt_round_end(struct master *m)
  * the chunk is the tile's (held: the received frame it lies in, or NULL; the tile takes
  * the frame over instead of copying the chunk); with several it is folded (fold.h), and
  * once the tile's last pass is in (adaptive: once the rounds end), the folded tile is
- * encoded as the tile's chunk. */
+ * encoded as the tile's chunk. With the checker pool a uniform render's tile is folded
+ * and encoded there (CHECK_FOLD: the loop only copies each unit's pixels until the
+ * last). */
 static int unit_keep(struct master *m, uint32_t unit, const struct tile_stats *st, const uint8_t *chunk,
                      size_t chunk_size, struct net_payload **held)
 {
@@ -1247,6 +1249,18 @@ static int unit_keep(struct master *m, uint32_t unit, const struct tile_stats *s
         CHECK(a->outstanding > 0);
         if (--a->outstanding == 0)
             return adapt_round_end(m);
+        return 0;
+    }
+    if (m->checker) { /* folded and encoded by the pool once the tile's last pass is in (fold_defer) */
+        struct fold_units *u = fold_add_take(m->fold, tile, unit_pass(m, unit), m->decode_scratch);
+        if (u) {
+            struct check_item *it = checker_item_new(m->checker);
+            it->kind = CHECK_FOLD;
+            it->peer = -1;
+            it->unit = tile;
+            it->units = u;
+            checker_submit(m->checker, it);
+        }
         return 0;
     }
     if (!fold_add(m->fold, tile, unit_pass(m, unit), m->decode_scratch, m->fold_out, &m->stats))
@@ -1492,10 +1506,14 @@ static void on_result(struct master *m, int32_t pi, const struct msg_result *r, 
  * it still would now. Its decoded pixels become decode_scratch (same size). */
 static void result_checked(struct master *m, struct check_item *it)
 {
-    if (it->kind == CHECK_ENCODE) { /* a folded tile (tile_encode_folded) */
+    if (it->kind == CHECK_ENCODE || it->kind == CHECK_FOLD) { /* a folded tile (tile_encode_folded, unit_keep) */
         if (it->verdict != 1) {
             master_fail(m, "%s", it->err);
             return;
+        }
+        if (it->kind == CHECK_FOLD) { /* folded there: its pixels and relative errors */
+            fold_est_add(m->est, it->unit, it->pixels);
+            tile_stats_add(&m->stats, &it->stats);
         }
         m->chunks[it->unit].data = it->record;
         m->chunks[it->unit].size = it->record_size;
@@ -2212,7 +2230,7 @@ static int frame_begin(struct master *m, uint32_t frames_started)
                                       .num_objects = m->scene.num_meshes + m->scene.num_spheres,
                                       .num_materials = m->scene.num_materials,
                                       .journal = !o->no_journal && !o->only_tiles,
-                                      .out_desc = m->fold ? m->out_desc : m->desc};
+                                      .out_desc = m->fold ? m->out_desc : m->desc, .fold = m->fold};
     if (m->checker) /* idle: the last frame drained it */
         checker_set_ctx(m->checker, &m->check_ctx,
                         (size_t)m->scene.settings.tile_size * m->scene.settings.tile_size * FOLD_MAX_CHANNELS);
