@@ -1,6 +1,8 @@
-/* The chunk check and its thread pool (check.h). Items move todo -> a checking thread ->
- * done under one mutex; an eventfd is readable exactly while done is not empty, so the
- * master's zmq_poll wakes for verdicts. Decode buffers are reused through a free list. */
+/* The chunk check and its thread pool (check.h). Items move submitted (the loop's) -> todo
+ * -> a checking thread -> done -> ready (the loop's); todo and done are under one mutex,
+ * and an eventfd is readable exactly while done is not empty (written when it stops being
+ * empty, read when the loop takes it all), so the master's zmq_poll wakes for verdicts.
+ * Decode buffers are reused through a free list. */
 #include "check.h"
 #include "journal.h"
 #include "base/log.h"
@@ -56,17 +58,41 @@ struct checker {
     pthread_mutex_t mu;
     pthread_cond_t todo_cv, idle_cv;
     struct check_item *todo, **todo_tail, *done, *free_items;
-    uint32_t checking, pending;
+    struct check_item *sub, **sub_tail; /* the loop's: submitted, not yet handed to the threads */
+    uint32_t num_sub;
+    struct check_item *ready;  /* the loop's: verdicts taken from done, not yet returned */
+    uint32_t checking, pending; /* pending: the loop's */
     int stop, efd;
     struct check_ctx ctx;
+    uint64_t gen;              /* bumped by each checker_set_ctx (the threads' encoders follow it) */
     size_t pixels_per_item;
     pthread_t *threads;
     uint32_t num_threads;
 };
 
+/* Encodes a CHECK_ENCODE item with the thread's encoder (made again when the context
+ * changed, gen). */
+static void encode_item(const struct checker *c, struct check_item *it, struct imgio_encoder **enc, uint64_t *enc_gen,
+                        uint64_t gen)
+{
+    if (*enc && *enc_gen != gen)
+        imgio_encoder_free(enc);
+    if (!*enc) {
+        *enc = imgio_encoder_new(&c->ctx.out_desc, it->err, sizeof it->err);
+        *enc_gen = gen;
+    }
+    uint32_t tiles_x = imgio_tiles_x(&c->ctx.out_desc);
+    it->verdict = *enc && imgio_encode_tile(*enc, it->unit % tiles_x, it->unit / tiles_x, it->pixels, &it->record,
+                                            &it->record_size, it->err, sizeof it->err) == 0;
+}
+
 static void *check_thread(void *arg)
 {
     struct checker *c = arg;
+    struct imgio_encoder *enc = NULL;
+    uint64_t enc_gen = 0;
+    void *scratch = NULL; /* fold_run's */
+    size_t scratch_size = 0;
     pthread_mutex_lock(&c->mu);
     for (;;) {
         while (!c->todo && !c->stop)
@@ -78,21 +104,33 @@ static void *check_thread(void *arg)
         if (!c->todo)
             c->todo_tail = &c->todo;
         c->checking++;
+        uint64_t gen = c->gen;
         pthread_mutex_unlock(&c->mu);
-        it->verdict = chunk_check(&c->ctx, it->unit, it->chunk, it->chunk_size, it->pixels, it->err, sizeof it->err);
-        if (it->verdict == 1 && c->ctx.journal)
-            it->record = journal_record(it->unit, &it->stats, it->chunk, it->chunk_size, &it->record_size);
+        if (it->kind == CHECK_FOLD) {
+            fold_run(c->ctx.fold, it->units, &scratch, &scratch_size, it->pixels, &it->stats);
+            fold_units_free(&it->units);
+            encode_item(c, it, &enc, &enc_gen, gen);
+        } else if (it->kind == CHECK_ENCODE) {
+            encode_item(c, it, &enc, &enc_gen, gen);
+        } else {
+            it->verdict = chunk_check(&c->ctx, it->unit, it->chunk, it->chunk_size, it->pixels, it->err,
+                                      sizeof it->err);
+            if (it->verdict == 1 && c->ctx.journal)
+                it->record = journal_record(it->unit, &it->stats, it->chunk, it->chunk_size, &it->record_size);
+        }
         pthread_mutex_lock(&c->mu);
         c->checking--;
         it->next = c->done;
-        c->done = it;
         uint64_t one = 1;
-        if (write(c->efd, &one, sizeof one) != sizeof one)
+        if (!c->done && write(c->efd, &one, sizeof one) != sizeof one) /* readable already while done is not empty */
             log_debug("checker: eventfd write failed");
+        c->done = it;
         if (!c->todo && !c->checking)
             pthread_cond_broadcast(&c->idle_cv);
     }
     pthread_mutex_unlock(&c->mu);
+    imgio_encoder_free(&enc);
+    free(scratch);
     return NULL;
 }
 
@@ -103,6 +141,7 @@ struct checker *checker_new(uint32_t threads)
     pthread_cond_init(&c->todo_cv, NULL);
     pthread_cond_init(&c->idle_cv, NULL);
     c->todo_tail = &c->todo;
+    c->sub_tail = &c->sub;
     c->efd = eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
     CHECK(c->efd >= 0);
     c->threads = mem_calloc(threads, sizeof *c->threads);
@@ -117,6 +156,7 @@ static void free_list(struct check_item *it)
     while (it) {
         struct check_item *next = it->next;
         net_payload_free(&it->payload);
+        fold_units_free(&it->units);
         free(it->record);
         free(it->pixels);
         free(it);
@@ -135,8 +175,10 @@ void checker_free(struct checker **cp)
     pthread_mutex_unlock(&c->mu);
     for (uint32_t i = 0; i < c->num_threads; i++)
         pthread_join(c->threads[i], NULL);
+    free_list(c->sub);
     free_list(c->todo);
     free_list(c->done);
+    free_list(c->ready);
     free_list(c->free_items);
     close(c->efd);
     pthread_cond_destroy(&c->todo_cv);
@@ -149,6 +191,7 @@ void checker_free(struct checker **cp)
 
 void checker_wait_idle(struct checker *c)
 {
+    checker_flush(c);
     pthread_mutex_lock(&c->mu);
     while (c->todo || c->checking)
         pthread_cond_wait(&c->idle_cv, &c->mu);
@@ -159,6 +202,7 @@ void checker_set_ctx(struct checker *c, const struct check_ctx *ctx, size_t pixe
 {
     checker_wait_idle(c);
     c->ctx = *ctx;
+    c->gen++;
     if (pixels_per_item != c->pixels_per_item) {
         free_list(c->free_items);
         c->free_items = NULL;
@@ -185,6 +229,7 @@ struct check_item *checker_item_new(struct checker *c)
 void checker_item_free(struct checker *c, struct check_item *it)
 {
     net_payload_free(&it->payload);
+    fold_units_free(&it->units);
     free(it->record);
     it->record = NULL;
     it->next = c->free_items;
@@ -194,37 +239,51 @@ void checker_item_free(struct checker *c, struct check_item *it)
 void checker_submit(struct checker *c, struct check_item *it)
 {
     it->next = NULL;
-    pthread_mutex_lock(&c->mu);
-    *c->todo_tail = it;
-    c->todo_tail = &it->next;
+    *c->sub_tail = it;
+    c->sub_tail = &it->next;
+    c->num_sub++;
     c->pending++;
-    pthread_cond_signal(&c->todo_cv);
+}
+
+void checker_flush(struct checker *c)
+{
+    if (!c->sub)
+        return;
+    pthread_mutex_lock(&c->mu);
+    *c->todo_tail = c->sub;
+    c->todo_tail = c->sub_tail;
+    if (c->num_sub > 1)
+        pthread_cond_broadcast(&c->todo_cv);
+    else
+        pthread_cond_signal(&c->todo_cv);
     pthread_mutex_unlock(&c->mu);
+    c->sub = NULL;
+    c->sub_tail = &c->sub;
+    c->num_sub = 0;
 }
 
 struct check_item *checker_take(struct checker *c)
 {
-    pthread_mutex_lock(&c->mu);
-    struct check_item *it = c->done;
-    if (it) {
-        c->done = it->next;
-        c->pending--;
-        if (!c->done) {
+    checker_flush(c);
+    if (!c->ready) {
+        pthread_mutex_lock(&c->mu);
+        if (c->done) {
+            c->ready = c->done;
+            c->done = NULL;
             uint64_t v;
             if (read(c->efd, &v, sizeof v) != sizeof v)
                 log_debug("checker: eventfd read failed");
         }
+        pthread_mutex_unlock(&c->mu);
     }
-    pthread_mutex_unlock(&c->mu);
+    struct check_item *it = c->ready;
+    if (it) {
+        c->ready = it->next;
+        c->pending--;
+    }
     return it;
 }
 
 int checker_fd(const struct checker *c) { return c->efd; }
 
-uint32_t checker_pending(struct checker *c)
-{
-    pthread_mutex_lock(&c->mu);
-    uint32_t n = c->pending;
-    pthread_mutex_unlock(&c->mu);
-    return n;
-}
+uint32_t checker_pending(struct checker *c) { return c->pending; }

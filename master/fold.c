@@ -1,6 +1,7 @@
 /* Pass folding (see fold.h). Per tile: how many passes are folded, the running per-pixel
- * batch means, and copies of passes that arrived before an earlier one; both are freed
- * once the tile is final. The error estimate's sums (fold_est) run over final tiles in tile
+ * batch means, and copies of passes that arrived before an earlier one; both are given up
+ * once the tile is final (the batch means' buffer is kept for the next tile: a fresh one
+ * costs page faults, per tile, in the master's loop). The error estimate's sums (fold_est) run over final tiles in tile
  * order. */
 #include "fold.h"
 #include "base/log.h"
@@ -23,6 +24,7 @@ struct fold_early {
 
 struct fold_tile {
     uint32_t folded;            /* slots 0..folded-1 are in acc */
+    uint32_t in;                /* slots given */
     int final;                  /* finished: takes nothing more */
     struct pass_pixel *acc;     /* per pixel, NULL before the first pass */
     struct fold_early *early;   /* per slot */
@@ -35,7 +37,14 @@ struct fold {
     uint32_t passes, spp_per_pass, num_tiles, tiles_x, streams;
     struct tile_layout lay;     /* the units' channels (beauty, AOVs) */
     struct fold_tile *tiles;
+    /* accumulators of finished tiles, kept for the next tiles (tile_size^2 pixels each):
+     * reused, a tile's start costs a memset, not fresh pages */
+    struct pass_pixel **spare;
+    uint32_t num_spare, cap_spare;
+    int defer;                  /* fold_defer */
 };
+
+void fold_defer(struct fold *f, int on) { f->defer = on; }
 
 struct fold *fold_new(const struct image_desc *desc, uint32_t passes, uint32_t spp_per_pass, uint32_t streams)
 {
@@ -92,9 +101,32 @@ static void fold_aovs_finish(const struct fold *f, const struct fold_tile *t, si
     aov_tile_finish(t->aov, &ol, out, pixels);
 }
 
+static size_t full_tile_pixels(const struct fold *f) { return (size_t)f->desc.tile_size * f->desc.tile_size; }
+
+/* A zeroed accumulator for `pixels` pixels (at most a full tile's): a spare one if any. */
+static struct pass_pixel *acc_get(struct fold *f, size_t pixels)
+{
+    if (!f->num_spare)
+        return mem_calloc(full_tile_pixels(f), sizeof(struct pass_pixel));
+    struct pass_pixel *a = f->spare[--f->num_spare];
+    memset(a, 0, pixels * sizeof *a);
+    return a;
+}
+
+static void acc_put(struct fold *f, struct pass_pixel *a)
+{
+    if (!a)
+        return;
+    if (f->num_spare == f->cap_spare) {
+        f->cap_spare = f->cap_spare ? 2 * f->cap_spare : 64;
+        f->spare = mem_realloc(f->spare, f->cap_spare * sizeof *f->spare);
+    }
+    f->spare[f->num_spare++] = a;
+}
+
 static void tile_clear(struct fold *f, struct fold_tile *t)
 {
-    free(t->acc);
+    acc_put(f, t->acc);
     free(t->aov);
     for (uint32_t p = 0; t->early && p < f->passes; p++)
         free(t->early[p].px);
@@ -114,6 +146,9 @@ void fold_free(struct fold **fp)
     if (!f)
         return;
     fold_reset(f);
+    for (uint32_t i = 0; i < f->num_spare; i++)
+        free(f->spare[i]);
+    free(f->spare);
     free(f->tiles);
     free(f);
     *fp = NULL;
@@ -168,26 +203,39 @@ uint32_t fold_add_unit(struct fold *f, uint32_t tile, uint32_t pass, const float
     return fold_add_slot(f, tile, pass, pass, TILE_MASK_ALL, px);
 }
 
+/* Keeps a copy of a unit that is not folded now. */
+static void keep_early(const struct fold *f, struct fold_tile *t, size_t pixels, uint32_t slot, uint32_t pass,
+                       uint64_t mask, const float *px)
+{
+    CHECK(slot >= t->folded && !t->early[slot].px);
+    t->early[slot].px = mem_alloc(sizeof(float) * pixels * f->lay.num_channels);
+    memcpy(t->early[slot].px, px, sizeof(float) * pixels * f->lay.num_channels);
+    t->early[slot].pass = pass;
+    t->early[slot].mask = mask;
+}
+
 uint32_t fold_add_slot(struct fold *f, uint32_t tile, uint32_t slot, uint32_t pass, uint64_t mask, const float *px)
 {
     CHECK(tile < f->num_tiles && slot < f->passes && pass < f->passes);
     struct fold_tile *t = &f->tiles[tile];
     CHECK(!t->final);
     size_t pixels = tile_pixels(f, tile);
-    if (!t->acc) {
-        t->acc = mem_calloc(pixels, sizeof *t->acc);
+    if (!t->early)
         t->early = mem_calloc(f->passes, sizeof *t->early);
+    t->in++;
+    if (!t->acc && f->defer && t->in < f->passes) { /* folded with the last one */
+        keep_early(f, t, pixels, slot, pass, mask, px);
+        return t->folded;
+    }
+    if (!t->acc) {
+        t->acc = acc_get(f, pixels);
         fold_aovs_start(f, t, pixels);
     }
     if (slot != t->folded) {
-        CHECK(slot > t->folded && !t->early[slot].px);
-        t->early[slot].px = mem_alloc(sizeof(float) * pixels * f->lay.num_channels);
-        memcpy(t->early[slot].px, px, sizeof(float) * pixels * f->lay.num_channels);
-        t->early[slot].pass = pass;
-        t->early[slot].mask = mask;
-        return t->folded;
+        keep_early(f, t, pixels, slot, pass, mask, px);
+    } else {
+        fold_pass(f, tile, t, pixels, pass, mask, px);
     }
-    fold_pass(f, tile, t, pixels, pass, mask, px);
     while (t->folded < f->passes && t->early[t->folded].px) {
         struct fold_early e = t->early[t->folded];
         t->early[t->folded].px = NULL;
@@ -197,15 +245,11 @@ uint32_t fold_add_slot(struct fold *f, uint32_t tile, uint32_t slot, uint32_t pa
     return t->folded;
 }
 
-void fold_finish(struct fold *f, uint32_t tile, float *out, struct tile_stats *stats)
+/* Tile's final pixels from t's folded passes into out (fold_finish). */
+static void finish_pixels(const struct fold *f, uint32_t tile, const struct fold_tile *t, float *out,
+                          struct tile_stats *stats)
 {
-    CHECK(tile < f->num_tiles);
-    struct fold_tile *t = &f->tiles[tile];
-    CHECK(!t->final);
     size_t pixels = tile_pixels(f, tile);
-    uint32_t folded = t->folded;
-    uint32_t block_passes[TILE_MAX_BLOCKS_SIDE * TILE_MAX_BLOCKS_SIDE];
-    memcpy(block_passes, t->block_passes, sizeof block_passes);
     uint32_t w = tile_width(f, tile);
     for (size_t i = 0; i < pixels; i++) {
         float *px = &out[i * (f->lay.num_channels + 1)];
@@ -214,12 +258,80 @@ void fold_finish(struct fold *f, uint32_t tile, float *out, struct tile_stats *s
         } else {
             memset(px, 0, sizeof(float) * TILE_NUM_CHANNELS);
         }
-        px[FOLD_CH_SAMPLES] = (float)((double)block_passes[pixel_block(f, w, i)] * f->spp_per_pass);
+        px[FOLD_CH_SAMPLES] = (float)((double)t->block_passes[pixel_block(f, w, i)] * f->spp_per_pass);
     }
     fold_aovs_finish(f, t, pixels, out);
+}
+
+void fold_finish(struct fold *f, uint32_t tile, float *out, struct tile_stats *stats)
+{
+    CHECK(tile < f->num_tiles);
+    struct fold_tile *t = &f->tiles[tile];
+    CHECK(!t->final);
+    uint32_t folded = t->folded;
+    finish_pixels(f, tile, t, out, stats);
     tile_clear(f, t);
     t->folded = folded;
     t->final = 1;
+}
+
+struct fold_units {
+    uint32_t tile, count;
+    struct fold_early unit[];   /* per slot: a copy of its pixels, its pass and blocks */
+};
+
+struct fold_units *fold_add_take(struct fold *f, uint32_t tile, uint32_t pass, const float *px)
+{
+    CHECK(f->defer && tile < f->num_tiles && pass < f->passes);
+    struct fold_tile *t = &f->tiles[tile];
+    CHECK(!t->final && !t->acc);
+    if (!t->early)
+        t->early = mem_calloc(f->passes, sizeof *t->early);
+    keep_early(f, t, tile_pixels(f, tile), pass, pass, TILE_MASK_ALL, px);
+    if (++t->in < f->passes)
+        return NULL;
+    struct fold_units *u = mem_alloc(sizeof *u + f->passes * sizeof u->unit[0]);
+    u->tile = tile;
+    u->count = f->passes;
+    memcpy(u->unit, t->early, f->passes * sizeof u->unit[0]);
+    free(t->early);
+    memset(t, 0, sizeof *t);
+    t->folded = f->passes;
+    t->final = 1;
+    return u;
+}
+
+void fold_run(const struct fold *f, struct fold_units *u, void **scratch, size_t *scratch_size, float *out,
+              struct tile_stats *stats)
+{
+    size_t pixels = tile_pixels(f, u->tile), need = pixels * sizeof(struct pass_pixel);
+    if (*scratch_size < need) {
+        free(*scratch);
+        *scratch = mem_alloc(need);
+        *scratch_size = need;
+    }
+    struct fold_tile t;
+    memset(&t, 0, sizeof t);
+    t.acc = *scratch;
+    memset(t.acc, 0, need);
+    fold_aovs_start(f, &t, pixels);
+    for (uint32_t i = 0; i < u->count; i++)
+        fold_pass(f, u->tile, &t, pixels, u->unit[i].pass, u->unit[i].mask, u->unit[i].px);
+    finish_pixels(f, u->tile, &t, out, stats);
+    free(t.aov);
+}
+
+uint32_t fold_units_tile(const struct fold_units *u) { return u->tile; }
+
+void fold_units_free(struct fold_units **up)
+{
+    struct fold_units *u = *up;
+    if (!u)
+        return;
+    for (uint32_t i = 0; i < u->count; i++)
+        free(u->unit[i].px);
+    free(u);
+    *up = NULL;
 }
 
 int fold_add(struct fold *f, uint32_t tile, uint32_t pass, const float *px, float *out, struct tile_stats *stats)

@@ -24,6 +24,13 @@ struct fold;
  * pass p in stream p mod streams (integrator_streams). */
 struct fold *fold_new(const struct image_desc *desc, uint32_t passes, uint32_t spp_per_pass, uint32_t streams);
 void fold_free(struct fold **f);
+/* on: a tile's units are kept as they come (copies: w*h pixels of the unit's channels,
+ * less than a tenth of the per-pixel batch sums) and folded, in slot order, only when its
+ * last one is in, so a tile waiting for its other passes holds little memory and the
+ * batch sums are a reused buffer. The same bits; for renders whose every tile gets all
+ * `passes` units and that read no sums of unfinished tiles (fold_block_sums): not
+ * adaptive ones. */
+void fold_defer(struct fold *f, int on);
 /* A new frame: nothing folded or buffered. */
 void fold_reset(struct fold *f);
 /* The output layout: desc's beauty channels, the samples channel, desc's AOVs. */
@@ -44,6 +51,19 @@ uint32_t fold_add_slot(struct fold *f, uint32_t tile, uint32_t slot, uint32_t pa
  * samples: the passes each pixel's block received) into out (w*h pixels of desc->num_channels + 1), its relative standard errors
  * added to stats; the tile then takes nothing more. */
 void fold_finish(struct fold *f, uint32_t tile, float *out, struct tile_stats *stats);
+/* With fold_defer, the master's way to fold on another thread: gives unit (tile, pass)
+ * (copied) and, when it is the tile's last, takes the tile's units out (the tile is final
+ * then) and returns them, else NULL. fold_run then folds them in slot order and finishes
+ * the tile into out, bit for bit as fold_add would (stats: the tile's relative errors
+ * added), with *scratch (*scratch_size bytes, grown as needed; one per thread, freed by
+ * its owner); it reads only f's settings, so it runs on any thread while the caller goes
+ * on with other tiles. fold_units_free frees the units (NULL is fine). */
+struct fold_units;
+struct fold_units *fold_add_take(struct fold *f, uint32_t tile, uint32_t pass, const float *px);
+void fold_run(const struct fold *f, struct fold_units *u, void **scratch, size_t *scratch_size, float *out,
+              struct tile_stats *stats);
+uint32_t fold_units_tile(const struct fold_units *u);
+void fold_units_free(struct fold_units **u);
 /* fold_add_unit, and fold_finish once all `passes` are in: 1 then, 0 while passes are
  * missing. */
 int fold_add(struct fold *f, uint32_t tile, uint32_t pass, const float *px, float *out, struct tile_stats *stats);

@@ -23,6 +23,8 @@
 #define REC_MAGIC 0x43455254u /* "TREC" */
 static const char k_magic[8] = {'B', 'R', 'U', 'M', 'J', 'N', 'L', '1'};
 
+static void hand_over(struct journal *j);
+
 static int write_all(int fd, const void *data, size_t n)
 {
     const uint8_t *p = data;
@@ -202,14 +204,12 @@ static int append_now(struct journal *j, const uint8_t *record, size_t size)
 int journal_write_record(struct journal *j, uint32_t tile, uint8_t *record, size_t size, char *err,
                          size_t errlen)
 {
-    if (j->syncer_on) {
+    if (j->syncer_on) { /* held until journal_sync_async hands it over */
         struct journal_rec *r = mem_alloc(sizeof *r);
         *r = (struct journal_rec){record, size, tile, NULL};
-        pthread_mutex_lock(&j->lock);
-        *j->queue_tail = r;
-        j->queue_tail = &r->next;
+        *j->held_tail = r;
+        j->held_tail = &r->next;
         j->end += size;
-        pthread_mutex_unlock(&j->lock);
         return 0;
     }
     int e = append_now(j, record, size);
@@ -249,10 +249,12 @@ int journal_sync(struct journal *j, char *err, size_t errlen)
     }
     /* With a syncer: it writes what is queued and syncs; wait for it. */
     pthread_mutex_lock(&j->lock);
+    hand_over(j);
     if (j->sync_want < j->end) {
         j->sync_want = j->end;
         pthread_cond_signal(&j->cond);
     }
+    j->asked = j->sync_want;
     while (!j->sync_errno && j->synced < j->end)
         pthread_cond_wait(&j->done_cond, &j->lock);
     int e = j->sync_errno;
@@ -260,6 +262,17 @@ int journal_sync(struct journal *j, char *err, size_t errlen)
         str_fmt(err, errlen, "%s", j->sync_error);
     pthread_mutex_unlock(&j->lock);
     return e ? -1 : 0;
+}
+
+/* Moves the caller's held records to the thread's queue (under lock). */
+static void hand_over(struct journal *j)
+{
+    if (!j->held)
+        return;
+    *j->queue_tail = j->held;
+    j->queue_tail = j->held_tail;
+    j->held = NULL;
+    j->held_tail = &j->held;
 }
 
 static void free_queue(struct journal_rec *r)
@@ -306,6 +319,7 @@ static void *syncer_main(void *arg)
             j->synced = j->written;
         }
         pthread_cond_broadcast(&j->done_cond);
+        j->rounds++;
         uint64_t one = 1;
         if (write(j->done_fd, &one, sizeof one) != sizeof one)
             log_debug("journal: eventfd write failed");
@@ -323,10 +337,13 @@ int journal_syncer_start(struct journal *j, char *err, size_t errlen)
     pthread_cond_init(&j->done_cond, NULL);
     j->queue = NULL;
     j->queue_tail = &j->queue;
+    j->held = NULL;
+    j->held_tail = &j->held;
+    j->rounds = j->rounds_seen = 0;
     j->written = j->end;
     j->syncer_stop = 0;
     j->sync_errno = 0;
-    j->sync_want = j->synced;
+    j->sync_want = j->asked = j->synced;
     j->done_fd = eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
     int rc = j->done_fd < 0 ? errno : pthread_create(&j->syncer, NULL, syncer_main, j);
     if (rc != 0) {
@@ -344,13 +361,15 @@ int journal_syncer_start(struct journal *j, char *err, size_t errlen)
 
 void journal_sync_async(struct journal *j)
 {
-    if (!j->syncer_on)
+    if (!j->syncer_on || (!j->held && j->asked >= j->end)) /* nothing new since the last call */
         return;
     pthread_mutex_lock(&j->lock);
+    hand_over(j);
     if (j->sync_want < j->end) {
         j->sync_want = j->end;
         pthread_cond_signal(&j->cond);
     }
+    j->asked = j->sync_want;
     pthread_mutex_unlock(&j->lock);
 }
 
@@ -363,9 +382,12 @@ int64_t journal_durable(struct journal *j, char *err, size_t errlen)
     pthread_mutex_lock(&j->lock);
     uint64_t synced = j->synced;
     int e = j->sync_errno;
-    uint64_t v;
-    if (read(j->done_fd, &v, sizeof v) < 0) /* nothing new: EAGAIN */
-        v = 0;
+    if (j->rounds != j->rounds_seen) { /* done_fd was written since: clear it (the thread writes it under lock) */
+        uint64_t v;
+        if (read(j->done_fd, &v, sizeof v) < 0)
+            log_debug("journal: eventfd read failed");
+        j->rounds_seen = j->rounds;
+    }
     pthread_mutex_unlock(&j->lock);
     if (e) {
         pthread_mutex_lock(&j->lock);
@@ -387,6 +409,9 @@ static void syncer_stop(struct journal *j)
     pthread_join(j->syncer, NULL);
     close(j->done_fd);
     free_queue(j->queue);
+    free_queue(j->held);
+    j->held = NULL;
+    j->held_tail = &j->held;
     j->queue = NULL;
     j->queue_tail = &j->queue;
     j->end = j->written;

@@ -29,6 +29,11 @@ struct journal {
     uint64_t syncs;         /* fdatasync calls made */
     pthread_t syncer;
     struct journal_rec *queue, **queue_tail; /* records for the thread to write, in order (under lock) */
+    struct journal_rec *held, **held_tail; /* the caller's: records appended since its last journal_sync_async,
+                                            * handed to the thread together then (one lock, one wake-up) */
+    uint64_t asked;         /* the caller's copy of sync_want */
+    uint64_t rounds, rounds_seen; /* syncs ended (each wrote done_fd; under lock), and those whose write
+                                   * journal_durable consumed */
     char sync_error[600];   /* with sync_errno: what failed */
     pthread_cond_t done_cond; /* a round of the thread ended */
     int done_fd;            /* eventfd: readable after a sync of the syncer ended (journal_sync_fd) */
@@ -61,9 +66,10 @@ int journal_write(struct journal *j, uint32_t tile, const struct tile_stats *sta
                   uint32_t chunk_size, char *err, size_t errlen);
 /* The same in two steps: journal_record builds unit tile's record (pure: any thread; NULL
  * when the chunk is too large; *size its bytes, free the result), journal_write_record
- * appends it and takes it over. With the sync thread running, both only queue the record:
- * the thread writes it before its next fdatasync (in order), so the caller never waits
- * for the file; a failed write (a full disk) is then reported by journal_durable and
+ * appends it and takes it over. With the sync thread running, both only queue the record
+ * (without a lock: the thread gets the records queued since the last call at the next
+ * journal_sync_async or journal_sync); the thread writes them before its next fdatasync
+ * (in order), so the caller never waits for the file; a failed write (a full disk) is then reported by journal_durable and
  * journal_sync, naming the tile, and the file is cut back to its last intact record. */
 uint8_t *journal_record(uint32_t tile, const struct tile_stats *stats, const uint8_t *chunk, uint32_t chunk_size,
                         size_t *size);
@@ -71,7 +77,8 @@ int journal_write_record(struct journal *j, uint32_t tile, uint8_t *record, size
                          size_t errlen);
 int journal_sync(struct journal *j, char *err, size_t errlen);
 /* Group commit that does not block the caller: a thread writes the queued records and
- * runs fdatasync whenever journal_sync_async asked for more than is on disk, so the caller
+ * runs fdatasync whenever journal_sync_async handed it records (or asked for more than is
+ * on disk), so the caller
  * keeps working (and handing out tiles) while the disk catches up. journal_durable returns
  * the bytes known to be on disk, or -1 with the reason once a write or sync failed.
  * journal_sync (blocking) waits for the thread to get that far; journal_free stops it

@@ -480,6 +480,8 @@ static void setup_tiles(struct master *m)
         m->slot_mask = mem_calloc(m->num_units, sizeof *m->slot_mask);
         free(pixels);
     }
+    if (m->fold && !m->adapt) /* every tile gets its passes; nobody reads an unfinished tile's sums */
+        fold_defer(m->fold, 1);
 }
 
 /* Tile, pass and blocks of unit u (adaptive: what its slot was released for). */
@@ -1080,9 +1082,23 @@ static void commit_and_ack(struct master *m, int wait)
 }
 
 /* Encodes the folded tile in fold_out as the tile's output chunk (and counts its pixels in
- * the error estimate). */
+ * the error estimate). With the checker pool the encoding runs there: fold_out goes with
+ * the item (the loop takes the item's buffer instead), and the chunk is in place once
+ * checks_drain took the item (the frame's output waits for checks_drain(m, 1)). */
 static int tile_encode_folded(struct master *m, uint32_t tile)
 {
+    fold_est_add(m->est, tile, m->fold_out);
+    if (m->checker) {
+        struct check_item *it = checker_item_new(m->checker);
+        it->kind = CHECK_ENCODE;
+        it->peer = -1;
+        it->unit = tile;
+        float *px = it->pixels; /* the same size: tile_size^2 x FOLD_MAX_CHANNELS floats */
+        it->pixels = m->fold_out;
+        m->fold_out = px;
+        checker_submit(m->checker, it);
+        return 0;
+    }
     char err[256];
     uint32_t tiles_x = imgio_tiles_x(&m->desc);
     if (!m->enc && !(m->enc = imgio_encoder_new(&m->out_desc, err, sizeof err))) {
@@ -1094,7 +1110,6 @@ static int tile_encode_folded(struct master *m, uint32_t tile)
         master_fail(m, "%s", err);
         return -1;
     }
-    fold_est_add(m->est, tile, m->fold_out);
     return 0;
 }
 
@@ -1193,7 +1208,9 @@ static int adapt_round_end(struct master *m)
  * the chunk is the tile's (held: the received frame it lies in, or NULL; the tile takes
  * the frame over instead of copying the chunk); with several it is folded (fold.h), and
  * once the tile's last pass is in (adaptive: once the rounds end), the folded tile is
- * encoded as the tile's chunk. */
+ * encoded as the tile's chunk. With the checker pool a uniform render's tile is folded
+ * and encoded there (CHECK_FOLD: the loop only copies each unit's pixels until the
+ * last). */
 static int unit_keep(struct master *m, uint32_t unit, const struct tile_stats *st, const uint8_t *chunk,
                      size_t chunk_size, struct net_payload **held)
 {
@@ -1232,6 +1249,18 @@ static int unit_keep(struct master *m, uint32_t unit, const struct tile_stats *s
         CHECK(a->outstanding > 0);
         if (--a->outstanding == 0)
             return adapt_round_end(m);
+        return 0;
+    }
+    if (m->checker) { /* folded and encoded by the pool once the tile's last pass is in (fold_defer) */
+        struct fold_units *u = fold_add_take(m->fold, tile, unit_pass(m, unit), m->decode_scratch);
+        if (u) {
+            struct check_item *it = checker_item_new(m->checker);
+            it->kind = CHECK_FOLD;
+            it->peer = -1;
+            it->unit = tile;
+            it->units = u;
+            checker_submit(m->checker, it);
+        }
         return 0;
     }
     if (!fold_add(m->fold, tile, unit_pass(m, unit), m->decode_scratch, m->fold_out, &m->stats))
@@ -1477,6 +1506,20 @@ static void on_result(struct master *m, int32_t pi, const struct msg_result *r, 
  * it still would now. Its decoded pixels become decode_scratch (same size). */
 static void result_checked(struct master *m, struct check_item *it)
 {
+    if (it->kind == CHECK_ENCODE || it->kind == CHECK_FOLD) { /* a folded tile (tile_encode_folded, unit_keep) */
+        if (it->verdict != 1) {
+            master_fail(m, "%s", it->err);
+            return;
+        }
+        if (it->kind == CHECK_FOLD) { /* folded there: its pixels and relative errors */
+            fold_est_add(m->est, it->unit, it->pixels);
+            tile_stats_add(&m->stats, &it->stats);
+        }
+        m->chunks[it->unit].data = it->record;
+        m->chunks[it->unit].size = it->record_size;
+        it->record = NULL;
+        return;
+    }
     int32_t pi = it->peer;
     if (it->job_id != m->job_id || it->frame != m->frame || (uint32_t)pi >= m->num_peers ||
         m->sched->workers[pi].gone || m->peers[pi].id_len != it->peer_id_len ||
@@ -2186,7 +2229,8 @@ static int frame_begin(struct master *m, uint32_t frames_started)
     m->check_ctx = (struct check_ctx){.desc = m->desc, .num_tiles = m->num_tiles, .passes = m->passes,
                                       .num_objects = m->scene.num_meshes + m->scene.num_spheres,
                                       .num_materials = m->scene.num_materials,
-                                      .journal = !o->no_journal && !o->only_tiles};
+                                      .journal = !o->no_journal && !o->only_tiles,
+                                      .out_desc = m->fold ? m->out_desc : m->desc, .fold = m->fold};
     if (m->checker) /* idle: the last frame drained it */
         checker_set_ctx(m->checker, &m->check_ctx,
                         (size_t)m->scene.settings.tile_size * m->scene.settings.tile_size * FOLD_MAX_CHANNELS);

@@ -2,7 +2,8 @@
  * passes and decodes to its pixels, a non-finite one is -1, garbage and a chunk of
  * another tile are refused, pass values out of range are refused; the pool gives every
  * submitted item back once, with the verdict chunk_check gives in the caller's thread,
- * and the journal record journal_record builds. Run by `make unit`. */
+ * and the journal record journal_record builds, and encodes CHECK_ENCODE items as the
+ * caller would. Run by `make unit`. */
 #include <criterion/criterion.h>
 #include <math.h>
 #include <stdlib.h>
@@ -113,4 +114,76 @@ Test(check, pool_returns_every_item_with_its_verdict)
     cr_assert_eq(checker_pending(k), 0);
     checker_free(&k);
     cr_assert_null(k);
+}
+
+/* Encodes tile t of layout d from px in this thread, for comparison. */
+static uint8_t *encode_here(const struct image_desc *d, uint32_t t, const float *px, size_t *size)
+{
+    char err[256];
+    struct imgio_encoder *e = imgio_encoder_new(d, err, sizeof err);
+    cr_assert(e, "%s", err);
+    uint32_t tx = imgio_tiles_x(d);
+    uint8_t *chunk = NULL;
+    cr_assert_eq(imgio_encode_tile(e, t % tx, t / tx, px, &chunk, size, err, sizeof err), 0, "%s", err);
+    imgio_encoder_free(&e);
+    return chunk;
+}
+
+/* CHECK_ENCODE items (the master's folded tiles) come back encoded in the context's
+ * out_desc, byte for byte as an encoder in the caller's thread makes them, also after the
+ * context changed to another layout, and mixed with RESULT items. */
+Test(check, pool_encodes_tiles_in_the_context_layout)
+{
+    struct check_ctx c;
+    make_ctx(&c, 2);
+    fold_output_desc(&c.desc, &c.out_desc);
+    struct checker *k = checker_new(2);
+    for (int round = 0; round < 2; round++) {
+        if (round == 1)
+            c.out_desc = c.desc; /* another layout: the threads' encoders must follow */
+        checker_set_ctx(k, &c, 64 * FOLD_MAX_CHANNELS);
+        enum { N = 24 };
+        static float want_px[N][64 * FOLD_MAX_CHANNELS];
+        uint8_t *results[N] = {0};
+        for (uint32_t i = 0; i < N; i++) {
+            struct check_item *it = checker_item_new(k);
+            it->peer = (int32_t)i;
+            if (i % 4 == 3) { /* a RESULT among them */
+                size_t n;
+                it->unit = i % c.num_tiles;
+                it->chunk = results[i] = chunk_of(&c, it->unit, 0.25f, &n);
+                it->chunk_size = (uint32_t)n;
+            } else {
+                it->kind = CHECK_ENCODE;
+                it->unit = i % c.num_tiles;
+                for (size_t v = 0; v < 64 * FOLD_MAX_CHANNELS; v++)
+                    want_px[i][v] = it->pixels[v] = 0.001f * (float)(v * 7 + i * 13 + (uint32_t)round);
+            }
+            checker_submit(k, it);
+        }
+        uint32_t taken = 0;
+        checker_wait_idle(k);
+        struct check_item *it;
+        while ((it = checker_take(k))) {
+            uint32_t i = (uint32_t)it->peer;
+            if (i % 4 == 3) {
+                cr_assert_eq(it->kind, CHECK_RESULT);
+                cr_assert_eq(it->verdict, 1, "%s", it->err);
+            } else {
+                cr_assert_eq(it->kind, CHECK_ENCODE);
+                cr_assert_eq(it->verdict, 1, "%s", it->err);
+                size_t n;
+                uint8_t *want = encode_here(&c.out_desc, it->unit, want_px[i], &n);
+                cr_assert_eq(it->record_size, n, "round %d item %u", round, i);
+                cr_assert_eq(memcmp(it->record, want, n), 0);
+                free(want);
+            }
+            checker_item_free(k, it);
+            taken++;
+        }
+        cr_assert_eq(taken, N);
+        for (uint32_t i = 0; i < N; i++)
+            free(results[i]);
+    }
+    checker_free(&k);
 }
