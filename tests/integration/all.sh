@@ -1,7 +1,7 @@
 #!/bin/sh
 # Runs every integration script and ends with one line for CI:
 # "integration: N passed, N failed" summed over every script in the two lists below.
-# Each script's own output (and its closing line, as "part:") is kept.
+# Each script's own output (and its closing line, as "part:", with its wall seconds) is kept.
 # The parts of LANE2 mostly wait (silence and stall timeouts, workers that sleep on
 # purpose, a master frozen for seconds, one render thread): they run one after another
 # beside the parts of LANE1, and their output is printed whole, each part's in one piece,
@@ -41,15 +41,19 @@ if [ "${LANES:-2}" = 1 ]; then
 else
   # (`sh ... &` with its pid kept: an interrupted all.sh stops the part under way)
   (for s in $LANE2; do
+    t0=$(date +%s)
     sh "$dir/$s" >"$D/$s.out" 2>&1 &
     echo $! >"$D/current"
     wait $!
+    echo $(($(date +%s) - t0)) >"$D/$s.s"
   done) &
   lane2=$!
   echo "all: $LANE2 run beside the other parts; their output follows theirs"
 fi
 for s in $LANE1; do
-  sh "$dir/$s" 2>&1 | tee "$D/$s.out" | sed 's/^integration: /part '"$s"': /'
+  t0=$(date +%s)
+  sh "$dir/$s" 2>&1 | tee "$D/$s.out" | sed '/^integration: /d'
+  echo "part $s: $(sed -n 's/^integration: //p' "$D/$s.out" | tail -1) ($(($(date +%s) - t0)) s)"
   tally "$s" "$D/$s.out"
 done
 if [ -n "$lane2" ]; then
@@ -57,7 +61,8 @@ if [ -n "$lane2" ]; then
   lane2=""
   for s in $LANE2; do
     [ -f "$D/$s.out" ] || : >"$D/$s.out"
-    sed 's/^integration: /part '"$s"': /' "$D/$s.out"
+    sed '/^integration: /d' "$D/$s.out"
+    echo "part $s: $(sed -n 's/^integration: //p' "$D/$s.out" | tail -1) ($(cat "$D/$s.s" 2>/dev/null || echo "?") s, beside the others)"
     tally "$s" "$D/$s.out"
   done
 fi
