@@ -189,6 +189,24 @@ static double airlight(const struct ss_case *c, double tmax, int n)
     return sum * h / 3.0;
 }
 
+/* The mean of m camera samples' red radiance along (o, d), sampler seed `seed`, and its
+ * standard error; rays counts the rays cast. */
+static double red_mean(const struct render_job *job, uint32_t seed, int m, vec3 o, vec3 d, double *se, uint64_t *rays)
+{
+    double s1 = 0.0, s2 = 0.0;
+    for (int i = 0; i < m; i++) {
+        struct sampler smp = sampler_start(seed, 0, 0, (uint32_t)i);
+        int hit;
+        double v = media_sample_path(job, &smp, 0, 0, o, d, 0.0f, rays, &hit).x;
+        cr_assert(isfinite(v));
+        s1 += v;
+        s2 += v * v;
+    }
+    double mean = s1 / m;
+    *se = sqrt(fmax(0.0, s2 / m - mean * mean) / m);
+    return mean;
+}
+
 Test(medium, single_scattering_airlight)
 {
     /* An isotropic fog inside a black sphere of radius 50; the camera ray passes the point
@@ -222,16 +240,7 @@ Test(medium, single_scattering_airlight)
     render_job_fini(&job);
     s.media->method = MEDIA_VPT;
     job_ok(&job, &s);
-    double s1 = 0.0, s2 = 0.0;
-    const int m = 200000;
-    for (int i = 0; i < m; i++) {
-        struct sampler smp = sampler_start(11, 0, 0, (uint32_t)i);
-        int hit;
-        double v = media_sample_path(&job, &smp, 0, 0, o, d, 0.0f, &rays, &hit).x;
-        s1 += v;
-        s2 += v * v;
-    }
-    double mean = s1 / m, se = sqrt(fmax(0.0, s2 / m - mean * mean) / m);
+    double se, mean = red_mean(&job, 11, 200000, o, d, &se, &rays);
     cr_assert(fabs(mean - ref) < 4 * se + 0.005 * ref, "vpt %g +- %g vs airlight %g", mean, se, ref);
     render_job_fini(&job);
     scene_fini(&s);
@@ -258,18 +267,9 @@ Test(medium, single_scattering_area_light)
     vec3 o = v3(-5, 0, 0), d = v3(1, 0, 0);
     struct ss_case c = {10, 0.05, 0.1, o, d, v3(0, 0, 0), 1};
     double ref = airlight(&c, 55.0, 20000);
-    double s1 = 0.0, s2 = 0.0;
     const int m = 100000;
     uint64_t rays = 0;
-    for (int i = 0; i < m; i++) {
-        struct sampler smp = sampler_start(13, 0, 0, (uint32_t)i);
-        int hit;
-        double v = media_sample_path(&job, &smp, 0, 0, o, d, 0.0f, &rays, &hit).x;
-        cr_assert(isfinite(v));
-        s1 += v;
-        s2 += v * v;
-    }
-    double mean = s1 / m, se = sqrt(fmax(0.0, s2 / m - mean * mean) / m);
+    double se, mean = red_mean(&job, 13, m, o, d, &se, &rays);
     cr_log_info("area light single scattering: vpt %g +- %g, quadrature %g", mean, se, ref);
     cr_assert(fabs(mean - ref) < 4 * se + 0.005 * ref, "vpt %g +- %g vs quadrature %g", mean, se, ref);
     cr_assert(se < 0.005 * ref, "vpt's standard error %g is %g of the mean", se, se / ref);
@@ -299,18 +299,9 @@ Test(medium, camera_points_area_light)
     vec3 o = v3(-5, 0, 0), d = v3(1, 0, 0);
     struct ss_case c = {10, 0.05, 0.1, o, d, v3(0, 0, 0), 1};
     double ref = airlight(&c, 55.0, 20000);
-    double s1 = 0.0, s2 = 0.0;
     const int m = 40000;
     uint64_t rays = 0;
-    for (int i = 0; i < m; i++) {
-        struct sampler smp = sampler_start(17, 0, 0, (uint32_t)i);
-        int hit;
-        double v = media_sample_path(&job, &smp, 0, 0, o, d, 0.0f, &rays, &hit).x;
-        cr_assert(isfinite(v));
-        s1 += v;
-        s2 += v * v;
-    }
-    double mean = s1 / m, se = sqrt(fmax(0.0, s2 / m - mean * mean) / m);
+    double se, mean = red_mean(&job, 17, m, o, d, &se, &rays);
     cr_log_info("area light single scattering: beam %g +- %g, quadrature %g, %g rays per sample", mean, se, ref,
                 (double)rays / m);
     cr_assert(fabs(mean - ref) < 4 * se + 0.005 * ref, "beam %g +- %g vs quadrature %g", mean, se, ref);
