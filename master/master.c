@@ -2278,8 +2278,11 @@ static int frame_begin(struct master *m, uint32_t frames_started)
     }
     /* A --tiles render is a debugging aid: it keeps no journal of its own. Journaled
      * tiles are done in the scheduler, so they never go out again. */
+    uint32_t outside = m->sched->tiles_done; /* --tiles: the units it does not render */
+    uint64_t journaled = m->c.tiles_from_journal;
     if (!o->no_journal && !o->only_tiles && open_journal(m) != 0)
         return -1;
+    journaled = m->c.tiles_from_journal - journaled;
     m->job_id = m->job_base + frames_started;
     for (uint32_t i = 0; i < m->num_peers; i++)
         if (!m->sched->workers[i].gone && m->sched->tiles_done < m->num_units)
@@ -2289,9 +2292,12 @@ static int frame_begin(struct master *m, uint32_t frames_started)
     char units[64] = "";
     if (m->passes > 1)
         snprintf(units, sizeof units, " in %u passes: %u units", m->passes, m->num_units);
-    log_info("rendering %s frame %u -> %s: %ux%u, %u spp, %u tiles%s (%u from the journal), %u local worker(s)%s%s",
+    char skipped[64] = "";
+    if (o->only_tiles)
+        snprintf(skipped, sizeof skipped, ", %u outside --tiles", outside);
+    log_info("rendering %s frame %u -> %s: %ux%u, %u spp, %u tiles%s (%llu from the journal%s), %u local worker(s)%s%s",
              o->scene_path, m->frame, m->out_path, m->scene.settings.width, m->scene.settings.height,
-             m->scene.settings.spp, m->num_tiles, units, m->sched->tiles_done, o->workers,
+             m->scene.settings.spp, m->num_tiles, units, (unsigned long long)journaled, skipped, o->workers,
              o->bind ? ", accepting workers at " : "", o->bind ? o->bind : "");
     return 0;
 }
