@@ -19,6 +19,7 @@
 #include "scene/grid.h"
 #include "scene/material.h"
 #include <math.h>
+#include <string.h>
 
 #define MAX_CROSSINGS 256
 #define MAX_STEPS 100000
@@ -156,6 +157,166 @@ static vec3 scatter_nee(const struct render_job *job, vec3 x, vec3 d_out, uint32
     return v3_scale(v3_mul(ls.radiance, tr), ph * w / ls.pdf);
 }
 
+/* Solid-angle sampling of an emissive triangle (Arvo 1995, "Stratified sampling of
+ * spherical triangles") for NEE from gather_segment's points. Area sampling has the density
+ * d^2 / (A cos) in solid angle, whose ratio to the integrand is unbounded for points next
+ * to the lamp or at grazing angles (a heavy tail on and beside the lamp); uniform in the
+ * solid angle the triangle subtends, the ratio is the phase function times that solid
+ * angle. Below SPH_MIN_OMEGA steradians (a far lamp, where the two densities agree and the
+ * spherical formulas lose precision) the point keeps area sampling. Computed in double. */
+#define SPH_MIN_OMEGA 1e-4
+struct sph_tri { double a[3], b[3], c[3]; double omega; };
+
+static void d3_sub(double *r, vec3 p, vec3 x)
+{
+    r[0] = (double)p.x - x.x, r[1] = (double)p.y - x.y, r[2] = (double)p.z - x.z;
+}
+static double d3_dot(const double *a, const double *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+static void d3_cross(double *r, const double *a, const double *b)
+{
+    r[0] = a[1] * b[2] - a[2] * b[1], r[1] = a[2] * b[0] - a[0] * b[2], r[2] = a[0] * b[1] - a[1] * b[0];
+}
+static double d3_len(const double *a) { return sqrt(d3_dot(a, a)); }
+/* r = normalize(a - dot(a, e) e) for unit e (0 when a is parallel to e) */
+static int d3_orth(double *r, const double *a, const double *e)
+{
+    double k = d3_dot(a, e);
+    for (int i = 0; i < 3; i++)
+        r[i] = a[i] - k * e[i];
+    double l = d3_len(r);
+    if (!(l > 0.0))
+        return 0;
+    for (int i = 0; i < 3; i++)
+        r[i] /= l;
+    return 1;
+}
+/* the angle at vertex a of the spherical triangle (a, b, c) */
+static double sph_angle(const double *a, const double *b, const double *c)
+{
+    double nb[3], nc[3], x[3];
+    d3_cross(nb, a, b);
+    d3_cross(nc, a, c);
+    d3_cross(x, nb, nc);
+    return atan2(d3_len(x), d3_dot(nb, nc));
+}
+
+/* The triangle (v0, v1, v2) seen from x: unit directions and the solid angle (Van Oosterom
+ * and Strackee 1983). 0 when x is on the plane or the solid angle is below SPH_MIN_OMEGA. */
+static int sph_init(struct sph_tri *t, vec3 x, vec3 v0, vec3 v1, vec3 v2)
+{
+    double la, lb, lc, bc[3];
+    d3_sub(t->a, v0, x), d3_sub(t->b, v1, x), d3_sub(t->c, v2, x);
+    la = d3_len(t->a), lb = d3_len(t->b), lc = d3_len(t->c);
+    if (!(la > 0.0 && lb > 0.0 && lc > 0.0))
+        return 0;
+    d3_cross(bc, t->b, t->c);
+    double num = fabs(d3_dot(t->a, bc));
+    double den = la * lb * lc + d3_dot(t->a, t->b) * lc + d3_dot(t->a, t->c) * lb + d3_dot(t->b, t->c) * la;
+    t->omega = 2.0 * atan2(num, den);
+    for (int i = 0; i < 3; i++)
+        t->a[i] /= la, t->b[i] /= lb, t->c[i] /= lc;
+    return t->omega >= SPH_MIN_OMEGA && isfinite(t->omega);
+}
+
+/* A direction uniform in the spherical triangle from two uniforms (Arvo's construction:
+ * u1 picks the sub-triangle (a, b, c') of area u1 omega, u2 a point on the arc b c'). */
+static int sph_sample(const struct sph_tri *t, double u1, double u2, double *w)
+{
+    double alpha = sph_angle(t->a, t->b, t->c);
+    double area = u1 * t->omega, ca = cos(alpha), sa = sin(alpha);
+    double s = sin(area - alpha), tt = cos(area - alpha);
+    double u = tt - ca, v = s + sa * d3_dot(t->a, t->b);
+    double den = (v * s + u * tt) * sa;
+    if (!(fabs(den) > 0.0))
+        return 0;
+    double q = ((v * tt - u * s) * ca - v) / den;
+    q = q < -1.0 ? -1.0 : q > 1.0 ? 1.0 : q;
+    double e[3], ch[3], f[3];
+    if (!d3_orth(e, t->c, t->a))
+        return 0;
+    double sq = sqrt(fmax(0.0, 1.0 - q * q));
+    for (int i = 0; i < 3; i++)
+        ch[i] = q * t->a[i] + sq * e[i];
+    double z = 1.0 - u2 * (1.0 - d3_dot(ch, t->b));
+    z = z < -1.0 ? -1.0 : z > 1.0 ? 1.0 : z;
+    if (!d3_orth(f, ch, t->b)) {
+        memcpy(w, t->b, sizeof f);
+        return 1;
+    }
+    double sz = sqrt(fmax(0.0, 1.0 - z * z));
+    for (int i = 0; i < 3; i++)
+        w[i] = z * t->b[i] + sz * f[i];
+    return 1;
+}
+
+/* The emissive triangle of light entry i: its vertices (the corners of
+ * light_triangle_point's parametrisation) and normal. */
+static void light_triangle(const struct render_job *job, uint32_t i, vec3 *v, vec3 *n)
+{
+    vec3 m;
+    light_triangle_point(&job->lights, job->scene, i, 0.0f, 0.0f, &v[0], n);
+    light_triangle_point(&job->lights, job->scene, i, 1.0f, 1.0f, &v[1], &m);
+    light_triangle_point(&job->lights, job->scene, i, 1.0f, 0.0f, &v[2], &m);
+}
+
+/* The solid-angle density gather_segment's NEE gives the point c (normal n) of emissive
+ * triangle i seen from x, with the pick: pick / omega when the triangle is sampled by solid
+ * angle from x, else light_pdf's (area sampling); 0 from behind the lamp. */
+static float point_nee_pdf(const struct render_job *job, uint32_t i, vec3 x, vec3 c, vec3 n)
+{
+    vec3 v[3], nn;
+    struct sph_tri t;
+    light_triangle(job, i, v, &nn);
+    if (v3_dot(nn, v3_sub(x, v[0])) > 0.0f && sph_init(&t, x, v[0], v[1], v[2]))
+        return (float)(job->lights.pick_pdf[i] / t.omega);
+    return light_pdf(&job->lights, job->scene, i, x, c, n);
+}
+
+/* gather_segment's NEE at the point x = o + fc->t d: an emissive triangle is sampled by
+ * solid angle where point_nee_pdf says so, every other light as scatter_nee samples it.
+ * Balance heuristic against the segment's equiangular sample toward the same light point,
+ * with both densities in solid angle at x: the points' flight_pdf x point_nee_pdf against
+ * the equiangular pdf x the area density (light_pdf). Returns the estimate times the
+ * points' flight_pdf (the caller divides by it), phase function without the forward cone. */
+static vec3 point_nee(const struct render_job *job, vec3 x, vec3 d_out, uint32_t medium, float g, float u0, float u1,
+                      float u2, float time01, uint64_t key, uint64_t *rays, const struct flight_ctx *fc)
+{
+    uint32_t i = job->lights.num_entries ? light_pick(&job->lights, u0) : 0;
+    if (job->lights.num_entries == 0 || job->lights.entries[i].kind != LK_TRIANGLE || !(job->lights.pick_pdf[i] > 0.0f))
+        return scatter_nee(job, x, d_out, medium, g, 1, u0, u1, u2, time01, key, rays, 0, fc);
+    vec3 v[3], n;
+    struct sph_tri t;
+    light_triangle(job, i, v, &n);
+    if (!(v3_dot(n, v3_sub(x, v[0])) > 0.0f))
+        return v3(0, 0, 0); /* behind the lamp: its back emits nothing */
+    if (!sph_init(&t, x, v[0], v[1], v[2]))
+        return scatter_nee(job, x, d_out, medium, g, 1, u0, u1, u2, time01, key, rays, 0, fc);
+    double w[3];
+    if (!sph_sample(&t, u1, u2, w))
+        return v3(0, 0, 0);
+    /* the direction's hit on the triangle's plane */
+    double pv[3], nd[3] = {n.x, n.y, n.z};
+    d3_sub(pv, v[0], x);
+    double wn = d3_dot(w, nd), dist = d3_dot(pv, nd) / wn;
+    if (!(wn < 0.0) || !(dist > 0.0) || !isfinite(dist))
+        return v3(0, 0, 0);
+    vec3 wi = v3((float)w[0], (float)w[1], (float)w[2]);
+    vec3 c = v3((float)(x.x + dist * w[0]), (float)(x.y + dist * w[1]), (float)(x.z + dist * w[2]));
+    float lp_s = (float)(job->lights.pick_pdf[i] / t.omega), lp_a = light_pdf(&job->lights, job->scene, i, x, c, n);
+    float ph = phase_hg_cut(v3_dot(v3_neg(wi), d_out), g);
+    vec3 tr = media_shadow_transmittance(job->media, x, offset_ray_origin(c, n), medium, time01, key, rays);
+    if (v3_is_black(tr))
+        return v3(0, 0, 0);
+    struct equi e;
+    float pf = flight_pdf(fc, fc->t), pe = 0.0f;
+    if (equi_init(&e, fc->o, fc->d, c, fc->tend, fc->eps) && fc->t < fc->tend)
+        pe = equi_pdf(&e, fc->t);
+    float den = pf * lp_s + pe * lp_a;
+    if (!(den > 0.0f) || !isfinite(den))
+        return v3(0, 0, 0);
+    return v3_scale(v3_mul(job->lights.entries[i].emission, tr), ph * pf / den);
+}
+
 #define MARCH_ALL_LIGHTS 4
 /* Jensen's methods sample every light when the scene has at most MARCH_ALL_LIGHTS, all
  * point or spot lights. */
@@ -246,6 +407,13 @@ static vec3 equiangular(const struct render_job *job, const struct rngs *r, uint
         li = v3_scale(e->emission, 1.0f / lp);
         if (fc->trunc == FL_FREE)
             w *= power_heuristic(lp, ph);
+        if (fc->trunc == FL_TRUNC) {
+            /* gather_segment's points may sample the lamp by solid angle (point_nee): the
+             * balance heuristic with both densities in solid angle at x */
+            float lq = point_nee_pdf(job, i, x, c, n);
+            double de = (double)pe * lp, dp = (double)pf * lq;
+            w = (float)(de / (de + dp));
+        }
         target = offset_ray_origin(c, v3_dot(n, wi) < 0.0f ? n : v3_neg(n));
     }
     if (v3_is_black(li))
@@ -404,8 +572,9 @@ static float march_reach(const struct media_job *mj, const struct medium *md, ve
 /* March and beam in a homogeneous medium wherever a march is not needed: single
  * scattering from `points` points instead of a march, t stratified in an exponential
  * truncated to the segment (so the points lie inside it even in thin fog), NEE at each
- * weighted against one equiangular sample toward a point light or a point on an area light
- * as in VPT, times Tr(t) / (points pdf(t)). After the first non-delta bounce (the final
+ * (point_nee: an emissive triangle sampled by solid angle) weighted against one
+ * equiangular sample toward a point light or a point on an area light as in VPT, times
+ * Tr(t) / (points pdf(t)). After the first non-delta bounce (the final
  * gather's bounce and any segment after it) one point: these paths, spread over the
  * hemisphere, average the extra noise away. On camera segments when lights are picked one
  * at a time, CAMERA_POINTS points: a march's step takes one shadow ray per step (about 170
@@ -439,8 +608,8 @@ static vec3 gather_segment(const struct render_job *job, const struct media_job 
                 u0 = rng_uniform(pk, 0), u1 = rng_uniform(pk, 1), u2 = rng_uniform(pk, 2);
                 skey = rng_mix64(skey ^ ((uint64_t)k << 32));
             }
-            vec3 in = v3_mul(md->sigma_s, scatter_nee(job, x, v3_neg(d), medium, md->g, 1, u0, u1, u2, time01, skey,
-                                                      rays, 0, &fc));
+            vec3 in = v3_mul(md->sigma_s, point_nee(job, x, v3_neg(d), medium, md->g, u0, u1, u2, time01, skey, rays,
+                                                    &fc));
             ss = v3_add(ss, v3_scale(v3_mul(medium_transmittance(md, fc.t), in),
                                      1.0f / ((float)points * trunc_pdf(s, len, fc.t))));
         }
