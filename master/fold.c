@@ -24,7 +24,7 @@ struct fold_early {
 
 struct fold_tile {
     uint32_t folded;            /* slots 0..folded-1 are in acc */
-    uint32_t in;                /* slots given */
+    uint32_t in;                /* units given (fold_add_take) */
     int final;                  /* finished: takes nothing more */
     struct pass_pixel *acc;     /* per pixel, NULL before the first pass */
     struct fold_early *early;   /* per slot */
@@ -41,10 +41,7 @@ struct fold {
      * reused, a tile's start costs a memset, not fresh pages */
     struct pass_pixel **spare;
     uint32_t num_spare, cap_spare;
-    int defer;                  /* fold_defer */
 };
-
-void fold_defer(struct fold *f, int on) { f->defer = on; }
 
 struct fold *fold_new(const struct image_desc *desc, uint32_t passes, uint32_t spp_per_pass, uint32_t streams)
 {
@@ -220,15 +217,9 @@ uint32_t fold_add_slot(struct fold *f, uint32_t tile, uint32_t slot, uint32_t pa
     struct fold_tile *t = &f->tiles[tile];
     CHECK(!t->final);
     size_t pixels = tile_pixels(f, tile);
-    if (!t->early)
-        t->early = mem_calloc(f->passes, sizeof *t->early);
-    t->in++;
-    if (!t->acc && f->defer && t->in < f->passes) { /* folded with the last one */
-        keep_early(f, t, pixels, slot, pass, mask, px);
-        return t->folded;
-    }
     if (!t->acc) {
         t->acc = acc_get(f, pixels);
+        t->early = mem_calloc(f->passes, sizeof *t->early);
         fold_aovs_start(f, t, pixels);
     }
     if (slot != t->folded) {
@@ -282,7 +273,7 @@ struct fold_units {
 
 struct fold_units *fold_add_take(struct fold *f, uint32_t tile, uint32_t pass, const float *px)
 {
-    CHECK(f->defer && tile < f->num_tiles && pass < f->passes);
+    CHECK(tile < f->num_tiles && pass < f->passes);
     struct fold_tile *t = &f->tiles[tile];
     CHECK(!t->final && !t->acc);
     if (!t->early)

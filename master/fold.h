@@ -24,13 +24,6 @@ struct fold;
  * pass p in stream p mod streams (integrator_streams). */
 struct fold *fold_new(const struct image_desc *desc, uint32_t passes, uint32_t spp_per_pass, uint32_t streams);
 void fold_free(struct fold **f);
-/* on: a tile's units are kept as they come (copies: w*h pixels of the unit's channels,
- * less than a tenth of the per-pixel batch sums) and folded, in slot order, only when its
- * last one is in, so a tile waiting for its other passes holds little memory and the
- * batch sums are a reused buffer. The same bits; for renders whose every tile gets all
- * `passes` units and that read no sums of unfinished tiles (fold_block_sums): not
- * adaptive ones. */
-void fold_defer(struct fold *f, int on);
 /* A new frame: nothing folded or buffered. */
 void fold_reset(struct fold *f);
 /* The output layout: desc's beauty channels, the samples channel, desc's AOVs. */
@@ -51,9 +44,13 @@ uint32_t fold_add_slot(struct fold *f, uint32_t tile, uint32_t slot, uint32_t pa
  * samples: the passes each pixel's block received) into out (w*h pixels of desc->num_channels + 1), its relative standard errors
  * added to stats; the tile then takes nothing more. */
 void fold_finish(struct fold *f, uint32_t tile, float *out, struct tile_stats *stats);
-/* With fold_defer, the master's way to fold on another thread: gives unit (tile, pass)
- * (copied) and, when it is the tile's last, takes the tile's units out (the tile is final
- * then) and returns them, else NULL. fold_run then folds them in slot order and finishes
+/* The master's way for renders whose every tile gets all `passes` units and that read no
+ * sums of unfinished tiles (fold_block_sums; not adaptive ones): a tile's units are kept
+ * as they come (copies: w*h pixels of the unit's channels, less than a tenth of the
+ * per-pixel batch sums) and folded only when its last one is in, in slot order, on any
+ * thread. fold_add_take gives unit (tile, pass) (copied) and, when it is the tile's last,
+ * takes the tile's units out (the tile is final then) and returns them, else NULL; a tile
+ * takes units either this way or through fold_add_slot, not both. fold_run then folds them in slot order and finishes
  * the tile into out, bit for bit as fold_add would (stats: the tile's relative errors
  * added), with *scratch (*scratch_size bytes, grown as needed; one per thread, freed by
  * its owner); it reads only f's settings, so it runs on any thread while the caller goes

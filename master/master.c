@@ -179,6 +179,8 @@ struct master {
     struct fold *fold;          /* passes >= 2: a tile's pass means folded in pass order */
     struct imgio_encoder *enc;  /* encodes folded tiles */
     float *fold_out;
+    void *fold_scratch;         /* fold_run's without the checker pool */
+    size_t fold_scratch_size;
     struct pass_map *maps;      /* per pass */
     uint32_t maps_published;    /* passes 0..maps_published-1 have their map announced */
     uint32_t maps_frame;        /* the frame the maps are traced for */
@@ -480,8 +482,6 @@ static void setup_tiles(struct master *m)
         m->slot_mask = mem_calloc(m->num_units, sizeof *m->slot_mask);
         free(pixels);
     }
-    if (m->fold && !m->adapt) /* every tile gets its passes; nobody reads an unfinished tile's sums */
-        fold_defer(m->fold, 1);
 }
 
 /* Tile, pass and blocks of unit u (adaptive: what its slot was released for). */
@@ -1251,20 +1251,23 @@ static int unit_keep(struct master *m, uint32_t unit, const struct tile_stats *s
             return adapt_round_end(m);
         return 0;
     }
-    if (m->checker) { /* folded and encoded by the pool once the tile's last pass is in (fold_defer) */
-        struct fold_units *u = fold_add_take(m->fold, tile, unit_pass(m, unit), m->decode_scratch);
-        if (u) {
-            struct check_item *it = checker_item_new(m->checker);
-            it->kind = CHECK_FOLD;
-            it->peer = -1;
-            it->unit = tile;
-            it->units = u;
-            checker_submit(m->checker, it);
-        }
+    /* Every tile gets all its passes, and nobody reads an unfinished tile's sums: its units
+     * are kept until its last is in, then folded (fold_add_take), by the pool if there is
+     * one, which also encodes the tile. */
+    struct fold_units *u = fold_add_take(m->fold, tile, unit_pass(m, unit), m->decode_scratch);
+    if (!u)
+        return 0;
+    if (m->checker) {
+        struct check_item *it = checker_item_new(m->checker);
+        it->kind = CHECK_FOLD;
+        it->peer = -1;
+        it->unit = tile;
+        it->units = u;
+        checker_submit(m->checker, it);
         return 0;
     }
-    if (!fold_add(m->fold, tile, unit_pass(m, unit), m->decode_scratch, m->fold_out, &m->stats))
-        return 0;
+    fold_run(m->fold, u, &m->fold_scratch, &m->fold_scratch_size, m->fold_out, &m->stats);
+    fold_units_free(&u);
     return tile_encode_folded(m, tile);
 }
 
@@ -2606,6 +2609,7 @@ done:
     free(m.slot_mask);
     imgio_encoder_free(&m.enc);
     free(m.fold_out);
+    free(m.fold_scratch);
     free(m.maps);
     free(m.local_pids);
     free(m.manifest);
