@@ -249,16 +249,6 @@ static int sph_sample(const struct sph_tri *t, double u1, double u2, double *w)
     return 1;
 }
 
-/* The emissive triangle of light entry i: its vertices (the corners of
- * light_triangle_point's parametrisation) and normal. */
-static void light_triangle(const struct render_job *job, uint32_t i, vec3 *v, vec3 *n)
-{
-    vec3 m;
-    light_triangle_point(&job->lights, job->scene, i, 0.0f, 0.0f, &v[0], n);
-    light_triangle_point(&job->lights, job->scene, i, 1.0f, 1.0f, &v[1], &m);
-    light_triangle_point(&job->lights, job->scene, i, 1.0f, 0.0f, &v[2], &m);
-}
-
 /* The solid-angle density gather_segment's NEE gives the point c (normal n) of emissive
  * triangle i seen from x, with the pick: pick / omega when the triangle is sampled by solid
  * angle from x, else light_pdf's (area sampling); 0 from behind the lamp. */
@@ -266,7 +256,7 @@ static float point_nee_pdf(const struct render_job *job, uint32_t i, vec3 x, vec
 {
     vec3 v[3], nn;
     struct sph_tri t;
-    light_triangle(job, i, v, &nn);
+    light_triangle_vertices(&job->lights, job->scene, i, v, &nn);
     if (v3_dot(nn, v3_sub(x, v[0])) > 0.0f && sph_init(&t, x, v[0], v[1], v[2]))
         return (float)(job->lights.pick_pdf[i] / t.omega);
     return light_pdf(&job->lights, job->scene, i, x, c, n);
@@ -286,7 +276,7 @@ static vec3 point_nee(const struct render_job *job, vec3 x, vec3 d_out, uint32_t
         return scatter_nee(job, x, d_out, medium, g, 1, u0, u1, u2, time01, key, rays, 0, fc);
     vec3 v[3], n;
     struct sph_tri t;
-    light_triangle(job, i, v, &n);
+    light_triangle_vertices(&job->lights, job->scene, i, v, &n);
     if (!(v3_dot(n, v3_sub(x, v[0])) > 0.0f))
         return v3(0, 0, 0); /* behind the lamp: its back emits nothing */
     if (!sph_init(&t, x, v[0], v[1], v[2]))

@@ -198,16 +198,24 @@ static float sphere_cone_one_minus_cos(float r, float dist)
     return sin2 / (1.0f + cos_max);
 }
 
-void light_triangle_point(const struct light_table *t, const struct scene *s, uint32_t entry, float u1, float u2,
-                          vec3 *p, vec3 *n)
+void light_triangle_vertices(const struct light_table *t, const struct scene *s, uint32_t entry, vec3 v[3], vec3 *n)
 {
     const struct light_entry *e = &t->entries[entry];
     const struct mesh *m = &s->meshes[e->index];
-    vec3 a = tri_vertex(m, e->prim, 0), b = tri_vertex(m, e->prim, 1), c = tri_vertex(m, e->prim, 2);
+    for (int k = 0; k < 3; k++)
+        v[k] = tri_vertex(m, e->prim, k);
+    *n = v3_normalize(v3_cross(v3_sub(v[1], v[0]), v3_sub(v[2], v[0])));
+}
+
+void light_triangle_point(const struct light_table *t, const struct scene *s, uint32_t entry, float u1, float u2,
+                          vec3 *p, vec3 *n)
+{
+    vec3 v[3];
+    light_triangle_vertices(t, s, entry, v, n);
+    vec3 a = v[0], b = v[1], c = v[2];
     float su = sqrtf(u1);
     float b0 = 1.0f - su, b1 = u2 * su;
     *p = v3_add(v3_add(v3_scale(a, b0), v3_scale(b, b1)), v3_scale(c, 1.0f - b0 - b1));
-    *n = v3_normalize(v3_cross(v3_sub(b, a), v3_sub(c, a)));
 }
 
 void light_sample(const struct light_table *t, const struct scene *s, vec3 ref, float u_pick, float u1,

@@ -74,6 +74,9 @@ void light_sample(const struct light_table *t, const struct scene *s, vec3 ref, 
  * (equiangular sampling toward an area light). */
 void light_triangle_point(const struct light_table *t, const struct scene *s, uint32_t entry, float u1, float u2,
                           vec3 *p, vec3 *n);
+/* The emissive triangle `entry` (LK_TRIANGLE): its vertices in the mesh's order and its
+ * normal (the one light_triangle_point gives). */
+void light_triangle_vertices(const struct light_table *t, const struct scene *s, uint32_t entry, vec3 v[3], vec3 *n);
 
 /* Solid-angle pdf (pick included) that light_sample would have produced point p_light
  * with light normal n_light on emitter `entry`, seen from ref. */
