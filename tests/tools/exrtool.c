@@ -39,7 +39,7 @@
  *                                value over the K renders (the mean over R,G,B of the variance of
  *                                one render), so v / n is the error variance at n spp. Uniform cost
  *                                per sample. For square units of 1, 2, 4, 8, 16 and 32 pixels (a
- *                                grid from the image's corner: the adaptive render's blocks are 8,
+ *                                grid from the image's corner: the adaptive render's blocks are 4,
  *                                its tiles 32) prints the best equal-error time ratio of any
  *                                allocation to uniform spp, (sum sqrt(V_u P_u))^2 / (sum V * pixels)
  *                                (V_u: the unit's v summed, P_u its pixels, as its cost); with
