@@ -338,6 +338,21 @@ void fold_tile_sums(const struct fold *f, uint32_t tile, double *sum_var, double
     fold_block_sums(f, tile, TILE_MASK_ALL, sum_var, sum_var_sq, sum_mean);
 }
 
+/* A pixel's terms of the block sums: the variance of its mean, its square over q + 1, its mean. */
+static void pixel_sums(const struct pass_batch *b, double *pv, double *pv2, double *mu)
+{
+    double v = (pass_batch_var_of_mean(b, 0) + pass_batch_var_of_mean(b, 1) + pass_batch_var_of_mean(b, 2)) / 3.0;
+    uint32_t q = 0;
+    for (uint32_t s = 0; s < SAMPLER_MAX_STREAMS; s++)
+        q += b->count[s] > 0;
+    *pv = v;
+    /* sigma^4 / (q - 1) estimated without bias: a variance s^2 from q - 1 degrees of
+     * freedom has E[s^4] = sigma^4 (q + 1) / (q - 1), so s^4 / (q + 1). (s^4 / (q - 1)
+     * counted a pixel's noise 3x over with 2 streams: a third of the degrees of freedom.) */
+    *pv2 = q > 1 ? v * v / (q + 1) : 0.0;
+    *mu = (b->mean[0] + b->mean[1] + b->mean[2]) / 3.0;
+}
+
 void fold_block_sums(const struct fold *f, uint32_t tile, uint64_t mask, double *sum_var, double *sum_var_sq,
                      double *sum_mean)
 {
@@ -349,21 +364,35 @@ void fold_block_sums(const struct fold *f, uint32_t tile, uint64_t mask, double 
     for (size_t i = 0; t->acc && i < pixels; i++) {
         if (mask != TILE_MASK_ALL && !(mask >> pixel_block(f, w, i) & 1))
             continue;
-        const struct pass_batch *b = &t->acc[i].b;
-        double pv = (pass_batch_var_of_mean(b, 0) + pass_batch_var_of_mean(b, 1) + pass_batch_var_of_mean(b, 2)) / 3.0;
-        uint32_t q = 0;
-        for (uint32_t s = 0; s < SAMPLER_MAX_STREAMS; s++)
-            q += b->count[s] > 0;
+        double pv, pv2, pmu;
+        pixel_sums(&t->acc[i].b, &pv, &pv2, &pmu);
         v += pv;
-        /* sigma^4 / (q - 1) estimated without bias: a variance s^2 from q - 1 degrees of
-         * freedom has E[s^4] = sigma^4 (q + 1) / (q - 1), so s^4 / (q + 1). (s^4 / (q - 1)
-         * counted a pixel's noise 3x over with 2 streams: a third of the degrees of freedom.) */
-        v2 += q > 1 ? pv * pv / (q + 1) : 0.0;
-        mu += (b->mean[0] + b->mean[1] + b->mean[2]) / 3.0;
+        v2 += pv2;
+        mu += pmu;
     }
     *sum_var = v;
     *sum_var_sq = v2;
     *sum_mean = mu;
+}
+
+void fold_blocks_sums(const struct fold *f, uint32_t tile, double *sum_var, double *sum_var_sq, double *sum_mean)
+{
+    CHECK(tile < f->num_tiles);
+    const struct fold_tile *t = &f->tiles[tile];
+    uint32_t nb = tile_blocks_side(f->desc.tile_size) * tile_blocks_side(f->desc.tile_size);
+    for (uint32_t b = 0; b < nb; b++)
+        sum_var[b] = sum_var_sq[b] = sum_mean[b] = 0.0;
+    size_t pixels = tile_pixels(f, tile);
+    uint32_t w = tile_width(f, tile);
+    /* Each block's pixels are added in pixel order, as fold_block_sums adds them: the same bits. */
+    for (size_t i = 0; t->acc && i < pixels; i++) {
+        uint32_t b = pixel_block(f, w, i);
+        double pv, pv2, pmu;
+        pixel_sums(&t->acc[i].b, &pv, &pv2, &pmu);
+        sum_var[b] += pv;
+        sum_var_sq[b] += pv2;
+        sum_mean[b] += pmu;
+    }
 }
 
 struct fold_est {

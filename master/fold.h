@@ -72,6 +72,10 @@ void fold_tile_sums(const struct fold *f, uint32_t tile, double *sum_var, double
 /* The same over the pixels of the blocks in mask only (one block: 1 << b). */
 void fold_block_sums(const struct fold *f, uint32_t tile, uint64_t mask, double *sum_var, double *sum_var_sq,
                      double *sum_mean);
+/* fold_block_sums of every block b of the tile (render/tile.h: tile_blocks_side^2 of them)
+ * into sum_var[b], sum_var_sq[b], sum_mean[b], in one pass over the tile's pixels (the
+ * same bits as one call per block; a block past the tile's edge gets zeros). */
+void fold_blocks_sums(const struct fold *f, uint32_t tile, double *sum_var, double *sum_var_sq, double *sum_mean);
 
 /* The image's estimated relRMSE (the summary's figure, the EXR's brume_est_rel_rmse) from
  * its final tiles' pixels, as they lie in the output (with one pass the workers' tiles,

@@ -1166,11 +1166,17 @@ static void adapt_release(struct master *m)
 static int adapt_round_end(struct master *m)
 {
     struct adapt *a = m->adapt;
-    for (uint32_t t = 0; t < m->num_tiles; t++)
+    enum { NB = TILE_MAX_BLOCKS_SIDE * TILE_MAX_BLOCKS_SIDE };
+    double v[NB], v2[NB], mu[NB];
+    for (uint32_t t = 0; t < m->num_tiles; t++) {
+        fold_blocks_sums(m->fold, t, v, v2, mu); /* one pass over the tile */
         for (uint32_t b = 0; b < m->blocks_side * m->blocks_side; b++) {
             struct adapt_tile *at = &a->tiles[cell_of(m, t, b)];
-            fold_block_sums(m->fold, t, (uint64_t)1 << b, &at->sum_var, &at->sum_var_sq, &at->sum_mean);
+            at->sum_var = v[b];
+            at->sum_var_sq = v2[b];
+            at->sum_mean = mu[b];
         }
+    }
     uint32_t round = a->round;
     const char *why = NULL;
     if (adapt_decide(a, m->time_up, m->stats.samples)) {

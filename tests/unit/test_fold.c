@@ -336,3 +336,48 @@ Test(fold, slots_of_blocks_fold_as_each_block_s_own_passes)
     free(out);
     free(ref);
 }
+
+/* The sums of every block of a tile in one pass (fold_blocks_sums) have the bits of one
+ * fold_block_sums per block: 32-px tiles of 8 x 8 blocks, an edge tile cut in both ways
+ * (44x20: tiles of 32x20 and 12x20), blocks at different passes, a tile with nothing folded. */
+Test(fold, blocks_sums_in_one_pass_are_the_per_block_sums)
+{
+    struct render_settings rs;
+    memset(&rs, 0, sizeof rs);
+    rs.width = 44;
+    rs.height = 20;
+    rs.tile_size = 32;
+    struct image_desc d;
+    tile_image_desc(&d, &rs);
+    enum { NB = TILE_MAX_BLOCKS_SIDE * TILE_MAX_BLOCKS_SIDE };
+    cr_assert_eq(tile_blocks_side(32) * tile_blocks_side(32), (uint32_t)NB);
+    const uint64_t slot_mask[4] = {TILE_MASK_ALL, TILE_MASK_ALL, 0x00ff00ff00ff00ffull, 0x0f0f0f0f0f0f0f0full};
+    float *px = malloc(sizeof(float) * 32 * 32 * TILE_NUM_CHANNELS);
+    struct fold *f = fold_new(&d, 8, 3, SAMPLER_STREAMS);
+    for (uint32_t t = 0; t < 2; t++) {
+        uint32_t x0, y0, w, h;
+        imgio_tile_rect(&d, t, 0, &x0, &y0, &w, &h);
+        for (uint32_t s = 0; s < 4; s++) {
+            pass_pixels(t, s, (size_t)w * h, px);
+            fold_add_slot(f, t, s, s, slot_mask[s], px);
+        }
+    }
+    struct fold *g = fold_new(&d, 8, 3, SAMPLER_STREAMS); /* nothing folded */
+    const struct fold *both[2] = {f, g};
+    for (uint32_t k = 0; k < 2; k++)
+        for (uint32_t t = 0; t < 2; t++) {
+            double v[NB], v2[NB], mu[NB];
+            fold_blocks_sums(both[k], t, v, v2, mu);
+            for (uint32_t b = 0; b < NB; b++) {
+                double bv, bv2, bmu;
+                fold_block_sums(both[k], t, (uint64_t)1 << b, &bv, &bv2, &bmu);
+                cr_assert(memcmp(&bv, &v[b], sizeof bv) == 0 && memcmp(&bv2, &v2[b], sizeof bv2) == 0 &&
+                              memcmp(&bmu, &mu[b], sizeof bmu) == 0,
+                          "fold %u tile %u block %u: the same bits as the block's own sums", k, t, b);
+                cr_assert(k == 1 || t == 1 || b >= 40 || (v[b] > 0.0 && mu[b] > 0.0), "tile 0 block %u has pixels", b);
+            }
+        }
+    fold_free(&f);
+    fold_free(&g);
+    free(px);
+}
