@@ -21,6 +21,7 @@ struct adapt *adapt_new(uint32_t num_tiles, uint32_t tiles_x, const uint32_t *pi
     a->max_rounds = max_rounds;
     a->prior_dof = ADAPT_PRIOR_DOF;
     a->confidence_z = ADAPT_CONFIDENCE_Z;
+    a->uniform_gain = ADAPT_UNIFORM_GAIN;
     a->first_passes = ADAPT_FIRST_PASSES;
     a->tiles = mem_calloc(num_tiles ? num_tiles : 1, sizeof *a->tiles);
     for (uint32_t t = 0; t < num_tiles; t++)
@@ -51,6 +52,8 @@ void adapt_begin(struct adapt *a)
     a->round = 0;
     a->finished = 0;
     a->est = a->est_raw = a->dof = a->aim = 0.0;
+    a->uniform = 0;
+    a->predicted = 0.0;
     a->num_history = 0;
     a->outstanding = 0;
     for (uint32_t t = 0; t < a->num_tiles; t++) {
@@ -97,10 +100,11 @@ static void sort_by_gain(uint32_t *up, double *gain, uint32_t n)
     free(tg);
 }
 
-uint64_t adapt_allocate(uint32_t num_tiles, const double *v, const double *c, const uint32_t *m, double budget,
-                        uint32_t max_passes, uint32_t growth, uint32_t step, uint32_t *n)
+/* The continuous optimum of adapt_allocate (before the growth limit and the step): want[t]
+ * >= m[t], at most max_passes, by Lagrange with clamping. */
+static void lagrange(uint32_t num_tiles, const double *v, const double *c, const uint32_t *m, double budget,
+                     uint32_t max_passes, double *want)
 {
-    double *want = mem_alloc(sizeof *want * (num_tiles ? num_tiles : 1));
     uint8_t *fixed = mem_calloc(num_tiles ? num_tiles : 1, 1);
     double fixed_var = 0.0;
     for (uint32_t t = 0; t < num_tiles; t++) {
@@ -141,6 +145,14 @@ uint64_t adapt_allocate(uint32_t num_tiles, const double *v, const double *c, co
         if (!changed || !(free_budget > 0.0))
             break;
     }
+    free(fixed);
+}
+
+uint64_t adapt_allocate(uint32_t num_tiles, const double *v, const double *c, const uint32_t *m, double budget,
+                        uint32_t max_passes, uint32_t growth, uint32_t step, uint32_t *n)
+{
+    double *want = mem_alloc(sizeof *want * (num_tiles ? num_tiles : 1));
+    lagrange(num_tiles, v, c, m, budget, max_passes, want);
     /* Rounding to the step: every tile down (an optimum on a step stays), then one step up
      * for the tiles whose step buys the most variance per cost, until the budget is met:
      * the projected variance lands on the budget instead of past it by a step a tile. */
@@ -176,8 +188,70 @@ uint64_t adapt_allocate(uint32_t num_tiles, const double *v, const double *c, co
         added += n[t] - m[t];
     free(up);
     free(want);
-    free(fixed);
     return added;
+}
+
+/* sum over the rendered tiles of v m / max(level, m): their projected variance at one level. */
+static double projected_at(uint32_t num_tiles, const double *v, const uint32_t *m, double level)
+{
+    double proj = 0.0;
+    for (uint32_t t = 0; t < num_tiles; t++)
+        if (m[t] > 0 && v[t] > 0.0)
+            proj += v[t] * m[t] / (level > m[t] ? level : m[t]);
+    return proj;
+}
+
+uint64_t adapt_uniform(uint32_t num_tiles, const double *v, const uint32_t *m, double budget, uint32_t max_passes,
+                       uint32_t growth, uint32_t step, uint32_t *n)
+{
+    uint32_t lo = 0, least = 0;
+    for (uint32_t t = 0; t < num_tiles; t++)
+        if (m[t] > 0) {
+            lo = m[t] > lo ? m[t] : lo;
+            least = least == 0 || m[t] < least ? m[t] : least;
+        }
+    uint64_t added = 0;
+    if (lo > 0) {
+        uint64_t g = (uint64_t)least * growth;
+        uint32_t hi = g < max_passes ? (uint32_t)g : max_passes;
+        uint32_t klo = (lo + step - 1) / step, khi = hi / step;
+        khi = khi < klo ? klo : khi;
+        /* the fewest steps whose level meets the budget (the projection falls with the level), or the most */
+        while (klo < khi) {
+            uint32_t k = klo + (khi - klo) / 2;
+            if (projected_at(num_tiles, v, m, (double)k * step) <= budget)
+                khi = k;
+            else
+                klo = k + 1;
+        }
+        lo = klo * step;
+    }
+    for (uint32_t t = 0; t < num_tiles; t++) {
+        n[t] = m[t] > 0 && lo > m[t] ? lo : m[t];
+        added += n[t] - m[t];
+    }
+    return added;
+}
+
+double adapt_predicted_ratio(uint32_t num_tiles, const double *v, const double *c, const uint32_t *m, double budget,
+                             uint32_t max_passes)
+{
+    double *want = mem_alloc(sizeof *want * (num_tiles ? num_tiles : 1));
+    lagrange(num_tiles, v, c, m, budget, max_passes, want);
+    double top = 0.0;
+    for (uint32_t t = 0; t < num_tiles; t++)
+        top = m[t] > top ? m[t] : top;
+    /* the one level for every tile: sum v m / level = budget, at least every tile's passes, at most the cap */
+    double level = budget > 0.0 ? projected_at(num_tiles, v, m, top) * top / budget : (double)max_passes;
+    level = level < top ? top : level > max_passes ? max_passes : level;
+    double alloc = 0.0, uniform = 0.0;
+    for (uint32_t t = 0; t < num_tiles; t++)
+        if (m[t] > 0) {
+            alloc += c[t] * want[t];
+            uniform += c[t] * level;
+        }
+    free(want);
+    return uniform > 0.0 ? alloc / uniform : 1.0;
 }
 
 double adapt_image_estimate(const struct adapt *a)
@@ -271,7 +345,12 @@ int adapt_decide(struct adapt *a, int stop, uint64_t samples_total)
         }
         /* relRMSE^2 = (sum var / pixels) / (sum mean / pixels)^2 <= aim^2 */
         double budget = a->aim * a->aim * mean * mean / pixels;
-        added = adapt_allocate(n_tiles, v, c, m, budget, a->max_passes, ADAPT_GROWTH, a->step, n);
+        if (a->round == 0) { /* the pilot's decision, for the whole frame: adapt or uniform passes */
+            a->predicted = adapt_predicted_ratio(n_tiles, v, c, m, budget, a->max_passes);
+            a->uniform = a->predicted > a->uniform_gain;
+        }
+        added = a->uniform ? adapt_uniform(n_tiles, v, m, budget, a->max_passes, ADAPT_GROWTH, a->step, n)
+                           : adapt_allocate(n_tiles, v, c, m, budget, a->max_passes, ADAPT_GROWTH, a->step, n);
         a->outstanding = 0;
         for (uint32_t t = 0; t < n_tiles; t++) {
             a->outstanding += n[t] - a->tiles[t].passes;

@@ -18,6 +18,12 @@
  * target by ADAPT_CONFIDENCE_Z standard deviations of the image estimate's own error. */
 #define ADAPT_PRIOR_DOF 4.0
 #define ADAPT_CONFIDENCE_Z 1.0
+/* The uniform fallback: when the pilot (round 0) predicts that the allocation would need
+ * more than this fraction of the work of uniform passes to the same aim
+ * (adapt_predicted_ratio), the frame renders uniform passes instead (adapt_uniform): a
+ * saving that small does not pay for what the work leaves out (an adaptive render's units,
+ * and its noisy blocks' dearer rays, docs/adaptive.md). */
+#define ADAPT_UNIFORM_GAIN 0.8
 
 /* A tile's state as the rounds see it. The master's "tiles" here are the pixel blocks of
  * the render's tiles (render/tile.h: a unit renders some blocks of a tile), in a grid of
@@ -45,6 +51,9 @@ struct adapt {
     double dof;             /* the effective degrees of freedom of est's variance */
     double aim;             /* what est must reach: the target less est's own uncertainty */
     double prior_dof, confidence_z; /* ADAPT_PRIOR_DOF, ADAPT_CONFIDENCE_Z (0, 0: the tiles' own figures) */
+    double uniform_gain;    /* ADAPT_UNIFORM_GAIN (2: never uniform passes, 0: always) */
+    int uniform;            /* the pilot chose uniform passes: every tile at one level from round 1 on */
+    double predicted;       /* at the pilot: adapt_predicted_ratio (0 before, or when round 0 was the last) */
     uint32_t first_passes;  /* round 0's passes (before rounding up to step) */
     uint32_t num_history;   /* (samples, estimate) at each decision: the ETA's fit */
     double hist_samples[ADAPT_MAX_HISTORY], hist_est[ADAPT_MAX_HISTORY];
@@ -76,6 +85,20 @@ void adapt_begin(struct adapt *a);
  * n; returns the passes added. */
 uint64_t adapt_allocate(uint32_t num_tiles, const double *v, const double *c, const uint32_t *m, double budget,
                         uint32_t max_passes, uint32_t growth, uint32_t step, uint32_t *n);
+/* Uniform passes to the budget: every tile that has passes (m[t] > 0: one not rendered
+ * keeps 0) gets one level n, the fewest multiple of step, at least every m[t], with sum_t
+ * v[t] m[t] / max(n, m[t]) <= budget, at most max_passes and growth x the fewest m[t] (the
+ * most of those when none meets it). Writes n; returns the passes added. */
+uint64_t adapt_uniform(uint32_t num_tiles, const double *v, const uint32_t *m, double budget, uint32_t max_passes,
+                       uint32_t growth, uint32_t step, uint32_t *n);
+/* From the pilot's tiles (v, c, m as adapt_allocate's: the pooled variances the rounds
+ * allocate by): the work (sum c n) of the allocation's continuous optimum (no growth limit,
+ * no step) over that of one level for every tile meeting the same budget (sum v m / level
+ * = budget, at least every m, at most max_passes), over the tiles with m > 0; 1 when
+ * nothing is rendered. At most 1 when the budget can be met. Chosen and judged on the same
+ * noisy figures, it is below what the rounds reach (docs/adaptive.md). */
+double adapt_predicted_ratio(uint32_t num_tiles, const double *v, const double *c, const uint32_t *m, double budget,
+                             uint32_t max_passes);
 /* The image's estimated relRMSE from the tiles' sums: sqrt(sum var / pixels) / (sum mean /
  * pixels); 0 for a black image. */
 double adapt_image_estimate(const struct adapt *a);
@@ -94,7 +117,9 @@ double adapt_pool(const struct adapt *a, double *v, double *dof);
  * reached, or stop set: the time limit). The target is met when the pooled estimate est
  * is at most aim = target / (1 + Z / sqrt(2 dof)): a relRMSE estimated from dof degrees
  * of freedom is off by about 1 / sqrt(2 dof) of itself, Z = a->confidence_z. The
- * allocation aims at the same figure. */
+ * allocation aims at the same figure. Round 0's decision (the pilot's) also chooses, for
+ * the frame, between the allocation and uniform passes (ADAPT_UNIFORM_GAIN): a->uniform,
+ * a->predicted. */
 int adapt_decide(struct adapt *a, int stop, uint64_t samples_total);
 /* Units that take one tile's blocks from old[b] to now[b] passes (b < nb): one unit per
  * pass p some block gets (old[b] <= p < now[b]), rendering the blocks that get it. */

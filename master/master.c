@@ -1180,6 +1180,9 @@ static int adapt_round_end(struct master *m)
     uint32_t round = a->round;
     const char *why = NULL;
     if (adapt_decide(a, m->time_up, m->stats.samples)) {
+        if (round == 0)
+            log_info("adaptive: the pilot predicts the allocation at %.3f of uniform passes' work (fallback above %g): %s",
+                     a->predicted, a->uniform_gain, a->uniform ? "uniform passes" : "passes per block");
         adapt_release(m);
         uint64_t units = a->outstanding;
         if (units > 0) {
@@ -1961,6 +1964,8 @@ static int write_stats(const struct master *m, int ok, char *err, size_t errlen)
         json_object_set_new(root, "target_error", json_real(m->target_error));
         json_object_set_new(root, "rounds", json_integer(m->adapt->round + 1));
         json_object_set_new(root, "time_limited", json_boolean(m->time_up));
+        json_object_set_new(root, "uniform_passes", json_boolean(m->adapt->uniform));
+        json_object_set_new(root, "predicted_work_ratio", json_real(m->adapt->predicted));
     }
     for (uint32_t i = 0; i < m->num_peers; i++) {
         json_t *w = json_object();

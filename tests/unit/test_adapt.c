@@ -426,3 +426,67 @@ Test(adapt, units_of_a_tile_and_their_room)
     cr_assert_eq(adapt_fit_units(old, n2, 4, 3), 0, "no room: nothing grows");
     cr_assert(n2[1] == 8);
 }
+
+/* Uniform passes (adapt_uniform): every rendered tile at one level, the fewest multiple of
+ * the step that meets the budget, within the growth limit and the cap; a tile not rendered
+ * (no passes) keeps none; a budget already met adds nothing. */
+Test(adapt, uniform_passes_meet_the_budget_at_one_level)
+{
+    const double v[5] = {1.0, 2.0, 4.0, 0.0, 3.0};
+    const uint32_t m[5] = {4, 4, 4, 4, 0};
+    uint32_t n[5];
+    double budget = 28.0 / 9.5; /* sum v m = 28: a level of 9.5 meets it, so 10 in steps of 2 */
+    uint64_t added = adapt_uniform(5, v, m, budget, 64, 100, 2, n);
+    for (int t = 0; t < 4; t++)
+        cr_assert_eq(n[t], 10, "tile %d: %u passes, not the one level 10", t, n[t]);
+    cr_assert_eq(n[4], 0, "a tile not rendered stays so");
+    cr_assert_eq(added, 4 * 6);
+    cr_assert(projected(5, v, m, n) <= budget, "the level meets the budget");
+    uint32_t below[5] = {8, 8, 8, 8, 0};
+    cr_assert(projected(5, v, m, below) > budget, "the level one step lower does not");
+    adapt_uniform(5, v, m, budget, 64, 2, 2, n);
+    cr_assert(n[0] == 8 && n[3] == 8 && n[4] == 0, "growth at most 2x: %u", n[0]);
+    adapt_uniform(5, v, m, budget, 6, 100, 2, n);
+    cr_assert(n[0] == 6 && n[2] == 6, "the cap: %u", n[0]);
+    cr_assert_eq(adapt_uniform(5, v, m, 28.0 / 4.0, 64, 100, 2, n), 0, "met already: nothing added");
+    cr_assert(n[0] == 4 && n[4] == 0);
+    /* The predicted ratio: 1 for tiles alike, lower the more uneven they are. */
+    const double c[4] = {1.0, 1.0, 1.0, 1.0}, same[4] = {2.0, 2.0, 2.0, 2.0}, uneven[4] = {0.1, 0.1, 0.1, 8.0};
+    const uint32_t m4[4] = {4, 4, 4, 4};
+    cr_assert(fabs(adapt_predicted_ratio(4, same, c, m4, 1.0, 1000) - 1.0) < 1e-12);
+    double r = adapt_predicted_ratio(4, uneven, c, m4, 1.0, 1000);
+    cr_assert(r > 0.3 && r < 0.5, "uneven tiles: %g", r); /* (3 sqrt 0.1 + sqrt 8)^2 / (4 x 8.3) = 0.441 */
+}
+
+/* Rounds where the allocation would save little (tiles' variances within 20 % of each
+ * other): the pilot's prediction is above ADAPT_UNIFORM_GAIN, and every tile goes on at
+ * one level to the target; the same rounds with very uneven tiles keep allocating. */
+Test(adapt, uniform_passes_where_allocation_saves_little)
+{
+    enum { T = 16 };
+    uint32_t pixels[T];
+    double alike[T], uneven[T];
+    for (int t = 0; t < T; t++) {
+        pixels[t] = 64;
+        alike[t] = 64.0 * (t % 2 ? 0.012 : 0.01);
+        uneven[t] = t < 4 ? 64.0 * 0.5 : 64.0 * 0.01;
+    }
+    struct adapt *a = adapt_new(T, 4, pixels, 512, 2, 0.02, 0);
+    adapt_begin(a);
+    run_rounds(a, alike);
+    cr_assert(a->finished);
+    cr_assert(a->uniform, "predicted %g of uniform's work: uniform passes", a->predicted);
+    cr_assert(a->predicted > ADAPT_UNIFORM_GAIN && a->predicted <= 1.0 + 1e-12);
+    cr_assert(a->round >= 1, "the rounds went on past the pilot");
+    cr_assert(a->tiles[0].passes > ADAPT_FIRST_PASSES, "%u passes", a->tiles[0].passes);
+    for (int t = 1; t < T; t++)
+        cr_assert_eq(a->tiles[t].passes, a->tiles[0].passes, "tile %d: %u passes, tile 0 %u: not one level", t,
+                     a->tiles[t].passes, a->tiles[0].passes);
+    cr_assert(a->est <= 0.02, "estimate %g", a->est);
+    adapt_begin(a);
+    cr_assert(!a->uniform, "a new frame decides again");
+    run_rounds(a, uneven);
+    cr_assert(!a->uniform && a->predicted < ADAPT_UNIFORM_GAIN, "uneven tiles: predicted %g", a->predicted);
+    cr_assert(a->tiles[0].passes > a->tiles[8].passes, "uneven tiles: allocated");
+    adapt_free(&a);
+}
