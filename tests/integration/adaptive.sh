@@ -7,7 +7,8 @@
 # samples channel sums to the samples the run reports; a --time-limit run records its
 # rounds and --max-rounds reproduces it; passes apply to a scene without photon maps; plain
 # renders default to one pass per stream; a tile's m passes are the uniform render with m
-# passes.
+# passes; a scene of uniform noise renders uniform passes (the fallback), the uniform
+# render of as many passes.
 # Ends with "integration: N passed, N failed". Usage: BUILD=build sh tests/integration/adaptive.sh
 . "$(dirname "$0")/lib.sh"
 lib_init adaptive
@@ -131,5 +132,37 @@ if [ $q1 = 0 ] && [ $q2 = 0 ] && $X cmp "$T/r0.exr" "$T/u32.exr" &&
    [ "$($X chsum "$T/r0.exr" samples)" = "$($X chsum "$T/u32.exr" samples)" ]; then
   ok "adaptive round 0 (4 passes of 8) = --spp 32 --passes 4, bit for bit"
 else bad "adaptive round 0 (4 passes of 8) = --spp 32 --passes 4 (rc $q1 $q2)"; fi
+
+# Uniform noise: the tiny scene's floor seen from above under a large lamp. The pilot
+# predicts that per-block passes save little, so every block goes on at one level: the
+# image is the uniform render of that many passes, bit for bit, for 1 and 3 workers.
+mkdir -p "$T/flat"
+cp scenes/tiny/* "$T/flat/"
+sed -n '1,16p' scenes/tiny/tiny.obj >"$T/flat/floor.obj"
+cat >"$T/flat/flat.json" <<'JSON'
+{
+  "version": 1,
+  "camera": {"position": [0, 1.2, 0.01], "look_at": [0, 0, 0], "fov_y": 30},
+  "render": {"width": 32, "height": 24, "spp": 4, "max_depth": 2, "seed": 7, "tile_size": 16},
+  "materials": {"lamp": {"type": "diffuse", "albedo": [0, 0, 0], "emission": [8, 8, 8]}},
+  "objects": [
+    {"type": "obj", "file": "floor.obj"},
+    {"type": "obj", "file": "lamp.obj", "material": "lamp", "transform": {"translate": [0, 3, 0], "scale": [8, 1, 8]}}
+  ],
+  "lights": []
+}
+JSON
+FD="--target-error 0.01 --tile 16 --spp 2048"
+run $M "$T/flat/flat.json" -o "$T/f1.exr" $FD --no-journal --workers 1 --threads 1 && f1=0 || f1=1
+cp "$T/log" "$T/f1.log"
+run $M "$T/flat/flat.json" -o "$T/f3.exr" $FD --no-journal --workers 3 --threads 2 && f3=0 || f3=1
+lohi=$(sed -n 's/^summary: adaptive: .* spp min \([0-9]*\) mean [0-9.]* max \([0-9]*\).*/\1 \2/p' "$T/f1.log")
+fs=${lohi% *}
+run $M "$T/flat/flat.json" -o "$T/fu.exr" --spp "${fs:-8}" --passes $((${fs:-8} / 8)) --no-journal --workers 2 --threads 1 && f2=0 || f2=1
+if [ $f1$f3$f2 = 000 ] && grep -q "uniform passes$" "$T/f1.log" && [ "${lohi% *}" = "${lohi#* }" ] && [ "${fs:-0}" -gt 32 ] &&
+   $X cmp "$T/f1.exr" "$T/f3.exr" && $X cmp "$T/f1.exr" "$T/fu.exr" &&
+   [ "$($X chsum "$T/f1.exr" samples)" = "$($X chsum "$T/fu.exr" samples)" ]; then
+  ok "uniform noise: uniform passes ($fs spp everywhere) = --spp $fs --passes $((fs / 8)), 1 vs 3 workers bit-identical"
+else bad "uniform noise: uniform passes = the uniform render, 1 vs 3 workers (rc $f1$f3$f2, spp min/max $lohi)"; fi
 
 finish
