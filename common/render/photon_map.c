@@ -270,14 +270,18 @@ static inline float phase_hg_fast(float cos_theta, float g)
     return (1.0f - g * g) / (4.0f * (float)M_PI * d * sqrtf(d));
 }
 
+/* phase x power of a decoded photon for light leaving along d_out. */
+static inline vec3 decoded_contrib(const struct photon_decoded *pd, vec3 d_out, float g)
+{
+    float p = phase_hg_fast(pd->dir[0] * d_out.x + pd->dir[1] * d_out.y + pd->dir[2] * d_out.z, g);
+    return v3(p * pd->power[0], p * pd->power[1], p * pd->power[2]);
+}
+
 /* phase x power of photon i for light leaving along d_out. */
 static inline vec3 photon_contrib(const struct photon_map *m, uint32_t i, vec3 d_out, float g)
 {
-    if (m->decoded) {
-        const struct photon_decoded *pd = &m->decoded[i];
-        float p = phase_hg_fast(pd->dir[0] * d_out.x + pd->dir[1] * d_out.y + pd->dir[2] * d_out.z, g);
-        return v3(p * pd->power[0], p * pd->power[1], p * pd->power[2]);
-    }
+    if (m->decoded)
+        return decoded_contrib(&m->decoded[i], d_out, g);
     const struct photon *ph = &m->photons[i];
     return v3_scale(photon_rgbe_decode(ph->rgbe), phase_hg_cut(v3_dot(photon_dir_decode(ph->dir), d_out), g));
 }
@@ -482,10 +486,12 @@ vec3 photon_map_gather_knn(const struct photon_map *m, vec3 x, vec3 d_out, float
  * Layout, for the cache: a row is found in a flat table of row starts indexed by its
  * (y, z) cell where the grid has at most BEAM_FLAT_PER_PHOTON cells per photon plus
  * BEAM_FLAT_CELLS, else (sparse or huge grids) in a hash table of the rows that hold
- * photons. The records are separate arrays: x alone for the search within a row (a linear
- * scan for rows of at most BEAM_LINEAR photons, else a binary search), then y, z, depth and
- * photon index, read for the photons within the row's x interval; a photon's direction and
- * power are read only once it is accepted. */
+ * photons. The records are separate arrays in row order: x alone for the search within a
+ * row (a linear scan for rows of at most BEAM_LINEAR photons, else a binary search), then
+ * y, z, depth and photon index, read for the photons within the row's x interval, and a
+ * copy of the decoded direction and power, read only for the photons accepted (in row
+ * order, so a row's accepted photons share cache lines). The rows cost 42 bytes a photon
+ * plus the row table (the flat one at most 16 bytes a photon plus 256 KiB). */
 #define BEAM_CROWD 10.0
 #define BEAM_MAX_CELLS 32768.0f     /* cells per axis at most (tiny radii): walks stay bounded */
 #define BEAM_FLAT_PER_PHOTON 4u
@@ -511,6 +517,7 @@ struct photon_beam_grid {
     float *x, *y, *z;
     uint16_t *depth;
     uint32_t *idx;
+    struct photon_decoded *dec; /* direction and power, a copy of the map's decoded photons */
 };
 
 static uint32_t beam_cell(const struct photon_beam_grid *g, float v, int axis)
@@ -620,7 +627,7 @@ static void beam_rows_index(struct photon_beam_grid *g, const uint64_t *key, uin
 static struct photon_beam_grid *beam_grid_build(const struct photon_map *m)
 {
     uint32_t n = m->num_photons;
-    if (n == 0)
+    if (n == 0 || !m->decoded)
         return NULL;
     struct photon_beam_grid *g = mem_calloc(1, sizeof *g);
     float lo[3], hi[3];
@@ -666,10 +673,12 @@ static struct photon_beam_grid *beam_grid_build(const struct photon_map *m)
     g->z = mem_alloc(sizeof *g->z * n);
     g->depth = mem_alloc(sizeof *g->depth * n);
     g->idx = idx;
+    g->dec = mem_alloc(sizeof *g->dec * n);
     for (uint32_t j = 0, row_start = 0; j < n; j++) {
         const struct photon *ph = &m->photons[idx[j]];
         g->x[j] = ph->p[0], g->y[j] = ph->p[1], g->z[j] = ph->p[2];
         g->depth[j] = ph->depth;
+        g->dec[j] = m->decoded[idx[j]];
         if (j + 1 < n && key[j + 1] >> 32 == key[j] >> 32)
             continue;
         g->num_rows++;
@@ -692,6 +701,7 @@ static void beam_grid_free(struct photon_beam_grid *g)
     free(g->z);
     free(g->depth);
     free(g->idx);
+    free(g->dec);
     free(g);
 }
 
@@ -719,9 +729,10 @@ struct beam_ray {
 };
 
 /* Photon i at (px, py, pz) counts when its closest-point parameter t lies in [0, t1) and
- * it is within r of the ray: its phase x power x transmittance to t goes into acc. */
-static inline void beam_add(const struct photon_map *m, uint32_t i, float px, float py, float pz, uint32_t depth,
-                            const struct beam_ray *br, double acc[3])
+ * it is within r of the ray: its phase x power x transmittance to t goes into acc. pd:
+ * its decoded direction and power (the rows' copy), or NULL to read them from the map. */
+static inline void beam_add(const struct photon_map *m, uint32_t i, const struct photon_decoded *pd, float px,
+                            float py, float pz, uint32_t depth, const struct beam_ray *br, double acc[3])
 {
     vec3 dp = v3_sub(v3(px, py, pz), br->o);
     float t = v3_dot(dp, br->d);
@@ -731,7 +742,8 @@ static inline void beam_add(const struct photon_map *m, uint32_t i, float px, fl
     if (v3_dot(perp, perp) > br->r2 || depth > br->depth_max)
         return;
     vec3 tr = br->tau ? photon_tau_transmittance(br->tau, br->md, t) : medium_transmittance(br->md, t);
-    vec3 c = v3_mul(photon_contrib(m, i, br->d_out, br->md->g), tr);
+    float g = br->md->g;
+    vec3 c = v3_mul(pd ? decoded_contrib(pd, br->d_out, g) : photon_contrib(m, i, br->d_out, g), tr);
     acc[0] += c.x, acc[1] += c.y, acc[2] += c.z;
 }
 
@@ -760,7 +772,7 @@ static void beam_walk(const struct photon_map *m, const struct photon_beam_grid 
     double walk = (double)(z1 - z0 + 1) * fmin((double)(y1 - y0 + 1), slab_y / c + 2.0);
     if (!(walk <= 0.5 * (double)m->num_photons)) {
         for (uint32_t j = 0; j < m->num_photons; j++)
-            beam_add(m, g->idx[j], xs[j], ys[j], zs[j], g->depth[j], br, acc);
+            beam_add(m, g->idx[j], &g->dec[j], xs[j], ys[j], zs[j], g->depth[j], br, acc);
         return;
     }
     for (uint32_t cz = z0; cz <= z1; cz++) {
@@ -790,7 +802,7 @@ static void beam_walk(const struct photon_map *m, const struct photon_beam_grid 
                 }
             }
             for (uint32_t j = l; j < end && xs[j] <= xhi; j++)
-                beam_add(m, g->idx[j], xs[j], ys[j], zs[j], g->depth[j], br, acc);
+                beam_add(m, g->idx[j], &g->dec[j], xs[j], ys[j], zs[j], g->depth[j], br, acc);
         }
     }
 }
@@ -808,7 +820,7 @@ vec3 photon_map_beam(const struct photon_map *m, vec3 o, vec3 d, float t1, const
     else /* a map built by hand (tests): every photon */
         for (uint32_t i = 0; i < m->num_photons; i++) {
             const struct photon *ph = &m->photons[i];
-            beam_add(m, i, ph->p[0], ph->p[1], ph->p[2], ph->depth, &br, acc);
+            beam_add(m, i, NULL, ph->p[0], ph->p[1], ph->p[2], ph->depth, &br, acc);
         }
     double rk = fmax((double)r, PM_MIN_KERNEL_RADIUS);
     return scaled(acc, 1.0 / (M_PI * rk * rk));
