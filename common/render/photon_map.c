@@ -270,14 +270,18 @@ static inline float phase_hg_fast(float cos_theta, float g)
     return (1.0f - g * g) / (4.0f * (float)M_PI * d * sqrtf(d));
 }
 
+/* phase x power of a decoded photon for light leaving along d_out. */
+static inline vec3 decoded_contrib(const struct photon_decoded *pd, vec3 d_out, float g)
+{
+    float p = phase_hg_fast(pd->dir[0] * d_out.x + pd->dir[1] * d_out.y + pd->dir[2] * d_out.z, g);
+    return v3(p * pd->power[0], p * pd->power[1], p * pd->power[2]);
+}
+
 /* phase x power of photon i for light leaving along d_out. */
 static inline vec3 photon_contrib(const struct photon_map *m, uint32_t i, vec3 d_out, float g)
 {
-    if (m->decoded) {
-        const struct photon_decoded *pd = &m->decoded[i];
-        float p = phase_hg_fast(pd->dir[0] * d_out.x + pd->dir[1] * d_out.y + pd->dir[2] * d_out.z, g);
-        return v3(p * pd->power[0], p * pd->power[1], p * pd->power[2]);
-    }
+    if (m->decoded)
+        return decoded_contrib(&m->decoded[i], d_out, g);
     const struct photon *ph = &m->photons[i];
     return v3_scale(photon_rgbe_decode(ph->rgbe), phase_hg_cut(v3_dot(photon_dir_decode(ph->dir), d_out), g));
 }
@@ -474,28 +478,46 @@ vec3 photon_map_gather_knn(const struct photon_map *m, vec3 x, vec3 d_out, float
  * of k r across y and z, unbounded along x, a row's photons by x (then by index). A query
  * visits the rows the tube crosses, each only over the x interval the tube can reach there
  * (the segment clipped to the row's slabs grown by r), and reads just those photons, in an
- * order fixed by the map and the ray. Each row visited costs a hash lookup, each photon
- * read a distance test: k grows where photons are sparse (fewer rows, a few more photons),
- * from 1 to 4 as the photons' mean crowding (a photon's count of photons in its bucket of
- * the blob's grid) falls: k = 2 (BEAM_CROWD / crowding)^(1/3), BEAM_CROWD photons per
- * cell of 2r, measured best on the three media scenes (dense smoke: k = 1, cornell_fog: 3). */
+ * order fixed by the map and the ray. Each row visited costs a lookup, each photon read a
+ * distance test: k grows where photons are sparse (fewer rows, a few more photons), from 1
+ * to 4 as the photons' mean crowding (a photon's count of photons in its bucket of the
+ * blob's grid) falls: k = 2 (BEAM_CROWD / crowding)^(1/3), BEAM_CROWD photons per cell of
+ * 2r, measured best on the three media scenes (dense smoke: k = 1, cornell_fog: 3).
+ * Layout, for the cache: a row is found in a flat table of row starts indexed by its
+ * (y, z) cell where the grid has at most BEAM_FLAT_PER_PHOTON cells per photon plus
+ * BEAM_FLAT_CELLS, else (sparse or huge grids) in a hash table of the rows that hold
+ * photons. The records are separate arrays in row order: x alone for the search within a
+ * row (a linear scan for rows of at most BEAM_LINEAR photons, else a binary search), then
+ * y, z, depth and photon index, read for the photons within the row's x interval, and a
+ * copy of the decoded direction and power, read only for the photons accepted (in row
+ * order, so a row's accepted photons share cache lines). The rows cost 42 bytes a photon
+ * plus the row table (the flat one at most 16 bytes a photon plus 256 KiB). */
 #define BEAM_CROWD 10.0
 #define BEAM_MAX_CELLS 32768.0f     /* cells per axis at most (tiny radii): walks stay bounded */
+#define BEAM_FLAT_PER_PHOTON 4u
+#define BEAM_FLAT_CELLS 65536u
+#define BEAM_LINEAR 16u
 /* Rounding slack, relative to the coordinates' largest magnitude s (ray origin, photons'
  * box): a photon the acceptance test takes (float arithmetic) is within r + about 20
  * epsilons x |p - o| of the ray; the walk pads r by 2 BEAM_SLACK s, over 130 epsilons x s. */
 #define BEAM_SLACK 4e-6f
 
-struct beam_rec { float p[3]; uint32_t i; };
-struct beam_row { uint32_t y, z, start, end; }; /* y == UINT32_MAX: an empty slot */
+struct beam_row { uint32_t y, z, start, end; }; /* a hash slot; y == UINT32_MAX: empty */
 
 struct photon_beam_grid {
     float lo[3], hi[3], scale;  /* the photons' box, its largest |coordinate| */
     float cell, inv;
     uint32_t cmax[3];           /* the largest cell coordinate per axis: a far ray walks no further */
-    uint32_t mask;              /* row table: mask + 1 slots, at most half full */
+    uint32_t ny;                /* flat table: rows per z slab (cmax[1] + 1); 0: the hash table */
+    uint32_t *row_start;        /* flat: row (y, z) is [row_start[z ny + y], row_start[z ny + y + 1]) */
+    uint32_t mask;              /* hash: mask + 1 slots, at most half full */
     struct beam_row *rows;
-    struct beam_rec *rec;       /* num_photons records, by row, then x, then photon index */
+    uint32_t num_rows, longest; /* rows holding photons, the most photons in one */
+    /* num_photons records, by row, then x, then photon index */
+    float *x, *y, *z;
+    uint16_t *depth;
+    uint32_t *idx;
+    struct photon_decoded *dec; /* direction and power, a copy of the map's decoded photons */
 };
 
 static uint32_t beam_cell(const struct photon_beam_grid *g, float v, int axis)
@@ -512,14 +534,23 @@ static uint32_t beam_row_slot(uint32_t y, uint32_t z, uint32_t mask)
     return (h ^ h >> 15) & mask;
 }
 
-static const struct beam_row *beam_row_find(const struct photon_beam_grid *g, uint32_t y, uint32_t z)
+/* Row (y, z)'s records [*start, *end); 0 when it holds none. */
+static inline int beam_row_range(const struct photon_beam_grid *g, uint32_t y, uint32_t z, uint32_t *start,
+                                 uint32_t *end)
 {
+    if (g->ny) {
+        const uint32_t *rs = g->row_start + (size_t)z * g->ny + y;
+        *start = rs[0], *end = rs[1];
+        return rs[0] < rs[1];
+    }
     for (uint32_t h = beam_row_slot(y, z, g->mask);; h = (h + 1) & g->mask) {
         const struct beam_row *r = &g->rows[h];
-        if (r->y == y && r->z == z)
-            return r;
+        if (r->y == y && r->z == z) {
+            *start = r->start, *end = r->end;
+            return 1;
+        }
         if (r->y == UINT32_MAX)
-            return NULL;
+            return 0;
     }
 }
 
@@ -561,10 +592,42 @@ static uint32_t beam_x_key(float x)
     return u >> 31 ? ~u : u | 0x80000000u;
 }
 
+/* The row tables of the sorted keys (rows by z cell, then y cell, in the top 32 bits). */
+static void beam_rows_index(struct photon_beam_grid *g, const uint64_t *key, uint32_t n)
+{
+    uint64_t cells = (uint64_t)(g->cmax[1] + 1) * (g->cmax[2] + 1);
+    if (cells <= (uint64_t)BEAM_FLAT_PER_PHOTON * n + BEAM_FLAT_CELLS) {
+        g->ny = g->cmax[1] + 1;
+        g->row_start = mem_calloc((size_t)cells + 1, sizeof *g->row_start);
+        for (uint32_t j = 0; j < n; j++) /* count each row's records after its start ... */
+            g->row_start[(size_t)(key[j] >> 48) * g->ny + (key[j] >> 32 & 0xffff) + 1]++;
+        for (size_t c = 1; c <= cells; c++) /* ... and sum: rows are in key order */
+            g->row_start[c] += g->row_start[c - 1];
+        return;
+    }
+    uint32_t slots = 2;
+    while (slots < 2 * g->num_rows)
+        slots <<= 1;
+    g->mask = slots - 1;
+    g->rows = mem_alloc(sizeof *g->rows * slots);
+    for (uint32_t s = 0; s < slots; s++)
+        g->rows[s].y = UINT32_MAX;
+    for (uint32_t j = 0, row_start = 0; j < n; j++) {
+        if (j + 1 < n && key[j + 1] >> 32 == key[j] >> 32)
+            continue;
+        uint32_t y = (uint32_t)(key[j] >> 32 & 0xffff), z = (uint32_t)(key[j] >> 48);
+        uint32_t h = beam_row_slot(y, z, g->mask);
+        while (g->rows[h].y != UINT32_MAX)
+            h = (h + 1) & g->mask;
+        g->rows[h] = (struct beam_row){y, z, row_start, j + 1};
+        row_start = j + 1;
+    }
+}
+
 static struct photon_beam_grid *beam_grid_build(const struct photon_map *m)
 {
     uint32_t n = m->num_photons;
-    if (n == 0)
+    if (n == 0 || !m->decoded)
         return NULL;
     struct photon_beam_grid *g = mem_calloc(1, sizeof *g);
     float lo[3], hi[3];
@@ -605,31 +668,25 @@ static struct photon_beam_grid *beam_grid_build(const struct photon_map *m)
         idx[i] = i;
     }
     beam_sort(key, idx, n); /* by row (z, y cells), then x, then index */
-    uint32_t rows = 0;
-    for (uint32_t j = 0; j < n; j++)
-        rows += j == 0 || key[j] >> 32 != key[j - 1] >> 32;
-    uint32_t slots = 2;
-    while (slots < 2 * rows)
-        slots <<= 1;
-    g->mask = slots - 1;
-    g->rows = mem_alloc(sizeof *g->rows * slots);
-    for (uint32_t s = 0; s < slots; s++)
-        g->rows[s].y = UINT32_MAX;
-    g->rec = mem_alloc(sizeof *g->rec * n);
+    g->x = mem_alloc(sizeof *g->x * n);
+    g->y = mem_alloc(sizeof *g->y * n);
+    g->z = mem_alloc(sizeof *g->z * n);
+    g->depth = mem_alloc(sizeof *g->depth * n);
+    g->idx = idx;
+    g->dec = mem_alloc(sizeof *g->dec * n);
     for (uint32_t j = 0, row_start = 0; j < n; j++) {
         const struct photon *ph = &m->photons[idx[j]];
-        g->rec[j] = (struct beam_rec){{ph->p[0], ph->p[1], ph->p[2]}, idx[j]};
+        g->x[j] = ph->p[0], g->y[j] = ph->p[1], g->z[j] = ph->p[2];
+        g->depth[j] = ph->depth;
+        g->dec[j] = m->decoded[idx[j]];
         if (j + 1 < n && key[j + 1] >> 32 == key[j] >> 32)
             continue;
-        uint32_t y = (uint32_t)(key[j] >> 32 & 0xffff), z = (uint32_t)(key[j] >> 48);
-        uint32_t h = beam_row_slot(y, z, g->mask);
-        while (g->rows[h].y != UINT32_MAX)
-            h = (h + 1) & g->mask;
-        g->rows[h] = (struct beam_row){y, z, row_start, j + 1};
+        g->num_rows++;
+        g->longest = j + 1 - row_start > g->longest ? j + 1 - row_start : g->longest;
         row_start = j + 1;
     }
+    beam_rows_index(g, key, n);
     free(key);
-    free(idx);
     return g;
 }
 
@@ -637,9 +694,26 @@ static void beam_grid_free(struct photon_beam_grid *g)
 {
     if (!g)
         return;
+    free(g->row_start);
     free(g->rows);
-    free(g->rec);
+    free(g->x);
+    free(g->y);
+    free(g->z);
+    free(g->depth);
+    free(g->idx);
+    free(g->dec);
     free(g);
+}
+
+int photon_map_beam_layout(const struct photon_map *m, float *cell, uint32_t *rows, uint32_t *longest)
+{
+    const struct photon_beam_grid *g = m ? m->beam : NULL;
+    if (!g)
+        return -1;
+    *cell = g->cell;
+    *rows = g->num_rows;
+    *longest = g->longest;
+    return g->ny != 0;
 }
 
 /* Plain comparisons: the operands are never NaN here, and libm's fminf is a call. */
@@ -654,20 +728,22 @@ struct beam_ray {
     const struct photon_tau *tau;
 };
 
-/* Photon i at p counts when its closest-point parameter t lies in [0, t1) and it is within
- * r of the ray: its phase x power x transmittance to t goes into acc. */
-static inline void beam_add(const struct photon_map *m, uint32_t i, const float p[3], const struct beam_ray *br,
-                            double acc[3])
+/* Photon i at (px, py, pz) counts when its closest-point parameter t lies in [0, t1) and
+ * it is within r of the ray: its phase x power x transmittance to t goes into acc. pd:
+ * its decoded direction and power (the rows' copy), or NULL to read them from the map. */
+static inline void beam_add(const struct photon_map *m, uint32_t i, const struct photon_decoded *pd, float px,
+                            float py, float pz, uint32_t depth, const struct beam_ray *br, double acc[3])
 {
-    vec3 dp = v3_sub(v3(p[0], p[1], p[2]), br->o);
+    vec3 dp = v3_sub(v3(px, py, pz), br->o);
     float t = v3_dot(dp, br->d);
     if (!(t >= 0.0f && t < br->t1))
         return;
     vec3 perp = v3_sub(dp, v3_scale(br->d, t));
-    if (v3_dot(perp, perp) > br->r2 || m->photons[i].depth > br->depth_max)
+    if (v3_dot(perp, perp) > br->r2 || depth > br->depth_max)
         return;
     vec3 tr = br->tau ? photon_tau_transmittance(br->tau, br->md, t) : medium_transmittance(br->md, t);
-    vec3 c = v3_mul(photon_contrib(m, i, br->d_out, br->md->g), tr);
+    float g = br->md->g;
+    vec3 c = v3_mul(pd ? decoded_contrib(pd, br->d_out, g) : photon_contrib(m, i, br->d_out, g), tr);
     acc[0] += c.x, acc[1] += c.y, acc[2] += c.z;
 }
 
@@ -689,13 +765,14 @@ static void beam_walk(const struct photon_map *m, const struct photon_beam_grid 
     float za = o.z + d.z * ta, zb = o.z + d.z * tb, ya = o.y + d.y * ta, yb = o.y + d.y * tb;
     uint32_t z0 = beam_cell(g, beam_min(za, zb) - e, 2), z1 = beam_cell(g, beam_max(za, zb) + e, 2);
     uint32_t y0 = beam_cell(g, beam_min(ya, yb) - e, 1), y1 = beam_cell(g, beam_max(ya, yb) + e, 1);
+    const float *xs = g->x, *ys = g->y, *zs = g->z;
     /* The rows the walk would visit (a slab's y cells at most): when that is more than half
      * the photons (a slack grown huge by an origin far away), reading them all is cheaper. */
     double slab_y = fabs((double)d.y) * ((double)c + 2.0 * e) / fabs((double)d.z) + 2.0 * e;
     double walk = (double)(z1 - z0 + 1) * fmin((double)(y1 - y0 + 1), slab_y / c + 2.0);
     if (!(walk <= 0.5 * (double)m->num_photons)) {
         for (uint32_t j = 0; j < m->num_photons; j++)
-            beam_add(m, g->rec[j].i, g->rec[j].p, br, acc);
+            beam_add(m, g->idx[j], &g->dec[j], xs[j], ys[j], zs[j], g->depth[j], br, acc);
         return;
     }
     for (uint32_t cz = z0; cz <= z1; cz++) {
@@ -708,20 +785,24 @@ static void beam_walk(const struct photon_map *m, const struct photon_beam_grid 
             float ra = sa, rb = sb, yl = g->lo[1] + (float)cy * c;
             if (!f_clip_slab(o.y, d.y, yl - e, yl + c + e, &ra, &rb) || !(ra <= rb))
                 continue;
-            const struct beam_row *row = beam_row_find(g, cy, cz);
-            if (!row)
+            uint32_t l, end;
+            if (!beam_row_range(g, cy, cz, &l, &end))
                 continue;
             float xa = o.x + d.x * ra, xb = o.x + d.x * rb, xlo = beam_min(xa, xb) - e, xhi = beam_max(xa, xb) + e;
-            uint32_t l = row->start, h = row->end;
-            while (l < h) { /* the first photon of the row at x >= xlo */
-                uint32_t mid = l + (h - l) / 2;
-                if (g->rec[mid].p[0] < xlo)
-                    l = mid + 1;
-                else
-                    h = mid;
+            if (end - l <= BEAM_LINEAR) { /* the first photon of the row at x >= xlo */
+                while (l < end && xs[l] < xlo)
+                    l++;
+            } else {
+                for (uint32_t h = end; l < h;) {
+                    uint32_t mid = l + (h - l) / 2;
+                    if (xs[mid] < xlo)
+                        l = mid + 1;
+                    else
+                        h = mid;
+                }
             }
-            for (uint32_t j = l; j < row->end && g->rec[j].p[0] <= xhi; j++)
-                beam_add(m, g->rec[j].i, g->rec[j].p, br, acc);
+            for (uint32_t j = l; j < end && xs[j] <= xhi; j++)
+                beam_add(m, g->idx[j], &g->dec[j], xs[j], ys[j], zs[j], g->depth[j], br, acc);
         }
     }
 }
@@ -737,8 +818,10 @@ vec3 photon_map_beam(const struct photon_map *m, vec3 o, vec3 d, float t1, const
     if (m->beam)
         beam_walk(m, m->beam, &br, acc);
     else /* a map built by hand (tests): every photon */
-        for (uint32_t i = 0; i < m->num_photons; i++)
-            beam_add(m, i, m->photons[i].p, &br, acc);
+        for (uint32_t i = 0; i < m->num_photons; i++) {
+            const struct photon *ph = &m->photons[i];
+            beam_add(m, i, NULL, ph->p[0], ph->p[1], ph->p[2], ph->depth, &br, acc);
+        }
     double rk = fmax((double)r, PM_MIN_KERNEL_RADIUS);
     return scaled(acc, 1.0 / (M_PI * rk * rk));
 }

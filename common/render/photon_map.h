@@ -100,6 +100,10 @@ vec3 photon_map_beam(const struct photon_map *m, vec3 o, vec3 d, float t1, const
 /* Encodings, exposed for tests. */
 uint16_t photon_dir_encode(vec3 d);
 vec3 photon_dir_decode(uint16_t e);
+/* The beam query's rows (photon_map.c), for tests: its cell size, the rows holding photons
+ * and the most photons in one; 1 when the rows are found in a flat (y, z) table, 0 in a
+ * hash table, -1 when the map has no rows. */
+int photon_map_beam_layout(const struct photon_map *m, float *cell, uint32_t *rows, uint32_t *longest);
 
 /* The volume blob of a job (path MEDIA_PHOTON_ASSET): the media settings the master
  * settled on (command-line overrides included) and the photon maps, one per pass, if any

@@ -1487,3 +1487,112 @@ Test(medium, beams_map_same_bytes_any_threads)
     free(blob[1]);
     scene_fini(&s);
 }
+
+/* An integer in [0, n) from the stream k, dimension dim. */
+static uint32_t tie_index(uint64_t k, uint32_t dim, uint32_t n)
+{
+    return (uint32_t)(rng_bits(k, dim) % n);
+}
+
+/* The beam query's rows against the loop over every photon (the map without rows), bit for
+ * bit: photons on a lattice of the rows' cell borders, in rows of 1, 2, 15, 16, 17 and 33
+ * photons (the linear scan's limit is 16) with x tied in threes, in dense clumps (long
+ * rows, cells of r) and on the photons' box's corners; the rows found in the flat (y, z)
+ * table (box 4 wide) and in the hash table (box 32 wide). Isotropic phase, no extinction
+ * and small integer powers make every sum exact in any order, so equal sums mean the same
+ * photons were taken. Rays along the axes on the borders, through photons, grazing the
+ * box's faces and at random. */
+Test(medium, beam_rows_with_tied_x_match_brute_force, .timeout = 120)
+{
+    const float r = 0.0625f; /* the rows' cell: dense clumps make it r (k = 1) */
+    const uint32_t lens[6] = {1, 2, 15, 16, 17, 33};
+    struct medium md;
+    memset(&md, 0, sizeof md);
+    md.sigma_t = v3(0, 0, 0);
+    md.g = 0.0f;
+    uint32_t rays = 0, nonzero = 0;
+    for (int hashed = 0; hashed < 2; hashed++) {
+        float box = hashed ? 32.0f : 4.0f;
+        struct photon_list block = {NULL, 0, 0};
+        block.cap = 16384;
+        block.a = calloc(block.cap, sizeof *block.a);
+        uint32_t n = 0;
+#define PUT(X, Y, Z)                                                                                           \
+    do {                                                                                                       \
+        cr_assert(n < block.cap);                                                                              \
+        struct photon *ph_ = &block.a[n];                                                                      \
+        ph_->p[0] = (X), ph_->p[1] = (Y), ph_->p[2] = (Z);                                                     \
+        photon_rgbe_encode(v3(1.0f, (float)(1 + n % 7), (float)(1 + n / 7 % 5)), ph_->rgbe);                   \
+        ph_->dir = photon_dir_encode(v3_normalize(v3((float)(n % 3) - 1.0f, (float)(n % 5) - 2.0f, -1.0f))); \
+        ph_->depth = (uint16_t)(1 + n % 8);                                                                    \
+        n++;                                                                                                   \
+    } while (0)
+        for (int k = 0; k < 8; k++) /* the box's corners */
+            PUT(k & 1 ? box : 0.0f, k & 2 ? box : 0.0f, k & 4 ? box : 0.0f);
+        for (uint32_t cz = 0; cz < 16; cz++)
+            for (uint32_t cy = 0; cy < 16; cy++)
+                for (uint32_t j = 0, len = lens[(cy + 3 * cz) % 6]; j < len; j++)
+                    PUT((float)(j / 3) * 0.125f, (float)cy * r + (float)(j % 3) * 0.25f * r,
+                        (float)cz * r + (float)(j % 2) * 0.5f * r);
+        for (uint32_t c = 0; c < 16; c++) /* clumps of 256 within one cell of 2r each */
+            for (uint32_t j = 0; j < 256; j++)
+                PUT(0.25f * (float)c + (float)(j % 8) / 64.0f, 2.0f + (float)(j / 8 % 8) / 64.0f,
+                    2.0f + 0.125f * (float)(c % 4) + (float)(j / 64) / 64.0f);
+#undef PUT
+        block.n = n;
+        uint8_t *blob = NULL;
+        size_t bytes = 0;
+        uint32_t count = 0;
+        char err[256];
+        cr_assert_eq(photon_map_serialise(&block, 1, r, n, &blob, &bytes, &count, err, sizeof err), 0);
+        struct photon_map *m = NULL;
+        cr_assert_eq(photon_map_decode(blob, bytes, &m, err, sizeof err), 0, "%s", err);
+        free(blob);
+        float cell = 0.0f;
+        uint32_t rows = 0, longest = 0;
+        cr_assert_eq(photon_map_beam_layout(m, &cell, &rows, &longest), !hashed);
+        cr_assert(cell == r && rows > 256 && longest > 16, "cell %g, %u rows, longest %u", (double)cell, rows,
+                  longest);
+        struct photon_beam_grid *grid = m->beam;
+        for (uint32_t q = 0; q < 600; q++) {
+            uint64_t k = rng_key(303, (uint32_t)hashed, q, 0);
+            /* on a lattice point of the borders (or just off it), inside the rows or the clumps */
+            float oy = (float)(tie_index(k, 1, 20)) * r, oz = (float)(tie_index(k, 2, 20)) * r;
+            if (q % 9 == 4)
+                oy = nextafterf(oy, -1.0f), oz = nextafterf(oz, 10.0f);
+            if (q % 4 == 3)
+                oy += 2.0f, oz += 2.0f;
+            vec3 o = v3((float)tie_index(k, 0, 14) * 0.125f - 0.25f, oy, oz), d;
+            switch (q % 6) {
+            case 0: d = v3(q / 6 % 2 ? -1.0f : 1.0f, 0, 0); break;
+            case 1: d = v3(0, q / 6 % 2 ? -1.0f : 1.0f, 0); break;
+            case 2: d = v3(0, 0, q / 6 % 2 ? -1.0f : 1.0f); break;
+            case 3: /* grazing a face of the box */
+                o = v3(-1.0f, q / 6 % 2 ? box : 0.0f, oz);
+                d = v3_normalize(v3(1.0f, 0.0f, rng_uniform(k, 3) - 0.5f));
+                break;
+            default:
+                d = v3_normalize(v3(rng_uniform(k, 3) - 0.5f, rng_uniform(k, 4) - 0.5f, rng_uniform(k, 5) - 0.5f));
+            }
+            float t1 = (float)(1 + tie_index(k, 6, 48)) * 0.125f; /* often ending on a tied x */
+            if (q % 7 == 0)
+                t1 = 1e30f;
+            if (q % 5 == 1) { /* through a photon */
+                const float *p = m->photons[tie_index(k, 7, m->num_photons)].p;
+                o = v3_sub(v3(p[0], p[1], p[2]), v3_scale(d, t1 * (float)tie_index(k, 8, 3) * 0.5f));
+            }
+            uint32_t depth_max = q % 3 == 0 ? PHOTON_DEPTH_ANY : 1 + q % 8;
+            vec3 a = photon_map_beam(m, o, d, t1, &md, NULL, depth_max);
+            m->beam = NULL; /* every photon, in index order */
+            vec3 b = photon_map_beam(m, o, d, t1, &md, NULL, depth_max);
+            m->beam = grid;
+            cr_assert(a.x == b.x && a.y == b.y && a.z == b.z,
+                      "%s ray %u: rows (%.9g %.9g %.9g), every photon (%.9g %.9g %.9g)", hashed ? "hash" : "flat",
+                      q, (double)a.x, (double)a.y, (double)a.z, (double)b.x, (double)b.y, (double)b.z);
+            rays++;
+            nonzero += b.x > 0.0f;
+        }
+        photon_map_free(&m);
+    }
+    cr_assert(nonzero > rays / 3, "only %u of %u rays found photons", nonzero, rays);
+}
