@@ -12,6 +12,7 @@
 #include <criterion/criterion.h>
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include "wire/blob.h"
 #include "render/integrator.h"
@@ -1485,5 +1486,53 @@ Test(medium, beams_map_same_bytes_any_threads)
     cr_assert_eq(memcmp(blob[0], blob[1], n[0]), 0);
     free(blob[0]);
     free(blob[1]);
+    scene_fini(&s);
+}
+
+/* ---- random numbers per sample ---- */
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* One pixel's media paths over many passes of 1 spp with the sobol sampler and the photon
+ * maps' SAMPLER_STREAMS_MAPS streams: every sample of the pixel takes its own random
+ * numbers, so the values (continuous: free flights and NEE in a fog) are nearly all
+ * distinct. Keyed by the pass-local index, the pixel's paths would repeat the streams'
+ * SAMPLER_STREAMS_MAPS sequences whatever the passes, and the error stop falling. */
+Test(medium, media_paths_differ_per_pass)
+{
+    const char *text = HEAD("\"position\": [-5, 1, 0], \"look_at\": [0, 1, 0]", 1, 1, 1, 8)
+        ",\n\"materials\": {\"grey\": {\"type\": \"diffuse\", \"albedo\": [0.5, 0.5, 0.5]}},\n"
+        "\"media\": {\"fog\": {\"sigma_a\": [0.05, 0.05, 0.05], \"sigma_s\": [0.3, 0.3, 0.3]}},\n"
+        "\"volume\": {\"method\": \"vpt\", \"fog\": \"fog\"},\n"
+        "\"objects\": [{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 20, \"material\": \"grey\"}],\n"
+        "\"lights\": [{\"type\": \"point\", \"position\": [0, 0, 0], \"intensity\": [10, 10, 10]}]}";
+    struct scene s;
+    load_ok(text, &s);
+    struct render_job job;
+    job_ok(&job, &s);
+    enum { N = 256 };
+    double v[N];
+    uint64_t rays = 0;
+    struct sampler_pixel sp;
+    sampler_pixel_init(&sp, SAMPLER_SOBOL, 5, 0, 0, 1);
+    sampler_pixel_set_streams(&sp, SAMPLER_STREAMS_MAPS);
+    for (uint32_t p = 0; p < N; p++) {
+        sampler_pixel_set_pass(&sp, p);
+        struct sampler smp = sampler_start_pixel(&sp, p); /* 1 spp: sample p is pass p's */
+        int hit;
+        v[p] = media_sample_path(&job, &smp, 0, 0, v3(-5, 1, 0), v3(1, 0, 0), 0.0f, &rays, &hit).x;
+        cr_assert(isfinite(v[p]));
+    }
+    qsort(v, N, sizeof v[0], cmp_double);
+    int distinct = 1;
+    for (int i = 1; i < N; i++)
+        distinct += v[i] != v[i - 1];
+    cr_log_info("media paths over %d passes of 1 spp: %d distinct values", N, distinct);
+    cr_assert(distinct >= N - N / 16, "%d distinct values of %d samples", distinct, N);
+    render_job_fini(&job);
     scene_fini(&s);
 }
