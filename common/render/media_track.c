@@ -195,6 +195,9 @@ struct media_job *media_job_new(const struct accel *a, const struct light_table 
             p = v3_add(s->center, v3(0, s->radius * 1.001f, 0));
         }
         mj->light_medium[i] = media_at(mj, p);
+        uint32_t m = mj->light_medium[i];
+        if (e->kind == LK_POINT && m != MEDIUM_NONE && !v3_is_black(sm->media[m].sigma_s) && mj->num_glow < MEDIA_GLOW_MAX)
+            mj->glow[mj->num_glow++] = p;
     }
     mj->map = sm->method != MEDIA_VPT ? map : NULL;
     mj->shadow = shadow_caches_new(mj);
