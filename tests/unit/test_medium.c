@@ -208,18 +208,20 @@ static double red_mean(const struct render_job *job, uint32_t seed, int m, vec3 
     return mean;
 }
 
+/* An isotropic fog inside a black sphere of radius 50; the camera ray passes the point
+ * light at distance 1. */
+#define AIRLIGHT_SCENE                                                                                      \
+    HEAD("\"position\": [-5, 1, 0], \"look_at\": [0, 1, 0]", 1, 1, 1, 1)                                      \
+    ",\n\"materials\": {\"black\": {\"type\": \"diffuse\", \"albedo\": [0, 0, 0]}},\n"                         \
+    "\"media\": {\"fog\": {\"sigma_a\": [0.05, 0.05, 0.05], \"sigma_s\": [0.05, 0.05, 0.05]}},\n"                \
+    "\"volume\": {\"method\": \"march\", \"fog\": \"fog\", \"step\": 0.02},\n"                                \
+    "\"objects\": [{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 50, \"material\": \"black\"}],\n"   \
+    "\"lights\": [{\"type\": \"point\", \"position\": [0, 0, 0], \"intensity\": [10, 10, 10]}]}"
+
 Test(medium, single_scattering_airlight)
 {
-    /* An isotropic fog inside a black sphere of radius 50; the camera ray passes the point
-     * light at distance 1. */
-    const char *text = HEAD("\"position\": [-5, 1, 0], \"look_at\": [0, 1, 0]", 1, 1, 1, 1)
-        ",\n\"materials\": {\"black\": {\"type\": \"diffuse\", \"albedo\": [0, 0, 0]}},\n"
-        "\"media\": {\"fog\": {\"sigma_a\": [0.05, 0.05, 0.05], \"sigma_s\": [0.05, 0.05, 0.05]}},\n"
-        "\"volume\": {\"method\": \"march\", \"fog\": \"fog\", \"step\": 0.02},\n"
-        "\"objects\": [{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 50, \"material\": \"black\"}],\n"
-        "\"lights\": [{\"type\": \"point\", \"position\": [0, 0, 0], \"intensity\": [10, 10, 10]}]}";
     struct scene s;
-    load_ok(text, &s);
+    load_ok(AIRLIGHT_SCENE, &s);
     struct render_job job;
     job_ok(&job, &s);
     cr_assert_eq(job.media->camera_medium, 0u);
@@ -1499,19 +1501,14 @@ static int cmp_double(const void *a, const void *b)
 
 /* One pixel's media paths over many passes of 1 spp with the sobol sampler and the photon
  * maps' SAMPLER_STREAMS_MAPS streams: every sample of the pixel takes its own random
- * numbers, so the values (continuous: free flights and NEE in a fog) are nearly all
+ * numbers, so the values (continuous: free flights in a fog) are nearly all
  * distinct. Keyed by the pass-local index, the pixel's paths would repeat the streams'
  * SAMPLER_STREAMS_MAPS sequences whatever the passes, and the error stop falling. */
 Test(medium, media_paths_differ_per_pass)
 {
-    const char *text = HEAD("\"position\": [-5, 1, 0], \"look_at\": [0, 1, 0]", 1, 1, 1, 8)
-        ",\n\"materials\": {\"grey\": {\"type\": \"diffuse\", \"albedo\": [0.5, 0.5, 0.5]}},\n"
-        "\"media\": {\"fog\": {\"sigma_a\": [0.05, 0.05, 0.05], \"sigma_s\": [0.3, 0.3, 0.3]}},\n"
-        "\"volume\": {\"method\": \"vpt\", \"fog\": \"fog\"},\n"
-        "\"objects\": [{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 20, \"material\": \"grey\"}],\n"
-        "\"lights\": [{\"type\": \"point\", \"position\": [0, 0, 0], \"intensity\": [10, 10, 10]}]}";
     struct scene s;
-    load_ok(text, &s);
+    load_ok(AIRLIGHT_SCENE, &s);
+    s.media->method = MEDIA_VPT; /* single scattering by free flight: a continuous value */
     struct render_job job;
     job_ok(&job, &s);
     enum { N = 256 };
