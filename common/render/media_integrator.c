@@ -4,7 +4,7 @@
  * MARCH_ALL_LIGHTS point lights + the k-nearest photon estimate; beam: one beam query per
  * segment (in homogeneous media camera segments take points instead of a march when lights
  * are picked one at a time, and long segments' beams one random piece); at the first diffuse vertex a final gather (surface photon map after one
- * bounce) or, with path-traced indirect light, VPT from there on. Random numbers: one key
+ * bounce, sampled toward glowing lights too: glow_bounce) or, with path-traced indirect light, VPT from there on. Random numbers: one key
  * per (seed, frame, pixel, sample) and a fixed layout of dimensions per vertex, so pixels
  * do not depend on threads, tiles or workers. Surfaces take their textures (texshade.h)
  * over footprints of the camera's ray differentials carried along the path. */
