@@ -4,7 +4,7 @@
  * MARCH_ALL_LIGHTS point lights + the k-nearest photon estimate; beam: one beam query per
  * segment (in homogeneous media camera segments take points instead of a march when lights
  * are picked one at a time, and long segments' beams one random piece); at the first diffuse vertex a final gather (surface photon map after one
- * bounce) or, with path-traced indirect light, VPT from there on. Random numbers: one key
+ * bounce, sampled toward glowing lights too: glow_bounce) or, with path-traced indirect light, VPT from there on. Random numbers: one key
  * per (seed, frame, pixel, sample) and a fixed layout of dimensions per vertex, so pixels
  * do not depend on threads, tiles or workers. Surfaces take their textures (texshade.h)
  * over footprints of the camera's ray differentials carried along the path. */
@@ -634,6 +634,85 @@ static vec3 gather_segment(const struct render_job *job, const struct media_job 
     return L;
 }
 
+vec3 media_glow_sample(vec3 c, float u1, float u2)
+{
+    float st, ct, sp, cp;
+    sincos_2pi(0.25f * u1, &st, &ct); /* theta = (pi / 2) u1 */
+    sincos_2pi(u2, &sp, &cp);
+    vec3 t, b;
+    v3_basis(c, &t, &b);
+    return v3_normalize(v3_add(v3_scale(c, ct), v3_add(v3_scale(t, st * cp), v3_scale(b, st * sp))));
+}
+
+/* Below this sine the density stays at its value there (a finite pdf along c itself, whose
+ * square the MIS weights take). */
+#define GLOW_MIN_SIN 1e-12f
+
+float media_glow_pdf(vec3 c, vec3 w)
+{
+    if (!(v3_dot(c, w) > 0.0f))
+        return 0.0f;
+    float s = v3_length(v3_cross(c, w)); /* sin(theta), exact near theta = 0 */
+    return (float)(1.0 / (M_PI * M_PI)) / fmaxf(s, GLOW_MIN_SIN);
+}
+
+/* The final gather's bounce at a diffuse vertex of march or beam with glowing lights
+ * (media_job's glow) on its side: the direction from the mixture of cosine sampling
+ * (GLOW_COS_SHARE) and, in equal shares of the rest, glow sampling toward each of them
+ * (media_glow_sample), weighted by the mixture's density (one-sample MIS, balance
+ * heuristic), which is also the bounce's pdf for the MIS of NEE and emitters. */
+#define GLOW_COS_SHARE 0.75f
+struct glow_mix {
+    uint32_t n;
+    vec3 c[MEDIA_GLOW_MAX]; /* unit directions from the vertex to the glowing lights */
+};
+
+static void glow_mix_init(struct glow_mix *g, const struct media_job *mj, vec3 p, vec3 ng)
+{
+    g->n = 0;
+    for (uint32_t k = 0; k < mj->num_glow; k++) {
+        vec3 to = v3_sub(mj->glow[k], p);
+        float d = v3_length(to);
+        if (d > 0.0f && v3_dot(to, ng) > 0.0f)
+            g->c[g->n++] = v3_scale(to, 1.0f / d);
+    }
+}
+
+/* The mixture's density at wi, given the cosine lobe's (material_eval's pdf). */
+static float glow_mix_pdf(const struct glow_mix *g, float cos_pdf, vec3 wi)
+{
+    float s = 0.0f;
+    for (uint32_t k = 0; k < g->n; k++)
+        s += media_glow_pdf(g->c[k], wi);
+    return GLOW_COS_SHARE * cos_pdf + (1.0f - GLOW_COS_SHARE) * s / (float)g->n;
+}
+
+/* One bounce from the mixture (g->n > 0; mat diffuse): u0 picks the strategy. */
+static void glow_bounce(const struct glow_mix *g, const struct material *mat, vec3 ns, vec3 wo, int front, float u0,
+                        float u1, float u2, struct bsdf_sample *bs)
+{
+    vec3 wi;
+    if (u0 < GLOW_COS_SHARE) {
+        material_sample(mat, ns, wo, front, u1, u2, bs);
+        if (!(bs->pdf > 0.0f))
+            return;
+        wi = bs->wi;
+    } else {
+        float v = (u0 - GLOW_COS_SHARE) / (1.0f - GLOW_COS_SHARE) * (float)g->n;
+        uint32_t k = v < (float)g->n ? (uint32_t)v : g->n - 1;
+        wi = media_glow_sample(g->c[k], u1, u2);
+    }
+    float pc;
+    vec3 f = material_eval(mat, ns, wo, wi, front, &pc);
+    float pdf = glow_mix_pdf(g, pc, wi);
+    bs->wi = wi;
+    bs->is_delta = 0;
+    bs->transmitted = 0;
+    bs->eta2 = 1.0f;
+    bs->pdf = v3_is_black(f) || !(pdf > 0.0f) ? 0.0f : pdf;
+    bs->weight = bs->pdf > 0.0f ? v3_scale(f, 1.0f / pdf) : v3(0, 0, 0);
+}
+
 /* The emission of the surface a ray along dir hit, MIS-weighted against NEE from the
  * vertex before (prev_p; its sampling pdf prev_pdf unless it was a delta bounce). */
 static vec3 hit_emission(const struct render_job *job, const struct surface *s, vec3 dir, int prev_delta,
@@ -664,7 +743,12 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
     const struct render_settings *rs = &sc->settings;
     struct rngs r;
     uint64_t pixel = (uint64_t)py * rs->width + px;
-    r.key = rng_mix64(smp->key ^ rng_mix64(smp->pixel_key ^ rng_key(rs->seed ^ 0x6d65646961ull, job->frame, pixel, smp->index)));
+    /* The sample's number: sobol's key is 0 and its pixel_key the stream's (pass mod R), so
+     * its index within the stream (sidx) tells the pixel's samples apart across all passes;
+     * the pass-local index would give every pixel only R sequences whatever the passes.
+     * The other samplers' keys already differ per pass. */
+    uint32_t sample = smp->type == SAMPLER_SOBOL ? smp->sidx : smp->index;
+    r.key = rng_mix64(smp->key ^ rng_mix64(smp->pixel_key ^ rng_key(rs->seed ^ 0x6d65646961ull, job->frame, pixel, sample)));
     /* vpt: the path is the volumetric path tracer's from here on: always with the vpt
      * method; with march and beam and path-traced indirect light, from the first diffuse
      * vertex's bounce on (the photon maps then serve the segments before it only). */
@@ -839,6 +923,13 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
         const int surface_map = diffuse_map && (gathered || depth >= rs->max_depth);
         if (diffuse_map)
             gathered = 1;
+        /* The gather's bounce toward glowing lights too (glow_bounce): its segment's
+         * equiangular sample toward a light in fog is ~ 1 / (the distance it passes the
+         * light at), heavy-tailed under cosine sampling alone. */
+        struct glow_mix glow;
+        glow.n = 0;
+        if (diffuse_map && !surface_map && mj->num_glow > 0)
+            glow_mix_init(&glow, mj, s.p, ng);
         if (!vpt && few_points && !material_is_delta(mat)) {
             /* Jensen's methods, a few point lights: every one (no pick noise). */
             for (uint32_t li = 0; li < job->lights.num_entries; li++) {
@@ -863,7 +954,10 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
                 vec3 tr = media_shadow_transmittance(job->media, p_off, n.target, medium, time01,
                                                      rng_mix64(r.key ^ (0x5353ull << 48) ^ vertex), rays);
                 if (!v3_is_black(tr)) {
-                    float w = n.ls.is_delta || surface_map ? 1.0f : power_heuristic(n.ls.pdf, n.bsdf_pdf);
+                    float bp = n.bsdf_pdf;
+                    if (glow.n > 0 && !n.ls.is_delta)
+                        bp = glow_mix_pdf(&glow, bp, v3_normalize(v3_sub(n.ls.p, s.p)));
+                    float w = n.ls.is_delta || surface_map ? 1.0f : power_heuristic(n.ls.pdf, bp);
                     L = v3_add(L, v3_mul(beta, v3_scale(v3_mul(v3_mul(n.f, n.ls.radiance), tr), w / n.ls.pdf)));
                 }
             }
@@ -875,7 +969,10 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
             break;
         }
         struct bsdf_sample bs;
-        material_sample(mat, ns, wo, front, rnd(&r, vertex, 5), rnd(&r, vertex, 6), &bs);
+        if (glow.n > 0)
+            glow_bounce(&glow, mat, ns, wo, front, rnd(&r, vertex, 0), rnd(&r, vertex, 5), rnd(&r, vertex, 6), &bs);
+        else
+            material_sample(mat, ns, wo, front, rnd(&r, vertex, 5), rnd(&r, vertex, 6), &bs);
         float side = v3_dot(bs.wi, ng);
         if (bs.pdf <= 0.0f || (bs.transmitted ? side >= 0.0f : side <= 0.0f))
             break;

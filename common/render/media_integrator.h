@@ -23,4 +23,16 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
                             uint32_t py, vec3 org, vec3 dir, float time01, const struct accel_hit *first,
                             int first_found, const struct raydiff *rd, uint64_t *rays, int *hit_any);
 
+/* Glow sampling. A point light inside a scattering medium glows: the light a ray gathers
+ * from it by single scattering falls off as 1 / (the ray's distance to the light), ~
+ * 1 / sin(theta) for rays leaving a point at the angle theta from the direction c to the
+ * light, whose square cosine sampling cannot integrate (fireflies on surfaces next to a
+ * light in fog). This density is 1 / (pi^2 sin(theta)) in the cone theta < pi/2 around
+ * the unit direction c (theta uniform in [0, pi/2), the azimuth uniform), 0 outside:
+ * the glow over it is bounded. The final gather's bounce of march and beam samples the
+ * mixture of cosine sampling and this density toward each glowing light (docs/media.md). */
+vec3 media_glow_sample(vec3 c, float u1, float u2);
+/* Its density at the unit direction w (solid angle; large but finite along c). */
+float media_glow_pdf(vec3 c, vec3 w);
+
 #endif

@@ -195,6 +195,13 @@ struct media_job *media_job_new(const struct accel *a, const struct light_table 
             p = v3_add(s->center, v3(0, s->radius * 1.001f, 0));
         }
         mj->light_medium[i] = media_at(mj, p);
+        /* A glowing light: a point or spot light where its medium scatters (a grid's
+         * density there not 0). */
+        uint32_t m = mj->light_medium[i];
+        const struct medium *md = m != MEDIUM_NONE ? &sm->media[m] : NULL;
+        if (e->kind == LK_POINT && md && !v3_is_black(md->sigma_s) && (!md->grid || grid_density(md->grid, p) > 0.0f) &&
+            mj->num_glow < MEDIA_GLOW_MAX)
+            mj->glow[mj->num_glow++] = p;
     }
     mj->map = sm->method != MEDIA_VPT ? map : NULL;
     mj->shadow = shadow_caches_new(mj);

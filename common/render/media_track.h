@@ -13,6 +13,10 @@
 struct photon_map;
 struct shadow_caches;
 
+/* At most this many glowing lights (point and spot lights inside a scattering medium)
+ * per job: the final gather's bounce samples directions toward them (media_integrator.h). */
+#define MEDIA_GLOW_MAX 8
+
 struct media_job {
     const struct scene_media *sm;
     const struct accel *accel;      /* the job's: the job must not move while this lives */
@@ -26,6 +30,8 @@ struct media_job {
     const struct photon_map *map; /* the job's map for Jensen's methods; NULL: single scattering only (skipped, or VPT) */
     struct shadow_caches *shadow; /* march / beam: per (point light, grid medium) tr_cache, filled on first use */
     struct medium *cut;         /* per medium: medium_forward_cut of it, what march / beam camera rays see */
+    uint32_t num_glow;          /* glowing lights: point and spot lights where their medium scatters (a */
+    vec3 glow[MEDIA_GLOW_MAX];  /* grid's density not 0), the light table's first MEDIA_GLOW_MAX (positions) */
 };
 
 /* a, lt: the render job's (outlive the result); map: the job's photon map or NULL. */

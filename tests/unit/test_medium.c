@@ -12,6 +12,7 @@
 #include <criterion/criterion.h>
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include "wire/blob.h"
 #include "render/integrator.h"
@@ -207,18 +208,20 @@ static double red_mean(const struct render_job *job, uint32_t seed, int m, vec3 
     return mean;
 }
 
+/* An isotropic fog inside a black sphere of radius 50; the camera ray passes the point
+ * light at distance 1. */
+#define AIRLIGHT_SCENE                                                                                      \
+    HEAD("\"position\": [-5, 1, 0], \"look_at\": [0, 1, 0]", 1, 1, 1, 1)                                      \
+    ",\n\"materials\": {\"black\": {\"type\": \"diffuse\", \"albedo\": [0, 0, 0]}},\n"                         \
+    "\"media\": {\"fog\": {\"sigma_a\": [0.05, 0.05, 0.05], \"sigma_s\": [0.05, 0.05, 0.05]}},\n"                \
+    "\"volume\": {\"method\": \"march\", \"fog\": \"fog\", \"step\": 0.02},\n"                                \
+    "\"objects\": [{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 50, \"material\": \"black\"}],\n"   \
+    "\"lights\": [{\"type\": \"point\", \"position\": [0, 0, 0], \"intensity\": [10, 10, 10]}]}"
+
 Test(medium, single_scattering_airlight)
 {
-    /* An isotropic fog inside a black sphere of radius 50; the camera ray passes the point
-     * light at distance 1. */
-    const char *text = HEAD("\"position\": [-5, 1, 0], \"look_at\": [0, 1, 0]", 1, 1, 1, 1)
-        ",\n\"materials\": {\"black\": {\"type\": \"diffuse\", \"albedo\": [0, 0, 0]}},\n"
-        "\"media\": {\"fog\": {\"sigma_a\": [0.05, 0.05, 0.05], \"sigma_s\": [0.05, 0.05, 0.05]}},\n"
-        "\"volume\": {\"method\": \"march\", \"fog\": \"fog\", \"step\": 0.02},\n"
-        "\"objects\": [{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 50, \"material\": \"black\"}],\n"
-        "\"lights\": [{\"type\": \"point\", \"position\": [0, 0, 0], \"intensity\": [10, 10, 10]}]}";
     struct scene s;
-    load_ok(text, &s);
+    load_ok(AIRLIGHT_SCENE, &s);
     struct render_job job;
     job_ok(&job, &s);
     cr_assert_eq(job.media->camera_medium, 0u);
@@ -1595,4 +1598,169 @@ Test(medium, beam_rows_with_tied_x_match_brute_force, .timeout = 120)
         photon_map_free(&m);
     }
     cr_assert(nonzero > rays / 3, "only %u of %u rays found photons", nonzero, rays);
+}
+
+/* ---- random numbers per sample ---- */
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* One pixel's media paths over many passes of 1 spp with the sobol sampler and the photon
+ * maps' SAMPLER_STREAMS_MAPS streams: every sample of the pixel takes its own random
+ * numbers, so the values (continuous: free flights in a fog) are nearly all
+ * distinct. Keyed by the pass-local index, the pixel's paths would repeat the streams'
+ * SAMPLER_STREAMS_MAPS sequences whatever the passes, and the error stop falling. */
+Test(medium, media_paths_differ_per_pass)
+{
+    struct scene s;
+    load_ok(AIRLIGHT_SCENE, &s);
+    s.media->method = MEDIA_VPT; /* single scattering by free flight: a continuous value */
+    struct render_job job;
+    job_ok(&job, &s);
+    enum { N = 256 };
+    double v[N];
+    uint64_t rays = 0;
+    struct sampler_pixel sp;
+    sampler_pixel_init(&sp, SAMPLER_SOBOL, 5, 0, 0, 1);
+    sampler_pixel_set_streams(&sp, SAMPLER_STREAMS_MAPS);
+    for (uint32_t p = 0; p < N; p++) {
+        sampler_pixel_set_pass(&sp, p);
+        struct sampler smp = sampler_start_pixel(&sp, p); /* 1 spp: sample p is pass p's */
+        int hit;
+        v[p] = media_sample_path(&job, &smp, 0, 0, v3(-5, 1, 0), v3(1, 0, 0), 0.0f, &rays, &hit).x;
+        cr_assert(isfinite(v[p]));
+    }
+    qsort(v, N, sizeof v[0], cmp_double);
+    int distinct = 1;
+    for (int i = 1; i < N; i++)
+        distinct += v[i] != v[i - 1];
+    cr_log_info("media paths over %d passes of 1 spp: %d distinct values", N, distinct);
+    cr_assert(distinct >= N - N / 16, "%d distinct values of %d samples", distinct, N);
+    render_job_fini(&job);
+    scene_fini(&s);
+}
+
+/* ---- glow sampling ---- */
+
+/* media_glow_sample against media_glow_pdf: the density integrates to 1 over the sphere
+ * (quadrature in theta around c, the 1 / sin(theta) singularity cancelled by the solid
+ * angle's sin(theta)), and a chi-square test of samples binned in (theta, azimuth) cells of
+ * a frame of the test's own against the cells' masses under the pdf (quadrature). */
+Test(medium, glow_sampling_chi_square)
+{
+    vec3 c = v3_normalize(v3(0.3f, -0.5f, 0.81f));
+    vec3 t = v3_normalize(v3_cross(c, v3(0, 0, 1))), b = v3_cross(c, t);
+    enum { NT = 8, NP = 6, Q = 64 };
+    double mass[NT][NP], total = 0.0;
+    const double th_max = M_PI; /* the whole sphere: the pdf must vanish outside its cone */
+    for (int i = 0; i < NT; i++)
+        for (int j = 0; j < NP; j++) {
+            double m = 0.0;
+            for (int a = 0; a < Q; a++)
+                for (int q = 0; q < Q; q++) {
+                    double th = th_max * (i + (a + 0.5) / Q) / NT, ph = 2.0 * M_PI * (j + (q + 0.5) / Q) / NP;
+                    vec3 w = v3_add(v3_scale(c, (float)cos(th)),
+                                    v3_add(v3_scale(t, (float)(sin(th) * cos(ph))), v3_scale(b, (float)(sin(th) * sin(ph)))));
+                    m += media_glow_pdf(c, v3_normalize(w)) * sin(th) * (th_max / NT / Q) * (2.0 * M_PI / NP / Q);
+                }
+            mass[i][j] = m;
+            total += m;
+        }
+    cr_assert(fabs(total - 1.0) < 2e-3, "the glow density integrates to %g", total);
+    const int n = 200000;
+    static int count[NT][NP];
+    memset(count, 0, sizeof count);
+    for (int k = 0; k < n; k++) {
+        vec3 w = media_glow_sample(c, rng_uniform(77, 2 * (uint32_t)k), rng_uniform(77, 2 * (uint32_t)k + 1));
+        cr_assert(fabsf(v3_length(w) - 1.0f) < 1e-5f);
+        cr_assert(media_glow_pdf(c, w) > 0.0f);
+        double th = acos(fmax(-1.0, fmin(1.0, v3_dot(w, c))));
+        double ph = atan2(v3_dot(w, b), v3_dot(w, t));
+        ph = ph < 0.0 ? ph + 2.0 * M_PI : ph;
+        int i = (int)(th / th_max * NT), j = (int)(ph / (2.0 * M_PI) * NP);
+        count[i < NT ? i : NT - 1][j < NP ? j : NP - 1]++;
+    }
+    double chi2 = 0.0;
+    int nb = 0, outside = 0;
+    for (int i = 0; i < NT; i++)
+        for (int j = 0; j < NP; j++) {
+            double e = mass[i][j] * n;
+            if (e < 5.0) {
+                outside += count[i][j];
+                continue;
+            }
+            chi2 += (count[i][j] - e) * (count[i][j] - e) / e;
+            nb++;
+        }
+    cr_log_info("glow sampling: chi2 %g over %d cells, %d samples in cells of mass < 5 / n", chi2, nb, outside);
+    cr_assert_eq(outside, 0);
+    cr_assert(nb >= 24);
+    cr_assert(chi2 < (nb - 1) + 6 * sqrt(2.0 * (nb - 1)), "chi2 %g over %d cells", chi2, nb);
+}
+
+/* A point light 0.3 above a white floor in fog, the camera ray hitting the floor 0.25 to
+ * its side: the final gather's bounce from there passes the light at any distance, and
+ * the single scattering its segment gathers is ~ 1 / that distance. */
+#define GLOW_SCENE                                                                                          \
+    HEAD("\"position\": [0, 0.5, -2.5], \"look_at\": [0.25, -1.2, 0]", 1, 1, 1, 8)                          \
+    ",\n\"materials\": {\"white\": {\"type\": \"diffuse\", \"albedo\": [0.8, 0.8, 0.8]},\n"                  \
+    "  \"black\": {\"type\": \"diffuse\", \"albedo\": [0, 0, 0]}},\n"                                        \
+    "\"media\": {\"fog\": {\"sigma_a\": [0.05, 0.05, 0.05], \"sigma_s\": [0.3, 0.3, 0.3]}},\n"                \
+    "\"volume\": {\"method\": \"beam\", \"fog\": \"fog\", \"photons\": 20000, \"radius\": 0.1, "             \
+    "\"step\": 0.05},\n"                                                                                     \
+    "\"objects\": [{\"type\": \"obj\", \"file\": \"floor.obj\", \"material\": \"white\"},\n"                 \
+    "  {\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 20, \"material\": \"black\"}],\n"            \
+    "\"lights\": [{\"type\": \"point\", \"position\": [0, -0.9, 0], \"intensity\": [5, 5, 5]}]}"
+
+/* n samples of the camera ray's path: mean, standard error, largest value. */
+static double glow_stats(const struct render_job *job, int n, double *se, double *max)
+{
+    vec3 o = v3(0, 0.5f, -2.5f), d = v3_normalize(v3_sub(v3(0.25f, -1.2f, 0), o));
+    double s1 = 0.0, s2 = 0.0;
+    uint64_t rays = 0;
+    *max = 0.0;
+    for (int i = 0; i < n; i++) {
+        struct sampler smp = sampler_start(21, 0, 0, (uint32_t)i);
+        int hit;
+        double v = media_sample_path(job, &smp, 0, 0, o, d, 0.0f, &rays, &hit).x;
+        cr_assert(isfinite(v));
+        s1 += v;
+        s2 += v * v;
+        *max = fmax(*max, v);
+    }
+    double mean = s1 / n;
+    *se = sqrt(fmax(0.0, s2 / n - mean * mean) / n);
+    return mean;
+}
+
+/* The gather next to a light in fog, with glow sampling: no sample far above the mean
+ * (cosine sampling alone gives a heavy tail, its largest sample here dozens of times the
+ * mean), and the same mean as cosine sampling alone (the job's glowing lights cleared)
+ * within the standard errors: unbiased. */
+Test(medium, glow_sampling_bounded, .timeout = 120)
+{
+    struct scene s;
+    load_ok(GLOW_SCENE, &s);
+    struct photon_map *map = seeded_map(&s, 3);
+    struct render_job job;
+    job_ok(&job, &s);
+    render_job_set_photon_map(&job, &map);
+    cr_assert_eq(render_job_pass_media(&job, 0)->num_glow, 1u);
+    const int n = 20000;
+    double se, max, mean = glow_stats(&job, n, &se, &max);
+    /* the old estimator: cosine sampling only */
+    job.media->num_glow = 0;
+    for (uint32_t p = 0; job.pass_media && p < job.num_passes; p++)
+        job.pass_media[p].num_glow = 0;
+    double se0, max0, mean0 = glow_stats(&job, 4 * n, &se0, &max0);
+    cr_log_info("glow sampling: mean %g +- %g, max %g (%g x the mean); cosine only: %g +- %g, max %g (%g x)", mean,
+                se, max, max / mean, mean0, se0, max0, max0 / mean0);
+    cr_assert(mean > 0.0);
+    cr_assert(max < 8.0 * mean, "largest sample %g is %g x the mean %g", max, max / mean, mean);
+    agree("glow sampling against cosine sampling", mean, se, mean0, se0, 0.0);
+    render_job_fini(&job);
+    scene_fini(&s);
 }
