@@ -307,52 +307,92 @@ int accel_intersect(const struct accel *a, vec3 o, vec3 d, float tmax, float tim
     return 1;
 }
 
-/* The packet as Embree's RTCRayHitN of width w (4, 8 or 16): its arrays of w floats or
- * ints in the order of RTCRayHit16's fields, so one layout serves every width. */
+/* A packet as Embree's RTCRayN / RTCRayHitN of width w (4, 8 or 16): arrays of w floats or
+ * ints in the order of RTCRayHit16's fields, so one layout serves every width.
+ * RTCRayNt: org xyz, tnear, dir xyz, time, tfar, mask, id, flags; then RTCHitNt: Ng xyz,
+ * u, v, primID, geomID, instID[1]. Floats and ints share it (a union: C11 type punning). */
 #define PK_ALIGN 64
-void accel_intersect_packet(const struct accel *a, uint32_t n, const vec3 *org, const vec3 *dir,
-                            const float *time01, struct accel_hit *hits, int *found)
+union packet {
+    _Alignas(PK_ALIGN) float f[20 * 16];
+    unsigned u[20 * 16];
+};
+
+/* The narrowest packet width holding n rays. */
+static inline uint32_t packet_width(uint32_t n)
 {
-    CHECK(n >= 1 && n <= ACCEL_PACKET);
-    const uint32_t w = n <= 4 ? 4 : n <= 8 ? 8 : 16; /* the narrowest packet holding the rays */
-    struct RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
-    ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
-    /* RTCRayHitNt: org xyz, tnear, dir xyz, time, tfar, mask, id, flags; Ng xyz, u, v, primID,
-     * geomID, instID[1]; each an array of w. */
-    union {
-        _Alignas(PK_ALIGN) float f[20 * 16];
-        unsigned u[20 * 16];
-    } buf; /* floats and ints share the packet (a union: C11 type punning) */
-    _Alignas(PK_ALIGN) int valid[16];
-    float *f = buf.f;
-    unsigned *ui = buf.u;
+    return n <= 4 ? 4 : n <= 8 ? 8 : 16;
+}
+
+/* Fills the rays of a packet of width w with n rays in (0, tmax) and the valid mask; lanes
+ * past n repeat ray 0, masked off. */
+static inline __attribute__((always_inline)) void packet_fill(union packet *pk, int *valid, uint32_t w, uint32_t n,
+                                                              const vec3 *org, const vec3 *dir, const float *time01,
+                                                              float tmax)
+{
+    float *f = pk->f;
+    unsigned *ui = pk->u;
     for (uint32_t k = 0; k < w; k++) {
-        uint32_t i = k < n ? k : 0; /* lanes past n repeat ray 0, masked off */
+        uint32_t i = k < n ? k : 0;
         valid[k] = k < n ? -1 : 0;
         f[0 * w + k] = org[i].x, f[1 * w + k] = org[i].y, f[2 * w + k] = org[i].z;
         f[3 * w + k] = 0.0f;
         f[4 * w + k] = dir[i].x, f[5 * w + k] = dir[i].y, f[6 * w + k] = dir[i].z;
         f[7 * w + k] = time01[i];
-        f[8 * w + k] = INFINITY;
+        f[8 * w + k] = tmax;
         ui[9 * w + k] = 0xffffffffu;
         ui[10 * w + k] = k;
         ui[11 * w + k] = 0;
-        ui[18 * w + k] = RTC_INVALID_GEOMETRY_ID;
-        ui[19 * w + k] = RTC_INVALID_GEOMETRY_ID;
     }
+}
+
+void accel_intersect_packet(const struct accel *a, uint32_t n, const vec3 *org, const vec3 *dir,
+                            const float *time01, struct accel_hit *hits, int *found)
+{
+    CHECK(n >= 1 && n <= ACCEL_PACKET);
+    const uint32_t w = packet_width(n);
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    union packet pk;
+    _Alignas(PK_ALIGN) int valid[16];
+    packet_fill(&pk, valid, w, n, org, dir, time01, INFINITY);
+    float *f = pk.f;
+    unsigned *ui = pk.u;
+    for (uint32_t k = 0; k < w; k++)
+        ui[18 * w + k] = ui[19 * w + k] = RTC_INVALID_GEOMETRY_ID;
     if (w == 4)
-        rtcIntersect4(valid, a->scene, &ctx, (struct RTCRayHit4 *)&buf);
+        rtcIntersect4(valid, a->scene, &ctx, (struct RTCRayHit4 *)&pk);
     else if (w == 8)
-        rtcIntersect8(valid, a->scene, &ctx, (struct RTCRayHit8 *)&buf);
+        rtcIntersect8(valid, a->scene, &ctx, (struct RTCRayHit8 *)&pk);
     else
-        rtcIntersect16(valid, a->scene, &ctx, (struct RTCRayHit16 *)&buf);
+        rtcIntersect16(valid, a->scene, &ctx, (struct RTCRayHit16 *)&pk);
     for (uint32_t k = 0; k < n; k++) {
         found[k] = ui[18 * w + k] != RTC_INVALID_GEOMETRY_ID;
         if (found[k])
             hit_from_embree(a, ui[18 * w + k], ui[19 * w + k], ui[17 * w + k], f[8 * w + k], f[15 * w + k],
                             f[16 * w + k], v3(f[12 * w + k], f[13 * w + k], f[14 * w + k]), &hits[k]);
     }
+}
+
+void accel_occluded_packet(const struct accel *a, uint32_t n, const vec3 *org, const vec3 *dir, float tmax,
+                           const float *time01, int *occluded)
+{
+    CHECK(n >= 1 && n <= ACCEL_PACKET);
+    const uint32_t w = packet_width(n);
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    union packet pk;
+    _Alignas(PK_ALIGN) int valid[16];
+    packet_fill(&pk, valid, w, n, org, dir, time01, tmax);
+    if (w == 4)
+        rtcOccluded4(valid, a->scene, &ctx, (struct RTCRay4 *)&pk);
+    else if (w == 8)
+        rtcOccluded8(valid, a->scene, &ctx, (struct RTCRay8 *)&pk);
+    else
+        rtcOccluded16(valid, a->scene, &ctx, (struct RTCRay16 *)&pk);
+    for (uint32_t k = 0; k < n; k++)
+        occluded[k] = pk.f[8 * w + k] < 0.0f;
 }
 
 int accel_occluded(const struct accel *a, vec3 o, vec3 d, float tmax, float time01)

@@ -65,6 +65,11 @@ void accel_intersect_packet(const struct accel *a, uint32_t n, const vec3 *org, 
                             const float *time01, struct accel_hit *hits, int *found);
 /* 1 if anything blocks the segment (0, tmax) at time01. */
 int accel_occluded(const struct accel *a, vec3 org, vec3 dir, float tmax, float time01);
+/* accel_occluded of n <= ACCEL_PACKET segments (org[k], dir[k]) in (0, tmax), traced as one
+ * Embree packet: occluded[k] as accel_occluded gives it for segment k, where packets_exact
+ * (the first shadow rays of a pixel's paths, integrator.c). */
+void accel_occluded_packet(const struct accel *a, uint32_t n, const vec3 *org, const vec3 *dir, float tmax,
+                           const float *time01, int *occluded);
 
 /* Object to world transform of a rigidly moving mesh or sphere (geom, prim as in a hit) at
  * time01; returns 0 (and leaves out alone) for geometry without an instance. */

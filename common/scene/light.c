@@ -141,6 +141,9 @@ void light_table_init(struct light_table *t, const struct scene *s)
     }
     if (t->num_entries == 0)
         return;
+    t->points_only = 1;
+    for (uint32_t i = 0; i < t->num_entries; i++)
+        t->points_only &= t->entries[i].kind == LK_POINT;
     /* Summed in double so the cdf of many small emitters stays monotone and ends at 1. */
     double total = 0.0, env_power = 0.0;
     for (uint32_t i = 0; i < t->num_entries; i++)
