@@ -412,12 +412,9 @@ int accel_occluded(const struct accel *a, vec3 o, vec3 d, float tmax, float time
     return r.tfar < 0.0f;
 }
 
-int accel_object_xform(const struct accel *a, uint32_t geom, uint32_t prim, float time01, struct xform *out)
+int accel_object_xform_slow_(const struct accel *a, uint32_t geom, uint32_t prim, float time01, struct xform *out)
 {
     const struct accel_motion *mo = NULL;
-    if (!a->mesh_motion && !a->sphere_motion)
-        return 0; /* nothing instanced: no lookup per hit (objects with keys are instanced
-                   * even when still during this frame's shutter) */
     if (geom == a->sphere_geom)
         mo = a->sphere_motion ? &a->sphere_motion[prim] : NULL;
     else

@@ -78,6 +78,14 @@ void accel_occluded_packet(const struct accel *a, uint32_t n, const vec3 *org, c
  * box a ray meets (motion_vis.c, photon_beams.c). */
 void accel_attach_user_geometry(RTCDevice dev, RTCScene s, uint32_t n, void *user, RTCBoundsFunction bounds,
                                 RTCIntersectFunctionN intersect);
-int accel_object_xform(const struct accel *a, uint32_t geom, uint32_t prim, float time01, struct xform *out);
+int accel_object_xform_slow_(const struct accel *a, uint32_t geom, uint32_t prim, float time01, struct xform *out);
+static inline int accel_object_xform(const struct accel *a, uint32_t geom, uint32_t prim, float time01,
+                                     struct xform *out)
+{
+    if (!a->mesh_motion && !a->sphere_motion)
+        return 0; /* nothing instanced: no lookup per hit (objects with keys are instanced
+                   * even when still during this frame's shutter) */
+    return accel_object_xform_slow_(a, geom, prim, time01, out);
+}
 
 #endif

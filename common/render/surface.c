@@ -164,23 +164,3 @@ vec3 surface_dpdu(const struct accel *acc, vec3 org, vec3 dir, const struct acce
     }
     return moving ? xform_vector(&x, t) : t;
 }
-
-int nee_prepare(const struct light_table *lt, const struct scene *sc, const struct material *mat, vec3 p, vec3 ns,
-                vec3 ng, vec3 wo, int front, int through, float pick, float u, float v, struct nee_sample *n)
-{
-    light_sample(lt, sc, p, pick, u, v, &n->ls);
-    if (!(n->ls.pdf > 0.0f) || v3_is_black(n->ls.radiance))
-        return 0;
-    vec3 to = v3_sub(n->ls.p, p);
-    vec3 wi = v3_scale(to, 1.0f / v3_length(to));
-    n->bsdf_pdf = 0.0f;
-    float side = v3_dot(wi, ng);
-    n->transmitted = side < 0.0f;
-    int ok = side > 0.0f || (through && side < 0.0f && mat->type == MATERIAL_DIELECTRIC);
-    n->f = ok ? material_eval(mat, ns, wo, wi, front, &n->bsdf_pdf) : v3(0, 0, 0);
-    if (v3_is_black(n->f))
-        return 0;
-    const struct light_sample *ls = &n->ls;
-    n->target = ls->is_delta ? ls->p : offset_ray_origin(ls->p, v3_dot(ls->n, wi) < 0.0f ? ls->n : v3_neg(ls->n));
-    return 1;
-}
