@@ -70,7 +70,7 @@ static int aov_trace(const struct render_job *job, vec3 org, vec3 dir, float tim
  * only the dimensions light_sample reads (light.h): no pick with one light, no point on a
  * light when every light is a point. Values are pure functions of their dimension, so
  * skipping one changes no other. */
-static inline int nee_prepare_smp(const struct render_job *job, const struct material *mat, vec3 p, vec3 ns, vec3 ng,
+static inline __attribute__((always_inline)) int nee_prepare_smp(const struct render_job *job, const struct material *mat, vec3 p, vec3 ns, vec3 ng,
                                   vec3 wo, int front, const struct sampler *smp, uint32_t d0, struct nee_sample *n)
 {
     const struct light_table *lt = &job->lights;
