@@ -269,44 +269,6 @@ void accel_fini(struct accel *a)
     memset(a, 0, sizeof *a);
 }
 
-/* The hit as the renderer names it: mesh and triangle, or sphere_geom and sphere index. */
-static void hit_from_embree(const struct accel *a, unsigned geom_id, unsigned inst_id, unsigned prim_id, float t,
-                            float u, float v, vec3 ng, struct accel_hit *hit)
-{
-    unsigned top = inst_id != RTC_INVALID_GEOMETRY_ID ? inst_id : geom_id;
-    hit->t = t;
-    hit->geom = a->top_mesh[top];
-    hit->prim = prim_id;
-    if (hit->geom == a->sphere_geom)
-        hit->prim = a->top_sphere[top] != UINT32_MAX ? a->top_sphere[top] : a->still_sphere[prim_id];
-    hit->u = u;
-    hit->v = v;
-    hit->ng = ng;
-}
-
-int accel_intersect(const struct accel *a, vec3 o, vec3 d, float tmax, float time01, struct accel_hit *hit)
-{
-    struct RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
-    struct RTCRayHit rh;
-    rh.ray.org_x = o.x, rh.ray.org_y = o.y, rh.ray.org_z = o.z;
-    rh.ray.dir_x = d.x, rh.ray.dir_y = d.y, rh.ray.dir_z = d.z;
-    rh.ray.tnear = 0.0f;
-    rh.ray.tfar = tmax;
-    rh.ray.time = time01;
-    rh.ray.mask = 0xffffffffu;
-    rh.ray.id = 0;
-    rh.ray.flags = 0;
-    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(a->scene, &ctx, &rh);
-    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID)
-        return 0;
-    hit_from_embree(a, rh.hit.geomID, rh.hit.instID[0], rh.hit.primID, rh.ray.tfar, rh.hit.u, rh.hit.v,
-                    v3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z), hit);
-    return 1;
-}
-
 /* A packet as Embree's RTCRayN / RTCRayHitN of width w (4, 8 or 16): arrays of w floats or
  * ints in the order of RTCRayHit16's fields, so one layout serves every width.
  * RTCRayNt: org xyz, tnear, dir xyz, time, tfar, mask, id, flags; then RTCHitNt: Ng xyz,
@@ -316,6 +278,11 @@ union packet {
     _Alignas(PK_ALIGN) float f[20 * 16];
     unsigned u[20 * 16];
 };
+
+/* Fewer rays than these go one by one: a 4-wide packet costs Embree about as much as 2.5
+ * closest-hit rays or 3 occlusion rays (callgrind, docs/benchmarks.md). */
+#define PACKET_MIN_HITS 3
+#define PACKET_MIN_OCCLUDED 4
 
 /* The narrowest packet width holding n rays. */
 static inline uint32_t packet_width(uint32_t n)
@@ -349,6 +316,11 @@ void accel_intersect_packet(const struct accel *a, uint32_t n, const vec3 *org, 
                             const float *time01, struct accel_hit *hits, int *found)
 {
     CHECK(n >= 1 && n <= ACCEL_PACKET);
+    if (n < PACKET_MIN_HITS) {
+        for (uint32_t k = 0; k < n; k++)
+            found[k] = accel_intersect(a, org[k], dir[k], INFINITY, time01[k], &hits[k]);
+        return;
+    }
     const uint32_t w = packet_width(n);
     struct RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
@@ -369,7 +341,7 @@ void accel_intersect_packet(const struct accel *a, uint32_t n, const vec3 *org, 
     for (uint32_t k = 0; k < n; k++) {
         found[k] = ui[18 * w + k] != RTC_INVALID_GEOMETRY_ID;
         if (found[k])
-            hit_from_embree(a, ui[18 * w + k], ui[19 * w + k], ui[17 * w + k], f[8 * w + k], f[15 * w + k],
+            accel_hit_from_embree_(a, ui[18 * w + k], ui[19 * w + k], ui[17 * w + k], f[8 * w + k], f[15 * w + k],
                             f[16 * w + k], v3(f[12 * w + k], f[13 * w + k], f[14 * w + k]), &hits[k]);
     }
 }
@@ -378,6 +350,11 @@ void accel_occluded_packet(const struct accel *a, uint32_t n, const vec3 *org, c
                            const float *time01, int *occluded)
 {
     CHECK(n >= 1 && n <= ACCEL_PACKET);
+    if (n < PACKET_MIN_OCCLUDED) {
+        for (uint32_t k = 0; k < n; k++)
+            occluded[k] = accel_occluded(a, org[k], dir[k], tmax, time01[k]);
+        return;
+    }
     const uint32_t w = packet_width(n);
     struct RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);

@@ -63,8 +63,10 @@ void surface_from_hit_slow_(const struct accel *acc, const struct light_table *l
 /* Hit h of the ray (org, dir) at time01 of accel acc as a surface point; lt gives the
  * emitter entry of the hit primitive. Still triangles (no instance, no time steps in the
  * frame) inline; spheres and moving geometry in surface.c. */
-static inline void surface_from_hit(const struct accel *acc, const struct light_table *lt, vec3 org, vec3 dir,
-                                    const struct accel_hit *h, float time01, struct surface *s)
+static inline __attribute__((always_inline)) void surface_from_hit(const struct accel *acc,
+                                                                   const struct light_table *lt, vec3 org,
+                                                                   vec3 dir, const struct accel_hit *h,
+                                                                   float time01, struct surface *s)
 {
     if (acc->mesh_motion || acc->sphere_motion || h->geom == acc->sphere_geom) {
         surface_from_hit_slow_(acc, lt, org, dir, h, time01, s);
