@@ -96,17 +96,17 @@ static inline int accel_intersect(const struct accel *a, vec3 o, vec3 d, float t
     return 1;
 }
 /* Closest hits of n <= ACCEL_PACKET camera-like rays in (0, inf), traced together as one
- * Embree packet (coherent rays share the BVH traversal): found[k] and hits[k] as
- * accel_intersect gives them for ray k, bit for bit where packets_exact
- * (tests/integration/packets.sh). */
+ * Embree packet (coherent rays share the BVH traversal; fewer than 3 go one by one, which
+ * costs less): found[k] and hits[k] as accel_intersect gives them for ray k, bit for bit
+ * where packets_exact (tests/unit/test_accel.c, tests/integration/packets.sh). */
 #define ACCEL_PACKET 16
 void accel_intersect_packet(const struct accel *a, uint32_t n, const vec3 *org, const vec3 *dir,
                             const float *time01, struct accel_hit *hits, int *found);
 /* 1 if anything blocks the segment (0, tmax) at time01. */
 int accel_occluded(const struct accel *a, vec3 org, vec3 dir, float tmax, float time01);
 /* accel_occluded of n <= ACCEL_PACKET segments (org[k], dir[k]) in (0, tmax), traced as one
- * Embree packet: occluded[k] as accel_occluded gives it for segment k, where packets_exact
- * (the first shadow rays of a pixel's paths, integrator.c). */
+ * Embree packet (fewer than 4 one by one): occluded[k] as accel_occluded gives it for
+ * segment k, where packets_exact (the first shadow rays of a pixel's paths, integrator.c). */
 void accel_occluded_packet(const struct accel *a, uint32_t n, const vec3 *org, const vec3 *dir, float tmax,
                            const float *time01, int *occluded);
 

@@ -101,9 +101,10 @@ struct nee_sample {
     float bsdf_pdf;
     int transmitted;
 };
-static inline int nee_prepare(const struct light_table *lt, const struct scene *sc, const struct material *mat,
-                              vec3 p, vec3 ns, vec3 ng, vec3 wo, int front, int through, float pick, float u, float v,
-                              struct nee_sample *n)
+static inline __attribute__((always_inline)) int nee_prepare(const struct light_table *lt, const struct scene *sc,
+                                                             const struct material *mat, vec3 p, vec3 ns, vec3 ng,
+                                                             vec3 wo, int front, int through, float pick, float u,
+                                                             float v, struct nee_sample *n)
 {
     if (lt->points_only) /* the same sample, inline */
         light_sample_point(lt, sc, lt->num_entries == 1 ? 0 : light_pick(lt, pick), p, &n->ls);
