@@ -290,12 +290,16 @@ static inline uint32_t packet_width(uint32_t n)
     return n <= 4 ? 4 : n <= 8 ? 8 : 16;
 }
 
-/* Fills the rays of a packet of width w with n rays in (0, tmax) and the valid mask; lanes
- * past n repeat ray 0, masked off. */
-static inline __attribute__((always_inline)) void packet_fill(union packet *pk, int *valid, uint32_t w, uint32_t n,
-                                                              const vec3 *org, const vec3 *dir, const float *time01,
-                                                              float tmax)
+/* Sets up a coherent query of n rays in (0, tmax): the context, the rays of the narrowest
+ * packet that holds them and its valid mask (lanes past n repeat ray 0, masked off).
+ * Returns the packet's width. */
+static inline __attribute__((always_inline)) uint32_t packet_fill(struct RTCIntersectContext *ctx, union packet *pk,
+                                                                  int *valid, uint32_t n, const vec3 *org,
+                                                                  const vec3 *dir, const float *time01, float tmax)
 {
+    rtcInitIntersectContext(ctx);
+    ctx->flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    const uint32_t w = packet_width(n);
     float *f = pk->f;
     unsigned *ui = pk->u;
     for (uint32_t k = 0; k < w; k++) {
@@ -310,6 +314,7 @@ static inline __attribute__((always_inline)) void packet_fill(union packet *pk, 
         ui[10 * w + k] = k;
         ui[11 * w + k] = 0;
     }
+    return w;
 }
 
 void accel_intersect_packet(const struct accel *a, uint32_t n, const vec3 *org, const vec3 *dir,
@@ -321,13 +326,10 @@ void accel_intersect_packet(const struct accel *a, uint32_t n, const vec3 *org, 
             found[k] = accel_intersect(a, org[k], dir[k], INFINITY, time01[k], &hits[k]);
         return;
     }
-    const uint32_t w = packet_width(n);
     struct RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
-    ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
     union packet pk;
     _Alignas(PK_ALIGN) int valid[16];
-    packet_fill(&pk, valid, w, n, org, dir, time01, INFINITY);
+    const uint32_t w = packet_fill(&ctx, &pk, valid, n, org, dir, time01, INFINITY);
     float *f = pk.f;
     unsigned *ui = pk.u;
     for (uint32_t k = 0; k < w; k++)
@@ -342,7 +344,7 @@ void accel_intersect_packet(const struct accel *a, uint32_t n, const vec3 *org, 
         found[k] = ui[18 * w + k] != RTC_INVALID_GEOMETRY_ID;
         if (found[k])
             accel_hit_from_embree_(a, ui[18 * w + k], ui[19 * w + k], ui[17 * w + k], f[8 * w + k], f[15 * w + k],
-                            f[16 * w + k], v3(f[12 * w + k], f[13 * w + k], f[14 * w + k]), &hits[k]);
+                                   f[16 * w + k], v3(f[12 * w + k], f[13 * w + k], f[14 * w + k]), &hits[k]);
     }
 }
 
@@ -355,13 +357,10 @@ void accel_occluded_packet(const struct accel *a, uint32_t n, const vec3 *org, c
             occluded[k] = accel_occluded(a, org[k], dir[k], tmax, time01[k]);
         return;
     }
-    const uint32_t w = packet_width(n);
     struct RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
-    ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
     union packet pk;
     _Alignas(PK_ALIGN) int valid[16];
-    packet_fill(&pk, valid, w, n, org, dir, time01, tmax);
+    const uint32_t w = packet_fill(&ctx, &pk, valid, n, org, dir, time01, tmax);
     if (w == 4)
         rtcOccluded4(valid, a->scene, &ctx, (struct RTCRay4 *)&pk);
     else if (w == 8)
