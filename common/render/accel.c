@@ -269,90 +269,106 @@ void accel_fini(struct accel *a)
     memset(a, 0, sizeof *a);
 }
 
-/* The hit as the renderer names it: mesh and triangle, or sphere_geom and sphere index. */
-static void hit_from_embree(const struct accel *a, unsigned geom_id, unsigned inst_id, unsigned prim_id, float t,
-                            float u, float v, vec3 ng, struct accel_hit *hit)
-{
-    unsigned top = inst_id != RTC_INVALID_GEOMETRY_ID ? inst_id : geom_id;
-    hit->t = t;
-    hit->geom = a->top_mesh[top];
-    hit->prim = prim_id;
-    if (hit->geom == a->sphere_geom)
-        hit->prim = a->top_sphere[top] != UINT32_MAX ? a->top_sphere[top] : a->still_sphere[prim_id];
-    hit->u = u;
-    hit->v = v;
-    hit->ng = ng;
-}
-
-int accel_intersect(const struct accel *a, vec3 o, vec3 d, float tmax, float time01, struct accel_hit *hit)
-{
-    struct RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
-    struct RTCRayHit rh;
-    rh.ray.org_x = o.x, rh.ray.org_y = o.y, rh.ray.org_z = o.z;
-    rh.ray.dir_x = d.x, rh.ray.dir_y = d.y, rh.ray.dir_z = d.z;
-    rh.ray.tnear = 0.0f;
-    rh.ray.tfar = tmax;
-    rh.ray.time = time01;
-    rh.ray.mask = 0xffffffffu;
-    rh.ray.id = 0;
-    rh.ray.flags = 0;
-    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(a->scene, &ctx, &rh);
-    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID)
-        return 0;
-    hit_from_embree(a, rh.hit.geomID, rh.hit.instID[0], rh.hit.primID, rh.ray.tfar, rh.hit.u, rh.hit.v,
-                    v3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z), hit);
-    return 1;
-}
-
-/* The packet as Embree's RTCRayHitN of width w (4, 8 or 16): its arrays of w floats or
- * ints in the order of RTCRayHit16's fields, so one layout serves every width. */
+/* A packet as Embree's RTCRayN / RTCRayHitN of width w (4, 8 or 16): arrays of w floats or
+ * ints in the order of RTCRayHit16's fields, so one layout serves every width.
+ * RTCRayNt: org xyz, tnear, dir xyz, time, tfar, mask, id, flags; then RTCHitNt: Ng xyz,
+ * u, v, primID, geomID, instID[1]. Floats and ints share it (a union: C11 type punning). */
 #define PK_ALIGN 64
-void accel_intersect_packet(const struct accel *a, uint32_t n, const vec3 *org, const vec3 *dir,
-                            const float *time01, struct accel_hit *hits, int *found)
+union packet {
+    _Alignas(PK_ALIGN) float f[20 * 16];
+    unsigned u[20 * 16];
+};
+
+/* Fewer rays than these go one by one: a 4-wide packet costs Embree about as much as 2.5
+ * closest-hit rays or 3 occlusion rays (callgrind, docs/benchmarks.md). */
+#define PACKET_MIN_HITS 3
+#define PACKET_MIN_OCCLUDED 4
+
+/* The narrowest packet width holding n rays. */
+static inline uint32_t packet_width(uint32_t n)
 {
-    CHECK(n >= 1 && n <= ACCEL_PACKET);
-    const uint32_t w = n <= 4 ? 4 : n <= 8 ? 8 : 16; /* the narrowest packet holding the rays */
-    struct RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
-    ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
-    /* RTCRayHitNt: org xyz, tnear, dir xyz, time, tfar, mask, id, flags; Ng xyz, u, v, primID,
-     * geomID, instID[1]; each an array of w. */
-    union {
-        _Alignas(PK_ALIGN) float f[20 * 16];
-        unsigned u[20 * 16];
-    } buf; /* floats and ints share the packet (a union: C11 type punning) */
-    _Alignas(PK_ALIGN) int valid[16];
-    float *f = buf.f;
-    unsigned *ui = buf.u;
+    return n <= 4 ? 4 : n <= 8 ? 8 : 16;
+}
+
+/* Sets up a coherent query of n rays in (0, tmax): the context, the rays of the narrowest
+ * packet that holds them and its valid mask (lanes past n repeat ray 0, masked off).
+ * Returns the packet's width. */
+static inline __attribute__((always_inline)) uint32_t packet_fill(struct RTCIntersectContext *ctx, union packet *pk,
+                                                                  int *valid, uint32_t n, const vec3 *org,
+                                                                  const vec3 *dir, const float *time01, float tmax)
+{
+    rtcInitIntersectContext(ctx);
+    ctx->flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    const uint32_t w = packet_width(n);
+    float *f = pk->f;
+    unsigned *ui = pk->u;
     for (uint32_t k = 0; k < w; k++) {
-        uint32_t i = k < n ? k : 0; /* lanes past n repeat ray 0, masked off */
+        uint32_t i = k < n ? k : 0;
         valid[k] = k < n ? -1 : 0;
         f[0 * w + k] = org[i].x, f[1 * w + k] = org[i].y, f[2 * w + k] = org[i].z;
         f[3 * w + k] = 0.0f;
         f[4 * w + k] = dir[i].x, f[5 * w + k] = dir[i].y, f[6 * w + k] = dir[i].z;
         f[7 * w + k] = time01[i];
-        f[8 * w + k] = INFINITY;
+        f[8 * w + k] = tmax;
         ui[9 * w + k] = 0xffffffffu;
         ui[10 * w + k] = k;
         ui[11 * w + k] = 0;
-        ui[18 * w + k] = RTC_INVALID_GEOMETRY_ID;
-        ui[19 * w + k] = RTC_INVALID_GEOMETRY_ID;
     }
+    return w;
+}
+
+void accel_intersect_packet(const struct accel *a, uint32_t n, const vec3 *org, const vec3 *dir,
+                            const float *time01, struct accel_hit *hits, int *found)
+{
+    CHECK(n >= 1 && n <= ACCEL_PACKET);
+    if (n < PACKET_MIN_HITS) {
+        for (uint32_t k = 0; k < n; k++)
+            found[k] = accel_intersect(a, org[k], dir[k], INFINITY, time01[k], &hits[k]);
+        return;
+    }
+    struct RTCIntersectContext ctx;
+    union packet pk;
+    _Alignas(PK_ALIGN) int valid[16];
+    const uint32_t w = packet_fill(&ctx, &pk, valid, n, org, dir, time01, INFINITY);
+    float *f = pk.f;
+    unsigned *ui = pk.u;
+    for (uint32_t k = 0; k < w; k++)
+        ui[18 * w + k] = ui[19 * w + k] = RTC_INVALID_GEOMETRY_ID;
     if (w == 4)
-        rtcIntersect4(valid, a->scene, &ctx, (struct RTCRayHit4 *)&buf);
+        rtcIntersect4(valid, a->scene, &ctx, (struct RTCRayHit4 *)&pk);
     else if (w == 8)
-        rtcIntersect8(valid, a->scene, &ctx, (struct RTCRayHit8 *)&buf);
+        rtcIntersect8(valid, a->scene, &ctx, (struct RTCRayHit8 *)&pk);
     else
-        rtcIntersect16(valid, a->scene, &ctx, (struct RTCRayHit16 *)&buf);
+        rtcIntersect16(valid, a->scene, &ctx, (struct RTCRayHit16 *)&pk);
     for (uint32_t k = 0; k < n; k++) {
         found[k] = ui[18 * w + k] != RTC_INVALID_GEOMETRY_ID;
         if (found[k])
-            hit_from_embree(a, ui[18 * w + k], ui[19 * w + k], ui[17 * w + k], f[8 * w + k], f[15 * w + k],
-                            f[16 * w + k], v3(f[12 * w + k], f[13 * w + k], f[14 * w + k]), &hits[k]);
+            accel_hit_from_embree_(a, ui[18 * w + k], ui[19 * w + k], ui[17 * w + k], f[8 * w + k], f[15 * w + k],
+                                   f[16 * w + k], v3(f[12 * w + k], f[13 * w + k], f[14 * w + k]), &hits[k]);
     }
+}
+
+void accel_occluded_packet(const struct accel *a, uint32_t n, const vec3 *org, const vec3 *dir, float tmax,
+                           const float *time01, int *occluded)
+{
+    CHECK(n >= 1 && n <= ACCEL_PACKET);
+    if (n < PACKET_MIN_OCCLUDED) {
+        for (uint32_t k = 0; k < n; k++)
+            occluded[k] = accel_occluded(a, org[k], dir[k], tmax, time01[k]);
+        return;
+    }
+    struct RTCIntersectContext ctx;
+    union packet pk;
+    _Alignas(PK_ALIGN) int valid[16];
+    const uint32_t w = packet_fill(&ctx, &pk, valid, n, org, dir, time01, tmax);
+    if (w == 4)
+        rtcOccluded4(valid, a->scene, &ctx, (struct RTCRay4 *)&pk);
+    else if (w == 8)
+        rtcOccluded8(valid, a->scene, &ctx, (struct RTCRay8 *)&pk);
+    else
+        rtcOccluded16(valid, a->scene, &ctx, (struct RTCRay16 *)&pk);
+    for (uint32_t k = 0; k < n; k++)
+        occluded[k] = pk.f[8 * w + k] < 0.0f;
 }
 
 int accel_occluded(const struct accel *a, vec3 o, vec3 d, float tmax, float time01)
@@ -372,12 +388,9 @@ int accel_occluded(const struct accel *a, vec3 o, vec3 d, float tmax, float time
     return r.tfar < 0.0f;
 }
 
-int accel_object_xform(const struct accel *a, uint32_t geom, uint32_t prim, float time01, struct xform *out)
+int accel_object_xform_slow_(const struct accel *a, uint32_t geom, uint32_t prim, float time01, struct xform *out)
 {
     const struct accel_motion *mo = NULL;
-    if (!a->mesh_motion && !a->sphere_motion)
-        return 0; /* nothing instanced: no lookup per hit (objects with keys are instanced
-                   * even when still during this frame's shutter) */
     if (geom == a->sphere_geom)
         mo = a->sphere_motion ? &a->sphere_motion[prim] : NULL;
     else

@@ -54,17 +54,61 @@ int accel_init(struct accel *a, const struct scene *scene, uint32_t frame, uint3
                 size_t errlen);
 void accel_fini(struct accel *a);
 
-/* Closest hit in (0, tmax) at time01 in [0, 1] across the shutter; returns 1 on a hit. */
-int accel_intersect(const struct accel *a, vec3 org, vec3 dir, float tmax, float time01, struct accel_hit *hit);
+/* The hit as the renderer names it: mesh and triangle, or sphere_geom and sphere index. */
+static inline void accel_hit_from_embree_(const struct accel *a, unsigned geom_id, unsigned inst_id,
+                                          unsigned prim_id, float t, float u, float v, vec3 ng,
+                                          struct accel_hit *hit)
+{
+    unsigned top = inst_id != RTC_INVALID_GEOMETRY_ID ? inst_id : geom_id;
+    hit->t = t;
+    hit->geom = a->top_mesh[top];
+    hit->prim = prim_id;
+    if (hit->geom == a->sphere_geom)
+        hit->prim = a->top_sphere[top] != UINT32_MAX ? a->top_sphere[top] : a->still_sphere[prim_id];
+    hit->u = u;
+    hit->v = v;
+    hit->ng = ng;
+}
+
+/* Closest hit in (0, tmax) at time01 in [0, 1] across the shutter; returns 1 on a hit.
+ * Inline: the path tracer calls it for every bounce. */
+static inline int accel_intersect(const struct accel *a, vec3 o, vec3 d, float tmax, float time01,
+                                  struct accel_hit *hit)
+{
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    struct RTCRayHit rh;
+    rh.ray.org_x = o.x, rh.ray.org_y = o.y, rh.ray.org_z = o.z;
+    rh.ray.dir_x = d.x, rh.ray.dir_y = d.y, rh.ray.dir_z = d.z;
+    rh.ray.tnear = 0.0f;
+    rh.ray.tfar = tmax;
+    rh.ray.time = time01;
+    rh.ray.mask = 0xffffffffu;
+    rh.ray.id = 0;
+    rh.ray.flags = 0;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(a->scene, &ctx, &rh);
+    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID)
+        return 0;
+    accel_hit_from_embree_(a, rh.hit.geomID, rh.hit.instID[0], rh.hit.primID, rh.ray.tfar, rh.hit.u, rh.hit.v,
+                           v3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z), hit);
+    return 1;
+}
 /* Closest hits of n <= ACCEL_PACKET camera-like rays in (0, inf), traced together as one
- * Embree packet (coherent rays share the BVH traversal): found[k] and hits[k] as
- * accel_intersect gives them for ray k, bit for bit where packets_exact
- * (tests/integration/packets.sh). */
+ * Embree packet (coherent rays share the BVH traversal; fewer than 3 go one by one, which
+ * costs less): found[k] and hits[k] as accel_intersect gives them for ray k, bit for bit
+ * where packets_exact (tests/unit/test_accel.c, tests/integration/packets.sh). */
 #define ACCEL_PACKET 16
 void accel_intersect_packet(const struct accel *a, uint32_t n, const vec3 *org, const vec3 *dir,
                             const float *time01, struct accel_hit *hits, int *found);
 /* 1 if anything blocks the segment (0, tmax) at time01. */
 int accel_occluded(const struct accel *a, vec3 org, vec3 dir, float tmax, float time01);
+/* accel_occluded of n <= ACCEL_PACKET segments (org[k], dir[k]) in (0, tmax), traced as one
+ * Embree packet (fewer than 4 one by one): occluded[k] as accel_occluded gives it for
+ * segment k, where packets_exact (the first shadow rays of a pixel's paths, integrator.c). */
+void accel_occluded_packet(const struct accel *a, uint32_t n, const vec3 *org, const vec3 *dir, float tmax,
+                           const float *time01, int *occluded);
 
 /* Object to world transform of a rigidly moving mesh or sphere (geom, prim as in a hit) at
  * time01; returns 0 (and leaves out alone) for geometry without an instance. */
@@ -73,6 +117,14 @@ int accel_occluded(const struct accel *a, vec3 org, vec3 dir, float tmax, float 
  * box a ray meets (motion_vis.c, photon_beams.c). */
 void accel_attach_user_geometry(RTCDevice dev, RTCScene s, uint32_t n, void *user, RTCBoundsFunction bounds,
                                 RTCIntersectFunctionN intersect);
-int accel_object_xform(const struct accel *a, uint32_t geom, uint32_t prim, float time01, struct xform *out);
+int accel_object_xform_slow_(const struct accel *a, uint32_t geom, uint32_t prim, float time01, struct xform *out);
+static inline int accel_object_xform(const struct accel *a, uint32_t geom, uint32_t prim, float time01,
+                                     struct xform *out)
+{
+    if (!a->mesh_motion && !a->sphere_motion)
+        return 0; /* nothing instanced: no lookup per hit (objects with keys are instanced
+                   * even when still during this frame's shutter) */
+    return accel_object_xform_slow_(a, geom, prim, time01, out);
+}
 
 #endif

@@ -66,147 +66,214 @@ static int aov_trace(const struct render_job *job, vec3 org, vec3 dir, float tim
     return 1;
 }
 
-/* The radiance along camera ray cs; aov (NULL when the frame has no AOVs) gets its AOVs,
- * set to a miss by the caller. cp: NULL, or the packet whose slot holds cs and its first
- * hit (packet.h). */
-static vec3 camera_path(const struct render_job *job, uint32_t pass, uint32_t px, uint32_t py, struct sampler smp,
-                        struct camera_sample cs, const struct camera_packet *cp, uint32_t slot, uint64_t *rays,
-                        int *hit_any, struct aov_sample *aov)
+/* Next-event estimation's light sample at the vertex whose dimensions start at d0, drawing
+ * only the dimensions light_sample reads (light.h): no pick with one light, no point on a
+ * light when every light is a point. Values are pure functions of their dimension, so
+ * skipping one changes no other. */
+static inline __attribute__((always_inline)) int nee_prepare_smp(const struct render_job *job, const struct material *mat, vec3 p, vec3 ns, vec3 ng,
+                                  vec3 wo, int front, const struct sampler *smp, uint32_t d0, struct nee_sample *n)
+{
+    const struct light_table *lt = &job->lights;
+    float pick = lt->num_entries > 1 ? sampler_get(smp, d0 + DIM_LIGHT_PICK) : 0.0f, lu = 0.0f, lv = 0.0f;
+    if (!lt->points_only)
+        sampler_get_2d(smp, d0 + DIM_LIGHT_U, &lu, &lv);
+    return nee_prepare(lt, job->scene, mat, p, ns, ng, wo, front, 1, pick, lu, lv, n);
+}
+
+/* One camera path between its vertices (no media): what the next vertex needs, and the
+ * shadow ray a vertex leaves pending (its contribution added once its visibility is
+ * known, before the next vertex adds anything, so L sums in the same order whether shadow
+ * rays go one by one or in a packet). */
+struct path {
+    struct sampler smp;
+    vec3 L, beta, org, dir, prev_p;
+    float prev_pdf;             /* solid-angle pdf of the BSDF sample that produced dir */
+    float time01;               /* the ray's time in [0, 1] across the shutter */
+    int prev_delta;             /* camera rays count as specular: no MIS on what they hit */
+    uint32_t vertex;            /* the vertex the next hit makes (1: the camera ray's) */
+    int hit_any;
+    struct aov_sample *aov;     /* NULL once the AOVs are set (or when there are none) */
+    struct raydiff rd;          /* texture footprints, only when a material has a texture */
+    int shadow;                 /* a shadow ray (so, sd) is pending, carrying sl */
+    vec3 so, sd, sl;
+};
+
+static void path_start(const struct render_job *job, struct path *p, struct sampler smp,
+                       const struct camera_sample *cs, struct aov_sample *aov)
+{
+    p->smp = smp;
+    p->L = v3(0, 0, 0);
+    p->beta = v3(1, 1, 1);
+    p->org = p->prev_p = cs->o;
+    p->dir = cs->d;
+    p->prev_pdf = 0.0f;
+    p->time01 = cs->time01;
+    p->prev_delta = 1;
+    p->vertex = 1;
+    p->hit_any = 0;
+    p->aov = aov;
+    p->shadow = 0;
+    if (job->textured)
+        texshade_camera(job, cs, &p->smp, &p->rd);
+}
+
+/* The vertex the path's ray (org, dir) makes at hit h (found: whether it hit): emission,
+ * next-event set-up (p->shadow with the shadow ray when a light sample needs one) and the
+ * BSDF sample that gives the next ray. Returns whether the path goes on. Always inline:
+ * the single-ray loop and the packet's first vertices share it. */
+static inline __attribute__((always_inline)) int path_vertex(const struct render_job *job, struct path *p, int found,
+                                                             const struct accel_hit *h, uint64_t *rays)
 {
     const struct scene *sc = job->scene;
-    const struct render_settings *rs = &sc->settings;
-    /* time01 is the ray's time in [0, 1] across the shutter (0 when nothing needs time),
-     * for motion-blurred geometry. */
-    float time01 = cs.time01;
-    vec3 org = cs.o, dir = cs.d;
-    struct raydiff rd;          /* texture footprints, only when a material has a texture */
+    const uint32_t vertex = p->vertex;
+    vec3 org = p->org, dir = p->dir;
+    p->shadow = 0;
+    if (!found) {
+        /* Escaped: the environment light, weighted against its light samples. */
+        if (sc->env) {
+            vec3 le = light_env_radiance(&job->lights, sc, dir);
+            float w = p->prev_delta ? 1.0f : power_heuristic(p->prev_pdf, light_env_pdf(&job->lights, sc, dir));
+            p->L = v3_add(p->L, v3_mul(p->beta, v3_scale(le, w)));
+        }
+        return 0;
+    }
+    if (vertex == 1)
+        p->hit_any = 1;
+    struct surface s;
+    surface_from_hit(&job->accel, &job->lights, org, dir, h, p->time01, &s);
+
+    /* Emitters the light table cannot sample (on moving geometry) and emitters seen
+     * after a delta bounce are found only this way: full weight, no MIS. */
+    /* Only emitters in the light table, or any surface when moving emitters exist. */
+    if (s.light != LIGHT_NONE || job->accel.has_motion) {
+        vec3 le = emitted(job, &s, dir);
+        if (!v3_is_black(le)) {
+            float w = 1.0f;
+            if (!p->prev_delta && s.light != LIGHT_NONE) {
+                float lp = light_pdf(&job->lights, sc, s.light, p->prev_p, s.p, s.ng);
+                w = power_heuristic(p->prev_pdf, lp);
+            }
+            p->L = v3_add(p->L, v3_mul(p->beta, v3_scale(le, w)));
+        }
+    }
+    if (vertex > sc->settings.max_depth)
+        return 0;
+
+    const struct material *mat = &sc->materials[s.material];
+    struct material tex_mat;
+    struct raydiff_hit dh;
+    if (job->textured) {
+        texshade_hit(job, org, dir, h, p->time01, &p->rd, &dh);
+        mat = texshade_material(job, mat, &dh, &tex_mat);
+    }
+    vec3 wo = v3_neg(dir);
+    /* Shade on the side the ray came from: surfaces are two-sided for reflection;
+     * front (wo outside) tells a dielectric which index is on which side. */
+    int front = v3_dot(s.ng, wo) >= 0.0f;
+    vec3 ng = front ? s.ng : v3_neg(s.ng);
+    vec3 ns = v3_dot(s.ns, ng) < 0.0f ? v3_neg(s.ns) : s.ns;
     if (job->textured)
-        texshade_camera(job, &cs, &smp, &rd);
-    if (job->media) {
-        struct accel_hit h0;
-        int found0 = aov ? aov_trace(job, org, dir, time01, job->textured ? &rd : NULL, aov, &h0) : 0;
-        return media_sample_path_pass(job, pass, &smp, px, py, org, dir, time01, aov ? &h0 : NULL, found0,
-                                      job->textured ? &rd : NULL, rays, hit_any);
+        ns = texshade_bump(sc, job->mips, mat, &dh, ng, ns);
+    if (material_is_anisotropic(mat)) /* the roughness axes follow the uv map */
+        mat = material_with_axis(mat, surface_dpdu(&job->accel, org, dir, h, p->time01), &tex_mat);
+    if (p->aov) {
+        if (vertex == 1)
+            aov_first_hit(job, h, &s, ns, p->aov);
+        if (!material_is_delta(mat)) { /* the first non-specular hit: albedo, then no more AOVs */
+            p->aov->albedo = v3_mul(p->beta, aov_material_albedo(mat));
+            p->aov = NULL;
+        }
+    }
+    vec3 p_off = offset_ray_origin(v3_add(s.p, v3_scale(ng, s.p_err)), ng);
+    uint32_t d0 = sampler_bounce_dim(vertex - 1, 0);
+
+    /* Next-event estimation; a delta BSDF is zero toward any sampled light point. */
+    if (job->lights.num_entries > 0 && !material_is_delta(mat)) {
+        struct nee_sample n;
+        if (nee_prepare_smp(job, mat, s.p, ns, ng, wo, front, &p->smp, d0, &n)) {
+            (*rays)++;
+            p->shadow = 1;
+            p->so = n.transmitted ? behind(&s, ng) : p_off;
+            p->sd = v3_sub(n.target, p->so);
+            float w = n.ls.is_delta ? 1.0f : power_heuristic(n.ls.pdf, n.bsdf_pdf);
+            p->sl = v3_mul(p->beta, v3_scale(v3_mul(n.f, n.ls.radiance), w / n.ls.pdf));
+        }
     }
 
-    vec3 L = v3(0, 0, 0), beta = v3(1, 1, 1);
-    float prev_pdf = 0.0f;      /* solid-angle pdf of the BSDF sample that produced dir */
-    vec3 prev_p = org;
-    int prev_delta = 1;         /* camera rays count as specular: no MIS on what they hit */
-    *hit_any = 0;
-    for (uint32_t vertex = 1;; vertex++) {
+    /* BSDF sampling for the next vertex (also the MIS partner of the NEE above). */
+    struct bsdf_sample bs;
+    float bu, bv;
+    sampler_get_2d(&p->smp, d0 + DIM_BSDF_U, &bu, &bv);
+    material_sample(mat, ns, wo, front, bu, bv, &bs);
+    /* A direction on the wrong side of the true surface (shading normals) ends the path. */
+    float side = v3_dot(bs.wi, ng);
+    if (bs.pdf <= 0.0f || (bs.transmitted ? side >= 0.0f : side <= 0.0f))
+        return 0;
+    vec3 beta = v3_mul(p->beta, bs.weight);
+    if (vertex >= 3) {
+        float q = 1.0f - v3_max_component(beta);
+        q = q > 0.05f ? q : 0.05f;
+        if (sampler_get(&p->smp, d0 + DIM_RR) < q)
+            return 0;
+        beta = v3_scale(beta, 1.0f / (1.0f - q));
+    }
+    p->beta = beta;
+    if (v3_is_black(beta))
+        return 0;
+    if (job->textured)
+        texshade_scatter(&p->rd, mat, &bs, front, dir, ns, &dh);
+    p->prev_pdf = bs.pdf;
+    p->prev_p = s.p;
+    p->prev_delta = bs.is_delta;
+    /* A refracted ray leaves from the other side of the surface. */
+    p->org = bs.transmitted ? behind(&s, ng) : p_off;
+    p->dir = bs.wi;
+    p->vertex = vertex + 1;
+    return 1;
+}
+
+/* The pending shadow ray's contribution, given whether it was blocked. */
+static inline void path_shadow_done(struct path *p, int occluded)
+{
+    if (p->shadow && !occluded)
+        p->L = v3_add(p->L, p->sl);
+    p->shadow = 0;
+}
+
+/* The rest of the path from its current ray, one ray at a time. */
+static void path_run(const struct render_job *job, struct path *p, uint64_t *rays)
+{
+    for (;;) {
         struct accel_hit h;
         (*rays)++;
-        int found;
-        if (vertex == 1 && cp) {
-            found = cp->found[slot];
-            h = cp->hit[slot];
-        } else {
-            found = accel_intersect(&job->accel, org, dir, INFINITY, time01, &h);
-        }
-        if (!found) {
-            /* Escaped: the environment light, weighted against its light samples. */
-            if (sc->env) {
-                vec3 le = light_env_radiance(&job->lights, sc, dir);
-                float w = prev_delta ? 1.0f : power_heuristic(prev_pdf, light_env_pdf(&job->lights, sc, dir));
-                L = v3_add(L, v3_mul(beta, v3_scale(le, w)));
-            }
-            break;
-        }
-        if (vertex == 1)
-            *hit_any = 1;
-        struct surface s;
-        surface_from_hit(&job->accel, &job->lights, org, dir, &h, time01, &s);
-
-        /* Emitters the light table cannot sample (on moving geometry) and emitters seen
-         * after a delta bounce are found only this way: full weight, no MIS. */
-        /* Only emitters in the light table, or any surface when moving emitters exist. */
-        if (s.light != LIGHT_NONE || job->accel.has_motion) {
-            vec3 le = emitted(job, &s, dir);
-            if (!v3_is_black(le)) {
-                float w = 1.0f;
-                if (!prev_delta && s.light != LIGHT_NONE) {
-                    float lp = light_pdf(&job->lights, sc, s.light, prev_p, s.p, s.ng);
-                    w = power_heuristic(prev_pdf, lp);
-                }
-                L = v3_add(L, v3_mul(beta, v3_scale(le, w)));
-            }
-        }
-        if (vertex > rs->max_depth)
-            break;
-
-        const struct material *mat = &sc->materials[s.material];
-        struct material tex_mat;
-        struct raydiff_hit dh;
-        if (job->textured) {
-            texshade_hit(job, org, dir, &h, time01, &rd, &dh);
-            mat = texshade_material(job, mat, &dh, &tex_mat);
-        }
-        vec3 wo = v3_neg(dir);
-        /* Shade on the side the ray came from: surfaces are two-sided for reflection;
-         * front (wo outside) tells a dielectric which index is on which side. */
-        int front = v3_dot(s.ng, wo) >= 0.0f;
-        vec3 ng = front ? s.ng : v3_neg(s.ng);
-        vec3 ns = v3_dot(s.ns, ng) < 0.0f ? v3_neg(s.ns) : s.ns;
-        if (job->textured)
-            ns = texshade_bump(sc, job->mips, mat, &dh, ng, ns);
-        if (material_is_anisotropic(mat)) /* the roughness axes follow the uv map */
-            mat = material_with_axis(mat, surface_dpdu(&job->accel, org, dir, &h, time01), &tex_mat);
-        if (aov) {
-            if (vertex == 1)
-                aov_first_hit(job, &h, &s, ns, aov);
-            if (!material_is_delta(mat)) { /* the first non-specular hit: albedo, then no more AOVs */
-                aov->albedo = v3_mul(beta, aov_material_albedo(mat));
-                aov = NULL;
-            }
-        }
-        vec3 p_off = offset_ray_origin(v3_add(s.p, v3_scale(ng, s.p_err)), ng);
-        uint32_t d0 = sampler_bounce_dim(vertex - 1, 0);
-
-        /* Next-event estimation; a delta BSDF is zero toward any sampled light point. */
-        if (job->lights.num_entries > 0 && !material_is_delta(mat)) {
-            float lu, lv;
-            sampler_get_2d(&smp, d0 + DIM_LIGHT_U, &lu, &lv);
-            struct nee_sample n;
-            if (nee_prepare(&job->lights, sc, mat, s.p, ns, ng, wo, front, 1, sampler_get(&smp, d0 + DIM_LIGHT_PICK), lu, lv, &n)) {
-                (*rays)++;
-                vec3 o = n.transmitted ? behind(&s, ng) : p_off;
-                if (!accel_occluded(&job->accel, o, v3_sub(n.target, o), 1.0f - 0x1p-12f, time01)) {
-                    float w = n.ls.is_delta ? 1.0f : power_heuristic(n.ls.pdf, n.bsdf_pdf);
-                    L = v3_add(L, v3_mul(beta, v3_scale(v3_mul(n.f, n.ls.radiance), w / n.ls.pdf)));
-                }
-            }
-        }
-
-        /* BSDF sampling for the next vertex (also the MIS partner of the NEE above). */
-        struct bsdf_sample bs;
-        float bu, bv;
-        sampler_get_2d(&smp, d0 + DIM_BSDF_U, &bu, &bv);
-        material_sample(mat, ns, wo, front, bu, bv, &bs);
-        /* A direction on the wrong side of the true surface (shading normals) ends the path. */
-        float side = v3_dot(bs.wi, ng);
-        if (bs.pdf <= 0.0f || (bs.transmitted ? side >= 0.0f : side <= 0.0f))
-            break;
-        beta = v3_mul(beta, bs.weight);
-        if (vertex >= 3) {
-            float q = 1.0f - v3_max_component(beta);
-            q = q > 0.05f ? q : 0.05f;
-            if (sampler_get(&smp, d0 + DIM_RR) < q)
-                break;
-            beta = v3_scale(beta, 1.0f / (1.0f - q));
-        }
-        if (v3_is_black(beta))
-            break;
-        if (job->textured)
-            texshade_scatter(&rd, mat, &bs, front, dir, ns, &dh);
-        prev_pdf = bs.pdf;
-        prev_p = s.p;
-        prev_delta = bs.is_delta;
-        /* A refracted ray leaves from the other side of the surface. */
-        org = bs.transmitted ? behind(&s, ng) : p_off;
-        dir = bs.wi;
+        int found = accel_intersect(&job->accel, p->org, p->dir, INFINITY, p->time01, &h);
+        int more = path_vertex(job, p, found, &h, rays);
+        if (p->shadow)
+            path_shadow_done(p, accel_occluded(&job->accel, p->so, p->sd, 1.0f - 0x1p-12f, p->time01));
+        if (!more)
+            return;
     }
-    return L;
+}
+
+/* The radiance along camera ray cs; aov (NULL when the frame has no AOVs) gets its AOVs,
+ * set to a miss by the caller. */
+static vec3 camera_path(const struct render_job *job, uint32_t pass, uint32_t px, uint32_t py, struct sampler smp,
+                        struct camera_sample cs, uint64_t *rays, int *hit_any, struct aov_sample *aov)
+{
+    if (job->media) {
+        struct raydiff rd; /* texture footprints, only when a material has a texture */
+        if (job->textured)
+            texshade_camera(job, &cs, &smp, &rd);
+        struct accel_hit h0;
+        int found0 = aov ? aov_trace(job, cs.o, cs.d, cs.time01, job->textured ? &rd : NULL, aov, &h0) : 0;
+        return media_sample_path_pass(job, pass, &smp, px, py, cs.o, cs.d, cs.time01, aov ? &h0 : NULL, found0,
+                                      job->textured ? &rd : NULL, rays, hit_any);
+    }
+    struct path p;
+    path_start(job, &p, smp, &cs, aov);
+    path_run(job, &p, rays);
+    *hit_any = p.hit_any;
+    return p.L;
 }
 
 /* One camera sample's radiance: pixel jitter, lens and shutter time. With analytic motion
@@ -214,25 +281,18 @@ static vec3 camera_path(const struct render_job *job, uint32_t pass, uint32_t px
  * object changes; each part is shaded at a time inside it, weighted by its share of the
  * shutter curve (motion_vis.h). *cover gets the share of the sample that hit something (0
  * or 1 with one time). With parts, aov gets their AOVs weighted the same way (N, albedo, P),
- * and Z with the ids of the nearest part's hit, as a pixel folds its samples (aov.h).
- * cp: NULL, or the packet whose slot holds this sample's camera sample and first hit. */
+ * and Z with the ids of the nearest part's hit, as a pixel folds its samples (aov.h). */
 static vec3 sample_path(const struct render_job *job, uint32_t pass, uint32_t px, uint32_t py, struct sampler smp,
-                        const struct camera_packet *cp, uint32_t slot, uint64_t *rays, double *cover,
-                        struct aov_sample *aov)
+                        uint64_t *rays, double *cover, struct aov_sample *aov)
 {
     struct camera_sample cs;
     int hit;
     vec3 L;
-    if (cp) { /* packets only where nothing moves: no strata */
-        L = camera_path(job, pass, px, py, smp, cp->cs[slot], cp, slot, rays, &hit, aov);
-        *cover = hit;
-        return L;
-    }
     camera_generate(&job->camera, &smp, job->frame, px, py, &cs);
     struct mv_strata st;
     if (!job->motion_vis ||
         motion_vis_strata(job->motion_vis, &job->camera, &cs, sampler_get(&smp, DIM_TIME), &st) <= 1) {
-        L = camera_path(job, pass, px, py, smp, cs, NULL, 0, rays, &hit, aov);
+        L = camera_path(job, pass, px, py, smp, cs, rays, &hit, aov);
         *cover = hit;
         return L;
     }
@@ -246,7 +306,7 @@ static vec3 sample_path(const struct render_job *job, uint32_t pass, uint32_t px
         ck.time01 = st.time01[k];
         ck.time = (double)job->frame + job->camera.shutter_open +
                   (double)ck.time01 * (job->camera.shutter_close - job->camera.shutter_open);
-        vec3 l = camera_path(job, pass, px, py, smp, ck, NULL, 0, rays, &hit, aov ? &ak : NULL);
+        vec3 l = camera_path(job, pass, px, py, smp, ck, rays, &hit, aov ? &ak : NULL);
         const float w = (float)st.weight[k];
         L = v3_add(L, v3_scale(l, w));
         *cover += st.weight[k] * hit;
@@ -265,25 +325,98 @@ static vec3 sample_path(const struct render_job *job, uint32_t pass, uint32_t px
     return L;
 }
 
-/* Whether camera rays go in packets (packet.h): where they give the same hits (decided
- * when the job's frame is set up, render_job.c). */
-static int packets_on(const struct render_job *job)
+/* The samples of one block of a pixel: up to ACCEL_PACKET consecutive samples, rendered
+ * together (radiance, coverage and AOVs per sample, in sample order). */
+struct sample_block {
+    vec3 L[ACCEL_PACKET];
+    double cover[ACCEL_PACKET];
+    struct aov_sample aov[ACCEL_PACKET];
+};
+
+/* Samples [s0, s0 + n) of pixel (px, py), n <= ACCEL_PACKET, sp set up for the pixel's
+ * pass; aovs: whether to fill b->aov. Where the job takes packets (decided when its frame
+ * is set up, render_job.c), the camera rays go as one packet (packet.h), each path's first
+ * vertex is made, their shadow rays go as one packet too, and then each path goes on alone;
+ * every shadow ray's contribution is added before the path's next vertex, so the pixels
+ * are those of single rays bit for bit. */
+static void render_block(const struct render_job *job, struct sampler_pixel *sp, uint32_t pass, uint32_t px,
+                         uint32_t py, uint32_t s0, uint32_t n, int aovs, struct sample_block *b, uint64_t *rays)
 {
-    return job->packets;
+    for (uint32_t k = 0; aovs && k < n; k++)
+        aov_sample_miss(&b->aov[k]);
+    if (!job->packets) {
+        for (uint32_t k = 0; k < n; k++)
+            b->L[k] = sample_path(job, pass, px, py, sampler_start_pixel(sp, s0 + k), rays, &b->cover[k],
+                                  aovs ? &b->aov[k] : NULL);
+        return;
+    }
+    struct camera_packet cp;
+    camera_packet_trace(job, sp, px, py, s0, n, &cp);
+    struct path p[ACCEL_PACKET];
+    int more[ACCEL_PACKET], blocked[ACCEL_PACKET];
+    vec3 so[ACCEL_PACKET], sd[ACCEL_PACKET];
+    float time01[ACCEL_PACKET];
+    uint32_t slot[ACCEL_PACKET], ns = 0;
+    for (uint32_t k = 0; k < n; k++) {
+        path_start(job, &p[k], cp.smp[k], &cp.cs[k], aovs ? &b->aov[k] : NULL);
+        (*rays)++;
+        more[k] = path_vertex(job, &p[k], cp.found[k], &cp.hit[k], rays);
+        if (p[k].shadow) {
+            so[ns] = p[k].so;
+            sd[ns] = p[k].sd;
+            time01[ns] = p[k].time01;
+            slot[ns++] = k;
+        }
+    }
+    if (ns > 0)
+        accel_occluded_packet(&job->accel, ns, so, sd, 1.0f - 0x1p-12f, time01, blocked);
+    for (uint32_t j = 0; j < ns; j++)
+        path_shadow_done(&p[slot[j]], blocked[j]);
+    for (uint32_t k = 0; k < n; k++) {
+        if (more[k])
+            path_run(job, &p[k], rays);
+        b->L[k] = p[k].L;
+        b->cover[k] = p[k].hit_any;
+    }
 }
 
-/* The sampler of sample si of a pixel's run of samples [s0, end); with packets, taken from
- * the packet cp that holds si's camera ray (slot (si - s0) mod ACCEL_PACKET), traced when
- * si starts one. */
-static struct sampler sample_start(const struct render_job *job, int packets, struct sampler_pixel *sp, uint32_t px,
-                                   uint32_t py, uint32_t s0, uint32_t end, uint32_t si, struct camera_packet *cp)
+/* The sums of a pixel's kept samples (NaN and Inf are dropped, counted in the stats). */
+struct pixel_sums {
+    double sum[3], sum2[3], lum_sum, lum_sum2, cover;
+    uint32_t n;
+};
+
+/* Samples [s0, s1) of pixel (px, py), in blocks of ACCEL_PACKET, added to *ps in sample
+ * order; aacc (NULL without AOVs) gets their AOVs. */
+static void pixel_samples(const struct render_job *job, struct sampler_pixel *sp, uint32_t pass, uint32_t px,
+                          uint32_t py, uint32_t s0, uint32_t s1, struct aov_accum *aacc, struct pixel_sums *ps,
+                          struct tile_stats *stats)
 {
-    if (!packets)
-        return sampler_start_pixel(sp, si);
-    uint32_t slot = (si - s0) % ACCEL_PACKET;
-    if (slot == 0)
-        camera_packet_trace(job, sp, px, py, si, end - si < ACCEL_PACKET ? end - si : ACCEL_PACKET, cp);
-    return cp->smp[slot];
+    memset(ps, 0, sizeof *ps);
+    struct sample_block b;
+    for (uint32_t si = s0; si < s1; si += ACCEL_PACKET) {
+        uint32_t n = s1 - si < ACCEL_PACKET ? s1 - si : ACCEL_PACKET;
+        render_block(job, sp, pass, px, py, si, n, aacc != NULL, &b, &stats->rays);
+        for (uint32_t k = 0; k < n; k++) {
+            stats->samples++;
+            if (!v3_is_finite(b.L[k])) {
+                stats->nan_samples++;
+                continue;
+            }
+            double c[3] = {b.L[k].x, b.L[k].y, b.L[k].z};
+            for (int j = 0; j < 3; j++) {
+                ps->sum[j] += c[j];
+                ps->sum2[j] += c[j] * c[j];
+            }
+            double lum = 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
+            ps->lum_sum += lum;
+            ps->lum_sum2 += lum * lum;
+            ps->cover += b.cover[k];
+            ps->n++;
+            if (aacc)
+                aov_accum_add(aacc, &b.aov[k]);
+        }
+    }
 }
 
 void pass_batch_add(struct pass_batch *b, uint32_t stream, const double m[3])
@@ -332,8 +465,6 @@ static void render_pixel_pass(const struct render_job *job, struct sampler_pixel
                               struct tile_stats *stats)
 {
     const uint32_t k = sp->spp; /* samples per pass: sampler_pixel_for set the pixel's pass size */
-    double sum[3] = {0, 0, 0}, hits = 0.0;
-    *n = 0;
     /* A photon-map pass always has its map (the master's streams count agrees). */
     uint32_t streams = integrator_streams(render_job_pass_map(job, pass) != NULL);
     if (sp->streams != streams)
@@ -341,32 +472,12 @@ static void render_pixel_pass(const struct render_job *job, struct sampler_pixel
     sampler_pixel_set_pass(sp, pass);
     if (aacc)
         aov_accum_reset(aacc);
-    struct camera_packet cp;
-    const int packets = packets_on(job);
-    for (uint32_t si = pass * k; si < (pass + 1) * k; si++) {
-        double hit_any;
-        struct aov_sample as;
-        if (aacc)
-            aov_sample_miss(&as);
-        vec3 l = sample_path(job, pass, px_x, px_y, sample_start(job, packets, sp, px_x, px_y, pass * k, (pass + 1) * k, si, &cp),
-                             packets ? &cp : NULL, (si - pass * k) % ACCEL_PACKET, &stats->rays, &hit_any,
-                             aacc ? &as : NULL);
-        stats->samples++;
-        if (!v3_is_finite(l)) {
-            stats->nan_samples++;
-            continue;
-        }
-        sum[0] += l.x;
-        sum[1] += l.y;
-        sum[2] += l.z;
-        hits += hit_any;
-        (*n)++;
-        if (aacc)
-            aov_accum_add(aacc, &as);
-    }
+    struct pixel_sums ps;
+    pixel_samples(job, sp, pass, px_x, px_y, pass * k, (pass + 1) * k, aacc, &ps, stats);
+    *n = ps.n;
     for (int c = 0; c < 3; c++)
-        m[c] = *n ? sum[c] / *n : 0.0;
-    *cover = *n ? hits / *n : 0.0;
+        m[c] = ps.n ? ps.sum[c] / ps.n : 0.0;
+    *cover = ps.n ? ps.cover / ps.n : 0.0;
 }
 
 static void sampler_pixel_for(const struct render_job *job, uint32_t px_x, uint32_t px_y, struct sampler_pixel *sp)
@@ -476,12 +587,8 @@ void integrator_render_tile(const struct render_job *job, uint32_t x0, uint32_t 
         return;
     }
     struct aov_accum aacc;
-    struct camera_packet cp;
-    const int packets = packets_on(job);
     for (uint32_t y = 0; y < h; y++)
         for (uint32_t x = 0; x < w; x++) {
-            double sum[3] = {0, 0, 0}, sum2[3] = {0, 0, 0}, lum_sum = 0.0, lum_sum2 = 0.0, cover = 0.0;
-            uint32_t n = 0;
             /* The pixel's sampler set-up and seeds are shared by its samples (the values
              * of sampler_start_type per sample, a fraction of the cost). */
             struct sampler_pixel sp;
@@ -489,49 +596,27 @@ void integrator_render_tile(const struct render_job *job, uint32_t x0, uint32_t 
                                spp);
             if (lay.aovs)
                 aov_accum_reset(&aacc);
-            for (uint32_t si = 0; si < spp; si++) {
-                double hit_any;
-                struct aov_sample as;
-                if (lay.aovs)
-                    aov_sample_miss(&as);
-                vec3 l = sample_path(job, 0, x0 + x, y0 + y, sample_start(job, packets, &sp, x0 + x, y0 + y, 0, spp, si, &cp),
-                                     packets ? &cp : NULL, si % ACCEL_PACKET, &stats->rays, &hit_any, lay.aovs ? &as : NULL);
-                stats->samples++;
-                if (!v3_is_finite(l)) {
-                    stats->nan_samples++;
-                    continue;
-                }
-                double c[3] = {l.x, l.y, l.z};
-                for (int k = 0; k < 3; k++) {
-                    sum[k] += c[k];
-                    sum2[k] += c[k] * c[k];
-                }
-                double lum = 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
-                lum_sum += lum;
-                lum_sum2 += lum * lum;
-                cover += hit_any;
-                n++;
-                if (lay.aovs)
-                    aov_accum_add(&aacc, &as);
-            }
+            struct pixel_sums ps;
+            pixel_samples(job, &sp, 0, x0 + x, y0 + y, 0, spp, lay.aovs ? &aacc : NULL, &ps, stats);
+            const uint32_t n = ps.n;
             float *px = &pixels[((size_t)y * w + x) * lay.num_channels];
             if (lay.aovs)
                 aov_accum_write(&aacc, n, &lay, px);
             double mean[3], var_mean[3];
             for (int k = 0; k < 3; k++) {
-                mean[k] = n ? sum[k] / n : 0.0;
+                mean[k] = n ? ps.sum[k] / n : 0.0;
                 /* Variance of the mean from the sample variance (unbiased, n-1). */
-                double var = n > 1 ? (sum2[k] - n * mean[k] * mean[k]) / (n - 1) : 0.0;
+                double var = n > 1 ? (ps.sum2[k] - n * mean[k] * mean[k]) / (n - 1) : 0.0;
                 var_mean[k] = n > 1 ? fmax(0.0, var) / n : 0.0;
                 px[CH_R + k] = (float)mean[k];
                 px[CH_VAR_R + k] = tile_variance_value(var_mean[k]);
             }
-            px[CH_A] = n ? (float)(cover / n) : 0.0f;
+            px[CH_A] = n ? (float)(ps.cover / n) : 0.0f;
             /* Relative standard error of the pixel's luminance, from the luminance of each
              * sample (so correlation between channels is accounted for). */
-            double lum_mean = n ? lum_sum / n : 0.0;
+            double lum_mean = n ? ps.lum_sum / n : 0.0;
             if (lum_mean > 0.0 && n > 1) {
-                double var_lum = fmax(0.0, (lum_sum2 - n * lum_mean * lum_mean) / (n - 1)) / n;
+                double var_lum = fmax(0.0, (ps.lum_sum2 - n * lum_mean * lum_mean) / (n - 1)) / n;
                 stats->sum_rel_stderr += sqrt(var_lum) / lum_mean;
                 stats->rel_stderr_pixels++;
             }

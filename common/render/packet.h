@@ -2,7 +2,8 @@
  * samples of one pixel, made from their own samplers exactly as a single sample makes
  * them, and their first hits from one Embree packet (rays of one pixel share nearly all of
  * their BVH traversal). The path tracer takes a slot's camera sample and first hit in place
- * of making and tracing its own, so pixels are bit-identical with and without packets
+ * of making and tracing its own; the paths' first shadow rays then go as one packet too
+ * (integrator.c, render_block), so pixels are bit-identical with and without packets
  * (tests/integration/packets.sh). Used by integrator.c for scenes without media whose
  * accel is packets_exact (triangles only, nothing moving or instanced): Embree's packet
  * kernels round t by an ulp differently for spheres and for motion, which would move a

@@ -1,7 +1,7 @@
 /* The surface interaction and next-event set-up (see surface.h). Hit points are rebuilt
  * from barycentrics of the stored vertices (exact to rounding), not from o + t d, so the
  * integer-ULP ray offsets of vec.h stay acne-free at any coordinate magnitude; near the
- * origin p_err carries the scale of the triangle (triangle_p_err). */
+ * origin p_err carries the scale of the triangle (surface_triangle_p_err_). */
 #include "render/surface.h"
 #include "scene/material.h"
 #include "scene/motion.h"
@@ -27,11 +27,10 @@ static vec3 step_vertex(const struct accel_motion *mo, uint32_t num_vertices, ui
  * shrinks with |p|: a point near the origin of a triangle whose vertices lie far away has
  * the vertices' rounding, not its own. 0 at larger magnitudes, where the fixed step
  * (2^-16) and the ulp offsets already cover it. */
-static float triangle_p_err(vec3 p, uint32_t geom, uint32_t prim, const struct accel *acc,
-                            const struct accel_motion *mo, float time01)
+float surface_triangle_p_err_(vec3 p, uint32_t geom, uint32_t prim, const struct accel *acc,
+                              const struct accel_motion *mo, float time01)
 {
-    if (v3_max_abs(p) >= 0.5f)
-        return 0.0f;
+    (void)p; /* surface_triangle_finish: |p| < 0.5 */
     const struct mesh *m = &acc->desc->meshes[geom];
     const uint32_t *idx = &m->indices[3 * prim];
     float mag = 0.0f;
@@ -52,8 +51,8 @@ static float triangle_p_err(vec3 p, uint32_t geom, uint32_t prim, const struct a
  * stored vertices (exact to rounding). Rigid motion: the same in object space, then the
  * instance transform at time01 (from Embree, so it matches what was intersected), normals
  * by its cofactor matrix. Deformation: vertices blended at time01, flat normals. */
-void surface_from_hit(const struct accel *acc, const struct light_table *lt, vec3 org, vec3 dir,
-                      const struct accel_hit *h, float time01, struct surface *s)
+void surface_from_hit_slow_(const struct accel *acc, const struct light_table *lt, vec3 org, vec3 dir,
+                            const struct accel_hit *h, float time01, struct surface *s)
 {
     const struct scene *sc = acc->desc;
     struct xform x;
@@ -91,28 +90,14 @@ void surface_from_hit(const struct accel *acc, const struct light_table *lt, vec
         s->ng = v3_normalize(v3_cross(v3_sub(vb, va), v3_sub(vc, va)));
         s->ns = s->ng;
     } else {
-        const float *a = &m->positions[3 * idx[0]], *b = &m->positions[3 * idx[1]], *c = &m->positions[3 * idx[2]];
-        vec3 va = v3(a[0], a[1], a[2]), vb = v3(b[0], b[1], b[2]), vc = v3(c[0], c[1], c[2]);
-        s->p = v3_add(v3_add(v3_scale(va, w), v3_scale(vb, h->u)), v3_scale(vc, h->v));
-        s->ng = acc->face_normals[h->geom][h->prim];
-        s->ns = s->ng;
-        if (m->normals) {
-            const float *na = &m->normals[3 * idx[0]], *nb = &m->normals[3 * idx[1]], *nc = &m->normals[3 * idx[2]];
-            vec3 n = v3_add(v3_add(v3_scale(v3(na[0], na[1], na[2]), w), v3_scale(v3(nb[0], nb[1], nb[2]), h->u)),
-                            v3_scale(v3(nc[0], nc[1], nc[2]), h->v));
-            n = v3_normalize(n);
-            if (v3_is_finite(n) && v3_dot(n, n) > 0.5f)
-                s->ns = v3_dot(n, s->ng) < 0.0f ? v3_neg(n) : n;
-        }
+        surface_triangle_still(acc, m, h, s);
     }
     if (moving) {
         s->p = xform_point(&x, s->p);
         s->ng = v3_normalize(motion_xform_normal(&x, s->ng));
         s->ns = v3_normalize(motion_xform_normal(&x, s->ns));
     }
-    s->p_err = triangle_p_err(s->p, h->geom, h->prim, acc, mo, time01);
-    s->material = m->material_ids[h->prim];
-    s->light = lt->tri_light && lt->tri_light[h->geom] ? lt->tri_light[h->geom][h->prim] : LIGHT_NONE;
+    surface_triangle_finish(acc, lt, m, h, mo, time01, s);
 }
 
 /* dP/du of the triangle (a, b, c) with texture coordinates uv0..2: e1 dv2 - e2 dv1 over
@@ -163,24 +148,4 @@ vec3 surface_dpdu(const struct accel *acc, vec3 org, vec3 dir, const struct acce
         t = triangle_dpdu(v[0], v[1], v[2], &m->uvs[2 * idx[0]], &m->uvs[2 * idx[1]], &m->uvs[2 * idx[2]]);
     }
     return moving ? xform_vector(&x, t) : t;
-}
-
-int nee_prepare(const struct light_table *lt, const struct scene *sc, const struct material *mat, vec3 p, vec3 ns,
-                vec3 ng, vec3 wo, int front, int through, float pick, float u, float v, struct nee_sample *n)
-{
-    light_sample(lt, sc, p, pick, u, v, &n->ls);
-    if (!(n->ls.pdf > 0.0f) || v3_is_black(n->ls.radiance))
-        return 0;
-    vec3 to = v3_sub(n->ls.p, p);
-    vec3 wi = v3_scale(to, 1.0f / v3_length(to));
-    n->bsdf_pdf = 0.0f;
-    float side = v3_dot(wi, ng);
-    n->transmitted = side < 0.0f;
-    int ok = side > 0.0f || (through && side < 0.0f && mat->type == MATERIAL_DIELECTRIC);
-    n->f = ok ? material_eval(mat, ns, wo, wi, front, &n->bsdf_pdf) : v3(0, 0, 0);
-    if (v3_is_black(n->f))
-        return 0;
-    const struct light_sample *ls = &n->ls;
-    n->target = ls->is_delta ? ls->p : offset_ray_origin(ls->p, v3_dot(ls->n, wi) < 0.0f ? ls->n : v3_neg(ls->n));
-    return 1;
 }

@@ -8,8 +8,7 @@
 #include <stdint.h>
 #include "render/accel.h"
 #include "scene/light.h"
-
-struct material;
+#include "scene/material.h"
 
 struct surface {
     vec3 p;
@@ -20,10 +19,63 @@ struct surface {
     float p_err;        /* bound on how far p may lie off the true surface (triangles: only near the origin) */
 };
 
+/* The point and normals of hit h on triangle mesh m as stored (no time steps): barycentrics
+ * of the stored vertices, the face normal, the interpolated vertex normal as ns where it
+ * is usable. */
+static inline void surface_triangle_still(const struct accel *acc, const struct mesh *m, const struct accel_hit *h,
+                                          struct surface *s)
+{
+    const uint32_t *idx = &m->indices[3 * h->prim];
+    float w = 1.0f - h->u - h->v;
+    const float *a = &m->positions[3 * idx[0]], *b = &m->positions[3 * idx[1]], *c = &m->positions[3 * idx[2]];
+    vec3 va = v3(a[0], a[1], a[2]), vb = v3(b[0], b[1], b[2]), vc = v3(c[0], c[1], c[2]);
+    s->p = v3_add(v3_add(v3_scale(va, w), v3_scale(vb, h->u)), v3_scale(vc, h->v));
+    s->ng = acc->face_normals[h->geom][h->prim];
+    s->ns = s->ng;
+    if (m->normals) {
+        const float *na = &m->normals[3 * idx[0]], *nb = &m->normals[3 * idx[1]], *nc = &m->normals[3 * idx[2]];
+        vec3 n = v3_add(v3_add(v3_scale(v3(na[0], na[1], na[2]), w), v3_scale(v3(nb[0], nb[1], nb[2]), h->u)),
+                        v3_scale(v3(nc[0], nc[1], nc[2]), h->v));
+        n = v3_normalize(n);
+        if (v3_is_finite(n) && v3_dot(n, n) > 0.5f)
+            s->ns = v3_dot(n, s->ng) < 0.0f ? v3_neg(n) : n;
+    }
+}
+
+/* How far a triangle hit p (|p| < 0.5) may lie off the triangle (surface.c). */
+float surface_triangle_p_err_(vec3 p, uint32_t geom, uint32_t prim, const struct accel *acc,
+                              const struct accel_motion *mo, float time01);
+
+/* A triangle hit's p_err (0 at |p| >= 0.5, where the fixed offsets cover it), material and
+ * emitter entry; mo: the mesh's motion, or NULL. */
+static inline void surface_triangle_finish(const struct accel *acc, const struct light_table *lt,
+                                           const struct mesh *m, const struct accel_hit *h,
+                                           const struct accel_motion *mo, float time01, struct surface *s)
+{
+    s->p_err = v3_max_abs(s->p) >= 0.5f ? 0.0f : surface_triangle_p_err_(s->p, h->geom, h->prim, acc, mo, time01);
+    s->material = m->material_ids[h->prim];
+    s->light = lt->tri_light && lt->tri_light[h->geom] ? lt->tri_light[h->geom][h->prim] : LIGHT_NONE;
+}
+
+void surface_from_hit_slow_(const struct accel *acc, const struct light_table *lt, vec3 org, vec3 dir,
+                            const struct accel_hit *h, float time01, struct surface *s);
+
 /* Hit h of the ray (org, dir) at time01 of accel acc as a surface point; lt gives the
- * emitter entry of the hit primitive. */
-void surface_from_hit(const struct accel *acc, const struct light_table *lt, vec3 org, vec3 dir,
-                      const struct accel_hit *h, float time01, struct surface *s);
+ * emitter entry of the hit primitive. Still triangles (no instance, no time steps in the
+ * frame) inline; spheres and moving geometry in surface.c. */
+static inline __attribute__((always_inline)) void surface_from_hit(const struct accel *acc,
+                                                                   const struct light_table *lt, vec3 org,
+                                                                   vec3 dir, const struct accel_hit *h,
+                                                                   float time01, struct surface *s)
+{
+    if (acc->mesh_motion || acc->sphere_motion || h->geom == acc->sphere_geom) {
+        surface_from_hit_slow_(acc, lt, org, dir, h, time01, s);
+        return;
+    }
+    const struct mesh *m = &acc->desc->meshes[h->geom];
+    surface_triangle_still(acc, m, h, s);
+    surface_triangle_finish(acc, lt, m, h, NULL, time01, s);
+}
 
 /* dP/du of the uv map at hit h of the ray (org, dir) at time01 (world space, not unit): the
  * u axis of anisotropic roughness (material_with_axis), computed only for anisotropic
@@ -49,8 +101,30 @@ struct nee_sample {
     float bsdf_pdf;
     int transmitted;
 };
-int nee_prepare(const struct light_table *lt, const struct scene *sc, const struct material *mat, vec3 p, vec3 ns,
-                vec3 ng, vec3 wo, int front, int through, float pick, float u, float v, struct nee_sample *n);
+static inline __attribute__((always_inline)) int nee_prepare(const struct light_table *lt, const struct scene *sc,
+                                                             const struct material *mat, vec3 p, vec3 ns, vec3 ng,
+                                                             vec3 wo, int front, int through, float pick, float u,
+                                                             float v, struct nee_sample *n)
+{
+    if (lt->points_only) /* the same sample, inline */
+        light_sample_point(lt, sc, lt->num_entries == 1 ? 0 : light_pick(lt, pick), p, &n->ls);
+    else
+        light_sample(lt, sc, p, pick, u, v, &n->ls);
+    if (!(n->ls.pdf > 0.0f) || v3_is_black(n->ls.radiance))
+        return 0;
+    vec3 to = v3_sub(n->ls.p, p);
+    vec3 wi = v3_scale(to, 1.0f / v3_length(to));
+    n->bsdf_pdf = 0.0f;
+    float side = v3_dot(wi, ng);
+    n->transmitted = side < 0.0f;
+    int ok = side > 0.0f || (through && side < 0.0f && mat->type == MATERIAL_DIELECTRIC);
+    n->f = ok ? material_eval(mat, ns, wo, wi, front, &n->bsdf_pdf) : v3(0, 0, 0);
+    if (v3_is_black(n->f))
+        return 0;
+    const struct light_sample *ls = &n->ls;
+    n->target = ls->is_delta ? ls->p : offset_ray_origin(ls->p, v3_dot(ls->n, wi) < 0.0f ? ls->n : v3_neg(ls->n));
+    return 1;
+}
 
 /* Power heuristic (beta = 2) of MIS between the strategies with pdfs a (the one taken) and b. */
 static inline float power_heuristic(float a, float b)

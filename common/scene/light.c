@@ -141,6 +141,9 @@ void light_table_init(struct light_table *t, const struct scene *s)
     }
     if (t->num_entries == 0)
         return;
+    t->points_only = 1;
+    for (uint32_t i = 0; i < t->num_entries; i++)
+        t->points_only &= t->entries[i].kind == LK_POINT;
     /* Summed in double so the cdf of many small emitters stays monotone and ends at 1. */
     double total = 0.0, env_power = 0.0;
     for (uint32_t i = 0; i < t->num_entries; i++)
@@ -231,18 +234,9 @@ void light_sample(const struct light_table *t, const struct scene *s, vec3 ref, 
         return;
     out->entry = i;
     switch (e->kind) {
-    case LK_POINT: {
-        vec3 p = s->lights[e->index].position;
-        vec3 d = v3_sub(p, ref);
-        float d2 = v3_dot(d, d);
-        if (!(d2 > 0.0f))
-            return;
-        out->p = p;
-        out->radiance = v3_scale(e->emission, light_spot_falloff(&s->lights[e->index], v3_neg(d)) / d2);
-        out->pdf = pick_pdf;
-        out->is_delta = 1;
+    case LK_POINT:
+        light_sample_point(t, s, i, ref, out);
         return;
-    }
     case LK_TRIANGLE: {
         vec3 p, n;
         light_triangle_point(t, s, i, u1, u2, &p, &n);

@@ -36,6 +36,7 @@ struct light_table {
     float *cdf;                 /* num_entries + 1, cdf[0] = 0, cdf[n] = 1 */
     float *pick_pdf;            /* per entry */
     uint32_t num_entries;
+    int points_only;            /* every entry is a point or spot light: light_sample ignores u1, u2 */
     uint32_t num_surface;       /* entries that are emissive triangles or spheres (rays can hit them) */
     uint32_t **tri_light;       /* per mesh: per triangle entry index or LIGHT_NONE; NULL if none */
     uint32_t num_meshes;
@@ -64,7 +65,30 @@ float light_spot_falloff(const struct light *l, vec3 dir);
 void light_table_init(struct light_table *t, const struct scene *s);
 void light_table_fini(struct light_table *t);
 
-/* Samples one light for shading point ref with three uniforms. */
+/* light_sample for entry i when it is a point or spot light (kind LK_POINT), which needs
+ * no uniforms: inline for callers that know every entry is one (points_only). */
+static inline void light_sample_point(const struct light_table *t, const struct scene *s, uint32_t i, vec3 ref,
+                                      struct light_sample *out)
+{
+    *out = (struct light_sample){.entry = 0};
+    float pick_pdf = t->pick_pdf[i];
+    if (pick_pdf <= 0.0f)
+        return;
+    out->entry = i;
+    const struct light_entry *e = &t->entries[i];
+    const struct light *l = &s->lights[e->index];
+    vec3 d = v3_sub(l->position, ref);
+    float d2 = v3_dot(d, d);
+    if (!(d2 > 0.0f))
+        return;
+    out->p = l->position;
+    out->radiance = v3_scale(e->emission, (l->type == LIGHT_SPOT ? light_spot_falloff(l, v3_neg(d)) : 1.0f) / d2);
+    out->pdf = pick_pdf;
+    out->is_delta = 1;
+}
+
+/* Samples one light for shading point ref with three uniforms. u_pick is not read when
+ * the table has one entry, u1 and u2 not when points_only (callers may skip drawing them). */
 void light_sample(const struct light_table *t, const struct scene *s, vec3 ref, float u_pick, float u1,
                   float u2, struct light_sample *out);
 

@@ -77,15 +77,6 @@ static vec3 reflect(vec3 wo, vec3 n, float cos_i)
     return v3_sub(v3_scale(n, 2.0f * cos_i), wo);
 }
 
-static void no_sample(struct bsdf_sample *out)
-{
-    out->pdf = 0.0f;
-    out->weight = v3(0, 0, 0);
-    out->is_delta = 0;
-    out->transmitted = 0;
-    out->eta2 = 1.0f;
-}
-
 int material_is_smooth(const struct material *m)
 {
     return f_max(m->alpha_x, m->alpha_y) < MICROFACET_SMOOTH_ALPHA;
@@ -218,25 +209,7 @@ static vec3 dielectric_eval(const struct material *m, const struct ggx *g, vec3 
     return v3_scale(m->transmittance, v);
 }
 
-/* The glossy types of material_eval, out of line: their frames and Fresnel terms need a
- * large stack frame that the Lambertian case, the most common, should not set up. */
-__attribute__((noinline)) static vec3 eval_glossy(const struct material *m, vec3 n, vec3 wo, vec3 wi, int front,
-                                                  float *pdf);
-
-vec3 material_eval(const struct material *m, vec3 n, vec3 wo, vec3 wi, int front, float *pdf)
-{
-    *pdf = 0.0f;
-    if (m->type == MATERIAL_DIFFUSE) {
-        float c = v3_dot(n, wi);
-        if (c <= 0.0f)
-            return v3(0, 0, 0);
-        *pdf = c * (float)M_1_PI;
-        return v3_scale(m->albedo, c * (float)M_1_PI);
-    }
-    return eval_glossy(m, n, wo, wi, front, pdf);
-}
-
-static vec3 eval_glossy(const struct material *m, vec3 n, vec3 wo, vec3 wi, int front, float *pdf)
+vec3 material_eval_glossy_(const struct material *m, vec3 n, vec3 wo, vec3 wi, int front, float *pdf)
 {
     switch (m->type) {
     case MATERIAL_DIFFUSE:
@@ -291,7 +264,7 @@ static void finish_rough(const struct material *m, const struct frame *fr, vec3 
     float pdf;
     vec3 f = material_eval(m, n, wo, out->wi, front, &pdf);
     if (!(pdf > 0.0f) || v3_is_black(f)) {
-        no_sample(out);
+        bsdf_no_sample(out);
         return;
     }
     out->pdf = pdf;
@@ -312,13 +285,13 @@ static void sample_rough(const struct material *m, vec3 n, vec3 wo, int front, f
     struct ggx g = ggx_of(m);
     vec3 lo = to_local(&fr, wo);
     if (!(lo.z > 0.0f)) {
-        no_sample(out);
+        bsdf_no_sample(out);
         return;
     }
     vec3 wm = sample_normal(m, &g, lo, u1, u2);
     float co = v3_dot(lo, wm);
     if (!(co > 0.0f)) {
-        no_sample(out);
+        bsdf_no_sample(out);
         return;
     }
     vec3 li = reflect(lo, wm, co);
@@ -330,45 +303,15 @@ static void sample_rough(const struct material *m, vec3 n, vec3 wo, int front, f
         if (refr)
             li = wt;
         if (refr ? !(li.z < 0.0f) : !(li.z > 0.0f)) {
-            no_sample(out); /* the lobe's direction lies on the other side of the surface */
+            bsdf_no_sample(out); /* the lobe's direction lies on the other side of the surface */
             return;
         }
     }
     finish_rough(m, &fr, n, wo, li, front, out);
 }
 
-/* The glossy types of material_sample, out of line (as eval_glossy). */
-__attribute__((noinline)) static void sample_glossy(const struct material *m, vec3 n, vec3 wo, int front, float u1,
-                                                    float u2, struct bsdf_sample *out);
-
-void material_sample(const struct material *m, vec3 n, vec3 wo, int front, float u1, float u2,
-                     struct bsdf_sample *out)
-{
-    out->eta2 = 1.0f;
-    if (m->type == MATERIAL_DIFFUSE) {
-        float r = sqrtf(u1), sp, cp;
-        sincos_2pi(u2, &sp, &cp);
-        float x = r * cp, y = r * sp, z = sqrtf(1.0f - u1); /* u1 < 1 */
-        vec3 t, b;
-        v3_basis(n, &t, &b);
-        /* Unit to within rounding: (t, b, n) is orthonormal and x^2 + y^2 + z^2 = 1. */
-        out->wi = v3_add(v3_add(v3_scale(t, x), v3_scale(b, y)), v3_scale(n, z));
-        out->is_delta = 0;
-        out->transmitted = 0;
-        float c = v3_dot(out->wi, n);
-        if (c <= 0.0f) {
-            no_sample(out);
-            return;
-        }
-        out->pdf = c * (float)M_1_PI;
-        out->weight = m->albedo;
-        return;
-    }
-    sample_glossy(m, n, wo, front, u1, u2, out);
-}
-
-static void sample_glossy(const struct material *m, vec3 n, vec3 wo, int front, float u1, float u2,
-                          struct bsdf_sample *out)
+void material_sample_glossy_(const struct material *m, vec3 n, vec3 wo, int front, float u1, float u2,
+                             struct bsdf_sample *out)
 {
     switch (m->type) {
     case MATERIAL_DIFFUSE:
@@ -381,7 +324,7 @@ static void sample_glossy(const struct material *m, vec3 n, vec3 wo, int front, 
         }
         float c = v3_dot(wo, n);
         if (!(c > 0.0f)) {
-            no_sample(out);
+            bsdf_no_sample(out);
             return;
         }
         out->wi = reflect(wo, n, c);
@@ -398,7 +341,7 @@ static void sample_glossy(const struct material *m, vec3 n, vec3 wo, int front, 
         }
         float c = v3_dot(wo, n);
         if (!(c > 0.0f)) {
-            no_sample(out);
+            bsdf_no_sample(out);
             return;
         }
         float eta = front ? m->ior : 1.0f / m->ior;
@@ -422,7 +365,7 @@ static void sample_glossy(const struct material *m, vec3 n, vec3 wo, int front, 
     case MATERIAL_PLASTIC: {
         float co = v3_dot(wo, n);
         if (!(co > 0.0f)) {
-            no_sample(out);
+            bsdf_no_sample(out);
             return;
         }
         float fo = material_fresnel_dielectric(co, m->ior), pc = coat_pick(m, fo);
@@ -442,7 +385,7 @@ static void sample_glossy(const struct material *m, vec3 n, vec3 wo, int front, 
             vec3 wm = sample_normal(m, &g, lo, u1, u2);
             float c = v3_dot(lo, wm);
             if (!(c > 0.0f)) {
-                no_sample(out);
+                bsdf_no_sample(out);
                 return;
             }
             li = reflect(lo, wm, c);
@@ -455,5 +398,5 @@ static void sample_glossy(const struct material *m, vec3 n, vec3 wo, int front, 
         return;
     }
     }
-    no_sample(out);
+    bsdf_no_sample(out);
 }

@@ -49,9 +49,61 @@ const struct material *material_with_axis(const struct material *m, vec3 tu, str
 /* front: wo is on the outside (the side the geometric normal points to); dielectrics and
  * plastic care (it decides which index of refraction is on which side). eval returns the
  * reflection lobe when wi is on n's side, else the transmission lobe (rough dielectric). */
-vec3 material_eval(const struct material *m, vec3 n, vec3 wo, vec3 wi, int front, float *pdf);
-void material_sample(const struct material *m, vec3 n, vec3 wo, int front, float u1, float u2,
-                     struct bsdf_sample *out);
+/* The glossy types (all but MATERIAL_DIFFUSE), out of line in material.c: their frames and
+ * Fresnel terms need a large stack frame that the Lambertian case, the most common and
+ * inline here, should not set up. */
+vec3 material_eval_glossy_(const struct material *m, vec3 n, vec3 wo, vec3 wi, int front, float *pdf);
+void material_sample_glossy_(const struct material *m, vec3 n, vec3 wo, int front, float u1, float u2,
+                             struct bsdf_sample *out);
+
+static inline vec3 material_eval(const struct material *m, vec3 n, vec3 wo, vec3 wi, int front, float *pdf)
+{
+    *pdf = 0.0f;
+    if (m->type == MATERIAL_DIFFUSE) {
+        float c = v3_dot(n, wi);
+        if (c <= 0.0f)
+            return v3(0, 0, 0);
+        *pdf = c * (float)M_1_PI;
+        return v3_scale(m->albedo, c * (float)M_1_PI);
+    }
+    return material_eval_glossy_(m, n, wo, wi, front, pdf);
+}
+
+/* No sample: pdf 0, weight 0. */
+static inline void bsdf_no_sample(struct bsdf_sample *out)
+{
+    out->pdf = 0.0f;
+    out->weight = v3(0, 0, 0);
+    out->is_delta = 0;
+    out->transmitted = 0;
+    out->eta2 = 1.0f;
+}
+
+static inline void material_sample(const struct material *m, vec3 n, vec3 wo, int front, float u1, float u2,
+                                   struct bsdf_sample *out)
+{
+    out->eta2 = 1.0f;
+    if (m->type == MATERIAL_DIFFUSE) {
+        float r = sqrtf(u1), sp, cp;
+        sincos_2pi(u2, &sp, &cp);
+        float x = r * cp, y = r * sp, z = sqrtf(1.0f - u1); /* u1 < 1 */
+        vec3 t, b;
+        v3_basis(n, &t, &b);
+        /* Unit to within rounding: (t, b, n) is orthonormal and x^2 + y^2 + z^2 = 1. */
+        out->wi = v3_add(v3_add(v3_scale(t, x), v3_scale(b, y)), v3_scale(n, z));
+        out->is_delta = 0;
+        out->transmitted = 0;
+        float c = v3_dot(out->wi, n);
+        if (c <= 0.0f) {
+            bsdf_no_sample(out);
+            return;
+        }
+        out->pdf = c * (float)M_1_PI;
+        out->weight = m->albedo;
+        return;
+    }
+    material_sample_glossy_(m, n, wo, front, u1, u2, out);
+}
 
 /* Fresnel reflectance of unpolarised light at a smooth dielectric boundary. cos_i in
  * [0, 1] on the incident side; eta = n_transmitted / n_incident. 1 under total internal
