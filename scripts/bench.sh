@@ -48,9 +48,11 @@ per_sample() { echo "($(med "$1" "$SPP_HI") - $(med "$1" "$SPP_LO")) / $samples 
 t_theirs=$(per_sample theirs)
 t_ours1=$(per_sample ours1)
 t_ours2=$(per_sample ours2)
-# Rays per sample of our renderer on this scene (counted), used to estimate theirs (not reported by the tutorial).
+# Rays per sample of our renderer on this scene, used to estimate theirs (not reported by
+# the tutorial): the exact counts of OUT.stats.json (the summary line's rates are rounded).
 logged ours 1 "$CORES" "$SPP_HI"
-rays_per_sample=$(grep "Mrays/s" "$T/log" | awk -F'[ ,]+' '{for(i=1;i<=NF;i++){if($(i+1)=="Msamples/s")ms=$i; if($(i+1)=="Mrays/s")mr=$i}} END{print mr/ms}')
+rays_per_sample=$(awk -F'[:,]' '$1 ~ /"samples"/ {s = $2} $1 ~ /"rays"/ {r = $2} END {printf "%.6f", r / s}' \
+  "$T/ours.exr.stats.json")
 ours_mrays=$(echo "$rays_per_sample * 1000 / $t_ours1" | bc -l)
 theirs_mrays=$(echo "$rays_per_sample * 1000 / $t_theirs" | bc -l)
 {
