@@ -372,7 +372,6 @@ void accel_occluded_packet(const struct accel *a, uint32_t n, const vec3 *org, c
         occluded[k] = pk.f[8 * w + k] < 0.0f;
 }
 
-
 int accel_object_xform_slow_(const struct accel *a, uint32_t geom, uint32_t prim, float time01, struct xform *out)
 {
     const struct accel_motion *mo = NULL;
