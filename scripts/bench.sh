@@ -5,7 +5,9 @@
 # (process start, parsing, BVH build) are removed by timing two sample counts and taking
 # the slope. Both use independent random samples per dimension (the tutorial's sampler;
 # ours is chosen with "sampler": "independent"), so a sample costs the same work. Prints a table, writes bench-out/bench.txt and bench-out/bench.png.
-# Usage: BUILD=build sh scripts/bench.sh   (env: W, H, SPP_LO, SPP_HI, DEPTH, REPS)
+# Usage: BUILD=build sh scripts/bench.sh   (env: W, H, SPP_LO, SPP_HI, DEPTH, REPS, THREADS
+# (the tutorial's threads, ours per worker or workers; default: the cores), TIME ("wall", or
+# "cpu": user + system seconds of every process of a run, steadier on a loaded machine))
 set -eu
 . scripts/lib.sh
 W=${W:-256}
@@ -14,6 +16,9 @@ SPP_LO=${SPP_LO:-4}
 SPP_HI=${SPP_HI:-36}
 DEPTH=${DEPTH:-8}
 REPS=${REPS:-3}
+THREADS=${THREADS:-$CORES}
+TIME=${TIME:-wall}
+if [ "$TIME" = cpu ]; then tsecs=cpu_secs; else tsecs=wall_secs; fi
 MODELS=/usr/share/doc/embree3/models
 bench_init bench embree-tools gnuplot-nox bc
 cp "$MODELS/cornell_box.obj" "$MODELS/cornell_box.mtl" "$T/"
@@ -30,16 +35,18 @@ cat >"$T/embree_cornell.json" <<JSON
 }
 JSON
 
-ours() { "$BUILD/master" "$T/embree_cornell.json" -o "$T/ours.exr" --workers "$1" --threads "$2" --spp "$3"; }
-theirs() { pathtracer -c "$MODELS/cornell_box.ecs" -i "$T/cornell_box.obj" --size "$W" "$H" --spp "$1" \
-  --max-path-length "$DEPTH" --threads "$CORES" -o "$T/theirs.ppm"; }
+# ours TIMER WORKERS THREADS SPP, theirs TIMER SPP: one run under TIMER (wall_secs, cpu_secs or
+# logged).
+ours() { $1 "$BUILD/master" "$T/embree_cornell.json" -o "$T/ours.exr" --workers "$2" --threads "$3" --spp "$4"; }
+theirs() { $1 pathtracer -c "$MODELS/cornell_box.ecs" -i "$T/cornell_box.obj" --size "$W" "$H" --spp "$2" \
+  --max-path-length "$DEPTH" --threads "$THREADS" -o "$T/theirs.ppm"; }
 
 : >"$T/times"
 for r in $(seq "$REPS"); do
   for spp in "$SPP_LO" "$SPP_HI"; do
-    echo "theirs $spp $(wall_secs theirs "$spp")" >>"$T/times"
-    echo "ours1 $spp $(wall_secs ours 1 "$CORES" "$spp")" >>"$T/times"
-    echo "ours2 $spp $(wall_secs ours "$CORES" 1 "$spp")" >>"$T/times"
+    echo "theirs $spp $(theirs $tsecs "$spp")" >>"$T/times"
+    echo "ours1 $spp $(ours $tsecs 1 "$THREADS" "$spp")" >>"$T/times"
+    echo "ours2 $spp $(ours $tsecs "$THREADS" 1 "$spp")" >>"$T/times"
   done
 done
 med() { awk -v k="$1" -v s="$2" '$1==k && $2==s {print $3}' "$T/times" | median; }
@@ -48,17 +55,20 @@ per_sample() { echo "($(med "$1" "$SPP_HI") - $(med "$1" "$SPP_LO")) / $samples 
 t_theirs=$(per_sample theirs)
 t_ours1=$(per_sample ours1)
 t_ours2=$(per_sample ours2)
-# Rays per sample of our renderer on this scene (counted), used to estimate theirs (not reported by the tutorial).
-logged ours 1 "$CORES" "$SPP_HI"
-rays_per_sample=$(grep "Mrays/s" "$T/log" | awk -F'[ ,]+' '{for(i=1;i<=NF;i++){if($(i+1)=="Msamples/s")ms=$i; if($(i+1)=="Mrays/s")mr=$i}} END{print mr/ms}')
+# Rays per sample of our renderer on this scene, used to estimate theirs (not reported by
+# the tutorial): the exact counts of OUT.stats.json (the summary line's rates are rounded).
+ours logged 1 "$THREADS" "$SPP_HI"
+rays_per_sample=$(awk -F'[:,]' '$1 ~ /"samples"/ {s = $2} $1 ~ /"rays"/ {r = $2} END {printf "%.6f", r / s}' \
+  "$T/ours.exr.stats.json")
 ours_mrays=$(echo "$rays_per_sample * 1000 / $t_ours1" | bc -l)
 theirs_mrays=$(echo "$rays_per_sample * 1000 / $t_theirs" | bc -l)
 {
-  printf 'Embree cornell_box.obj + point light, %sx%s, path length %s, spp %s vs %s, %s cores, median of %s\n' "$W" "$H" "$DEPTH" "$SPP_LO" "$SPP_HI" "$CORES" "$REPS"
+  printf 'Embree cornell_box.obj + point light, %sx%s, path length %s, spp %s vs %s, %s cores, %s threads, %s time, median of %s\n' \
+    "$W" "$H" "$DEPTH" "$SPP_LO" "$SPP_HI" "$CORES" "$THREADS" "$TIME" "$REPS"
   printf '%-34s %14s %10s %12s\n' "renderer" "ns/sample" "ratio" "Mrays/s"
-  printf '%-34s %14.1f %10.3f %12.2f (est.)\n' "embree pathtracer ($CORES threads)" "$t_theirs" 1 "$theirs_mrays"
-  printf '%-34s %14.1f %10.3f %12.2f\n' "brume, 1 worker x $CORES threads" "$t_ours1" "$(echo "$t_ours1 / $t_theirs" | bc -l)" "$ours_mrays"
-  printf '%-34s %14.1f %10.3f %12.2f\n' "brume, $CORES workers x 1 thread" "$t_ours2" "$(echo "$t_ours2 / $t_theirs" | bc -l)" "$(echo "$rays_per_sample * 1000 / $t_ours2" | bc -l)"
+  printf '%-34s %14.1f %10.3f %12.2f (est.)\n' "embree pathtracer ($THREADS threads)" "$t_theirs" 1 "$theirs_mrays"
+  printf '%-34s %14.1f %10.3f %12.2f\n' "brume, 1 worker x $THREADS threads" "$t_ours1" "$(echo "$t_ours1 / $t_theirs" | bc -l)" "$ours_mrays"
+  printf '%-34s %14.1f %10.3f %12.2f\n' "brume, $THREADS workers x 1 thread" "$t_ours2" "$(echo "$t_ours2 / $t_theirs" | bc -l)" "$(echo "$rays_per_sample * 1000 / $t_ours2" | bc -l)"
   printf 'ratio = our time per sample / Embree pathtracer time per sample (target <= 1.0)\n'
   printf 'rays per sample (ours, counted): %.3f; Embree Mrays/s estimated from it\n' "$rays_per_sample"
 } | tee "$OUT/bench.txt"
@@ -73,7 +83,7 @@ set ylabel "ns per sample"
 set yrange [0:*]
 plot "-" using 2:xtic(1) title "ns/sample"
 "embree" $t_theirs
-"brume-1x$CORES" $t_ours1
-"brume-${CORES}x1" $t_ours2
+"brume-1x$THREADS" $t_ours1
+"brume-${THREADS}x1" $t_ours2
 e
 GP

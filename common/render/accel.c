@@ -207,6 +207,7 @@ int accel_init(struct accel *a, const struct scene *s, uint32_t frame, uint32_t 
             a->sphere_motion = mem_calloc(s->num_spheres, sizeof *a->sphere_motion);
             break;
         }
+    a->still_geoms = a->mesh_motion || a->sphere_motion ? 0 : a->sphere_geom;
     /* The shutter of this frame; an empty or inverted one freezes everything at its open. */
     double t0 = (double)frame + s->camera.shutter_open, t1 = (double)frame + s->camera.shutter_close;
     if (!(t1 > t0))
@@ -369,23 +370,6 @@ void accel_occluded_packet(const struct accel *a, uint32_t n, const vec3 *org, c
         rtcOccluded16(valid, a->scene, &ctx, (struct RTCRay16 *)&pk);
     for (uint32_t k = 0; k < n; k++)
         occluded[k] = pk.f[8 * w + k] < 0.0f;
-}
-
-int accel_occluded(const struct accel *a, vec3 o, vec3 d, float tmax, float time01)
-{
-    struct RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
-    struct RTCRay r;
-    r.org_x = o.x, r.org_y = o.y, r.org_z = o.z;
-    r.dir_x = d.x, r.dir_y = d.y, r.dir_z = d.z;
-    r.tnear = 0.0f;
-    r.tfar = tmax;
-    r.time = time01;
-    r.mask = 0xffffffffu;
-    r.id = 0;
-    r.flags = 0;
-    rtcOccluded1(a->scene, &ctx, &r);
-    return r.tfar < 0.0f;
 }
 
 int accel_object_xform_slow_(const struct accel *a, uint32_t geom, uint32_t prim, float time01, struct xform *out)

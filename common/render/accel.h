@@ -25,6 +25,8 @@ struct accel {
     RTCScene scene;
     uint32_t sphere_geom;   /* the accel_hit.geom of spheres: == num_meshes */
     uint32_t num_spheres;
+    uint32_t still_geoms;   /* hits with geom below it are on still triangles: sphere_geom,
+                             * or 0 when a mesh or sphere has motion data (surface_from_hit) */
     int has_motion;         /* something has time steps: rays must carry their time */
     int packets_exact;      /* accel_intersect_packet gives accel_intersect's hits bit for bit:
                              * only triangles, none instanced or with time steps (Embree's
@@ -102,8 +104,24 @@ static inline int accel_intersect(const struct accel *a, vec3 o, vec3 d, float t
 #define ACCEL_PACKET 16
 void accel_intersect_packet(const struct accel *a, uint32_t n, const vec3 *org, const vec3 *dir,
                             const float *time01, struct accel_hit *hits, int *found);
-/* 1 if anything blocks the segment (0, tmax) at time01. */
-int accel_occluded(const struct accel *a, vec3 org, vec3 dir, float tmax, float time01);
+/* 1 if anything blocks the segment (0, tmax) at time01. Inline, as accel_intersect: every
+ * vertex of a path casts one. */
+static inline int accel_occluded(const struct accel *a, vec3 o, vec3 d, float tmax, float time01)
+{
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    struct RTCRay r;
+    r.org_x = o.x, r.org_y = o.y, r.org_z = o.z;
+    r.dir_x = d.x, r.dir_y = d.y, r.dir_z = d.z;
+    r.tnear = 0.0f;
+    r.tfar = tmax;
+    r.time = time01;
+    r.mask = 0xffffffffu;
+    r.id = 0;
+    r.flags = 0;
+    rtcOccluded1(a->scene, &ctx, &r);
+    return r.tfar < 0.0f;
+}
 /* accel_occluded of n <= ACCEL_PACKET segments (org[k], dir[k]) in (0, tmax), traced as one
  * Embree packet (fewer than 4 one by one): occluded[k] as accel_occluded gives it for
  * segment k, where packets_exact (the first shadow rays of a pixel's paths, integrator.c). */

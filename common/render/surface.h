@@ -68,7 +68,7 @@ static inline __attribute__((always_inline)) void surface_from_hit(const struct 
                                                                    vec3 dir, const struct accel_hit *h,
                                                                    float time01, struct surface *s)
 {
-    if (acc->mesh_motion || acc->sphere_motion || h->geom == acc->sphere_geom) {
+    if (h->geom >= acc->still_geoms) {
         surface_from_hit_slow_(acc, lt, org, dir, h, time01, s);
         return;
     }

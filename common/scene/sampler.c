@@ -109,28 +109,11 @@ void sampler_pixel_set_pass(struct sampler_pixel *p, uint32_t pass)
     p->have = 0;
 }
 
-struct sampler sampler_start_pixel(struct sampler_pixel *p, uint32_t sample)
+void sampler_start_pixel_seeds_(struct sampler_pixel *p, uint32_t pass, struct sampler *s)
 {
-    struct sampler s;
-    s.type = p->type;
-    s.spp = p->spp;
-    s.perm_mask = p->perm_mask;
-    s.nx = p->nx;
-    s.ny = p->ny;
-    s.log2_spp = p->log2_spp;
-    uint32_t pass = s.log2_spp >= 0 ? sample >> s.log2_spp : sample / s.spp;
-    s.index = sample - pass * s.spp;
-    s.sidx = stream_index(pass, s.index, s.spp, p->streams);
-    /* The Sobol sampler draws nothing per sample: its key would be wasted work. */
-    s.key = s.type == SAMPLER_SOBOL ? 0 : rng_mix64(p->prefix ^ sample);
-    s.pixel_key = 0;
-    s.cache = NULL;
-    if (s.type == SAMPLER_INDEPENDENT)
-        return s;
     /* Seeds memoized only for the pass p holds. */
-    s.pixel_key = pass == p->pass ? p->pixel_key : pass_key(p->prefix, s.type, pass, p->streams);
-    s.cache = pass == p->pass ? p : NULL;
-    return s;
+    s->pixel_key = pass == p->pass ? p->pixel_key : pass_key(p->prefix, s->type, pass, p->streams);
+    s->cache = pass == p->pass ? p : NULL;
 }
 
 struct sampler sampler_start_type(enum sampler_type type, uint64_t seed, uint32_t frame, uint64_t pixel,

@@ -96,7 +96,28 @@ struct sampler sampler_start_type(enum sampler_type type, uint64_t seed, uint32_
  * each sample from it. The sampler keeps a pointer to p (it memoizes seeds there). */
 void sampler_pixel_init(struct sampler_pixel *p, enum sampler_type type, uint64_t seed, uint32_t frame,
                         uint64_t pixel, uint32_t spp);
-struct sampler sampler_start_pixel(struct sampler_pixel *p, uint32_t sample);
+void sampler_start_pixel_seeds_(struct sampler_pixel *p, uint32_t pass, struct sampler *s);
+/* Inline: the independent sampler's start is one hash, less than a call. */
+static inline struct sampler sampler_start_pixel(struct sampler_pixel *p, uint32_t sample)
+{
+    struct sampler s;
+    s.type = p->type;
+    s.spp = p->spp;
+    s.perm_mask = p->perm_mask;
+    s.nx = p->nx;
+    s.ny = p->ny;
+    s.log2_spp = p->log2_spp;
+    uint32_t pass = s.log2_spp >= 0 ? sample >> s.log2_spp : sample / s.spp;
+    s.index = sample - pass * s.spp;
+    s.sidx = pass / p->streams * s.spp + s.index; /* the index within the pass's stream */
+    /* The Sobol sampler draws nothing per sample: its key would be wasted work. */
+    s.key = s.type == SAMPLER_SOBOL ? 0 : rng_mix64(p->prefix ^ sample);
+    s.pixel_key = 0;
+    s.cache = NULL;
+    if (s.type != SAMPLER_INDEPENDENT)
+        sampler_start_pixel_seeds_(p, pass, &s);
+    return s;
+}
 /* Sets p's stream count (1..SAMPLER_MAX_STREAMS; init sets SAMPLER_STREAMS). */
 void sampler_pixel_set_streams(struct sampler_pixel *p, uint32_t streams);
 /* Moves p's memo to pass `pass` (samples [pass spp, (pass + 1) spp)). Values are the same

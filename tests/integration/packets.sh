@@ -2,8 +2,9 @@
 # Camera rays in Embree packets (common/render/packet.c) change no pixel: every scene in
 # scenes/ (its main JSON: the one named as its folder), shrunk to 24 x 16 with 8-pixel
 # tiles and 21 spp (packets of 16, then 5: the 16- and 8-wide kernels, masked lanes),
-# renders bit-identical (R, G, B, A, and the sums of the variance and AOV channels) with
-# packets and with single rays (BRUME_PACKETS=0), all AOVs on. Scenes with spheres or
+# renders bit-identical (R, G, B, A, and the sums of the variance and AOV channels) and
+# counts the same samples and rays (OUT.stats.json) with packets and with single rays
+# (BRUME_PACKETS=0), all AOVs on. Scenes with spheres or
 # motion trace single camera rays (accel.h packets_exact), so the scenes below also run
 # with their spheres removed and their motion frozen, where packets do the work; spp 3
 # adds the 4-wide kernel. smoke_anim is left out: its grids are the simulator's output.
@@ -15,7 +16,11 @@ M=$ROOT/$BUILD/master
 X=$ROOT/$BUILD/exrtool
 CHANNELS="variance.R variance.G variance.B Z N.X N.Y N.Z P.X P.Y P.Z albedo.R albedo.G albedo.B id.object id.material"
 
-# same NAME JSON SPP: the render with packets and the one without are bit-identical.
+# stat KEY OUT: a top-level figure of OUT.stats.json (samples, rays).
+stat() { python3 -c 'import json, sys; print(json.load(open(sys.argv[1] + ".stats.json"))[sys.argv[2]])' "$2" "$1" 2>/dev/null; }
+
+# same NAME JSON SPP: the render with packets and the one without are bit-identical and
+# count the same samples and rays (the rays per sample that scripts/bench.sh reports).
 same() {
   # shellcheck disable=SC2086 # $3: the spp and further options
   run $M "$2" -o "$T/p.exr" --workers 1 --threads 2 --spp $3 --aovs all && r1=0 || r1=1
@@ -25,10 +30,14 @@ same() {
   for c in $CHANNELS; do
     [ "$($X chsum "$T/p.exr" "$c")" = "$($X chsum "$T/s.exr" "$c")" ] || { echo "channel $c differs" >>"$T/cmp"; d=1; }
   done
+  for k in samples rays; do
+    [ -n "$(stat $k "$T/p.exr")" ] && [ "$(stat $k "$T/p.exr")" = "$(stat $k "$T/s.exr")" ] ||
+      { echo "$k: $(stat $k "$T/p.exr") with packets, $(stat $k "$T/s.exr") without" >>"$T/cmp"; d=1; }
+  done
   if [ $r1 = 0 ] && [ $r0 = 0 ] && [ $d = 0 ] && $X cmp "$T/p.exr" "$T/s.exr" >>"$T/cmp" 2>&1; then
-    ok "packets: $1 bit-identical with and without packets"
+    ok "packets: $1 bit-identical, same samples and rays, with and without packets"
   else
-    BAD_LOGS="log.p log cmp" bad "packets: $1 bit-identical with and without packets"
+    BAD_LOGS="log.p log cmp" bad "packets: $1 bit-identical, same samples and rays, with and without packets"
   fi
   rm -f "$T/cmp"
 }
