@@ -113,6 +113,7 @@ struct pass_map {
     int announced;
     int installed;              /* the render job's slot holds the map of installed_hash */
     int evicted;                /* dropped for room since its last install: not prefetched, a fetch is a re-fetch */
+    int used;                   /* a unit of the pass went to the render threads since the install */
     uint64_t decoded_bytes;     /* installed: photon_map_bytes of the decoded map */
     uint64_t last_use;          /* worker.map_clock when it was installed or a unit of its pass was queued */
     struct blob_hash installed_hash;
@@ -1035,8 +1036,10 @@ static void on_tile(struct worker *w, const struct msg_tile *t)
         map_fetch_start(w, task.pass);
         return;
     }
-    if (w->num_maps)
+    if (w->num_maps) {
         w->maps[task.pass].last_use = ++w->map_clock;
+        w->maps[task.pass].used = 1;
+    }
     if (pool_push(&w->pool, &task) != 0)
         log_warn("dropping TILE %u: master exceeded our credits", t->tile);
 }
@@ -1133,24 +1136,38 @@ static void map_evict(struct worker *w, uint32_t pass)
     pm->decoded_bytes = 0;
 }
 
-/* Room for pass `pass`'s map within the budget, for a map as big as the job's largest so
- * far: the least recently used maps that no queued or rendering unit needs are evicted
- * until it fits. 1: room (or no other map held: one is always allowed), 0: not now (the
- * maps held are in use; a unit that finishes frees one). */
-static int maps_make_room(struct worker *w, uint32_t pass)
+/* A map as big as the job's largest so far fits beside those held (besides pass `skip`'s,
+ * which it replaces), or none is held (one map is always allowed). */
+static int maps_room(const struct worker *w, uint32_t skip)
 {
+    uint64_t held = w->maps_held_bytes - (skip < w->num_maps && w->maps[skip].installed ? w->maps[skip].decoded_bytes : 0);
+    return held == 0 || held + w->map_bytes_max <= w->opts->map_memory_bytes;
+}
+
+/* Room for pass `pass`'s map within the budget. For a map that units wait for (demand),
+ * maps that no queued or rendering unit needs are evicted until it fits: first the least
+ * recently used of those whose units were rendered (in pass order their passes are done),
+ * then of those fetched ahead and not used yet. A map fetched ahead (no unit waits) takes
+ * only free room: it never evicts. 1: room, 0: not now (the maps held are in use, or it
+ * was fetched ahead; maps_retry tries again). */
+static int maps_make_room(struct worker *w, uint32_t pass, int demand)
+{
+    if (maps_room(w, pass))
+        return 1;
+    if (!demand)
+        return 0;
     uint64_t budget = w->opts->map_memory_bytes;
     uint64_t held = w->maps_held_bytes - (w->maps[pass].installed ? w->maps[pass].decoded_bytes : 0);
-    if (held + w->map_bytes_max <= budget)
-        return 1;
     uint8_t *used = mem_alloc(w->num_maps);
     maps_in_use(w, used);
     while (held + w->map_bytes_max > budget) {
         uint32_t victim = UINT32_MAX;
-        for (uint32_t p = 0; p < w->num_maps; p++)
-            if (p != pass && w->maps[p].installed && !used[p] &&
-                (victim == UINT32_MAX || w->maps[p].last_use < w->maps[victim].last_use))
+        for (uint32_t p = 0; p < w->num_maps; p++) {
+            const struct pass_map *m = &w->maps[p], *v = victim == UINT32_MAX ? NULL : &w->maps[victim];
+            if (p != pass && m->installed && !used[p] &&
+                (!v || m->used > v->used || (m->used == v->used && m->last_use < v->last_use)))
                 victim = p;
+        }
         if (victim == UINT32_MAX)
             break;
         held -= w->maps[victim].decoded_bytes;
@@ -1187,7 +1204,10 @@ static int map_install(struct worker *w, uint32_t pass)
         const struct blob_entry *e = blob_store_get(&w->cache, &pm->hash);
         if (!e)
             return 0;
-        if (!maps_make_room(w, pass)) { /* the blob waits in the cache (maps_retry) */
+        int demand = 0;
+        for (size_t i = 0; i < w->num_parked && !demand; i++)
+            demand = w->parked[i].pass == pass;
+        if (!maps_make_room(w, pass, demand)) { /* the blob waits in the cache (maps_retry) */
             w->maps_waiting = 1;
             return 0;
         }
@@ -1210,6 +1230,7 @@ static int map_install(struct worker *w, uint32_t pass)
         pm->installed_hash = pm->hash;
         pm->decoded_bytes = bytes;
         pm->last_use = ++w->map_clock;
+        pm->used = 0;
         w->maps_held++;
         w->maps_held_bytes += bytes;
         w->maps_decoded++;
@@ -1229,6 +1250,7 @@ static int map_install(struct worker *w, uint32_t pass)
     for (size_t i = 0; i < w->num_parked; i++) {
         if (w->parked[i].pass == pass) {
             pm->last_use = ++w->map_clock;
+            pm->used = 1;
             if (pool_push(&w->pool, &w->parked[i]) != 0)
                 log_warn("dropping TILE %u: master exceeded our credits", w->parked[i].tile);
         } else {
@@ -1277,7 +1299,9 @@ static void maps_prefetch(struct worker *w)
 {
     for (uint32_t p = w->num_maps; p-- > 0;)
         if (w->maps[p].announced) {
-            if (!w->maps[p].evicted) /* dropped for room: fetched again only for a unit of it */
+            /* Only into free room (it would evict nothing), and not a map dropped for room
+             * (fetched again only for a unit of it). */
+            if (!w->maps[p].evicted && !map_ready(w, p) && maps_room(w, UINT32_MAX))
                 map_fetch_start(w, p);
             return;
         }
