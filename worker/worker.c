@@ -1282,6 +1282,8 @@ static int on_map(struct worker *w, const struct msg_map *mm)
     struct pass_map *pm = &w->maps[mm->pass];
     if (pm->fetch.recv.data && !blob_hash_equal(&pm->fetch.recv.hash, &mm->hash))
         blob_recv_fini(&pm->fetch.recv);
+    if (!blob_hash_equal(&pm->hash, &mm->hash)) /* another map (the next frame's): never evicted */
+        pm->evicted = 0;
     pm->hash = mm->hash;
     pm->size = mm->size;
     pm->announced = 1;
