@@ -1136,12 +1136,22 @@ static void map_evict(struct worker *w, uint32_t pass)
     pm->decoded_bytes = 0;
 }
 
-/* A map as big as the job's largest so far fits beside those held (besides pass `skip`'s,
- * which it replaces), or none is held (one map is always allowed). */
+/* Bytes of the decoded maps held, besides pass `skip`'s (which an install replaces). */
+static uint64_t maps_held_besides(const struct worker *w, uint32_t skip)
+{
+    return w->maps_held_bytes - (skip < w->num_maps && w->maps[skip].installed ? w->maps[skip].decoded_bytes : 0);
+}
+
+/* A map as big as the job's largest so far fits beside `held` bytes of maps, or none is
+ * held (one map is always allowed). */
+static int maps_fit(const struct worker *w, uint64_t held)
+{
+    return held == 0 || held + w->map_bytes_max <= w->opts->map_memory_bytes;
+}
+
 static int maps_room(const struct worker *w, uint32_t skip)
 {
-    uint64_t held = w->maps_held_bytes - (skip < w->num_maps && w->maps[skip].installed ? w->maps[skip].decoded_bytes : 0);
-    return held == 0 || held + w->map_bytes_max <= w->opts->map_memory_bytes;
+    return maps_fit(w, maps_held_besides(w, skip));
 }
 
 /* Room for pass `pass`'s map within the budget. For a map that units wait for (demand),
@@ -1156,11 +1166,10 @@ static int maps_make_room(struct worker *w, uint32_t pass, int demand)
         return 1;
     if (!demand)
         return 0;
-    uint64_t budget = w->opts->map_memory_bytes;
-    uint64_t held = w->maps_held_bytes - (w->maps[pass].installed ? w->maps[pass].decoded_bytes : 0);
+    uint64_t held = maps_held_besides(w, pass);
     uint8_t *used = mem_alloc(w->num_maps);
     maps_in_use(w, used);
-    while (held + w->map_bytes_max > budget) {
+    while (!maps_fit(w, held)) {
         uint32_t victim = UINT32_MAX;
         for (uint32_t p = 0; p < w->num_maps; p++) {
             const struct pass_map *m = &w->maps[p], *v = victim == UINT32_MAX ? NULL : &w->maps[victim];
@@ -1174,7 +1183,7 @@ static int maps_make_room(struct worker *w, uint32_t pass, int demand)
         map_evict(w, victim);
     }
     free(used);
-    return held + w->map_bytes_max <= budget || held == 0;
+    return maps_fit(w, held);
 }
 
 /* Maps whose blobs wait for room (map_install left them in the cache) are installed once
