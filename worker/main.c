@@ -12,11 +12,14 @@
 static void usage(FILE *f)
 {
     fprintf(f,
-            "usage: worker --connect ENDPOINT [--threads T] [--timeout-ms MS] [--verbose]\n"
+            "usage: worker --connect ENDPOINT [--threads T] [--timeout-ms MS] [--map-memory MB] [--verbose]\n"
             "              [--curve-secret KEYFILE --server-key MASTER.pub]\n"
             "  --connect ENDPOINT  the master's endpoint, e.g. tcp://10.0.0.1:5555 or ipc:///tmp/x.sock\n"
             "  --threads T         render threads (default: all cores)\n"
             "  --timeout-ms MS     give up after MS milliseconds without a word from the master (default 30000)\n"
+            "  --map-memory MB     decoded photon maps (one per pass) held at most, in MiB (default 2048); past it\n"
+            "                      the least recently used map no queued unit needs is dropped and fetched again\n"
+            "                      if a later unit needs it; one map is always held\n"
             "  --curve-secret F    our CurveZMQ key pair (from master --keygen); needs --server-key\n"
             "  --server-key F      the master's public key file (KEYFILE.pub of the master's pair)\n"
             "  --exit-with-parent  exit when the process that started us dies (local workers)\n"
@@ -50,7 +53,7 @@ static int parse_fault(const char *s, struct worker_opts *o)
 
 int main(int argc, char **argv)
 {
-    struct worker_opts o = {NULL, cli_num_cores(), 30000, NULL, NULL, FAULT_NONE, 0};
+    struct worker_opts o = {NULL, cli_num_cores(), 30000, NULL, NULL, FAULT_NONE, 0, 2048ull << 20};
     char prefix[64];
     snprintf(prefix, sizeof prefix, "worker %d", (int)getpid());
     log_set_prefix(prefix);
@@ -85,6 +88,12 @@ int main(int argc, char **argv)
                 return 2;
             }
             o.threads = (uint32_t)v;
+        } else if (i + 1 < argc && !strcmp(a, "--map-memory")) {
+            if (cli_parse_u64(a, argv[++i], 1, 1ull << 24, &v, err, sizeof err) != 0) {
+                log_error("%s", err);
+                return 2;
+            }
+            o.map_memory_bytes = v << 20;
         } else if (i + 1 < argc && !strcmp(a, "--timeout-ms")) {
             if (cli_parse_u64(a, argv[++i], 100, 86400000, &v, err, sizeof err) != 0) {
                 log_error("%s", err);

@@ -79,6 +79,9 @@ struct thread_progress {
     _Atomic uint64_t samples;       /* samples finished by this thread, ever */
     _Atomic uint64_t last_ms;       /* when it last finished a row or took a tile */
     _Atomic int busy;
+    _Atomic uint32_t map_pass;      /* the pass of the unit it renders (set under the pool's lock when it
+                                     * takes the unit, cleared once it no longer reads the pass's map);
+                                     * UINT32_MAX: none */
 };
 
 struct pool {
@@ -100,12 +103,19 @@ struct pool {
 };
 
 /* A pass's photon map: announced by MAP for the current job, fetched as a blob, decoded
- * into the render job's slot for the pass (installed). */
+ * into the render job's slot for the pass (installed). Decoded maps are held within
+ * opts->map_memory_bytes: the least recently used one that no queued or rendering unit
+ * needs is dropped (evicted) to make room, and fetched and decoded again if a unit of its
+ * pass comes later (the same bytes: pixels do not depend on the budget). */
 struct pass_map {
     struct blob_hash hash;      /* announced for the current job */
     uint64_t size;
     int announced;
     int installed;              /* the render job's slot holds the map of installed_hash */
+    int evicted;                /* dropped for room since its last install: not prefetched, a fetch is a re-fetch */
+    int used;                   /* a unit of the pass went to the render threads since the install */
+    uint64_t decoded_bytes;     /* installed: photon_map_bytes of the decoded map */
+    uint64_t last_use;          /* worker.map_clock when it was installed or a unit of its pass was queued */
     struct blob_hash installed_hash;
     struct proto_fetch fetch;         /* fetch.recv.data while fetching */
 };
@@ -170,6 +180,15 @@ struct worker {
     size_t num_parked, cap_parked;
     uint64_t map_wait_ms;       /* this job: ms with parked units and nothing to render */
     uint64_t map_bytes;         /* this job: bytes of photon maps fetched */
+    uint64_t map_clock;         /* ticks per map install or queued unit (least recently used order) */
+    uint64_t maps_held_bytes;   /* decoded maps in the render job now */
+    uint32_t maps_held;
+    uint64_t map_bytes_max;     /* the largest decoded map of the job: the room an install needs */
+    int maps_waiting;           /* a fetched map waits for room (maps_retry) */
+    /* Worker lifetime, logged at exit: maps decoded, the most held at once (and their
+     * bytes), maps evicted, bytes of evicted maps fetched again. */
+    uint64_t maps_decoded, maps_evicted, map_refetch_bytes, maps_peak_bytes;
+    uint32_t maps_peak;
     struct loader load;
 };
 
@@ -251,6 +270,7 @@ static void *pool_thread(void *arg)
         struct tile_task t = p->queue[p->head];
         p->head = (p->head + 1) % p->cap;
         p->count--;
+        atomic_store(&prog->map_pass, t.pass); /* under the lock: maps_in_use sees it queued or here */
         pthread_mutex_unlock(&p->lock);
         atomic_store(&prog->last_ms, net_now_ms());
         atomic_store(&prog->busy, 1);
@@ -292,6 +312,7 @@ static void *pool_thread(void *arg)
             }
             atomic_store(&prog->last_ms, net_now_ms());
         }
+        atomic_store(&prog->map_pass, UINT32_MAX); /* the map is no longer read: it may be dropped */
         if (y < h) {
             free(d);
             atomic_store(&prog->busy, 0);
@@ -333,8 +354,10 @@ static void pool_start(struct worker *w)
     p->fault = w->opts->fault;
     p->fault_arg = w->opts->fault_arg;
     p->tiles_rendered = &w->tiles_rendered;
-    for (uint32_t i = 0; i < p->num_threads; i++)
+    for (uint32_t i = 0; i < p->num_threads; i++) {
         atomic_store(&p->progress[i].busy, 0);
+        atomic_store(&p->progress[i].map_pass, UINT32_MAX);
+    }
     p->threads = mem_alloc(sizeof *p->threads * p->num_threads);
     for (uint32_t i = 0; i < p->num_threads; i++)
         CHECK(pthread_create(&p->threads[i], NULL, pool_thread, p) == 0);
@@ -944,6 +967,11 @@ static int on_blob_data(struct worker *w, const struct msg_blob_data *d, int via
                 zmq_setsockopt(w->sub, ZMQ_UNSUBSCRIBE, h.bytes, BLOB_HASH_SIZE);
             if (map_pass >= 0) {
                 w->map_bytes += size;
+                if (w->maps[map_pass].evicted) {
+                    w->map_refetch_bytes += size;
+                    log_debug("photon map of pass %d fetched again (%llu bytes): it was evicted", map_pass,
+                              (unsigned long long)size);
+                }
                 return job_ready(w) ? map_install(w, (uint32_t)map_pass) : 0;
             }
             if (!fetches_pending(w) && !w->load.running && !w->loaded)
@@ -979,6 +1007,7 @@ static int on_bcast_frame(struct worker *w, const struct net_frame *fr)
 
 static int map_ready(const struct worker *w, uint32_t pass);
 static void map_fetch_start(struct worker *w, uint32_t pass);
+static int maps_retry(struct worker *w);
 
 static void on_tile(struct worker *w, const struct msg_tile *t)
 {
@@ -1007,6 +1036,10 @@ static void on_tile(struct worker *w, const struct msg_tile *t)
         map_fetch_start(w, task.pass);
         return;
     }
+    if (w->num_maps) {
+        w->maps[task.pass].last_use = ++w->map_clock;
+        w->maps[task.pass].used = 1;
+    }
     if (pool_push(&w->pool, &task) != 0)
         log_warn("dropping TILE %u: master exceeded our credits", t->tile);
 }
@@ -1022,11 +1055,15 @@ static void maps_reset(struct worker *w, int keep_installed)
         memset(&w->maps[p].fetch, 0, sizeof w->maps[p].fetch);
         w->maps[p].announced = 0;
     }
-    if (!keep_installed) {
+    if (!keep_installed) { /* the render job's maps are freed with it */
         free(w->maps);
         w->maps = NULL;
         w->num_maps = 0;
+        w->maps_held = 0;
+        w->maps_held_bytes = 0;
+        w->map_bytes_max = 0;
     }
+    w->maps_waiting = 0;
     w->num_parked = 0;
     w->map_wait_ms = 0;
     w->map_bytes = 0;
@@ -1059,6 +1096,110 @@ static void map_fetch_start(struct worker *w, uint32_t pass)
     }
 }
 
+/* used[p] = 1 for each pass a queued or rendering unit needs. Under the pool's lock, which
+ * a render thread holds when it takes a unit and marks its pass: a pass found unused stays
+ * so until the main thread (the caller) queues a unit of it. */
+static void maps_in_use(struct worker *w, uint8_t *used)
+{
+    memset(used, 0, w->num_maps);
+    struct pool *p = &w->pool;
+    if (!p->threads)
+        return;
+    pthread_mutex_lock(&p->lock);
+    for (size_t i = 0; i < p->count; i++) {
+        uint32_t q = p->queue[(p->head + i) % p->cap].pass;
+        if (q < w->num_maps)
+            used[q] = 1;
+    }
+    for (uint32_t i = 0; i < p->num_threads; i++) {
+        uint32_t q = atomic_load(&p->progress[i].map_pass);
+        if (q < w->num_maps)
+            used[q] = 1;
+    }
+    pthread_mutex_unlock(&p->lock);
+}
+
+/* Drops pass `pass`'s decoded map (no unit of the pass is queued or rendering). */
+static void map_evict(struct worker *w, uint32_t pass)
+{
+    struct pass_map *pm = &w->maps[pass];
+    struct photon_map *none = NULL;
+    render_job_set_pass_map(&w->rjob, pass, &none);
+    pm->installed = 0;
+    pm->evicted = 1;
+    w->maps_held--;
+    w->maps_held_bytes -= pm->decoded_bytes;
+    w->maps_evicted++;
+    log_debug("photon map of pass %u evicted (%llu bytes decoded; %u held, %llu bytes, budget %llu)", pass,
+              (unsigned long long)pm->decoded_bytes, w->maps_held, (unsigned long long)w->maps_held_bytes,
+              (unsigned long long)w->opts->map_memory_bytes);
+    pm->decoded_bytes = 0;
+}
+
+/* Bytes of the decoded maps held, besides pass `skip`'s (which an install replaces). */
+static uint64_t maps_held_besides(const struct worker *w, uint32_t skip)
+{
+    return w->maps_held_bytes - (skip < w->num_maps && w->maps[skip].installed ? w->maps[skip].decoded_bytes : 0);
+}
+
+/* A map as big as the job's largest so far fits beside `held` bytes of maps, or none is
+ * held (one map is always allowed). */
+static int maps_fit(const struct worker *w, uint64_t held)
+{
+    return held == 0 || held + w->map_bytes_max <= w->opts->map_memory_bytes;
+}
+
+static int maps_room(const struct worker *w, uint32_t skip)
+{
+    return maps_fit(w, maps_held_besides(w, skip));
+}
+
+/* Room for pass `pass`'s map within the budget. For a map that units wait for (demand),
+ * maps that no queued or rendering unit needs are evicted until it fits: first the least
+ * recently used of those whose units were rendered (in pass order their passes are done),
+ * then of those fetched ahead and not used yet. A map fetched ahead (no unit waits) takes
+ * only free room: it never evicts. 1: room, 0: not now (the maps held are in use, or it
+ * was fetched ahead; maps_retry tries again). */
+static int maps_make_room(struct worker *w, uint32_t pass, int demand)
+{
+    if (maps_room(w, pass))
+        return 1;
+    if (!demand)
+        return 0;
+    uint64_t held = maps_held_besides(w, pass);
+    uint8_t *used = mem_alloc(w->num_maps);
+    maps_in_use(w, used);
+    while (!maps_fit(w, held)) {
+        uint32_t victim = UINT32_MAX;
+        for (uint32_t p = 0; p < w->num_maps; p++) {
+            const struct pass_map *m = &w->maps[p], *v = victim == UINT32_MAX ? NULL : &w->maps[victim];
+            if (p != pass && m->installed && !used[p] &&
+                (!v || m->used > v->used || (m->used == v->used && m->last_use < v->last_use)))
+                victim = p;
+        }
+        if (victim == UINT32_MAX)
+            break;
+        held -= w->maps[victim].decoded_bytes;
+        map_evict(w, victim);
+    }
+    free(used);
+    return maps_fit(w, held);
+}
+
+/* Maps whose blobs wait for room (map_install left them in the cache) are installed once
+ * the units holding the others finish. 0, or -1 after an ERROR to the master. */
+static int maps_retry(struct worker *w)
+{
+    if (!w->maps_waiting || !job_ready(w))
+        return 0;
+    w->maps_waiting = 0; /* map_install sets it again for a map that still waits */
+    for (uint32_t p = 0; p < w->num_maps; p++)
+        if (w->maps[p].announced && !map_ready(w, p) && blob_store_get(&w->cache, &w->maps[p].hash) &&
+            map_install(w, p) != 0)
+            return -1;
+    return 0;
+}
+
 /* Pass `pass`'s map, once its blob is in the cache: decoded (every size and index
  * checked) into the render job's slot, the blob dropped, and the units parked for it
  * handed to the render threads. 0 (also when the blob is not here yet), or -1 after an
@@ -1072,6 +1213,13 @@ static int map_install(struct worker *w, uint32_t pass)
         const struct blob_entry *e = blob_store_get(&w->cache, &pm->hash);
         if (!e)
             return 0;
+        int demand = 0;
+        for (size_t i = 0; i < w->num_parked && !demand; i++)
+            demand = w->parked[i].pass == pass;
+        if (!maps_make_room(w, pass, demand)) { /* the blob waits in the cache (maps_retry) */
+            w->maps_waiting = 1;
+            return 0;
+        }
         char err[256], text[PROTO_MAX_STRING];
         struct photon_map *map = NULL;
         if (photon_map_decode(e->data, e->size, &map, err, sizeof err) != 0) {
@@ -1080,16 +1228,38 @@ static int map_install(struct worker *w, uint32_t pass)
             send_error(w, text);
             return -1;
         }
+        uint64_t bytes = photon_map_bytes(map);
+        if (pm->installed) { /* another map replaces it (the next frame's) */
+            w->maps_held--;
+            w->maps_held_bytes -= pm->decoded_bytes;
+        }
         render_job_set_pass_map(&w->rjob, pass, &map);
         pm->installed = 1;
+        pm->evicted = 0;
         pm->installed_hash = pm->hash;
+        pm->decoded_bytes = bytes;
+        pm->last_use = ++w->map_clock;
+        pm->used = 0;
+        w->maps_held++;
+        w->maps_held_bytes += bytes;
+        w->maps_decoded++;
+        if (bytes > w->map_bytes_max)
+            w->map_bytes_max = bytes;
+        if (w->maps_held > w->maps_peak)
+            w->maps_peak = w->maps_held;
+        if (w->maps_held_bytes > w->maps_peak_bytes)
+            w->maps_peak_bytes = w->maps_held_bytes;
         struct blob_hash h = pm->hash;
         blob_store_drop(&w->cache, &h); /* decoded now; a later job announcing it again finds it installed */
-        log_debug("photon map of pass %u installed (%llu bytes)", pass, (unsigned long long)pm->size);
+        log_debug("photon map of pass %u installed (%llu bytes, %llu decoded; %u held, %llu bytes)", pass,
+                  (unsigned long long)pm->size, (unsigned long long)bytes, w->maps_held,
+                  (unsigned long long)w->maps_held_bytes);
     }
     size_t k = 0;
     for (size_t i = 0; i < w->num_parked; i++) {
         if (w->parked[i].pass == pass) {
+            pm->last_use = ++w->map_clock;
+            pm->used = 1;
             if (pool_push(&w->pool, &w->parked[i]) != 0)
                 log_warn("dropping TILE %u: master exceeded our credits", w->parked[i].tile);
         } else {
@@ -1121,6 +1291,8 @@ static int on_map(struct worker *w, const struct msg_map *mm)
     struct pass_map *pm = &w->maps[mm->pass];
     if (pm->fetch.recv.data && !blob_hash_equal(&pm->fetch.recv.hash, &mm->hash))
         blob_recv_fini(&pm->fetch.recv);
+    if (!blob_hash_equal(&pm->hash, &mm->hash)) /* another map (the next frame's): never evicted */
+        pm->evicted = 0;
     pm->hash = mm->hash;
     pm->size = mm->size;
     pm->announced = 1;
@@ -1138,7 +1310,10 @@ static void maps_prefetch(struct worker *w)
 {
     for (uint32_t p = w->num_maps; p-- > 0;)
         if (w->maps[p].announced) {
-            map_fetch_start(w, p);
+            /* Only into free room (it would evict nothing), and not a map dropped for room
+             * (fetched again only for a unit of it). */
+            if (!w->maps[p].evicted && !map_ready(w, p) && maps_room(w, UINT32_MAX))
+                map_fetch_start(w, p);
             return;
         }
 }
@@ -1428,6 +1603,8 @@ int worker_run(const struct worker_opts *opts)
             }
         }
         maps_prefetch(&w);
+        if (maps_retry(&w) != 0)
+            goto done;
         if (fetches_pump(&w) != 0)
             goto done;
         now = net_now_ms();
@@ -1472,6 +1649,11 @@ int worker_run(const struct worker_opts *opts)
 done:
     log_info("rendered %u tile(s); %u offered again to a master that came back; %u reconnection(s)",
              atomic_load(&w.tiles_rendered), w.kept_delivered, w.reconnects);
+    if (w.maps_decoded)
+        log_info("photon maps: %llu decoded, at most %u held at once (%.1f MiB, budget %.1f MiB); %llu evicted, "
+                 "%llu bytes fetched again", (unsigned long long)w.maps_decoded, w.maps_peak,
+                 (double)w.maps_peak_bytes / 1048576.0, (double)opts->map_memory_bytes / 1048576.0,
+                 (unsigned long long)w.maps_evicted, (unsigned long long)w.map_refetch_bytes);
     unload_job(&w);
     pending_drop(&w);
     free(w.load.pending_maps);

@@ -24,6 +24,7 @@ struct worker_opts {
     const char *server_key;       /* the master's public key file, with curve_secret */
     enum worker_fault fault;
     uint32_t fault_arg;
+    uint64_t map_memory_bytes;    /* budget of decoded photon maps (one map is always held) */
 };
 
 /* Runs until the master says BYE (returns 0) or a fatal error (returns 1, logged). */

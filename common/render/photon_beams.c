@@ -412,6 +412,7 @@ void photon_beams_free(struct photon_beams **pp)
 }
 
 uint32_t photon_beams_count(const struct photon_beams *pb) { return pb ? pb->n : 0; }
+size_t photon_beams_bytes(const struct photon_beams *pb) { return pb ? sizeof *pb + (size_t)pb->n * sizeof *pb->beams : 0; }
 float photon_beams_radius(const struct photon_beams *pb) { return pb ? pb->radius : 0.0f; }
 
 /* ---- the estimate ---- */

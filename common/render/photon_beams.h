@@ -61,6 +61,8 @@ int photon_beams_is_section(const uint8_t *data, size_t size);
 int photon_beams_decode(const uint8_t *data, size_t size, struct photon_beams **out, char *err, size_t errlen);
 void photon_beams_free(struct photon_beams **pb);
 uint32_t photon_beams_count(const struct photon_beams *pb);
+/* Bytes of the decoded beams (not the chunks and BVH the first query builds). */
+size_t photon_beams_bytes(const struct photon_beams *pb);
 float photon_beams_radius(const struct photon_beams *pb);
 /* Sets the radius of a decoded set (tests), rebuilding its BVH. */
 void photon_beams_set_radius(struct photon_beams *pb, float radius);

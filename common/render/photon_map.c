@@ -705,6 +705,31 @@ static void beam_grid_free(struct photon_beam_grid *g)
     free(g);
 }
 
+/* The beam grid's tables and records, as beam_rows_index and its caller allocate them. */
+static size_t beam_grid_bytes(const struct photon_beam_grid *g, uint32_t n)
+{
+    if (!g)
+        return 0;
+    size_t b = sizeof *g + (size_t)n * (3 * sizeof *g->x + sizeof *g->depth + sizeof *g->idx + sizeof *g->dec);
+    if (g->ny)
+        b += ((size_t)(g->cmax[1] + 1) * (g->cmax[2] + 1) + 1) * sizeof *g->row_start;
+    else
+        b += ((size_t)g->mask + 1) * sizeof *g->rows;
+    return b;
+}
+
+size_t photon_map_bytes(const struct photon_map *m)
+{
+    size_t b = 0;
+    for (; m; m = m->next_pass) {
+        b += sizeof *m + (size_t)m->num_photons * sizeof *m->photons + ((size_t)m->table_size + 1) * sizeof *m->bucket_start;
+        if (m->decoded)
+            b += (size_t)m->num_photons * sizeof *m->decoded;
+        b += beam_grid_bytes(m->beam, m->num_photons) + photon_beams_bytes(m->beams) + photon_map_bytes(m->surface);
+    }
+    return b;
+}
+
 int photon_map_beam_layout(const struct photon_map *m, float *cell, uint32_t *rows, uint32_t *longest)
 {
     const struct photon_beam_grid *g = m ? m->beam : NULL;

@@ -62,6 +62,10 @@ int photon_map_serialise(struct photon_list *blocks, uint32_t num_blocks, float 
                          uint8_t **map, size_t *bytes, uint32_t *count, char *err, size_t errlen);
 /* Checks and decodes a blob (every size and index is checked before use). */
 int photon_map_decode(const uint8_t *data, size_t size, struct photon_map **out, char *err, size_t errlen);
+/* Bytes the decoded map holds (its surface map and later passes' too): photons, buckets,
+ * decoded photons, the beam query's rows and the photon beams' decoded beams; the beams'
+ * chunks and BVH, built by the first query, are not counted. */
+size_t photon_map_bytes(const struct photon_map *m);
 /* Frees the map, its surface map and the maps of the passes after it. */
 void photon_map_free(struct photon_map **pm);
 

@@ -52,7 +52,8 @@ void render_job_set_photon_map(struct render_job *job, struct photon_map **map);
 void render_job_set_passes(struct render_job *job, uint32_t passes);
 /* Takes ownership of *map (set to NULL) as pass `pass`'s map (< num_passes), replacing the
  * one there. Only pass `pass`'s view changes: render threads may render other passes
- * meanwhile, provided a unit of this pass is handed to them only after this returns. */
+ * meanwhile, provided a unit of this pass is handed to them only after this returns. A
+ * NULL *map drops (frees) the pass's map: then no unit of this pass may be rendering. */
 void render_job_set_pass_map(struct render_job *job, uint32_t pass, struct photon_map **map);
 /* Pass `pass`'s map, or NULL. */
 const struct photon_map *render_job_pass_map(const struct render_job *job, uint32_t pass);

@@ -148,6 +148,55 @@ if [ $r = 0 ] && [ "${late%% *}" = ok ] && grep -q "in 4 pass(es)" "$T/wlog" && 
   ok "4 passes: tcp worker joining after pass 0 fetches only later maps, identical pixels"
 else bad "4 passes: tcp worker joining after pass 0 fetches only later maps, identical pixels"; fi
 
+# A worker's decoded maps within --map-memory: 16 passes of 3.7 MB decoded maps (20000
+# photons); workers join once every map is published (MAP for all 16 at once). With a
+# budget of 8 MiB (2 maps) one worker holds at most 2 and evicts; with 1 MiB (less than a
+# map: one is held) and a slow load (the newest map, fetched ahead, is decoded before any
+# unit comes) pass 15's map is evicted for pass 0's units and fetched again for its own.
+# Pixels equal a render under the default budget (which evicts nothing), and 3 workers
+# with 2 maps each give the same.
+MA="--spp 16 --passes 16 --photons 20000 --no-journal"
+run $M $S -o "$T/mm_ref.exr" $MA --workers 1 --threads 2 && r=0 || r=1
+cp "$T/log" "$T/mm_ref.log"
+mapmem() {  # mapmem NAME PORT WORKERS THREADS WORKER-OPTIONS...: WORKERS workers once the master's maps are out
+  name=$1 port=$2 nw=$3 th=$4
+  shift 4
+  timeout 120 $M $S -o "$T/$name.exr" $MA --workers 0 --bind "tcp://127.0.0.1:$port" --insecure >"$T/$name.mlog" 2>&1 &
+  i=0
+  while [ $i -lt 600 ] && ! grep -q "photon pass: 16 map(s)" "$T/$name.mlog" 2>/dev/null; do sleep 0.05; i=$((i + 1)); done
+  k=1
+  while [ $k -le "$nw" ]; do
+    timeout 120 $W --connect "tcp://127.0.0.1:$port" --threads "$th" --verbose "$@" >"$T/$name.w$k" 2>&1 &
+    k=$((k + 1))
+  done
+  wait
+}
+# mmstats WORKER-LOG: "decoded held evicted refetched" from its line "photon maps: N decoded,
+# at most K held at once (...); E evicted, B bytes fetched again" (0s when missing)
+mmstats() {
+  s=$(sed -n 's/.*photon maps: \([0-9]*\) decoded, at most \([0-9]*\) held at once .*; \([0-9]*\) evicted, \([0-9]*\) bytes fetched again/\1 \2 \3 \4/p' "$1")
+  echo "${s:-0 0 0 0}"
+}
+mapmem mm2 $((P + 2)) 1 2 --map-memory 8
+mapmem mm1 $((P + 3)) 1 2 --map-memory 1 --fault slow-load:1000
+mapmem mm3 $((P + 4)) 3 1 --map-memory 8
+echo "media: --map-memory, decoded / most held / evicted / bytes fetched again: 2 maps $(mmstats "$T/mm2.w1"), 1 map $(mmstats "$T/mm1.w1")"
+set -- $(mmstats "$T/mm2.w1")
+if [ $r = 0 ] && [ "$2" -ge 1 ] && [ "$2" -le 2 ] && [ "$3" -gt 0 ] && grep -q "photon map of pass .* evicted" "$T/mm2.w1" &&
+   grep -q "photon maps: 16 decoded, at most 16 held at once .*; 0 evicted, 0 bytes fetched again" "$T/mm_ref.log" &&
+   $X cmp "$T/mm_ref.exr" "$T/mm2.exr"; then
+  ok "--map-memory 2 maps: at most 2 held, maps evicted, pixels identical to the default budget"
+else bad "--map-memory 2 maps: at most 2 held, maps evicted, pixels identical to the default budget ($*)"; fi
+set -- $(mmstats "$T/mm1.w1")
+if [ $r = 0 ] && [ "$2" = 1 ] && [ "$3" -gt 0 ] && [ "$4" -gt 0 ] && grep -q "photon map of pass 15 fetched again" "$T/mm1.w1" &&
+   $X cmp "$T/mm_ref.exr" "$T/mm1.exr"; then
+  ok "--map-memory below one map: one held, pass 15's map evicted and fetched again, pixels identical"
+else bad "--map-memory below one map: one held, pass 15's map evicted and fetched again, pixels identical ($*)"; fi
+held3=$(cat "$T"/mm3.w* | sed -n 's/.*photon maps: .* at most \([0-9]*\) held at once.*/\1/p' | sort -n | tail -1)
+if [ $r = 0 ] && [ -n "$held3" ] && [ "$held3" -le 2 ] && $X cmp "$T/mm_ref.exr" "$T/mm3.exr"; then
+  ok "--map-memory 2 maps: 3 workers bit-identical to 1 (at most $held3 held)"
+else bad "--map-memory 2 maps: 3 workers bit-identical to 1 (at most ${held3:-?} held)"; fi
+
 # NanoVDB density grids: the smoke as a .nvdb written by NanoVDB's own writer (make_nvdb),
 # sent to workers as a blob like any asset: pixels bit-identical for 1 and 3 workers, the
 # image's mean within 0.5 % of the dense smoke's; a compressed .nvdb is refused at file:line:col.

@@ -276,8 +276,16 @@ Test(passes, volume_blob_maps)
         cr_assert_not_null(m->surface);
         cr_assert_float_eq(m->surface->radius, (float)photon_pass_radius(0.1, 2.0 / 3.0, p, 2), 1e-7);
         cr_assert(m->num_photons > 100);
+        /* A worker budgets decoded maps by photon_map_bytes: at least the photons, their
+         * decoded directions and powers and the surface map's, counted once per map. */
+        size_t own = photon_map_bytes(m) - photon_map_bytes(m->next_pass), surf = photon_map_bytes(m->surface);
+        size_t floor = (size_t)m->num_photons * (sizeof(struct photon) + (m->decoded ? sizeof(struct photon_decoded) : 0));
+        cr_assert_geq(surf, (size_t)m->surface->num_photons * sizeof(struct photon));
+        cr_assert_geq(own, floor + surf);
+        cr_assert_lt(own, 64u * (floor + surf), "a fair estimate, not a wild one");
     }
     cr_assert_eq(p, 5u);
+    cr_assert_eq(photon_map_bytes(NULL), 0u);
     /* Different maps: each pass traces from its own seed. */
     cr_assert(maps->num_photons != maps->next_pass->num_photons ||
               memcmp(maps->photons, maps->next_pass->photons, 20) != 0);
