@@ -15,28 +15,33 @@
 
 extern char **environ;
 
-pid_t launch_worker(const char *exe, const char *endpoint, uint32_t threads, const char *key_path,
-                    const char *server_pub_path)
+pid_t launch_worker(const char *exe, const char *endpoint, uint32_t threads, uint32_t map_memory_mb,
+                    const char *key_path, const char *server_pub_path)
 {
     /* posix_spawn wants mutable strings: give it copies. */
     char exe_s[4096], connect_s[] = "--connect", endpoint_s[1024], threads_opt[] = "--threads", threads_s[16];
     char parent_s[] = "--exit-with-parent", secret_opt[] = "--curve-secret", server_opt[] = "--server-key";
+    char map_opt[] = "--map-memory", map_s[16];
     char key_s[1024] = "", pub_s[1024] = "";
     snprintf(exe_s, sizeof exe_s, "%s", exe);
     snprintf(endpoint_s, sizeof endpoint_s, "%s", endpoint);
     snprintf(threads_s, sizeof threads_s, "%u", threads);
-    char *argv[10] = {exe_s, connect_s, endpoint_s, threads_opt, threads_s, parent_s, NULL};
+    snprintf(map_s, sizeof map_s, "%u", map_memory_mb);
+    char *argv_full[13] = {exe_s, connect_s, endpoint_s, threads_opt, threads_s, parent_s, NULL};
+    int n = 6;
     if (key_path) {
         snprintf(key_s, sizeof key_s, "%s", key_path);
         snprintf(pub_s, sizeof pub_s, "%s", server_pub_path);
-        argv[6] = secret_opt;
-        argv[7] = key_s;
-        argv[8] = server_opt;
-        argv[9] = pub_s;
+        argv_full[n++] = secret_opt;
+        argv_full[n++] = key_s;
+        argv_full[n++] = server_opt;
+        argv_full[n++] = pub_s;
     }
-    char *argv_full[11];
-    memcpy(argv_full, argv, sizeof argv);
-    argv_full[10] = NULL;
+    if (map_memory_mb > 0) {
+        argv_full[n++] = map_opt;
+        argv_full[n++] = map_s;
+    }
+    argv_full[n] = NULL;
     posix_spawn_file_actions_t fa;
     posix_spawn_file_actions_init(&fa);
     posix_spawn_file_actions_addopen(&fa, 0, "/dev/null", O_RDONLY, 0);

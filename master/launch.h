@@ -5,10 +5,10 @@
 #include <sys/types.h>
 
 /* Starts `exe --connect endpoint --threads threads --exit-with-parent` (with
- * `--curve-secret key_path --server-key server_pub_path` when key_path is not NULL);
- * returns the pid or -1 (logged). */
-pid_t launch_worker(const char *exe, const char *endpoint, uint32_t threads, const char *key_path,
-                    const char *server_pub_path);
+ * `--curve-secret key_path --server-key server_pub_path` when key_path is not NULL, and
+ * `--map-memory map_memory_mb` when it is not 0); returns the pid or -1 (logged). */
+pid_t launch_worker(const char *exe, const char *endpoint, uint32_t threads, uint32_t map_memory_mb,
+                    const char *key_path, const char *server_pub_path);
 /* Reaps exited children without blocking: returns a pid that exited (status in *status)
  * or 0 if none. */
 pid_t launch_reap(int *status);

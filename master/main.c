@@ -19,6 +19,7 @@ static void usage(FILE *f)
             "  -o, --output OUT.exr   output image (tiled OpenEXR; written atomically)\n"
             "  --workers N            local worker processes to start (default 1; 0 = remote only)\n"
             "  --threads T            render threads per local worker (default: cores / N)\n"
+            "  --map-memory MB        local workers' budget of decoded photon maps, MiB (worker --map-memory)\n"
             "  --spp S                samples per pixel (overrides the scene)\n"
             "  --seed K               random seed (overrides the scene)\n"
             "  --tile W               tile size in pixels, 8..1024 (overrides the scene)\n"
@@ -141,6 +142,7 @@ int main(int argc, char **argv)
         }
         NUM_OPT("--workers", 0, 256, o.workers, dummy)
         NUM_OPT("--threads", 1, 1024, o.threads, have_threads)
+        NUM_OPT("--map-memory", 1, 1ull << 24, o.map_memory_mb, dummy)
         NUM_OPT("--spp", 1, 1048576, o.spp, o.have_spp)
         NUM_OPT("--seed", 0, UINT64_MAX, o.seed, o.have_seed)
         NUM_OPT("--tile", 8, 1024, o.tile, o.have_tile)

@@ -2054,8 +2054,8 @@ static int start_local_workers(struct master *m)
         return -1;
     m->local_pids = mem_calloc(o->workers, sizeof *m->local_pids);
     for (uint32_t i = 0; i < o->workers; i++) {
-        pid_t pid = launch_worker(o->worker_exe, m->ipc_endpoint, o->threads, m->zap ? m->local_key_path : NULL,
-                                  m->local_pub_path);
+        pid_t pid = launch_worker(o->worker_exe, m->ipc_endpoint, o->threads, o->map_memory_mb,
+                                  m->zap ? m->local_key_path : NULL, m->local_pub_path);
         if (pid < 0)
             return -1;
         m->local_pids[m->num_local++] = pid;
@@ -2075,8 +2075,8 @@ static void restart_local(struct master *m, uint32_t slot)
     if (g_interrupted || m->fatal[0] || m->sched->tiles_done >= m->num_units ||
         m->local_restarts >= LOCAL_RESTARTS_MAX * m->num_local)
         return;
-    pid_t pid = launch_worker(o->worker_exe, m->ipc_endpoint, o->threads, m->zap ? m->local_key_path : NULL,
-                              m->local_pub_path);
+    pid_t pid = launch_worker(o->worker_exe, m->ipc_endpoint, o->threads, o->map_memory_mb,
+                              m->zap ? m->local_key_path : NULL, m->local_pub_path);
     if (pid < 0)
         return;
     m->local_pids[slot] = pid;

@@ -13,6 +13,7 @@ struct master_opts {
     const char *worker_exe;     /* worker binary for local workers */
     uint32_t workers;           /* local workers to start */
     uint32_t threads;           /* per local worker */
+    uint32_t map_memory_mb;     /* --map-memory for local workers, MiB (0: the worker's default) */
     uint32_t worker_timeout_ms; /* evict a worker silent this long */
     uint32_t stall_ms;          /* evict a worker whose render threads make no progress this long */
     int no_journal;             /* do not keep OUT.journal (measurements only) */
