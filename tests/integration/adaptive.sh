@@ -80,6 +80,7 @@ while at + 12 <= len(d) and d[at:at + 4] == b"TREC":
     top = max(top, unit // tiles); at += 12 + 44 + size + 32
 print(top)' "$1" "$2"
 }
+jtop_reached() { [ "$(jtop "$1" "$2")" -ge "$3" ]; } # jtop_reached JOURNAL TILES SLOT
 KD="--target-error 0.01 --tile 16 --spp 4096" # 4 tiles of 4x4 blocks
 run $M $S -o "$T/k0.exr" $KD --no-journal --workers 2 --threads 1 && r0=0 || r0=1
 # Under a heavy load the poll can see slot 5 only as the render ends, and the kill then
@@ -87,11 +88,7 @@ run $M $S -o "$T/k0.exr" $KD --no-journal --workers 2 --threads 1 && r0=0 || r0=
 for try in 1 2 3; do
   rm -f "$T/k.exr" "$T/k.exr.journal"
   $M $S -o "$T/k.exr" $KD --workers 2 --threads 1 >"$T/klog" 2>&1 &
-  mpid=$!
-  i=0
-  while [ $i -lt 600 ] && [ "$(jtop "$T/k.exr.journal" 4)" -lt 5 ]; do sleep 0.05; i=$((i + 1)); done
-  kill -9 $mpid 2>/dev/null
-  wait $mpid 2>/dev/null
+  kill_when $! 600 0.05 jtop_reached "$T/k.exr.journal" 4 5
   jt=$(jtop "$T/k.exr.journal" 4)
   [ "$jt" -ge 5 ] && break
   echo "note: try $try: the master had ended before the kill (journal up to slot $jt); again"

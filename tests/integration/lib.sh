@@ -33,6 +33,16 @@ try: print(json.load(open(sys.argv[1] + ".stats.json"))["counters"][sys.argv[2]]
 except (OSError, ValueError, KeyError): pass' "$2" "$1"
 }
 ours() { tr '\0' ' ' 2>/dev/null <"/proc/$1/cmdline" | grep -q "$T"; }
+# kill_when PID TRIES PAUSE CMD...: runs CMD every PAUSE s until it succeeds (at most TRIES
+# times), then kills PID with SIGKILL and reaps it (a master killed mid-render).
+kill_when() {
+  kw_pid=$1 kw_tries=$2 kw_pause=$3
+  shift 3
+  kw_i=0
+  while [ $kw_i -lt "$kw_tries" ] && ! "$@"; do sleep "$kw_pause"; kw_i=$((kw_i + 1)); done
+  kill -9 "$kw_pid" 2>/dev/null
+  wait "$kw_pid" 2>/dev/null
+}
 kill_ours() { for p in $(cat "$T/pids" 2>/dev/null); do ours "$p" && { kill -CONT "$p"; kill -9 "$p"; } 2>/dev/null; done; }
 lib_cleanup() {
   kill_ours

@@ -118,11 +118,8 @@ if [ $r1 = 0 ] && [ $r3 = 0 ] && [ $g1 = 0 ] && $X cmp "$T/pp1.exr" "$T/pp3.exr"
   ok "4 passes: 1 vs 3 workers bit-identical, batch-means estimate and map statistics reported"
 else bad "4 passes: 1 vs 3 workers bit-identical, batch-means estimate and map statistics reported"; fi
 $M $S -o "$T/ppk.exr" $PA --workers 2 --threads 1 --tile 16 >"$T/klog" 2>&1 &
-mpid=$!
-i=0
-while [ $i -lt 1000 ] && [ "$(jpass "$T/ppk.exr.journal" 80 | cut -d' ' -f2)" -lt 2 ]; do sleep 0.02; i=$((i + 1)); done
-kill -9 $mpid 2>/dev/null
-wait $mpid 2>/dev/null
+jpass_reached() { [ "$(jpass "$1" 80 | cut -d' ' -f2)" -ge "$2" ]; } # jpass_reached JOURNAL PASS
+kill_when $! 1000 0.02 jpass_reached "$T/ppk.exr.journal" 2
 jk=$(jpass "$T/ppk.exr.journal" 80)
 run $M $S -o "$T/ppk.exr" $PA --workers 2 --threads 1 --tile 16 && r=0 || r=1
 fj=$(counter tiles_from_journal "$T/ppk.exr")
