@@ -21,7 +21,6 @@ struct adapt *adapt_new(uint32_t num_tiles, uint32_t tiles_x, const uint32_t *pi
     a->max_rounds = max_rounds;
     a->prior_dof = ADAPT_PRIOR_DOF;
     a->confidence_z = ADAPT_CONFIDENCE_Z;
-    a->uniform_gain = ADAPT_UNIFORM_GAIN;
     a->first_passes = ADAPT_FIRST_PASSES;
     a->tiles = mem_calloc(num_tiles ? num_tiles : 1, sizeof *a->tiles);
     for (uint32_t t = 0; t < num_tiles; t++)
@@ -347,7 +346,7 @@ int adapt_decide(struct adapt *a, int stop, uint64_t samples_total)
         double budget = a->aim * a->aim * mean * mean / pixels;
         if (a->round == 0) { /* the pilot's decision, for the whole frame: adapt or uniform passes */
             a->predicted = adapt_predicted_ratio(n_tiles, v, c, m, budget, a->max_passes);
-            a->uniform = a->predicted > a->uniform_gain;
+            a->uniform = a->predicted > ADAPT_UNIFORM_GAIN;
         }
         added = a->uniform ? adapt_uniform(n_tiles, v, m, budget, a->max_passes, ADAPT_GROWTH, a->step, n)
                            : adapt_allocate(n_tiles, v, c, m, budget, a->max_passes, ADAPT_GROWTH, a->step, n);

@@ -51,7 +51,6 @@ struct adapt {
     double dof;             /* the effective degrees of freedom of est's variance */
     double aim;             /* what est must reach: the target less est's own uncertainty */
     double prior_dof, confidence_z; /* ADAPT_PRIOR_DOF, ADAPT_CONFIDENCE_Z (0, 0: the tiles' own figures) */
-    double uniform_gain;    /* ADAPT_UNIFORM_GAIN (2: never uniform passes, 0: always) */
     int uniform;            /* the pilot chose uniform passes: every tile at one level from round 1 on */
     double predicted;       /* at the pilot: adapt_predicted_ratio (0 before, or when round 0 was the last) */
     uint32_t first_passes;  /* round 0's passes (before rounding up to step) */

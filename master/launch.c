@@ -41,6 +41,7 @@ pid_t launch_worker(const char *exe, const char *endpoint, uint32_t threads, uin
         argv_full[n++] = map_opt;
         argv_full[n++] = map_s;
     }
+    CHECK(n < (int)(sizeof argv_full / sizeof *argv_full));
     argv_full[n] = NULL;
     posix_spawn_file_actions_t fa;
     posix_spawn_file_actions_init(&fa);

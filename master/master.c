@@ -1182,7 +1182,7 @@ static int adapt_round_end(struct master *m)
     if (adapt_decide(a, m->time_up, m->stats.samples)) {
         if (round == 0)
             log_info("adaptive: the pilot predicts the allocation at %.3f of uniform passes' work (fallback above %g): %s",
-                     a->predicted, a->uniform_gain, a->uniform ? "uniform passes" : "passes per block");
+                     a->predicted, ADAPT_UNIFORM_GAIN, a->uniform ? "uniform passes" : "passes per block");
         adapt_release(m);
         uint64_t units = a->outstanding;
         if (units > 0) {

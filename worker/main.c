@@ -17,7 +17,7 @@ static void usage(FILE *f)
             "  --connect ENDPOINT  the master's endpoint, e.g. tcp://10.0.0.1:5555 or ipc:///tmp/x.sock\n"
             "  --threads T         render threads (default: all cores)\n"
             "  --timeout-ms MS     give up after MS milliseconds without a word from the master (default 30000)\n"
-            "  --map-memory MB     decoded photon maps (one per pass) held at most, in MiB (default 2048); past it\n"
+            "  --map-memory MB     decoded photon maps (one per pass) held at most, in MiB (default %u); past it\n"
             "                      the least recently used map no queued unit needs is dropped and fetched again\n"
             "                      if a later unit needs it; one map is always held\n"
             "  --curve-secret F    our CurveZMQ key pair (from master --keygen); needs --server-key\n"
@@ -25,7 +25,8 @@ static void usage(FILE *f)
             "  --exit-with-parent  exit when the process that started us dies (local workers)\n"
             "  --fault KIND[:N]    tests only: hang-after:N, crash-tile:N, garbage, slow:MS,\n"
             "                      nonfinite-tile:N, slow-load:MS\n"
-            "  --verbose           debug logging\n");
+            "  --verbose           debug logging\n",
+            WORKER_MAP_MEMORY_MB);
 }
 
 static int parse_fault(const char *s, struct worker_opts *o)
@@ -53,7 +54,7 @@ static int parse_fault(const char *s, struct worker_opts *o)
 
 int main(int argc, char **argv)
 {
-    struct worker_opts o = {NULL, cli_num_cores(), 30000, NULL, NULL, FAULT_NONE, 0, 2048ull << 20};
+    struct worker_opts o = {NULL, cli_num_cores(), 30000, NULL, NULL, FAULT_NONE, 0, (uint64_t)WORKER_MAP_MEMORY_MB << 20};
     char prefix[64];
     snprintf(prefix, sizeof prefix, "worker %d", (int)getpid());
     log_set_prefix(prefix);

@@ -1312,7 +1312,7 @@ static void maps_prefetch(struct worker *w)
         if (w->maps[p].announced) {
             /* Only into free room (it would evict nothing), and not a map dropped for room
              * (fetched again only for a unit of it). */
-            if (!w->maps[p].evicted && !map_ready(w, p) && maps_room(w, UINT32_MAX))
+            if (!w->maps[p].evicted && maps_room(w, UINT32_MAX)) /* map_fetch_start skips a map here */
                 map_fetch_start(w, p);
             return;
         }

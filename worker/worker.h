@@ -16,6 +16,9 @@ enum worker_fault {
     FAULT_SLOW_LOAD     /* loading a job's scene takes N ms longer (a big scene on a loaded machine) */
 };
 
+/* The default of --map-memory, MiB: decoded photon maps one worker process holds. */
+#define WORKER_MAP_MEMORY_MB 2048u
+
 struct worker_opts {
     const char *endpoint;
     uint32_t threads;
