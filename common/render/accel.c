@@ -345,7 +345,7 @@ void accel_intersect_packet(const struct accel *a, uint32_t n, const vec3 *org, 
         found[k] = ui[18 * w + k] != RTC_INVALID_GEOMETRY_ID;
         if (found[k])
             accel_hit_from_embree_(a, ui[18 * w + k], ui[19 * w + k], ui[17 * w + k], f[8 * w + k], f[15 * w + k],
-                                   f[16 * w + k], v3(f[12 * w + k], f[13 * w + k], f[14 * w + k]), &hits[k]);
+                                   f[16 * w + k], &hits[k]);
     }
 }
 

@@ -47,7 +47,6 @@ struct accel_hit {
     float t;
     uint32_t geom, prim;    /* mesh and triangle, or sphere_geom and sphere index */
     float u, v;     /* barycentrics for triangles */
-    vec3 ng;        /* geometric normal, unnormalised, as Embree reports it (object space in instances) */
 };
 
 /* Builds the scene for frame `frame` (its shutter is frame + camera.shutter_open .. close).
@@ -58,8 +57,7 @@ void accel_fini(struct accel *a);
 
 /* The hit as the renderer names it: mesh and triangle, or sphere_geom and sphere index. */
 static inline void accel_hit_from_embree_(const struct accel *a, unsigned geom_id, unsigned inst_id,
-                                          unsigned prim_id, float t, float u, float v, vec3 ng,
-                                          struct accel_hit *hit)
+                                          unsigned prim_id, float t, float u, float v, struct accel_hit *hit)
 {
     unsigned top = inst_id != RTC_INVALID_GEOMETRY_ID ? inst_id : geom_id;
     hit->t = t;
@@ -69,7 +67,6 @@ static inline void accel_hit_from_embree_(const struct accel *a, unsigned geom_i
         hit->prim = a->top_sphere[top] != UINT32_MAX ? a->top_sphere[top] : a->still_sphere[prim_id];
     hit->u = u;
     hit->v = v;
-    hit->ng = ng;
 }
 
 /* Closest hit in (0, tmax) at time01 in [0, 1] across the shutter; returns 1 on a hit.
@@ -93,8 +90,7 @@ static inline int accel_intersect(const struct accel *a, vec3 o, vec3 d, float t
     rtcIntersect1(a->scene, &ctx, &rh);
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID)
         return 0;
-    accel_hit_from_embree_(a, rh.hit.geomID, rh.hit.instID[0], rh.hit.primID, rh.ray.tfar, rh.hit.u, rh.hit.v,
-                           v3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z), hit);
+    accel_hit_from_embree_(a, rh.hit.geomID, rh.hit.instID[0], rh.hit.primID, rh.ray.tfar, rh.hit.u, rh.hit.v, hit);
     return 1;
 }
 /* Closest hits of n <= ACCEL_PACKET camera-like rays in (0, inf), traced together as one
