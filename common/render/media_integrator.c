@@ -743,11 +743,8 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
     const struct render_settings *rs = &sc->settings;
     struct rngs r;
     uint64_t pixel = (uint64_t)py * rs->width + px;
-    /* The sample's number: sobol's key is 0 and its pixel_key the stream's (pass mod R), so
-     * its index within the stream (sidx) tells the pixel's samples apart across all passes;
-     * the pass-local index would give every pixel only R sequences whatever the passes.
-     * The other samplers' keys already differ per pass. */
-    uint32_t sample = smp->type == SAMPLER_SOBOL ? smp->sidx : smp->index;
+    /* The pass-local index would give every pixel only as many sequences as streams. */
+    uint32_t sample = sampler_sample_id(smp);
     r.key = rng_mix64(smp->key ^ rng_mix64(smp->pixel_key ^ rng_key(rs->seed ^ 0x6d65646961ull, job->frame, pixel, sample)));
     /* vpt: the path is the volumetric path tracer's from here on: always with the vpt
      * method; with march and beam and path-traced indirect light, from the first diffuse

@@ -38,11 +38,6 @@ static inline uint64_t pass_key(uint64_t prefix, enum sampler_type type, uint32_
     return rng_mix64(prefix ^ PASS_DOMAIN ^ (type == SAMPLER_SOBOL ? pass % streams : pass));
 }
 
-/* Index within the pass's stream of sample `index` of pass `pass`. */
-static inline uint32_t stream_index(uint32_t pass, uint32_t index, uint32_t spp, uint32_t streams)
-{
-    return pass / streams * spp + index;
-}
 
 /* The next power of two >= n, minus 1. */
 static inline uint32_t pow2_mask(uint32_t n)

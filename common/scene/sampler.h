@@ -97,6 +97,18 @@ struct sampler sampler_start_type(enum sampler_type type, uint64_t seed, uint32_
 void sampler_pixel_init(struct sampler_pixel *p, enum sampler_type type, uint64_t seed, uint32_t frame,
                         uint64_t pixel, uint32_t spp);
 void sampler_start_pixel_seeds_(struct sampler_pixel *p, uint32_t pass, struct sampler *s);
+/* Index within the pass's stream of sample `index` of pass `pass`. */
+static inline uint32_t stream_index(uint32_t pass, uint32_t index, uint32_t spp, uint32_t streams)
+{
+    return pass / streams * spp + index;
+}
+/* A number that tells a pixel's samples apart across all its passes, beside the sampler's
+ * keys: sobol's key is 0 and its pixel_key the stream's (pass mod streams), so its index
+ * within the stream; the other samplers' keys already differ per pass, so the index. */
+static inline uint32_t sampler_sample_id(const struct sampler *s)
+{
+    return s->type == SAMPLER_SOBOL ? s->sidx : s->index;
+}
 /* Inline: the independent sampler's start is one hash, less than a call. */
 static inline struct sampler sampler_start_pixel(struct sampler_pixel *p, uint32_t sample)
 {
@@ -109,7 +121,7 @@ static inline struct sampler sampler_start_pixel(struct sampler_pixel *p, uint32
     s.log2_spp = p->log2_spp;
     uint32_t pass = s.log2_spp >= 0 ? sample >> s.log2_spp : sample / s.spp;
     s.index = sample - pass * s.spp;
-    s.sidx = pass / p->streams * s.spp + s.index; /* the index within the pass's stream */
+    s.sidx = stream_index(pass, s.index, s.spp, p->streams);
     /* The Sobol sampler draws nothing per sample: its key would be wasted work. */
     s.key = s.type == SAMPLER_SOBOL ? 0 : rng_mix64(p->prefix ^ sample);
     s.pixel_key = 0;
