@@ -488,9 +488,9 @@ vec3 photon_map_gather_knn(const struct photon_map *m, vec3 x, vec3 d_out, float
  * BEAM_FLAT_CELLS, else (sparse or huge grids) in a hash table of the rows that hold
  * photons. The records are separate arrays in row order: x alone for the search within a
  * row (a linear scan for rows of at most BEAM_LINEAR photons, else a binary search), then
- * y, z, depth and photon index, read for the photons within the row's x interval, and a
- * copy of the decoded direction and power, read only for the photons accepted (in row
- * order, so a row's accepted photons share cache lines). The rows cost 42 bytes a photon
+ * y, z and depth, read for the photons within the row's x interval, and a copy of the
+ * decoded direction and power, read only for the photons accepted (in row order, so a
+ * row's accepted photons share cache lines). The rows cost 38 bytes a photon
  * plus the row table (the flat one at most 16 bytes a photon plus 256 KiB). */
 #define BEAM_CROWD 10.0
 #define BEAM_MAX_CELLS 32768.0f     /* cells per axis at most (tiny radii): walks stay bounded */
@@ -516,7 +516,6 @@ struct photon_beam_grid {
     /* num_photons records, by row, then x, then photon index */
     float *x, *y, *z;
     uint16_t *depth;
-    uint32_t *idx;
     struct photon_decoded *dec; /* direction and power, a copy of the map's decoded photons */
 };
 
@@ -672,7 +671,6 @@ static struct photon_beam_grid *beam_grid_build(const struct photon_map *m)
     g->y = mem_alloc(sizeof *g->y * n);
     g->z = mem_alloc(sizeof *g->z * n);
     g->depth = mem_alloc(sizeof *g->depth * n);
-    g->idx = idx;
     g->dec = mem_alloc(sizeof *g->dec * n);
     for (uint32_t j = 0, row_start = 0; j < n; j++) {
         const struct photon *ph = &m->photons[idx[j]];
@@ -687,6 +685,7 @@ static struct photon_beam_grid *beam_grid_build(const struct photon_map *m)
     }
     beam_rows_index(g, key, n);
     free(key);
+    free(idx);
     return g;
 }
 
@@ -700,7 +699,6 @@ static void beam_grid_free(struct photon_beam_grid *g)
     free(g->y);
     free(g->z);
     free(g->depth);
-    free(g->idx);
     free(g->dec);
     free(g);
 }
@@ -710,7 +708,7 @@ static size_t beam_grid_bytes(const struct photon_beam_grid *g, uint32_t n)
 {
     if (!g)
         return 0;
-    size_t b = sizeof *g + (size_t)n * (3 * sizeof *g->x + sizeof *g->depth + sizeof *g->idx + sizeof *g->dec);
+    size_t b = sizeof *g + (size_t)n * (3 * sizeof *g->x + sizeof *g->depth + sizeof *g->dec);
     if (g->ny)
         b += ((size_t)(g->cmax[1] + 1) * (g->cmax[2] + 1) + 1) * sizeof *g->row_start;
     else
@@ -797,7 +795,7 @@ static void beam_walk(const struct photon_map *m, const struct photon_beam_grid 
     double walk = (double)(z1 - z0 + 1) * fmin((double)(y1 - y0 + 1), slab_y / c + 2.0);
     if (!(walk <= 0.5 * (double)m->num_photons)) {
         for (uint32_t j = 0; j < m->num_photons; j++)
-            beam_add(m, g->idx[j], &g->dec[j], xs[j], ys[j], zs[j], g->depth[j], br, acc);
+            beam_add(m, 0, &g->dec[j], xs[j], ys[j], zs[j], g->depth[j], br, acc);
         return;
     }
     for (uint32_t cz = z0; cz <= z1; cz++) {
@@ -827,7 +825,7 @@ static void beam_walk(const struct photon_map *m, const struct photon_beam_grid 
                 }
             }
             for (uint32_t j = l; j < end && xs[j] <= xhi; j++)
-                beam_add(m, g->idx[j], &g->dec[j], xs[j], ys[j], zs[j], g->depth[j], br, acc);
+                beam_add(m, 0, &g->dec[j], xs[j], ys[j], zs[j], g->depth[j], br, acc);
         }
     }
 }
