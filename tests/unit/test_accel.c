@@ -71,11 +71,12 @@ Test(accel, intersect_packet_equals_single_rays)
                 struct accel_hit h;
                 int f = accel_intersect(&a, org[k], dir[k], INFINITY, 0.0f, &h);
                 cr_assert_eq(found[k], f, "trial %u, n %u, ray %u: found %d, single %d", t, n, k, found[k], f);
+                /* Counted only where Embree's packet kernels ran (smaller n go one by one). */
                 if (!f) {
-                    misses++;
+                    misses += n >= 4;
                     continue;
                 }
-                hits++;
+                hits += n >= 4;
                 cr_assert(h.geom == ph[k].geom && h.prim == ph[k].prim && memcmp(&h.t, &ph[k].t, sizeof h.t) == 0 &&
                               memcmp(&h.u, &ph[k].u, sizeof h.u) == 0 && memcmp(&h.v, &ph[k].v, sizeof h.v) == 0,
                           "trial %u, n %u, ray %u: packet hit differs from the single ray's", t, n, k);
@@ -108,10 +109,10 @@ Test(accel, occluded_packet_equals_single_rays)
             for (uint32_t k = 0; k < n; k++) {
                 int o = accel_occluded(&a, org[k], dir[k], tmax, 0.0f);
                 cr_assert_eq(occ[k], o, "trial %u, n %u, segment %u: packet %d, single %d", t, n, k, occ[k], o);
-                if (o)
-                    blocked++;
-                else
-                    clear++;
+                if (n >= 4) { /* where the packet kernels ran */
+                    blocked += o != 0;
+                    clear += o == 0;
+                }
             }
         }
     cr_assert(blocked > 100 && clear > 100, "blocked %u, clear %u: both kinds must occur", blocked, clear);
