@@ -59,8 +59,9 @@ t_ours1=$(per_sample ours1)
 # Rays per sample of our renderer on this scene, used to estimate theirs (not reported by
 # the tutorial): the exact counts of OUT.stats.json (the summary line's rates are rounded).
 ours logged 1 "$THREADS" "$SPP_HI"
-rays_per_sample=$(awk -F'[:,]' '$1 ~ /"samples"/ {s = $2} $1 ~ /"rays"/ {r = $2} END {printf "%.6f", r / s}' \
-  "$T/ours.exr.stats.json")
+rays_per_sample=$(python3 -c 'import json, sys
+s = json.load(open(sys.argv[1]))
+print("%.6f" % (s["rays"] / s["samples"]))' "$T/ours.exr.stats.json")
 ours_mrays=$(echo "$rays_per_sample * 1000 / $t_ours1" | bc -l)
 theirs_mrays=$(echo "$rays_per_sample * 1000 / $t_theirs" | bc -l)
 {
