@@ -2169,15 +2169,15 @@ static int maps_poll(struct master *m)
         size_t size;
         double secs;
         char err[600];
-        int rc = photon_tracer_poll(m->tracer, &pass, &data, &size, &secs, err, sizeof err);
+        struct blob_hash hash;
+        int rc = photon_tracer_poll(m->tracer, &pass, &data, &size, &secs, &hash, err, sizeof err);
         if (rc < 0) {
             master_fail(m, "%s", err);
             return -1;
         }
         if (rc == 0)
             return 0;
-        const struct blob_entry *e = blob_store_put(&m->blobs, data, size);
-        free(data);
+        const struct blob_entry *e = blob_store_adopt(&m->blobs, &hash, data, size); /* hashed by the tracer */
         m->maps[pass].hash = e->hash;
         m->maps[pass].size = size;
         m->maps[pass].seconds = secs;

@@ -69,41 +69,13 @@ static uint64_t pass_seed(uint64_t seed, uint32_t pass)
 }
 
 /* photon_trace_map serialises the surface map with the volume map's radius; a pass gives
- * it its own (the 2D rule): its photons are serialised again, in the order the first map
- * holds them (deterministic), behind the volume map's bytes. */
-static int set_surface_radius(uint8_t **map, size_t *size, float radius, char *err, size_t errlen)
+ * it its own (the 2D rule): its photons are sorted again, in the order the first map holds
+ * them (deterministic), in place behind the volume map's bytes (photon_map_set_radius). */
+static int set_surface_radius(uint8_t *map, size_t size, float radius, char *err, size_t errlen)
 {
-    struct photon_map *m = NULL;
-    if (photon_map_decode(*map, *size, &m, err, errlen) != 0)
-        return -1;
-    if (!m->surface || m->surface->radius == radius) {
-        photon_map_free(&m);
-        return 0;
-    }
-    size_t vbytes = 48 + sizeof(struct photon) * (size_t)m->num_photons + 4 * ((size_t)m->table_size + 1);
-    size_t old_sbytes = 48 + sizeof(struct photon) * (size_t)m->surface->num_photons +
-                        4 * ((size_t)m->surface->table_size + 1);
-    size_t tail = *size - vbytes - old_sbytes; /* the photon beams' section, if any */
-    struct photon_list block = {NULL, m->surface->num_photons, m->surface->num_photons};
-    block.a = mem_alloc(sizeof *block.a * (block.n ? block.n : 1));
-    memcpy(block.a, m->surface->photons, sizeof *block.a * block.n);
-    uint8_t *smap = NULL;
-    size_t sbytes = 0;
-    uint32_t count = 0;
-    int rc = photon_map_serialise(&block, 1, radius, m->surface->num_emitted, &smap, &sbytes, &count, err, errlen);
-    photon_map_free(&m);
-    if (rc != 0)
-        return -1;
-    uint8_t *joined = mem_alloc(vbytes + sbytes + tail);
-    memcpy(joined, *map, vbytes);
-    memcpy(joined + vbytes, smap, sbytes);
-    if (tail)
-        memcpy(joined + vbytes + sbytes, *map + vbytes + old_sbytes, tail);
-    free(smap);
-    free(*map);
-    *map = joined;
-    *size = vbytes + sbytes + tail;
-    return 0;
+    size_t vbytes = photon_map_serialised_bytes(map);
+    CHECK(vbytes < size);
+    return photon_map_set_radius(map + vbytes, photon_map_serialised_bytes(map + vbytes), radius, err, errlen);
 }
 
 int master_passes_fit(struct render_settings *rs, uint32_t passes)
@@ -268,6 +240,7 @@ struct traced_map {
     uint8_t *data;
     size_t size;
     double seconds;
+    struct blob_hash hash;      /* the blob's name, computed once here */
 };
 
 struct photon_tracer {
@@ -292,16 +265,15 @@ static int trace_one(struct photon_tracer *t, struct render_job *job, float r0, 
     if (photon_trace_map(job, pass_seed(t->scene->settings.seed, p), t->threads, &out->data, &out->size, &st, t->err,
                          sizeof t->err) != 0)
         return -1;
-    if (media_wants_surface_photons(sm) && set_surface_radius(&out->data, &out->size, rsurf, t->err, sizeof t->err) != 0) {
+    if (media_wants_surface_photons(sm) && set_surface_radius(out->data, out->size, rsurf, t->err, sizeof t->err) != 0) {
         free(out->data);
         out->data = NULL;
         return -1;
     }
     out->seconds = now_seconds() - t0;
-    struct blob_hash h;
     char hex[65];
-    blob_hash_compute(out->data, out->size, &h);
-    blob_hash_hex(&h, hex);
+    blob_hash_compute(out->data, out->size, &out->hash);
+    blob_hash_hex(&out->hash, hex);
     log_info("media: photon map %u of %u: %llu emitted, %llu stored (%llu on surfaces, %llu beams) in %.3f s on %u thread(s), "
              "%zu bytes, radius %g (surface %g), map %.16s", p, t->passes, (unsigned long long)st.emitted,
              (unsigned long long)st.stored, (unsigned long long)st.stored_surface, (unsigned long long)st.stored_beams, out->seconds, t->threads, out->size,
@@ -330,9 +302,7 @@ static void *tracer_thread(void *arg)
         struct traced_map m = {0};
         int rc = trace_one(t, &job, r0, p, &m);
         if (rc == 0) {
-            struct blob_hash h;
-            blob_hash_compute(m.data, m.size, &h);
-            memcpy(hashes + 32 * (size_t)p, h.bytes, 32);
+            memcpy(hashes + 32 * (size_t)p, m.hash.bytes, 32);
             seconds += m.seconds;
             bytes += m.size;
         }
@@ -380,7 +350,7 @@ struct photon_tracer *photon_tracer_new(const struct scene *scene, const struct 
 }
 
 int photon_tracer_poll(struct photon_tracer *t, uint32_t *pass, uint8_t **map, size_t *size, double *seconds,
-                       char *err, size_t errlen)
+                       struct blob_hash *hash, char *err, size_t errlen)
 {
     pthread_mutex_lock(&t->lock);
     int rc = 0;
@@ -390,6 +360,8 @@ int photon_tracer_poll(struct photon_tracer *t, uint32_t *pass, uint8_t **map, s
         *map = m->data;
         *size = m->size;
         *seconds = m->seconds;
+        if (hash)
+            *hash = m->hash;
         m->data = NULL;
         rc = 1;
     } else if (t->failed) {

@@ -90,47 +90,67 @@ int photon_map_serialise(struct photon_list *blocks, uint32_t num_blocks, float 
     while (table < n / 2)
         table <<= 1;
     float cell = 2.0f * radius, inv = 1.0f / cell;
-    struct photon *all = mem_alloc(sizeof *all * (n ? n : 1)), *sorted = mem_alloc(sizeof *all * (n ? n : 1));
-    uint32_t k = 0;
-    for (uint32_t b = 0; b < num_blocks; b++) {
-        if (blocks[b].n)
-            memcpy(all + k, blocks[b].a, sizeof *all * blocks[b].n);
-        k += blocks[b].n;
-        free(blocks[b].a);
-    }
+    /* A counting sort by bucket straight from the blocks into the map's bytes: no joined
+     * or sorted copy of the photons on the way. */
     uint32_t *start = mem_calloc((size_t)table + 1, sizeof *start), *bk = mem_alloc(sizeof *bk * (n ? n : 1));
-    for (uint32_t i = 0; i < n; i++) {
-        bk[i] = bucket_of(cell_coord(all[i].p[0], inv), cell_coord(all[i].p[1], inv), cell_coord(all[i].p[2], inv),
-                          table - 1);
-        start[bk[i] + 1]++;
-    }
+    for (uint32_t b = 0, i = 0; b < num_blocks; b++)
+        for (uint32_t j = 0; j < blocks[b].n; j++, i++) {
+            const float *p = blocks[b].a[j].p;
+            bk[i] = bucket_of(cell_coord(p[0], inv), cell_coord(p[1], inv), cell_coord(p[2], inv), table - 1);
+            start[bk[i] + 1]++;
+        }
     for (uint32_t i = 0; i < table; i++)
         start[i + 1] += start[i];
-    uint32_t *fill = mem_alloc(sizeof *fill * table);
-    memcpy(fill, start, sizeof *fill * table);
-    for (uint32_t i = 0; i < n; i++)
-        sorted[fill[bk[i]]++] = all[i];
-    free(fill);
-    free(bk);
-    free(all);
     size_t bytes = PM_HEADER + sizeof(struct photon) * (size_t)n + 4 * ((size_t)table + 1);
-    uint8_t *out = mem_calloc(bytes, 1);
+    uint8_t *out = mem_alloc(bytes);
+    memset(out, 0, PM_HEADER);
     memcpy(out, PM_MAGIC, 8);
     bytes_put_u32(out + 8, n);
     bytes_put_u32(out + 12, table);
     bytes_put_u64(out + 16, emitted);
     bytes_put_f32(out + 24, radius);
     bytes_put_f32(out + 28, cell);
-    if (n)
-        memcpy(out + PM_HEADER, sorted, sizeof(struct photon) * (size_t)n);
+    uint32_t *fill = mem_alloc(sizeof *fill * table);
+    memcpy(fill, start, sizeof *fill * table);
+    uint8_t *photons = out + PM_HEADER;
+    for (uint32_t b = 0, i = 0; b < num_blocks; b++) {
+        for (uint32_t j = 0; j < blocks[b].n; j++, i++)
+            memcpy(photons + sizeof(struct photon) * (size_t)fill[bk[i]]++, &blocks[b].a[j], sizeof(struct photon));
+        free(blocks[b].a);
+    }
+    free(fill);
+    free(bk);
     uint8_t *sp = out + PM_HEADER + sizeof(struct photon) * (size_t)n;
     for (uint32_t i = 0; i <= table; i++)
         bytes_put_u32(sp + 4 * (size_t)i, start[i]);
-    free(sorted);
     free(start);
     *out_map = out;
     *bytes_out = bytes;
     *n_out = n;
+    return 0;
+}
+
+size_t photon_map_serialised_bytes(const uint8_t *map)
+{
+    return PM_HEADER + sizeof(struct photon) * (size_t)bytes_get_u32(map + 8) + 4 * ((size_t)bytes_get_u32(map + 12) + 1);
+}
+
+int photon_map_set_radius(uint8_t *map, size_t bytes, float radius, char *err, size_t errlen)
+{
+    CHECK(bytes >= PM_HEADER && memcmp(map, PM_MAGIC, 8) == 0 && photon_map_serialised_bytes(map) == bytes);
+    if (bytes_get_f32(map + 24) == radius)
+        return 0;
+    uint32_t n = bytes_get_u32(map + 8);
+    struct photon_list block = {mem_alloc(sizeof *block.a * (n ? n : 1)), n, n};
+    memcpy(block.a, map + PM_HEADER, sizeof *block.a * (size_t)n);
+    uint8_t *again = NULL;
+    size_t again_bytes = 0;
+    uint32_t count = 0;
+    if (photon_map_serialise(&block, 1, radius, bytes_get_u64(map + 16), &again, &again_bytes, &count, err, errlen) != 0)
+        return -1;
+    CHECK(again_bytes == bytes); /* the bucket table's size depends on the photon count alone */
+    memcpy(map, again, bytes);
+    free(again);
     return 0;
 }
 

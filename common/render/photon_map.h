@@ -60,6 +60,14 @@ struct photon_list {
  * *map (caller frees). 0, or -1 with err (too many photons, big-endian host). */
 int photon_map_serialise(struct photon_list *blocks, uint32_t num_blocks, float radius, uint64_t emitted,
                          uint8_t **map, size_t *bytes, uint32_t *count, char *err, size_t errlen);
+/* The byte size of the map photon_map_serialise wrote at map (this process's own bytes,
+ * not checked: a blob from the network goes through photon_map_decode). */
+size_t photon_map_serialised_bytes(const uint8_t *map);
+/* Sorts the map photon_map_serialise wrote at map (bytes long, this process's own) again
+ * for a new gather radius, in place: its photons, in the order the map holds them, go
+ * through photon_map_serialise (the size stays: the bucket table follows the photon
+ * count). 0, or -1 with err. */
+int photon_map_set_radius(uint8_t *map, size_t bytes, float radius, char *err, size_t errlen);
 /* Checks and decodes a blob (every size and index is checked before use). */
 int photon_map_decode(const uint8_t *data, size_t size, struct photon_map **out, char *err, size_t errlen);
 /* Bytes the decoded map holds (its surface map and later passes' too): photons, buckets,

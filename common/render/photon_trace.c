@@ -465,15 +465,14 @@ int photon_trace_map(const struct render_job *job, uint64_t seed, uint32_t threa
         free(bmap);
         return -1;
     }
-    /* The volume map, then the surface map and the beams when there are any. */
+    /* The volume map, then the surface map and the beams when there are any: the volume
+     * map's buffer grows (realloc moves pages, it does not copy them) to take the rest. */
     size_t bytes = vbytes + sbytes + bbytes;
-    uint8_t *out = mem_alloc(bytes);
-    memcpy(out, vmap, vbytes);
+    uint8_t *out = sbytes + bbytes ? mem_realloc(vmap, bytes) : vmap;
     if (smap)
         memcpy(out + vbytes, smap, sbytes);
     if (bmap)
         memcpy(out + vbytes + sbytes, bmap, bbytes);
-    free(vmap);
     free(smap);
     free(bmap);
     uint32_t n = vn + sn + bn;
