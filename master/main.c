@@ -340,5 +340,6 @@ int main(int argc, char **argv)
         }
         o.worker_exe = worker_exe;
     }
+    mem_keep_freed();
     return master_run(&o);
 }

@@ -114,5 +114,6 @@ int main(int argc, char **argv)
         log_error("--curve-secret and --server-key go together");
         return 2;
     }
+    mem_keep_freed();
     return worker_run(&o);
 }

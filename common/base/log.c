@@ -5,6 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <pthread.h>
+#include <malloc.h>
 
 static enum log_level g_level = LOG_INFO;
 static char g_prefix[64] = "brume";
@@ -45,6 +46,14 @@ static void *oom(size_t size)
 {
     fprintf(stderr, "%s: fatal: out of memory allocating %zu bytes\n", g_prefix, size);
     abort();
+}
+
+void mem_keep_freed(void)
+{
+    /* glibc's own limits (M_MMAP_THRESHOLD at most 32 MiB on 64-bit); a refusal only
+     * costs page faults. */
+    mallopt(M_MMAP_THRESHOLD, 32 << 20);
+    mallopt(M_TRIM_THRESHOLD, 256 << 20);
 }
 
 void *mem_alloc(size_t size)

@@ -32,6 +32,11 @@ void *mem_realloc(void *p, size_t size);
 char *mem_strdup(const char *s);
 /* Grows *array (of *capacity elements of elem_size) to hold at least need elements. */
 void mem_grow(void **array, size_t *capacity, size_t need, size_t elem_size);
+/* Called once by main(): buffers of up to 32 MiB come from the heap, and up to 256 MiB
+ * freed at its top stay there. A photon pass's blob and scratch (megabytes, freed within
+ * the pass) are then reused by the next pass instead of going back to the kernel, which
+ * would hand them out again as fresh pages, each faulted in and cleared. */
+void mem_keep_freed(void);
 
 /* Formats into buf (always NUL-terminated, truncating); returns buf. For error strings. */
 char *str_fmt(char *buf, size_t size, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
