@@ -826,7 +826,13 @@ static struct bcast_stream *stream_get(struct master *m, const struct blob_entry
     memset(s, 0, sizeof *s);
     s->hash = e->hash;
     s->size = e->size;
-    blob_chunk_hashes(e->data, e->size, &s->chunk_hashes, &s->num_chunks);
+    if (e->chunks) { /* the list the blob was named by */
+        s->num_chunks = blob_num_chunks(e->size);
+        s->chunk_hashes = mem_alloc(sizeof *s->chunk_hashes * (s->num_chunks ? s->num_chunks : 1));
+        memcpy(s->chunk_hashes, e->chunks, sizeof *s->chunk_hashes * s->num_chunks);
+    } else {
+        blob_chunk_hashes(e->data, e->size, &s->chunk_hashes, &s->num_chunks);
+    }
     return s;
 }
 
@@ -2169,15 +2175,15 @@ static int maps_poll(struct master *m)
         size_t size;
         double secs;
         char err[600];
-        struct blob_hash hash;
-        int rc = photon_tracer_poll(m->tracer, &pass, &data, &size, &secs, &hash, err, sizeof err);
+        struct blob_hash hash, *chunks;
+        int rc = photon_tracer_poll(m->tracer, &pass, &data, &size, &secs, &hash, &chunks, err, sizeof err);
         if (rc < 0) {
             master_fail(m, "%s", err);
             return -1;
         }
         if (rc == 0)
             return 0;
-        const struct blob_entry *e = blob_store_adopt(&m->blobs, &hash, data, size); /* hashed by the tracer */
+        const struct blob_entry *e = blob_store_adopt_listed(&m->blobs, &hash, data, size, chunks); /* named by the tracer */
         m->maps[pass].hash = e->hash;
         m->maps[pass].size = size;
         m->maps[pass].seconds = secs;

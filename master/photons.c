@@ -240,7 +240,8 @@ struct traced_map {
     uint8_t *data;
     size_t size;
     double seconds;
-    struct blob_hash hash;      /* the blob's name, computed once here */
+    struct blob_hash hash;      /* the blob's name and its chunk list, from one pass here */
+    struct blob_hash *chunks;
 };
 
 struct photon_tracer {
@@ -272,7 +273,9 @@ static int trace_one(struct photon_tracer *t, struct render_job *job, float r0, 
     }
     out->seconds = now_seconds() - t0;
     char hex[65];
-    blob_hash_compute(out->data, out->size, &out->hash);
+    uint64_t num_chunks;
+    blob_chunk_hashes(out->data, out->size, &out->chunks, &num_chunks);
+    blob_name_of_chunks(out->chunks, num_chunks, &out->hash);
     blob_hash_hex(&out->hash, hex);
     log_info("media: photon map %u of %u: %llu emitted, %llu stored (%llu on surfaces, %llu beams) in %.3f s on %u thread(s), "
              "%zu bytes, radius %g (surface %g), map %.16s", p, t->passes, (unsigned long long)st.emitted,
@@ -350,7 +353,7 @@ struct photon_tracer *photon_tracer_new(const struct scene *scene, const struct 
 }
 
 int photon_tracer_poll(struct photon_tracer *t, uint32_t *pass, uint8_t **map, size_t *size, double *seconds,
-                       struct blob_hash *hash, char *err, size_t errlen)
+                       struct blob_hash *hash, struct blob_hash **chunks, char *err, size_t errlen)
 {
     pthread_mutex_lock(&t->lock);
     int rc = 0;
@@ -362,7 +365,12 @@ int photon_tracer_poll(struct photon_tracer *t, uint32_t *pass, uint8_t **map, s
         *seconds = m->seconds;
         if (hash)
             *hash = m->hash;
+        if (chunks)
+            *chunks = m->chunks;
+        else
+            free(m->chunks);
         m->data = NULL;
+        m->chunks = NULL;
         rc = 1;
     } else if (t->failed) {
         str_fmt(err, errlen, "%s", t->err);
@@ -383,8 +391,10 @@ void photon_tracer_free(struct photon_tracer **tp, int stop)
     if (busy && stop)
         photon_trace_request_stop(); /* the master is leaving: the pass stops at its next photon */
     pthread_join(t->thread, NULL);
-    for (uint32_t p = 0; p < t->passes; p++)
+    for (uint32_t p = 0; p < t->passes; p++) {
         free(t->maps[p].data);
+        free(t->maps[p].chunks);
+    }
     free(t->maps);
     pthread_mutex_destroy(&t->lock);
     free(t);

@@ -35,10 +35,11 @@ struct blob_hash;
 struct photon_tracer *photon_tracer_new(const struct scene *scene, const struct master_opts *o, uint32_t frame,
                                         uint32_t passes, char *err, size_t errlen);
 /* The next map in pass order once traced: 1 with *pass, *map (the caller frees), *size,
- * the seconds it took and, unless hash is NULL, its blob hash (computed once, by the
- * tracer); 0 when it is not ready yet; -1 with err when tracing failed. */
+ * the seconds it took and, unless NULL, its blob name and chunk list (*chunks: the caller
+ * frees; both from the tracer's one pass over the map, blob_name_of_chunks); 0 when it is
+ * not ready yet; -1 with err when tracing failed. */
 int photon_tracer_poll(struct photon_tracer *t, uint32_t *pass, uint8_t **map, size_t *size, double *seconds,
-                       struct blob_hash *hash, char *err, size_t errlen);
+                       struct blob_hash *hash, struct blob_hash **chunks, char *err, size_t errlen);
 /* Joins the thread and frees what was not taken; *t becomes NULL (NULL is fine). With
  * stop, unfinished tracing is stopped (photon_trace_request_stop: for good, in this
  * process; only for a master that is leaving), else it is waited for. */

@@ -71,6 +71,20 @@ void blob_chunk_hashes(const uint8_t *data, uint64_t size, struct blob_hash **ha
     *count = n;
 }
 
+void blob_name_of_chunks(const struct blob_hash *hashes, uint64_t count, struct blob_hash *name)
+{
+    blob_hash_compute(count ? hashes[0].bytes : NULL, (size_t)count * BLOB_HASH_SIZE, name);
+}
+
+void blob_name_compute(const void *data, uint64_t size, struct blob_hash *name)
+{
+    struct blob_hash *hashes;
+    uint64_t count;
+    blob_chunk_hashes(data, size, &hashes, &count);
+    blob_name_of_chunks(hashes, count, name);
+    free(hashes);
+}
+
 static size_t chunk_len(const struct blob_recv *r, uint64_t idx)
 {
     uint64_t left = r->size - idx * BLOB_CHUNK_SIZE;
@@ -95,10 +109,17 @@ int blob_recv_set_chunks(struct blob_recv *r, const uint8_t *hashes, uint64_t co
                 (unsigned long long)r->num_chunks);
         return -1;
     }
-    free(r->chunk_hashes);
-    r->chunk_hashes = mem_alloc((size_t)(count ? count : 1) * sizeof *r->chunk_hashes);
+    struct blob_hash *list = mem_alloc((size_t)(count ? count : 1) * sizeof *list), name;
     if (count)
-        memcpy(r->chunk_hashes, hashes, (size_t)count * BLOB_HASH_SIZE);
+        memcpy(list, hashes, (size_t)count * BLOB_HASH_SIZE);
+    blob_name_of_chunks(list, count, &name);
+    if (!blob_hash_equal(&name, &r->hash)) {
+        free(list);
+        str_fmt(err, errlen, "chunk list does not hash to the blob's name");
+        return -1;
+    }
+    free(r->chunk_hashes);
+    r->chunk_hashes = list;
     for (uint64_t i = 0; i < count; i++)
         if (r->have[i] && !chunk_matches(r, i, r->data + i * BLOB_CHUNK_SIZE, chunk_len(r, i))) {
             r->have[i] = 0;
@@ -165,7 +186,7 @@ int blob_recv_put(struct blob_recv *r, uint64_t offset, const uint8_t *bytes, si
         }
     }
     /* A duplicate (a re-sent request) overwrites with what must be the same bytes; if a
-     * peer lied, the hash check in blob_recv_finish catches it either way. */
+     * peer lied, the name check in blob_recv_finish catches it either way. */
     memcpy(r->data + offset, bytes, len);
     if (!r->have[idx]) {
         r->have[idx] = 1;
@@ -186,8 +207,11 @@ int blob_recv_finish(struct blob_recv *r, uint8_t **data, char *err, size_t errl
                 (unsigned long long)r->chunks_have, (unsigned long long)r->num_chunks);
         return -1;
     }
-    struct blob_hash got;
-    blob_hash_compute(r->data, (size_t)r->size, &got);
+    /* With a chunk list, the list matched the name and every kept chunk its hash: the
+     * bytes are the named ones, no need to hash them again. */
+    struct blob_hash got = r->hash;
+    if (!r->chunk_hashes)
+        blob_name_compute(r->data, r->size, &got);
     if (!blob_hash_equal(&got, &r->hash)) {
         char want_hex[65], got_hex[65];
         blob_hash_hex(&r->hash, want_hex);
@@ -227,11 +251,13 @@ const struct blob_entry *blob_store_get(const struct blob_store *s, const struct
     return NULL;
 }
 
-const struct blob_entry *blob_store_adopt(struct blob_store *s, const struct blob_hash *hash, uint8_t *data, uint64_t size)
+const struct blob_entry *blob_store_adopt_listed(struct blob_store *s, const struct blob_hash *hash, uint8_t *data,
+                                                 uint64_t size, struct blob_hash *chunks)
 {
     const struct blob_entry *have = blob_store_get(s, hash);
     if (have) {
         free(data);   /* ownership was handed over; the stored copy is identical */
+        free(chunks);
         return have;
     }
     if (s->count == s->cap) {
@@ -243,21 +269,31 @@ const struct blob_entry *blob_store_adopt(struct blob_store *s, const struct blo
     e->hash = *hash;
     e->data = data;
     e->size = size;
+    e->chunks = chunks;
     return e;
+}
+
+const struct blob_entry *blob_store_adopt(struct blob_store *s, const struct blob_hash *hash, uint8_t *data, uint64_t size)
+{
+    return blob_store_adopt_listed(s, hash, data, size, NULL);
 }
 
 const struct blob_entry *blob_store_put(struct blob_store *s, const void *data, uint64_t size)
 {
     CHECK(size <= SIZE_MAX);
-    struct blob_hash h;
-    blob_hash_compute(data, (size_t)size, &h);
+    struct blob_hash h, *chunks;
+    uint64_t count;
+    blob_chunk_hashes(data, size, &chunks, &count);
+    blob_name_of_chunks(chunks, count, &h);
     const struct blob_entry *have = blob_store_get(s, &h);
-    if (have)
+    if (have) {
+        free(chunks);
         return have;
+    }
     uint8_t *copy = mem_alloc((size_t)size);
     if (size)
         memcpy(copy, data, (size_t)size);
-    return blob_store_adopt(s, &h, copy, size);
+    return blob_store_adopt_listed(s, &h, copy, size, chunks);
 }
 
 void blob_store_drop(struct blob_store *s, const struct blob_hash *hash)
@@ -265,6 +301,7 @@ void blob_store_drop(struct blob_store *s, const struct blob_hash *hash)
     for (size_t i = 0; i < s->count; i++)
         if (blob_hash_equal(&s->entries[i].hash, hash)) {
             free(s->entries[i].data);
+            free(s->entries[i].chunks);
             s->entries[i] = s->entries[--s->count];
             return;
         }
@@ -272,8 +309,10 @@ void blob_store_drop(struct blob_store *s, const struct blob_hash *hash)
 
 void blob_store_fini(struct blob_store *s)
 {
-    for (size_t i = 0; i < s->count; i++)
+    for (size_t i = 0; i < s->count; i++) {
         free(s->entries[i].data);
+        free(s->entries[i].chunks);
+    }
     free(s->entries);
     s->entries = NULL;
     s->count = s->cap = 0;

@@ -13,7 +13,7 @@
 #include "render/tile.h"
 
 #define PROTO_MAGIC 0x4d555242u /* "BRUM" little-endian */
-#define PROTO_VERSION 10 /* 2: HEARTBEAT carries samples_done; 3: JOB carries job_key, ACK, KEPT; 4: photon-map passes (JOB photon_maps, MAP); 5: JOB passes (passes without photon maps); 6: TILE and KEPT carry the holder's tag; 7: JOB aovs, filter; 8: TILE pass and block mask; 9: CHUNKS_REQ, CHUNKS (broadcast blobs); 10: blocks of 4 px (a TILE mask names other pixels) */
+#define PROTO_VERSION 11 /* 2: HEARTBEAT carries samples_done; 3: JOB carries job_key, ACK, KEPT; 4: photon-map passes (JOB photon_maps, MAP); 5: JOB passes (passes without photon maps); 6: TILE and KEPT carry the holder's tag; 7: JOB aovs, filter; 8: TILE pass and block mask; 9: CHUNKS_REQ, CHUNKS (broadcast blobs); 10: blocks of 4 px (a TILE mask names other pixels); 11: a blob is named by the hash of its chunk list */
 #define PROTO_MAX_MESSAGE (64u * 1024u * 1024u) /* also ZMQ_MAXMSGSIZE */
 #define PROTO_MAX_STRING 1024
 #define PROTO_MAX_ASSETS 4096
@@ -97,7 +97,8 @@ struct msg_chunks_req {
     struct blob_hash hash;
 };
 
-/* The chunk list of blob hash (size bytes): the BLAKE2b-256 of each BLOB_CHUNK_SIZE chunk,
+/* The chunk list of blob hash (size bytes): the BLAKE2b-256 of each BLOB_CHUNK_SIZE chunk
+ * (the list hashes to the blob's name, blob_name_of_chunks),
  * count = blob_num_chunks(size) of them (checked on decode). With PROTO_CHUNKS_BCAST the
  * master streams the blob's chunks on its broadcast socket (net_bcast_endpoint: beside the
  * ROUTER's ipc socket, or on bcast_port of the same tcp host) to subscribers of the

@@ -1,6 +1,7 @@
-/* Unit tests for content-addressed blobs (common/wire/blob.c): the BLAKE2b-256 vectors, chunked
- * receive in any order with duplicates, rejection of misplaced or mis-sized chunks and of
- * oversize announcements before allocation, hash mismatches, and the store.
+/* Unit tests for content-addressed blobs (common/wire/blob.c): the BLAKE2b-256 vectors, names
+ * (the hash of the chunk list), chunked receive in any order with duplicates, rejection of
+ * misplaced or mis-sized chunks and of oversize announcements before allocation, name
+ * mismatches, chunk lists that do not fit the name, and the store.
  * Run by `make unit` with every other tests/unit/test_*.c. */
 #include <criterion/criterion.h>
 #include <stdint.h>
@@ -51,7 +52,7 @@ Test(blob, shuffled_chunks_with_duplicates)
     const size_t size = 5 * (size_t)BLOB_CHUNK_SIZE + 1234;
     uint8_t *src = pattern(size, 7);
     struct blob_hash h;
-    blob_hash_compute(src, size, &h);
+    blob_name_compute(src, size, &h);
 
     struct blob_recv r;
     char err[256];
@@ -85,7 +86,7 @@ Test(blob, misplaced_or_missized_chunks_rejected)
     const size_t size = 2 * (size_t)BLOB_CHUNK_SIZE + 100;
     uint8_t *src = pattern(size + BLOB_CHUNK_SIZE, 3);
     struct blob_hash h;
-    blob_hash_compute(src, size, &h);
+    blob_name_compute(src, size, &h);
     struct blob_recv r;
     char err[256];
     cr_assert_eq(blob_recv_init(&r, &h, size, err, sizeof err), 0);
@@ -118,7 +119,7 @@ Test(blob, hash_mismatch_detected)
     const size_t size = (size_t)BLOB_CHUNK_SIZE + 10;
     uint8_t *src = pattern(size, 11);
     struct blob_hash h, got;
-    blob_hash_compute(src, size, &got);
+    blob_name_compute(src, size, &got);
     h = got;
     h.bytes[0] ^= 1;
     struct blob_recv r;
@@ -157,7 +158,7 @@ Test(blob, oversize_refused_before_allocation)
 Test(blob, zero_size_blob)
 {
     struct blob_hash h;
-    blob_hash_compute("", 0, &h);
+    blob_name_compute("", 0, &h);
     struct blob_recv r;
     char err[256];
     cr_assert_eq(blob_recv_init(&r, &h, 0, err, sizeof err), 0, "%s", err);
@@ -169,7 +170,7 @@ Test(blob, zero_size_blob)
     free(data);
     blob_recv_fini(&r);
 
-    blob_hash_compute("x", 1, &h);
+    blob_name_compute("x", 1, &h);
     cr_assert_eq(blob_recv_init(&r, &h, 0, err, sizeof err), 0);
     cr_assert_eq(blob_recv_finish(&r, &data, err, sizeof err), -1);
     cr_assert(strstr(err, "hash mismatch"), "%s", err);
@@ -181,7 +182,7 @@ Test(blob, exact_multiple_of_chunk_size)
     const size_t size = 2 * (size_t)BLOB_CHUNK_SIZE;
     uint8_t *src = pattern(size, 5);
     struct blob_hash h;
-    blob_hash_compute(src, size, &h);
+    blob_name_compute(src, size, &h);
     struct blob_recv r;
     char err[256];
     cr_assert_eq(blob_recv_init(&r, &h, size, err, sizeof err), 0);
@@ -235,7 +236,7 @@ Test(blob, store_put_get_adopt)
     }
     uint8_t *own = pattern(64, 999);
     struct blob_hash ho;
-    blob_hash_compute(own, 64, &ho);
+    blob_name_compute(own, 64, &ho);
     cr_assert_eq(blob_store_adopt(&s, &ho, own, 64)->data, own);
     blob_store_fini(&s);
     cr_assert_eq(s.count, 0);
@@ -250,7 +251,7 @@ Test(blob, chunk_list_checks_every_chunk)
     uint8_t *data = pattern(size, 5);
     struct blob_hash h, *list;
     uint64_t count;
-    blob_hash_compute(data, size, &h);
+    blob_name_compute(data, size, &h);
     blob_chunk_hashes(data, size, &list, &count);
     cr_assert_eq(count, 4);
     cr_assert_eq(blob_num_chunks(size), 4);
@@ -291,6 +292,111 @@ Test(blob, chunk_list_checks_every_chunk)
     free(out);
     blob_recv_fini(&r);
     free(bad);
+    free(list);
+    free(data);
+}
+
+/* A name is the BLAKE2b-256 of the chunk list: one pass over the bytes gives both, and the
+ * store keeps the list it was named by. */
+Test(blob, name_is_the_hash_of_the_chunk_list)
+{
+    struct blob_hash name, want, one;
+    blob_name_compute(NULL, 0, &name);
+    assert_hex(&name, "0e5751c026e543b2e8ab2eb06099daa1d1e5df47778f7787faab45cdf12fe3a8"); /* no chunk: BLAKE2b("") */
+    blob_name_compute("abc", 3, &name);
+    blob_hash_compute("abc", 3, &one);
+    blob_hash_compute(one.bytes, BLOB_HASH_SIZE, &want);
+    cr_assert(blob_hash_equal(&name, &want), "one chunk: the hash of its hash");
+    blob_hash_compute("abc", 3, &want);
+    cr_assert(!blob_hash_equal(&name, &want), "not the hash of the bytes");
+
+    size_t size = 2 * BLOB_CHUNK_SIZE + 7;
+    uint8_t *data = pattern(size, 21);
+    struct blob_hash *list;
+    uint64_t count;
+    blob_chunk_hashes(data, size, &list, &count);
+    cr_assert_eq(count, 3);
+    blob_hash_compute(list[0].bytes, 3 * BLOB_HASH_SIZE, &want);
+    blob_name_compute(data, size, &name);
+    cr_assert(blob_hash_equal(&name, &want));
+    struct blob_hash of_list;
+    blob_name_of_chunks(list, count, &of_list);
+    cr_assert(blob_hash_equal(&of_list, &name));
+
+    struct blob_store s = {0};
+    const struct blob_entry *e = blob_store_put(&s, data, size);
+    cr_assert(blob_hash_equal(&e->hash, &name));
+    cr_assert_not_null(e->chunks);
+    cr_assert(memcmp(e->chunks, list, 3 * sizeof *list) == 0, "the store keeps the list it named the blob by");
+    blob_store_fini(&s);
+    free(list);
+    free(data);
+}
+
+/* A blob named once by its sender (blob_store_adopt_listed: the photon tracer's one pass)
+ * is still checked on receipt: a chunk list that does not hash to the name is refused, a
+ * corrupted chunk is refused against the list, and without a list a corrupted blob fails
+ * its name at the end. */
+Test(blob, named_once_still_checked_on_receipt)
+{
+    size_t size = 3 * BLOB_CHUNK_SIZE + 99;
+    uint8_t *data = pattern(size, 17);
+    struct blob_hash name, *list;
+    uint64_t count;
+    blob_chunk_hashes(data, size, &list, &count);
+    blob_name_of_chunks(list, count, &name);
+    struct blob_store s = {0};
+    uint8_t *copy = malloc(size);
+    memcpy(copy, data, size);
+    struct blob_hash *owned = malloc(count * sizeof *owned);
+    memcpy(owned, list, count * sizeof *owned);
+    const struct blob_entry *e = blob_store_adopt_listed(&s, &name, copy, size, owned);
+    cr_assert_eq(e->chunks, owned);
+
+    char err[256];
+    struct blob_recv r;
+    cr_assert_eq(blob_recv_init(&r, &e->hash, size, err, sizeof err), 0, "%s", err);
+    struct blob_hash swapped[4];
+    memcpy(swapped, e->chunks, sizeof swapped);
+    swapped[1] = e->chunks[2];
+    swapped[2] = e->chunks[1];
+    cr_assert_eq(blob_recv_set_chunks(&r, swapped[0].bytes, count, err, sizeof err), -1, "a list out of order");
+    cr_assert(strstr(err, "name"), "%s", err);
+    cr_assert_null(r.chunk_hashes, "a refused list is not kept");
+    swapped[1] = e->chunks[1];
+    swapped[2] = e->chunks[2];
+    swapped[3].bytes[0] ^= 1;
+    cr_assert_eq(blob_recv_set_chunks(&r, swapped[0].bytes, count, err, sizeof err), -1, "a list with a changed hash");
+    cr_assert_eq(blob_recv_set_chunks(&r, e->chunks[0].bytes, count, err, sizeof err), 0, "%s", err);
+    uint8_t *bad = malloc(BLOB_CHUNK_SIZE);
+    memcpy(bad, data + BLOB_CHUNK_SIZE, BLOB_CHUNK_SIZE);
+    bad[12345] ^= 0x40;
+    cr_assert_eq(blob_recv_put(&r, BLOB_CHUNK_SIZE, bad, BLOB_CHUNK_SIZE, err, sizeof err), -1, "one flipped bit");
+    for (uint64_t i = 0; i < count; i++) {
+        uint64_t off = i * BLOB_CHUNK_SIZE;
+        size_t len = i + 1 < count ? BLOB_CHUNK_SIZE : 99;
+        cr_assert_eq(blob_recv_put(&r, off, data + off, len, err, sizeof err), 0, "%s", err);
+    }
+    uint8_t *out = NULL;
+    cr_assert_eq(blob_recv_finish(&r, &out, err, sizeof err), 0, "%s", err);
+    cr_assert(memcmp(out, data, size) == 0);
+    free(out);
+    blob_recv_fini(&r);
+
+    /* no list: the flipped bit is kept, and the name check at the end refuses the blob */
+    cr_assert_eq(blob_recv_init(&r, &e->hash, size, err, sizeof err), 0, "%s", err);
+    for (uint64_t i = 0; i < count; i++) {
+        uint64_t off = i * BLOB_CHUNK_SIZE;
+        size_t len = i + 1 < count ? BLOB_CHUNK_SIZE : 99;
+        cr_assert_eq(blob_recv_put(&r, off, i == 1 ? bad : data + off, len, err, sizeof err), 0, "%s", err);
+    }
+    out = NULL;
+    cr_assert_eq(blob_recv_finish(&r, &out, err, sizeof err), -1);
+    cr_assert(strstr(err, "hash mismatch"), "%s", err);
+    cr_assert_null(out);
+    blob_recv_fini(&r);
+    free(bad);
+    blob_store_fini(&s);
     free(list);
     free(data);
 }

@@ -245,7 +245,7 @@ static struct photon_map *prepare(struct scene *s, uint32_t passes, uint32_t spp
         uint8_t *data;
         size_t size;
         double secs;
-        int rc = photon_tracer_poll(t, &pass, &data, &size, &secs, NULL, err, sizeof err);
+        int rc = photon_tracer_poll(t, &pass, &data, &size, &secs, NULL, NULL, err, sizeof err);
         cr_assert_geq(rc, 0, "%s", err);
         if (rc == 0) {
             struct timespec nap = {0, 2000000};

@@ -936,8 +936,8 @@ static struct fetch_blob fetch_blob_make(uint64_t size)
     fb.data = malloc(size);
     for (uint64_t i = 0; i < size; i++)
         fb.data[i] = (uint8_t)(i * 2654435761u >> 13);
-    blob_hash_compute(fb.data, size, &fb.hash);
     blob_chunk_hashes(fb.data, size, &fb.chunks, &fb.count);
+    blob_name_of_chunks(fb.chunks, fb.count, &fb.hash);
     return fb;
 }
 
