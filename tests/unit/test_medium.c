@@ -1764,3 +1764,44 @@ Test(medium, glow_sampling_bounded, .timeout = 120)
     render_job_fini(&job);
     scene_fini(&s);
 }
+
+/* photon_map_set_radius (the master's surface map per pass) gives the bytes that decoding
+ * the map and serialising its photons, in the map's order, with the new radius gives: the
+ * same blob, hence the same hash and pixels, without a decode on the master. */
+Test(medium, photon_map_set_radius_matches_a_fresh_serialise)
+{
+    const uint32_t n = 3000;
+    struct photon_list block = {malloc(sizeof(struct photon) * n), n, n};
+    for (uint32_t i = 0; i < n; i++) {
+        uint64_t k = rng_key(77, i, 0, 0);
+        struct photon *ph = &block.a[i];
+        for (int a = 0; a < 3; a++)
+            ph->p[a] = 4.0f * rng_uniform(k, (uint32_t)a) - 2.0f;
+        photon_rgbe_encode(v3(rng_uniform(k, 3), 0.5f, 0.25f), ph->rgbe);
+        ph->dir = photon_dir_encode(v3_normalize(v3(rng_uniform(k, 4) - 0.5f, 0.3f, rng_uniform(k, 5) - 0.5f)));
+        ph->depth = (uint16_t)(1 + i % 5);
+    }
+    char err[256];
+    uint8_t *blob = NULL, *fresh = NULL;
+    size_t bytes = 0, fresh_bytes = 0;
+    uint32_t count = 0;
+    cr_assert_eq(photon_map_serialise(&block, 1, 0.3f, 5000, &blob, &bytes, &count, err, sizeof err), 0, "%s", err);
+    cr_assert_eq(photon_map_serialised_bytes(blob), bytes);
+    struct photon_map *m = NULL;
+    cr_assert_eq(photon_map_decode(blob, bytes, &m, err, sizeof err), 0, "%s", err);
+    struct photon_list again = {malloc(sizeof(struct photon) * n), n, n};
+    memcpy(again.a, m->photons, sizeof(struct photon) * n);
+    photon_map_free(&m);
+    cr_assert_eq(photon_map_serialise(&again, 1, 0.17f, 5000, &fresh, &fresh_bytes, &count, err, sizeof err), 0);
+    uint8_t *copy = malloc(bytes);
+    memcpy(copy, blob, bytes);
+    cr_assert_eq(photon_map_set_radius(copy, bytes, 0.3f, err, sizeof err), 0, "%s", err);
+    cr_assert(memcmp(copy, blob, bytes) == 0, "the same radius changes nothing");
+    cr_assert_eq(photon_map_set_radius(copy, bytes, 0.17f, err, sizeof err), 0, "%s", err);
+    cr_assert_eq(fresh_bytes, bytes);
+    cr_assert(memcmp(copy, fresh, bytes) == 0, "in place, the bytes a decode and a fresh serialise give");
+    cr_assert(memcmp(copy, blob, bytes) != 0, "the radius and the buckets moved");
+    free(copy);
+    free(fresh);
+    free(blob);
+}
