@@ -302,8 +302,6 @@ static vec3 sample_path(const struct render_job *job, uint32_t pass, uint32_t px
         if (aov)
             aov_sample_miss(&ak);
         ck.time01 = st.time01[k];
-        ck.time = (double)job->frame + job->camera.shutter_open +
-                  (double)ck.time01 * (job->camera.shutter_close - job->camera.shutter_open);
         vec3 l = camera_path(job, pass, px, py, smp, ck, rays, &hit, aov ? &ak : NULL);
         const float w = (float)st.weight[k];
         L = v3_add(L, v3_scale(l, w));

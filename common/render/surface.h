@@ -52,7 +52,7 @@ static inline void surface_triangle_finish(const struct accel *acc, const struct
                                            const struct mesh *m, const struct accel_hit *h,
                                            const struct accel_motion *mo, float time01, struct surface *s)
 {
-    s->p_err = v3_max_abs(s->p) >= 0.5f ? 0.0f : surface_triangle_p_err_(h->geom, h->prim, acc, mo, time01);
+    s->p_err = v3_max_abs_ge(s->p, 0.5f) ? 0.0f : surface_triangle_p_err_(h->geom, h->prim, acc, mo, time01);
     s->material = m->material_ids[h->prim];
     s->light = lt->tri_light && lt->tri_light[h->geom] ? lt->tri_light[h->geom][h->prim] : LIGHT_NONE;
 }
@@ -110,8 +110,7 @@ static inline __attribute__((always_inline)) int nee_prepare(const struct light_
     light_sample(lt, sc, p, pick, u, v, &n->ls);
     if (!(n->ls.pdf > 0.0f) || v3_is_black(n->ls.radiance))
         return 0;
-    vec3 to = v3_sub(n->ls.p, p);
-    vec3 wi = v3_scale(to, 1.0f / v3_length(to));
+    vec3 wi = n->ls.wi;
     n->bsdf_pdf = 0.0f;
     float side = v3_dot(wi, ng);
     n->transmitted = side < 0.0f;

@@ -223,8 +223,8 @@ void light_triangle_point(const struct light_table *t, const struct scene *s, ui
     *p = v3_add(v3_add(v3_scale(a, b0), v3_scale(b, b1)), v3_scale(c, 1.0f - b0 - b1));
 }
 
-void light_sample_emitter_(const struct light_table *t, const struct scene *s, uint32_t i, vec3 ref, float u1,
-                           float u2, struct light_sample *out)
+static void emitter_sample(const struct light_table *t, const struct scene *s, uint32_t i, vec3 ref, float u1, float u2,
+                           struct light_sample *out)
 {
     const struct light_entry *e = &t->entries[i];
     switch (e->kind) {
@@ -285,6 +285,14 @@ void light_sample_emitter_(const struct light_table *t, const struct scene *s, u
         return;
     }
     }
+}
+
+void light_sample_emitter_(const struct light_table *t, const struct scene *s, uint32_t i, vec3 ref, float u1,
+                           float u2, struct light_sample *out)
+{
+    emitter_sample(t, s, i, ref, u1, u2, out);
+    vec3 to = v3_sub(out->p, ref);
+    out->wi = v3_scale(to, 1.0f / v3_length(to));
 }
 
 vec3 light_env_radiance(const struct light_table *t, const struct scene *s, vec3 d)

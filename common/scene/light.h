@@ -53,6 +53,7 @@ struct light_sample {
     vec3 p;             /* point on the light (position for point lights) */
     vec3 n;             /* light's normal there (zero for point lights) */
     vec3 radiance;      /* emitted radiance toward the shading point, or I / d^2 for points */
+    vec3 wi;            /* unit direction from the shading point to p: (p - ref) / |p - ref| */
     float pdf;          /* solid-angle pdf including the pick probability; 0 = no sample */
     int is_delta;
     uint32_t entry;     /* the light table entry picked (valid when pdf > 0) */
@@ -109,6 +110,7 @@ static inline void light_sample(const struct light_table *t, const struct scene 
     if (!(d2 > 0.0f))
         return;
     out->p = l->position;
+    out->wi = v3_scale(d, 1.0f / sqrtf(d2)); /* d2 is v3_length's dot: the same bits */
     out->radiance = v3_scale(e->emission, (l->type == LIGHT_SPOT ? light_spot_falloff(l, v3_neg(d)) : 1.0f) / d2);
     out->pdf = pick_pdf;
     out->is_delta = 1;
