@@ -37,8 +37,19 @@ static inline float v3_max_component(vec3 a)
     return m > a.z ? m : a.z;
 }
 static inline float v3_max_abs(vec3 a) { return f_max(fabsf(a.x), f_max(fabsf(a.y), fabsf(a.z))); }
+/* v3_max_abs(a) >= t without the maximum (f_max skips a NaN component; so does >=). */
+static inline int v3_max_abs_ge(vec3 a, float t) { return fabsf(a.x) >= t || fabsf(a.y) >= t || fabsf(a.z) >= t; }
 static inline int v3_is_finite(vec3 a) { return isfinite(a.x) && isfinite(a.y) && isfinite(a.z); }
-static inline int v3_is_black(vec3 a) { return a.x == 0.0f && a.y == 0.0f && a.z == 0.0f; }
+/* Every component == 0 (either sign; NaN is not black): the bits of all three, sign left
+ * out, are zero. One test rather than three float compares, each with its NaN case. */
+static inline int v3_is_black(vec3 a)
+{
+    uint32_t x, y, z;
+    memcpy(&x, &a.x, sizeof x);
+    memcpy(&y, &a.y, sizeof y);
+    memcpy(&z, &a.z, sizeof z);
+    return ((x | y | z) << 1) == 0;
+}
 
 /* Orthonormal basis around unit n (Duff et al. 2017, branchless). */
 static inline void v3_basis(vec3 n, vec3 *t, vec3 *b)
@@ -172,9 +183,11 @@ static inline float float_bits_offset(float p, int delta)
 __attribute__((always_inline)) static inline vec3 offset_ray_origin(vec3 p, vec3 n)
 {
     const float origin = 1.0f / 32.0f, int_scale = 256.0f;
-    float float_scale = f_min(1.0f / 65536.0f, f_max(f_max(fabsf(p.x), fabsf(p.y)), fabsf(p.z)) * 0x1p-15f);
     int ox = (int)(int_scale * n.x), oy = (int)(int_scale * n.y), oz = (int)(int_scale * n.z);
     vec3 pi = v3(float_bits_offset(p.x, ox), float_bits_offset(p.y, oy), float_bits_offset(p.z, oz));
+    if (fabsf(p.x) >= origin && fabsf(p.y) >= origin && fabsf(p.z) >= origin)
+        return pi; /* the usual case: no fixed step, so no float_scale */
+    float float_scale = f_min(1.0f / 65536.0f, f_max(f_max(fabsf(p.x), fabsf(p.y)), fabsf(p.z)) * 0x1p-15f);
     return v3(fabsf(p.x) < origin ? p.x + float_scale * n.x : pi.x,
               fabsf(p.y) < origin ? p.y + float_scale * n.y : pi.y,
               fabsf(p.z) < origin ? p.z + float_scale * n.z : pi.z);

@@ -207,6 +207,9 @@ int accel_init(struct accel *a, const struct scene *s, uint32_t frame, uint32_t 
             a->sphere_motion = mem_calloc(s->num_spheres, sizeof *a->sphere_motion);
             break;
         }
+    a->still_tri = mem_calloc((size_t)s->num_meshes + 1, 1);
+    for (uint32_t i = 0; i < s->num_meshes; i++)
+        a->still_tri[i] = s->meshes[i].num_keys == 0 && s->meshes[i].num_frames < 2;
     a->still_geoms = a->mesh_motion || a->sphere_motion ? 0 : a->sphere_geom;
     /* The shutter of this frame; an empty or inverted one freezes everything at its open. */
     double t0 = (double)frame + s->camera.shutter_open, t1 = (double)frame + s->camera.shutter_close;
@@ -264,6 +267,7 @@ void accel_fini(struct accel *a)
     free(a->top_mesh);
     free(a->top_sphere);
     free(a->still_sphere);
+    free(a->still_tri);
     for (uint32_t i = 0; a->face_normals && i < a->sphere_geom; i++)
         free(a->face_normals[i]);
     free(a->face_normals);

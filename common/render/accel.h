@@ -25,8 +25,11 @@ struct accel {
     RTCScene scene;
     uint32_t sphere_geom;   /* the accel_hit.geom of spheres: == num_meshes */
     uint32_t num_spheres;
-    uint32_t still_geoms;   /* hits with geom below it are on still triangles: sphere_geom,
-                             * or 0 when a mesh or sphere has motion data (surface_from_hit) */
+    uint32_t still_geoms;   /* hits with geom below it are on still triangles: sphere_geom
+                             * when no mesh or sphere has motion data, else 0 (still_tri
+                             * tells them apart) */
+    unsigned char *still_tri; /* per accel_hit.geom (sphere_geom included): 1 for a mesh
+                             * without motion data (no keys, no frames), 0 for spheres */
     int has_motion;         /* something has time steps: rays must carry their time */
     int packets_exact;      /* accel_intersect_packet gives accel_intersect's hits bit for bit:
                              * only triangles, none instanced or with time steps (Embree's

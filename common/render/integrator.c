@@ -67,15 +67,13 @@ static int aov_trace(const struct render_job *job, vec3 org, vec3 dir, float tim
 }
 
 /* Next-event estimation's light sample at the vertex whose dimensions start at d0, drawing
- * only the dimensions light_sample reads (light.h): no pick with one light, no point on a
- * light when every light is a point. Values are pure functions of their dimension, so
- * skipping one changes no other. */
+ * only the dimensions light_sample reads (light_sample_reads_pick, _point). */
 static inline __attribute__((always_inline)) int nee_prepare_smp(const struct render_job *job, const struct material *mat, vec3 p, vec3 ns, vec3 ng,
                                   vec3 wo, int front, const struct sampler *smp, uint32_t d0, struct nee_sample *n)
 {
     const struct light_table *lt = &job->lights;
-    float pick = lt->num_entries > 1 ? sampler_get(smp, d0 + DIM_LIGHT_PICK) : 0.0f, lu = 0.0f, lv = 0.0f;
-    if (!lt->points_only)
+    float pick = light_sample_reads_pick(lt) ? sampler_get(smp, d0 + DIM_LIGHT_PICK) : 0.0f, lu = 0.0f, lv = 0.0f;
+    if (light_sample_reads_point(lt))
         sampler_get_2d(smp, d0 + DIM_LIGHT_U, &lu, &lv);
     return nee_prepare(lt, job->scene, mat, p, ns, ng, wo, front, 1, pick, lu, lv, n);
 }
@@ -304,8 +302,6 @@ static vec3 sample_path(const struct render_job *job, uint32_t pass, uint32_t px
         if (aov)
             aov_sample_miss(&ak);
         ck.time01 = st.time01[k];
-        ck.time = (double)job->frame + job->camera.shutter_open +
-                  (double)ck.time01 * (job->camera.shutter_close - job->camera.shutter_open);
         vec3 l = camera_path(job, pass, px, py, smp, ck, rays, &hit, aov ? &ak : NULL);
         const float w = (float)st.weight[k];
         L = v3_add(L, v3_scale(l, w));

@@ -271,7 +271,7 @@ static float point_nee_pdf(const struct render_job *job, uint32_t i, vec3 x, vec
 static vec3 point_nee(const struct render_job *job, vec3 x, vec3 d_out, uint32_t medium, float g, float u0, float u1,
                       float u2, float time01, uint64_t key, uint64_t *rays, const struct flight_ctx *fc)
 {
-    uint32_t i = job->lights.num_entries ? light_pick(&job->lights, u0) : 0;
+    uint32_t i = light_pick(&job->lights, u0);
     if (job->lights.num_entries == 0 || job->lights.entries[i].kind != LK_TRIANGLE || !(job->lights.pick_pdf[i] > 0.0f))
         return scatter_nee(job, x, d_out, medium, g, 1, u0, u1, u2, time01, key, rays, 0, fc);
     vec3 v[3], n;

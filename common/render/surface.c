@@ -27,10 +27,9 @@ static vec3 step_vertex(const struct accel_motion *mo, uint32_t num_vertices, ui
  * shrinks with |p|: a point near the origin of a triangle whose vertices lie far away has
  * the vertices' rounding, not its own. 0 at larger magnitudes, where the fixed step
  * (2^-16) and the ulp offsets already cover it. */
-float surface_triangle_p_err_(vec3 p, uint32_t geom, uint32_t prim, const struct accel *acc,
-                              const struct accel_motion *mo, float time01)
+float surface_triangle_p_err_(uint32_t geom, uint32_t prim, const struct accel *acc, const struct accel_motion *mo,
+                              float time01)
 {
-    (void)p; /* surface_triangle_finish: |p| < 0.5 */
     const struct mesh *m = &acc->desc->meshes[geom];
     const uint32_t *idx = &m->indices[3 * prim];
     float mag = 0.0f;

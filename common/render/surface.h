@@ -43,8 +43,8 @@ static inline void surface_triangle_still(const struct accel *acc, const struct 
 }
 
 /* How far a triangle hit p (|p| < 0.5) may lie off the triangle (surface.c). */
-float surface_triangle_p_err_(vec3 p, uint32_t geom, uint32_t prim, const struct accel *acc,
-                              const struct accel_motion *mo, float time01);
+float surface_triangle_p_err_(uint32_t geom, uint32_t prim, const struct accel *acc, const struct accel_motion *mo,
+                              float time01);
 
 /* A triangle hit's p_err (0 at |p| >= 0.5, where the fixed offsets cover it), material and
  * emitter entry; mo: the mesh's motion, or NULL. */
@@ -52,7 +52,7 @@ static inline void surface_triangle_finish(const struct accel *acc, const struct
                                            const struct mesh *m, const struct accel_hit *h,
                                            const struct accel_motion *mo, float time01, struct surface *s)
 {
-    s->p_err = v3_max_abs(s->p) >= 0.5f ? 0.0f : surface_triangle_p_err_(s->p, h->geom, h->prim, acc, mo, time01);
+    s->p_err = v3_max_abs_ge(s->p, 0.5f) ? 0.0f : surface_triangle_p_err_(h->geom, h->prim, acc, mo, time01);
     s->material = m->material_ids[h->prim];
     s->light = lt->tri_light && lt->tri_light[h->geom] ? lt->tri_light[h->geom][h->prim] : LIGHT_NONE;
 }
@@ -61,14 +61,15 @@ void surface_from_hit_slow_(const struct accel *acc, const struct light_table *l
                             const struct accel_hit *h, float time01, struct surface *s);
 
 /* Hit h of the ray (org, dir) at time01 of accel acc as a surface point; lt gives the
- * emitter entry of the hit primitive. Still triangles (no instance, no time steps in the
- * frame) inline; spheres and moving geometry in surface.c. */
+ * emitter entry of the hit primitive. Triangles of still meshes inline (one comparison
+ * when nothing moves, accel.still_tri when something does); spheres and meshes with
+ * motion data in surface.c. */
 static inline __attribute__((always_inline)) void surface_from_hit(const struct accel *acc,
                                                                    const struct light_table *lt, vec3 org,
                                                                    vec3 dir, const struct accel_hit *h,
                                                                    float time01, struct surface *s)
 {
-    if (h->geom >= acc->still_geoms) {
+    if (h->geom >= acc->still_geoms && !acc->still_tri[h->geom]) {
         surface_from_hit_slow_(acc, lt, org, dir, h, time01, s);
         return;
     }
@@ -106,14 +107,10 @@ static inline __attribute__((always_inline)) int nee_prepare(const struct light_
                                                              vec3 wo, int front, int through, float pick, float u,
                                                              float v, struct nee_sample *n)
 {
-    if (lt->points_only) /* the same sample, inline */
-        light_sample_point(lt, sc, lt->num_entries == 1 ? 0 : light_pick(lt, pick), p, &n->ls);
-    else
-        light_sample(lt, sc, p, pick, u, v, &n->ls);
+    light_sample(lt, sc, p, pick, u, v, &n->ls);
     if (!(n->ls.pdf > 0.0f) || v3_is_black(n->ls.radiance))
         return 0;
-    vec3 to = v3_sub(n->ls.p, p);
-    vec3 wi = v3_scale(to, 1.0f / v3_length(to));
+    vec3 wi = n->ls.wi;
     n->bsdf_pdf = 0.0f;
     float side = v3_dot(wi, ng);
     n->transmitted = side < 0.0f;

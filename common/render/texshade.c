@@ -13,7 +13,7 @@ void texshade_camera(const struct render_job *job, const struct camera_sample *c
                      struct raydiff *rd)
 {
     struct camera_pose pose;
-    camera_pose_at(&job->camera, cs->time, &pose);
+    camera_pose_at(&job->camera, camera_shutter_time(&job->camera, job->frame, cs->time01), &pose);
     uint32_t nx, ny;
     if (!sampler_pixel_cells(smp, &nx, &ny)) {
         /* No grid: an isotropic footprint of the pixel's area over spp, at the sample. */

@@ -252,23 +252,10 @@ void camera_lens_point(const struct camera *cam, float lu, float lv, float *x, f
     *y = py * cam->lens_radius;
 }
 
-static vec3 film_dir(const struct camera *cam, const struct camera_pose *p, float fx, float fy)
-{
-    float sx = (2.0f * fx / cam->width - 1.0f) * cam->aspect * cam->tan_half_fov_y;
-    float sy = (1.0f - 2.0f * fy / cam->height) * cam->tan_half_fov_y;
-    return v3_add(p->forward, v3_add(v3_scale(p->right, sx), v3_scale(p->up, sy)));
-}
-
-void camera_ray(const struct camera *cam, float fx, float fy, vec3 *origin, vec3 *dir)
-{
-    *origin = cam->still.origin;
-    *dir = v3_normalize(film_dir(cam, &cam->still, fx, fy));
-}
-
 void camera_ray_lens(const struct camera *cam, const struct camera_pose *p, float fx, float fy, float lu, float lv,
                      vec3 *origin, vec3 *dir)
 {
-    vec3 d = film_dir(cam, p, fx, fy);
+    vec3 d = camera_film_dir(cam, p, fx, fy);
     if (!cam->uses_lens) {
         *origin = p->origin;
         *dir = v3_normalize(d);
@@ -304,8 +291,8 @@ float camera_shutter_warp(const struct camera *cam, float u)
     return (float)t;
 }
 
-void camera_generate(const struct camera *cam, const struct sampler *smp, uint32_t frame, uint32_t px, uint32_t py,
-                     struct camera_sample *out)
+void camera_generate_general_(const struct camera *cam, const struct sampler *smp, uint32_t frame, uint32_t px,
+                              uint32_t py, struct camera_sample *out)
 {
     float ju, jv;
     sampler_get_2d(smp, DIM_PIXEL_X, &ju, &jv);
@@ -319,13 +306,12 @@ void camera_generate(const struct camera *cam, const struct sampler *smp, uint32
     }
     out->jx = ju, out->jy = jv;
     out->time01 = cam->uses_time ? camera_shutter_warp(cam, sampler_get(smp, DIM_TIME)) : 0.0f;
-    out->time = (double)frame + cam->shutter_open + (double)out->time01 * (cam->shutter_close - cam->shutter_open);
     if (!cam->uses_lens && !cam->moving) {
         camera_ray(cam, fx, fy, &out->o, &out->d); /* the pinhole, bit for bit */
         return;
     }
     struct camera_pose pose;
-    camera_pose_at(cam, out->time, &pose);
+    camera_pose_at(cam, camera_shutter_time(cam, frame, out->time01), &pose);
     float lu = 0.0f, lv = 0.0f;
     if (cam->uses_lens)
         sampler_get_2d(smp, DIM_LENS_U, &lu, &lv);

@@ -49,13 +49,12 @@ struct camera {
     float filter_cdf[CAMERA_FILTER_TABLE + 1];
 };
 
-/* What a camera ray carries: origin, unit direction, and its time, both as a fraction of
- * the shutter interval (after the shutter curve; give it to motion-blurred geometry) and
- * as an absolute time in frames. */
+/* What a camera ray carries: origin, unit direction, and its time as a fraction of the
+ * shutter interval (after the shutter curve; give it to motion-blurred geometry; in
+ * frames: camera_shutter_time). */
 struct camera_sample {
     vec3 o, d;
     float time01;
-    double time;
     float jx, jy;   /* the sample's position in its pixel, [0, 1)^2 (pixel jitter) */
 };
 
@@ -64,8 +63,19 @@ void camera_init(struct camera *cam, const struct camera_desc *desc, uint32_t wi
  * after camera_init when the scene has moving geometry. */
 void camera_set_scene_motion(struct camera *cam, int objects_move);
 
+/* The direction of pose p through film point (fx, fy) in pixels, not normalised. */
+static inline vec3 camera_film_dir(const struct camera *cam, const struct camera_pose *p, float fx, float fy)
+{
+    float sx = (2.0f * fx / cam->width - 1.0f) * cam->aspect * cam->tan_half_fov_y;
+    float sy = (1.0f - 2.0f * fy / cam->height) * cam->tan_half_fov_y;
+    return v3_add(p->forward, v3_add(v3_scale(p->right, sx), v3_scale(p->up, sy)));
+}
 /* Pinhole ray of the still pose through film point (fx, fy) in pixels; direction normalised. */
-void camera_ray(const struct camera *cam, float fx, float fy, vec3 *origin, vec3 *dir);
+static inline void camera_ray(const struct camera *cam, float fx, float fy, vec3 *origin, vec3 *dir)
+{
+    *origin = cam->still.origin;
+    *dir = v3_normalize(camera_film_dir(cam, &cam->still, fx, fy));
+}
 /* Thin-lens ray at a pose; (lu, lv) in [0,1)^2 is the lens sample (ignored at aperture 0). */
 void camera_ray_lens(const struct camera *cam, const struct camera_pose *pose, float fx, float fy, float lu, float lv,
                      vec3 *origin, vec3 *dir);
@@ -75,6 +85,12 @@ void camera_lens_point(const struct camera *cam, float lu, float lv, float *x, f
 void camera_pose_at(const struct camera *cam, double t, struct camera_pose *pose);
 /* Shutter curve: maps a uniform u to time01 in [0, 1]. */
 float camera_shutter_warp(const struct camera *cam, float u);
+/* The absolute time (frames) of time01 of frame `frame`'s shutter, for camera_pose_at:
+ * computed only where a pose can depend on it. */
+static inline double camera_shutter_time(const struct camera *cam, uint32_t frame, float time01)
+{
+    return (double)frame + cam->shutter_open + (double)time01 * (cam->shutter_close - cam->shutter_open);
+}
 
 /* The 1D filter's value at offset x (pixels) from the pixel centre, unnormalised, as
  * Cycles defines it: gaussian exp(-2 (6 x / W)^2) over |x| <= W / 2 with W = 3 width;
@@ -85,8 +101,22 @@ double camera_filter_eval(uint32_t filter, float width, double x);
 float camera_filter_offset(const struct camera *cam, float u);
 
 /* The camera ray for sample smp of pixel (px, py) in frame `frame`: pixel jitter (through
- * the pixel filter), lens and time from the sampler's fixed dimensions. */
-void camera_generate(const struct camera *cam, const struct sampler *smp, uint32_t frame, uint32_t px, uint32_t py,
-                     struct camera_sample *out);
+ * the pixel filter), lens and time from the sampler's fixed dimensions. Inline for a still
+ * pinhole with the box filter and no time (one per camera sample); the rest in camera.c. */
+void camera_generate_general_(const struct camera *cam, const struct sampler *smp, uint32_t frame, uint32_t px,
+                              uint32_t py, struct camera_sample *out);
+static inline void camera_generate(const struct camera *cam, const struct sampler *smp, uint32_t frame, uint32_t px,
+                                   uint32_t py, struct camera_sample *out)
+{
+    if (cam->filter != FILTER_BOX || cam->uses_time || cam->uses_lens || cam->moving) {
+        camera_generate_general_(cam, smp, frame, px, py, out);
+        return;
+    }
+    float ju, jv;
+    sampler_get_2d(smp, DIM_PIXEL_X, &ju, &jv);
+    out->jx = ju, out->jy = jv;
+    out->time01 = 0.0f;
+    camera_ray(cam, (float)px + ju, (float)py + jv, &out->o, &out->d);
+}
 
 #endif

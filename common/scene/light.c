@@ -139,8 +139,10 @@ void light_table_init(struct light_table *t, const struct scene *s)
         float disc = (float)M_PI * t->env_radius * t->env_radius;
         add_entry(t, &cap, (struct light_entry){LK_ENV, 0, 0, s->env->mean, disc});
     }
-    if (t->num_entries == 0)
+    if (t->num_entries == 0) {
+        t->pick_pdf = mem_calloc(1, sizeof(float)); /* light_pick's 0, never sampled */
         return;
+    }
     t->points_only = 1;
     for (uint32_t i = 0; i < t->num_entries; i++)
         t->points_only &= t->entries[i].kind == LK_POINT;
@@ -184,7 +186,7 @@ void light_table_fini(struct light_table *t)
     memset(t, 0, sizeof *t);
 }
 
-uint32_t light_pick(const struct light_table *t, float u)
+uint32_t light_pick_cdf_(const struct light_table *t, float u)
 {
     uint32_t lo = cdf_cell(t->cdf, t->num_entries, u);
     /* Skip zero-probability entries that float rounding could land on. */
@@ -221,22 +223,13 @@ void light_triangle_point(const struct light_table *t, const struct scene *s, ui
     *p = v3_add(v3_add(v3_scale(a, b0), v3_scale(b, b1)), v3_scale(c, 1.0f - b0 - b1));
 }
 
-void light_sample(const struct light_table *t, const struct scene *s, vec3 ref, float u_pick, float u1,
-                  float u2, struct light_sample *out)
+static void emitter_sample(const struct light_table *t, const struct scene *s, uint32_t i, vec3 ref, float u1, float u2,
+                           struct light_sample *out)
 {
-    memset(out, 0, sizeof *out);
-    if (t->num_entries == 0)
-        return;
-    uint32_t i = light_pick(t, u_pick);
     const struct light_entry *e = &t->entries[i];
-    float pick_pdf = t->pick_pdf[i];
-    if (pick_pdf <= 0.0f)
-        return;
-    out->entry = i;
     switch (e->kind) {
     case LK_POINT:
-        light_sample_point(t, s, i, ref, out);
-        return;
+        return; /* light_sample's */
     case LK_TRIANGLE: {
         vec3 p, n;
         light_triangle_point(t, s, i, u1, u2, &p, &n);
@@ -287,11 +280,19 @@ void light_sample(const struct light_table *t, const struct scene *s, vec3 ref, 
         float far = v3_length(v3_sub(ref, t->env_center)) + 2.0f * t->env_radius;
         out->p = v3_add(ref, v3_scale(d, far));
         out->n = v3_neg(d);
-        out->pdf = pick_pdf * pdf;
+        out->pdf = t->pick_pdf[i] * pdf;
         out->radiance = envmap_eval(s->env, d);
         return;
     }
     }
+}
+
+void light_sample_emitter_(const struct light_table *t, const struct scene *s, uint32_t i, vec3 ref, float u1,
+                           float u2, struct light_sample *out)
+{
+    emitter_sample(t, s, i, ref, u1, u2, out);
+    vec3 to = v3_sub(out->p, ref);
+    out->wi = v3_scale(to, 1.0f / v3_length(to));
 }
 
 vec3 light_env_radiance(const struct light_table *t, const struct scene *s, vec3 d)

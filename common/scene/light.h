@@ -34,7 +34,7 @@ struct light_entry {
 struct light_table {
     struct light_entry *entries;
     float *cdf;                 /* num_entries + 1, cdf[0] = 0, cdf[n] = 1 */
-    float *pick_pdf;            /* per entry */
+    float *pick_pdf;            /* per entry; one 0 when there are none (light_pick's 0) */
     uint32_t num_entries;
     int points_only;            /* every entry is a point or spot light: light_sample ignores u1, u2 */
     uint32_t num_surface;       /* entries that are emissive triangles or spheres (rays can hit them) */
@@ -53,6 +53,7 @@ struct light_sample {
     vec3 p;             /* point on the light (position for point lights) */
     vec3 n;             /* light's normal there (zero for point lights) */
     vec3 radiance;      /* emitted radiance toward the shading point, or I / d^2 for points */
+    vec3 wi;            /* unit direction from the shading point to p: (p - ref) / |p - ref| */
     float pdf;          /* solid-angle pdf including the pick probability; 0 = no sample */
     int is_delta;
     uint32_t entry;     /* the light table entry picked (valid when pdf > 0) */
@@ -65,32 +66,55 @@ float light_spot_falloff(const struct light *l, vec3 dir);
 void light_table_init(struct light_table *t, const struct scene *s);
 void light_table_fini(struct light_table *t);
 
-/* light_sample for entry i when it is a point or spot light (kind LK_POINT), which needs
- * no uniforms: inline for callers that know every entry is one (points_only). */
-static inline void light_sample_point(const struct light_table *t, const struct scene *s, uint32_t i, vec3 ref,
-                                      struct light_sample *out)
+/* The entry whose CDF interval holds u in [0, 1) (never one of probability zero), for
+ * callers that pick a light themselves (the media integrator, the photon pass). With one
+ * entry (or none) it is 0 and u is not read. */
+uint32_t light_pick_cdf_(const struct light_table *t, float u);
+static inline uint32_t light_pick(const struct light_table *t, float u)
+{
+    return t->num_entries <= 1 ? 0 : light_pick_cdf_(t, u);
+}
+
+/* The uniforms light_sample reads: u_pick only with more than one entry, u1 and u2 only
+ * when some entry is not a point light. Callers drawing them from a sampler skip the rest
+ * (every random number is a pure function of its dimension, so skipping one moves no
+ * other). */
+static inline int light_sample_reads_pick(const struct light_table *t) { return t->num_entries > 1; }
+static inline int light_sample_reads_point(const struct light_table *t) { return !t->points_only; }
+
+/* light_sample's body for entry i (picked, pick_pdf > 0, out zeroed with out->entry = i)
+ * when it is an area light or the environment (light.c). */
+void light_sample_emitter_(const struct light_table *t, const struct scene *s, uint32_t i, vec3 ref, float u1,
+                           float u2, struct light_sample *out);
+
+/* Samples one light for shading point ref with three uniforms (see light_sample_reads_*).
+ * Inline for the point lights' short path (every NEE, surface and media); area lights and
+ * the environment out of line. */
+static inline void light_sample(const struct light_table *t, const struct scene *s, vec3 ref, float u_pick, float u1,
+                                float u2, struct light_sample *out)
 {
     *out = (struct light_sample){.entry = 0};
+    uint32_t i = light_pick(t, u_pick);
     float pick_pdf = t->pick_pdf[i];
     if (pick_pdf <= 0.0f)
         return;
     out->entry = i;
     const struct light_entry *e = &t->entries[i];
+    if (e->kind != LK_POINT) {
+        light_sample_emitter_(t, s, i, ref, u1, u2, out);
+        return;
+    }
     const struct light *l = &s->lights[e->index];
     vec3 d = v3_sub(l->position, ref);
     float d2 = v3_dot(d, d);
     if (!(d2 > 0.0f))
         return;
     out->p = l->position;
+    out->wi = v3_scale(d, 1.0f / sqrtf(d2)); /* d2 is v3_length's dot: the same bits */
     out->radiance = v3_scale(e->emission, (l->type == LIGHT_SPOT ? light_spot_falloff(l, v3_neg(d)) : 1.0f) / d2);
     out->pdf = pick_pdf;
     out->is_delta = 1;
 }
-
-/* Samples one light for shading point ref with three uniforms. u_pick is not read when
- * the table has one entry, u1 and u2 not when points_only (callers may skip drawing them). */
-void light_sample(const struct light_table *t, const struct scene *s, vec3 ref, float u_pick, float u1,
-                  float u2, struct light_sample *out);
 
 /* A point on the emissive triangle `entry` (LK_TRIANGLE) from two uniforms, uniform by
  * area (density pick_pdf / area with the pick), and its normal: the point light_sample
@@ -111,9 +135,5 @@ float light_pdf(const struct light_table *t, const struct scene *s, uint32_t ent
  * the solid-angle pdf, pick included, with which light_sample would have produced it. */
 vec3 light_env_radiance(const struct light_table *t, const struct scene *s, vec3 d);
 float light_env_pdf(const struct light_table *t, const struct scene *s, vec3 d);
-
-/* The entry whose CDF interval holds u in [0, 1) (never one of probability zero), for
- * callers that pick a light themselves (the media integrator, the photon pass). */
-uint32_t light_pick(const struct light_table *t, float u);
 
 #endif

@@ -119,7 +119,7 @@ struct sampler sampler_start_type(enum sampler_type type, uint64_t seed, uint32_
     s.spp = spp ? spp : 1;
     setup_grid(s.spp, type, &s.perm_mask, &s.nx, &s.ny, &s.log2_spp);
     s.index = sample % s.spp;
-    s.sidx = stream_index(sample / s.spp, s.index, s.spp, SAMPLER_STREAMS);
+    s.sidx = type == SAMPLER_SOBOL ? stream_index(sample / s.spp, s.index, s.spp, SAMPLER_STREAMS) : s.index;
     uint64_t prefix = key_prefix(seed, frame, pixel);
     s.key = type == SAMPLER_SOBOL ? 0 : rng_mix64(prefix ^ sample);
     s.pixel_key = type == SAMPLER_INDEPENDENT ? 0 : pass_key(prefix, type, sample / s.spp, SAMPLER_STREAMS);

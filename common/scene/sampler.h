@@ -73,7 +73,7 @@ struct sampler_pixel {
 struct sampler {
     enum sampler_type type;
     uint32_t index;     /* sample index within the pixel's pass: index < spp */
-    uint32_t sidx;      /* sobol: index within the pass's stream (block * spp + index) */
+    uint32_t sidx;      /* sobol: index within the pass's stream (block * spp + index); others: index */
     uint32_t spp;
     uint32_t perm_mask;
     uint32_t nx, ny;
@@ -121,7 +121,8 @@ static inline struct sampler sampler_start_pixel(struct sampler_pixel *p, uint32
     s.log2_spp = p->log2_spp;
     uint32_t pass = s.log2_spp >= 0 ? sample >> s.log2_spp : sample / s.spp;
     s.index = sample - pass * s.spp;
-    s.sidx = stream_index(pass, s.index, s.spp, p->streams);
+    /* Only sobol reads sidx (its streams); the others keep the index there. */
+    s.sidx = s.type == SAMPLER_SOBOL ? stream_index(pass, s.index, s.spp, p->streams) : s.index;
     /* The Sobol sampler draws nothing per sample: its key would be wasted work. */
     s.key = s.type == SAMPLER_SOBOL ? 0 : rng_mix64(p->prefix ^ sample);
     s.pixel_key = 0;

@@ -268,7 +268,7 @@ static void all_rays_finite(const struct camera *c, uint32_t frame)
             camera_generate(c, &s, frame, i % 16, (i / 16) % 16, &cs);
             cr_assert(v3_is_finite(cs.o) && v3_is_finite(cs.d), "non-finite ray");
             cr_assert(fabsf(v3_length(cs.d) - 1.0f) < 1e-4f, "|d| = %g", v3_length(cs.d));
-            cr_assert(cs.time01 >= 0.0f && cs.time01 <= 1.0f && isfinite(cs.time));
+            cr_assert(cs.time01 >= 0.0f && cs.time01 <= 1.0f && isfinite(camera_shutter_time(c, frame, cs.time01)));
         }
 }
 
@@ -331,7 +331,7 @@ Test(shutter, still_scene_consumes_no_time_unless_objects_move)
     struct camera_sample cs;
     camera_generate(&c, &s, 3, 8, 8, &cs);
     cr_assert_eq(cs.time01, sampler_get(&s, DIM_TIME));
-    cr_assert_float_eq(cs.time, 3.0 + 0.5 * cs.time01, 1e-9);
+    cr_assert_float_eq(camera_shutter_time(&c, 3, cs.time01), 3.0 + 0.5 * cs.time01, 1e-9);
 }
 
 Test(shutter, trapezoid_warp)

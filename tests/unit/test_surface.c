@@ -122,6 +122,64 @@ Test(surface, dpdu_turns_with_rigid_motion)
     assert_along(hit_at(sp, 0.0f, 0.0f, 1.0f).dpdu, v3(0, 1, 0), "rotated sphere at +z, time 1");
 }
 
+/* A still mesh beside a moving sphere: its hits take the inline path (accel.still_tri, per
+ * geometry, not only when nothing in the scene moves) and give the general path's surface
+ * bit for bit; the sphere's keep the general path. */
+Test(surface, still_mesh_beside_a_moving_sphere)
+{
+    log_set_level(LOG_ERROR);
+    struct scene s;
+    load("{\"type\": \"obj\", \"file\": \"uv.obj\", \"material\": \"round\"},"
+         "{\"type\": \"sphere\", \"center\": [5, 0, 0], \"radius\": 1, \"material\": \"round\", \"keyframes\": ["
+         "{\"time\": 0}, {\"time\": 1, \"translate\": [0, 1, 0]}]}",
+         8, 1, &s);
+    struct render_job job;
+    char err[512];
+    cr_assert_eq(render_job_init(&job, &s, 0, 1, err, sizeof err), 0, "%s", err);
+    const struct accel *a = &job.accel;
+    cr_assert(a->has_motion && a->still_geoms == 0, "the sphere moves");
+    cr_assert(a->still_tri[0] == 1, "the quad is still");
+    cr_assert(a->still_tri[a->sphere_geom] == 0, "spheres take the general path");
+    struct accel_hit h;
+    vec3 o = v3(0.3f, 0.2f, 4), d = v3(0, 0, -1);
+    cr_assert(accel_intersect(a, o, d, INFINITY, 0.5f, &h) && h.geom == 0);
+    struct surface fast, slow;
+    memset(&fast, 0, sizeof fast);
+    memset(&slow, 0, sizeof slow);
+    surface_from_hit(a, &job.lights, o, d, &h, 0.5f, &fast);
+    surface_from_hit_slow_(a, &job.lights, o, d, &h, 0.5f, &slow);
+    cr_assert(memcmp(&fast, &slow, sizeof fast) == 0, "the inline surface is the general one");
+    render_job_fini(&job);
+    scene_fini(&s);
+}
+
+/* light_sample: a point light's sample reads neither the pick (one light) nor the point's
+ * uniforms (NaN there changes nothing), and a table without lights gives no sample. */
+Test(surface, light_sample_point_and_empty_table)
+{
+    log_set_level(LOG_ERROR);
+    struct scene s;
+    load("{\"type\": \"obj\", \"file\": \"uv.obj\", \"material\": \"round\"}", 8, 1, &s);
+    struct light_table t;
+    light_table_init(&t, &s);
+    cr_assert(t.num_entries == 1 && t.points_only && !light_sample_reads_pick(&t) && !light_sample_reads_point(&t));
+    struct light_sample ls;
+    light_sample(&t, &s, v3(0, 0, 2), NAN, NAN, NAN, &ls);
+    cr_assert(ls.pdf == 1.0f && ls.is_delta && ls.entry == 0);
+    cr_assert(ls.p.x == 0.0f && ls.p.y == 0.0f && ls.p.z == 4.0f);
+    cr_assert(ls.radiance.x == 5.0f && ls.radiance.y == 5.0f && ls.radiance.z == 5.0f, "I / d^2 = 20 / 4");
+    light_table_fini(&t);
+    s.num_lights = 0; /* the quad alone: nothing emits */
+    light_table_init(&t, &s);
+    cr_assert(t.num_entries == 0);
+    ls.pdf = 1.0f;
+    light_sample(&t, &s, v3(0, 0, 2), 0.5f, 0.5f, 0.5f, &ls);
+    cr_assert(ls.pdf == 0.0f, "no lights, no sample");
+    light_table_fini(&t);
+    s.num_lights = 1;
+    scene_fini(&s);
+}
+
 Test(surface, frame_gram_schmidt_against_the_shading_normal)
 {
     vec3 x, y;
