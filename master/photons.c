@@ -93,20 +93,24 @@ int master_passes_fit(struct render_settings *rs, uint32_t passes)
     return 0;
 }
 
-/* Budget before work: a pilot map of PHOTON_PILOT photons, traced as pass 0's would be,
- * measures the bytes and seconds per emitted photon; the maps of a frame (the master
- * holds them all, for late workers and re-issues) must fit in budget_bytes. A photon
- * count that would take hours and all memory is refused at once, naming the setting. */
+/* The pilot: a map of at most PHOTON_PILOT photons, traced as pass 0's would be, measures
+ * per emitted photon the bytes, the seconds and the photons stored in the volume map. Its
+ * counts are a pure function of the scene, seed and frame (photon i's random numbers are
+ * keyed by i), so the plan that reads them is too. */
 #define PHOTON_PILOT 4096u
-static int photon_budget(struct scene *scene, uint32_t frame, uint32_t passes, double budget_bytes, uint32_t threads)
+struct photon_pilot {
+    uint32_t traced;
+    double bytes, seconds, stored; /* per emitted photon; stored: in the volume map */
+};
+
+static int photon_pilot(struct scene *scene, uint32_t frame, uint32_t threads, struct photon_pilot *out)
 {
     struct scene_media *sm = scene->media;
     uint64_t photons = sm->photons;
-    if (photons <= PHOTON_PILOT)
-        return 0;
     char err[512];
     struct render_job job;
-    sm->photons = PHOTON_PILOT;
+    out->traced = photons < PHOTON_PILOT ? (uint32_t)photons : PHOTON_PILOT;
+    sm->photons = out->traced;
     uint8_t *data = NULL;
     size_t size = 0;
     struct photon_pass_stats st;
@@ -121,16 +125,30 @@ static int photon_budget(struct scene *scene, uint32_t frame, uint32_t passes, d
         log_error("photon pass: %s", err);
         return -1;
     }
-    double scale = (double)photons / PHOTON_PILOT, bytes = (double)size * scale * passes;
-    double secs = st.seconds * scale * passes;
+    out->bytes = (double)size / out->traced;
+    out->seconds = st.seconds / out->traced;
+    out->stored = (double)(st.stored - st.stored_surface) / out->traced;
+    return 0;
+}
+
+/* Budget before work: the maps of a frame (the master holds them all, for late workers and
+ * re-issues), estimated from the pilot, must fit in budget_bytes. A photon count that
+ * would take hours and all memory is refused at once, naming the setting. */
+static int photon_budget(const struct scene *scene, const struct photon_pilot *pilot, uint32_t passes,
+                         double budget_bytes, uint32_t threads)
+{
+    uint64_t photons = scene->media->photons;
+    if (photons <= PHOTON_PILOT)
+        return 0;
+    double bytes = pilot->bytes * (double)photons * passes, secs = pilot->seconds * (double)photons * passes;
     log_info("media: photon budget: %u map(s) of %llu photons: about %.3g GB and %.3g s of tracing on %u thread(s) "
              "(from a pilot of %u photons; budget %.3g GB)", passes, (unsigned long long)photons, bytes / 1e9, secs,
-             threads, PHOTON_PILOT, budget_bytes / 1e9);
+             threads, pilot->traced, budget_bytes / 1e9);
     if (bytes > budget_bytes) {
         log_error("volume.photons %llu x %u pass(es): the photon maps would take about %.3g GB (%.1f bytes per emitted "
                   "photon, from a pilot of %u), more than the budget of %.3g GB (half this machine's memory, or "
                   "--photon-memory GB); lower --photons / volume.photons or the passes",
-                  (unsigned long long)photons, passes, bytes / 1e9, (double)size / PHOTON_PILOT, PHOTON_PILOT,
+                  (unsigned long long)photons, passes, bytes / 1e9, pilot->bytes, pilot->traced,
                   budget_bytes / 1e9);
         return -1;
     }
@@ -196,13 +214,19 @@ int master_media_prepare(struct scene *scene, const struct master_opts *o, uint3
              * traced while tiles render (photon_tracer_new). */
             struct render_settings *rs = &scene->settings;
             struct pass_plan plan;
-            int plan_rc = passes_plan(rs->spp, asked, sm->photons, o->have_photons,
+            struct photon_pilot pilot;
+            uint32_t pilot_threads = o->photon_threads ? o->photon_threads : 1;
+            if (photon_pilot(scene, frame, pilot_threads, &pilot) != 0)
+                return -1;
+            int plan_rc = passes_plan(rs->spp, asked, sm->photons, o->have_photons, pilot.stored,
                                       (uint64_t)rs->width * rs->height, &plan);
             uint32_t k = plan.spp_per_pass;
             passes = plan.passes;
             if (plan.photons != sm->photons)
-                log_info("passes: %llu photons per pass (of %llu: at most %u per pixel with the default passes)",
-                         (unsigned long long)plan.photons, (unsigned long long)sm->photons, PASS_PHOTONS_PER_PIXEL);
+                log_info("passes: %llu photons per pass (of %llu: with the default passes at most %u emitted and %u "
+                         "stored in the volume map per pixel, %.3g stored per emitted in a pilot of %u)",
+                         (unsigned long long)plan.photons, (unsigned long long)sm->photons, PASS_PHOTONS_PER_PIXEL,
+                         PASS_STORED_PER_PIXEL, pilot.stored, pilot.traced);
             sm->photons = plan.photons;
             if (plan_rc != 0) {
                 log_error("passes: %u passes of %u spp exceed the %u spp limit (lower --spp or --passes / "
@@ -213,9 +237,9 @@ int master_media_prepare(struct scene *scene, const struct master_opts *o, uint3
                 log_info("passes: spp %u raised to %u (%u passes of ceil(%u / %u) = %u spp)", rs->spp, k * passes,
                          passes, rs->spp, passes, k);
             rs->spp = plan.spp;
-            if (photon_budget(scene, frame, passes, o->photon_memory_gb > 0.0 ? o->photon_memory_gb * 1e9
-                                                                              : default_photon_memory(),
-                              o->photon_threads ? o->photon_threads : 1) != 0)
+            if (photon_budget(scene, &pilot, passes, o->photon_memory_gb > 0.0 ? o->photon_memory_gb * 1e9
+                                                                                : default_photon_memory(),
+                              pilot_threads) != 0)
                 return -1;
             log_info("passes: %u of %u spp (%u spp), pass p with photon map p; radius %g to %g (surface %g to %g), "
                      "multiple-scattering bound %.3g", passes, k, rs->spp, (double)r0,

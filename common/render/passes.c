@@ -13,17 +13,24 @@ int passes_volume_kernel_dim(enum media_method method)
     return method == MEDIA_MARCH_BEAMS ? 1 : method == MEDIA_MARCH_BEAM ? 2 : 3;
 }
 
-int passes_plan(uint32_t spp, uint32_t asked, uint64_t photons, int photons_given, uint64_t pixels,
-                struct pass_plan *out)
+int passes_plan(uint32_t spp, uint32_t asked, uint64_t photons, int photons_given, double stored_per_photon,
+                uint64_t pixels, struct pass_plan *out)
 {
     if (spp == 0)
         spp = 1;
     uint32_t p = asked, k;
     if (p == 0) {
-        /* A pass's cost grows with its photons twice: tracing them, and every beam query,
-         * which walks the M r^2 photons near its ray. Past a few photons per pixel, more
-         * passes buy more (each also shrinks the radius) than denser maps. */
-        uint64_t cap = (uint64_t)PASS_PHOTONS_PER_PIXEL * (pixels ? pixels : 1);
+        /* A pass's cost grows with its photons twice: tracing them, which goes with the
+         * photons emitted, and the map (its bytes, its rows) and every beam query, which
+         * walks the M r^2 photons near its ray: they go with the photons stored. Past a few
+         * photons per pixel, more passes buy more (each also shrinks the radius, and brings
+         * its own camera samples) than denser maps. */
+        uint64_t px = pixels ? pixels : 1, cap = (uint64_t)PASS_PHOTONS_PER_PIXEL * px;
+        if (stored_per_photon > 0.0) {
+            double stored_cap = (double)PASS_STORED_PER_PIXEL * (double)px / stored_per_photon;
+            if (stored_cap < (double)cap)
+                cap = stored_cap < 1.0 ? 1 : (uint64_t)stored_cap;
+        }
         if (!photons_given && photons > cap)
             photons = cap;
         uint64_t most = photons ? PASS_MAX_PHOTONS / photons : SCENE_MAX_PASSES;
