@@ -39,7 +39,16 @@ static inline float v3_max_component(vec3 a)
 static inline float v3_max_abs(vec3 a) { return f_max(fabsf(a.x), f_max(fabsf(a.y), fabsf(a.z))); }
 /* v3_max_abs(a) >= t without the maximum (f_max skips a NaN component; so does >=). */
 static inline int v3_max_abs_ge(vec3 a, float t) { return fabsf(a.x) >= t || fabsf(a.y) >= t || fabsf(a.z) >= t; }
-static inline int v3_is_finite(vec3 a) { return isfinite(a.x) && isfinite(a.y) && isfinite(a.z); }
+/* isfinite of each component: an exponent below all ones. */
+static inline int v3_is_finite(vec3 a)
+{
+    uint32_t x, y, z;
+    memcpy(&x, &a.x, sizeof x);
+    memcpy(&y, &a.y, sizeof y);
+    memcpy(&z, &a.z, sizeof z);
+    const uint32_t e = 0x7f800000u;
+    return (x & e) != e && (y & e) != e && (z & e) != e;
+}
 /* Every component == 0 (either sign; NaN is not black): the bits of all three, sign left
  * out, are zero. One test rather than three float compares, each with its NaN case. */
 static inline int v3_is_black(vec3 a)

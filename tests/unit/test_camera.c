@@ -123,6 +123,11 @@ Test(thin_lens, aperture_zero_is_pinhole_bit_for_bit)
             camera_ray(&c, (float)px + sampler_get(&s, DIM_PIXEL_X), (float)py + sampler_get(&s, DIM_PIXEL_Y), &o, &dir);
             cr_assert(same_bits(cs.o, o) && same_bits(cs.d, dir));
             cr_assert_eq(cs.time01, 0.0f);
+            /* The inline pinhole is the general path's. */
+            struct camera_sample cg;
+            camera_generate_general_(&c, &s, 0, px, py, &cg);
+            cr_assert(same_bits(cs.o, cg.o) && same_bits(cs.d, cg.d) && cs.jx == cg.jx && cs.jy == cg.jy &&
+                      cs.time01 == cg.time01);
         }
 }
 
