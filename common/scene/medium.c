@@ -123,7 +123,10 @@ static float tr1(float sigma_t, float d)
 
 vec3 medium_transmittance(const struct medium *m, float d)
 {
-    return v3(tr1(m->sigma_t.x, d), tr1(m->sigma_t.y, d), tr1(m->sigma_t.z, d));
+    float tx = tr1(m->sigma_t.x, d);
+    if (m->sigma_t.y == m->sigma_t.x && m->sigma_t.z == m->sigma_t.x)
+        return v3(tx, tx, tx); /* grey: the same value, one exponential */
+    return v3(tx, tr1(m->sigma_t.y, d), tr1(m->sigma_t.z, d));
 }
 
 static float emit1(float sigma_t, float e, float d)

@@ -109,6 +109,14 @@ Test(medium, transmittance_closed_form)
         cr_assert_eq(t.z, 1.0f);
         vec3 inf = medium_transmittance(&m, INFINITY);
         cr_assert(inf.x == 0.0f && inf.z == 1.0f);
+        /* grey (one exponential for the three channels): the same bits per channel; and a
+         * medium grey in two channels only takes each its own */
+        m.sigma_t = v3(sig[i], sig[i], sig[i]);
+        t = medium_transmittance(&m, 0.75f);
+        cr_assert(t.x == expf(-sig[i] * 0.75f) && t.y == t.x && t.z == t.x);
+        m.sigma_t = v3(sig[i], sig[i], 3 * sig[i]);
+        t = medium_transmittance(&m, 0.75f);
+        cr_assert(t.x == expf(-sig[i] * 0.75f) && t.y == t.x && t.z == expf(-3 * sig[i] * 0.75f));
     }
 }
 
