@@ -41,7 +41,7 @@ struct trace_ctx {
     float aim_radius;
 };
 
-#define AIM_SHARE 0.75f     /* photons of a point light sent into the cone toward the media */
+#define AIM_SHARE 0.25f     /* photons of a point light sent into the cone toward the media */
 /* Sky photons aimed at the media's bounding sphere. The rest cross the whole scene: they
  * carry the light that reaches the media after a surface bounce (and the surface map's),
  * each with power 1 / (1 - share) of an unaimed one. On a scattering sphere over a floor
