@@ -9,6 +9,7 @@
 #define BRUME_PHOTON_TRACE_H
 #include <stddef.h>
 #include <stdint.h>
+#include "base/vec.h"
 
 struct render_job;
 struct scene;
@@ -27,6 +28,15 @@ struct photon_pass_stats {
  * (render_job_init of a scene with media). 0 or -1 with err. */
 int photon_trace_map(const struct render_job *job, uint64_t seed, uint32_t threads, uint8_t **blob, size_t *size,
                      struct photon_pass_stats *stats, char *err, size_t errlen);
+/* One photon as it leaves a light (photon_trace_emit). */
+struct photon_emitted {
+    vec3 o, d, power;
+};
+/* Emits photons first .. first + n - 1 of the pass keyed by seed without tracing them,
+ * each with the power of one of n photons (zero where none is emitted): the sum of the
+ * powers over any set of directions estimates the lights' power into it. For tests of the
+ * emission densities (the mixtures' pdfs). */
+void photon_trace_emit(const struct render_job *job, uint64_t seed, uint64_t first, uint32_t n, struct photon_emitted *out);
 /* How far a camera ray that leaves the scene's bounds in homogeneous medium md is
  * marched (march, beam) past them, and so how far past them photons are kept: the
  * distance where the transmittance of every channel that scatters or absorbs falls to

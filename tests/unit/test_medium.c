@@ -704,6 +704,103 @@ Test(medium, photon_map_same_bytes_any_threads)
     scene_fini(&s);
 }
 
+/* ---- photon emission densities ---- */
+
+/* A medium sphere of radius 1 at the origin and one light outside it, far enough that its
+ * photons aim at the media's bounding sphere (media_bounds: the box [-1, 1]^3, radius
+ * sqrt 3). */
+#define EMIT_SCENE(light)                                                                                  \
+    HEAD("\"position\": [0, 0, -4], \"look_at\": [0, 0, 0]", 8, 8, 1, 8)                                      \
+    ",\n\"materials\": {\"black\": {\"type\": \"diffuse\", \"albedo\": [0, 0, 0]}},\n"                        \
+    "\"media\": {\"m\": {\"sigma_a\": [0.3, 0.3, 0.3], \"sigma_s\": [2.7, 2.7, 2.7], \"g\": 0.2}},\n"          \
+    "\"volume\": {\"method\": \"beam\", \"photons\": 1000, \"radius\": 0.06, \"step\": 0.03},\n"              \
+    "\"objects\": [{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1, \"medium\": \"m\"}],\n"       \
+    "\"lights\": [" light "]}"
+
+/* Bands of cos(angle to the axis from the light to the media), each split in two halves
+ * by a plane through the axis: the aim cone's edge (cos 0.968 here) falls inside a band. */
+#define EMIT_BANDS 9
+static const double emit_band[EMIT_BANDS + 1] = {-1.0, -0.5, 0.0, 0.5, 0.9, 0.95, 0.965, 0.975, 0.99, 1.0};
+
+static int emit_bin(vec3 d, vec3 axis, vec3 t)
+{
+    double z = v3_dot(d, axis);
+    int k = 0;
+    while (k < EMIT_BANDS - 1 && z >= emit_band[k + 1])
+        k++;
+    return 2 * k + (v3_dot(d, t) >= 0.0f);
+}
+
+/* The photons' power in each bin against the light's power there (the intensity times the
+ * spot falloff integrated over the bin, midpoint rule on an equal-area grid): every bin
+ * within 5 standard errors, their chi-square within its mean + 6 sd, and the total (the
+ * energy) within 4 standard errors. Fails if either part of the mixture's pdf (the light's
+ * own emission, the cone toward the media) is misstated. */
+static void check_emission(const char *scene_text)
+{
+    struct scene s;
+    load_ok(scene_text, &s);
+    struct render_job job;
+    job_ok(&job, &s);
+    const struct light *l = &s.lights[0];
+    vec3 axis = v3_normalize(v3_neg(l->position)), t, b;
+    v3_basis(axis, &t, &b);
+    enum { N = 400000, NB = 2 * EMIT_BANDS };
+    struct photon_emitted *pe = malloc(sizeof *pe * N);
+    photon_trace_emit(&job, 7, 0, N, pe);
+    double sum[NB] = {0}, sum2[NB] = {0}, expect[NB] = {0}, tot = 0.0, tot2 = 0.0;
+    for (int i = 0; i < N; i++) {
+        double w = pe[i].power.x;
+        cr_assert(isfinite(w) && w >= 0.0, "photon %d power %g", i, w);
+        if (w == 0.0)
+            continue;
+        int k = emit_bin(pe[i].d, axis, t);
+        sum[k] += w, sum2[k] += w * w * N;
+        tot += w, tot2 += w * w * N;
+    }
+    free(pe);
+    /* The light's power per bin: I x falloff over an equal-area (z, phi) grid. */
+    const int NZ = 4000, NP = 256;
+    for (int iz = 0; iz < NZ; iz++)
+        for (int ip = 0; ip < NP; ip++) {
+            double z = -1.0 + 2.0 * (iz + 0.5) / NZ, phi = 2.0 * M_PI * (ip + 0.5) / NP, r = sqrt(1.0 - z * z);
+            vec3 d = v3_add(v3_scale(axis, (float)z), v3_add(v3_scale(t, (float)(r * cos(phi))), v3_scale(b, (float)(r * sin(phi)))));
+            expect[emit_bin(d, axis, t)] += l->intensity.x * light_spot_falloff(l, d) * 4.0 * M_PI / ((double)NZ * NP);
+        }
+    double chi2 = 0.0, etot = 0.0;
+    int bins = 0;
+    for (int k = 0; k < NB; k++) {
+        etot += expect[k];
+        double mean = sum[k], var = (sum2[k] - mean * mean) / N;
+        if (expect[k] == 0.0) {
+            cr_assert_eq(sum[k], 0.0, "bin %d: power %g where the light sends none", k, sum[k]);
+            continue;
+        }
+        double z = (mean - expect[k]) / sqrt(var > 0.0 ? var : 1e-300);
+        cr_assert(fabs(z) < 5.0, "bin %d: power %g, light's %g (%.1f standard errors)", k, mean, expect[k], z);
+        chi2 += z * z;
+        bins++;
+    }
+    cr_assert(chi2 < bins + 6.0 * sqrt(2.0 * bins), "chi2 %g over %d bins", chi2, bins);
+    double se = sqrt((tot2 - tot * tot) / N);
+    cr_assert(fabs(tot - etot) < 4.0 * se, "power %g, light's %g (se %g)", tot, etot, se);
+    render_job_fini(&job);
+    scene_fini(&s);
+}
+
+Test(medium, emission_density_point_light, .timeout = 60)
+{
+    check_emission(EMIT_SCENE("{\"type\": \"point\", \"position\": [4, 4, -4], \"intensity\": [5, 5, 5]}"));
+}
+
+/* A spot whose cone covers part of the media's cone: aimed photons outside the spot's cone
+ * carry nothing, the spot's own photons inside the media's cone share the aimed ones' pdf. */
+Test(medium, emission_density_spot_light, .timeout = 60)
+{
+    check_emission(EMIT_SCENE("{\"type\": \"spot\", \"position\": [4, 4, -4], \"look_at\": [1.5, 0, 0], "
+                              "\"intensity\": [5, 5, 5], \"angle\": 20, \"falloff\": 5}"));
+}
+
 /* The volume blob carries the master's settings and map; a worker refuses a damaged one. */
 Test(medium, volume_blob_roundtrip)
 {
