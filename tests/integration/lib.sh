@@ -9,6 +9,8 @@
 #   run CMD...      CMD with a timeout (TMO, default 120 s), output in $T/log.
 #   counter NAME OUT    a master counter, from OUT.stats.json (OUT as given to -o);
 #                   empty when the file or the counter is missing.
+#   free_port       a TCP port on 127.0.0.1 that nothing listens on now (the kernel's pick
+#                   for a bind to port 0), so scripts running side by side do not collide.
 #   finish          the closing line "integration: N passed, N failed"; fails if any did.
 set -u
 BUILD=${BUILD:-build}
@@ -26,6 +28,7 @@ bad() {
   for f in $BAD_LOGS; do [ -s "$T/$f" ] && { echo "  $f:"; sed 's/^/    /' "$T/$f" | tail -"$BAD_TAIL"; }; done
   return 0
 }
+free_port() { python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])'; }
 run() { timeout "${TMO:-120}" "$@" >"$T/log" 2>&1; }
 counter() {
   python3 -c 'import json, sys

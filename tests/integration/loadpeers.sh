@@ -14,7 +14,7 @@
 . "$(dirname "$0")/lib.sh"
 lib_init load
 L=$BUILD/loadpeers
-port() { echo $((20000 + ($$ + 7) % 20000)); }
+port() { free_port; }
 
 # The pixels the fake workers send: a real render of the Cornell box at 1 spp, 32 px tiles.
 run $M scenes/cornell/cornell.json -o "$T/ref.exr" --workers 1 --spp 1 --tile 32 || bad "reference render"

@@ -83,7 +83,7 @@ if [ $r = 0 ] && grep -q "photon pass skipped: multiple scattering is bounded by
   ok "photon pass skipped below the bound, bound logged"; else bad "photon pass skipped below the bound, bound logged"; fi
 
 # A worker joining over tcp after the start also fetches the volume blob and renders the same pixels.
-P=$((21000 + ($$ % 20000)))
+P=$(free_port) P1=$(free_port) P2=$(free_port) P3=$(free_port) P4=$(free_port)
 timeout 120 $M $S -o "$T/late.exr" $A --workers 1 --threads 1 --bind "tcp://127.0.0.1:$P" --insecure >"$T/log" 2>&1 &
 mpid=$!
 sleep 1
@@ -127,11 +127,11 @@ echo "media: passes, master killed with journal (units of pass 0, last pass) $jk
 if [ $r = 0 ] && [ "${jk#* }" = 2 ] && [ "${fj:-0}" -gt 0 ] && $X cmp "$T/pp1.exr" "$T/ppk.exr"; then
   ok "4 passes: master kill -9 during pass 2 + restart: identical pixels"
 else bad "4 passes: master kill -9 during pass 2 + restart: identical pixels (journal $jk, from journal ${fj:-0})"; fi
-timeout 120 $M $S -o "$T/pplate.exr" $PA --workers 1 --threads 1 --tile 16 --bind "tcp://127.0.0.1:$((P + 1))" --insecure >"$T/log" 2>&1 &
+timeout 120 $M $S -o "$T/pplate.exr" $PA --workers 1 --threads 1 --tile 16 --bind "tcp://127.0.0.1:$P1" --insecure >"$T/log" 2>&1 &
 mpid=$!
 i=0
 while [ $i -lt 600 ] && [ "$(jpass "$T/pplate.exr.journal" 80 | cut -d' ' -f1)" -lt 80 ]; do sleep 0.05; i=$((i + 1)); done
-timeout 120 $W --connect "tcp://127.0.0.1:$((P + 1))" --threads 1 >"$T/wlog" 2>&1
+timeout 120 $W --connect "tcp://127.0.0.1:$P1" --threads 1 >"$T/wlog" 2>&1
 wait $mpid && r=0 || r=1
 late=$(python3 -c 'import json, sys
 s = json.load(open(sys.argv[1]))
@@ -175,9 +175,9 @@ mmstats() {
   s=$(sed -n 's/.*photon maps: \([0-9]*\) decoded, at most \([0-9]*\) held at once .*; \([0-9]*\) evicted, \([0-9]*\) bytes fetched again/\1 \2 \3 \4/p' "$1")
   echo "${s:-0 0 0 0}"
 }
-mapmem mm2 $((P + 2)) 1 2 --map-memory 8
-mapmem mm1 $((P + 3)) 1 2 --map-memory 1 --fault slow-load:1000
-mapmem mm3 $((P + 4)) 3 1 --map-memory 8
+mapmem mm2 $P2 1 2 --map-memory 8
+mapmem mm1 $P3 1 2 --map-memory 1 --fault slow-load:1000
+mapmem mm3 $P4 3 1 --map-memory 8
 echo "media: --map-memory, decoded / most held / evicted / bytes fetched again: 2 maps $(mmstats "$T/mm2.w1"), 1 map $(mmstats "$T/mm1.w1")"
 set -- $(mmstats "$T/mm2.w1")
 if [ $r = 0 ] && [ "$2" -ge 1 ] && [ "$2" -le 2 ] && [ "$3" -gt 0 ] && grep -q "photon map of pass .* evicted" "$T/mm2.w1" &&

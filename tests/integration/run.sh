@@ -4,7 +4,7 @@
 # Usage: BUILD=build sh tests/integration/run.sh
 . "$(dirname "$0")/lib.sh"
 lib_init it
-port() { echo $((20000 + ($$ % 20000))); }
+port() { free_port; }
 
 # --- help and command-line errors ---
 if run $M --help && grep -q "usage: master" "$T/log"; then ok "master --help"; else bad "master --help"; fi
@@ -95,7 +95,7 @@ wait $bg && r=0 || r=1
 if [ -n "$victim" ] && [ $r = 0 ] && $X cmp "$T/c1.exr" "$T/k.exr"; then ok "killed worker: tiles re-queued, identical pixels"; else bad "killed worker: tiles re-queued, identical pixels"; fi
 
 # --- a hostile peer: garbage, wrong versions, results for tiles it never got: dropped, image unchanged ---
-P=$((P + 1))
+P=$(port)
 run $M scenes/cornell/cornell.json -o "$T/j0.exr" --workers 2 --threads 1 --spp 12 && r0=0 || r0=1
 timeout 60 $M scenes/cornell/cornell.json -o "$T/j.exr" --workers 1 --spp 12 --bind "tcp://127.0.0.1:$P" --insecure >"$T/log" 2>&1 &
 mpid=$!

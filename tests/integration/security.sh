@@ -10,7 +10,7 @@
 # Ends with "integration: N passed, N failed". Usage: BUILD=build sh tests/integration/security.sh
 . "$(dirname "$0")/lib.sh"
 lib_init sec
-P=$((21000 + ($$ % 20000)))
+P=$(free_port) P1=$(free_port) P2=$(free_port) P3=$(free_port) P4=$(free_port) P5=$(free_port) P6=$(free_port)
 
 if $M --keygen "$T/master.key" >/dev/null && $M --keygen "$T/good.key" >/dev/null && $M --keygen "$T/stranger.key" >/dev/null &&
   [ "$(stat -c %a "$T/good.key")" = 600 ] && [ "$(wc -c <"$T/good.key.pub")" = 41 ]; then
@@ -43,7 +43,7 @@ if [ $r = 0 ] && [ "$(counter workers_joined "$T/s.exr")" = 1 ] && [ $rej = 0 ] 
   ok "CurveZMQ: strangers get 0 messages in, listed worker renders identical pixels"
 else bad "CurveZMQ: strangers get 0 messages in, listed worker renders identical pixels"; fi
 
-timeout 60 $M scenes/tiny/tiny.json -o "$T/l.exr" --workers 2 --bind "tcp://127.0.0.1:$((P + 1))" \
+timeout 60 $M scenes/tiny/tiny.json -o "$T/l.exr" --workers 2 --bind "tcp://127.0.0.1:$P1" \
   --curve-secret "$T/master.key" --allow "$T/allow" >"$T/log" 2>&1 && r=0 || r=1
 if [ $r = 0 ] && [ "$(counter auth_rejects "$T/l.exr")" = 0 ] && $X cmp "$T/ref.exr" "$T/l.exr"; then
   ok "CurveZMQ: local workers get their own key"; else bad "CurveZMQ: local workers get their own key"; fi
@@ -51,10 +51,10 @@ if [ $r = 0 ] && [ "$(counter auth_rejects "$T/l.exr")" = 0 ] && $X cmp "$T/ref.
 # --- a loopback bind without keys: CurveZMQ all the same; a stranger gets nothing in ---
 SLOW="--spp 8192 --threads 1"
 timeout 60 $M scenes/tiny/tiny.json -o "$T/sref.exr" --workers 1 $SLOW >"$T/log" 2>&1 || bad "reference render (slow)"
-timeout 60 $M scenes/tiny/tiny.json -o "$T/d.exr" --workers 1 $SLOW --bind "tcp://127.0.0.1:$((P + 2))" >"$T/log" 2>&1 &
+timeout 60 $M scenes/tiny/tiny.json -o "$T/d.exr" --workers 1 $SLOW --bind "tcp://127.0.0.1:$P2" >"$T/log" 2>&1 &
 mpid=$!
 sleep 0.3
-timeout 20 $BUILD/junkpeer "tcp://127.0.0.1:$((P + 2))" rogue >"$T/jp" 2>&1
+timeout 20 $BUILD/junkpeer "tcp://127.0.0.1:$P2" rogue >"$T/jp" 2>&1
 wait $mpid && r=0 || r=1
 echo "security: stranger on a default loopback bind: $(cat "$T/jp"), handshake failures $(counter handshake_failures "$T/d.exr")"
 if [ $r = 0 ] && grep -q "junkpeer: job no, blob bytes 0" "$T/jp" && grep -q "CurveZMQ on at" "$T/log" &&
@@ -63,8 +63,8 @@ if [ $r = 0 ] && grep -q "junkpeer: job no, blob bytes 0" "$T/jp" && grep -q "Cu
   ok "loopback bind without keys: CurveZMQ on, a stranger gets no JOB, no blob, no tile in"
 else cat "$T/jp" >>"$T/log"; bad "loopback bind without keys: CurveZMQ on, a stranger gets no JOB, no blob, no tile in"; fi
 # ... and with --workers 0 nobody could join: refused; --insecure is the way out, with a warning
-if ! timeout 10 $M scenes/tiny/tiny.json -o "$T/x.exr" --workers 0 --bind "tcp://127.0.0.1:$((P + 3))" >"$T/log" 2>&1 &&
-  grep -q -- "--curve-secret" "$T/log" && timeout 30 $M scenes/tiny/tiny.json -o "$T/i.exr" --bind "tcp://127.0.0.1:$((P + 3))" \
+if ! timeout 10 $M scenes/tiny/tiny.json -o "$T/x.exr" --workers 0 --bind "tcp://127.0.0.1:$P3" >"$T/log" 2>&1 &&
+  grep -q -- "--curve-secret" "$T/log" && timeout 30 $M scenes/tiny/tiny.json -o "$T/i.exr" --bind "tcp://127.0.0.1:$P3" \
   --insecure >"$T/log" 2>&1 && grep -q "warning: --insecure" "$T/log" && $X cmp "$T/ref.exr" "$T/i.exr" >/dev/null; then
   ok "loopback bind, --workers 0, no keys: refused; --insecure renders with a warning"
 else bad "loopback bind, --workers 0, no keys: refused; --insecure renders with a warning"; fi
@@ -73,11 +73,11 @@ else bad "loopback bind, --workers 0, no keys: refused; --insecure renders with 
 # (pixels 7.0) are dropped; the image is the clean render's ---
 KEYS="--curve-secret $T/master.key --allow $T/allow2"
 WKEY="--curve-secret $T/good.key --server-key $T/master.key.pub"
-timeout 60 $M scenes/tiny/tiny.json -o "$T/k.exr" --workers 0 --bind "tcp://127.0.0.1:$((P + 4))" $KEYS >"$T/log" 2>&1 &
+timeout 60 $M scenes/tiny/tiny.json -o "$T/k.exr" --workers 0 --bind "tcp://127.0.0.1:$P4" $KEYS >"$T/log" 2>&1 &
 mpid=$!
 sleep 0.3
-timeout 20 $BUILD/junkpeer --key "$T/rogue.key" "$T/master.key.pub" "tcp://127.0.0.1:$((P + 4))" rogue >"$T/jp" 2>&1
-timeout 60 $W --connect "tcp://127.0.0.1:$((P + 4))" $WKEY >/dev/null 2>&1
+timeout 20 $BUILD/junkpeer --key "$T/rogue.key" "$T/master.key.pub" "tcp://127.0.0.1:$P4" rogue >"$T/jp" 2>&1
+timeout 60 $W --connect "tcp://127.0.0.1:$P4" $WKEY >/dev/null 2>&1
 wait $mpid && r=0 || r=1
 echo "security: authenticated rogue: $(cat "$T/jp"); kept untied $(counter kept_untied "$T/k.exr"), results stale $(counter results_stale "$T/k.exr")"
 # (junkpeer sends one KEPT and three RESULTs per unit: a (tile, pass) pair)
@@ -88,15 +88,15 @@ if [ $r = 0 ] && grep -q "junkpeer: job yes" "$T/jp" && [ "$(counter tiles_from_
 else cat "$T/jp" >>"$T/log"; bad "an allowed rogue's KEPT and RESULT for tiles it does not hold are dropped; image identical"; fi
 
 # --- impersonation: a HELLO with the real worker's host and pid does not evict it ---
-timeout 60 $M scenes/tiny/tiny.json -o "$T/m.exr" --workers 0 --bind "tcp://127.0.0.1:$((P + 5))" $KEYS $SLOW >"$T/log" 2>&1 &
+timeout 60 $M scenes/tiny/tiny.json -o "$T/m.exr" --workers 0 --bind "tcp://127.0.0.1:$P5" $KEYS $SLOW >"$T/log" 2>&1 &
 mpid=$!
-$W --connect "tcp://127.0.0.1:$((P + 5))" $WKEY --threads 1 --timeout-ms 20000 >/dev/null 2>&1 &
+$W --connect "tcp://127.0.0.1:$P5" $WKEY --threads 1 --timeout-ms 20000 >/dev/null 2>&1 &
 wpid=$!
 echo "$wpid" >>"$T/pids"
 i=0
 while ! grep -q "joined" "$T/log" && [ $i -lt 600 ]; do sleep 0.1; i=$((i + 1)); done
 who=$(sed -n 's/.*worker \(.*\) joined.*/\1/p' "$T/log" | head -1)
-timeout 20 $BUILD/junkpeer --key "$T/rogue.key" "$T/master.key.pub" "tcp://127.0.0.1:$((P + 5))" hello-as "${who%:*}" "${who##*:}" >/dev/null 2>&1
+timeout 20 $BUILD/junkpeer --key "$T/rogue.key" "$T/master.key.pub" "tcp://127.0.0.1:$P5" hello-as "${who%:*}" "${who##*:}" >/dev/null 2>&1
 wait $mpid && r=0 || r=1
 wait $wpid && wr=0 || wr=1
 if [ $r = 0 ] && [ $wr = 0 ] && [ -n "$who" ] && [ "${who##*:}" = "$wpid" ] && ! grep -q "reconnected" "$T/log" &&
@@ -106,13 +106,13 @@ else bad "a HELLO claiming the real worker's host:pid (${who:-?}) does not evict
 
 # --- a flood: 4,200 HELLOs from an allowed key and 500 connects without one; the real
 # worker still joins and the render finishes ---
-timeout 120 $M scenes/tiny/tiny.json -o "$T/f.exr" --workers 0 --bind "tcp://127.0.0.1:$((P + 6))" $KEYS >"$T/log" 2>&1 &
+timeout 120 $M scenes/tiny/tiny.json -o "$T/f.exr" --workers 0 --bind "tcp://127.0.0.1:$P6" $KEYS >"$T/log" 2>&1 &
 mpid=$!
 sleep 0.3
 t0=$(date +%s)
-timeout 100 $BUILD/junkpeer "tcp://127.0.0.1:$((P + 6))" flood 500 >/dev/null 2>&1 &
-timeout 100 $BUILD/junkpeer --key "$T/rogue.key" "$T/master.key.pub" "tcp://127.0.0.1:$((P + 6))" flood 4200 >"$T/jp" 2>&1
-timeout 60 $W --connect "tcp://127.0.0.1:$((P + 6))" $WKEY >/dev/null 2>&1 && wr=0 || wr=1
+timeout 100 $BUILD/junkpeer "tcp://127.0.0.1:$P6" flood 500 >/dev/null 2>&1 &
+timeout 100 $BUILD/junkpeer --key "$T/rogue.key" "$T/master.key.pub" "tcp://127.0.0.1:$P6" flood 4200 >"$T/jp" 2>&1
+timeout 60 $W --connect "tcp://127.0.0.1:$P6" $WKEY >/dev/null 2>&1 && wr=0 || wr=1
 wait $mpid && r=0 || r=1
 echo "security: flood: $(cat "$T/jp") in $(($(date +%s) - t0)) s; joined $(counter workers_joined "$T/f.exr"), refused $(counter hellos_refused "$T/f.exr")"
 if [ $r = 0 ] && [ $wr = 0 ] && [ "$(counter hellos_refused "$T/f.exr")" -ge 1 ] &&

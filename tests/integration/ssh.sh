@@ -57,8 +57,8 @@ why=""
 [ -x $SSHD ] || why="$SSHD not installed (apt-get install openssh-server)"
 command -v ssh-keygen >/dev/null 2>&1 || why="${why:-ssh-keygen not installed}"
 if [ -z "$why" ]; then
-  SP=$((24000 + ($$ % 8000)))
-  P=$((SP + 1))
+  SP=$(free_port)
+  P=$(free_port)
   ssh-keygen -q -t ed25519 -N '' -f "$T/host_key" && ssh-keygen -q -t ed25519 -N '' -f "$T/client_key" &&
     cp "$T/client_key.pub" "$T/authorized_keys"
   chmod 700 "$T"

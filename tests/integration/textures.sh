@@ -23,7 +23,7 @@ run $M $S -o "$T/a2.exr" --workers 2 --threads 2 --spp 2 --tile 64 && r=0 || r=1
 if [ $r = 0 ] && $X cmp "$T/a1.exr" "$T/a2.exr"; then ok "textured: 2 workers x 2 threads, tile 64 bit-identical"; else bad "textured: 2 workers x 2 threads, tile 64 bit-identical"; fi
 
 # --- a worker in another folder over tcp: textures reach it only as blobs ---
-P=$((21000 + ($$ % 20000)))
+P=$(free_port)
 timeout 60 $M $S -o "$T/r.exr" --spp 2 --workers 0 --bind "tcp://127.0.0.1:$P" --insecure >"$T/log" 2>&1 &
 mpid=$!
 sleep 0.3
