@@ -216,7 +216,11 @@ int master_media_prepare(struct scene *scene, const struct master_opts *o, uint3
             struct pass_plan plan;
             struct photon_pilot pilot;
             uint32_t pilot_threads = o->photon_threads ? o->photon_threads : 1;
-            if (photon_pilot(scene, frame, pilot_threads, &pilot) != 0)
+            /* The pilot (its stored-per-emitted ratio caps the photons) at a frame that does
+             * not depend on where a range starts: this frame's grid where each frame has its
+             * own (this runs again per frame), else frame 0, so that a frame renders the same
+             * photons in any range (frame farms split ranges). */
+            if (photon_pilot(scene, scene->frame_files ? frame : 0, pilot_threads, &pilot) != 0)
                 return -1;
             int plan_rc = passes_plan(rs->spp, asked, sm->photons, o->have_photons, pilot.stored,
                                       (uint64_t)rs->width * rs->height, &plan);

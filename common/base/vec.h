@@ -174,9 +174,9 @@ static inline struct dxform dxform_minus_origin(const struct dxform *t, const do
 /* p moved by delta units in the last place, away from zero. */
 static inline float float_bits_offset(float p, int delta)
 {
-    int32_t i;
+    uint32_t i; /* unsigned: the bits wrap (at -0.0 a negative step would overflow an int) */
     memcpy(&i, &p, sizeof i);
-    i += (p < 0.0f) ? -delta : delta;
+    i += (uint32_t)((p < 0.0f) ? -delta : delta);
     float r;
     memcpy(&r, &i, sizeof r);
     return r;

@@ -26,13 +26,11 @@ int passes_plan(uint32_t spp, uint32_t asked, uint64_t photons, int photons_give
          * photons per pixel, more passes buy more (each also shrinks the radius, and brings
          * its own camera samples) than denser maps. */
         uint64_t px = pixels ? pixels : 1, cap = (uint64_t)PASS_PHOTONS_PER_PIXEL * px;
-        if (stored_per_photon > 0.0) {
-            double stored_cap = (double)PASS_STORED_PER_PIXEL * (double)px / stored_per_photon;
-            if (stored_cap < (double)cap)
-                cap = stored_cap < 1.0 ? 1 : (uint64_t)stored_cap;
-        }
         if (!photons_given && photons > cap)
             photons = cap;
+        /* The count of passes comes from the emitted cap alone: the stored cap below
+         * depends on the pilot, hence on the frame's grid, and the frames of a range must
+         * plan the same passes. It only lowers the photons, so the total stays in bounds. */
         uint64_t most = photons ? PASS_MAX_PHOTONS / photons : SCENE_MAX_PASSES;
         if (most < 1)
             most = 1;
@@ -42,6 +40,11 @@ int passes_plan(uint32_t spp, uint32_t asked, uint64_t photons, int photons_give
         if ((spp + k - 1) / k > most)
             k = (uint32_t)((spp + most - 1) / most);
         p = (spp + k - 1) / k;
+        if (stored_per_photon > 0.0) {
+            double stored_cap = (double)PASS_STORED_PER_PIXEL * (double)px / stored_per_photon;
+            if (!photons_given && stored_cap < (double)photons)
+                photons = stored_cap < 1.0 ? 1 : (uint64_t)stored_cap;
+        }
     }
     if (p > SCENE_MAX_PASSES)
         p = SCENE_MAX_PASSES;

@@ -130,6 +130,24 @@ Test(passes, plan_caps_stored_photons)
     cr_assert_eq(pl.photons, 1u);
 }
 
+/* The frames of a range must plan the same passes, and each frame's pilot (its own grid)
+ * gives its own ratio: past the photons' total (spp x photons above PASS_MAX_PHOTONS) the
+ * passes still come from the emitted cap alone, whatever the ratio. */
+Test(passes, plan_passes_do_not_depend_on_the_pilot)
+{
+    struct pass_plan a, b, c;
+    const uint64_t px = 256 * 256;
+    cr_assert_eq(passes_plan(1024, 0, 300000, 0, 0.0, px, &a), 0);
+    cr_assert_eq(passes_plan(1024, 0, 300000, 0, 0.3, px, &b), 0);
+    cr_assert_eq(passes_plan(1024, 0, 300000, 0, 5.0, px, &c), 0);
+    cr_assert_gt(a.spp_per_pass, 1u, "the case must reach the photons' total");
+    cr_assert_eq(b.passes, a.passes);
+    cr_assert_eq(c.passes, a.passes);
+    cr_assert_eq(c.spp_per_pass, a.spp_per_pass);
+    cr_assert_eq(c.spp, a.spp);
+    cr_assert_lt(c.photons, a.photons, "the stored cap still lowers the photons");
+}
+
 /* ---- batch means ---- */
 
 /* Standard normal draws from a counter-based generator (Box-Muller). */
