@@ -82,6 +82,11 @@ run $M "$T/thin/thin.json" -o "$T/thin.exr" $A --workers 1 && r=0 || r=1
 if [ $r = 0 ] && grep -q "photon pass skipped: multiple scattering is bounded by" "$T/log"; then
   ok "photon pass skipped below the bound, bound logged"; else bad "photon pass skipped below the bound, bound logged"; fi
 
+# A photon map too large for one blob is refused before tracing, with the reason.
+if ! run $M scenes/cornell_fog/cornell_fog.json -o "$T/huge.exr" --spp 1 --photons 60000000 --no-journal --workers 1 &&
+  grep -q "one photon map would take about .* a blob may hold" "$T/log"; then
+  ok "a photon map past a blob's size: refused with its size"; else bad "a photon map past a blob's size: refused with its size"; fi
+
 # A worker joining over tcp after the start also fetches the volume blob and renders the same pixels.
 P=$(free_port) P1=$(free_port) P2=$(free_port) P3=$(free_port) P4=$(free_port)
 timeout 120 $M $S -o "$T/late.exr" $A --workers 1 --threads 1 --bind "tcp://127.0.0.1:$P" --insecure >"$T/log" 2>&1 &
