@@ -144,6 +144,14 @@ static int photon_budget(const struct scene *scene, const struct photon_pilot *p
     log_info("media: photon budget: %u map(s) of %llu photons: about %.3g GB and %.3g s of tracing on %u thread(s) "
              "(from a pilot of %u photons; budget %.3g GB)", passes, (unsigned long long)photons, bytes / 1e9, secs,
              threads, pilot->traced, budget_bytes / 1e9);
+    if (bytes > budget_bytes) {
+        log_error("volume.photons %llu x %u pass(es): the photon maps would take about %.3g GB (%.1f bytes per emitted "
+                  "photon, from a pilot of %u), more than the budget of %.3g GB (half this machine's memory, or "
+                  "--photon-memory GB); lower --photons / volume.photons or the passes",
+                  (unsigned long long)photons, passes, bytes / 1e9, pilot->bytes, pilot->traced,
+                  budget_bytes / 1e9);
+        return -1;
+    }
     /* A map is one blob: past BLOB_MAX_SIZE it could not be shipped (and the tracer would
      * stop at its CHECK). The estimate is a pilot's, so keep a margin. */
     double map_bytes = pilot->bytes * (double)photons;
@@ -152,14 +160,6 @@ static int photon_budget(const struct scene *scene, const struct photon_pilot *p
                   "from a pilot of %u), near or past the %.3g GB a blob may hold; lower --photons / volume.photons",
                   (unsigned long long)photons, map_bytes / 1e9, pilot->bytes, pilot->traced,
                   (double)BLOB_MAX_SIZE / 1e9);
-        return -1;
-    }
-    if (bytes > budget_bytes) {
-        log_error("volume.photons %llu x %u pass(es): the photon maps would take about %.3g GB (%.1f bytes per emitted "
-                  "photon, from a pilot of %u), more than the budget of %.3g GB (half this machine's memory, or "
-                  "--photon-memory GB); lower --photons / volume.photons or the passes",
-                  (unsigned long long)photons, passes, bytes / 1e9, pilot->bytes, pilot->traced,
-                  budget_bytes / 1e9);
         return -1;
     }
     return 0;

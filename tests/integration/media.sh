@@ -83,7 +83,7 @@ if [ $r = 0 ] && grep -q "photon pass skipped: multiple scattering is bounded by
   ok "photon pass skipped below the bound, bound logged"; else bad "photon pass skipped below the bound, bound logged"; fi
 
 # A photon map too large for one blob is refused before tracing, with the reason.
-if ! run $M scenes/cornell_fog/cornell_fog.json -o "$T/huge.exr" --spp 1 --photons 60000000 --no-journal --workers 1 &&
+if ! run $M scenes/cornell_fog/cornell_fog.json -o "$T/huge.exr" --spp 1 --photons 60000000 --photon-memory 1000 --no-journal --workers 1 &&
   grep -q "one photon map would take about .* a blob may hold" "$T/log"; then
   ok "a photon map past a blob's size: refused with its size"; else bad "a photon map past a blob's size: refused with its size"; fi
 
