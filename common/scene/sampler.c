@@ -38,7 +38,6 @@ static inline uint64_t pass_key(uint64_t prefix, enum sampler_type type, uint32_
     return rng_mix64(prefix ^ PASS_DOMAIN ^ (type == SAMPLER_SOBOL ? pass % streams : pass));
 }
 
-
 /* The next power of two >= n, minus 1. */
 static inline uint32_t pow2_mask(uint32_t n)
 {

@@ -104,11 +104,9 @@ static inline uint32_t stream_index(uint32_t pass, uint32_t index, uint32_t spp,
 }
 /* A number that tells a pixel's samples apart across all its passes, beside the sampler's
  * keys: sobol's key is 0 and its pixel_key the stream's (pass mod streams), so its index
- * within the stream; the other samplers' keys already differ per pass, so the index. */
-static inline uint32_t sampler_sample_id(const struct sampler *s)
-{
-    return s->type == SAMPLER_SOBOL ? s->sidx : s->index;
-}
+ * within the stream; the other samplers' keys already differ per pass, so the index. Both
+ * are what sidx holds. */
+static inline uint32_t sampler_sample_id(const struct sampler *s) { return s->sidx; }
 /* Inline: the independent sampler's start is one hash, less than a call. */
 static inline struct sampler sampler_start_pixel(struct sampler_pixel *p, uint32_t sample)
 {
