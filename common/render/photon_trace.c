@@ -227,15 +227,23 @@ static uint64_t photon_key(const struct trace_ctx *tc, uint64_t index)
     return rng_mix64(rng_key(tc->seed ^ SALT_PHOTON, tc->job->frame, index, 0));
 }
 
+/* What emission reads of a pass's context: the job, its seed, each photon's share of the
+ * lights' power (1 / emitted) and the aiming sphere. */
+static void trace_ctx_start(struct trace_ctx *tc, const struct render_job *job, uint64_t seed, uint64_t emitted)
+{
+    memset(tc, 0, sizeof *tc);
+    tc->job = job;
+    tc->mj = job->media;
+    tc->seed = seed;
+    tc->emitted = emitted;
+    tc->photon_scale = emitted ? (float)(1.0 / (double)emitted) : 0.0f;
+    tc->aim = media_bounds(job, &tc->aim_center, &tc->aim_radius);
+}
+
 void photon_trace_emit(const struct render_job *job, uint64_t seed, uint64_t first, uint32_t n, struct photon_emitted *out)
 {
     struct trace_ctx tc;
-    memset(&tc, 0, sizeof tc);
-    tc.job = job;
-    tc.mj = job->media;
-    tc.seed = seed;
-    tc.photon_scale = n ? 1.0f / (float)n : 0.0f;
-    tc.aim = media_bounds(job, &tc.aim_center, &tc.aim_radius);
+    trace_ctx_start(&tc, job, seed, n);
     for (uint32_t k = 0; k < n; k++) {
         uint32_t medium;
         struct photon_emitted *pe = &out[k];
@@ -428,19 +436,13 @@ int photon_trace_map(const struct render_job *job, uint64_t seed, uint32_t threa
         return -1;
     }
     struct trace_ctx tc;
-    memset(&tc, 0, sizeof tc);
-    tc.job = job;
-    tc.mj = job->media;
-    tc.seed = seed;
-    tc.emitted = job->lights.num_entries > 0 ? sm->photons : 0;
-    tc.photon_scale = tc.emitted ? (float)(1.0 / (double)tc.emitted) : 0.0f;
+    trace_ctx_start(&tc, job, seed, job->lights.num_entries > 0 ? sm->photons : 0);
     tc.num_blocks = (uint32_t)((tc.emitted + PM_BLOCK - 1) / PM_BLOCK);
     float grow = job->media->radius;
     if (sm->fog != MEDIUM_NONE) /* camera rays see the fog without its forward cone (medium.h) */
         grow += photon_fog_reach(&job->media->cut[sm->fog], job->media->scene_size);
     tc.keep_lo = v3_sub(job->media->bounds_lo, v3(grow, grow, grow));
     tc.keep_hi = v3_add(job->media->bounds_hi, v3(grow, grow, grow));
-    tc.aim = media_bounds(job, &tc.aim_center, &tc.aim_radius);
     atomic_init(&tc.next_block, 0);
     tc.blocks = mem_calloc(tc.num_blocks ? tc.num_blocks : 1, sizeof *tc.blocks);
     if (media_wants_surface_photons(sm))
