@@ -109,15 +109,15 @@ int blob_recv_set_chunks(struct blob_recv *r, const uint8_t *hashes, uint64_t co
                 (unsigned long long)r->num_chunks);
         return -1;
     }
-    struct blob_hash *list = mem_alloc((size_t)(count ? count : 1) * sizeof *list), name;
-    if (count)
-        memcpy(list, hashes, (size_t)count * BLOB_HASH_SIZE);
-    blob_name_of_chunks(list, count, &name);
+    struct blob_hash name; /* the list's bytes as they came: blob_name_of_chunks' input */
+    blob_hash_compute(count ? hashes : NULL, (size_t)count * BLOB_HASH_SIZE, &name);
     if (!blob_hash_equal(&name, &r->hash)) {
-        free(list);
         str_fmt(err, errlen, "chunk list does not hash to the blob's name");
         return -1;
     }
+    struct blob_hash *list = mem_alloc((size_t)(count ? count : 1) * sizeof *list);
+    if (count)
+        memcpy(list, hashes, (size_t)count * BLOB_HASH_SIZE);
     free(r->chunk_hashes);
     r->chunk_hashes = list;
     for (uint64_t i = 0; i < count; i++)
