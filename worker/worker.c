@@ -38,6 +38,7 @@
 #define HEARTBEAT_MS 1000
 #define MASTER_LOST_MS 4000     /* no word from the master this long: reconnect */
 #define DRAIN_MAX_MS 200        /* reading messages this long in a row: go round the loop (heartbeats) */
+#define MAPS_RETRY_MS 1000      /* a map waiting for room is tried at least this often (maps_retry) */
 #define BACKOFF_FIRST_MS 1000   /* then a fresh attempt after 1, 2, 4, 8, 8, ... s */
 #define BACKOFF_MAX_MS 8000
 #define KEPT_MAX_TILES 4096     /* kept tiles beyond these (oldest first) are dropped */
@@ -181,10 +182,10 @@ struct worker {
     uint64_t map_wait_ms;       /* this job: ms with parked units and nothing to render */
     uint64_t map_bytes;         /* this job: bytes of photon maps fetched */
     uint64_t map_clock;         /* ticks per map install or queued unit (least recently used order) */
-    uint64_t maps_held_bytes;   /* decoded maps in the render job now */
-    uint32_t maps_held;
     uint64_t map_bytes_max;     /* the largest decoded map of the job: the room an install needs */
     int maps_waiting;           /* a fetched map waits for room (maps_retry) */
+    int maps_changed;           /* since maps_retry last ran: a unit finished or waits, a map came or went */
+    uint64_t maps_retry_ms;     /* when maps_retry last ran */
     /* Worker lifetime, logged at exit: maps decoded, the most held at once (and their
      * bytes), maps evicted, bytes of evicted maps fetched again. */
     uint64_t maps_decoded, maps_evicted, map_refetch_bytes, maps_peak_bytes;
@@ -691,6 +692,7 @@ static int load_finish(struct worker *w)
         return -1;
     }
     w->loaded = 1;
+    w->maps_changed = 1; /* maps waiting for room may be tried now (maps_retry) */
     pool_start(w);
     if (w->load.kind == LOAD_SCENE)
         for (uint32_t p = 0; p < w->num_maps; p++) /* maps announced and fetched while the scene loaded */
@@ -1007,7 +1009,15 @@ static int on_bcast_frame(struct worker *w, const struct net_frame *fr)
 
 static int map_ready(const struct worker *w, uint32_t pass);
 static void map_fetch_start(struct worker *w, uint32_t pass);
-static int maps_retry(struct worker *w);
+static int maps_retry(struct worker *w, uint64_t now);
+
+/* Pass `pass`'s map goes to the back of the least recently used order; used: a unit of
+ * the pass went to the render threads (0: just installed). */
+static void map_touch(struct worker *w, uint32_t pass, int used)
+{
+    w->maps[pass].last_use = ++w->map_clock;
+    w->maps[pass].used = used;
+}
 
 static void on_tile(struct worker *w, const struct msg_tile *t)
 {
@@ -1033,13 +1043,12 @@ static void on_tile(struct worker *w, const struct msg_tile *t)
             w->parked = mem_realloc(w->parked, sizeof *w->parked * w->cap_parked);
         }
         w->parked[w->num_parked++] = task; /* rendered once the map is here (map_install) */
+        w->maps_changed = 1;               /* its map may wait in the cache for room */
         map_fetch_start(w, task.pass);
         return;
     }
-    if (w->num_maps) {
-        w->maps[task.pass].last_use = ++w->map_clock;
-        w->maps[task.pass].used = 1;
-    }
+    if (w->num_maps)
+        map_touch(w, task.pass, 1);
     if (pool_push(&w->pool, &task) != 0)
         log_warn("dropping TILE %u: master exceeded our credits", t->tile);
 }
@@ -1059,8 +1068,6 @@ static void maps_reset(struct worker *w, int keep_installed)
         free(w->maps);
         w->maps = NULL;
         w->num_maps = 0;
-        w->maps_held = 0;
-        w->maps_held_bytes = 0;
         w->map_bytes_max = 0;
     }
     w->maps_waiting = 0;
@@ -1119,27 +1126,39 @@ static void maps_in_use(struct worker *w, uint8_t *used)
     pthread_mutex_unlock(&p->lock);
 }
 
+/* Bytes of the decoded maps in the render job, besides pass `skip`'s (which an install
+ * replaces; UINT32_MAX: none skipped); *count: how many (may be NULL). */
+static uint64_t maps_held_besides(const struct worker *w, uint32_t skip, uint32_t *count)
+{
+    uint64_t bytes = 0;
+    uint32_t n = 0;
+    for (uint32_t p = 0; p < w->num_maps; p++)
+        if (p != skip && w->maps[p].installed) {
+            bytes += w->maps[p].decoded_bytes;
+            n++;
+        }
+    if (count)
+        *count = n;
+    return bytes;
+}
+
 /* Drops pass `pass`'s decoded map (no unit of the pass is queued or rendering). */
 static void map_evict(struct worker *w, uint32_t pass)
 {
     struct pass_map *pm = &w->maps[pass];
     struct photon_map *none = NULL;
     render_job_set_pass_map(&w->rjob, pass, &none);
+    uint64_t bytes = pm->decoded_bytes;
     pm->installed = 0;
     pm->evicted = 1;
-    w->maps_held--;
-    w->maps_held_bytes -= pm->decoded_bytes;
-    w->maps_evicted++;
-    log_debug("photon map of pass %u evicted (%llu bytes decoded; %u held, %llu bytes, budget %llu)", pass,
-              (unsigned long long)pm->decoded_bytes, w->maps_held, (unsigned long long)w->maps_held_bytes,
-              (unsigned long long)w->opts->map_memory_bytes);
     pm->decoded_bytes = 0;
-}
-
-/* Bytes of the decoded maps held, besides pass `skip`'s (which an install replaces). */
-static uint64_t maps_held_besides(const struct worker *w, uint32_t skip)
-{
-    return w->maps_held_bytes - (skip < w->num_maps && w->maps[skip].installed ? w->maps[skip].decoded_bytes : 0);
+    w->maps_evicted++;
+    w->maps_changed = 1;
+    uint32_t held;
+    uint64_t held_bytes = maps_held_besides(w, UINT32_MAX, &held);
+    log_debug("photon map of pass %u evicted (%llu bytes decoded; %u held, %llu bytes, budget %llu)", pass,
+              (unsigned long long)bytes, held, (unsigned long long)held_bytes,
+              (unsigned long long)w->opts->map_memory_bytes);
 }
 
 /* A map as big as the job's largest so far fits beside `held` bytes of maps, or none is
@@ -1151,7 +1170,7 @@ static int maps_fit(const struct worker *w, uint64_t held)
 
 static int maps_room(const struct worker *w, uint32_t skip)
 {
-    return maps_fit(w, maps_held_besides(w, skip));
+    return maps_fit(w, maps_held_besides(w, skip, NULL));
 }
 
 /* Room for pass `pass`'s map within the budget. For a map that units wait for (demand),
@@ -1166,7 +1185,7 @@ static int maps_make_room(struct worker *w, uint32_t pass, int demand)
         return 1;
     if (!demand)
         return 0;
-    uint64_t held = maps_held_besides(w, pass);
+    uint64_t held = maps_held_besides(w, pass, NULL);
     uint8_t *used = mem_alloc(w->num_maps);
     maps_in_use(w, used);
     while (!maps_fit(w, held)) {
@@ -1187,11 +1206,16 @@ static int maps_make_room(struct worker *w, uint32_t pass, int demand)
 }
 
 /* Maps whose blobs wait for room (map_install left them in the cache) are installed once
- * the units holding the others finish. 0, or -1 after an ERROR to the master. */
-static int maps_retry(struct worker *w)
+ * the units holding the others finish. Tried again only when that may have changed (a unit
+ * finished or was parked, a map came or went: maps_changed) or every MAPS_RETRY_MS, not at
+ * every turn of the loop (maps_make_room takes the pool's lock). 0, or -1 after an ERROR to
+ * the master. */
+static int maps_retry(struct worker *w, uint64_t now)
 {
-    if (!w->maps_waiting || !job_ready(w))
+    if (!w->maps_waiting || !job_ready(w) || (!w->maps_changed && now - w->maps_retry_ms < MAPS_RETRY_MS))
         return 0;
+    w->maps_changed = 0;
+    w->maps_retry_ms = now;
     w->maps_waiting = 0; /* map_install sets it again for a map that still waits */
     for (uint32_t p = 0; p < w->num_maps; p++)
         if (w->maps[p].announced && !map_ready(w, p) && blob_store_get(&w->cache, &w->maps[p].hash) &&
@@ -1229,37 +1253,31 @@ static int map_install(struct worker *w, uint32_t pass)
             return -1;
         }
         uint64_t bytes = photon_map_bytes(map);
-        if (pm->installed) { /* another map replaces it (the next frame's) */
-            w->maps_held--;
-            w->maps_held_bytes -= pm->decoded_bytes;
-        }
-        render_job_set_pass_map(&w->rjob, pass, &map);
+        render_job_set_pass_map(&w->rjob, pass, &map); /* replaces an installed one (the next frame's) */
         pm->installed = 1;
         pm->evicted = 0;
         pm->installed_hash = pm->hash;
         pm->decoded_bytes = bytes;
-        pm->last_use = ++w->map_clock;
-        pm->used = 0;
-        w->maps_held++;
-        w->maps_held_bytes += bytes;
+        map_touch(w, pass, 0);
         w->maps_decoded++;
+        w->maps_changed = 1;
         if (bytes > w->map_bytes_max)
             w->map_bytes_max = bytes;
-        if (w->maps_held > w->maps_peak)
-            w->maps_peak = w->maps_held;
-        if (w->maps_held_bytes > w->maps_peak_bytes)
-            w->maps_peak_bytes = w->maps_held_bytes;
+        uint32_t held;
+        uint64_t held_bytes = maps_held_besides(w, UINT32_MAX, &held);
+        if (held > w->maps_peak)
+            w->maps_peak = held;
+        if (held_bytes > w->maps_peak_bytes)
+            w->maps_peak_bytes = held_bytes;
         struct blob_hash h = pm->hash;
         blob_store_drop(&w->cache, &h); /* decoded now; a later job announcing it again finds it installed */
         log_debug("photon map of pass %u installed (%llu bytes, %llu decoded; %u held, %llu bytes)", pass,
-                  (unsigned long long)pm->size, (unsigned long long)bytes, w->maps_held,
-                  (unsigned long long)w->maps_held_bytes);
+                  (unsigned long long)pm->size, (unsigned long long)bytes, held, (unsigned long long)held_bytes);
     }
     size_t k = 0;
     for (size_t i = 0; i < w->num_parked; i++) {
         if (w->parked[i].pass == pass) {
-            pm->last_use = ++w->map_clock;
-            pm->used = 1;
+            map_touch(w, pass, 1);
             if (pool_push(&w->pool, &w->parked[i]) != 0)
                 log_warn("dropping TILE %u: master exceeded our credits", w->parked[i].tile);
         } else {
@@ -1413,6 +1431,7 @@ static void drain_results(struct worker *w)
 {
     struct tile_done *d;
     while (zmq_recv(w->results, &d, sizeof d, ZMQ_DONTWAIT) == (int)sizeof d) {
+        w->maps_changed = 1; /* its unit no longer holds its pass's map */
         send_result(w, d);
         free(d->chunk);
         free(d);
@@ -1603,7 +1622,7 @@ int worker_run(const struct worker_opts *opts)
             }
         }
         maps_prefetch(&w);
-        if (maps_retry(&w) != 0)
+        if (maps_retry(&w, net_now_ms()) != 0)
             goto done;
         if (fetches_pump(&w) != 0)
             goto done;
