@@ -610,22 +610,41 @@ static uint32_t beam_x_key(float x)
     return u >> 31 ? ~u : u | 0x80000000u;
 }
 
+/* The entries of a grid's row table beside n records (one each), from its cells (cmax)
+ * and rows (num_rows): what beam_rows_index allocates and beam_grid_bytes counts. Flat
+ * (row_starts = cells + 1, slots = 0) while the (y, z) cells are few beside the photons,
+ * else a hash table (slots: a power of two, at most half full). */
+struct beam_grid_sizes {
+    size_t row_starts, slots;
+};
+static struct beam_grid_sizes beam_grid_sizes(const struct photon_beam_grid *g, uint32_t n)
+{
+    struct beam_grid_sizes z = {0, 0};
+    uint64_t cells = (uint64_t)(g->cmax[1] + 1) * (g->cmax[2] + 1);
+    if (cells <= (uint64_t)BEAM_FLAT_PER_PHOTON * n + BEAM_FLAT_CELLS) {
+        z.row_starts = (size_t)cells + 1;
+        return z;
+    }
+    z.slots = 2;
+    while (z.slots < 2 * (size_t)g->num_rows)
+        z.slots <<= 1;
+    return z;
+}
+
 /* The row tables of the sorted keys (rows by z cell, then y cell, in the top 32 bits). */
 static void beam_rows_index(struct photon_beam_grid *g, const uint64_t *key, uint32_t n)
 {
-    uint64_t cells = (uint64_t)(g->cmax[1] + 1) * (g->cmax[2] + 1);
-    if (cells <= (uint64_t)BEAM_FLAT_PER_PHOTON * n + BEAM_FLAT_CELLS) {
+    struct beam_grid_sizes sz = beam_grid_sizes(g, n);
+    if (sz.row_starts) {
         g->ny = g->cmax[1] + 1;
-        g->row_start = mem_calloc((size_t)cells + 1, sizeof *g->row_start);
+        g->row_start = mem_calloc(sz.row_starts, sizeof *g->row_start);
         for (uint32_t j = 0; j < n; j++) /* count each row's records after its start ... */
             g->row_start[(size_t)(key[j] >> 48) * g->ny + (key[j] >> 32 & 0xffff) + 1]++;
-        for (size_t c = 1; c <= cells; c++) /* ... and sum: rows are in key order */
+        for (size_t c = 1; c < sz.row_starts; c++) /* ... and sum: rows are in key order */
             g->row_start[c] += g->row_start[c - 1];
         return;
     }
-    uint32_t slots = 2;
-    while (slots < 2 * g->num_rows)
-        slots <<= 1;
+    uint32_t slots = (uint32_t)sz.slots;
     g->mask = slots - 1;
     g->rows = mem_alloc(sizeof *g->rows * slots);
     for (uint32_t s = 0; s < slots; s++)
@@ -722,17 +741,15 @@ static void beam_grid_free(struct photon_beam_grid *g)
     free(g);
 }
 
-/* The beam grid's tables and records, as beam_rows_index and its caller allocate them. */
+/* The beam grid's records (n, as beam_grid_build allocates them) and tables (by
+ * beam_grid_sizes, as beam_rows_index allocates them). */
 static size_t beam_grid_bytes(const struct photon_beam_grid *g, uint32_t n)
 {
     if (!g)
         return 0;
-    size_t b = sizeof *g + (size_t)n * (3 * sizeof *g->x + sizeof *g->depth + sizeof *g->dec);
-    if (g->ny)
-        b += ((size_t)(g->cmax[1] + 1) * (g->cmax[2] + 1) + 1) * sizeof *g->row_start;
-    else
-        b += ((size_t)g->mask + 1) * sizeof *g->rows;
-    return b;
+    struct beam_grid_sizes z = beam_grid_sizes(g, n);
+    return sizeof *g + (size_t)n * (3 * sizeof *g->x + sizeof *g->depth + sizeof *g->dec) +
+           z.row_starts * sizeof *g->row_start + z.slots * sizeof *g->rows;
 }
 
 size_t photon_map_bytes(const struct photon_map *m)

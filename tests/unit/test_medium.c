@@ -10,6 +10,7 @@
  *   multiple-scattering scene, and its bytes for 1 and 2 threads;
  * - hard cases stay finite; scene keys and their errors. */
 #include <criterion/criterion.h>
+#include <malloc.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -1909,4 +1910,59 @@ Test(medium, photon_map_set_radius_matches_a_fresh_serialise)
     free(copy);
     free(fresh);
     free(blob);
+}
+
+/* photon_map_bytes (a worker's budget of decoded maps) is what photon_map_decode
+ * allocates: the heap's bytes in use (glibc's mallinfo2, every block from the heap) grow by
+ * the estimate plus malloc's own header and rounding (8 to 23 bytes a block; a decoded
+ * volume map is 11 blocks, 4 of the map and 7 of the beam grid) for photon sets whose beam
+ * rows are a flat table (photons in a small box) or a hash table (a box spread wide), large
+ * and small. Under a sanitizer (its own allocator) the heap's counters do not move: skipped. */
+Test(medium, photon_map_bytes_is_what_decode_allocates)
+{
+    static void *volatile probe; /* volatile: the compiler keeps each malloc and free */
+    mallopt(M_MMAP_MAX, 0);      /* every block from the heap, where mallinfo2 counts it */
+    probe = malloc(1);           /* this thread's arena and cache made */
+    free(probe);
+    struct mallinfo2 a = mallinfo2();
+    probe = malloc(100000);
+    struct mallinfo2 b = mallinfo2();
+    free(probe);
+    if (b.uordblks < a.uordblks + 100000 || b.uordblks > a.uordblks + 100000 + 32)
+        cr_skip_test("the heap's counters do not follow malloc here (%zu bytes for a block of 100000: a sanitizer's "
+                     "allocator)", b.uordblks - a.uordblks);
+    const struct { uint32_t n; float box, r; int hashed; } sets[] = {
+        {4000, 1.0f, 0.05f, 0}, {3000, 32.0f, 0.01f, 1}, {40000, 2.0f, 0.02f, 0}, {1000, 100.0f, 0.002f, 1}};
+    for (size_t c = 0; c < sizeof sets / sizeof sets[0]; c++) {
+        uint32_t n = sets[c].n;
+        struct photon_list block = {malloc(sizeof(struct photon) * n), n, n};
+        for (uint32_t i = 0; i < n; i++) {
+            uint64_t k = rng_key(91, (uint32_t)c, i, 0);
+            struct photon *ph = &block.a[i];
+            for (int d = 0; d < 3; d++)
+                ph->p[d] = sets[c].box * rng_uniform(k, (uint32_t)d);
+            photon_rgbe_encode(v3(1.0f, 0.5f, 0.25f), ph->rgbe);
+            ph->dir = photon_dir_encode(v3(0.0f, 0.0f, 1.0f));
+            ph->depth = 1;
+        }
+        uint8_t *blob = NULL;
+        size_t bytes = 0;
+        uint32_t count = 0;
+        char err[256];
+        cr_assert_eq(photon_map_serialise(&block, 1, sets[c].r, n, &blob, &bytes, &count, err, sizeof err), 0, "%s",
+                     err);
+        struct photon_map *m = NULL;
+        struct mallinfo2 before = mallinfo2();
+        cr_assert_eq(photon_map_decode(blob, bytes, &m, err, sizeof err), 0, "%s", err);
+        struct mallinfo2 after = mallinfo2();
+        float cell;
+        uint32_t rows, longest;
+        cr_assert_eq(photon_map_beam_layout(m, &cell, &rows, &longest), !sets[c].hashed, "set %zu", c);
+        size_t est = photon_map_bytes(m), got = after.uordblks - before.uordblks;
+        cr_assert(got >= est + 11 * 8 && got <= est + 11 * 23,
+                  "set %zu (%u photons, %s rows): the estimate %zu bytes, decode allocated %zu", c, n,
+                  sets[c].hashed ? "hashed" : "flat", est, got);
+        photon_map_free(&m);
+        free(blob);
+    }
 }
