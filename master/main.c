@@ -142,7 +142,6 @@ int main(int argc, char **argv)
         }
         NUM_OPT("--workers", 0, 256, o.workers, dummy)
         NUM_OPT("--threads", 1, 1024, o.threads, have_threads)
-        NUM_OPT("--map-memory", 1, 1ull << 24, o.map_memory_mb, dummy)
         NUM_OPT("--spp", 1, 1048576, o.spp, o.have_spp)
         NUM_OPT("--seed", 0, UINT64_MAX, o.seed, o.have_seed)
         NUM_OPT("--tile", 8, 1024, o.tile, o.have_tile)
@@ -156,6 +155,14 @@ int main(int argc, char **argv)
         NUM_OPT("--passes", 1, 1024, o.passes, o.have_passes)
         NUM_OPT("--max-rounds", 1, 1024, o.max_rounds, o.have_max_rounds)
 #undef NUM_OPT
+        if (has_arg && !strcmp(a, "--map-memory")) {
+            if (cli_parse_map_memory_mb(argv[++i], &v, err, sizeof err) != 0) {
+                log_error("%s", err);
+                return 2;
+            }
+            o.map_memory_mb = (uint32_t)v;
+            continue;
+        }
         if (has_arg && (!strcmp(a, "--target-error") || !strcmp(a, "--time-limit"))) {
             int target = !strcmp(a, "--target-error");
             char *end;

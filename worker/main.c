@@ -90,7 +90,7 @@ int main(int argc, char **argv)
             }
             o.threads = (uint32_t)v;
         } else if (i + 1 < argc && !strcmp(a, "--map-memory")) {
-            if (cli_parse_u64(a, argv[++i], 1, 1ull << 24, &v, err, sizeof err) != 0) {
+            if (cli_parse_map_memory_mb(argv[++i], &v, err, sizeof err) != 0) {
                 log_error("%s", err);
                 return 2;
             }

@@ -25,6 +25,11 @@ int cli_parse_u64(const char *opt, const char *text, uint64_t min, uint64_t max,
     return 0;
 }
 
+int cli_parse_map_memory_mb(const char *text, uint64_t *mb, char *err, size_t errlen)
+{
+    return cli_parse_u64("--map-memory", text, 1, 1ull << 24, mb, err, errlen);
+}
+
 uint32_t cli_num_cores(void)
 {
     long n = sysconf(_SC_NPROCESSORS_ONLN);
