@@ -826,13 +826,12 @@ static struct bcast_stream *stream_get(struct master *m, const struct blob_entry
     memset(s, 0, sizeof *s);
     s->hash = e->hash;
     s->size = e->size;
-    if (e->chunks) { /* the list the blob was named by */
-        s->num_chunks = blob_num_chunks(e->size);
-        s->chunk_hashes = mem_alloc(sizeof *s->chunk_hashes * (s->num_chunks ? s->num_chunks : 1));
-        memcpy(s->chunk_hashes, e->chunks, sizeof *s->chunk_hashes * s->num_chunks);
-    } else {
-        blob_chunk_hashes(e->data, e->size, &s->chunk_hashes, &s->num_chunks);
-    }
+    /* The list the blob was named by: every blob the master serves has one (blob_store_put,
+     * the photon tracer's blob_store_adopt_listed). */
+    CHECK(e->chunks != NULL);
+    s->num_chunks = blob_num_chunks(e->size);
+    s->chunk_hashes = mem_alloc(sizeof *s->chunk_hashes * (s->num_chunks ? s->num_chunks : 1));
+    memcpy(s->chunk_hashes, e->chunks, sizeof *s->chunk_hashes * s->num_chunks);
     return s;
 }
 
