@@ -291,6 +291,8 @@ void light_sample_emitter_(const struct light_table *t, const struct scene *s, u
                            float u2, struct light_sample *out)
 {
     emitter_sample(t, s, i, ref, u1, u2, out);
+    if (!(out->pdf > 0.0f))
+        return; /* no sample: its callers stop here */
     vec3 to = v3_sub(out->p, ref);
     out->wi = v3_scale(to, 1.0f / v3_length(to));
 }

@@ -53,7 +53,7 @@ struct light_sample {
     vec3 p;             /* point on the light (position for point lights) */
     vec3 n;             /* light's normal there (zero for point lights) */
     vec3 radiance;      /* emitted radiance toward the shading point, or I / d^2 for points */
-    vec3 wi;            /* unit direction from the shading point to p: (p - ref) / |p - ref| */
+    vec3 wi;            /* unit direction from the shading point to p: (p - ref) / |p - ref|; zero when pdf is 0 */
     float pdf;          /* solid-angle pdf including the pick probability; 0 = no sample */
     int is_delta;
     uint32_t entry;     /* the light table entry picked (valid when pdf > 0) */
