@@ -52,13 +52,12 @@ json.dump(d, open(sys.argv[1], "w"), indent=1)' "$T/big/cornell.json"
 $BUILD/master --keygen "$T/master.key" >/dev/null
 $BUILD/master --keygen "$T/w.key" >/dev/null
 cp "$T/w.key.pub" "$T/allow"
-port=$((20000 + $$ % 20000))
 # load TILE TRANSPORT JOURNAL: one master + loadpeers run; prints "tiles/s process_us loop_us"
 load() {
   rm -f "$T/o.exr"*
   case $2 in
     ipc) ep="ipc://$T/m.sock" mopts= lopts= ;;
-    curve) port=$((port + 1)) ep="tcp://127.0.0.1:$port" mopts="--curve-secret $T/master.key --allow $T/allow"
+    curve) ep="tcp://127.0.0.1:$(free_port)" mopts="--curve-secret $T/master.key --allow $T/allow"
       lopts="--key $T/w.key $T/master.key.pub" ;;
   esac
   jopt=

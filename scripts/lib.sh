@@ -16,6 +16,10 @@ bench_init() {
   mkdir -p "$OUT"
 }
 
+# free_port: a TCP port on 127.0.0.1 that nothing listens on now (the kernel's pick for a
+# bind to port 0, as tests/integration/lib.sh's), so runs side by side do not collide.
+free_port() { python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])'; }
+
 # logged CMD...: runs CMD with its output in $T/log; on failure shows the log and exits.
 logged() {
   "$@" >"$T/log" 2>&1 || { cat "$T/log" >&2; echo "bench: command failed: $*" >&2; exit 1; }

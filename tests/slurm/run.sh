@@ -55,7 +55,24 @@ while [ ! -S "$T/munge/munge.sock" ] && [ $i -lt 50 ]; do sleep 0.1; i=$((i + 1)
 [ -S "$T/munge/munge.sock" ] || skip "munged made no socket: $(tail -1 "$T/munge/munged.log")"
 
 # --- slurmctld + slurmd, single node ---
-P=$((30000 + ($$ % 10000)))
+# Ports P .. P + 40, free now: from the kernel's pick for a bind to port 0 (as
+# tests/integration/lib.sh's free_port), a run of 41 that all bind.
+P=$(python3 -c 'import socket
+def free(p):
+    s = socket.socket()
+    try:
+        s.bind(("", p))
+        return True
+    except OSError:
+        return False
+    finally:
+        s.close()
+for _ in range(100):
+    s = socket.socket(); s.bind(("", 0)); base = s.getsockname()[1]; s.close()
+    if base + 40 < 65536 and all(free(base + i) for i in range(41)):
+        print(base)
+        break') || skip "no run of 41 free TCP ports"
+[ -n "$P" ] || skip "no run of 41 free TCP ports"
 mkdir -p "$T/etc" "$T/state" "$T/spool"
 cat >"$SLURM_CONF" <<EOF
 ClusterName=brumetest
