@@ -353,8 +353,12 @@ static void render_block(const struct render_job *job, struct sampler_pixel *sp,
     vec3 so[ACCEL_PACKET], sd[ACCEL_PACKET];
     float time01[ACCEL_PACKET];
     uint32_t slot[ACCEL_PACKET], ns = 0;
-    for (uint32_t k = 0; k < n; k++) {
+    /* Every path is started before the first is continued: path_vertex's first loads of a
+     * path's ray then find path_start's stores written through, not still queued (a load
+     * that several queued stores must feed waits for them, on every sample). */
+    for (uint32_t k = 0; k < n; k++)
         path_start(job, &p[k], cp.smp[k], &cp.cs[k], aovs ? &b->aov[k] : NULL);
+    for (uint32_t k = 0; k < n; k++) {
         (*rays)++;
         more[k] = path_vertex(job, &p[k], cp.found[k], &cp.hit[k], rays);
         if (p[k].shadow) {
