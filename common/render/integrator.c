@@ -198,6 +198,11 @@ static inline __attribute__((always_inline)) int path_vertex(const struct render
         }
     }
 
+    /* The last vertex's next ray could only find light by hitting an emitter or missing
+     * into the environment: without either, it is not traced (the same pixels, fewer rays;
+     * every random number is a pure function of its dimension, so none moves). */
+    if (vertex == sc->settings.max_depth && !job->rays_find_light)
+        return 0;
     /* BSDF sampling for the next vertex (also the MIS partner of the NEE above). */
     struct bsdf_sample bs;
     float bu, bv;
