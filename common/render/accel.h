@@ -8,6 +8,7 @@
 #define BRUME_ACCEL_H
 #include <stddef.h>
 #include <stdint.h>
+#include <xmmintrin.h>
 #include <embree3/rtcore.h>
 #include "scene/scene.h"
 #include "base/vec.h"
@@ -80,11 +81,9 @@ static inline int accel_intersect(const struct accel *a, vec3 o, vec3 d, float t
     struct RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     struct RTCRayHit rh;
-    rh.ray.org_x = o.x, rh.ray.org_y = o.y, rh.ray.org_z = o.z;
-    rh.ray.dir_x = d.x, rh.ray.dir_y = d.y, rh.ray.dir_z = d.z;
-    rh.ray.tnear = 0.0f;
+    _mm_store_ps(&rh.ray.org_x, _mm_setr_ps(o.x, o.y, o.z, 0.0f));
+    _mm_store_ps(&rh.ray.dir_x, _mm_setr_ps(d.x, d.y, d.z, time01));
     rh.ray.tfar = tmax;
-    rh.ray.time = time01;
     rh.ray.mask = 0xffffffffu;
     rh.ray.id = 0;
     rh.ray.flags = 0;
@@ -93,7 +92,11 @@ static inline int accel_intersect(const struct accel *a, vec3 o, vec3 d, float t
     rtcIntersect1(a->scene, &ctx, &rh);
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID)
         return 0;
-    accel_hit_from_embree_(a, rh.hit.geomID, rh.hit.instID[0], rh.hit.primID, rh.ray.tfar, rh.hit.u, rh.hit.v, hit);
+    /* u and v one float at a time, as Embree stored them: an 8-byte load of the pair would
+     * wait for both stores to leave the store buffer. */
+    float u = rh.hit.u, v = rh.hit.v;
+    __asm__("" : "+x"(u)); /* keeps GCC from joining the two loads into one */
+    accel_hit_from_embree_(a, rh.hit.geomID, rh.hit.instID[0], rh.hit.primID, rh.ray.tfar, u, v, hit);
     return 1;
 }
 /* Closest hits of n <= ACCEL_PACKET camera-like rays in (0, inf), traced together as one
@@ -110,11 +113,9 @@ static inline int accel_occluded(const struct accel *a, vec3 o, vec3 d, float tm
     struct RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     struct RTCRay r;
-    r.org_x = o.x, r.org_y = o.y, r.org_z = o.z;
-    r.dir_x = d.x, r.dir_y = d.y, r.dir_z = d.z;
-    r.tnear = 0.0f;
+    _mm_store_ps(&r.org_x, _mm_setr_ps(o.x, o.y, o.z, 0.0f));
+    _mm_store_ps(&r.dir_x, _mm_setr_ps(d.x, d.y, d.z, time01));
     r.tfar = tmax;
-    r.time = time01;
     r.mask = 0xffffffffu;
     r.id = 0;
     r.flags = 0;

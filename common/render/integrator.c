@@ -198,6 +198,11 @@ static inline __attribute__((always_inline)) int path_vertex(const struct render
         }
     }
 
+    /* The last vertex's next ray could only find light by hitting an emitter or missing
+     * into the environment: without either, it is not traced (the same pixels, fewer rays;
+     * every random number is a pure function of its dimension, so none moves). */
+    if (vertex == sc->settings.max_depth && !job->rays_find_light)
+        return 0;
     /* BSDF sampling for the next vertex (also the MIS partner of the NEE above). */
     struct bsdf_sample bs;
     float bu, bv;
@@ -353,8 +358,12 @@ static void render_block(const struct render_job *job, struct sampler_pixel *sp,
     vec3 so[ACCEL_PACKET], sd[ACCEL_PACKET];
     float time01[ACCEL_PACKET];
     uint32_t slot[ACCEL_PACKET], ns = 0;
-    for (uint32_t k = 0; k < n; k++) {
+    /* Every path is started before the first is continued: path_vertex's first loads of a
+     * path's ray then find path_start's stores written through, not still queued (a load
+     * that several queued stores must feed waits for them, on every sample). */
+    for (uint32_t k = 0; k < n; k++)
         path_start(job, &p[k], cp.smp[k], &cp.cs[k], aovs ? &b->aov[k] : NULL);
+    for (uint32_t k = 0; k < n; k++) {
         (*rays)++;
         more[k] = path_vertex(job, &p[k], cp.found[k], &cp.hit[k], rays);
         if (p[k].shadow) {

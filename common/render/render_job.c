@@ -106,6 +106,10 @@ int render_job_init(struct render_job *job, const struct scene *scene, uint32_t 
     memset(job, 0, sizeof *job);
     job->scene = scene;
     light_table_init(&job->lights, scene);
+    job->rays_find_light = scene->env != NULL;
+    for (uint32_t i = 0; i < scene->num_materials; i++)
+        if (!v3_is_black(scene->materials[i].emission))
+            job->rays_find_light = 1;
     if (frame_init(job, frame, threads, err, errlen) != 0) {
         light_table_fini(&job->lights);
         return -1;

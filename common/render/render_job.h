@@ -34,6 +34,9 @@ struct render_job {
                                    * without media. Views share media's pointers and own nothing. */
     int packets;            /* camera rays go in packets (packet.h): no media, accel.packets_exact and
                              * BRUME_PACKETS not 0 (read once per frame here, not per tile) */
+    int rays_find_light;    /* a ray can find light by hitting or missing: an emitting material or an
+                             * environment. Without one, a path's last vertex samples no further ray,
+                             * which could only have found light that way */
 };
 
 int render_job_init(struct render_job *job, const struct scene *scene, uint32_t frame, uint32_t threads,

@@ -73,6 +73,38 @@ static void furnace_sphere(uint32_t depth)
 }
 
 Test(integrator, closed_sphere_point_light_depth_1) { furnace_sphere(1); }
+
+/* Rays per sample inside the shell at max_depth 2: the camera ray, a shadow ray at each of
+ * the 2 vertices, the bounce between them; the last vertex's bounce is traced only when a
+ * ray could find light by hitting an emitter (here a material no surface uses is enough
+ * to keep it) or missing into an environment. */
+static uint64_t shell_rays_per_sample(int emitter)
+{
+    struct scene s;
+    memset(&s, 0, sizeof s);
+    uint32_t mat = add_mat(&s, v3(0.7f, 0.7f, 0.7f), v3(0, 0, 0));
+    if (emitter)
+        add_mat(&s, v3(0.5f, 0.5f, 0.5f), v3(1, 1, 1));
+    struct sphere sp = {"shell", v3(1, 2, 3), 2.0f, mat, NULL, 0};
+    scene_add_sphere(&s, &sp);
+    struct light l = {.type = LIGHT_POINT, .position = v3(1, 2, 3), .intensity = v3(10, 10, 10)};
+    scene_add_light(&s, &l);
+    s.camera = (struct camera_desc){.position = v3(1, 2, 3), .look_at = v3(1, 2, 4), .up = v3(0, 1, 0), .fov_y_deg = 90.0f};
+    settings(&s, 8, 8, 4, 2);
+    struct tile_stats st;
+    float *px = test_render(&s, 1, &st);
+    free(px);
+    scene_fini(&s);
+    cr_assert_eq(st.rays % st.samples, 0, "%llu rays for %llu samples", (unsigned long long)st.rays,
+                 (unsigned long long)st.samples);
+    return st.rays / st.samples;
+}
+
+Test(integrator, last_bounce_traced_only_where_a_ray_can_find_light)
+{
+    cr_assert_eq(shell_rays_per_sample(0), 4);
+    cr_assert_eq(shell_rays_per_sample(1), 5);
+}
 Test(integrator, closed_sphere_point_light_depth_3) { furnace_sphere(3); }
 Test(integrator, closed_sphere_point_light_depth_50) { furnace_sphere(50); }
 
