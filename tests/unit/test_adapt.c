@@ -560,6 +560,7 @@ Test(adapt, rounds_reach_the_pixel_bound)
                 break;
         }
         cr_assert(a->finished);
+        cr_assert(fabs(adapt_pixel_floor(a) - ADAPT_PIXEL_FLOOR * 1.0) < 1e-12, "the floor: a share of the mean pixel (1)");
         cr_assert_eq(a->tiles[9].passes, 256, "the hopeless block goes to the cap: %u", a->tiles[9].passes);
         cr_assert_eq(a->pixels_over, 1, "one pixel above the bound, at the cap: %llu", (unsigned long long)a->pixels_over);
         cr_assert_eq(a->pixels_over_capped, 1);
