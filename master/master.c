@@ -1864,7 +1864,8 @@ static void print_progress(struct master *m, uint64_t start_ms, int tty, int fin
         double eta = want > (double)m->stats.samples && rate > 0 ? (want - (double)m->stats.samples) / rate : 0.0;
         char est[96] = "estimate after round 0 pending", px[160] = "";
         if (a->num_history) {
-            snprintf(est, sizeof est, "est. relRMSE %.4f -> target %g", a->est, m->target_error);
+            snprintf(est, sizeof est, m->target_error > 0.0 ? "est. relRMSE %.4f -> target %g" : "est. relRMSE %.4f",
+                     a->est, m->target_error);
             pixel_bound_text(m, px, sizeof px);
         }
         if (tty)
