@@ -171,6 +171,7 @@ struct master {
     double pixel_error;         /* adaptive: the per-pixel bound (0: none) */
     uint32_t max_rounds;
     int time_up;                /* the time limit passed: the round under way is the last */
+    const char *adapt_stop;     /* why the rounds ended (a static string), or NULL before */
     uint32_t *round_from;       /* per block (adapt's tiles): its passes before the round being released */
     uint32_t blocks_side, num_cells; /* adaptive: blocks in a tile's row (render/tile.h), blocks of the frame */
     uint32_t *slots_used;       /* adaptive, per tile: its units released so far (slots 0..n-1) */
@@ -1239,10 +1240,13 @@ static int adapt_round_end(struct master *m)
     if (!why)
         why = m->time_up ? "time limit reached"
               : (a->target > 0.0 || a->pixel_error > 0.0) && (!(a->target > 0.0) || a->est <= a->aim) &&
-                        a->pixels_over == 0 ? "target met"
+                        a->pixels_over == 0
+                  ? (a->pixel_error > 0.0 ? (a->target > 0.0 ? "target and per-pixel bound met" : "per-pixel bound met")
+                                          : "target met")
               : a->max_rounds && round + 1 >= a->max_rounds ? "round cap reached" : "every block at its pass cap";
     log_info("adaptive: round %u: estimated relRMSE %.4f (tiles alone %.4f, %.0f dof; target %g, aim %.4f)%s: %s", round,
              a->est, a->est_raw, a->dof, m->target_error, a->aim, px, why);
+    m->adapt_stop = why;
     for (uint32_t t = 0; t < m->num_tiles; t++) {
         if (m->chunks[t].data) /* --tiles: a black tile */
             continue;
@@ -1940,8 +1944,8 @@ static void print_summary(struct master *m, double secs)
         if (m->pixel_error > 0.0) {
             char px[160];
             pixel_bound_text(m, px, sizeof px);
-            printf("summary: adaptive: per-pixel bound %g (relative standard error over max(pixel, %g x image mean))%s\n",
-                   m->pixel_error, ADAPT_PIXEL_FLOOR, px);
+            printf("summary: adaptive: per-pixel bound %g (relative standard error over max(pixel, %g x image mean))%s; "
+                   "stopped: %s\n", m->pixel_error, ADAPT_PIXEL_FLOOR, px, m->adapt_stop ? m->adapt_stop : "-");
         }
     }
     /* Peers that did no work (refused, flooding, or joined late) are counted, not listed:
@@ -2021,6 +2025,7 @@ static int write_stats(const struct master *m, int ok, char *err, size_t errlen)
         json_object_set_new(root, "time_limited", json_boolean(m->time_up));
         json_object_set_new(root, "uniform_passes", json_boolean(m->adapt->uniform));
         json_object_set_new(root, "predicted_work_ratio", json_real(m->adapt->predicted));
+        json_object_set_new(root, "adaptive_stop", m->adapt_stop ? json_string(m->adapt_stop) : json_null());
         if (m->pixel_error > 0.0) {
             json_object_set_new(root, "pixel_error", json_real(m->pixel_error));
             json_object_set_new(root, "pixels_over_bound", json_integer((json_int_t)m->adapt->pixels_over));
@@ -2339,6 +2344,7 @@ static int frame_begin(struct master *m, uint32_t frames_started)
     if (m->adapt) { /* units go out round by round (adapt.h); round 0 now */
         sched_hold_all(m->sched);
         adapt_begin(m->adapt);
+        m->adapt_stop = NULL;
         memset(m->round_from, 0, sizeof *m->round_from * m->num_cells);
         memset(m->slots_used, 0, sizeof *m->slots_used * m->num_tiles);
         m->time_up = 0;
