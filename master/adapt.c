@@ -37,6 +37,41 @@ void adapt_free(struct adapt **ap)
     *ap = NULL;
 }
 
+void adapt_set_pixel_error(struct adapt *a, double pixel_error)
+{
+    a->pixel_error = pixel_error > 0.0 ? pixel_error : 0.0;
+}
+
+double adapt_pixel_floor(const struct adapt *a)
+{
+    double mean = 0.0, pixels = 0.0;
+    for (uint32_t t = 0; t < a->num_tiles; t++) {
+        mean += a->tiles[t].sum_mean;
+        pixels += a->tiles[t].pixels;
+    }
+    return pixels > 0.0 && mean > 0.0 ? ADAPT_PIXEL_FLOOR * mean / pixels : 0.0;
+}
+
+uint64_t adapt_pixel_bound(uint32_t num_tiles, const double *w, const uint32_t *m, double bound, uint32_t max_passes,
+                           uint32_t growth, uint32_t step, uint32_t *n)
+{
+    uint64_t added = 0;
+    double b2 = bound * bound;
+    for (uint32_t t = 0; t < num_tiles && b2 > 0.0; t++) {
+        if (!(m[t] > 0 && w[t] > b2))
+            continue;
+        /* the worst pixel's variance falls as 1/n: m w / n <= bound^2 */
+        double need = ceil(m[t] * (w[t] / b2) / step - 1e-9) * step;
+        double cap = (double)m[t] * growth < max_passes ? (double)m[t] * growth : max_passes;
+        need = need > cap ? cap : need;
+        if (need > n[t]) {
+            added += (uint32_t)need - n[t];
+            n[t] = (uint32_t)need;
+        }
+    }
+    return added;
+}
+
 void adapt_set_pass_spp(struct adapt *a, uint32_t spp_per_pass)
 {
     uint32_t k = spp_per_pass ? spp_per_pass : 1;
@@ -53,6 +88,8 @@ void adapt_begin(struct adapt *a)
     a->est = a->est_raw = a->dof = a->aim = 0.0;
     a->uniform = 0;
     a->predicted = 0.0;
+    a->pixels_over = a->pixels_over_capped = 0;
+    a->worst = 0.0;
     a->num_history = 0;
     a->outstanding = 0;
     for (uint32_t t = 0; t < a->num_tiles; t++) {
@@ -330,9 +367,23 @@ int adapt_decide(struct adapt *a, int stop, uint64_t samples_total)
         a->hist_samples[a->num_history] = (double)samples_total;
         a->hist_est[a->num_history++] = a->est;
     }
+    double *w = mem_alloc(sizeof *w * (n_tiles ? n_tiles : 1));
+    double worst = 0.0;
+    a->pixels_over = a->pixels_over_capped = 0;
+    for (uint32_t t = 0; t < n_tiles; t++) {
+        const struct adapt_tile *at = &a->tiles[t];
+        w[t] = a->pixel_error > 0.0 ? at->worst : 0.0;
+        worst = w[t] > worst ? w[t] : worst;
+        a->pixels_over += a->pixel_error > 0.0 ? at->over : 0;
+        a->pixels_over_capped += a->pixel_error > 0.0 && at->passes >= a->max_passes ? at->over : 0;
+    }
+    a->worst = sqrt(worst);
+    /* A target alone, once met, is met; with no target the bound alone counts (a time limit
+     * or round cap alone: neither, each round aims at half the error). */
+    int target_met = a->target > 0.0 ? a->est <= a->aim : a->pixel_error > 0.0;
+    int pixels_met = !(a->pixel_error > 0.0) || a->pixels_over == 0;
     uint64_t added = 0;
-    if (!(stop || a->est <= 0.0 || (a->target > 0.0 && a->est <= a->aim) ||
-          (a->max_rounds && a->round + 1 >= a->max_rounds))) {
+    if (!(stop || a->est <= 0.0 || (target_met && pixels_met) || (a->max_rounds && a->round + 1 >= a->max_rounds))) {
         for (uint32_t t = 0; t < n_tiles; t++) {
             const struct adapt_tile *at = &a->tiles[t];
             m[t] = at->passes;
@@ -344,12 +395,18 @@ int adapt_decide(struct adapt *a, int stop, uint64_t samples_total)
         }
         /* relRMSE^2 = (sum var / pixels) / (sum mean / pixels)^2 <= aim^2 */
         double budget = a->aim * a->aim * mean * mean / pixels;
-        if (a->round == 0) { /* the pilot's decision, for the whole frame: adapt or uniform passes */
-            a->predicted = adapt_predicted_ratio(n_tiles, v, c, m, budget, a->max_passes);
-            a->uniform = a->predicted > ADAPT_UNIFORM_GAIN;
+        if (target_met) { /* the bound's passes only */
+            memcpy(n, m, sizeof *n * n_tiles);
+        } else {
+            if (a->round == 0) { /* the pilot's decision, for the whole frame: adapt or uniform passes */
+                a->predicted = adapt_predicted_ratio(n_tiles, v, c, m, budget, a->max_passes);
+                a->uniform = a->predicted > ADAPT_UNIFORM_GAIN;
+            }
+            added = a->uniform ? adapt_uniform(n_tiles, v, m, budget, a->max_passes, ADAPT_GROWTH, a->step, n)
+                               : adapt_allocate(n_tiles, v, c, m, budget, a->max_passes, ADAPT_GROWTH, a->step, n);
         }
-        added = a->uniform ? adapt_uniform(n_tiles, v, m, budget, a->max_passes, ADAPT_GROWTH, a->step, n)
-                           : adapt_allocate(n_tiles, v, c, m, budget, a->max_passes, ADAPT_GROWTH, a->step, n);
+        if (a->pixel_error > 0.0)
+            added += adapt_pixel_bound(n_tiles, w, m, a->pixel_error, a->max_passes, ADAPT_GROWTH, a->step, n);
         a->outstanding = 0;
         for (uint32_t t = 0; t < n_tiles; t++) {
             a->outstanding += n[t] - a->tiles[t].passes;
@@ -357,6 +414,7 @@ int adapt_decide(struct adapt *a, int stop, uint64_t samples_total)
         }
     }
     free(v);
+    free(w);
     free(c);
     free(dof);
     free(m);

@@ -24,6 +24,11 @@
  * saving that small does not pay for what the work leaves out (an adaptive render's units,
  * and its noisy blocks' dearer rays, docs/adaptive.md). */
 #define ADAPT_UNIFORM_GAIN 0.8
+/* The per-pixel bound (--pixel-error, adapt_set_pixel_error): a pixel's relative error is
+ * its standard error over max(its mean, ADAPT_PIXEL_FLOOR x the image's mean), so a
+ * near-black pixel is held to an absolute error, not to a share of its own tiny value
+ * (docs/adaptive.md, "A per-pixel bound"). */
+#define ADAPT_PIXEL_FLOOR 0.1
 
 /* A tile's state as the rounds see it. The master's "tiles" here are the pixel blocks of
  * the render's tiles (render/tile.h: a unit renders some blocks of a tile), in a grid of
@@ -36,6 +41,9 @@ struct adapt_tile {
                              * unbiased estimate of sigma^4 / (q - 1)), so
                              * that sum_var has sum_var^2 / sum_var_sq degrees of freedom (Welch-Satterthwaite) */
     double sum_mean;        /* over its pixels: the pixel mean (mean of R, G, B) */
+    double worst;           /* per-pixel bound: the largest squared relative error of its pixels
+                             * (variance of the mean over max(mean, adapt_pixel_floor)^2) */
+    uint32_t over;          /* per-pixel bound: its pixels whose squared relative error is above the bound's square */
     uint64_t samples, rays; /* traced so far (deterministic: the cost measure, never time) */
 };
 
@@ -43,6 +51,10 @@ struct adapt {
     uint32_t num_tiles, tiles_x, max_passes, max_rounds;
     uint32_t step;          /* a tile's passes are a multiple of step (the sampler's streams) */
     double target;          /* relRMSE to reach; 0: none (time limit or max_rounds only) */
+    double pixel_error;     /* every pixel's relative standard error to reach (adapt_set_pixel_error); 0: none */
+    uint64_t pixels_over;   /* per-pixel bound, at the last decision: pixels above it... */
+    uint64_t pixels_over_capped; /* ...of them in blocks at max_passes... */
+    double worst;           /* ...and the largest relative error of a pixel (not squared) */
     uint32_t round;         /* rounds released so far (round 0 = the first passes) */
     uint32_t outstanding;   /* units of the current round not yet folded */
     int finished;           /* no more passes: the frame ends once outstanding is 0 */
@@ -67,6 +79,20 @@ struct adapt {
 struct adapt *adapt_new(uint32_t num_tiles, uint32_t tiles_x, const uint32_t *pixels, uint32_t max_passes, uint32_t step,
                         double target, uint32_t max_rounds);
 void adapt_free(struct adapt **a);
+/* A per-pixel bound P (0: none): the frame goes on until every pixel's relative standard
+ * error (adapt_tile.worst, .over: the caller fills them before each decision) is at most
+ * P, or its block is at max_passes; with a target too, both must hold. */
+void adapt_set_pixel_error(struct adapt *a, double pixel_error);
+/* The floor of the per-pixel bound's scale: ADAPT_PIXEL_FLOOR x the image's mean pixel (the
+ * tiles' sum_mean over their pixels); 0 for a black image. */
+double adapt_pixel_floor(const struct adapt *a);
+/* The per-pixel bound's rule: a tile whose worst pixel's squared relative error w[t] after
+ * m[t] passes is above bound^2 gets, under the 1/n model, the passes that bring it to the
+ * bound, m w / bound^2, rounded up to a multiple of step, at most growth x m[t] and
+ * max_passes; n[t] (what another rule gave, >= m[t]) is raised to that, never lowered.
+ * Returns the passes added to n. */
+uint64_t adapt_pixel_bound(uint32_t num_tiles, const double *w, const uint32_t *m, double bound, uint32_t max_passes,
+                           uint32_t growth, uint32_t step, uint32_t *n);
 /* Passes of spp_per_pass samples: round 0 gives ceil(ADAPT_FIRST_SPP / spp_per_pass) passes
  * (at least 1) instead of ADAPT_FIRST_PASSES, so that a high --spp cap (which makes the
  * passes larger, at most PROTO_MAX_PASSES of them) does not make round 0 overshoot. */
@@ -116,7 +142,9 @@ double adapt_pool(const struct adapt *a, double *v, double *dof);
  * reached, or stop set: the time limit). The target is met when the pooled estimate est
  * is at most aim = target / (1 + Z / sqrt(2 dof)): a relRMSE estimated from dof degrees
  * of freedom is off by about 1 / sqrt(2 dof) of itself, Z = a->confidence_z. The
- * allocation aims at the same figure. Round 0's decision (the pilot's) also chooses, for
+ * allocation aims at the same figure. With a per-pixel bound the frame also waits for every
+ * tile's worst pixel (adapt_pixel_bound raises its passes), and a target alone, once met, is
+ * met. Round 0's decision (the pilot's) also chooses, for
  * the frame, between the allocation and uniform passes (ADAPT_UNIFORM_GAIN): a->uniform,
  * a->predicted. */
 int adapt_decide(struct adapt *a, int stop, uint64_t samples_total);

@@ -395,6 +395,29 @@ void fold_blocks_sums(const struct fold *f, uint32_t tile, double *sum_var, doub
     }
 }
 
+void fold_blocks_worst(const struct fold *f, uint32_t tile, double floor, double bound, double *worst, uint32_t *over)
+{
+    CHECK(tile < f->num_tiles);
+    const struct fold_tile *t = &f->tiles[tile];
+    uint32_t nb = tile_blocks_side(f->desc.tile_size) * tile_blocks_side(f->desc.tile_size);
+    for (uint32_t b = 0; b < nb; b++) {
+        worst[b] = 0.0;
+        over[b] = 0;
+    }
+    size_t pixels = tile_pixels(f, tile);
+    uint32_t w = tile_width(f, tile);
+    double b2 = bound * bound;
+    for (size_t i = 0; t->acc && i < pixels; i++) {
+        uint32_t b = pixel_block(f, w, i);
+        double pv, pv2, pmu;
+        pixel_sums(&t->acc[i].b, &pv, &pv2, &pmu);
+        double scale = pmu > floor ? pmu : floor;
+        double r = scale > 0.0 && pv > 0.0 ? pv / (scale * scale) : 0.0;
+        worst[b] = r > worst[b] ? r : worst[b];
+        over[b] += r > b2;
+    }
+}
+
 struct fold_est {
     struct image_desc desc;
     uint32_t num_tiles, tiles_x;

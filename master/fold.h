@@ -76,6 +76,11 @@ void fold_block_sums(const struct fold *f, uint32_t tile, uint64_t mask, double 
  * into sum_var[b], sum_var_sq[b], sum_mean[b], in one pass over the tile's pixels (the
  * same bits as one call per block; a block past the tile's edge gets zeros). */
 void fold_blocks_sums(const struct fold *f, uint32_t tile, double *sum_var, double *sum_var_sq, double *sum_mean);
+/* The per-pixel bound's figures of every block b of the tile (adapt.h): worst[b], the
+ * largest over its pixels of the variance of the pixel mean over max(pixel mean, floor)^2
+ * (a squared relative standard error; 0 where the scale is 0), and over[b], its pixels
+ * whose figure is above bound^2. */
+void fold_blocks_worst(const struct fold *f, uint32_t tile, double floor, double bound, double *worst, uint32_t *over);
 
 /* The image's estimated relRMSE (the summary's figure, the EXR's brume_est_rel_rmse) from
  * its final tiles' pixels, as they lie in the output (with one pass the workers' tiles,

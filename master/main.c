@@ -60,6 +60,9 @@ static void usage(FILE *f)
             "  --target-error E       adaptive: render until the estimated relRMSE is E (overrides\n"
             "                         render.target_error); --spp is the cap (default 4096), --passes the most\n"
             "                         passes a tile gets (default spp / 8)\n"
+            "  --pixel-error P        adaptive: render until every pixel's estimated relative standard error\n"
+            "                         (over max(pixel, 0.1 x image mean)) is P, or its block is at the cap\n"
+            "                         (overrides render.pixel_error); with --target-error both must hold\n"
             "  --time-limit T         adaptive: stop at the first round boundary after T seconds (overrides\n"
             "                         render.time_limit); the EXR records the rounds reached\n"
             "  --max-rounds R         adaptive: at most R rounds (reproduces a time-limited run exactly)\n"
@@ -163,8 +166,8 @@ int main(int argc, char **argv)
             o.map_memory_mb = (uint32_t)v;
             continue;
         }
-        if (has_arg && (!strcmp(a, "--target-error") || !strcmp(a, "--time-limit"))) {
-            int target = !strcmp(a, "--target-error");
+        if (has_arg && (!strcmp(a, "--target-error") || !strcmp(a, "--pixel-error") || !strcmp(a, "--time-limit"))) {
+            int target = strcmp(a, "--time-limit") != 0;
             char *end;
             const char *t = argv[++i];
             double d = strtod(t, &end);
@@ -172,7 +175,10 @@ int main(int argc, char **argv)
                 log_error("%s: \"%s\" is not a number in %s", a, t, target ? "(0, 1)" : "(0, 1e9) seconds");
                 return 2;
             }
-            if (target) {
+            if (!strcmp(a, "--pixel-error")) {
+                o.pixel_error = d;
+                o.have_pixel_error = 1;
+            } else if (target) {
                 o.target_error = d;
                 o.have_target_error = 1;
             } else {

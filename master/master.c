@@ -168,8 +168,10 @@ struct master {
     struct image_desc out_desc; /* the output's layout: desc, and with passes the samples channel */
     struct adapt *adapt;        /* adaptive rounds (target error or time limit), or NULL */
     double target_error, time_limit; /* adaptive settings (0: none) */
+    double pixel_error;         /* adaptive: the per-pixel bound (0: none) */
     uint32_t max_rounds;
     int time_up;                /* the time limit passed: the round under way is the last */
+    const char *adapt_stop;     /* why the rounds ended (a static string), or NULL before */
     uint32_t *round_from;       /* per block (adapt's tiles): its passes before the round being released */
     uint32_t blocks_side, num_cells; /* adaptive: blocks in a tile's row (render/tile.h), blocks of the frame */
     uint32_t *slots_used;       /* adaptive, per tile: its units released so far (slots 0..n-1) */
@@ -269,6 +271,12 @@ static int check_frame_files(struct master *m, const char *text, size_t len)
     return 0;
 }
 
+/* Whether the frame renders in adaptive rounds (docs/adaptive.md). */
+static int master_adaptive(const struct master *m)
+{
+    return m->target_error > 0.0 || m->pixel_error > 0.0 || m->time_limit > 0.0 || m->max_rounds > 0;
+}
+
 /* Parses the scene for `frame` (its per-frame files: scene.frame_files), applies the
  * command line, plans the passes and publishes the manifest. Called once before the first
  * frame, and again at each frame of a scene with per-frame files (scene_reload), where
@@ -339,8 +347,9 @@ static int load_scene(struct master *m, uint32_t frame)
     uint32_t asked = o->have_passes ? o->passes : rs->passes;
     m->target_error = o->have_target_error ? o->target_error : rs->target_error;
     m->time_limit = o->have_time_limit ? o->time_limit : rs->time_limit;
+    m->pixel_error = o->have_pixel_error ? o->pixel_error : rs->pixel_error;
     m->max_rounds = o->have_max_rounds ? o->max_rounds : 0;
-    int adaptive = m->target_error > 0.0 || m->time_limit > 0.0 || m->max_rounds > 0;
+    int adaptive = master_adaptive(m);
     if (adaptive) {
         /* --spp is the cap; passes of MASTER_ADAPT_PASS_SPP samples unless --passes says. */
         if (!o->have_spp)
@@ -369,8 +378,8 @@ static int load_scene(struct master *m, uint32_t frame)
     }
     m->spp_per_pass = rs->spp / m->passes;
     if (adaptive)
-        log_info("adaptive: target relRMSE %g, time limit %g s, at most %u passes of %u spp per tile (%u spp)%s",
-                 m->target_error, m->time_limit, m->passes, m->spp_per_pass, rs->spp,
+        log_info("adaptive: target relRMSE %g, per-pixel bound %g, time limit %g s, at most %u passes of %u spp per tile "
+                 "(%u spp)%s", m->target_error, m->pixel_error, m->time_limit, m->passes, m->spp_per_pass, rs->spp,
                  m->max_rounds ? ", round cap set" : "");
     m->map_per_frame = master_media_per_frame(&m->scene);
     return publish_manifest(m);
@@ -456,7 +465,7 @@ static void setup_tiles(struct master *m)
         fold_output_desc(&m->desc, &m->out_desc);
     }
     m->est = fold_est_new(&m->out_desc);
-    if (m->target_error > 0.0 || m->time_limit > 0.0 || m->max_rounds > 0) {
+    if (master_adaptive(m)) {
         /* The rounds allocate per pixel block: adapt's "tiles" are the blocks of every tile,
          * in a grid of tiles_x x side blocks a row (docs/adaptive.md). */
         uint32_t tiles_x = imgio_tiles_x(&m->desc), side = tile_blocks_side(rs->tile_size);
@@ -476,6 +485,7 @@ static void setup_tiles(struct master *m)
         m->adapt = adapt_new(m->num_cells, cells_x, pixels, m->passes, integrator_streams(m->photon_maps > 0),
                              m->target_error, m->max_rounds);
         adapt_set_pass_spp(m->adapt, m->spp_per_pass);
+        adapt_set_pixel_error(m->adapt, m->pixel_error);
         m->round_from = mem_calloc(m->num_cells, sizeof *m->round_from);
         m->slots_used = mem_calloc(m->num_tiles, sizeof *m->slots_used);
         m->slot_pass = mem_calloc(m->num_units, sizeof *m->slot_pass);
@@ -1165,6 +1175,18 @@ static void adapt_release(struct master *m)
     a->outstanding = units;
 }
 
+/* The per-pixel bound's state at the last decision into buf: "" without a bound. */
+static void pixel_bound_text(const struct master *m, char *buf, size_t size)
+{
+    const struct adapt *a = m->adapt;
+    double pixels = (double)m->scene.settings.width * m->scene.settings.height;
+    buf[0] = '\0';
+    if (a && m->pixel_error > 0.0)
+        snprintf(buf, size, "; pixels above %g: %llu (%.2f %%, %llu at the cap), worst %.4f", m->pixel_error,
+                 (unsigned long long)a->pixels_over, pixels > 0 ? 100.0 * (double)a->pixels_over / pixels : 0.0,
+                 (unsigned long long)a->pixels_over_capped, a->worst);
+}
+
 /* A round's last unit is folded: the decision, from the folded passes only (the same after
  * a journal replay, whose records come in the order the units were accepted). Either the
  * next round goes out, or every tile is final and the units never wanted are done. */
@@ -1182,18 +1204,32 @@ static int adapt_round_end(struct master *m)
             at->sum_mean = mu[b];
         }
     }
+    if (m->pixel_error > 0.0) { /* the per-pixel bound's scale needs the image's mean: a second pass */
+        double floor = adapt_pixel_floor(a);
+        uint32_t over[NB];
+        for (uint32_t t = 0; t < m->num_tiles; t++) {
+            fold_blocks_worst(m->fold, t, floor, m->pixel_error, v, over);
+            for (uint32_t b = 0; b < m->blocks_side * m->blocks_side; b++) {
+                a->tiles[cell_of(m, t, b)].worst = v[b];
+                a->tiles[cell_of(m, t, b)].over = over[b];
+            }
+        }
+    }
     uint32_t round = a->round;
     const char *why = NULL;
-    if (adapt_decide(a, m->time_up, m->stats.samples)) {
+    char px[160];
+    int decided = adapt_decide(a, m->time_up, m->stats.samples);
+    pixel_bound_text(m, px, sizeof px);
+    if (decided) {
         if (round == 0)
             log_info("adaptive: the pilot predicts the allocation at %.3f of uniform passes' work (fallback above %g): %s",
                      a->predicted, ADAPT_UNIFORM_GAIN, a->uniform ? "uniform passes" : "passes per block");
         adapt_release(m);
         uint64_t units = a->outstanding;
         if (units > 0) {
-            log_info("adaptive: round %u: estimated relRMSE %.4f (tiles alone %.4f, %.0f dof; target %g, aim %.4f); round %u: "
-                     "%llu more units", round, a->est, a->est_raw, a->dof, m->target_error, a->aim, a->round,
-                     (unsigned long long)units);
+            log_info("adaptive: round %u: estimated relRMSE %.4f (tiles alone %.4f, %.0f dof; target %g, aim %.4f)%s; "
+                     "round %u: %llu more units", round, a->est, a->est_raw, a->dof, m->target_error, a->aim, px,
+                     a->round, (unsigned long long)units);
             return 0;
         }
         a->finished = 1;
@@ -1201,10 +1237,15 @@ static int adapt_round_end(struct master *m)
         why = "every growing tile out of units";
     }
     if (!why)
-        why = m->time_up ? "time limit reached" : a->target > 0.0 && a->est <= a->aim ? "target met"
+        why = m->time_up ? "time limit reached"
+              : (a->target > 0.0 || a->pixel_error > 0.0) && (!(a->target > 0.0) || a->est <= a->aim) &&
+                        a->pixels_over == 0
+                  ? (a->pixel_error > 0.0 ? (a->target > 0.0 ? "target and per-pixel bound met" : "per-pixel bound met")
+                                          : "target met")
               : a->max_rounds && round + 1 >= a->max_rounds ? "round cap reached" : "every block at its pass cap";
-    log_info("adaptive: round %u: estimated relRMSE %.4f (tiles alone %.4f, %.0f dof; target %g, aim %.4f): %s", round,
-             a->est, a->est_raw, a->dof, m->target_error, a->aim, why);
+    log_info("adaptive: round %u: estimated relRMSE %.4f (tiles alone %.4f, %.0f dof; target %g, aim %.4f)%s: %s", round,
+             a->est, a->est_raw, a->dof, m->target_error, a->aim, px, why);
+    m->adapt_stop = why;
     for (uint32_t t = 0; t < m->num_tiles; t++) {
         if (m->chunks[t].data) /* --tiles: a black tile */
             continue;
@@ -1741,6 +1782,8 @@ static void compute_job_key(struct master *m)
                      "brume-journal-2 %s tile=%u sampler=%u frame=%u tiles=%u passes=%u target=%.17g rounds=%u",
                      m->scene_hash, rs->tile_size, (unsigned)rs->sampler, m->frame, m->num_tiles, m->passes,
                      m->target_error, m->max_rounds);
+    if (m->pixel_error > 0.0) /* absent otherwise: journals of renders without the bound keep their key */
+        n += snprintf(ident + n, sizeof ident - (size_t)n, " pixel=%.17g", m->pixel_error);
     if (m->adapt) /* units are (tile, slot) pairs of pixel blocks */
         n += snprintf(ident + n, sizeof ident - (size_t)n, " blocks=%u", m->blocks_side);
     blob_hash_compute(ident, (size_t)n, &m->job_key);
@@ -1786,6 +1829,7 @@ static int write_output(struct master *m, double seconds)
     a.passes = m->passes;
     if (m->adapt) {
         a.target_error = m->target_error;
+        a.pixel_error = m->pixel_error;
         a.rounds = m->adapt->round + 1;
         a.time_limited = (uint32_t)m->time_up;
     }
@@ -1821,15 +1865,18 @@ static void print_progress(struct master *m, uint64_t start_ms, int tty, int fin
         const struct adapt *a = m->adapt;
         double want = adapt_eta_samples(a);
         double eta = want > (double)m->stats.samples && rate > 0 ? (want - (double)m->stats.samples) / rate : 0.0;
-        char est[96] = "estimate after round 0 pending";
-        if (a->num_history)
-            snprintf(est, sizeof est, "est. relRMSE %.4f -> target %g", a->est, m->target_error);
+        char est[96] = "estimate after round 0 pending", px[160] = "";
+        if (a->num_history) {
+            snprintf(est, sizeof est, m->target_error > 0.0 ? "est. relRMSE %.4f -> target %g" : "est. relRMSE %.4f",
+                     a->est, m->target_error);
+            pixel_bound_text(m, px, sizeof px);
+        }
         if (tty)
-            fprintf(stderr, "\rmaster: round %u, %u units to go  %s  %.2f Msamples/s  ETA %.0fs   %s", a->round,
-                    a->outstanding, est, rate / 1e6, eta, final ? "\n" : "");
+            fprintf(stderr, "\rmaster: round %u, %u units to go  %s%s  %.2f Msamples/s  ETA %.0fs   %s", a->round,
+                    a->outstanding, est, px, rate / 1e6, eta, final ? "\n" : "");
         else
-            fprintf(stderr, "master: progress: round %u, %u units to go, %s, %.2f Msamples/s, ETA %.0fs\n", a->round,
-                    a->outstanding, est, rate / 1e6, eta);
+            fprintf(stderr, "master: progress: round %u, %u units to go, %s%s, %.2f Msamples/s, ETA %.0fs\n", a->round,
+                    a->outstanding, est, px, rate / 1e6, eta);
         fflush(stderr);
         return;
     }
@@ -1893,6 +1940,12 @@ static void print_summary(struct master *m, double secs)
                "(cap %u); %.3f s\n", m->target_error, m->rel_rmse_est, m->adapt->round + 1,
                m->time_up ? " (time limit)" : "", lo, pixels > 0 ? sum / pixels : 0.0, hi, m->scene.settings.spp,
                secs);
+        if (m->pixel_error > 0.0) {
+            char px[160];
+            pixel_bound_text(m, px, sizeof px);
+            printf("summary: adaptive: per-pixel bound %g (relative standard error over max(pixel, %g x image mean))%s; "
+                   "stopped: %s\n", m->pixel_error, ADAPT_PIXEL_FLOOR, px, m->adapt_stop ? m->adapt_stop : "-");
+        }
     }
     /* Peers that did no work (refused, flooding, or joined late) are counted, not listed:
      * a flood of thousands of HELLOs must not bury the summary. Every peer is in the stats. */
@@ -1971,6 +2024,13 @@ static int write_stats(const struct master *m, int ok, char *err, size_t errlen)
         json_object_set_new(root, "time_limited", json_boolean(m->time_up));
         json_object_set_new(root, "uniform_passes", json_boolean(m->adapt->uniform));
         json_object_set_new(root, "predicted_work_ratio", json_real(m->adapt->predicted));
+        json_object_set_new(root, "adaptive_stop", m->adapt_stop ? json_string(m->adapt_stop) : json_null());
+        if (m->pixel_error > 0.0) {
+            json_object_set_new(root, "pixel_error", json_real(m->pixel_error));
+            json_object_set_new(root, "pixels_over_bound", json_integer((json_int_t)m->adapt->pixels_over));
+            json_object_set_new(root, "pixels_over_bound_at_cap", json_integer((json_int_t)m->adapt->pixels_over_capped));
+            json_object_set_new(root, "worst_pixel_rel_error", json_real(m->adapt->worst));
+        }
     }
     for (uint32_t i = 0; i < m->num_peers; i++) {
         json_t *w = json_object();
@@ -2283,6 +2343,7 @@ static int frame_begin(struct master *m, uint32_t frames_started)
     if (m->adapt) { /* units go out round by round (adapt.h); round 0 now */
         sched_hold_all(m->sched);
         adapt_begin(m->adapt);
+        m->adapt_stop = NULL;
         memset(m->round_from, 0, sizeof *m->round_from * m->num_cells);
         memset(m->slots_used, 0, sizeof *m->slots_used * m->num_tiles);
         m->time_up = 0;

@@ -48,10 +48,11 @@ struct master_opts {
     double photon_memory_gb;    /* --photon-memory GB: the photon maps' budget (0: half the machine's memory) */
     int have_passes;            /* --passes N (1..1024): passes (photon maps, batch means; adaptive: the most per tile) */
     uint32_t passes;
-    /* Adaptive rendering (docs/adaptive.md): overrides of render.target_error and
-     * render.time_limit, and a cap on rounds (reproduces a time-limited run). */
-    int have_target_error, have_time_limit, have_max_rounds;
-    double target_error, time_limit;
+    /* Adaptive rendering (docs/adaptive.md): overrides of render.target_error,
+     * render.pixel_error and render.time_limit, and a cap on rounds (reproduces a
+     * time-limited run). */
+    int have_target_error, have_pixel_error, have_time_limit, have_max_rounds;
+    double target_error, pixel_error, time_limit;
     uint32_t max_rounds;
 };
 

@@ -97,10 +97,6 @@ sweep() {
 }
 # at_error DAT ERR: the CPU seconds interpolated at ERR on DAT's uniform curve.
 at_error() { awk '{ print $3, $2 }' "$1" | loglog_interp "$2"; }
-# work IMG: the rays plus camera samples the render of IMG traced (its stats), a cost that the
-# machine's load does not move (it leaves out what a unit costs beyond its rays: encoding,
-# folding).
-work() { python3 -c 'import json, sys; d = json.load(open(sys.argv[1])); print(d["rays"] + d["samples"])' "$1.stats.json"; }
 # at_work DAT ERR: the work interpolated at ERR on DAT's uniform curve.
 at_work() { awk '{ print $3, $4 }' "$1" | loglog_interp "$2"; }
 ratio() { awk -v a="$1" -v u="${2%\*}" 'BEGIN { if (u == "nan" || !(u + 0 > 0)) print "nan"; else printf "%.3f\n", a / u }'; }

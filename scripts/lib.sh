@@ -82,6 +82,11 @@ loglog_interp() {
           printf "%.6g%s\n", exp(y[i] + f * (y[i + 1] - y[i])), (lq < x[1] || lq > x[n]) ? "*" : "" }'
 }
 
+# work IMG: the rays plus camera samples the render of IMG traced (its stats), a cost that the
+# machine's load does not move (it leaves out what a unit costs beyond its rays: encoding,
+# folding).
+work() { python3 -c 'import json, sys; d = json.load(open(sys.argv[1])); print(d["rays"] + d["samples"])' "$1.stats.json"; }
+
 # scene_at NAME WxH DIR: a copy of scenes/NAME in DIR with the render resolution WxH
 # (the scene's own when WxH is empty); prints the JSON's path.
 scene_at() {

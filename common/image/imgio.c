@@ -1059,6 +1059,8 @@ struct imgio_writer *imgio_writer_open(const char *path, const struct image_desc
         rv = exr_attr_set_int(w->ctx, 0, "brume_passes", (int32_t)(a->passes & INT32_MAX));
     if (rv == EXR_ERR_SUCCESS && a->target_error > 0.0)
         rv = exr_attr_set_double(w->ctx, 0, "brume_target_error", a->target_error);
+    if (rv == EXR_ERR_SUCCESS && a->pixel_error > 0.0)
+        rv = exr_attr_set_double(w->ctx, 0, "brume_pixel_error", a->pixel_error);
     if (rv == EXR_ERR_SUCCESS && a->rounds > 0)
         rv = exr_attr_set_int(w->ctx, 0, "brume_rounds", (int32_t)(a->rounds & INT32_MAX));
     if (rv == EXR_ERR_SUCCESS && a->time_limited)

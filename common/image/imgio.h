@@ -40,6 +40,7 @@ struct image_attrs {
     double est_rel_rmse;    /* brume_est_rel_rmse: the image's estimated relRMSE */
     uint32_t passes;        /* brume_passes: passes of the frame (adaptive: at most, per tile) */
     double target_error;    /* brume_target_error */
+    double pixel_error;     /* brume_pixel_error: the per-pixel bound */
     uint32_t rounds;        /* brume_rounds: adaptive rounds rendered (--max-rounds reproduces a time-limited run) */
     uint32_t time_limited;  /* brume_time_limited: 1 when --time-limit ended the render */
     /* Further string attributes (the AOVs' id name tables), written as given. */

@@ -150,6 +150,7 @@ struct render_settings {
     enum sampler_type sampler;
     uint32_t passes;        /* render.passes (1..SCENE_MAX_PASSES): passes (docs/media.md, docs/adaptive.md); 0 = default */
     float target_error;     /* render.target_error: adaptive to this relRMSE (docs/adaptive.md); 0 = none */
+    float pixel_error;      /* render.pixel_error: adaptive until every pixel's relative error is this (docs/adaptive.md); 0 = none */
     float time_limit;       /* render.time_limit: seconds, adaptive, stops at a round boundary; 0 = none */
     uint32_t aovs;          /* render.aovs: bit set of enum aov (render/tile.h); 0 = beauty only */
 };

@@ -1247,9 +1247,9 @@ static int parse_filter(struct ctx *c, const struct member *fm, struct camera_de
 static int parse_render(struct ctx *c, const struct member *rm)
 {
     static const char *const keys[] = {"width", "height", "spp", "max_depth", "seed", "tile_size", "sampler",
-                                       "passes", "target_error", "time_limit", "aovs", "filter"};
-    struct member m[12];
-    if (object_members(c, rm->val, &rm->path, "render", keys, 12, m) != 0 ||
+                                       "passes", "target_error", "time_limit", "aovs", "filter", "pixel_error"};
+    struct member m[13];
+    if (object_members(c, rm->val, &rm->path, "render", keys, 13, m) != 0 ||
         require(c, &m[0], &rm->path, "render", "width") != 0 ||
         require(c, &m[1], &rm->path, "render", "height") != 0)
         return -1;
@@ -1281,13 +1281,19 @@ static int parse_render(struct ctx *c, const struct member *rm)
             return -1;
         r->passes = (uint32_t)n;
     }
-    /* Adaptive rendering (docs/adaptive.md): a target relRMSE in (0, 1), a time limit in s. */
+    /* Adaptive rendering (docs/adaptive.md): a target relRMSE and a per-pixel bound in (0, 1),
+     * a time limit in s. */
     r->target_error = 0.0f;
     r->time_limit = 0.0f;
     if (m[8].val && get_float(c, m[8].val, &m[8].path, "target_error", &r->target_error) != 0)
         return -1;
     if (m[8].val && !(r->target_error > 0.0f && r->target_error < 1.0f))
         return fail(c, &m[8].path, AT_VALUE, "target_error must be in (0, 1)");
+    r->pixel_error = 0.0f;
+    if (m[12].val && get_float(c, m[12].val, &m[12].path, "pixel_error", &r->pixel_error) != 0)
+        return -1;
+    if (m[12].val && !(r->pixel_error > 0.0f && r->pixel_error < 1.0f))
+        return fail(c, &m[12].path, AT_VALUE, "pixel_error must be in (0, 1)");
     if (m[9].val && get_float(c, m[9].val, &m[9].path, "time_limit", &r->time_limit) != 0)
         return -1;
     if (m[9].val && !(r->time_limit > 0.0f && r->time_limit < 1e9f))

@@ -8,7 +8,9 @@
 # rounds and --max-rounds reproduces it; passes apply to a scene without photon maps; plain
 # renders default to one pass per stream; a tile's m passes are the uniform render with m
 # passes; a scene of uniform noise renders uniform passes (the fallback), the uniform
-# render of as many passes.
+# render of as many passes; --pixel-error P (alone, and with a target in the kill test):
+# 1 vs 3 workers bit-identical, every pixel not at the cap within P, more samples where
+# round 0 saw a pixel above P.
 # Ends with "integration: N passed, N failed". Usage: BUILD=build sh tests/integration/adaptive.sh
 . "$(dirname "$0")/lib.sh"
 lib_init adaptive
@@ -32,6 +34,23 @@ if [ -n "$ns" ] && [ -n "$cs" ] && awk -v a="$ns" -v b="$cs" 'BEGIN { exit !(a =
 else bad "samples channel sums to the samples reported ($ns vs $cs)"; fi
 if ! $X cmp "$T/a1.exr" "$T/a3.exr" >/dev/null 2>&1 || [ "$($X chsum "$T/a1.exr" samples)" != "$($X chsum "$T/a3.exr" samples)" ]; then
   bad "samples channel identical for 1 and 3 workers"; else ok "samples channel identical for 1 and 3 workers"; fi
+
+# A per-pixel bound alone: 1 vs 3 workers bit-identical; every pixel's estimate (from the
+# EXR's channels) within P unless its block is at the cap (256 spp), as the stats say; the
+# blocks whose pixels round 0 (= --spp 32 --passes 4) saw above P got more samples.
+PD="--pixel-error 0.2 --tile 16 --spp 256"
+run $M $S -o "$T/x1.exr" $PD --no-journal --workers 1 --threads 1 && x1=0 || x1=1
+cp "$T/log" "$T/x1.log"
+run $M $S -o "$T/x3.exr" $PD --no-journal --workers 3 --threads 2 && x3=0 || x3=1
+run $M $S -o "$T/x0.exr" --spp 32 --passes 4 --tile 16 --no-journal --workers 1 --threads 2 && x0=0 || x0=1
+px=$($X pixerr "$T/x1.exr" 0.2 --cap 256 | sed -n 's/^estimate: over \([0-9]*\) of [0-9]* (\([0-9]*\) at the cap).*/\1 \2/p')
+pstat=$(python3 -c 'import json, sys; s = json.load(open(sys.argv[1] + ".stats.json")); print(s["pixels_over_bound"], s["pixels_over_bound_at_cap"])' "$T/x1.exr" 2>/dev/null)
+al=$($X pixerr "$T/x0.exr" 0.2 --alloc "$T/x1.exr" | sed -n 's/^alloc: mean samples \([0-9.]*\) where the estimate is above P, \([0-9.]*\) elsewhere/\1 \2/p')
+if [ $x1$x3$x0 = 000 ] && $X cmp "$T/x1.exr" "$T/x3.exr" && [ -n "$px" ] && [ "${px% *}" = "${px#* }" ] && [ "$px" = "$pstat" ] &&
+   grep -aq brume_pixel_error "$T/x1.exr" && grep -q "summary: adaptive: per-pixel bound 0.2 .*pixels above 0.2: ${px% *} " "$T/x1.log" &&
+   [ -n "$al" ] && awk -v a="${al% *}" -v b="${al#* }" 'BEGIN { exit !(a >= 2 * b && b >= 32) }'; then
+  ok "pixel bound 0.2: 1 vs 3 workers bit-identical, pixels above it all at the cap ($px), mean spp $al where round 0 saw them above / not"
+else bad "pixel bound 0.2: 1 vs 3 workers identical, above it only at the cap (over, at cap: $px; stats $pstat), spp $al (rc $x1$x3$x0)"; fi
 
 # Per pixel block: a unit renders some 4x4-pixel blocks of its tile (8x8 of them in a tile of 32 px).
 # 1 vs 3 workers bit-identical, the samples channel sums to the samples reported, and
@@ -81,7 +100,7 @@ while at + 12 <= len(d) and d[at:at + 4] == b"TREC":
 print(top)' "$1" "$2"
 }
 jtop_reached() { [ "$(jtop "$1" "$2")" -ge "$3" ]; } # jtop_reached JOURNAL TILES SLOT
-KD="--target-error 0.01 --tile 16 --spp 4096" # 4 tiles of 4x4 blocks
+KD="--target-error 0.02 --pixel-error 0.05 --tile 16 --spp 4096" # 4 tiles of 4x4 blocks; both rules decide
 run $M $S -o "$T/k0.exr" $KD --no-journal --workers 2 --threads 1 && r0=0 || r0=1
 # Under a heavy load the poll can see slot 5 only as the render ends, and the kill then
 # finds a finished frame (no journal): that try says nothing, so it is made again.
@@ -97,7 +116,7 @@ run $M $S -o "$T/k.exr" $KD --workers 2 --threads 1 && rk=0 || rk=1
 fj=$(counter tiles_from_journal "$T/k.exr")
 if [ $r0 = 0 ] && [ $rk = 0 ] && [ "${fj:-0}" -gt 0 ] && $X cmp "$T/k0.exr" "$T/k.exr" &&
    [ "$($X chsum "$T/k0.exr" samples)" = "$($X chsum "$T/k.exr" samples)" ]; then
-  ok "master kill -9 mid-round (journal up to slot $jt) + restart: identical ($fj units from the journal)"
+  ok "master kill -9 mid-round (journal up to slot $jt; target and pixel bound) + restart: identical ($fj units from the journal)"
 else bad "master kill -9 mid-round + restart: identical (rc $r0 $rk, journal pass $jt, from journal ${fj:-0})"; fi
 
 # A time limit stops at a round boundary and records the rounds; --max-rounds reproduces it.

@@ -1,5 +1,5 @@
 #!/bin/sh
-# exrtool's error metrics (relrmse, relrmse --box, errtop, errest, semean, average, oracle) on synthetic
+# exrtool's error metrics (relrmse, relrmse --box, errtop, errest, semean, average, oracle, pixerr) on synthetic
 # EXRs with known differences, written by `exrtool synth`.
 # Usage: BUILD=build sh tests/integration/exrtool.sh
 . "$(dirname "$0")/lib.sh"
@@ -78,6 +78,16 @@ near3 "oracle: a floor above uniform's spp costs floor / uniform" "$(oracle_at "
 near3 "oracle: even noise at 126 spp, halves" "$(oracle_at "$even" "target 0.01 " 8 | cut -d/ -f2)" 1
 if $X oracle --spp 1 "$T"/o[0-2].exr >/dev/null 2>&1; then bad "oracle with 3 renders accepted"; else ok "oracle needs 4 renders"; fi
 if $X relrmse "$T/a.exr" "$T/ref.exr" --box 0 >/dev/null 2>&1; then bad "--box 0 accepted"; else ok "--box 0 refused"; fi
+# pixerr: a checker of 0.2 (23 pixels) and black (22) (image mean 0.1022, floor 0.01022),
+# every pixel's standard error 0.001: 0.005 relative on the bright pixels, 0.0978 on the
+# black ones (against the floor, not their zero); and a true error of 0.1 / 1.1 on every pixel.
+$X synth "$T/pe.exr" 9 5 0.1 --checker 0.1 --var 1e-6 || bad "synth for pixerr failed"
+[ "$($X pixerr "$T/pe.exr" 0.05)" = "estimate: over 22 of 45 (0 at the cap), worst 0.0978261" ] &&
+  [ "$($X pixerr "$T/pe.exr" 0.2)" = "estimate: over 0 of 45 (0 at the cap), worst 0.0978261" ] &&
+  ok "pixerr: black pixels against the floor (22 of 45 above 0.05, none above 0.2)" || bad "pixerr: the floor ($($X pixerr "$T/pe.exr" 0.05))"
+$X synth "$T/pf.exr" 9 5 1 --var 1e-4 && $X synth "$T/pr.exr" 9 5 1.1 || bad "synth for pixerr failed"
+[ "$($X pixerr "$T/pf.exr" 0.05 --ref "$T/pr.exr" | tail -1)" = "true above 2P, P, P/2: 0.0000 1.0000 1.0000; estimate: 0.0000 0.0000 0.0000" ] &&
+  ok "pixerr: true error 0.091 above P = 0.05, not 2P; estimate 0.0091 under P/2" || bad "pixerr --ref: $($X pixerr "$T/pf.exr" 0.05 --ref "$T/pr.exr" | tail -1)"
 $X synth "$T/small.exr" 4 4 1
 if $X relrmse "$T/a.exr" "$T/small.exr" >/dev/null 2>&1; then bad "sizes that differ accepted"; else ok "sizes that differ refused"; fi
 finish

@@ -53,6 +53,16 @@
  *                                render of the scene) its allocation, the samples channel, judged
  *                                on v: its mean spp, its expected relRMSE, its cost over uniform's
  *                                at that error, and the best 8 px allocation's (with the floor)
+ *   exrtool pixerr A.exr P [--ref REF.exr] [--cap SPP] [--alloc S.exr]
+ *                                the per-pixel bound (--pixel-error P, docs/adaptive.md): each pixel's
+ *                                relative error over max(its mean of R,G,B, 0.1 x the image's mean);
+ *                                prints "estimate: over N of M (K at the cap), worst W" from the
+ *                                variance channels (sqrt of their mean over R,G,B; at the cap: the
+ *                                samples channel at SPP), then with REF (the scale from REF) the
+ *                                shares of pixels whose estimated and whose true error (RMS over
+ *                                R,G,B of A - REF) exceeds 2P, P and P / 2; with --alloc S.exr (an
+ *                                adaptive render of the scene), S's mean samples over the pixels whose
+ *                                estimate in A is above P and over the others
  * Reads files through imgio_read (OpenEXRCore); writes tiled EXRs through imgio's writer. */
 #include "image/imgio.h"
 #include "base/log.h"
@@ -611,8 +621,119 @@ static int oracle(int argc, char **argv)
     return 0;
 }
 
+/* Per pixel: the variance of the mean over R, G, B and the mean of R, G, B (px: all_channels). */
+static void pixel_var_mean(const float *px, double *var, double *mean)
+{
+    *var = ((double)px[4] + px[5] + px[6]) / 3.0;
+    *mean = ((double)px[0] + px[1] + px[2]) / 3.0;
+}
+
+/* The scale of a pixel's relative error: max(its mean, ADAPT_PIXEL_FLOOR (0.1) x the image's mean). */
+static double pixel_scale(double mean, double image_mean)
+{
+    return mean > 0.1 * image_mean ? mean : 0.1 * image_mean;
+}
+
+static int pixerr(int argc, char **argv)
+{
+    const char *ref_path = NULL, *alloc_path = NULL;
+    double cap = 0.0, P = argc >= 4 ? atof(argv[3]) : 0.0;
+    int ok = argc >= 4 && P > 0.0;
+    for (int i = 4; ok && i < argc; i += 2) {
+        if (i + 1 >= argc)
+            ok = 0;
+        else if (!strcmp(argv[i], "--ref"))
+            ref_path = argv[i + 1];
+        else if (!strcmp(argv[i], "--alloc"))
+            alloc_path = argv[i + 1];
+        else if (!strcmp(argv[i], "--cap") && atof(argv[i + 1]) > 0.0)
+            cap = atof(argv[i + 1]);
+        else
+            ok = 0;
+    }
+    if (!ok) {
+        fprintf(stderr, "usage: exrtool pixerr A.exr P [--ref REF.exr] [--cap SPP] [--alloc S.exr]\n");
+        return 2;
+    }
+    uint32_t w, h;
+    float *a = load_var(argv[2], &w, &h), *r = NULL, *spp = NULL, *alloc = NULL;
+    size_t np = (size_t)w * h;
+    const char *names[1] = {"samples"};
+    if (alloc_path) {
+        uint32_t ws, hs;
+        alloc = load_channels(alloc_path, names, 1, &ws, &hs);
+        if (ws != w || hs != h) {
+            fprintf(stderr, "exrtool: sizes differ: %ux%u vs %ux%u\n", w, h, ws, hs);
+            return 1;
+        }
+    }
+    if (ref_path) {
+        uint32_t wr, hr;
+        r = load_var(ref_path, &wr, &hr);
+        if (wr != w || hr != h) {
+            fprintf(stderr, "exrtool: sizes differ: %ux%u vs %ux%u\n", w, h, wr, hr);
+            return 1;
+        }
+    }
+    if (cap > 0.0) {
+        uint32_t ws, hs;
+        spp = load_channels(argv[2], names, 1, &ws, &hs);
+    }
+    double mean_a = 0.0, mean_r = 0.0;
+    for (size_t i = 0; i < np; i++) {
+        double v, m;
+        pixel_var_mean(&a[i * NCH], &v, &m);
+        mean_a += m / (double)np;
+        if (r) {
+            pixel_var_mean(&r[i * NCH], &v, &m);
+            mean_r += m / (double)np;
+        }
+    }
+    const double levels[3] = {2.0 * P, P, 0.5 * P};
+    size_t over = 0, capped = 0, est_over[3] = {0}, true_over[3] = {0};
+    double worst = 0.0, alloc_sum[2] = {0.0, 0.0};
+    for (size_t i = 0; i < np; i++) {
+        double v, m;
+        pixel_var_mean(&a[i * NCH], &v, &m);
+        double e = v > 0.0 ? sqrt(v) / pixel_scale(m, mean_a) : 0.0;
+        worst = e > worst ? e : worst;
+        if (e > P) {
+            over++;
+            capped += spp && spp[i] >= cap;
+        }
+        if (alloc)
+            alloc_sum[e > P] += alloc[i];
+        if (!r)
+            continue;
+        double rv, rm, se = 0.0;
+        pixel_var_mean(&r[i * NCH], &rv, &rm);
+        for (int c = 0; c < 3; c++)
+            se += ((double)a[i * NCH + c] - r[i * NCH + c]) * ((double)a[i * NCH + c] - r[i * NCH + c]) / 3.0;
+        double sc = pixel_scale(rm, mean_r), te = sqrt(se) / sc, ee = v > 0.0 ? sqrt(v) / sc : 0.0;
+        for (int k = 0; k < 3; k++) {
+            true_over[k] += te > levels[k];
+            est_over[k] += ee > levels[k];
+        }
+    }
+    printf("estimate: over %zu of %zu (%zu at the cap), worst %.6g\n", over, np, capped, worst);
+    if (r)
+        printf("true above 2P, P, P/2: %.4f %.4f %.4f; estimate: %.4f %.4f %.4f\n", (double)true_over[0] / np,
+               (double)true_over[1] / np, (double)true_over[2] / np, (double)est_over[0] / np, (double)est_over[1] / np,
+               (double)est_over[2] / np);
+    if (alloc)
+        printf("alloc: mean samples %.6g where the estimate is above P, %.6g elsewhere\n",
+               over ? alloc_sum[1] / (double)over : 0.0, np > over ? alloc_sum[0] / (double)(np - over) : 0.0);
+    free(alloc);
+    free(a);
+    free(r);
+    free(spp);
+    return 0;
+}
+
 int main(int argc, char **argv)
 {
+    if (argc >= 2 && !strcmp(argv[1], "pixerr"))
+        return pixerr(argc, argv);
     if (argc >= 2 && !strcmp(argv[1], "oracle"))
         return oracle(argc, argv);
     if (argc >= 2 && !strcmp(argv[1], "relrmse"))

@@ -490,3 +490,87 @@ Test(adapt, uniform_passes_where_allocation_saves_little)
     cr_assert(a->tiles[0].passes > a->tiles[8].passes, "uneven tiles: allocated");
     adapt_free(&a);
 }
+
+/* The per-pixel bound's rule (adapt_pixel_bound) on blocks whose worst pixel's squared
+ * relative error w is known: a block above the bound gets the passes that bring its worst
+ * pixel to it under the 1/n model (in steps, within the growth limit and the cap), a block
+ * under it none, and what another rule gave is raised, never lowered. */
+Test(adapt, pixel_bound_gives_a_noisy_block_passes)
+{
+    const double P = 0.05, b2 = P * P;
+    /* worst pixel at 2P (w = 4 P^2): 4 x the passes; at 0.9 P: none; at 1.5 P (2.25 x): 9
+     * passes, 10 in steps of 2; 10^4 P^2: the cap; a block not rendered: nothing. */
+    const double w[5] = {4.0 * b2, 0.81 * b2, 2.25 * b2, 1e4 * b2, 1.0};
+    const uint32_t m[5] = {4, 4, 4, 4, 0};
+    uint32_t n[5] = {4, 4, 4, 4, 0};
+    uint64_t added = adapt_pixel_bound(5, w, m, P, 64, 100, 2, n);
+    cr_assert_eq(n[0], 16, "worst pixel at 2P after 4 passes: 16 passes, got %u", n[0]);
+    cr_assert_eq(n[1], 4, "a block under the bound gets nothing: %u", n[1]);
+    cr_assert_eq(n[2], 10, "2.25 x 4 = 9, rounded up to the step: %u", n[2]);
+    cr_assert_eq(n[3], 64, "the cap holds: %u", n[3]);
+    cr_assert_eq(n[4], 0);
+    cr_assert_eq(added, 12 + 6 + 60);
+    for (int t = 0; t < 4; t++)
+        cr_assert(n[t] == 64 || w[t] * m[t] / n[t] <= b2 * (1 + 1e-12), "block %d: worst pixel within the bound", t);
+    /* growth at most 2x a round */
+    uint32_t g[5] = {4, 4, 4, 4, 0};
+    adapt_pixel_bound(5, w, m, P, 64, 2, 2, g);
+    cr_assert(g[0] == 8 && g[1] == 4 && g[2] == 8 && g[3] == 8, "growth 2x: %u %u %u %u", g[0], g[1], g[2], g[3]);
+    /* another rule's passes stay when they are more */
+    uint32_t o[5] = {20, 12, 6, 4, 0};
+    cr_assert_eq(adapt_pixel_bound(5, w, m, P, 64, 100, 2, o), 4u + 60u);
+    cr_assert(o[0] == 20 && o[1] == 12 && o[2] == 10 && o[3] == 64);
+}
+
+/* Rounds with a per-pixel bound and no target: each block's worst pixel follows w m / n
+ * (w known per pass), the image's mean error is far below any target; the rounds go on
+ * until every block's worst pixel is within the bound or the block is at the cap, the
+ * noisy blocks get more passes, the quiet ones keep round 0's; with a target met the
+ * bound still decides. */
+Test(adapt, rounds_reach_the_pixel_bound)
+{
+    enum { T = 16 };
+    uint32_t pixels[T];
+    double worst_per_pass[T];
+    for (int t = 0; t < T; t++) {
+        pixels[t] = 16;
+        /* block 5: one pixel at 0.16 relative error after 1 pass (64 passes bring it to
+         * 0.02); block 9: at 2 after 1 pass, 0.125 at the cap; the rest quiet */
+        worst_per_pass[t] = t == 5 ? 0.0255 : t == 9 ? 4.0 : 1e-4;
+    }
+    for (int with_target = 0; with_target < 2; with_target++) {
+        struct adapt *a = adapt_new(T, 4, pixels, 256, 2, with_target ? 0.5 : 0.0, 0);
+        adapt_set_pixel_error(a, 0.02);
+        adapt_begin(a);
+        uint64_t samples = 0;
+        for (uint32_t rounds = 0;; rounds++) {
+            cr_assert(rounds < 20);
+            for (uint32_t t = 0; t < T; t++) {
+                struct adapt_tile *at = &a->tiles[t];
+                at->sum_var = 1e-6 / at->passes;
+                at->sum_var_sq = at->sum_var * at->sum_var / at->pixels;
+                at->sum_mean = 16.0;
+                at->samples = at->passes * 16ull;
+                at->rays = at->samples;
+                at->worst = worst_per_pass[t] / at->passes;
+                at->over = at->worst > 0.02 * 0.02;
+                samples += at->samples;
+            }
+            if (!adapt_decide(a, 0, samples))
+                break;
+        }
+        cr_assert(a->finished);
+        cr_assert(fabs(adapt_pixel_floor(a) - ADAPT_PIXEL_FLOOR * 1.0) < 1e-12, "the floor: a share of the mean pixel (1)");
+        cr_assert_eq(a->tiles[9].passes, 256, "the hopeless block goes to the cap: %u", a->tiles[9].passes);
+        cr_assert_eq(a->pixels_over, 1, "one pixel above the bound, at the cap: %llu", (unsigned long long)a->pixels_over);
+        cr_assert_eq(a->pixels_over_capped, 1);
+        cr_assert(fabs(a->worst - sqrt(4.0 / 256)) < 1e-12, "worst %g", a->worst);
+        cr_assert(worst_per_pass[5] / a->tiles[5].passes <= 0.02 * 0.02, "block 5 within the bound: %u passes",
+                  a->tiles[5].passes);
+        cr_assert_eq(a->tiles[5].passes, 64, "block 5: the passes its pixel needs (%u)", a->tiles[5].passes);
+        for (int t = 0; t < T; t++)
+            if (t != 5 && t != 9)
+                cr_assert_eq(a->tiles[t].passes, ADAPT_FIRST_PASSES, "quiet block %d: %u passes", t, a->tiles[t].passes);
+        adapt_free(&a);
+    }
+}

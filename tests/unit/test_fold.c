@@ -11,15 +11,18 @@
 
 #define PASSES 5u
 
-static void make_desc(struct image_desc *d)
+/* The layout of a w x h image in tiles of `tile` px. */
+static void desc_of(struct image_desc *d, uint32_t w, uint32_t h, uint32_t tile)
 {
     struct render_settings rs;
     memset(&rs, 0, sizeof rs);
-    rs.width = 10;
-    rs.height = 7;
-    rs.tile_size = 4;
+    rs.width = w;
+    rs.height = h;
+    rs.tile_size = tile;
     tile_image_desc(d, &rs);
 }
+
+static void make_desc(struct image_desc *d) { desc_of(d, 10, 7, 4); }
 
 /* Pass p's channels for tile t: values that differ in their low bits, so that a fold in
  * another order would round differently. */
@@ -211,12 +214,7 @@ static double est_reference(const struct image_desc *d, const uint8_t *given, co
 Test(fold, error_estimate_has_the_same_bits_for_any_tile_order)
 {
     struct image_desc d;
-    struct render_settings rs;
-    memset(&rs, 0, sizeof rs);
-    rs.width = 37;
-    rs.height = 29;
-    rs.tile_size = 8;
-    tile_image_desc(&d, &rs);
+    desc_of(&d, 37, 29, 8);
     uint32_t tiles = imgio_tiles_x(&d) * imgio_tiles_y(&d);
     float **px = malloc(sizeof *px * tiles);
     uint32_t *order = malloc(sizeof *order * tiles);
@@ -284,11 +282,8 @@ Test(fold, error_estimate_has_the_same_bits_for_any_tile_order)
  * Each block's pixels, samples included, have the bits of a plain fold of its passes. */
 Test(fold, slots_of_blocks_fold_as_each_block_s_own_passes)
 {
-    struct render_settings rs;
-    memset(&rs, 0, sizeof rs);
-    rs.width = rs.height = rs.tile_size = 8;
     struct image_desc d;
-    tile_image_desc(&d, &rs);
+    desc_of(&d, 8, 8, 8);
     cr_assert_eq(tile_blocks_side(8), 2);
     const uint32_t slot_pass[6] = {0, 1, 2, 3, 4, 5};
     const uint64_t slot_mask[6] = {TILE_MASK_ALL, TILE_MASK_ALL, 0x5, 0x5, 0x4, 0x4};
@@ -342,13 +337,8 @@ Test(fold, slots_of_blocks_fold_as_each_block_s_own_passes)
  * (44x20: tiles of 32x20 and 12x20), blocks at different passes, a tile with nothing folded. */
 Test(fold, blocks_sums_in_one_pass_are_the_per_block_sums)
 {
-    struct render_settings rs;
-    memset(&rs, 0, sizeof rs);
-    rs.width = 44;
-    rs.height = 20;
-    rs.tile_size = 32;
     struct image_desc d;
-    tile_image_desc(&d, &rs);
+    desc_of(&d, 44, 20, 32);
     enum { NB = TILE_MAX_BLOCKS_SIDE * TILE_MAX_BLOCKS_SIDE };
     cr_assert_eq(tile_blocks_side(32) * tile_blocks_side(32), (uint32_t)NB);
     const uint64_t slot_mask[4] = {TILE_MASK_ALL, TILE_MASK_ALL, 0x00ff00ff00ff00ffull, 0x0f0f0f0f0f0f0f0full};
@@ -379,5 +369,48 @@ Test(fold, blocks_sums_in_one_pass_are_the_per_block_sums)
         }
     fold_free(&f);
     fold_free(&g);
+    free(px);
+}
+
+/* The per-pixel bound's figures (fold_blocks_worst): a block's worst squared relative
+ * error and its pixels above the bound, each pixel's variance of the mean over max(its
+ * mean, floor)^2. A near-black pixel whose stream means differ (0.001 and 0.003: a
+ * relative error of 0.5 of its own value) is measured against the floor instead, and does
+ * not count as above a bound of 0.1; a bright pixel with the same spread relative to it
+ * does. */
+Test(fold, blocks_worst_pixel_with_a_floor)
+{
+    struct image_desc d;
+    desc_of(&d, 8, 8, 8);
+    enum { N = 64 };
+    float *px = calloc(N * TILE_NUM_CHANNELS, sizeof(float));
+    struct fold *f = fold_new(&d, 4, 8, SAMPLER_STREAMS);
+    for (uint32_t p = 0; p < 4; p++) { /* pass p in stream p mod 2 */
+        for (size_t i = 0; i < N; i++) {
+            float *c = &px[i * TILE_NUM_CHANNELS];
+            uint32_t b = tile_pixel_block(8, (uint32_t)(i % 8), (uint32_t)(i / 8));
+            double v = b == 0 ? 0.002 : b == 1 ? 1.0 : 0.5; /* block 0 near black, block 1 bright */
+            if (i == 0) /* block 0's noisy black pixel */
+                v = p % 2 ? 0.003 : 0.001;
+            if (i == 4) /* block 1's noisy bright pixel: stream means 0.5 and 1.5 */
+                v = p % 2 ? 1.5 : 0.5;
+            c[CH_R] = c[CH_G] = c[CH_B] = (float)v;
+            c[CH_A] = 1.0f;
+        }
+        fold_add_unit(f, 0, p, px);
+    }
+    double worst[4], ref_worst[4];
+    uint32_t over[4], ref_over[4];
+    /* floor 0: every pixel against its own value; the black one at 0.5 */
+    fold_blocks_worst(f, 0, 0.0, 0.1, ref_worst, ref_over);
+    cr_assert(fabs(ref_worst[0] - 0.25) < 1e-6, "black pixel against itself: %g", ref_worst[0]);
+    cr_assert_eq(ref_over[0], 1u);
+    /* floor 0.1 (a tenth of an image mean of 1): the black pixel's 0.001 over 0.1 */
+    fold_blocks_worst(f, 0, 0.1, 0.1, worst, over);
+    cr_assert(fabs(worst[0] - 1e-4) < 1e-8, "black pixel against the floor: %g", worst[0]);
+    cr_assert_eq(over[0], 0u, "the floor keeps the black pixel under the bound");
+    cr_assert(fabs(worst[1] - 0.25) < 1e-9 && over[1] == 1u, "the bright pixel (0.5 / 1) is above: %g", worst[1]);
+    cr_assert(worst[2] == 0.0 && over[2] == 0u && worst[3] == 0.0, "blocks without variance");
+    fold_free(&f);
     free(px);
 }

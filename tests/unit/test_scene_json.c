@@ -510,3 +510,23 @@ Test(scene_json, aovs_filter_and_ply)
                  "scenes/bad.ply:3: element vertex: properties x, y and z are required");
     expect_error(HEAD ",\n\"objects\": [{\"type\": \"ply\", \"file\": \"none.ply\"}]}", "cannot read PLY file");
 }
+
+/* The adaptive keys of the render block: target_error, pixel_error (both in (0, 1)) and
+ * time_limit; none by default. */
+Test(scene_json, adaptive_keys)
+{
+    struct scene s;
+    char err[512];
+    cr_assert_eq(test_scene_load(HEAD_RENDER("\"target_error\": 0.02, \"pixel_error\": 0.05, \"time_limit\": 60") "}",
+                                 g_files, &s, err),
+                 0, "%s", err);
+    cr_expect_float_eq(s.settings.target_error, 0.02f, 1e-9f);
+    cr_expect_float_eq(s.settings.pixel_error, 0.05f, 1e-9f);
+    cr_expect_float_eq(s.settings.time_limit, 60.0f, 1e-9f);
+    scene_fini(&s);
+    cr_assert_eq(test_scene_load(HEAD "}", g_files, &s, err), 0, "%s", err);
+    cr_expect(s.settings.pixel_error == 0.0f && s.settings.target_error == 0.0f, "none by default");
+    scene_fini(&s);
+    expect_error(HEAD_RENDER("\"pixel_error\": 1.5") "}", "scenes/t.json:4:16: pixel_error must be in (0, 1)");
+    expect_error(HEAD_RENDER("\"pixel_error\": \"low\"") "}", "pixel_error");
+}
