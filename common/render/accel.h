@@ -8,7 +8,9 @@
 #define BRUME_ACCEL_H
 #include <stddef.h>
 #include <stdint.h>
+#if defined(__SSE__)
 #include <xmmintrin.h>
+#endif
 #include <embree3/rtcore.h>
 #include "scene/scene.h"
 #include "base/vec.h"
@@ -73,6 +75,21 @@ static inline void accel_hit_from_embree_(const struct accel *a, unsigned geom_i
     hit->v = v;
 }
 
+/* A ray's origin, tnear = 0, direction and time. Embree reads the first two groups as
+ * 16-byte vectors right away: written as one 16-byte store each, the load takes its bytes
+ * from the store queue (four 4-byte stores cannot feed it, and it would wait for them to
+ * be written through, on every ray). */
+static inline void accel_ray_set_(struct RTCRay *r, vec3 o, vec3 d, float time01)
+{
+#if defined(__SSE__)
+    _mm_store_ps(&r->org_x, _mm_setr_ps(o.x, o.y, o.z, 0.0f));
+    _mm_store_ps(&r->dir_x, _mm_setr_ps(d.x, d.y, d.z, time01));
+#else
+    r->org_x = o.x, r->org_y = o.y, r->org_z = o.z, r->tnear = 0.0f;
+    r->dir_x = d.x, r->dir_y = d.y, r->dir_z = d.z, r->time = time01;
+#endif
+}
+
 /* Closest hit in (0, tmax) at time01 in [0, 1] across the shutter; returns 1 on a hit.
  * Inline: the path tracer calls it for every bounce. */
 static inline int accel_intersect(const struct accel *a, vec3 o, vec3 d, float tmax, float time01,
@@ -81,8 +98,7 @@ static inline int accel_intersect(const struct accel *a, vec3 o, vec3 d, float t
     struct RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     struct RTCRayHit rh;
-    _mm_store_ps(&rh.ray.org_x, _mm_setr_ps(o.x, o.y, o.z, 0.0f));
-    _mm_store_ps(&rh.ray.dir_x, _mm_setr_ps(d.x, d.y, d.z, time01));
+    accel_ray_set_(&rh.ray, o, d, time01);
     rh.ray.tfar = tmax;
     rh.ray.mask = 0xffffffffu;
     rh.ray.id = 0;
@@ -95,7 +111,9 @@ static inline int accel_intersect(const struct accel *a, vec3 o, vec3 d, float t
     /* u and v one float at a time, as Embree stored them: an 8-byte load of the pair would
      * wait for both stores to leave the store buffer. */
     float u = rh.hit.u, v = rh.hit.v;
+#if defined(__SSE__)
     __asm__("" : "+x"(u)); /* keeps GCC from joining the two loads into one */
+#endif
     accel_hit_from_embree_(a, rh.hit.geomID, rh.hit.instID[0], rh.hit.primID, rh.ray.tfar, u, v, hit);
     return 1;
 }
@@ -113,8 +131,7 @@ static inline int accel_occluded(const struct accel *a, vec3 o, vec3 d, float tm
     struct RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     struct RTCRay r;
-    _mm_store_ps(&r.org_x, _mm_setr_ps(o.x, o.y, o.z, 0.0f));
-    _mm_store_ps(&r.dir_x, _mm_setr_ps(d.x, d.y, d.z, time01));
+    accel_ray_set_(&r, o, d, time01);
     r.tfar = tmax;
     r.mask = 0xffffffffu;
     r.id = 0;

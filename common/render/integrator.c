@@ -199,8 +199,9 @@ static inline __attribute__((always_inline)) int path_vertex(const struct render
     }
 
     /* The last vertex's next ray could only find light by hitting an emitter or missing
-     * into the environment: without either, it is not traced (the same pixels, fewer rays;
-     * every random number is a pure function of its dimension, so none moves). */
+     * into the environment: without either, it is not traced (the same pixels at a given
+     * spp, fewer rays; every random number is a pure function of its dimension, so none
+     * moves; adaptive rounds, which count rays as cost, may split their passes otherwise). */
     if (vertex == sc->settings.max_depth && !job->rays_find_light)
         return 0;
     /* BSDF sampling for the next vertex (also the MIS partner of the NEE above). */

@@ -78,7 +78,7 @@ Test(integrator, closed_sphere_point_light_depth_1) { furnace_sphere(1); }
  * the 2 vertices, the bounce between them; the last vertex's bounce is traced only when a
  * ray could find light by hitting an emitter (here a material no surface uses is enough
  * to keep it) or missing into an environment. */
-static uint64_t shell_rays_per_sample(int emitter)
+static uint64_t shell_rays_per_sample(int emitter, float **px)
 {
     struct scene s;
     memset(&s, 0, sizeof s);
@@ -92,8 +92,7 @@ static uint64_t shell_rays_per_sample(int emitter)
     s.camera = (struct camera_desc){.position = v3(1, 2, 3), .look_at = v3(1, 2, 4), .up = v3(0, 1, 0), .fov_y_deg = 90.0f};
     settings(&s, 8, 8, 4, 2);
     struct tile_stats st;
-    float *px = test_render(&s, 1, &st);
-    free(px);
+    *px = test_render(&s, 1, &st);
     scene_fini(&s);
     cr_assert_eq(st.rays % st.samples, 0, "%llu rays for %llu samples", (unsigned long long)st.rays,
                  (unsigned long long)st.samples);
@@ -102,8 +101,13 @@ static uint64_t shell_rays_per_sample(int emitter)
 
 Test(integrator, last_bounce_traced_only_where_a_ray_can_find_light)
 {
-    cr_assert_eq(shell_rays_per_sample(0), 4);
-    cr_assert_eq(shell_rays_per_sample(1), 5);
+    float *px0, *px1;
+    cr_assert_eq(shell_rays_per_sample(0, &px0), 4);
+    cr_assert_eq(shell_rays_per_sample(1, &px1), 5);
+    /* The material no surface uses changes nothing seen: the skipped ray moved no pixel. */
+    cr_assert(memcmp(px0, px1, sizeof(float) * 8 * 8 * TILE_NUM_CHANNELS) == 0, "skipping the last ray moved a pixel");
+    free(px0);
+    free(px1);
 }
 Test(integrator, closed_sphere_point_light_depth_3) { furnace_sphere(3); }
 Test(integrator, closed_sphere_point_light_depth_50) { furnace_sphere(50); }
