@@ -62,6 +62,8 @@ uint64_t adapt_pixel_bound(uint32_t num_tiles, const double *w, const uint32_t *
             continue;
         /* the worst pixel's variance falls as 1/n: m w / n <= bound^2 */
         double need = ceil(m[t] * (w[t] / b2) / step - 1e-9) * step;
+        if (need <= m[t]) /* above the bound by less than the rounding: one more step */
+            need = (double)m[t] + step;
         double cap = (double)m[t] * growth < max_passes ? (double)m[t] * growth : max_passes;
         need = need > cap ? cap : need;
         if (need > n[t]) {
@@ -382,6 +384,7 @@ int adapt_decide(struct adapt *a, int stop, uint64_t samples_total)
      * or round cap alone: neither, each round aims at half the error). */
     int target_met = a->target > 0.0 ? a->est <= a->aim : a->pixel_error > 0.0;
     int pixels_met = !(a->pixel_error > 0.0) || a->pixels_over == 0;
+    a->met = (a->target > 0.0 || a->pixel_error > 0.0) && target_met && pixels_met;
     uint64_t added = 0;
     if (!(stop || a->est <= 0.0 || (target_met && pixels_met) || (a->max_rounds && a->round + 1 >= a->max_rounds))) {
         for (uint32_t t = 0; t < n_tiles; t++) {

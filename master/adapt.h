@@ -55,6 +55,7 @@ struct adapt {
     uint64_t pixels_over;   /* per-pixel bound, at the last decision: pixels above it... */
     uint64_t pixels_over_capped; /* ...of them in blocks at max_passes... */
     double worst;           /* ...and the largest relative error of a pixel (not squared) */
+    int met;                /* at the last decision: the target (if any) and the bound (if any) held */
     uint32_t round;         /* rounds released so far (round 0 = the first passes) */
     uint32_t outstanding;   /* units of the current round not yet folded */
     int finished;           /* no more passes: the frame ends once outstanding is 0 */

@@ -1221,7 +1221,7 @@ static int adapt_round_end(struct master *m)
     int decided = adapt_decide(a, m->time_up, m->stats.samples);
     pixel_bound_text(m, px, sizeof px);
     if (decided) {
-        if (round == 0)
+        if (round == 0 && a->predicted > 0.0) /* 0: met at round 0, or a bound alone (no pilot) */
             log_info("adaptive: the pilot predicts the allocation at %.3f of uniform passes' work (fallback above %g): %s",
                      a->predicted, ADAPT_UNIFORM_GAIN, a->uniform ? "uniform passes" : "passes per block");
         adapt_release(m);
@@ -1238,8 +1238,7 @@ static int adapt_round_end(struct master *m)
     }
     if (!why)
         why = m->time_up ? "time limit reached"
-              : (a->target > 0.0 || a->pixel_error > 0.0) && (!(a->target > 0.0) || a->est <= a->aim) &&
-                        a->pixels_over == 0
+              : a->met
                   ? (a->pixel_error > 0.0 ? (a->target > 0.0 ? "target and per-pixel bound met" : "per-pixel bound met")
                                           : "target met")
               : a->max_rounds && round + 1 >= a->max_rounds ? "round cap reached" : "every block at its pass cap";
@@ -1865,6 +1864,10 @@ static void print_progress(struct master *m, uint64_t start_ms, int tty, int fin
         const struct adapt *a = m->adapt;
         double want = adapt_eta_samples(a);
         double eta = want > (double)m->stats.samples && rate > 0 ? (want - (double)m->stats.samples) / rate : 0.0;
+        /* The fit is the target's: while pixels are above the bound it has no ETA to give. */
+        char eta_text[32] = "";
+        if (!(a->pixels_over > 0 && (m->target_error <= 0.0 || eta <= 0.0)))
+            snprintf(eta_text, sizeof eta_text, "ETA %.0fs", eta);
         char est[96] = "estimate after round 0 pending", px[160] = "";
         if (a->num_history) {
             snprintf(est, sizeof est, m->target_error > 0.0 ? "est. relRMSE %.4f -> target %g" : "est. relRMSE %.4f",
@@ -1872,11 +1875,11 @@ static void print_progress(struct master *m, uint64_t start_ms, int tty, int fin
             pixel_bound_text(m, px, sizeof px);
         }
         if (tty)
-            fprintf(stderr, "\rmaster: round %u, %u units to go  %s%s  %.2f Msamples/s  ETA %.0fs   %s", a->round,
-                    a->outstanding, est, px, rate / 1e6, eta, final ? "\n" : "");
+            fprintf(stderr, "\rmaster: round %u, %u units to go  %s%s  %.2f Msamples/s  %s   %s", a->round,
+                    a->outstanding, est, px, rate / 1e6, eta_text, final ? "\n" : "");
         else
-            fprintf(stderr, "master: progress: round %u, %u units to go, %s%s, %.2f Msamples/s, ETA %.0fs\n", a->round,
-                    a->outstanding, est, px, rate / 1e6, eta);
+            fprintf(stderr, "master: progress: round %u, %u units to go, %s%s, %.2f Msamples/s%s%s\n", a->round,
+                    a->outstanding, est, px, rate / 1e6, eta_text[0] ? ", " : "", eta_text);
         fflush(stderr);
         return;
     }
@@ -2023,7 +2026,8 @@ static int write_stats(const struct master *m, int ok, char *err, size_t errlen)
         json_object_set_new(root, "rounds", json_integer(m->adapt->round + 1));
         json_object_set_new(root, "time_limited", json_boolean(m->time_up));
         json_object_set_new(root, "uniform_passes", json_boolean(m->adapt->uniform));
-        json_object_set_new(root, "predicted_work_ratio", json_real(m->adapt->predicted));
+        json_object_set_new(root, "predicted_work_ratio",
+                            m->adapt->predicted > 0.0 ? json_real(m->adapt->predicted) : json_null());
         json_object_set_new(root, "adaptive_stop", m->adapt_stop ? json_string(m->adapt_stop) : json_null());
         if (m->pixel_error > 0.0) {
             json_object_set_new(root, "pixel_error", json_real(m->pixel_error));

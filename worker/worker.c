@@ -1154,10 +1154,7 @@ static void map_evict(struct worker *w, uint32_t pass)
     pm->decoded_bytes = 0;
     w->maps_evicted++;
     w->maps_changed = 1;
-    uint32_t held;
-    uint64_t held_bytes = maps_held_besides(w, UINT32_MAX, &held);
-    log_debug("photon map of pass %u evicted (%llu bytes decoded; %u held, %llu bytes, budget %llu)", pass,
-              (unsigned long long)bytes, held, (unsigned long long)held_bytes,
+    log_debug("photon map of pass %u evicted (%llu bytes decoded; budget %llu)", pass, (unsigned long long)bytes,
               (unsigned long long)w->opts->map_memory_bytes);
 }
 

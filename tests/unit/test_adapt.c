@@ -539,7 +539,9 @@ Test(adapt, rounds_reach_the_pixel_bound)
         worst_per_pass[t] = t == 5 ? 0.0255 : t == 9 ? 4.0 : 1e-4;
     }
     for (int with_target = 0; with_target < 2; with_target++) {
-        struct adapt *a = adapt_new(T, 4, pixels, 256, 2, with_target ? 0.5 : 0.0, 0);
+        /* with a target the image's estimate (about 1e-3) does not meet: the target's
+         * allocation and the bound's both run, every round */
+        struct adapt *a = adapt_new(T, 4, pixels, 256, 2, with_target ? 1e-5 : 0.0, 0);
         adapt_set_pixel_error(a, 0.02);
         adapt_begin(a);
         uint64_t samples = 0;
@@ -567,10 +569,17 @@ Test(adapt, rounds_reach_the_pixel_bound)
         cr_assert(fabs(a->worst - sqrt(4.0 / 256)) < 1e-12, "worst %g", a->worst);
         cr_assert(worst_per_pass[5] / a->tiles[5].passes <= 0.02 * 0.02, "block 5 within the bound: %u passes",
                   a->tiles[5].passes);
-        cr_assert_eq(a->tiles[5].passes, 64, "block 5: the passes its pixel needs (%u)", a->tiles[5].passes);
+        if (!with_target)
+            cr_assert_eq(a->tiles[5].passes, 64, "block 5: the passes its pixel needs (%u)", a->tiles[5].passes);
         for (int t = 0; t < T; t++)
-            if (t != 5 && t != 9)
-                cr_assert_eq(a->tiles[t].passes, ADAPT_FIRST_PASSES, "quiet block %d: %u passes", t, a->tiles[t].passes);
+            if (t != 5 && t != 9) {
+                if (with_target)
+                    cr_assert(a->tiles[t].passes > ADAPT_FIRST_PASSES, "quiet block %d: the target's passes (%u)", t,
+                              a->tiles[t].passes);
+                else
+                    cr_assert_eq(a->tiles[t].passes, ADAPT_FIRST_PASSES, "quiet block %d: %u passes", t,
+                                 a->tiles[t].passes);
+            }
         adapt_free(&a);
     }
 }
