@@ -414,12 +414,25 @@ static int publish_manifest(struct master *m)
         memcpy(h.data + h.size + pl, e->hash.bytes, BLOB_HASH_SIZE);
         h.size += pl + BLOB_HASH_SIZE;
     }
-    char settings[256];
+    char settings[512];
     int sl = snprintf(settings, sizeof settings,
                       "%ux%u spp=%u depth=%u seed=%llu sampler=%u photon_maps=%u passes=%u aovs=%u filter=%u/%.9g",
                       rs->width, rs->height, rs->spp, rs->max_depth, (unsigned long long)rs->seed,
                       (unsigned)rs->sampler, m->photon_maps, m->passes, rs->aovs, m->scene.camera.filter,
                       (double)m->scene.camera.filter_width);
+    /* What the command line can set beside the scene file and the pixels depend on: the
+     * media's method and photon settings, and an adaptive render's rules (not a time limit:
+     * where it stops is timing, docs/adaptive.md). A frame of --frames counts as done only
+     * with all of them the same (output_is_done compares this hash). */
+    const struct scene_media *sm = m->scene.media;
+    if (sm)
+        sl += snprintf(settings + sl, sizeof settings - (size_t)sl, " media=%u/%u/%llu/%.9g/%.9g/%.9g",
+                       (unsigned)sm->method, (unsigned)sm->indirect, (unsigned long long)sm->photons,
+                       (double)sm->radius, (double)sm->step, (double)sm->alpha);
+    if (m->target_error > 0.0 || m->pixel_error > 0.0 || m->max_rounds)
+        sl += snprintf(settings + sl, sizeof settings - (size_t)sl, " target=%.17g pixel=%.17g rounds=%u",
+                       m->target_error, m->pixel_error, m->max_rounds);
+    CHECK(sl > 0 && (size_t)sl < sizeof settings);
     mem_grow((void **)&h.data, &h.cap, h.size + (size_t)sl, 1);
     memcpy(h.data + h.size, settings, (size_t)sl);
     h.size += (size_t)sl;

@@ -49,6 +49,18 @@ if [ $r = 0 ] && [ "$(ls "$T/hash" | grep -v "\.stats\.json$" | tr '\n' ' ')" = 
   ! $X cmp "$T/ref/f.0002.exr" "$T/hash/shot_000002_v1.exr" >/dev/null 2>&1; then
   ok "'######' takes the zero-padded frame, STEP 2; other settings re-render"; else bad "'######' takes the zero-padded frame, STEP 2; other settings re-render"; fi
 
+# Settings the command line sets beside the scene file count too: a frame rendered to one
+# target error is not done for another, and is for the same.
+mkdir -p "$T/adapt"
+r=0
+timeout 60 $M $SCENE -o "$T/adapt/f.exr" --frames 0:0 --workers 1 $ARGS --target-error 0.9 >"$T/log" 2>&1 || r=1
+timeout 60 $M $SCENE -o "$T/adapt/f.exr" --frames 0:0 --workers 1 $ARGS --target-error 0.5 >"$T/log" 2>&1 || r=1
+redone=$(counter frames_done "$T/adapt/f.exr")
+timeout 60 $M $SCENE -o "$T/adapt/f.exr" --frames 0:0 --workers 1 $ARGS --target-error 0.5 >"$T/log" 2>&1 || r=1
+if [ $r = 0 ] && [ "$redone" = 1 ] && [ "$(counter frames_skipped "$T/adapt/f.exr")" = 1 ]; then
+  ok "a frame rendered to --target-error 0.9 is rendered again for 0.5, then skipped"
+else bad "a frame rendered to --target-error 0.9 is rendered again for 0.5, then skipped (done $redone)"; fi
+
 # A worker and then the master killed along the way; restarted until done.
 good=0
 journaled=0
