@@ -1785,7 +1785,8 @@ static int replay_tile(void *ctx, uint32_t unit, const struct tile_stats *st, co
 }
 
 /* The journal belongs to exactly this job: scene and assets (the scene hash covers them
- * and the settings) plus the layout of tiles and the sampler. */
+ * and the settings, an adaptive render's target, per-pixel bound and round cap too:
+ * publish_manifest) plus the layout of tiles and the sampler. */
 static void compute_job_key(struct master *m)
 {
     const struct render_settings *rs = &m->scene.settings;
@@ -1794,8 +1795,6 @@ static void compute_job_key(struct master *m)
                      "brume-journal-2 %s tile=%u sampler=%u frame=%u tiles=%u passes=%u target=%.17g rounds=%u",
                      m->scene_hash, rs->tile_size, (unsigned)rs->sampler, m->frame, m->num_tiles, m->passes,
                      m->target_error, m->max_rounds);
-    if (m->pixel_error > 0.0) /* absent otherwise: journals of renders without the bound keep their key */
-        n += snprintf(ident + n, sizeof ident - (size_t)n, " pixel=%.17g", m->pixel_error);
     if (m->adapt) /* units are (tile, slot) pairs of pixel blocks */
         n += snprintf(ident + n, sizeof ident - (size_t)n, " blocks=%u", m->blocks_side);
     blob_hash_compute(ident, (size_t)n, &m->job_key);

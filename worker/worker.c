@@ -1009,7 +1009,6 @@ static int on_bcast_frame(struct worker *w, const struct net_frame *fr)
 
 static int map_ready(const struct worker *w, uint32_t pass);
 static void map_fetch_start(struct worker *w, uint32_t pass);
-static int maps_retry(struct worker *w, uint64_t now);
 
 /* Pass `pass`'s map goes to the back of the least recently used order; used: a unit of
  * the pass went to the render threads (0: just installed). */

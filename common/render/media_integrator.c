@@ -135,10 +135,9 @@ static vec3 scatter_nee(const struct render_job *job, vec3 x, vec3 d_out, uint32
     if (!(ls.pdf > 0.0f) || v3_is_black(ls.radiance))
         return v3(0, 0, 0);
     vec3 to = v3_sub(ls.p, x);
-    float dist = v3_length(to);
-    if (!(dist > 0.0f))
+    if (!(v3_dot(to, to) > 0.0f))
         return v3(0, 0, 0);
-    vec3 wi = v3_scale(to, 1.0f / dist);
+    vec3 wi = ls.wi; /* light_sample's (p - x) / |p - x|, the same bits */
     float ph = cut ? phase_hg_cut(v3_dot(v3_neg(wi), d_out), g) : phase_hg(v3_dot(v3_neg(wi), d_out), g);
     vec3 target = ls.is_delta ? ls.p : offset_ray_origin(ls.p, v3_dot(ls.n, wi) < 0.0f ? ls.n : v3_neg(ls.n));
     vec3 tr = media_shadow_transmittance(job->media, x, target, medium, time01, key, rays);
