@@ -71,9 +71,15 @@ void blob_chunk_hashes(const uint8_t *data, uint64_t size, struct blob_hash **ha
     *count = n;
 }
 
+/* A blob's name from its chunk list as bytes (count hashes of BLOB_HASH_SIZE, back to back). */
+static void name_of_list_bytes(const uint8_t *bytes, uint64_t count, struct blob_hash *name)
+{
+    blob_hash_compute(count ? bytes : NULL, (size_t)count * BLOB_HASH_SIZE, name);
+}
+
 void blob_name_of_chunks(const struct blob_hash *hashes, uint64_t count, struct blob_hash *name)
 {
-    blob_hash_compute(count ? hashes[0].bytes : NULL, (size_t)count * BLOB_HASH_SIZE, name);
+    name_of_list_bytes(count ? hashes[0].bytes : NULL, count, name);
 }
 
 void blob_name_compute(const void *data, uint64_t size, struct blob_hash *name)
@@ -109,8 +115,8 @@ int blob_recv_set_chunks(struct blob_recv *r, const uint8_t *hashes, uint64_t co
                 (unsigned long long)r->num_chunks);
         return -1;
     }
-    struct blob_hash name; /* the list's bytes as they came: blob_name_of_chunks' input */
-    blob_hash_compute(count ? hashes : NULL, (size_t)count * BLOB_HASH_SIZE, &name);
+    struct blob_hash name; /* from the list's bytes as they came, before any copy */
+    name_of_list_bytes(hashes, count, &name);
     if (!blob_hash_equal(&name, &r->hash)) {
         str_fmt(err, errlen, "chunk list does not hash to the blob's name");
         return -1;
