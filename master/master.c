@@ -2094,9 +2094,14 @@ static int write_stats(const struct master *m, int ok, char *err, size_t errlen)
     COUNTERS(X)
 #undef X
     json_object_set_new(root, "counters", counters);
-    char path[4200];
-    snprintf(path, sizeof path, "%s.stats.json", o->output_path);
-    int rc = asset_dir_find(&m->assets, path) >= 0 ? 0 : output_write_json(path, root, err, errlen); /* an input */
+    char path[4300];
+    int rc;
+    if (outnames_stats_path(o, path, sizeof path) != 0) {
+        snprintf(err, errlen, "-o %s: the stats file's name is too long", o->output_path);
+        rc = -1;
+    } else {
+        rc = asset_dir_find(&m->assets, path) >= 0 ? 0 : output_write_json(path, root, err, errlen); /* an input */
+    }
     json_decref(root);
     return rc;
 }

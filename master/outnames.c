@@ -60,10 +60,26 @@ static int check_frames_named_in(const struct master_opts *o, const struct asset
     return 0;
 }
 
+int outnames_stats_path(const struct master_opts *o, char *out, size_t outlen)
+{
+    char base[4200];
+    if (o->have_frames && o->frame_first == o->frame_last) {
+        if (output_frame_path(o->output_path, 1, o->frame_first, base, sizeof base) != 0)
+            return -1;
+    } else {
+        snprintf(base, sizeof base, "%s", o->output_path);
+    }
+    int n = snprintf(out, outlen, "%s.stats.json", base);
+    return n < 0 || (size_t)n >= outlen ? -1 : 0;
+}
+
 int outnames_check(const struct master_opts *o, const struct asset_dir *inputs, char *err, size_t errlen)
 {
-    char stats[4200];
-    snprintf(stats, sizeof stats, "%s.stats.json", o->output_path);
+    char stats[4300];
+    if (outnames_stats_path(o, stats, sizeof stats) != 0) {
+        snprintf(err, errlen, "-o %s: the stats file's name is too long", o->output_path);
+        return -1;
+    }
     if (check_name(inputs, stats, "stats file", err, errlen) != 0)
         return -1;
     if (!o->have_frames)

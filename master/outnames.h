@@ -12,4 +12,10 @@
  * the same resolved path); else -1 with one line in err naming both. */
 int outnames_check(const struct master_opts *o, const struct asset_dir *inputs, char *err, size_t errlen);
 
+/* The run's stats file: OUT.stats.json, OUT the -o argument as given, or for a --frames
+ * run of one frame (a farm's unit: a job array's task) that frame's output name, so that
+ * tasks of one array writing frames of one -o each keep their own. 0, or -1 when it does
+ * not fit in outlen. */
+int outnames_stats_path(const struct master_opts *o, char *out, size_t outlen);
+
 #endif

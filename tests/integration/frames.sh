@@ -18,10 +18,12 @@ r=0
 for f in 0 1 2; do
   timeout 60 $M $SCENE -o "$T/ref/f.exr" --frames $f:$f --workers 1 $ARGS >"$T/log" 2>&1 || r=1
 done
-if [ $r = 0 ] && [ "$(ls "$T/ref" | grep -v "\.stats\.json$" | tr '\n' ' ')" = "f.0000.exr f.0001.exr f.0002.exr " ] &&
+if [ $r = 0 ] && [ "$(ls "$T/ref" | tr '\n' ' ')" = "f.0000.exr f.0000.exr.stats.json f.0001.exr f.0001.exr.stats.json f.0002.exr f.0002.exr.stats.json " ] &&
+  [ "$(counter frames_done "$T/ref/f.0001.exr")" = 1 ] &&
   ! $X cmp "$T/ref/f.0000.exr" "$T/ref/f.0001.exr" >/dev/null 2>&1 &&
   ! $X cmp "$T/ref/f.0001.exr" "$T/ref/f.0002.exr" >/dev/null 2>&1; then
-  ok "one job per frame (--frames F:F) writes f.000F.exr; frames differ"; else bad "one job per frame (--frames F:F) writes f.000F.exr; frames differ"; fi
+  ok "one job per frame (--frames F:F) writes f.000F.exr and its own f.000F.exr.stats.json; frames differ"
+else bad "one job per frame (--frames F:F) writes f.000F.exr and its own f.000F.exr.stats.json; frames differ"; fi
 
 # The range in one job: workers keep the scene between frames.
 mkdir -p "$T/range"
@@ -55,9 +57,9 @@ mkdir -p "$T/adapt"
 r=0
 timeout 60 $M $SCENE -o "$T/adapt/f.exr" --frames 0:0 --workers 1 $ARGS --target-error 0.9 >"$T/log" 2>&1 || r=1
 timeout 60 $M $SCENE -o "$T/adapt/f.exr" --frames 0:0 --workers 1 $ARGS --target-error 0.5 >"$T/log" 2>&1 || r=1
-redone=$(counter frames_done "$T/adapt/f.exr")
+redone=$(counter frames_done "$T/adapt/f.0000.exr")
 timeout 60 $M $SCENE -o "$T/adapt/f.exr" --frames 0:0 --workers 1 $ARGS --target-error 0.5 >"$T/log" 2>&1 || r=1
-if [ $r = 0 ] && [ "$redone" = 1 ] && [ "$(counter frames_skipped "$T/adapt/f.exr")" = 1 ]; then
+if [ $r = 0 ] && [ "$redone" = 1 ] && [ "$(counter frames_skipped "$T/adapt/f.0000.exr")" = 1 ]; then
   ok "a frame rendered to --target-error 0.9 is rendered again for 0.5, then skipped"
 else bad "a frame rendered to --target-error 0.9 is rendered again for 0.5, then skipped (done $redone)"; fi
 

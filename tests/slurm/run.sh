@@ -138,8 +138,8 @@ BRUME_BIN=$BIN timeout 240 sbatch --wait --quiet --array=0-2 -o "$T/job2-%a.out"
   "$T/out/f.exr" --spp 64 --tile 16 && r=0 || r=1
 same=0
 for f in 0000 0001 0002; do $X cmp "$T/ref/f.$f.exr" "$T/out/f.$f.exr" >/dev/null 2>&1 && same=$((same + 1)); done
-if [ $r = 0 ] && [ $same = 3 ] && [ "$(ls "$T/out" | grep -c '^f\.')" = 3 ]; then
-  ok "sbatch --array=0-2: one frame per array task, f.0000..f.0002 identical to a local render"
+if [ $r = 0 ] && [ $same = 3 ] && [ "$(ls "$T/out" | grep '^f\.' | tr '\n' ' ')" = "f.0000.exr f.0000.exr.stats.json f.0001.exr f.0001.exr.stats.json f.0002.exr f.0002.exr.stats.json " ]; then
+  ok "sbatch --array=0-2: one frame per array task, f.0000..f.0002 identical to a local render, each task's own stats"
 else echo "slurm: $same of 3 frames identical; files: $(ls "$T/out" | tr '\n' ' ')"; bad "sbatch --array=0-2: one frame per array task"; fi
 
 echo "integration: $pass passed, $fail failed"
