@@ -75,17 +75,18 @@ static inline void accel_hit_from_embree_(const struct accel *a, unsigned geom_i
     hit->v = v;
 }
 
-/* A ray's origin, tnear = 0, direction and time. Embree reads the first two groups as
+/* A ray's origin, tnear, direction and time, for every rtcIntersect1 / rtcOccluded1 of the
+ * render layer. Embree reads the first two groups as
  * 16-byte vectors right away: written as one 16-byte store each, the load takes its bytes
  * from the store queue (four 4-byte stores cannot feed it, and it would wait for them to
  * be written through, on every ray). */
-static inline void accel_ray_set_(struct RTCRay *r, vec3 o, vec3 d, float time01)
+static inline void accel_ray_set(struct RTCRay *r, vec3 o, float tnear, vec3 d, float time01)
 {
 #if defined(__SSE__)
-    _mm_store_ps(&r->org_x, _mm_setr_ps(o.x, o.y, o.z, 0.0f));
+    _mm_store_ps(&r->org_x, _mm_setr_ps(o.x, o.y, o.z, tnear));
     _mm_store_ps(&r->dir_x, _mm_setr_ps(d.x, d.y, d.z, time01));
 #else
-    r->org_x = o.x, r->org_y = o.y, r->org_z = o.z, r->tnear = 0.0f;
+    r->org_x = o.x, r->org_y = o.y, r->org_z = o.z, r->tnear = tnear;
     r->dir_x = d.x, r->dir_y = d.y, r->dir_z = d.z, r->time = time01;
 #endif
 }
@@ -98,7 +99,7 @@ static inline int accel_intersect(const struct accel *a, vec3 o, vec3 d, float t
     struct RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     struct RTCRayHit rh;
-    accel_ray_set_(&rh.ray, o, d, time01);
+    accel_ray_set(&rh.ray, o, 0.0f, d, time01);
     rh.ray.tfar = tmax;
     rh.ray.mask = 0xffffffffu;
     rh.ray.id = 0;
@@ -131,7 +132,7 @@ static inline int accel_occluded(const struct accel *a, vec3 o, vec3 d, float tm
     struct RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     struct RTCRay r;
-    accel_ray_set_(&r, o, d, time01);
+    accel_ray_set(&r, o, 0.0f, d, time01);
     r.tfar = tmax;
     r.mask = 0xffffffffu;
     r.id = 0;

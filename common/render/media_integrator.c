@@ -483,7 +483,7 @@ static vec3 march_segment(const struct render_job *job, const struct media_job *
         if (het) {
             rho = grid_density(md->grid, x);
             float tau_here = tau + rho * jitter * dx;
-            tr = v3(expf(-md->sigma_t.x * tau_here), expf(-md->sigma_t.y * tau_here), expf(-md->sigma_t.z * tau_here));
+            tr = medium_tr_tau(md, tau_here);
             tau += rho * dx;
             if (ntab < TAU_TABLE)
                 tau_tab[ntab++] = tau;
@@ -510,7 +510,7 @@ static vec3 march_segment(const struct render_job *job, const struct media_job *
         L = v3_add(L, v3_scale(v3_mul(tr, in), dx));
     }
     if (het)
-        *seg_tr = v3(expf(-md->sigma_t.x * tau), expf(-md->sigma_t.y * tau), expf(-md->sigma_t.z * tau));
+        *seg_tr = medium_tr_tau(md, tau);
     if ((mj->sm->method == MEDIA_MARCH_BEAM || mj->sm->method == MEDIA_MARCH_BEAMS) && map) {
         if (het) {
             /* Photons and beams lie in the occupied box (stored only where the density is

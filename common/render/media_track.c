@@ -238,7 +238,7 @@ vec3 media_shadow_transmittance(const struct media_job *mj, vec3 p, vec3 target,
             const struct tr_cache *c = shadow_cache_get(mj, target, medium);
             float tau;
             if (c && tr_cache_tau_from(c, p, &tau))
-                return v3(expf(-md->sigma_t.x * tau), expf(-md->sigma_t.y * tau), expf(-md->sigma_t.z * tau));
+                return medium_tr_tau(md, tau);
         }
         vec3 to = v3_sub(target, p);
         float len = v3_length(to);

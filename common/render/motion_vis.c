@@ -703,9 +703,7 @@ static double still_depth(const struct motion_vis *mv, vec3 o, vec3 d)
         rtcInitIntersectContext(&ctx);
         struct RTCRayHit rh;
         memset(&rh, 0, sizeof rh);
-        rh.ray.org_x = o.x, rh.ray.org_y = o.y, rh.ray.org_z = o.z;
-        rh.ray.dir_x = d.x, rh.ray.dir_y = d.y, rh.ray.dir_z = d.z;
-        rh.ray.tnear = tnear;
+        accel_ray_set(&rh.ray, o, tnear, d, 0.0f);
         rh.ray.tfar = INFINITY;
         rh.ray.mask = 0xffffffffu;
         rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
@@ -743,8 +741,7 @@ uint32_t motion_vis_strata(const struct motion_vis *mv, const struct camera *cam
     q.cand = found, q.nc = 0, q.overflow = 0;
     struct RTCRayHit rh;
     memset(&rh, 0, sizeof rh);
-    rh.ray.org_x = cs->o.x, rh.ray.org_y = cs->o.y, rh.ray.org_z = cs->o.z;
-    rh.ray.dir_x = cs->d.x, rh.ray.dir_y = cs->d.y, rh.ray.dir_z = cs->d.z;
+    accel_ray_set(&rh.ray, cs->o, 0.0f, cs->d, 0.0f);
     rh.ray.tfar = INFINITY;
     rh.ray.mask = 0xffffffffu;
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;

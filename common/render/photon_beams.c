@@ -502,9 +502,7 @@ vec3 photon_beams_estimate(struct photon_beams *pb, vec3 o, vec3 d, float t1, co
     query_init(&q, pb, o, d, t1, md, depth_max);
     struct RTCRayHit rh;
     memset(&rh, 0, sizeof rh);
-    rh.ray.org_x = o.x, rh.ray.org_y = o.y, rh.ray.org_z = o.z;
-    rh.ray.dir_x = d.x, rh.ray.dir_y = d.y, rh.ray.dir_z = d.z;
-    rh.ray.tnear = 0.0f;
+    accel_ray_set(&rh.ray, o, 0.0f, d, 0.0f);
     rh.ray.tfar = t1;
     rh.ray.mask = 0xffffffffu;
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;

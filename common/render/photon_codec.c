@@ -39,8 +39,5 @@ vec3 photon_tau_transmittance(const struct photon_tau *tt, const struct medium *
         float f = x - (float)i;
         tau = tt->tau[i] * (1.0f - f) + tt->tau[i + 1] * f;
     }
-    float ex = expf(-md->sigma_t.x * tau);
-    if (md->sigma_t.y == md->sigma_t.x && md->sigma_t.z == md->sigma_t.x)
-        return v3(ex, ex, ex); /* grey: the same value, one exponential */
-    return v3(ex, expf(-md->sigma_t.y * tau), expf(-md->sigma_t.z * tau));
+    return medium_tr_tau(md, tau);
 }

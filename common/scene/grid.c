@@ -491,7 +491,7 @@ vec3 medium_tr_segment(const struct medium *m, vec3 o, vec3 d, float len, uint64
             break;
         tau += grid_density(m->grid, v3_add(o, v3_scale(d, t))) * dx;
     }
-    return v3(expf(-m->sigma_t.x * tau), expf(-m->sigma_t.y * tau), expf(-m->sigma_t.z * tau));
+    return medium_tr_tau(m, tau);
 }
 
 vec3 medium_emission_segment(const struct medium *m, vec3 o, vec3 d, float len, uint64_t key)
