@@ -735,6 +735,16 @@ static int32_t peer_slot(struct master *m)
     return -1;
 }
 
+/* Peer text (a HELLO's host, an ERROR's message) goes into our log, the fatal message and
+ * the stats file: printable ASCII only, so that it cannot forge log lines (a newline),
+ * drive the terminal (escapes) or make the stats' JSON drop it (bytes not UTF-8). */
+static void peer_text_printable(char *s)
+{
+    for (unsigned char *c = (unsigned char *)s; *c; c++)
+        if (*c < 0x20 || *c >= 0x7f)
+            *c = '?';
+}
+
 static void on_hello(struct master *m, const struct net_frame *f, const struct msg_hello *h)
 {
     if (find_peer(m, f) >= 0) {
@@ -743,9 +753,7 @@ static void on_hello(struct master *m, const struct net_frame *f, const struct m
     }
     char name[300];
     snprintf(name, sizeof name, "%.200s:%u", h->host, h->pid);
-    for (char *c = name; *c; c++) /* peer text goes into our log: keep it printable */
-        if (*c < 0x20 || *c == 0x7f)
-            *c = '?';
+    peer_text_printable(name);
     int32_t gone = find_gone_peer(m, f);
     if (name_is_banned(m, f->user_id, name) || (gone >= 0 && m->sched->workers[gone].banned)) {
         m->c.rejected_banned++;
@@ -1733,6 +1741,7 @@ static void handle_message(struct master *m, struct net_frame *f)
         on_kept(m, pi, &msg.u.kept);
         break;
     case MSG_ERROR:
+        peer_text_printable(msg.u.error.text);
         snprintf(m->last_worker_error, sizeof m->last_worker_error, "%s", msg.u.error.text);
         log_error("worker %s: %s", p->name, msg.u.error.text);
         evict_peer(m, pi, SCHED_ERROR, "it reported an error");
