@@ -584,9 +584,10 @@ static int32_t find_gone_peer(const struct master *m, const struct net_frame *f)
     return found;
 }
 
-static void send_to(struct master *m, const struct peer *p, const struct proto_msg *msg)
+/* 0, or -1 when the message could not be queued (the peer's queue is full, or it is gone). */
+static int send_to(struct master *m, const struct peer *p, const struct proto_msg *msg)
 {
-    net_send(m->sock, p->id, p->id_len, msg, &m->out);
+    return net_send(m->sock, p->id, p->id_len, msg, &m->out);
 }
 
 /* The command that renders tile t alone: our own command line with another output and
@@ -1670,9 +1671,6 @@ static void assign_tiles(struct master *m)
 {
     struct sched_assignment a;
     while (sched_assign_next(m->sched, net_now_ms(), &a)) {
-        m->c.tiles_assigned++;
-        m->c.straggler_copies += a.straggler != 0;
-        m->c.tiles_reissued += a.reissue != 0;
         struct proto_msg msg = {.type = MSG_TILE};
         msg.u.tile.job_id = m->job_id;
         msg.u.tile.frame = m->frame;
@@ -1681,7 +1679,15 @@ static void assign_tiles(struct master *m)
         msg.u.tile.pass = unit_pass(m, a.tile);
         msg.u.tile.mask = unit_mask(m, a.tile);
         tile_tag(m, a.tile, m->peers[a.worker].user_id, &msg.u.tile.tag);
-        send_to(m, &m->peers[a.worker], &msg);
+        if (send_to(m, &m->peers[a.worker], &msg) != 0) {
+            /* Not queued (a dropped TILE would be held by nobody until the worker is
+             * evicted): taken back; the worker gets more once it is heard from. */
+            sched_assign_undo(m->sched, &a);
+            continue;
+        }
+        m->c.tiles_assigned++;
+        m->c.straggler_copies += a.straggler != 0;
+        m->c.tiles_reissued += a.reissue != 0;
     }
 }
 

@@ -512,7 +512,7 @@ int main(int argc, char **argv)
         else
             usage();
     }
-    if (!endpoint || n == 0 || n > 4096 || g.credits == 0 || g.credits > 64)
+    if (!endpoint || n == 0 || n > 4096 || g.credits == 0 || g.credits > 4096)
         usage();
     if (g.image_path) {
         char err[256];
@@ -553,7 +553,7 @@ int main(int argc, char **argv)
             return 1;
         }
         struct proto_msg h = {.type = MSG_HELLO};
-        h.u.hello.threads = 1;
+        h.u.hello.threads = (g.credits + 1) / 2; /* a worker's READY: 2 credits per thread */
         h.u.hello.pid = i;
         snprintf(h.u.hello.host, sizeof h.u.hello.host, "%s", host);
         send_msg(p, &h);
