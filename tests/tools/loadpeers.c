@@ -3,7 +3,8 @@
  *   loadpeers ENDPOINT [-n N] [--credits C] [--key KEYFILE MASTER.pub] [--image REF.exr]
  *                      [--master-pid PID] [--no-fetch] [--hold-ready] [--timeout-ms MS]
  *                      [--no-bcast] [--drop-bcast K] [--corrupt-bcast K] [--strangers]
- * Each fake worker says HELLO (host "loadpeers-PID", pid = its index: distinct names),
+ * Each fake worker says HELLO (host "loadpeers-PID", pid = its index: distinct names;
+ * threads: C / 2 rounded up, as a worker that asks 2 credits per thread; C at most 4096),
  * fetches every blob the JOB and MAP messages name as a worker does (proto_fetch: the
  * chunk list, the master's broadcast on a SUB socket of its own, BLOB_REQ for the rest;
  * every chunk checked against the list, the blob's hash at the end; none with
