@@ -809,6 +809,8 @@ static struct proto_fetch *fetch_find(struct worker *w, const struct blob_hash *
     return NULL;
 }
 
+static int fetches_pump(struct worker *w);
+
 /* CHUNKS: the list goes into the fetch; with a broadcast, we subscribe to the hash (the
  * SUB socket is connected at the first: beside our ROUTER endpoint, secured the same way). */
 static int on_chunks(struct worker *w, const struct msg_chunks *c)
@@ -845,7 +847,7 @@ static int on_chunks(struct worker *w, const struct msg_chunks *c)
         else
             f->phase = FETCH_P2P;
     }
-    return request_chunks(w, f);
+    return fetches_pump(w); /* the window goes to the fetches in order: the scene's files, then passes */
 }
 
 static int fetches_pending(const struct worker *w)
@@ -987,7 +989,7 @@ static int on_blob_data(struct worker *w, const struct msg_blob_data *d, int via
         char err[256];
         if (proto_fetch_on_data(f, d, via_bcast, net_now_ms(), err, sizeof err) != 0 && ++w->bcast_bad <= 5)
             log_warn("master sent a bad blob chunk%s (dropped, fetched again): %s", via_bcast ? " (broadcast)" : "", err);
-        if (request_chunks(w, f) != 0)
+        if (fetches_pump(w) != 0) /* the freed request goes to the first fetch that wants one */
             return -1;
         if (blob_recv_complete(&f->recv)) {
             uint8_t *data;
