@@ -584,9 +584,10 @@ static int32_t find_gone_peer(const struct master *m, const struct net_frame *f)
     return found;
 }
 
-static void send_to(struct master *m, const struct peer *p, const struct proto_msg *msg)
+/* 0, or -1 when the message could not be queued (the peer's queue is full, or it is gone). */
+static int send_to(struct master *m, const struct peer *p, const struct proto_msg *msg)
 {
-    net_send(m->sock, p->id, p->id_len, msg, &m->out);
+    return net_send(m->sock, p->id, p->id_len, msg, &m->out);
 }
 
 /* The command that renders tile t alone: our own command line with another output and
@@ -735,6 +736,16 @@ static int32_t peer_slot(struct master *m)
     return -1;
 }
 
+/* Peer text (a HELLO's host, an ERROR's message) goes into our log, the fatal message and
+ * the stats file: printable ASCII only, so that it cannot forge log lines (a newline),
+ * drive the terminal (escapes) or make the stats' JSON drop it (bytes not UTF-8). */
+static void peer_text_printable(char *s)
+{
+    for (unsigned char *c = (unsigned char *)s; *c; c++)
+        if (*c < 0x20 || *c >= 0x7f)
+            *c = '?';
+}
+
 static void on_hello(struct master *m, const struct net_frame *f, const struct msg_hello *h)
 {
     if (find_peer(m, f) >= 0) {
@@ -743,9 +754,7 @@ static void on_hello(struct master *m, const struct net_frame *f, const struct m
     }
     char name[300];
     snprintf(name, sizeof name, "%.200s:%u", h->host, h->pid);
-    for (char *c = name; *c; c++) /* peer text goes into our log: keep it printable */
-        if (*c < 0x20 || *c == 0x7f)
-            *c = '?';
+    peer_text_printable(name);
     int32_t gone = find_gone_peer(m, f);
     if (name_is_banned(m, f->user_id, name) || (gone >= 0 && m->sched->workers[gone].banned)) {
         m->c.rejected_banned++;
@@ -1662,9 +1671,6 @@ static void assign_tiles(struct master *m)
 {
     struct sched_assignment a;
     while (sched_assign_next(m->sched, net_now_ms(), &a)) {
-        m->c.tiles_assigned++;
-        m->c.straggler_copies += a.straggler != 0;
-        m->c.tiles_reissued += a.reissue != 0;
         struct proto_msg msg = {.type = MSG_TILE};
         msg.u.tile.job_id = m->job_id;
         msg.u.tile.frame = m->frame;
@@ -1673,7 +1679,15 @@ static void assign_tiles(struct master *m)
         msg.u.tile.pass = unit_pass(m, a.tile);
         msg.u.tile.mask = unit_mask(m, a.tile);
         tile_tag(m, a.tile, m->peers[a.worker].user_id, &msg.u.tile.tag);
-        send_to(m, &m->peers[a.worker], &msg);
+        if (send_to(m, &m->peers[a.worker], &msg) != 0) {
+            /* Not queued (a dropped TILE would be held by nobody until the worker is
+             * evicted): taken back; the worker gets more once it is heard from. */
+            sched_assign_undo(m->sched, &a);
+            continue;
+        }
+        m->c.tiles_assigned++;
+        m->c.straggler_copies += a.straggler != 0;
+        m->c.tiles_reissued += a.reissue != 0;
     }
 }
 
@@ -1733,6 +1747,7 @@ static void handle_message(struct master *m, struct net_frame *f)
         on_kept(m, pi, &msg.u.kept);
         break;
     case MSG_ERROR:
+        peer_text_printable(msg.u.error.text);
         snprintf(m->last_worker_error, sizeof m->last_worker_error, "%s", msg.u.error.text);
         log_error("worker %s: %s", p->name, msg.u.error.text);
         evict_peer(m, pi, SCHED_ERROR, "it reported an error");

@@ -180,6 +180,7 @@ int sched_worker_ready(struct sched *s, int32_t wi, uint32_t credits)
 void sched_worker_heard(struct sched *s, int32_t w, uint64_t now_ms)
 {
     s->workers[w].last_heard_ms = now_ms;
+    s->workers[w].blocked = 0;
 }
 
 void sched_worker_progress(struct sched *s, int32_t w, uint64_t now_ms)
@@ -277,7 +278,7 @@ static int other_ready_worker(const struct sched *s, uint32_t i)
 
 static int can_take(const struct sched_worker *w)
 {
-    return !w->gone && w->ready && w->credits > 0 && !w->isolated;
+    return !w->gone && w->ready && w->credits > 0 && !w->isolated && !w->blocked;
 }
 
 static void give(struct sched *s, uint32_t tile, int32_t wi, int straggler, uint64_t now_ms,
@@ -346,6 +347,18 @@ int sched_assign_next(struct sched *s, uint64_t now_ms, struct sched_assignment 
         return 1;
     }
     return 0;
+}
+
+void sched_assign_undo(struct sched *s, const struct sched_assignment *a)
+{
+    struct sched_worker *w = &s->workers[a->worker];
+    struct sched_tile *t = &s->tiles[a->tile];
+    drop_holder(s, a->tile, a->worker);
+    if (t->state == SCHED_QUEUED)
+        t->requeued = a->reissue; /* as it was: it never went out */
+    w->credits++;
+    w->isolated = 0; /* give() isolates only a worker that was not */
+    w->blocked = 1;
 }
 
 enum sched_result_verdict sched_result(const struct sched *s, int32_t w, uint32_t tile, uint32_t attempt)

@@ -53,6 +53,8 @@ struct sched_worker {
     int gone, banned, ready;
     uint32_t threads, credits, in_flight;
     int isolated;                   /* holds a suspect tile: gets nothing else meanwhile */
+    int blocked;                    /* a TILE to it could not be queued (sched_assign_undo): it gets
+                                     * nothing until it is heard from again */
     uint64_t last_heard_ms, last_progress_ms, last_samples;
     uint32_t reported_stall_ms;
     uint32_t tiles_done;
@@ -157,6 +159,12 @@ uint32_t sched_live_workers(const struct sched *s);
  * worker gets a copy of the oldest tile in flight elsewhere (never a suspect one); a
  * straggler copy waits while queued tiles wait for their release. */
 int sched_assign_next(struct sched *s, uint64_t now_ms, struct sched_assignment *a);
+/* The TILE of assignment a could not be queued for its worker (its queue is full: a burst
+ * of more tiles than the socket holds, or it stopped reading; or it is gone): the
+ * assignment is taken back (the tile goes back to the front of the queue unless another
+ * holder has it) with its credit, and the worker gets nothing more until it is heard from
+ * (sched_worker_heard), so that the others get the tiles meanwhile. */
+void sched_assign_undo(struct sched *s, const struct sched_assignment *a);
 /* A RESULT for (tile, attempt) from w (tile < num_tiles: the caller checks). */
 enum sched_result_verdict sched_result(const struct sched *s, int32_t w, uint32_t tile, uint32_t attempt);
 /* After SCHED_RESULT_CHECK: the chunk is good (and journaled): the tile is done, its

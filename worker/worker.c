@@ -722,19 +722,50 @@ static int load_finish(struct worker *w)
     return 0;
 }
 
-/* Sends the BLOB_REQs the fetch wants now (none while the list is on its way or the
- * broadcast brings chunks). -1 after an ERROR to the master: chunks asked for again and
- * again came back bad. */
-static int request_chunks(struct worker *w, struct proto_fetch *f)
+/* Requests in flight, CHUNKS_REQ and BLOB_REQ, over every fetch together. A job may name
+ * thousands of blobs (PROTO_MAX_ASSETS): a window per blob, all opened at once, would put
+ * more in the socket's queue than it holds (ZMQ_SNDHWM: a send that fails means a lost
+ * master, so the worker reconnected and began again, for ever) and as many answers in the
+ * master's queue for us. */
+#define FETCH_REQUESTS_MAX PROTO_FETCH_WINDOW
+
+static uint32_t fetch_requests(const struct worker *w)
+{
+    uint32_t n = 0;
+    for (size_t i = 0; i < w->num_fetches + w->num_maps; i++) {
+        const struct proto_fetch *f = i >= w->num_fetches ? &w->maps[i - w->num_fetches].fetch : &w->fetches[i];
+        if (f->recv.data)
+            n += f->in_flight + (f->phase == FETCH_LIST && f->list_asked);
+    }
+    return n;
+}
+
+/* Sends what the fetch wants now while *busy (fetch_requests) is under FETCH_REQUESTS_MAX:
+ * its CHUNKS_REQ first, then BLOB_REQs (none while the list is on its way or the broadcast
+ * brings chunks); *busy counts them. -1 after an ERROR to the master: chunks asked for
+ * again and again came back bad. */
+static int request_chunks_within(struct worker *w, struct proto_fetch *f, uint32_t *busy)
 {
     struct proto_msg m;
-    int rc;
-    while ((rc = proto_fetch_next_req(f, net_now_ms(), &m)) > 0)
+    int rc = 0;
+    if (f->phase == FETCH_LIST) {
+        if (!f->list_asked && f->recv.size > 0 && *busy < FETCH_REQUESTS_MAX) {
+            memset(&m, 0, sizeof m);
+            m.type = MSG_CHUNKS_REQ;
+            m.u.chunks_req.hash = f->recv.hash;
+            f->list_asked = worker_send(w, &m) == 0; /* not queued: asked for again next time */
+            *busy += (uint32_t)f->list_asked;
+        }
+        return 0;
+    }
+    while (*busy < FETCH_REQUESTS_MAX && (rc = proto_fetch_next_req(f, net_now_ms(), &m)) > 0) {
         if (worker_send(w, &m) != 0) { /* not queued: asked for again next time */
             f->in_flight--;
             f->next_chunk = m.u.blob_req.offset / BLOB_CHUNK_SIZE;
             return 0;
         }
+        (*busy)++;
+    }
     if (rc < 0) {
         char err[256], hex[65];
         blob_hash_hex(&f->recv.hash, hex);
@@ -748,15 +779,21 @@ static int request_chunks(struct worker *w, struct proto_fetch *f)
     return 0;
 }
 
-/* Starts fetching (hash, size): CHUNKS_REQ, the rest when the list comes. */
+static int request_chunks(struct worker *w, struct proto_fetch *f)
+{
+    uint32_t busy = fetch_requests(w);
+    return request_chunks_within(w, f, &busy);
+}
+
+/* Starts fetching (hash, size): CHUNKS_REQ (now, or once the requests in flight leave
+ * room: fetches_pump), the rest when the list comes. */
 static int fetch_begin(struct worker *w, struct proto_fetch *f, const struct blob_hash *hash, uint64_t size, char *err,
                        size_t errlen)
 {
     struct proto_msg req;
     if (proto_fetch_start(f, hash, size, &req, err, errlen) != 0)
         return -1;
-    if (size > 0)
-        worker_send(w, &req);
+    request_chunks(w, f); /* a fetch with no list yet sends at most its CHUNKS_REQ */
     return 0;
 }
 
@@ -771,6 +808,8 @@ static struct proto_fetch *fetch_find(struct worker *w, const struct blob_hash *
     }
     return NULL;
 }
+
+static int fetches_pump(struct worker *w);
 
 /* CHUNKS: the list goes into the fetch; with a broadcast, we subscribe to the hash (the
  * SUB socket is connected at the first: beside our ROUTER endpoint, secured the same way). */
@@ -808,7 +847,7 @@ static int on_chunks(struct worker *w, const struct msg_chunks *c)
         else
             f->phase = FETCH_P2P;
     }
-    return request_chunks(w, f);
+    return fetches_pump(w); /* the window goes to the fetches in order: the scene's files, then passes */
 }
 
 static int fetches_pending(const struct worker *w)
@@ -950,7 +989,7 @@ static int on_blob_data(struct worker *w, const struct msg_blob_data *d, int via
         char err[256];
         if (proto_fetch_on_data(f, d, via_bcast, net_now_ms(), err, sizeof err) != 0 && ++w->bcast_bad <= 5)
             log_warn("master sent a bad blob chunk%s (dropped, fetched again): %s", via_bcast ? " (broadcast)" : "", err);
-        if (request_chunks(w, f) != 0)
+        if (fetches_pump(w) != 0) /* the freed request goes to the first fetch that wants one */
             return -1;
         if (blob_recv_complete(&f->recv)) {
             uint8_t *data;
@@ -983,12 +1022,14 @@ static int on_blob_data(struct worker *w, const struct msg_blob_data *d, int via
     return 0; /* a chunk we no longer want (e.g. a duplicate): harmless */
 }
 
-/* Each pass of the loop: fetches whose broadcast went quiet ask for the rest. */
+/* Each pass of the loop: fetches waiting for room in the window, or whose broadcast went
+ * quiet, ask for what they lack. */
 static int fetches_pump(struct worker *w)
 {
-    for (size_t i = 0; i < w->num_fetches + w->num_maps; i++) {
+    uint32_t busy = fetch_requests(w);
+    for (size_t i = 0; i < w->num_fetches + w->num_maps && busy < FETCH_REQUESTS_MAX; i++) {
         struct proto_fetch *f = i >= w->num_fetches ? &w->maps[i - w->num_fetches].fetch : &w->fetches[i];
-        if (f->recv.data && request_chunks(w, f) != 0)
+        if (f->recv.data && request_chunks_within(w, f, &busy) != 0)
             return -1;
     }
     return 0;

@@ -106,6 +106,7 @@ void proto_fetch_fini(struct proto_fetch *f)
     f->phase = FETCH_LIST;
     f->next_chunk = 0;
     f->in_flight = 0;
+    f->list_asked = 0;
     f->rounds = 0;
 }
 

@@ -24,6 +24,7 @@ struct proto_fetch {
     enum proto_fetch_phase phase;
     uint64_t next_chunk;            /* point to point: the next chunk index to look at */
     uint32_t in_flight;
+    int list_asked;                 /* the caller sent the CHUNKS_REQ (FETCH_LIST: its answer is awaited) */
     uint32_t rounds;
     uint64_t last_bcast_ms;         /* when the broadcast last brought a chunk (or it began) */
     uint64_t chunks_bcast, chunks_p2p; /* chunks kept from each path */

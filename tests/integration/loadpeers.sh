@@ -104,4 +104,21 @@ deliver faulty --bcast-mbps 1000 -- --corrupt-bcast 3 --drop-bcast 5
 bad_chunks=$(awk '/^loadpeers: chunks/ {print $8}' "$T/log") p2p_chunks=$(awk '/^loadpeers: chunks/ {print $6}' "$T/log")
 if [ "${bad_chunks:-0}" -gt 0 ] && [ "${p2p_chunks:-0}" -gt 0 ] && [ -n "$P2P" ] && [ "$P2P" -gt 0 ]; then
   ok "broadcast chunks corrupted ($bad_chunks refused by their hash) or dropped: fetched point to point ($p2p_chunks chunks)"; else bad "corrupted or dropped broadcast chunks fetched point to point (bad ${bad_chunks:-?}, p2p ${p2p_chunks:-?}, master p2p ${P2P:-?})"; fi
+# --- one fake worker with 2048 credits (a worker of 1024 threads): more TILEs at once than
+# the master's socket queues for it (ZMQ_SNDHWM 1000). A TILE that cannot be queued is
+# taken back and sent later, not lost to a holder that never got it: every unit is done ---
+sed 's/"width": 32, "height": 24/"width": 512, "height": 512/' scenes/tiny/tiny.json >"$T/big.json"
+cp scenes/tiny/*.obj scenes/tiny/*.mtl "$T/"
+timeout 120 $M "$T/big.json" -o "$T/credits.exr" --spp 1 --tile 8 --workers 0 --bind "ipc://$T/c.sock" >"$T/m.log" 2>&1 &
+mp=$!
+echo $mp >>"$T/pids"
+timeout 120 $L "ipc://$T/c.sock" -n 1 --credits 2048 --timeout-ms 30000 >"$T/log" 2>&1
+wait $mp && mr=0 || mr=1
+cat "$T/m.log" >>"$T/log"
+# (not "unacked 0": an ACK that finds the queue full is dropped, which only costs the
+# worker memory until the next frame)
+if [ $mr = 0 ] && grep -q "granted 4096 results 4096 " "$T/log" && [ "$(counter tiles_done "$T/credits.exr")" = 4096 ]; then
+  ok "a worker with 2048 credits: TILEs that do not fit its queue go later, every one of 4096 tiles done"
+else bad "a worker with 2048 credits: TILEs that do not fit its queue go later, every one of 4096 tiles done"; fi
+
 finish

@@ -104,6 +104,21 @@ if [ $r = 0 ] && [ $wr = 0 ] && [ -n "$who" ] && [ "${who##*:}" = "$wpid" ] && !
   ok "a HELLO claiming the real worker's host:pid ($who) does not evict it; image identical"
 else bad "a HELLO claiming the real worker's host:pid (${who:-?}) does not evict it; image identical (master rc $r, worker rc $wr)"; fi
 
+# --- an allowed peer's ERROR text with a newline, a forged log line, terminal escapes and
+# bytes that are not UTF-8: logged on one line, printable, naming the peer ---
+P7=$(free_port)
+timeout 60 $M scenes/tiny/tiny.json -o "$T/e.exr" --workers 0 --bind "tcp://127.0.0.1:$P7" $KEYS >"$T/log" 2>&1 &
+mpid=$!
+sleep 0.3
+timeout 20 $BUILD/junkpeer --key "$T/rogue.key" "$T/master.key.pub" "tcp://127.0.0.1:$P7" error >/dev/null 2>&1
+timeout 60 $W --connect "tcp://127.0.0.1:$P7" $WKEY >/dev/null 2>&1
+wait $mpid && r=0 || r=1
+if [ $r = 0 ] && grep -q "error: worker liar:4243: bad?brume: info: forged line?\[2J??? end$" "$T/log" &&
+  ! grep -q "^brume: info: forged" "$T/log" && ! LC_ALL=C grep -q "$(printf '[\033\177\200-\377]')" "$T/log" &&
+  $X cmp "$T/ref.exr" "$T/e.exr" >/dev/null; then
+  ok "a worker's ERROR text is logged printable, on one line, with the peer's name"
+else bad "a worker's ERROR text is logged printable, on one line, with the peer's name (master rc $r)"; fi
+
 # --- a flood: 4,200 HELLOs from an allowed key and 500 connects without one; the real
 # worker still joins and the render finishes ---
 timeout 120 $M scenes/tiny/tiny.json -o "$T/f.exr" --workers 0 --bind "tcp://127.0.0.1:$P6" $KEYS >"$T/log" 2>&1 &

@@ -14,6 +14,8 @@
  *                        junkpeer: job yes|no, blob bytes N
  *   hello-as HOST PID  a HELLO claiming to be HOST:PID, then silence for 3 s
  *   flood N            N connections, each a HELLO, closed after a moment
+ *   error              HELLO, then an ERROR whose text holds a newline, a forged log
+ *                      line, terminal escapes and bytes that are not UTF-8
  */
 #include "image/imgio.h"
 #include "render/tile.h"
@@ -224,7 +226,7 @@ int main(int argc, char **argv)
         a = 4;
     }
     if (argc < a + 1) {
-        fprintf(stderr, "usage: junkpeer [--key KEYFILE MASTER.pub] ENDPOINT [rogue | hello-as HOST PID | flood N]\n");
+        fprintf(stderr, "usage: junkpeer [--key KEYFILE MASTER.pub] ENDPOINT [rogue | hello-as HOST PID | flood N | error]\n");
         return 2;
     }
     const char *endpoint = argv[a], *mode = argc > a + 1 ? argv[a + 1] : "";
@@ -261,6 +263,14 @@ int main(int argc, char **argv)
         void *s = peer_socket(ctx, endpoint);
         if (!strcmp(mode, "rogue")) {
             rc = rogue(s, &b);
+        } else if (!strcmp(mode, "error")) {
+            send_hello(s, "liar", 4243, &b);
+            usleep(300000);
+            struct proto_msg e = {.type = MSG_ERROR};
+            snprintf(e.u.error.text, sizeof e.u.error.text,
+                     "bad\nbrume: info: forged line\x1b[2J\x7f\xff\xfe end");
+            send_msg(s, &e, &b);
+            usleep(300000);
         } else if (!strcmp(mode, "hello-as") && argc > a + 3) {
             send_hello(s, argv[a + 2], (uint32_t)strtoul(argv[a + 3], NULL, 10), &b);
             sleep(3);

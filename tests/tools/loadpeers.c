@@ -3,7 +3,8 @@
  *   loadpeers ENDPOINT [-n N] [--credits C] [--key KEYFILE MASTER.pub] [--image REF.exr]
  *                      [--master-pid PID] [--no-fetch] [--hold-ready] [--timeout-ms MS]
  *                      [--no-bcast] [--drop-bcast K] [--corrupt-bcast K] [--strangers]
- * Each fake worker says HELLO (host "loadpeers-PID", pid = its index: distinct names),
+ * Each fake worker says HELLO (host "loadpeers-PID", pid = its index: distinct names;
+ * threads: C / 2 rounded up, as a worker that asks 2 credits per thread; C at most 4096),
  * fetches every blob the JOB and MAP messages name as a worker does (proto_fetch: the
  * chunk list, the master's broadcast on a SUB socket of its own, BLOB_REQ for the rest;
  * every chunk checked against the list, the blob's hash at the end; none with
@@ -512,7 +513,7 @@ int main(int argc, char **argv)
         else
             usage();
     }
-    if (!endpoint || n == 0 || n > 4096 || g.credits == 0 || g.credits > 64)
+    if (!endpoint || n == 0 || n > 4096 || g.credits == 0 || g.credits > 4096)
         usage();
     if (g.image_path) {
         char err[256];
@@ -553,7 +554,7 @@ int main(int argc, char **argv)
             return 1;
         }
         struct proto_msg h = {.type = MSG_HELLO};
-        h.u.hello.threads = 1;
+        h.u.hello.threads = (g.credits + 1) / 2; /* a worker's READY: 2 credits per thread */
         h.u.hello.pid = i;
         snprintf(h.u.hello.host, sizeof h.u.hello.host, "%s", host);
         send_msg(p, &h);

@@ -378,6 +378,46 @@ Test(sched, straggler_copies_only_when_the_queue_is_empty)
     sched_free(&s);
 }
 
+/* A TILE the master could not queue (the worker's queue full, or it gone) is taken back:
+ * the tile is queued again (first), the credit returned, and the worker gets nothing
+ * until it is heard from, so the others take the tiles meanwhile; a straggler copy taken
+ * back leaves the tile with its first holder. */
+Test(sched, an_assignment_not_sent_is_taken_back)
+{
+    struct sched *s = setup(3, 2, 2);
+    struct sched_assignment a = give_one(s, 10);
+    cr_assert_eq(a.tile, 0);
+    cr_assert_eq(a.worker, 0);
+    sched_assign_undo(s, &a);
+    cr_assert_eq(s->tiles[0].state, SCHED_QUEUED);
+    cr_assert_eq(s->tiles[0].num_holders, 0);
+    cr_assert_eq(s->workers[0].in_flight, 0);
+    cr_assert_eq(s->workers[0].credits, 2);
+    cr_assert_eq(s->q_count, 3);
+    a = give_one(s, 10);
+    cr_assert_eq(a.tile, 0, "the tile taken back goes first");
+    cr_assert_eq(a.worker, 1, "to another worker: the blocked one waits");
+    cr_assert_eq(a.reissue, 0, "it never went out");
+    give_one(s, 10);
+    assert_none(s, 10); /* worker 1 has no credit left, worker 0 is blocked */
+    sched_worker_heard(s, 0, 20);
+    a = give_one(s, 20);
+    cr_assert_eq(a.worker, 0);
+    cr_assert_eq(a.tile, 2);
+    /* a straggler copy not sent: tile 0 stays with worker 1 */
+    sched_result_valid(s, 0, 2);
+    a = give_one(s, 30);
+    cr_assert_eq(a.straggler, 1);
+    cr_assert_eq(a.worker, 0);
+    sched_assign_undo(s, &a);
+    cr_assert_eq(s->tiles[a.tile].state, SCHED_ASSIGNED);
+    cr_assert_eq(s->tiles[a.tile].num_holders, 1);
+    cr_assert_eq(s->tiles[a.tile].holder[0], 1);
+    cr_assert_eq(s->workers[0].in_flight, 0);
+    cr_assert_eq(s->q_count, 0);
+    sched_free(&s);
+}
+
 Test(sched, no_straggler_copy_of_a_suspect_tile)
 {
     struct sched *s = setup(1, 1, 1);
