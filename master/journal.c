@@ -148,7 +148,7 @@ struct journal *journal_open(const char *path, const struct blob_hash *key, uint
     }
     if (!header_ok || memcmp(data + 8, key->bytes, BLOB_HASH_SIZE) != 0 ||
         bytes_get_u32(data + 8 + BLOB_HASH_SIZE) != num_tiles) {
-        *other_job = header_ok;
+        *other_job = header_ok ? 1 : size > 0 ? 2 : 0;
         free(data);
         if (start_fresh(j, key, num_tiles, err, errlen) != 0) {
             journal_free(&j);

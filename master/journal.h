@@ -49,8 +49,9 @@ typedef int (*journal_tile_fn)(void *ctx, uint32_t tile, const struct tile_stats
 
 /* Opens or creates the journal at path for the job identified by key (the constructor:
  * it can fail, so it is not called journal_new). An existing journal of the same key is
- * replayed through fn (which may be NULL); one of another key, or one too short to hold a
- * header, is started afresh (*other_job = 1 in the first case). *recovered: records
+ * replayed through fn (which may be NULL); one of another key, or a file that holds no
+ * intact journal header, is started afresh (*other_job = 1 in the first case, 2 in the
+ * second unless the file was empty). *recovered: records
  * replayed; *torn_bytes: bytes cut off the end. The journal is locked (flock) while open:
  * one that another process holds open (a second master on the same output) is refused
  * once JOURNAL_LOCK_WAIT_MS have passed. The journal, or NULL with the reason. */

@@ -306,3 +306,34 @@ Test(journal, second_open_is_refused_while_the_first_holds_it, .timeout = 30)
     cr_assert_eq(other, 0);
     journal_remove(&j);
 }
+
+/* A file at the journal's name that holds no intact header (garbage, a damaged header) is
+ * started afresh and said so (*other_job = 2), unlike an empty or missing one. */
+Test(journal, damaged_header_is_reported)
+{
+    char path[256];
+    tmp_path(path, sizeof path);
+    long ends[3];
+    write_records(path, 3, ends);
+    FILE *f = fopen(path, "r+b");
+    cr_assert_not_null(f);
+    fseek(f, 20, SEEK_SET); /* inside the key: the header's checksum fails */
+    fputc(0x5a, f);
+    fclose(f);
+    struct journal *j;
+    uint32_t rec;
+    uint64_t torn;
+    int other;
+    char err[256];
+    struct blob_hash k = key_of("job");
+    cr_assert_eq((j = journal_open(path, &k, 16, NULL, NULL, &rec, &torn, &other, err, sizeof err)) != NULL, 1, "%s", err);
+    cr_assert_eq(rec, 0);
+    cr_assert_eq(other, 2, "a damaged header is reported, not taken for a fresh file");
+    journal_free(&j);
+    cr_assert_eq((j = journal_open(path, &k, 16, NULL, NULL, &rec, &torn, &other, err, sizeof err)) != NULL, 1, "%s", err);
+    cr_assert_eq(other, 0, "the journal started afresh is ours");
+    journal_remove(&j);
+    cr_assert_eq((j = journal_open(path, &k, 16, NULL, NULL, &rec, &torn, &other, err, sizeof err)) != NULL, 1, "%s", err);
+    cr_assert_eq(other, 0, "a new journal is no news");
+    journal_remove(&j);
+}
