@@ -13,8 +13,10 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <sys/eventfd.h>
+#include <time.h>
 #include <unistd.h>
 
 #define HEADER_BODY (8 + BLOB_HASH_SIZE + 4)
@@ -62,6 +64,41 @@ static int read_file(int fd, uint8_t **data, size_t *size)
     return 0;
 }
 
+/* Opens the journal and takes its lock (flock, exclusive): a second master rendering to
+ * the same output would replay a journal still being written, write its records over the
+ * first one's at its own file offset, or (another job) start the file afresh under it, so
+ * records already acknowledged to workers would be lost. A lock held by a master that was
+ * just killed goes with the process: it is waited for up to JOURNAL_LOCK_WAIT_MS. A file
+ * that was removed or replaced while we waited (the master before us finished) is opened
+ * again. 0, or -1 with the reason (the fd closed). */
+static int lock_open(struct journal *j, char *err, size_t errlen)
+{
+    const struct timespec nap = {0, 20 * 1000000L};
+    for (uint32_t waited = 0;;) {
+        j->fd = open(j->path, O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+        if (j->fd < 0) {
+            str_fmt(err, errlen, "%s: cannot open the journal: %s", j->path, strerror(errno));
+            return -1;
+        }
+        int locked = flock(j->fd, LOCK_EX | LOCK_NB) == 0;
+        if (!locked && errno != EWOULDBLOCK)
+            return 0; /* a file system without locks: as before */
+        struct stat held, named;
+        if (locked && fstat(j->fd, &held) == 0 && stat(j->path, &named) == 0 && held.st_dev == named.st_dev &&
+            held.st_ino == named.st_ino)
+            return 0;
+        close(j->fd);
+        j->fd = -1;
+        if (!locked && waited >= JOURNAL_LOCK_WAIT_MS) {
+            str_fmt(err, errlen, "%s: the journal is in use by another master rendering to the same output; "
+                    "not starting a second one", j->path);
+            return -1;
+        }
+        nanosleep(&nap, NULL);
+        waited += 20;
+    }
+}
+
 static int start_fresh(struct journal *j, const struct blob_hash *key, uint32_t num_tiles, char *err, size_t errlen)
 {
     uint8_t h[HEADER_SIZE];
@@ -91,9 +128,7 @@ struct journal *journal_open(const char *path, const struct blob_hash *key, uint
     *torn_bytes = 0;
     *other_job = 0;
     snprintf(j->path, sizeof j->path, "%s", path);
-    j->fd = open(path, O_RDWR | O_CREAT | O_CLOEXEC, 0644);
-    if (j->fd < 0) {
-        str_fmt(err, errlen, "%s: cannot open the journal: %s", path, strerror(errno));
+    if (lock_open(j, err, errlen) != 0) {
         journal_free(&j);
         return NULL;
     }
@@ -113,7 +148,7 @@ struct journal *journal_open(const char *path, const struct blob_hash *key, uint
     }
     if (!header_ok || memcmp(data + 8, key->bytes, BLOB_HASH_SIZE) != 0 ||
         bytes_get_u32(data + 8 + BLOB_HASH_SIZE) != num_tiles) {
-        *other_job = header_ok;
+        *other_job = header_ok ? 1 : size > 0 ? 2 : 0;
         free(data);
         if (start_fresh(j, key, num_tiles, err, errlen) != 0) {
             journal_free(&j);
@@ -448,10 +483,11 @@ int journal_remove(struct journal **jp)
         return 0;
     char path[sizeof j->path];
     snprintf(path, sizeof path, "%s", j->path);
+    /* Removed while still locked: a master waiting for the lock then finds the file gone
+     * and starts its own instead of appending to this one. */
+    int rc = path[0] ? unlink(path) : 0;
     journal_free(jp);
-    if (!path[0])
-        return 0;
-    int rc = unlink(path);
-    asset_fsync_parent(path);
+    if (path[0])
+        asset_fsync_parent(path);
     return rc;
 }

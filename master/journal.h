@@ -13,6 +13,7 @@
 #include "render/tile.h"
 
 #define JOURNAL_MAX_CHUNK (48u * 1024u * 1024u)
+#define JOURNAL_LOCK_WAIT_MS 2000u /* how long journal_open waits for another master's lock */
 
 /* A record waiting for the sync thread to write it. */
 struct journal_rec { uint8_t *data; size_t size; uint32_t tile; struct journal_rec *next; };
@@ -48,9 +49,12 @@ typedef int (*journal_tile_fn)(void *ctx, uint32_t tile, const struct tile_stats
 
 /* Opens or creates the journal at path for the job identified by key (the constructor:
  * it can fail, so it is not called journal_new). An existing journal of the same key is
- * replayed through fn (which may be NULL); one of another key, or one too short to hold a
- * header, is started afresh (*other_job = 1 in the first case). *recovered: records
- * replayed; *torn_bytes: bytes cut off the end. The journal, or NULL with the reason. */
+ * replayed through fn (which may be NULL); one of another key, or a file that holds no
+ * intact journal header, is started afresh (*other_job = 1 in the first case, 2 in the
+ * second unless the file was empty). *recovered: records
+ * replayed; *torn_bytes: bytes cut off the end. The journal is locked (flock) while open:
+ * one that another process holds open (a second master on the same output) is refused
+ * once JOURNAL_LOCK_WAIT_MS have passed. The journal, or NULL with the reason. */
 struct journal *journal_open(const char *path, const struct blob_hash *key, uint32_t num_tiles, journal_tile_fn fn,
                              void *ctx, uint32_t *recovered, uint64_t *torn_bytes, int *other_job, char *err,
                              size_t errlen);

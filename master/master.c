@@ -1831,8 +1831,10 @@ static int open_journal(struct master *m)
     }
     if (journal_syncer_start(m->journal, err, sizeof err) != 0)
         log_warn("%s; syncing in the main loop instead", err);
-    if (other)
+    if (other == 1)
         log_warn("%s belonged to another job (scene or settings differ); starting afresh", path);
+    else if (other == 2)
+        log_warn("%s is not a journal (its header is damaged or missing); starting afresh", path);
     if (recovered || torn)
         log_info("journal %s: %u unit(s) recovered%s", path, recovered, torn ? ", a torn last record cut off" : "");
     return 0;

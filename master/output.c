@@ -11,6 +11,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 int output_frame_path(const char *pat, int have_frames, uint32_t frame, char *out, size_t outlen)
@@ -52,6 +53,11 @@ int output_is_done(const char *path, const char *scene_hash, uint32_t spp, uint6
 /* The temporary file is renamed into place; the folder is synced so the rename lasts. */
 int output_check_writable(const char *path, char *err, size_t errlen)
 {
+    struct stat st;
+    if (stat(path, &st) == 0 && S_ISDIR(st.st_mode)) { /* rename(2) would refuse it after the render */
+        str_fmt(err, errlen, "%s: cannot write the output there: %s", path, strerror(EISDIR));
+        return -1;
+    }
     char tmp[4200];
     snprintf(tmp, sizeof tmp, "%s.tmp.%d", path, (int)getpid());
     int fd = open(tmp, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);

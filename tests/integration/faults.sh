@@ -161,6 +161,23 @@ echo "faults: master killed: $good of $TRIALS trials identical; $from_journal_to
 if [ $good = "$TRIALS" ] && [ $from_journal_total -gt 0 ]; then ok "master kill -9 + restart (incl. torn journals): identical, journaled tiles not re-rendered"
 else bad "master kill -9 + restart (incl. torn journals): identical, journaled tiles not re-rendered"; fi
 
+# --- a second master on the same output is refused while the first holds its journal ---
+# (the first waits for a worker, so it is surely running; the second asks for other
+# settings, which once started the journal afresh under the first one's records)
+timeout 120 $M $SCENE -o "$T/two.exr" --workers 0 --bind "ipc://$T/two.sock" $ARGS >"$T/klog" 2>&1 &
+mpid=$!
+echo $mpid >"$T/pids"
+i=0
+while [ $i -lt 400 ] && [ ! -s "$T/two.exr.journal" ]; do sleep 0.05; i=$((i + 1)); done
+timeout 60 $M $SCENE -o "$T/two.exr" --workers 1 --spp 2 --tile 32 >"$T/log" 2>&1 && r2=0 || r2=1
+timeout 60 $W --connect "ipc://$T/two.sock" --threads 2 >/dev/null 2>&1 &
+echo "$mpid $!" >"$T/pids"
+wait $mpid && r1=0 || r1=1
+if [ $r2 = 1 ] && tail -1 "$T/log" | grep -q "^master: error: $T/two\.exr\.journal: the journal is in use by another master" &&
+  [ $r1 = 0 ] && $X cmp "$T/ref.exr" "$T/two.exr" >/dev/null; then
+  ok "a second master on the same output is refused (journal in use); the first one finishes identical"
+else cat "$T/klog" >>"$T/log"; bad "a second master on the same output is refused (journal in use); the first one finishes identical (rc $r2 $r1)"; fi
+
 # --- a full disk is a clear error, never a truncated frame ---
 mkdir -p "$T/full"
 if mount -t tmpfs -o size=96k tmpfs "$T/full" 2>/dev/null; then

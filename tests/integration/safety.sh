@@ -110,6 +110,15 @@ else
   echo "skip: read-only output folder (cannot mount a tmpfs here)"
 fi
 
+# --- a directory at the output's name: refused before any tile is rendered (rename(2)
+# would refuse it only after the render) ---
+mkdir -p "$T/dir.exr/x"
+run $M scenes/tiny/tiny.json -o "$T/dir.exr" --workers 1 && r=0 || r=$?
+if [ $r != 0 ] && tail -1 "$T/log" | grep -qE "^master: error: $T/dir\.exr: .*Is a directory$" &&
+   ! grep -q "rendered [1-9]" "$T/log" && [ ! -e "$T/dir.exr.journal" ] && [ -d "$T/dir.exr/x" ]; then
+  ok "a directory at the output's name refused before rendering: $(tail -1 "$T/log")"
+else bad "a directory at the output's name refused before rendering (rc $r)"; fi
+
 # --- emission 1e30: the sample variance passes float's range; the render is the scene's,
 # not a lying worker's: it completes, the variance channels saturate, the summary says so ---
 mkdir -p "$T/hot"

@@ -279,3 +279,61 @@ Test(journal, tile_out_of_range_is_not_replayed)
     cr_assert_eq(rec, 0);
     journal_remove(&j);
 }
+
+/* A second master on the same output (a journal open elsewhere) is refused with the file's
+ * name, and the first one's records stay; once it is closed the journal opens again. */
+Test(journal, second_open_is_refused_while_the_first_holds_it, .timeout = 30)
+{
+    char path[256];
+    tmp_path(path, sizeof path);
+    long ends[3];
+    write_records(path, 3, ends);
+    struct journal *j, *j2;
+    uint32_t rec;
+    uint64_t torn;
+    int other;
+    char err[256];
+    struct blob_hash k = key_of("job"), k2 = key_of("another job");
+    cr_assert_eq((j = journal_open(path, &k, 16, NULL, NULL, &rec, &torn, &other, err, sizeof err)) != NULL, 1, "%s", err);
+    cr_assert_eq(rec, 3);
+    err[0] = '\0';
+    j2 = journal_open(path, &k2, 16, NULL, NULL, &rec, &torn, &other, err, sizeof err);
+    cr_assert_null(j2, "a journal held open by another master is not taken over");
+    cr_assert(strstr(err, path) && strstr(err, "in use by another master"), "%s", err);
+    journal_free(&j);
+    cr_assert_eq((j = journal_open(path, &k, 16, NULL, NULL, &rec, &torn, &other, err, sizeof err)) != NULL, 1, "%s", err);
+    cr_assert_eq(rec, 3, "the first master's records are intact");
+    cr_assert_eq(other, 0);
+    journal_remove(&j);
+}
+
+/* A file at the journal's name that holds no intact header (garbage, a damaged header) is
+ * started afresh and said so (*other_job = 2), unlike an empty or missing one. */
+Test(journal, damaged_header_is_reported)
+{
+    char path[256];
+    tmp_path(path, sizeof path);
+    long ends[3];
+    write_records(path, 3, ends);
+    FILE *f = fopen(path, "r+b");
+    cr_assert_not_null(f);
+    fseek(f, 20, SEEK_SET); /* inside the key: the header's checksum fails */
+    fputc(0x5a, f);
+    fclose(f);
+    struct journal *j;
+    uint32_t rec;
+    uint64_t torn;
+    int other;
+    char err[256];
+    struct blob_hash k = key_of("job");
+    cr_assert_eq((j = journal_open(path, &k, 16, NULL, NULL, &rec, &torn, &other, err, sizeof err)) != NULL, 1, "%s", err);
+    cr_assert_eq(rec, 0);
+    cr_assert_eq(other, 2, "a damaged header is reported, not taken for a fresh file");
+    journal_free(&j);
+    cr_assert_eq((j = journal_open(path, &k, 16, NULL, NULL, &rec, &torn, &other, err, sizeof err)) != NULL, 1, "%s", err);
+    cr_assert_eq(other, 0, "the journal started afresh is ours");
+    journal_remove(&j);
+    cr_assert_eq((j = journal_open(path, &k, 16, NULL, NULL, &rec, &torn, &other, err, sizeof err)) != NULL, 1, "%s", err);
+    cr_assert_eq(other, 0, "a new journal is no news");
+    journal_remove(&j);
+}
