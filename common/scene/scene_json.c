@@ -1707,6 +1707,8 @@ static int parse_spot(struct ctx *c, json_t *obj, const struct jpath *p, const c
     double outer = (double)angle * M_PI / 180.0, inner = (double)(angle - falloff) * M_PI / 180.0;
     l.cos_outer = (float)cos(outer);
     l.cos_inner = (float)cos(inner);
+    if (!(l.cos_outer < 1.0f)) /* a cone below ~0.02 degrees: the narrowest float can tell */
+        l.cos_outer = nextafterf(1.0f, 0.0f);
     if (!(l.cos_inner > l.cos_outer))
         l.cos_inner = nextafterf(l.cos_outer, 2.0f);
     scene_add_light(c->scene, &l);

@@ -4,6 +4,7 @@
 #include <criterion/criterion.h>
 #include <stdio.h>
 #include <string.h>
+#include "scene/light.h"
 #include "scene/scene_json.h"
 #include "helpers.h"
 
@@ -529,4 +530,28 @@ Test(scene_json, adaptive_keys)
     scene_fini(&s);
     expect_error(HEAD_RENDER("\"pixel_error\": 1.5") "}", "scenes/t.json:4:16: pixel_error must be in (0, 1)");
     expect_error(HEAD_RENDER("\"pixel_error\": \"low\"") "}", "pixel_error");
+}
+
+/* Every spot angle in (0, 180] loads: a cone narrower than float's cosine can tell from 0
+ * (below about 0.02 degrees) keeps cos_outer < cos_inner <= 1 (scene_validate's rule) and
+ * lights its axis fully, and no direction outside it. */
+Test(scene_json, spot_of_tiny_angle_loads)
+{
+    const char *angles[] = {"1e-30", "0.001", "0.0198", "0.02", "180"};
+    for (int i = 0; i < 5; i++)
+        for (int f = 0; f < 2; f++) {
+            char json[1024], err[512] = "";
+            snprintf(json, sizeof json,
+                     HEAD ",\n\"lights\": [{\"type\": \"spot\", \"position\": [0, 3, 0], \"direction\": [0, -1, 0],"
+                          " \"intensity\": [1, 1, 1], \"angle\": %s%s%s}]}",
+                     angles[i], f ? ", \"falloff\": " : "", f ? angles[i] : "");
+            struct scene s;
+            cr_assert_eq(test_scene_load(json, g_files, &s, err), 0, "angle %s falloff %d: %s", angles[i], f, err);
+            const struct light *l = &s.lights[0];
+            cr_expect(l->cos_outer >= -1.0f && l->cos_outer < l->cos_inner && l->cos_inner <= 1.0f, "angle %s", angles[i]);
+            cr_expect(light_spot_falloff(l, v3(0, -1, 0)) == 1.0f, "angle %s falloff %d: axis not lit", angles[i], f);
+            if (i < 4)
+                cr_expect(light_spot_falloff(l, v3(0.01f, -1, 0)) == 0.0f, "angle %s: lit outside the cone", angles[i]);
+            scene_fini(&s);
+        }
 }
