@@ -61,6 +61,11 @@ void raydiff_set_center(struct raydiff *rd, float jx, float jy, uint32_t nx, uin
 
 void raydiff_transfer(const struct raydiff *rd, vec3 d, float t, vec3 n, vec3 *dpdx, vec3 *dpdy)
 {
+    /* n may be a triangle's raw cross product: beyond float's squared range (edges of
+     * 4e9 or 1e-19) its length and its dot products would overflow or underflow. */
+    float n2 = v3_dot(n, n);
+    if (!(n2 >= 0x1p-126f && n2 <= 0x1.fffffep127f))
+        n = v3_normalize(n);
     float dn = v3_dot(d, n), nl = v3_length(n), lim = RAYDIFF_MIN_COS * nl;
     /* Grazing: the footprint stretches without bound; cap it (the filter's anisotropy
      * clamp then bounds the lookup's cost). */

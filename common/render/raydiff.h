@@ -11,7 +11,7 @@
 #include "scene/texture.h"
 #include "base/vec.h"
 
-#define RAYDIFF_MAX 1e8f          /* bound on any derivative component */
+#define RAYDIFF_MAX 1e30f         /* bound on any derivative component */
 #define RAYDIFF_MIN_COS 1e-4f     /* |cos| between ray and plane used in the transfer */
 #define RAYDIFF_DIFFUSE_SPREAD 0.125f /* radians per pixel step after a diffuse bounce, at least */
 
