@@ -2,6 +2,7 @@
  * class of error with the line:col it must name, and the scenes shipped in scenes/
  * loaded from disk. Most tests read OBJ files from an in-memory asset source. */
 #include <criterion/criterion.h>
+#include <math.h>
 #include <stdio.h>
 #include <string.h>
 #include "scene/light.h"
@@ -554,4 +555,27 @@ Test(scene_json, spot_of_tiny_angle_loads)
                 cr_expect(light_spot_falloff(l, v3(0.01f, -1, 0)) == 0.0f, "angle %s: lit outside the cone", angles[i]);
             scene_fini(&s);
         }
+}
+
+/* A view or spot direction of any non-zero length loads: look_at 1e20 away (its squared
+ * length overflows float) or 1e-25 away (underflows) is not "equal to position". */
+Test(scene_json, directions_of_any_length_load)
+{
+    const char *offs[] = {"1e20", "1e-25"};
+    for (int i = 0; i < 2; i++) {
+        char json[1024], err[512] = "";
+        snprintf(json, sizeof json,
+                 "{\"version\": 1,\n\"camera\": {\"position\": [0, 0, 0], \"look_at\": [0, 0, %s], \"fov_y\": 40},\n"
+                 "\"render\": {\"width\": 8, \"height\": 8},\n"
+                 "\"lights\": [{\"type\": \"spot\", \"position\": [0, 0, 0], \"look_at\": [0, -%s, 0],"
+                 " \"intensity\": [1, 1, 1], \"angle\": 30},\n"
+                 " {\"type\": \"spot\", \"position\": [0, 0, 0], \"direction\": [0, -%s, 0],"
+                 " \"intensity\": [1, 1, 1], \"angle\": 30}]}",
+                 offs[i], offs[i], offs[i]);
+        struct scene s;
+        cr_assert_eq(test_scene_load(json, g_files, &s, err), 0, "offset %s: %s", offs[i], err);
+        for (int k = 0; k < 2; k++)
+            cr_expect(fabsf(s.lights[k].direction.y + 1.0f) < 1e-6f, "offset %s: spot %d direction", offs[i], k);
+        scene_fini(&s);
+    }
 }
