@@ -7,18 +7,33 @@
 #include <math.h>
 #include <string.h>
 
-static float clampf(float x)
+static float clamp_to(float x, float bound)
 {
     if (!isfinite(x))
         return 0.0f;
-    return x > RAYDIFF_MAX ? RAYDIFF_MAX : (x < -RAYDIFF_MAX ? -RAYDIFF_MAX : x);
+    return x > bound ? bound : (x < -bound ? -bound : x);
 }
 
+static float clampf(float x)
+{
+    return clamp_to(x, RAYDIFF_MAX);
+}
+
+/* Direction derivatives (scale-free). */
 static vec3 sane(vec3 v)
 {
     if (!v3_is_finite(v))
         return v3(0, 0, 0);
     return v3(clampf(v.x), clampf(v.y), clampf(v.z));
+}
+
+/* Position and normal derivatives: they scale with the scene (a floor scaled by 1e10 has
+ * footprints of 1e9), so only a bound far from any scene's. */
+static vec3 sane_space(vec3 v)
+{
+    if (!v3_is_finite(v))
+        return v3(0, 0, 0);
+    return v3(clamp_to(v.x, RAYDIFF_MAX_SPACE), clamp_to(v.y, RAYDIFF_MAX_SPACE), clamp_to(v.z, RAYDIFF_MAX_SPACE));
 }
 
 float raydiff_spp_scale(uint32_t spp)
@@ -61,6 +76,11 @@ void raydiff_set_center(struct raydiff *rd, float jx, float jy, uint32_t nx, uin
 
 void raydiff_transfer(const struct raydiff *rd, vec3 d, float t, vec3 n, vec3 *dpdx, vec3 *dpdy)
 {
+    /* n may be a triangle's raw cross product: beyond float's squared range (edges of
+     * 4e9 or 1e-19) its length and its dot products would overflow or underflow. */
+    float n2 = v3_dot(n, n);
+    if (!(n2 >= 0x1p-126f && n2 <= 0x1.fffffep127f))
+        n = v3_normalize(n);
     float dn = v3_dot(d, n), nl = v3_length(n), lim = RAYDIFF_MIN_COS * nl;
     /* Grazing: the footprint stretches without bound; cap it (the filter's anisotropy
      * clamp then bounds the lookup's cost). */
@@ -71,8 +91,8 @@ void raydiff_transfer(const struct raydiff *rd, vec3 d, float t, vec3 n, vec3 *d
         return;
     }
     vec3 vx = v3_add(rd->dodx, v3_scale(rd->dddx, t)), vy = v3_add(rd->dody, v3_scale(rd->dddy, t));
-    *dpdx = sane(v3_sub(vx, v3_scale(d, v3_dot(vx, n) / dn)));
-    *dpdy = sane(v3_sub(vy, v3_scale(d, v3_dot(vy, n) / dn)));
+    *dpdx = sane_space(v3_sub(vx, v3_scale(d, v3_dot(vx, n) / dn)));
+    *dpdy = sane_space(v3_sub(vy, v3_scale(d, v3_dot(vy, n) / dn)));
 }
 
 /* Least squares dp = a * ea + b * eb. */
@@ -108,8 +128,8 @@ void raydiff_triangle(const vec3 p[3], const float (*uv)[2], const vec3 *nrm, fl
         /* dp/d(u, v) = [e1 e2] [[du1 du2] [dv1 dv2]]^-1, when the uv triangle has area. */
         float det = du1 * dv2 - du2 * dv1, scale = fmaxf(fabsf(du1 * dv2), fabsf(du2 * dv1));
         if (fabsf(det) > 1e-6f * scale && isfinite(det)) {
-            out->dpdu = sane(v3_scale(v3_sub(v3_scale(e1, dv2), v3_scale(e2, dv1)), 1.0f / det));
-            out->dpdv = sane(v3_scale(v3_sub(v3_scale(e2, du1), v3_scale(e1, du2)), 1.0f / det));
+            out->dpdu = sane_space(v3_scale(v3_sub(v3_scale(e1, dv2), v3_scale(e2, dv1)), 1.0f / det));
+            out->dpdv = sane_space(v3_scale(v3_sub(v3_scale(e2, du1), v3_scale(e1, du2)), 1.0f / det));
         } else {
             out->has_dpduv = 0;
         }
@@ -134,8 +154,8 @@ void raydiff_triangle(const vec3 p[3], const float (*uv)[2], const vec3 *nrm, fl
             vec3 dNx = v3_add(v3_scale(n10, b1x), v3_scale(n20, b2x));
             vec3 dNy = v3_add(v3_scale(n10, b1y), v3_scale(n20, b2y));
             out->n = n;
-            out->dndx = sane(v3_scale(v3_sub(dNx, v3_scale(n, v3_dot(n, dNx))), 1.0f / len));
-            out->dndy = sane(v3_scale(v3_sub(dNy, v3_scale(n, v3_dot(n, dNy))), 1.0f / len));
+            out->dndx = sane_space(v3_scale(v3_sub(dNx, v3_scale(n, v3_dot(n, dNx))), 1.0f / len));
+            out->dndy = sane_space(v3_scale(v3_sub(dNy, v3_scale(n, v3_dot(n, dNy))), 1.0f / len));
         }
     }
 }
@@ -167,8 +187,8 @@ void raydiff_sphere(vec3 center, float radius, vec3 p, const struct raydiff *rd,
     solve2(dpdu, dpdv, out->dpdx, &out->tc.dudx, &out->tc.dvdx);
     solve2(dpdu, dpdv, out->dpdy, &out->tc.dudy, &out->tc.dvdy);
     float inv_r = radius > 0.0f ? 1.0f / radius : 0.0f;
-    out->dndx = sane(v3_scale(out->dpdx, inv_r));
-    out->dndy = sane(v3_scale(out->dpdy, inv_r));
+    out->dndx = sane_space(v3_scale(out->dpdx, inv_r));
+    out->dndy = sane_space(v3_scale(out->dpdy, inv_r));
 }
 
 static vec3 reflect_dd(vec3 d, vec3 dd, vec3 n, vec3 dn)

@@ -11,7 +11,8 @@
 #include "scene/texture.h"
 #include "base/vec.h"
 
-#define RAYDIFF_MAX 1e8f          /* bound on any derivative component */
+#define RAYDIFF_MAX 1e8f          /* bound on scale-free derivatives: directions, (u, v) */
+#define RAYDIFF_MAX_SPACE 1e30f   /* on position and normal ones, which scale with the scene */
 #define RAYDIFF_MIN_COS 1e-4f     /* |cos| between ray and plane used in the transfer */
 #define RAYDIFF_DIFFUSE_SPREAD 0.125f /* radians per pixel step after a diffuse bounce, at least */
 

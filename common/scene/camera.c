@@ -172,8 +172,8 @@ void camera_init(struct camera *cam, const struct camera_desc *d, uint32_t width
     }
     if (n > 0 && !differ) /* keys that never change are a still camera */
         still_basis(d->keyframes[0].position, d->keyframes[0].look_at, d->keyframes[0].up, &cam->still);
-    cam->still.focus = pose_focus(cam, &cam->still, v3_length(v3_sub(n > 0 ? d->keyframes[0].look_at : d->look_at,
-                                                                     cam->still.origin)));
+    vec3 look0 = n > 0 ? d->keyframes[0].look_at : d->look_at; /* any distance, also past 1e19 */
+    cam->still.focus = pose_focus(cam, &cam->still, v3_length_rescaled(v3_sub(look0, cam->still.origin)));
     if (differ) {
         cam->moving = 1;
         cam->num_keys = n;
@@ -184,7 +184,7 @@ void camera_init(struct camera *cam, const struct camera_desc *d, uint32_t width
             cam->key_time[i] = k->time;
             cam->key_pos[i] = k->position;
             basis_to_quat(&p, cam->key_rot[i]);
-            cam->key_dist[i] = v3_length(v3_sub(k->look_at, k->position));
+            cam->key_dist[i] = v3_length_rescaled(v3_sub(k->look_at, k->position));
         }
     }
     cam->uses_time = cam->shutter_close > cam->shutter_open && cam->moving;

@@ -106,7 +106,7 @@ void light_table_init(struct light_table *t, const struct scene *s)
             if (v3_is_black(em))
                 continue;
             vec3 a = tri_vertex(m, p, 0), b = tri_vertex(m, p, 1), c = tri_vertex(m, p, 2);
-            float area = 0.5f * v3_length(v3_cross(v3_sub(b, a), v3_sub(c, a)));
+            float area = 0.5f * v3_length_rescaled(v3_cross(v3_sub(b, a), v3_sub(c, a)));
             if (!(area > 0.0f))
                 continue; /* degenerate: can neither be hit nor sampled */
             if (!t->tri_light[mi]) {

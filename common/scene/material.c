@@ -79,7 +79,11 @@ static vec3 reflect(vec3 wo, vec3 n, float cos_i)
 
 int material_is_smooth(const struct material *m)
 {
-    return f_max(m->alpha_x, m->alpha_y) < MICROFACET_SMOOTH_ALPHA;
+    /* Glass of ior within 1e-5 of 1 bends light by at most 1e-5 radians and reflects
+     * almost nothing whatever its roughness: the smooth lobe, where the rough one's half
+     * vector wo + eta wi is 0 or rounding noise (a NaN for ior 1 +- 1 ulp). */
+    return f_max(m->alpha_x, m->alpha_y) < MICROFACET_SMOOTH_ALPHA ||
+           (m->type == MATERIAL_DIELECTRIC && fabsf(m->ior - 1.0f) < 1e-5f);
 }
 
 /* The shading frame: x and y the anisotropy axes, z the normal. */

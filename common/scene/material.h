@@ -19,7 +19,8 @@ struct bsdf_sample {
                      * (photons) crosses an index change without it */
 };
 
-/* Roughness below MICROFACET_SMOOTH_ALPHA: the smooth (delta) lobe. */
+/* Roughness below MICROFACET_SMOOTH_ALPHA, or a dielectric of ior within 1e-5 of 1: the
+ * smooth (delta) lobe. */
 int material_is_smooth(const struct material *m);
 
 static inline int material_is_delta(const struct material *m)

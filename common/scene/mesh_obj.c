@@ -931,7 +931,7 @@ static void obj_build_mesh(struct obj_state *s, const struct mesh_obj_options *o
             vec3 nn = v3(nsign * (cof[0][0] * q[0] + cof[0][1] * q[1] + cof[0][2] * q[2]),
                          nsign * (cof[1][0] * q[0] + cof[1][1] * q[1] + cof[1][2] * q[2]),
                          nsign * (cof[2][0] * q[0] + cof[2][1] * q[1] + cof[2][2] * q[2]));
-            float l = v3_length(nn);
+            float l = v3_length_rescaled(nn);
             if (!(l > 0.0f) || !isfinite(l)) {
                 /* A zero normal cannot shade; geometric normals are the honest fallback. */
                 log_warn("%s: degenerate vertex normal, normals dropped for this mesh", file);

@@ -155,7 +155,7 @@ int scene_validate(const struct scene *s, char *err, size_t errlen)
         return -1;
     }
     vec3 fwd = v3_sub(c->look_at, c->position);
-    if (v3_length(fwd) == 0.0f || v3_length(v3_cross(fwd, c->up)) == 0.0f) {
+    if (v3_length_rescaled(fwd) == 0.0f || v3_length(v3_cross(v3_normalize(fwd), v3_normalize(c->up))) == 0.0f) {
         str_fmt(err, errlen, "camera: look_at equals position or up is parallel to the view direction");
         return -1;
     }

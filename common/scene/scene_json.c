@@ -971,7 +971,7 @@ static int parse_camera_key(struct ctx *c, json_t *obj, const struct jpath *p, s
     if (!(fabsf(k->time) <= 1e7f))
         return fail(c, &m[0].path, AT_VALUE, "time must be within +-1e7 frames");
     vec3 fwd = v3_sub(k->look_at, k->position);
-    if (!(v3_length(fwd) > 0.0f) || !isfinite(v3_length(fwd)))
+    if (!(v3_length_rescaled(fwd) > 0.0f) || !isfinite(v3_length_rescaled(fwd)))
         return fail(c, &m[2].path, AT_VALUE, "look_at must differ from position");
     if (!(v3_length(v3_cross(v3_normalize(fwd), v3_normalize(k->up))) > 1e-6f))
         return fail(c, m[3].val ? &m[3].path : p, AT_VALUE, "up must not be zero or parallel to the view direction");
@@ -1028,7 +1028,7 @@ static int parse_camera(struct ctx *c, const struct member *cm)
     if (!(cd->fov_y_deg > 0.0f && cd->fov_y_deg < 180.0f))
         return fail(c, &m[FOV].path, AT_VALUE, "fov_y must be in (0, 180) degrees");
     vec3 fwd = v3_sub(cd->look_at, cd->position);
-    if (!(v3_length(fwd) > 0.0f) || !isfinite(v3_length(fwd)))
+    if (!(v3_length_rescaled(fwd) > 0.0f) || !isfinite(v3_length_rescaled(fwd)))
         return fail(c, &m[LOOK].path, AT_VALUE, "look_at must differ from position");
     float cross = v3_length(v3_cross(v3_normalize(fwd), v3_normalize(cd->up)));
     if (!(cross > 1e-6f))
@@ -1690,7 +1690,7 @@ static int parse_spot(struct ctx *c, json_t *obj, const struct jpath *p, const c
         d = v3_sub(at, l.position);
     }
     const struct member *dm = m[3].val ? &m[3] : &m[4];
-    if (!(v3_length(d) > 0.0f) || !isfinite(v3_length(d)))
+    if (!(v3_length_rescaled(d) > 0.0f) || !isfinite(v3_length_rescaled(d)))
         return fail(c, &dm->path, AT_VALUE, "spot direction must be a non-zero vector");
     l.direction = v3_normalize(d);
     float angle, falloff = 0.0f;
@@ -1707,6 +1707,8 @@ static int parse_spot(struct ctx *c, json_t *obj, const struct jpath *p, const c
     double outer = (double)angle * M_PI / 180.0, inner = (double)(angle - falloff) * M_PI / 180.0;
     l.cos_outer = (float)cos(outer);
     l.cos_inner = (float)cos(inner);
+    if (!(l.cos_outer < 1.0f)) /* a cone below ~0.02 degrees: the narrowest float can tell */
+        l.cos_outer = nextafterf(1.0f, 0.0f);
     if (!(l.cos_inner > l.cos_outer))
         l.cos_inner = nextafterf(l.cos_outer, 2.0f);
     scene_add_light(c->scene, &l);

@@ -2,7 +2,8 @@
 # Strangers on the machine and odd inputs: scene files that are FIFOs are refused at once
 # (never opened blocking), a signal stops a long scene load, an output name that is one of
 # the scene's own files is refused before rendering, a full disk is reported as such, and
-# the tiny scene scaled by 1e-7 and 1e7 or moved by 1e6 and 1e7 renders as the original does.
+# the tiny scene scaled by 1e-7, 1e7, 1e-12 and 1e12 or moved by 1e6 and 1e7 renders as the
+# original does.
 # Usage: BUILD=build sh tests/integration/safety.sh
 . "$(dirname "$0")/lib.sh"
 lib_init safety
@@ -160,11 +161,12 @@ if [ $r0 = 0 ] && [ $r = 0 ] && [ -n "$wpid" ] && grep -q "started again" "$T/st
 else cp "$T/stop.log" "$T/log"; bad "a lone local worker stopped: evicted, started again, identical image (rc $r, worker ${wpid:-?})"; fi
 [ -n "$wpid" ] && kill -KILL "$wpid" 2>/dev/null
 
-# --- the tiny scene scaled by 1e-7 and 1e7 renders as the original (same samples, so the
-# difference must stay far below the image's own noise estimate) ---
+# --- the tiny scene scaled by 1e-7, 1e7, 1e-12 and 1e12 renders as the original (same
+# samples, so the difference must stay far below the image's own noise estimate; at 1e12
+# and 1e-12 a triangle's cross product squared leaves float's range: its normal and area) ---
 run $M scenes/tiny/tiny.json -o "$T/base.exr" --spp 16 && r=0 || r=1
 noise=$($X errest "$T/base.exr" 2>/dev/null)
-for s in 1e-7 1e7; do
+for s in 1e-7 1e7 1e-12 1e12; do
   python3 scripts/scene_variant.py scenes/tiny "$T/s$s" $s 0 0 0
   run $M "$T/s$s/tiny.json" -o "$T/s$s.exr" --spp 16 && r2=0 || r2=1
   rel=$($X relrmse "$T/s$s.exr" "$T/base.exr" 2>/dev/null)

@@ -1,8 +1,9 @@
 #!/bin/sh
 # Textured scenes end to end: the image files travel to workers as blobs (a tcp worker
 # started in another folder renders the same pixels), renders are bit-identical for 1 vs 3
-# workers and any tile size, no NaN, a changed texture changes the image, and a missing or
-# damaged image is an error naming the scene's file:line:col and the image.
+# workers and any tile size, no NaN, a changed texture changes the image, a missing or
+# damaged image is an error naming the scene's file:line:col and the image, and a textured
+# floor scaled by 3e7 or 1e10 filters as the original does.
 # Ends with "integration: N passed, N failed". Usage: BUILD=build sh tests/integration/textures.sh
 . "$(dirname "$0")/lib.sh"
 lib_init tex
@@ -97,6 +98,38 @@ for m in vpt beam; do
   run $M "$T/tf/fog.json" -o "$T/f3_$m.exr" --media-method $m --workers 3 --threads 1 --tile 16 && r3=0 || r3=1
   if [ $r1 = 0 ] && [ $r3 = 0 ] && $X cmp "$T/f1_$m.exr" "$T/f3_$m.exr"; then ok "textured fog ($m): 1 vs 3 workers bit-identical, no NaN"
   else bad "textured fog ($m): 1 vs 3 workers bit-identical, no NaN"; fi
+done
+
+# --- the checker floor alone (direct light), scaled by 3e7 and 1e10 and 1e-10: the same
+# footprints, so the image of the original, far below its own noise (a floor edge of 1.2e10
+# once overflowed the squared length of its raw cross product in the footprint transfer,
+# and derivatives were capped at 1e8: shifted, blurred checks) ---
+floor_scene() {
+  python3 - "$1" "$2" <<'PY'
+import json, os, shutil, sys
+dst, f = sys.argv[1], float(sys.argv[2])
+os.makedirs(dst, exist_ok=True)
+shutil.copy('scenes/textured/checker.png', dst)
+open(os.path.join(dst, 'floor.obj'), 'w').write(''.join('v %.17g 0 %.17g\n' % (x * f, z * f) for x, z in ((-200, -200), (-200, 200), (200, 200), (200, -200))) + 'vt 0 0\nvt 0 1\nvt 1 1\nvt 1 0\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n')
+s = {"version": 1, "camera": {"position": [0, 1.2 * f, -6 * f], "look_at": [0, 0.8 * f, 0], "fov_y": 45},
+     "render": {"width": 48, "height": 27, "spp": 4, "max_depth": 1, "seed": 1, "tile_size": 16},
+     "textures": {"checks": {"type": "image", "file": "checker.png", "scale": [100, 100], "filter": "ewa", "max_anisotropy": 16}},
+     "materials": {"floor": {"type": "diffuse", "albedo_texture": "checks"}},
+     "objects": [{"type": "obj", "file": "floor.obj", "material": "floor"}],
+     "lights": [{"type": "point", "position": [-2 * f, 6 * f, -5 * f], "intensity": [70 * f * f] * 3}]}
+json.dump(s, open(os.path.join(dst, 'floor.json'), 'w'))
+PY
+}
+floor_scene "$T/fl1" 1
+run $M "$T/fl1/floor.json" -o "$T/fl1.exr" --no-journal && r=0 || r=1
+noise=$($X errest "$T/fl1.exr" 2>/dev/null)
+for f in 3e7 1e10 1e-10; do
+  floor_scene "$T/fl$f" $f
+  run $M "$T/fl$f/floor.json" -o "$T/fl$f.exr" --no-journal && r2=0 || r2=1
+  rel=$($X relrmse "$T/fl$f.exr" "$T/fl1.exr" 2>/dev/null)
+  if [ $r = 0 ] && [ $r2 = 0 ] && python3 -c 'import sys; sys.exit(not (float(sys.argv[1]) < 0.1 * float(sys.argv[2])))' "$rel" "$noise"; then
+    ok "textured floor scaled by $f: relRMSE $rel against the original, noise $noise"
+  else bad "textured floor scaled by $f: relRMSE ${rel:-?} against the original, noise ${noise:-?}"; fi
 done
 
 finish

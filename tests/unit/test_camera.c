@@ -531,3 +531,24 @@ Test(filter, box_is_the_pixel_bit_for_bit)
     for (int i = 0; i < 16; i++)
         cr_assert_eq(camera_filter_offset(&b, i / 16.0f), i / 16.0f - 0.5f);
 }
+
+/* focus_distance 0 focuses on look_at at any distance: 1e20 away (its squared length
+ * overflows float) the plane in focus is 1e20 away, not the 1e-6 fallback of an invalid
+ * distance; the same for a moving camera's keys. */
+Test(camera, focus_on_a_far_look_at)
+{
+    struct camera_desc d = desc_basic();
+    d.look_at = v3(0, 0, -1e20f);
+    d.aperture_radius = 0.1f;
+    struct camera c;
+    camera_init(&c, &d, 8, 8);
+    cr_expect(fabsf(c.still.focus / 1e20f - 1.0f) < 1e-6f, "focus %g", (double)c.still.focus);
+    d.keyframes[0] = (struct camera_keyframe){0.0f, v3(0, 0, 0), v3(0, 0, -1e20f), v3(0, 1, 0)};
+    d.keyframes[1] = (struct camera_keyframe){1.0f, v3(1, 0, 0), v3(1, 0, -1e20f), v3(0, 1, 0)};
+    d.num_keyframes = 2;
+    d.shutter_close = 1.0f;
+    camera_init(&c, &d, 8, 8);
+    struct camera_pose p;
+    camera_pose_at(&c, 0.5, &p);
+    cr_expect(fabsf(p.focus / 1e20f - 1.0f) < 1e-6f, "moving: focus %g", (double)p.focus);
+}

@@ -443,3 +443,28 @@ Test(mesh_obj, transform_positions_normals_and_winding)
     cr_expect_float_eq(s.meshes[0].normals[0], -1.0f / sqrtf(2.0f), 1e-5);
     scene_fini(&s);
 }
+
+/* Vertex normals survive a scale of 1e10 or 1e-10: the cofactor matrix (scale^2) makes the
+ * transformed normal's squared length overflow or underflow float, which once dropped
+ * every normal of the mesh as "degenerate". */
+Test(mesh_obj, normals_kept_at_huge_and_tiny_scales)
+{
+    const double scales[] = {1e10, 1e-10, -1e10};
+    for (int i = 0; i < 3; i++) {
+        struct scene s = {0};
+        char err[512];
+        struct mesh_obj_options opt = mesh_obj_default_options();
+        double k = scales[i];
+        struct dxform t = {{{k, 0, 0, 0}, {0, k, 0, 0}, {0, 0, k, 0}}};
+        opt.transform = t;
+        const char *text = "v 1 0 0\nv 0 1 0\nv 0 0 1\nvn 1 2 2\nf 1//1 2//1 3//1\n";
+        cr_assert_eq(parse(text, NULL, &opt, &s, err), 0, "%s", err);
+        const struct mesh *m = &s.meshes[0];
+        cr_assert_not_null(m->normals, "scale %g: normals dropped", k);
+        float sg = k < 0 ? -1.0f : 1.0f; /* a mirror by -1 in every axis: the normal flips with the winding */
+        cr_expect_float_eq(m->normals[0], sg * 1.0f / 3.0f, 1e-6, "scale %g", k);
+        cr_expect_float_eq(m->normals[1], sg * 2.0f / 3.0f, 1e-6, "scale %g", k);
+        cr_expect_float_eq(m->normals[2], sg * 2.0f / 3.0f, 1e-6, "scale %g", k);
+        scene_fini(&s);
+    }
+}

@@ -433,3 +433,31 @@ Test(microfacet, shared_terms_bit_identical)
         cr_assert(memcmp(&a, &b, sizeof a) == 0 && memcmp(&ga, &gb, sizeof ga) == 0, "sample %u", i);
     }
 }
+
+/* A rough dielectric of ior 1 (or within 1e-5 of it) bends no ray by more than 1e-5
+ * radians and reflects almost nothing: it is the smooth glass (a pass-through), never a
+ * NaN. Its transmission half vector wo + eta wi is zero, or rounding noise, at eta = 1
+ * +- 1 ulp (the generalised half vector of Walter et al. has no direction at eta = 1). */
+Test(microfacet, rough_glass_of_ior_one_is_a_pass_through)
+{
+    const float iors[] = {1.0f, 1.00000012f, 0.99999994f, 1.000009f};
+    for (int k = 0; k < 4; k++) {
+        uint64_t key = rng_key(10, 0, (uint64_t)k, 0);
+        for (int s = 0; s < 20000; s++) {
+            vec3 wo = dir_of(88.0f * rng_uniform(key, 3 * (uint32_t)s), 360.0f * rng_uniform(key, 3 * (uint32_t)s + 1));
+            float u1 = rng_uniform(key, 3 * (uint32_t)s + 2), u2 = 0.5f;
+            struct material m = rough(MATERIAL_DIELECTRIC, 0.25f + 0.75f * u1, 0.5f);
+            m.ior = iors[k];
+            cr_assert(material_is_delta(&m));
+            struct bsdf_sample b;
+            material_sample(&m, v3(0, 0, 1), wo, s & 1, u1, u2, &b);
+            cr_assert(isfinite(b.weight.x) && isfinite(b.weight.y) && isfinite(b.weight.z) && isfinite(b.pdf));
+            cr_assert(b.pdf > 0.0f && b.transmitted, "ior %.9g sample %d: no transmission", (double)m.ior, s);
+            cr_assert(v3_dot(b.wi, v3_neg(wo)) > 1.0f - 1e-6f && fabsf(b.weight.y / b.eta2 - 1.0f) < 1e-4f,
+                      "ior %.9g sample %d: wi or weight off", (double)m.ior, s);
+            float pdf = 0.0f;
+            vec3 f = material_eval(&m, v3(0, 0, 1), wo, v3_neg(wo), s & 1, &pdf);
+            cr_assert(isfinite(f.y) && isfinite(pdf), "ior %.9g sample %d: eval %g pdf %g", (double)m.ior, s, (double)f.y, (double)pdf);
+        }
+    }
+}

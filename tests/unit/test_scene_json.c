@@ -2,8 +2,10 @@
  * class of error with the line:col it must name, and the scenes shipped in scenes/
  * loaded from disk. Most tests read OBJ files from an in-memory asset source. */
 #include <criterion/criterion.h>
+#include <math.h>
 #include <stdio.h>
 #include <string.h>
+#include "scene/light.h"
 #include "scene/scene_json.h"
 #include "helpers.h"
 
@@ -529,4 +531,51 @@ Test(scene_json, adaptive_keys)
     scene_fini(&s);
     expect_error(HEAD_RENDER("\"pixel_error\": 1.5") "}", "scenes/t.json:4:16: pixel_error must be in (0, 1)");
     expect_error(HEAD_RENDER("\"pixel_error\": \"low\"") "}", "pixel_error");
+}
+
+/* Every spot angle in (0, 180] loads: a cone narrower than float's cosine can tell from 0
+ * (below about 0.02 degrees) keeps cos_outer < cos_inner <= 1 (scene_validate's rule) and
+ * lights its axis fully, and no direction outside it. */
+Test(scene_json, spot_of_tiny_angle_loads)
+{
+    const char *angles[] = {"1e-30", "0.001", "0.0198", "0.02", "180"};
+    for (int i = 0; i < 5; i++)
+        for (int f = 0; f < 2; f++) {
+            char json[1024], err[512] = "";
+            snprintf(json, sizeof json,
+                     HEAD ",\n\"lights\": [{\"type\": \"spot\", \"position\": [0, 3, 0], \"direction\": [0, -1, 0],"
+                          " \"intensity\": [1, 1, 1], \"angle\": %s%s%s}]}",
+                     angles[i], f ? ", \"falloff\": " : "", f ? angles[i] : "");
+            struct scene s;
+            cr_assert_eq(test_scene_load(json, g_files, &s, err), 0, "angle %s falloff %d: %s", angles[i], f, err);
+            const struct light *l = &s.lights[0];
+            cr_expect(l->cos_outer >= -1.0f && l->cos_outer < l->cos_inner && l->cos_inner <= 1.0f, "angle %s", angles[i]);
+            cr_expect(light_spot_falloff(l, v3(0, -1, 0)) == 1.0f, "angle %s falloff %d: axis not lit", angles[i], f);
+            if (i < 4)
+                cr_expect(light_spot_falloff(l, v3(0.01f, -1, 0)) == 0.0f, "angle %s: lit outside the cone", angles[i]);
+            scene_fini(&s);
+        }
+}
+
+/* A view or spot direction of any non-zero length loads: look_at 1e20 away (its squared
+ * length overflows float) or 1e-25 away (underflows) is not "equal to position". */
+Test(scene_json, directions_of_any_length_load)
+{
+    const char *offs[] = {"1e20", "1e-25"};
+    for (int i = 0; i < 2; i++) {
+        char json[1024], err[512] = "";
+        snprintf(json, sizeof json,
+                 "{\"version\": 1,\n\"camera\": {\"position\": [0, 0, 0], \"look_at\": [0, 0, %s], \"fov_y\": 40},\n"
+                 "\"render\": {\"width\": 8, \"height\": 8},\n"
+                 "\"lights\": [{\"type\": \"spot\", \"position\": [0, 0, 0], \"look_at\": [0, -%s, 0],"
+                 " \"intensity\": [1, 1, 1], \"angle\": 30},\n"
+                 " {\"type\": \"spot\", \"position\": [0, 0, 0], \"direction\": [0, -%s, 0],"
+                 " \"intensity\": [1, 1, 1], \"angle\": 30}]}",
+                 offs[i], offs[i], offs[i]);
+        struct scene s;
+        cr_assert_eq(test_scene_load(json, g_files, &s, err), 0, "offset %s: %s", offs[i], err);
+        for (int k = 0; k < 2; k++)
+            cr_expect(fabsf(s.lights[k].direction.y + 1.0f) < 1e-6f, "offset %s: spot %d direction", offs[i], k);
+        scene_fini(&s);
+    }
 }

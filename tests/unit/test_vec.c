@@ -76,3 +76,37 @@ Test(vec, offset_ray_origin_is_the_plain_formula)
                               (double)p.z, m);
                 }
 }
+
+/* v3_normalize and v3_length_rescaled where the squared length overflows (components of
+ * 1e20: a triangle normal from the cross product of 1e10-long edges) or underflows (1e-20):
+ * a unit vector and the true length; inside float's range bit for bit the plain formulas;
+ * zero and NaN vectors unchanged. */
+Test(vec, normalize_and_length_beyond_the_squared_range)
+{
+    const float ks[] = {1e20f, 1e-20f, 1e38f, 1e-40f, 1e-45f};
+    for (int i = 0; i < 5; i++) {
+        vec3 a = v3(ks[i], -2.0f * ks[i], 2.0f * ks[i]);
+        if (ks[i] == 1e-45f)
+            a = v3(ks[i], 0.0f, 0.0f); /* the smallest denormal */
+        vec3 n = v3_normalize(a);
+        float want = ks[i] == 1e-45f ? 1.0f : 1.0f / 3.0f;
+        cr_expect(fabsf(n.x - want) < 1e-6f && fabsf(v3_length(n) - 1.0f) < 1e-6f, "k %g: (%g %g %g)", (double)ks[i],
+                  (double)n.x, (double)n.y, (double)n.z);
+        float l = v3_length_rescaled(a), lw = ks[i] == 1e-45f ? ks[i] : 3.0f * ks[i];
+        cr_expect(l == lw || fabsf(l - lw) <= 1e-6f * lw, "k %g: length %g, want %g", (double)ks[i], (double)l, (double)lw);
+    }
+    uint64_t key = 12345;
+    for (int i = 0; i < 100000; i++) {
+        key = key * 6364136223846793005ull + 1442695040888963407ull;
+        float e = (float)((int)(key >> 40) % 60 - 30);
+        vec3 a = v3(ldexpf((float)(key >> 11 & 0xffff) - 32768.0f, (int)e), (float)(key >> 27 & 0xff) - 128.0f,
+                    (float)(key >> 35 & 0xff) * 0.25f);
+        float d = v3_dot(a, a);
+        if (!(d >= 0x1p-126f && d <= 0x1.fffffep127f))
+            continue;
+        vec3 n = v3_normalize(a), p = v3_scale(a, 1.0f / sqrtf(d));
+        cr_assert(memcmp(&n, &p, sizeof n) == 0 && v3_length_rescaled(a) == sqrtf(d));
+    }
+    vec3 z = v3_normalize(v3(0, 0, 0)), q = v3_normalize(v3(NAN, 1, 0));
+    cr_expect(z.x == 0.0f && z.y == 0.0f && z.z == 0.0f && isnan(q.x) && q.y == 1.0f);
+}
