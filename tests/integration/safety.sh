@@ -1,8 +1,9 @@
 #!/bin/sh
 # Strangers on the machine and odd inputs: scene files that are FIFOs are refused at once
 # (never opened blocking), a signal stops a long scene load, an output name that is one of
-# the scene's own files is refused before rendering, a full disk is reported as such, and
-# the tiny scene scaled by 1e-7 and 1e7 or moved by 1e6 and 1e7 renders as the original does.
+# the scene's own files (or a preview named like the output) is refused before rendering, a
+# full disk is reported as such, and the tiny scene scaled by 1e-7 and 1e7 or moved by 1e6
+# and 1e7 renders as the original does.
 # Usage: BUILD=build sh tests/integration/safety.sh
 . "$(dirname "$0")/lib.sh"
 lib_init safety
@@ -66,6 +67,13 @@ sum=$(md5sum <"$T/own/f.0007.exr")
 run $M "$T/own/frames.json" -o "$T/own/f.exr" --frames 1:1000000 && r=0 || r=$?
 if [ $r = 1 ] && grep -q "refusing to overwrite" "$T/log" && [ "$(md5sum <"$T/own/f.0007.exr")" = "$sum" ] && [ ! -e "$T/own/f.0001.exr" ]; then
   ok "a frame of a range named like an input refused before frame 1"; else bad "a frame of a range named like an input refused before frame 1 (rc $r)"; fi
+# --preview naming the EXR itself (through another spelling, or per frame of a range): refused
+# before rendering, so the PNG does not replace the image
+for args in "-o $T/own/p.exr --preview $T/own/./p.exr" "-o $T/own/q.exr --preview $T/own/q.exr --frames 1:2"; do
+  run $M "$T/own/tiny.json" $args && r=0 || r=$?
+  if [ $r = 1 ] && grep -q "refusing to write over" "$T/log" && [ ! -e "$T/own/p.exr" ] && [ ! -e "$T/own/q.0001.exr" ]; then
+    ok "--preview onto the output refused ($args)"; else bad "--preview onto the output refused ($args) (rc $r)"; fi
+done
 cp scenes/tiny/lamp.obj "$T/own/s.stats.json"
 sed 's/"lamp.obj"/"s.stats.json"/' scenes/tiny/tiny.json >"$T/own/stats.json"
 sum=$(md5sum <"$T/own/s.stats.json")
