@@ -11,6 +11,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 int output_frame_path(const char *pat, int have_frames, uint32_t frame, char *out, size_t outlen)
@@ -52,6 +53,16 @@ int output_is_done(const char *path, const char *scene_hash, uint32_t spp, uint6
 /* The temporary file is renamed into place; the folder is synced so the rename lasts. */
 int output_check_writable(const char *path, char *err, size_t errlen)
 {
+    /* The rename at the end cannot replace a folder, nor name nothing. */
+    struct stat st;
+    if (path[0] == '\0') {
+        str_fmt(err, errlen, "the output name is empty");
+        return -1;
+    }
+    if (stat(path, &st) == 0 && S_ISDIR(st.st_mode)) {
+        str_fmt(err, errlen, "%s: is a folder; the output must be a file name", path);
+        return -1;
+    }
     char tmp[4200];
     snprintf(tmp, sizeof tmp, "%s.tmp.%d", path, (int)getpid());
     int fd = open(tmp, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);

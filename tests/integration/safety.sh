@@ -74,6 +74,11 @@ for args in "-o $T/own/p.exr --preview $T/own/./p.exr" "-o $T/own/q.exr --previe
   if [ $r = 1 ] && grep -q "refusing to write over" "$T/log" && [ ! -e "$T/own/p.exr" ] && [ ! -e "$T/own/q.0001.exr" ]; then
     ok "--preview onto the output refused ($args)"; else bad "--preview onto the output refused ($args) (rc $r)"; fi
 done
+# -o naming a folder (the final rename cannot replace it): refused before rendering, no journal
+mkdir -p "$T/own/dir.exr"
+run $M "$T/own/tiny.json" -o "$T/own/dir.exr" && r=0 || r=$?
+if [ $r = 1 ] && grep -q "is a folder" "$T/log" && [ ! -e "$T/own/dir.exr.journal" ]; then
+  ok "-o naming a folder refused before rendering"; else bad "-o naming a folder refused before rendering (rc $r)"; fi
 cp scenes/tiny/lamp.obj "$T/own/s.stats.json"
 sed 's/"lamp.obj"/"s.stats.json"/' scenes/tiny/tiny.json >"$T/own/stats.json"
 sum=$(md5sum <"$T/own/s.stats.json")
