@@ -72,9 +72,19 @@ static void stream_init(struct imgio_stream *s)
 static int stream_open_read(struct imgio_stream *s, const char *path, char *err, size_t errlen)
 {
     stream_init(s);
-    s->fd = open(path, O_RDONLY | O_CLOEXEC);
+    /* O_NONBLOCK: a FIFO in the file's place would otherwise block open() until a writer
+     * comes, signals included; fstat then refuses anything but a regular file. */
+    s->fd = open(path, O_RDONLY | O_CLOEXEC | O_NONBLOCK);
     if (s->fd < 0) {
         set_err(err, errlen, "%s: cannot open: %s", path, strerror(errno));
+        return -1;
+    }
+    struct stat st;
+    int fst = fstat(s->fd, &st);
+    if (fst != 0 || !S_ISREG(st.st_mode)) {
+        set_err(err, errlen, "%s: cannot open: %s", path, fst != 0 ? strerror(errno) : "not a regular file");
+        close(s->fd);
+        s->fd = -1;
         return -1;
     }
     return 0;

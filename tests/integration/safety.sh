@@ -22,6 +22,12 @@ mkfifo "$T/fifo/tiny.obj"
 TMO=20 run $M "$T/fifo/tiny.json" -o "$T/fifo.exr" && r=0 || r=$?
 if [ $r = 1 ] && grep -qE "tiny\.json:[0-9]+:[0-9]+: .*tiny\.obj: not a regular file \(a FIFO\)" "$T/log"; then
   ok "FIFO as an OBJ refused at once, named with file:line:col"; else bad "FIFO as an OBJ refused at once, named with file:line:col (rc $r)"; fi
+# a FIFO where a frame's output would be (--frames reads an existing output to skip it): not
+# opened blocking (which not even SIGTERM ended), rendered again and replaced by the EXR
+mkfifo "$T/ff.0001.exr"
+timeout -k 5 30 $M scenes/tiny/tiny.json -o "$T/ff.exr" --frames 1:1 >"$T/log" 2>&1 && r=0 || r=$?
+if [ $r = 0 ] && [ -f "$T/ff.0001.exr" ] && grep -q "not a regular file" "$T/log"; then
+  ok "a FIFO named like a frame's output: not waited on, rendered again"; else bad "a FIFO named like a frame's output: not waited on, rendered again (rc $r)"; fi
 
 # --- SIGTERM during a long scene load (thousands of objects naming one long OBJ) stops it
 # there, with the error line of an interrupted run ---
