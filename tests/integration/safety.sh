@@ -85,6 +85,13 @@ mkdir -p "$T/own/dir.exr"
 run $M "$T/own/tiny.json" -o "$T/own/dir.exr" && r=0 || r=$?
 if [ $r = 1 ] && grep -q "is a folder" "$T/log" && [ ! -e "$T/own/dir.exr.journal" ]; then
   ok "-o naming a folder refused before rendering"; else bad "-o naming a folder refused before rendering (rc $r)"; fi
+# an empty -o: refused at once, no ".stats.json" left where the master runs
+mkdir -p "$T/empty"
+mabs="$(cd "$(dirname "$M")" && pwd)/$(basename "$M")"
+sabs="$(pwd)/scenes/tiny/tiny.json"
+(cd "$T/empty" && timeout 60 "$mabs" "$sabs" -o "" >"$T/log" 2>&1) && r=0 || r=$?
+if [ $r = 2 ] && grep -q "output name is empty" "$T/log" && [ -z "$(ls -A "$T/empty")" ]; then
+  ok "an empty -o refused, nothing written"; else bad "an empty -o refused, nothing written (rc $r)"; fi
 cp scenes/tiny/lamp.obj "$T/own/s.stats.json"
 sed 's/"lamp.obj"/"s.stats.json"/' scenes/tiny/tiny.json >"$T/own/stats.json"
 sum=$(md5sum <"$T/own/s.stats.json")
