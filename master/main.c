@@ -319,6 +319,10 @@ int main(int argc, char **argv)
         log_error("a scene and -o OUT.exr are required (see --help)");
         return 2;
     }
+    if (!o.output_path[0]) { /* else OUT.stats.json would be a hidden ".stats.json" */
+        log_error("-o: the output name is empty");
+        return 2;
+    }
     if (!o.curve_secret != !o.allow_path) {
         log_error("--curve-secret and --allow go together");
         return 2;

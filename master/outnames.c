@@ -7,7 +7,9 @@
 #include "output.h"
 #include "base/log.h"
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #define OUTNAMES_ENUM_MAX 10000u
 
@@ -22,6 +24,21 @@ static int check_name(const struct asset_dir *inputs, const char *path, const ch
     return -1;
 }
 
+/* True when a and b name the same file: the same name, device and inode, or resolved path. */
+static int same_file(const char *a, const char *b)
+{
+    if (strcmp(a, b) == 0)
+        return 1;
+    struct stat sa, sb;
+    if (stat(a, &sa) == 0 && stat(b, &sb) == 0 && sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino)
+        return 1;
+    char *ra = asset_resolve_maybe_new(a), *rb = asset_resolve_maybe_new(b);
+    int same = ra && rb && strcmp(ra, rb) == 0;
+    free(ra);
+    free(rb);
+    return same;
+}
+
 /* The EXR and journal names of one frame. */
 static int check_frame(const struct master_opts *o, const struct asset_dir *inputs, uint32_t frame, char *err,
                        size_t errlen)
@@ -32,9 +49,20 @@ static int check_frame(const struct master_opts *o, const struct asset_dir *inpu
     snprintf(journal, sizeof journal, "%s.journal", out);
     if (check_name(inputs, out, "output", err, errlen) != 0 || check_name(inputs, journal, "journal", err, errlen) != 0)
         return -1;
-    if (o->preview_path && output_frame_path(o->preview_path, o->have_frames, frame, out, sizeof out) == 0 &&
-        check_name(inputs, out, "preview", err, errlen) != 0)
+    char preview[4200], stats[4300];
+    if (!o->preview_path || output_frame_path(o->preview_path, o->have_frames, frame, preview, sizeof preview) != 0)
+        return 0;
+    if (check_name(inputs, preview, "preview", err, errlen) != 0)
         return -1;
+    /* The PNG would replace the EXR (or its journal or stats) once the frame is done. */
+    snprintf(stats, sizeof stats, "%s.stats.json", o->output_path);
+    const char *const ours[3] = {out, journal, stats};
+    for (int i = 0; i < 3; i++)
+        if (same_file(preview, ours[i])) {
+            str_fmt(err, errlen, "preview %s is also the %s %s; refusing to write over it (choose another --preview)",
+                    preview, i == 0 ? "output" : i == 1 ? "journal" : "stats file", ours[i]);
+            return -1;
+        }
     return 0;
 }
 

@@ -53,9 +53,14 @@ int output_is_done(const char *path, const char *scene_hash, uint32_t spp, uint6
 /* The temporary file is renamed into place; the folder is synced so the rename lasts. */
 int output_check_writable(const char *path, char *err, size_t errlen)
 {
+    /* The rename at the end cannot replace a folder, nor name nothing. */
     struct stat st;
-    if (stat(path, &st) == 0 && S_ISDIR(st.st_mode)) { /* rename(2) would refuse it after the render */
-        str_fmt(err, errlen, "%s: cannot write the output there: %s", path, strerror(EISDIR));
+    if (path[0] == '\0') {
+        str_fmt(err, errlen, "the output name is empty");
+        return -1;
+    }
+    if (stat(path, &st) == 0 && S_ISDIR(st.st_mode)) {
+        str_fmt(err, errlen, "%s: is a folder; the output must be a file name", path);
         return -1;
     }
     char tmp[4200];

@@ -37,7 +37,8 @@ int output_write_exr(const char *path, const struct image_desc *desc, const stru
 int output_write_preview(const char *path, const struct image_desc *desc, const struct output_chunk *chunks,
                          char *err, size_t errlen);
 /* Whether path's folder takes a new file: creates and removes the temporary name the
- * writers use (path.tmp.PID); and path is no directory (the rename would fail). Checked before the first tile, so that a render whose output
+ * writers use (path.tmp.PID); an empty path or a folder at path (which the final rename
+ * cannot replace) is refused. Checked before the first tile, so that a render whose output
  * cannot be written fails at once, not after the night's work. 0, or -1 with the cause. */
 int output_check_writable(const char *path, char *err, size_t errlen);
 /* Writes root as indented JSON to path atomically. 0 or -1. */

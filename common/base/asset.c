@@ -259,9 +259,7 @@ void asset_dir_fini(struct asset_dir *dir)
     dir->num_files = dir->cap_files = 0;
 }
 
-/* realpath of path, or of its folder joined with its last component when path does not
- * exist yet (an output about to be written). NULL when neither resolves. */
-static char *resolve_maybe_new(const char *path)
+char *asset_resolve_maybe_new(const char *path)
 {
     char *real = realpath(path, NULL);
     if (real || errno != ENOENT)
@@ -292,7 +290,7 @@ long asset_dir_find(const struct asset_dir *dir, const char *path)
 {
     struct stat st;
     int exists = stat(path, &st) == 0;
-    char *real = resolve_maybe_new(path);
+    char *real = asset_resolve_maybe_new(path);
     long found = -1;
     for (size_t i = 0; i < dir->num_files && found < 0; i++) {
         const struct asset_file *f = &dir->files[i];

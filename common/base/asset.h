@@ -72,5 +72,8 @@ void asset_dir_fini(struct asset_dir *dir);
  * same device and inode, or the same resolved path (a name that does not exist yet is
  * resolved through its folder). Its index, or -1 when path names none of them. */
 long asset_dir_find(const struct asset_dir *dir, const char *path);
+/* realpath of path, or of its folder joined with its last component when path does not
+ * exist yet (an output about to be written), mem_alloc'd. NULL when neither resolves. */
+char *asset_resolve_maybe_new(const char *path);
 
 #endif

@@ -23,10 +23,14 @@ static int load_exr(const char *name, const uint8_t *data, size_t size, struct t
     float *px = NULL;
     uint32_t w = 0, h = 0, nc = 3;
     char e1[512];
-    if (imgio_read_memory(name, data, size, rgb, 3, &px, &w, &h, e1, sizeof e1) != 0) {
+    if (imgio_read_memory(name, data, size, rgb, 3, MIP_MAX_DIM, &px, &w, &h, e1, sizeof e1) != 0) {
+        if (!strstr(e1, ": no channel \"")) { /* damaged or too large: a gray read fails the same way */
+            str_fmt(err, errlen, "%s", e1);
+            return -1;
+        }
         char e2[512];
         nc = 1;
-        if (imgio_read_memory(name, data, size, gray, 1, &px, &w, &h, e2, sizeof e2) != 0) {
+        if (imgio_read_memory(name, data, size, gray, 1, MIP_MAX_DIM, &px, &w, &h, e2, sizeof e2) != 0) {
             str_fmt(err, errlen, "%s (and no Y channel either)", e1);
             return -1;
         }

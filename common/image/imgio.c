@@ -72,9 +72,19 @@ static void stream_init(struct imgio_stream *s)
 static int stream_open_read(struct imgio_stream *s, const char *path, char *err, size_t errlen)
 {
     stream_init(s);
-    s->fd = open(path, O_RDONLY | O_CLOEXEC);
+    /* O_NONBLOCK: a FIFO in the file's place would otherwise block open() until a writer
+     * comes, signals included; fstat then refuses anything but a regular file. */
+    s->fd = open(path, O_RDONLY | O_CLOEXEC | O_NONBLOCK);
     if (s->fd < 0) {
         set_err(err, errlen, "%s: cannot open: %s", path, strerror(errno));
+        return -1;
+    }
+    struct stat st;
+    int fst = fstat(s->fd, &st);
+    if (fst != 0 || !S_ISREG(st.st_mode)) {
+        set_err(err, errlen, "%s: cannot open: %s", path, fst != 0 ? strerror(errno) : "not a regular file");
+        close(s->fd);
+        s->fd = -1;
         return -1;
     }
     return 0;
@@ -1169,8 +1179,8 @@ int imgio_writer_close(struct imgio_writer **wp, char *err, size_t errlen)
  * Reading any EXR */
 
 static int read_stream(struct imgio_stream *sp, const char *path, const char *const *channels,
-                       uint32_t num_channels, float **pixels, uint32_t *width, uint32_t *height, char *err,
-                       size_t errlen);
+                       uint32_t num_channels, uint32_t max_side, float **pixels, uint32_t *width, uint32_t *height,
+                       char *err, size_t errlen);
 
 int imgio_read(const char *path, const char *const *channels, uint32_t num_channels, float **pixels,
                uint32_t *width, uint32_t *height, char *err, size_t errlen)
@@ -1184,14 +1194,14 @@ int imgio_read(const char *path, const char *const *channels, uint32_t num_chann
     struct imgio_stream s;
     if (stream_open_read(&s, path, err, errlen) != 0)
         return -1;
-    int rc = read_stream(&s, path, channels, num_channels, pixels, width, height, err, errlen);
+    int rc = read_stream(&s, path, channels, num_channels, IMGIO_READ_MAX_SIDE, pixels, width, height, err, errlen);
     close(s.fd);
     return rc;
 }
 
 int imgio_read_memory(const char *name, const uint8_t *data, size_t size, const char *const *channels,
-                      uint32_t num_channels, float **pixels, uint32_t *width, uint32_t *height, char *err,
-                      size_t errlen)
+                      uint32_t num_channels, uint32_t max_side, float **pixels, uint32_t *width, uint32_t *height,
+                      char *err, size_t errlen)
 {
     *pixels = NULL;
     *width = *height = 0;
@@ -1203,12 +1213,14 @@ int imgio_read_memory(const char *name, const uint8_t *data, size_t size, const 
     stream_init(&s);
     s.src = data;
     s.src_len = size;
-    return read_stream(&s, name, channels, num_channels, pixels, width, height, err, errlen);
+    if (max_side == 0 || max_side > IMGIO_READ_MAX_SIDE)
+        max_side = IMGIO_READ_MAX_SIDE;
+    return read_stream(&s, name, channels, num_channels, max_side, pixels, width, height, err, errlen);
 }
 
 static int read_stream(struct imgio_stream *sp, const char *path, const char *const *channels,
-                       uint32_t num_channels, float **pixels, uint32_t *width, uint32_t *height, char *err,
-                       size_t errlen)
+                       uint32_t num_channels, uint32_t max_side, float **pixels, uint32_t *width, uint32_t *height,
+                       char *err, size_t errlen)
 {
     exr_context_initializer_t init = stream_initializer(sp);
     exr_context_t ctx = NULL;
@@ -1237,9 +1249,14 @@ static int read_stream(struct imgio_stream *sp, const char *path, const char *co
         goto done;
     }
     int64_t iw = (int64_t)dw.max.x - dw.min.x + 1, ih = (int64_t)dw.max.y - dw.min.y + 1;
-    if (iw <= 0 || ih <= 0 || iw > (1 << 20) || ih > (1 << 20) ||
-        (uint64_t)iw * (uint64_t)ih * num_channels > ((uint64_t)1 << 32)) {
+    if (iw <= 0 || ih <= 0 || (uint64_t)iw * (uint64_t)ih * num_channels > ((uint64_t)1 << 32)) {
         set_err(err, errlen, "%s: unsupported data window %lldx%lld", path, (long long)iw, (long long)ih);
+        goto done;
+    }
+    /* Before the pixels are allocated: a header of a few bytes may claim any size. */
+    if (iw > max_side || ih > max_side) {
+        set_err(err, errlen, "%s: image size %lldx%lld not supported (each side 1..%u)", path, (long long)iw,
+                (long long)ih, max_side);
         goto done;
     }
     for (uint32_t c = 0; c < num_channels; c++) {

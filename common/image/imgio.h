@@ -89,10 +89,13 @@ int imgio_writer_close(struct imgio_writer **w, char *err, size_t errlen);
 int imgio_read(const char *path, const char *const *channels, uint32_t num_channels, float **pixels,
                uint32_t *width, uint32_t *height, char *err, size_t errlen);
 
-/* The same on an EXR file in memory (size bytes); name is used in messages. */
+/* The same on an EXR file in memory (size bytes); name is used in messages. An image
+ * wider or taller than max_side (0: IMGIO_READ_MAX_SIDE, which imgio_read allows) is
+ * refused from its header, before its pixels are allocated. */
+#define IMGIO_READ_MAX_SIDE (1u << 20)
 int imgio_read_memory(const char *name, const uint8_t *data, size_t size, const char *const *channels,
-                      uint32_t num_channels, float **pixels, uint32_t *width, uint32_t *height, char *err,
-                      size_t errlen);
+                      uint32_t num_channels, uint32_t max_side, float **pixels, uint32_t *width, uint32_t *height,
+                      char *err, size_t errlen);
 
 /* Reads back what imgio_writer_open wrote into a header: size and tile size into d (0
  * when not square-tiled; channels are not filled in) and spp, seed and scene hash into a.

@@ -309,7 +309,7 @@ static inline __attribute__((always_inline)) uint32_t packet_fill(struct RTCInte
     unsigned *ui = pk->u;
     for (uint32_t k = 0; k < w; k++) {
         uint32_t i = k < n ? k : 0;
-        valid[k] = k < n ? -1 : 0;
+        valid[k] = k < n && accel_ray_ok_(org[i], dir[i]) ? -1 : 0; /* an untraceable ray misses */
         f[0 * w + k] = org[i].x, f[1 * w + k] = org[i].y, f[2 * w + k] = org[i].z;
         f[3 * w + k] = 0.0f;
         f[4 * w + k] = dir[i].x, f[5 * w + k] = dir[i].y, f[6 * w + k] = dir[i].z;
@@ -372,8 +372,8 @@ void accel_occluded_packet(const struct accel *a, uint32_t n, const vec3 *org, c
         rtcOccluded8(valid, a->scene, &ctx, (struct RTCRay8 *)&pk);
     else
         rtcOccluded16(valid, a->scene, &ctx, (struct RTCRay16 *)&pk);
-    for (uint32_t k = 0; k < n; k++)
-        occluded[k] = pk.f[8 * w + k] < 0.0f;
+    for (uint32_t k = 0; k < n; k++) /* a lane the packet could not take goes alone, as accel_occluded takes it */
+        occluded[k] = valid[k] ? pk.f[8 * w + k] < 0.0f : accel_occluded(a, org[k], dir[k], tmax, time01[k]);
 }
 
 int accel_object_xform_slow_(const struct accel *a, uint32_t geom, uint32_t prim, float time01, struct xform *out)

@@ -6,6 +6,7 @@
  * scene mesh / sphere. Built by render_job.c; read by everything that traces rays. */
 #ifndef BRUME_ACCEL_H
 #define BRUME_ACCEL_H
+#include <math.h>
 #include <stddef.h>
 #include <stdint.h>
 #if defined(__SSE__)
@@ -91,11 +92,25 @@ static inline void accel_ray_set(struct RTCRay *r, vec3 o, float tnear, vec3 d, 
 #endif
 }
 
+/* Embree's bound on every component of a ray's origin and direction (FLT_LARGE in its
+ * ray.h): a ray past it, or with a NaN, fails Embree's ray.valid(), which Debian's build
+ * asserts (an abort). Scene coordinates may lie anywhere a float reaches (a point light at
+ * 1e30 from the camera), so such a ray is not traced: it misses everything; a shadow
+ * segment toward such a point is traced scaled (accel_occluded). */
+#define ACCEL_RAY_MAX 1.844e18f
+static inline int accel_ray_ok_(vec3 o, vec3 d)
+{
+    return fabsf(o.x) <= ACCEL_RAY_MAX && fabsf(o.y) <= ACCEL_RAY_MAX && fabsf(o.z) <= ACCEL_RAY_MAX &&
+           fabsf(d.x) <= ACCEL_RAY_MAX && fabsf(d.y) <= ACCEL_RAY_MAX && fabsf(d.z) <= ACCEL_RAY_MAX;
+}
+
 /* Closest hit in (0, tmax) at time01 in [0, 1] across the shutter; returns 1 on a hit.
  * Inline: the path tracer calls it for every bounce. */
 static inline int accel_intersect(const struct accel *a, vec3 o, vec3 d, float tmax, float time01,
                                   struct accel_hit *hit)
 {
+    if (!accel_ray_ok_(o, d))
+        return 0;
     struct RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     struct RTCRayHit rh;
@@ -129,6 +144,14 @@ void accel_intersect_packet(const struct accel *a, uint32_t n, const vec3 *org, 
  * vertex of a path casts one. */
 static inline int accel_occluded(const struct accel *a, vec3 o, vec3 d, float tmax, float time01)
 {
+    if (!accel_ray_ok_(o, d)) {
+        /* A shadow ray toward a point beyond the bound (a light 1e19 away): the same segment
+         * with d scaled by 2^-68 and tmax by 2^68, both exact, which brings any finite d in. */
+        d = v3_scale(d, 0x1p-68f);
+        tmax *= 0x1p68f;
+        if (!accel_ray_ok_(o, d))
+            return 0;
+    }
     struct RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     struct RTCRay r;

@@ -708,6 +708,8 @@ static double still_depth(const struct motion_vis *mv, vec3 o, vec3 d)
         rh.ray.mask = 0xffffffffu;
         rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
         rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+        if (!accel_ray_ok_(o, d))
+            return INFINITY;
         rtcIntersect1(mv->accel->scene, &ctx, &rh);
         if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID)
             return INFINITY;
@@ -745,7 +747,8 @@ uint32_t motion_vis_strata(const struct motion_vis *mv, const struct camera *cam
     rh.ray.tfar = INFINITY;
     rh.ray.mask = 0xffffffffu;
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(mv->scene, &q.ctx, &rh);
+    if (accel_ray_ok_(cs->o, cs->d))
+        rtcIntersect1(mv->scene, &q.ctx, &rh);
     if (q.overflow || q.nc == 0)
         return 1; /* nothing moving on this ray (or too much): time stays sampled */
     /* Embree's visiting order is not part of the answer: sort, drop repeated visits. */

@@ -506,7 +506,8 @@ vec3 photon_beams_estimate(struct photon_beams *pb, vec3 o, vec3 d, float t1, co
     rh.ray.tfar = t1;
     rh.ray.mask = 0xffffffffu;
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(pb->scene, &q.ctx, &rh);
+    if (accel_ray_ok_(o, d))
+        rtcIntersect1(pb->scene, &q.ctx, &rh);
     vec3 r = sum_hits(pb, q.hits, q.n, o, d, md, tau);
     free(q.hits); /* per query: a query tests hundreds of chunks, the allocation is noise */
     return r;

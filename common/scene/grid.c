@@ -23,7 +23,10 @@ int grid_parse(const uint8_t *data, size_t size, struct density_grid *out, char 
         return -1;
     }
     uint32_t nx = bytes_get_u32(data + 8), ny = bytes_get_u32(data + 12), nz = bytes_get_u32(data + 16);
-    if (nx < 1 || ny < 1 || nz < 1 || (uint64_t)nx * ny * nz > GRID_MAX_VOXELS) {
+    /* In two steps, each of at most 64 bits: nx * ny * nz in one could wrap around to a
+     * small count (2^22 x 2^22 x 2^20 is 0 modulo 2^64). */
+    if (nx < 1 || ny < 1 || nz < 1 || (uint64_t)nx * ny > GRID_MAX_VOXELS ||
+        (uint64_t)nx * ny * nz > GRID_MAX_VOXELS) {
         str_fmt(err, errlen, "grid size %ux%ux%u out of range (1.. and at most %u voxels)", nx, ny, nz, GRID_MAX_VOXELS);
         return -1;
     }

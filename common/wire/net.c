@@ -178,6 +178,12 @@ static int key_lines(const char *path, int (*fn)(void *, const char *, size_t, i
     int lineno = 0, rc = 0;
     while (fgets(line, sizeof line, f)) {
         lineno++;
+        size_t len = strlen(line);
+        if (len == sizeof line - 1 && line[len - 1] != '\n') { /* only the first word counts: skip the rest */
+            int ch;
+            while ((ch = fgetc(f)) != EOF && ch != '\n')
+                ;
+        }
         char *p = line;
         while (isspace((unsigned char)*p))
             p++;

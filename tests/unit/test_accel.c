@@ -119,3 +119,31 @@ Test(accel, occluded_packet_equals_single_rays)
     accel_fini(&a);
     scene_fini(&s);
 }
+
+/* A shadow segment toward a point past Embree's bound on a ray (a light 1e19 away) is
+ * still traced (scaled by a power of two): blocked where the blocker or the floor stands
+ * in the way, clear where nothing does; packets agree. */
+Test(accel, occluded_toward_a_point_beyond_the_ray_bound)
+{
+    struct scene s;
+    struct accel a;
+    load(&s, &a);
+    const float tmax = 1.0f - 0x1p-12f;
+    const vec3 o = v3(0.0f, 0.5f, 0.0f); /* between the floor (y = 0) and the blocker (y = 1) */
+    const vec3 target[4] = {v3(0.0f, 1e19f, 0.0f), v3(0.0f, -1e19f, 0.0f), v3(1e19f, 0.5f, 0.0f), v3(0.0f, 3e38f, 0.0f)};
+    const int want[4] = {1, 1, 0, 1};
+    vec3 org[4], dir[4];
+    float time01[4] = {0.0f, 0.0f, 0.0f, 0.0f};
+    int occ[4];
+    for (int k = 0; k < 4; k++) {
+        org[k] = o;
+        dir[k] = v3_sub(target[k], o);
+        cr_assert(!accel_ray_ok_(org[k], dir[k]), "segment %d must pass the bound", k);
+        cr_assert_eq(accel_occluded(&a, org[k], dir[k], tmax, 0.0f), want[k], "segment %d", k);
+    }
+    accel_occluded_packet(&a, 4, org, dir, tmax, time01, occ);
+    for (int k = 0; k < 4; k++)
+        cr_assert_eq(occ[k], want[k], "packet, segment %d", k);
+    accel_fini(&a);
+    scene_fini(&s);
+}

@@ -521,6 +521,14 @@ Test(medium, grid_errors)
     dims[1] = 1u << 20;
     memcpy(bad + 8, dims, 12);
     cr_assert_neq(grid_parse(bad, sizeof bad, &g, err, sizeof err), 0);
+    /* 2^22 x 2^22 x 2^20 voxels is 0 modulo 2^64: with no data after the header it must
+     * still be refused, not read as an empty grid of those sides. */
+    dims[0] = 1u << 22;
+    dims[1] = 1u << 22;
+    dims[2] = 1u << 20;
+    memcpy(bad + 8, dims, 12);
+    cr_assert_neq(grid_parse(bad, 20, &g, err, sizeof err), 0);
+    cr_assert(strstr(err, "out of range") != NULL, "%s", err);
 }
 
 /* Emission in a grid (e times the density, absorbing): the unbiased one-sample estimate

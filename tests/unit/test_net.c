@@ -4,8 +4,10 @@
  * still arrives. Over tcp on loopback, where libzmq receives into shared batches. */
 #include <criterion/criterion.h>
 #include <stdint.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 #include <zmq.h>
 #include "wire/net.h"
 
@@ -92,4 +94,29 @@ Test(net, malformed_envelope_dropped, .timeout = 30)
     zmq_close(dealer);
     zmq_close(router);
     zmq_ctx_term(ctx);
+}
+
+/* An allow-list line is a key and an optional name: a name longer than the reader's line
+ * buffer is skipped with its line, not read as a next line holding no key. */
+Test(net, allow_list_long_name)
+{
+    char path[] = "/tmp/brume-test-allow-XXXXXX", err[256];
+    int fd = mkstemp(path);
+    cr_assert(fd >= 0);
+    FILE *f = fdopen(fd, "w");
+    cr_assert(f != NULL);
+    char pub[41], sec[41];
+    cr_assert_eq(zmq_curve_keypair(pub, sec), 0);
+    fprintf(f, "# workers\n%s ", pub);
+    for (int i = 0; i < 2000; i++)
+        fputc('n', f);
+    fprintf(f, "\n%s second\n", pub);
+    fclose(f);
+    struct net_key *keys = NULL;
+    size_t n = 0;
+    int rc = net_key_list_load(path, &keys, &n, err, sizeof err);
+    unlink(path);
+    cr_assert_eq(rc, 0, "%s", err);
+    cr_expect_eq(n, 2);
+    free(keys);
 }

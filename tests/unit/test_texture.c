@@ -707,6 +707,18 @@ Test(image_load, garbage_truncated_and_oversized_files_fail_cleanly)
     cr_expect_eq(image_load_memory("big.png", big, files[0].n, 1, &im, err, sizeof err), -1);
     cr_expect(strstr(err, "big.png") != NULL, "%s", err);
     free(big);
+    /* An EXR header claiming 2^20 x 1024 (12 GiB of float RGB): refused by its size from the
+     * header, before its pixels are allocated, not from what a decode then finds. */
+    big = mem_alloc(files[3].n);
+    memcpy(big, files[3].p, files[3].n);
+    static const char dw_attr[] = "dataWindow\0box2i\0";
+    uint8_t *at = memmem(big, files[3].n, dw_attr, sizeof dw_attr - 1);
+    cr_assert(at != NULL);
+    int32_t box[4] = {0, 0, (1 << 20) - 1, 1023}; /* xmin ymin xmax ymax, little-endian */
+    memcpy(at + sizeof dw_attr - 1 + 4, box, sizeof box);
+    cr_expect_eq(image_load_memory("big.exr", big, files[3].n, 1, &im, err, sizeof err), -1);
+    cr_expect(strstr(err, "big.exr: image size 1048576x1024 not supported") != NULL, "%s", err);
+    free(big);
     for (int f = 0; f < 4; f++)
         free(files[f].p);
 }
