@@ -149,6 +149,8 @@ struct master {
     char out_path[4000];        /* this frame's output file */
     struct sched *sched;        /* tiles, attempts, holders, blame, bans (sched.h) */
     struct output_chunk *chunks;  /* per tile, once done */
+    uint64_t *tile_nans;          /* per tile: NaN/Inf samples dropped this frame (nan_report) */
+    uint32_t *tile_nan_pass;      /* per tile: the first pass that had one */
     uint32_t num_tiles;
     struct peer *peers;
     uint32_t num_peers;
@@ -469,6 +471,8 @@ static void setup_tiles(struct master *m)
     m->num_units = m->num_tiles * m->passes;
     m->sched = sched_new(m->num_units);
     m->chunks = mem_calloc(m->num_tiles, sizeof *m->chunks);
+    m->tile_nans = mem_calloc(m->num_tiles, sizeof *m->tile_nans);
+    m->tile_nan_pass = mem_calloc(m->num_tiles, sizeof *m->tile_nan_pass);
     m->decode_scratch = mem_alloc(sizeof(float) * rs->tile_size * rs->tile_size * FOLD_MAX_CHANNELS);
     m->maps = mem_calloc(m->passes, sizeof *m->maps);
     m->out_desc = m->desc;
@@ -1292,6 +1296,11 @@ static int unit_keep(struct master *m, uint32_t unit, const struct tile_stats *s
 {
     uint32_t tile = unit_tile(m, unit);
     tile_stats_add(&m->stats, st);
+    if (st->nan_samples) {
+        if (!m->tile_nans[tile] || unit_pass(m, unit) < m->tile_nan_pass[tile])
+            m->tile_nan_pass[tile] = unit_pass(m, unit);
+        m->tile_nans[tile] += st->nan_samples;
+    }
     if (m->passes == 1) {
         struct output_chunk *c = &m->chunks[tile];
         if (held && *held) { /* chunk lies in the received frame: kept as it is, not copied */
@@ -1931,6 +1940,36 @@ static double error_estimate(struct master *m)
     return fold_est_result(m->est, &m->var_saturated);
 }
 
+/* Design principle 4: each tile whose samples went NaN or Inf (dropped, counted in
+ * nan_samples) is logged with the command that renders it alone (tile_command). A sample
+ * is a pure function of (seed, frame, pixel, sample index), and every pass of the tile is
+ * rendered again with the same settings, so that command drops the same samples: its
+ * summary and stats show the same count. At most NAN_TILES_LOGGED tiles a frame, then a
+ * count of the others. */
+#define NAN_TILES_LOGGED 10
+static void nan_report(struct master *m)
+{
+    uint32_t logged = 0, more = 0, tiles_x = imgio_tiles_x(&m->desc);
+    for (uint32_t t = 0; t < m->num_tiles; t++) {
+        if (!m->tile_nans[t])
+            continue;
+        if (logged == NAN_TILES_LOGGED) {
+            more++;
+            continue;
+        }
+        uint32_t x0, y0, w, h;
+        imgio_tile_rect(&m->desc, t % tiles_x, t / tiles_x, &x0, &y0, &w, &h);
+        char cmd[1800];
+        tile_command(m, t, cmd, sizeof cmd);
+        log_warn("frame %u tile %u (pixels %u,%u %ux%u, first in pass %u): %llu NaN/Inf sample(s) dropped; to render "
+                 "exactly these samples again (the command line keeps --spp, --passes, --seed and the scene): %s",
+                 m->frame, t, x0, y0, w, h, m->tile_nan_pass[t], (unsigned long long)m->tile_nans[t], cmd);
+        logged++;
+    }
+    if (more)
+        log_warn("frame %u: %u more tile(s) with NaN/Inf samples (not logged)", m->frame, more);
+}
+
 static void print_summary(struct master *m, double secs)
 {
     const struct tile_stats *s = &m->stats;
@@ -2378,6 +2417,7 @@ static int frame_begin(struct master *m, uint32_t frames_started)
         fold_reset(m->fold);
     fold_est_reset(m->est);
     memset(&m->stats, 0, sizeof m->stats);
+    memset(m->tile_nans, 0, sizeof *m->tile_nans * m->num_tiles);
     if (m->adapt) { /* units go out round by round (adapt.h); round 0 now */
         sched_hold_all(m->sched);
         adapt_begin(m->adapt);
@@ -2540,6 +2580,7 @@ static int frame_render(struct master *m, uint64_t *last_beat)
     m->rel_rmse_est = error_estimate(m);
     if (write_output(m, secs) != 0)
         return -1;
+    nan_report(m);
     print_summary(m, secs);
     return 0;
 }
@@ -2708,6 +2749,8 @@ done:
     for (uint32_t t = 0; t < m.num_tiles && m.chunks; t++)
         output_chunk_free(&m.chunks[t]);
     free(m.chunks);
+    free(m.tile_nans);
+    free(m.tile_nan_pass);
     sched_free(&m.sched);
     for (uint32_t i = 0; i < m.num_peers; i++) {
         free(m.peers[i].map_bytes);

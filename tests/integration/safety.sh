@@ -3,7 +3,8 @@
 # (never opened blocking), a signal stops a long scene load, an output name that is one of
 # the scene's own files (or a preview named like the output) is refused before rendering, a
 # full disk is reported as such, and the tiny scene scaled by 1e-7, 1e7, 1e-12 and 1e12 or
-# moved by 1e6 and 1e7 renders as the original does.
+# moved by 1e6 and 1e7 renders as the original does; a tile that drops NaN/Inf samples is
+# logged with a command that renders it alone and drops the same samples.
 # Usage: BUILD=build sh tests/integration/safety.sh
 . "$(dirname "$0")/lib.sh"
 lib_init safety
@@ -217,5 +218,34 @@ for t in 1e6 1e7; do
   if [ $r = 0 ] && [ $r2 = 0 ] && python3 -c 'import sys; sys.exit(not (float(sys.argv[1]) < 0.1 * float(sys.argv[2])))' "$rel" "$noise"; then
     ok "tiny moved by $t: relRMSE $rel against the original, noise $noise"; else bad "tiny moved by $t: relRMSE $rel against the original, noise $noise"; fi
 done
+
+# --- NaN/Inf samples: each tile that dropped some is logged with the command that renders
+# it alone, and that command drops exactly the same samples (design principle 4) ---
+mkdir -p "$T/nan"
+cat >"$T/nan/nan.json" <<'EOF'
+{
+  "version": 1,
+  "camera": {"position": [0, 1, 0], "look_at": [0, 0, 0], "up": [0, 0, 1], "fov_y": 60},
+  "render": {"width": 32, "height": 32, "spp": 8, "max_depth": 2, "seed": 3, "tile_size": 16},
+  "materials": {"floor": {"type": "diffuse", "albedo": [0.5, 0.5, 0.5]}},
+  "objects": [{"type": "sphere", "center": [0, -100, 0], "radius": 100, "material": "floor"}],
+  "lights": [{"type": "point", "position": [0.3, 0.01, 0.3], "intensity": [3e38, 3e38, 3e38]}]
+}
+EOF
+run $M "$T/nan/nan.json" -o "$T/nan.exr" --workers 1 --spp 4 --passes 2 --seed 5 && r=0 || r=1
+# the last tile logged: its count and its command
+line=$(grep "NaN/Inf sample(s) dropped; to render" "$T/log" | tail -1)
+want=$(printf '%s\n' "$line" | sed -n 's/.*): \([0-9]*\) NaN\/Inf sample(s) dropped.*/\1/p')
+cmd=$(printf '%s\n' "$line" | sed -n 's/.*the scene): //p')
+got=""
+if [ -n "$cmd" ]; then
+  TMO=60 run sh -c "$cmd" && got=$(python3 -c 'import json, sys; print(json.load(open(sys.argv[1]))["nan_samples"])' \
+    "$(printf '%s\n' "$cmd" | sed -n 's/.* -o \([^ ]*\) .*/\1/p').stats.json" 2>/dev/null)
+fi
+echo "safety: NaN tile: logged $want NaN/Inf sample(s), its command drops ${got:-?}: $cmd"
+if [ $r = 0 ] && [ -n "$want" ] && [ "$want" -gt 0 ] && [ "$got" = "$want" ] &&
+  printf '%s\n' "$cmd" | grep -q -- "--spp 4 --passes 2 --seed 5 .*--tiles [0-9]"; then
+  ok "NaN/Inf samples logged per tile with a command that drops the same $want samples again"
+else bad "NaN/Inf samples logged per tile with a command that drops the same samples again (logged ${want:-none}, again ${got:-?})"; fi
 
 finish
