@@ -2377,6 +2377,22 @@ static int scene_reload(struct master *m)
 /* Starts frame m->frame: fresh tile slots, its journal, and a JOB for every worker
  * (which keeps its blobs and rebuilds only what depends on the frame). 1 when the frame
  * is done already (skipped), 0 when it is ready to render, -1 on error. */
+/* A master killed while it wrote the frame's output, stats or preview left OUT.tmp.PID:
+ * removed once that PID is no live process (output_remove_stale_tmp), in one log line. */
+static void remove_stale_tmp(struct master *m)
+{
+    const struct master_opts *o = m->opts;
+    char stats[4300], preview[4200];
+    unsigned n = output_remove_stale_tmp(m->out_path);
+    if (outnames_stats_path(o, stats, sizeof stats) == 0)
+        n += output_remove_stale_tmp(stats);
+    if (o->preview_path && output_frame_path(o->preview_path, o->have_frames, m->frame, preview, sizeof preview) == 0)
+        n += output_remove_stale_tmp(preview);
+    if (n)
+        log_info("removed %u temporary file(s) (%s.tmp.PID and the like) left by a master no longer running", n,
+                 m->out_path);
+}
+
 static int frame_begin(struct master *m, uint32_t frames_started)
 {
     const struct master_opts *o = m->opts;
@@ -2440,6 +2456,7 @@ static int frame_begin(struct master *m, uint32_t frames_started)
     uint64_t journaled = m->c.tiles_from_journal;
     if (!o->no_journal && !o->only_tiles && open_journal(m) != 0)
         return -1;
+    remove_stale_tmp(m);
     journaled = m->c.tiles_from_journal - journaled;
     m->job_id = m->job_base + frames_started;
     for (uint32_t i = 0; i < m->num_peers; i++)

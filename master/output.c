@@ -6,8 +6,11 @@
 #include "base/asset.h"
 #include "base/log.h"
 #include "wire/net.h"
+#include <dirent.h>
 #include <errno.h>
+#include <signal.h>
 #include <fcntl.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -48,6 +51,43 @@ int output_is_done(const char *path, const char *scene_hash, uint32_t spp, uint6
         return 0;
     }
     return 1;
+}
+
+unsigned output_remove_stale_tmp(const char *path)
+{
+    char dir[4200];
+    snprintf(dir, sizeof dir, "%s", path);
+    char *slash = strrchr(dir, '/');
+    const char *base = slash ? slash + 1 : dir;
+    if (slash == dir)
+        dir[1] = '\0', base = path + 1;
+    else if (slash)
+        *slash = '\0';
+    size_t blen = strlen(base);
+    DIR *d = opendir(slash ? dir : ".");
+    if (!d)
+        return 0;
+    unsigned removed = 0;
+    struct dirent *e;
+    while ((e = readdir(d))) {
+        const char *n = e->d_name;
+        if (blen == 0 || strncmp(n, base, blen) != 0 || strncmp(n + blen, ".tmp.", 5) != 0)
+            continue;
+        const char *digits = n + blen + 5;
+        char *end;
+        errno = 0;
+        long pid = strtol(digits, &end, 10);
+        if (*digits < '1' || *digits > '9' || *end || errno || pid <= 0 || pid > INT32_MAX || pid == (long)getpid())
+            continue;
+        if (kill((pid_t)pid, 0) == 0 || errno != ESRCH) /* alive (or not ours to signal): may be writing */
+            continue;
+        char full[4500];
+        snprintf(full, sizeof full, "%s/%s", slash ? dir : ".", n);
+        if (unlink(full) == 0)
+            removed++;
+    }
+    closedir(d);
+    return removed;
 }
 
 /* The temporary file is renamed into place; the folder is synced so the rename lasts. */

@@ -41,6 +41,10 @@ int output_write_preview(const char *path, const struct image_desc *desc, const 
  * cannot replace) is refused. Checked before the first tile, so that a render whose output
  * cannot be written fails at once, not after the night's work. 0, or -1 with the cause. */
 int output_check_writable(const char *path, char *err, size_t errlen);
+/* Removes the temporary files of path (path.tmp.PID) that a writer killed before its
+ * rename left behind: those whose PID is no live process (a live one may be another
+ * master's write under way, and stays). Returns how many were removed. */
+unsigned output_remove_stale_tmp(const char *path);
 /* Writes root as indented JSON to path atomically. 0 or -1. */
 int output_write_json(const char *path, const json_t *root, char *err, size_t errlen);
 

@@ -1,7 +1,8 @@
 #!/bin/sh
 # Fault tolerance end to end: a SIGSTOPped worker, hung render threads, a straggler, a tile
 # that crashes every worker, a worker that sends garbage, a master killed with SIGKILL at
-# random times and restarted (journal), a torn journal, a full disk. Every image must be
+# random times and restarted (journal), a torn journal, a dead master's temporary outputs
+# (removed at the next start), a full disk. Every image must be
 # bit-identical to an uninterrupted render. Ends with "integration: N passed, N failed".
 # Usage: BUILD=build TRIALS=10 sh tests/integration/faults.sh
 . "$(dirname "$0")/lib.sh"
@@ -177,6 +178,19 @@ if [ $r2 = 1 ] && tail -1 "$T/log" | grep -q "^master: error: $T/two\.exr\.journ
   [ $r1 = 0 ] && $X cmp "$T/ref.exr" "$T/two.exr" >/dev/null; then
   ok "a second master on the same output is refused (journal in use); the first one finishes identical"
 else cat "$T/klog" >>"$T/log"; bad "a second master on the same output is refused (journal in use); the first one finishes identical (rc $r2 $r1)"; fi
+
+# --- temporary outputs of a master killed while it wrote (OUT.exr.tmp.PID): removed at the
+# next start when that PID is no live process; a live one's stays ---
+sh -c 'exit 0' &
+dead=$!
+wait $dead
+for f in stale.exr.tmp.$dead stale.exr.stats.json.tmp.$dead stale.exr.tmp.$$; do echo partial >"$T/$f"; done
+timeout 120 $M $SCENE -o "$T/stale.exr" --workers 1 $ARGS >"$T/log" 2>&1 && r=0 || r=1
+if [ $r = 0 ] && [ ! -e "$T/stale.exr.tmp.$dead" ] && [ ! -e "$T/stale.exr.stats.json.tmp.$dead" ] &&
+  [ -e "$T/stale.exr.tmp.$$" ] && grep -q "removed 2 temporary file(s)" "$T/log" && $X cmp "$T/ref.exr" "$T/stale.exr" >/dev/null; then
+  ok "a dead master's temporary outputs removed at start (one log line), a live one's kept"
+else bad "a dead master's temporary outputs removed at start (one log line), a live one's kept (rc $r)"; fi
+rm -f "$T/stale.exr.tmp.$$"
 
 # --- a full disk is a clear error, never a truncated frame ---
 mkdir -p "$T/full"
