@@ -45,6 +45,8 @@ static int write_all(int fd, const void *data, size_t n)
     return 0;
 }
 
+/* The whole file into *data (*size bytes: fewer if it shrank while read). -1 on an I/O
+ * error (errno): not a short journal, whose torn tail would be cut, intact records too. */
 static int read_file(int fd, uint8_t **data, size_t *size)
 {
     struct stat st;
@@ -56,7 +58,9 @@ static int read_file(int fd, uint8_t **data, size_t *size)
         ssize_t r = pread(fd, *data + got, n - got, (off_t)got);
         if (r < 0 && errno == EINTR)
             continue;
-        if (r <= 0)
+        if (r < 0)
+            return -1;
+        if (r == 0)
             break;
         got += (size_t)r;
     }

@@ -1,11 +1,14 @@
 /* Unit tests for the tile journal (master/journal.c): records survive a reopen with their
  * bytes and statistics; a journal cut at every byte recovers exactly the whole records
  * before the cut and appends after them; a flipped byte ends the journal there; another
- * job's journal is started afresh. Run by `make unit`. */
+ * job's journal is started afresh; a read error is an error, not a torn tail. Run by
+ * `make unit`. */
 #include <criterion/criterion.h>
+#include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/syscall.h>
 #include <unistd.h>
 #include "master/journal.h"
 
@@ -335,5 +338,42 @@ Test(journal, damaged_header_is_reported)
     journal_remove(&j);
     cr_assert_eq((j = journal_open(path, &k, 16, NULL, NULL, &rec, &torn, &other, err, sizeof err)) != NULL, 1, "%s", err);
     cr_assert_eq(other, 0, "a new journal is no news");
+    journal_remove(&j);
+}
+
+/* pread as the journal calls it, with an I/O error injected while fail_pread is set
+ * (this binary's pread: the journal's reads go through it, everything else passes). */
+static volatile int fail_pread;
+ssize_t pread(int fd, void *buf, size_t n, off_t off)
+{
+    if (fail_pread) {
+        errno = EIO;
+        return -1;
+    }
+    return syscall(SYS_pread64, fd, buf, n, off);
+}
+
+/* A journal that cannot be read (EIO) is an error naming it, not a torn tail: nothing of
+ * it is cut or started afresh, and once it reads again its records are all there. */
+Test(journal, read_error_is_an_error_not_a_truncation)
+{
+    char path[256];
+    tmp_path(path, sizeof path);
+    long ends[3];
+    write_records(path, 3, ends);
+    struct journal *j;
+    uint32_t rec;
+    uint64_t torn;
+    int other;
+    char err[256] = "";
+    struct blob_hash k = key_of("job");
+    fail_pread = 1;
+    j = journal_open(path, &k, 16, NULL, NULL, &rec, &torn, &other, err, sizeof err);
+    fail_pread = 0;
+    cr_assert_null(j, "an unreadable journal is not opened");
+    cr_assert(strstr(err, path) && strstr(err, "cannot read the journal"), "%s", err);
+    cr_assert_eq((j = journal_open(path, &k, 16, NULL, NULL, &rec, &torn, &other, err, sizeof err)) != NULL, 1, "%s", err);
+    cr_assert_eq(rec, 3, "the records are intact");
+    cr_assert_eq(torn, 0);
     journal_remove(&j);
 }
