@@ -74,7 +74,7 @@ static int read_file(int fd, uint8_t **data, size_t *size)
  * records already acknowledged to workers would be lost. A lock held by a master that was
  * just killed goes with the process: it is waited for up to JOURNAL_LOCK_WAIT_MS. A file
  * that was removed or replaced while we waited (the master before us finished) is opened
- * again. 0, or -1 with the reason (the fd closed). */
+ * again. 0, or -1 with the reason (the fd closed), -2 when another master holds it. */
 static int lock_open(struct journal *j, char *err, size_t errlen)
 {
     const struct timespec nap = {0, 20 * 1000000L};
@@ -96,7 +96,7 @@ static int lock_open(struct journal *j, char *err, size_t errlen)
         if (!locked && waited >= JOURNAL_LOCK_WAIT_MS) {
             str_fmt(err, errlen, "%s: the journal is in use by another master rendering to the same output; "
                     "not starting a second one", j->path);
-            return -1;
+            return -2;
         }
         nanosleep(&nap, NULL);
         waited += 20;
@@ -132,8 +132,10 @@ struct journal *journal_open(const char *path, const struct blob_hash *key, uint
     *torn_bytes = 0;
     *other_job = 0;
     snprintf(j->path, sizeof j->path, "%s", path);
-    if (lock_open(j, err, errlen) != 0) {
+    int locked = lock_open(j, err, errlen);
+    if (locked != 0) {
         journal_free(&j);
+        errno = locked == -2 ? EBUSY : EIO;
         return NULL;
     }
     uint8_t *data = NULL;

@@ -54,7 +54,8 @@ typedef int (*journal_tile_fn)(void *ctx, uint32_t tile, const struct tile_stats
  * second unless the file was empty). *recovered: records
  * replayed; *torn_bytes: bytes cut off the end. The journal is locked (flock) while open:
  * one that another process holds open (a second master on the same output) is refused
- * once JOURNAL_LOCK_WAIT_MS have passed. The journal, or NULL with the reason. */
+ * once JOURNAL_LOCK_WAIT_MS have passed (NULL with errno EBUSY: the caller writes nothing
+ * of that output's, its stats included). The journal, or NULL with the reason. */
 struct journal *journal_open(const char *path, const struct blob_hash *key, uint32_t num_tiles, journal_tile_fn fn,
                              void *ctx, uint32_t *recovered, uint64_t *torn_bytes, int *other_job, char *err,
                              size_t errlen);

@@ -163,6 +163,7 @@ struct master {
     struct counters c;
     char last_worker_error[PROTO_MAX_STRING];
     char fatal[2048];           /* set when the job cannot finish: the reason, printed last */
+    int journal_busy;           /* refused: another master renders to this output (no stats written) */
     double wall_seconds;        /* of the frames rendered */
     uint32_t passes;            /* passes of the frame (adaptive: the most a tile gets); 1: a unit is a tile */
     uint32_t spp_per_pass;      /* spp / passes */
@@ -1835,6 +1836,7 @@ static int open_journal(struct master *m)
     struct replay_ctx ctx = {m};
     m->journal = journal_open(path, &key, m->num_units, replay_tile, &ctx, &recovered, &torn, &other, err, sizeof err);
     if (!m->journal) {
+        m->journal_busy = errno == EBUSY; /* its stats file is the other master's */
         master_fail(m, "%s", err);
         return -1;
     }
@@ -2754,10 +2756,11 @@ done:
         zmq_close(m.sock);
     if (m.zctx)
         zmq_ctx_term(m.zctx);
-    /* Last: the stats file, the counters with --verbose, and on failure the one error line
-     * (a reason from the render loop; set-up errors were logged where they happened). */
+    /* Last: the stats file (none when refused for another master's journal: that name is
+     * its stats'), the counters with --verbose, and on failure the one error line (a
+     * reason from the render loop; set-up errors were logged where they happened). */
     char err[512];
-    if (write_stats(&m, rc == 0, err, sizeof err) != 0 && rc == 0)
+    if (!m.journal_busy && write_stats(&m, rc == 0, err, sizeof err) != 0 && rc == 0)
         log_warn("stats: %s", err);
     if (o->verbose)
         print_counters(&m);
