@@ -217,10 +217,19 @@ void mip_fini(struct mip *m)
 
 /* ---- Lookups ---- */
 
+/* An integral float (from floorf or ceilf) as a texel index: clamped to int64's range first
+ * (NaN to its bottom), so that the conversion is defined for any coordinate; indices inside
+ * the range are unchanged, and beyond it they only ever meet clamp wrapping (repeat wraps the
+ * coordinate first), which maps both ends to the edge texels as before. */
+static inline int64_t texel_index(float f)
+{
+    return (int64_t)fminf(fmaxf(f, -0x1p63f), 0x1.fffffep62f);
+}
+
 static vec3 nearest(const struct mip *m, uint32_t level, float s, float t)
 {
     const struct tex_image *im = &m->levels[level];
-    return mip_texel(m, level, (int64_t)floorf(s * (float)im->width), (int64_t)floorf(t * (float)im->height));
+    return mip_texel(m, level, texel_index(floorf(s * (float)im->width)), texel_index(floorf(t * (float)im->height)));
 }
 
 static vec3 bilinear(const struct mip *m, uint32_t level, float s, float t)
@@ -228,7 +237,7 @@ static vec3 bilinear(const struct mip *m, uint32_t level, float s, float t)
     const struct tex_image *im = &m->levels[level];
     float x = s * (float)im->width - 0.5f, y = t * (float)im->height - 0.5f;
     float fx = floorf(x), fy = floorf(y), ax = x - fx, ay = y - fy;
-    int64_t ix = (int64_t)fx, iy = (int64_t)fy;
+    int64_t ix = texel_index(fx), iy = texel_index(fy);
     vec3 a = mip_texel(m, level, ix, iy), b = mip_texel(m, level, ix + 1, iy);
     vec3 c = mip_texel(m, level, ix, iy + 1), d = mip_texel(m, level, ix + 1, iy + 1);
     vec3 top = v3_add(v3_scale(a, 1.0f - ax), v3_scale(b, ax));
@@ -283,7 +292,7 @@ vec3 mip_ewa_level(const struct mip *m, uint32_t level, float s, float t, float 
     const float max_half = 4096.0f;
     if (!(fs1 - fs0 <= 2 * max_half && ft1 - ft0 <= 2 * max_half) || !isfinite(s) || !isfinite(t))
         return bilinear(m, level, (s + 0.5f) / w, (t + 0.5f) / h);
-    int64_t t0 = (int64_t)ft0, t1 = (int64_t)ft1;
+    int64_t t0 = texel_index(ft0), t1 = texel_index(ft1);
     (void)fs0, (void)fs1;
     vec3 sum = v3(0, 0, 0);
     float sum_w = 0.0f;
@@ -295,7 +304,7 @@ vec3 mip_ewa_level(const struct mip *m, uint32_t level, float s, float t, float 
         if (!(disc > 0.0f))
             continue;
         float root = sqrtf(disc), inv2a = 0.5f / A;
-        int64_t s0 = (int64_t)ceilf(s + (-qb - root) * inv2a), s1 = (int64_t)floorf(s + (-qb + root) * inv2a);
+        int64_t s0 = texel_index(ceilf(s + (-qb - root) * inv2a)), s1 = texel_index(floorf(s + (-qb + root) * inv2a));
         if (s1 < s0)
             continue;
         int64_t y = wrap_coord(it, im->height, m->wrap), x = wrap_coord(s0, im->width, m->wrap);

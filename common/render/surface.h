@@ -127,6 +127,15 @@ static inline __attribute__((always_inline)) int nee_prepare(const struct light_
 static inline float power_heuristic(float a, float b)
 {
     float a2 = a * a, b2 = b * b;
+    if (!(a2 + b2 <= 0x1.fffffep127f)) {
+        /* A square overflows (a light's area pdf of 1e24 on a sphere of radius 1e12), or a
+         * pdf is NaN: the ratio of the smaller to the larger instead of inf / inf. */
+        if (a != a || b != b)
+            return 0.0f;
+        float r = a >= b ? b / a : a / b;
+        r = r == r ? r : 1.0f; /* both infinite */
+        return a >= b ? 1.0f / (1.0f + r * r) : r * r / (1.0f + r * r);
+    }
     return a2 + b2 > 0.0f ? a2 / (a2 + b2) : 0.0f;
 }
 

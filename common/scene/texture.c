@@ -50,9 +50,16 @@ static double bump_int(double x)
     return h + 2.0 * fmax(x / 2.0 - h - 0.5, 0.0);
 }
 
+/* Whether floor(x) is odd, in floating point: exact for any finite x (no integer
+ * conversion, which is undefined beyond int64's range). */
+static int odd_floor(double x)
+{
+    return fmod(floor(x), 2.0) != 0.0;
+}
+
 static int odd_square(double s, double t)
 {
-    return (((int64_t)floor(s) + (int64_t)floor(t)) & 1) != 0;
+    return odd_floor(s) != odd_floor(t);
 }
 
 vec3 texture_checker_box(float s, float t, float ds, float dt, vec3 c0, vec3 c1)
@@ -67,11 +74,11 @@ vec3 texture_checker_box(float s, float t, float ds, float dt, vec3 c0, vec3 c1)
     if (dS > 0.0)
         fs = (bump_int(s1) - bump_int(s0)) / (2.0 * dS);
     else
-        fs = ((int64_t)floor(S) & 1) ? 1.0 : 0.0;
+        fs = odd_floor(S) ? 1.0 : 0.0;
     if (dT > 0.0)
         ft = (bump_int(t1) - bump_int(t0)) / (2.0 * dT);
     else
-        ft = ((int64_t)floor(T) & 1) ? 1.0 : 0.0;
+        ft = odd_floor(T) ? 1.0 : 0.0;
     fs = fmin(fmax(fs, 0.0), 1.0);
     ft = fmin(fmax(ft, 0.0), 1.0);
     float odd = (float)(fs + ft - 2.0 * fs * ft);

@@ -285,3 +285,19 @@ Test(surface, anisotropic_highlight_turns_with_the_uv_map)
     cr_assert(r[0] > 2.0 && r[1] < 0.5, "x/y spread of the highlight: u along x %g, swapped %g", r[0], r[1]);
     cr_assert(fabs(log(r[0]) + log(r[1])) < 0.2, "a quarter turn: the ratios are inverse (%g, %g)", r[0], r[1]);
 }
+
+/* MIS weights whose squares overflow float (a lamp's area pdf of 1e24 seen from inside a
+ * sphere of radius 1e12) stay finite: inf / inf was a NaN sample. */
+Test(surface, power_heuristic_finite_when_squares_overflow)
+{
+    cr_expect(power_heuristic(2.0f, 1.0f) == 0.8f);
+    float w = power_heuristic(1.14e24f, 0.318f);
+    cr_expect(w == 1.0f, "%g", w);
+    w = power_heuristic(0.318f, 1.14e24f);
+    cr_expect(w >= 0.0f && w < 1e-40f, "%g", w);
+    w = power_heuristic(3e19f, 3e19f);
+    cr_expect(w == 0.5f, "%g", w);
+    cr_expect(power_heuristic(INFINITY, 1.0f) == 1.0f);
+    cr_expect(power_heuristic(INFINITY, INFINITY) == 0.5f);
+    cr_expect(power_heuristic(NAN, 1.0f) == 0.0f);
+}

@@ -398,6 +398,50 @@ Test(texture, centring_moves_footprint_filters_only)
     texture_fini(&t);
 }
 
+/* Coordinates far beyond any texture (OBJ uvs of 1e30), infinite or NaN: every filter and
+ * wrap mode gives a finite, repeatable colour, clamp gives the edge texel beyond either
+ * edge, and the checker its square's parity, without converting out of int64's range. */
+Test(texture, huge_and_non_finite_coordinates_give_finite_repeatable_colours)
+{
+    struct texture t;
+    texture_init(&t, TEXTURE_IMAGE, "row");
+    f32_image(&t.image, 4, 1, 1);
+    for (uint32_t x = 0; x < 4; x++)
+        texels(&t.image)[x] = (float)(x + 1);
+    const float us[] = {1e30f, -1e30f, 1e15f, -1e15f, 0x1p63f, -0x1p63f, NAN, INFINITY, -INFINITY};
+    const enum texture_wrap wraps[] = {TEXWRAP_CLAMP, TEXWRAP_REPEAT};
+    for (int wi = 0; wi < 2; wi++) {
+        struct mip m;
+        mip_init(&m, &t.image, wraps[wi]);
+        for (int f = 0; f < TEXFILTER_COUNT_; f++)
+            for (size_t i = 0; i < sizeof us / sizeof us[0]; i++)
+                for (int d = 0; d < 2; d++) {
+                    t.filter = (enum texture_filter)f;
+                    float du = d ? 0.1f : 1e-4f;
+                    struct tex_coord tc = {us[i], 0.5f, du, 0.0f, 0.0f, du, 0.0f, 0.0f};
+                    vec3 a = texture_eval(&t, &m, &tc), b = texture_eval(&t, &m, &tc);
+                    cr_expect(isfinite(a.x) && a.x == b.x, "wrap %d %s u %g: %g then %g", wi,
+                              texture_filter_name(t.filter), us[i], a.x, b.x);
+                    if (wraps[wi] == TEXWRAP_CLAMP && isfinite(us[i]) && fabsf(us[i]) >= 1e15f) {
+                        float want = us[i] > 0 ? 4.0f : 1.0f;
+                        cr_expect(fabsf(a.x - want) < 1e-5f, "clamp %s u %g: %g, expected the edge %g",
+                                  texture_filter_name(t.filter), us[i], a.x, want);
+                    }
+                }
+        mip_fini(&m);
+    }
+    texture_fini(&t);
+    /* Floats from 2^24 up are even integers: the square is odd when the other axis is. */
+    const vec3 c0 = v3(0, 0, 0), c1 = v3(1, 1, 1);
+    for (size_t i = 0; i < 6; i++) {
+        cr_expect(texture_checker_box(us[i], 0.5f, 0.0f, 0.0f, c0, c1).x == 0.0f, "u %g", us[i]);
+        cr_expect(texture_checker_box(us[i], 1.5f, 0.0f, 0.0f, c0, c1).x == 1.0f, "u %g", us[i]);
+        cr_expect(texture_checker_box(0.5f, us[i], 0.1f, 0.0f, c0, c1).x == 0.0f, "v %g", us[i]);
+    }
+    for (size_t i = 6; i < 9; i++)
+        cr_expect(isfinite(texture_checker_box(us[i], 0.5f, 0.1f, 0.1f, c0, c1).x), "u %g", us[i]);
+}
+
 /* EWA's weights for a footprint of w texels have the variance of a box w wide (w^2 / 12),
  * as mip_ewa_box_scale promises: a 1-pixel footprint filters like the pixel. */
 Test(mip, ewa_weights_have_the_variance_of_a_box_over_the_footprint)
