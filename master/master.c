@@ -61,6 +61,7 @@ struct peer {
     size_t id_len;
     char user_id[NET_Z85_KEY_LEN + 1]; /* with CurveZMQ: its public key (what it proved), else "" */
     int job_sent;           /* it was sent the JOB (only then does it get blobs) */
+    uint32_t maps_sent;     /* passes 0..maps_sent-1 of its JOB had their MAP queued (send_maps) */
     char name[300];         /* host:pid it claims, for messages only: never who it is */
     uint32_t pid;
     uint32_t dropped;       /* messages of this peer dropped; only the first few are logged */
@@ -687,15 +688,23 @@ static int name_is_banned(const struct master *m, const char *user_id, const cha
 
 static void send_job(struct master *m, struct peer *p);
 
-/* MAP: pass `pass`'s photon map is published (after the JOB it belongs to). */
-static void send_map(struct master *m, const struct peer *p, uint32_t pass)
+/* MAP of every published photon map peer p was not sent yet (after the JOB they belong
+ * to), in pass order. One that cannot be queued (its queue is full) stays pending: the
+ * loop sends it again (assign_tiles), and no TILE of its pass goes before it (a worker
+ * drops a TILE whose map was never announced). */
+static void send_maps(struct master *m, struct peer *p)
 {
-    struct proto_msg msg = {.type = MSG_MAP};
-    msg.u.map.job_id = m->job_id;
-    msg.u.map.pass = pass;
-    msg.u.map.hash = m->maps[pass].hash;
-    msg.u.map.size = m->maps[pass].size;
-    send_to(m, p, &msg);
+    while (p->maps_sent < m->maps_published) {
+        uint32_t pass = p->maps_sent;
+        struct proto_msg msg = {.type = MSG_MAP};
+        msg.u.map.job_id = m->job_id;
+        msg.u.map.pass = pass;
+        msg.u.map.hash = m->maps[pass].hash;
+        msg.u.map.size = m->maps[pass].size;
+        if (send_to(m, p, &msg) != 0)
+            return;
+        p->maps_sent++;
+    }
 }
 
 /* Logs a refused HELLO (after a few, only counts: a flood cannot flood the log) and tells
@@ -837,8 +846,8 @@ static void send_job(struct master *m, struct peer *p)
     j->assets = m->manifest;
     send_to(m, p, &job);
     p->job_sent = 1;
-    for (uint32_t pass = 0; pass < m->maps_published; pass++)
-        send_map(m, p, pass);
+    p->maps_sent = 0;
+    send_maps(m, p);
 }
 
 /* ---- broadcast of blobs ---- */
@@ -1666,9 +1675,12 @@ static void result_verdict(struct master *m, int32_t pi, uint32_t unit, uint64_t
     ack_push(m, pi, job_id, frame, unit);
 }
 
-/* Sends every tile the scheduler hands out now. */
+/* Sends the MAPs still pending, then every tile the scheduler hands out now. */
 static void assign_tiles(struct master *m)
 {
+    for (uint32_t i = 0; i < m->num_peers; i++)
+        if (m->peers[i].maps_sent < m->maps_published && !m->sched->workers[i].gone)
+            send_maps(m, &m->peers[i]);
     struct sched_assignment a;
     while (sched_assign_next(m->sched, net_now_ms(), &a)) {
         struct proto_msg msg = {.type = MSG_TILE};
@@ -1679,9 +1691,11 @@ static void assign_tiles(struct master *m)
         msg.u.tile.pass = unit_pass(m, a.tile);
         msg.u.tile.mask = unit_mask(m, a.tile);
         tile_tag(m, a.tile, m->peers[a.worker].user_id, &msg.u.tile.tag);
-        if (send_to(m, &m->peers[a.worker], &msg) != 0) {
+        if ((m->photon_maps && msg.u.tile.pass >= m->peers[a.worker].maps_sent) ||
+            send_to(m, &m->peers[a.worker], &msg) != 0) {
             /* Not queued (a dropped TILE would be held by nobody until the worker is
-             * evicted): taken back; the worker gets more once it is heard from. */
+             * evicted), or its pass's MAP is still pending: taken back; the worker gets
+             * more once it is heard from. */
             sched_assign_undo(m->sched, &a);
             continue;
         }
@@ -2252,6 +2266,8 @@ static int maps_start(struct master *m, uint32_t frame)
         blob_store_drop(&m->blobs, &m->maps[p].hash);
     memset(m->maps, 0, sizeof *m->maps * m->passes);
     m->maps_published = 0;
+    for (uint32_t i = 0; i < m->num_peers; i++)
+        m->peers[i].maps_sent = 0;
     m->tracer = photon_tracer_new(&m->scene, m->opts, frame, m->passes, err, sizeof err);
     if (!m->tracer) {
         master_fail(m, "%s", err);
@@ -2287,7 +2303,7 @@ static int maps_poll(struct master *m)
         m->maps_published = pass + 1;
         for (uint32_t i = 0; i < m->num_peers; i++)
             if (!m->sched->workers[i].gone)
-                send_map(m, &m->peers[i], pass);
+                send_maps(m, &m->peers[i]);
         sched_release(m->sched, m->maps_published * m->num_tiles);
         log_debug("photon map %u published (%zu bytes); its units go out", pass, size);
         if (m->maps_published == m->passes)
