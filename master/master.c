@@ -13,6 +13,7 @@
 #include "outnames.h"
 #include "launch.h"
 #include "base/log.h"
+#include "wire/fetch.h"
 #include "wire/net.h"
 #include "wire/proto.h"
 #include "zap.h"
@@ -36,6 +37,7 @@
 #include <float.h>
 #include <math.h>
 #include <signal.h>
+#include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -48,6 +50,11 @@
 #define MAX_PEERS 4096          /* live workers at once */
 #define MAX_SLOTS (2 * MAX_PEERS) /* peer slots; past this, a gone worker's slot is reused */
 #define MAX_PEERS_PER_KEY 1024  /* live workers of one identity (one key, or all without CurveZMQ) */
+/* Bytes of BLOB_DATA answers libzmq may hold for one peer slot (queued, not yet written to
+ * the connection). A worker keeps at most PROTO_FETCH_WINDOW requests in flight over all
+ * its fetches (FETCH_REQUESTS_MAX), so it never meets the cap: only a peer that asks for
+ * more and stops reading does, and the answers past it are dropped. */
+#define BLOB_QUEUED_PER_PEER ((PROTO_FETCH_WINDOW + 1u) * BLOB_CHUNK_SIZE)
 #define PROGRESS_PLAIN_MS 5000
 #define PROGRESS_TTY_MS 250
 /* Adaptive defaults (docs/adaptive.md): the spp cap without --spp, and the samples of a
@@ -87,7 +94,7 @@ struct pass_map {
     X(tiles_assigned) X(tiles_done) X(tiles_from_journal) X(tiles_reissued) X(straggler_copies)                   \
     X(results_stale) X(results_duplicate) X(results_invalid) X(results_not_ours) X(rejected_decode)               \
     X(rejected_envelope) X(rejected_unknown_peer) X(rejected_unexpected) X(rejected_wrong_job)                    \
-    X(rejected_blob_req) X(rejected_banned) X(auth_rejects) X(handshake_failures) X(evicted_silent)                \
+    X(rejected_blob_req) X(blob_reqs_dropped) X(rejected_banned) X(auth_rejects) X(handshake_failures) X(evicted_silent)                \
     X(evicted_stalled) X(evicted_died) X(evicted_error) X(workers_banned) X(workers_joined) X(ready_stale)         \
     X(local_restarts) X(kept_untied) X(results_nonfinite) X(hellos_refused)                                       \
     X(frames_done) X(frames_skipped) X(tiles_from_kept) X(kept_duplicate) X(acks_sent) X(journal_syncs)                   \
@@ -1028,6 +1035,51 @@ static int bcast_bind(struct master *m, const char *endpoint)
     return 0;
 }
 
+/* The queued BLOB_DATA bytes per peer slot, counted down by libzmq's I/O thread when it
+ * lets a message go (written, or dropped with its connection); static: a message may
+ * outlive the master's state (freed at zmq_ctx_term). */
+static _Atomic uint64_t blob_queued_peer[MAX_SLOTS];
+
+struct queued_blob {
+    _Atomic uint64_t *peer;
+    size_t size;
+    uint8_t data[];
+};
+
+static void queued_blob_free(void *data, void *hint)
+{
+    (void)data;
+    struct queued_blob *q = hint;
+    atomic_fetch_sub(q->peer, q->size);
+    free(q);
+}
+
+/* Sends the BLOB_DATA d to peer pi unless that would hold more than BLOB_QUEUED_PER_PEER
+ * bytes of them for it (then drops it). 0 when queued. */
+static int send_blob_data(struct master *m, int32_t pi, const struct proto_msg *d)
+{
+    const struct peer *p = &m->peers[pi];
+    if (proto_encode(d, &m->out) != 0)
+        return -1;
+    size_t size = m->out.size;
+    _Atomic uint64_t *mine = &blob_queued_peer[pi];
+    if (atomic_load(mine) + size > BLOB_QUEUED_PER_PEER)
+        return -1;
+    struct queued_blob *q = mem_alloc(sizeof *q + size);
+    q->peer = mine;
+    q->size = size;
+    memcpy(q->data, m->out.data, size);
+    atomic_fetch_add(mine, size);
+    zmq_msg_t msg;
+    zmq_msg_init_data(&msg, q->data, size, queued_blob_free, q);
+    if (zmq_send(m->sock, p->id, p->id_len, ZMQ_SNDMORE | ZMQ_DONTWAIT) < 0 ||
+        zmq_msg_send(&msg, m->sock, ZMQ_DONTWAIT) < 0) {
+        zmq_msg_close(&msg); /* frees q */
+        return -1;
+    }
+    return 0;
+}
+
 static void on_blob_req(struct master *m, struct peer *p, const struct msg_blob_req *r)
 {
     const struct blob_entry *e = p->job_sent ? blob_store_get(&m->blobs, &r->hash) : NULL;
@@ -1043,7 +1095,10 @@ static void on_blob_req(struct master *m, struct peer *p, const struct msg_blob_
     d.u.blob_data.total_size = e->size;
     d.u.blob_data.bytes = e->data + r->offset;
     d.u.blob_data.length = r->length;
-    send_to(m, p, &d);
+    if (send_blob_data(m, (int32_t)(p - m->peers), &d) != 0) {
+        m->c.blob_reqs_dropped++;
+        return;
+    }
     m->c.blob_bytes_p2p += r->length;
 }
 
