@@ -2763,8 +2763,13 @@ done:
     for (size_t i = 0; i < m.num_streams; i++)
         free(m.streams[i].chunk_hashes);
     free(m.streams);
-    if (m.sock)
+    if (m.sock) {
+        /* A finished job: the last ACKs and the BYEs still queued for remote workers get
+         * up to a second to go (a worker that does not read them holds the exit no longer). */
+        int linger = rc == 0 ? 1000 : 0;
+        zmq_setsockopt(m.sock, ZMQ_LINGER, &linger, sizeof linger);
         zmq_close(m.sock);
+    }
     if (m.zctx)
         zmq_ctx_term(m.zctx);
     /* Last: the stats file, the counters with --verbose, and on failure the one error line

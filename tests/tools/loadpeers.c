@@ -591,7 +591,7 @@ int main(int argc, char **argv)
     uint64_t last_beat = g.start_ms;
     uint32_t byes = 0;
     /* Ends at every peer's BYE, or once every unit is acknowledged and the master has been
-     * silent for 1 s (it closes with LINGER 0: its BYEs may be lost). */
+     * silent for 1 s (its BYEs may come later, or be lost: it waits at most 1 s for them to go). */
     while (byes < n && net_now_ms() - g.start_ms < timeout_ms &&
            !(g.num_units && g.acked_units == g.num_units && net_now_ms() - g.last_ack_ms > 1000)) {
         /* the DEALERs, then the SUBs connected so far */
