@@ -13,6 +13,7 @@
 #include "outnames.h"
 #include "launch.h"
 #include "base/log.h"
+#include "wire/fetch.h"
 #include "wire/net.h"
 #include "wire/proto.h"
 #include "zap.h"
@@ -36,6 +37,7 @@
 #include <float.h>
 #include <math.h>
 #include <signal.h>
+#include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -48,6 +50,11 @@
 #define MAX_PEERS 4096          /* live workers at once */
 #define MAX_SLOTS (2 * MAX_PEERS) /* peer slots; past this, a gone worker's slot is reused */
 #define MAX_PEERS_PER_KEY 1024  /* live workers of one identity (one key, or all without CurveZMQ) */
+/* Bytes of BLOB_DATA answers libzmq may hold for one peer slot (queued, not yet written to
+ * the connection). A worker keeps at most PROTO_FETCH_WINDOW requests in flight over all
+ * its fetches (FETCH_REQUESTS_MAX), so it never meets the cap: only a peer that asks for
+ * more and stops reading does, and the answers past it are dropped. */
+#define BLOB_QUEUED_PER_PEER ((PROTO_FETCH_WINDOW + 1u) * BLOB_CHUNK_SIZE)
 #define PROGRESS_PLAIN_MS 5000
 #define PROGRESS_TTY_MS 250
 /* Adaptive defaults (docs/adaptive.md): the spp cap without --spp, and the samples of a
@@ -61,6 +68,7 @@ struct peer {
     size_t id_len;
     char user_id[NET_Z85_KEY_LEN + 1]; /* with CurveZMQ: its public key (what it proved), else "" */
     int job_sent;           /* it was sent the JOB (only then does it get blobs) */
+    uint32_t maps_sent;     /* passes 0..maps_sent-1 of its JOB had their MAP queued (send_maps) */
     char name[300];         /* host:pid it claims, for messages only: never who it is */
     uint32_t pid;
     uint32_t dropped;       /* messages of this peer dropped; only the first few are logged */
@@ -86,7 +94,7 @@ struct pass_map {
     X(tiles_assigned) X(tiles_done) X(tiles_from_journal) X(tiles_reissued) X(straggler_copies)                   \
     X(results_stale) X(results_duplicate) X(results_invalid) X(results_not_ours) X(rejected_decode)               \
     X(rejected_envelope) X(rejected_unknown_peer) X(rejected_unexpected) X(rejected_wrong_job)                    \
-    X(rejected_blob_req) X(rejected_banned) X(auth_rejects) X(handshake_failures) X(evicted_silent)                \
+    X(rejected_blob_req) X(blob_reqs_dropped) X(rejected_banned) X(auth_rejects) X(handshake_failures) X(evicted_silent)                \
     X(evicted_stalled) X(evicted_died) X(evicted_error) X(workers_banned) X(workers_joined) X(ready_stale)         \
     X(local_restarts) X(kept_untied) X(results_nonfinite) X(hellos_refused)                                       \
     X(frames_done) X(frames_skipped) X(tiles_from_kept) X(kept_duplicate) X(acks_sent) X(journal_syncs)                   \
@@ -692,15 +700,23 @@ static int name_is_banned(const struct master *m, const char *user_id, const cha
 
 static void send_job(struct master *m, struct peer *p);
 
-/* MAP: pass `pass`'s photon map is published (after the JOB it belongs to). */
-static void send_map(struct master *m, const struct peer *p, uint32_t pass)
+/* MAP of every published photon map peer p was not sent yet (after the JOB they belong
+ * to), in pass order. One that cannot be queued (its queue is full) stays pending: the
+ * loop sends it again (assign_tiles), and no TILE of its pass goes before it (a worker
+ * drops a TILE whose map was never announced). */
+static void send_maps(struct master *m, struct peer *p)
 {
-    struct proto_msg msg = {.type = MSG_MAP};
-    msg.u.map.job_id = m->job_id;
-    msg.u.map.pass = pass;
-    msg.u.map.hash = m->maps[pass].hash;
-    msg.u.map.size = m->maps[pass].size;
-    send_to(m, p, &msg);
+    while (p->maps_sent < m->maps_published) {
+        uint32_t pass = p->maps_sent;
+        struct proto_msg msg = {.type = MSG_MAP};
+        msg.u.map.job_id = m->job_id;
+        msg.u.map.pass = pass;
+        msg.u.map.hash = m->maps[pass].hash;
+        msg.u.map.size = m->maps[pass].size;
+        if (send_to(m, p, &msg) != 0)
+            return;
+        p->maps_sent++;
+    }
 }
 
 /* Logs a refused HELLO (after a few, only counts: a flood cannot flood the log) and tells
@@ -842,8 +858,8 @@ static void send_job(struct master *m, struct peer *p)
     j->assets = m->manifest;
     send_to(m, p, &job);
     p->job_sent = 1;
-    for (uint32_t pass = 0; pass < m->maps_published; pass++)
-        send_map(m, p, pass);
+    p->maps_sent = 0;
+    send_maps(m, p);
 }
 
 /* ---- broadcast of blobs ---- */
@@ -1024,6 +1040,51 @@ static int bcast_bind(struct master *m, const char *endpoint)
     return 0;
 }
 
+/* The queued BLOB_DATA bytes per peer slot, counted down by libzmq's I/O thread when it
+ * lets a message go (written, or dropped with its connection); static: a message may
+ * outlive the master's state (freed at zmq_ctx_term). */
+static _Atomic uint64_t blob_queued_peer[MAX_SLOTS];
+
+struct queued_blob {
+    _Atomic uint64_t *peer;
+    size_t size;
+    uint8_t data[];
+};
+
+static void queued_blob_free(void *data, void *hint)
+{
+    (void)data;
+    struct queued_blob *q = hint;
+    atomic_fetch_sub(q->peer, q->size);
+    free(q);
+}
+
+/* Sends the BLOB_DATA d to peer pi unless that would hold more than BLOB_QUEUED_PER_PEER
+ * bytes of them for it (then drops it). 0 when queued. */
+static int send_blob_data(struct master *m, int32_t pi, const struct proto_msg *d)
+{
+    const struct peer *p = &m->peers[pi];
+    if (proto_encode(d, &m->out) != 0)
+        return -1;
+    size_t size = m->out.size;
+    _Atomic uint64_t *mine = &blob_queued_peer[pi];
+    if (atomic_load(mine) + size > BLOB_QUEUED_PER_PEER)
+        return -1;
+    struct queued_blob *q = mem_alloc(sizeof *q + size);
+    q->peer = mine;
+    q->size = size;
+    memcpy(q->data, m->out.data, size);
+    atomic_fetch_add(mine, size);
+    zmq_msg_t msg;
+    zmq_msg_init_data(&msg, q->data, size, queued_blob_free, q);
+    if (zmq_send(m->sock, p->id, p->id_len, ZMQ_SNDMORE | ZMQ_DONTWAIT) < 0 ||
+        zmq_msg_send(&msg, m->sock, ZMQ_DONTWAIT) < 0) {
+        zmq_msg_close(&msg); /* frees q */
+        return -1;
+    }
+    return 0;
+}
+
 static void on_blob_req(struct master *m, struct peer *p, const struct msg_blob_req *r)
 {
     const struct blob_entry *e = p->job_sent ? blob_store_get(&m->blobs, &r->hash) : NULL;
@@ -1039,7 +1100,10 @@ static void on_blob_req(struct master *m, struct peer *p, const struct msg_blob_
     d.u.blob_data.total_size = e->size;
     d.u.blob_data.bytes = e->data + r->offset;
     d.u.blob_data.length = r->length;
-    send_to(m, p, &d);
+    if (send_blob_data(m, (int32_t)(p - m->peers), &d) != 0) {
+        m->c.blob_reqs_dropped++;
+        return;
+    }
     m->c.blob_bytes_p2p += r->length;
 }
 
@@ -1676,9 +1740,12 @@ static void result_verdict(struct master *m, int32_t pi, uint32_t unit, uint64_t
     ack_push(m, pi, job_id, frame, unit);
 }
 
-/* Sends every tile the scheduler hands out now. */
+/* Sends the MAPs still pending, then every tile the scheduler hands out now. */
 static void assign_tiles(struct master *m)
 {
+    for (uint32_t i = 0; i < m->num_peers; i++)
+        if (m->peers[i].maps_sent < m->maps_published && !m->sched->workers[i].gone)
+            send_maps(m, &m->peers[i]);
     struct sched_assignment a;
     while (sched_assign_next(m->sched, net_now_ms(), &a)) {
         struct proto_msg msg = {.type = MSG_TILE};
@@ -1689,9 +1756,11 @@ static void assign_tiles(struct master *m)
         msg.u.tile.pass = unit_pass(m, a.tile);
         msg.u.tile.mask = unit_mask(m, a.tile);
         tile_tag(m, a.tile, m->peers[a.worker].user_id, &msg.u.tile.tag);
-        if (send_to(m, &m->peers[a.worker], &msg) != 0) {
+        if ((m->photon_maps && msg.u.tile.pass >= m->peers[a.worker].maps_sent) ||
+            send_to(m, &m->peers[a.worker], &msg) != 0) {
             /* Not queued (a dropped TILE would be held by nobody until the worker is
-             * evicted): taken back; the worker gets more once it is heard from. */
+             * evicted), or its pass's MAP is still pending: taken back; the worker gets
+             * more once it is heard from. */
             sched_assign_undo(m->sched, &a);
             continue;
         }
@@ -2293,6 +2362,8 @@ static int maps_start(struct master *m, uint32_t frame)
         blob_store_drop(&m->blobs, &m->maps[p].hash);
     memset(m->maps, 0, sizeof *m->maps * m->passes);
     m->maps_published = 0;
+    for (uint32_t i = 0; i < m->num_peers; i++)
+        m->peers[i].maps_sent = 0;
     m->tracer = photon_tracer_new(&m->scene, m->opts, frame, m->passes, err, sizeof err);
     if (!m->tracer) {
         master_fail(m, "%s", err);
@@ -2328,7 +2399,7 @@ static int maps_poll(struct master *m)
         m->maps_published = pass + 1;
         for (uint32_t i = 0; i < m->num_peers; i++)
             if (!m->sched->workers[i].gone)
-                send_map(m, &m->peers[i], pass);
+                send_maps(m, &m->peers[i]);
         sched_release(m->sched, m->maps_published * m->num_tiles);
         log_debug("photon map %u published (%zu bytes); its units go out", pass, size);
         if (m->maps_published == m->passes)
@@ -2752,8 +2823,13 @@ done:
     for (size_t i = 0; i < m.num_streams; i++)
         free(m.streams[i].chunk_hashes);
     free(m.streams);
-    if (m.sock)
+    if (m.sock) {
+        /* A finished job: the last ACKs and the BYEs still queued for remote workers get
+         * up to a second to go (a worker that does not read them holds the exit no longer). */
+        int linger = rc == 0 ? 1000 : 0;
+        zmq_setsockopt(m.sock, ZMQ_LINGER, &linger, sizeof linger);
         zmq_close(m.sock);
+    }
     if (m.zctx)
         zmq_ctx_term(m.zctx);
     /* Last: the stats file (none when refused for another master's journal: that name is

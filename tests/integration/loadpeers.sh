@@ -121,4 +121,21 @@ if [ $mr = 0 ] && grep -q "granted 4096 results 4096 " "$T/log" && [ "$(counter 
   ok "a worker with 2048 credits: TILEs that do not fit its queue go later, every one of 4096 tiles done"
 else bad "a worker with 2048 credits: TILEs that do not fit its queue go later, every one of 4096 tiles done"; fi
 
+# --- a fake worker that reads slowly (its queue takes 1 message, a 2 s pause after READY)
+# with 1200 credits on a media scene of 2 passes: the master's queue for it is full when
+# photon map 1 is published. Its MAP is kept and sent later, before any TILE of pass 1
+# (a worker drops a TILE whose map was never announced) ---
+sed 's/"width": 160, "height": 120/"width": 512, "height": 512/' scenes/fog_spot/fog_spot.json >"$T/fog.json"
+cp scenes/fog_spot/room.obj "$T/"
+timeout 120 $M "$T/fog.json" -o "$T/maps.exr" --spp 2 --passes 2 --tile 8 --workers 0 --no-journal \
+  --worker-timeout-ms 60000 --bind "ipc://$T/f.sock" >"$T/m.log" 2>&1 &
+mp=$!
+echo $mp >>"$T/pids"
+timeout 120 $L "ipc://$T/f.sock" -n 1 --credits 1200 --pause-ms 2000 --tiny-queue --no-fetch --timeout-ms 30000 >"$T/log" 2>&1
+wait $mp && mr=0 || mr=1
+cat "$T/m.log" >>"$T/log"
+if [ $mr = 0 ] && grep -q "^loadpeers: tiles_before_map 0$" "$T/log" && [ "$(counter tiles_done "$T/maps.exr")" = 8192 ]; then
+  ok "a slow reader with 1200 credits: the MAP that did not fit its queue went later, before its pass's TILEs"
+else bad "a slow reader with 1200 credits: the MAP that did not fit its queue went later, before its pass's TILEs ($(grep tiles_before_map "$T/log"))"; fi
+
 finish

@@ -7,6 +7,7 @@
 # the allow-list cannot poison tiles it does not hold (KEPT, RESULT), cannot evict a
 # worker by claiming its host and pid, and a flood of its HELLOs does not keep the real
 # worker out. A tile that is non-finite on two workers fails the job, naming the cause.
+# Peers that ask for blob chunks and read nothing do not grow the master's memory.
 # Ends with "integration: N passed, N failed". Usage: BUILD=build sh tests/integration/security.sh
 . "$(dirname "$0")/lib.sh"
 lib_init sec
@@ -179,5 +180,29 @@ if [ $rr = 0 ] && [ $r = 0 ] && [ -n "$sent" ] && [ "$sent" -ge 1000 ] && [ $agr
   [ "$(counter workers_joined "$T/c.exr")" = 2 ] && $X cmp "$T/ref.exr" "$T/c.exr"; then
   ok "malformed corpus: every message rejected with its reason, render identical"
 else cat "$T/replay" >>"$T/log"; bad "malformed corpus: every message rejected with its reason, render identical"; fi
+
+# --- three connections that each ask for 1000 chunks of a 3.6 MB blob and read nothing:
+# the answers libzmq holds for a peer are capped (17 chunks), the master's memory stays
+# bounded (without a cap every answer, 256 KiB, queued: +750 MB) ---
+mkdir -p "$T/hd"
+python3 scripts/gen_mesh.py 250 "$T/hd/big" >/dev/null
+cp scenes/tiny/tiny.json scenes/tiny/tiny.obj scenes/tiny/tiny.mtl scenes/tiny/lamp.obj "$T/hd/"
+python3 -c 'import json, sys
+d = json.load(open(sys.argv[1])); d["objects"].append({"type": "ply", "file": "big.ply", "transform": {"translate": [-3, 0, 2]}})
+json.dump(d, open(sys.argv[1], "w"), indent=1)' "$T/hd/tiny.json"
+$M "$T/hd/tiny.json" -o "$T/hd.exr" --workers 0 --no-journal --bcast-mbps 0 --bind "ipc://$T/hd.sock" >"$T/log" 2>&1 &
+mpid=$! # the master itself (its /proc), ended below
+echo $mpid >>"$T/pids"
+hwm() { awk '/^VmHWM:/ {print $2}' "/proc/$mpid/status"; }
+timeout 30 $BUILD/junkpeer "ipc://$T/hd.sock" hoard 1 1 0 >/dev/null 2>&1 # the master has loaded the scene
+h0=$(hwm)
+timeout 30 $BUILD/junkpeer "ipc://$T/hd.sock" hoard 3 1000 3 >"$T/jp" 2>&1
+h1=$(hwm)
+kill $mpid 2>/dev/null
+wait $mpid 2>/dev/null
+echo "security: hoard: master peak RSS ${h0:-?} kB before, ${h1:-?} kB after"
+if grep -q "junkpeer: hoard 3 connections" "$T/jp" && [ -n "$h0" ] && [ -n "$h1" ] && [ $((h1 - h0)) -lt 102400 ]; then
+  ok "peers asking for blob chunks without reading them grow the master's peak RSS by under 100 MB ($((h1 - h0)) kB)"
+else bad "peers asking for blob chunks without reading them grow the master's peak RSS by under 100 MB (${h0:-?} -> ${h1:-?} kB)"; fi
 
 finish

@@ -16,10 +16,16 @@
  *   flood N            N connections, each a HELLO, closed after a moment
  *   error              HELLO, then an ERROR whose text holds a newline, a forged log
  *                      line, terminal escapes and bytes that are not UTF-8
+ *   hoard K N S        K connections that take 1 message into their queue and a few KB
+ *                      into their socket buffer, each a HELLO, then after the JOB N
+ *                      requests for chunks of the manifest's largest asset, then S
+ *                      seconds reading nothing; prints
+ *                        junkpeer: hoard K connections, N requests each
  */
 #include "image/imgio.h"
 #include "render/tile.h"
 #include "scene/scene.h"
+#include "wire/blob.h"
 #include "wire/net.h"
 #include "wire/proto.h"
 #include <stdio.h>
@@ -29,7 +35,7 @@
 #include <zmq.h>
 
 static struct net_key g_pub, g_sec, g_server;
-static int g_curve;
+static int g_curve, g_tiny_queue;
 
 static void *peer_socket(void *ctx, const char *endpoint)
 {
@@ -44,6 +50,11 @@ static void *peer_socket(void *ctx, const char *endpoint)
     }
     int linger = 2000;
     zmq_setsockopt(s, ZMQ_LINGER, &linger, sizeof linger);
+    if (g_tiny_queue) {
+        int one = 1, buf = 4096;
+        zmq_setsockopt(s, ZMQ_RCVHWM, &one, sizeof one);
+        zmq_setsockopt(s, ZMQ_RCVBUF, &buf, sizeof buf);
+    }
     if (g_curve && net_curve_client(s, &g_server, &g_pub, &g_sec) != 0) {
         fprintf(stderr, "junkpeer: cannot set the CurveZMQ keys\n");
         exit(1);
@@ -212,6 +223,57 @@ static int rogue(void *s, struct proto_buf *b)
     return 0;
 }
 
+/* hoard: peers that ask for blob chunks and do not read the answers. */
+static int hoard(void *ctx, const char *endpoint, long k, long n, long secs, struct proto_buf *b)
+{
+    g_tiny_queue = 1;
+    void **socks = calloc((size_t)k, sizeof *socks);
+    for (long c = 0; c < k; c++) {
+        socks[c] = peer_socket(ctx, endpoint);
+        send_hello(socks[c], "hoard", (uint32_t)c, b);
+        struct proto_msg job;
+        struct net_payload *frame = NULL;
+        int have_job = 0;
+        for (int i = 0; i < 50 && !have_job; i++) {
+            if (!recv_msg(socks[c], 100, &job, &frame))
+                continue;
+            have_job = job.type == MSG_JOB;
+            if (!have_job)
+                net_payload_free(&frame);
+        }
+        if (!have_job || job.u.job.num_assets == 0) {
+            fprintf(stderr, "junkpeer: no JOB with assets\n");
+            return 1;
+        }
+        const struct proto_asset *big = &job.u.job.assets[0];
+        for (uint32_t i = 1; i < job.u.job.num_assets; i++)
+            if (job.u.job.assets[i].size > big->size)
+                big = &job.u.job.assets[i];
+        uint64_t chunks = (big->size + BLOB_CHUNK_SIZE - 1) / BLOB_CHUNK_SIZE;
+        for (long i = 0; i < n; i++) {
+            struct proto_msg q = {.type = MSG_BLOB_REQ};
+            q.u.blob_req.hash = big->hash;
+            q.u.blob_req.offset = (uint64_t)(i % (long)chunks) * BLOB_CHUNK_SIZE;
+            uint64_t left = big->size - q.u.blob_req.offset;
+            q.u.blob_req.length = left < BLOB_CHUNK_SIZE ? (uint32_t)left : BLOB_CHUNK_SIZE;
+            if (proto_encode(&q, b) == 0)
+                zmq_send(socks[c], b->data, b->size, 0);
+        }
+        proto_job_fini(&job.u.job);
+        net_payload_free(&frame);
+    }
+    printf("junkpeer: hoard %ld connections, %ld requests each\n", k, n);
+    fflush(stdout);
+    sleep((unsigned)secs);
+    for (long c = 0; c < k; c++) {
+        int linger = 0;
+        zmq_setsockopt(socks[c], ZMQ_LINGER, &linger, sizeof linger);
+        zmq_close(socks[c]);
+    }
+    free(socks);
+    return 0;
+}
+
 int main(int argc, char **argv)
 {
     int a = 1;
@@ -226,7 +288,7 @@ int main(int argc, char **argv)
         a = 4;
     }
     if (argc < a + 1) {
-        fprintf(stderr, "usage: junkpeer [--key KEYFILE MASTER.pub] ENDPOINT [rogue | hello-as HOST PID | flood N | error]\n");
+        fprintf(stderr, "usage: junkpeer [--key KEYFILE MASTER.pub] ENDPOINT [rogue | hello-as HOST PID | flood N | error | hoard K N S]\n");
         return 2;
     }
     const char *endpoint = argv[a], *mode = argc > a + 1 ? argv[a + 1] : "";
@@ -234,7 +296,9 @@ int main(int argc, char **argv)
     zmq_ctx_set(ctx, ZMQ_MAX_SOCKETS, 8192);
     struct proto_buf b = {0};
     int rc = 0;
-    if (!strcmp(mode, "flood") && argc > a + 2) {
+    if (!strcmp(mode, "hoard") && argc > a + 4) {
+        rc = hoard(ctx, endpoint, atol(argv[a + 2]), atol(argv[a + 3]), atol(argv[a + 4]), &b);
+    } else if (!strcmp(mode, "flood") && argc > a + 2) {
         /* Many connections, each with a HELLO; a few hundred open at once. */
         long n = atol(argv[a + 2]);
         enum { OPEN = 200 };

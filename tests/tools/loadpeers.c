@@ -3,6 +3,7 @@
  *   loadpeers ENDPOINT [-n N] [--credits C] [--key KEYFILE MASTER.pub] [--image REF.exr]
  *                      [--master-pid PID] [--no-fetch] [--hold-ready] [--timeout-ms MS]
  *                      [--no-bcast] [--drop-bcast K] [--corrupt-bcast K] [--strangers]
+ *                      [--pause-ms MS] [--tiny-queue]
  * Each fake worker says HELLO (host "loadpeers-PID", pid = its index: distinct names;
  * threads: C / 2 rounded up, as a worker that asks 2 credits per thread; C at most 4096),
  * fetches every blob the JOB and MAP messages name as a worker does (proto_fetch: the
@@ -13,7 +14,9 @@
  * --strangers two more SUB sockets subscribe to everything on the broadcast as soon as its
  * endpoint is known, one without CurveZMQ and one with a fresh key pair no allow-list
  * holds, and count what reaches them), says READY with C credits (with --hold-ready
- * only once every peer has its blobs: a delivery benchmark) and answers every TILE at once with a
+ * only once every peer has its blobs: a delivery benchmark; with --pause-ms, reads nothing
+ * for MS ms after its first READY, with --tiny-queue takes 1 message
+ * into its queue and a few KB into its socket buffer: a worker that reads slowly) and answers every TILE at once with a
  * RESULT whose chunk is a valid EXR tile chunk of the job's layout (tile_image_desc),
  * encoded once per tile at first use: pixels from REF.exr (channels R G B A
  * variance.R/G/B; repeated when the job is larger) or, without it, a smooth deterministic pattern
@@ -25,6 +28,8 @@
  *     and point to point, refused by their hash, and fetches whose broadcast went quiet
  *     before they were complete, over every peer)
  *   loadpeers: strangers received N   (with --strangers: frames that reached them)
+ *   loadpeers: tiles_before_map N   (TILEs of a pass whose MAP had not arrived: a worker
+ *     drops them)
  *   loadpeers: tiles_per_s X over S s
  *   loadpeers: master_cpu_us_per_tile Y loop_cpu_us_per_tile Z
  *     (with --master-pid: user+sys CPU from the first TILE to the last ACK per unit
@@ -60,6 +65,7 @@ struct lpeer {
     uint64_t fetch_done_ms; /* when its last blob arrived */
     uint64_t samples_done;
     int fetched;            /* every blob named so far is in */
+    uint64_t maps_announced; /* bit p: pass p's MAP arrived (passes 0..63) */
 };
 
 static struct {
@@ -67,6 +73,9 @@ static struct {
     int curve, no_fetch, hold_ready, no_bcast, strangers;
     void *stranger[2];      /* --strangers: without CurveZMQ; with a key pair nobody allowed */
     uint32_t drop_bcast, corrupt_bcast;
+    int tiny_queue;
+    uint64_t pause_ms, pause_until; /* --pause-ms: no reads until pause_until (set at the first READY) */
+    uint64_t tiles_before_map;
     const char *endpoint;
     void *ctx;
     uint64_t chunks_bcast, chunks_p2p, chunks_bad, fallbacks, stranger_frames;
@@ -80,7 +89,7 @@ static struct {
     /* the job's layout (one job at a time: every peer gets the same JOB) */
     uint64_t job_id;
     struct image_desc desc;
-    uint32_t num_tiles, spp_per_unit;
+    uint32_t num_tiles, spp_per_unit, job_photon_maps;
     struct imgio_encoder *enc;
     uint8_t **chunks;
     size_t *chunk_sizes;
@@ -315,6 +324,8 @@ static void fetch_pump(struct lpeer *p)
         m.u.ready.credits = g.credits;
         send_msg(q, &m);
         q->ready_sent = 1;
+        if (g.pause_ms && !g.pause_until)
+            g.pause_until = net_now_ms() + g.pause_ms;
     }
 }
 
@@ -378,6 +389,8 @@ static void on_tile(struct lpeer *p, const struct msg_tile *t)
         return;
     }
     g.granted++;
+    if (g.job_photon_maps && t->pass < 64 && !(p->maps_announced >> t->pass & 1))
+        g.tiles_before_map++;
     if (!g.first_tile_ms) {
         g.first_tile_ms = net_now_ms();
         for (int k = 0; g.master_pid && k < 2; k++)
@@ -418,12 +431,16 @@ static void on_message(struct lpeer *p, const uint8_t *data, size_t size)
         if (!p->job_ms)
             p->job_ms = net_now_ms();
         p->have_job = 1;
+        p->maps_announced = 0;
+        g.job_photon_maps = m.u.job.photon_maps;
         p->ready_sent = 0;
         for (uint32_t i = 0; !g.no_fetch && i < m.u.job.num_assets; i++)
             fetch_add(p, &m.u.job.assets[i].hash, m.u.job.assets[i].size);
         proto_job_fini(&m.u.job);
         break;
     case MSG_MAP:
+        if (m.u.map.pass < 64)
+            p->maps_announced |= UINT64_C(1) << m.u.map.pass;
         if (!g.no_fetch)
             fetch_add(p, &m.u.map.hash, m.u.map.size);
         break;
@@ -466,7 +483,8 @@ static void usage(void)
 {
     fprintf(stderr, "usage: loadpeers ENDPOINT [-n N] [--credits C] [--key KEYFILE MASTER.pub] [--image REF.exr]\n"
                     "                 [--master-pid PID] [--no-fetch] [--hold-ready] [--timeout-ms MS]\n"
-                    "                 [--no-bcast] [--drop-bcast K] [--corrupt-bcast K] [--strangers]\n");
+                    "                 [--no-bcast] [--drop-bcast K] [--corrupt-bcast K] [--strangers] [--pause-ms MS]\n"
+                    "                 [--tiny-queue]\n");
     exit(2);
 }
 
@@ -487,6 +505,10 @@ int main(int argc, char **argv)
             g.master_pid = strtol(argv[++i], NULL, 10);
         else if (!strcmp(argv[i], "--timeout-ms") && i + 1 < argc)
             timeout_ms = strtoull(argv[++i], NULL, 10);
+        else if (!strcmp(argv[i], "--pause-ms") && i + 1 < argc)
+            g.pause_ms = strtoull(argv[++i], NULL, 10);
+        else if (!strcmp(argv[i], "--tiny-queue"))
+            g.tiny_queue = 1;
         else if (!strcmp(argv[i], "--no-fetch"))
             g.no_fetch = 1;
         else if (!strcmp(argv[i], "--hold-ready"))
@@ -545,6 +567,11 @@ int main(int argc, char **argv)
             return 1;
         }
         net_socket_setup(p->sock);
+        if (g.tiny_queue) {
+            int one = 1, buf = 4096;
+            zmq_setsockopt(p->sock, ZMQ_RCVHWM, &one, sizeof one);
+            zmq_setsockopt(p->sock, ZMQ_RCVBUF, &buf, sizeof buf);
+        }
         if (g.curve && net_curve_client(p->sock, &g.server, &g.pub, &g.sec) != 0) {
             fprintf(stderr, "loadpeers: cannot set the CurveZMQ keys\n");
             return 1;
@@ -564,7 +591,7 @@ int main(int argc, char **argv)
     uint64_t last_beat = g.start_ms;
     uint32_t byes = 0;
     /* Ends at every peer's BYE, or once every unit is acknowledged and the master has been
-     * silent for 1 s (it closes with LINGER 0: its BYEs may be lost). */
+     * silent for 1 s (its BYEs may come later, or be lost: it waits at most 1 s for them to go). */
     while (byes < n && net_now_ms() - g.start_ms < timeout_ms &&
            !(g.num_units && g.acked_units == g.num_units && net_now_ms() - g.last_ack_ms > 1000)) {
         /* the DEALERs, then the SUBs connected so far */
@@ -572,6 +599,10 @@ int main(int argc, char **argv)
         for (uint32_t i = 0; i < n; i++)
             if (peers[i].sub)
                 items[n + nsub++] = (zmq_pollitem_t){peers[i].sub, 0, ZMQ_POLLIN, 0};
+        if (g.pause_until && net_now_ms() < g.pause_until) { /* --pause-ms: a worker that reads nothing */
+            usleep(10000);
+            continue;
+        }
         if (zmq_poll(items, (int)n + nsub, 100) < 0)
             continue;
         for (uint32_t i = 0, k = 0; i < n; i++) {
@@ -651,6 +682,7 @@ int main(int argc, char **argv)
            g.chunks_bcast, g.chunks_p2p, g.chunks_bad, g.fallbacks);
     if (g.strangers)
         printf("loadpeers: strangers received %" PRIu64 "\n", g.stranger_frames);
+    printf("loadpeers: tiles_before_map %" PRIu64 "\n", g.tiles_before_map);
     printf("loadpeers: tiles_per_s %.1f over %.3f s\n", secs > 0.0 ? (double)g.acked_units / secs : 0.0, secs);
     if (g.master_pid && g.acked_units && g.master_cpu_first[0] >= 0.0 && g.master_cpu_first[1] >= 0.0)
         printf("loadpeers: master_cpu_us_per_tile %.1f loop_cpu_us_per_tile %.1f\n",
