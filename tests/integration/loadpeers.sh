@@ -109,7 +109,10 @@ if [ "${bad_chunks:-0}" -gt 0 ] && [ "${p2p_chunks:-0}" -gt 0 ] && [ -n "$P2P" ]
 # taken back and sent later, not lost to a holder that never got it: every unit is done ---
 sed 's/"width": 32, "height": 24/"width": 512, "height": 512/' scenes/tiny/tiny.json >"$T/big.json"
 cp scenes/tiny/*.obj scenes/tiny/*.mtl "$T/"
-timeout 120 $M "$T/big.json" -o "$T/credits.exr" --spp 1 --tile 8 --workers 0 --bind "ipc://$T/c.sock" >"$T/m.log" 2>&1 &
+# (generous timeouts: one process answering 2048 TILEs at once may miss a heartbeat on a
+# loaded machine, and an eviction would end the run with no worker)
+timeout 120 $M "$T/big.json" -o "$T/credits.exr" --spp 1 --tile 8 --workers 0 --bind "ipc://$T/c.sock" \
+  --worker-timeout-ms 60000 --stall-ms 60000 >"$T/m.log" 2>&1 &
 mp=$!
 echo $mp >>"$T/pids"
 timeout 120 $L "ipc://$T/c.sock" -n 1 --credits 2048 --timeout-ms 30000 >"$T/log" 2>&1
