@@ -89,6 +89,9 @@ if [ $r = 0 ] && grep -q "junkpeer: job yes" "$T/jp" && [ "$(counter tiles_from_
 else cat "$T/jp" >>"$T/log"; bad "an allowed rogue's KEPT and RESULT for tiles it does not hold are dropped; image identical"; fi
 
 # --- impersonation: a HELLO with the real worker's host and pid does not evict it ---
+# (the log emptied here, not only by the master's redirection: the wait below must not find
+# the last case's "joined" before the master's shell has truncated the file)
+: >"$T/log"
 timeout 60 $M scenes/tiny/tiny.json -o "$T/m.exr" --workers 0 --bind "tcp://127.0.0.1:$P5" $KEYS $SLOW >"$T/log" 2>&1 &
 mpid=$!
 $W --connect "tcp://127.0.0.1:$P5" $WKEY --threads 1 --timeout-ms 20000 >/dev/null 2>&1 &
