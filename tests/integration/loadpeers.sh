@@ -111,11 +111,11 @@ sed 's/"width": 32, "height": 24/"width": 512, "height": 512/' scenes/tiny/tiny.
 cp scenes/tiny/*.obj scenes/tiny/*.mtl "$T/"
 # (generous timeouts: one process answering 2048 TILEs at once may miss a heartbeat on a
 # loaded machine, and an eviction would end the run with no worker)
-timeout 120 $M "$T/big.json" -o "$T/credits.exr" --spp 1 --tile 8 --workers 0 --bind "ipc://$T/c.sock" \
+timeout 300 $M "$T/big.json" -o "$T/credits.exr" --spp 1 --tile 8 --workers 0 --bind "ipc://$T/c.sock" \
   --worker-timeout-ms 60000 --stall-ms 60000 >"$T/m.log" 2>&1 &
 mp=$!
 echo $mp >>"$T/pids"
-timeout 120 $L "ipc://$T/c.sock" -n 1 --credits 2048 --timeout-ms 30000 >"$T/log" 2>&1
+timeout 300 $L "ipc://$T/c.sock" -n 1 --credits 2048 --timeout-ms 240000 >"$T/log" 2>&1
 wait $mp && mr=0 || mr=1
 cat "$T/m.log" >>"$T/log"
 # (not "unacked 0": an ACK that finds the queue full is dropped, which only costs the
@@ -130,11 +130,11 @@ else bad "a worker with 2048 credits: TILEs that do not fit its queue go later, 
 # (a worker drops a TILE whose map was never announced) ---
 sed 's/"width": 160, "height": 120/"width": 512, "height": 512/' scenes/fog_spot/fog_spot.json >"$T/fog.json"
 cp scenes/fog_spot/room.obj "$T/"
-timeout 120 $M "$T/fog.json" -o "$T/maps.exr" --spp 2 --passes 2 --tile 8 --workers 0 --no-journal \
-  --worker-timeout-ms 60000 --bind "ipc://$T/f.sock" >"$T/m.log" 2>&1 &
+timeout 300 $M "$T/fog.json" -o "$T/maps.exr" --spp 2 --passes 2 --tile 8 --workers 0 --no-journal \
+  --worker-timeout-ms 60000 --stall-ms 60000 --bind "ipc://$T/f.sock" >"$T/m.log" 2>&1 &
 mp=$!
 echo $mp >>"$T/pids"
-timeout 120 $L "ipc://$T/f.sock" -n 1 --credits 1200 --pause-ms 2000 --tiny-queue --no-fetch --timeout-ms 30000 >"$T/log" 2>&1
+timeout 300 $L "ipc://$T/f.sock" -n 1 --credits 1200 --pause-ms 2000 --tiny-queue --no-fetch --timeout-ms 240000 >"$T/log" 2>&1
 wait $mp && mr=0 || mr=1
 cat "$T/m.log" >>"$T/log"
 if [ $mr = 0 ] && grep -q "^loadpeers: tiles_before_map 0$" "$T/log" && [ "$(counter tiles_done "$T/maps.exr")" = 8192 ]; then
