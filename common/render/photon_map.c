@@ -279,13 +279,11 @@ double photon_pass_radius(double r0, double alpha, uint32_t pass, int dim)
 
 /* ---- the forward cone ---- */
 
-/* Henyey-Greenstein as phase_hg_cut, in float for the lookups' inner loops. */
+/* Henyey-Greenstein without the forward cone, in float for the lookups' inner loops. */
 static inline float phase_hg_fast(float cos_theta, float g)
 {
     if (cos_theta > MEDIUM_FORWARD_COS)
         return 0.0f;
-    if (g < 0.0f && cos_theta < -MEDIUM_FORWARD_COS)
-        return phase_backward_mean(g);
     float d = 1.0f + g * g - 2.0f * g * cos_theta;
     d = d > 1e-30f ? d : 1e-30f;
     return (1.0f - g * g) / (4.0f * (float)M_PI * d * sqrtf(d));

@@ -243,20 +243,9 @@ double phase_forward_mass(float g)
     return f < 0.0 ? 0.0 : (f > 1.0 ? 1.0 : f);
 }
 
-float phase_backward_mean(float g)
-{
-    /* HG is symmetric under (g, cos) -> (-g, -cos): the backward cone's mass at g is the
-     * forward cone's at -g; the cone spans 2 pi (1 - MEDIUM_FORWARD_COS) steradians. */
-    return (float)(phase_forward_mass(-g) / (2.0 * M_PI * (1.0 - (double)MEDIUM_FORWARD_COS)));
-}
-
 float phase_hg_cut(float cos_theta, float g)
 {
-    if (cos_theta > MEDIUM_FORWARD_COS)
-        return 0.0f;
-    if (g < 0.0f && cos_theta < -MEDIUM_FORWARD_COS)
-        return phase_backward_mean(g);
-    return phase_hg(cos_theta, g);
+    return cos_theta > MEDIUM_FORWARD_COS ? 0.0f : phase_hg(cos_theta, g);
 }
 
 struct medium medium_forward_cut(const struct medium *md)

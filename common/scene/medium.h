@@ -135,12 +135,8 @@ float phase_hg_sample_cos(float g, float u);
  * scattering, a spike no photon estimate can resolve. */
 #define MEDIUM_FORWARD_COS 0.999f
 double phase_forward_mass(float g);
-/* HG for cos_theta <= MEDIUM_FORWARD_COS, else 0 (not renormalised); for g < 0, within the
- * backward cone (cos_theta < -MEDIUM_FORWARD_COS) its mean over that cone
- * (phase_backward_mean): at g near -1 the backscatter spike is as narrow as the forward
- * one, and its mean keeps its mass within the estimates' reach. */
+/* HG for cos_theta <= MEDIUM_FORWARD_COS, else 0 (not renormalised). */
 float phase_hg_cut(float cos_theta, float g);
-float phase_backward_mean(float g);
 /* md with sigma_t reduced by the forward cone's share of sigma_s (a copy; the render job
  * keeps one per medium, media_track.h). */
 struct medium medium_forward_cut(const struct medium *md);

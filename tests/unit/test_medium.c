@@ -621,32 +621,6 @@ Test(medium, hg_integrates_to_one)
     }
 }
 
-/* Estimates (march, beam) evaluate phase_hg_cut at cosines that are floats: near mu = -1
- * their spacing (6e-8) is far wider than the backscatter spike at g = -0.999999 (1e-12 in
- * mu), so HG taken pointwise over the floats holds 3e4 times its mass. Summed over every
- * float within 1e-3 of -1 (each with the interval that rounds to it) plus the analytic mass
- * beyond, the estimates' phase holds the mass outside the forward cone for every g. */
-Test(medium, hg_cut_over_float_cosines_holds_its_mass)
-{
-    float gs[] = {-0.999999f, -0.99999f, -0.999f, -0.9f, -0.3f, 0.999999f};
-    for (size_t k = 0; k < sizeof gs / sizeof *gs; k++) {
-        double g = gs[k], sum = 0.0;
-        float c = -1.0f;
-        double lo = -1.0;
-        while (c < -1.0f + 1e-3f) {
-            float next = nextafterf(c, 1.0f);
-            double hi = 0.5 * ((double)c + (double)next);
-            sum += 2.0 * M_PI * phase_hg_cut(c, (float)g) * (hi - lo);
-            lo = hi;
-            c = next;
-        }
-        /* Beyond: HG up to the forward cone (phase_hg_cut is HG there). */
-        double rest = hg_cdf(g, (double)MEDIUM_FORWARD_COS) - hg_cdf(g, lo);
-        double want = 1.0 - phase_forward_mass((float)g);
-        cr_expect(fabs(sum + rest - want) < 2e-3 * want, "g %g: %g, expected %g", g, sum + rest, want);
-    }
-}
-
 Test(medium, hg_sampling_chi_square)
 {
     float gs[] = {0.0f, 0.5f, -0.8f, 0.999f, -0.999f};
