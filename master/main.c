@@ -6,6 +6,7 @@
 #include "master.h"
 #include "scene/medium.h"
 #include "wire/net.h"
+#include "render/accel.h"
 #include "scene/sampler.h"
 #include "scene/scene_json.h"
 #include <stdio.h>
@@ -28,7 +29,9 @@ static void usage(FILE *f)
             "  --aovs LIST            AOVs beside the beauty: Z,N,albedo,P,id.object,id.material or all\n"
             "                         (overrides render.aovs)\n"
             "  --filter F[:W]         pixel filter box, gaussian or blackman-harris, W pixels wide\n"
-            "                         (overrides render.filter)\n");
+            "                         (overrides render.filter)\n"
+            "  --embree-isa NAME      avx2 (default), sse4.2 or avx512: Embree's kernels on every node, the\n"
+            "                         same for all so that pixels do not depend on CPUs (docs/cluster.md)\n");
     fprintf(f,
             "  --bind ENDPOINT        also accept workers at ENDPOINT, e.g. tcp://127.0.0.1:5555\n"
             "  --preview OUT.png      also write a tone-mapped sRGB PNG preview (per frame with --frames, named like -o)\n"
@@ -281,6 +284,13 @@ int main(int argc, char **argv)
             }
         } else if (has_arg && !strcmp(a, "--bind")) {
             o.bind = argv[++i];
+        } else if (has_arg && !strcmp(a, "--embree-isa")) {
+            enum embree_isa isa;
+            if (embree_isa_from_name(argv[++i], &isa) != 0) {
+                log_error("--embree-isa: unknown instruction set \"%s\" (avx2, sse4.2 or avx512)", argv[i]);
+                return 2;
+            }
+            o.embree_isa = (uint32_t)isa;
         } else if (has_arg && !strcmp(a, "--sampler")) {
             enum sampler_type st;
             if (sampler_type_from_name(argv[++i], &st) != 0) {

@@ -341,6 +341,7 @@ static int load_scene(struct master *m, uint32_t frame)
         rs->max_depth = o->depth;
     if (o->have_sampler)
         rs->sampler = (enum sampler_type)o->sampler;
+    rs->embree_isa = (enum embree_isa)o->embree_isa;
     if (o->have_aovs)
         rs->aovs = o->aovs;
     if (o->have_filter) {
@@ -427,10 +428,11 @@ static int publish_manifest(struct master *m)
     }
     char settings[512];
     int sl = snprintf(settings, sizeof settings,
-                      "%ux%u spp=%u depth=%u seed=%llu sampler=%u photon_maps=%u passes=%u aovs=%u filter=%u/%.9g",
+                      "%ux%u spp=%u depth=%u seed=%llu sampler=%u photon_maps=%u passes=%u aovs=%u filter=%u/%.9g "
+                      "isa=%s",
                       rs->width, rs->height, rs->spp, rs->max_depth, (unsigned long long)rs->seed,
                       (unsigned)rs->sampler, m->photon_maps, m->passes, rs->aovs, m->scene.camera.filter,
-                      (double)m->scene.camera.filter_width);
+                      (double)m->scene.camera.filter_width, embree_isa_name(rs->embree_isa));
     /* What the command line can set beside the scene file and the pixels depend on: the
      * media's method and photon settings, and an adaptive render's rules (not a time limit:
      * where it stops is timing, docs/adaptive.md). A frame of --frames counts as done only
@@ -851,6 +853,7 @@ static void send_job(struct master *m, struct peer *p)
     j->aovs = rs->aovs;
     j->filter = m->scene.camera.filter;
     j->filter_width = m->scene.camera.filter_width;
+    j->embree_isa = rs->embree_isa;
     j->photon_maps = m->photon_maps;
     j->passes = m->passes;
     snprintf(j->scene_path, sizeof j->scene_path, "%s", m->scene_rel);

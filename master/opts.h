@@ -31,6 +31,7 @@ struct master_opts {
     int have_spp, have_seed, have_tile, have_depth;
     int have_sampler;
     uint32_t sampler;           /* enum sampler_type, with have_sampler */
+    uint32_t embree_isa;        /* enum embree_isa (--embree-isa; 0, the default, is AVX2) */
     int have_aovs, have_filter;
     uint32_t aovs;              /* --aovs: bit set of enum aov */
     uint32_t filter;            /* --filter: enum pixel_filter */

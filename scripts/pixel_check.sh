@@ -3,7 +3,9 @@
 # Embree Cornell box of the bench and the textured bench scene with each texture filter,
 # and either saves the EXRs or compares decoded pixels bit for bit against a saved set.
 # A change that must not move a pixel is checked by `save` before and `cmp` after.
-# Usage: BUILD=build sh scripts/pixel_check.sh save|cmp DIR   (env: SPP, default 4)
+# Usage: BUILD=build sh scripts/pixel_check.sh save|cmp DIR   (env: SPP, default 4;
+# MASTER_OPTS, options added to every render, e.g. "--embree-isa avx512" to compare with a
+# set saved under another default)
 set -eu
 BUILD=${BUILD:-build}
 SPP=${SPP:-4}
@@ -18,7 +20,7 @@ pass=0 fail=0
 render() {
   rn=$1; scene=$2; shift 2
   out="$T/$rn.exr"
-  if ! "$BUILD/master" "$scene" -o "$out" --workers 2 --threads 1 --spp "$SPP" --no-journal "$@" \
+  if ! "$BUILD/master" "$scene" -o "$out" --workers 2 --threads 1 --spp "$SPP" --no-journal "$@" ${MASTER_OPTS:-} \
       >"$T/log" 2>&1; then
     echo "pixel_check: $rn: render failed:"; tail -3 "$T/log"; fail=$((fail + 1)); return 0
   fi

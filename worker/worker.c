@@ -542,6 +542,7 @@ static int load_scene(struct worker *w)
     rs->seed = w->job.seed;
     rs->sampler = (enum sampler_type)w->job.sampler;
     rs->aovs = w->job.aovs;
+    rs->embree_isa = (enum embree_isa)w->job.embree_isa;
     w->scene.camera.filter = w->job.filter;
     w->scene.camera.filter_width = w->job.filter_width;
     if (w->load.cancel) {

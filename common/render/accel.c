@@ -17,6 +17,61 @@ static void accel_on_error(void *user, enum RTCError code, const char *str)
     log_error("embree: error %d: %s", (int)code, str ? str : "(no message)");
 }
 
+static const char *const isa_names[EMBREE_ISA_COUNT_] = {"avx2", "sse4.2", "avx512"};
+
+const char *embree_isa_name(enum embree_isa isa)
+{
+    return (unsigned)isa < EMBREE_ISA_COUNT_ ? isa_names[isa] : "?";
+}
+
+int embree_isa_from_name(const char *name, enum embree_isa *isa)
+{
+    for (unsigned i = 0; i < EMBREE_ISA_COUNT_; i++)
+        if (strcmp(name, isa_names[i]) == 0) {
+            *isa = (enum embree_isa)i;
+            return 0;
+        }
+    return -1;
+}
+
+/* The features Embree 3 asks of each of its instruction sets, as far as the compiler's
+ * __builtin_cpu_supports names them (Embree checks the rest itself: rtcNewDevice then
+ * fails with RTC_ERROR_UNSUPPORTED_CPU). */
+int embree_isa_supported(enum embree_isa isa)
+{
+#if defined(__x86_64__) || defined(__i386__)
+    __builtin_cpu_init();
+    int sse42 = __builtin_cpu_supports("sse4.2") && __builtin_cpu_supports("popcnt");
+    int avx2 = sse42 && __builtin_cpu_supports("avx") && __builtin_cpu_supports("avx2") &&
+               __builtin_cpu_supports("fma") && __builtin_cpu_supports("bmi") && __builtin_cpu_supports("bmi2");
+    int avx512 = avx2 && __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512cd") &&
+                 __builtin_cpu_supports("avx512dq") && __builtin_cpu_supports("avx512bw") &&
+                 __builtin_cpu_supports("avx512vl");
+    switch (isa) {
+    case EMBREE_ISA_SSE42: return sse42;
+    case EMBREE_ISA_AVX2: return avx2;
+    case EMBREE_ISA_AVX512: return avx512;
+    default: return 0;
+    }
+#else
+    (void)isa;
+    return 0;
+#endif
+}
+
+int embree_device_config(enum embree_isa isa, uint32_t threads, char *config, size_t size, char *err, size_t errlen)
+{
+    if (!embree_isa_supported(isa)) {
+        str_fmt(err, errlen,
+                "this CPU cannot run Embree's %s kernels, which the job's rays use on every node (--embree-isa %s; "
+                "a cluster with older CPUs renders with an instruction set they all have, e.g. --embree-isa sse4.2)",
+                embree_isa_name(isa), embree_isa_name(isa));
+        return -1;
+    }
+    snprintf(config, size, "threads=%u,isa=%s", threads, embree_isa_name(isa));
+    return 0;
+}
+
 /* A triangle geometry for mesh m: its own positions, or num_steps vertex sets in steps. */
 static RTCGeometry new_triangles(struct accel *a, const struct mesh *m, const float *steps, uint32_t num_steps)
 {
@@ -182,7 +237,8 @@ int accel_init(struct accel *a, const struct scene *s, uint32_t frame, uint32_t 
 {
     memset(a, 0, sizeof *a);
     char config[64];
-    snprintf(config, sizeof config, "threads=%u", threads);
+    if (embree_device_config(s->settings.embree_isa, threads, config, sizeof config, err, errlen) != 0)
+        return -1;
     a->device = rtcNewDevice(config);
     if (!a->device) {
         str_fmt(err, errlen, "embree: cannot create device (error %d)", (int)rtcGetDeviceError(NULL));

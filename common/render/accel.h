@@ -56,8 +56,18 @@ struct accel_hit {
     float u, v;     /* barycentrics for triangles */
 };
 
-/* Builds the scene for frame `frame` (its shutter is frame + camera.shutter_open .. close).
- * threads: Embree's build threads (0 = all cores). Returns 0 or -1 with err. */
+/* Embree's name of an instruction set ("avx2", "sse4.2", "avx512"), and the enum of a name
+ * (0, or -1 for an unknown one). */
+const char *embree_isa_name(enum embree_isa isa);
+int embree_isa_from_name(const char *name, enum embree_isa *isa);
+/* 1 when this CPU runs Embree's kernels for `isa` (the features Embree requires of it). */
+int embree_isa_supported(enum embree_isa isa);
+/* "threads=T,isa=NAME" for rtcNewDevice; -1 with err when this CPU lacks the instruction set. */
+int embree_device_config(enum embree_isa isa, uint32_t threads, char *config, size_t size, char *err, size_t errlen);
+
+/* Builds the scene for frame `frame` (its shutter is frame + camera.shutter_open .. close)
+ * with the Embree kernels of scene->settings.embree_isa. threads: Embree's build threads
+ * (0 = all cores). Returns 0 or -1 with err. */
 int accel_init(struct accel *a, const struct scene *scene, uint32_t frame, uint32_t threads, char *err,
                 size_t errlen);
 void accel_fini(struct accel *a);

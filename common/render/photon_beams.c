@@ -40,6 +40,7 @@ struct photon_beams {
     struct pb_decoded *beams;
     struct pb_chunk *chunks;
     RTCScene scene;     /* NULL when there are no chunks */
+    enum embree_isa isa; /* the kernels its BVH is built and traversed with (the job's) */
     /* The chunks and BVH are built by the first query (on a render thread, so a worker's
      * decoding stays quick and its heartbeats flow) or by photon_beams_set_radius. */
     pthread_mutex_t lock;
@@ -97,12 +98,21 @@ int photon_beams_serialise(struct photon_beam_list *blocks, uint32_t num_blocks,
 
 /* ---- the BVH ---- */
 
-static RTCDevice pb_device;
-static pthread_once_t pb_once = PTHREAD_ONCE_INIT;
+/* One Embree device per instruction set, made on first use: the beams' BVH is traversed
+ * with the job's kernels, as every other ray query (scene.h, enum embree_isa). */
+static RTCDevice pb_devices[EMBREE_ISA_COUNT_];
+static pthread_mutex_t pb_devices_lock = PTHREAD_MUTEX_INITIALIZER;
 
-static void pb_device_init(void)
+static RTCDevice pb_device_get(enum embree_isa isa)
 {
-    pb_device = rtcNewDevice(NULL);
+    char config[64], err[256];
+    CHECK((unsigned)isa < EMBREE_ISA_COUNT_);
+    pthread_mutex_lock(&pb_devices_lock);
+    if (!pb_devices[isa] && embree_device_config(isa, 0, config, sizeof config, err, sizeof err) == 0)
+        pb_devices[isa] = rtcNewDevice(config);
+    RTCDevice d = pb_devices[isa];
+    pthread_mutex_unlock(&pb_devices_lock);
+    return d;
 }
 
 static void chunk_bounds(const struct photon_beams *pb, uint32_t i, float lo[3], float hi[3])
@@ -286,12 +296,12 @@ static void build_now(struct photon_beams *pb)
     }
     pb->num_chunks = m;
     morton_order(pb->chunks, m);
-    pthread_once(&pb_once, pb_device_init);
-    CHECK(pb_device != NULL); /* Embree could not start */
-    pb->scene = rtcNewScene(pb_device);
+    RTCDevice device = pb_device_get(pb->isa);
+    CHECK(device != NULL); /* Embree could not start (the job's accel_init checked the CPU) */
+    pb->scene = rtcNewScene(device);
     rtcSetSceneBuildQuality(pb->scene, RTC_BUILD_QUALITY_MEDIUM);
     rtcSetSceneFlags(pb->scene, RTC_SCENE_FLAG_ROBUST);
-    accel_attach_user_geometry(pb_device, pb->scene, m, pb, bounds_cb, intersect_cb);
+    accel_attach_user_geometry(device, pb->scene, m, pb, bounds_cb, intersect_cb);
     rtcCommitScene(pb->scene);
 }
 
@@ -395,6 +405,16 @@ void photon_beams_set_radius(struct photon_beams *pb, float radius)
     pb->radius = radius;
     build_now(pb);
     atomic_store_explicit(&pb->built, 1, memory_order_release);
+}
+
+void photon_beams_set_isa(struct photon_beams *pb, enum embree_isa isa)
+{
+    if (!pb || pb->isa == isa)
+        return;
+    pthread_mutex_lock(&pb->lock);
+    CHECK(!atomic_load_explicit(&pb->built, memory_order_relaxed)); /* before the first query */
+    pb->isa = isa;
+    pthread_mutex_unlock(&pb->lock);
 }
 
 void photon_beams_free(struct photon_beams **pp)

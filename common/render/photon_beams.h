@@ -23,6 +23,7 @@
 #include <stdint.h>
 #include "base/vec.h"
 #include "scene/medium.h"
+#include "scene/scene.h"
 
 struct photon_tau;
 
@@ -66,6 +67,9 @@ size_t photon_beams_bytes(const struct photon_beams *pb);
 float photon_beams_radius(const struct photon_beams *pb);
 /* Sets the radius of a decoded set (tests), rebuilding its BVH. */
 void photon_beams_set_radius(struct photon_beams *pb, float radius);
+/* The Embree kernels its BVH is built and traversed with: the job's (scene.h, enum
+ * embree_isa; default EMBREE_ISA_AVX2). Before the first query. */
+void photon_beams_set_isa(struct photon_beams *pb, enum embree_isa isa);
 /* Builds a set from beams in memory (tests). */
 struct photon_beams *photon_beams_from(const struct photon_beam *beams, uint32_t n, float radius);
 

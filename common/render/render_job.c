@@ -6,6 +6,7 @@
 #include "image/mip.h"
 #include "render/media_track.h"
 #include "render/motion_vis.h"
+#include "render/photon_beams.h"
 #include "render/photon_map.h"
 #include "scene/texture.h"
 #include <stdlib.h>
@@ -162,6 +163,8 @@ void render_job_set_pass_map(struct render_job *job, uint32_t pass, struct photo
     photon_map_free(&job->pass_maps[pass]);
     job->pass_maps[pass] = *map;
     *map = NULL;
+    if (job->pass_maps[pass] && job->pass_maps[pass]->beams) /* traversed with the job's kernels */
+        photon_beams_set_isa(job->pass_maps[pass]->beams, job->scene->settings.embree_isa);
     if (pass == 0 && job->media)
         job->media->map = job->media->sm->method != MEDIA_VPT ? job->pass_maps[0] : NULL;
     if (job->media)

@@ -135,6 +135,13 @@ enum sampler_type { SAMPLER_INDEPENDENT, SAMPLER_STRATIFIED, SAMPLER_SOBOL, SAMP
 
 #define SCENE_MAX_PASSES 1024u
 
+/* Embree's kernels (instruction set) for every ray query of a job, the same on every worker
+ * and in the master's photon pass: Embree's kernels for different instruction sets give
+ * different hits in the last bits (their reciprocals differ), so a cluster mixing CPUs
+ * would render different pixels per tile (docs/cluster.md). The zero value is the default,
+ * AVX2 (x86-64-v3). Names: render/accel.h. */
+enum embree_isa { EMBREE_ISA_AVX2, EMBREE_ISA_SSE42, EMBREE_ISA_AVX512, EMBREE_ISA_COUNT_ };
+
 /* Arbitrary output variables (render.aovs), written next to the beauty (render/tile.h
  * gives their channels): the first hit's camera distance, world shading normal, albedo
  * of the first non-specular hit, world position, object and material ids. */
@@ -153,6 +160,7 @@ struct render_settings {
     float pixel_error;      /* render.pixel_error: adaptive until every pixel's relative error is this (docs/adaptive.md); 0 = none */
     float time_limit;       /* render.time_limit: seconds, adaptive, stops at a round boundary; 0 = none */
     uint32_t aovs;          /* render.aovs: bit set of enum aov (render/tile.h); 0 = beauty only */
+    enum embree_isa embree_isa; /* the job's Embree kernels (--embree-isa); not in the scene file */
 };
 
 struct texture; /* texture.h */

@@ -56,6 +56,10 @@ static int check_job_settings(const struct msg_job *j, char *err, size_t errlen)
         str_fmt(err, errlen, "JOB: sampler %u unknown", j->sampler);
         return -1;
     }
+    if (j->embree_isa >= EMBREE_ISA_COUNT_) {
+        str_fmt(err, errlen, "JOB: Embree instruction set %u unknown", j->embree_isa);
+        return -1;
+    }
     if ((j->aovs & ~AOV_ALL) || j->filter >= FILTER_COUNT_ || !isfinite(j->filter_width) ||
         (j->filter != FILTER_BOX &&
          !(j->filter_width >= SCENE_FILTER_MIN_WIDTH && j->filter_width <= SCENE_FILTER_MAX_WIDTH))) {
@@ -215,6 +219,7 @@ int proto_encode(const struct proto_msg *msg, struct proto_buf *b)
         put_u32(b, fw);
         put_u32(b, m->photon_maps);
         put_u32(b, m->passes);
+        put_u32(b, m->embree_isa);
         if (put_str(b, m->scene_path) < 0)
             return -1;
         put_u32(b, m->num_assets);
@@ -486,6 +491,7 @@ static void decode_job(struct reader *r, struct msg_job *m)
     memcpy(&m->filter_width, &fw, 4);
     m->photon_maps = get_u32(r, "photon_maps");
     m->passes = get_u32(r, "passes");
+    m->embree_isa = get_u32(r, "embree_isa");
     get_str(r, m->scene_path, "scene_path");
     uint32_t n = get_u32(r, "num_assets");
     if (r->failed)

@@ -13,7 +13,7 @@
 #include "render/tile.h"
 
 #define PROTO_MAGIC 0x4d555242u /* "BRUM" little-endian */
-#define PROTO_VERSION 11 /* 2: HEARTBEAT carries samples_done; 3: JOB carries job_key, ACK, KEPT; 4: photon-map passes (JOB photon_maps, MAP); 5: JOB passes (passes without photon maps); 6: TILE and KEPT carry the holder's tag; 7: JOB aovs, filter; 8: TILE pass and block mask; 9: CHUNKS_REQ, CHUNKS (broadcast blobs); 10: blocks of 4 px (a TILE mask names other pixels); 11: a blob is named by the hash of its chunk list */
+#define PROTO_VERSION 12 /* 2: HEARTBEAT carries samples_done; 3: JOB carries job_key, ACK, KEPT; 4: photon-map passes (JOB photon_maps, MAP); 5: JOB passes (passes without photon maps); 6: TILE and KEPT carry the holder's tag; 7: JOB aovs, filter; 8: TILE pass and block mask; 9: CHUNKS_REQ, CHUNKS (broadcast blobs); 10: blocks of 4 px (a TILE mask names other pixels); 11: a blob is named by the hash of its chunk list; 12: JOB embree_isa */
 #define PROTO_MAX_MESSAGE (64u * 1024u * 1024u) /* also ZMQ_MAXMSGSIZE */
 #define PROTO_MAX_STRING 1024
 #define PROTO_MAX_ASSETS 4096
@@ -74,6 +74,9 @@ struct msg_job {
      * of P): units u = p * tiles + tile, each pass spp / P samples with its own scramble.
      * photon_maps is 0 or equal to it. */
     uint32_t passes;
+    /* enum embree_isa (scene.h), < EMBREE_ISA_COUNT_: the Embree kernels every worker's rays
+     * use, so that pixels do not depend on which CPU rendered a tile */
+    uint32_t embree_isa;
     char scene_path[PROTO_MAX_STRING];   /* one of the assets: the scene file */
     uint32_t num_assets;                 /* <= PROTO_MAX_ASSETS */
     struct proto_asset *assets;          /* decode allocates; free with proto_job_free */

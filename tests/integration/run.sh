@@ -54,6 +54,19 @@ if head -c 8 "$T/c1.png" | od -An -c | grep -q "P   N   G"; then ok "PNG preview
 if grep -q "summary: wall" "$T/c1.log" && grep -q "Mrays/s" "$T/c1.log" && grep -q "NaN/Inf samples dropped: 0" "$T/c1.log" &&
   grep -q "relative standard error" "$T/c1.log"; then ok "summary reports speed, NaNs and noise"; else cp "$T/c1.log" "$T/log"; bad "summary reports speed, NaNs and noise"; fi
 
+# --- --embree-isa: the job fixes Embree's kernels on every worker. Another instruction set
+# gives other pixels (its kernels' hits differ in the last bits), one set the same pixels on
+# any workers, and the set is part of the scene hash journals and --frames match ---
+run $M scenes/cornell/cornell.json -o "$T/i1.exr" --workers 1 --spp 4 --embree-isa sse4.2 && r1=0 || r1=1
+run $M scenes/cornell/cornell.json -o "$T/i3.exr" --workers 3 --threads 1 --spp 4 --tile 48 --embree-isa sse4.2 && r3=0 || r3=1
+if [ $r1 = 0 ] && [ $r3 = 0 ] && $X cmp "$T/i1.exr" "$T/i3.exr" && ! $X cmp "$T/c1.exr" "$T/i1.exr" >/dev/null &&
+  python3 -c 'import json, sys; a, b = (json.load(open(f))["scene_hash"] for f in sys.argv[1:]); sys.exit(a == b)' \
+    "$T/c1.exr.stats.json" "$T/i1.exr.stats.json"; then
+  ok "--embree-isa sse4.2: other pixels and scene hash than avx2, 1 vs 3 workers bit-identical"
+else bad "--embree-isa sse4.2: other pixels and scene hash than avx2, 1 vs 3 workers bit-identical"; fi
+if ! run $M scenes/tiny/tiny.json -o "$T/x.exr" --embree-isa avx9 && grep -q -- "--embree-isa: .*avx9" "$T/log"; then
+  ok "unknown --embree-isa named"; else bad "unknown --embree-isa named"; fi
+
 # --- counters: not on screen by default; in OUT.stats.json, valid JSON that matches the
 # "summary: counter" lines of --verbose and what the run did ---
 run $M scenes/tiny/tiny.json -o "$T/v.exr" --workers 2 --threads 1 --verbose && r=0 || r=1

@@ -18,7 +18,7 @@ static const struct mem_file files[] = {
     {"blocker.obj", "v -1 1 -1\nv 1 1 -1\nv 1 1 1\nv -1 1 1\nf 1 2 3 4\n", 0},
     {NULL, NULL, 0}};
 
-static void load(struct scene *s, struct accel *a)
+static void load_isa(struct scene *s, struct accel *a, enum embree_isa isa)
 {
     char err[512];
     const char *text =
@@ -28,8 +28,14 @@ static void load(struct scene *s, struct accel *a)
         "\"lights\": [{\"type\": \"point\", \"position\": [0, 3, 0], \"intensity\": [1, 1, 1]}]}";
     log_set_level(LOG_ERROR);
     cr_assert_eq(test_scene_load(text, files, s, err), 0, "%s", err);
+    s->settings.embree_isa = isa;
     cr_assert_eq(accel_init(a, s, 0, 1, err, sizeof err), 0, "%s", err);
     cr_assert(a->packets_exact);
+}
+
+static void load(struct scene *s, struct accel *a)
+{
+    load_isa(s, a, EMBREE_ISA_AVX2);
 }
 
 static float unit(uint64_t key, uint32_t dim)
@@ -48,11 +54,13 @@ static void ray(uint32_t t, uint32_t k, vec3 *o, vec3 *target)
     *target = v3(6.0f * unit(key, 2) - 3.0f, unit(key, 3) < 0.3f ? -1.0f : 0.5f * unit(key, 4), 6.0f * unit(key, 5) - 3.0f);
 }
 
-Test(accel, intersect_packet_equals_single_rays)
+/* Every instruction set a job may name and this CPU runs: its packet kernels against its
+ * single-ray ones. */
+static void intersect_packet_check(enum embree_isa isa)
 {
     struct scene s;
     struct accel a;
-    load(&s, &a);
+    load_isa(&s, &a, isa);
     uint32_t hits = 0, misses = 0;
     for (uint32_t t = 0; t < 40; t++)
         for (uint32_t n = 1; n <= ACCEL_PACKET; n++) {
@@ -87,11 +95,22 @@ Test(accel, intersect_packet_equals_single_rays)
     scene_fini(&s);
 }
 
-Test(accel, occluded_packet_equals_single_rays)
+Test(accel, intersect_packet_equals_single_rays)
+{
+    uint32_t n = 0;
+    for (unsigned i = 0; i < EMBREE_ISA_COUNT_; i++)
+        if (embree_isa_supported((enum embree_isa)i)) {
+            intersect_packet_check((enum embree_isa)i);
+            n++;
+        }
+    cr_assert(n >= 1, "no instruction set of Embree's runs here");
+}
+
+static void occluded_packet_check(enum embree_isa isa)
 {
     struct scene s;
     struct accel a;
-    load(&s, &a);
+    load_isa(&s, &a, isa);
     uint32_t blocked = 0, clear = 0;
     const float tmax = 1.0f - 0x1p-12f; /* as the path tracer's shadow rays: short of the target */
     for (uint32_t t = 0; t < 40; t++)
@@ -118,6 +137,40 @@ Test(accel, occluded_packet_equals_single_rays)
     cr_assert(blocked > 100 && clear > 100, "blocked %u, clear %u: both kinds must occur", blocked, clear);
     accel_fini(&a);
     scene_fini(&s);
+}
+
+Test(accel, occluded_packet_equals_single_rays)
+{
+    for (unsigned i = 0; i < EMBREE_ISA_COUNT_; i++)
+        if (embree_isa_supported((enum embree_isa)i))
+            occluded_packet_check((enum embree_isa)i);
+}
+
+/* The instruction sets' names round trip; each one this CPU runs starts an Embree device
+ * with the config the job's builds use; the default (0) is AVX2. */
+Test(accel, embree_isa_names_and_devices)
+{
+    char config[64], err[256];
+    cr_assert_eq(EMBREE_ISA_AVX2, 0);
+    for (unsigned i = 0; i < EMBREE_ISA_COUNT_; i++) {
+        enum embree_isa isa;
+        cr_assert_eq(embree_isa_from_name(embree_isa_name((enum embree_isa)i), &isa), 0);
+        cr_assert_eq((unsigned)isa, i);
+        int ok = embree_device_config((enum embree_isa)i, 1, config, sizeof config, err, sizeof err);
+        cr_assert_eq(ok == 0, embree_isa_supported((enum embree_isa)i) != 0);
+        if (ok != 0) {
+            cr_assert(strstr(err, embree_isa_name((enum embree_isa)i)), "%s", err);
+            continue;
+        }
+        cr_assert(strstr(config, embree_isa_name((enum embree_isa)i)), "%s", config);
+        RTCDevice d = rtcNewDevice(config);
+        cr_assert(d != NULL, "%s: error %d", config, (int)rtcGetDeviceError(NULL));
+        rtcReleaseDevice(d);
+    }
+    enum embree_isa isa = EMBREE_ISA_SSE42;
+    cr_assert_eq(embree_isa_from_name("avx9", &isa), -1);
+    cr_assert_eq(embree_isa_from_name("", &isa), -1);
+    cr_assert_eq(isa, EMBREE_ISA_SSE42);
 }
 
 /* A shadow segment toward a point past Embree's bound on a ray (a light 1e19 away) is

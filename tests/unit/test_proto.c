@@ -59,6 +59,7 @@ static size_t make_samples(struct proto_msg out[MSG_TYPE_MAX_])
     out[n].u.job.filter_width = 1.5f;
     out[n].u.job.photon_maps = 8;
     out[n].u.job.passes = 8;
+    out[n].u.job.embree_isa = EMBREE_ISA_AVX512;
     strcpy(out[n].u.job.scene_path, "scene.json");
     out[n].u.job.num_assets = 3;
     out[n].u.job.assets = k_assets;
@@ -218,6 +219,7 @@ static void assert_msg_eq(const struct proto_msg *a, const struct proto_msg *b)
         cr_assert_eq(x->filter_width, y->filter_width);
         cr_assert_eq(x->photon_maps, y->photon_maps);
         cr_assert_eq(x->passes, y->passes);
+        cr_assert_eq(x->embree_isa, y->embree_isa);
         cr_assert_str_eq(x->scene_path, y->scene_path);
         cr_assert_eq(x->num_assets, y->num_assets);
         for (uint32_t i = 0; i < x->num_assets; i++) {
@@ -388,6 +390,7 @@ static void fb_job_prefix(struct fb *b, uint32_t width, uint32_t height, uint32_
     fb_u(b, 0, 4); /* filter_width (float bits) */
     fb_u(b, 0, 4); /* photon_maps */
     fb_u(b, 0, 4); /* passes */
+    fb_u(b, 0, 4); /* embree_isa: avx2 */
     fb_u(b, 10, 2);
     fb_bytes(b, "scene.json", 10);
 }
@@ -604,6 +607,26 @@ Test(proto, string_limits)
     cr_assert_eq(proto_encode(&m, &b), -1);
     m.u.error.text[PROTO_MAX_STRING - 1] = '\0';
     cr_assert_eq(proto_encode(&m, &b), 0);
+    proto_buf_fini(&b);
+}
+
+/* A JOB naming an Embree instruction set that does not exist is refused both ways. */
+Test(proto, job_embree_isa_checked)
+{
+    struct fb f = {0};
+    fb_job_prefix(&f, 64, 64, 1, 16);
+    f.d[f.n - 16] = EMBREE_ISA_COUNT_; /* embree_isa: before the path's length (2) and bytes (10) */
+    fb_u(&f, 0, 4);
+    const char *err = expect_reject(f.d, f.n);
+    cr_assert(strstr(err, "instruction set"), "%s", err);
+    free(f.d);
+    struct proto_msg m = {.type = MSG_JOB};
+    m.u.job.width = m.u.job.height = m.u.job.spp = m.u.job.tile_size = 16;
+    strcpy(m.u.job.scene_path, "scene.json");
+    struct proto_buf b = {0};
+    cr_assert_eq(proto_encode(&m, &b), 0);
+    m.u.job.embree_isa = EMBREE_ISA_COUNT_;
+    cr_assert_eq(proto_encode(&m, &b), -1);
     proto_buf_fini(&b);
 }
 
