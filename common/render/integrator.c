@@ -270,8 +270,24 @@ static vec3 camera_path(const struct render_job *job, uint32_t pass, uint32_t px
             texshade_camera(job, &cs, &smp, &rd);
         struct accel_hit h0;
         int found0 = aov ? aov_trace(job, cs.o, cs.d, cs.time01, job->textured ? &rd : NULL, aov, &h0) : 0;
-        return media_sample_path_pass(job, pass, &smp, px, py, cs.o, cs.d, cs.time01, aov ? &h0 : NULL, found0,
-                                      job->textured ? &rd : NULL, rays, hit_any);
+        const uint32_t k = job->direct_samples;
+        vec3 direct;
+        vec3 L = media_sample_path_pass(job, pass, &smp, px, py, cs.o, cs.d, cs.time01, aov ? &h0 : NULL, found0,
+                                        job->textured ? &rd : NULL, k > 1 ? &direct : NULL, rays, hit_any);
+        if (k > 1) {
+            /* The light seen straight from the camera, averaged over k rays: this one and
+             * k - 1 more with the pixel jitter shifted by the R2 lattice (Roberts), each
+             * uniform over the pixel, so the mean is unbiased and its rays stratified. */
+            for (uint32_t i = 1; i < k; i++) {
+                struct camera_sample c2;
+                float su = (float)fmod((double)i * 0.7548776662466927, 1.0);
+                float sv = (float)fmod((double)i * 0.5698402909980532, 1.0);
+                camera_generate_shifted(&job->camera, &smp, job->frame, px, py, &cs, su, sv, &c2);
+                direct = v3_add(direct, media_direct_light(job, pass, c2.o, c2.d, c2.time01, rays));
+            }
+            L = v3_add(L, v3_scale(direct, 1.0f / (float)k));
+        }
+        return L;
     }
     struct path p;
     path_start(job, &p, smp, &cs, aov);

@@ -729,12 +729,36 @@ static vec3 hit_emission(const struct render_job *job, const struct surface *s, 
 vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, uint32_t px, uint32_t py, vec3 org,
                        vec3 dir, float time01, uint64_t *rays, int *hit_any)
 {
-    return media_sample_path_pass(job, 0, smp, px, py, org, dir, time01, NULL, 0, NULL, rays, hit_any);
+    return media_sample_path_pass(job, 0, smp, px, py, org, dir, time01, NULL, 0, NULL, NULL, rays, hit_any);
+}
+
+vec3 media_direct_light(const struct render_job *job, uint32_t pass, vec3 org, vec3 dir, float time01, uint64_t *rays)
+{
+    const struct scene *sc = job->scene;
+    const struct media_job *mj = render_job_pass_media(job, pass);
+    const uint32_t medium = mj->camera_medium;
+    struct accel_hit h;
+    (*rays)++;
+    if (!accel_intersect(&job->accel, org, dir, INFINITY, time01, &h))
+        return medium == MEDIUM_NONE && sc->env ? light_env_radiance(&job->lights, sc, dir) : v3(0, 0, 0);
+    struct surface s;
+    surface_from_hit(&job->accel, &job->lights, org, dir, &h, time01, &s);
+    if (s.light == LIGHT_NONE || media_is_interface(job->media, s.material))
+        return v3(0, 0, 0);
+    vec3 le = hit_emission(job, &s, dir, 1, 0.0f, org);
+    if (medium == MEDIUM_NONE || v3_is_black(le))
+        return le;
+    /* The transmittance each method gives the camera segment's end (media_sample_path_pass). */
+    if (mj->sm->method == MEDIA_VPT)
+        return v3_mul(medium_transmittance(&mj->sm->media[medium], h.t), le);
+    float exact = v3_length(v3_sub(v3_add(org, v3_scale(dir, h.t)), org));
+    return v3_mul(medium_transmittance(&mj->cut[medium], exact), le);
 }
 
 vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const struct sampler *smp, uint32_t px,
                             uint32_t py, vec3 org, vec3 dir, float time01, const struct accel_hit *first,
-                            int first_found, const struct raydiff *camera_rd, uint64_t *rays, int *hit_any)
+                            int first_found, const struct raydiff *camera_rd, vec3 *direct, uint64_t *rays,
+                            int *hit_any)
 {
     const struct scene *sc = job->scene;
     const struct media_job *mj = render_job_pass_media(job, pass); /* the pass's photon map */
@@ -770,6 +794,8 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
         rd = camera_rd ? *camera_rd : point;
     }
     *hit_any = 0;
+    if (direct)
+        *direct = v3(0, 0, 0);
     for (;;) {
         struct accel_hit h;
         struct surface s;
@@ -813,7 +839,9 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
                     if (!media_is_interface(job->media, s.material)) {
                         emitted = 1;
                         vec3 le = hit_emission(job, &s, dir, prev_delta, prev_pdf, prev_p);
-                        if (!v3_is_black(le))
+                        if (direct && vertex == 0 && crossings == 0) /* averaged by the caller */
+                            *direct = v3_mul(medium_transmittance(md, h.t), le);
+                        else if (!v3_is_black(le))
                             L = v3_add(L, v3_mul(v3_mul(beta, medium_transmittance(md, h.t)), le));
                     }
                 }
@@ -870,7 +898,10 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
         }
         if (!hit) {
             /* Escaped: the environment light, weighted as an emitter hit below is. */
-            if (sc->env && !v3_is_black(beta)) {
+            if (direct && vertex == 0 && crossings == 0 && medium == MEDIUM_NONE) {
+                if (sc->env) /* averaged by the caller */
+                    *direct = light_env_radiance(&job->lights, sc, dir);
+            } else if (sc->env && !v3_is_black(beta)) {
                 float w = prev_delta ? 1.0f : power_heuristic(prev_pdf, light_env_pdf(&job->lights, sc, dir));
                 L = v3_add(L, v3_mul(beta, v3_scale(light_env_radiance(&job->lights, sc, dir), w)));
             }
@@ -891,8 +922,12 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
         }
         if (vertex == 0)
             *hit_any = 1;
-        if (!emitted)
+        if (direct && vertex == 0 && crossings == 0) {
+            if (!emitted) /* averaged by the caller */
+                *direct = v3_mul(beta, hit_emission(job, &s, dir, prev_delta, prev_pdf, prev_p));
+        } else if (!emitted) {
             L = v3_add(L, v3_mul(beta, hit_emission(job, &s, dir, prev_delta, prev_pdf, prev_p)));
+        }
         if (++depth > rs->max_depth)
             break;
         const struct material *mat = &sc->materials[s.material];

@@ -18,10 +18,19 @@ vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, 
  * first: NULL, or the camera ray's closest hit already traced (for AOVs), valid when
  * first_found; the path then starts from it instead of tracing the ray again. rd: the
  * camera ray's differentials (texshade_camera) when the job has textures, or NULL (point
- * lookups). */
+ * lookups). direct: NULL, or where the light seen straight along the camera ray
+ * (media_direct_light's) goes instead of into the result, for the caller to average it
+ * with other camera rays' (render_job.direct_samples). */
 vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const struct sampler *smp, uint32_t px,
                             uint32_t py, vec3 org, vec3 dir, float time01, const struct accel_hit *first,
-                            int first_found, const struct raydiff *rd, uint64_t *rays, int *hit_any);
+                            int first_found, const struct raydiff *camera_rd, vec3 *direct, uint64_t *rays,
+                            int *hit_any);
+/* The light seen straight along camera ray (org, dir) at time01: an emitter's light at the
+ * first hit times the camera medium's transmittance to it (as the pass's method weighs
+ * it), or, from a camera in no medium, the environment's where the ray escapes; zero
+ * behind a medium boundary. One ray. Only for jobs with direct_samples > 1 (the camera's
+ * medium is not a grid). */
+vec3 media_direct_light(const struct render_job *job, uint32_t pass, vec3 org, vec3 dir, float time01, uint64_t *rays);
 
 /* Glow sampling. A point light inside a scattering medium glows: the light a ray gathers
  * from it by single scattering falls off as 1 / (the ray's distance to the light), ~

@@ -96,6 +96,15 @@ static int frame_init(struct render_job *job, uint32_t frame, uint32_t threads, 
     job->motion_vis = motion_vis_new(&job->accel, scene, &job->camera, frame);
     if (scene->media)
         job->media = media_job_new(&job->accel, &job->lights, job->pass_maps ? job->pass_maps[0] : NULL);
+    /* Lights seen straight from the camera, averaged over stratified camera rays: what a
+     * sample of a media scene costs is mostly its path, and a pixel on a lamp's outline
+     * otherwise takes one sample's guess of how much of it the lamp covers. */
+    job->direct_samples = 1;
+    if (job->media && (job->lights.num_surface > 0 || scene->env)) {
+        uint32_t cm = job->media->camera_medium;
+        if (cm == MEDIUM_NONE || !scene->media->media[cm].grid)
+            job->direct_samples = media_direct_samples(scene->media);
+    }
     job->packets = !job->media && job->accel.packets_exact && packets_env_enabled();
     passes_update(job);
     return 0;

@@ -34,6 +34,9 @@ struct render_job {
                                    * without media. Views share media's pointers and own nothing. */
     int packets;            /* camera rays go in packets (packet.h): no media, accel.packets_exact and
                              * BRUME_PACKETS not 0 (read once per frame here, not per tile) */
+    uint32_t direct_samples; /* media scenes: camera rays per sample for the light seen straight from the
+                              * camera (volume.direct_samples), when an emitter or an environment can be
+                              * seen and the camera's medium is not a grid; else 1 (the sample's own) */
     int rays_find_light;    /* a ray can find light by hitting or missing: an emitting material or an
                              * environment. Without one, a path's last vertex samples no further ray,
                              * which could only have found light that way */

@@ -291,11 +291,11 @@ float camera_shutter_warp(const struct camera *cam, float u)
     return (float)t;
 }
 
-void camera_generate_general_(const struct camera *cam, const struct sampler *smp, uint32_t frame, uint32_t px,
-                              uint32_t py, struct camera_sample *out)
+/* The camera ray of pixel jitter (ju, jv) in [0, 1)^2 at shutter time time01, the lens
+ * sample from the sampler. */
+static void generate_at(const struct camera *cam, const struct sampler *smp, uint32_t frame, uint32_t px, uint32_t py,
+                        float ju, float jv, float time01, struct camera_sample *out)
 {
-    float ju, jv;
-    sampler_get_2d(smp, DIM_PIXEL_X, &ju, &jv);
     float fx, fy;
     if (cam->filter == FILTER_BOX) { /* the pixel itself, bit for bit as without a filter */
         fx = (float)px + ju;
@@ -305,7 +305,7 @@ void camera_generate_general_(const struct camera *cam, const struct sampler *sm
         fy = (float)py + 0.5f + camera_filter_offset(cam, jv);
     }
     out->jx = ju, out->jy = jv;
-    out->time01 = cam->uses_time ? camera_shutter_warp(cam, sampler_get(smp, DIM_TIME)) : 0.0f;
+    out->time01 = time01;
     if (!cam->uses_lens && !cam->moving) {
         camera_ray(cam, fx, fy, &out->o, &out->d); /* the pinhole, bit for bit */
         return;
@@ -316,4 +316,26 @@ void camera_generate_general_(const struct camera *cam, const struct sampler *sm
     if (cam->uses_lens)
         sampler_get_2d(smp, DIM_LENS_U, &lu, &lv);
     camera_ray_lens(cam, &pose, fx, fy, lu, lv, &out->o, &out->d);
+}
+
+void camera_generate_general_(const struct camera *cam, const struct sampler *smp, uint32_t frame, uint32_t px,
+                              uint32_t py, struct camera_sample *out)
+{
+    float ju, jv;
+    sampler_get_2d(smp, DIM_PIXEL_X, &ju, &jv);
+    generate_at(cam, smp, frame, px, py, ju, jv,
+                cam->uses_time ? camera_shutter_warp(cam, sampler_get(smp, DIM_TIME)) : 0.0f, out);
+}
+
+/* u + s modulo 1, for u and s in [0, 1): in [0, 1) (a sum that rounds to 1 wraps to 0). */
+static float wrap01(float u, float s)
+{
+    float v = u + s;
+    return v >= 1.0f ? v - 1.0f : v;
+}
+
+void camera_generate_shifted(const struct camera *cam, const struct sampler *smp, uint32_t frame, uint32_t px,
+                             uint32_t py, const struct camera_sample *base, float su, float sv, struct camera_sample *out)
+{
+    generate_at(cam, smp, frame, px, py, wrap01(base->jx, su), wrap01(base->jy, sv), base->time01, out);
 }

@@ -105,6 +105,12 @@ float camera_filter_offset(const struct camera *cam, float u);
  * pinhole with the box filter and no time (one per camera sample); the rest in camera.c. */
 void camera_generate_general_(const struct camera *cam, const struct sampler *smp, uint32_t frame, uint32_t px,
                               uint32_t py, struct camera_sample *out);
+/* Sample base's camera ray (made by camera_generate from smp) with its pixel jitter moved by
+ * (su, sv) in [0, 1)^2 modulo 1, its lens sample and time (base->time01) unchanged: uniform
+ * over the pixel as the jitter is, so any function of the ray has the same expectation;
+ * shifts on a lattice give stratified rays around one sample. */
+void camera_generate_shifted(const struct camera *cam, const struct sampler *smp, uint32_t frame, uint32_t px,
+                             uint32_t py, const struct camera_sample *base, float su, float sv, struct camera_sample *out);
 static inline void camera_generate(const struct camera *cam, const struct sampler *smp, uint32_t frame, uint32_t px,
                                    uint32_t py, struct camera_sample *out)
 {

@@ -77,7 +77,19 @@ struct scene_media {
     float skip_bound;           /* skip the photon pass when multiple scattering is bounded below this */
     uint32_t max_photon_depth;  /* interactions per photon path */
     float alpha;                /* progressive radius reduction per pass, in (0, 1]; 0 = MEDIA_DEFAULT_ALPHA */
+    uint32_t direct_samples;    /* camera rays per sample for the lights seen straight from the camera
+                                 * (1..MEDIA_MAX_DIRECT_SAMPLES; 1 = the sample's own ray only); 0 = the
+                                 * method's default (media_direct_samples) */
 };
+/* volume.direct_samples: the photon methods' default (vpt's is 1) and the largest. */
+#define MEDIA_DEFAULT_DIRECT_SAMPLES 8u
+#define MEDIA_MAX_DIRECT_SAMPLES 64u
+/* The camera rays per sample for directly seen lights: volume.direct_samples, or by
+ * default 8 for march, beam and beams and 1 for vpt (docs/media.md). */
+static inline uint32_t media_direct_samples(const struct scene_media *sm)
+{
+    return sm->direct_samples ? sm->direct_samples : sm->method == MEDIA_VPT ? 1u : MEDIA_DEFAULT_DIRECT_SAMPLES;
+}
 /* Knaus and Zwicker's alpha: the share of each pass's photons a pass keeps in the radius rule. */
 #define MEDIA_DEFAULT_ALPHA (2.0f / 3.0f)
 

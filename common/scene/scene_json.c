@@ -871,9 +871,10 @@ static uint32_t interface_material(struct ctx *c)
 static int parse_volume(struct ctx *c, const struct member *vm)
 {
     static const char *const keys[] = {"method", "fog", "step", "photons", "radius", "skip_bound", "max_photon_depth",
-                                       "knn", "shadow_cache", "surface_photons", "alpha", "indirect"};
-    struct member m[12];
-    if (object_members(c, vm->val, &vm->path, "volume", keys, 12, m) != 0)
+                                       "knn", "shadow_cache", "surface_photons", "alpha", "indirect",
+                                       "direct_samples"};
+    struct member m[13];
+    if (object_members(c, vm->val, &vm->path, "volume", keys, 13, m) != 0)
         return -1;
     struct scene_media *sm = c->scene->media;
     if (m[0].val) {
@@ -948,6 +949,12 @@ static int parse_volume(struct ctx *c, const struct member *vm)
             return -1;
         if (media_indirect_from_name(name, &sm->indirect) != 0)
             return fail(c, &m[11].path, AT_VALUE, "indirect must be \"gather\" or \"path\"");
+    }
+    if (m[12].val) {
+        json_int_t n;
+        if (get_uint(c, &m[12], "direct_samples", 1, MEDIA_MAX_DIRECT_SAMPLES, &n) != 0)
+            return -1;
+        sm->direct_samples = (uint32_t)n;
     }
     return 0;
 }

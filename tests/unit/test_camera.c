@@ -552,3 +552,49 @@ Test(camera, focus_on_a_far_look_at)
     camera_pose_at(&c, 0.5, &p);
     cr_expect(fabsf(p.focus / 1e20f - 1.0f) < 1e-6f, "moving: focus %g", (double)p.focus);
 }
+
+/* camera_generate_shifted: a zero shift gives camera_generate's ray bit for bit (pinhole,
+ * gaussian filter, thin lens, moving camera with an open shutter); a shift moves the pixel
+ * jitter modulo 1 and keeps the lens sample and the time; the jitter stays in [0, 1). */
+Test(camera, shifted_rays)
+{
+    for (int variant = 0; variant < 4; variant++) {
+        struct camera_desc d = desc_basic();
+        if (variant == 1) {
+            d.filter = FILTER_GAUSSIAN;
+            d.filter_width = 1.5f;
+        }
+        if (variant == 2) {
+            d.aperture_radius = 0.2f;
+            d.focus_distance = 3.0f;
+        }
+        if (variant == 3) {
+            d.shutter_close = 1.0f;
+            d.num_keyframes = 2;
+            d.keyframes[0] = (struct camera_keyframe){0.0f, v3(0, 0, 0), v3(0, 0, -1), v3(0, 1, 0)};
+            d.keyframes[1] = (struct camera_keyframe){1.0f, v3(1, 0, 0), v3(1, 0, -1), v3(0, 1, 0)};
+        }
+        struct camera c;
+        camera_init(&c, &d, 16, 16);
+        for (uint32_t i = 0; i < 64; i++) {
+            struct sampler s = sampler_start_type(SAMPLER_SOBOL, 7, 0, i % 16, i / 16, i);
+            struct camera_sample cs, z, sh;
+            camera_generate(&c, &s, 0, i % 16, i / 16, &cs);
+            camera_generate_shifted(&c, &s, 0, i % 16, i / 16, &cs, 0.0f, 0.0f, &z);
+            cr_assert(same_bits(cs.o, z.o) && same_bits(cs.d, z.d) && cs.time01 == z.time01 && cs.jx == z.jx &&
+                          cs.jy == z.jy, "variant %d, sample %u: zero shift differs", variant, i);
+            float su = 0.75f, sv = 0.999999f;
+            camera_generate_shifted(&c, &s, 0, i % 16, i / 16, &cs, su, sv, &sh);
+            cr_assert(sh.jx >= 0.0f && sh.jx < 1.0f && sh.jy >= 0.0f && sh.jy < 1.0f);
+            float wx = cs.jx + su >= 1.0f ? cs.jx + su - 1.0f : cs.jx + su;
+            cr_assert_eq(sh.jx, wx);
+            cr_assert_eq(sh.time01, cs.time01);
+            /* the same lens point and time: only the film point moved */
+            struct camera_sample back;
+            camera_generate_shifted(&c, &s, 0, i % 16, i / 16, &sh, 0.0f, 0.0f, &back);
+            cr_assert(same_bits(back.o, sh.o) && same_bits(back.d, sh.d));
+            if (variant == 0)
+                cr_assert(same_bits(sh.o, cs.o), "a pinhole's rays share the origin");
+        }
+    }
+}

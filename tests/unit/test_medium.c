@@ -1072,6 +1072,11 @@ Test(medium, scene_keys)
     cr_assert_eq(s.media->knn, 20u);
     cr_assert_eq(s.media->shadow_cache, 0);
     cr_assert_eq(s.media->indirect, MEDIA_INDIRECT_PATH);
+    cr_assert_eq(media_direct_samples(s.media), 1u); /* vpt's default */
+    s.media->method = MEDIA_MARCH_BEAM;
+    cr_assert_eq(media_direct_samples(s.media), MEDIA_DEFAULT_DIRECT_SAMPLES); /* the photon methods' */
+    s.media->direct_samples = 3;
+    cr_assert_eq(media_direct_samples(s.media), 3u);
     cr_assert_eq(media_sphere_inside(s.media, 0), 0u);
     cr_assert_eq(s.spheres[0].material_id, s.media->interface_material);
     cr_assert_eq(s.lights[0].type, LIGHT_SPOT);
@@ -1093,6 +1098,10 @@ Test(medium, scene_keys)
     expect_error(H ",\n\"media\": {\"fog\": {}},\n\"volume\": {\"fog\": \"smoke\"}}", "scenes/t.json:5:19: unknown medium \"smoke\"");
     expect_error(H ",\n\"media\": {\"fog\": {}},\n\"volume\": {\"photons\": 1.5}}", "scenes/t.json:5:23: photons must be an integer");
     expect_error(H ",\n\"media\": {\"fog\": {}},\n\"volume\": {\"knn\": 0}}", "scenes/t.json:5:19: knn 0 out of range 1..1024");
+    expect_error(H ",\n\"media\": {\"fog\": {}},\n\"volume\": {\"direct_samples\": 0}}",
+                 "scenes/t.json:5:30: direct_samples 0 out of range 1..64");
+    expect_error(H ",\n\"media\": {\"fog\": {}},\n\"volume\": {\"direct_samples\": 65}}",
+                 "scenes/t.json:5:30: direct_samples 65 out of range 1..64");
     expect_error(H ",\n\"media\": {\"fog\": {}},\n\"volume\": {\"shadow_cache\": 1}}", "scenes/t.json:5:28: shadow_cache must be true or false");
     expect_error(H ",\n\"volume\": {}}", "scenes/t.json:4:1: \"volume\" needs \"media\"");
     expect_error(H ",\n\"objects\": [{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1, \"medium\": \"x\"}]}",
