@@ -586,6 +586,8 @@ static void *load_thread(void *arg)
 static void load_start(struct worker *w, enum load_kind kind)
 {
     CHECK(!w->load.running);
+    if (kind == LOAD_SCENE)
+        log_debug("job %llu: its blobs are here; loading the scene", (unsigned long long)w->job.job_id);
     w->load.kind = kind;
     w->load.cancel = 0;
     w->load.rc = -1;

@@ -82,10 +82,12 @@ timeout 120 $M $SCENE -o "$T/lref.exr" --workers 1 --threads 1 --spp 4 --tile 64
 rm -f "$T/late.exr"
 $M $SCENE -o "$T/late.exr" --workers 0 --bind "ipc://$T/l.sock" --spp 4 --tile 64 --no-journal >"$T/log1" 2>&1 &
 mpid=$!
-$W --connect "ipc://$T/l.sock" --threads 1 --fault slow-load:8500 --timeout-ms 60000 >"$T/wlog" 2>&1 &
+$W --connect "ipc://$T/l.sock" --threads 1 --fault slow-load:8500 --timeout-ms 60000 --verbose >"$T/wlog" 2>&1 &
 wpid=$!
 echo "$mpid $wpid" >"$T/pids"
-wait_for "joined" 100 "$T/log1"
+# Frozen once the worker has its blobs and loads (frozen before it has them, the load would
+# start only after the freeze, on a loaded machine after the master's "joined")
+wait_for "loading the scene" 200 "$T/wlog"
 kill -STOP $mpid
 sleep 9.5
 kill -CONT $mpid
