@@ -280,8 +280,8 @@ static vec3 camera_path(const struct render_job *job, uint32_t pass, uint32_t px
              * uniform over the pixel, so the mean is unbiased and its rays stratified. */
             for (uint32_t i = 1; i < k; i++) {
                 struct camera_sample c2;
-                float su = (float)fmod((double)i * 0.7548776662466927, 1.0);
-                float sv = (float)fmod((double)i * 0.5698402909980532, 1.0);
+                double a = (double)i * 0.7548776662466927, b = (double)i * 0.5698402909980532;
+                float su = (float)(a - (double)(int64_t)a), sv = (float)(b - (double)(int64_t)b); /* exact */
                 camera_generate_shifted(&job->camera, &smp, job->frame, px, py, &cs, su, sv, &c2);
                 direct = v3_add(direct, media_direct_light(job, pass, c2.o, c2.d, c2.time01, rays));
             }
