@@ -28,6 +28,14 @@ if [ $r1 = 0 ] && [ $r2 = 0 ] && [ -n "$h1" ] && [ "$h1" = "$h2" ] && [ "$(scene
 if [ $r1 = 0 ] && [ $r2 = 0 ] && $X cmp "$T/p1.exr" "$T/p2.exr" && grep -q "NaN/Inf samples dropped: 0" "$T/p2.log"; then
   ok "beam: 1 vs 3 workers bit-identical"; else bad "beam: 1 vs 3 workers bit-identical"; fi
 
+# The master's photon pass traces with the job's Embree kernels too (--embree-isa): another
+# instruction set gives another map (the same map for every worker and master host).
+run $M $S -o "$T/pi.exr" $A --workers 1 --threads 2 --photon-threads 1 --embree-isa sse4.2 && ri=0 || ri=1
+hi=$(maphash "$T/log")
+if [ $ri = 0 ] && [ -n "$hi" ] && [ -n "$h1" ] && [ "$hi" != "$h1" ]; then
+  ok "--embree-isa sse4.2: the photon pass's map differs from avx2's ($hi, $h1)"
+else bad "--embree-isa sse4.2: the photon pass's map differs from avx2's"; fi
+
 # volume.direct_samples: the light seen straight from the camera (here the lamp through
 # the fog) averaged over 8 stratified camera rays (beam's default) against the sample's own
 # ray alone (1, vpt's default). The same seed gives the same paths, so the two images differ only by that
