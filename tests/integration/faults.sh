@@ -20,6 +20,10 @@ ARGS="--spp 4 --tile 32"
 timeout 120 $M $SCENE -o "$T/ref.exr" --workers 1 $ARGS >"$T/log" 2>&1 || bad "reference render"
 
 # --- SIGSTOP a worker mid-render: evicted, tiles re-issued within 5 s, late results dropped ---
+# (whether any result comes late is a race: on SIGCONT the worker reads the master's BYE,
+# sends only the tiles already finished and leaves, and on a loaded machine it can read
+# the BYE before a render thread finishes one; the image proves none was used, and
+# security.sh counts stale results exactly)
 # (the workers sleep 30 ms before each of the 256 tiles: the render outlasts the 2.5 s
 # timeout plus the stop even on a fast idle machine, at the CPU cost of 4 spp)
 timeout 120 $M $SCENE -o "$T/stop.exr" --workers 0 --bind "ipc://$T/stop.sock" $ARGS \
@@ -49,8 +53,9 @@ wait $mpid && r=0 || r=1
 wait $w1 $w2 2>/dev/null
 echo "faults: SIGSTOP: re-queued ${lat:-never} ms after SIGSTOP; late results dropped: $(counter results_stale "$T/stop.exr")"
 if [ $r = 0 ] && [ -n "$lat" ] && [ "$lat" -lt 5000 ] && [ "$(counter evicted_silent "$T/stop.exr")" -ge 1 ] &&
-  [ "$(counter tiles_reissued "$T/stop.exr")" -ge 1 ] && [ "$(counter results_stale "$T/stop.exr")" -ge 1 ] && $X cmp "$T/ref.exr" "$T/stop.exr"; then
-  ok "SIGSTOP: re-issued within 5 s, late results dropped, identical pixels"; else bad "SIGSTOP: re-issued within 5 s, late results dropped, identical pixels"; fi
+  [ "$(counter tiles_reissued "$T/stop.exr")" -ge 1 ] && $X cmp "$T/ref.exr" "$T/stop.exr"; then
+  ok "SIGSTOP: re-issued within 5 s, late results (if any) dropped, identical pixels"
+else bad "SIGSTOP: re-issued within 5 s, late results (if any) dropped, identical pixels"; fi
 
 # --- render threads hang while the worker's main thread still answers: evicted for no progress ---
 # (the other worker sleeps 20 ms before each tile: the render outlasts the 1.5 s stall
