@@ -2450,9 +2450,6 @@ static int scene_reload(struct master *m)
     return 0;
 }
 
-/* Starts frame m->frame: fresh tile slots, its journal, and a JOB for every worker
- * (which keeps its blobs and rebuilds only what depends on the frame). 1 when the frame
- * is done already (skipped), 0 when it is ready to render, -1 on error. */
 /* A master killed while it wrote the frame's output, stats or preview left OUT.tmp.PID:
  * removed once that PID is no live process (output_remove_stale_tmp), in one log line. */
 static void remove_stale_tmp(struct master *m)
@@ -2469,6 +2466,9 @@ static void remove_stale_tmp(struct master *m)
                  m->out_path);
 }
 
+/* Starts frame m->frame: fresh tile slots, its journal, and a JOB for every worker
+ * (which keeps its blobs and rebuilds only what depends on the frame). 1 when the frame
+ * is done already (skipped), 0 when it is ready to render, -1 on error. */
 static int frame_begin(struct master *m, uint32_t frames_started)
 {
     const struct master_opts *o = m->opts;
