@@ -10,6 +10,7 @@
 #include <errno.h>
 #include <signal.h>
 #include <fcntl.h>
+#include <libgen.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -55,16 +56,12 @@ int output_is_done(const char *path, const char *scene_hash, uint32_t spp, uint6
 
 unsigned output_remove_stale_tmp(const char *path)
 {
-    char dir[4200];
-    snprintf(dir, sizeof dir, "%s", path);
-    char *slash = strrchr(dir, '/');
-    const char *base = slash ? slash + 1 : dir;
-    if (slash == dir)
-        dir[1] = '\0', base = path + 1;
-    else if (slash)
-        *slash = '\0';
+    char dbuf[4200], bbuf[4200];
+    snprintf(dbuf, sizeof dbuf, "%s", path);
+    snprintf(bbuf, sizeof bbuf, "%s", path);
+    const char *dir = dirname(dbuf), *base = basename(bbuf);
     size_t blen = strlen(base);
-    DIR *d = opendir(slash ? dir : ".");
+    DIR *d = opendir(dir);
     if (!d)
         return 0;
     unsigned removed = 0;
@@ -82,7 +79,7 @@ unsigned output_remove_stale_tmp(const char *path)
         if (kill((pid_t)pid, 0) == 0 || errno != ESRCH) /* alive (or not ours to signal): may be writing */
             continue;
         char full[4500];
-        snprintf(full, sizeof full, "%s/%s", slash ? dir : ".", n);
+        snprintf(full, sizeof full, "%s/%s", dir, n);
         if (unlink(full) == 0)
             removed++;
     }
