@@ -20,15 +20,22 @@ static inline vec3 v3_cross(vec3 a, vec3 b)
     return v3(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x);
 }
 static inline float v3_length(vec3 a) { return sqrtf(v3_dot(a, a)); }
+/* The largest |component| of a when a can be rescaled by it (finite, not zero, no NaN);
+ * else 0. For the two functions below. */
+static inline float v3_rescale_by_(vec3 a)
+{
+    float m = fabsf(a.x) > fabsf(a.y) ? fabsf(a.x) : fabsf(a.y);
+    m = fabsf(a.z) > m ? fabsf(a.z) : m;
+    return m > 0.0f && m <= 0x1.fffffep127f && a.x == a.x && a.y == a.y && a.z == a.z ? m : 0.0f;
+}
 /* Rescaled by the largest component first when the squared length leaves float's normal
  * range: the normal of a triangle with edges of 1e10 (its cross product squared overflows)
  * or of 1e-10 (underflows) is still a unit vector. Bit for bit the plain formula inside
  * that range; zero and NaN vectors come back unchanged. */
 static inline vec3 v3_normalize_rescaled_(vec3 a)
 {
-    float m = fabsf(a.x) > fabsf(a.y) ? fabsf(a.x) : fabsf(a.y);
-    m = fabsf(a.z) > m ? fabsf(a.z) : m;
-    if (m > 0.0f && m <= 0x1.fffffep127f && a.x == a.x && a.y == a.y && a.z == a.z) {
+    float m = v3_rescale_by_(a);
+    if (m > 0.0f) {
         vec3 b = v3(a.x / m, a.y / m, a.z / m);
         return v3_scale(b, 1.0f / sqrtf(v3_dot(b, b)));
     }
@@ -42,9 +49,8 @@ static inline float v3_length_rescaled(vec3 a)
     float d = v3_dot(a, a);
     if (d >= 0x1p-126f && d <= 0x1.fffffep127f)
         return sqrtf(d);
-    float m = fabsf(a.x) > fabsf(a.y) ? fabsf(a.x) : fabsf(a.y);
-    m = fabsf(a.z) > m ? fabsf(a.z) : m;
-    if (!(m > 0.0f && m <= 0x1.fffffep127f && a.x == a.x && a.y == a.y && a.z == a.z))
+    float m = v3_rescale_by_(a);
+    if (!(m > 0.0f))
         return sqrtf(d);
     vec3 b = v3(a.x / m, a.y / m, a.z / m);
     return m * sqrtf(v3_dot(b, b));
