@@ -959,6 +959,14 @@ static int parse_volume(struct ctx *c, const struct member *vm)
     return 0;
 }
 
+/* A direction given as the difference of two points: non-zero and of finite length, at
+ * any scale (v3_length_rescaled: points 1e20 apart are fine). */
+static int direction_ok(vec3 d)
+{
+    float l = v3_length_rescaled(d);
+    return l > 0.0f && isfinite(l);
+}
+
 /* One camera keyframe: {time, position, look_at, up?}. */
 static int parse_camera_key(struct ctx *c, json_t *obj, const struct jpath *p, struct camera_keyframe *k)
 {
@@ -978,7 +986,7 @@ static int parse_camera_key(struct ctx *c, json_t *obj, const struct jpath *p, s
     if (!(fabsf(k->time) <= 1e7f))
         return fail(c, &m[0].path, AT_VALUE, "time must be within +-1e7 frames");
     vec3 fwd = v3_sub(k->look_at, k->position);
-    if (!(v3_length_rescaled(fwd) > 0.0f) || !isfinite(v3_length_rescaled(fwd)))
+    if (!direction_ok(fwd))
         return fail(c, &m[2].path, AT_VALUE, "look_at must differ from position");
     if (!(v3_length(v3_cross(v3_normalize(fwd), v3_normalize(k->up))) > 1e-6f))
         return fail(c, m[3].val ? &m[3].path : p, AT_VALUE, "up must not be zero or parallel to the view direction");
@@ -1035,7 +1043,7 @@ static int parse_camera(struct ctx *c, const struct member *cm)
     if (!(cd->fov_y_deg > 0.0f && cd->fov_y_deg < 180.0f))
         return fail(c, &m[FOV].path, AT_VALUE, "fov_y must be in (0, 180) degrees");
     vec3 fwd = v3_sub(cd->look_at, cd->position);
-    if (!(v3_length_rescaled(fwd) > 0.0f) || !isfinite(v3_length_rescaled(fwd)))
+    if (!direction_ok(fwd))
         return fail(c, &m[LOOK].path, AT_VALUE, "look_at must differ from position");
     float cross = v3_length(v3_cross(v3_normalize(fwd), v3_normalize(cd->up)));
     if (!(cross > 1e-6f))
@@ -1697,7 +1705,7 @@ static int parse_spot(struct ctx *c, json_t *obj, const struct jpath *p, const c
         d = v3_sub(at, l.position);
     }
     const struct member *dm = m[3].val ? &m[3] : &m[4];
-    if (!(v3_length_rescaled(d) > 0.0f) || !isfinite(v3_length_rescaled(d)))
+    if (!direction_ok(d))
         return fail(c, &dm->path, AT_VALUE, "spot direction must be a non-zero vector");
     l.direction = v3_normalize(d);
     float angle, falloff = 0.0f;
