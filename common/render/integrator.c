@@ -276,13 +276,12 @@ static vec3 camera_path(const struct render_job *job, uint32_t pass, uint32_t px
                                         job->textured ? &rd : NULL, k > 1 ? &direct : NULL, rays, hit_any);
         if (k > 1) {
             /* The light seen straight from the camera, averaged over k rays: this one and
-             * k - 1 more with the pixel jitter shifted by the R2 lattice (Roberts), each
-             * uniform over the pixel, so the mean is unbiased and its rays stratified. */
+             * k - 1 more with the pixel jitter shifted by the R2 lattice (job->direct_shift),
+             * each uniform over the pixel, so the mean is unbiased and its rays stratified. */
             for (uint32_t i = 1; i < k; i++) {
                 struct camera_sample c2;
-                double a = (double)i * 0.7548776662466927, b = (double)i * 0.5698402909980532;
-                float su = (float)(a - (double)(int64_t)a), sv = (float)(b - (double)(int64_t)b); /* exact */
-                camera_generate_shifted(&job->camera, &smp, job->frame, px, py, &cs, su, sv, &c2);
+                camera_generate_shifted(&job->camera, &smp, job->frame, px, py, &cs, job->direct_shift[i][0],
+                                        job->direct_shift[i][1], &c2);
                 direct = v3_add(direct, media_direct_light(job, pass, c2.o, c2.d, c2.time01, rays));
             }
             L = v3_add(L, v3_scale(direct, 1.0f / (float)k));

@@ -800,6 +800,8 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
         struct accel_hit h;
         struct surface s;
         int s_ready = 0, emitted = 0;
+        /* The camera segment's light seen straight along it goes to *direct (the caller averages it) */
+        const int to_direct = direct && vertex == 0 && crossings == 0;
         (*rays)++;
         int hit;
         if (first) { /* the camera ray, traced by the caller */
@@ -839,7 +841,7 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
                     if (!media_is_interface(job->media, s.material)) {
                         emitted = 1;
                         vec3 le = hit_emission(job, &s, dir, prev_delta, prev_pdf, prev_p);
-                        if (direct && vertex == 0 && crossings == 0) /* averaged by the caller */
+                        if (to_direct)
                             *direct = v3_mul(medium_transmittance(md, h.t), le);
                         else if (!v3_is_black(le))
                             L = v3_add(L, v3_mul(v3_mul(beta, medium_transmittance(md, h.t)), le));
@@ -898,8 +900,8 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
         }
         if (!hit) {
             /* Escaped: the environment light, weighted as an emitter hit below is. */
-            if (direct && vertex == 0 && crossings == 0 && medium == MEDIUM_NONE) {
-                if (sc->env) /* averaged by the caller */
+            if (to_direct && medium == MEDIUM_NONE) {
+                if (sc->env)
                     *direct = light_env_radiance(&job->lights, sc, dir);
             } else if (sc->env && !v3_is_black(beta)) {
                 float w = prev_delta ? 1.0f : power_heuristic(prev_pdf, light_env_pdf(&job->lights, sc, dir));
@@ -922,8 +924,8 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
         }
         if (vertex == 0)
             *hit_any = 1;
-        if (direct && vertex == 0 && crossings == 0) {
-            if (!emitted) /* averaged by the caller */
+        if (to_direct) {
+            if (!emitted)
                 *direct = v3_mul(beta, hit_emission(job, &s, dir, prev_delta, prev_pdf, prev_p));
         } else if (!emitted) {
             L = v3_add(L, v3_mul(beta, hit_emission(job, &s, dir, prev_delta, prev_pdf, prev_p)));

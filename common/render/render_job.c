@@ -105,6 +105,11 @@ static int frame_init(struct render_job *job, uint32_t frame, uint32_t threads, 
         if (cm == MEDIUM_NONE || !scene->media->media[cm].grid)
             job->direct_samples = media_direct_samples(scene->media);
     }
+    for (uint32_t i = 0; i < job->direct_samples; i++) {
+        double a = (double)i * 0.7548776662466927, b = (double)i * 0.5698402909980532;
+        job->direct_shift[i][0] = (float)(a - (double)(int64_t)a); /* exact: a - trunc(a) */
+        job->direct_shift[i][1] = (float)(b - (double)(int64_t)b);
+    }
     job->packets = !job->media && job->accel.packets_exact && packets_env_enabled();
     passes_update(job);
     return 0;

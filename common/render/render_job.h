@@ -11,6 +11,7 @@
 #include "render/accel.h"
 #include "scene/camera.h"
 #include "scene/light.h"
+#include "scene/medium.h"
 
 struct media_job;
 struct mip;
@@ -37,6 +38,8 @@ struct render_job {
     uint32_t direct_samples; /* media scenes: camera rays per sample for the light seen straight from the
                               * camera (volume.direct_samples), when an emitter or an environment can be
                               * seen and the camera's medium is not a grid; else 1 (the sample's own) */
+    float direct_shift[MEDIA_MAX_DIRECT_SAMPLES][2]; /* the pixel-jitter shift of direct ray i (< direct_samples; 0 for i = 0):
+                              * the R2 lattice (Roberts), i (1 / phi2, 1 / phi2^2) modulo 1 */
     int rays_find_light;    /* a ray can find light by hitting or missing: an emitting material or an
                              * environment. Without one, a path's last vertex samples no further ray,
                              * which could only have found light that way */
