@@ -732,11 +732,18 @@ static int load_finish(struct worker *w)
  * master's queue for us. */
 #define FETCH_REQUESTS_MAX PROTO_FETCH_WINDOW
 
+/* Fetch i of the worker's fetches in their one order: the job's blobs (fetches), then the
+ * passes' photon maps (maps); i < num_fetches + num_maps. */
+static struct proto_fetch *fetch_at(const struct worker *w, size_t i)
+{
+    return i >= w->num_fetches ? &w->maps[i - w->num_fetches].fetch : &w->fetches[i];
+}
+
 static uint32_t fetch_requests(const struct worker *w)
 {
     uint32_t n = 0;
     for (size_t i = 0; i < w->num_fetches + w->num_maps; i++) {
-        const struct proto_fetch *f = i >= w->num_fetches ? &w->maps[i - w->num_fetches].fetch : &w->fetches[i];
+        const struct proto_fetch *f = fetch_at(w, i);
         if (f->recv.data)
             n += f->in_flight + (f->phase == FETCH_LIST && f->list_asked);
     }
@@ -805,7 +812,7 @@ static struct proto_fetch *fetch_find(struct worker *w, const struct blob_hash *
 {
     for (size_t i = 0; i < w->num_fetches + w->num_maps; i++) {
         *map_pass = i >= w->num_fetches ? (int)(i - w->num_fetches) : -1;
-        struct proto_fetch *f = *map_pass >= 0 ? &w->maps[*map_pass].fetch : &w->fetches[i];
+        struct proto_fetch *f = fetch_at(w, i);
         if (f->recv.data && blob_hash_equal(&f->recv.hash, hash))
             return f;
     }
@@ -1031,7 +1038,7 @@ static int fetches_pump(struct worker *w)
 {
     uint32_t busy = fetch_requests(w);
     for (size_t i = 0; i < w->num_fetches + w->num_maps && busy < FETCH_REQUESTS_MAX; i++) {
-        struct proto_fetch *f = i >= w->num_fetches ? &w->maps[i - w->num_fetches].fetch : &w->fetches[i];
+        struct proto_fetch *f = fetch_at(w, i);
         if (f->recv.data && request_chunks_within(w, f, &busy) != 0)
             return -1;
     }
@@ -1651,7 +1658,7 @@ int worker_run(const struct worker_opts *opts)
         }
         if (w.sub && (items[3].revents & ZMQ_POLLIN)) {
             for (size_t i = 0; i < w.num_fetches + w.num_maps; i++)
-                proto_fetch_bcast_alive(i >= w.num_fetches ? &w.maps[i - w.num_fetches].fetch : &w.fetches[i], now);
+                proto_fetch_bcast_alive(fetch_at(&w, i), now);
             struct net_frame f;
             int got;
             while (net_now_ms() - now < DRAIN_MAX_MS && w.sub && (got = net_recv(w.sub, 1, &f)) != 0) {
