@@ -74,7 +74,7 @@ static float equi_sample(const struct equi *e, float u)
 enum { FL_FREE, FL_TRUNC, FL_MARCH };
 /* count: FL_TRUNC's number of stratified points on the segment (their joint density is
  * count x the truncated exponential's). */
-struct flight_ctx { vec3 o, d; float tend, t; vec3 chan; const struct medium *md; float eps; int trunc, cut; float dx; float count; };
+struct flight_ctx { vec3 o, d; float tend, t; vec3 chan; const struct medium *md; float eps; int trunc, cut; float dx; float count; float mass; };
 
 /* The truncated exponential's coefficient: sigma_t averaged over the channels (the weight
  * Tr(t) / pdf(t) is per channel). */
@@ -83,17 +83,22 @@ static float trunc_sigma(const struct medium *md)
     return (md->sigma_t.x + md->sigma_t.y + md->sigma_t.z) / 3.0f;
 }
 
-/* pdf of t in [0, tend) under exp(-s t) restricted to the segment (uniform when s tend is
- * 0); expm1 keeps it exact in thin media. */
-static float trunc_pdf(float s, float tend, float t)
+/* The truncated exponential's mass on [0, tend), 1 - exp(-s tend): expm1 keeps it exact in
+ * thin media. Computed once per segment for trunc_pdf and trunc_sample. */
+static float trunc_mass(float s, float tend)
 {
-    float mass = -expm1f(-s * tend);
+    return -expm1f(-s * tend);
+}
+
+/* pdf of t in [0, tend) under exp(-s t) restricted to the segment (uniform when s tend is
+ * 0); mass: trunc_mass(s, tend). */
+static float trunc_pdf(float s, float mass, float tend, float t)
+{
     return mass > 0.0f ? s * expf(-s * t) / mass : 1.0f / tend;
 }
 
-static float trunc_sample(float s, float tend, float u)
+static float trunc_sample(float s, float mass, float tend, float u)
 {
-    float mass = -expm1f(-s * tend);
     float t = mass > 0.0f ? -log1pf(-u * mass) / s : u * tend;
     return t < tend ? t : nextafterf(tend, 0.0f);
 }
@@ -103,7 +108,7 @@ static float flight_pdf(const struct flight_ctx *fc, float t)
 {
     if (fc->trunc == FL_MARCH)
         return 1.0f / fc->dx;
-    return fc->trunc == FL_TRUNC ? fc->count * trunc_pdf(trunc_sigma(fc->md), fc->tend, t)
+    return fc->trunc == FL_TRUNC ? fc->count * trunc_pdf(trunc_sigma(fc->md), fc->mass, fc->tend, t)
                                  : medium_flight_pdf(fc->md, fc->chan, t);
 }
 
@@ -463,7 +468,7 @@ static vec3 march_segment(const struct render_job *job, const struct media_job *
     /* Homogeneous media, lights sampled one at a time: each step's NEE is weighted against
      * one equiangular sample per segment (the steps' density is 1 / dx), which takes the
      * 1/d^2 peak next to a point or area light. */
-    struct flight_ctx fc = {o, d, len, 0.0f, v3(1, 1, 1), md, 1e-7f * mj->scene_size, FL_MARCH, 1, dx, 1.0f};
+    struct flight_ctx fc = {o, d, len, 0.0f, v3(1, 1, 1), md, 1e-7f * mj->scene_size, FL_MARCH, 1, dx, 1.0f, 0.0f};
     const int equi = nee && !het && !all_points && job->lights.num_entries > 0;
     if (equi)
         L = v3_add(L, equiangular(job, r, vertex, &fc, medium, time01, rays));
@@ -580,13 +585,13 @@ static vec3 gather_segment(const struct render_job *job, const struct media_job 
         return L;
     int nee;
     const uint32_t kmax = volume_photon_depth_max(job->scene->settings.max_depth, depth, &nee);
-    float s = trunc_sigma(md), jitter = rnd(r, vertex, 11);
-    struct flight_ctx fc = {o, d, len, 0.0f, chan, md, 1e-7f * mj->scene_size, FL_TRUNC, 1, 0.0f, (float)points};
+    float s = trunc_sigma(md), mass = trunc_mass(s, len), jitter = rnd(r, vertex, 11);
+    struct flight_ctx fc = {o, d, len, 0.0f, chan, md, 1e-7f * mj->scene_size, FL_TRUNC, 1, 0.0f, (float)points, mass};
     if (nee && job->lights.num_entries > 0) {
         vec3 ss = v3(0, 0, 0);
         for (uint32_t k = 0; k < points; k++) {
             /* stratum k of the truncated exponential's CDF (one point: the plain sample) */
-            fc.t = trunc_sample(s, len, ((float)k + jitter) / (float)points);
+            fc.t = trunc_sample(s, mass, len, ((float)k + jitter) / (float)points);
             vec3 x = v3_add(o, v3_scale(d, fc.t));
             float u0, u1, u2;
             uint64_t skey = rng_mix64(r->key ^ (0x4753ull << 48) ^ vertex);
@@ -600,7 +605,7 @@ static vec3 gather_segment(const struct render_job *job, const struct media_job 
             vec3 in = v3_mul(md->sigma_s, point_nee(job, x, v3_neg(d), medium, md->g, u0, u1, u2, time01, skey, rays,
                                                     &fc));
             ss = v3_add(ss, v3_scale(v3_mul(medium_transmittance(md, fc.t), in),
-                                     1.0f / ((float)points * trunc_pdf(s, len, fc.t))));
+                                     1.0f / ((float)points * trunc_pdf(s, mass, len, fc.t))));
         }
         L = v3_add(L, equiangular(job, r, vertex, &fc, medium, time01, rays));
         L = v3_add(L, ss);
@@ -618,8 +623,8 @@ static vec3 gather_segment(const struct render_job *job, const struct media_job 
         if (pieces > 1) {
             float u = rnd(r, vertex, 15) * (float)pieces;
             uint32_t k = u < (float)pieces ? (uint32_t)u : pieces - 1;
-            float t0 = k == 0 ? 0.0f : trunc_sample(s, len, (float)k / (float)pieces);
-            float t1 = k + 1 == pieces ? len : trunc_sample(s, len, (float)(k + 1) / (float)pieces);
+            float t0 = k == 0 ? 0.0f : trunc_sample(s, mass, len, (float)k / (float)pieces);
+            float t1 = k + 1 == pieces ? len : trunc_sample(s, mass, len, (float)(k + 1) / (float)pieces);
             if (t1 > t0) {
                 vec3 b = photon_map_beam(mj->map, v3_add(o, v3_scale(d, t0)), d, t1 - t0, md, NULL, kmax);
                 L = v3_add(L, v3_scale(v3_mul(medium_transmittance(md, t0), b), (float)pieces));
@@ -826,7 +831,7 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
                 /* Homogeneous media: one equiangular sample toward a point light or a point on
                  * an emissive triangle per segment. */
                 struct flight_ctx fc = {org, dir, hit ? h.t : exit_distance(mj, org, dir), t, chan, md,
-                                        1e-7f * mj->scene_size, FL_FREE, 0, 0.0f, 1.0f};
+                                        1e-7f * mj->scene_size, FL_FREE, 0, 0.0f, 1.0f, 0.0f};
                 int equi = !md->grid && !v3_is_black(md->sigma_s) && job->lights.num_entries > 0 && depth < rs->max_depth;
                 if (equi)
                     L = v3_add(L, v3_mul(beta, equiangular(job, &r, vertex, &fc, medium, time01, rays)));

@@ -499,9 +499,11 @@ vec3 photon_map_gather_knn(const struct photon_map *m, vec3 x, vec3 d_out, float
  * (the segment clipped to the row's slabs grown by r), and reads just those photons, in an
  * order fixed by the map and the ray. Each row visited costs a lookup, each photon read a
  * distance test: k grows where photons are sparse (fewer rows, a few more photons), from 1
- * to 4 as the photons' mean crowding (a photon's count of photons in its bucket of the
- * blob's grid) falls: k = 2 (BEAM_CROWD / crowding)^(1/3), BEAM_CROWD photons per cell of
- * 2r, measured best on the three media scenes (dense smoke: k = 1, cornell_fog: 3).
+ * to BEAM_MAX_K as the photons' mean crowding c (a photon's count of photons in its bucket
+ * of the blob's grid of 2r cells) falls. Per unit of ray length a walk visits about 1 / (k
+ * r) rows and reads photons from a box of about 2r by k r across it, so the cost is least
+ * at k ~ c^(-1/2): k = 2 (BEAM_CROWD / c)^(1/2), the constant measured on the three media
+ * scenes (dense smoke: k = 1, fog_spot: 3.1, cornell_fog: 5.5).
  * Layout, for the cache: a row is found in a flat table of row starts indexed by its
  * (y, z) cell where the grid has at most BEAM_FLAT_PER_PHOTON cells per photon plus
  * BEAM_FLAT_CELLS, else (sparse or huge grids) in a hash table of the rows that hold
@@ -510,10 +512,11 @@ vec3 photon_map_gather_knn(const struct photon_map *m, vec3 x, vec3 d_out, float
  * y, z and depth, read for the photons within the row's x interval, and a copy of the
  * decoded direction and power, read only for the photons accepted (in row order, so a
  * row's accepted photons share cache lines). The rows cost 38 bytes a photon
- * plus the row table (the flat one at most 16 bytes a photon plus 256 KiB). */
-#define BEAM_CROWD 10.0
+ * plus the row table (the flat one at most 64 bytes a photon plus 256 KiB). */
+#define BEAM_CROWD 20.0
+#define BEAM_MAX_K 8.0
 #define BEAM_MAX_CELLS 32768.0f     /* cells per axis at most (tiny radii): walks stay bounded */
-#define BEAM_FLAT_PER_PHOTON 4u
+#define BEAM_FLAT_PER_PHOTON 16u
 #define BEAM_FLAT_CELLS 65536u
 #define BEAM_LINEAR 16u
 /* Rounding slack, relative to the coordinates' largest magnitude s (ray origin, photons'
@@ -688,7 +691,7 @@ static struct photon_beam_grid *beam_grid_build(const struct photon_map *m)
         double c = (double)(m->bucket_start[b + 1] - m->bucket_start[b]);
         crowd += c * c / (double)n;
     }
-    float kr = (float)fmin(fmax(2.0 * cbrt(BEAM_CROWD / fmax(crowd, 1.0)), 1.0), 4.0);
+    float kr = (float)fmin(fmax(2.0 * sqrt(BEAM_CROWD / fmax(crowd, 1.0)), 1.0), BEAM_MAX_K);
     /* Cells no smaller than the slack, so a tiny radius far from the origin does not make
      * a query walk thousands of rows across the slack alone. */
     g->cell = fmaxf(fmaxf(kr * m->radius, ext / BEAM_MAX_CELLS), fmaxf(BEAM_SLACK * scale, 1e-30f));
