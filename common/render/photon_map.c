@@ -512,11 +512,11 @@ vec3 photon_map_gather_knn(const struct photon_map *m, vec3 x, vec3 d_out, float
  * y, z and depth, read for the photons within the row's x interval, and a copy of the
  * decoded direction and power, read only for the photons accepted (in row order, so a
  * row's accepted photons share cache lines). The rows cost 38 bytes a photon
- * plus the row table (the flat one at most 64 bytes a photon plus 256 KiB). */
+ * plus the row table (the flat one at most 16 bytes a photon plus 256 KiB). */
 #define BEAM_CROWD 20.0
 #define BEAM_MAX_K 8.0
 #define BEAM_MAX_CELLS 32768.0f     /* cells per axis at most (tiny radii): walks stay bounded */
-#define BEAM_FLAT_PER_PHOTON 16u
+#define BEAM_FLAT_PER_PHOTON 4u
 #define BEAM_FLAT_CELLS 65536u
 #define BEAM_LINEAR 16u
 /* Rounding slack, relative to the coordinates' largest magnitude s (ray origin, photons'
