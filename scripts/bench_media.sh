@@ -17,8 +17,9 @@
 #     scene folder's files and these settings (not the binaries; REF_REDO=1 redoes it).
 #  2. The photon method at its defaults (the scene's volume.method, no override) at the spp
 #     of BUDGETS, and VPT, both at the reference depth, VPT at spp chosen (from one calibration render)
-#     to take about the same times. Time is the wall time of the whole master process
-#     (photon pass, worker start, scene build, render, EXR written). For each render:
+#     to take about the same times. Time is that of the whole master process (photon pass,
+#     worker start, scene build, render, EXR written): wall time, or with TIME=cpu the CPU
+#     seconds of the master and its worker. For each render:
 #     relRMSE against the reference, the same after an 8x8 box filter (low-frequency error:
 #     blotches), the renderer's own estimate from its variance channels (exrtool errest) and
 #     its ratio to the true error; for the photon method the ratio to VPT's relRMSE at the same
@@ -210,7 +211,8 @@ n=$#
 {
   echo "set terminal png size $((460 * n)),520 noenhanced"
   echo "set output \"$OUT/media.png\""
-  echo "set multiplot layout 1,$n title \"Media: true relRMSE vs wall time\""
+  if [ "$TIME" = cpu ]; then clock="CPU time"; else clock="wall time"; fi
+  echo "set multiplot layout 1,$n title \"Media: true relRMSE vs $clock\""
   echo "set logscale xy; set grid; set xlabel \"seconds (whole run, photon pass included)\"; set ylabel \"relRMSE\"; set key below"
   for sc in $SCENES; do
     d="$OUT/media-$sc.dat"
