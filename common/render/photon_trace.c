@@ -262,7 +262,7 @@ static void store(struct photon_list *l, vec3 p, vec3 d, vec3 power, uint32_t de
     ph->p[0] = p.x, ph->p[1] = p.y, ph->p[2] = p.z;
     photon_rgbe_encode(power, ph->rgbe);
     ph->dir = photon_dir_encode(d);
-    ph->depth = (uint16_t)depth; /* <= max_photon_depth <= PHOTON_DEPTH_MAX */
+    ph->depth = (uint16_t)depth; /* < media_max_photon_depth <= PHOTON_DEPTH_MAX */
 }
 
 /* Traces photon `index`: volume photons into vol; when surf is non-NULL, photons arriving
@@ -283,7 +283,8 @@ static void trace_photon(const struct trace_ctx *tc, uint64_t index, struct phot
     /* Moving geometry: each photon lives at one time of the frame's shutter, drawn as the
      * camera draws its rays' times, so the map averages the shutter as the image does. */
     const float time01 = job->accel.has_motion ? camera_shutter_warp(&job->camera, rng_uniform(key, 6)) : 0.0f;
-    for (uint32_t depth = 0; depth < sm->max_photon_depth;) {
+    const uint32_t max_events = media_max_photon_depth(sm, sc->settings.max_depth);
+    for (uint32_t depth = 0; depth < max_events;) {
         uint32_t dim = 8 + 8 * depth;
         struct accel_hit h;
         int hit = accel_intersect(&job->accel, o, d, INFINITY, time01, &h);

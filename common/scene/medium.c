@@ -19,7 +19,7 @@ struct scene_media *media_scene_new(void)
     m->shadow_cache = 1;
     m->surface_photons = 1;
     m->indirect = MEDIA_INDIRECT_GATHER;
-    m->max_photon_depth = 16;
+    m->max_photon_depth = 0; /* the camera paths' max_depth (media_max_photon_depth) */
     return m;
 }
 

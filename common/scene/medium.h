@@ -75,7 +75,7 @@ struct scene_media {
     int surface_photons;        /* march / beam: a surface photon map for diffuse surfaces' indirect light (default 1) */
     enum media_indirect indirect; /* march / beam: final gather or path-traced indirect light */
     float skip_bound;           /* skip the photon pass when multiple scattering is bounded below this */
-    uint32_t max_photon_depth;  /* interactions per photon path */
+    uint32_t max_photon_depth;  /* interactions per photon path; 0 = the render's max_depth (media_max_photon_depth) */
     float alpha;                /* progressive radius reduction per pass, in (0, 1]; 0 = MEDIA_DEFAULT_ALPHA */
     uint32_t direct_samples;    /* camera rays per sample for the lights seen straight from the camera
                                  * (1..MEDIA_MAX_DIRECT_SAMPLES; 1 = the sample's own ray only); 0 = the
@@ -89,6 +89,14 @@ struct scene_media {
 static inline uint32_t media_direct_samples(const struct scene_media *sm)
 {
     return sm->direct_samples ? sm->direct_samples : sm->method == MEDIA_VPT ? 1u : MEDIA_DEFAULT_DIRECT_SAMPLES;
+}
+/* Interactions a photon path may take: volume.max_photon_depth, or by default the render's
+ * max_depth. A lookup counts a photon of k prior events only when the camera path plus k
+ * stays within max_depth (k <= max_depth - 1), and the tracer stores photons with k up to
+ * the bound - 1: the default keeps every photon a lookup can count, and no more. */
+static inline uint32_t media_max_photon_depth(const struct scene_media *sm, uint32_t max_depth)
+{
+    return sm->max_photon_depth ? sm->max_photon_depth : max_depth < 1 ? 1u : max_depth > 1024u ? 1024u : max_depth;
 }
 /* Knaus and Zwicker's alpha: the share of each pass's photons a pass keeps in the radius rule. */
 #define MEDIA_DEFAULT_ALPHA (2.0f / 3.0f)

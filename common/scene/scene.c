@@ -122,7 +122,7 @@ static int media_validate(const struct scene *s, char *err, size_t errlen)
     }
     if ((unsigned)m->method >= MEDIA_METHOD_COUNT_ || !(m->step >= 0.0f) || !isfinite(m->step) ||
         !(m->radius >= 0.0f) || !isfinite(m->radius) || !(m->skip_bound >= 0.0f && m->skip_bound <= 1.0f) ||
-        m->photons > (1ull << 32) || m->max_photon_depth < 1 || m->max_photon_depth > 1024) {
+        m->photons > (1ull << 32) || m->max_photon_depth > 1024) {
         str_fmt(err, errlen, "volume settings out of range");
         return -1;
     }
