@@ -1509,11 +1509,13 @@ Test(medium, final_gather_matches_vpt, .timeout = 120)
  * direct light, the fog along the camera ray, and what the final gather's bounce (marched
  * through the fog by one point per segment, gather_segment) brings back. */
 #define FOG_BOX_SCENE(depth) FOG_BOX_SCENE_AS(depth, "gather")
-#define FOG_BOX_SCENE_AS(depth, indirect)                                                                   \
+#define FOG_BOX_SCENE_AS(depth, indirect) FOG_BOX_SCENE_OF(depth, indirect, "0.6", "0.01")
+/* wall: the walls' albedo; sa: the fog's sigma_a (sigma_s 0.06) */
+#define FOG_BOX_SCENE_OF(depth, indirect, wall, sa)                                                         \
     HEAD("\"position\": [0, 0, -9], \"look_at\": [0, -1, 0]", 12, 12, 1, depth)                             \
-    ",\n\"materials\": {\"white\": {\"type\": \"diffuse\", \"albedo\": [0.6, 0.6, 0.6]},\n"                 \
+    ",\n\"materials\": {\"white\": {\"type\": \"diffuse\", \"albedo\": [" wall ", " wall ", " wall "]},\n"     \
     "  \"lamp\": {\"type\": \"diffuse\", \"albedo\": [0, 0, 0], \"emission\": [20, 20, 20]}},\n"              \
-    "\"media\": {\"fog\": {\"sigma_a\": [0.01, 0.01, 0.01], \"sigma_s\": [0.06, 0.06, 0.06], \"g\": 0.2}},\n" \
+    "\"media\": {\"fog\": {\"sigma_a\": [" sa ", " sa ", " sa "], \"sigma_s\": [0.06, 0.06, 0.06], \"g\": 0.2}},\n" \
     "\"volume\": {\"method\": \"beam\", \"fog\": \"fog\", \"photons\": 40000, \"radius\": 0.5, "              \
     "\"step\": 0.25, \"indirect\": \"" indirect "\"},\n"                                                         \
     "\"objects\": [{\"type\": \"obj\", \"file\": \"box.obj\", \"material\": \"white\"},\n"                    \
@@ -1524,19 +1526,12 @@ Test(medium, fog_box_gather_matches_vpt, .timeout = 180)
     photon_methods_match_vpt("fog box", FOG_BOX_SCENE(64), FOG_BOX_SCENE(64), 8);
 }
 
-/* Light that scatters many times: white walls and a fog of albedo 0.99, where about a
- * third of the photons live past 16 interactions. Photon paths are bounded by the render's
+/* Light that scatters many times: walls of albedo 0.9 and a fog of albedo 0.99, at
+ * max_depth 64. Photon paths are bounded by the render's
  * max_depth (media_max_photon_depth), so the maps hold every photon a lookup may count;
  * bounded at 16 interactions instead, beam and march come out 35 % below VPT here (0.546
  * and 0.555 against 0.846). */
-#define DEEP_FOG_BOX_SCENE                                                                                  \
-    HEAD("\"position\": [0, 0, -9], \"look_at\": [0, -1, 0]", 12, 12, 1, 64)                               \
-    ",\n\"materials\": {\"white\": {\"type\": \"diffuse\", \"albedo\": [0.9, 0.9, 0.9]},\n"                 \
-    "  \"lamp\": {\"type\": \"diffuse\", \"albedo\": [0, 0, 0], \"emission\": [20, 20, 20]}},\n"              \
-    "\"media\": {\"fog\": {\"sigma_a\": [0.0006, 0.0006, 0.0006], \"sigma_s\": [0.06, 0.06, 0.06], \"g\": 0.2}},\n" \
-    "\"volume\": {\"method\": \"beam\", \"fog\": \"fog\", \"photons\": 40000, \"radius\": 0.5, \"step\": 0.25},\n" \
-    "\"objects\": [{\"type\": \"obj\", \"file\": \"box.obj\", \"material\": \"white\"},\n"                    \
-    "  {\"type\": \"sphere\", \"center\": [0, 7, 2], \"radius\": 1, \"material\": \"lamp\"}]}"
+#define DEEP_FOG_BOX_SCENE FOG_BOX_SCENE_OF(64, "gather", "0.9", "0.0006")
 
 Test(medium, deep_scattering_matches_vpt, .timeout = 240)
 {
