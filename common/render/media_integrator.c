@@ -737,6 +737,15 @@ vec3 media_sample_path(const struct render_job *job, const struct sampler *smp, 
     return media_sample_path_pass(job, 0, smp, px, py, org, dir, time01, NULL, 0, NULL, NULL, rays, hit_any);
 }
 
+/* march and beam: a homogeneous segment's transmittance to its end o + t d, over the exact
+ * length from the segment's true start (a boundary point, not the offset origin o), in
+ * the cut medium; t = INFINITY: nothing was hit. */
+static vec3 segment_end_tr(const struct media_job *mj, uint32_t medium, vec3 seg_start, vec3 o, vec3 d, float t)
+{
+    float exact = t < INFINITY ? v3_length(v3_sub(v3_add(o, v3_scale(d, t)), seg_start)) : INFINITY;
+    return medium_transmittance(&mj->cut[medium], exact);
+}
+
 vec3 media_direct_light(const struct render_job *job, uint32_t pass, vec3 org, vec3 dir, float time01, uint64_t *rays)
 {
     const struct scene *sc = job->scene;
@@ -756,8 +765,7 @@ vec3 media_direct_light(const struct render_job *job, uint32_t pass, vec3 org, v
     /* The transmittance each method gives the camera segment's end (media_sample_path_pass). */
     if (mj->sm->method == MEDIA_VPT)
         return v3_mul(medium_transmittance(&mj->sm->media[medium], h.t), le);
-    float exact = v3_length(v3_sub(v3_add(org, v3_scale(dir, h.t)), org));
-    return v3_mul(medium_transmittance(&mj->cut[medium], exact), le);
+    return v3_mul(segment_end_tr(mj, medium, org, org, dir, h.t), le);
 }
 
 vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const struct sampler *smp, uint32_t px,
@@ -897,8 +905,7 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
                 else
                     L = v3_add(L, v3_mul(beta, march_segment(job, mj, &r, vertex, depth, org, dir, len, medium, time01,
                                                              rays, &seg_tr)));
-                float exact = hit ? v3_length(v3_sub(v3_add(org, v3_scale(dir, h.t)), seg_start)) : INFINITY;
-                beta = v3_mul(beta, md->grid ? seg_tr : medium_transmittance(mdc, exact));
+                beta = v3_mul(beta, md->grid ? seg_tr : segment_end_tr(mj, medium, seg_start, org, dir, hit ? h.t : INFINITY));
                 if (v3_is_black(beta))
                     break;
             }
