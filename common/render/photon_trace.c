@@ -265,6 +265,9 @@ static void store(struct photon_list *l, vec3 p, vec3 d, vec3 power, uint32_t de
     ph->depth = (uint16_t)depth; /* < media_max_photon_depth <= PHOTON_DEPTH_MAX */
 }
 
+/* A default photon bound (media_max_photon_depth: the render's max_depth) fits a photon's depth. */
+_Static_assert(SCENE_MAX_DEPTH <= PHOTON_DEPTH_MAX, "max_depth bounds photon paths: SCENE_MAX_DEPTH <= PHOTON_DEPTH_MAX");
+
 /* Traces photon `index`: volume photons into vol; when surf is non-NULL, photons arriving
  * at diffuse surfaces after any interaction into surf. */
 static void trace_photon(const struct trace_ctx *tc, uint64_t index, struct photon_list *vol,

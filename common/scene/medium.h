@@ -96,7 +96,7 @@ static inline uint32_t media_direct_samples(const struct scene_media *sm)
  * the bound - 1: the default keeps every photon a lookup can count, and no more. */
 static inline uint32_t media_max_photon_depth(const struct scene_media *sm, uint32_t max_depth)
 {
-    return sm->max_photon_depth ? sm->max_photon_depth : max_depth < 1 ? 1u : max_depth > 1024u ? 1024u : max_depth;
+    return sm->max_photon_depth ? sm->max_photon_depth : max_depth; /* validated: 1..SCENE_MAX_DEPTH */
 }
 /* Knaus and Zwicker's alpha: the share of each pass's photons a pass keeps in the radius rule. */
 #define MEDIA_DEFAULT_ALPHA (2.0f / 3.0f)
