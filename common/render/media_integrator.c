@@ -510,8 +510,8 @@ static vec3 march_segment(const struct render_job *job, const struct media_job *
                                            rng_mix64(seg_key ^ (0x5348ull << 48) ^ k), rays, 0, equi ? &fc : NULL);
         vec3 in = v3_scale(v3_mul(md->sigma_s, ls), rho);
         if (mj->sm->method == MEDIA_MARCH_STEPS && map)
-            in = v3_add(in, photon_map_gather_knn(map, x, v3_neg(d), md->g, mj->sm->knn,
-                                                  KNN_RADIUS_FACTOR * map->radius, kmax));
+            in = v3_add(in, photon_map_gather_knn(map, x, v3_neg(d), md->g, mj->sm->knn, KNN_RADIUS_FACTOR * map->radius,
+                                                  kmax, rho, het ? md->grid->max_density : 0.0f));
         L = v3_add(L, v3_scale(v3_mul(tr, in), dx));
     }
     if (het)

@@ -153,16 +153,7 @@ struct media_job *media_job_new(const struct accel *a, const struct light_table 
         hi = v3(fmaxf(hi.x, q.x), fmaxf(hi.y, q.y), fmaxf(hi.z, q.z));
     }
     /* Grids may reach beyond the geometry (a cloud in an open sky): rays march them all. */
-    for (uint32_t i = 0; i < sm->num_media; i++) {
-        vec3 glo, ghi;
-        if (!sm->media[i].grid)
-            continue;
-        grid_world_box(sm->media[i].grid, &glo, &ghi);
-        if (!(glo.x <= ghi.x && glo.y <= ghi.y && glo.z <= ghi.z))
-            continue;
-        lo = v3(fminf(lo.x, glo.x), fminf(lo.y, glo.y), fminf(lo.z, glo.z));
-        hi = v3(fmaxf(hi.x, ghi.x), fmaxf(hi.y, ghi.y), fmaxf(hi.z, ghi.z));
-    }
+    media_grids_grow_box(sm, &lo, &hi);
     float size = v3_length(v3_sub(hi, lo));
     size = size > 0.0f && isfinite(size) ? size : 1.0f;
     vec3 pad = v3(1e-3f * size, 1e-3f * size, 1e-3f * size);

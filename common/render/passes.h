@@ -14,7 +14,7 @@
  * passes' maps together (the master holds every map of the frame, for late workers and
  * re-issues): past that, passes take more samples each. */
 #define PASS_DEFAULT_SPP 1u
-#define PASS_PHOTONS_PER_PIXEL 4u
+#define PASS_PHOTONS_PER_PIXEL 8u
 #define PASS_STORED_PER_PIXEL 3u
 #define PASS_MAX_PHOTONS (1ull << 24)
 

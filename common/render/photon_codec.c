@@ -41,3 +41,30 @@ vec3 photon_tau_transmittance(const struct photon_tau *tt, const struct medium *
     }
     return medium_tr_tau(md, tau);
 }
+
+_Static_assert(PHOTON_DEPTH_MAX <= 0x7ffu, "a photon's events fit the depth word's 11 bits");
+
+uint16_t photon_depth_word(uint32_t events, float density_rel)
+{
+    uint32_t k = 0;
+    if (density_rel > 0.0f && density_rel < 1.0f) {
+        int e;
+        frexpf(density_rel, &e); /* density_rel in [2^(e-1), 2^e) */
+        k = -e > 31 ? 31u : (uint32_t)-e;
+    }
+    return (uint16_t)(events | k << 11);
+}
+
+float photon_density_floor(uint16_t word)
+{
+    return ldexpf(1.0f, -(int)(word >> 11) - 1);
+}
+
+float photon_tau_density(const struct photon_tau *tt, float t)
+{
+    float x = (t - tt->t0) / tt->dt;
+    if (!(x >= 0.0f) || !(x < (float)(tt->n - 1)))
+        return 0.0f;
+    uint32_t i = (uint32_t)x;
+    return (tt->tau[i + 1] - tt->tau[i]) / tt->dt;
+}

@@ -9,6 +9,24 @@
 
 #define PHOTON_DEPTH_MAX 1024u  /* volume.max_photon_depth's bound */
 
+/* A stored photon's 16-bit depth word: the events of its light path before it was stored
+ * (bits 0-10, 1..PHOTON_DEPTH_MAX) and, for a photon stored in a density grid, a density
+ * code k (bits 11-15): the density there is at least 2^-(k+1) of the grid's maximum
+ * (k = 31 also for anything thinner); 0 in homogeneous media. */
+#define PHOTON_EVENTS(word) ((uint32_t)(word) & 0x7ffu)
+uint16_t photon_depth_word(uint32_t events, float density_rel);
+/* The word's lower bound on the density, as a fraction of the grid's maximum. */
+float photon_density_floor(uint16_t word);
+/* In a grid a photon carries its power over the density where it was stored, and an
+ * estimate at a point of density rho weighs it by min(rho, PHOTON_DENSITY_RATIO x the
+ * photon's density floor x the grid's maximum) (photon_density_weight). */
+#define PHOTON_DENSITY_RATIO 8.0f
+static inline float photon_density_weight(float rho, float floor_rel, float grid_max)
+{
+    float cap = PHOTON_DENSITY_RATIO * floor_rel * grid_max;
+    return rho < cap ? rho : cap;
+}
+
 /* Power as RGB with a shared exponent (4 bytes); decoded at the bin's centre. */
 void photon_rgbe_encode(vec3 c, uint8_t out[4]);
 vec3 photon_rgbe_decode(const uint8_t in[4]);
@@ -21,5 +39,8 @@ struct photon_tau {
 };
 /* Transmittance at t from a marched table. */
 vec3 photon_tau_transmittance(const struct photon_tau *tt, const struct medium *md, float t);
+/* The density the march took at t: the table's slope there (constant over each step; 0
+ * outside the table). */
+float photon_tau_density(const struct photon_tau *tt, float t);
 
 #endif

@@ -3,6 +3,7 @@
  * radiance estimates. No tracing here: photon_trace.c fills the lists this serialises. */
 #include "render/photon_map.h"
 #include "render/photon_beams.h"
+#include "scene/grid.h"
 #include "base/bytes.h"
 #include "base/log.h"
 #include <math.h>
@@ -11,7 +12,7 @@
 
 _Static_assert(sizeof(struct photon) == 20, "photons are 20 bytes on the wire");
 
-#define PM_MAGIC "BVPM0001"
+#define PM_MAGIC "BVPM0002"
 #define PM_HEADER 48
 /* Kernels use at least this radius and estimates saturate at 1e30, so a gather radius
  * near 0 cannot turn one photon into an infinite estimate. */
@@ -198,7 +199,7 @@ static int decode_one(const uint8_t *data, size_t size, size_t *used, struct pho
         ok = m->bucket_start[i] <= m->bucket_start[i + 1];
     for (uint32_t i = 0; ok && i < n; i++)
         ok = isfinite(m->photons[i].p[0]) && isfinite(m->photons[i].p[1]) && isfinite(m->photons[i].p[2]) &&
-             m->photons[i].depth >= 1 && m->photons[i].depth <= PHOTON_DEPTH_MAX;
+             PHOTON_EVENTS(m->photons[i].depth) >= 1 && PHOTON_EVENTS(m->photons[i].depth) <= PHOTON_DEPTH_MAX;
     if (!ok) {
         str_fmt(err, errlen, "photon map: bucket table, photon positions or depths are invalid");
         photon_map_free(&m);
@@ -209,7 +210,8 @@ static int decode_one(const uint8_t *data, size_t size, size_t *used, struct pho
     m->decoded = mem_alloc(sizeof *m->decoded * (n ? n : 1));
     for (uint32_t i = 0; i < n; i++) {
         vec3 dd = photon_dir_decode(m->photons[i].dir), pw = photon_rgbe_decode(m->photons[i].rgbe);
-        m->decoded[i] = (struct photon_decoded){{dd.x, dd.y, dd.z}, {pw.x, pw.y, pw.z}};
+        m->decoded[i] = (struct photon_decoded){{dd.x, dd.y, dd.z}, {pw.x, pw.y, pw.z},
+                                                photon_density_floor(m->photons[i].depth)};
     }
     *out = m;
     return 0;
@@ -352,7 +354,7 @@ vec3 photon_map_surface(const struct photon_map *vm, vec3 x, vec3 n, uint32_t de
         for (uint32_t i = m->bucket_start[buckets[bi]]; i < m->bucket_start[buckets[bi] + 1]; i++) {
             const struct photon *ph = &m->photons[i];
             vec3 dp = v3_sub(v3(ph->p[0], ph->p[1], ph->p[2]), x);
-            if (ph->depth > depth_max || v3_dot(dp, dp) > r2 || fabsf(v3_dot(dp, n)) > slab)
+            if (PHOTON_EVENTS(ph->depth) > depth_max || v3_dot(dp, dp) > r2 || fabsf(v3_dot(dp, n)) > slab)
                 continue;
             const struct photon_decoded *pd = m->decoded ? &m->decoded[i] : NULL;
             vec3 dir = pd ? v3(pd->dir[0], pd->dir[1], pd->dir[2]) : photon_dir_decode(ph->dir);
@@ -469,7 +471,7 @@ uint32_t photon_map_knn(const struct photon_map *m, vec3 x, uint32_t k, float rm
 }
 
 vec3 photon_map_gather_knn(const struct photon_map *m, vec3 x, vec3 d_out, float g, uint32_t k, float rmax,
-                           uint32_t depth_max)
+                           uint32_t depth_max, float rho, float grid_max)
 {
     uint32_t idx[PM_KNN_MAX];
     float r2;
@@ -480,9 +482,12 @@ vec3 photon_map_gather_knn(const struct photon_map *m, vec3 x, vec3 d_out, float
     /* The k nearest of all photons, then only the short enough ones counted: the same
      * estimate as a ball of radius r_k holding just those, so still consistent. */
     for (uint32_t j = 0; j < n; j++) {
-        if (m->photons[idx[j]].depth > depth_max)
+        uint16_t word = m->photons[idx[j]].depth;
+        if (PHOTON_EVENTS(word) > depth_max)
             continue;
         vec3 c = photon_contrib(m, idx[j], d_out, g);
+        if (grid_max > 0.0f)
+            c = v3_scale(c, photon_density_weight(rho, photon_density_floor(word), grid_max));
         acc[0] += c.x, acc[1] += c.y, acc[2] += c.z;
     }
     double rk = fmax(sqrt((double)r2), PM_MIN_KERNEL_RADIUS);
@@ -716,7 +721,7 @@ static struct photon_beam_grid *beam_grid_build(const struct photon_map *m)
     for (uint32_t j = 0, row_start = 0; j < n; j++) {
         const struct photon *ph = &m->photons[idx[j]];
         g->x[j] = ph->p[0], g->y[j] = ph->p[1], g->z[j] = ph->p[2];
-        g->depth[j] = ph->depth;
+        g->depth[j] = (uint16_t)PHOTON_EVENTS(ph->depth);
         g->dec[j] = m->decoded[idx[j]];
         if (j + 1 < n && key[j + 1] >> 32 == key[j] >> 32)
             continue;
@@ -785,6 +790,7 @@ static inline float beam_max(float a, float b) { return a > b ? a : b; }
 struct beam_ray {
     vec3 o, d, d_out;
     float t1, r2;
+    float grid_max; /* md's grid's maximum density; 0 in a homogeneous medium */
     uint32_t depth_max;
     const struct medium *md;
     const struct photon_tau *tau;
@@ -806,6 +812,11 @@ static inline void beam_add(const struct photon_map *m, uint32_t i, const struct
     vec3 tr = br->tau ? photon_tau_transmittance(br->tau, br->md, t) : medium_transmittance(br->md, t);
     float g = br->md->g;
     vec3 c = v3_mul(pd ? decoded_contrib(pd, br->d_out, g) : photon_contrib(m, i, br->d_out, g), tr);
+    if (br->grid_max > 0.0f) {
+        float rho = br->tau ? photon_tau_density(br->tau, t) : grid_density(br->md->grid, v3_add(br->o, v3_scale(br->d, t)));
+        float fl = pd ? pd->density_floor : photon_density_floor(m->photons[i].depth);
+        c = v3_scale(c, photon_density_weight(rho, fl, br->grid_max));
+    }
     acc[0] += c.x, acc[1] += c.y, acc[2] += c.z;
 }
 
@@ -875,14 +886,14 @@ vec3 photon_map_beam(const struct photon_map *m, vec3 o, vec3 d, float t1, const
     if (!m || m->num_photons == 0 || !(t1 > 0.0f) || !v3_is_finite(o) || !v3_is_finite(d))
         return v3(0, 0, 0);
     float r = m->radius;
-    struct beam_ray br = {o, d, v3_neg(d), t1, r * r, depth_max, md, tau};
+    struct beam_ray br = {o, d, v3_neg(d), t1, r * r, md->grid ? md->grid->max_density : 0.0f, depth_max, md, tau};
     double acc[3] = {0, 0, 0};
     if (m->beam)
         beam_walk(m, m->beam, &br, acc);
     else /* a map built by hand (tests): every photon */
         for (uint32_t i = 0; i < m->num_photons; i++) {
             const struct photon *ph = &m->photons[i];
-            beam_add(m, i, NULL, ph->p[0], ph->p[1], ph->p[2], ph->depth, &br, acc);
+            beam_add(m, i, NULL, ph->p[0], ph->p[1], ph->p[2], PHOTON_EVENTS(ph->depth), &br, acc);
         }
     double rk = fmax((double)r, PM_MIN_KERNEL_RADIUS);
     return scaled(acc, 1.0 / (M_PI * rk * rk));

@@ -21,15 +21,17 @@ struct photon {
     float p[3];
     uint8_t rgbe[4];    /* power (W), shared exponent */
     uint16_t dir;       /* direction of travel, octahedral 8+8 bits */
-    uint16_t depth;     /* scattering + surface events of the light path before it arrived here,
-                         * 1..PHOTON_DEPTH_MAX: lookups leave out photons that would make the
-                         * camera path plus the light path longer than max_depth */
+    uint16_t depth;     /* PHOTON_EVENTS: scattering + surface events of the light path before it
+                         * arrived here, 1..PHOTON_DEPTH_MAX (lookups leave out photons that would
+                         * make the camera path plus the light path longer than max_depth); and
+                         * in a grid its density code (photon_codec.h) */
 };
 /* A lookup's depth_max that keeps every photon. */
 #define PHOTON_DEPTH_ANY UINT32_MAX
 
 struct photon_decoded {
     float dir[3], power[3];
+    float density_floor; /* photon_density_floor of its depth word */
 };
 
 struct photon_map {
@@ -99,13 +101,15 @@ vec3 photon_map_surface(const struct photon_map *m, vec3 x, vec3 n, uint32_t dep
 #define PM_KNN_MAX 1024u
 uint32_t photon_map_knn(const struct photon_map *m, vec3 x, uint32_t k, float rmax, uint32_t *idx, float *r2);
 /* Jensen's per-step estimate with the k nearest photons (adaptive radius, at most rmax):
- * sum of phase x power / (4/3 pi r_k^3). */
+ * sum of phase x power / (4/3 pi r_k^3). In a grid (grid_max, its maximum density, > 0)
+ * each photon is weighed by photon_density_weight(rho, ...), rho the density at x. */
 vec3 photon_map_gather_knn(const struct photon_map *m, vec3 x, vec3 d_out, float g, uint32_t k, float rmax,
-                           uint32_t depth_max);
-/* Beam radiance estimate (Jarosz et al. 2008) along o + t d, t in [0, t1), in homogeneous
- * medium md: sum over photons within r of the ray of K(r) Tr(t_i) phase power, K = 1 /
- * (pi r^2). One query for the whole segment. */
-/* tau: transmittance from a marched table (heterogeneous media), or NULL for the closed form. */
+                           uint32_t depth_max, float rho, float grid_max);
+/* Beam radiance estimate (Jarosz et al. 2008) along o + t d, t in [0, t1), in medium md:
+ * sum over photons within r of the ray of K(r) Tr(t_i) phase power, K = 1 / (pi r^2), in
+ * a grid times photon_density_weight of the density at t_i (photon_codec.h). One query
+ * for the whole segment. tau: transmittance and density from a marched table (grids), or
+ * NULL for the closed form (and grid lookups). */
 vec3 photon_map_beam(const struct photon_map *m, vec3 o, vec3 d, float t1, const struct medium *md,
                      const struct photon_tau *tau, uint32_t depth_max);
 

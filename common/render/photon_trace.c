@@ -39,6 +39,8 @@ struct trace_ctx {
     int aim;                /* point lights and the sky aim photons at the media's bounding sphere */
     vec3 aim_center;
     float aim_radius;
+    int reach;              /* photons can interact only inside reach_lo..hi (photon_interaction_bounds) */
+    vec3 reach_lo, reach_hi;
 };
 
 /* Photons of a point light sent into the cone toward the media. The others carry the light
@@ -97,6 +99,33 @@ static int media_bounds(const struct render_job *job, vec3 *center, float *radiu
         return 0;
     *center = v3_scale(v3_add(lo, hi), 0.5f);
     *radius = 0.5f * v3_length(v3_sub(hi, lo)) * 1.001f;
+    return 1;
+}
+
+int photon_interaction_bounds(const struct render_job *job, vec3 *lo_out, vec3 *hi_out)
+{
+    const struct scene_media *sm = job->scene->media;
+    if (sm && sm->fog != MEDIUM_NONE && !sm->media[sm->fog].grid)
+        return 0; /* a homogeneous fog fills all space */
+    struct RTCBounds b;
+    vec3 lo = v3(INFINITY, INFINITY, INFINITY), hi = v3(-INFINITY, -INFINITY, -INFINITY);
+    if (job->accel.has_motion) { /* the scene at any time of the shutter lies within both ends' bounds */
+        struct RTCLinearBounds lb;
+        rtcGetSceneLinearBounds(job->accel.scene, &lb);
+        lo = v3(fminf(lb.bounds0.lower_x, lb.bounds1.lower_x), fminf(lb.bounds0.lower_y, lb.bounds1.lower_y),
+                fminf(lb.bounds0.lower_z, lb.bounds1.lower_z));
+        hi = v3(fmaxf(lb.bounds0.upper_x, lb.bounds1.upper_x), fmaxf(lb.bounds0.upper_y, lb.bounds1.upper_y),
+                fmaxf(lb.bounds0.upper_z, lb.bounds1.upper_z));
+    } else {
+        rtcGetSceneBounds(job->accel.scene, &b);
+        lo = v3(b.lower_x, b.lower_y, b.lower_z), hi = v3(b.upper_x, b.upper_y, b.upper_z);
+    }
+    media_grids_grow_box(sm, &lo, &hi);
+    if (!(lo.x <= hi.x && lo.y <= hi.y && lo.z <= hi.z) || !v3_is_finite(lo) || !v3_is_finite(hi))
+        return 0;
+    float pad = 1e-3f * fmaxf(v3_length(v3_sub(hi, lo)), v3_max_abs(lo) + v3_max_abs(hi));
+    *lo_out = v3_sub(lo, v3(pad, pad, pad));
+    *hi_out = v3_add(hi, v3(pad, pad, pad));
     return 1;
 }
 
@@ -164,6 +193,21 @@ static int emit(const struct trace_ctx *tc, uint64_t key, vec3 *o, vec3 *d, vec3
                 cos_aim = sqrtf(fmaxf(0.0f, 1.0f - s2));
             }
         }
+        /* A point light outside the slab of the interaction box on an axis sends nothing
+         * away from it: its own emission is folded onto the side that faces the slab on
+         * each such axis (m axes: pdf 2^m / 4 pi), and photons that would fly off into
+         * empty space are not traced at all. */
+        float side[3] = {0.0f, 0.0f, 0.0f}, fold = 1.0f;
+        if (tc->reach && l->type != LIGHT_SPOT) {
+            const float p[3] = {l->position.x, l->position.y, l->position.z};
+            const float lo[3] = {tc->reach_lo.x, tc->reach_lo.y, tc->reach_lo.z};
+            const float hi[3] = {tc->reach_hi.x, tc->reach_hi.y, tc->reach_hi.z};
+            for (int a = 0; a < 3; a++)
+                if (p[a] < lo[a] || p[a] > hi[a]) {
+                    side[a] = p[a] < lo[a] ? 1.0f : -1.0f;
+                    fold *= 2.0f;
+                }
+        }
         int aimed = cos_aim < 1.0f && rng_uniform(key, 5) < AIM_SHARE;
         float cm = aimed ? cos_aim : cos_max;
         vec3 ax = aimed ? aim_axis : axis;
@@ -172,8 +216,14 @@ static int emit(const struct trace_ctx *tc, uint64_t key, vec3 *o, vec3 *d, vec3
         vec3 t, b;
         v3_basis(ax, &t, &b);
         *d = v3_normalize(v3_add(v3_scale(ax, z), v3_add(v3_scale(t, r * cp), v3_scale(b, r * sp))));
+        if (!aimed && fold > 1.0f)
+            *d = v3(side[0] != 0.0f ? side[0] * fabsf(d->x) : d->x, side[1] != 0.0f ? side[1] * fabsf(d->y) : d->y,
+                    side[2] != 0.0f ? side[2] * fabsf(d->z) : d->z);
         *o = l->position;
-        float pdf_own = (l->type != LIGHT_SPOT || v3_dot(*d, axis) >= cos_max) ? 1.0f / (2.0f * (float)M_PI * (1.0f - cos_max)) : 0.0f;
+        int facing = d->x * side[0] >= 0.0f && d->y * side[1] >= 0.0f && d->z * side[2] >= 0.0f;
+        float pdf_own = (l->type != LIGHT_SPOT || v3_dot(*d, axis) >= cos_max) && facing
+                            ? fold / (2.0f * (float)M_PI * (1.0f - cos_max))
+                            : 0.0f;
         float pdf = pdf_own;
         if (cos_aim < 1.0f) {
             float pdf_aim = v3_dot(*d, aim_axis) >= cos_aim ? 1.0f / (2.0f * (float)M_PI * (1.0f - cos_aim)) : 0.0f;
@@ -238,6 +288,7 @@ static void trace_ctx_start(struct trace_ctx *tc, const struct render_job *job, 
     tc->emitted = emitted;
     tc->photon_scale = emitted ? (float)(1.0 / (double)emitted) : 0.0f;
     tc->aim = media_bounds(job, &tc->aim_center, &tc->aim_radius);
+    tc->reach = photon_interaction_bounds(job, &tc->reach_lo, &tc->reach_hi);
 }
 
 void photon_trace_emit(const struct render_job *job, uint64_t seed, uint64_t first, uint32_t n, struct photon_emitted *out)
@@ -252,8 +303,10 @@ void photon_trace_emit(const struct render_job *job, uint64_t seed, uint64_t fir
     }
 }
 
-/* depth: the events (scatterings, surface bounces) before the photon arrived at p. */
-static void store(struct photon_list *l, vec3 p, vec3 d, vec3 power, uint32_t depth)
+/* depth: the events (scatterings, surface bounces) before the photon arrived at p;
+ * density_rel: in a grid, the density at p over the grid's maximum (the power is then
+ * divided by the density: photon_codec.h), else 1. */
+static void store(struct photon_list *l, vec3 p, vec3 d, vec3 power, uint32_t depth, float density_rel)
 {
     if (!v3_is_finite(power) || v3_is_black(power))
         return;
@@ -262,7 +315,7 @@ static void store(struct photon_list *l, vec3 p, vec3 d, vec3 power, uint32_t de
     ph->p[0] = p.x, ph->p[1] = p.y, ph->p[2] = p.z;
     photon_rgbe_encode(power, ph->rgbe);
     ph->dir = photon_dir_encode(d);
-    ph->depth = (uint16_t)depth; /* < media_max_photon_depth <= PHOTON_DEPTH_MAX */
+    ph->depth = photon_depth_word(depth, density_rel); /* depth < media_max_photon_depth <= PHOTON_DEPTH_MAX */
 }
 
 /* A default photon bound (media_max_photon_depth: the render's max_depth) fits a photon's depth. */
@@ -311,8 +364,15 @@ static void trace_photon(const struct trace_ctx *tc, uint64_t index, struct phot
             }
             if (scatter) {
                 vec3 x = v3_add(o, v3_scale(d, t));
-                if (indirect && !as_beam && !outside_keep(tc, x))
-                    store(vol, x, d, power, depth);
+                if (indirect && !as_beam && !outside_keep(tc, x)) {
+                    /* In a grid the photon carries power / density: an estimate multiplies by
+                     * the density where it is taken, so that its kernel blurs the arriving
+                     * light, not the grid's edges (docs/media.md, "Photons in grids"). */
+                    float rho = md->grid ? grid_density(md->grid, x) : 1.0f;
+                    if (rho > 0.0f)
+                        store(vol, x, d, md->grid ? v3_scale(power, 1.0f / rho) : power, depth,
+                              md->grid ? rho / md->grid->max_density : 1.0f);
+                }
                 /* Russian roulette keeps the power of survivors near what it was. */
                 float q = fminf(1.0f, v3_max_component(power) / fmaxf(v3_max_component(before), 1e-30f));
                 if (!(q > 0.0f) || rng_uniform(key, dim + 2) >= q)
@@ -347,7 +407,7 @@ static void trace_photon(const struct trace_ctx *tc, uint64_t index, struct phot
         /* Light reaching a diffuse surface after an interaction: its indirect light (what
          * arrives straight from a light, next-event estimation computes). */
         if (surf && indirect && mat->type == MATERIAL_DIFFUSE && !v3_is_black(mat->albedo))
-            store(surf, s.p, d, power, depth);
+            store(surf, s.p, d, power, depth, 1.0f);
         vec3 wo = v3_neg(d);
         int front = v3_dot(s.ng, wo) >= 0.0f;
         vec3 ng = front ? s.ng : v3_neg(s.ng);

@@ -43,6 +43,10 @@ void photon_trace_emit(const struct render_job *job, uint64_t seed, uint64_t fir
  * PHOTON_REACH_EPS, at most PHOTON_REACH_MAX scene diagonals (scene_size; a fog that
  * thin is all but transparent). 0 for grids (their boxes are inside the bounds) and media
  * that do nothing. See docs/media.md, "Open fog". */
+/* The box outside which a photon meets nothing (the geometry over the shutter and every
+ * grid's box, padded): point lights outside it send no photon away from it. 0 when a
+ * homogeneous fog fills all space. */
+int photon_interaction_bounds(const struct render_job *job, vec3 *lo, vec3 *hi);
 #define PHOTON_REACH_EPS 1e-4f
 #define PHOTON_REACH_MAX 64.0f
 float photon_fog_reach(const struct medium *md, float scene_size);

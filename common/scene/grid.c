@@ -575,6 +575,20 @@ void grid_world_box(const struct density_grid *g, vec3 *lo, vec3 *hi)
     }
 }
 
+void media_grids_grow_box(const struct scene_media *sm, vec3 *lo, vec3 *hi)
+{
+    for (uint32_t i = 0; sm && i < sm->num_media; i++) {
+        vec3 glo, ghi;
+        if (!sm->media[i].grid)
+            continue;
+        grid_world_box(sm->media[i].grid, &glo, &ghi);
+        if (!(glo.x <= ghi.x && glo.y <= ghi.y && glo.z <= ghi.z))
+            continue;
+        *lo = v3(fminf(lo->x, glo.x), fminf(lo->y, glo.y), fminf(lo->z, glo.z));
+        *hi = v3(fmaxf(hi->x, ghi.x), fmaxf(hi->y, ghi.y), fmaxf(hi->z, ghi.z));
+    }
+}
+
 float grid_optical_depth(const struct medium *m, vec3 a, vec3 b)
 {
     if (!m->grid)

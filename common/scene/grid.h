@@ -62,6 +62,9 @@ float medium_march_step(const struct medium *m, float step);
 
 /* World-space bounding box of the grid's occupied box (empty: lo > hi). */
 void grid_world_box(const struct density_grid *g, vec3 *lo, vec3 *hi);
+/* Grows [lo, hi] to hold the world box of every grid among the media (those with data). */
+struct scene_media;
+void media_grids_grow_box(const struct scene_media *sm, vec3 *lo, vec3 *hi);
 /* Optical depth per unit sigma_t of m's grid along the segment a -> b: the midpoint rule
  * at steps of at most half a voxel over the part inside the occupied box. Deterministic. */
 float grid_optical_depth(const struct medium *m, vec3 a, vec3 b);

@@ -3,7 +3,7 @@
  * (byte 0) and table size (byte 1, a power of two) and supplies its photons and bucket
  * table, so the header fits and the decoder's deeper checks (bucket order, positions) are
  * reached; whatever input is left follows as a second map (the surface map) behind a
- * "BVPM0001" magic. The raw input is also decoded as it is, and as a volume blob (the
+ * "BVPM0002" magic. The raw input is also decoded as it is, and as a volume blob (the
  * progressive passes' maps behind a "BVOL0002" header), and the built map is wrapped in
  * a volume blob of up to three passes whose header fields and map sizes the input also
  * sets; the input also serves as photon beams (a beams section behind an empty map). A
@@ -39,7 +39,7 @@ static void exercise(const uint8_t *blob, size_t n)
     md.sigma_t = v3_add(md.sigma_a, md.sigma_s);
     for (int i = 0; i < 4; i++) {
         vec3 x = v3(pts[i][0], pts[i][1], pts[i][2]);
-        (void)photon_map_gather_knn(m, x, v3(0, 1, 0), -0.2f, 8, 4.0f * m->radius, PHOTON_DEPTH_ANY);
+        (void)photon_map_gather_knn(m, x, v3(0, 1, 0), -0.2f, 8, 4.0f * m->radius, PHOTON_DEPTH_ANY, 0.7f, 2.0f);
         (void)photon_map_beam(m, x, v3(0, 0, 1), 2.0f, &md, NULL, PHOTON_DEPTH_ANY);
         (void)photon_map_surface(m, x, v3(0, 1, 0), PHOTON_DEPTH_ANY);
         if (m->beams) {
@@ -59,7 +59,7 @@ static void exercise_beams(const uint8_t *data, size_t size)
     uint32_t n = (uint32_t)((size - 1) / sizeof(struct photon_beam));
     size_t map = 48 + 8, sec = PB_HEADER + sizeof(struct photon_beam) * (size_t)n, total = map + sec;
     uint8_t *b = mem_calloc(total, 1);
-    memcpy(b, "BVPM0001", 8);
+    memcpy(b, "BVPM0002", 8);
     put_u32(b + 12, 1); /* table size */
     b[16] = 100;
     float r = 0.25f, c = 0.5f, rb = data[0] & 1 ? 0.05f : 3.0f;
@@ -89,7 +89,7 @@ static void exercise_blob(const uint8_t *blob, size_t n)
     for (const struct photon_map *m = maps; m; m = m->next_pass)
         for (int i = 0; i < 2; i++) {
             vec3 x = v3(pts[i][0], pts[i][1], pts[i][2]);
-            (void)photon_map_gather_knn(m, x, v3(0, 1, 0), 0.3f, 4, 4.0f * m->radius, PHOTON_DEPTH_ANY);
+            (void)photon_map_gather_knn(m, x, v3(0, 1, 0), 0.3f, 4, 4.0f * m->radius, PHOTON_DEPTH_ANY, 1.0f, 0.0f);
             (void)photon_map_surface(m, x, v3(0, 1, 0), PHOTON_DEPTH_ANY);
         }
     photon_map_free(&maps);
@@ -113,7 +113,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     size_t avail = size - 2, take = avail < body ? avail : body;
     size_t rest = avail - take, total = 48 + body + (rest ? 8 + rest : 0);
     uint8_t *b = mem_calloc(total, 1);
-    memcpy(b, "BVPM0001", 8);
+    memcpy(b, "BVPM0002", 8);
     put_u32(b + 8, n);
     put_u32(b + 12, table);
     b[16] = 100; /* photons emitted */
@@ -122,7 +122,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     memcpy(b + 28, &c, 4);
     memcpy(b + 48, data + 2, take);
     if (rest) {
-        memcpy(b + 48 + body, "BVPM0001", 8);
+        memcpy(b + 48 + body, "BVPM0002", 8);
         memcpy(b + 48 + body + 8, data + 2 + take, rest);
     }
     exercise(b, total);

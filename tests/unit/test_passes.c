@@ -66,14 +66,14 @@ Test(passes, plan)
 {
     struct pass_plan pl;
     /* Default: a pass per sample, so the maps (and the radius shrinkage) grow with spp;
-     * photons per pass at most 4 emitted per pixel (here the stored cap, 3 / 0.35 per pixel,
+     * photons per pass at most 8 emitted per pixel (here the stored cap, 3 / 0.35 per pixel,
      * is above it: a dense cloud, where most photons are never stored). */
-    for (uint32_t spp = 1; spp <= 256; spp *= 2) {
+    for (uint32_t spp = 1; spp * PASS_PHOTONS_PER_PIXEL * 128 * 128 <= PASS_MAX_PHOTONS; spp *= 2) {
         cr_assert_eq(passes_plan(spp, 0, 300000, 0, 0.35, 128 * 128, &pl), 0);
         cr_assert_eq(pl.passes, spp);
         cr_assert_eq(pl.spp_per_pass, 1u);
         cr_assert_eq(pl.spp, spp);
-        cr_assert_eq(pl.photons, 4u * 128 * 128);
+        cr_assert_eq(pl.photons, PASS_PHOTONS_PER_PIXEL * 128 * 128);
     }
     /* Fewer photons than the caps, or photons given on the command line: kept. */
     cr_assert_eq(passes_plan(8, 0, 50000, 0, 1.1, 160 * 120, &pl), 0);
@@ -112,17 +112,17 @@ Test(passes, plan_caps_stored_photons)
     struct pass_plan pl;
     /* Thin fog in a closed box: every photon is stored 2.5 times in the volume map, so the
      * maps' bytes and the beam queries' work go with 2.5 x the photons emitted; the stored
-     * cap (3 per pixel) binds before the emitted one (4 per pixel). */
+     * cap (3 per pixel) binds before the emitted one (8 per pixel). */
     cr_assert_eq(passes_plan(16, 0, 200000, 0, 2.5, 128 * 128, &pl), 0);
     cr_assert_eq(pl.photons, (uint64_t)(3.0 * 128 * 128 / 2.5));
     cr_assert_eq(pl.passes, 16u);
     cr_assert_eq(pl.spp_per_pass, 1u);
     /* Exactly at the emitted cap the stored one does not bind, nor when the pilot stored
      * nothing (no stored cap), and --photons is kept whatever the pilot says. */
-    cr_assert_eq(passes_plan(16, 0, 200000, 0, 0.75, 128 * 128, &pl), 0);
-    cr_assert_eq(pl.photons, 4u * 128 * 128);
+    cr_assert_eq(passes_plan(16, 0, 200000, 0, 3.0 / PASS_PHOTONS_PER_PIXEL, 128 * 128, &pl), 0);
+    cr_assert_eq(pl.photons, PASS_PHOTONS_PER_PIXEL * 128 * 128);
     cr_assert_eq(passes_plan(16, 0, 200000, 0, 0.0, 128 * 128, &pl), 0);
-    cr_assert_eq(pl.photons, 4u * 128 * 128);
+    cr_assert_eq(pl.photons, PASS_PHOTONS_PER_PIXEL * 128 * 128);
     cr_assert_eq(passes_plan(16, 0, 200000, 1, 2.5, 128 * 128, &pl), 0);
     cr_assert_eq(pl.photons, 200000u);
     /* A map that stores photons by the hundred per photon emitted keeps at least one. */
