@@ -126,6 +126,17 @@ static inline void sincos_2pi(float u, float *s, float *c)
     }
 }
 
+/* A direction uniform in the cone of directions within acos(cos_max) of unit axis (pdf
+ * 1 / (2 pi (1 - cos_max))), from u1, u2 in [0, 1). */
+static inline vec3 v3_cone_sample(vec3 axis, float cos_max, float u1, float u2)
+{
+    float z = 1.0f - u1 * (1.0f - cos_max), r = sqrtf(fmaxf(0.0f, 1.0f - z * z)), sp, cp;
+    sincos_2pi(u2, &sp, &cp);
+    vec3 t, b;
+    v3_basis(axis, &t, &b);
+    return v3_normalize(v3_add(v3_scale(axis, z), v3_add(v3_scale(t, r * cp), v3_scale(b, r * sp))));
+}
+
 /* Row-major 3x4 affine transform: p' = M[:, :3] p + M[:, 3]. */
 struct xform { float m[3][4]; };
 

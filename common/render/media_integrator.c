@@ -4,7 +4,7 @@
  * MARCH_ALL_LIGHTS point lights + the k-nearest photon estimate; beam: one beam query per
  * segment (in homogeneous media camera segments take points instead of a march when lights
  * are picked one at a time, and long segments' beams one random piece); at the first diffuse vertex a final gather (surface photon map after one
- * bounce, sampled toward glowing lights too: glow_bounce) or, with path-traced indirect light, VPT from there on. Random numbers: one key
+ * bounce, sampled toward glowing lights and the media too: gather_bounce) or, with path-traced indirect light, VPT from there on. Random numbers: one key
  * per (seed, frame, pixel, sample) and a fixed layout of dimensions per vertex, so pixels
  * do not depend on threads, tiles or workers. Surfaces take their textures (texshade.h)
  * over footprints of the camera's ray differentials carried along the path. */
@@ -434,6 +434,9 @@ static uint32_t volume_photon_depth_max(uint32_t max_depth, uint32_t depth, int 
  * transmittance to each step. Grids: the optical depth accumulates step by step (a table
  * of it serves the beam). */
 #define TAU_TABLE 4096
+/* A march stops where the transmittance to the camera falls below this: what lies beyond
+ * adds less than this fraction of its own radiance. */
+#define MARCH_TR_MIN 1e-6f
 static vec3 march_segment(const struct render_job *job, const struct media_job *mj, const struct rngs *r,
                           uint32_t vertex, uint32_t depth, vec3 o, vec3 d, float len, uint32_t medium, float time01,
                           uint64_t *rays, vec3 *seg_tr)
@@ -476,6 +479,7 @@ static vec3 march_segment(const struct render_job *job, const struct media_job *
     float tau_tab[TAU_TABLE];   /* grids: optical depth (per unit sigma_t) at c0 + k dx */
     uint32_t ntab = 0;
     float tau = 0.0f;
+    int cut = 0; /* a grid's march stopped where the transmittance fell below MARCH_TR_MIN */
     if (het)
         tau_tab[ntab++] = 0.0f;
     for (uint32_t k = 0;; k++) {
@@ -498,8 +502,10 @@ static vec3 march_segment(const struct render_job *job, const struct media_job *
         } else {
             tr = medium_transmittance(md, t);
         }
-        if (v3_max_component(tr) < 1e-6f && !het)
+        if (v3_max_component(tr) < MARCH_TR_MIN) {
+            cut = het;
             break; /* nothing beyond reaches the camera */
+        }
         if (!(rho > 0.0f))
             continue;
         fc.t = t;
@@ -524,6 +530,8 @@ static vec3 march_segment(const struct render_job *job, const struct media_job *
             grid_world_box(md->grid, &blo, &bhi);
             float rad = map->radius, e0 = 0.0f, e1 = len;
             vec3 pad = v3(rad, rad, rad);
+            if (cut) /* photons past the march's end: transmittance below MARCH_TR_MIN */
+                e1 = fminf(e1, c0 + (float)(ntab - 1) * dx);
             if (v3_clip_box(o, d, v3_sub(blo, pad), v3_add(bhi, pad), &e0, &e1) && e0 < e1) {
                 struct photon_tau tt = {tau_tab, ntab, c0 - e0, dx};
                 vec3 oe = v3_add(o, v3_scale(d, e0));
@@ -660,55 +668,104 @@ float media_glow_pdf(vec3 c, vec3 w)
     return (float)(1.0 / (M_PI * M_PI)) / fmaxf(s, GLOW_MIN_SIN);
 }
 
-/* The final gather's bounce at a diffuse vertex of march or beam with glowing lights
- * (media_job's glow) on its side: the direction from the mixture of cosine sampling
- * (GLOW_COS_SHARE) and, in equal shares of the rest, glow sampling toward each of them
- * (media_glow_sample), weighted by the mixture's density (one-sample MIS, balance
- * heuristic), which is also the bounce's pdf for the MIS of NEE and emitters. */
-#define GLOW_COS_SHARE 0.75f
-struct glow_mix {
+/* The final gather's bounce at a diffuse vertex of march or beam: the direction from a
+ * mixture of cosine sampling and, where they apply, glow sampling toward each glowing light
+ * on the vertex's side (media_job's glow; GLOW_SHARE in equal parts; media_glow_sample)
+ * and, with GATHER_MEDIA_SHARE, toward the media: where they are grids toward their
+ * density (grid_aim, in equal parts), else the cone toward their bounding sphere from a
+ * vertex outside it. That is the light the media send back to the surface, from a small
+ * bright solid angle (a cloud over a floor: docs/media.md, "Final gather"). Weighted by the
+ * mixture's density (one-sample MIS, balance heuristic), which is also the bounce's pdf
+ * for the MIS of NEE and emitters. */
+#define GLOW_SHARE 0.25f
+#define GATHER_MEDIA_SHARE 0.25f
+struct gather_mix {
     uint32_t n;
     vec3 c[MEDIA_GLOW_MAX]; /* unit directions from the vertex to the glowing lights */
+    const struct grid_aim *aims; /* toward grids' density (num_aims of them; then no cone) */
+    uint32_t num_aims;
+    int cone;               /* the cone toward the media: axis, cosine of its half-angle */
+    vec3 cone_axis;
+    float cone_cos;
+    float share_cos, share_glow, share_cone;
+    vec3 p;                 /* the vertex */
 };
 
-static void glow_mix_init(struct glow_mix *g, const struct media_job *mj, vec3 p, vec3 ng)
+/* 1 when the vertex has a strategy besides cosine sampling. */
+static int gather_mix_init(struct gather_mix *g, const struct media_job *mj, vec3 p, vec3 ng)
 {
     g->n = 0;
+    g->p = p;
     for (uint32_t k = 0; k < mj->num_glow; k++) {
         vec3 to = v3_sub(mj->glow[k], p);
         float d = v3_length(to);
         if (d > 0.0f && v3_dot(to, ng) > 0.0f)
             g->c[g->n++] = v3_scale(to, 1.0f / d);
     }
+    g->cone = 0;
+    g->aims = mj->aims;
+    g->num_aims = GATHER_MEDIA_SHARE > 0.0f ? mj->num_aims : 0;
+    if (mj->aim && GATHER_MEDIA_SHARE > 0.0f && g->num_aims == 0) {
+        vec3 to = v3_sub(mj->aim_center, p);
+        float d = v3_length(to), sn = mj->aim_radius / d;
+        /* outside the sphere, and the cone not wholly below the surface */
+        if (d > mj->aim_radius && v3_dot(to, ng) > -mj->aim_radius) {
+            g->cone_axis = v3_scale(to, 1.0f / d);
+            g->cone_cos = sqrtf(fmaxf(0.0f, 1.0f - sn * sn));
+            g->cone = g->cone_cos < 1.0f;
+        }
+    }
+    g->share_glow = g->n > 0 ? GLOW_SHARE : 0.0f;
+    g->share_cone = g->cone || g->num_aims > 0 ? GATHER_MEDIA_SHARE : 0.0f;
+    g->share_cos = 1.0f - g->share_glow - g->share_cone;
+    return g->n > 0 || g->cone || g->num_aims > 0;
 }
 
 /* The mixture's density at wi, given the cosine lobe's (material_eval's pdf). */
-static float glow_mix_pdf(const struct glow_mix *g, float cos_pdf, vec3 wi)
+static float gather_mix_pdf(const struct gather_mix *g, float cos_pdf, vec3 wi)
 {
-    float s = 0.0f;
-    for (uint32_t k = 0; k < g->n; k++)
-        s += media_glow_pdf(g->c[k], wi);
-    return GLOW_COS_SHARE * cos_pdf + (1.0f - GLOW_COS_SHARE) * s / (float)g->n;
+    float p = g->share_cos * cos_pdf;
+    if (g->n > 0) {
+        float s = 0.0f;
+        for (uint32_t k = 0; k < g->n; k++)
+            s += media_glow_pdf(g->c[k], wi);
+        p += g->share_glow * s / (float)g->n;
+    }
+    if (g->cone && v3_dot(wi, g->cone_axis) >= g->cone_cos)
+        p += g->share_cone / (2.0f * (float)M_PI * (1.0f - g->cone_cos));
+    if (g->num_aims > 0) {
+        float s = 0.0f;
+        for (uint32_t k = 0; k < g->num_aims; k++)
+            s += grid_aim_pdf(&g->aims[k], g->p, wi);
+        p += g->share_cone * s / (float)g->num_aims;
+    }
+    return p;
 }
 
-/* One bounce from the mixture (g->n > 0; mat diffuse): u0 picks the strategy. */
-static void glow_bounce(const struct glow_mix *g, const struct material *mat, vec3 ns, vec3 wo, int front, float u0,
-                        float u1, float u2, struct bsdf_sample *bs)
+/* One bounce from the mixture (mat diffuse): u0 picks the strategy. */
+static void gather_bounce(const struct gather_mix *g, const struct material *mat, vec3 ns, vec3 wo, int front, float u0,
+                          float u1, float u2, float u3, struct bsdf_sample *bs)
 {
     vec3 wi;
-    if (u0 < GLOW_COS_SHARE) {
+    if (u0 < g->share_cos) {
         material_sample(mat, ns, wo, front, u1, u2, bs);
         if (!(bs->pdf > 0.0f))
             return;
         wi = bs->wi;
-    } else {
-        float v = (u0 - GLOW_COS_SHARE) / (1.0f - GLOW_COS_SHARE) * (float)g->n;
+    } else if (u0 < g->share_cos + g->share_glow) {
+        float v = (u0 - g->share_cos) / g->share_glow * (float)g->n;
         uint32_t k = v < (float)g->n ? (uint32_t)v : g->n - 1;
         wi = media_glow_sample(g->c[k], u1, u2);
+    } else if (g->num_aims > 0) {
+        float v = (u0 - g->share_cos - g->share_glow) / g->share_cone * (float)g->num_aims;
+        uint32_t k = v < (float)g->num_aims ? (uint32_t)v : g->num_aims - 1;
+        wi = grid_aim_sample(&g->aims[k], g->p, fminf(v - (float)k, 0x1.fffffep-1f), u1, u2, u3);
+    } else {
+        wi = v3_cone_sample(g->cone_axis, g->cone_cos, u1, u2);
     }
     float pc;
     vec3 f = material_eval(mat, ns, wo, wi, front, &pc);
-    float pdf = glow_mix_pdf(g, pc, wi);
+    float pdf = gather_mix_pdf(g, pc, wi);
     bs->wi = wi;
     bs->is_delta = 0;
     bs->transmitted = 0;
@@ -968,13 +1025,12 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
         const int surface_map = diffuse_map && (gathered || depth >= rs->max_depth);
         if (diffuse_map)
             gathered = 1;
-        /* The gather's bounce toward glowing lights too (glow_bounce): its segment's
-         * equiangular sample toward a light in fog is ~ 1 / (the distance it passes the
-         * light at), heavy-tailed under cosine sampling alone. */
-        struct glow_mix glow;
-        glow.n = 0;
-        if (diffuse_map && !surface_map && mj->num_glow > 0)
-            glow_mix_init(&glow, mj, s.p, ng);
+        /* The gather's bounce toward glowing lights and the media too (gather_bounce): its
+         * segment's equiangular sample toward a light in fog is ~ 1 / (the distance it
+         * passes the light at), and a bright cloud seen from a floor fills a small solid
+         * angle, both heavy-tailed under cosine sampling alone. */
+        struct gather_mix mix;
+        int mixed = diffuse_map && !surface_map && gather_mix_init(&mix, mj, s.p, ng);
         if (!vpt && few_points && !material_is_delta(mat)) {
             /* Jensen's methods, a few point lights: every one (no pick noise). */
             for (uint32_t li = 0; li < job->lights.num_entries; li++) {
@@ -1000,8 +1056,8 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
                                                      rng_mix64(r.key ^ (0x5353ull << 48) ^ vertex), rays);
                 if (!v3_is_black(tr)) {
                     float bp = n.bsdf_pdf;
-                    if (glow.n > 0 && !n.ls.is_delta)
-                        bp = glow_mix_pdf(&glow, bp, v3_normalize(v3_sub(n.ls.p, s.p)));
+                    if (mixed && !n.ls.is_delta)
+                        bp = gather_mix_pdf(&mix, bp, v3_normalize(v3_sub(n.ls.p, s.p)));
                     float w = n.ls.is_delta || surface_map ? 1.0f : power_heuristic(n.ls.pdf, bp);
                     L = v3_add(L, v3_mul(beta, v3_scale(v3_mul(v3_mul(n.f, n.ls.radiance), tr), w / n.ls.pdf)));
                 }
@@ -1014,8 +1070,9 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
             break;
         }
         struct bsdf_sample bs;
-        if (glow.n > 0)
-            glow_bounce(&glow, mat, ns, wo, front, rnd(&r, vertex, 0), rnd(&r, vertex, 5), rnd(&r, vertex, 6), &bs);
+        if (mixed)
+            gather_bounce(&mix, mat, ns, wo, front, rnd(&r, vertex, 0), rnd(&r, vertex, 5), rnd(&r, vertex, 6),
+                          rnd(&r, vertex, 1), &bs);
         else
             material_sample(mat, ns, wo, front, rnd(&r, vertex, 5), rnd(&r, vertex, 6), &bs);
         float side = v3_dot(bs.wi, ng);

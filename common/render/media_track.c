@@ -131,6 +131,48 @@ static const struct tr_cache *shadow_cache_get(const struct media_job *mj, vec3 
     return NULL;
 }
 
+int media_bounding_sphere(const struct scene *sc, vec3 *center, float *radius)
+{
+    const struct scene_media *sm = sc->media;
+    vec3 lo = v3(INFINITY, INFINITY, INFINITY), hi = v3(-INFINITY, -INFINITY, -INFINITY);
+#define GROW(q) (lo = v3(fminf(lo.x, (q).x), fminf(lo.y, (q).y), fminf(lo.z, (q).z)), \
+                 hi = v3(fmaxf(hi.x, (q).x), fmaxf(hi.y, (q).y), fmaxf(hi.z, (q).z)))
+    if (sm->fog != MEDIUM_NONE) {
+        const struct density_grid *g = sm->media[sm->fog].grid;
+        if (!g)
+            return 0;
+        if (!(g->occ_lo.x <= g->occ_hi.x && g->occ_lo.y <= g->occ_hi.y && g->occ_lo.z <= g->occ_hi.z))
+            return 0;
+        for (int k = 0; k < 8; k++) {
+            vec3 c = v3(k & 1 ? g->occ_hi.x : g->occ_lo.x, k & 2 ? g->occ_hi.y : g->occ_lo.y, k & 4 ? g->occ_hi.z : g->occ_lo.z);
+            vec3 w = xform_point(&g->grid_to_world, c);
+            GROW(w);
+        }
+    }
+    for (uint32_t i = 0; i < sm->num_sphere_medium && i < sc->num_spheres; i++)
+        if (sm->sphere_medium[i] != MEDIUM_NONE) {
+            const struct sphere *sp = &sc->spheres[i];
+            vec3 rr = v3(sp->radius, sp->radius, sp->radius);
+            vec3 a = v3_sub(sp->center, rr), b = v3_add(sp->center, rr);
+            GROW(a);
+            GROW(b);
+        }
+    for (uint32_t i = 0; i < sm->num_mesh_medium && i < sc->num_meshes; i++)
+        if (sm->mesh_medium[i] != MEDIUM_NONE) {
+            const struct mesh *m = &sc->meshes[i];
+            for (uint32_t k = 0; k < m->num_vertices; k++) {
+                vec3 q = v3(m->positions[3 * k], m->positions[3 * k + 1], m->positions[3 * k + 2]);
+                GROW(q);
+            }
+        }
+#undef GROW
+    if (!(lo.x <= hi.x))
+        return 0;
+    *center = v3_scale(v3_add(lo, hi), 0.5f);
+    *radius = 0.5f * v3_length(v3_sub(hi, lo)) * 1.001f;
+    return 1;
+}
+
 struct media_job *media_job_new(const struct accel *a, const struct light_table *lt, const struct photon_map *map)
 {
     const struct scene *sc = a->desc;
@@ -194,6 +236,11 @@ struct media_job *media_job_new(const struct accel *a, const struct light_table 
             mj->num_glow < MEDIA_GLOW_MAX)
             mj->glow[mj->num_glow++] = p;
     }
+    mj->aim = media_bounding_sphere(sc, &mj->aim_center, &mj->aim_radius);
+    mj->aims = mem_calloc(MEDIA_AIM_MAX, sizeof *mj->aims);
+    for (uint32_t i = 0; i < sm->num_media && mj->num_aims < MEDIA_AIM_MAX; i++)
+        if (sm->media[i].grid && !v3_is_black(sm->media[i].sigma_s) && grid_aim_init(&mj->aims[mj->num_aims], sm->media[i].grid))
+            mj->num_aims++;
     mj->map = sm->method != MEDIA_VPT ? map : NULL;
     mj->shadow = shadow_caches_new(mj);
     return mj;
@@ -203,6 +250,9 @@ void media_job_free(struct media_job **pmj)
 {
     if (!*pmj)
         return;
+    for (uint32_t i = 0; i < (*pmj)->num_aims; i++)
+        grid_aim_fini(&(*pmj)->aims[i]);
+    free((*pmj)->aims);
     free((*pmj)->light_medium);
     free((*pmj)->cut);
     shadow_caches_free(&(*pmj)->shadow);

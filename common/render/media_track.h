@@ -8,6 +8,7 @@
 #define BRUME_MEDIA_TRACK_H
 #include <stdint.h>
 #include "render/surface.h"
+#include "scene/grid.h"
 #include "scene/medium.h"
 
 struct photon_map;
@@ -16,6 +17,7 @@ struct shadow_caches;
 /* At most this many glowing lights (point and spot lights inside a scattering medium)
  * per job: the final gather's bounce samples directions toward them (media_integrator.h). */
 #define MEDIA_GLOW_MAX 8
+#define MEDIA_AIM_MAX 8
 
 struct media_job {
     const struct scene_media *sm;
@@ -30,9 +32,19 @@ struct media_job {
     const struct photon_map *map; /* the job's map for Jensen's methods; NULL: single scattering only (skipped, or VPT) */
     struct shadow_caches *shadow; /* march / beam: per (point light, grid medium) tr_cache, filled on first use */
     struct medium *cut;         /* per medium: medium_forward_cut of it, what march / beam camera rays see */
+    struct grid_aim *aims;      /* scattering grid media, at most MEDIA_AIM_MAX: the final gather's */
+    uint32_t num_aims;          /* bounce samples directions toward their density */
+    int aim;                    /* media_bounding_sphere found one: aim_center, aim_radius */
+    vec3 aim_center;
+    float aim_radius;
     uint32_t num_glow;          /* glowing lights: point and spot lights where their medium scatters (a */
     vec3 glow[MEDIA_GLOW_MAX];  /* grid's density not 0), the light table's first MEDIA_GLOW_MAX (positions) */
 };
+
+/* The bounding sphere of where the scene's media are (grids' occupied boxes, medium
+ * spheres and meshes; a little padded); 0 when a homogeneous fog fills all space. Photons
+ * and the final gather's bounce aim at it. */
+int media_bounding_sphere(const struct scene *sc, vec3 *center, float *radius);
 
 /* a, lt: the render job's (outlive the result); map: the job's photon map or NULL. */
 struct media_job *media_job_new(const struct accel *a, const struct light_table *lt, const struct photon_map *map);

@@ -57,51 +57,6 @@ struct trace_ctx {
  * with a floor of albedo 0.5, 0.052 / 0.011 / 0.010 with a black one. */
 #define ENV_AIM_SHARE 0.5f
 
-/* Bounding sphere of where media are (grids' occupied boxes, medium spheres and meshes);
- * 0 when a homogeneous fog fills everything (nothing to aim at). */
-static int media_bounds(const struct render_job *job, vec3 *center, float *radius)
-{
-    const struct scene *sc = job->scene;
-    const struct scene_media *sm = sc->media;
-    vec3 lo = v3(INFINITY, INFINITY, INFINITY), hi = v3(-INFINITY, -INFINITY, -INFINITY);
-#define GROW(q) (lo = v3(fminf(lo.x, (q).x), fminf(lo.y, (q).y), fminf(lo.z, (q).z)), \
-                 hi = v3(fmaxf(hi.x, (q).x), fmaxf(hi.y, (q).y), fmaxf(hi.z, (q).z)))
-    if (sm->fog != MEDIUM_NONE) {
-        const struct density_grid *g = sm->media[sm->fog].grid;
-        if (!g)
-            return 0;
-        if (!(g->occ_lo.x <= g->occ_hi.x && g->occ_lo.y <= g->occ_hi.y && g->occ_lo.z <= g->occ_hi.z))
-            return 0;
-        for (int k = 0; k < 8; k++) {
-            vec3 c = v3(k & 1 ? g->occ_hi.x : g->occ_lo.x, k & 2 ? g->occ_hi.y : g->occ_lo.y, k & 4 ? g->occ_hi.z : g->occ_lo.z);
-            vec3 w = xform_point(&g->grid_to_world, c);
-            GROW(w);
-        }
-    }
-    for (uint32_t i = 0; i < sm->num_sphere_medium && i < sc->num_spheres; i++)
-        if (sm->sphere_medium[i] != MEDIUM_NONE) {
-            const struct sphere *sp = &sc->spheres[i];
-            vec3 rr = v3(sp->radius, sp->radius, sp->radius);
-            vec3 a = v3_sub(sp->center, rr), b = v3_add(sp->center, rr);
-            GROW(a);
-            GROW(b);
-        }
-    for (uint32_t i = 0; i < sm->num_mesh_medium && i < sc->num_meshes; i++)
-        if (sm->mesh_medium[i] != MEDIUM_NONE) {
-            const struct mesh *m = &sc->meshes[i];
-            for (uint32_t k = 0; k < m->num_vertices; k++) {
-                vec3 q = v3(m->positions[3 * k], m->positions[3 * k + 1], m->positions[3 * k + 2]);
-                GROW(q);
-            }
-        }
-#undef GROW
-    if (!(lo.x <= hi.x))
-        return 0;
-    *center = v3_scale(v3_add(lo, hi), 0.5f);
-    *radius = 0.5f * v3_length(v3_sub(hi, lo)) * 1.001f;
-    return 1;
-}
-
 int photon_interaction_bounds(const struct render_job *job, vec3 *lo_out, vec3 *hi_out)
 {
     const struct scene_media *sm = job->scene->media;
@@ -209,13 +164,7 @@ static int emit(const struct trace_ctx *tc, uint64_t key, vec3 *o, vec3 *d, vec3
                 }
         }
         int aimed = cos_aim < 1.0f && rng_uniform(key, 5) < AIM_SHARE;
-        float cm = aimed ? cos_aim : cos_max;
-        vec3 ax = aimed ? aim_axis : axis;
-        float z = 1.0f - u1 * (1.0f - cm), r = sqrtf(fmaxf(0.0f, 1.0f - z * z)), sp, cp;
-        sincos_2pi(u2, &sp, &cp);
-        vec3 t, b;
-        v3_basis(ax, &t, &b);
-        *d = v3_normalize(v3_add(v3_scale(ax, z), v3_add(v3_scale(t, r * cp), v3_scale(b, r * sp))));
+        *d = v3_cone_sample(aimed ? aim_axis : axis, aimed ? cos_aim : cos_max, u1, u2);
         if (!aimed && fold > 1.0f)
             *d = v3(side[0] != 0.0f ? side[0] * fabsf(d->x) : d->x, side[1] != 0.0f ? side[1] * fabsf(d->y) : d->y,
                     side[2] != 0.0f ? side[2] * fabsf(d->z) : d->z);
@@ -287,7 +236,7 @@ static void trace_ctx_start(struct trace_ctx *tc, const struct render_job *job, 
     tc->seed = seed;
     tc->emitted = emitted;
     tc->photon_scale = emitted ? (float)(1.0 / (double)emitted) : 0.0f;
-    tc->aim = media_bounds(job, &tc->aim_center, &tc->aim_radius);
+    tc->aim = media_bounding_sphere(job->scene, &tc->aim_center, &tc->aim_radius);
     tc->reach = photon_interaction_bounds(job, &tc->reach_lo, &tc->reach_hi);
 }
 

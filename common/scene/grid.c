@@ -247,6 +247,117 @@ static int dda_next(struct dda *w, double *a, double *b, int32_t idx[3])
     return 1;
 }
 
+/* ---- directions toward the density ---- */
+
+int grid_aim_init(struct grid_aim *a, const struct density_grid *g)
+{
+    memset(a, 0, sizeof *a);
+    a->g = g;
+    if (!(g->occ_lo.x < g->occ_hi.x && g->occ_lo.y < g->occ_hi.y && g->occ_lo.z < g->occ_hi.z))
+        return 0;
+    const uint32_t nv[3] = {g->nx, g->ny, g->nz};
+    const float lo[3] = {g->occ_lo.x, g->occ_lo.y, g->occ_lo.z}, hi[3] = {g->occ_hi.x, g->occ_hi.y, g->occ_hi.z};
+    for (int k = 0; k < 3; k++) {
+        double cells = ceil((double)(hi[k] - lo[k]) * nv[k] / GRID_MAJ_BLOCK);
+        a->n[k] = cells < 1.0 ? 1u : (cells > GRID_AIM_MAX_N ? GRID_AIM_MAX_N : (uint32_t)cells);
+    }
+    size_t nc = (size_t)a->n[0] * a->n[1] * a->n[2];
+    double *w = mem_calloc(nc, sizeof *w);
+    a->cdf = mem_alloc(nc * sizeof *a->cdf);
+    const size_t nvox = (size_t)g->nx * g->ny * g->nz;
+    for (size_t i = 0; i < nvox; i++) { /* each voxel's value to the cell holding its centre */
+        if (!(g->data[i] > 0.0f))
+            continue;
+        const size_t c[3] = {i % g->nx, i / g->nx % g->ny, i / g->nx / g->ny};
+        uint32_t ci[3];
+        for (int k = 0; k < 3; k++) {
+            double f = (((double)c[k] + 0.5) / nv[k] - lo[k]) / (hi[k] - lo[k]) * a->n[k];
+            ci[k] = f < 0.0 ? 0u : (f >= a->n[k] ? a->n[k] - 1 : (uint32_t)f);
+        }
+        w[((size_t)ci[2] * a->n[1] + ci[1]) * a->n[0] + ci[0]] += g->data[i];
+    }
+    double total = 0.0;
+    for (size_t i = 0; i < nc; i++)
+        total += w[i];
+    double run = 0.0;
+    for (size_t i = 0; i < nc; i++) {
+        run += w[i];
+        a->cdf[i] = (float)(run / total);
+    }
+    free(w);
+    if (!(total > 0.0)) {
+        grid_aim_fini(a);
+        return 0;
+    }
+    a->cdf[nc - 1] = 1.0f;
+    a->lo = g->occ_lo, a->hi = g->occ_hi;
+    const float(*m)[4] = g->grid_to_world.m;
+    double det = (double)m[0][0] * ((double)m[1][1] * m[2][2] - (double)m[1][2] * m[2][1]) -
+                 (double)m[0][1] * ((double)m[1][0] * m[2][2] - (double)m[1][2] * m[2][0]) +
+                 (double)m[0][2] * ((double)m[1][0] * m[2][1] - (double)m[1][1] * m[2][0]);
+    a->cell_volume = fabs(det);
+    for (int k = 0; k < 3; k++)
+        a->cell_volume *= (double)(hi[k] - lo[k]) / a->n[k];
+    if (!(a->cell_volume > 0.0) || !isfinite(a->cell_volume)) {
+        grid_aim_fini(a);
+        return 0;
+    }
+    return 1;
+}
+
+void grid_aim_fini(struct grid_aim *a)
+{
+    free(a->cdf);
+    a->cdf = NULL;
+}
+
+static float aim_prob(const struct grid_aim *a, size_t i) { return i ? a->cdf[i] - a->cdf[i - 1] : a->cdf[0]; }
+
+vec3 grid_aim_sample(const struct grid_aim *a, vec3 p, float u0, float u1, float u2, float u3)
+{
+    size_t nc = (size_t)a->n[0] * a->n[1] * a->n[2], lo = 0, hi = nc - 1;
+    while (lo < hi) { /* the first cell whose cdf exceeds u0 */
+        size_t mid = (lo + hi) / 2;
+        if (a->cdf[mid] > u0)
+            hi = mid;
+        else
+            lo = mid + 1;
+    }
+    uint32_t c[3] = {(uint32_t)(lo % a->n[0]), (uint32_t)(lo / a->n[0] % a->n[1]), (uint32_t)(lo / a->n[0] / a->n[1])};
+    const float u[3] = {u1, u2, u3}, bl[3] = {a->lo.x, a->lo.y, a->lo.z}, bh[3] = {a->hi.x, a->hi.y, a->hi.z};
+    float q[3];
+    for (int k = 0; k < 3; k++)
+        q[k] = bl[k] + ((float)c[k] + u[k]) / (float)a->n[k] * (bh[k] - bl[k]);
+    vec3 to = v3_sub(xform_point(&a->g->grid_to_world, v3(q[0], q[1], q[2])), p);
+    float len = v3_length(to);
+    return len > 0.0f && isfinite(len) ? v3_scale(to, 1.0f / len) : v3(0, 0, 0);
+}
+
+float grid_aim_pdf(const struct grid_aim *a, vec3 p, vec3 w)
+{
+    vec3 og = xform_point(&a->g->world_to_grid, p), dg = xform_vector(&a->g->world_to_grid, w);
+    float t0 = 0.0f, t1 = INFINITY;
+    if (!v3_clip_box(og, dg, a->lo, a->hi, &t0, &t1) || !(t0 < t1))
+        return 0.0f;
+    const float o3[3] = {og.x, og.y, og.z}, d3[3] = {dg.x, dg.y, dg.z};
+    const float bl[3] = {a->lo.x, a->lo.y, a->lo.z}, bh[3] = {a->hi.x, a->hi.y, a->hi.z};
+    double u0[3], du[3];
+    for (int k = 0; k < 3; k++) { /* lattice coordinates minus 1: the DDA's cell i covers [i - 1, i) */
+        double s = a->n[k] / ((double)bh[k] - bl[k]);
+        u0[k] = ((double)o3[k] - bl[k]) * s - 1.0;
+        du[k] = (double)d3[k] * s;
+    }
+    struct dda walk;
+    if (!dda_init(&walk, u0, du, 1.0, a->n, t0, t1))
+        return 0.0f;
+    double acc = 0.0, ta, tb;
+    int32_t idx[3];
+    while (dda_next(&walk, &ta, &tb, idx))
+        acc += aim_prob(a, ((size_t)idx[2] * a->n[1] + (size_t)idx[1]) * a->n[0] + (size_t)idx[0]) *
+               (tb * tb * tb - ta * ta * ta) / 3.0;
+    return (float)(acc / a->cell_volume);
+}
+
 /* Pieces [a, b) of a ray, each with a majorant density. Coarse cells whose majorant
  * optical depth sigma_t,max maj (b - a) is at most MAJ_REFINE are pieces as they are;
  * denser ones are walked patch by patch (the max of the patch's 8 voxels), and a patch

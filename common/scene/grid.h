@@ -58,6 +58,30 @@ int medium_sample_flight(const struct medium *m, vec3 o, vec3 d, float tmax, vec
 /* Ray-marching step for this medium: the settings' step, or half a voxel for grids if smaller. */
 float medium_march_step(const struct medium *m, float step);
 
+/* ---- directions toward a grid's density (the final gather's bounce) ---- */
+/* A lattice of cells over the grid's occupied box (about GRID_MAJ_BLOCK voxels an edge, at
+ * most GRID_AIM_MAX_N an axis), each weighted by the densities of the voxel centres inside
+ * it. A sample picks a cell in proportion to its weight and a point uniform in it, and
+ * returns the direction from p to that point; grid_aim_pdf is that direction's density
+ * (solid angle): the sum over the cells the ray from p crosses of the cell's probability
+ * over its world volume times the integral of t^2 across it. Exact, so that a mixture
+ * with other strategies stays unbiased. */
+#define GRID_AIM_MAX_N 32u
+struct grid_aim {
+    const struct density_grid *g;
+    uint32_t n[3];
+    vec3 lo, hi;            /* grid-space box of the lattice (the occupied box) */
+    float *cdf;             /* n[0] n[1] n[2] cumulative probabilities, x fastest; the last is 1 */
+    double cell_volume;     /* world volume of a cell */
+};
+/* Returns 1 if the grid has density to aim at, else 0 (a is then empty: cdf NULL). */
+int grid_aim_init(struct grid_aim *a, const struct density_grid *g);
+void grid_aim_fini(struct grid_aim *a);
+/* The unit direction from p toward a sampled point (u0 picks the cell, u1..u3 the point);
+ * the zero vector if the point is p. */
+vec3 grid_aim_sample(const struct grid_aim *a, vec3 p, float u0, float u1, float u2, float u3);
+float grid_aim_pdf(const struct grid_aim *a, vec3 p, vec3 w);
+
 /* ---- shadow transmittance cache (Jensen's methods in grids, never VPT) ---- */
 
 /* World-space bounding box of the grid's occupied box (empty: lo > hi). */

@@ -128,3 +128,56 @@ void test_ramp_camera(struct scene *s, uint32_t w, uint32_t spp)
     s->settings.seed = 3;
     s->settings.tile_size = 16;
 }
+
+void test_direction_chi_square(const char *what, vec3 c, double th_max, int nt, int np, int q,
+                               float (*pdf)(void *ctx, vec3 w), vec3 (*sample)(void *ctx, uint32_t k), void *ctx,
+                               int n, double tol, int max_light, int min_cells)
+{
+    enum { MAXC = 32 };
+    cr_assert(nt >= 1 && nt <= MAXC && np >= 1 && np <= MAXC);
+    vec3 t = v3_normalize(v3_cross(c, fabsf(c.y) < 0.9f ? v3(0, 1, 0) : v3(1, 0, 0))), b = v3_cross(c, t);
+    static double mass[MAXC][MAXC];
+    static int count[MAXC][MAXC];
+    double total = 0.0;
+    for (int i = 0; i < nt; i++)
+        for (int j = 0; j < np; j++) {
+            double m = 0.0;
+            for (int a = 0; a < q; a++)
+                for (int e = 0; e < q; e++) {
+                    double th = th_max * (i + (a + 0.5) / q) / nt, ph = 2.0 * M_PI * (j + (e + 0.5) / q) / np;
+                    vec3 w = v3_add(v3_scale(c, (float)cos(th)),
+                                    v3_add(v3_scale(t, (float)(sin(th) * cos(ph))), v3_scale(b, (float)(sin(th) * sin(ph)))));
+                    m += pdf(ctx, v3_normalize(w)) * sin(th) * (th_max / nt / q) * (2.0 * M_PI / np / q);
+                }
+            mass[i][j] = m;
+            count[i][j] = 0;
+            total += m;
+        }
+    cr_assert(fabs(total - 1.0) < tol, "%s: the density integrates to %g", what, total);
+    for (int k = 0; k < n; k++) {
+        vec3 w = sample(ctx, (uint32_t)k);
+        cr_assert(fabsf(v3_length(w) - 1.0f) < 1e-5f, "%s: sample %d not a unit direction", what, k);
+        cr_assert(pdf(ctx, w) > 0.0f, "%s: sample %d where the density is 0", what, k);
+        double th = acos(fmax(-1.0, fmin(1.0, v3_dot(w, c)))), ph = atan2(v3_dot(w, b), v3_dot(w, t));
+        ph = ph < 0.0 ? ph + 2.0 * M_PI : ph;
+        int i = (int)(th / th_max * nt), j = (int)(ph / (2.0 * M_PI) * np);
+        cr_assert(th <= th_max, "%s: sample %d outside the cells' cone", what, k);
+        count[i < nt ? i : nt - 1][j < np ? j : np - 1]++;
+    }
+    double chi2 = 0.0;
+    int cells = 0, light = 0;
+    for (int i = 0; i < nt; i++)
+        for (int j = 0; j < np; j++) {
+            double e = mass[i][j] * n;
+            if (e < 5.0) {
+                light += count[i][j];
+                continue;
+            }
+            chi2 += (count[i][j] - e) * (count[i][j] - e) / e;
+            cells++;
+        }
+    cr_log_info("%s: chi2 %g over %d cells, %d samples in cells of mass < 5 / n", what, chi2, cells, light);
+    cr_assert(light <= max_light, "%s: %d samples where the density says almost none", what, light);
+    cr_assert(cells >= min_cells, "%s: %d cells", what, cells);
+    cr_assert(chi2 < (cells - 1) + 6 * sqrt(2.0 * (cells - 1)), "%s: chi2 %g over %d cells", what, chi2, cells);
+}

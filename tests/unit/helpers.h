@@ -43,4 +43,15 @@ double test_channel_mean(const float *px, uint32_t w, uint32_t h, enum tile_chan
  * [0, 1], spp, max_depth 1, seed 3 (the moving-edge ramp tests). */
 void test_ramp_camera(struct scene *s, uint32_t w, uint32_t spp);
 
+/* A direction sampler against its density: cells of (theta in [0, th_max), azimuth)
+ * around unit axis c (nt x np of them, at most 32 x 32), each cell's mass under pdf by
+ * quadrature (q x q points); asserts that the masses sum to 1 within tol, that n samples
+ * of sample(ctx, k), k = 0..n-1, are unit directions of density > 0 within th_max of c,
+ * that at most max_light fall in cells whose expected count is below 5, and that the
+ * chi-square over the other cells (at least min_cells) is below (cells - 1) + 6 sqrt(2
+ * (cells - 1)). what names the sampler in the log. */
+void test_direction_chi_square(const char *what, vec3 c, double th_max, int nt, int np, int q,
+                               float (*pdf)(void *ctx, vec3 w), vec3 (*sample)(void *ctx, uint32_t k), void *ctx,
+                               int n, double tol, int max_light, int min_cells);
+
 #endif

@@ -13,6 +13,7 @@
 #include <string.h>
 #include "base/log.h"
 #include "base/rng.h"
+#include "helpers.h"
 #include "scene/grid.h"
 #include "scene/medium.h"
 
@@ -218,5 +219,75 @@ Test(grid, huge_density_tracks_without_the_bound, .timeout = 60)
         }
     cr_assert_eq(opaque, 4000, "rays through the dense voxel: %d of 4000 opaque", opaque);
     cr_assert_eq(grid_track_bound_hits(), hits0, "the step bound was reached");
+    free(g.data);
+}
+
+/* A lopsided blob: dense on one side, thin on the other, empty beyond a sphere. */
+static float blob(uint32_t x, uint32_t y, uint32_t z)
+{
+    float dx = ((float)x - 9.5f) / 9.0f, dy = ((float)y - 6.5f) / 6.0f, dz = ((float)z - 12.0f) / 11.0f;
+    float r2 = dx * dx + dy * dy + dz * dz;
+    return r2 < 1.0f ? (1.0f - r2) * (0.2f + 3.0f * (dx > 0.0f ? dx : 0.0f)) : 0.0f;
+}
+
+/* grid_aim_sample against grid_aim_pdf (test_direction_chi_square), from a point outside
+ * the grid and one inside it, on a grid rotated and stretched unevenly. */
+struct aim_at { const struct grid_aim *a; vec3 p; };
+static float aim_pdf_of(void *ctx, vec3 w)
+{
+    const struct aim_at *q = ctx;
+    return grid_aim_pdf(q->a, q->p, w);
+}
+static vec3 aim_sample_of(void *ctx, uint32_t k)
+{
+    const struct aim_at *q = ctx;
+    uint64_t key = 0xa13ull + k;
+    return grid_aim_sample(q->a, q->p, rng_uniform(key, 0), rng_uniform(key, 1), rng_uniform(key, 2), rng_uniform(key, 3));
+}
+
+Test(grid, aim_sampling_chi_square, .timeout = 120)
+{
+    struct density_grid g;
+    make_grid(&g, 20, 14, 25, 1.0f, blob);
+    /* rotate 0.7 rad about (1, 2, 3), stretch to 2 x 1 x 1.5, move to (1, -2, 3) */
+    vec3 ax = v3_normalize(v3(1, 2, 3));
+    float ca = cosf(0.7f), sa = sinf(0.7f), k[3] = {ax.x, ax.y, ax.z}, sc[3] = {2.0f, 1.0f, 1.5f}, tr[3] = {1, -2, 3};
+    struct xform xf;
+    for (int r = 0; r < 3; r++) {
+        for (int col = 0; col < 3; col++) {
+            float cross = (r == 0 ? (col == 1 ? -k[2] : col == 2 ? k[1] : 0.0f)
+                                  : r == 1 ? (col == 0 ? k[2] : col == 2 ? -k[0] : 0.0f)
+                                           : (col == 0 ? -k[1] : col == 1 ? k[0] : 0.0f));
+            float rot = ca * (r == col) + sa * cross + (1.0f - ca) * k[r] * k[col];
+            xf.m[r][col] = rot * sc[col];
+        }
+        xf.m[r][3] = tr[r];
+    }
+    grid_finish(&g, &xf, 1.0f);
+    struct grid_aim a;
+    cr_assert(grid_aim_init(&a, &g));
+    vec3 centre = xform_point(&g.grid_to_world, v3(0.5f, 0.5f, 0.5f));
+    vec3 outside = v3(4.0f, 1.0f, -1.0f), c = v3_normalize(v3_sub(centre, outside));
+    double cone = 0.0; /* the grid box's half-angle from outside, around c */
+    for (int k8 = 0; k8 < 8; k8++) {
+        vec3 q = xform_point(&g.grid_to_world, v3((float)(k8 & 1), (float)(k8 >> 1 & 1), (float)(k8 >> 2)));
+        cone = fmax(cone, acos(fmax(-1.0, fmin(1.0, v3_dot(c, v3_normalize(v3_sub(q, outside)))))));
+    }
+    cr_assert(cone < 1.2);
+    struct aim_at at = {&a, outside};
+    test_direction_chi_square("grid aim, outside", c, cone + 0.02, 12, 8, 48, aim_pdf_of, aim_sample_of, &at, 200000,
+                              5e-3, 200, 40);
+    at.p = xform_point(&g.grid_to_world, v3(0.45f, 0.5f, 0.55f)); /* in the blob */
+    test_direction_chi_square("grid aim, inside", v3(0, 1, 0), M_PI, 12, 8, 48, aim_pdf_of, aim_sample_of, &at, 200000,
+                              5e-3, 200, 80);
+    grid_aim_fini(&a);
+    /* an empty grid has nothing to aim at */
+    struct density_grid e;
+    make_grid(&e, 4, 4, 4, 1.0f, spike);
+    memset(e.data, 0, sizeof(float) * 64);
+    grid_finish(&e, &xf, 1.0f);
+    cr_assert_not(grid_aim_init(&a, &e));
+    grid_aim_fini(&a);
+    free(e.data);
     free(g.data);
 }
