@@ -437,6 +437,53 @@ static uint32_t volume_photon_depth_max(uint32_t max_depth, uint32_t depth, int 
 /* A march stops where the transmittance to the camera falls below this: what lies beyond
  * adds less than this fraction of its own radiance. */
 #define MARCH_TR_MIN 1e-6f
+/* The optical depth of a march's table (tab[j] at c0 + j dx, n entries) at t: 0 before it,
+ * its last value after it. */
+static float tab_tau(const float *tab, uint32_t n, float c0, float dx, float t)
+{
+    float x = (t - c0) / dx;
+    if (!(x > 0.0f))
+        return 0.0f;
+    if (!(x < (float)(n - 1)))
+        return tab[n - 1];
+    uint32_t j = (uint32_t)x;
+    return tab[j] + (tab[j + 1] - tab[j]) * (x - (float)j);
+}
+
+/* Where the table's optical depth reaches tau (the first such t; tab is non-decreasing). */
+static float tab_at(const float *tab, uint32_t n, float c0, float dx, float tau)
+{
+    uint32_t lo = 0, hi = n - 1; /* tab[lo] <= tau < tab[hi], or the ends */
+    if (!(tau > tab[0]))
+        return c0;
+    if (!(tau < tab[n - 1]))
+        return c0 + (float)(n - 1) * dx;
+    while (hi - lo > 1) {
+        uint32_t mid = (lo + hi) / 2;
+        if (tab[mid] <= tau)
+            lo = mid;
+        else
+            hi = mid;
+    }
+    return c0 + ((float)lo + (tau - tab[lo]) / (tab[hi] - tab[lo])) * dx;
+}
+
+/* A gather segment's beam query in a grid over one of `pieces` parts of [e0, e1) of equal
+ * transmittance mass (1 - Tr, on the mean sigma_t, from the march's table), picked by u:
+ * [*q0, *q1). 0 when the segment holds too little mass to cut. */
+static int tab_piece(const float *tab, uint32_t n, float c0, float dx, float st, float e0, float e1, uint32_t pieces,
+                     float u, float *q0, float *q1)
+{
+    float a = expf(-st * tab_tau(tab, n, c0, dx, e0)), m = a - expf(-st * tab_tau(tab, n, c0, dx, e1));
+    if (!(m > 1e-6f) || !(st > 0.0f))
+        return 0;
+    float v = u * (float)pieces;
+    uint32_t k = v < (float)pieces ? (uint32_t)v : pieces - 1;
+    *q0 = k == 0 ? e0 : fmaxf(e0, tab_at(tab, n, c0, dx, -logf(a - m * (float)k / (float)pieces) / st));
+    *q1 = k + 1 == pieces ? e1 : fminf(e1, tab_at(tab, n, c0, dx, -logf(a - m * (float)(k + 1) / (float)pieces) / st));
+    return 1;
+}
+
 static vec3 march_segment(const struct render_job *job, const struct media_job *mj, const struct rngs *r,
                           uint32_t vertex, uint32_t depth, vec3 o, vec3 d, float len, uint32_t medium, float time01,
                           uint64_t *rays, vec3 *seg_tr)
@@ -533,11 +580,25 @@ static vec3 march_segment(const struct render_job *job, const struct media_job *
             if (cut) /* photons past the march's end: transmittance below MARCH_TR_MIN */
                 e1 = fminf(e1, c0 + (float)(ntab - 1) * dx);
             if (v3_clip_box(o, d, v3_sub(blo, pad), v3_add(bhi, pad), &e0, &e1) && e0 < e1) {
-                struct photon_tau tt = {tau_tab, ntab, c0 - e0, dx};
-                vec3 oe = v3_add(o, v3_scale(d, e0));
-                L = v3_add(L, photon_map_beam(map, oe, d, e1 - e0, md, &tt, kmax));
-                if (map->beams)
-                    L = v3_add(L, photon_beams_estimate(map->beams, oe, d, e1 - e0, md, &tt, kmax));
+                /* After the first vertex (the final gather's segments) the point map's beam
+                 * over one of `pieces` parts of equal transmittance mass, picked at random,
+                 * counts `pieces` times, as in homogeneous media (gather_segment): the
+                 * query's cost follows the length it walks. Camera segments keep the whole
+                 * beam (docs/media.md, "Gathering toward the media"). */
+                float nf = floorf((e1 - e0) / (BEAM_PIECE_RADII * rad)), q0 = e0, q1 = e1, wq = 1.0f;
+                uint32_t pieces = vertex == 0 || map->beams || !(nf > 1.0f) ? 1u
+                                  : nf < (float)BEAM_PIECES                ? (uint32_t)nf
+                                                                           : BEAM_PIECES;
+                if (pieces > 1 && tab_piece(tau_tab, ntab, c0, dx, (md->sigma_t.x + md->sigma_t.y + md->sigma_t.z) / 3.0f,
+                                            e0, e1, pieces, rnd(r, vertex, 15), &q0, &q1))
+                    wq = (float)pieces;
+                if (q0 < q1) {
+                    struct photon_tau tt = {tau_tab, ntab, c0 - q0, dx};
+                    vec3 oq = v3_add(o, v3_scale(d, q0));
+                    L = v3_add(L, v3_scale(photon_map_beam(map, oq, d, q1 - q0, md, &tt, kmax), wq));
+                    if (map->beams)
+                        L = v3_add(L, photon_beams_estimate(map->beams, oq, d, q1 - q0, md, &tt, kmax));
+                }
             }
         } else {
             L = v3_add(L, photon_map_beam(map, o, d, len, md, NULL, kmax));

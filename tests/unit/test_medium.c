@@ -1679,8 +1679,10 @@ Test(medium, beams_map_same_bytes_any_threads)
  * (gather_bounce): toward the grid's density (grid_aim) for the grid cloud, into the cone
  * around a medium sphere's bounding sphere for a homogeneous ball. Beam (64 spp, one map a
  * seed) agrees with VPT (1024 spp) over 8 seeds within 4 standard errors plus the stated 3 %
- * kernel bias; with the aimed part's density halved in the mixture's pdf the grid's floor
- * comes out 14 % bright and the test fails. */
+ * kernel bias. The grid's gather segments also take their beam in pieces (tab_piece). The
+ * test fails with the aimed part's density halved in the mixture's pdf (the grid's floor
+ * 14 % bright), with a picked piece counted once (18 % dark) or with its end moved (16 %
+ * bright). */
 #define FLOOR_LIT_BY_CLOUD(media, fog, objects)                                                             \
     HEAD("\"position\": [0, 1.5, -5], \"look_at\": [0, -1.2, -2.5]", 12, 9, 1, 64)                           \
     ",\n\"materials\": {\"white\": {\"type\": \"diffuse\", \"albedo\": [0.8, 0.8, 0.8]}},\n"                 \
