@@ -15,6 +15,7 @@
 #include "render/photon_trace.h"
 #include "render/surface.h"
 #include "render/texshade.h"
+#include "base/cdf.h"
 #include "base/rng.h"
 #include "scene/grid.h"
 #include "scene/material.h"
@@ -450,22 +451,15 @@ static float tab_tau(const float *tab, uint32_t n, float c0, float dx, float t)
     return tab[j] + (tab[j + 1] - tab[j]) * (x - (float)j);
 }
 
-/* Where the table's optical depth reaches tau (the first such t; tab is non-decreasing). */
+/* Where the table's optical depth reaches tau (tab is non-decreasing). */
 static float tab_at(const float *tab, uint32_t n, float c0, float dx, float tau)
 {
-    uint32_t lo = 0, hi = n - 1; /* tab[lo] <= tau < tab[hi], or the ends */
     if (!(tau > tab[0]))
         return c0;
     if (!(tau < tab[n - 1]))
         return c0 + (float)(n - 1) * dx;
-    while (hi - lo > 1) {
-        uint32_t mid = (lo + hi) / 2;
-        if (tab[mid] <= tau)
-            lo = mid;
-        else
-            hi = mid;
-    }
-    return c0 + ((float)lo + (tau - tab[lo]) / (tab[hi] - tab[lo])) * dx;
+    uint32_t j = cdf_cell(tab, n - 1, tau); /* tab[j] <= tau < tab[j + 1] */
+    return c0 + ((float)j + (tau - tab[j]) / (tab[j + 1] - tab[j])) * dx;
 }
 
 /* A gather segment's beam query in a grid over one of `pieces` parts of [e0, e1) of equal

@@ -3,6 +3,7 @@
  * is filled once by tr_cache_init (threads over z slices, same values for any count). */
 #include "scene/grid.h"
 #include "base/bytes.h"
+#include "base/cdf.h"
 #include "base/log.h"
 #include "scene/motion.h"
 #include "base/rng.h"
@@ -263,7 +264,7 @@ int grid_aim_init(struct grid_aim *a, const struct density_grid *g)
     }
     size_t nc = (size_t)a->n[0] * a->n[1] * a->n[2];
     double *w = mem_calloc(nc, sizeof *w);
-    a->cdf = mem_alloc(nc * sizeof *a->cdf);
+    a->cdf = mem_alloc((nc + 1) * sizeof *a->cdf);
     const size_t nvox = (size_t)g->nx * g->ny * g->nz;
     for (size_t i = 0; i < nvox; i++) { /* each voxel's value to the cell holding its centre */
         if (!(g->data[i] > 0.0f))
@@ -280,16 +281,17 @@ int grid_aim_init(struct grid_aim *a, const struct density_grid *g)
     for (size_t i = 0; i < nc; i++)
         total += w[i];
     double run = 0.0;
+    a->cdf[0] = 0.0f;
     for (size_t i = 0; i < nc; i++) {
         run += w[i];
-        a->cdf[i] = (float)(run / total);
+        a->cdf[i + 1] = (float)(run / total);
     }
     free(w);
     if (!(total > 0.0)) {
         grid_aim_fini(a);
         return 0;
     }
-    a->cdf[nc - 1] = 1.0f;
+    a->cdf[nc] = 1.0f;
     a->lo = g->occ_lo, a->hi = g->occ_hi;
     const float(*m)[4] = g->grid_to_world.m;
     double det = (double)m[0][0] * ((double)m[1][1] * m[2][2] - (double)m[1][2] * m[2][1]) -
@@ -311,18 +313,9 @@ void grid_aim_fini(struct grid_aim *a)
     a->cdf = NULL;
 }
 
-static float aim_prob(const struct grid_aim *a, size_t i) { return i ? a->cdf[i] - a->cdf[i - 1] : a->cdf[0]; }
-
 vec3 grid_aim_sample(const struct grid_aim *a, vec3 p, float u0, float u1, float u2, float u3)
 {
-    size_t nc = (size_t)a->n[0] * a->n[1] * a->n[2], lo = 0, hi = nc - 1;
-    while (lo < hi) { /* the first cell whose cdf exceeds u0 */
-        size_t mid = (lo + hi) / 2;
-        if (a->cdf[mid] > u0)
-            hi = mid;
-        else
-            lo = mid + 1;
-    }
+    size_t lo = cdf_cell(a->cdf, a->n[0] * a->n[1] * a->n[2], u0);
     uint32_t c[3] = {(uint32_t)(lo % a->n[0]), (uint32_t)(lo / a->n[0] % a->n[1]), (uint32_t)(lo / a->n[0] / a->n[1])};
     const float u[3] = {u1, u2, u3}, bl[3] = {a->lo.x, a->lo.y, a->lo.z}, bh[3] = {a->hi.x, a->hi.y, a->hi.z};
     float q[3];
@@ -352,9 +345,10 @@ float grid_aim_pdf(const struct grid_aim *a, vec3 p, vec3 w)
         return 0.0f;
     double acc = 0.0, ta, tb;
     int32_t idx[3];
-    while (dda_next(&walk, &ta, &tb, idx))
-        acc += aim_prob(a, ((size_t)idx[2] * a->n[1] + (size_t)idx[1]) * a->n[0] + (size_t)idx[0]) *
-               (tb * tb * tb - ta * ta * ta) / 3.0;
+    while (dda_next(&walk, &ta, &tb, idx)) {
+        size_t c = ((size_t)idx[2] * a->n[1] + (size_t)idx[1]) * a->n[0] + (size_t)idx[0];
+        acc += (double)(a->cdf[c + 1] - a->cdf[c]) * (tb * tb * tb - ta * ta * ta) / 3.0;
+    }
     return (float)(acc / a->cell_volume);
 }
 

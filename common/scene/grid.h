@@ -71,7 +71,7 @@ struct grid_aim {
     const struct density_grid *g;
     uint32_t n[3];
     vec3 lo, hi;            /* grid-space box of the lattice (the occupied box) */
-    float *cdf;             /* n[0] n[1] n[2] cumulative probabilities, x fastest; the last is 1 */
+    float *cdf;             /* 1 + n[0] n[1] n[2] cumulative probabilities (cdf.h), x fastest: 0 .. 1 */
     double cell_volume;     /* world volume of a cell */
 };
 /* Returns 1 if the grid has density to aim at, else 0 (a is then empty: cdf NULL). */
