@@ -328,6 +328,8 @@ vec3 grid_aim_sample(const struct grid_aim *a, vec3 p, float u0, float u1, float
 
 float grid_aim_pdf(const struct grid_aim *a, vec3 p, vec3 w)
 {
+    if (!(v3_dot(w, w) > 0.5f)) /* not a unit direction (grid_aim_sample's zero vector) */
+        return 0.0f;
     vec3 og = xform_point(&a->g->world_to_grid, p), dg = xform_vector(&a->g->world_to_grid, w);
     float t0 = 0.0f, t1 = INFINITY;
     if (!v3_clip_box(og, dg, a->lo, a->hi, &t0, &t1) || !(t0 < t1))
