@@ -438,43 +438,31 @@ static uint32_t volume_photon_depth_max(uint32_t max_depth, uint32_t depth, int 
 /* A march stops where the transmittance to the camera falls below this: what lies beyond
  * adds less than this fraction of its own radiance. */
 #define MARCH_TR_MIN 1e-6f
-/* The optical depth of a march's table (tab[j] at c0 + j dx, n entries) at t: 0 before it,
- * its last value after it. */
-static float tab_tau(const float *tab, uint32_t n, float c0, float dx, float t)
+/* Where the table's optical depth reaches tau (its t, in the table's frame). */
+static float tau_table_at(const struct photon_tau *tt, float tau)
 {
-    float x = (t - c0) / dx;
-    if (!(x > 0.0f))
-        return 0.0f;
-    if (!(x < (float)(n - 1)))
-        return tab[n - 1];
-    uint32_t j = (uint32_t)x;
-    return tab[j] + (tab[j + 1] - tab[j]) * (x - (float)j);
-}
-
-/* Where the table's optical depth reaches tau (tab is non-decreasing). */
-static float tab_at(const float *tab, uint32_t n, float c0, float dx, float tau)
-{
+    const float *tab = tt->tau;
     if (!(tau > tab[0]))
-        return c0;
-    if (!(tau < tab[n - 1]))
-        return c0 + (float)(n - 1) * dx;
-    uint32_t j = cdf_cell(tab, n - 1, tau); /* tab[j] <= tau < tab[j + 1] */
-    return c0 + ((float)j + (tau - tab[j]) / (tab[j + 1] - tab[j])) * dx;
+        return tt->t0;
+    if (!(tau < tab[tt->n - 1]))
+        return tt->t0 + (float)(tt->n - 1) * tt->dt;
+    uint32_t j = cdf_cell(tab, tt->n - 1, tau); /* tab[j] <= tau < tab[j + 1] */
+    return tt->t0 + ((float)j + (tau - tab[j]) / (tab[j + 1] - tab[j])) * tt->dt;
 }
 
 /* A gather segment's beam query in a grid over one of `pieces` parts of [e0, e1) of equal
- * transmittance mass (1 - Tr, on the mean sigma_t, from the march's table), picked by u:
- * [*q0, *q1). 0 when the segment holds too little mass to cut. */
-static int tab_piece(const float *tab, uint32_t n, float c0, float dx, float st, float e0, float e1, uint32_t pieces,
-                     float u, float *q0, float *q1)
+ * transmittance mass (1 - Tr on sigma_t st, from the march's table tt, in the same frame as
+ * e0 and e1), picked by u: [*q0, *q1). 0 when the segment holds too little mass to cut. */
+static int tau_table_piece(const struct photon_tau *tt, float st, float e0, float e1, uint32_t pieces, float u,
+                           float *q0, float *q1)
 {
-    float a = expf(-st * tab_tau(tab, n, c0, dx, e0)), m = a - expf(-st * tab_tau(tab, n, c0, dx, e1));
+    float a = expf(-st * photon_tau_depth(tt, e0)), m = a - expf(-st * photon_tau_depth(tt, e1));
     if (!(m > 1e-6f) || !(st > 0.0f))
         return 0;
     float v = u * (float)pieces;
     uint32_t k = v < (float)pieces ? (uint32_t)v : pieces - 1;
-    *q0 = k == 0 ? e0 : fmaxf(e0, tab_at(tab, n, c0, dx, -logf(a - m * (float)k / (float)pieces) / st));
-    *q1 = k + 1 == pieces ? e1 : fminf(e1, tab_at(tab, n, c0, dx, -logf(a - m * (float)(k + 1) / (float)pieces) / st));
+    *q0 = k == 0 ? e0 : fmaxf(e0, tau_table_at(tt, -logf(a - m * (float)k / (float)pieces) / st));
+    *q1 = k + 1 == pieces ? e1 : fminf(e1, tau_table_at(tt, -logf(a - m * (float)(k + 1) / (float)pieces) / st));
     return 1;
 }
 
@@ -583,8 +571,8 @@ static vec3 march_segment(const struct render_job *job, const struct media_job *
                 uint32_t pieces = vertex == 0 || map->beams || !(nf > 1.0f) ? 1u
                                   : nf < (float)BEAM_PIECES                ? (uint32_t)nf
                                                                            : BEAM_PIECES;
-                if (pieces > 1 && tab_piece(tau_tab, ntab, c0, dx, (md->sigma_t.x + md->sigma_t.y + md->sigma_t.z) / 3.0f,
-                                            e0, e1, pieces, rnd(r, vertex, 15), &q0, &q1))
+                const struct photon_tau whole = {tau_tab, ntab, c0, dx}; /* t along o + t d */
+                if (pieces > 1 && tau_table_piece(&whole, trunc_sigma(md), e0, e1, pieces, rnd(r, vertex, 15), &q0, &q1))
                     wq = (float)pieces;
                 if (q0 < q1) {
                     struct photon_tau tt = {tau_tab, ntab, c0 - q0, dx};

@@ -27,19 +27,21 @@ vec3 photon_rgbe_decode(const uint8_t in[4])
     return v3(((float)in[0] + 0.5f) * f, ((float)in[1] + 0.5f) * f, ((float)in[2] + 0.5f) * f);
 }
 
+float photon_tau_depth(const struct photon_tau *tt, float t)
+{
+    float x = (t - tt->t0) / tt->dt;
+    if (!(x > 0.0f))
+        return 0.0f;
+    if (!(x < (float)(tt->n - 1)))
+        return tt->tau[tt->n - 1];
+    uint32_t i = (uint32_t)x;
+    float f = x - (float)i;
+    return tt->tau[i] * (1.0f - f) + tt->tau[i + 1] * f;
+}
+
 vec3 photon_tau_transmittance(const struct photon_tau *tt, const struct medium *md, float t)
 {
-    float x = (t - tt->t0) / tt->dt, tau;
-    if (!(x > 0.0f))
-        tau = 0.0f;
-    else if (!(x < (float)(tt->n - 1)))
-        tau = tt->tau[tt->n - 1];
-    else {
-        uint32_t i = (uint32_t)x;
-        float f = x - (float)i;
-        tau = tt->tau[i] * (1.0f - f) + tt->tau[i + 1] * f;
-    }
-    return medium_tr_tau(md, tau);
+    return medium_tr_tau(md, photon_tau_depth(tt, t));
 }
 
 _Static_assert(PHOTON_DEPTH_MAX <= 0x7ffu, "a photon's events fit the depth word's 11 bits");

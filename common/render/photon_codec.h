@@ -37,6 +37,9 @@ struct photon_tau {
     uint32_t n;
     float t0, dt;
 };
+/* Optical depth (per unit sigma_t) at t, interpolated in the table: 0 before it, its last
+ * value after it. */
+float photon_tau_depth(const struct photon_tau *tt, float t);
 /* Transmittance at t from a marched table. */
 vec3 photon_tau_transmittance(const struct photon_tau *tt, const struct medium *md, float t);
 /* The density the march took at t: the table's slope there (constant over each step; 0

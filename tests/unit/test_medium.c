@@ -1679,7 +1679,7 @@ Test(medium, beams_map_same_bytes_any_threads)
  * (gather_bounce): toward the grid's density (grid_aim) for the grid cloud, into the cone
  * around a medium sphere's bounding sphere for a homogeneous ball. Beam (64 spp, one map a
  * seed) agrees with VPT (1024 spp) over 8 seeds within 4 standard errors plus the stated 3 %
- * kernel bias. The grid's gather segments also take their beam in pieces (tab_piece). The
+ * kernel bias. The grid's gather segments also take their beam in pieces (tau_table_piece). The
  * test fails with the aimed part's density halved in the mixture's pdf (the grid's floor
  * 14 % bright), with a picked piece counted once (18 % dark) or with its end moved (16 %
  * bright). */
