@@ -723,22 +723,22 @@ float media_glow_pdf(vec3 c, vec3 w)
 #define GLOW_SHARE 0.25f
 #define GATHER_MEDIA_SHARE 0.25f
 struct gather_mix {
+    const struct media_job *mj; /* its aims: toward each grid's density (then no cone) */
+    vec3 p;                 /* the vertex */
     uint32_t n;
     vec3 c[MEDIA_GLOW_MAX]; /* unit directions from the vertex to the glowing lights */
-    const struct grid_aim *aims; /* toward grids' density (num_aims of them; then no cone) */
-    uint32_t num_aims;
-    int cone;               /* the cone toward the media: axis, cosine of its half-angle */
+    int cone;               /* the cone toward the media's bounding sphere: axis, cosine of its half-angle */
     vec3 cone_axis;
     float cone_cos;
-    float share_cos, share_glow, share_cone;
-    vec3 p;                 /* the vertex */
+    float share_cos, share_glow, share_media;
 };
 
 /* 1 when the vertex has a strategy besides cosine sampling. */
 static int gather_mix_init(struct gather_mix *g, const struct media_job *mj, vec3 p, vec3 ng)
 {
-    g->n = 0;
+    g->mj = mj;
     g->p = p;
+    g->n = 0;
     for (uint32_t k = 0; k < mj->num_glow; k++) {
         vec3 to = v3_sub(mj->glow[k], p);
         float d = v3_length(to);
@@ -746,12 +746,9 @@ static int gather_mix_init(struct gather_mix *g, const struct media_job *mj, vec
             g->c[g->n++] = v3_scale(to, 1.0f / d);
     }
     g->cone = 0;
-    g->aims = mj->aims;
-    g->num_aims = GATHER_MEDIA_SHARE > 0.0f ? mj->num_aims : 0;
-    if (mj->aim && GATHER_MEDIA_SHARE > 0.0f && g->num_aims == 0) {
+    if (mj->num_aims == 0 && mj->aim) { /* no grid: the cone, from outside the sphere, not wholly below the surface */
         vec3 to = v3_sub(mj->aim_center, p);
         float d = v3_length(to), sn = mj->aim_radius / d;
-        /* outside the sphere, and the cone not wholly below the surface */
         if (d > mj->aim_radius && v3_dot(to, ng) > -mj->aim_radius) {
             g->cone_axis = v3_scale(to, 1.0f / d);
             g->cone_cos = sqrtf(fmaxf(0.0f, 1.0f - sn * sn));
@@ -759,9 +756,9 @@ static int gather_mix_init(struct gather_mix *g, const struct media_job *mj, vec
         }
     }
     g->share_glow = g->n > 0 ? GLOW_SHARE : 0.0f;
-    g->share_cone = g->cone || g->num_aims > 0 ? GATHER_MEDIA_SHARE : 0.0f;
-    g->share_cos = 1.0f - g->share_glow - g->share_cone;
-    return g->n > 0 || g->cone || g->num_aims > 0;
+    g->share_media = g->cone || mj->num_aims > 0 ? GATHER_MEDIA_SHARE : 0.0f;
+    g->share_cos = 1.0f - g->share_glow - g->share_media;
+    return g->n > 0 || g->share_media > 0.0f;
 }
 
 /* The mixture's density at wi, given the cosine lobe's (material_eval's pdf). */
@@ -775,12 +772,13 @@ static float gather_mix_pdf(const struct gather_mix *g, float cos_pdf, vec3 wi)
         p += g->share_glow * s / (float)g->n;
     }
     if (g->cone && v3_dot(wi, g->cone_axis) >= g->cone_cos)
-        p += g->share_cone / (2.0f * (float)M_PI * (1.0f - g->cone_cos));
-    if (g->num_aims > 0) {
+        p += g->share_media / (2.0f * (float)M_PI * (1.0f - g->cone_cos));
+    const uint32_t na = g->mj->num_aims;
+    if (na > 0) {
         float s = 0.0f;
-        for (uint32_t k = 0; k < g->num_aims; k++)
-            s += grid_aim_pdf(&g->aims[k], g->p, wi);
-        p += g->share_cone * s / (float)g->num_aims;
+        for (uint32_t k = 0; k < na; k++)
+            s += grid_aim_pdf(&g->mj->aims[k], g->p, wi);
+        p += g->share_media * s / (float)na;
     }
     return p;
 }
@@ -799,10 +797,11 @@ static void gather_bounce(const struct gather_mix *g, const struct material *mat
         float v = (u0 - g->share_cos) / g->share_glow * (float)g->n;
         uint32_t k = v < (float)g->n ? (uint32_t)v : g->n - 1;
         wi = media_glow_sample(g->c[k], u1, u2);
-    } else if (g->num_aims > 0) {
-        float v = (u0 - g->share_cos - g->share_glow) / g->share_cone * (float)g->num_aims;
-        uint32_t k = v < (float)g->num_aims ? (uint32_t)v : g->num_aims - 1;
-        wi = grid_aim_sample(&g->aims[k], g->p, fminf(v - (float)k, 0x1.fffffep-1f), u1, u2, u3);
+    } else if (g->mj->num_aims > 0) {
+        const uint32_t na = g->mj->num_aims;
+        float v = (u0 - g->share_cos - g->share_glow) / g->share_media * (float)na;
+        uint32_t k = v < (float)na ? (uint32_t)v : na - 1;
+        wi = grid_aim_sample(&g->mj->aims[k], g->p, fminf(v - (float)k, 0x1.fffffep-1f), u1, u2, u3);
     } else {
         wi = v3_cone_sample(g->cone_axis, g->cone_cos, u1, u2);
     }

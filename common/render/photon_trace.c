@@ -36,9 +36,6 @@ struct trace_ctx {
     struct photon_list *surface;    /* surface photons per block (NULL: none kept) */
     struct photon_beam_list *beams; /* the beams method: photon beams per block (NULL: points only) */
     vec3 keep_lo, keep_hi;  /* photons are stored inside this box (the bounds rule) */
-    int aim;                /* point lights and the sky aim photons at the media's bounding sphere */
-    vec3 aim_center;
-    float aim_radius;
     int reach;              /* photons can interact only inside reach_lo..hi (photon_interaction_bounds) */
     vec3 reach_lo, reach_hi;
 };
@@ -139,12 +136,12 @@ static int emit(const struct trace_ctx *tc, uint64_t key, vec3 *o, vec3 *d, vec3
         vec3 axis = l->type == LIGHT_SPOT ? l->direction : v3(0, 0, 1);
         float cos_aim = 2.0f;
         vec3 aim_axis = axis;
-        if (tc->aim) {
-            vec3 to = v3_sub(tc->aim_center, l->position);
+        if (tc->mj->aim) { /* point lights and the sky aim photons at the media's bounding sphere */
+            vec3 to = v3_sub(tc->mj->aim_center, l->position);
             float dist = v3_length(to);
-            if (dist > tc->aim_radius) {
+            if (dist > tc->mj->aim_radius) {
                 aim_axis = v3_scale(to, 1.0f / dist);
-                float s2 = (tc->aim_radius / dist) * (tc->aim_radius / dist);
+                float s2 = (tc->mj->aim_radius / dist) * (tc->mj->aim_radius / dist);
                 cos_aim = sqrtf(fmaxf(0.0f, 1.0f - s2));
             }
         }
@@ -209,11 +206,11 @@ static int emit(const struct trace_ctx *tc, uint64_t key, vec3 *o, vec3 *d, vec3
     }
     case LK_ENV: {
         /* A line from the sky across the scene's bounding sphere (envmap_emit); when media
-         * have bounds (tc->aim), ENV_AIM_SHARE of the lines cross the media's bounding
+         * have bounds (media_job's aim), ENV_AIM_SHARE of the lines cross the media's bounding
          * sphere instead. Unbiased: the power is divided by the mixture's density. */
         const float u[5] = {u1, u2, u3, u4, rng_uniform(key, 5)};
-        vec3 flux = envmap_emit(sc->env, lt->env_center, lt->env_radius, tc->aim_center, tc->aim_radius,
-                                tc->aim ? ENV_AIM_SHARE : 0.0f, u, o, d);
+        vec3 flux = envmap_emit(sc->env, lt->env_center, lt->env_radius, tc->mj->aim_center, tc->mj->aim_radius,
+                                tc->mj->aim ? ENV_AIM_SHARE : 0.0f, u, o, d);
         *power = v3_scale(flux, tc->photon_scale / pick);
         return !v3_is_black(*power);
     }
@@ -236,7 +233,6 @@ static void trace_ctx_start(struct trace_ctx *tc, const struct render_job *job, 
     tc->seed = seed;
     tc->emitted = emitted;
     tc->photon_scale = emitted ? (float)(1.0 / (double)emitted) : 0.0f;
-    tc->aim = media_bounding_sphere(job->scene, &tc->aim_center, &tc->aim_radius);
     tc->reach = photon_interaction_bounds(job, &tc->reach_lo, &tc->reach_hi);
 }
 
