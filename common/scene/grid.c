@@ -293,11 +293,7 @@ int grid_aim_init(struct grid_aim *a, const struct density_grid *g)
     }
     a->cdf[nc] = 1.0f;
     a->lo = g->occ_lo, a->hi = g->occ_hi;
-    const float(*m)[4] = g->grid_to_world.m;
-    double det = (double)m[0][0] * ((double)m[1][1] * m[2][2] - (double)m[1][2] * m[2][1]) -
-                 (double)m[0][1] * ((double)m[1][0] * m[2][2] - (double)m[1][2] * m[2][0]) +
-                 (double)m[0][2] * ((double)m[1][0] * m[2][1] - (double)m[1][1] * m[2][0]);
-    a->cell_volume = fabs(det);
+    a->cell_volume = fabs(motion_xform_det(&g->grid_to_world));
     for (int k = 0; k < 3; k++)
         a->cell_volume *= (double)(hi[k] - lo[k]) / a->n[k];
     if (!(a->cell_volume > 0.0) || !isfinite(a->cell_volume)) {

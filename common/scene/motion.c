@@ -192,6 +192,14 @@ uint32_t motion_step_count(const float *times, size_t stride, uint32_t n, double
     return MOTION_MAX_SEGMENTS + 1;
 }
 
+double motion_xform_det(const struct xform *t)
+{
+    const float(*a)[4] = t->m;
+    return (double)a[0][0] * ((double)a[1][1] * a[2][2] - (double)a[1][2] * a[2][1]) +
+           (double)a[0][1] * ((double)a[1][2] * a[2][0] - (double)a[1][0] * a[2][2]) +
+           (double)a[0][2] * ((double)a[1][0] * a[2][1] - (double)a[1][1] * a[2][0]);
+}
+
 struct xform motion_xform_inverse(const struct xform *t)
 {
     double a[3][3];
@@ -204,7 +212,7 @@ struct xform motion_xform_inverse(const struct xform *t)
                        a[0][2] * a[1][0] - a[0][0] * a[1][2]},
                       {a[1][0] * a[2][1] - a[1][1] * a[2][0], a[0][1] * a[2][0] - a[0][0] * a[2][1],
                        a[0][0] * a[1][1] - a[0][1] * a[1][0]}};
-    double det = a[0][0] * c[0][0] + a[0][1] * c[1][0] + a[0][2] * c[2][0];
+    double det = motion_xform_det(t);
     double inv = det != 0.0 ? 1.0 / det : 0.0;
     struct xform r;
     for (int i = 0; i < 3; i++) {

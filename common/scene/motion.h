@@ -43,6 +43,8 @@ uint32_t motion_step_count(const float *times, size_t stride_bytes, uint32_t n, 
 /* Inverse of an invertible affine transform; normals transform with motion_xform_normal
  * (the cofactor matrix: inverse transpose times det, so orientation is kept for det > 0). */
 struct xform motion_xform_inverse(const struct xform *t);
+/* Determinant of the linear part (the volume scale). */
+double motion_xform_det(const struct xform *t);
 vec3 motion_xform_normal(const struct xform *t, vec3 n);
 
 #endif
