@@ -487,7 +487,8 @@ vec3 photon_map_gather_knn(const struct photon_map *m, vec3 x, vec3 d_out, float
             continue;
         vec3 c = photon_contrib(m, idx[j], d_out, g);
         if (grid_max > 0.0f)
-            c = v3_scale(c, photon_density_weight(rho, photon_density_floor(word), grid_max));
+            c = v3_scale(c, photon_density_weight(rho, m->decoded ? m->decoded[idx[j]].density_floor : photon_density_floor(word),
+                                                  grid_max));
         acc[0] += c.x, acc[1] += c.y, acc[2] += c.z;
     }
     double rk = fmax(sqrt((double)r2), PM_MIN_KERNEL_RADIUS);

@@ -826,7 +826,6 @@ Test(medium, emission_density_point_light, .timeout = 60)
     check_emission(EMIT_SCENE("{\"type\": \"point\", \"position\": [4, 4, -4], \"intensity\": [5, 5, 5]}"));
 }
 
-
 /* A spot whose cone covers part of the media's cone: aimed photons outside the spot's cone
  * carry nothing, the spot's own photons inside the media's cone share the aimed ones' pdf. */
 Test(medium, emission_density_spot_light, .timeout = 60)
