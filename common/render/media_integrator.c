@@ -489,11 +489,20 @@ static vec3 march_segment(const struct render_job *job, const struct media_job *
     /* Jittered steps estimate the integral without bias at any dx: after the first vertex
      * (paths already spread over the hemisphere) four times longer steps cost less for
      * the same image variance. */
-    float dx = medium_march_step(md, vertex == 0 ? mj->step : 4.0f * mj->step);
+    const float nee_step = vertex == 0 ? mj->step : 4.0f * mj->step;
+    float dx = medium_march_step(md, nee_step);
     float span = c1 - c0;
     if (span / dx > (float)(het ? TAU_TABLE - 2 : MAX_STEPS))
         dx = span / (float)(het ? TAU_TABLE - 2 : MAX_STEPS);
-    float jitter = rnd(r, vertex, 10);
+    /* Grids: the optical depth takes steps of at most half a voxel, the in-scattering only
+     * the march's step: it is taken at every `every`-th step (those of residue `phase`,
+     * picked at random), counted `every` times. One uniform gives both the residue and
+     * the steps' jitter. */
+    const uint32_t every = het && nee_step > dx ? (uint32_t)fmaxf(1.0f, floorf(nee_step / dx * 1.0001f)) : 1u;
+    float jitter = rnd(r, vertex, 10) * (float)every;
+    const uint32_t phase = jitter < (float)every ? (uint32_t)jitter : every - 1u;
+    jitter -= (float)phase;
+    const float dx_nee = dx * (float)every;
     /* A few point lights: every one at every step (no pick noise; the shadow cache makes
      * each cheap). Otherwise one light picked in proportion to power. */
     const int all_points = march_all_points(job);
@@ -535,7 +544,7 @@ static vec3 march_segment(const struct render_job *job, const struct media_job *
             cut = het;
             break; /* nothing beyond reaches the camera */
         }
-        if (!(rho > 0.0f))
+        if (!(rho > 0.0f) || k % every != phase)
             continue;
         fc.t = t;
         vec3 ls = !nee ? v3(0, 0, 0) : all_points ? point_lights_all(job, x, v3_neg(d), medium, md->g, time01,
@@ -547,7 +556,7 @@ static vec3 march_segment(const struct render_job *job, const struct media_job *
         if (mj->sm->method == MEDIA_MARCH_STEPS && map)
             in = v3_add(in, photon_map_gather_knn(map, x, v3_neg(d), md->g, mj->sm->knn, KNN_RADIUS_FACTOR * map->radius,
                                                   kmax, rho, het ? md->grid->max_density : 0.0f));
-        L = v3_add(L, v3_scale(v3_mul(tr, in), dx));
+        L = v3_add(L, v3_scale(v3_mul(tr, in), dx_nee));
     }
     if (het)
         *seg_tr = medium_tr_tau(md, tau);

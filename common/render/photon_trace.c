@@ -23,6 +23,13 @@
 
 #define PM_BLOCK 1024           /* photon indices per work unit */
 #define SALT_PHOTON 0x70686f746f6eull
+#define SALT_SPLIT 0x73706c6974ull
+/* Splitting heavy photons where they meet a bounded medium (walk): a photon whose power is
+ * over PHOTON_SPLIT_MIN times the reference (trace_ctx.split_ref) goes on as
+ * ceil(power / reference) walkers, at most volume.photon_split (trace_ctx.split_max). */
+#define PHOTON_SPLIT_MIN 2.0f
+/* Photons traced to find the reference (split_reference). */
+#define SPLIT_PILOT 1024u
 
 struct trace_ctx {
     const struct render_job *job;
@@ -30,6 +37,11 @@ struct trace_ctx {
     uint64_t seed;
     uint64_t emitted;
     float photon_scale;     /* 1 / emitted */
+    float split_ref;        /* a typical photon's power in the media (max component): walk splits
+                             * heavier ones; 0 = never */
+    uint32_t split_max;     /* volume.photon_split: most walkers per split (1: none) */
+    float *pilot;           /* split_reference's pilot: powers recorded instead of splitting */
+    uint32_t *pilot_n;
     uint32_t num_blocks;
     _Atomic uint32_t next_block;
     struct photon_list *blocks;     /* volume photons per block of indices */
@@ -266,31 +278,85 @@ static void store(struct photon_list *l, vec3 p, vec3 d, vec3 power, uint32_t de
 /* A default photon bound (media_max_photon_depth: the render's max_depth) fits a photon's depth. */
 _Static_assert(SCENE_MAX_DEPTH <= PHOTON_DEPTH_MAX, "max_depth bounds photon paths: SCENE_MAX_DEPTH <= PHOTON_DEPTH_MAX");
 
+/* A photon in flight: where it is, where it goes, its power and random numbers. */
+struct walker {
+    uint64_t key;
+    vec3 o, d, power;
+    uint32_t medium, depth, crossings;
+    int indirect; /* any interaction since the light */
+    int may_split;
+    uint32_t split_n; /* one of split_n walkers of a split photon still in its medium; else 0 */
+};
+
+static void walk(const struct trace_ctx *tc, struct walker w0, float time01, struct photon_list *vol,
+                 struct photon_list *surf, struct photon_beam_list *beams);
+
 /* Traces photon `index`: volume photons into vol; when surf is non-NULL, photons arriving
  * at diffuse surfaces after any interaction into surf. */
 static void trace_photon(const struct trace_ctx *tc, uint64_t index, struct photon_list *vol,
                          struct photon_list *surf, struct photon_beam_list *beams)
 {
     const struct render_job *job = tc->job;
-    const struct scene *sc = job->scene;
-    const struct scene_media *sm = sc->media;
-    uint64_t key = photon_key(tc, index);
-    vec3 o, d, power;
-    uint32_t medium;
-    if (!emit(tc, key, &o, &d, &power, &medium) || v3_is_black(power))
+    struct walker w = {.key = photon_key(tc, index), .may_split = 1};
+    if (!emit(tc, w.key, &w.o, &w.d, &w.power, &w.medium) || v3_is_black(w.power))
         return;
-    int indirect = 0;           /* any interaction since the light */
-    uint32_t crossings = 0;
     /* Moving geometry: each photon lives at one time of the frame's shutter, drawn as the
      * camera draws its rays' times, so the map averages the shutter as the image does. */
-    const float time01 = job->accel.has_motion ? camera_shutter_warp(&job->camera, rng_uniform(key, 6)) : 0.0f;
+    const float time01 = job->accel.has_motion ? camera_shutter_warp(&job->camera, rng_uniform(w.key, 6)) : 0.0f;
+    walk(tc, w, time01, vol, surf, beams);
+}
+
+static void walk(const struct trace_ctx *tc, struct walker w0, float time01, struct photon_list *vol,
+                 struct photon_list *surf, struct photon_beam_list *beams)
+{
+    const struct render_job *job = tc->job;
+    const struct scene *sc = job->scene;
+    const struct scene_media *sm = sc->media;
+    const uint64_t key = w0.key;
+    vec3 o = w0.o, d = w0.d, power = w0.power;
+    uint32_t medium = w0.medium, crossings = w0.crossings, split_n = w0.split_n;
+    int indirect = w0.indirect, recorded = 0;
     const uint32_t max_events = media_max_photon_depth(sm, sc->settings.max_depth);
-    for (uint32_t depth = 0; depth < max_events;) {
+    for (uint32_t depth = w0.depth; depth < max_events;) {
         uint32_t dim = 8 + 8 * depth;
         struct accel_hit h;
         int hit = accel_intersect(&job->accel, o, d, INFINITY, time01, &h);
         if (medium != MEDIUM_NONE) {
             const struct medium *md = &sm->media[medium];
+            /* A photon much heavier than the lightest emitted (one outside the cone aimed at
+             * the media, or after a bounce) that is about to cross a bounded medium goes on
+             * as n walkers of 1/n its power along the same ray, each with its own random
+             * numbers from here: the same expectation, n times less of its square, and
+             * every walker's flights and photons its own (docs/media.md, "Splitting heavy
+             * photons"). */
+            float k0, k1;
+            uint32_t n = 1;
+            if (w0.may_split && tc->split_max > 1 && (md->grid || medium != sm->fog) &&
+                medium_clip(md, o, d, hit ? h.t : INFINITY, &k0, &k1)) {
+                float heavy = v3_max_component(power);
+                if (tc->pilot) { /* the pilot: record each photon's first such flight */
+                    if (!recorded && *tc->pilot_n < SPLIT_PILOT)
+                        tc->pilot[(*tc->pilot_n)++] = heavy;
+                    recorded = 1;
+                } else if (tc->split_ref > 0.0f && (heavy /= tc->split_ref) > PHOTON_SPLIT_MIN) {
+                    /* As many walkers as the photon is heavy, times the chance (at most)
+                     * that it scatters on this flight: walkers that cross a thin medium
+                     * unscattered only cost. The bound: sigma_t's largest channel at the
+                     * grid's largest density over the part of the ray inside the medium. */
+                    float tau = v3_max_component(md->sigma_t) * (md->grid ? md->grid->max_density : 1.0f) * (k1 - k0);
+                    float want = heavy * (tau < 30.0f ? -expm1f(-tau) : 1.0f);
+                    n = want < (float)tc->split_max ? (uint32_t)ceilf(want) : tc->split_max;
+                }
+            }
+            if (n > 1) {
+                struct walker c = {.o = o, .d = d, .power = v3_scale(power, 1.0f / (float)n), .medium = medium,
+                                   .depth = depth, .crossings = crossings, .indirect = indirect, .split_n = n};
+                for (uint32_t k = 0; k < n; k++) {
+                    c.key = rng_mix64(key ^ SALT_SPLIT ^ ((uint64_t)(k + 1) << 40) ^ depth);
+                    walk(tc, c, time01, vol, surf, beams);
+                }
+                return;
+            }
             float t;
             vec3 w;
             int scatter = medium_sample_flight(md, o, d, hit ? h.t : INFINITY, power, rng_mix64(key ^ ((uint64_t)dim << 32)), &t, &w);
@@ -336,6 +402,15 @@ static void trace_photon(const struct trace_ctx *tc, uint64_t index, struct phot
             return;
         struct surface s;
         surface_from_hit(&job->accel, &job->lights, o, d, &h, time01, &s);
+        /* A split photon's walker leaving the medium (its first surface, an interface
+         * included): Russian roulette, one in n goes on with n times the power, so the
+         * path beyond costs what the photon's would have. */
+        if (split_n > 1) {
+            if (rng_uniform(key, dim + 1) * (float)split_n >= 1.0f)
+                return;
+            power = v3_scale(power, (float)split_n);
+            split_n = 0;
+        }
         if (media_is_interface(tc->mj, s.material)) {
             if (++crossings > 256)
                 return;
@@ -378,6 +453,37 @@ static void trace_photon(const struct trace_ctx *tc, uint64_t index, struct phot
         indirect = 1;
         depth++;
     }
+}
+
+static int cmp_float(const void *a, const void *b)
+{
+    float x = *(const float *)a, y = *(const float *)b;
+    return (x > y) - (x < y);
+}
+
+/* The splitting's reference: the median power (largest component) of the photons as they
+ * first fly through a bounded medium, over the pass's first SPLIT_PILOT photons traced
+ * alone (their photons thrown away), so the same for any threads. On the smoke that is
+ * an aimed photon's power; a photon heavier than PHOTON_SPLIT_MIN times it splits. 0
+ * (no splitting) when fewer than 16 of them reach such a medium. */
+static float split_reference(struct trace_ctx *tc)
+{
+    float p[SPLIT_PILOT];
+    uint32_t m = 0, n = tc->emitted < SPLIT_PILOT ? (uint32_t)tc->emitted : SPLIT_PILOT;
+    struct photon_list vol = {0};
+    tc->pilot = p;
+    tc->pilot_n = &m;
+    for (uint32_t k = 0; k < n; k++) {
+        trace_photon(tc, k, &vol, NULL, NULL);
+        vol.n = 0;
+    }
+    tc->pilot = NULL;
+    tc->pilot_n = NULL;
+    free(vol.a);
+    if (m < 16)
+        return 0.0f;
+    qsort(p, m, sizeof *p, cmp_float);
+    return p[m / 2];
 }
 
 static atomic_int stop_requested;
@@ -446,6 +552,8 @@ int photon_trace_map(const struct render_job *job, uint64_t seed, uint32_t threa
     }
     struct trace_ctx tc;
     trace_ctx_start(&tc, job, seed, job->lights.num_entries > 0 ? sm->photons : 0);
+    tc.split_max = sm->photon_split ? sm->photon_split : MEDIA_DEFAULT_PHOTON_SPLIT;
+    tc.split_ref = tc.split_max > 1 ? split_reference(&tc) : 0.0f;
     tc.num_blocks = (uint32_t)((tc.emitted + PM_BLOCK - 1) / PM_BLOCK);
     float grow = job->media->radius;
     if (sm->fog != MEDIUM_NONE) /* camera rays see the fog without its forward cone (medium.h) */

@@ -77,6 +77,8 @@ struct scene_media {
     float skip_bound;           /* skip the photon pass when multiple scattering is bounded below this */
     uint32_t max_photon_depth;  /* interactions per photon path; 0 = the render's max_depth (media_max_photon_depth) */
     float alpha;                /* progressive radius reduction per pass, in (0, 1]; 0 = MEDIA_DEFAULT_ALPHA */
+    uint32_t photon_split;      /* most walkers a heavy photon splits into where it meets a bounded
+                                 * medium (1 = none); 0 = MEDIA_DEFAULT_PHOTON_SPLIT */
     uint32_t direct_samples;    /* camera rays per sample for the lights seen straight from the camera
                                  * (1..MEDIA_MAX_DIRECT_SAMPLES; 1 = the sample's own ray only); 0 = the
                                  * method's default (media_direct_samples) */
@@ -98,6 +100,9 @@ static inline uint32_t media_max_photon_depth(const struct scene_media *sm, uint
 {
     return sm->max_photon_depth ? sm->max_photon_depth : max_depth; /* validated: 1..SCENE_MAX_DEPTH */
 }
+/* volume.photon_split's default and largest value (photon_trace.c, docs/media.md). */
+#define MEDIA_DEFAULT_PHOTON_SPLIT 8u
+#define MEDIA_MAX_PHOTON_SPLIT 64u
 /* Knaus and Zwicker's alpha: the share of each pass's photons a pass keeps in the radius rule. */
 #define MEDIA_DEFAULT_ALPHA (2.0f / 3.0f)
 

@@ -872,9 +872,9 @@ static int parse_volume(struct ctx *c, const struct member *vm)
 {
     static const char *const keys[] = {"method", "fog", "step", "photons", "radius", "skip_bound", "max_photon_depth",
                                        "knn", "shadow_cache", "surface_photons", "alpha", "indirect",
-                                       "direct_samples"};
-    struct member m[13];
-    if (object_members(c, vm->val, &vm->path, "volume", keys, 13, m) != 0)
+                                       "direct_samples", "photon_split"};
+    struct member m[14];
+    if (object_members(c, vm->val, &vm->path, "volume", keys, 14, m) != 0)
         return -1;
     struct scene_media *sm = c->scene->media;
     if (m[0].val) {
@@ -955,6 +955,12 @@ static int parse_volume(struct ctx *c, const struct member *vm)
         if (get_uint(c, &m[12], "direct_samples", 1, MEDIA_MAX_DIRECT_SAMPLES, &n) != 0)
             return -1;
         sm->direct_samples = (uint32_t)n;
+    }
+    if (m[13].val) {
+        json_int_t n;
+        if (get_uint(c, &m[13], "photon_split", 1, MEDIA_MAX_PHOTON_SPLIT, &n) != 0)
+            return -1;
+        sm->photon_split = (uint32_t)n;
     }
     return 0;
 }

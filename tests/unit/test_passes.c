@@ -553,19 +553,20 @@ Test(passes, converges_to_vpt, .timeout = 300)
             cr_assert(e.rel_rmse_est < 0.6 * e.rel_rmse, "one pass: estimate %g, error %g", e.rel_rmse_est,
                       e.rel_rmse);
         else /* Below: the kernels' bias (blur at the sphere's edge, 2 % of the mean here), which
-              * no spread between passes shows, is part of the error (measured ratios 0.79 and
-              * 0.74 for P = 4 and 16; 0.63 to 0.93 with other seeds). */
-            cr_assert(e.rel_rmse_est > e.rel_rmse / 1.75 && e.rel_rmse_est < e.rel_rmse * 1.5,
+              * no spread between passes shows, is part of the error, and the larger part the
+              * less noise the maps have (measured ratios 0.78 and 0.57 for P = 4 and 16 with
+              * heavy photons split, 0.75 and 0.63 without). */
+            cr_assert(e.rel_rmse_est > e.rel_rmse / 2.0 && e.rel_rmse_est < e.rel_rmse * 1.5,
                       "passes %u: estimate %g, error %g", P[t], e.rel_rmse_est, e.rel_rmse);
         free(px);
         photon_map_free(&maps);
     }
-    /* The error falls from 4 to 16 passes; from 1 to 4 it falls less (0.098 and 0.079
-     * measured): with the final gather the surface map's noise is small, and what is left
-     * at a few passes is mostly the kernels' bias, which shrinks slowly with the radius
-     * (0.12 to 0.105 after 4 passes, 0.091 after 16), so 4 passes may not be worse than
-     * one by more than noise (1 %). */
-    cr_assert(err[1] < 1.01 * err[0] && err[2] < 0.75 * err[1] && err[2] < 0.6 * err[0], "errors %g %g %g", err[0],
+    /* The error falls from 1 to 4 to 16 passes (0.084, 0.055, 0.042 measured): with the
+     * final gather the surface map's noise is small, and with heavy photons split the
+     * volume maps' noise too, so what is left at 4 passes and more is mostly the kernels'
+     * bias, which shrinks slowly with the radius (0.12 to 0.105 after 4 passes, 0.091
+     * after 16: the bias as r^2 by 0.75). */
+    cr_assert(err[1] < 1.01 * err[0] && err[2] < 0.85 * err[1] && err[2] < 0.6 * err[0], "errors %g %g %g", err[0],
               err[1], err[2]);
     free(ref);
     scene_fini(&s);
