@@ -1132,6 +1132,10 @@ Test(medium, scene_keys)
                  "scenes/t.json:5:30: direct_samples 0 out of range 1..64");
     expect_error(H ",\n\"media\": {\"fog\": {}},\n\"volume\": {\"direct_samples\": 65}}",
                  "scenes/t.json:5:30: direct_samples 65 out of range 1..64");
+    expect_error(H ",\n\"media\": {\"fog\": {}},\n\"volume\": {\"photon_split\": 0}}",
+                 "scenes/t.json:5:28: photon_split 0 out of range 1..64");
+    expect_error(H ",\n\"media\": {\"fog\": {}},\n\"volume\": {\"photon_split\": 65}}",
+                 "scenes/t.json:5:28: photon_split 65 out of range 1..64");
     expect_error(H ",\n\"media\": {\"fog\": {}},\n\"volume\": {\"shadow_cache\": 1}}", "scenes/t.json:5:28: shadow_cache must be true or false");
     expect_error(H ",\n\"volume\": {}}", "scenes/t.json:4:1: \"volume\" needs \"media\"");
     expect_error(H ",\n\"objects\": [{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1, \"medium\": \"x\"}]}",
