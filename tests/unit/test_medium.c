@@ -1775,7 +1775,7 @@ static void photon_seed_spread(const char *text, int seeds, double *mean, double
 
 /* Splitting keeps the expectation (the same camera samples: image means within 4 standard
  * errors of the maps' spread) and lowers the maps' variance, summed over the pixels
- * (measured: 0.56 of it without splitting). Fails with a walker's power not divided by n
+ * (measured: 0.58 of it without splitting). Fails with a walker's power not divided by n
  * (image mean 0.289 against 0.203) or with walkers sharing their random numbers (variance
  * ratio 0.89). */
 Test(medium, heavy_photons_split, .timeout = 120)

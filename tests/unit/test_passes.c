@@ -561,7 +561,7 @@ Test(passes, converges_to_vpt, .timeout = 300)
         free(px);
         photon_map_free(&maps);
     }
-    /* The error falls from 1 to 4 to 16 passes (0.084, 0.055, 0.042 measured): with the
+    /* The error falls from 1 to 4 to 16 passes (0.083, 0.055, 0.041 measured): with the
      * final gather the surface map's noise is small, and with heavy photons split the
      * volume maps' noise too, so what is left at 4 passes and more is mostly the kernels'
      * bias, which shrinks slowly with the radius (0.12 to 0.105 after 4 passes, 0.091
