@@ -23,7 +23,8 @@
 #     relRMSE against the reference, the same after an 8x8 box filter (low-frequency error:
 #     blotches), the renderer's own estimate from its variance channels (exrtool errest) and
 #     its ratio to the true error; for the photon method the ratio to VPT's relRMSE at the same
-#     time (VPT's error-time curve interpolated on log-log axes; '*' marks an extrapolation);
+#     time (VPT's error-time curve interpolated on log-log axes; '*' marks an extrapolation),
+#     and the same for the low-frequency parts (lf_vs_vpt);
 #     per method the least-squares log-log slope of error against time.
 # Writes bench-out/media.txt, bench-out/media.png (gnuplot) and bench-out/media-SCENE.dat.
 # Timings are measurements of one run, never assertions; speed only as ratios of this run.
@@ -170,16 +171,19 @@ for sc in $SCENES; do
   {
     echo "== $sc: reference vpt, max_depth $dref (scene: $sdepth), $REF_SPP spp (2 seeds x $((REF_SPP / 2))), mean $rmean, own relRMSE $rrel, low-frequency (box $BOX) $rlf, $(printf '%.1f' "$rsecs") s"
     echo "   depth: $note"
-    printf '%-6s %5s %8s %9s %9s %9s %9s %9s %8s %9s %9s %8s %8s\n' method spp secs relRMSE true lowfreq lf_true errest est/true ref_rel ref_lf vs_vpt pass_s
+    printf '%-6s %5s %8s %9s %9s %9s %9s %9s %8s %9s %9s %8s %8s %8s\n' method spp secs relRMSE true lowfreq lf_true errest est/true ref_rel ref_lf vs_vpt lf_vs_vpt pass_s
     while read -r m spp t r lf e ps tr tl; do
       ratio=""
+      lratio=""
       if [ "$m" != vpt ]; then
         vr=$(loglog_interp "$t" <"$T/vcurve")
         ratio=$(awk -v r="$tr" -v v="${vr%\*}" -v x="$vr" 'BEGIN { if (r > 0 && v > 0) printf "%.3f%s", r / v, (x ~ /\*/) ? "*" : ""; else print "-" }')
+        vl=$(loglog_interp "$t" <"$T/vcurve-lf")
+        lratio=$(awk -v r="$tl" -v v="${vl%\*}" -v x="$vl" 'BEGIN { if (r > 0 && v > 0) printf "%.3f%s", r / v, (x ~ /\*/) ? "*" : ""; else print "-" }')
       fi
-      awk -v m="$m" -v spp="$spp" -v t="$t" -v r="$r" -v lf="$lf" -v e="$e" -v tr="$tr" -v tl="$tl" -v rr="$rrel" -v rl="$rlf" -v q="$ratio" -v ps="$ps" \
-        'BEGIN { printf "%-6s %5d %8.3f %9.5f %9.5f %9.5f %9.5f %9.5f %8s %9.5f %9.5f %8s %8s\n", m, spp, t, r, tr, lf, tl, e,
-                 (tr > 0 && e > 0 ? sprintf("%.3f", e / tr) : "-"), rr, rl, (q == "" ? "-" : q), (m == "vpt" ? "-" : sprintf("%.3f", ps)) }'
+      awk -v m="$m" -v spp="$spp" -v t="$t" -v r="$r" -v lf="$lf" -v e="$e" -v tr="$tr" -v tl="$tl" -v rr="$rrel" -v rl="$rlf" -v q="$ratio" -v ql="$lratio" -v ps="$ps" \
+        'BEGIN { printf "%-6s %5d %8.3f %9.5f %9.5f %9.5f %9.5f %9.5f %8s %9.5f %9.5f %8s %8s %8s\n", m, spp, t, r, tr, lf, tl, e,
+                 (tr > 0 && e > 0 ? sprintf("%.3f", e / tr) : "-"), rr, rl, (q == "" ? "-" : q), (ql == "" ? "-" : ql), (m == "vpt" ? "-" : sprintf("%.3f", ps)) }'
     done <"$T/rows-$sc"
     for m in "$pm" $EXTRA vpt; do
       sl=$(awk -v m="$m" '$1 == m {print $3, $8}' "$T/rows-$sc" | loglog_slope)

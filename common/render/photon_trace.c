@@ -331,14 +331,14 @@ static void walk(const struct trace_ctx *tc, struct walker w0, float time01, str
              * photons"). */
             float k0, k1;
             uint32_t n = 1;
-            if (w0.may_split && tc->split_max > 1 && (md->grid || medium != sm->fog) &&
-                medium_clip(md, o, d, hit ? h.t : INFINITY, &k0, &k1)) {
-                float heavy = v3_max_component(power);
+            float heavy = tc->split_ref > 0.0f ? v3_max_component(power) / tc->split_ref : 0.0f;
+            if (w0.may_split && (tc->pilot ? !recorded : heavy > PHOTON_SPLIT_MIN) && tc->split_max > 1 &&
+                (md->grid || medium != sm->fog) && medium_clip(md, o, d, hit ? h.t : INFINITY, &k0, &k1)) {
                 if (tc->pilot) { /* the pilot: record each photon's first such flight */
-                    if (!recorded && *tc->pilot_n < SPLIT_PILOT)
-                        tc->pilot[(*tc->pilot_n)++] = heavy;
+                    if (*tc->pilot_n < SPLIT_PILOT)
+                        tc->pilot[(*tc->pilot_n)++] = v3_max_component(power);
                     recorded = 1;
-                } else if (tc->split_ref > 0.0f && (heavy /= tc->split_ref) > PHOTON_SPLIT_MIN) {
+                } else {
                     /* As many walkers as the photon is heavy, times the chance (at most)
                      * that it scatters on this flight: walkers that cross a thin medium
                      * unscattered only cost. The bound: sigma_t's largest channel at the
