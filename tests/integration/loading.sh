@@ -88,7 +88,7 @@ mpid=$!
 timeout 120 $W --connect "ipc://$T/c.sock" --threads 1 --timeout-ms 60000 --fault slow-load:100000 >"$T/wlog" 2>&1 &
 wpid=$!
 echo "$mpid $wpid" >"$T/pids"
-n=0; while ! grep -q "joined" "$T/log1" && [ $n -lt 300 ]; do sleep 0.1; n=$((n + 1)); done
+n=0; while ! grep -q "joined" "$T/log1" 2>/dev/null && [ $n -lt 300 ]; do sleep 0.1; n=$((n + 1)); done
 kill -9 $mpid; wait $mpid 2>/dev/null
 timeout 120 $M $SCENE -o "$T/c2.exr" --workers 0 --bind "ipc://$T/c.sock" $ARGS --seed 2 \
   --worker-timeout-ms 3000 >"$T/log" 2>&1 &
