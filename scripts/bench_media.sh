@@ -17,7 +17,8 @@
 #     scene folder's files and these settings (not the binaries; REF_REDO=1 redoes it).
 #  2. The photon method at its defaults (the scene's volume.method, no override) at the spp
 #     of BUDGETS, and VPT, both at the reference depth, VPT at spp chosen (from one calibration render)
-#     to take about the same times. Time is that of the whole master process (photon pass,
+#     to take about the same times (one more VPT render past either end of the photon
+#     method's times that the calibrated ones miss). Time is that of the whole master process (photon pass,
 #     worker start, scene build, render, EXR written): wall time, or with TIME=cpu the CPU
 #     seconds of the master and its worker. For each render:
 #     relRMSE against the reference, the same after an 8x8 box filter (low-frequency error:
@@ -152,6 +153,19 @@ for sc in $SCENES; do
     echo "media: $sc: vpt, $spp spp (max_depth $vdepth)" >&2
     t=$(render "$sc" "$T/v.exr" "$spp" "$SEED" --media-method vpt --max-depth "$vdepth")
     echo "vpt $spp $t $("$X" relrmse "$T/v.exr" "$REF") $("$X" relrmse "$T/v.exr" "$REF" --box "$BOX") $("$X" errest "$T/v.exr") 0" >>"$T/rows-$sc"
+  done
+  # VPT's curve must span the photon method's times, so that its ratios are interpolated,
+  # not extrapolated: one more VPT render past each end it missed (the calibration is one
+  # render, and VPT's time per sample is not constant), its spp scaled by the time missing.
+  for end in hi lo; do
+    set -- $(awk -v m="$pm" -v e="$end" '$1 == m { if (!n++ || (e == "hi" ? $3 > p : $3 < p)) p = $3 }
+             $1 == "vpt" { if (!k++ || (e == "hi" ? $3 > v : $3 < v)) { v = $3; s = $2 } }
+             END { if (e == "hi" && v < p) print int(s * p / v * 1.15) + 1
+                   else if (e == "lo" && v > p && s > 1) { x = int(s * p / v * 0.85); print x < 1 ? 1 : x } }' "$T/rows-$sc")
+    [ -n "${1:-}" ] || continue
+    echo "media: $sc: vpt, $1 spp (max_depth $vdepth), to span $pm's times" >&2
+    t=$(render "$sc" "$T/v.exr" "$1" "$SEED" --media-method vpt --max-depth "$vdepth")
+    echo "vpt $1 $t $("$X" relrmse "$T/v.exr" "$REF") $("$X" relrmse "$T/v.exr" "$REF" --box "$BOX") $("$X" errest "$T/v.exr") 0" >>"$T/rows-$sc"
   done
   # The true error: the reference's own error removed in quadrature (the two are
   # independent, so E relRMSE^2 = true^2 + ref_rel^2); 0 where the reference's noise hides it.
