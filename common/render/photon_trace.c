@@ -24,9 +24,8 @@
 #define PM_BLOCK 1024           /* photon indices per work unit */
 #define SALT_PHOTON 0x70686f746f6eull
 #define SALT_SPLIT 0x73706c6974ull
-/* Splitting heavy photons where they meet a bounded medium (walk): a photon whose power is
- * over PHOTON_SPLIT_MIN times the reference (trace_ctx.split_ref) goes on as
- * ceil(power / reference) walkers, at most volume.photon_split (trace_ctx.split_max). */
+/* Splitting heavy photons where they meet a bounded medium (split_count): a photon whose
+ * power is over PHOTON_SPLIT_MIN times the reference (trace_ctx.split_ref) splits. */
 #define PHOTON_SPLIT_MIN 2.0f
 /* Photons traced to find the reference (split_reference). */
 #define SPLIT_PILOT 1024u
@@ -284,8 +283,8 @@ struct walker {
     vec3 o, d, power;
     uint32_t medium, depth, crossings;
     int indirect; /* any interaction since the light */
-    int may_split;
-    uint32_t split_n; /* one of split_n walkers of a split photon still in its medium; else 0 */
+    uint32_t split_n; /* 0: a photon as emitted (it may split); n > 1: one of n walkers of a split
+                       * photon, still in its medium; 1: such a walker past it */
 };
 
 static void walk(const struct trace_ctx *tc, struct walker w0, float time01, struct photon_list *vol,
@@ -297,13 +296,39 @@ static void trace_photon(const struct trace_ctx *tc, uint64_t index, struct phot
                          struct photon_list *surf, struct photon_beam_list *beams)
 {
     const struct render_job *job = tc->job;
-    struct walker w = {.key = photon_key(tc, index), .may_split = 1};
+    struct walker w = {.key = photon_key(tc, index)};
     if (!emit(tc, w.key, &w.o, &w.d, &w.power, &w.medium) || v3_is_black(w.power))
         return;
     /* Moving geometry: each photon lives at one time of the frame's shutter, drawn as the
      * camera draws its rays' times, so the map averages the shutter as the image does. */
     const float time01 = job->accel.has_motion ? camera_shutter_warp(&job->camera, rng_uniform(w.key, 6)) : 0.0f;
     walk(tc, w, time01, vol, surf, beams);
+}
+
+/* How many walkers a photon of `power` about to fly along o + t d, t < tmax, in medium md
+ * goes on as: 1 unless the medium is bounded (a grid, or not the fog) and the ray crosses
+ * it, and the photon is over PHOTON_SPLIT_MIN times the reference; then its power over
+ * the reference times a bound on its chance to scatter on that flight (walkers that cross
+ * a thin medium unscattered only cost: 1 - exp(-tau), tau from sigma_t's largest channel
+ * at the grid's largest density over the part of the ray in the medium), rounded up, at
+ * most split_max. In the pilot (tc->pilot) the power of each photon's first such flight is
+ * recorded instead (*recorded) and nothing splits. */
+static uint32_t split_count(const struct trace_ctx *tc, const struct medium *md, uint32_t medium, vec3 o, vec3 d,
+                            float tmax, vec3 power, int *recorded)
+{
+    float heavy = tc->split_ref > 0.0f ? v3_max_component(power) / tc->split_ref : 0.0f, k0, k1;
+    if (tc->split_max <= 1 || (tc->pilot ? *recorded : !(heavy > PHOTON_SPLIT_MIN)) ||
+        !(md->grid || medium != tc->job->scene->media->fog) || !medium_clip(md, o, d, tmax, &k0, &k1))
+        return 1;
+    if (tc->pilot) {
+        if (*tc->pilot_n < SPLIT_PILOT)
+            tc->pilot[(*tc->pilot_n)++] = v3_max_component(power);
+        *recorded = 1;
+        return 1;
+    }
+    float tau = v3_max_component(md->sigma_t) * (md->grid ? md->grid->max_density : 1.0f) * (k1 - k0);
+    float want = heavy * (tau < 30.0f ? -expm1f(-tau) : 1.0f);
+    return want < (float)tc->split_max ? (uint32_t)ceilf(want) : tc->split_max;
 }
 
 static void walk(const struct trace_ctx *tc, struct walker w0, float time01, struct photon_list *vol,
@@ -323,31 +348,10 @@ static void walk(const struct trace_ctx *tc, struct walker w0, float time01, str
         int hit = accel_intersect(&job->accel, o, d, INFINITY, time01, &h);
         if (medium != MEDIUM_NONE) {
             const struct medium *md = &sm->media[medium];
-            /* A photon much heavier than the lightest emitted (one outside the cone aimed at
-             * the media, or after a bounce) that is about to cross a bounded medium goes on
-             * as n walkers of 1/n its power along the same ray, each with its own random
-             * numbers from here: the same expectation, n times less of its square, and
-             * every walker's flights and photons its own (docs/media.md, "Splitting heavy
-             * photons"). */
-            float k0, k1;
-            uint32_t n = 1;
-            float heavy = tc->split_ref > 0.0f ? v3_max_component(power) / tc->split_ref : 0.0f;
-            if (w0.may_split && (tc->pilot ? !recorded : heavy > PHOTON_SPLIT_MIN) && tc->split_max > 1 &&
-                (md->grid || medium != sm->fog) && medium_clip(md, o, d, hit ? h.t : INFINITY, &k0, &k1)) {
-                if (tc->pilot) { /* the pilot: record each photon's first such flight */
-                    if (*tc->pilot_n < SPLIT_PILOT)
-                        tc->pilot[(*tc->pilot_n)++] = v3_max_component(power);
-                    recorded = 1;
-                } else {
-                    /* As many walkers as the photon is heavy, times the chance (at most)
-                     * that it scatters on this flight: walkers that cross a thin medium
-                     * unscattered only cost. The bound: sigma_t's largest channel at the
-                     * grid's largest density over the part of the ray inside the medium. */
-                    float tau = v3_max_component(md->sigma_t) * (md->grid ? md->grid->max_density : 1.0f) * (k1 - k0);
-                    float want = heavy * (tau < 30.0f ? -expm1f(-tau) : 1.0f);
-                    n = want < (float)tc->split_max ? (uint32_t)ceilf(want) : tc->split_max;
-                }
-            }
+            /* A heavy photon about to cross a bounded medium goes on as n walkers of 1/n its
+             * power along the same ray, each with its own random numbers from here
+             * (split_count; docs/media.md, "Splitting heavy photons"). */
+            uint32_t n = split_n == 0 ? split_count(tc, md, medium, o, d, hit ? h.t : INFINITY, power, &recorded) : 1u;
             if (n > 1) {
                 struct walker c = {.o = o, .d = d, .power = v3_scale(power, 1.0f / (float)n), .medium = medium,
                                    .depth = depth, .crossings = crossings, .indirect = indirect, .split_n = n};
@@ -409,7 +413,7 @@ static void walk(const struct trace_ctx *tc, struct walker w0, float time01, str
             if (rng_uniform(key, dim + 1) * (float)split_n >= 1.0f)
                 return;
             power = v3_scale(power, (float)split_n);
-            split_n = 0;
+            split_n = 1;
         }
         if (media_is_interface(tc->mj, s.material)) {
             if (++crossings > 256)

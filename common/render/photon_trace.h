@@ -37,16 +37,16 @@ struct photon_emitted {
  * powers over any set of directions estimates the lights' power into it. For tests of the
  * emission densities (the mixtures' pdfs). */
 void photon_trace_emit(const struct render_job *job, uint64_t seed, uint64_t first, uint32_t n, struct photon_emitted *out);
+/* The box outside which a photon meets nothing (the geometry over the shutter and every
+ * grid's box, padded): point lights outside it send no photon away from it. 0 when a
+ * homogeneous fog fills all space. */
+int photon_interaction_bounds(const struct render_job *job, vec3 *lo, vec3 *hi);
 /* How far a camera ray that leaves the scene's bounds in homogeneous medium md is
  * marched (march, beam) past them, and so how far past them photons are kept: the
  * distance where the transmittance of every channel that scatters or absorbs falls to
  * PHOTON_REACH_EPS, at most PHOTON_REACH_MAX scene diagonals (scene_size; a fog that
  * thin is all but transparent). 0 for grids (their boxes are inside the bounds) and media
  * that do nothing. See docs/media.md, "Open fog". */
-/* The box outside which a photon meets nothing (the geometry over the shutter and every
- * grid's box, padded): point lights outside it send no photon away from it. 0 when a
- * homogeneous fog fills all space. */
-int photon_interaction_bounds(const struct render_job *job, vec3 *lo, vec3 *hi);
 #define PHOTON_REACH_EPS 1e-4f
 #define PHOTON_REACH_MAX 64.0f
 float photon_fog_reach(const struct medium *md, float scene_size);
