@@ -500,8 +500,8 @@ static vec3 march_segment(const struct render_job *job, const struct media_job *
      * the steps' jitter. */
     const uint32_t every = het && nee_step > dx ? (uint32_t)fmaxf(1.0f, floorf(nee_step / dx * 1.0001f)) : 1u;
     float jitter = rnd(r, vertex, 10) * (float)every;
-    const uint32_t phase = jitter < (float)every ? (uint32_t)jitter : every - 1u;
-    jitter -= (float)phase;
+    uint32_t next_nee = jitter < (float)every ? (uint32_t)jitter : every - 1u; /* the first NEE step */
+    jitter -= (float)next_nee;
     const float dx_nee = dx * (float)every;
     /* A few point lights: every one at every step (no pick noise; the shadow cache makes
      * each cheap). Otherwise one light picked in proportion to power. */
@@ -544,7 +544,10 @@ static vec3 march_segment(const struct render_job *job, const struct media_job *
             cut = het;
             break; /* nothing beyond reaches the camera */
         }
-        if (!(rho > 0.0f) || k % every != phase)
+        if (k != next_nee)
+            continue;
+        next_nee += every;
+        if (!(rho > 0.0f))
             continue;
         fc.t = t;
         vec3 ls = !nee ? v3(0, 0, 0) : all_points ? point_lights_all(job, x, v3_neg(d), medium, md->g, time01,

@@ -139,15 +139,9 @@ int media_bounding_sphere(const struct scene *sc, vec3 *center, float *radius)
                  hi = v3(fmaxf(hi.x, (q).x), fmaxf(hi.y, (q).y), fmaxf(hi.z, (q).z)))
     if (sm->fog != MEDIUM_NONE) {
         const struct density_grid *g = sm->media[sm->fog].grid;
-        if (!g)
+        if (!g || !(g->occ_lo.x <= g->occ_hi.x && g->occ_lo.y <= g->occ_hi.y && g->occ_lo.z <= g->occ_hi.z))
             return 0;
-        if (!(g->occ_lo.x <= g->occ_hi.x && g->occ_lo.y <= g->occ_hi.y && g->occ_lo.z <= g->occ_hi.z))
-            return 0;
-        for (int k = 0; k < 8; k++) {
-            vec3 c = v3(k & 1 ? g->occ_hi.x : g->occ_lo.x, k & 2 ? g->occ_hi.y : g->occ_lo.y, k & 4 ? g->occ_hi.z : g->occ_lo.z);
-            vec3 w = xform_point(&g->grid_to_world, c);
-            GROW(w);
-        }
+        grid_world_box(g, &lo, &hi);
     }
     for (uint32_t i = 0; i < sm->num_sphere_medium && i < sc->num_spheres; i++)
         if (sm->sphere_medium[i] != MEDIUM_NONE) {
@@ -237,7 +231,10 @@ struct media_job *media_job_new(const struct accel *a, const struct light_table 
             mj->glow[mj->num_glow++] = p;
     }
     mj->aim = media_bounding_sphere(sc, &mj->aim_center, &mj->aim_radius);
-    mj->aims = mem_calloc(MEDIA_AIM_MAX, sizeof *mj->aims);
+    uint32_t grids = 0;
+    for (uint32_t i = 0; i < sm->num_media; i++)
+        grids += sm->media[i].grid != NULL;
+    mj->aims = grids ? mem_calloc(grids < MEDIA_AIM_MAX ? grids : MEDIA_AIM_MAX, sizeof *mj->aims) : NULL;
     for (uint32_t i = 0; i < sm->num_media && mj->num_aims < MEDIA_AIM_MAX; i++)
         if (sm->media[i].grid && !v3_is_black(sm->media[i].sigma_s) && grid_aim_init(&mj->aims[mj->num_aims], sm->media[i].grid))
             mj->num_aims++;
