@@ -36,6 +36,7 @@ struct trace_ctx {
     uint64_t seed;
     uint64_t emitted;
     float photon_scale;     /* 1 / emitted */
+    struct point_emit *point; /* per light entry: a point or spot light's emission constants */
     float split_ref;        /* a typical photon's power in the media (max component): walk splits
                              * heavier ones; 0 = never */
     uint32_t split_max;     /* volume.photon_split: most walkers per split (1: none) */
@@ -124,6 +125,48 @@ static vec3 cosine_dir(vec3 n, float u1, float u2)
     return v3_normalize(v3_add(v3_add(v3_scale(t, r * cp), v3_scale(b, r * sp)), v3_scale(n, sqrtf(fmaxf(0.0f, 1.0f - u1)))));
 }
 
+/* What a point or spot light's photons share (trace_ctx_start): its own emission's axis
+ * and cone, the cone toward the media's bounding sphere (cos_aim 2: none), and the axes
+ * on which it lies outside the interaction box's slab (side +-1 on them, 0 else; fold 2^m). */
+struct point_emit {
+    vec3 axis, aim_axis;
+    float cos_max, cos_aim, fold;
+    float side[3];
+};
+
+static void point_emit_init(struct point_emit *pe, const struct trace_ctx *tc, const struct light *l)
+{
+    pe->cos_max = l->type == LIGHT_SPOT ? l->cos_outer : -1.0f;
+    pe->axis = l->type == LIGHT_SPOT ? l->direction : v3(0, 0, 1);
+    pe->cos_aim = 2.0f;
+    pe->aim_axis = pe->axis;
+    if (tc->mj->aim) { /* point lights and the sky aim photons at the media's bounding sphere */
+        vec3 to = v3_sub(tc->mj->aim_center, l->position);
+        float dist = v3_length(to);
+        if (dist > tc->mj->aim_radius) {
+            pe->aim_axis = v3_scale(to, 1.0f / dist);
+            float s2 = (tc->mj->aim_radius / dist) * (tc->mj->aim_radius / dist);
+            pe->cos_aim = sqrtf(fmaxf(0.0f, 1.0f - s2));
+        }
+    }
+    /* A point light outside the slab of the interaction box on an axis sends nothing away
+     * from it: its own emission is folded onto the side that faces the slab on each such
+     * axis (m axes: pdf 2^m / 4 pi), and photons that would fly off into empty space are
+     * not traced at all. */
+    pe->side[0] = pe->side[1] = pe->side[2] = 0.0f;
+    pe->fold = 1.0f;
+    if (tc->reach && l->type != LIGHT_SPOT) {
+        const float p[3] = {l->position.x, l->position.y, l->position.z};
+        const float lo[3] = {tc->reach_lo.x, tc->reach_lo.y, tc->reach_lo.z};
+        const float hi[3] = {tc->reach_hi.x, tc->reach_hi.y, tc->reach_hi.z};
+        for (int a = 0; a < 3; a++)
+            if (p[a] < lo[a] || p[a] > hi[a]) {
+                pe->side[a] = p[a] < lo[a] ? 1.0f : -1.0f;
+                pe->fold *= 2.0f;
+            }
+    }
+}
+
 /* Emits photon `index`: origin, direction, power and the medium it starts in. 0 = none. */
 static int emit(const struct trace_ctx *tc, uint64_t key, vec3 *o, vec3 *d, vec3 *power, uint32_t *medium)
 {
@@ -143,34 +186,9 @@ static int emit(const struct trace_ctx *tc, uint64_t key, vec3 *o, vec3 *d, vec3
          * is outside the media's bounding sphere, the cone toward it with share
          * AIM_SHARE. Power is divided by the mixture's pdf, so nothing is biased. */
         const struct light *l = &sc->lights[e->index];
-        float cos_max = l->type == LIGHT_SPOT ? l->cos_outer : -1.0f;
-        vec3 axis = l->type == LIGHT_SPOT ? l->direction : v3(0, 0, 1);
-        float cos_aim = 2.0f;
-        vec3 aim_axis = axis;
-        if (tc->mj->aim) { /* point lights and the sky aim photons at the media's bounding sphere */
-            vec3 to = v3_sub(tc->mj->aim_center, l->position);
-            float dist = v3_length(to);
-            if (dist > tc->mj->aim_radius) {
-                aim_axis = v3_scale(to, 1.0f / dist);
-                float s2 = (tc->mj->aim_radius / dist) * (tc->mj->aim_radius / dist);
-                cos_aim = sqrtf(fmaxf(0.0f, 1.0f - s2));
-            }
-        }
-        /* A point light outside the slab of the interaction box on an axis sends nothing
-         * away from it: its own emission is folded onto the side that faces the slab on
-         * each such axis (m axes: pdf 2^m / 4 pi), and photons that would fly off into
-         * empty space are not traced at all. */
-        float side[3] = {0.0f, 0.0f, 0.0f}, fold = 1.0f;
-        if (tc->reach && l->type != LIGHT_SPOT) {
-            const float p[3] = {l->position.x, l->position.y, l->position.z};
-            const float lo[3] = {tc->reach_lo.x, tc->reach_lo.y, tc->reach_lo.z};
-            const float hi[3] = {tc->reach_hi.x, tc->reach_hi.y, tc->reach_hi.z};
-            for (int a = 0; a < 3; a++)
-                if (p[a] < lo[a] || p[a] > hi[a]) {
-                    side[a] = p[a] < lo[a] ? 1.0f : -1.0f;
-                    fold *= 2.0f;
-                }
-        }
+        const struct point_emit *pe = &tc->point[i];
+        const float cos_max = pe->cos_max, cos_aim = pe->cos_aim, fold = pe->fold, *side = pe->side;
+        const vec3 axis = pe->axis, aim_axis = pe->aim_axis;
         int aimed = cos_aim < 1.0f && rng_uniform(key, 5) < AIM_SHARE;
         *d = v3_cone_sample(aimed ? aim_axis : axis, aimed ? cos_aim : cos_max, u1, u2);
         if (!aimed && fold > 1.0f)
@@ -245,6 +263,17 @@ static void trace_ctx_start(struct trace_ctx *tc, const struct render_job *job, 
     tc->emitted = emitted;
     tc->photon_scale = emitted ? (float)(1.0 / (double)emitted) : 0.0f;
     tc->reach = photon_interaction_bounds(job, &tc->reach_lo, &tc->reach_hi);
+    const struct light_table *lt = &job->lights;
+    tc->point = mem_calloc(lt->num_entries ? lt->num_entries : 1, sizeof *tc->point);
+    for (uint32_t i = 0; i < lt->num_entries; i++)
+        if (lt->entries[i].kind == LK_POINT)
+            point_emit_init(&tc->point[i], tc, &job->scene->lights[lt->entries[i].index]);
+}
+
+static void trace_ctx_end(struct trace_ctx *tc)
+{
+    free(tc->point);
+    tc->point = NULL;
 }
 
 void photon_trace_emit(const struct render_job *job, uint64_t seed, uint64_t first, uint32_t n, struct photon_emitted *out)
@@ -257,6 +286,7 @@ void photon_trace_emit(const struct render_job *job, uint64_t seed, uint64_t fir
         if (job->lights.num_entries == 0 || !emit(&tc, photon_key(&tc, first + k), &pe->o, &pe->d, &pe->power, &medium))
             pe->o = pe->d = pe->power = v3(0, 0, 0);
     }
+    trace_ctx_end(&tc);
 }
 
 /* depth: the events (scatterings, surface bounces) before the photon arrived at p;
@@ -593,6 +623,7 @@ int photon_trace_map(const struct render_job *job, uint64_t seed, uint32_t threa
         free(tc.blocks);
         free(tc.surface);
         free(tc.beams);
+        trace_ctx_end(&tc);
         str_fmt(err, errlen, "photon pass interrupted (by a signal) before its %llu photons were traced",
                 (unsigned long long)tc.emitted);
         return -1;
@@ -609,6 +640,7 @@ int photon_trace_map(const struct render_job *job, uint64_t seed, uint32_t threa
     free(tc.blocks);
     free(tc.surface);
     free(tc.beams);
+    trace_ctx_end(&tc);
     if (rc != 0) {
         free(vmap);
         free(smap);
