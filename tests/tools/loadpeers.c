@@ -66,6 +66,9 @@ struct lpeer {
     uint64_t samples_done;
     int fetched;            /* every blob named so far is in */
     uint64_t maps_announced; /* bit p: pass p's MAP arrived (passes 0..63) */
+    struct msg_tile *unsent; /* TILEs whose RESULT its full queue refused: sent again later, */
+    uint32_t unsent_head, num_unsent; /* as a real worker offers its kept tiles again */
+    size_t cap_unsent;
 };
 
 static struct {
@@ -124,10 +127,10 @@ static double master_cpu(int main_thread)
     return (double)(ut + st) / (double)sysconf(_SC_CLK_TCK);
 }
 
-static void send_msg(struct lpeer *p, const struct proto_msg *m)
+/* 0 when queued; -1 when the socket's queue is full (or the message cannot be encoded). */
+static int send_msg(struct lpeer *p, const struct proto_msg *m)
 {
-    if (proto_encode(m, &g.out) == 0)
-        zmq_send(p->sock, g.out.data, g.out.size, ZMQ_DONTWAIT);
+    return proto_encode(m, &g.out) == 0 && zmq_send(p->sock, g.out.data, g.out.size, ZMQ_DONTWAIT) >= 0 ? 0 : -1;
 }
 
 /* A pixel of the synthetic pattern: smooth shading plus hashed noise, so that chunks
@@ -382,20 +385,10 @@ static void on_bcast(struct lpeer *p, const struct net_frame *fr)
     free(copy);
 }
 
-static void on_tile(struct lpeer *p, const struct msg_tile *t)
+/* The RESULT of TILE t: 0 when queued, -1 when the socket's queue is full (a real worker
+ * then keeps the tile and offers it again; so does send_unsent). */
+static int answer_tile(struct lpeer *p, const struct msg_tile *t)
 {
-    if (t->job_id != g.job_id || t->tile >= g.num_units) {
-        fprintf(stderr, "loadpeers: TILE for job %" PRIu64 " unit %u is not of the job\n", t->job_id, t->tile);
-        return;
-    }
-    g.granted++;
-    if (g.job_photon_maps && t->pass < 64 && !(p->maps_announced >> t->pass & 1))
-        g.tiles_before_map++;
-    if (!g.first_tile_ms) {
-        g.first_tile_ms = net_now_ms();
-        for (int k = 0; g.master_pid && k < 2; k++)
-            g.master_cpu_first[k] = master_cpu(k);
-    }
     struct proto_msg m = {.type = MSG_RESULT};
     struct msg_result *r = &m.u.result;
     r->job_id = t->job_id;
@@ -410,9 +403,40 @@ static void on_tile(struct lpeer *p, const struct msg_tile *t)
     imgio_tile_rect(&g.desc, tt % tiles_x, tt / tiles_x, &x0, &y0, &w, &h);
     r->stats.samples = (uint64_t)w * h * g.spp_per_unit;
     r->stats.rays = r->stats.samples;
+    if (send_msg(p, &m) != 0)
+        return -1;
     p->samples_done += r->stats.samples;
-    send_msg(p, &m);
     g.results++;
+    return 0;
+}
+
+static void on_tile(struct lpeer *p, const struct msg_tile *t)
+{
+    if (t->job_id != g.job_id || t->tile >= g.num_units) {
+        fprintf(stderr, "loadpeers: TILE for job %" PRIu64 " unit %u is not of the job\n", t->job_id, t->tile);
+        return;
+    }
+    g.granted++;
+    if (g.job_photon_maps && t->pass < 64 && !(p->maps_announced >> t->pass & 1))
+        g.tiles_before_map++;
+    if (!g.first_tile_ms) {
+        g.first_tile_ms = net_now_ms();
+        for (int k = 0; g.master_pid && k < 2; k++)
+            g.master_cpu_first[k] = master_cpu(k);
+    }
+    if (p->num_unsent > p->unsent_head || answer_tile(p, t) != 0) { /* in order, after those waiting */
+        mem_grow((void **)&p->unsent, &p->cap_unsent, (size_t)p->num_unsent + 1, sizeof *p->unsent);
+        p->unsent[p->num_unsent++] = *t;
+    }
+}
+
+/* The RESULTs its queue refused, again, in order, as far as the queue takes them. */
+static void send_unsent(struct lpeer *p)
+{
+    while (p->unsent_head < p->num_unsent && answer_tile(p, &p->unsent[p->unsent_head]) == 0)
+        p->unsent_head++;
+    if (p->unsent_head == p->num_unsent)
+        p->unsent_head = p->num_unsent = 0;
 }
 
 static void on_message(struct lpeer *p, const uint8_t *data, size_t size)
@@ -643,8 +667,10 @@ int main(int argc, char **argv)
             zmq_msg_close(&sm);
         }
         for (uint32_t i = 0; i < n; i++) /* a broadcast gone quiet: the rest point to point */
-            if (!peers[i].bye)
+            if (!peers[i].bye) {
                 fetch_pump(&peers[i]);
+                send_unsent(&peers[i]);
+            }
         uint64_t now = net_now_ms();
         if (now - last_beat >= 1000) {
             last_beat = now;
@@ -692,6 +718,7 @@ int main(int argc, char **argv)
         for (uint32_t k = 0; k < peers[i].num_fetches; k++)
             proto_fetch_fini(&peers[i].fetches[k].pf);
         free(peers[i].fetches);
+        free(peers[i].unsent);
         if (peers[i].sub)
             zmq_close(peers[i].sub);
         zmq_close(peers[i].sock);
