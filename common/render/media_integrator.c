@@ -41,8 +41,11 @@ struct rngs {
 
 /* Equiangular sampling (Kulla and Fajardo 2012) of t in [0, tend) on o + t d toward the
  * point c: pdf proportional to 1 / distance^2, which cancels a point light's singularity.
- * pdf 0 when the ray passes through c or the segment is empty. */
-struct equi { float delta, dist, ta, tb; };
+ * pdf 0 when the ray passes through c or the segment is empty. The angle the segment
+ * subtends from c, span = atan((tend - delta) / dist) - atan(-delta / dist), is one atan2
+ * of the tangent of the difference (in (0, pi), so atan2 needs no branch): a pdf needs
+ * only this; a sample also needs the start angle (equi_sample). */
+struct equi { float delta, dist, span; };
 
 static int equi_init(struct equi *e, vec3 o, vec3 d, vec3 c, float tend, float eps)
 {
@@ -51,20 +54,20 @@ static int equi_init(struct equi *e, vec3 o, vec3 d, vec3 c, float tend, float e
     e->dist = v3_length(v3_sub(oc, v3_scale(d, e->delta)));
     if (!(e->dist > eps) || !(tend > 0.0f) || !isfinite(tend))
         return 0;
-    e->ta = atan2f(-e->delta, e->dist);
-    e->tb = atan2f(tend - e->delta, e->dist);
-    return e->tb > e->ta;
+    /* tan(span) = tend dist / (dist^2 - delta (tend - delta)), both terms over dist */
+    e->span = atan2f(tend, e->dist - e->delta * ((tend - e->delta) / e->dist));
+    return e->span > 0.0f && isfinite(e->span);
 }
 
 static float equi_pdf(const struct equi *e, float t)
 {
     float x = t - e->delta;
-    return e->dist / ((e->tb - e->ta) * (e->dist * e->dist + x * x));
+    return e->dist / (e->span * (e->dist * e->dist + x * x));
 }
 
 static float equi_sample(const struct equi *e, float u)
 {
-    return e->delta + e->dist * tanf(e->ta + u * (e->tb - e->ta));
+    return e->delta + e->dist * tanf(atan2f(-e->delta, e->dist) + u * e->span);
 }
 
 /* The segment a distance sample ran over, for the MIS between its NEE and equiangular
@@ -195,16 +198,6 @@ static int d3_orth(double *r, const double *a, const double *e)
         r[i] /= l;
     return 1;
 }
-/* the angle at vertex a of the spherical triangle (a, b, c) */
-static double sph_angle(const double *a, const double *b, const double *c)
-{
-    double nb[3], nc[3], x[3];
-    d3_cross(nb, a, b);
-    d3_cross(nc, a, c);
-    d3_cross(x, nb, nc);
-    return atan2(d3_len(x), d3_dot(nb, nc));
-}
-
 /* The triangle (v0, v1, v2) seen from x: unit directions and the solid angle (Van Oosterom
  * and Strackee 1983). 0 when x is on the plane or the solid angle is below SPH_MIN_OMEGA. */
 static int sph_init(struct sph_tri *t, vec3 x, vec3 v0, vec3 v1, vec3 v2)
@@ -224,12 +217,22 @@ static int sph_init(struct sph_tri *t, vec3 x, vec3 v0, vec3 v1, vec3 v2)
 }
 
 /* A direction uniform in the spherical triangle from two uniforms (Arvo's construction:
- * u1 picks the sub-triangle (a, b, c') of area u1 omega, u2 a point on the arc b c'). */
+ * u1 picks the sub-triangle (a, b, c') of area u1 omega, u2 a point on the arc b c'). The
+ * angle alpha at a enters only through its cosine and sine, taken from the normals of the
+ * planes (a, b) and (a, c), and sin, cos of (u1 omega - alpha) by the difference formulas:
+ * one sincos a sample. */
 static int sph_sample(const struct sph_tri *t, double u1, double u2, double *w)
 {
-    double alpha = sph_angle(t->a, t->b, t->c);
-    double area = u1 * t->omega, ca = cos(alpha), sa = sin(alpha);
-    double s = sin(area - alpha), tt = cos(area - alpha);
+    double nb[3], nc[3], x[3];
+    d3_cross(nb, t->a, t->b);
+    d3_cross(nc, t->a, t->c);
+    d3_cross(x, nb, nc);
+    double sa = d3_len(x), ca = d3_dot(nb, nc), r = sqrt(sa * sa + ca * ca);
+    if (!(r > 0.0))
+        return 0;
+    sa /= r, ca /= r;
+    double A = u1 * t->omega, sA = sin(A), cA = cos(A);
+    double s = sA * ca - cA * sa, tt = cA * ca + sA * sa; /* sin, cos of (u1 omega - alpha) */
     double u = tt - ca, v = s + sa * d3_dot(t->a, t->b);
     double den = (v * s + u * tt) * sa;
     if (!(fabs(den) > 0.0))

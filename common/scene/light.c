@@ -90,7 +90,7 @@ void light_table_init(struct light_table *t, const struct scene *s)
     for (uint32_t i = 0; i < s->num_lights; i++) {
         const struct light *l = &s->lights[i];
         float omega = l->type == LIGHT_SPOT ? 2.0f * (float)M_PI * (1.0f - l->cos_outer) : 4.0f * (float)M_PI;
-        struct light_entry e = {LK_POINT, i, 0, l->intensity, omega};
+        struct light_entry e = {.kind = LK_POINT, .index = i, .emission = l->intensity, .area = omega};
         if (!v3_is_black(e.emission))
             add_entry(t, &cap, e);
     }
@@ -115,7 +115,9 @@ void light_table_init(struct light_table *t, const struct scene *s)
                     t->tri_light[mi][k] = LIGHT_NONE;
             }
             t->tri_light[mi][p] = t->num_entries;
-            add_entry(t, &cap, (struct light_entry){LK_TRIANGLE, mi, p, em, area});
+            struct light_entry e = {.kind = LK_TRIANGLE, .index = mi, .prim = p, .emission = em, .area = area,
+                                     .v = {a, b, c}, .n = v3_normalize(v3_cross(v3_sub(b, a), v3_sub(c, a)))};
+            add_entry(t, &cap, e);
             t->num_surface++;
         }
     }
@@ -130,14 +132,14 @@ void light_table_init(struct light_table *t, const struct scene *s)
         }
         float r = s->spheres[i].radius;
         t->sphere_light[i] = t->num_entries;
-        add_entry(t, &cap, (struct light_entry){LK_SPHERE, i, 0, em, 4.0f * (float)M_PI * r * r});
+        add_entry(t, &cap, (struct light_entry){.kind = LK_SPHERE, .index = i, .emission = em, .area = 4.0f * (float)M_PI * r * r});
         t->num_surface++;
     }
     if (s->env && s->env->marg_int > 0.0f && s->env->strength > 0.0f) {
         scene_sphere(s, &t->env_center, &t->env_radius);
         t->env_entry = t->num_entries;
         float disc = (float)M_PI * t->env_radius * t->env_radius;
-        add_entry(t, &cap, (struct light_entry){LK_ENV, 0, 0, s->env->mean, disc});
+        add_entry(t, &cap, (struct light_entry){.kind = LK_ENV, .emission = s->env->mean, .area = disc});
     }
     if (t->num_entries == 0) {
         t->pick_pdf = mem_calloc(1, sizeof(float)); /* light_pick's 0, never sampled */
@@ -205,11 +207,10 @@ static float sphere_cone_one_minus_cos(float r, float dist)
 
 void light_triangle_vertices(const struct light_table *t, const struct scene *s, uint32_t entry, vec3 v[3], vec3 *n)
 {
+    (void)s;
     const struct light_entry *e = &t->entries[entry];
-    const struct mesh *m = &s->meshes[e->index];
-    for (int k = 0; k < 3; k++)
-        v[k] = tri_vertex(m, e->prim, k);
-    *n = v3_normalize(v3_cross(v3_sub(v[1], v[0]), v3_sub(v[2], v[0])));
+    v[0] = e->v[0], v[1] = e->v[1], v[2] = e->v[2];
+    *n = e->n;
 }
 
 void light_triangle_point(const struct light_table *t, const struct scene *s, uint32_t entry, float u1, float u2,

@@ -29,6 +29,9 @@ struct light_entry {
     uint32_t prim;      /* triangle index within the mesh */
     vec3 emission;      /* radiance (area lights) or intensity (point lights) */
     float area;
+    /* LK_TRIANGLE: its vertices and unit normal (emitters do not move), as
+     * light_triangle_vertices gives them */
+    vec3 v[3], n;
 };
 
 struct light_table {
