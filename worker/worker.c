@@ -759,12 +759,15 @@ static int request_chunks_within(struct worker *w, struct proto_fetch *f, uint32
     struct proto_msg m;
     int rc = 0;
     if (f->phase == FETCH_LIST) {
-        if (!f->list_asked && f->recv.size > 0 && *busy < FETCH_REQUESTS_MAX) {
+        uint64_t now = net_now_ms();
+        if (f->recv.size > 0 && *busy < FETCH_REQUESTS_MAX && proto_fetch_list_due(f, now)) {
             memset(&m, 0, sizeof m);
             m.type = MSG_CHUNKS_REQ;
             m.u.chunks_req.hash = f->recv.hash;
-            f->list_asked = worker_send(w, &m) == 0; /* not queued: asked for again next time */
-            *busy += (uint32_t)f->list_asked;
+            if (worker_send(w, &m) == 0) { /* not queued: asked for again next time */
+                proto_fetch_list_sent(f, now);
+                (*busy)++;
+            }
         }
         return 0;
     }
@@ -1036,6 +1039,19 @@ static int on_blob_data(struct worker *w, const struct msg_blob_data *d, int via
  * quiet, ask for what they lack. */
 static int fetches_pump(struct worker *w)
 {
+    uint64_t now = net_now_ms();
+    for (size_t i = 0; i < w->num_fetches + w->num_maps; i++) {
+        struct proto_fetch *f = fetch_at(w, i);
+        if (proto_fetch_expire(f, now)) {
+            char hex[65];
+            blob_hash_hex(&f->recv.hash, hex);
+            log_warn("blob %.16s: no answer from the master for %d ms; asking again (%llu of %llu chunks in)", hex,
+                     PROTO_FETCH_STALL_MS, (unsigned long long)f->recv.chunks_have,
+                     (unsigned long long)f->recv.num_chunks);
+        }
+    }
+    if (w->job_conn != w->conn)
+        return 0; /* the master ignores a BLOB_REQ before it sent this connection its JOB */
     uint32_t busy = fetch_requests(w);
     for (size_t i = 0; i < w->num_fetches + w->num_maps && busy < FETCH_REQUESTS_MAX; i++) {
         struct proto_fetch *f = fetch_at(w, i);
@@ -1526,6 +1542,10 @@ static int connect_master(struct worker *w)
         zmq_close(w->sub);
         w->sub = NULL;
     }
+    /* Answers to the requests sent on the old socket will not come (a new socket is a new
+     * peer to the master): the fetches ask again on the new one. */
+    for (size_t i = 0; i < w->num_fetches + w->num_maps; i++)
+        proto_fetch_lost(fetch_at(w, i));
     w->sock = zmq_socket(w->zctx, ZMQ_DEALER);
     net_socket_setup(w->sock);
     if (w->opts->curve_secret && net_curve_client(w->sock, &w->curve_server, &w->curve_pub, &w->curve_sec) != 0) {

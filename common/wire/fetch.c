@@ -45,6 +45,8 @@ int proto_fetch_on_data(struct proto_fetch *f, const struct msg_blob_data *d, in
 {
     if (!via_bcast && f->in_flight)
         f->in_flight--; /* an answer, good or bad */
+    if (!via_bcast)
+        f->asked_ms = now_ms;
     if (via_bcast)
         f->last_bcast_ms = now_ms; /* the stream is alive, whatever this chunk is worth */
     if (d->total_size != f->recv.size) {
@@ -74,6 +76,7 @@ int proto_fetch_next_req(struct proto_fetch *f, uint64_t now_ms, struct proto_ms
         f->phase = FETCH_P2P; /* the broadcast went quiet: ask for the rest (it may still bring some) */
         f->next_chunk = 0;
     }
+    proto_fetch_expire(f, now_ms);
     if (f->in_flight >= PROTO_FETCH_WINDOW)
         return 0;
     uint64_t i = blob_recv_next_missing(&f->recv, f->next_chunk);
@@ -91,6 +94,7 @@ int proto_fetch_next_req(struct proto_fetch *f, uint64_t now_ms, struct proto_ms
     proto_blob_req_at(&f->recv.hash, f->recv.size, i * BLOB_CHUNK_SIZE, req);
     f->next_chunk = i + 1;
     f->in_flight++;
+    f->asked_ms = now_ms;
     return 1;
 }
 
@@ -98,6 +102,38 @@ void proto_fetch_bcast_alive(struct proto_fetch *f, uint64_t now_ms)
 {
     if (f->phase == FETCH_BCAST)
         f->last_bcast_ms = now_ms;
+}
+
+int proto_fetch_lost(struct proto_fetch *f)
+{
+    int waiting = f->phase == FETCH_LIST ? f->list_asked : f->in_flight > 0;
+    if (!f->recv.data || !waiting)
+        return 0;
+    /* ask again, from the first missing chunk (a late answer still counts) */
+    f->list_asked = 0;
+    f->in_flight = 0;
+    f->next_chunk = 0;
+    return 1;
+}
+
+int proto_fetch_expire(struct proto_fetch *f, uint64_t now_ms)
+{
+    if (now_ms < f->asked_ms + PROTO_FETCH_STALL_MS || !proto_fetch_lost(f))
+        return 0;
+    f->stalls++;
+    return 1;
+}
+
+int proto_fetch_list_due(struct proto_fetch *f, uint64_t now_ms)
+{
+    proto_fetch_expire(f, now_ms);
+    return f->recv.data && f->phase == FETCH_LIST && !f->list_asked;
+}
+
+void proto_fetch_list_sent(struct proto_fetch *f, uint64_t now_ms)
+{
+    f->list_asked = 1;
+    f->asked_ms = now_ms;
 }
 
 void proto_fetch_fini(struct proto_fetch *f)

@@ -232,6 +232,7 @@ static void fetch_add(struct lpeer *p, const struct blob_hash *hash, uint64_t si
         return;
     }
     send_msg(p, &req);
+    proto_fetch_list_sent(&f->pf, net_now_ms());
 }
 
 static struct fetch *fetch_find(struct lpeer *p, const struct blob_hash *hash)
@@ -294,6 +295,13 @@ static void fetch_pump(struct lpeer *p)
         pending = 1;
         struct proto_msg m;
         int rc, was_bcast = f->pf.phase == FETCH_BCAST;
+        if (proto_fetch_list_due(&f->pf, net_now_ms())) { /* unanswered for PROTO_FETCH_STALL_MS */
+            memset(&m, 0, sizeof m);
+            m.type = MSG_CHUNKS_REQ;
+            m.u.chunks_req.hash = f->pf.recv.hash;
+            send_msg(p, &m);
+            proto_fetch_list_sent(&f->pf, net_now_ms());
+        }
         while ((rc = proto_fetch_next_req(&f->pf, net_now_ms(), &m)) > 0)
             send_msg(p, &m);
         if (was_bcast && f->pf.phase == FETCH_P2P) {

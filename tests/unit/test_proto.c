@@ -1078,6 +1078,63 @@ Test(proto, fetch_broadcast_then_point_to_point)
     free(fb.chunks);
 }
 
+/* Requests whose answers never come (a connection libzmq made again, a full queue at the
+ * master) are given up after PROTO_FETCH_STALL_MS with nothing heard, and the missing
+ * chunks asked for again, the chunk list too; an answer in time keeps the window waiting. */
+Test(proto, fetch_asks_again_after_a_stall)
+{
+    struct fetch_blob fb = fetch_blob_make(3 * BLOB_CHUNK_SIZE + 9); /* 4 chunks */
+    struct proto_fetch f;
+    struct proto_msg req;
+    char err[256];
+    cr_assert_eq(proto_fetch_start(&f, &fb.hash, fb.size, &req, err, sizeof err), 0);
+    cr_assert_eq(proto_fetch_list_due(&f, 0), 1, "the list is asked for first");
+    proto_fetch_list_sent(&f, 100);
+    cr_assert_eq(proto_fetch_list_due(&f, 100 + PROTO_FETCH_STALL_MS - 1), 0, "its answer may still come");
+    cr_assert_eq(proto_fetch_list_due(&f, 100 + PROTO_FETCH_STALL_MS), 1, "the list's request was lost");
+    cr_assert_eq(f.stalls, 1);
+    uint64_t t = 200 + PROTO_FETCH_STALL_MS;
+    proto_fetch_list_sent(&f, t);
+    struct msg_chunks c = fetch_chunks_msg(&fb, 0);
+    cr_assert_eq(proto_fetch_on_chunks(&f, &c, t, err, sizeof err), 0);
+    cr_assert_eq(proto_fetch_list_due(&f, t + 10 * PROTO_FETCH_STALL_MS), 0, "the list is in");
+    for (uint64_t i = 0; i < 4; i++) {
+        cr_assert_eq(proto_fetch_next_req(&f, t, &req), 1);
+        cr_assert_eq(req.u.blob_req.offset, i * BLOB_CHUNK_SIZE);
+    }
+    /* chunk 2's answer comes a while later; nothing else does */
+    struct msg_blob_data d = fetch_chunk(&fb, 2);
+    uint64_t t2 = t + PROTO_FETCH_STALL_MS / 2;
+    cr_assert_eq(proto_fetch_on_data(&f, &d, 0, t2, err, sizeof err), 0);
+    cr_assert_eq(proto_fetch_expire(&f, t + PROTO_FETCH_STALL_MS), 0, "an answer came since");
+    cr_assert_eq(proto_fetch_next_req(&f, t2 + PROTO_FETCH_STALL_MS - 1, &req), 0, "three still in flight");
+    cr_assert_eq(f.in_flight, 3);
+    /* then the three are given up and asked for again, each once */
+    uint64_t t3 = t2 + PROTO_FETCH_STALL_MS, want[] = {0, 1, 3};
+    for (int i = 0; i < 3; i++) {
+        cr_assert_eq(proto_fetch_next_req(&f, t3, &req), 1);
+        cr_assert_eq(req.u.blob_req.offset, want[i] * BLOB_CHUNK_SIZE);
+    }
+    cr_assert_eq(proto_fetch_next_req(&f, t3, &req), 0);
+    cr_assert_eq(f.stalls, 2);
+    cr_assert_eq(f.rounds, 0, "a stall is not a bad chunk: the fetch does not give up for it");
+    for (int i = 0; i < 3; i++) {
+        d = fetch_chunk(&fb, want[i]);
+        cr_assert_eq(proto_fetch_on_data(&f, &d, 0, t3, err, sizeof err), 0);
+    }
+    d = fetch_chunk(&fb, 0); /* a late answer to a request given up: a harmless duplicate */
+    cr_assert_eq(proto_fetch_on_data(&f, &d, 0, t3, err, sizeof err), 0);
+    cr_assert(blob_recv_complete(&f.recv));
+    cr_assert_eq(proto_fetch_expire(&f, t3 + 10 * PROTO_FETCH_STALL_MS), 0, "nothing is in flight");
+    uint8_t *data;
+    cr_assert_eq(blob_recv_finish(&f.recv, &data, err, sizeof err), 0, "%s", err);
+    cr_assert(memcmp(data, fb.data, fb.size) == 0);
+    free(data);
+    proto_fetch_fini(&f);
+    free(fb.data);
+    free(fb.chunks);
+}
+
 Test(proto, fetch_without_broadcast_and_giving_up)
 {
     struct fetch_blob fb = fetch_blob_make(BLOB_CHUNK_SIZE + 5); /* 2 chunks */
