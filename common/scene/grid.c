@@ -670,6 +670,8 @@ void grid_world_box(const struct density_grid *g, vec3 *lo, vec3 *hi)
 {
     *lo = v3(INFINITY, INFINITY, INFINITY);
     *hi = v3(-INFINITY, -INFINITY, -INFINITY);
+    if (!(g->occ_lo.x <= g->occ_hi.x && g->occ_lo.y <= g->occ_hi.y && g->occ_lo.z <= g->occ_hi.z))
+        return; /* no voxel holds density: the empty box, not the corners of the one marked empty */
     for (int k = 0; k < 8; k++) {
         vec3 q = v3(k & 1 ? g->occ_hi.x : g->occ_lo.x, k & 2 ? g->occ_hi.y : g->occ_lo.y, k & 4 ? g->occ_hi.z : g->occ_lo.z);
         vec3 w = xform_point(&g->grid_to_world, q);

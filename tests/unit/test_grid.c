@@ -291,3 +291,38 @@ Test(grid, aim_sampling_chi_square, .timeout = 120)
     free(e.data);
     free(g.data);
 }
+
+static float nothing(uint32_t x, uint32_t y, uint32_t z)
+{
+    (void)x, (void)y, (void)z;
+    return 0.0f;
+}
+
+/* A grid with no density anywhere has an empty world box (lo > hi), and the box that
+ * bounds the media (photon tracing, the media job's bounds) does not grow by it; a grid
+ * with density grows it by exactly its occupied box. */
+Test(grid, empty_grid_has_an_empty_world_box)
+{
+    struct density_grid empty, full;
+    make_grid(&empty, 4, 4, 4, 1.0f, nothing);
+    make_grid(&full, 8, 8, 8, 1.0f, blob);
+    vec3 lo, hi;
+    grid_world_box(&empty, &lo, &hi);
+    cr_assert(lo.x > hi.x && lo.y > hi.y && lo.z > hi.z, "empty: %g..%g", (double)lo.x, (double)hi.x);
+    struct medium md[2];
+    make_medium(&md[0], &empty, v3(0.1f, 0.1f, 0.1f), v3(1, 1, 1));
+    make_medium(&md[1], &full, v3(0.1f, 0.1f, 0.1f), v3(1, 1, 1));
+    struct scene_media sm = {.media = md, .num_media = 1};
+    vec3 blo = v3(5, 5, 5), bhi = v3(6, 6, 6);
+    media_grids_grow_box(&sm, &blo, &bhi);
+    cr_assert(blo.x == 5 && blo.y == 5 && blo.z == 5 && bhi.x == 6 && bhi.y == 6 && bhi.z == 6,
+              "an empty grid grew the box to %g %g %g .. %g %g %g", (double)blo.x, (double)blo.y, (double)blo.z,
+              (double)bhi.x, (double)bhi.y, (double)bhi.z);
+    sm.num_media = 2;
+    media_grids_grow_box(&sm, &blo, &bhi);
+    vec3 flo, fhi;
+    grid_world_box(&full, &flo, &fhi);
+    cr_assert(flo.x < fhi.x && flo.x >= 0.0f && fhi.x <= 1.0f, "the blob's box %g..%g", (double)flo.x, (double)fhi.x);
+    cr_assert(blo.x == flo.x && blo.y == flo.y && blo.z == flo.z && bhi.x == 6 && bhi.y == 6 && bhi.z == 6);
+    free(empty.data), free(full.data);
+}
