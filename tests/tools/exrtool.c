@@ -791,6 +791,7 @@ int main(int argc, char **argv)
     if (argc != 4 || (strcmp(argv[1], "cmp") && strcmp(argv[1], "rmse"))) {
         fprintf(stderr, "usage: exrtool cmp A.exr B.exr | rmse A.exr REF.exr | mean A.exr | cmprect A B X0 Y0 W H |\n"
                         "       relrmse A.exr REF.exr [--box N | --mask S.exr [--tol T]] | errtop A.exr REF.exr [N] | errest A.exr | semean A.exr |\n"
+                        "       chstat A.exr NAME [X0 Y0 W H] |\n"
                         "       average OUT.exr A.exr B.exr | synth OUT.exr W H V [--checker AMP] [--var VAR] |\n"
                         "       oracle --spp N [--floor N0] [--target E]... [--alloc S.exr]... A1.exr ... AK.exr\n");
         return 2;
