@@ -68,6 +68,7 @@ struct peer {
     size_t id_len;
     char user_id[NET_Z85_KEY_LEN + 1]; /* with CurveZMQ: its public key (what it proved), else "" */
     int job_sent;           /* it was sent the JOB (only then does it get blobs) */
+    uint64_t job_retry_ms;  /* a JOB that could not be queued is tried again from then on */
     uint32_t maps_sent;     /* passes 0..maps_sent-1 of its JOB had their MAP queued (send_maps) */
     char name[300];         /* host:pid it claims, for messages only: never who it is */
     uint32_t pid;
@@ -833,6 +834,7 @@ static void on_hello(struct master *m, const struct net_frame *f, const struct m
     send_job(m, p);
 }
 
+#define JOB_RETRY_MS 100 /* a JOB its peer's queue refused waits this long before it is tried again */
 /* The current frame's job. A worker that has the scene already keeps it and its blobs
  * and only rebuilds what depends on the frame. */
 static void send_job(struct master *m, struct peer *p)
@@ -859,7 +861,15 @@ static void send_job(struct master *m, struct peer *p)
     snprintf(j->scene_path, sizeof j->scene_path, "%s", m->scene_rel);
     j->num_assets = m->num_manifest;
     j->assets = m->manifest;
-    send_to(m, p, &job);
+    if (send_to(m, p, &job) != 0) {
+        /* its queue is full (or it is gone): the loop sends the JOB again (assign_tiles);
+         * until then it gets no MAP, no blob and, without its READY, no TILE */
+        if (p->job_sent)
+            log_warn("worker %s: the JOB could not be queued; sending it again", p->name);
+        p->job_sent = 0;
+        p->job_retry_ms = net_now_ms() + JOB_RETRY_MS;
+        return;
+    }
     p->job_sent = 1;
     p->maps_sent = 0;
     send_maps(m, p);
@@ -1746,9 +1756,14 @@ static void result_verdict(struct master *m, int32_t pi, uint32_t unit, uint64_t
 /* Sends the MAPs still pending, then every tile the scheduler hands out now. */
 static void assign_tiles(struct master *m)
 {
-    for (uint32_t i = 0; i < m->num_peers; i++)
-        if (m->peers[i].maps_sent < m->maps_published && !m->sched->workers[i].gone)
+    for (uint32_t i = 0; i < m->num_peers; i++) {
+        if (m->sched->workers[i].gone)
+            continue;
+        if (!m->peers[i].job_sent && net_now_ms() >= m->peers[i].job_retry_ms)
+            send_job(m, &m->peers[i]);
+        else if (m->peers[i].maps_sent < m->maps_published)
             send_maps(m, &m->peers[i]);
+    }
     struct sched_assignment a;
     while (sched_assign_next(m->sched, net_now_ms(), &a)) {
         struct proto_msg msg = {.type = MSG_TILE};
