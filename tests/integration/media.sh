@@ -215,7 +215,18 @@ mmstats() {
   echo "${s:-0 0 0 0}"
 }
 mapmem mm2 $P2 1 2 --map-memory 8
-mapmem mm1 $P3 1 2 --map-memory 1 --fault slow-load:1000
+# The fetch again needs the worker to decode pass 15's map before its first unit comes,
+# which a busy machine (the suites run side by side) can upset: up to 3 tries, each
+# checked for identical pixels below, the last one for the fetch again.
+try=1
+while :; do
+  mapmem mm1 $P3 1 2 --map-memory 1 --fault slow-load:1000
+  set -- $(mmstats "$T/mm1.w1")
+  [ "$4" -gt 0 ] || [ $try -ge 3 ] && break
+  $X cmp "$T/mm_ref.exr" "$T/mm1.exr" || break
+  echo "media: --map-memory 1: try $try fetched nothing again ($*); trying again"
+  try=$((try + 1))
+done
 mapmem mm3 $P4 3 1 --map-memory 8
 echo "media: --map-memory, decoded / most held / evicted / bytes fetched again: 2 maps $(mmstats "$T/mm2.w1"), 1 map $(mmstats "$T/mm1.w1")"
 set -- $(mmstats "$T/mm2.w1")
