@@ -139,7 +139,7 @@ int media_bounding_sphere(const struct scene *sc, vec3 *center, float *radius)
                  hi = v3(fmaxf(hi.x, (q).x), fmaxf(hi.y, (q).y), fmaxf(hi.z, (q).z)))
     if (sm->fog != MEDIUM_NONE) {
         const struct density_grid *g = sm->media[sm->fog].grid;
-        if (!g || !(g->occ_lo.x <= g->occ_hi.x && g->occ_lo.y <= g->occ_hi.y && g->occ_lo.z <= g->occ_hi.z))
+        if (!g || grid_is_empty(g))
             return 0;
         grid_world_box(g, &lo, &hi);
     }

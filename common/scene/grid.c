@@ -670,8 +670,8 @@ void grid_world_box(const struct density_grid *g, vec3 *lo, vec3 *hi)
 {
     *lo = v3(INFINITY, INFINITY, INFINITY);
     *hi = v3(-INFINITY, -INFINITY, -INFINITY);
-    if (!(g->occ_lo.x <= g->occ_hi.x && g->occ_lo.y <= g->occ_hi.y && g->occ_lo.z <= g->occ_hi.z))
-        return; /* no voxel holds density: the empty box, not the corners of the one marked empty */
+    if (grid_is_empty(g))
+        return; /* the empty box, not the corners of the one marked empty */
     for (int k = 0; k < 8; k++) {
         vec3 q = v3(k & 1 ? g->occ_hi.x : g->occ_lo.x, k & 2 ? g->occ_hi.y : g->occ_lo.y, k & 4 ? g->occ_hi.z : g->occ_lo.z);
         vec3 w = xform_point(&g->grid_to_world, q);
@@ -684,11 +684,9 @@ void media_grids_grow_box(const struct scene_media *sm, vec3 *lo, vec3 *hi)
 {
     for (uint32_t i = 0; sm && i < sm->num_media; i++) {
         vec3 glo, ghi;
-        if (!sm->media[i].grid)
+        if (!sm->media[i].grid || grid_is_empty(sm->media[i].grid))
             continue;
         grid_world_box(sm->media[i].grid, &glo, &ghi);
-        if (!(glo.x <= ghi.x && glo.y <= ghi.y && glo.z <= ghi.z))
-            continue;
         *lo = v3(fminf(lo->x, glo.x), fminf(lo->y, glo.y), fminf(lo->z, glo.z));
         *hi = v3(fmaxf(hi->x, ghi.x), fmaxf(hi->y, ghi.y), fmaxf(hi->z, ghi.z));
     }
@@ -735,7 +733,7 @@ int tr_cache_init(struct tr_cache *c, const struct medium *m, vec3 light, uint32
 {
     memset(c, 0, sizeof *c);
     const struct density_grid *g = m->grid;
-    if (!g || !(g->occ_lo.x <= g->occ_hi.x && g->occ_lo.y <= g->occ_hi.y && g->occ_lo.z <= g->occ_hi.z))
+    if (!g || grid_is_empty(g))
         return 0;
     /* World box of the occupied grid box: every point where a march step can land. */
     vec3 lo, hi;

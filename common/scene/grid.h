@@ -84,6 +84,11 @@ float grid_aim_pdf(const struct grid_aim *a, vec3 p, vec3 w);
 
 /* ---- shadow transmittance cache (Jensen's methods in grids, never VPT) ---- */
 
+/* 1 when no voxel holds density (the occupied box is marked empty, lo > hi). */
+static inline int grid_is_empty(const struct density_grid *g)
+{
+    return !(g->occ_lo.x <= g->occ_hi.x && g->occ_lo.y <= g->occ_hi.y && g->occ_lo.z <= g->occ_hi.z);
+}
 /* World-space bounding box of the grid's occupied box (empty: lo > hi). */
 void grid_world_box(const struct density_grid *g, vec3 *lo, vec3 *hi);
 /* Grows [lo, hi] to hold the world box of every grid among the media (those with data). */
