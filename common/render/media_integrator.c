@@ -264,7 +264,7 @@ static float point_nee_pdf(const struct render_job *job, uint32_t i, vec3 x, vec
 {
     vec3 v[3], nn;
     struct sph_tri t;
-    light_triangle_vertices(&job->lights, job->scene, i, v, &nn);
+    light_triangle_vertices(&job->lights, i, v, &nn);
     if (v3_dot(nn, v3_sub(x, v[0])) > 0.0f && sph_init(&t, x, v[0], v[1], v[2]))
         return (float)(job->lights.pick_pdf[i] / t.omega);
     return light_pdf(&job->lights, job->scene, i, x, c, n);
@@ -284,7 +284,7 @@ static vec3 point_nee(const struct render_job *job, vec3 x, vec3 d_out, uint32_t
         return scatter_nee(job, x, d_out, medium, g, 1, u0, u1, u2, time01, key, rays, 0, fc);
     vec3 v[3], n;
     struct sph_tri t;
-    light_triangle_vertices(&job->lights, job->scene, i, v, &n);
+    light_triangle_vertices(&job->lights, i, v, &n);
     if (!(v3_dot(n, v3_sub(x, v[0])) > 0.0f))
         return v3(0, 0, 0); /* behind the lamp: its back emits nothing */
     if (!sph_init(&t, x, v[0], v[1], v[2]))
@@ -374,7 +374,7 @@ static vec3 equiangular(const struct render_job *job, const struct rngs *r, uint
         c = sc->lights[e->index].position;
     } else {
         uint64_t k = rng_mix64(r->key ^ (0x4154ull << 48) ^ vertex);
-        light_triangle_point(&job->lights, sc, i, rng_uniform(k, 0), rng_uniform(k, 1), &c, &n);
+        light_triangle_point(&job->lights, i, rng_uniform(k, 0), rng_uniform(k, 1), &c, &n);
     }
     struct equi q;
     if (!equi_init(&q, fc->o, fc->d, c, fc->tend, fc->eps))

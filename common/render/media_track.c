@@ -208,12 +208,8 @@ struct media_job *media_job_new(const struct accel *a, const struct light_table 
         if (e->kind == LK_POINT) {
             p = sc->lights[e->index].position;
         } else if (e->kind == LK_TRIANGLE) {
-            const struct mesh *m = &sc->meshes[e->index];
-            const uint32_t *idx = &m->indices[3 * e->prim];
-            vec3 v[3];
-            for (int k = 0; k < 3; k++)
-                v[k] = v3(m->positions[3 * idx[k]], m->positions[3 * idx[k] + 1], m->positions[3 * idx[k] + 2]);
-            vec3 n = v3_normalize(v3_cross(v3_sub(v[1], v[0]), v3_sub(v[2], v[0])));
+            vec3 v[3], n;
+            light_triangle_vertices(lt, i, v, &n);
             p = offset_ray_origin(v3_scale(v3_add(v3_add(v[0], v[1]), v[2]), 1.0f / 3.0f), n);
         } else if (e->kind == LK_ENV) {
             p = v3_add(mj->bounds_hi, v3(size, size, size)); /* outside everything */

@@ -205,19 +205,18 @@ static float sphere_cone_one_minus_cos(float r, float dist)
     return sin2 / (1.0f + cos_max);
 }
 
-void light_triangle_vertices(const struct light_table *t, const struct scene *s, uint32_t entry, vec3 v[3], vec3 *n)
+void light_triangle_vertices(const struct light_table *t, uint32_t entry, vec3 v[3], vec3 *n)
 {
-    (void)s;
     const struct light_entry *e = &t->entries[entry];
     v[0] = e->v[0], v[1] = e->v[1], v[2] = e->v[2];
     *n = e->n;
 }
 
-void light_triangle_point(const struct light_table *t, const struct scene *s, uint32_t entry, float u1, float u2,
+void light_triangle_point(const struct light_table *t, uint32_t entry, float u1, float u2,
                           vec3 *p, vec3 *n)
 {
     vec3 v[3];
-    light_triangle_vertices(t, s, entry, v, n);
+    light_triangle_vertices(t, entry, v, n);
     vec3 a = v[0], b = v[1], c = v[2];
     float su = sqrtf(u1);
     float b0 = 1.0f - su, b1 = u2 * su;
@@ -233,7 +232,7 @@ static void emitter_sample(const struct light_table *t, const struct scene *s, u
         return; /* light_sample's */
     case LK_TRIANGLE: {
         vec3 p, n;
-        light_triangle_point(t, s, i, u1, u2, &p, &n);
+        light_triangle_point(t, i, u1, u2, &p, &n);
         out->p = p;
         out->n = n;
         out->pdf = light_pdf(t, s, i, ref, p, n);

@@ -123,11 +123,11 @@ static inline void light_sample(const struct light_table *t, const struct scene 
  * area (density pick_pdf / area with the pick), and its normal: the point light_sample
  * takes, whatever the shading point; for callers that choose the light point first
  * (equiangular sampling toward an area light). */
-void light_triangle_point(const struct light_table *t, const struct scene *s, uint32_t entry, float u1, float u2,
+void light_triangle_point(const struct light_table *t, uint32_t entry, float u1, float u2,
                           vec3 *p, vec3 *n);
 /* The emissive triangle `entry` (LK_TRIANGLE): its vertices in the mesh's order and its
  * normal (the one light_triangle_point gives). */
-void light_triangle_vertices(const struct light_table *t, const struct scene *s, uint32_t entry, vec3 v[3], vec3 *n);
+void light_triangle_vertices(const struct light_table *t, uint32_t entry, vec3 v[3], vec3 *n);
 
 /* Solid-angle pdf (pick included) that light_sample would have produced point p_light
  * with light normal n_light on emitter `entry`, seen from ref. */
