@@ -341,20 +341,19 @@ static void trace_photon(const struct trace_ctx *tc, uint64_t index, struct phot
  * the reference times a bound on its chance to scatter on that flight (walkers that cross
  * a thin medium unscattered only cost: 1 - exp(-tau), tau from sigma_t's largest channel
  * at the grid's largest density over the part of the ray in the medium), rounded up, at
- * most split_max. In the pilot (tc->pilot) the power of each photon's first such flight is
- * recorded instead (*recorded) and nothing splits. */
+ * most split_max. In the pilot (tc->pilot) the power of the photon's first such flight is
+ * recorded instead and 0 returned: the pilot has what it traced the photon for. */
 static uint32_t split_count(const struct trace_ctx *tc, const struct medium *md, uint32_t medium, vec3 o, vec3 d,
-                            float tmax, vec3 power, int *recorded)
+                            float tmax, vec3 power)
 {
     float heavy = tc->split_ref > 0.0f ? v3_max_component(power) / tc->split_ref : 0.0f, k0, k1;
-    if (tc->split_max <= 1 || (tc->pilot ? *recorded : !(heavy > PHOTON_SPLIT_MIN)) ||
+    if (tc->split_max <= 1 || (!tc->pilot && !(heavy > PHOTON_SPLIT_MIN)) ||
         !(md->grid || medium != tc->job->scene->media->fog) || !medium_clip(md, o, d, tmax, &k0, &k1))
         return 1;
     if (tc->pilot) {
         if (*tc->pilot_n < SPLIT_PILOT)
             tc->pilot[(*tc->pilot_n)++] = v3_max_component(power);
-        *recorded = 1;
-        return 1;
+        return 0;
     }
     float tau = v3_max_component(md->sigma_t) * (md->grid ? md->grid->max_density : 1.0f) * (k1 - k0);
     float want = heavy * (tau < 30.0f ? -expm1f(-tau) : 1.0f);
@@ -370,7 +369,7 @@ static void walk(const struct trace_ctx *tc, struct walker w0, float time01, str
     const uint64_t key = w0.key;
     vec3 o = w0.o, d = w0.d, power = w0.power;
     uint32_t medium = w0.medium, crossings = w0.crossings, split_n = w0.split_n;
-    int indirect = w0.indirect, recorded = 0;
+    int indirect = w0.indirect;
     const uint32_t max_events = media_max_photon_depth(sm, sc->settings.max_depth);
     for (uint32_t depth = w0.depth; depth < max_events;) {
         uint32_t dim = 8 + 8 * depth;
@@ -381,7 +380,9 @@ static void walk(const struct trace_ctx *tc, struct walker w0, float time01, str
             /* A heavy photon about to cross a bounded medium goes on as n walkers of 1/n its
              * power along the same ray, each with its own random numbers from here
              * (split_count; docs/media.md, "Splitting heavy photons"). */
-            uint32_t n = split_n == 0 ? split_count(tc, md, medium, o, d, hit ? h.t : INFINITY, power, &recorded) : 1u;
+            uint32_t n = split_n == 0 ? split_count(tc, md, medium, o, d, hit ? h.t : INFINITY, power) : 1u;
+            if (n == 0)
+                return; /* the pilot: its power is recorded, the rest of its path is not wanted */
             if (n > 1) {
                 struct walker c = {.o = o, .d = d, .power = v3_scale(power, 1.0f / (float)n), .medium = medium,
                                    .depth = depth, .crossings = crossings, .indirect = indirect, .split_n = n};
@@ -497,7 +498,7 @@ static int cmp_float(const void *a, const void *b)
 
 /* The splitting's reference: the median power (largest component) of the photons as they
  * first fly through a bounded medium, over the pass's first SPLIT_PILOT photons traced
- * alone (their photons thrown away), so the same for any threads. On the smoke that is
+ * alone up to that flight (their photons thrown away), so the same for any threads. On the smoke that is
  * an aimed photon's power; a photon heavier than PHOTON_SPLIT_MIN times it splits. 0
  * (no splitting) when fewer than 16 of them reach such a medium. */
 static float split_reference(struct trace_ctx *tc)
