@@ -498,9 +498,9 @@ static vec3 march_segment(const struct render_job *job, const struct media_job *
     if (span / dx > (float)(het ? TAU_TABLE - 2 : MAX_STEPS))
         dx = span / (float)(het ? TAU_TABLE - 2 : MAX_STEPS);
     /* Grids: the optical depth takes steps of at most half a voxel, the in-scattering only
-     * the march's step: it is taken at every `every`-th step (those of residue `phase`,
-     * picked at random), counted `every` times. One uniform gives both the residue and
-     * the steps' jitter. */
+     * the march's step: it is taken at every `every`-th step, from step next_nee (a random
+     * residue) on, counted `every` times. One uniform gives both the residue and the
+     * steps' jitter. */
     const uint32_t every = het && nee_step > dx ? (uint32_t)fmaxf(1.0f, floorf(nee_step / dx * 1.0001f)) : 1u;
     float jitter = rnd(r, vertex, 10) * (float)every;
     uint32_t next_nee = jitter < (float)every ? (uint32_t)jitter : every - 1u; /* the first NEE step */
