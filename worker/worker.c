@@ -761,9 +761,7 @@ static int request_chunks_within(struct worker *w, struct proto_fetch *f, uint32
     if (f->phase == FETCH_LIST) {
         uint64_t now = net_now_ms();
         if (f->recv.size > 0 && *busy < FETCH_REQUESTS_MAX && proto_fetch_list_due(f, now)) {
-            memset(&m, 0, sizeof m);
-            m.type = MSG_CHUNKS_REQ;
-            m.u.chunks_req.hash = f->recv.hash;
+            proto_fetch_list_req(f, &m);
             if (worker_send(w, &m) == 0) { /* not queued: asked for again next time */
                 proto_fetch_list_sent(f, now);
                 (*busy)++;

@@ -13,10 +13,15 @@ int proto_fetch_start(struct proto_fetch *f, const struct blob_hash *hash, uint6
     if (blob_recv_init(&f->recv, hash, size, err, errlen) != 0)
         return -1;
     f->phase = FETCH_LIST;
+    proto_fetch_list_req(f, req);
+    return 0;
+}
+
+void proto_fetch_list_req(const struct proto_fetch *f, struct proto_msg *req)
+{
     memset(req, 0, sizeof *req);
     req->type = MSG_CHUNKS_REQ;
-    req->u.chunks_req.hash = *hash;
-    return 0;
+    req->u.chunks_req.hash = f->recv.hash;
 }
 
 int proto_fetch_on_chunks(struct proto_fetch *f, const struct msg_chunks *c, uint64_t now_ms, char *err,

@@ -67,6 +67,8 @@ int proto_fetch_lost(struct proto_fetch *f);
 /* The chunk list: 1 when its CHUNKS_REQ is to be sent now (not sent yet, or sent
  * PROTO_FETCH_STALL_MS ago without an answer), else 0; proto_fetch_list_sent once it went. */
 int proto_fetch_list_due(struct proto_fetch *f, uint64_t now_ms);
+/* The fetch's CHUNKS_REQ (the one proto_fetch_start gives), into *req. */
+void proto_fetch_list_req(const struct proto_fetch *f, struct proto_msg *req);
 void proto_fetch_list_sent(struct proto_fetch *f, uint64_t now_ms);
 void proto_fetch_fini(struct proto_fetch *f);
 /* One message off the broadcast: its topic (topic_len bytes) and its payload. 0 when it is

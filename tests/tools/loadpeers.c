@@ -296,9 +296,7 @@ static void fetch_pump(struct lpeer *p)
         struct proto_msg m;
         int rc, was_bcast = f->pf.phase == FETCH_BCAST;
         if (proto_fetch_list_due(&f->pf, net_now_ms())) { /* unanswered for PROTO_FETCH_STALL_MS */
-            memset(&m, 0, sizeof m);
-            m.type = MSG_CHUNKS_REQ;
-            m.u.chunks_req.hash = f->pf.recv.hash;
+            proto_fetch_list_req(&f->pf, &m);
             send_msg(p, &m);
             proto_fetch_list_sent(&f->pf, net_now_ms());
         }
