@@ -56,6 +56,18 @@ KEYARGS= AUTHC=auth_rejects
 load ipc "ipc://$T/m.sock" --bcast-mbps 1000
 load inloop "ipc://$T/m2.sock" --check-threads 0 --no-journal --bcast-mbps 1000
 
+# A frame range: one job per frame; loadpeers counts every frame's units.
+timeout 120 $M scenes/cornell/cornell.json -o "$T/fr.exr" --spp 1 --tile 32 --workers 0 --frames 1:3 --no-journal \
+  --bind "ipc://$T/fr.sock" >"$T/m.log" 2>&1 &
+mp=$!
+echo $mp >>"$T/pids"
+timeout 120 $L "ipc://$T/fr.sock" -n 4 --image "$T/ref.exr" >"$T/log" 2>&1 && lr=0 || lr=1
+wait $mp && mr=0 || mr=1
+if [ $lr = 0 ] && [ $mr = 0 ] && grep -q " acked 768 acked_twice [0-9]* unacked 0 peers 4 " "$T/log" &&
+  for f in 1 2 3; do $X cmp "$T/ref.exr" "$T/fr.000$f.exr" >/dev/null 2>&1 || exit 1; done; then
+  ok "frames 1:3: every one of 3 x 256 units acknowledged, each frame the pixels sent"
+else bad "frames 1:3: every one of 3 x 256 units acknowledged ($(grep granted "$T/log")), each frame the pixels sent"; fi
+
 $M --keygen "$T/master.key" >/dev/null && $M --keygen "$T/w.key" >/dev/null
 cp "$T/w.key.pub" "$T/allow"
 KEYARGS="--key $T/w.key $T/master.key.pub --strangers" AUTHC= # the strangers are refused: counted below

@@ -21,7 +21,7 @@
  * encoded once per tile at first use: pixels from REF.exr (channels R G B A
  * variance.R/G/B; repeated when the job is larger) or, without it, a smooth deterministic pattern
  * with noise. Heartbeats every second keep it alive; BYE ends a peer. At the end it prints
- *   loadpeers: granted G results R acked A acked_twice D unacked U peers P
+ *   loadpeers: granted G results R acked A acked_twice D unacked U peers P   (units over every job)
  *   loadpeers: fetch N bytes B first_ms F last_ms L   (N peers fetched B bytes in all; the
  *     first and last finished F and L ms after the first JOB arrived)
  *   loadpeers: chunks bcast X p2p Y bad Z fallbacks F   (chunks kept from the broadcast
@@ -34,7 +34,7 @@
  *   loadpeers: master_cpu_us_per_tile Y loop_cpu_us_per_tile Z
  *     (with --master-pid: user+sys CPU from the first TILE to the last ACK per unit
  *     acknowledged, of the master's whole process and of its main thread, the loop)
- * and exits 0 when every unit of the job was acknowledged, 1 otherwise (timeout). */
+ * and exits 0 when every unit of every job (one a frame) was acknowledged, 1 otherwise (timeout). */
 #include "base/log.h"
 #include "image/imgio.h"
 #include "render/tile.h"
@@ -96,10 +96,11 @@ static struct {
     struct imgio_encoder *enc;
     uint8_t **chunks;
     size_t *chunk_sizes;
-    uint8_t *acked;         /* per unit: ACKs seen */
-    uint32_t num_units;
-    /* counters */
-    uint64_t granted, results, acked_units, acked_twice, fetch_bytes;
+    uint8_t *acked;         /* per unit of the current job: ACKs seen */
+    uint32_t num_units;     /* of the current job */
+    /* counters; acked_units: of the current job; units_before, acked_before: of the jobs
+     * before it (a frame range sends one job per frame) */
+    uint64_t granted, results, acked_units, acked_twice, fetch_bytes, units_before, acked_before;
     uint64_t first_tile_ms, last_ack_ms, start_ms;
     long master_pid;
     double master_cpu_first[2], master_cpu_last[2]; /* process, main thread */
@@ -194,6 +195,10 @@ static int job_layout(const struct msg_job *j)
     free(g.chunk_sizes);
     free(g.acked);
     imgio_encoder_free(&g.enc);
+    g.units_before += g.num_units;
+    g.acked_before += g.acked_units;
+    g.num_units = 0;
+    g.acked_units = 0;
     struct render_settings rs = {.width = j->width, .height = j->height, .spp = j->spp, .tile_size = j->tile_size};
     tile_image_desc(&g.desc, &rs);
     char err[256];
@@ -705,9 +710,11 @@ int main(int argc, char **argv)
         fetched++;
     }
     double secs = g.last_ack_ms > g.first_tile_ms ? (double)(g.last_ack_ms - g.first_tile_ms) * 1e-3 : 0.0;
+    /* Over every job (frame) the master sent. */
+    const uint64_t units = g.units_before + g.num_units, acked = g.acked_before + g.acked_units;
     printf("loadpeers: granted %" PRIu64 " results %" PRIu64 " acked %" PRIu64 " acked_twice %" PRIu64
            " unacked %" PRIu64 " peers %u byes %u\n",
-           g.granted, g.results, g.acked_units, g.acked_twice, (uint64_t)g.num_units - g.acked_units, n, byes);
+           g.granted, g.results, acked, g.acked_twice, units - acked, n, byes);
     printf("loadpeers: fetch %" PRIu64 " bytes %" PRIu64 " first_ms %" PRIu64 " last_ms %" PRIu64 "\n", fetched,
            g.fetch_bytes, first_fetch, last_fetch);
     printf("loadpeers: chunks bcast %" PRIu64 " p2p %" PRIu64 " bad %" PRIu64 " fallbacks %" PRIu64 "\n",
@@ -715,11 +722,11 @@ int main(int argc, char **argv)
     if (g.strangers)
         printf("loadpeers: strangers received %" PRIu64 "\n", g.stranger_frames);
     printf("loadpeers: tiles_before_map %" PRIu64 "\n", g.tiles_before_map);
-    printf("loadpeers: tiles_per_s %.1f over %.3f s\n", secs > 0.0 ? (double)g.acked_units / secs : 0.0, secs);
-    if (g.master_pid && g.acked_units && g.master_cpu_first[0] >= 0.0 && g.master_cpu_first[1] >= 0.0)
+    printf("loadpeers: tiles_per_s %.1f over %.3f s\n", secs > 0.0 ? (double)acked / secs : 0.0, secs);
+    if (g.master_pid && acked && g.master_cpu_first[0] >= 0.0 && g.master_cpu_first[1] >= 0.0)
         printf("loadpeers: master_cpu_us_per_tile %.1f loop_cpu_us_per_tile %.1f\n",
-               (g.master_cpu_last[0] - g.master_cpu_first[0]) * 1e6 / (double)g.acked_units,
-               (g.master_cpu_last[1] - g.master_cpu_first[1]) * 1e6 / (double)g.acked_units);
+               (g.master_cpu_last[0] - g.master_cpu_first[0]) * 1e6 / (double)acked,
+               (g.master_cpu_last[1] - g.master_cpu_first[1]) * 1e6 / (double)acked);
     for (uint32_t i = 0; i < n; i++) {
         for (uint32_t k = 0; k < peers[i].num_fetches; k++)
             proto_fetch_fini(&peers[i].fetches[k].pf);
@@ -743,5 +750,5 @@ int main(int argc, char **argv)
     imgio_encoder_free(&g.enc);
     proto_buf_fini(&g.out);
     zmq_ctx_term(ctx);
-    return g.num_units && g.acked_units == g.num_units ? 0 : 1;
+    return units && acked == units ? 0 : 1;
 }
