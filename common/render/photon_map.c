@@ -6,6 +6,7 @@
 #include "scene/grid.h"
 #include "base/bytes.h"
 #include "base/log.h"
+#include <emmintrin.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -821,6 +822,39 @@ static inline void beam_add(const struct photon_map *m, uint32_t i, const struct
     acc[0] += c.x, acc[1] += c.y, acc[2] += c.z;
 }
 
+/* The photons [l, end) of a row up to the first at x > xhi, in order, into acc. Four at a
+ * time, the acceptance test of beam_add (t in [0, t1), squared distance to the ray not over
+ * r^2) in SSE lanes with beam_add's operations in its order, so each lane's values are the
+ * scalar ones bit for bit; the photons it passes go through beam_add in row order (which
+ * tests them again, and their depth), so acc sums exactly what the plain loop sums. */
+static void beam_row(const struct photon_map *m, const struct photon_beam_grid *g, const struct beam_ray *br,
+                     uint32_t l, uint32_t end, float xhi, double acc[3])
+{
+    const float *xs = g->x, *ys = g->y, *zs = g->z;
+    const __m128 ox = _mm_set1_ps(br->o.x), oy = _mm_set1_ps(br->o.y), oz = _mm_set1_ps(br->o.z);
+    const __m128 dx = _mm_set1_ps(br->d.x), dy = _mm_set1_ps(br->d.y), dz = _mm_set1_ps(br->d.z);
+    const __m128 t1 = _mm_set1_ps(br->t1), r2 = _mm_set1_ps(br->r2), hi = _mm_set1_ps(xhi), zero = _mm_setzero_ps();
+    uint32_t j = l;
+    for (; j + 4 <= end; j += 4) {
+        __m128 px = _mm_loadu_ps(xs + j);
+        __m128 in = _mm_cmple_ps(px, hi);
+        __m128 qx = _mm_sub_ps(px, ox), qy = _mm_sub_ps(_mm_loadu_ps(ys + j), oy), qz = _mm_sub_ps(_mm_loadu_ps(zs + j), oz);
+        __m128 t = _mm_add_ps(_mm_add_ps(_mm_mul_ps(qx, dx), _mm_mul_ps(qy, dy)), _mm_mul_ps(qz, dz));
+        __m128 ex = _mm_sub_ps(qx, _mm_mul_ps(dx, t)), ey = _mm_sub_ps(qy, _mm_mul_ps(dy, t));
+        __m128 ez = _mm_sub_ps(qz, _mm_mul_ps(dz, t));
+        __m128 e2 = _mm_add_ps(_mm_add_ps(_mm_mul_ps(ex, ex), _mm_mul_ps(ey, ey)), _mm_mul_ps(ez, ez));
+        __m128 ok = _mm_and_ps(_mm_and_ps(_mm_cmpge_ps(t, zero), _mm_cmplt_ps(t, t1)), _mm_cmpngt_ps(e2, r2));
+        for (int k = _mm_movemask_ps(_mm_and_ps(ok, in)); k; k &= k - 1) {
+            uint32_t i = j + (uint32_t)__builtin_ctz((unsigned)k);
+            beam_add(m, 0, &g->dec[i], xs[i], ys[i], zs[i], g->depth[i], br, acc);
+        }
+        if (_mm_movemask_ps(in) != 0xf)
+            return;
+    }
+    for (; j < end && xs[j] <= xhi; j++)
+        beam_add(m, 0, &g->dec[j], xs[j], ys[j], zs[j], g->depth[j], br, acc);
+}
+
 /* The rows (y, z cells) the tube around the segment crosses, z slab by z slab; in each
  * the photons whose x the tube reaches there. e is r plus the rounding slack: a photon
  * within r of the ray at parameter t lies within e of o + t d on every axis. */
@@ -875,8 +909,7 @@ static void beam_walk(const struct photon_map *m, const struct photon_beam_grid 
                         h = mid;
                 }
             }
-            for (uint32_t j = l; j < end && xs[j] <= xhi; j++)
-                beam_add(m, 0, &g->dec[j], xs[j], ys[j], zs[j], g->depth[j], br, acc);
+            beam_row(m, g, br, l, end, xhi, acc);
         }
     }
 }
