@@ -157,7 +157,7 @@ int photon_map_set_radius(uint8_t *map, size_t bytes, float radius, char *err, s
 }
 
 struct photon_beam_grid;
-static struct photon_beam_grid *beam_grid_build(const struct photon_map *m);
+static struct photon_beam_grid *beam_grid_build(const struct photon_map *m, int row_axis);
 static void beam_grid_free(struct photon_beam_grid *g);
 
 /* One map at the start of data: its size (from its header) goes to *used. */
@@ -218,7 +218,20 @@ static int decode_one(const uint8_t *data, size_t size, size_t *used, struct pho
     return 0;
 }
 
+int photon_map_row_axis(vec3 d)
+{
+    float a[3] = {fabsf(d.x), fabsf(d.y), fabsf(d.z)};
+    int k = a[1] > a[0] ? 1 : 0;
+    return a[2] > a[k] ? 2 : k;
+}
+
 int photon_map_decode(const uint8_t *data, size_t size, struct photon_map **out, char *err, size_t errlen)
+{
+    return photon_map_decode_rows(data, size, 0, out, err, errlen);
+}
+
+int photon_map_decode_rows(const uint8_t *data, size_t size, int row_axis, struct photon_map **out, char *err,
+                           size_t errlen)
 {
     size_t used = 0, used2 = 0;
     if (decode_one(data, size, &used, out, err, errlen) != 0)
@@ -249,7 +262,7 @@ int photon_map_decode(const uint8_t *data, size_t size, struct photon_map **out,
             return -1;
         }
     }
-    (*out)->beam = beam_grid_build(*out);
+    (*out)->beam = beam_grid_build(*out, row_axis >= 0 && row_axis < 3 ? row_axis : 0);
     return 0;
 }
 
@@ -534,7 +547,9 @@ vec3 photon_map_gather_knn(const struct photon_map *m, vec3 x, vec3 d_out, float
 struct beam_row { uint32_t y, z, start, end; }; /* a hash slot; y == UINT32_MAX: empty */
 
 struct photon_beam_grid {
-    float lo[3], hi[3], scale;  /* the photons' box, its largest |coordinate| */
+    float lo[3], hi[3], scale;  /* the photons' box (in the grid's axes), its largest |coordinate| */
+    uint8_t axis[3];            /* the world axis of the grid's x (along the rows), y and z */
+    uint8_t world[3];           /* the grid's axis of world x, y and z */
     float cell, inv;
     uint32_t cmax[3];           /* the largest cell coordinate per axis: a far ray walks no further */
     uint32_t ny;                /* flat table: rows per z slab (cmax[1] + 1); 0: the hash table */
@@ -671,19 +686,23 @@ static void beam_rows_index(struct photon_beam_grid *g, const uint64_t *key, uin
     }
 }
 
-static struct photon_beam_grid *beam_grid_build(const struct photon_map *m)
+static struct photon_beam_grid *beam_grid_build(const struct photon_map *m, int row_axis)
 {
     uint32_t n = m->num_photons;
     if (n == 0 || !m->decoded)
         return NULL;
     struct photon_beam_grid *g = mem_calloc(1, sizeof *g);
+    for (int k = 0; k < 3; k++) {
+        g->axis[k] = (uint8_t)((row_axis + k) % 3);
+        g->world[g->axis[k]] = (uint8_t)k;
+    }
     float lo[3], hi[3];
     for (int k = 0; k < 3; k++)
-        lo[k] = hi[k] = m->photons[0].p[k];
+        lo[k] = hi[k] = m->photons[0].p[g->axis[k]];
     for (uint32_t i = 1; i < n; i++)
         for (int k = 0; k < 3; k++) {
-            lo[k] = fminf(lo[k], m->photons[i].p[k]);
-            hi[k] = fmaxf(hi[k], m->photons[i].p[k]);
+            lo[k] = fminf(lo[k], m->photons[i].p[g->axis[k]]);
+            hi[k] = fmaxf(hi[k], m->photons[i].p[g->axis[k]]);
         }
     float ext = 0.0f, scale = 0.0f;
     for (int k = 0; k < 3; k++) {
@@ -711,7 +730,8 @@ static struct photon_beam_grid *beam_grid_build(const struct photon_map *m)
     uint32_t *idx = mem_alloc(sizeof *idx * n);
     for (uint32_t i = 0; i < n; i++) {
         const float *p = m->photons[i].p;
-        key[i] = (uint64_t)beam_cell(g, p[2], 2) << 48 | (uint64_t)beam_cell(g, p[1], 1) << 32 | beam_x_key(p[0]);
+        key[i] = (uint64_t)beam_cell(g, p[g->axis[2]], 2) << 48 | (uint64_t)beam_cell(g, p[g->axis[1]], 1) << 32 |
+                 beam_x_key(p[g->axis[0]]);
         idx[i] = i;
     }
     beam_sort(key, idx, n); /* by row (z, y cells), then x, then index */
@@ -722,7 +742,7 @@ static struct photon_beam_grid *beam_grid_build(const struct photon_map *m)
     g->dec = mem_alloc(sizeof *g->dec * n);
     for (uint32_t j = 0, row_start = 0; j < n; j++) {
         const struct photon *ph = &m->photons[idx[j]];
-        g->x[j] = ph->p[0], g->y[j] = ph->p[1], g->z[j] = ph->p[2];
+        g->x[j] = ph->p[g->axis[0]], g->y[j] = ph->p[g->axis[1]], g->z[j] = ph->p[g->axis[2]];
         g->depth[j] = (uint16_t)PHOTON_EVENTS(ph->depth);
         g->dec[j] = m->decoded[idx[j]];
         if (j + 1 < n && key[j + 1] >> 32 == key[j] >> 32)
@@ -790,7 +810,8 @@ static inline float beam_min(float a, float b) { return a < b ? a : b; }
 static inline float beam_max(float a, float b) { return a > b ? a : b; }
 
 struct beam_ray {
-    vec3 o, d, d_out;
+    vec3 o, d, d_out;   /* the ray, and -d */
+    vec3 go, gd;        /* o and d in the rows' axes (photon_beam_grid.axis), for the walk */
     float t1, r2;
     float grid_max; /* md's grid's maximum density; 0 in a homogeneous medium */
     uint32_t depth_max;
@@ -822,7 +843,7 @@ static inline void beam_add(const struct photon_map *m, uint32_t i, const struct
     acc[0] += c.x, acc[1] += c.y, acc[2] += c.z;
 }
 
-/* The photons [l, end) of a row up to the first at x > xhi, in order, into acc. Four at a
+/* The photons [l, end) of a row up to the first past xhi along it, in order, into acc. Four at a
  * time, the acceptance test of beam_add (t in [0, t1), squared distance to the ray not over
  * r^2) in SSE lanes with beam_add's operations in its order, so each lane's values are the
  * scalar ones bit for bit; the photons it passes go through beam_add in row order (which
@@ -830,15 +851,17 @@ static inline void beam_add(const struct photon_map *m, uint32_t i, const struct
 static void beam_row(const struct photon_map *m, const struct photon_beam_grid *g, const struct beam_ray *br,
                      uint32_t l, uint32_t end, float xhi, double acc[3])
 {
-    const float *xs = g->x, *ys = g->y, *zs = g->z;
+    const float *const a[3] = {g->x, g->y, g->z};
+    /* the photons' world x, y and z, and their coordinate along the rows */
+    const float *xs = a[g->world[0]], *ys = a[g->world[1]], *zs = a[g->world[2]], *rx = g->x;
     const __m128 ox = _mm_set1_ps(br->o.x), oy = _mm_set1_ps(br->o.y), oz = _mm_set1_ps(br->o.z);
     const __m128 dx = _mm_set1_ps(br->d.x), dy = _mm_set1_ps(br->d.y), dz = _mm_set1_ps(br->d.z);
     const __m128 t1 = _mm_set1_ps(br->t1), r2 = _mm_set1_ps(br->r2), hi = _mm_set1_ps(xhi), zero = _mm_setzero_ps();
     uint32_t j = l;
     for (; j + 4 <= end; j += 4) {
-        __m128 px = _mm_loadu_ps(xs + j);
-        __m128 in = _mm_cmple_ps(px, hi);
-        __m128 qx = _mm_sub_ps(px, ox), qy = _mm_sub_ps(_mm_loadu_ps(ys + j), oy), qz = _mm_sub_ps(_mm_loadu_ps(zs + j), oz);
+        __m128 in = _mm_cmple_ps(_mm_loadu_ps(rx + j), hi);
+        __m128 qx = _mm_sub_ps(_mm_loadu_ps(xs + j), ox), qy = _mm_sub_ps(_mm_loadu_ps(ys + j), oy);
+        __m128 qz = _mm_sub_ps(_mm_loadu_ps(zs + j), oz);
         __m128 t = _mm_add_ps(_mm_add_ps(_mm_mul_ps(qx, dx), _mm_mul_ps(qy, dy)), _mm_mul_ps(qz, dz));
         __m128 ex = _mm_sub_ps(qx, _mm_mul_ps(dx, t)), ey = _mm_sub_ps(qy, _mm_mul_ps(dy, t));
         __m128 ez = _mm_sub_ps(qz, _mm_mul_ps(dz, t));
@@ -851,7 +874,7 @@ static void beam_row(const struct photon_map *m, const struct photon_beam_grid *
         if (_mm_movemask_ps(in) != 0xf)
             return;
     }
-    for (; j < end && xs[j] <= xhi; j++)
+    for (; j < end && rx[j] <= xhi; j++)
         beam_add(m, 0, &g->dec[j], xs[j], ys[j], zs[j], g->depth[j], br, acc);
 }
 
@@ -861,7 +884,7 @@ static void beam_row(const struct photon_map *m, const struct photon_beam_grid *
 static void beam_walk(const struct photon_map *m, const struct photon_beam_grid *g, const struct beam_ray *br,
                       double acc[3])
 {
-    vec3 o = br->o, d = br->d;
+    vec3 o = br->go, d = br->gd;
     float scale = beam_max(g->scale, beam_max(beam_max(fabsf(o.x), fabsf(o.y)), fabsf(o.z)));
     float e = m->radius * (1.0f + BEAM_SLACK) + 2.0f * BEAM_SLACK * scale, c = g->cell;
     float ta = 0.0f, tb = br->t1;
@@ -879,8 +902,9 @@ static void beam_walk(const struct photon_map *m, const struct photon_beam_grid 
     double slab_y = fabs((double)d.y) * ((double)c + 2.0 * e) / fabs((double)d.z) + 2.0 * e;
     double walk = (double)(z1 - z0 + 1) * fmin((double)(y1 - y0 + 1), slab_y / c + 2.0);
     if (!(walk <= 0.5 * (double)m->num_photons)) {
+        const float *const a[3] = {xs, ys, zs};
         for (uint32_t j = 0; j < m->num_photons; j++)
-            beam_add(m, 0, &g->dec[j], xs[j], ys[j], zs[j], g->depth[j], br, acc);
+            beam_add(m, 0, &g->dec[j], a[g->world[0]][j], a[g->world[1]][j], a[g->world[2]][j], g->depth[j], br, acc);
         return;
     }
     for (uint32_t cz = z0; cz <= z1; cz++) {
@@ -920,10 +944,15 @@ vec3 photon_map_beam(const struct photon_map *m, vec3 o, vec3 d, float t1, const
     if (!m || m->num_photons == 0 || !(t1 > 0.0f) || !v3_is_finite(o) || !v3_is_finite(d))
         return v3(0, 0, 0);
     float r = m->radius;
-    struct beam_ray br = {o, d, v3_neg(d), t1, r * r, md->grid ? md->grid->max_density : 0.0f, depth_max, md, tau};
+    struct beam_ray br = {o, d, v3_neg(d), o, d, t1, r * r, md->grid ? md->grid->max_density : 0.0f, depth_max, md, tau};
     double acc[3] = {0, 0, 0};
-    if (m->beam)
+    if (m->beam) {
+        const uint8_t *ax = m->beam->axis;
+        const float wo[3] = {o.x, o.y, o.z}, wd[3] = {d.x, d.y, d.z};
+        br.go = v3(wo[ax[0]], wo[ax[1]], wo[ax[2]]);
+        br.gd = v3(wd[ax[0]], wd[ax[1]], wd[ax[2]]);
         beam_walk(m, m->beam, &br, acc);
+    }
     else /* a map built by hand (tests): every photon */
         for (uint32_t i = 0; i < m->num_photons; i++) {
             const struct photon *ph = &m->photons[i];

@@ -72,6 +72,15 @@ size_t photon_map_serialised_bytes(const uint8_t *map);
 int photon_map_set_radius(uint8_t *map, size_t bytes, float radius, char *err, size_t errlen);
 /* Checks and decodes a blob (every size and index is checked before use). */
 int photon_map_decode(const uint8_t *data, size_t size, struct photon_map **out, char *err, size_t errlen);
+/* The same, with the beam query's rows along world axis row_axis (0, 1 or 2; the plain
+ * decode: 0): a query walks fewer rows when its ray runs along them, so a worker lays them
+ * along the camera's view (photon_map_row_axis). The estimate is the same sum in another
+ * order (so its last bits may differ). */
+int photon_map_decode_rows(const uint8_t *data, size_t size, int row_axis, struct photon_map **out, char *err,
+                           size_t errlen);
+/* The world axis a direction runs most along (the first of equals): the rows' axis for
+ * queries along it. */
+int photon_map_row_axis(vec3 d);
 /* Bytes the decoded map holds (its surface map and later passes' too): photons, buckets,
  * decoded photons, the beam query's rows and the photon beams' decoded beams; the beams'
  * chunks and BVH, built by the first query, are not counted. */
