@@ -27,23 +27,6 @@ vec3 photon_rgbe_decode(const uint8_t in[4])
     return v3(((float)in[0] + 0.5f) * f, ((float)in[1] + 0.5f) * f, ((float)in[2] + 0.5f) * f);
 }
 
-float photon_tau_depth(const struct photon_tau *tt, float t)
-{
-    float x = (t - tt->t0) / tt->dt;
-    if (!(x > 0.0f))
-        return 0.0f;
-    if (!(x < (float)(tt->n - 1)))
-        return tt->tau[tt->n - 1];
-    uint32_t i = (uint32_t)x;
-    float f = x - (float)i;
-    return tt->tau[i] * (1.0f - f) + tt->tau[i + 1] * f;
-}
-
-vec3 photon_tau_transmittance(const struct photon_tau *tt, const struct medium *md, float t)
-{
-    return medium_tr_tau(md, photon_tau_depth(tt, t));
-}
-
 _Static_assert(PHOTON_DEPTH_MAX <= 0x7ffu, "a photon's events fit the depth word's 11 bits");
 
 uint16_t photon_depth_word(uint32_t events, float density_rel)
@@ -62,11 +45,3 @@ float photon_density_floor(uint16_t word)
     return ldexpf(1.0f, -(int)(word >> 11) - 1);
 }
 
-float photon_tau_density(const struct photon_tau *tt, float t)
-{
-    float x = (t - tt->t0) / tt->dt;
-    if (!(x >= 0.0f) || !(x < (float)(tt->n - 1)))
-        return 0.0f;
-    uint32_t i = (uint32_t)x;
-    return (tt->tau[i + 1] - tt->tau[i]) / tt->dt;
-}

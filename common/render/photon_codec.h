@@ -39,11 +39,31 @@ struct photon_tau {
 };
 /* Optical depth (per unit sigma_t) at t, interpolated in the table: 0 before it, its last
  * value after it. */
-float photon_tau_depth(const struct photon_tau *tt, float t);
+static inline float photon_tau_depth(const struct photon_tau *tt, float t)
+{
+    float x = (t - tt->t0) / tt->dt;
+    if (!(x > 0.0f))
+        return 0.0f;
+    if (!(x < (float)(tt->n - 1)))
+        return tt->tau[tt->n - 1];
+    uint32_t i = (uint32_t)x;
+    float f = x - (float)i;
+    return tt->tau[i] * (1.0f - f) + tt->tau[i + 1] * f;
+}
 /* Transmittance at t from a marched table. */
-vec3 photon_tau_transmittance(const struct photon_tau *tt, const struct medium *md, float t);
+static inline vec3 photon_tau_transmittance(const struct photon_tau *tt, const struct medium *md, float t)
+{
+    return medium_tr_tau(md, photon_tau_depth(tt, t));
+}
 /* The density the march took at t: the table's slope there (constant over each step; 0
  * outside the table). */
-float photon_tau_density(const struct photon_tau *tt, float t);
+static inline float photon_tau_density(const struct photon_tau *tt, float t)
+{
+    float x = (t - tt->t0) / tt->dt;
+    if (!(x >= 0.0f) || !(x < (float)(tt->n - 1)))
+        return 0.0f;
+    uint32_t i = (uint32_t)x;
+    return (tt->tau[i + 1] - tt->tau[i]) / tt->dt;
+}
 
 #endif

@@ -129,13 +129,6 @@ vec3 medium_transmittance(const struct medium *m, float d)
     return v3(tx, tr1(m->sigma_t.y, d), tr1(m->sigma_t.z, d));
 }
 
-vec3 medium_tr_tau(const struct medium *m, float tau)
-{
-    float tx = expf(-m->sigma_t.x * tau);
-    if (m->sigma_t.y == m->sigma_t.x && m->sigma_t.z == m->sigma_t.x)
-        return v3(tx, tx, tx);
-    return v3(tx, expf(-m->sigma_t.y * tau), expf(-m->sigma_t.z * tau));
-}
 
 static float emit1(float sigma_t, float e, float d)
 {

@@ -5,6 +5,7 @@
  * forms (transmittance, free flight, phase) are shared by render/ and tests; grids: grid.h. */
 #ifndef BRUME_MEDIUM_H
 #define BRUME_MEDIUM_H
+#include <math.h>
 #include <stddef.h>
 #include <stdint.h>
 #include "scene/scene_limits.h"
@@ -127,8 +128,15 @@ int media_wants_surface_photons(const struct scene_media *m);
 /* exp(-sigma_t d) per channel; 1 where sigma_t is 0 (also for d = inf). */
 vec3 medium_transmittance(const struct medium *m, float d);
 /* exp(-sigma_t tau) per channel for a finite optical depth tau in density units (a grid's
- * integrated density): one exponential for a grey medium, whose three are the same bits. */
-vec3 medium_tr_tau(const struct medium *m, float tau);
+ * integrated density): one exponential for a grey medium, whose three are the same bits.
+ * Inline: the beam query takes one for each photon it accepts. */
+static inline vec3 medium_tr_tau(const struct medium *m, float tau)
+{
+    float tx = expf(-m->sigma_t.x * tau);
+    if (m->sigma_t.y == m->sigma_t.x && m->sigma_t.z == m->sigma_t.x)
+        return v3(tx, tx, tx);
+    return v3(tx, expf(-m->sigma_t.y * tau), expf(-m->sigma_t.z * tau));
+}
 /* Integral over [0, d] of exp(-sigma_t t) * emission dt per channel (finite for d = inf
  * when sigma_t > 0; 0 for channels with sigma_t = 0 and d = inf, which cannot be seen). */
 vec3 medium_emission_integral(const struct medium *m, float d);
