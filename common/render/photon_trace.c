@@ -344,12 +344,18 @@ static void trace_photon(const struct trace_ctx *tc, uint64_t index, struct phot
  * most split_max. In the pilot (tc->pilot) the power of the photon's first such flight is
  * recorded instead and 0 returned: the pilot has what it traced the photon for. */
 static uint32_t split_count(const struct trace_ctx *tc, const struct medium *md, uint32_t medium, vec3 o, vec3 d,
-                            float tmax, vec3 power)
+                            float tmax, vec3 power, struct medium_clip_memo *clip, int *clipped)
 {
-    float heavy = tc->split_ref > 0.0f ? v3_max_component(power) / tc->split_ref : 0.0f, k0, k1;
+    float heavy = tc->split_ref > 0.0f ? v3_max_component(power) / tc->split_ref : 0.0f;
+    *clipped = 0;
     if (tc->split_max <= 1 || (!tc->pilot && !(heavy > PHOTON_SPLIT_MIN)) ||
-        !(md->grid || medium != tc->job->scene->media->fog) || !medium_clip(md, o, d, tmax, &k0, &k1))
+        !(md->grid || medium != tc->job->scene->media->fog))
         return 1;
+    clip->hit = medium_clip(md, o, d, tmax, &clip->t0, &clip->t1);
+    *clipped = 1; /* the flight along this ray reads it (medium_sample_flight_clip) */
+    if (!clip->hit)
+        return 1;
+    const float k0 = clip->t0, k1 = clip->t1;
     if (tc->pilot) {
         if (*tc->pilot_n < SPLIT_PILOT)
             tc->pilot[(*tc->pilot_n)++] = v3_max_component(power);
@@ -380,7 +386,10 @@ static void walk(const struct trace_ctx *tc, struct walker w0, float time01, str
             /* A heavy photon about to cross a bounded medium goes on as n walkers of 1/n its
              * power along the same ray, each with its own random numbers from here
              * (split_count; docs/media.md, "Splitting heavy photons"). */
-            uint32_t n = split_n == 0 ? split_count(tc, md, medium, o, d, hit ? h.t : INFINITY, power) : 1u;
+            struct medium_clip_memo clip;
+            int clipped = 0;
+            uint32_t n = split_n == 0 ? split_count(tc, md, medium, o, d, hit ? h.t : INFINITY, power, &clip, &clipped)
+                                      : 1u;
             if (n == 0)
                 return; /* the pilot: its power is recorded, the rest of its path is not wanted */
             if (n > 1) {
@@ -394,7 +403,8 @@ static void walk(const struct trace_ctx *tc, struct walker w0, float time01, str
             }
             float t;
             vec3 w;
-            int scatter = medium_sample_flight(md, o, d, hit ? h.t : INFINITY, power, rng_mix64(key ^ ((uint64_t)dim << 32)), &t, &w);
+            int scatter = medium_sample_flight_clip(md, o, d, hit ? h.t : INFINITY, clipped ? &clip : NULL, power,
+                                                    rng_mix64(key ^ ((uint64_t)dim << 32)), &t, &w);
             vec3 before = power;
             power = v3_mul(power, w);
             /* The beams method in a grey medium (the flight's length then has P(length > v)

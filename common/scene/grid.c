@@ -377,14 +377,23 @@ struct pieces {
     int sd[MAJ_DEPTH + 2], sp;
 };
 
-static int pieces_init(struct pieces *pc, const struct medium *m, vec3 o, vec3 d, float tmax)
+/* clip: medium_clip's answer for (o, d, tmax) when the caller has it (photon_trace's
+ * split_count clips the same ray), else NULL. */
+static int pieces_init(struct pieces *pc, const struct medium *m, vec3 o, vec3 d, float tmax,
+                       const struct medium_clip_memo *clip)
 {
     const struct density_grid *g = m->grid;
-    float c0, c1;
     pc->st_max = v3_max_component(m->sigma_t);
-    if (!medium_clip(m, o, d, tmax, &c0, &c1) || !(pc->st_max > 0.0))
-        return 0;
     vec3 og = xform_point(&g->world_to_grid, o), dg = xform_vector(&g->world_to_grid, d);
+    float c0 = 0.0f, c1 = tmax; /* medium_clip's computation, on the og, dg needed below */
+    if (clip) {
+        if (!clip->hit)
+            return 0;
+        c0 = clip->t0, c1 = clip->t1;
+    } else if (!v3_clip_box(og, dg, g->occ_lo, g->occ_hi, &c0, &c1) || !(c0 < c1))
+        return 0;
+    if (!(pc->st_max > 0.0))
+        return 0;
     float oo[3] = {og.x, og.y, og.z}, dd[3] = {dg.x, dg.y, dg.z};
     uint32_t n[3] = {g->nx, g->ny, g->nz};
     for (int k = 0; k < 3; k++) {
@@ -559,7 +568,7 @@ vec3 medium_tr_segment(const struct medium *m, vec3 o, vec3 d, float len, uint64
          * majorant (an exponential optical depth consumed piece by piece), each multiplying
          * the estimate by 1 - sigma_t rho / mu. */
         struct pieces pc;
-        if (!pieces_init(&pc, m, o, d, len))
+        if (!pieces_init(&pc, m, o, d, len, NULL))
             return v3(1, 1, 1);
         vec3 tr = v3(1, 1, 1);
         uint32_t k = 0;
@@ -620,12 +629,18 @@ vec3 medium_emission_segment(const struct medium *m, vec3 o, vec3 d, float len, 
 int medium_sample_flight(const struct medium *m, vec3 o, vec3 d, float tmax, vec3 chan, uint64_t key, float *t,
                          vec3 *weight)
 {
+    return medium_sample_flight_clip(m, o, d, tmax, NULL, chan, key, t, weight);
+}
+
+int medium_sample_flight_clip(const struct medium *m, vec3 o, vec3 d, float tmax, const struct medium_clip_memo *clip,
+                              vec3 chan, uint64_t key, float *t, vec3 *weight)
+{
     if (!m->grid)
         return medium_sample_distance(m, tmax, chan, rng_uniform(key, 0), rng_uniform(key, 1), t, weight);
     *t = tmax;
     *weight = v3(1, 1, 1);
     struct pieces pc;
-    if (!pieces_init(&pc, m, o, d, tmax))
+    if (!pieces_init(&pc, m, o, d, tmax, clip))
         return 0;
     /* Weighted delta tracking against each piece's majorant mu: a tentative collision is
      * real with probability avg(sigma_t(x)) / mu; the weights keep every channel unbiased. */

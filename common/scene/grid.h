@@ -55,6 +55,14 @@ vec3 medium_emission_segment(const struct medium *m, vec3 o, vec3 d, float len, 
  * contract as medium_sample_distance; random numbers from key. */
 int medium_sample_flight(const struct medium *m, vec3 o, vec3 d, float tmax, vec3 chan, uint64_t key, float *t,
                          vec3 *weight);
+/* medium_clip's answer for one ray, kept by a caller that clipped it already. */
+struct medium_clip_memo {
+    int hit;        /* medium_clip's return */
+    float t0, t1;
+};
+/* The same flight with clip = medium_clip's answer for (o, d, tmax) (NULL: clipped here). */
+int medium_sample_flight_clip(const struct medium *m, vec3 o, vec3 d, float tmax, const struct medium_clip_memo *clip,
+                              vec3 chan, uint64_t key, float *t, vec3 *weight);
 /* Ray-marching step for this medium: the settings' step, or half a voxel for grids if smaller. */
 float medium_march_step(const struct medium *m, float step);
 
