@@ -67,6 +67,9 @@ static inline vec3 v3_normalize(vec3 a)
  * GCC calls libm for them, a call per use in hot code. */
 static inline float f_max(float a, float b) { return ((a >= b || b != b) && a == a) ? a : b; }
 static inline float f_min(float a, float b) { return ((a <= b || b != b) && a == a) ? a : b; }
+/* fmax and fmin (double) the same way. */
+static inline double d_max(double a, double b) { return ((a >= b || b != b) && a == a) ? a : b; }
+static inline double d_min(double a, double b) { return ((a <= b || b != b) && a == a) ? a : b; }
 /* Plain comparisons, not fmaxf: inlined, and callers never pass NaN here. */
 static inline float v3_max_component(vec3 a)
 {
@@ -130,7 +133,7 @@ static inline void sincos_2pi(float u, float *s, float *c)
  * 1 / (2 pi (1 - cos_max))), from u1, u2 in [0, 1). */
 static inline vec3 v3_cone_sample(vec3 axis, float cos_max, float u1, float u2)
 {
-    float z = 1.0f - u1 * (1.0f - cos_max), r = sqrtf(fmaxf(0.0f, 1.0f - z * z)), sp, cp;
+    float z = 1.0f - u1 * (1.0f - cos_max), r = sqrtf(f_max(0.0f, 1.0f - z * z)), sp, cp;
     sincos_2pi(u2, &sp, &cp);
     vec3 t, b;
     v3_basis(axis, &t, &b);

@@ -122,7 +122,7 @@ static vec3 cosine_dir(vec3 n, float u1, float u2)
     sincos_2pi(u2, &sp, &cp);
     vec3 t, b;
     v3_basis(n, &t, &b);
-    return v3_normalize(v3_add(v3_add(v3_scale(t, r * cp), v3_scale(b, r * sp)), v3_scale(n, sqrtf(fmaxf(0.0f, 1.0f - u1)))));
+    return v3_normalize(v3_add(v3_add(v3_scale(t, r * cp), v3_scale(b, r * sp)), v3_scale(n, sqrtf(f_max(0.0f, 1.0f - u1)))));
 }
 
 /* What a point or spot light's photons share (trace_ctx_start): its own emission's axis
@@ -224,7 +224,7 @@ static int emit(const struct trace_ctx *tc, uint64_t key, vec3 *o, vec3 *d, vec3
     }
     case LK_SPHERE: {
         const struct sphere *sp = &sc->spheres[e->index];
-        float z = 1.0f - 2.0f * u1, r = sqrtf(fmaxf(0.0f, 1.0f - z * z)), s, co;
+        float z = 1.0f - 2.0f * u1, r = sqrtf(f_max(0.0f, 1.0f - z * z)), s, co;
         sincos_2pi(u2, &s, &co);
         vec3 n = v3(r * co, r * s, z);
         vec3 p = v3_add(sp->center, v3_scale(n, sp->radius));
@@ -430,7 +430,7 @@ static void walk(const struct trace_ctx *tc, struct walker w0, float time01, str
                               md->grid ? rho / md->grid->max_density : 1.0f);
                 }
                 /* Russian roulette keeps the power of survivors near what it was. */
-                float q = fminf(1.0f, v3_max_component(power) / fmaxf(v3_max_component(before), 1e-30f));
+                float q = f_min(1.0f, v3_max_component(power) / f_max(v3_max_component(before), 1e-30f));
                 if (!(q > 0.0f) || rng_uniform(key, dim + 2) >= q)
                     return;
                 power = v3_scale(power, 1.0f / q);
@@ -484,7 +484,7 @@ static void walk(const struct trace_ctx *tc, struct walker w0, float time01, str
             return;
         /* Flux crosses an index change unscaled (the 1/eta^2 of bs.weight is for radiance). */
         vec3 w = bs.transmitted && bs.is_delta ? mat->transmittance : v3_scale(bs.weight, 1.0f / bs.eta2);
-        float q = fminf(1.0f, v3_max_component(w));
+        float q = f_min(1.0f, v3_max_component(w));
         if (!(q > 0.0f) || rng_uniform(key, dim + 7) >= q)
             return;
         power = v3_scale(v3_mul(power, w), 1.0f / q);

@@ -236,7 +236,7 @@ static int dda_next(struct dda *w, double *a, double *b, int32_t idx[3])
         return 0;
     int k = w->tnext[0] < w->tnext[1] ? (w->tnext[0] < w->tnext[2] ? 0 : 2) : (w->tnext[1] < w->tnext[2] ? 1 : 2);
     *a = w->t;
-    *b = fmax(w->t, fmin(w->tnext[k], w->tend));
+    *b = d_max(w->t, d_min(w->tnext[k], w->tend));
     memcpy(idx, w->i, sizeof w->i);
     w->t = *b;
     if (w->tnext[k] < w->tend) {
@@ -422,12 +422,12 @@ static float patch_bound(const struct pieces *pc, double a, double b)
     float lo[3], hi[3];
     for (int k = 0; k < 3; k++) {
         double fa = pc->u0[k] + a * pc->du[k] - (pc->p[k] - 1), fb = pc->u0[k] + b * pc->du[k] - (pc->p[k] - 1);
-        lo[k] = (float)fmin(1.0, fmax(0.0, fmin(fa, fb)));
-        hi[k] = (float)fmin(1.0, fmax(0.0, fmax(fa, fb)));
+        lo[k] = (float)d_min(1.0, d_max(0.0, d_min(fa, fb)));
+        hi[k] = (float)d_min(1.0, d_max(0.0, d_max(fa, fb)));
     }
     float mx = 0.0f;
     for (int c = 0; c < 8; c++)
-        mx = fmaxf(mx, trilerp(pc->V, c & 1 ? hi[0] : lo[0], c & 2 ? hi[1] : lo[1], c & 4 ? hi[2] : lo[2]));
+        mx = f_max(mx, trilerp(pc->V, c & 1 ? hi[0] : lo[0], c & 2 ? hi[1] : lo[1], c & 4 ? hi[2] : lo[2]));
     return mx * MAJ_INFLATE;
 }
 
@@ -471,7 +471,7 @@ static int pieces_next(struct pieces *pc, double *a, double *b, float *maj)
             for (int c = 0; c < 8; c++) {
                 uint32_t x = c & 1 ? v1[0] : v0[0], y = c & 2 ? v1[1] : v0[1], z = c & 4 ? v1[2] : v0[2];
                 pc->V[c] = g->data[((size_t)z * g->ny + y) * g->nx + x] * g->scale;
-                mx = fmaxf(mx, pc->V[c]);
+                mx = f_max(mx, pc->V[c]);
             }
             if (!(mx > 0.0f))
                 continue;
@@ -504,13 +504,13 @@ static float pieces_density(const struct pieces *pc, double t)
     if (pc->patch) {
         float f[3];
         for (int k = 0; k < 3; k++)
-            f[k] = (float)fmin(1.0, fmax(0.0, pc->u0[k] + t * pc->du[k] - (pc->p[k] - 1)));
+            f[k] = (float)d_min(1.0, d_max(0.0, pc->u0[k] + t * pc->du[k] - (pc->p[k] - 1)));
         return trilerp(pc->V, f[0], f[1], f[2]);
     }
     int32_t n[3] = {(int32_t)g->nx, (int32_t)g->ny, (int32_t)g->nz}, i0[3], i1[3];
     float f[3];
     for (int k = 0; k < 3; k++) {
-        double u = fmin(pc->chi[k], fmax(pc->clo[k], pc->u0[k] + t * pc->du[k])), fl = floor(u);
+        double u = d_min(pc->chi[k], d_max(pc->clo[k], pc->u0[k] + t * pc->du[k])), fl = floor(u);
         f[k] = (float)(u - fl);
         int32_t a = (int32_t)fl;
         i0[k] = a < 0 ? 0 : (a >= n[k] ? n[k] - 1 : a);
@@ -578,7 +578,7 @@ vec3 medium_tr_segment(const struct medium *m, vec3 o, vec3 d, float len, uint64
             double mu = pc.st_max * maj, t = a;
             for (;;) {
                 if (!(t + left / mu < b)) {
-                    left = fmax(0.0, left - (b - t) * mu);
+                    left = d_max(0.0, left - (b - t) * mu);
                     break;
                 }
                 t += left / mu;
@@ -653,7 +653,7 @@ int medium_sample_flight_clip(const struct medium *m, vec3 o, vec3 d, float tmax
         float mu = (float)(pc.st_max * majd);
         for (;;) {
             if (!(tt + left / mu < b)) {
-                left = fmax(0.0, left - (b - tt) * mu);
+                left = d_max(0.0, left - (b - tt) * mu);
                 break;
             }
             tt += left / mu;
