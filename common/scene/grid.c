@@ -177,6 +177,17 @@ float grid_density(const struct density_grid *g, vec3 p)
     return (c0 * (1 - f[2]) + c1 * f[2]) * g->scale;
 }
 
+/* medium_clip on the ray already in grid space (og, dg). */
+static int grid_clip(const struct density_grid *g, vec3 og, vec3 dg, float tmax, float *t0, float *t1)
+{
+    float a = 0.0f, b = tmax;
+    if (!v3_clip_box(og, dg, g->occ_lo, g->occ_hi, &a, &b) || !(a < b))
+        return 0;
+    *t0 = a;
+    *t1 = b;
+    return 1;
+}
+
 int medium_clip(const struct medium *m, vec3 o, vec3 d, float tmax, float *t0, float *t1)
 {
     *t0 = 0.0f;
@@ -184,13 +195,7 @@ int medium_clip(const struct medium *m, vec3 o, vec3 d, float tmax, float *t0, f
     if (!m->grid)
         return tmax > 0.0f;
     const struct density_grid *g = m->grid;
-    vec3 og = xform_point(&g->world_to_grid, o), dg = xform_vector(&g->world_to_grid, d);
-    float a = 0.0f, b = tmax;
-    if (!v3_clip_box(og, dg, g->occ_lo, g->occ_hi, &a, &b) || !(a < b))
-        return 0;
-    *t0 = a;
-    *t1 = b;
-    return 1;
+    return grid_clip(g, xform_point(&g->world_to_grid, o), xform_vector(&g->world_to_grid, d), tmax, t0, t1);
 }
 
 float medium_march_step(const struct medium *m, float step)
@@ -385,15 +390,11 @@ static int pieces_init(struct pieces *pc, const struct medium *m, vec3 o, vec3 d
     const struct density_grid *g = m->grid;
     pc->st_max = v3_max_component(m->sigma_t);
     vec3 og = xform_point(&g->world_to_grid, o), dg = xform_vector(&g->world_to_grid, d);
-    float c0 = 0.0f, c1 = tmax; /* medium_clip's computation, on the og, dg needed below */
-    if (clip) {
-        if (!clip->hit)
-            return 0;
+    float c0, c1;
+    if (!(clip ? clip->hit : grid_clip(g, og, dg, tmax, &c0, &c1)) || !(pc->st_max > 0.0))
+        return 0;
+    if (clip)
         c0 = clip->t0, c1 = clip->t1;
-    } else if (!v3_clip_box(og, dg, g->occ_lo, g->occ_hi, &c0, &c1) || !(c0 < c1))
-        return 0;
-    if (!(pc->st_max > 0.0))
-        return 0;
     float oo[3] = {og.x, og.y, og.z}, dd[3] = {dg.x, dg.y, dg.z};
     uint32_t n[3] = {g->nx, g->ny, g->nz};
     for (int k = 0; k < 3; k++) {
