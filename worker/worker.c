@@ -1307,12 +1307,11 @@ static int map_install(struct worker *w, uint32_t pass)
         }
         char err[256], text[PROTO_MAX_STRING];
         struct photon_map *map = NULL;
-        /* the rows along the view of the scene's camera (its first key when it moves): the same
-         * axis for every worker and frame, whenever the map comes */
+        /* the rows along the view of the scene's camera (the parser puts a moving camera's
+         * first key there): the same axis for every worker and frame, whenever the map comes */
         const struct camera_desc *cd = &w->scene.camera;
-        vec3 view = cd->num_keyframes ? v3_sub(cd->keyframes[0].look_at, cd->keyframes[0].position)
-                                      : v3_sub(cd->look_at, cd->position);
-        if (photon_map_decode_rows(e->data, e->size, photon_map_row_axis(view), &map, err, sizeof err) != 0) {
+        if (photon_map_decode_rows(e->data, e->size, photon_map_row_axis(v3_sub(cd->look_at, cd->position)), &map, err,
+                                   sizeof err) != 0) {
             snprintf(text, sizeof text, "photon map of pass %u: %s", pass, err);
             log_error("%s", text);
             send_error(w, text);
