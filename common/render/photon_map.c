@@ -952,12 +952,12 @@ vec3 photon_map_beam(const struct photon_map *m, vec3 o, vec3 d, float t1, const
         br.go = v3(wo[ax[0]], wo[ax[1]], wo[ax[2]]);
         br.gd = v3(wd[ax[0]], wd[ax[1]], wd[ax[2]]);
         beam_walk(m, m->beam, &br, acc);
-    }
-    else /* a map built by hand (tests): every photon */
+    } else { /* a map built by hand (tests): every photon */
         for (uint32_t i = 0; i < m->num_photons; i++) {
             const struct photon *ph = &m->photons[i];
             beam_add(m, i, NULL, ph->p[0], ph->p[1], ph->p[2], PHOTON_EVENTS(ph->depth), &br, acc);
         }
+    }
     double rk = fmax((double)r, PM_MIN_KERNEL_RADIUS);
     return scaled(acc, 1.0 / (M_PI * rk * rk));
 }

@@ -129,7 +129,6 @@ vec3 medium_transmittance(const struct medium *m, float d)
     return v3(tx, tr1(m->sigma_t.y, d), tr1(m->sigma_t.z, d));
 }
 
-
 static float emit1(float sigma_t, float e, float d)
 {
     if (e == 0.0f)

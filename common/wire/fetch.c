@@ -48,12 +48,13 @@ int proto_fetch_on_chunks(struct proto_fetch *f, const struct msg_chunks *c, uin
 int proto_fetch_on_data(struct proto_fetch *f, const struct msg_blob_data *d, int via_bcast, uint64_t now_ms,
                         char *err, size_t errlen)
 {
-    if (!via_bcast && f->in_flight)
-        f->in_flight--; /* an answer, good or bad */
-    if (!via_bcast)
-        f->asked_ms = now_ms;
     if (via_bcast)
         f->last_bcast_ms = now_ms; /* the stream is alive, whatever this chunk is worth */
+    else {
+        if (f->in_flight)
+            f->in_flight--; /* an answer, good or bad */
+        f->asked_ms = now_ms;
+    }
     if (d->total_size != f->recv.size) {
         str_fmt(err, errlen, "blob chunk says the blob has %llu bytes, not %llu", (unsigned long long)d->total_size,
                 (unsigned long long)f->recv.size);
