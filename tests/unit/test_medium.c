@@ -1943,54 +1943,54 @@ Test(medium, beam_rows_with_tied_x_match_brute_force, .timeout = 120)
         cr_assert_eq(photon_map_serialise(&block, 1, r, n, &blob, &bytes, &count, err, sizeof err), 0);
         /* rows along x (the rows of the lattice above), then along y and z */
         for (int axis = 0; axis < 3; axis++) {
-        struct photon_map *m = NULL;
-        cr_assert_eq(photon_map_decode_rows(blob, bytes, axis, &m, err, sizeof err), 0, "%s", err);
-        float cell = 0.0f;
-        uint32_t rows = 0, longest = 0;
-        cr_assert_eq(photon_map_beam_layout(m, &cell, &rows, &longest), !hashed);
-        cr_assert(cell == r && (axis > 0 || (rows > 256 && longest > 16)), "cell %g, %u rows, longest %u",
-                  (double)cell, rows, longest);
-        struct photon_beam_grid *grid = m->beam;
-        for (uint32_t q = 0; q < 600; q++) {
-            uint64_t k = rng_key(303, (uint32_t)hashed, q, 0);
-            /* on a lattice point of the borders (or just off it), inside the rows or the clumps */
-            float oy = (float)(tie_index(k, 1, 20)) * r, oz = (float)(tie_index(k, 2, 20)) * r;
-            if (q % 9 == 4)
-                oy = nextafterf(oy, -1.0f), oz = nextafterf(oz, 10.0f);
-            if (q % 4 == 3)
-                oy += 2.0f, oz += 2.0f;
-            vec3 o = v3((float)tie_index(k, 0, 14) * 0.125f - 0.25f, oy, oz), d;
-            switch (q % 6) {
-            case 0: d = v3(q / 6 % 2 ? -1.0f : 1.0f, 0, 0); break;
-            case 1: d = v3(0, q / 6 % 2 ? -1.0f : 1.0f, 0); break;
-            case 2: d = v3(0, 0, q / 6 % 2 ? -1.0f : 1.0f); break;
-            case 3: /* grazing a face of the box */
-                o = v3(-1.0f, q / 6 % 2 ? box : 0.0f, oz);
-                d = v3_normalize(v3(1.0f, 0.0f, rng_uniform(k, 3) - 0.5f));
-                break;
-            default:
-                d = v3_normalize(v3(rng_uniform(k, 3) - 0.5f, rng_uniform(k, 4) - 0.5f, rng_uniform(k, 5) - 0.5f));
+            struct photon_map *m = NULL;
+            cr_assert_eq(photon_map_decode_rows(blob, bytes, axis, &m, err, sizeof err), 0, "%s", err);
+            float cell = 0.0f;
+            uint32_t rows = 0, longest = 0;
+            cr_assert_eq(photon_map_beam_layout(m, &cell, &rows, &longest), !hashed);
+            cr_assert(cell == r && (axis > 0 || (rows > 256 && longest > 16)), "cell %g, %u rows, longest %u",
+                      (double)cell, rows, longest);
+            struct photon_beam_grid *grid = m->beam;
+            for (uint32_t q = 0; q < 600; q++) {
+                uint64_t k = rng_key(303, (uint32_t)hashed, q, 0);
+                /* on a lattice point of the borders (or just off it), inside the rows or the clumps */
+                float oy = (float)(tie_index(k, 1, 20)) * r, oz = (float)(tie_index(k, 2, 20)) * r;
+                if (q % 9 == 4)
+                    oy = nextafterf(oy, -1.0f), oz = nextafterf(oz, 10.0f);
+                if (q % 4 == 3)
+                    oy += 2.0f, oz += 2.0f;
+                vec3 o = v3((float)tie_index(k, 0, 14) * 0.125f - 0.25f, oy, oz), d;
+                switch (q % 6) {
+                case 0: d = v3(q / 6 % 2 ? -1.0f : 1.0f, 0, 0); break;
+                case 1: d = v3(0, q / 6 % 2 ? -1.0f : 1.0f, 0); break;
+                case 2: d = v3(0, 0, q / 6 % 2 ? -1.0f : 1.0f); break;
+                case 3: /* grazing a face of the box */
+                    o = v3(-1.0f, q / 6 % 2 ? box : 0.0f, oz);
+                    d = v3_normalize(v3(1.0f, 0.0f, rng_uniform(k, 3) - 0.5f));
+                    break;
+                default:
+                    d = v3_normalize(v3(rng_uniform(k, 3) - 0.5f, rng_uniform(k, 4) - 0.5f, rng_uniform(k, 5) - 0.5f));
+                }
+                float t1 = (float)(1 + tie_index(k, 6, 48)) * 0.125f; /* often ending on a tied x */
+                if (q % 7 == 0)
+                    t1 = 1e30f;
+                if (q % 5 == 1) { /* through a photon */
+                    const float *p = m->photons[tie_index(k, 7, m->num_photons)].p;
+                    o = v3_sub(v3(p[0], p[1], p[2]), v3_scale(d, t1 * (float)tie_index(k, 8, 3) * 0.5f));
+                }
+                uint32_t depth_max = q % 3 == 0 ? PHOTON_DEPTH_ANY : 1 + q % 8;
+                vec3 a = photon_map_beam(m, o, d, t1, &md, NULL, depth_max);
+                m->beam = NULL; /* every photon, in index order */
+                vec3 b = photon_map_beam(m, o, d, t1, &md, NULL, depth_max);
+                m->beam = grid;
+                cr_assert(a.x == b.x && a.y == b.y && a.z == b.z,
+                          "%s, rows along axis %d, ray %u: rows (%.9g %.9g %.9g), every photon (%.9g %.9g %.9g)",
+                          hashed ? "hash" : "flat", axis, q, (double)a.x, (double)a.y, (double)a.z, (double)b.x,
+                          (double)b.y, (double)b.z);
+                rays++;
+                nonzero += b.x > 0.0f;
             }
-            float t1 = (float)(1 + tie_index(k, 6, 48)) * 0.125f; /* often ending on a tied x */
-            if (q % 7 == 0)
-                t1 = 1e30f;
-            if (q % 5 == 1) { /* through a photon */
-                const float *p = m->photons[tie_index(k, 7, m->num_photons)].p;
-                o = v3_sub(v3(p[0], p[1], p[2]), v3_scale(d, t1 * (float)tie_index(k, 8, 3) * 0.5f));
-            }
-            uint32_t depth_max = q % 3 == 0 ? PHOTON_DEPTH_ANY : 1 + q % 8;
-            vec3 a = photon_map_beam(m, o, d, t1, &md, NULL, depth_max);
-            m->beam = NULL; /* every photon, in index order */
-            vec3 b = photon_map_beam(m, o, d, t1, &md, NULL, depth_max);
-            m->beam = grid;
-            cr_assert(a.x == b.x && a.y == b.y && a.z == b.z,
-                      "%s, rows along axis %d, ray %u: rows (%.9g %.9g %.9g), every photon (%.9g %.9g %.9g)",
-                      hashed ? "hash" : "flat", axis, q, (double)a.x, (double)a.y, (double)a.z, (double)b.x,
-                      (double)b.y, (double)b.z);
-            rays++;
-            nonzero += b.x > 0.0f;
-        }
-        photon_map_free(&m);
+            photon_map_free(&m);
         }
         free(blob);
     }
