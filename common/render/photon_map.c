@@ -819,19 +819,12 @@ struct beam_ray {
     const struct photon_tau *tau;
 };
 
-/* Photon i at (px, py, pz) counts when its closest-point parameter t lies in [0, t1) and
- * it is within r of the ray: its phase x power x transmittance to t goes into acc. pd:
- * its decoded direction and power (the rows' copy), or NULL to read them from the map. */
-static inline void beam_add(const struct photon_map *m, uint32_t i, const struct photon_decoded *pd, float px,
-                            float py, float pz, uint32_t depth, const struct beam_ray *br, double acc[3])
+/* A photon at closest-point parameter t that counts (beam_add's test passed): its phase x
+ * power x transmittance to t into acc. pd: its decoded direction and power (the rows'
+ * copy), or NULL to read photon i's from the map. */
+static inline void beam_take(const struct photon_map *m, uint32_t i, const struct photon_decoded *pd, float t,
+                             const struct beam_ray *br, double acc[3])
 {
-    vec3 dp = v3_sub(v3(px, py, pz), br->o);
-    float t = v3_dot(dp, br->d);
-    if (!(t >= 0.0f && t < br->t1))
-        return;
-    vec3 perp = v3_sub(dp, v3_scale(br->d, t));
-    if (v3_dot(perp, perp) > br->r2 || depth > br->depth_max)
-        return;
     vec3 tr = br->tau ? photon_tau_transmittance(br->tau, br->md, t) : medium_transmittance(br->md, t);
     float g = br->md->g;
     vec3 c = v3_mul(pd ? decoded_contrib(pd, br->d_out, g) : photon_contrib(m, i, br->d_out, g), tr);
@@ -843,11 +836,26 @@ static inline void beam_add(const struct photon_map *m, uint32_t i, const struct
     acc[0] += c.x, acc[1] += c.y, acc[2] += c.z;
 }
 
+/* Photon i at (px, py, pz) counts when its closest-point parameter t lies in [0, t1), it
+ * is within r of the ray and its depth is at most depth_max: then beam_take. */
+static inline void beam_add(const struct photon_map *m, uint32_t i, const struct photon_decoded *pd, float px,
+                            float py, float pz, uint32_t depth, const struct beam_ray *br, double acc[3])
+{
+    vec3 dp = v3_sub(v3(px, py, pz), br->o);
+    float t = v3_dot(dp, br->d);
+    if (!(t >= 0.0f && t < br->t1))
+        return;
+    vec3 perp = v3_sub(dp, v3_scale(br->d, t));
+    if (v3_dot(perp, perp) > br->r2 || depth > br->depth_max)
+        return;
+    beam_take(m, i, pd, t, br, acc);
+}
+
 /* The photons [l, end) of a row up to the first past xhi along it, in order, into acc. Four at a
- * time, the acceptance test of beam_add (t in [0, t1), squared distance to the ray not over
- * r^2) in SSE lanes with beam_add's operations in its order, so each lane's values are the
- * scalar ones bit for bit; the photons it passes go through beam_add in row order (which
- * tests them again, and their depth), so acc sums exactly what the plain loop sums. */
+ * time, the geometric test of beam_add (t in [0, t1), squared distance to the ray not over
+ * r^2) in SSE lanes with beam_add's operations in its order, so each lane's t is the
+ * scalar one bit for bit; the photons it passes and whose depth passes go to beam_take with
+ * that t in row order, so acc sums exactly what the plain loop sums. */
 static void beam_row(const struct photon_map *m, const struct photon_beam_grid *g, const struct beam_ray *br,
                      uint32_t l, uint32_t end, float xhi, double acc[3])
 {
@@ -867,9 +875,16 @@ static void beam_row(const struct photon_map *m, const struct photon_beam_grid *
         __m128 ez = _mm_sub_ps(qz, _mm_mul_ps(dz, t));
         __m128 e2 = _mm_add_ps(_mm_add_ps(_mm_mul_ps(ex, ex), _mm_mul_ps(ey, ey)), _mm_mul_ps(ez, ez));
         __m128 ok = _mm_and_ps(_mm_and_ps(_mm_cmpge_ps(t, zero), _mm_cmplt_ps(t, t1)), _mm_cmpngt_ps(e2, r2));
-        for (int k = _mm_movemask_ps(_mm_and_ps(ok, in)); k; k &= k - 1) {
-            uint32_t i = j + (uint32_t)__builtin_ctz((unsigned)k);
-            beam_add(m, 0, &g->dec[i], xs[i], ys[i], zs[i], g->depth[i], br, acc);
+        int pass = _mm_movemask_ps(_mm_and_ps(ok, in));
+        if (pass) {
+            float tl[4];
+            _mm_storeu_ps(tl, t);
+            for (int k = pass; k; k &= k - 1) {
+                int lane = __builtin_ctz((unsigned)k);
+                uint32_t i = j + (uint32_t)lane;
+                if (g->depth[i] <= br->depth_max)
+                    beam_take(m, 0, &g->dec[i], tl[lane], br, acc);
+            }
         }
         if (_mm_movemask_ps(in) != 0xf)
             return;
