@@ -1425,6 +1425,47 @@ Test(medium, march_shadow_cache_image_bias, .timeout = 120)
     cr_assert(mean[0] > 0.01 && fabs(mean[1] / mean[0] - 1.0) < 0.02, "cached %g vs exact %g", mean[1], mean[0]);
 }
 
+/* Without volume.step a march in a grid takes its in-scattering every GRID_STEP_VOXELS
+ * voxels (0.5 here, voxels of 0.25), a homogeneous medium every 1/200 of the scene's
+ * diagonal, and a step the scene gives is kept. The jittered steps are unbiased at any
+ * length: the image mean with the default step is that of steps of half a voxel (the
+ * optical depth's, so NEE at every one) within 4 standard errors, for fewer shadow rays. */
+Test(medium, march_step_default_in_grids, .timeout = 60)
+{
+    const char *text[2] = {CACHE_SCENE("true"), CACHE_SCENE("true, \"step\": 0.125")};
+    double mean[2], se[2];
+    uint64_t rays[2];
+    for (int c = 0; c < 2; c++) {
+        struct scene s;
+        load_ok(text[c], &s);
+        struct render_job job;
+        job_ok(&job, &s);
+        const struct medium *md = &s.media->media[0];
+        cr_assert_eq(job.media->step_given, c);
+        cr_assert_eq(media_step(job.media, md), c ? 0.125f : GRID_STEP_VOXELS * md->grid->voxel_world);
+        if (!c) {
+            cr_assert_eq(job.media->step, job.media->scene_size / 200.0f);
+            struct medium fog = *md; /* the same medium without its grid: the job's step */
+            fog.grid = NULL;
+            cr_assert_eq(media_step(job.media, &fog), job.media->step);
+        }
+        render_job_fini(&job);
+        s.settings.spp = 16;
+        struct tile_stats st;
+        float *px = test_render_map(&s, NULL, 1, &st);
+        mean[c] = test_channel_mean(px, s.settings.width, s.settings.height, CH_R, &se[c]);
+        rays[c] = st.rays;
+        free(px);
+        scene_fini(&s);
+    }
+    cr_log_info("march: default step %g +- %g (%llu rays), half a voxel %g +- %g (%llu rays)", mean[0], se[0],
+                (unsigned long long)rays[0], mean[1], se[1], (unsigned long long)rays[1]);
+    cr_assert(mean[1] > 0.01 && fabs(mean[0] - mean[1]) < 4.0 * sqrt(se[0] * se[0] + se[1] * se[1]),
+              "default step %g +- %g vs half a voxel %g +- %g", mean[0], se[0], mean[1], se[1]);
+    cr_assert(rays[0] < rays[1] / 2, "default step %llu rays, half a voxel %llu", (unsigned long long)rays[0],
+              (unsigned long long)rays[1]);
+}
+
 /* ---- photon methods against VPT over seeds (docs/media.md: open fog, the forward cone,
  * final gather) ---- */
 
