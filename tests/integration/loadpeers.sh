@@ -9,7 +9,7 @@
 # Blob delivery: 16 fake workers take a 3.6 MB PLY from the master's broadcast (the
 # master sends about one copy, against 16 point to point), and a fake worker that loses
 # or gets corrupted broadcast chunks refuses them by their hash and fetches them point to
-# point.
+# point. A new frame's JOB that a worker's full queue refuses is sent again until it goes.
 # Usage: BUILD=build sh tests/integration/loadpeers.sh
 . "$(dirname "$0")/lib.sh"
 lib_init load
@@ -67,6 +67,25 @@ if [ $lr = 0 ] && [ $mr = 0 ] && grep -q " acked 768 acked_twice [0-9]* unacked 
   for f in 1 2 3; do $X cmp "$T/ref.exr" "$T/fr.000$f.exr" >/dev/null 2>&1 || exit 1; done; then
   ok "frames 1:3: every one of 3 x 256 units acknowledged, each frame the pixels sent"
 else bad "frames 1:3: every one of 3 x 256 units acknowledged ($(grep granted "$T/log")), each frame the pixels sent"; fi
+
+# A JOB that the worker's queue refuses: frame 1's last RESULT comes after a flood of
+# BLOB_REQs and a 2 s pause in reading (--flood-at-end; 1-message receive queue), so the
+# master's queue for it is full when frame 2's JOB goes out. The master sends that JOB
+# again until it is queued; frame 2 renders. (Not "unacked 0": an ACK that finds the
+# queue full is dropped, as is a BLOB_DATA: blob_reqs_dropped.)
+timeout 120 $M scenes/cornell/cornell.json -o "$T/jr.exr" --spp 1 --tile 32 --workers 0 --frames 1:2 --no-journal \
+  --bind "ipc://$T/jr.sock" >"$T/m.log" 2>&1 &
+mp=$!
+echo $mp >>"$T/pids"
+timeout 120 $L "ipc://$T/jr.sock" -n 1 --image "$T/ref.exr" --tiny-queue --flood-at-end 3000 2000 >"$T/log" 2>&1
+wait $mp && mr=0 || mr=1
+cat "$T/m.log" >>"$T/log"
+dropped=$(counter blob_reqs_dropped "$T/jr.exr")
+if [ $mr = 0 ] && grep -q "the JOB could not be queued; sending it again" "$T/log" && [ "${dropped:-0}" -gt 0 ] &&
+  grep -q "^loadpeers: granted 512 results 512 " "$T/log" && [ "$(counter tiles_done "$T/jr.exr")" = 512 ] &&
+  for f in 1 2; do $X cmp "$T/ref.exr" "$T/jr.000$f.exr" >/dev/null 2>&1 || exit 1; done; then
+  ok "a JOB its worker's full queue refused is sent again: frame 2 rendered, its pixels those sent ($dropped BLOB_DATA dropped)"
+else bad "a JOB its worker's full queue refused is sent again ($(grep granted "$T/log"), blob_reqs_dropped ${dropped:-?})"; fi
 
 $M --keygen "$T/master.key" >/dev/null && $M --keygen "$T/w.key" >/dev/null
 cp "$T/w.key.pub" "$T/allow"

@@ -3,7 +3,7 @@
  *   loadpeers ENDPOINT [-n N] [--credits C] [--key KEYFILE MASTER.pub] [--image REF.exr]
  *                      [--master-pid PID] [--no-fetch] [--hold-ready] [--timeout-ms MS]
  *                      [--no-bcast] [--drop-bcast K] [--corrupt-bcast K] [--strangers]
- *                      [--pause-ms MS] [--tiny-queue]
+ *                      [--pause-ms MS] [--tiny-queue] [--flood-at-end N MS]
  * Each fake worker says HELLO (host "loadpeers-PID", pid = its index: distinct names;
  * threads: C / 2 rounded up, as a worker that asks 2 credits per thread; C at most 4096),
  * fetches every blob the JOB and MAP messages name as a worker does (proto_fetch: the
@@ -16,7 +16,10 @@
  * holds, and count what reaches them), says READY with C credits (with --hold-ready
  * only once every peer has its blobs: a delivery benchmark; with --pause-ms, reads nothing
  * for MS ms after its first READY, with --tiny-queue takes 1 message
- * into its queue and a few KB into its socket buffer: a worker that reads slowly) and answers every TILE at once with a
+ * into its queue and a few KB into its socket buffer: a worker that reads slowly; with
+ * --flood-at-end, just before the last RESULT of the first job it sends N BLOB_REQs for the
+ * first chunk of its largest asset and then reads nothing for MS ms, so that the master's queue for
+ * it is full when the next frame's JOB goes out) and answers every TILE at once with a
  * RESULT whose chunk is a valid EXR tile chunk of the job's layout (tile_image_desc),
  * encoded once per tile at first use: pixels from REF.exr (channels R G B A
  * variance.R/G/B; repeated when the job is larger) or, without it, a smooth deterministic pattern
@@ -66,6 +69,10 @@ struct lpeer {
     uint64_t samples_done;
     int fetched;            /* every blob named so far is in */
     uint64_t maps_announced; /* bit p: pass p's MAP arrived (passes 0..63) */
+    struct blob_hash asset; /* its JOB's largest asset (have_asset), which --flood-at-end asks for */
+    uint64_t asset_size;
+    int have_asset;
+    uint32_t job_results;   /* RESULTs sent for its current JOB */
     struct msg_tile *unsent; /* TILEs whose RESULT its full queue refused: sent again later, */
     uint32_t unsent_head, num_unsent; /* as a real worker offers its kept tiles again */
     size_t cap_unsent;
@@ -78,6 +85,10 @@ static struct {
     uint32_t drop_bcast, corrupt_bcast;
     int tiny_queue;
     uint64_t pause_ms, pause_until; /* --pause-ms: no reads until pause_until (set at the first READY) */
+    uint32_t flood;         /* --flood-at-end N MS: N BLOB_REQs, then MS ms without reading (once) */
+    uint64_t flood_pause_ms;
+    uint32_t flood_sent;
+    int flooded;
     uint64_t tiles_before_map;
     const char *endpoint;
     void *ctx;
@@ -414,8 +425,22 @@ static int answer_tile(struct lpeer *p, const struct msg_tile *t)
     imgio_tile_rect(&g.desc, tt % tiles_x, tt / tiles_x, &x0, &y0, &w, &h);
     r->stats.samples = (uint64_t)w * h * g.spp_per_unit;
     r->stats.rays = r->stats.samples;
+    int flood = g.flood && !g.flooded && p->have_asset && p->job_results + 1 == g.num_units;
+    if (flood) { /* the first job's last RESULT: the master's queue for this peer filled first */
+        struct proto_msg q = {.type = MSG_BLOB_REQ};
+        q.u.blob_req.hash = p->asset;
+        q.u.blob_req.length = (uint32_t)(p->asset_size < BLOB_CHUNK_SIZE ? p->asset_size : BLOB_CHUNK_SIZE);
+        while (g.flood_sent < g.flood && send_msg(p, &q) == 0)
+            g.flood_sent++;
+        if (g.flood_sent < g.flood)
+            return -1; /* its own queue is full: the rest (then the RESULT) on the next turns */
+        g.flooded = 1;
+    }
     if (send_msg(p, &m) != 0)
         return -1;
+    p->job_results++;
+    if (flood)
+        g.pause_until = net_now_ms() + g.flood_pause_ms;
     p->samples_done += r->stats.samples;
     g.results++;
     return 0;
@@ -467,6 +492,13 @@ static void on_message(struct lpeer *p, const uint8_t *data, size_t size)
             p->job_ms = net_now_ms();
         p->have_job = 1;
         p->maps_announced = 0;
+        p->job_results = 0;
+        p->have_asset = m.u.job.num_assets > 0;
+        for (uint32_t i = 0; i < m.u.job.num_assets; i++)
+            if (i == 0 || m.u.job.assets[i].size > p->asset_size) {
+                p->asset = m.u.job.assets[i].hash;
+                p->asset_size = m.u.job.assets[i].size;
+            }
         g.job_photon_maps = m.u.job.photon_maps;
         p->ready_sent = 0;
         for (uint32_t i = 0; !g.no_fetch && i < m.u.job.num_assets; i++)
@@ -519,7 +551,7 @@ static void usage(void)
     fprintf(stderr, "usage: loadpeers ENDPOINT [-n N] [--credits C] [--key KEYFILE MASTER.pub] [--image REF.exr]\n"
                     "                 [--master-pid PID] [--no-fetch] [--hold-ready] [--timeout-ms MS]\n"
                     "                 [--no-bcast] [--drop-bcast K] [--corrupt-bcast K] [--strangers] [--pause-ms MS]\n"
-                    "                 [--tiny-queue]\n");
+                    "                 [--tiny-queue] [--flood-at-end N MS]\n");
     exit(2);
 }
 
@@ -544,6 +576,10 @@ int main(int argc, char **argv)
             g.pause_ms = strtoull(argv[++i], NULL, 10);
         else if (!strcmp(argv[i], "--tiny-queue"))
             g.tiny_queue = 1;
+        else if (!strcmp(argv[i], "--flood-at-end") && i + 2 < argc) {
+            g.flood = (uint32_t)strtoul(argv[++i], NULL, 10);
+            g.flood_pause_ms = strtoull(argv[++i], NULL, 10);
+        }
         else if (!strcmp(argv[i], "--no-fetch"))
             g.no_fetch = 1;
         else if (!strcmp(argv[i], "--hold-ready"))
