@@ -430,6 +430,8 @@ static int answer_tile(struct lpeer *p, const struct msg_tile *t)
         struct proto_msg q = {.type = MSG_BLOB_REQ};
         q.u.blob_req.hash = p->asset;
         q.u.blob_req.length = (uint32_t)(p->asset_size < BLOB_CHUNK_SIZE ? p->asset_size : BLOB_CHUNK_SIZE);
+        if (!g.flood_sent) /* read nothing from now on: the replies stay queued at the master */
+            g.pause_until = net_now_ms() + g.flood_pause_ms;
         while (g.flood_sent < g.flood && send_msg(p, &q) == 0)
             g.flood_sent++;
         if (g.flood_sent < g.flood)
@@ -671,6 +673,9 @@ int main(int argc, char **argv)
             if (peers[i].sub)
                 items[n + nsub++] = (zmq_pollitem_t){peers[i].sub, 0, ZMQ_POLLIN, 0};
         if (g.pause_until && net_now_ms() < g.pause_until) { /* --pause-ms: a worker that reads nothing */
+            if (g.flood_sent && !g.flooded) /* --flood-at-end: the rest of the flood, then the RESULT */
+                for (uint32_t i = 0; i < n; i++)
+                    send_unsent(&peers[i]);
             usleep(10000);
             continue;
         }
