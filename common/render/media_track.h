@@ -44,7 +44,8 @@ struct media_job {
 
 /* Voxels of a grid per in-scattering step of a march when the scene gives no step: the
  * light in a grid changes over voxels, and a march's NEE at every half voxel (its optical
- * depth's step) cost the smoke 1.12-1.21x the CPU for the same error (docs/media.md). */
+ * depth's step) took 1.12-1.21x the CPU for the same error on scenes/smoke and a thinner
+ * cloud (docs/media.md). */
 #define GRID_STEP_VOXELS 2.0f
 
 /* The in-scattering step of a march through md: the scene's step where it gives one, else
