@@ -45,15 +45,22 @@ struct media_job {
 /* Voxels of a grid per in-scattering step of a march when the scene gives no step: the
  * light in a grid changes over voxels, and a march's NEE at every half voxel (its optical
  * depth's step) took 1.12-1.21x the CPU for the same error on scenes/smoke and a thinner
- * cloud (docs/media.md). */
+ * cloud (docs/media.md). But light also changes where geometry and lights make it (a
+ * spot's cone, a shadow), whatever the grid: so at most GRID_STEP_CAP times the step of a
+ * homogeneous medium (a coarse grid's 2 voxels, 1 m across a spot's shaft, had 2.8x the
+ * error). */
 #define GRID_STEP_VOXELS 2.0f
+#define GRID_STEP_CAP 2.0f
 
 /* The in-scattering step of a march through md: the scene's step where it gives one, else
- * GRID_STEP_VOXELS of a grid's voxels, and 1/200 of the scene's diagonal in a homogeneous
- * medium. */
+ * 1/200 of the scene's diagonal in a homogeneous medium and GRID_STEP_VOXELS of a grid's
+ * voxels, at most GRID_STEP_CAP times that, in a grid. */
 static inline float media_step(const struct media_job *mj, const struct medium *md)
 {
-    return md->grid && !mj->step_given ? GRID_STEP_VOXELS * md->grid->voxel_world : mj->step;
+    if (!md->grid || mj->step_given)
+        return mj->step;
+    float v = GRID_STEP_VOXELS * md->grid->voxel_world, cap = GRID_STEP_CAP * mj->step;
+    return v < cap ? v : cap;
 }
 
 /* The bounding sphere of where the scene's media are (grids' occupied boxes, medium

@@ -1426,36 +1426,54 @@ Test(medium, march_shadow_cache_image_bias, .timeout = 120)
 }
 
 /* Without volume.step a march in a grid takes its in-scattering every GRID_STEP_VOXELS
- * voxels (0.5 here, voxels of 0.25), a homogeneous medium every 1/200 of the scene's
- * diagonal, and a step the scene gives is kept. The jittered steps are unbiased at any
- * length: the image mean with the default step is that of steps of half a voxel (the
- * optical depth's, so NEE at every one) within 4 standard errors, for fewer shadow rays. */
+ * voxels (0.5 here, voxels of 0.25), but at most GRID_STEP_CAP times a homogeneous
+ * medium's step (1/200 of the scene's diagonal); a step the scene gives is kept. STEP_SCENE
+ * is CACHE_SCENE in a black sphere of radius R: the cap binds at R = 4, not at R = 40. The
+ * jittered steps are unbiased at any length: the image mean with the default step is that
+ * of steps of half a voxel (the optical depth's, so NEE at every one) within 4 standard
+ * errors, for fewer shadow rays. */
+#define STEP_SCENE(r, step)                                                                                    \
+    HEAD("\"position\": [0, 0, -2.5], \"look_at\": [0, 0, 0]", 16, 16, 1, 4)                                     \
+    ",\n\"materials\": {\"black\": {\"type\": \"diffuse\", \"albedo\": [0, 0, 0]}},"                          \
+    "\n\"media\": {\"m\": " GRID_MEDIUM "},\n\"volume\": {\"fog\": \"m\", \"method\": \"march\", \"photons\": 0" step "}," \
+    "\n\"objects\": [{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": " #r ", \"material\": \"black\"}],"  \
+    "\n\"lights\": [{\"type\": \"point\", \"position\": [1.5, 1.2, -1.0], \"intensity\": [20, 20, 20]}]}"
 Test(medium, march_step_default_in_grids, .timeout = 60)
 {
-    const char *text[2] = {CACHE_SCENE("true"), CACHE_SCENE("true, \"step\": 0.125")};
+    const char *text[3] = {STEP_SCENE(40, ""), STEP_SCENE(40, ", \"step\": 0.125"), STEP_SCENE(4, "")};
     double mean[2], se[2];
     uint64_t rays[2];
-    for (int c = 0; c < 2; c++) {
+    for (int c = 0; c < 3; c++) {
         struct scene s;
         load_ok(text[c], &s);
         struct render_job job;
         job_ok(&job, &s);
         const struct medium *md = &s.media->media[0];
-        cr_assert_eq(job.media->step_given, c);
-        cr_assert_eq(media_step(job.media, md), c ? 0.125f : GRID_STEP_VOXELS * md->grid->voxel_world);
-        if (!c) {
+        const float voxels = GRID_STEP_VOXELS * md->grid->voxel_world;
+        cr_assert_eq(job.media->step_given, c == 1);
+        if (c != 1)
             cr_assert_eq(job.media->step, job.media->scene_size / 200.0f);
+        if (c == 0) {
+            cr_assert(voxels < GRID_STEP_CAP * job.media->step, "the cap binds: a weak test");
+            cr_assert_eq(media_step(job.media, md), voxels);
             struct medium fog = *md; /* the same medium without its grid: the job's step */
             fog.grid = NULL;
             cr_assert_eq(media_step(job.media, &fog), job.media->step);
+        } else if (c == 1) {
+            cr_assert_eq(media_step(job.media, md), 0.125f);
+        } else {
+            cr_assert(GRID_STEP_CAP * job.media->step < voxels, "the cap does not bind: a weak test");
+            cr_assert_eq(media_step(job.media, md), GRID_STEP_CAP * job.media->step);
         }
         render_job_fini(&job);
-        s.settings.spp = 16;
-        struct tile_stats st;
-        float *px = test_render_map(&s, NULL, 1, &st);
-        mean[c] = test_channel_mean(px, s.settings.width, s.settings.height, CH_R, &se[c]);
-        rays[c] = st.rays;
-        free(px);
+        if (c < 2) {
+            s.settings.spp = 16;
+            struct tile_stats st;
+            float *px = test_render_map(&s, NULL, 1, &st);
+            mean[c] = test_channel_mean(px, s.settings.width, s.settings.height, CH_R, &se[c]);
+            rays[c] = st.rays;
+            free(px);
+        }
         scene_fini(&s);
     }
     cr_log_info("march: default step %g +- %g (%llu rays), half a voxel %g +- %g (%llu rays)", mean[0], se[0],
