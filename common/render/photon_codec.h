@@ -38,32 +38,35 @@ struct photon_tau {
     float t0, dt;
 };
 /* Optical depth (per unit sigma_t) at t, interpolated in the table: 0 before it, its last
- * value after it. */
-static inline float photon_tau_depth(const struct photon_tau *tt, float t)
+ * value after it; and into *rho the density the march took at t: the table's slope there
+ * (constant over each step; 0 outside the table). One lookup for both: the beam query takes
+ * them for every photon it accepts in a grid. */
+static inline float photon_tau_depth_density(const struct photon_tau *tt, float t, float *rho)
 {
     float x = (t - tt->t0) / tt->dt;
-    if (!(x > 0.0f))
+    *rho = 0.0f;
+    if (!(x > 0.0f)) {
+        if (x == 0.0f && tt->n > 1)
+            *rho = (tt->tau[1] - tt->tau[0]) / tt->dt;
         return 0.0f;
+    }
     if (!(x < (float)(tt->n - 1)))
         return tt->tau[tt->n - 1];
     uint32_t i = (uint32_t)x;
+    *rho = (tt->tau[i + 1] - tt->tau[i]) / tt->dt;
     float f = x - (float)i;
     return tt->tau[i] * (1.0f - f) + tt->tau[i + 1] * f;
+}
+/* The optical depth alone. */
+static inline float photon_tau_depth(const struct photon_tau *tt, float t)
+{
+    float rho;
+    return photon_tau_depth_density(tt, t, &rho);
 }
 /* Transmittance at t from a marched table. */
 static inline vec3 photon_tau_transmittance(const struct photon_tau *tt, const struct medium *md, float t)
 {
     return medium_tr_tau(md, photon_tau_depth(tt, t));
-}
-/* The density the march took at t: the table's slope there (constant over each step; 0
- * outside the table). */
-static inline float photon_tau_density(const struct photon_tau *tt, float t)
-{
-    float x = (t - tt->t0) / tt->dt;
-    if (!(x >= 0.0f) || !(x < (float)(tt->n - 1)))
-        return 0.0f;
-    uint32_t i = (uint32_t)x;
-    return (tt->tau[i + 1] - tt->tau[i]) / tt->dt;
 }
 
 #endif

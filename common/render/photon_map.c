@@ -825,11 +825,13 @@ struct beam_ray {
 static inline void beam_take(const struct photon_map *m, uint32_t i, const struct photon_decoded *pd, float t,
                              const struct beam_ray *br, double acc[3])
 {
-    vec3 tr = br->tau ? photon_tau_transmittance(br->tau, br->md, t) : medium_transmittance(br->md, t);
+    float rho = 0.0f; /* with a table, the density the march took at t */
+    vec3 tr = br->tau ? medium_tr_tau(br->md, photon_tau_depth_density(br->tau, t, &rho)) : medium_transmittance(br->md, t);
     float g = br->md->g;
     vec3 c = v3_mul(pd ? decoded_contrib(pd, br->d_out, g) : photon_contrib(m, i, br->d_out, g), tr);
     if (br->grid_max > 0.0f) {
-        float rho = br->tau ? photon_tau_density(br->tau, t) : grid_density(br->md->grid, v3_add(br->o, v3_scale(br->d, t)));
+        if (!br->tau)
+            rho = grid_density(br->md->grid, v3_add(br->o, v3_scale(br->d, t)));
         float fl = pd ? pd->density_floor : photon_density_floor(m->photons[i].depth);
         c = v3_scale(c, photon_density_weight(rho, fl, br->grid_max));
     }

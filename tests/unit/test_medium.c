@@ -1938,6 +1938,27 @@ static uint32_t tie_index(uint64_t k, uint32_t dim, uint32_t n)
     return (uint32_t)(rng_bits(k, dim) % n);
 }
 
+/* One lookup of a marched table gives the optical depth (0 before the table, its last
+ * value after it, linear in each step) and the density (each step's slope, 0 outside),
+ * at the table's ends too. */
+Test(medium, tau_table_depth_and_density)
+{
+    const float tau[4] = {0.0f, 0.5f, 0.75f, 1.75f};
+    const struct photon_tau tt = {tau, 4, 1.0f, 0.5f}; /* entries at t = 1, 1.5, 2, 2.5 */
+    const float t[] = {0.0f, 1.0f, 1.25f, 1.5f, 2.25f, 2.5f, 9.0f};
+    const float depth[] = {0.0f, 0.0f, 0.25f, 0.5f, 1.25f, 1.75f, 1.75f};
+    const float density[] = {0.0f, 1.0f, 1.0f, 0.5f, 2.0f, 0.0f, 0.0f};
+    for (int k = 0; k < 7; k++) {
+        float rho = -1.0f, d = photon_tau_depth_density(&tt, t[k], &rho);
+        cr_assert_eq(d, depth[k], "t %g: depth %g, not %g", (double)t[k], (double)d, (double)depth[k]);
+        cr_assert_eq(rho, density[k], "t %g: density %g, not %g", (double)t[k], (double)rho, (double)density[k]);
+        cr_assert_eq(photon_tau_depth(&tt, t[k]), d);
+    }
+    const struct photon_tau one = {tau, 1, 1.0f, 0.5f}; /* a table of one entry: no step */
+    float rho = -1.0f;
+    cr_assert(photon_tau_depth_density(&one, 1.0f, &rho) == 0.0f && rho == 0.0f);
+}
+
 /* The rows' axis for a view: the axis it runs most along, the first of equals. */
 Test(medium, beam_row_axis_of_a_view)
 {
