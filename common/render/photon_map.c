@@ -559,6 +559,7 @@ struct photon_beam_grid {
     uint32_t num_rows, longest; /* rows holding photons, the most photons in one */
     /* num_photons records, by row, then x, then photon index */
     float *x, *y, *z;
+    const float *wx, *wy, *wz; /* the same arrays in world x, y and z (x, y, z in world[] order) */
     uint16_t *depth;
     struct photon_decoded *dec; /* direction and power, a copy of the map's decoded photons */
 };
@@ -738,6 +739,8 @@ static struct photon_beam_grid *beam_grid_build(const struct photon_map *m, int 
     g->x = mem_alloc(sizeof *g->x * n);
     g->y = mem_alloc(sizeof *g->y * n);
     g->z = mem_alloc(sizeof *g->z * n);
+    const float *const a[3] = {g->x, g->y, g->z};
+    g->wx = a[g->world[0]], g->wy = a[g->world[1]], g->wz = a[g->world[2]];
     g->depth = mem_alloc(sizeof *g->depth * n);
     g->dec = mem_alloc(sizeof *g->dec * n);
     for (uint32_t j = 0, row_start = 0; j < n; j++) {
@@ -861,9 +864,8 @@ static inline void beam_add(const struct photon_map *m, uint32_t i, const struct
 static void beam_row(const struct photon_map *m, const struct photon_beam_grid *g, const struct beam_ray *br,
                      uint32_t l, uint32_t end, float xhi, double acc[3])
 {
-    const float *const a[3] = {g->x, g->y, g->z};
     /* the photons' world x, y and z, and their coordinate along the rows */
-    const float *xs = a[g->world[0]], *ys = a[g->world[1]], *zs = a[g->world[2]], *rx = g->x;
+    const float *xs = g->wx, *ys = g->wy, *zs = g->wz, *rx = g->x;
     const __m128 ox = _mm_set1_ps(br->o.x), oy = _mm_set1_ps(br->o.y), oz = _mm_set1_ps(br->o.z);
     const __m128 dx = _mm_set1_ps(br->d.x), dy = _mm_set1_ps(br->d.y), dz = _mm_set1_ps(br->d.z);
     const __m128 t1 = _mm_set1_ps(br->t1), r2 = _mm_set1_ps(br->r2), hi = _mm_set1_ps(xhi), zero = _mm_setzero_ps();
@@ -913,15 +915,14 @@ static void beam_walk(const struct photon_map *m, const struct photon_beam_grid 
     float za = o.z + d.z * ta, zb = o.z + d.z * tb, ya = o.y + d.y * ta, yb = o.y + d.y * tb;
     uint32_t z0 = beam_cell(g, beam_min(za, zb) - e, 2), z1 = beam_cell(g, beam_max(za, zb) + e, 2);
     uint32_t y0 = beam_cell(g, beam_min(ya, yb) - e, 1), y1 = beam_cell(g, beam_max(ya, yb) + e, 1);
-    const float *xs = g->x, *ys = g->y, *zs = g->z;
+    const float *xs = g->x; /* along the rows */
     /* The rows the walk would visit (a slab's y cells at most): when that is more than half
      * the photons (a slack grown huge by an origin far away), reading them all is cheaper. */
     double slab_y = fabs((double)d.y) * ((double)c + 2.0 * e) / fabs((double)d.z) + 2.0 * e;
     double walk = (double)(z1 - z0 + 1) * fmin((double)(y1 - y0 + 1), slab_y / c + 2.0);
     if (!(walk <= 0.5 * (double)m->num_photons)) {
-        const float *const a[3] = {xs, ys, zs};
         for (uint32_t j = 0; j < m->num_photons; j++)
-            beam_add(m, 0, &g->dec[j], a[g->world[0]][j], a[g->world[1]][j], a[g->world[2]][j], g->depth[j], br, acc);
+            beam_add(m, 0, &g->dec[j], g->wx[j], g->wy[j], g->wz[j], g->depth[j], br, acc);
         return;
     }
     for (uint32_t cz = z0; cz <= z1; cz++) {
