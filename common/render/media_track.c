@@ -196,8 +196,7 @@ struct media_job *media_job_new(const struct accel *a, const struct light_table 
     mj->bounds_lo = v3_sub(lo, pad);
     mj->bounds_hi = v3_add(hi, pad);
     mj->scene_size = size;
-    mj->step_given = sm->step > 0.0f;
-    mj->step = mj->step_given ? sm->step : size / 200.0f;
+    mj->step = sm->step > 0.0f ? sm->step : size / 200.0f;
     mj->step = fmaxf(mj->step, size * 1e-6f);
     mj->radius = sm->radius > 0.0f ? sm->radius : size / 100.0f;
     mj->radius = fmaxf(mj->radius, size * 1e-5f); /* bounds the cells a beam query walks */

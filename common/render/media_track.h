@@ -27,8 +27,7 @@ struct media_job {
     uint32_t *light_medium;     /* per light-table entry: the medium it emits into */
     vec3 bounds_lo, bounds_hi;  /* geometry, lights and camera */
     float scene_size;           /* diagonal of the bounds */
-    float step;                 /* marching step used (in grids only when the scene gives one: media_step) */
-    int step_given;             /* the scene (or --march-step) gives volume.step */
+    float step;                 /* marching step used (in grids only when sm gives one: media_step) */
     float radius;               /* gather radius used */
     const struct photon_map *map; /* the job's map for Jensen's methods; NULL: single scattering only (skipped, or VPT) */
     struct shadow_caches *shadow; /* march / beam: per (point light, grid medium) tr_cache, filled on first use */
@@ -57,7 +56,7 @@ struct media_job {
  * voxels, at most GRID_STEP_CAP times that, in a grid. */
 static inline float media_step(const struct media_job *mj, const struct medium *md)
 {
-    if (!md->grid || mj->step_given)
+    if (!md->grid || mj->sm->step > 0.0f) /* no grid, or the scene (or --march-step) gives the step */
         return mj->step;
     float v = GRID_STEP_VOXELS * md->grid->voxel_world, cap = GRID_STEP_CAP * mj->step;
     return v < cap ? v : cap;
