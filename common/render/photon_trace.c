@@ -342,17 +342,16 @@ static void trace_photon(const struct trace_ctx *tc, uint64_t index, struct phot
  * a thin medium unscattered only cost: 1 - exp(-tau), tau from sigma_t's largest channel
  * at the grid's largest density over the part of the ray in the medium), rounded up, at
  * most split_max. In the pilot (tc->pilot) the power of the photon's first such flight is
- * recorded instead and 0 returned: the pilot has what it traced the photon for. */
+ * recorded instead and 0 returned: the pilot has what it traced the photon for. *clip gets
+ * the ray's medium_clip where it was taken (else clip->hit stays -1). */
 static uint32_t split_count(const struct trace_ctx *tc, const struct medium *md, uint32_t medium, vec3 o, vec3 d,
-                            float tmax, vec3 power, struct medium_clip_memo *clip, int *clipped)
+                            float tmax, vec3 power, struct medium_clip_memo *clip)
 {
     float heavy = tc->split_ref > 0.0f ? v3_max_component(power) / tc->split_ref : 0.0f;
-    *clipped = 0;
     if (tc->split_max <= 1 || (!tc->pilot && !(heavy > PHOTON_SPLIT_MIN)) ||
         !(md->grid || medium != tc->job->scene->media->fog))
         return 1;
-    clip->hit = medium_clip(md, o, d, tmax, &clip->t0, &clip->t1);
-    *clipped = 1; /* the flight along this ray reads it (medium_sample_flight_clip) */
+    clip->hit = medium_clip(md, o, d, tmax, &clip->t0, &clip->t1); /* the flight reads it too */
     if (!clip->hit)
         return 1;
     const float k0 = clip->t0, k1 = clip->t1;
@@ -386,10 +385,8 @@ static void walk(const struct trace_ctx *tc, struct walker w0, float time01, str
             /* A heavy photon about to cross a bounded medium goes on as n walkers of 1/n its
              * power along the same ray, each with its own random numbers from here
              * (split_count; docs/media.md, "Splitting heavy photons"). */
-            struct medium_clip_memo clip;
-            int clipped = 0;
-            uint32_t n = split_n == 0 ? split_count(tc, md, medium, o, d, hit ? h.t : INFINITY, power, &clip, &clipped)
-                                      : 1u;
+            struct medium_clip_memo clip = {.hit = -1};
+            uint32_t n = split_n == 0 ? split_count(tc, md, medium, o, d, hit ? h.t : INFINITY, power, &clip) : 1u;
             if (n == 0)
                 return; /* the pilot: its power is recorded, the rest of its path is not wanted */
             if (n > 1) {
@@ -403,7 +400,7 @@ static void walk(const struct trace_ctx *tc, struct walker w0, float time01, str
             }
             float t;
             vec3 w;
-            int scatter = medium_sample_flight_clip(md, o, d, hit ? h.t : INFINITY, clipped ? &clip : NULL, power,
+            int scatter = medium_sample_flight_clip(md, o, d, hit ? h.t : INFINITY, clip.hit >= 0 ? &clip : NULL, power,
                                                     rng_mix64(key ^ ((uint64_t)dim << 32)), &t, &w);
             vec3 before = power;
             power = v3_mul(power, w);

@@ -57,7 +57,7 @@ int medium_sample_flight(const struct medium *m, vec3 o, vec3 d, float tmax, vec
                          vec3 *weight);
 /* medium_clip's answer for one ray, kept by a caller that clipped it already. */
 struct medium_clip_memo {
-    int hit;        /* medium_clip's return */
+    int hit;        /* medium_clip's return (-1 to a caller: not taken) */
     float t0, t1;
 };
 /* The same flight with clip = medium_clip's answer for (o, d, tmax) (NULL: clipped here). */
