@@ -85,10 +85,14 @@ fi
 run $M $SCENE -o "$T/ref2.exr" --workers 1 --threads 1 $ARGS --seed 2 || bad "reference render (seed 2)"
 $M $SCENE -o "$T/c1.exr" --workers 0 --bind "ipc://$T/c.sock" $ARGS --no-journal >"$T/log1" 2>&1 &
 mpid=$!
-timeout 120 $W --connect "ipc://$T/c.sock" --threads 1 --timeout-ms 60000 --fault slow-load:100000 >"$T/wlog" 2>&1 &
+timeout 120 $W --connect "ipc://$T/c.sock" --threads 1 --timeout-ms 60000 --fault slow-load:100000 --verbose \
+  >"$T/wlog" 2>&1 &
 wpid=$!
 echo "$mpid $wpid" >"$T/pids"
-n=0; while ! grep -q "joined" "$T/log1" 2>/dev/null && [ $n -lt 300 ]; do sleep 0.1; n=$((n + 1)); done
+# (the master dies once the worker's load is under way, not once it joined: on a loaded
+# machine the JOB could still be on its way then, and the new master's JOB would start
+# the first load instead of cancelling one)
+n=0; while ! grep -q "loading the scene" "$T/wlog" 2>/dev/null && [ $n -lt 300 ]; do sleep 0.1; n=$((n + 1)); done
 kill -9 $mpid; wait $mpid 2>/dev/null
 timeout 120 $M $SCENE -o "$T/c2.exr" --workers 0 --bind "ipc://$T/c.sock" $ARGS --seed 2 \
   --worker-timeout-ms 3000 >"$T/log" 2>&1 &
