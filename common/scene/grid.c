@@ -152,11 +152,10 @@ void grid_finish(struct density_grid *g, const struct xform *grid_to_world, floa
     grid_build_majorants(g);
 }
 
-float grid_density(const struct density_grid *g, vec3 p)
+/* The trilinear value at grid-space q (in [0, 1]^3; voxel centres at (i + 0.5) / n),
+ * without the scale. */
+static inline float grid_trilinear(const struct density_grid *g, vec3 q)
 {
-    vec3 q = xform_point(&g->world_to_grid, p);
-    if (!(q.x >= 0.0f && q.y >= 0.0f && q.z >= 0.0f && q.x <= 1.0f && q.y <= 1.0f && q.z <= 1.0f))
-        return 0.0f;
     float u[3] = {q.x * (float)g->nx - 0.5f, q.y * (float)g->ny - 0.5f, q.z * (float)g->nz - 0.5f};
     int32_t n[3] = {(int32_t)g->nx, (int32_t)g->ny, (int32_t)g->nz}, i0[3], i1[3];
     float f[3];
@@ -174,7 +173,20 @@ float grid_density(const struct density_grid *g, vec3 p)
     float c11 = V(i0[0], i1[1], i1[2]) * (1 - f[0]) + V(i1[0], i1[1], i1[2]) * f[0];
 #undef V
     float c0 = c00 * (1 - f[1]) + c10 * f[1], c1 = c01 * (1 - f[1]) + c11 * f[1];
-    return (c0 * (1 - f[2]) + c1 * f[2]) * g->scale;
+    return c0 * (1 - f[2]) + c1 * f[2];
+}
+
+static inline int grid_unit_box(vec3 q)
+{
+    return q.x >= 0.0f && q.y >= 0.0f && q.z >= 0.0f && q.x <= 1.0f && q.y <= 1.0f && q.z <= 1.0f;
+}
+
+float grid_density(const struct density_grid *g, vec3 p)
+{
+    vec3 q = xform_point(&g->world_to_grid, p);
+    if (!grid_unit_box(q))
+        return 0.0f;
+    return grid_trilinear(g, q) * g->scale;
 }
 
 /* medium_clip on the ray already in grid space (og, dg). */
@@ -720,14 +732,21 @@ float grid_optical_depth(const struct medium *m, vec3 a, vec3 b)
     float c0, c1;
     if (!medium_clip(m, a, d, len, &c0, &c1))
         return 0.0f;
-    /* Midpoint rule at steps of at most half a voxel: deterministic, no random number. */
-    float span = c1 - c0, steps = ceilf(span / (0.5f * m->grid->voxel_world));
+    /* Midpoint rule at steps of at most half a voxel: deterministic, no random number. The
+     * samples are taken in grid space, the ray transformed once (the shadow cache's fill
+     * takes most of its time here). */
+    const struct density_grid *g = m->grid;
+    float span = c1 - c0, steps = ceilf(span / (0.5f * g->voxel_world));
     uint32_t n = steps < 1.0f ? 1u : (steps > 100000.0f ? 100000u : (uint32_t)steps);
     float dx = span / (float)n;
+    vec3 qa = xform_point(&g->world_to_grid, a), dq = xform_vector(&g->world_to_grid, d);
     double tau = 0.0;
-    for (uint32_t k = 0; k < n; k++)
-        tau += grid_density(m->grid, v3_add(a, v3_scale(d, c0 + ((float)k + 0.5f) * dx)));
-    return (float)(tau * dx);
+    for (uint32_t k = 0; k < n; k++) {
+        vec3 q = v3_add(qa, v3_scale(dq, c0 + ((float)k + 0.5f) * dx));
+        if (grid_unit_box(q))
+            tau += grid_trilinear(g, q);
+    }
+    return (float)(tau * g->scale * dx);
 }
 
 struct tr_fill { struct tr_cache *c; const struct medium *m; uint32_t threads, id; };
