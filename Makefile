@@ -183,7 +183,7 @@ bench-master: all
 	BUILD=$(BUILD) sh scripts/bench_master.sh
 
 # Media: error against time for vpt and the photon method against an honest VPT reference
-# (docs/benchmarks.md); quick run: SCENES=fog_spot BUDGETS="2 6" REF_SPP=256 make bench-media
+# (docs/benchmarks.md); quick run: SCENES=fog_spot BUDGETS="2 6" REF_SPP=256 SEEDS=11 make bench-media
 bench-media: all
 	BUILD=$(BUILD) sh scripts/bench_media.sh
 # Adaptive rendering against uniform spp at equal error, and calibration (docs/adaptive.md);

@@ -20,10 +20,11 @@
 #     to take about the same times (one more VPT render past either end of the photon
 #     method's times that the calibrated ones miss). Time is that of the whole master process (photon pass,
 #     worker start, scene build, render, EXR written): wall time, or with TIME=cpu the CPU
-#     seconds of the master and its worker. For each render:
-#     relRMSE against the reference, the same after an 8x8 box filter (low-frequency error:
-#     blotches), the renderer's own estimate from its variance channels (exrtool errest) and
-#     its ratio to the true error; for the photon method the ratio to VPT's relRMSE at the same
+#     seconds of the master and its worker. Each budget renders once per seed of SEEDS, and
+#     its row holds the mean time and the RMS over the seeds of: relRMSE against the
+#     reference, the same after an 8x8 box filter (low-frequency error: blotches), the
+#     renderer's own estimate from its variance channels (exrtool errest); then the
+#     estimate's ratio to the true error; for the photon method the ratio to VPT's relRMSE at the same
 #     time (VPT's error-time curve interpolated on log-log axes; '*' marks an extrapolation),
 #     and the same for the low-frequency parts (lf_vs_vpt);
 #     per method the least-squares log-log slope of error against time.
@@ -32,7 +33,9 @@
 # Usage: BUILD=build sh scripts/bench_media.sh
 #   env: SCENES ("fog_spot cornell_fog smoke"), BUDGETS (photon method spp, "2 8 30 100"; at 1 spp
 #        the variance channels, hence errest, are 0),
-#        REF_SPP (4096), PROBE_SPP (64), DEPTHS ("8 16 32 64"), BOX (8), SEED (11),
+#        REF_SPP (4096), PROBE_SPP (64), DEPTHS ("8 16 32 64"), BOX (8), SEEDS ("11 12 13": each
+#        budget renders once per seed and reports the mean time and the RMS of each error over
+#        the seeds: one image's error is a random draw, the method's is its expectation),
 #        VPT_DEPTH ("ref", or "scene" for the scene's own max_depth), REF_REDO (0),
 #        TIME ("wall", or "cpu": user + system seconds of the master and its worker, steadier on a
 #        loaded machine), EXTRA (more photon methods, e.g. "beams", rendered with --media-method at
@@ -45,7 +48,8 @@ REF_SPP=${REF_SPP:-4096}
 PROBE_SPP=${PROBE_SPP:-64}
 DEPTHS=${DEPTHS:-"8 16 32 64"}
 BOX=${BOX:-8}
-SEED=${SEED:-11}
+SEEDS=${SEEDS:-"11 12 13"}
+SEED=${SEEDS%% *}
 VPT_DEPTH=${VPT_DEPTH:-ref}
 REF_REDO=${REF_REDO:-0}
 TIME=${TIME:-wall}
@@ -65,6 +69,17 @@ render() {
     --seed "$r_seed" "$@"
 }
 pass_secs() { sed -n 's/.*photon pass: .* in \([0-9.]*\) s on.*/\1/p' "$1" | head -1; }
+# measure SCENE OUT SPP [args]: render once per seed of SEEDS; prints "secs relRMSE lowfreq
+# errest pass_s": the mean time and photon-pass time, the RMS over the seeds of each error.
+measure() {
+  m_s=$1; m_o=$2; m_spp=$3; shift 3
+  for m_seed in $SEEDS; do
+    m_t=$(render "$m_s" "$m_o" "$m_spp" "$m_seed" "$@")
+    m_ps=$(pass_secs "$T/log")
+    echo "$m_t $("$X" relrmse "$m_o" "$REF") $("$X" relrmse "$m_o" "$REF" --box "$BOX") $("$X" errest "$m_o") ${m_ps:-0}"
+  done | awk '{ n++; t += $1; r += $2 * $2; l += $3 * $3; e += $4 * $4; p += $5 }
+    END { printf "%.4f %.9g %.9g %.9g %.4f\n", t / n, sqrt(r / n), sqrt(l / n), sqrt(e / n), p / n }'
+}
 
 # reference SCENE: sets RDIR (the cache folder holding ref.exr and ref.txt), rendering what
 # is missing.
@@ -134,16 +149,12 @@ for sc in $SCENES; do
   # at VPT's depth: max_depth bounds both methods' paths alike (docs/media.md).
   for spp in $BUDGETS; do
     echo "media: $sc: $pm, $spp spp (max_depth $vdepth)" >&2
-    t=$(render "$sc" "$T/p.exr" "$spp" "$SEED" --max-depth "$vdepth")
-    ps=$(pass_secs "$T/log")
-    echo "$pm $spp $t $("$X" relrmse "$T/p.exr" "$REF") $("$X" relrmse "$T/p.exr" "$REF" --box "$BOX") $("$X" errest "$T/p.exr") ${ps:-0}" >>"$T/rows-$sc"
+    echo "$pm $spp $(measure "$sc" "$T/p.exr" "$spp" --max-depth "$vdepth")" >>"$T/rows-$sc"
   done
   for xm in $EXTRA; do
     for spp in $BUDGETS; do
       echo "media: $sc: $xm, $spp spp (max_depth $vdepth)" >&2
-      t=$(render "$sc" "$T/p.exr" "$spp" "$SEED" --max-depth "$vdepth" --media-method "$xm")
-      ps=$(pass_secs "$T/log")
-      echo "$xm $spp $t $("$X" relrmse "$T/p.exr" "$REF") $("$X" relrmse "$T/p.exr" "$REF" --box "$BOX") $("$X" errest "$T/p.exr") ${ps:-0}" >>"$T/rows-$sc"
+      echo "$xm $spp $(measure "$sc" "$T/p.exr" "$spp" --max-depth "$vdepth" --media-method "$xm")" >>"$T/rows-$sc"
     done
   done
   # VPT: spp for the same times, from one calibration render at CAL_SPP spp.
@@ -151,8 +162,8 @@ for sc in $SCENES; do
   for t in $(awk -v m="$pm" '$1 == m {print $3}' "$T/rows-$sc"); do
     spp=$(awk -v t="$t" -v c="$tc" -v n="$CAL_SPP" 'BEGIN { s = int(n * t / c + 0.5); print s < 1 ? 1 : s }')
     echo "media: $sc: vpt, $spp spp (max_depth $vdepth)" >&2
-    t=$(render "$sc" "$T/v.exr" "$spp" "$SEED" --media-method vpt --max-depth "$vdepth")
-    echo "vpt $spp $t $("$X" relrmse "$T/v.exr" "$REF") $("$X" relrmse "$T/v.exr" "$REF" --box "$BOX") $("$X" errest "$T/v.exr") 0" >>"$T/rows-$sc"
+    set -- $(measure "$sc" "$T/v.exr" "$spp" --media-method vpt --max-depth "$vdepth")
+    echo "vpt $spp $1 $2 $3 $4 0" >>"$T/rows-$sc"
   done
   # VPT's curve must span the photon method's times, so that its ratios are interpolated,
   # not extrapolated: one more VPT render past each end it missed (the calibration is one
@@ -164,8 +175,9 @@ for sc in $SCENES; do
                    else if (e == "lo" && v > p && s > 1) { x = int(s * p / v * 0.85); print x < 1 ? 1 : x } }' "$T/rows-$sc")
     [ -n "${1:-}" ] || continue
     echo "media: $sc: vpt, $1 spp (max_depth $vdepth), to span $pm's times" >&2
-    t=$(render "$sc" "$T/v.exr" "$1" "$SEED" --media-method vpt --max-depth "$vdepth")
-    echo "vpt $1 $t $("$X" relrmse "$T/v.exr" "$REF") $("$X" relrmse "$T/v.exr" "$REF" --box "$BOX") $("$X" errest "$T/v.exr") 0" >>"$T/rows-$sc"
+    vspp=$1
+    set -- $(measure "$sc" "$T/v.exr" "$vspp" --media-method vpt --max-depth "$vdepth")
+    echo "vpt $vspp $1 $2 $3 $4 0" >>"$T/rows-$sc"
   done
   # The true error: the reference's own error removed in quadrature (the two are
   # independent, so E relRMSE^2 = true^2 + ref_rel^2); 0 where the reference's noise hides it.
