@@ -345,10 +345,11 @@ static vec3 point_lights_all(const struct render_job *job, vec3 x, vec3 d_out, u
         float d2 = v3_dot(to, to);
         if (!(d2 > 0.0f))
             continue;
-        vec3 li = v3_scale(e->emission, light_spot_falloff(l, v3_neg(to)) / d2);
+        float len = sqrtf(d2);
+        vec3 li = v3_scale(e->emission, light_spot_falloff_len(l, v3_neg(to), len) / d2);
         if (v3_is_black(li))
             continue;
-        float ph = phase_hg_cut(v3_dot(v3_scale(to, -1.0f / sqrtf(d2)), d_out), g);
+        float ph = phase_hg_cut(v3_dot(v3_scale(to, -1.0f / len), d_out), g);
         vec3 tr = media_shadow_transmittance(job->media, x, l->position, medium, time01, rng_mix64(key + i), rays);
         sum = v3_add(sum, v3_scale(v3_mul(li, tr), ph));
     }
@@ -388,7 +389,8 @@ static vec3 equiangular(const struct render_job *job, const struct rngs *r, uint
     float d2 = v3_dot(to, to);
     if (!(d2 > 0.0f) || !(pe > 0.0f))
         return v3(0, 0, 0);
-    vec3 wi = v3_scale(to, 1.0f / sqrtf(d2));
+    float len = sqrtf(d2);
+    vec3 wi = v3_scale(to, 1.0f / len);
     /* light travels along -wi, then back along -d toward the segment's origin */
     float cos_t = v3_dot(wi, fc->d);
     float ph = fc->cut ? phase_hg_cut(cos_t, fc->md->g) : phase_hg(cos_t, fc->md->g);
@@ -396,7 +398,7 @@ static vec3 equiangular(const struct render_job *job, const struct rngs *r, uint
     vec3 li, target = c;
     if (e->kind == LK_POINT) {
         /* I falloff / d^2 over the pick */
-        li = v3_scale(e->emission, light_spot_falloff(&sc->lights[e->index], v3_neg(to)) / (d2 * pick));
+        li = v3_scale(e->emission, light_spot_falloff_len(&sc->lights[e->index], v3_neg(to), len) / (d2 * pick));
     } else {
         /* L_e G / (pick / area) = L_e / (the solid-angle pdf NEE would give this point) */
         float lp = light_pdf(&job->lights, sc, i, x, c, n);
@@ -1096,10 +1098,11 @@ vec3 media_sample_path_pass(const struct render_job *job, uint32_t pass, const s
                 float d2 = v3_dot(to, to);
                 if (!(d2 > 0.0f))
                     continue;
-                vec3 wi = v3_scale(to, 1.0f / sqrtf(d2));
+                float len = sqrtf(d2);
+                vec3 wi = v3_scale(to, 1.0f / len);
                 float bpdf;
                 vec3 f = v3_dot(wi, ng) > 0.0f ? material_eval(mat, ns, wo, wi, front, &bpdf) : v3(0, 0, 0);
-                vec3 rad = v3_scale(job->lights.entries[li].emission, light_spot_falloff(l, v3_neg(to)) / d2);
+                vec3 rad = v3_scale(job->lights.entries[li].emission, light_spot_falloff_len(l, v3_neg(to), len) / d2);
                 if (v3_is_black(f) || v3_is_black(rad))
                     continue;
                 vec3 tr = media_shadow_transmittance(job->media, p_off, l->position, medium, time01,

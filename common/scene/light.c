@@ -11,18 +11,7 @@
 
 float light_spot_falloff(const struct light *l, vec3 dir)
 {
-    if (l->type != LIGHT_SPOT)
-        return 1.0f;
-    float len = v3_length(dir);
-    if (!(len > 0.0f))
-        return 0.0f;
-    float c = v3_dot(l->direction, dir) / len;
-    if (c <= l->cos_outer)
-        return 0.0f;
-    if (c >= l->cos_inner)
-        return 1.0f;
-    float x = (c - l->cos_outer) / (l->cos_inner - l->cos_outer);
-    return x * x * (3.0f - 2.0f * x);
+    return l->type != LIGHT_SPOT ? 1.0f : light_spot_falloff_len(l, dir, v3_length(dir));
 }
 
 static vec3 tri_vertex(const struct mesh *m, uint32_t prim, int k)
