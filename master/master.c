@@ -714,6 +714,7 @@ static void send_maps(struct master *m, struct peer *p)
         struct proto_msg msg = {.type = MSG_MAP};
         msg.u.map.job_id = m->job_id;
         msg.u.map.pass = pass;
+        msg.u.map.published = m->maps_published;
         msg.u.map.hash = m->maps[pass].hash;
         msg.u.map.size = m->maps[pass].size;
         if (send_to(m, p, &msg) != 0)

@@ -177,6 +177,8 @@ struct worker {
     uint64_t fetch_bytes;       /* bytes of its blobs fetched (not already cached) */
     struct pass_map *maps;      /* per pass of the job (job.photon_maps), or NULL */
     uint32_t num_maps;
+    uint32_t maps_published;    /* the most maps a MAP of this job said were published */
+    int32_t tile_pass_max;      /* the highest pass of a TILE of this job so far; -1: none */
     struct tile_task *parked;   /* units waiting for their pass's map */
     size_t num_parked, cap_parked;
     uint64_t map_wait_ms;       /* this job: ms with parked units and nothing to render */
@@ -952,6 +954,8 @@ static int on_job(struct worker *w, struct msg_job *job)
     w->have_job = 1;
     w->num_maps = job->photon_maps;
     w->maps = w->num_maps ? mem_calloc(w->num_maps, sizeof *w->maps) : NULL;
+    w->maps_published = 0;
+    w->tile_pass_max = -1;
     cache_keep_only(&w->cache, &w->job);
     w->job_at_ms = net_now_ms();
     w->fetch_bytes = 0;
@@ -1096,6 +1100,8 @@ static void on_tile(struct worker *w, const struct msg_tile *t)
     }
     struct tile_task task = {t->job_id, t->frame, t->tile, t->attempt, w->job.job_key, w->conn, t->tile % ntiles,
                              t->pass, t->mask, t->tag};
+    if ((int32_t)task.pass > w->tile_pass_max)
+        w->tile_pass_max = (int32_t)task.pass;
     if (w->num_maps && !map_ready(w, task.pass)) {
         struct pass_map *pm = &w->maps[task.pass];
         if (!pm->announced) {
@@ -1123,6 +1129,8 @@ static void on_tile(struct worker *w, const struct msg_tile *t)
  * of the same scene) the maps stay in the render job until a MAP replaces them. */
 static void maps_reset(struct worker *w, int keep_installed)
 {
+    w->maps_published = 0;
+    w->tile_pass_max = -1;
     for (uint32_t p = 0; p < w->num_maps; p++) {
         blob_recv_fini(&w->maps[p].fetch.recv);
         memset(&w->maps[p].fetch, 0, sizeof w->maps[p].fetch);
@@ -1379,6 +1387,8 @@ static int on_map(struct worker *w, const struct msg_map *mm)
     pm->hash = mm->hash;
     pm->size = mm->size;
     pm->announced = 1;
+    if (mm->published > w->maps_published)
+        w->maps_published = mm->published < w->num_maps ? mm->published : w->num_maps;
     for (size_t i = 0; i < w->num_parked; i++)
         if (w->parked[i].pass == mm->pass) {
             map_fetch_start(w, mm->pass);
@@ -1387,18 +1397,33 @@ static int on_map(struct worker *w, const struct msg_map *mm)
     return job_ready(w) ? map_install(w, mm->pass) : 0;
 }
 
-/* After the messages at hand: the newest announced map is fetched ahead of its units
- * (MAPs of earlier passes that came in the same batch, to a worker joining late, are not). */
+/* After the messages at hand: one map is fetched ahead of its units, into free room (it
+ * evicts nothing), and never a map dropped for room (fetched again only for a unit of it).
+ * Units come in pass order, so once the worker has units, that is the map of the pass after
+ * the newest it was given, when announced: the next it needs, even when the tracer is
+ * passes ahead. Before its first unit (a worker joining late) it is the newest map, once
+ * its MAP has come: the MAPs of a late join can come in pieces, and an older one is fetched
+ * only for a unit of it (its pass may be over). */
 static void maps_prefetch(struct worker *w)
 {
-    for (uint32_t p = w->num_maps; p-- > 0;)
-        if (w->maps[p].announced) {
-            /* Only into free room (it would evict nothing), and not a map dropped for room
-             * (fetched again only for a unit of it). */
-            if (!w->maps[p].evicted && maps_room(w, UINT32_MAX)) /* map_fetch_start skips a map here */
-                map_fetch_start(w, p);
+    uint32_t p = 0;
+    if (w->tile_pass_max >= 0) {
+        p = (uint32_t)w->tile_pass_max + 1;
+        if (p >= w->num_maps || !w->maps[p].announced)
             return;
-        }
+    } else {
+        uint32_t newest = w->num_maps;
+        for (uint32_t q = w->num_maps; q-- > 0;)
+            if (w->maps[q].announced) {
+                newest = q;
+                break;
+            }
+        if (newest == w->num_maps || newest + 1 < w->maps_published)
+            return;
+        p = newest;
+    }
+    if (!w->maps[p].evicted && maps_room(w, UINT32_MAX)) /* map_fetch_start skips a map here */
+        map_fetch_start(w, p);
 }
 
 static void kept_free_at(struct worker *w, size_t i)

@@ -311,10 +311,12 @@ int proto_encode(const struct proto_msg *msg, struct proto_buf *b)
     }
     case MSG_MAP: {
         const struct msg_map *m = &msg->u.map;
-        if (m->pass >= PROTO_MAX_PASSES || m->size > BLOB_MAX_SIZE)
+        if (m->pass >= PROTO_MAX_PASSES || m->size > BLOB_MAX_SIZE || m->published <= m->pass ||
+            m->published > PROTO_MAX_PASSES)
             return -1;
         put_u64(b, m->job_id);
         put_u32(b, m->pass);
+        put_u32(b, m->published);
         put_hash(b, &m->hash);
         put_u64(b, m->size);
         return 0;
@@ -654,10 +656,14 @@ int proto_decode(const uint8_t *frame, size_t size, struct proto_msg *msg, char 
         struct msg_map *m = &msg->u.map;
         m->job_id = get_u64(r, "job_id");
         m->pass = get_u32(r, "pass");
+        m->published = get_u32(r, "published");
         get_hash(r, &m->hash, "hash");
         m->size = get_u64(r, "size");
         if (!r->failed && m->pass >= PROTO_MAX_PASSES)
             fail(r, "pass %u exceeds the limit of %d passes", m->pass, PROTO_MAX_PASSES);
+        else if (!r->failed && (m->published <= m->pass || m->published > PROTO_MAX_PASSES))
+            fail(r, "published %u is not past pass %u and within the limit of %d passes", m->published, m->pass,
+                 PROTO_MAX_PASSES);
         else if (!r->failed && m->size > BLOB_MAX_SIZE)
             fail(r, "size %llu exceeds the limit of %llu", (unsigned long long)m->size,
                  (unsigned long long)BLOB_MAX_SIZE);

@@ -13,7 +13,7 @@
 #include "render/tile.h"
 
 #define PROTO_MAGIC 0x4d555242u /* "BRUM" little-endian */
-#define PROTO_VERSION 12 /* 2: HEARTBEAT carries samples_done; 3: JOB carries job_key, ACK, KEPT; 4: photon-map passes (JOB photon_maps, MAP); 5: JOB passes (passes without photon maps); 6: TILE and KEPT carry the holder's tag; 7: JOB aovs, filter; 8: TILE pass and block mask; 9: CHUNKS_REQ, CHUNKS (broadcast blobs); 10: blocks of 4 px (a TILE mask names other pixels); 11: a blob is named by the hash of its chunk list; 12: JOB embree_isa */
+#define PROTO_VERSION 13 /* 2: HEARTBEAT carries samples_done; 3: JOB carries job_key, ACK, KEPT; 4: photon-map passes (JOB photon_maps, MAP); 5: JOB passes (passes without photon maps); 6: TILE and KEPT carry the holder's tag; 7: JOB aovs, filter; 8: TILE pass and block mask; 9: CHUNKS_REQ, CHUNKS (broadcast blobs); 10: blocks of 4 px (a TILE mask names other pixels); 11: a blob is named by the hash of its chunk list; 12: JOB embree_isa; 13: MAP carries published */
 #define PROTO_MAX_MESSAGE (64u * 1024u * 1024u) /* also ZMQ_MAXMSGSIZE */
 #define PROTO_MAX_STRING 1024
 #define PROTO_MAX_ASSETS 4096
@@ -178,10 +178,14 @@ struct msg_kept {
 /* Pass `pass` (< the JOB's photon_maps) of job job_id renders with the map in blob hash,
  * of `size` bytes (<= BLOB_MAX_SIZE): a worker fetches it like any blob before it renders
  * a unit of that pass. Sent to every worker when the master has traced the map, and after
- * a JOB for every map published so far (late workers). */
+ * a JOB for every map published so far (late workers), in pass order. published: how
+ * many maps the master had published when it sent this one (pass < published <=
+ * PROTO_MAX_PASSES), so that a worker whose MAPs came in pieces knows a newer one is on
+ * its way and prefetches that one, not this. */
 struct msg_map {
     uint64_t job_id;
     uint32_t pass;
+    uint32_t published;
     struct blob_hash hash;
     uint64_t size;
 };

@@ -93,7 +93,7 @@ static int msg_eq(const struct proto_msg *a, const struct proto_msg *b)
     }
     case MSG_MAP:
         return a->u.map.job_id == b->u.map.job_id && a->u.map.pass == b->u.map.pass &&
-               hash_eq(&a->u.map.hash, &b->u.map.hash) && a->u.map.size == b->u.map.size;
+               a->u.map.published == b->u.map.published && hash_eq(&a->u.map.hash, &b->u.map.hash) && a->u.map.size == b->u.map.size;
     case MSG_CHUNKS_REQ:
         return hash_eq(&a->u.chunks_req.hash, &b->u.chunks_req.hash);
     case MSG_CHUNKS: {

@@ -39,7 +39,7 @@ int main(int argc, char **argv)
         case MSG_HEARTBEAT: m.u.heartbeat.job_id = 5; m.u.heartbeat.samples_done = 9; break;
         case MSG_ACK: m.u.ack.job_id = 5; m.u.ack.count = 3; m.u.ack.tiles[1] = 1; m.u.ack.tiles[2] = 2; break;
         case MSG_KEPT: m.u.kept.job_id = 5; m.u.kept.tile = 3; m.u.kept.chunk = bytes; m.u.kept.chunk_size = sizeof bytes; break;
-        case MSG_MAP: m.u.map.job_id = 5; m.u.map.pass = 2; m.u.map.size = 1000; break;
+        case MSG_MAP: m.u.map.job_id = 5; m.u.map.pass = 2; m.u.map.published = 3; m.u.map.size = 1000; break;
         case MSG_CHUNKS_REQ: m.u.chunks_req.hash.bytes[0] = 9; break;
         case MSG_CHUNKS: /* a blob of one chunk and a bit: two hashes (48 bytes of `bytes` and 16 more) */
             m.u.chunks.size = BLOB_CHUNK_SIZE + 1; m.u.chunks.flags = PROTO_CHUNKS_BCAST; m.u.chunks.bcast_port = 5556;

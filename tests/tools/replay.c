@@ -150,6 +150,7 @@ static void sample(enum proto_type t, uint64_t job_id, uint32_t variant, struct 
     case MSG_MAP:
         m->u.map.job_id = job_id;
         m->u.map.pass = variant % 4;
+        m->u.map.published = 4;
         m->u.map.hash.bytes[0] = (uint8_t)variant;
         m->u.map.size = 64;
         break;

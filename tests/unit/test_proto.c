@@ -128,6 +128,7 @@ static size_t make_samples(struct proto_msg out[MSG_TYPE_MAX_])
     out[n].type = MSG_MAP;
     out[n].u.map.job_id = 0x0102030405060708ull;
     out[n].u.map.pass = PROTO_MAX_PASSES - 1;
+    out[n].u.map.published = PROTO_MAX_PASSES;
     out[n].u.map.hash = make_hash(33);
     out[n].u.map.size = 0x00000000f1e2d3c4ull;
     n++;
@@ -294,6 +295,7 @@ static void assert_msg_eq(const struct proto_msg *a, const struct proto_msg *b)
     case MSG_MAP:
         cr_assert_eq(a->u.map.job_id, b->u.map.job_id);
         cr_assert_eq(a->u.map.pass, b->u.map.pass);
+        cr_assert_eq(a->u.map.published, b->u.map.published);
         assert_hash_eq(&a->u.map.hash, &b->u.map.hash);
         cr_assert_eq(a->u.map.size, b->u.map.size);
         break;
@@ -834,13 +836,14 @@ Test(proto, ack_and_kept_limits)
     proto_buf_fini(&b);
 }
 
-/* MAP: a pass or size beyond the limits never reaches the worker; JOB: photon_maps must
- * be at most PROTO_MAX_PASSES and divide spp. */
+/* MAP: a pass, a published count or a size beyond the limits never reaches the worker;
+ * JOB: photon_maps must be at most PROTO_MAX_PASSES and divide spp. */
 Test(proto, map_and_passes_limits)
 {
     struct fb f = {0};
     fb_header(&f, MSG_MAP);
     fb_u(&f, 1, 8);
+    fb_u(&f, PROTO_MAX_PASSES, 4);
     fb_u(&f, PROTO_MAX_PASSES, 4);
     fb_fill(&f, 0, BLOB_HASH_SIZE);
     fb_u(&f, 10, 8);
@@ -849,10 +852,22 @@ Test(proto, map_and_passes_limits)
     fb_header(&f, MSG_MAP);
     fb_u(&f, 1, 8);
     fb_u(&f, 3, 4);
+    fb_u(&f, 4, 4);
     fb_fill(&f, 0, BLOB_HASH_SIZE);
     fb_u(&f, BLOB_MAX_SIZE + 1, 8);
     err = expect_reject(f.d, f.n);
     cr_assert(strstr(err, "size") && strstr(err, "limit"), "%s", err);
+    const uint32_t bad_published[] = {0, 3, PROTO_MAX_PASSES + 1}; /* not past pass 3, or past the limit */
+    for (int i = 0; i < 3; i++) {
+        fb_header(&f, MSG_MAP);
+        fb_u(&f, 1, 8);
+        fb_u(&f, 3, 4);
+        fb_u(&f, bad_published[i], 4);
+        fb_fill(&f, 0, BLOB_HASH_SIZE);
+        fb_u(&f, 10, 8);
+        err = expect_reject(f.d, f.n);
+        cr_assert(strstr(err, "published"), "%s", err);
+    }
     free(f.d);
     struct proto_msg m = {.type = MSG_JOB};
     struct proto_buf b = {0};
