@@ -953,9 +953,8 @@ static int on_job(struct worker *w, struct msg_job *job)
     w->job = *job;   /* takes ownership of the asset array */
     w->have_job = 1;
     w->num_maps = job->photon_maps;
+    /* (unload_job's maps_reset cleared the job's map counters) */
     w->maps = w->num_maps ? mem_calloc(w->num_maps, sizeof *w->maps) : NULL;
-    w->maps_published = 0;
-    w->tile_pass_max = -1;
     cache_keep_only(&w->cache, &w->job);
     w->job_at_ms = net_now_ms();
     w->fetch_bytes = 0;
