@@ -494,7 +494,7 @@ static vec3 march_segment(const struct render_job *job, const struct media_job *
     /* Jittered steps estimate the integral without bias at any dx: after the first vertex
      * (paths already spread over the hemisphere) four times longer steps cost less for
      * the same image variance. */
-    const float nee_step = vertex == 0 ? media_step(mj, md) : 4.0f * media_step(mj, md);
+    const float step = media_step(mj, md), nee_step = vertex == 0 ? step : 4.0f * step;
     float dx = medium_march_step(md, nee_step);
     float span = c1 - c0;
     if (span / dx > (float)(het ? TAU_TABLE - 2 : MAX_STEPS))
