@@ -539,6 +539,7 @@ vec3 photon_map_gather_knn(const struct photon_map *m, vec3 x, vec3 d_out, float
 #define BEAM_FLAT_PER_PHOTON 4u
 #define BEAM_FLAT_CELLS 65536u
 #define BEAM_LINEAR 16u
+#define BEAM_X_PAD 3u /* floats past the last photon's x: the four-at-a-time scan's loads */
 /* Rounding slack, relative to the coordinates' largest magnitude s (ray origin, photons'
  * box): a photon the acceptance test takes (float arithmetic) is within r + about 20
  * epsilons x |p - o| of the ray; the walk pads r by 2 BEAM_SLACK s, over 130 epsilons x s. */
@@ -736,7 +737,9 @@ static struct photon_beam_grid *beam_grid_build(const struct photon_map *m, int 
         idx[i] = i;
     }
     beam_sort(key, idx, n); /* by row (z, y cells), then x, then index */
-    g->x = mem_alloc(sizeof *g->x * n);
+    g->x = mem_alloc(sizeof *g->x * ((size_t)n + BEAM_X_PAD)); /* the scan's loads pass a row's end */
+    for (uint32_t k = 0; k < BEAM_X_PAD; k++)
+        g->x[(size_t)n + k] = INFINITY;
     g->y = mem_alloc(sizeof *g->y * n);
     g->z = mem_alloc(sizeof *g->z * n);
     const float *const a[3] = {g->x, g->y, g->z};
@@ -939,9 +942,21 @@ static void beam_walk(const struct photon_map *m, const struct photon_beam_grid 
             if (!beam_row_range(g, cy, cz, &l, &end))
                 continue;
             float xa = o.x + d.x * ra, xb = o.x + d.x * rb, xlo = beam_min(xa, xb) - e, xhi = beam_max(xa, xb) + e;
-            if (end - l <= BEAM_LINEAR) { /* the first photon of the row at x >= xlo */
-                while (l < end && xs[l] < xlo)
-                    l++;
+            if (end - l <= BEAM_LINEAR) {
+                /* The first photon of the row at x >= xlo: the row is sorted by x, so it
+                 * comes after the photons below xlo, counted four at a time (the loads
+                 * may pass the row's end: those lanes are masked, and g->x is padded). */
+                const __m128 lo4 = _mm_set1_ps(xlo);
+                uint32_t n = end - l, below = 0;
+                for (uint32_t j = 0; j < n; j += 4) {
+                    int mk = _mm_movemask_ps(_mm_cmplt_ps(_mm_loadu_ps(xs + l + j), lo4));
+                    if (n - j < 4)
+                        mk &= (1 << (n - j)) - 1;
+                    below += (uint32_t)__builtin_popcount((unsigned)mk);
+                    if (mk != 0xf)
+                        break;
+                }
+                l += below;
             } else {
                 for (uint32_t h = end; l < h;) {
                     uint32_t mid = l + (h - l) / 2;
