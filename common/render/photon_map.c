@@ -528,7 +528,8 @@ vec3 photon_map_gather_knn(const struct photon_map *m, vec3 x, vec3 d_out, float
  * (y, z) cell where the grid has at most BEAM_FLAT_PER_PHOTON cells per photon plus
  * BEAM_FLAT_CELLS, else (sparse or huge grids) in a hash table of the rows that hold
  * photons. The records are separate arrays in row order: x alone for the search within a
- * row (a linear scan for rows of at most BEAM_LINEAR photons, else a binary search), then
+ * row (for rows of at most BEAM_LINEAR photons a count, four at a time, of those below the
+ * interval; else a binary search), then
  * y, z and depth, read for the photons within the row's x interval, and a copy of the
  * decoded direction and power, read only for the photons accepted (in row order, so a
  * row's accepted photons share cache lines). The rows cost 38 bytes a photon
