@@ -162,8 +162,7 @@ for sc in $SCENES; do
   for t in $(awk -v m="$pm" '$1 == m {print $3}' "$T/rows-$sc"); do
     spp=$(awk -v t="$t" -v c="$tc" -v n="$CAL_SPP" 'BEGIN { s = int(n * t / c + 0.5); print s < 1 ? 1 : s }')
     echo "media: $sc: vpt, $spp spp (max_depth $vdepth)" >&2
-    set -- $(measure "$sc" "$T/v.exr" "$spp" --media-method vpt --max-depth "$vdepth")
-    echo "vpt $spp $1 $2 $3 $4 0" >>"$T/rows-$sc"
+    echo "vpt $spp $(measure "$sc" "$T/v.exr" "$spp" --media-method vpt --max-depth "$vdepth")" >>"$T/rows-$sc"
   done
   # VPT's curve must span the photon method's times, so that its ratios are interpolated,
   # not extrapolated: one more VPT render past each end it missed (the calibration is one
@@ -175,9 +174,7 @@ for sc in $SCENES; do
                    else if (e == "lo" && v > p && s > 1) { x = int(s * p / v * 0.85); print x < 1 ? 1 : x } }' "$T/rows-$sc")
     [ -n "${1:-}" ] || continue
     echo "media: $sc: vpt, $1 spp (max_depth $vdepth), to span $pm's times" >&2
-    vspp=$1
-    set -- $(measure "$sc" "$T/v.exr" "$vspp" --media-method vpt --max-depth "$vdepth")
-    echo "vpt $vspp $1 $2 $3 $4 0" >>"$T/rows-$sc"
+    echo "vpt $1 $(measure "$sc" "$T/v.exr" "$1" --media-method vpt --max-depth "$vdepth")" >>"$T/rows-$sc"
   done
   # The true error: the reference's own error removed in quadrature (the two are
   # independent, so E relRMSE^2 = true^2 + ref_rel^2); 0 where the reference's noise hides it.
