@@ -109,6 +109,7 @@ static void *check_thread(void *arg)
         if (it->kind == CHECK_FOLD) {
             fold_run(c->ctx.fold, it->units, &scratch, &scratch_size, it->pixels, &it->stats);
             fold_units_free(&it->units);
+            fold_est_tile_sums(&c->ctx.out_desc, it->unit, it->pixels, &it->est);
             encode_item(c, it, &enc, &enc_gen, gen);
         } else if (it->kind == CHECK_ENCODE) {
             encode_item(c, it, &enc, &enc_gen, gen);
@@ -117,6 +118,12 @@ static void *check_thread(void *arg)
                                       sizeof it->err);
             if (it->verdict == 1 && c->ctx.journal)
                 it->record = journal_record(it->unit, &it->stats, it->chunk, it->chunk_size, &it->record_size);
+            if (it->verdict == 1 && c->ctx.keep_units) {
+                /* The copy the fold keeps until the tile's last unit (its page faults here, not in the loop). */
+                size_t n = fold_unit_floats(c->ctx.fold, it->unit % c->ctx.num_tiles);
+                it->keep = mem_alloc(sizeof(float) * (n ? n : 1));
+                memcpy(it->keep, it->pixels, sizeof(float) * n);
+            }
         }
         pthread_mutex_lock(&c->mu);
         c->checking--;
@@ -232,6 +239,8 @@ void checker_item_free(struct checker *c, struct check_item *it)
     fold_units_free(&it->units);
     free(it->record);
     it->record = NULL;
+    free(it->keep);
+    it->keep = NULL;
     it->next = c->free_items;
     c->free_items = it;
 }

@@ -4,7 +4,9 @@
  * pool the loop submits a RESULT and takes its verdict later, in any order, and decides
  * then, against the scheduler's state at that time, whether it still counts (master.c).
  * The pool also builds the journal record of a sane chunk, so the loop only appends it,
- * and folds and encodes the master's multi-pass tiles (CHECK_FOLD, CHECK_ENCODE items). The loop's side batches:
+ * copies a multi-pass unit's pixels for the fold to keep (keep_units), and folds and
+ * encodes the master's multi-pass tiles (CHECK_FOLD, CHECK_ENCODE items) with the error
+ * estimate's sums of each. The loop's side batches:
  * items submitted in a pass reach the threads together (one lock, one wake-up) at its next
  * checker_take, checker_flush or checker_wait_idle, and checker_take takes every ready
  * verdict under one lock. The context (layout, counts) changes only while the pool is idle
@@ -27,6 +29,8 @@ struct check_ctx {
     int journal;              /* the pool also builds a sane chunk's journal record (journal_record) */
     struct image_desc out_desc; /* the layout CHECK_ENCODE items are encoded in (the folded tiles') */
     const struct fold *fold;  /* what CHECK_FOLD items fold with (fold_run: its settings only) */
+    int keep_units;           /* a sane RESULT's pixels are also copied into keep, exactly its unit's values
+                               * (fold_unit_floats of fold), for the loop to hand to fold_add_take_own */
 };
 
 /* Decodes unit's chunk into out (tile_size^2 x desc.num_channels floats) and checks it.
@@ -60,6 +64,8 @@ struct check_item {
     int verdict;              /* chunk_check's */
     uint8_t *record;          /* with ctx.journal and a sane chunk: its journal record, record_size bytes */
     struct fold_units *units; /* CHECK_FOLD: taken over (freed by the pool) */
+    float *keep;              /* with ctx.keep_units, a sane CHECK_RESULT's copy of its pixels (or NULL) */
+    struct fold_est_sums est; /* CHECK_FOLD: the folded tile's sums for the error estimate */
     size_t record_size;
     char err[256];
     struct check_item *next;

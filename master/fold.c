@@ -200,13 +200,18 @@ uint32_t fold_add_unit(struct fold *f, uint32_t tile, uint32_t pass, const float
     return fold_add_slot(f, tile, pass, pass, TILE_MASK_ALL, px);
 }
 
-/* Keeps a copy of a unit that is not folded now. */
+/* Keeps a unit that is not folded now: px copied, or own (px's values, exactly the
+ * tile's pixels of the units' channels) taken over. */
 static void keep_early(const struct fold *f, struct fold_tile *t, size_t pixels, uint32_t slot, uint32_t pass,
-                       uint64_t mask, const float *px)
+                       uint64_t mask, const float *px, float *own)
 {
     CHECK(slot >= t->folded && !t->early[slot].px);
-    t->early[slot].px = mem_alloc(sizeof(float) * pixels * f->lay.num_channels);
-    memcpy(t->early[slot].px, px, sizeof(float) * pixels * f->lay.num_channels);
+    if (own)
+        t->early[slot].px = own;
+    else {
+        t->early[slot].px = mem_alloc(sizeof(float) * pixels * f->lay.num_channels);
+        memcpy(t->early[slot].px, px, sizeof(float) * pixels * f->lay.num_channels);
+    }
     t->early[slot].pass = pass;
     t->early[slot].mask = mask;
 }
@@ -223,7 +228,7 @@ uint32_t fold_add_slot(struct fold *f, uint32_t tile, uint32_t slot, uint32_t pa
         fold_aovs_start(f, t, pixels);
     }
     if (slot != t->folded) {
-        keep_early(f, t, pixels, slot, pass, mask, px);
+        keep_early(f, t, pixels, slot, pass, mask, px, NULL);
     } else {
         fold_pass(f, tile, t, pixels, pass, mask, px);
     }
@@ -271,14 +276,19 @@ struct fold_units {
     struct fold_early unit[];   /* per slot: a copy of its pixels, its pass and blocks */
 };
 
-struct fold_units *fold_add_take(struct fold *f, uint32_t tile, uint32_t pass, const float *px)
+size_t fold_unit_floats(const struct fold *f, uint32_t tile)
+{
+    return tile_pixels(f, tile) * f->lay.num_channels;
+}
+
+static struct fold_units *add_take(struct fold *f, uint32_t tile, uint32_t pass, const float *px, float *own)
 {
     CHECK(tile < f->num_tiles && pass < f->passes);
     struct fold_tile *t = &f->tiles[tile];
     CHECK(!t->final && !t->acc);
     if (!t->early)
         t->early = mem_calloc(f->passes, sizeof *t->early);
-    keep_early(f, t, tile_pixels(f, tile), pass, pass, TILE_MASK_ALL, px);
+    keep_early(f, t, tile_pixels(f, tile), pass, pass, TILE_MASK_ALL, px, own);
     if (++t->in < f->passes)
         return NULL;
     struct fold_units *u = mem_alloc(sizeof *u + f->passes * sizeof u->unit[0]);
@@ -290,6 +300,18 @@ struct fold_units *fold_add_take(struct fold *f, uint32_t tile, uint32_t pass, c
     t->folded = f->passes;
     t->final = 1;
     return u;
+}
+
+struct fold_units *fold_add_take(struct fold *f, uint32_t tile, uint32_t pass, const float *px)
+{
+    return add_take(f, tile, pass, px, NULL);
+}
+
+struct fold_units *fold_add_take_own(struct fold *f, uint32_t tile, uint32_t pass, float **px)
+{
+    float *own = *px;
+    *px = NULL;
+    return add_take(f, tile, pass, own, own);
 }
 
 void fold_run(const struct fold *f, struct fold_units *u, void **scratch, size_t *scratch_size, float *out,
@@ -454,20 +476,36 @@ void fold_est_free(struct fold_est **ep)
     *ep = NULL;
 }
 
-void fold_est_add(struct fold_est *e, uint32_t tile, const float *px)
+void fold_est_tile_sums(const struct image_desc *desc, uint32_t tile, const float *px, struct fold_est_sums *out)
 {
-    CHECK(tile < e->num_tiles && !e->given[tile]);
-    e->given[tile] = 1;
-    size_t pixels = desc_tile_pixels(&e->desc, e->tiles_x, tile), nc = e->desc.num_channels;
+    size_t pixels = desc_tile_pixels(desc, imgio_tiles_x(desc), tile), nc = desc->num_channels;
     double sv = 0.0, sm = 0.0;
+    uint64_t saturated = 0;
     for (size_t i = 0; i < pixels; i++) {
         const float *p = &px[i * nc];
         sv += ((double)p[CH_VAR_R] + p[CH_VAR_G] + p[CH_VAR_B]) / 3.0;
         sm += ((double)p[CH_R] + p[CH_G] + p[CH_B]) / 3.0;
-        e->saturated += p[CH_VAR_R] == FLT_MAX || p[CH_VAR_G] == FLT_MAX || p[CH_VAR_B] == FLT_MAX;
+        saturated += p[CH_VAR_R] == FLT_MAX || p[CH_VAR_G] == FLT_MAX || p[CH_VAR_B] == FLT_MAX;
     }
-    e->sums[tile][0] = sv;
-    e->sums[tile][1] = sm;
+    out->var = sv;
+    out->mean = sm;
+    out->saturated = saturated;
+}
+
+void fold_est_put(struct fold_est *e, uint32_t tile, const struct fold_est_sums *sums)
+{
+    CHECK(tile < e->num_tiles && !e->given[tile]);
+    e->given[tile] = 1;
+    e->saturated += sums->saturated;
+    e->sums[tile][0] = sums->var;
+    e->sums[tile][1] = sums->mean;
+}
+
+void fold_est_add(struct fold_est *e, uint32_t tile, const float *px)
+{
+    struct fold_est_sums s;
+    fold_est_tile_sums(&e->desc, tile, px, &s);
+    fold_est_put(e, tile, &s);
 }
 
 double fold_est_result(const struct fold_est *e, uint64_t *saturated)

@@ -57,6 +57,11 @@ void fold_finish(struct fold *f, uint32_t tile, float *out, struct tile_stats *s
  * on with other tiles. fold_units_free frees the units (NULL is fine). */
 struct fold_units;
 struct fold_units *fold_add_take(struct fold *f, uint32_t tile, uint32_t pass, const float *px);
+/* fold_add_take with *px taken over instead of copied (set to NULL): a buffer of
+ * malloc'ed floats holding exactly the unit's values, fold_unit_floats(f, tile) of them
+ * (the checker pool makes it beside its decode, so the loop copies nothing). */
+struct fold_units *fold_add_take_own(struct fold *f, uint32_t tile, uint32_t pass, float **px);
+size_t fold_unit_floats(const struct fold *f, uint32_t tile);
 void fold_run(const struct fold *f, struct fold_units *u, void **scratch, size_t *scratch_size, float *out,
               struct tile_stats *stats);
 uint32_t fold_units_tile(const struct fold_units *u);
@@ -97,6 +102,14 @@ void fold_est_free(struct fold_est **e);
 void fold_est_reset(struct fold_est *e);
 /* Tile's final pixels: its w*h pixels of desc->num_channels (desc as given to fold_est_new). */
 void fold_est_add(struct fold_est *e, uint32_t tile, const float *px);
+/* fold_est_add in two steps, the sums on any thread (the checker pool's, for the tiles it
+ * folds) and the put on the loop's: the same bits. */
+struct fold_est_sums {
+    double var, mean;
+    uint64_t saturated;
+};
+void fold_est_tile_sums(const struct image_desc *desc, uint32_t tile, const float *px, struct fold_est_sums *out);
+void fold_est_put(struct fold_est *e, uint32_t tile, const struct fold_est_sums *sums);
 /* The estimate over the tiles given so far (0 for none or a black image); *saturated: their
  * pixels whose variance channel is FLT_MAX (past float's range). */
 double fold_est_result(const struct fold_est *e, uint64_t *saturated);

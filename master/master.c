@@ -203,6 +203,8 @@ struct master {
     struct fold_est *est;       /* its sums, fed each final tile's pixels as they are decoded or folded */
     uint64_t var_saturated;     /* its pixels whose variance channel is saturated (tile_variance_value) */
     float *decode_scratch;
+    float *decode_keep;         /* the checked unit's copy for the fold (check_item.keep), while
+                                 * result_verdict decides on it; NULL when the loop decoded */
     struct check_ctx check_ctx; /* what chunks of this frame must be (chunk_check) */
     struct checker *checker;    /* checks RESULT chunks off the loop (--check-threads), or NULL: in the loop */
     char ipc_dir[256];
@@ -1368,8 +1370,8 @@ static int adapt_round_end(struct master *m)
  * the frame over instead of copying the chunk); with several it is folded (fold.h), and
  * once the tile's last pass is in (adaptive: once the rounds end), the folded tile is
  * encoded as the tile's chunk. With the checker pool a uniform render's tile is folded
- * and encoded there (CHECK_FOLD: the loop only copies each unit's pixels until the
- * last). */
+ * and encoded there (CHECK_FOLD), and each unit's pixels are copied there too
+ * (decode_keep, which the loop keeps until the tile's last): the loop copies nothing. */
 static int unit_keep(struct master *m, uint32_t unit, const struct tile_stats *st, const uint8_t *chunk,
                      size_t chunk_size, struct net_payload **held)
 {
@@ -1418,7 +1420,8 @@ static int unit_keep(struct master *m, uint32_t unit, const struct tile_stats *s
     /* Every tile gets all its passes, and nobody reads an unfinished tile's sums: its units
      * are kept until its last is in, then folded (fold_add_take), by the pool if there is
      * one, which also encodes the tile. */
-    struct fold_units *u = fold_add_take(m->fold, tile, unit_pass(m, unit), m->decode_scratch);
+    struct fold_units *u = m->decode_keep ? fold_add_take_own(m->fold, tile, unit_pass(m, unit), &m->decode_keep)
+                                          : fold_add_take(m->fold, tile, unit_pass(m, unit), m->decode_scratch);
     if (!u)
         return 0;
     if (m->checker) {
@@ -1678,8 +1681,8 @@ static void result_checked(struct master *m, struct check_item *it)
             master_fail(m, "%s", it->err);
             return;
         }
-        if (it->kind == CHECK_FOLD) { /* folded there: its pixels and relative errors */
-            fold_est_add(m->est, it->unit, it->pixels);
+        if (it->kind == CHECK_FOLD) { /* folded there: its error sums and relative errors */
+            fold_est_put(m->est, it->unit, &it->est);
             tile_stats_add(&m->stats, &it->stats);
         }
         m->chunks[it->unit].data = it->record;
@@ -1701,8 +1704,12 @@ static void result_checked(struct master *m, struct check_item *it)
     it->pixels = px;
     uint8_t *record = it->record; /* result_verdict takes it over */
     it->record = NULL;
+    m->decode_keep = it->keep; /* unit_keep takes it over, if it keeps the unit */
+    it->keep = NULL;
     result_verdict(m, pi, it->unit, it->job_id, it->frame, &it->stats, it->chunk, it->chunk_size, it->verdict,
                    it->err, record, it->record_size, &it->payload);
+    free(m->decode_keep);
+    m->decode_keep = NULL;
 }
 
 /* Takes every verdict the pool has ready (wait: first every one still being checked). */
@@ -2494,7 +2501,8 @@ static int frame_begin(struct master *m, uint32_t frames_started)
                                       .num_objects = m->scene.num_meshes + m->scene.num_spheres,
                                       .num_materials = m->scene.num_materials,
                                       .journal = !o->no_journal && !o->only_tiles,
-                                      .out_desc = m->fold ? m->out_desc : m->desc, .fold = m->fold};
+                                      .out_desc = m->fold ? m->out_desc : m->desc, .fold = m->fold,
+                                      .keep_units = m->passes > 1 && m->fold && !m->adapt};
     if (m->checker) /* idle: the last frame drained it */
         checker_set_ctx(m->checker, &m->check_ctx,
                         (size_t)m->scene.settings.tile_size * m->scene.settings.tile_size * FOLD_MAX_CHANNELS);

@@ -11,6 +11,7 @@
 #include "master/check.h"
 #include "master/fold.h"
 #include "master/journal.h"
+#include "render/integrator.h"
 
 static void make_ctx(struct check_ctx *c, uint32_t passes)
 {
@@ -114,6 +115,54 @@ Test(check, pool_returns_every_item_with_its_verdict)
     cr_assert_eq(checker_pending(k), 0);
     checker_free(&k);
     cr_assert_null(k);
+}
+
+/* With keep_units (a multi-pass render's fold), each sane RESULT comes back with a copy
+ * of exactly its unit's decoded values for fold_add_take_own; others without one. */
+Test(check, pool_copies_the_units_the_fold_keeps)
+{
+    struct check_ctx c;
+    make_ctx(&c, 2);
+    struct fold *f = fold_new(&c.desc, 2, 1, SAMPLER_STREAMS);
+    c.fold = f;
+    c.keep_units = 1;
+    struct checker *k = checker_new(2);
+    checker_set_ctx(k, &c, 64 * FOLD_MAX_CHANNELS);
+    enum { N = 2 * 6 };
+    uint8_t *chunks[N];
+    for (uint32_t i = 0; i < N; i++) {
+        struct check_item *it = checker_item_new(k);
+        size_t n;
+        it->unit = i; /* tile i % 6, pass i / 6: edge tiles have fewer pixels */
+        it->peer = (int32_t)i;
+        it->chunk = chunks[i] = chunk_of(&c, i % c.num_tiles, i == 7 ? NAN : 0.25f, &n);
+        it->chunk_size = (uint32_t)n;
+        checker_submit(k, it);
+    }
+    checker_wait_idle(k);
+    struct check_item *it;
+    uint32_t kept = 0;
+    while ((it = checker_take(k))) {
+        uint32_t i = (uint32_t)it->peer, t = i % c.num_tiles;
+        if (i == 7) {
+            cr_assert_eq(it->verdict, -1);
+            cr_assert_null(it->keep, "nothing kept of a refused chunk");
+        } else {
+            cr_assert_eq(it->verdict, 1, "%s", it->err);
+            cr_assert_not_null(it->keep);
+            uint32_t x0, y0, w, h;
+            imgio_tile_rect(&c.desc, t % imgio_tiles_x(&c.desc), t / imgio_tiles_x(&c.desc), &x0, &y0, &w, &h);
+            size_t nf = fold_unit_floats(f, t);
+            cr_assert_eq(nf, (size_t)w * h * c.desc.num_channels);
+            cr_assert_eq(memcmp(it->keep, it->pixels, sizeof(float) * nf), 0, "unit %u: the decoded values", i);
+            kept++;
+        }
+        checker_item_free(k, it); /* frees what the loop did not take over */
+        free(chunks[i]);
+    }
+    cr_assert_eq(kept, N - 1);
+    checker_free(&k);
+    fold_free(&f);
 }
 
 /* Encodes tile t of layout d from px in this thread, for comparison. */

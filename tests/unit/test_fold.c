@@ -57,7 +57,9 @@ static void fold_in_order(const struct image_desc *d, const uint32_t *order, flo
     cr_assert_null(f);
 }
 
-/* The master's pool way: fold_add_take, then fold_run of each tile's units with one scratch. */
+/* The master's pool way: fold_add_take (every other unit as a buffer taken over,
+ * fold_add_take_own, as the checker pool hands them), then fold_run of each tile's units
+ * with one scratch. */
 static void fold_taken(const struct image_desc *d, const uint32_t *order, float *out, struct tile_stats *st)
 {
     struct fold *f = fold_new(d, PASSES, 3, SAMPLER_STREAMS);
@@ -71,7 +73,16 @@ static void fold_taken(const struct image_desc *d, const uint32_t *order, float 
         uint32_t x0, y0, w, h;
         imgio_tile_rect(d, t % imgio_tiles_x(d), t / imgio_tiles_x(d), &x0, &y0, &w, &h);
         pass_pixels(t, p, (size_t)w * h, px);
-        struct fold_units *fu = fold_add_take(f, t, p, px);
+        struct fold_units *fu;
+        if (i % 2) {
+            size_t n = fold_unit_floats(f, t);
+            cr_assert_eq(n, (size_t)w * h * TILE_NUM_CHANNELS, "a unit's values: its tile's pixels x channels");
+            float *own = malloc(sizeof(float) * n);
+            memcpy(own, px, sizeof(float) * n);
+            fu = fold_add_take_own(f, t, p, &own);
+            cr_assert_null(own, "taken over");
+        } else
+            fu = fold_add_take(f, t, p, px);
         if (fu) {
             cr_assert_eq(fold_units_tile(fu), t);
             fold_run(f, fu, &scratch, &scratch_size, out + (size_t)t * 16 * FOLD_NUM_CHANNELS, st);
@@ -242,7 +253,12 @@ Test(fold, error_estimate_has_the_same_bits_for_any_tile_order)
         fold_est_reset(e);
         for (uint32_t i = 0; i < tiles; i++)
             if (order[i] != missing) {
-                fold_est_add(e, order[i], px[order[i]]);
+                if (trial % 4 >= 2) { /* the checker pool's way: the sums there, the put in the loop */
+                    struct fold_est_sums sums;
+                    fold_est_tile_sums(&d, order[i], px[order[i]], &sums);
+                    fold_est_put(e, order[i], &sums);
+                } else
+                    fold_est_add(e, order[i], px[order[i]]);
                 given[order[i]] = 1;
             }
         double want = est_reference(&d, given, (const float *const *)px);
@@ -262,6 +278,9 @@ Test(fold, error_estimate_has_the_same_bits_for_any_tile_order)
     }
     fold_est_result(e, &sat);
     cr_assert_eq(sat, 1u);
+    struct fold_est_sums s5;
+    fold_est_tile_sums(&d, 5, px[5], &s5);
+    cr_assert_eq(s5.saturated, 1u, "the pool's sums count it too");
     fold_est_reset(e);
     memset(px[5], 0, sizeof(float) * 64 * d.num_channels);
     for (uint32_t t = 0; t < tiles; t++)
