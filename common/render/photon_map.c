@@ -786,7 +786,7 @@ static size_t beam_grid_bytes(const struct photon_beam_grid *g, uint32_t n)
         return 0;
     struct beam_grid_sizes z = beam_grid_sizes(g, n);
     return sizeof *g + (size_t)n * (3 * sizeof *g->x + sizeof *g->depth + sizeof *g->dec) +
-           z.row_starts * sizeof *g->row_start + z.slots * sizeof *g->rows;
+           BEAM_X_PAD * sizeof *g->x + z.row_starts * sizeof *g->row_start + z.slots * sizeof *g->rows;
 }
 
 size_t photon_map_bytes(const struct photon_map *m)
