@@ -1,7 +1,9 @@
 /* The tile scheduler (see sched.h): pure state, no I/O, no clock, so every fault-tolerance
  * rule can be driven event by event in unit tests. Invariant kept by every function: a
  * worker's in_flight equals the number of tiles that list it as a holder (zero once it is
- * gone), and a queued tile has no holders. Called by master/master.c. */
+ * gone), a queued tile has no holders, and qpos gives each queued tile's place in
+ * queue_buf (the queue is a window there, so nothing moves when a tile leaves from the
+ * front or comes back to either end). Called by master/master.c. */
 #include "sched.h"
 #include "base/log.h"
 #include <signal.h>
@@ -13,7 +15,12 @@ struct sched *sched_new(uint32_t num_tiles)
     struct sched *s = mem_calloc(1, sizeof *s);
     s->num_tiles = num_tiles;
     s->tiles = mem_calloc(num_tiles ? num_tiles : 1, sizeof *s->tiles);
-    s->queue = mem_calloc(num_tiles ? num_tiles : 1, sizeof *s->queue);
+    s->q_cap = 2 * num_tiles + 2;
+    s->queue_buf = mem_calloc(s->q_cap, sizeof *s->queue_buf);
+    s->queue = s->queue_buf + s->q_cap / 2;
+    s->qpos = mem_alloc((num_tiles ? num_tiles : 1) * sizeof *s->qpos);
+    for (uint32_t t = 0; t < num_tiles; t++)
+        s->qpos[t] = SCHED_NOT_QUEUED;
     s->failed_tile = -1;
     s->released = num_tiles;
     return s;
@@ -25,7 +32,8 @@ void sched_free(struct sched **sp)
     if (!s)
         return;
     free(s->tiles);
-    free(s->queue);
+    free(s->queue_buf);
+    free(s->qpos);
     free(s->workers);
     free(s);
     *sp = NULL;
@@ -38,8 +46,11 @@ void sched_frame_begin(struct sched *s)
     s->failed_tile = -1;
     s->q_count = 0;
     s->released = s->num_tiles;
-    for (uint32_t t = 0; t < s->num_tiles; t++)
+    s->queue = s->queue_buf + 1; /* room for the tiles that come back to the front */
+    for (uint32_t t = 0; t < s->num_tiles; t++) {
+        s->qpos[t] = (uint32_t)(s->queue - s->queue_buf) + s->q_count;
         s->queue[s->q_count++] = t;
+    }
     for (uint32_t i = 0; i < s->num_workers; i++) {
         struct sched_worker *w = &s->workers[i];
         w->ready = 0;
@@ -54,11 +65,31 @@ void sched_release(struct sched *s, uint32_t limit)
     s->released = limit < s->num_tiles ? limit : s->num_tiles;
 }
 
+/* Moves the queue's window to the middle of its room (when an end is reached). */
+static void queue_recenter(struct sched *s)
+{
+    uint32_t *to = s->queue_buf + (s->q_cap - s->q_count) / 2;
+    memmove(to, s->queue, sizeof *s->queue * s->q_count);
+    s->queue = to;
+    for (uint32_t i = 0; i < s->q_count; i++)
+        s->qpos[to[i]] = (uint32_t)(to - s->queue_buf) + i;
+}
+
+static void queue_push_back(struct sched *s, uint32_t tile)
+{
+    if (s->queue + s->q_count == s->queue_buf + s->q_cap)
+        queue_recenter(s);
+    s->qpos[tile] = (uint32_t)(s->queue - s->queue_buf) + s->q_count;
+    s->queue[s->q_count++] = tile;
+}
+
 void sched_hold_all(struct sched *s)
 {
     for (uint32_t t = 0; t < s->num_tiles; t++)
-        if (s->tiles[t].state == SCHED_QUEUED)
+        if (s->tiles[t].state == SCHED_QUEUED) {
             s->tiles[t].state = SCHED_HELD;
+            s->qpos[t] = SCHED_NOT_QUEUED;
+        }
     s->q_count = 0;
 }
 
@@ -67,7 +98,7 @@ int sched_unhold(struct sched *s, uint32_t tile)
     if (s->tiles[tile].state != SCHED_HELD)
         return -1;
     s->tiles[tile].state = SCHED_QUEUED;
-    s->queue[s->q_count++] = tile;
+    queue_push_back(s, tile);
     return 0;
 }
 
@@ -81,26 +112,38 @@ int sched_blocked(const struct sched *s)
     return 1;
 }
 
+/* Removes the tile at place i, moving the shorter side of the queue by one (the front:
+ * nothing moves). */
 static void queue_remove_at(struct sched *s, uint32_t i)
 {
-    memmove(s->queue + i, s->queue + i + 1, sizeof *s->queue * (s->q_count - i - 1));
+    s->qpos[s->queue[i]] = SCHED_NOT_QUEUED;
+    if (i < s->q_count / 2) {
+        memmove(s->queue + 1, s->queue, sizeof *s->queue * i);
+        s->queue++;
+        for (uint32_t k = 0; k < i; k++)
+            s->qpos[s->queue[k]]++;
+    } else {
+        memmove(s->queue + i, s->queue + i + 1, sizeof *s->queue * (s->q_count - i - 1));
+        for (uint32_t k = i; k + 1 < s->q_count; k++)
+            s->qpos[s->queue[k]]--;
+    }
     s->q_count--;
 }
 
 static void queue_remove(struct sched *s, uint32_t tile)
 {
-    for (uint32_t i = 0; i < s->q_count; i++)
-        if (s->queue[i] == tile) {
-            queue_remove_at(s, i);
-            return;
-        }
+    if (s->qpos[tile] != SCHED_NOT_QUEUED)
+        queue_remove_at(s, s->qpos[tile] - (uint32_t)(s->queue - s->queue_buf));
 }
 
 /* Re-queued tiles go first: they are the ones holding up the end of the frame. */
 static void queue_push_front(struct sched *s, uint32_t tile)
 {
-    memmove(s->queue + 1, s->queue, sizeof *s->queue * s->q_count);
+    if (s->queue == s->queue_buf)
+        queue_recenter(s);
+    s->queue--;
     s->queue[0] = tile;
+    s->qpos[tile] = (uint32_t)(s->queue - s->queue_buf);
     s->q_count++;
 }
 

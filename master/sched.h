@@ -61,12 +61,19 @@ struct sched_worker {
     uint32_t fail_streak;           /* invalid results in a row */
 };
 
+#define SCHED_NOT_QUEUED UINT32_MAX
+
 /* Callers read these fields; only sched_* functions change them. */
 struct sched {
     struct sched_tile *tiles;
     uint32_t num_tiles, tiles_done;
-    uint32_t *queue;                /* tiles waiting for a worker, in the order they go out */
+    uint32_t *queue;                /* tiles waiting for a worker, in the order they go out:
+                                     * queue[0 .. q_count-1], a window into queue_buf */
     uint32_t q_count;
+    uint32_t *queue_buf, q_cap;     /* the window's room: taking from the front and putting
+                                     * back at the front or the back move no other tile */
+    uint32_t *qpos;                 /* per tile: its place in queue_buf while queued, else
+                                     * SCHED_NOT_QUEUED (removal without a search) */
     struct sched_worker *workers;   /* index = the caller's peer index; never removed */
     uint32_t num_workers;
     int32_t failed_tile;            /* the first tile blamed by SCHED_CRASHES_TO_FAIL workers, or -1 */

@@ -590,6 +590,62 @@ static void check_invariants(const struct sched *s)
     cr_assert_eq(done, s->tiles_done);
     for (uint32_t w = 0; w < s->num_workers; w++)
         cr_assert_eq(held[w], s->workers[w].in_flight, "worker %u", w);
+    /* The queue's window lies in its room and each queued tile knows its place there. */
+    cr_assert(s->queue >= s->queue_buf && s->queue + s->q_count <= s->queue_buf + s->q_cap);
+    for (uint32_t q = 0; q < s->q_count; q++)
+        cr_assert_eq(s->qpos[s->queue[q]], (uint32_t)(s->queue - s->queue_buf) + q, "place of tile %u", s->queue[q]);
+    for (uint32_t t = 0; t < s->num_tiles; t++)
+        if (s->tiles[t].state != SCHED_QUEUED)
+            cr_assert_eq(s->qpos[t], SCHED_NOT_QUEUED, "tile %u not queued", t);
+}
+
+/* The queue keeps its order whatever leaves it from where: the front (assignments), the
+ * middle (tiles from the journal, a tile skipped for a worker), both ends coming back
+ * (re-issues to the front, unheld tiles to the back), past the ends of its room. */
+Test(sched, the_queue_keeps_its_order)
+{
+    struct sched *s = sched_new(10);
+    sched_frame_begin(s);
+    const uint32_t journal[] = {7, 2, 5, 9};
+    for (size_t i = 0; i < sizeof journal / sizeof *journal; i++)
+        cr_assert_eq(sched_tile_set_done(s, journal[i]), 0);
+    const uint32_t want1[] = {0, 1, 3, 4, 6, 8};
+    cr_assert_eq(s->q_count, 6);
+    for (uint32_t q = 0; q < 6; q++)
+        cr_assert_eq(s->queue[q], want1[q], "place %u", q);
+    int32_t w = sched_worker_join(s, 1, 0);
+    cr_assert_eq(sched_worker_ready(s, w, 4), 0);
+    struct sched_assignment a[4];
+    for (int i = 0; i < 4; i++)
+        a[i] = give_one(s, 1); /* 0, 1, 3, 4 */
+    cr_assert_eq(a[3].tile, 4);
+    /* Four come back to the front, one by one, more than the room left before the front. */
+    for (int i = 0; i < 4; i++) {
+        sched_assign_undo(s, &a[i]);
+        cr_assert_eq(s->queue[0], a[i].tile);
+    }
+    const uint32_t want2[] = {4, 3, 1, 0, 6, 8};
+    cr_assert_eq(s->q_count, 6);
+    for (uint32_t q = 0; q < 6; q++)
+        cr_assert_eq(s->queue[q], want2[q], "place %u", q);
+    cr_assert_eq(s->qpos[3], (uint32_t)(s->queue - s->queue_buf) + 1);
+    /* Held, then back in a chosen order, more times than the room behind the back. */
+    for (int round = 0; round < 5; round++) {
+        sched_hold_all(s);
+        cr_assert_eq(s->q_count, 0);
+        const uint32_t order[] = {8, 0, 6, 1};
+        for (size_t i = 0; i < 4; i++)
+            cr_assert_eq(sched_unhold(s, order[i]), 0);
+        for (uint32_t q = 0; q < 4; q++)
+            cr_assert_eq(s->queue[q], order[q], "round %d place %u", round, q);
+        cr_assert_eq(sched_tile_set_done(s, 6), 0); /* from the middle */
+        cr_assert_eq(s->queue[2], 1);
+        cr_assert_eq(s->qpos[6], SCHED_NOT_QUEUED);
+        cr_assert_eq(sched_tile_set_done(s, 6), -1);
+        s->tiles[6].state = SCHED_HELD; /* undone again for the next round (as a new frame would) */
+        s->tiles_done--;
+    }
+    sched_free(&s);
 }
 
 static void run_sequence(uint64_t seed)
