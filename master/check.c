@@ -165,6 +165,7 @@ static void free_list(struct check_item *it)
         net_payload_free(&it->payload);
         fold_units_free(&it->units);
         free(it->record);
+        free(it->keep);
         free(it->pixels);
         free(it);
         it = next;
