@@ -118,12 +118,8 @@ static void *check_thread(void *arg)
                                       sizeof it->err);
             if (it->verdict == 1 && c->ctx.journal)
                 it->record = journal_record(it->unit, &it->stats, it->chunk, it->chunk_size, &it->record_size);
-            if (it->verdict == 1 && c->ctx.keep_units) {
-                /* The copy the fold keeps until the tile's last unit (its page faults here, not in the loop). */
-                size_t n = fold_unit_floats(c->ctx.fold, it->unit % c->ctx.num_tiles);
-                it->keep = mem_alloc(sizeof(float) * (n ? n : 1));
-                memcpy(it->keep, it->pixels, sizeof(float) * n);
-            }
+            if (it->verdict == 1 && c->ctx.keep_units) /* the fold's copy: its page faults here, not in the loop */
+                it->keep = fold_unit_copy(c->ctx.fold, it->unit % c->ctx.num_tiles, it->pixels);
         }
         pthread_mutex_lock(&c->mu);
         c->checking--;

@@ -200,18 +200,24 @@ uint32_t fold_add_unit(struct fold *f, uint32_t tile, uint32_t pass, const float
     return fold_add_slot(f, tile, pass, pass, TILE_MASK_ALL, px);
 }
 
-/* Keeps a unit that is not folded now: px copied, or own (px's values, exactly the
- * tile's pixels of the units' channels) taken over. */
-static void keep_early(const struct fold *f, struct fold_tile *t, size_t pixels, uint32_t slot, uint32_t pass,
-                       uint64_t mask, const float *px, float *own)
+size_t fold_unit_floats(const struct fold *f, uint32_t tile)
+{
+    return tile_pixels(f, tile) * f->lay.num_channels;
+}
+
+float *fold_unit_copy(const struct fold *f, uint32_t tile, const float *px)
+{
+    size_t n = fold_unit_floats(f, tile);
+    float *c = mem_alloc(sizeof(float) * (n ? n : 1));
+    memcpy(c, px, sizeof(float) * n);
+    return c;
+}
+
+/* Keeps a unit that is not folded now: own (fold_unit_copy's) taken over. */
+static void keep_early(struct fold_tile *t, uint32_t slot, uint32_t pass, uint64_t mask, float *own)
 {
     CHECK(slot >= t->folded && !t->early[slot].px);
-    if (own)
-        t->early[slot].px = own;
-    else {
-        t->early[slot].px = mem_alloc(sizeof(float) * pixels * f->lay.num_channels);
-        memcpy(t->early[slot].px, px, sizeof(float) * pixels * f->lay.num_channels);
-    }
+    t->early[slot].px = own;
     t->early[slot].pass = pass;
     t->early[slot].mask = mask;
 }
@@ -228,7 +234,7 @@ uint32_t fold_add_slot(struct fold *f, uint32_t tile, uint32_t slot, uint32_t pa
         fold_aovs_start(f, t, pixels);
     }
     if (slot != t->folded) {
-        keep_early(f, t, pixels, slot, pass, mask, px, NULL);
+        keep_early(t, slot, pass, mask, fold_unit_copy(f, tile, px));
     } else {
         fold_pass(f, tile, t, pixels, pass, mask, px);
     }
@@ -276,19 +282,15 @@ struct fold_units {
     struct fold_early unit[];   /* per slot: a copy of its pixels, its pass and blocks */
 };
 
-size_t fold_unit_floats(const struct fold *f, uint32_t tile)
-{
-    return tile_pixels(f, tile) * f->lay.num_channels;
-}
-
-static struct fold_units *add_take(struct fold *f, uint32_t tile, uint32_t pass, const float *px, float *own)
+struct fold_units *fold_add_take_own(struct fold *f, uint32_t tile, uint32_t pass, float **px)
 {
     CHECK(tile < f->num_tiles && pass < f->passes);
     struct fold_tile *t = &f->tiles[tile];
     CHECK(!t->final && !t->acc);
     if (!t->early)
         t->early = mem_calloc(f->passes, sizeof *t->early);
-    keep_early(f, t, tile_pixels(f, tile), pass, pass, TILE_MASK_ALL, px, own);
+    keep_early(t, pass, pass, TILE_MASK_ALL, *px);
+    *px = NULL;
     if (++t->in < f->passes)
         return NULL;
     struct fold_units *u = mem_alloc(sizeof *u + f->passes * sizeof u->unit[0]);
@@ -304,14 +306,8 @@ static struct fold_units *add_take(struct fold *f, uint32_t tile, uint32_t pass,
 
 struct fold_units *fold_add_take(struct fold *f, uint32_t tile, uint32_t pass, const float *px)
 {
-    return add_take(f, tile, pass, px, NULL);
-}
-
-struct fold_units *fold_add_take_own(struct fold *f, uint32_t tile, uint32_t pass, float **px)
-{
-    float *own = *px;
-    *px = NULL;
-    return add_take(f, tile, pass, own, own);
+    float *own = fold_unit_copy(f, tile, px);
+    return fold_add_take_own(f, tile, pass, &own);
 }
 
 void fold_run(const struct fold *f, struct fold_units *u, void **scratch, size_t *scratch_size, float *out,

@@ -57,10 +57,12 @@ void fold_finish(struct fold *f, uint32_t tile, float *out, struct tile_stats *s
  * on with other tiles. fold_units_free frees the units (NULL is fine). */
 struct fold_units;
 struct fold_units *fold_add_take(struct fold *f, uint32_t tile, uint32_t pass, const float *px);
-/* fold_add_take with *px taken over instead of copied (set to NULL): a buffer of
- * malloc'ed floats holding exactly the unit's values, fold_unit_floats(f, tile) of them
- * (the checker pool makes it beside its decode, so the loop copies nothing). */
+/* fold_add_take with *px taken over instead of copied (set to NULL): fold_unit_copy's
+ * buffer (the checker pool makes it beside its decode, so the loop copies nothing). */
 struct fold_units *fold_add_take_own(struct fold *f, uint32_t tile, uint32_t pass, float **px);
+/* A malloc'ed copy of unit px of tile: exactly its values, fold_unit_floats(f, tile)
+ * floats (its pixels x the units' channels). Reads only f's settings: any thread. */
+float *fold_unit_copy(const struct fold *f, uint32_t tile, const float *px);
 size_t fold_unit_floats(const struct fold *f, uint32_t tile);
 void fold_run(const struct fold *f, struct fold_units *u, void **scratch, size_t *scratch_size, float *out,
               struct tile_stats *stats);

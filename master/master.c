@@ -2502,7 +2502,7 @@ static int frame_begin(struct master *m, uint32_t frames_started)
                                       .num_materials = m->scene.num_materials,
                                       .journal = !o->no_journal && !o->only_tiles,
                                       .out_desc = m->fold ? m->out_desc : m->desc, .fold = m->fold,
-                                      .keep_units = m->passes > 1 && m->fold && !m->adapt};
+                                      .keep_units = m->fold && !m->adapt};
     if (m->checker) /* idle: the last frame drained it */
         checker_set_ctx(m->checker, &m->check_ctx,
                         (size_t)m->scene.settings.tile_size * m->scene.settings.tile_size * FOLD_MAX_CHANNELS);
