@@ -1,9 +1,10 @@
 /* The tile scheduler (see sched.h): pure state, no I/O, no clock, so every fault-tolerance
  * rule can be driven event by event in unit tests. Invariant kept by every function: a
  * worker's in_flight equals the number of tiles that list it as a holder (zero once it is
- * gone), a queued tile has no holders, and qpos gives each queued tile's place in
+ * gone), a queued tile has no holders, qpos gives each queued tile's place in
  * queue_buf (the queue is a window there, so nothing moves when a tile leaves from the
- * front or comes back to either end). Called by master/master.c. */
+ * front or comes back to either end), and q_released counts the queued tiles below the
+ * release limit. Called by master/master.c. */
 #include "sched.h"
 #include "base/log.h"
 #include <signal.h>
@@ -46,6 +47,7 @@ void sched_frame_begin(struct sched *s)
     s->failed_tile = -1;
     s->q_count = 0;
     s->released = s->num_tiles;
+    s->q_released = s->num_tiles;
     s->queue = s->queue_buf + 1; /* room for the tiles that come back to the front */
     for (uint32_t t = 0; t < s->num_tiles; t++) {
         s->qpos[t] = (uint32_t)(s->queue - s->queue_buf) + s->q_count;
@@ -62,7 +64,13 @@ void sched_frame_begin(struct sched *s)
 
 void sched_release(struct sched *s, uint32_t limit)
 {
-    s->released = limit < s->num_tiles ? limit : s->num_tiles;
+    uint32_t to = limit < s->num_tiles ? limit : s->num_tiles;
+    /* The queued tiles between the old limit and the new one change sides. */
+    for (uint32_t t = s->released; t < to; t++)
+        s->q_released += s->qpos[t] != SCHED_NOT_QUEUED;
+    for (uint32_t t = to; t < s->released; t++)
+        s->q_released -= s->qpos[t] != SCHED_NOT_QUEUED;
+    s->released = to;
 }
 
 /* Moves the queue's window to the middle of its room (when an end is reached). */
@@ -81,6 +89,7 @@ static void queue_push_back(struct sched *s, uint32_t tile)
         queue_recenter(s);
     s->qpos[tile] = (uint32_t)(s->queue - s->queue_buf) + s->q_count;
     s->queue[s->q_count++] = tile;
+    s->q_released += tile < s->released;
 }
 
 void sched_hold_all(struct sched *s)
@@ -91,6 +100,7 @@ void sched_hold_all(struct sched *s)
             s->qpos[t] = SCHED_NOT_QUEUED;
         }
     s->q_count = 0;
+    s->q_released = 0;
 }
 
 int sched_unhold(struct sched *s, uint32_t tile)
@@ -104,12 +114,7 @@ int sched_unhold(struct sched *s, uint32_t tile)
 
 int sched_blocked(const struct sched *s)
 {
-    if (s->q_count == 0)
-        return 0;
-    for (uint32_t qi = 0; qi < s->q_count; qi++)
-        if (s->queue[qi] < s->released)
-            return 0;
-    return 1;
+    return s->q_count > 0 && s->q_released == 0;
 }
 
 /* Removes the tile at place i, moving the shorter side of the queue by one (the front:
@@ -117,6 +122,7 @@ int sched_blocked(const struct sched *s)
 static void queue_remove_at(struct sched *s, uint32_t i)
 {
     s->qpos[s->queue[i]] = SCHED_NOT_QUEUED;
+    s->q_released -= s->queue[i] < s->released;
     if (i < s->q_count / 2) {
         memmove(s->queue + 1, s->queue, sizeof *s->queue * i);
         s->queue++;
@@ -145,6 +151,7 @@ static void queue_push_front(struct sched *s, uint32_t tile)
     s->queue[0] = tile;
     s->qpos[tile] = (uint32_t)(s->queue - s->queue_buf);
     s->q_count++;
+    s->q_released += tile < s->released;
 }
 
 static void mark_done(struct sched *s, uint32_t tile)
@@ -353,6 +360,10 @@ static void give(struct sched *s, uint32_t tile, int32_t wi, int straggler, uint
 
 int sched_assign_next(struct sched *s, uint64_t now_ms, struct sched_assignment *a)
 {
+    /* Nothing queued is released (every queued unit waits for its pass's photon map):
+     * nothing to search, and no straggler copies while units wait. */
+    if (s->q_count > 0 && s->q_released == 0)
+        return 0;
     for (uint32_t i = 0; i < s->num_workers && s->q_count > 0; i++) {
         const struct sched_worker *w = &s->workers[i];
         if (!can_take(w))

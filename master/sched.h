@@ -78,6 +78,8 @@ struct sched {
     uint32_t num_workers;
     int32_t failed_tile;            /* the first tile blamed by SCHED_CRASHES_TO_FAIL workers, or -1 */
     uint32_t released;              /* queued tiles with an index below this may go out (sched_release) */
+    uint32_t q_released;            /* queued tiles with an index below released: none, and
+                                     * nothing in the queue can go out (no search of it) */
 };
 
 /* Why a worker leaves. Only a death a tile could cause blames its tiles: not leaving, a

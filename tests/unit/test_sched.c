@@ -597,6 +597,11 @@ static void check_invariants(const struct sched *s)
     for (uint32_t t = 0; t < s->num_tiles; t++)
         if (s->tiles[t].state != SCHED_QUEUED)
             cr_assert_eq(s->qpos[t], SCHED_NOT_QUEUED, "tile %u not queued", t);
+    /* q_released counts the queued tiles below the release limit. */
+    uint32_t rel = 0;
+    for (uint32_t q = 0; q < s->q_count; q++)
+        rel += s->queue[q] < s->released;
+    cr_assert_eq(s->q_released, rel, "queued tiles released");
 }
 
 /* The queue keeps its order whatever leaves it from where: the front (assignments), the
@@ -707,6 +712,9 @@ static void run_sequence(uint64_t seed)
                         md.gone[w] = 1;
                 }
             }
+        } else if (e == 8 && prng_below(&r, 2) == 0) {
+            /* The release limit moves (a pass's map published; a new one lower or higher). */
+            sched_release(s, prng_below(&r, num_tiles + 2));
         } else if (nw > 0) {
             int32_t w = (int32_t)prng_below(&r, nw);
             sched_worker_heartbeat(s, w, prng_below(&r, 1000), 0, now);
@@ -719,7 +727,10 @@ static void run_sequence(uint64_t seed)
         sched_free(&s);
         return;
     }
-    /* Drive to the end: a healthy worker joins, everyone answers everything validly. */
+    /* Drive to the end: every tile released, a healthy worker joins, everyone answers
+     * everything validly. */
+    sched_release(s, num_tiles);
+    check_invariants(s);
     int32_t fresh = sched_worker_join(s, 2, now);
     for (uint32_t w = 0; w < s->num_workers; w++)
         if (!md.gone[w])
