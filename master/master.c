@@ -99,7 +99,7 @@ struct pass_map {
     X(evicted_stalled) X(evicted_died) X(evicted_error) X(workers_banned) X(workers_joined) X(ready_stale)         \
     X(local_restarts) X(kept_untied) X(results_nonfinite) X(hellos_refused)                                       \
     X(frames_done) X(frames_skipped) X(tiles_from_kept) X(kept_duplicate) X(acks_sent) X(journal_syncs)                   \
-    X(blob_bytes_p2p) X(blob_bytes_bcast) X(bcast_subscriptions)
+    X(blob_bytes_p2p) X(blob_bytes_bcast) X(bcast_subscriptions) X(results_in_pool_max)
 struct counters {
 #define X(n) uint64_t n;
     COUNTERS(X)
@@ -203,6 +203,7 @@ struct master {
     struct fold_est *est;       /* its sums, fed each final tile's pixels as they are decoded or folded */
     uint64_t var_saturated;     /* its pixels whose variance channel is saturated (tile_variance_value) */
     float *decode_scratch;
+    uint64_t results_in_pool;   /* RESULTs handed to the checker pool and not taken back */
     float *decode_keep;         /* the checked unit's copy for the fold (check_item.keep), while
                                  * result_verdict decides on it; NULL when the loop decoded */
     struct check_ctx check_ctx; /* what chunks of this frame must be (chunk_check) */
@@ -1638,17 +1639,23 @@ static void on_result(struct master *m, int32_t pi, const struct msg_result *r, 
         ack_push(m, pi, r->job_id, r->frame, r->tile);
         return;
     }
-    if (r->job_id == m->job_id)
-        sched_worker_credit(m->sched, pi);
+    /* The worker's credit comes back with its RESULT, and only once the RESULT is checked
+     * when the pool checks it (result_checked): a worker has at most its credits' worth of
+     * units unchecked, so a pool slower than the workers holds them back instead of piling
+     * up their RESULTs (a chunk and a decode buffer each) without bound. */
     if (r->job_id != m->job_id || r->frame != m->frame || r->tile >= m->num_units) {
+        if (r->job_id == m->job_id)
+            sched_worker_credit(m->sched, pi);
         if (peer_should_log_drop(p))
             log_warn("worker %s: RESULT for job %llu frame %u tile %u is not ours; dropped", p->name,
                      (unsigned long long)r->job_id, r->frame, r->tile);
         m->c.results_not_ours++;
         return;
     }
-    if (result_counts(m, pi, r->job_id, r->frame, r->tile, r->attempt) != SCHED_RESULT_CHECK)
+    if (result_counts(m, pi, r->job_id, r->frame, r->tile, r->attempt) != SCHED_RESULT_CHECK) {
+        sched_worker_credit(m->sched, pi);
         return;
+    }
     if (m->checker) {
         struct check_item *it = checker_item_new(m->checker);
         it->peer = pi;
@@ -1663,8 +1670,11 @@ static void on_result(struct master *m, int32_t pi, const struct msg_result *r, 
         it->chunk_size = r->chunk_size;
         it->payload = net_frame_take(f); /* the chunk lives in it */
         checker_submit(m->checker, it);
+        if (++m->results_in_pool > m->c.results_in_pool_max)
+            m->c.results_in_pool_max = m->results_in_pool;
         return;
     }
+    sched_worker_credit(m->sched, pi);
     char err[256];
     int sane = chunk_is_sane(m, r->tile, r->chunk, r->chunk_size, err, sizeof err);
     result_verdict(m, pi, r->tile, r->job_id, r->frame, &r->stats, r->chunk, r->chunk_size, sane, err, NULL, 0,
@@ -1697,6 +1707,7 @@ static void result_checked(struct master *m, struct check_item *it)
         m->c.results_stale++;
         return;
     }
+    sched_worker_credit(m->sched, pi); /* held back while it was checked (on_result) */
     if (result_counts(m, pi, it->job_id, it->frame, it->unit, it->attempt) != SCHED_RESULT_CHECK)
         return;
     float *px = m->decode_scratch;
@@ -1721,6 +1732,7 @@ static void checks_drain(struct master *m, int wait)
         checker_wait_idle(m->checker);
     struct check_item *it;
     while ((it = checker_take(m->checker))) {
+        m->results_in_pool -= it->kind == CHECK_RESULT;
         if (!m->fatal[0])
             result_checked(m, it);
         checker_item_free(m->checker, it);

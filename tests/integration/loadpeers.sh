@@ -50,10 +50,16 @@ load() {
     ok "$name: the fake workers took the scene's blobs from the broadcast ($bc bytes sent)"; else bad "$name: the fake workers took the scene's blobs from the broadcast"; fi
   if $X cmp "$T/ref.exr" "$T/$name.exr" >"$T/log" 2>&1; then
     ok "$name: the output holds every tile, bit-identical to the pixels sent"; else bad "$name: the output holds every tile, bit-identical to the pixels sent"; fi
+  # A worker's credit comes back once its RESULT is checked: the pool never holds more
+  # than the workers' credits (16 x 2) however far it falls behind them.
+  rip=$(counter results_in_pool_max "$T/$name.exr")
+  if [ -n "$rip" ] && [ "$rip" -le 32 ]; then
+    ok "$name: at most the workers' credits of RESULTs waiting in the checker pool ($rip, 16 x 2 credits)"
+  else bad "$name: at most the workers' credits of RESULTs waiting in the checker pool (${rip:-none}, 16 x 2 credits)"; fi
 }
 
 KEYARGS= AUTHC=auth_rejects
-load ipc "ipc://$T/m.sock" --bcast-mbps 1000
+load ipc "ipc://$T/m.sock" --bcast-mbps 1000 --check-threads 1
 load inloop "ipc://$T/m2.sock" --check-threads 0 --no-journal --bcast-mbps 1000
 
 # A frame range: one job per frame; loadpeers counts every frame's units.
