@@ -65,6 +65,7 @@ struct check_item {
     uint8_t *record;          /* with ctx.journal and a sane chunk: its journal record, record_size bytes */
     struct fold_units *units; /* CHECK_FOLD: taken over (freed by the pool) */
     float *keep;              /* with ctx.keep_units, a sane CHECK_RESULT's copy of its pixels (or NULL) */
+    int credit_owed;          /* the caller's: the worker's credit waits for this check (master.c on_result) */
     struct fold_est_sums est; /* CHECK_FOLD: the folded tile's sums for the error estimate */
     size_t record_size;
     char err[256];

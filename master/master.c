@@ -204,6 +204,7 @@ struct master {
     uint64_t var_saturated;     /* its pixels whose variance channel is saturated (tile_variance_value) */
     float *decode_scratch;
     uint64_t results_in_pool;   /* RESULTs handed to the checker pool and not taken back */
+    uint32_t check_threads;     /* the pool's threads (0: none) */
     float *decode_keep;         /* the checked unit's copy for the fold (check_item.keep), while
                                  * result_verdict decides on it; NULL when the loop decoded */
     struct check_ctx check_ctx; /* what chunks of this frame must be (chunk_check) */
@@ -251,6 +252,9 @@ static void master_fail(struct master *m, const char *fmt, ...)
  * renders, so a missing grid does not stop a long range half way; up to FRAMES_CHECK_MAX
  * frames, the rest when their frame starts). A missing one is reported as the parse of its
  * frame reports it: the scene's file:line:col, the frame and the file. */
+/* RESULTs the checker pool may hold per thread before a worker's credit waits for its
+ * RESULT's check (on_result): about 30 MB a thread at 32 px tiles. */
+#define MASTER_POOL_BACKLOG 256u
 #define FRAMES_CHECK_MAX 100000u
 static int check_frame_files(struct master *m, const char *text, size_t len)
 {
@@ -1639,10 +1643,11 @@ static void on_result(struct master *m, int32_t pi, const struct msg_result *r, 
         ack_push(m, pi, r->job_id, r->frame, r->tile);
         return;
     }
-    /* The worker's credit comes back with its RESULT, and only once the RESULT is checked
-     * when the pool checks it (result_checked): a worker has at most its credits' worth of
-     * units unchecked, so a pool slower than the workers holds them back instead of piling
-     * up their RESULTs (a chunk and a decode buffer each) without bound. */
+    /* The worker's credit comes back with its RESULT; when the checker pool already holds
+     * MASTER_POOL_BACKLOG RESULTs per thread, only once the RESULT is checked
+     * (result_checked): so a pool slower than the workers holds at most that many and the
+     * workers' credits, instead of piling up their RESULTs (a chunk and a decode buffer
+     * each) without bound, and a pool that keeps up costs no extra pass of the loop. */
     if (r->job_id != m->job_id || r->frame != m->frame || r->tile >= m->num_units) {
         if (r->job_id == m->job_id)
             sched_worker_credit(m->sched, pi);
@@ -1669,6 +1674,9 @@ static void on_result(struct master *m, int32_t pi, const struct msg_result *r, 
         it->chunk = r->chunk;
         it->chunk_size = r->chunk_size;
         it->payload = net_frame_take(f); /* the chunk lives in it */
+        it->credit_owed = m->results_in_pool >= (uint64_t)MASTER_POOL_BACKLOG * m->check_threads;
+        if (!it->credit_owed)
+            sched_worker_credit(m->sched, pi);
         checker_submit(m->checker, it);
         if (++m->results_in_pool > m->c.results_in_pool_max)
             m->c.results_in_pool_max = m->results_in_pool;
@@ -1707,7 +1715,8 @@ static void result_checked(struct master *m, struct check_item *it)
         m->c.results_stale++;
         return;
     }
-    sched_worker_credit(m->sched, pi); /* held back while it was checked (on_result) */
+    if (it->credit_owed) /* held back while it was checked (on_result) */
+        sched_worker_credit(m->sched, pi);
     if (result_counts(m, pi, it->job_id, it->frame, it->unit, it->attempt) != SCHED_RESULT_CHECK)
         return;
     float *px = m->decode_scratch;
@@ -2795,6 +2804,7 @@ int master_run(const struct master_opts *o)
     setup_tiles(&m);
     if (o->check_threads)
         m.checker = checker_new(o->check_threads);
+    m.check_threads = o->check_threads;
     m.zctx = zmq_ctx_new();
     m.sock = zmq_socket(m.zctx, ZMQ_ROUTER);
     net_socket_setup(m.sock);

@@ -50,17 +50,31 @@ load() {
     ok "$name: the fake workers took the scene's blobs from the broadcast ($bc bytes sent)"; else bad "$name: the fake workers took the scene's blobs from the broadcast"; fi
   if $X cmp "$T/ref.exr" "$T/$name.exr" >"$T/log" 2>&1; then
     ok "$name: the output holds every tile, bit-identical to the pixels sent"; else bad "$name: the output holds every tile, bit-identical to the pixels sent"; fi
-  # A worker's credit comes back once its RESULT is checked: the pool never holds more
-  # than the workers' credits (16 x 2) however far it falls behind them.
-  rip=$(counter results_in_pool_max "$T/$name.exr")
-  if [ -n "$rip" ] && [ "$rip" -le 32 ]; then
-    ok "$name: at most the workers' credits of RESULTs waiting in the checker pool ($rip, 16 x 2 credits)"
-  else bad "$name: at most the workers' credits of RESULTs waiting in the checker pool (${rip:-none}, 16 x 2 credits)"; fi
 }
 
 KEYARGS= AUTHC=auth_rejects
-load ipc "ipc://$T/m.sock" --bcast-mbps 1000 --check-threads 1
+load ipc "ipc://$T/m.sock" --bcast-mbps 1000
 load inloop "ipc://$T/m2.sock" --check-threads 0 --no-journal --bcast-mbps 1000
+
+# A checker pool slower than the workers (one thread decoding every unit and folding every
+# tile's passes, 64 fake workers answering at once: the smoke at 256x256 in 64 passes,
+# 4096 units): past MASTER_POOL_BACKLOG (256) RESULTs a thread, a worker's credit waits for
+# its RESULT's check, so the pool never holds more than 256 + the workers' 64 x 2 credits
+# (a credit given back on arrival let it pile up 2400 of them here, 42 000 at 1024x1024).
+mkdir -p "$T/sm"
+cp scenes/smoke/* "$T/sm/"
+sed -i 's/"width": 128, "height": 128/"width": 256, "height": 256/' "$T/sm/smoke.json"
+timeout 120 $M "$T/sm/smoke.json" -o "$T/slow.exr" --spp 64 --photons 20000 --tile 32 --workers 0 \
+  --bind "ipc://$T/slow.sock" --check-threads 1 --no-journal >"$T/m.log" 2>&1 &
+mp=$!
+echo $mp >>"$T/pids"
+timeout 120 $L "ipc://$T/slow.sock" -n 64 --no-fetch >"$T/log" 2>&1 && lr=0 || lr=1
+wait $mp && mr=0 || mr=1
+rip=$(counter results_in_pool_max "$T/slow.exr")
+echo "loadpeers: a slow checker pool: at most $rip RESULTs in it"
+if [ $lr = 0 ] && [ $mr = 0 ] && [ "$(counter tiles_done "$T/slow.exr")" = 4096 ] && [ -n "$rip" ] && [ "$rip" -le 384 ]; then
+  ok "a slow checker pool holds at most 256 + the workers' credits of RESULTs ($rip of 384), every unit done"
+else bad "a slow checker pool holds at most 256 + the workers' credits of RESULTs (${rip:-none} of 384; rc $lr $mr)"; fi
 
 # A frame range: one job per frame; loadpeers counts every frame's units.
 timeout 120 $M scenes/cornell/cornell.json -o "$T/fr.exr" --spp 1 --tile 32 --workers 0 --frames 1:3 --no-journal \
