@@ -108,9 +108,13 @@ static void *check_thread(void *arg)
         pthread_mutex_unlock(&c->mu);
         if (it->kind == CHECK_FOLD) {
             fold_run(c->ctx.fold, it->units, &scratch, &scratch_size, it->pixels, &it->stats);
-            fold_units_free(&it->units);
-            fold_est_tile_sums(&c->ctx.out_desc, it->unit, it->pixels, &it->est);
-            encode_item(c, it, &enc, &enc_gen, gen);
+            if (fold_units_final(it->units)) {
+                fold_units_free(&it->units);
+                fold_est_tile_sums(&c->ctx.out_desc, it->unit, it->pixels, &it->est);
+                encode_item(c, it, &enc, &enc_gen, gen);
+            } else {
+                it->verdict = 1; /* a batch: its units stay with the item, back to the fold (fold_units_return) */
+            }
         } else if (it->kind == CHECK_ENCODE) {
             encode_item(c, it, &enc, &enc_gen, gen);
         } else {

@@ -43,8 +43,9 @@ enum check_kind {
     CHECK_RESULT,             /* a RESULT's chunk: chunk_check (and its journal record) */
     CHECK_ENCODE,             /* a folded tile: pixels (unit is the tile, ctx.out_desc's layout) encoded into
                                * record (the chunk, record_size bytes); verdict 1, or 0 with err */
-    CHECK_FOLD                /* a tile's units (fold_add_take): folded into pixels (fold_run; their relative
-                               * errors added to stats, zero before), then encoded as CHECK_ENCODE */
+    CHECK_FOLD                /* a batch of a tile's units (fold_add_take): folded (fold_run); the tile's last
+                               * into pixels (their relative errors added to stats, zero before), then
+                               * encoded as CHECK_ENCODE; another comes back with units still set */
 };
 
 /* A RESULT waiting for or holding its verdict, or a tile to encode. The item owns the
@@ -63,7 +64,7 @@ struct check_item {
     float *pixels;            /* decoded, tile_size^2 x FOLD_MAX_CHANNELS floats */
     int verdict;              /* chunk_check's */
     uint8_t *record;          /* with ctx.journal and a sane chunk: its journal record, record_size bytes */
-    struct fold_units *units; /* CHECK_FOLD: taken over (freed by the pool) */
+    struct fold_units *units; /* CHECK_FOLD: taken over (freed by the pool once final; else back to the fold) */
     float *keep;              /* with ctx.keep_units, a sane CHECK_RESULT's copy of its pixels (or NULL) */
     int credit_owed;          /* the caller's: the worker's credit waits for this check (master.c on_result) */
     struct fold_est_sums est; /* CHECK_FOLD: the folded tile's sums for the error estimate */

@@ -23,9 +23,11 @@ struct fold_early {
 };
 
 struct fold_tile {
-    uint32_t folded;            /* slots 0..folded-1 are in acc */
+    uint32_t folded;            /* slots 0..folded-1 are in acc (fold_add_take: handed to batches) */
     uint32_t in;                /* units given (fold_add_take) */
     int final;                  /* finished: takes nothing more */
+    int busy;                   /* fold_add_take: a batch of its units is out (fold_units_return) */
+    struct fold_tile *kept_state; /* fold_add_take: the batches' sums so far, while no batch is out */
     struct pass_pixel *acc;     /* per pixel, NULL before the first pass */
     struct fold_early *early;   /* per slot */
     uint32_t block_passes[TILE_MAX_BLOCKS_SIDE * TILE_MAX_BLOCKS_SIDE]; /* passes folded into each block */
@@ -41,6 +43,7 @@ struct fold {
      * reused, a tile's start costs a memset, not fresh pages */
     struct pass_pixel **spare;
     uint32_t num_spare, cap_spare;
+    uint32_t kept;              /* units kept by fold_add_take, not yet handed out in a batch */
 };
 
 struct fold *fold_new(const struct image_desc *desc, uint32_t passes, uint32_t spp_per_pass, uint32_t streams)
@@ -121,13 +124,30 @@ static void acc_put(struct fold *f, struct pass_pixel *a)
     f->spare[f->num_spare++] = a;
 }
 
+/* A batch's sums between batches (fold_units.state): freed with what it holds. */
+static void state_free(struct fold_tile **sp)
+{
+    struct fold_tile *st = *sp;
+    if (!st)
+        return;
+    free(st->acc);
+    free(st->aov);
+    free(st);
+    *sp = NULL;
+}
+
 static void tile_clear(struct fold *f, struct fold_tile *t)
 {
+    int taken = !t->acc; /* fold_add_take's tile: its copies count in kept */
     acc_put(f, t->acc);
     free(t->aov);
     for (uint32_t p = 0; t->early && p < f->passes; p++)
-        free(t->early[p].px);
+        if (t->early[p].px) {
+            free(t->early[p].px);
+            f->kept -= taken;
+        }
     free(t->early);
+    state_free(&t->kept_state);
     memset(t, 0, sizeof *t);
 }
 
@@ -279,8 +299,48 @@ void fold_finish(struct fold *f, uint32_t tile, float *out, struct tile_stats *s
 
 struct fold_units {
     uint32_t tile, count;
+    uint32_t first;             /* the slot of unit[0]: the batch is slots first..first+count-1 */
+    int last;                   /* the tile's last slots: fold_run finishes the tile */
+    struct fold_tile *state;    /* the sums of the tile's earlier batches (NULL: none, or the
+                                 * whole tile in one batch, summed in fold_run's scratch) */
     struct fold_early unit[];   /* per slot: a copy of its pixels, its pass and blocks */
 };
+
+/* The tile's next batch, if one is due: the units kept from slot `folded` on without a gap,
+ * when they reach the tile's last slot, or (over FOLD_KEEP_ALL_PASSES passes) number
+ * FOLD_BATCH or more; none while a batch is out. */
+static struct fold_units *take_batch(struct fold *f, uint32_t tile)
+{
+    struct fold_tile *t = &f->tiles[tile];
+    if (t->busy || t->final || !t->early)
+        return NULL;
+    uint32_t n = 0;
+    while (t->folded + n < f->passes && t->early[t->folded + n].px)
+        n++;
+    int last = t->folded + n == f->passes;
+    if (n == 0 || (!last && (f->passes <= FOLD_KEEP_ALL_PASSES || n < FOLD_BATCH)))
+        return NULL;
+    struct fold_units *u = mem_alloc(sizeof *u + n * sizeof u->unit[0]);
+    u->tile = tile;
+    u->count = n;
+    u->first = t->folded;
+    u->last = last;
+    u->state = t->kept_state;
+    t->kept_state = NULL;
+    memcpy(u->unit, &t->early[t->folded], n * sizeof u->unit[0]);
+    memset(&t->early[t->folded], 0, n * sizeof u->unit[0]);
+    f->kept -= n;
+    t->folded += n;
+    if (last) {
+        free(t->early);
+        memset(t, 0, sizeof *t);
+        t->folded = f->passes;
+        t->final = 1;
+    } else {
+        t->busy = 1;
+    }
+    return u;
+}
 
 struct fold_units *fold_add_take_own(struct fold *f, uint32_t tile, uint32_t pass, float **px)
 {
@@ -291,17 +351,9 @@ struct fold_units *fold_add_take_own(struct fold *f, uint32_t tile, uint32_t pas
         t->early = mem_calloc(f->passes, sizeof *t->early);
     keep_early(t, pass, pass, TILE_MASK_ALL, *px);
     *px = NULL;
-    if (++t->in < f->passes)
-        return NULL;
-    struct fold_units *u = mem_alloc(sizeof *u + f->passes * sizeof u->unit[0]);
-    u->tile = tile;
-    u->count = f->passes;
-    memcpy(u->unit, t->early, f->passes * sizeof u->unit[0]);
-    free(t->early);
-    memset(t, 0, sizeof *t);
-    t->folded = f->passes;
-    t->final = 1;
-    return u;
+    f->kept++;
+    t->in++;
+    return take_batch(f, tile);
 }
 
 struct fold_units *fold_add_take(struct fold *f, uint32_t tile, uint32_t pass, const float *px)
@@ -314,21 +366,61 @@ void fold_run(const struct fold *f, struct fold_units *u, void **scratch, size_t
               struct tile_stats *stats)
 {
     size_t pixels = tile_pixels(f, u->tile), need = pixels * sizeof(struct pass_pixel);
-    if (*scratch_size < need) {
-        free(*scratch);
-        *scratch = mem_alloc(need);
-        *scratch_size = need;
+    if (u->first == 0 && u->last) { /* the whole tile at once: sums in the scratch */
+        if (*scratch_size < need) {
+            free(*scratch);
+            *scratch = mem_alloc(need);
+            *scratch_size = need;
+        }
+        struct fold_tile t;
+        memset(&t, 0, sizeof t);
+        t.acc = *scratch;
+        memset(t.acc, 0, need);
+        fold_aovs_start(f, &t, pixels);
+        for (uint32_t i = 0; i < u->count; i++)
+            fold_pass(f, u->tile, &t, pixels, u->unit[i].pass, u->unit[i].mask, u->unit[i].px);
+        finish_pixels(f, u->tile, &t, out, stats);
+        free(t.aov);
+        return;
     }
-    struct fold_tile t;
-    memset(&t, 0, sizeof t);
-    t.acc = *scratch;
-    memset(t.acc, 0, need);
-    fold_aovs_start(f, &t, pixels);
-    for (uint32_t i = 0; i < u->count; i++)
-        fold_pass(f, u->tile, &t, pixels, u->unit[i].pass, u->unit[i].mask, u->unit[i].px);
-    finish_pixels(f, u->tile, &t, out, stats);
-    free(t.aov);
+    /* A batch: its slots added to the sums of the earlier ones (the same additions in the
+     * same order as in one go), its copies freed at once. */
+    if (!u->state) {
+        u->state = mem_calloc(1, sizeof *u->state);
+        u->state->acc = mem_calloc(pixels ? pixels : 1, sizeof(struct pass_pixel));
+        fold_aovs_start(f, u->state, pixels);
+    }
+    for (uint32_t i = 0; i < u->count; i++) {
+        fold_pass(f, u->tile, u->state, pixels, u->unit[i].pass, u->unit[i].mask, u->unit[i].px);
+        free(u->unit[i].px);
+        u->unit[i].px = NULL;
+    }
+    if (u->last) {
+        finish_pixels(f, u->tile, u->state, out, stats);
+        state_free(&u->state);
+    }
 }
+
+int fold_units_final(const struct fold_units *u) { return u->last; }
+
+struct fold_units *fold_units_return(struct fold *f, struct fold_units **up)
+{
+    struct fold_units *u = *up;
+    *up = NULL;
+    struct fold_tile *t = &f->tiles[u->tile];
+    uint32_t tile = u->tile;
+    if (u->last || !t->busy) { /* a final batch, or the frame was reset meanwhile */
+        fold_units_free(&u);
+        return NULL;
+    }
+    t->kept_state = u->state;
+    u->state = NULL;
+    t->busy = 0;
+    fold_units_free(&u);
+    return take_batch(f, tile);
+}
+
+uint32_t fold_kept_units(const struct fold *f) { return f->kept; }
 
 uint32_t fold_units_tile(const struct fold_units *u) { return u->tile; }
 
@@ -339,6 +431,7 @@ void fold_units_free(struct fold_units **up)
         return;
     for (uint32_t i = 0; i < u->count; i++)
         free(u->unit[i].px);
+    state_free(&u->state);
     free(u);
     *up = NULL;
 }

@@ -46,15 +46,25 @@ uint32_t fold_add_slot(struct fold *f, uint32_t tile, uint32_t slot, uint32_t pa
 void fold_finish(struct fold *f, uint32_t tile, float *out, struct tile_stats *stats);
 /* The master's way for renders whose every tile gets all `passes` units and that read no
  * sums of unfinished tiles (fold_block_sums; not adaptive ones): a tile's units are kept
- * as they come (copies: w*h pixels of the unit's channels, less than a tenth of the
- * per-pixel batch sums) and folded only when its last one is in, in slot order, on any
- * thread. fold_add_take gives unit (tile, pass) (copied) and, when it is the tile's last,
- * takes the tile's units out (the tile is final then) and returns them, else NULL; a tile
- * takes units either this way or through fold_add_slot, not both. fold_run then folds them in slot order and finishes
- * the tile into out, bit for bit as fold_add would (stats: the tile's relative errors
+ * as they come (copies: w*h pixels of the unit's channels, a seventh of the per-pixel batch
+ * sums) and folded in batches, in slot order, on any thread. With at most
+ * FOLD_KEEP_ALL_PASSES passes a tile's one batch is all its units, once its last is in
+ * (cheapest: no sums kept between batches); with more, a batch is due as soon as
+ * FOLD_BATCH units from the tile's next slot on are in without a gap (or they reach its
+ * last slot), so that the master holds a tile's batch sums and a few copies, not a copy of
+ * every pass of every tile (units go out pass by pass: every tile's passes would be kept
+ * until the frame's last pass). fold_add_take gives unit (tile, pass) (copied) and returns
+ * the tile's batch if one is due now, else NULL; a tile takes units either this way or
+ * through fold_add_slot, not both. fold_run then folds the batch's units in slot order
+ * into the tile's sums (the same bits as fold_add), and for the tile's last batch
+ * (fold_units_final) finishes the tile into out (stats: the tile's relative errors
  * added), with *scratch (*scratch_size bytes, grown as needed; one per thread, freed by
  * its owner); it reads only f's settings, so it runs on any thread while the caller goes
- * on with other tiles. fold_units_free frees the units (NULL is fine). */
+ * on with other tiles. A tile has one batch out at a time: a batch that is not final goes
+ * back with fold_units_return, which gives the tile's next batch if one is due by then.
+ * fold_units_free frees a batch (NULL is fine). */
+#define FOLD_KEEP_ALL_PASSES 16
+#define FOLD_BATCH 8
 struct fold_units;
 struct fold_units *fold_add_take(struct fold *f, uint32_t tile, uint32_t pass, const float *px);
 /* fold_add_take with *px taken over instead of copied (set to NULL): fold_unit_copy's
@@ -66,6 +76,14 @@ float *fold_unit_copy(const struct fold *f, uint32_t tile, const float *px);
 size_t fold_unit_floats(const struct fold *f, uint32_t tile);
 void fold_run(const struct fold *f, struct fold_units *u, void **scratch, size_t *scratch_size, float *out,
               struct tile_stats *stats);
+/* 1 when u is its tile's last batch (fold_run has written the tile's pixels). */
+int fold_units_final(const struct fold_units *u);
+/* A batch fold_run has folded, not final, given back (*u taken, set to NULL): the tile keeps
+ * its sums, and its next batch is returned if one is due now, else NULL. A final batch is
+ * only freed. */
+struct fold_units *fold_units_return(struct fold *f, struct fold_units **u);
+/* Units fold_add_take keeps that no batch has taken yet (over every tile). */
+uint32_t fold_kept_units(const struct fold *f);
 uint32_t fold_units_tile(const struct fold_units *u);
 void fold_units_free(struct fold_units **u);
 /* fold_add_unit, and fold_finish once all `passes` are in: 1 then, 0 while passes are

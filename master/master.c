@@ -253,7 +253,7 @@ static void master_fail(struct master *m, const char *fmt, ...)
  * frames, the rest when their frame starts). A missing one is reported as the parse of its
  * frame reports it: the scene's file:line:col, the frame and the file. */
 /* RESULTs the checker pool may hold per thread before a worker's credit waits for its
- * RESULT's check (on_result): about 30 MB a thread at 32 px tiles. */
+ * RESULT's check (on_result). */
 #define MASTER_POOL_BACKLOG 256u
 #define FRAMES_CHECK_MAX 100000u
 static int check_frame_files(struct master *m, const char *text, size_t len)
@@ -1370,13 +1370,41 @@ static int adapt_round_end(struct master *m)
     return 0;
 }
 
+/* Folds a tile's batch of units (fold_add_take; NULL: none due): on the pool if there is
+ * one (CHECK_FOLD; a batch that is not the tile's last comes back to result_checked),
+ * else here, with the tile's next batches while they are due; a tile's last batch is
+ * encoded as its chunk. */
+static int fold_submit(struct master *m, struct fold_units *u)
+{
+    while (u) {
+        uint32_t tile = fold_units_tile(u);
+        if (m->checker) {
+            struct check_item *it = checker_item_new(m->checker);
+            it->kind = CHECK_FOLD;
+            it->peer = -1;
+            it->unit = tile;
+            it->units = u;
+            checker_submit(m->checker, it);
+            return 0;
+        }
+        fold_run(m->fold, u, &m->fold_scratch, &m->fold_scratch_size, m->fold_out, &m->stats);
+        if (fold_units_final(u)) {
+            fold_units_free(&u);
+            return tile_encode_folded(m, tile);
+        }
+        u = fold_units_return(m->fold, &u);
+    }
+    return 0;
+}
+
 /* A unit whose chunk chunk_is_sane has just decoded into decode_scratch: with one pass
  * the chunk is the tile's (held: the received frame it lies in, or NULL; the tile takes
  * the frame over instead of copying the chunk); with several it is folded (fold.h), and
  * once the tile's last pass is in (adaptive: once the rounds end), the folded tile is
  * encoded as the tile's chunk. With the checker pool a uniform render's tile is folded
- * and encoded there (CHECK_FOLD), and each unit's pixels are copied there too
- * (decode_keep, which the loop keeps until the tile's last): the loop copies nothing. */
+ * (in batches, fold_submit) and encoded there (CHECK_FOLD), and each unit's pixels are
+ * copied there too (decode_keep, which the fold keeps until its batch): the loop copies
+ * nothing. */
 static int unit_keep(struct master *m, uint32_t unit, const struct tile_stats *st, const uint8_t *chunk,
                      size_t chunk_size, struct net_payload **held)
 {
@@ -1427,20 +1455,7 @@ static int unit_keep(struct master *m, uint32_t unit, const struct tile_stats *s
      * one, which also encodes the tile. */
     struct fold_units *u = m->decode_keep ? fold_add_take_own(m->fold, tile, unit_pass(m, unit), &m->decode_keep)
                                           : fold_add_take(m->fold, tile, unit_pass(m, unit), m->decode_scratch);
-    if (!u)
-        return 0;
-    if (m->checker) {
-        struct check_item *it = checker_item_new(m->checker);
-        it->kind = CHECK_FOLD;
-        it->peer = -1;
-        it->unit = tile;
-        it->units = u;
-        checker_submit(m->checker, it);
-        return 0;
-    }
-    fold_run(m->fold, u, &m->fold_scratch, &m->fold_scratch_size, m->fold_out, &m->stats);
-    fold_units_free(&u);
-    return tile_encode_folded(m, tile);
+    return fold_submit(m, u);
 }
 
 /* Keeps an accepted unit: journal first (appended here, from the record the checker built
@@ -1699,6 +1714,11 @@ static void result_checked(struct master *m, struct check_item *it)
             master_fail(m, "%s", it->err);
             return;
         }
+        if (it->kind == CHECK_FOLD && it->units) { /* a batch folded, not the tile's last */
+            if (fold_submit(m, fold_units_return(m->fold, &it->units)) != 0)
+                master_fail(m, "folding tile %u failed", it->unit);
+            return;
+        }
         if (it->kind == CHECK_FOLD) { /* folded there: its error sums and relative errors */
             fold_est_put(m->est, it->unit, &it->est);
             tile_stats_add(&m->stats, &it->stats);
@@ -1737,15 +1757,20 @@ static void checks_drain(struct master *m, int wait)
 {
     if (!m->checker)
         return;
-    if (wait)
-        checker_wait_idle(m->checker);
-    struct check_item *it;
-    while ((it = checker_take(m->checker))) {
-        m->results_in_pool -= it->kind == CHECK_RESULT;
-        if (!m->fatal[0])
-            result_checked(m, it);
-        checker_item_free(m->checker, it);
-    }
+    uint32_t took;
+    do { /* waiting: until no item taken submits another (a fold batch's next, fold_submit) */
+        if (wait)
+            checker_wait_idle(m->checker);
+        struct check_item *it;
+        took = 0;
+        while ((it = checker_take(m->checker))) {
+            m->results_in_pool -= it->kind == CHECK_RESULT;
+            if (!m->fatal[0])
+                result_checked(m, it);
+            checker_item_free(m->checker, it);
+            took++;
+        }
+    } while (wait && took > 0);
 }
 
 /* What a checked chunk of unit (from the current holder pi) leads to: accepted (journal,

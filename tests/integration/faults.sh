@@ -167,6 +167,29 @@ echo "faults: master killed: $good of $TRIALS trials identical; $from_journal_to
 if [ $good = "$TRIALS" ] && [ $from_journal_total -gt 0 ]; then ok "master kill -9 + restart (incl. torn journals): identical, journaled tiles not re-rendered"
 else bad "master kill -9 + restart (incl. torn journals): identical, journaled tiles not re-rendered"; fi
 
+# --- many passes (over FOLD_KEEP_ALL_PASSES: each tile's passes folded in batches as they
+# come, master/fold.h): 1 vs 3 workers, without the checker pool, and a master killed
+# mid-frame and restarted from its journal, all identical ---
+sed 's/"width": 512/"width": 256/; s/"height": 512/"height": 256/' $SCENE >"$T/c256.json"
+cp scenes/cornell/cornell.obj scenes/cornell/cornell.mtl "$T/"
+PB="--spp 24 --passes 24 --tile 32"
+timeout 120 $M "$T/c256.json" -o "$T/pb1.exr" --workers 1 --threads 2 --no-journal $PB >"$T/log" 2>&1 && r1=0 || r1=1
+timeout 120 $M "$T/c256.json" -o "$T/pb3.exr" --workers 3 --threads 1 --no-journal $PB >"$T/log" 2>&1 && r3=0 || r3=1
+timeout 120 $M "$T/c256.json" -o "$T/pb0.exr" --workers 2 --threads 1 --no-journal --check-threads 0 $PB >"$T/log" 2>&1 &&
+  $X cmp "$T/pb1.exr" "$T/pb0.exr" || r3=1   # without the checker pool: the loop folds the batches
+$M "$T/c256.json" -o "$T/pbk.exr" --workers 2 --threads 1 $PB >"$T/klog" 2>&1 &
+mpid=$!
+sleep 0.4
+kill -9 $mpid 2>/dev/null
+wait $mpid 2>/dev/null
+timeout 120 $M "$T/c256.json" -o "$T/pbk.exr" --workers 2 --threads 1 $PB >"$T/log" 2>&1 && rk=0 || rk=1
+fj=$(counter tiles_from_journal "$T/pbk.exr")
+echo "faults: 24 passes, master killed: ${fj:-0} units from the journal"
+if [ $r1 = 0 ] && [ $r3 = 0 ] && [ $rk = 0 ] && $X cmp "$T/pb1.exr" "$T/pb3.exr" && $X cmp "$T/pb1.exr" "$T/pbk.exr" &&
+  [ "${fj:-0}" -gt 0 ]; then
+  ok "24 passes (folded in batches): 1 vs 3 workers, no checker pool, a master kill -9 + restart: identical"
+else bad "24 passes (folded in batches): 1 vs 3 workers, no checker pool, a master kill -9 + restart: identical (rc $r1 $r3 $rk, journal ${fj:-0})"; fi
+
 # --- a second master on the same output is refused while the first holds its journal ---
 # (the first waits for a worker, so it is surely running; the second asks for other
 # settings, which once started the journal afresh under the first one's records)

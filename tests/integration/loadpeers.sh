@@ -74,7 +74,7 @@ rip=$(counter results_in_pool_max "$T/slow.exr")
 echo "loadpeers: a slow checker pool: at most $rip RESULTs in it"
 if [ $lr = 0 ] && [ $mr = 0 ] && [ "$(counter tiles_done "$T/slow.exr")" = 4096 ] && [ -n "$rip" ] && [ "$rip" -le 384 ]; then
   ok "a slow checker pool holds at most 256 + the workers' credits of RESULTs ($rip of 384), every unit done"
-else bad "a slow checker pool holds at most 256 + the workers' credits of RESULTs (${rip:-none} of 384; rc $lr $mr)"; fi
+else tail -3 "$T/m.log" "$T/log"; bad "a slow checker pool holds at most 256 + the workers' credits of RESULTs (${rip:-none} of 384; rc $lr $mr)"; fi
 
 # A frame range: one job per frame; loadpeers counts every frame's units.
 timeout 120 $M scenes/cornell/cornell.json -o "$T/fr.exr" --spp 1 --tile 32 --workers 0 --frames 1:3 --no-journal \

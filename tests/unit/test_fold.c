@@ -1,5 +1,6 @@
 /* Unit tests for the pass fold (master/fold.c): a tile's passes arriving in any order give
- * the same bits as in pass order (folded as they come or kept until the last is in), a pass without samples is left out, and the result is
+ * the same bits as in pass order (folded as they come, kept until the last is in, or kept
+ * and folded in batches), a pass without samples is left out, and the result is
  * the batch-means mean and variance of the pass means. Run by `make unit`. */
 #include <criterion/criterion.h>
 #include <float.h>
@@ -24,27 +25,33 @@ static void desc_of(struct image_desc *d, uint32_t w, uint32_t h, uint32_t tile)
 
 static void make_desc(struct image_desc *d) { desc_of(d, 10, 7, 4); }
 
-/* Pass p's channels for tile t: values that differ in their low bits, so that a fold in
- * another order would round differently. */
+/* Pass p's channels for tile t: values that differ in their low bits and in magnitude, so
+ * that a fold in another order would round differently. */
 static void pass_pixels(uint32_t t, uint32_t p, size_t n, float *px)
 {
     for (size_t i = 0; i < n; i++) {
         float *c = &px[i * TILE_NUM_CHANNELS];
+        /* Some pixels far off on some passes, by turns up and down (in each stream): their
+         * sums in double cancel and leave rounding errors a float sees, so that only the
+         * one order of additions gives these bits. */
+        int big = p % 3 == 0 && i % 5 == 1;
         for (int k = 0; k < 3; k++)
-            c[CH_R + k] = (float)(0.1 + 0.37 * sin(1.3 * (double)(t * 131 + p * 17 + i * 7 + k)) + 0.001 * p);
+            c[CH_R + k] = big ? (p / 6 % 2 ? -3e13f : 3e13f)
+                              : (float)(0.1 + 0.37 * sin(1.3 * (double)(t * 131 + p * 17 + i * 7 + k)) + 0.001 * p);
         c[CH_A] = (i + p) % 7 == 0 ? PASS_ALPHA_NONE : 0.25f * (float)((i + p) % 5) / 4.0f;
         c[CH_VAR_R] = c[CH_VAR_G] = c[CH_VAR_B] = 0.0f;
     }
 }
 
-static void fold_in_order(const struct image_desc *d, const uint32_t *order, float *out, struct tile_stats *st)
+static void fold_in_order_n(const struct image_desc *d, uint32_t passes, const uint32_t *order, float *out,
+                            struct tile_stats *st)
 {
-    struct fold *f = fold_new(d, PASSES, 3, SAMPLER_STREAMS);
+    struct fold *f = fold_new(d, passes, 3, SAMPLER_STREAMS);
     uint32_t tiles = imgio_tiles_x(d) * imgio_tiles_y(d);
     float px[16 * TILE_NUM_CHANNELS];
     memset(st, 0, sizeof *st);
     uint32_t done = 0;
-    for (uint32_t i = 0; i < tiles * PASSES; i++) {
+    for (uint32_t i = 0; i < tiles * passes; i++) {
         uint32_t u = order[i], t = u % tiles, p = u / tiles;
         uint32_t x0, y0, w, h;
         imgio_tile_rect(d, t % imgio_tiles_x(d), t / imgio_tiles_x(d), &x0, &y0, &w, &h);
@@ -57,43 +64,131 @@ static void fold_in_order(const struct image_desc *d, const uint32_t *order, flo
     cr_assert_null(f);
 }
 
-/* The master's pool way: fold_add_take (every other unit as a buffer taken over,
- * fold_add_take_own, as the checker pool hands them), then fold_run of each tile's units
- * with one scratch. */
-static void fold_taken(const struct image_desc *d, const uint32_t *order, float *out, struct tile_stats *st)
+static void fold_in_order(const struct image_desc *d, const uint32_t *order, float *out, struct tile_stats *st)
 {
-    struct fold *f = fold_new(d, PASSES, 3, SAMPLER_STREAMS);
-    uint32_t tiles = imgio_tiles_x(d) * imgio_tiles_y(d), done = 0;
+    fold_in_order_n(d, PASSES, order, out, st);
+}
+
+/* The master's pool way: fold_add_take (every other unit as a buffer taken over,
+ * fold_add_take_own, as the checker pool hands them), then fold_run of each batch with one
+ * scratch. A batch that is not its tile's last goes back (fold_units_return) at once, or,
+ * with `pool` > 0, is held back like an item in the pool until `pool` batches are out, then
+ * one of them (chosen by x) goes back first; the next batch it brings is folded too. The
+ * most units kept at once goes to *max_kept. */
+static void fold_taken_n(const struct image_desc *d, uint32_t passes, const uint32_t *order, float *out,
+                         struct tile_stats *st, uint32_t pool, uint64_t x, uint32_t *max_kept)
+{
+    struct fold *f = fold_new(d, passes, 3, SAMPLER_STREAMS);
+    uint32_t tiles = imgio_tiles_x(d) * imgio_tiles_y(d), done = 0, out_n = 0, kept = 0;
+    struct fold_units *held[64];
     float px[16 * TILE_NUM_CHANNELS];
     void *scratch = NULL;
     size_t scratch_size = 0;
     memset(st, 0, sizeof *st);
-    for (uint32_t i = 0; i < tiles * PASSES; i++) {
-        uint32_t u = order[i], t = u % tiles, p = u / tiles;
-        uint32_t x0, y0, w, h;
-        imgio_tile_rect(d, t % imgio_tiles_x(d), t / imgio_tiles_x(d), &x0, &y0, &w, &h);
-        pass_pixels(t, p, (size_t)w * h, px);
-        struct fold_units *fu;
-        if (i % 2) {
-            size_t n = fold_unit_floats(f, t);
-            cr_assert_eq(n, (size_t)w * h * TILE_NUM_CHANNELS, "a unit's values: its tile's pixels x channels");
-            float *own = malloc(sizeof(float) * n);
-            memcpy(own, px, sizeof(float) * n);
-            fu = fold_add_take_own(f, t, p, &own);
-            cr_assert_null(own, "taken over");
-        } else
-            fu = fold_add_take(f, t, p, px);
-        if (fu) {
-            cr_assert_eq(fold_units_tile(fu), t);
-            fold_run(f, fu, &scratch, &scratch_size, out + (size_t)t * 16 * FOLD_NUM_CHANNELS, st);
-            fold_units_free(&fu);
-            cr_assert_null(fu);
-            done++;
+    for (uint32_t i = 0; i <= tiles * passes; i++) {
+        struct fold_units *fu = NULL;
+        if (i < tiles * passes) {
+            uint32_t u = order[i], t = u % tiles, p = u / tiles;
+            uint32_t x0, y0, w, h;
+            imgio_tile_rect(d, t % imgio_tiles_x(d), t / imgio_tiles_x(d), &x0, &y0, &w, &h);
+            pass_pixels(t, p, (size_t)w * h, px);
+            if (i % 2) {
+                size_t n = fold_unit_floats(f, t);
+                cr_assert_eq(n, (size_t)w * h * TILE_NUM_CHANNELS, "a unit's values: its tile's pixels x channels");
+                float *own = malloc(sizeof(float) * n);
+                memcpy(own, px, sizeof(float) * n);
+                fu = fold_add_take_own(f, t, p, &own);
+                cr_assert_null(own, "taken over");
+            } else
+                fu = fold_add_take(f, t, p, px);
+        }
+        /* Fold what is due; hold batches back as the pool would, and at the end (and
+         * whenever the pool is full) give them back, each bringing its tile's next. */
+        for (;;) {
+            if (fold_kept_units(f) > kept)
+                kept = fold_kept_units(f);
+            if (fu) {
+                uint32_t t = fold_units_tile(fu);
+                fold_run(f, fu, &scratch, &scratch_size, out + (size_t)t * 16 * FOLD_NUM_CHANNELS, st);
+                if (fold_units_final(fu)) {
+                    fold_units_free(&fu);
+                    cr_assert_null(fu);
+                    done++;
+                    continue;
+                }
+                if (pool == 0) {
+                    fu = fold_units_return(f, &fu);
+                    continue;
+                }
+                cr_assert(out_n < 64);
+                held[out_n++] = fu;
+                fu = NULL;
+            }
+            if (out_n == 0 || (out_n < pool && i < tiles * passes))
+                break;
+            x = x * 6364136223846793005ull + 1442695040888963407ull;
+            uint32_t k = (uint32_t)((x >> 33) % out_n);
+            struct fold_units *back = held[k];
+            held[k] = held[--out_n];
+            fu = fold_units_return(f, &back);
+            cr_assert_null(back);
         }
     }
     cr_assert_eq(done, tiles, "every tile taken exactly once");
+    cr_assert_eq(fold_kept_units(f), 0, "no unit left kept");
+    if (max_kept)
+        *max_kept = kept;
     free(scratch);
     fold_free(&f);
+}
+
+static void fold_taken(const struct image_desc *d, const uint32_t *order, float *out, struct tile_stats *st)
+{
+    fold_taken_n(d, PASSES, order, out, st, 0, 0, NULL);
+}
+
+/* Over FOLD_KEEP_ALL_PASSES passes a tile's units are folded in batches as they come
+ * (fold_add_take), whatever order they arrive and batches come back in: the same bits as
+ * the plain fold, and with units coming pass by pass (the master's order) only a few
+ * copies of each tile are kept at once, not every pass of it. */
+Test(fold, batches_give_the_same_bits_and_keep_few_copies)
+{
+    const uint32_t passes = 3 * FOLD_KEEP_ALL_PASSES + 5;
+    struct image_desc d;
+    make_desc(&d);
+    uint32_t tiles = imgio_tiles_x(&d) * imgio_tiles_y(&d), n = tiles * passes;
+    uint32_t *order = malloc(sizeof *order * n);
+    size_t bytes = sizeof(float) * tiles * 16 * FOLD_NUM_CHANNELS;
+    float *a = calloc(1, bytes), *b = calloc(1, bytes);
+    struct tile_stats sa, sb;
+    for (uint32_t i = 0; i < n; i++)
+        order[i] = i; /* u = pass x tiles + tile: pass by pass */
+    fold_in_order_n(&d, passes, order, a, &sa);
+    uint32_t kept = 0;
+    fold_taken_n(&d, passes, order, b, &sb, 0, 1, &kept);
+    cr_assert(memcmp(a, b, bytes) == 0, "pixels differ folded in batches");
+    cr_assert(kept <= tiles * FOLD_BATCH, "pass by pass, at most %u units kept at once, not %u", tiles * FOLD_BATCH,
+              kept);
+    fold_taken_n(&d, passes, order, b, &sb, 3, 7, NULL);
+    cr_assert(memcmp(a, b, bytes) == 0, "pixels differ with batches held back");
+    uint64_t x = 999;
+    for (int trial = 0; trial < 12; trial++) {
+        for (uint32_t i = n - 1; i > 0; i--) {
+            x = x * 6364136223846793005ull + 1442695040888963407ull;
+            uint32_t j = (uint32_t)((x >> 33) % (i + 1));
+            uint32_t tmp = order[i];
+            order[i] = order[j];
+            order[j] = tmp;
+        }
+        memset(b, 0, bytes);
+        fold_taken_n(&d, passes, order, b, &sb, (uint32_t)trial % 5, x, NULL);
+        cr_assert(memcmp(a, b, bytes) == 0, "trial %d: pixels differ folded in batches, another arrival order", trial);
+        cr_assert(fabs(sa.sum_rel_stderr - sb.sum_rel_stderr) <= 1e-12 * sa.sum_rel_stderr &&
+                  sa.rel_stderr_pixels == sb.rel_stderr_pixels);
+    }
+    free(order);
+    free(a);
+    free(b);
 }
 
 Test(fold, any_arrival_order_gives_the_same_bits)
