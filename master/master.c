@@ -1285,6 +1285,10 @@ static void adapt_release(struct master *m)
     for (uint32_t c = 0; c < m->num_cells; c++)
         m->round_from[c] = a->tiles[c].passes;
     a->outstanding = units;
+    /* The maps of the round's passes and one more, so that the next round's first pass
+     * need not wait for its map; the tracer traces no further. */
+    if (m->tracer)
+        photon_tracer_want(m->tracer, hi + 1);
 }
 
 /* The per-pixel bound's state at the last decision into buf: "" without a bound. */
@@ -2436,7 +2440,8 @@ static int maps_start(struct master *m, uint32_t frame)
     m->maps_published = 0;
     for (uint32_t i = 0; i < m->num_peers; i++)
         m->peers[i].maps_sent = 0;
-    m->tracer = photon_tracer_new(&m->scene, m->opts, frame, m->passes, err, sizeof err);
+    /* An adaptive render wants the maps of the passes its rounds give out (adapt_release). */
+    m->tracer = photon_tracer_new(&m->scene, m->opts, frame, m->passes, m->adapt ? 0 : m->passes, err, sizeof err);
     if (!m->tracer) {
         master_fail(m, "%s", err);
         return -1;

@@ -285,8 +285,11 @@ struct traced_map {
 struct photon_tracer {
     const struct scene *scene;
     uint32_t frame, passes, threads;
+    uint32_t want;              /* maps 0..want-1 are to be traced (under lock; photon_tracer_want) */
+    int quit;                   /* photon_tracer_free: trace nothing past want (under lock) */
     pthread_t thread;
     pthread_mutex_t lock;
+    pthread_cond_t want_cv;
     struct traced_map *maps;    /* per pass, filled in pass order by the thread */
     uint32_t traced, taken;     /* maps traced (under lock), maps handed to the caller */
     int failed, joined;
@@ -340,6 +343,13 @@ static void *tracer_thread(void *arg)
     size_t bytes = 0;
     uint32_t p = 0;
     for (; p < t->passes; p++) {
+        pthread_mutex_lock(&t->lock); /* a map only once it is wanted */
+        while (p >= t->want && !t->quit)
+            pthread_cond_wait(&t->want_cv, &t->lock);
+        int wanted = p < t->want;
+        pthread_mutex_unlock(&t->lock);
+        if (!wanted)
+            break;
         struct traced_map m = {0};
         int rc = trace_one(t, &job, r0, p, &m);
         if (rc == 0) {
@@ -371,23 +381,36 @@ static void *tracer_thread(void *arg)
 }
 
 struct photon_tracer *photon_tracer_new(const struct scene *scene, const struct master_opts *o, uint32_t frame,
-                                        uint32_t passes, char *err, size_t errlen)
+                                        uint32_t passes, uint32_t want, char *err, size_t errlen)
 {
     struct photon_tracer *t = mem_calloc(1, sizeof *t);
     t->scene = scene;
     t->frame = frame;
     t->passes = passes;
+    t->want = want < passes ? want : passes;
     t->threads = o->photon_threads ? o->photon_threads : 1;
     t->maps = mem_calloc(passes ? passes : 1, sizeof *t->maps);
     pthread_mutex_init(&t->lock, NULL);
+    pthread_cond_init(&t->want_cv, NULL);
     if (pthread_create(&t->thread, NULL, tracer_thread, t) != 0) {
         str_fmt(err, errlen, "photon pass: cannot start its thread");
+        pthread_cond_destroy(&t->want_cv);
         pthread_mutex_destroy(&t->lock);
         free(t->maps);
         free(t);
         return NULL;
     }
     return t;
+}
+
+void photon_tracer_want(struct photon_tracer *t, uint32_t maps)
+{
+    pthread_mutex_lock(&t->lock);
+    if (maps > t->want) {
+        t->want = maps < t->passes ? maps : t->passes;
+        pthread_cond_signal(&t->want_cv);
+    }
+    pthread_mutex_unlock(&t->lock);
 }
 
 int photon_tracer_poll(struct photon_tracer *t, uint32_t *pass, uint8_t **map, size_t *size, double *seconds,
@@ -424,7 +447,9 @@ void photon_tracer_free(struct photon_tracer **tp, int stop)
     if (!t)
         return;
     pthread_mutex_lock(&t->lock);
-    int busy = !t->failed && t->traced < t->passes;
+    int busy = !t->failed && t->traced < t->want;
+    t->quit = 1; /* no map past those wanted */
+    pthread_cond_signal(&t->want_cv);
     pthread_mutex_unlock(&t->lock);
     if (busy && stop)
         photon_trace_request_stop(); /* the master is leaving: the pass stops at its next photon */
@@ -434,6 +459,7 @@ void photon_tracer_free(struct photon_tracer **tp, int stop)
         free(t->maps[p].chunks);
     }
     free(t->maps);
+    pthread_cond_destroy(&t->want_cv);
     pthread_mutex_destroy(&t->lock);
     free(t);
     *tp = NULL;

@@ -29,11 +29,16 @@ int master_passes_fit(struct render_settings *rs, uint32_t passes);
 
 /* Traces the P maps of a frame on a thread of its own, in pass order, while the master
  * renders: map p is a pure function of (scene, seed, frame, p) (volume map, then surface
- * map; photon_map_serialise's bytes). The scene must not change while it runs. */
+ * map; photon_map_serialise's bytes). The scene must not change while it runs. Only the
+ * first `want` maps are traced until photon_tracer_want raises it (an adaptive render
+ * wants the passes its rounds have given out: the cap's maps would be traced for nothing,
+ * on cores the workers need). */
 struct photon_tracer;
 struct blob_hash;
 struct photon_tracer *photon_tracer_new(const struct scene *scene, const struct master_opts *o, uint32_t frame,
-                                        uint32_t passes, char *err, size_t errlen);
+                                        uint32_t passes, uint32_t want, char *err, size_t errlen);
+/* Maps 0..maps-1 are wanted (at most P; a lower count than before changes nothing). */
+void photon_tracer_want(struct photon_tracer *t, uint32_t maps);
 /* The next map in pass order once traced: 1 with *pass, *map (the caller frees), *size,
  * the seconds it took and, unless NULL, its blob name and chunk list (*chunks: the caller
  * frees; both from the tracer's one pass over the map, blob_name_of_chunks); 0 when it is
@@ -42,7 +47,8 @@ int photon_tracer_poll(struct photon_tracer *t, uint32_t *pass, uint8_t **map, s
                        struct blob_hash *hash, struct blob_hash **chunks, char *err, size_t errlen);
 /* Joins the thread and frees what was not taken; *t becomes NULL (NULL is fine). With
  * stop, unfinished tracing is stopped (photon_trace_request_stop: for good, in this
- * process; only for a master that is leaving), else it is waited for. */
+ * process; only for a master that is leaving), else the wanted maps are waited for (none
+ * past them is traced). */
 void photon_tracer_free(struct photon_tracer **t, int stop);
 
 #endif

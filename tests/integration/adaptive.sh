@@ -10,7 +10,7 @@
 # passes; a scene of uniform noise renders uniform passes (the fallback), the uniform
 # render of as many passes; --pixel-error P (alone, and with a target in the kill test):
 # 1 vs 3 workers bit-identical, every pixel not at the cap within P, more samples where
-# round 0 saw a pixel above P.
+# round 0 saw a pixel above P; with a photon map, only the maps its passes use are traced.
 # Ends with "integration: N passed, N failed". Usage: BUILD=build sh tests/integration/adaptive.sh
 . "$(dirname "$0")/lib.sh"
 lib_init adaptive
@@ -190,5 +190,20 @@ if [ $f1$f3$f2 = 000 ] && grep -q "uniform passes$" "$T/f1.log" && [ "${lohi% *}
    [ "$($X chsum "$T/f1.exr" samples)" = "$($X chsum "$T/fu.exr" samples)" ]; then
   ok "uniform noise: uniform passes ($fs spp everywhere) = --spp $fs --passes $((fs / 8)), 1 vs 3 workers bit-identical"
 else bad "uniform noise: uniform passes = the uniform render, 1 vs 3 workers (rc $f1$f3$f2, spp min/max $lohi)"; fi
+
+# With a photon map an adaptive render traces only the maps of the passes its rounds give
+# out (and one ahead), not every pass up to the cap: fog_spot at 80x60 to a loose target
+# stops after round 0 (4 passes of 8), and is the uniform render of those 4 passes.
+mkdir -p "$T/fs"
+cp scenes/fog_spot/* "$T/fs/"
+sed -i 's/"width": 160, "height": 120/"width": 80, "height": 60/' "$T/fs/fog_spot.json"
+run $M "$T/fs/fog_spot.json" -o "$T/m1.exr" --target-error 0.5 --spp 4096 --no-journal --workers 1 --threads 2 && m1=0 || m1=1
+cp "$T/log" "$T/m1.log"
+run $M "$T/fs/fog_spot.json" -o "$T/mu.exr" --spp 32 --passes 4 --no-journal --workers 2 --threads 1 && mu=0 || mu=1
+maps=$(grep -c "media: photon map [0-9]* of" "$T/m1.log")
+mx=$(sed -n 's/^summary: adaptive: .* spp min [0-9]* mean [0-9.]* max \([0-9]*\).*/\1/p' "$T/m1.log")
+if [ $m1$mu = 00 ] && [ "${mx:-0}" = 32 ] && [ "$maps" -le 5 ] && $X cmp "$T/m1.exr" "$T/mu.exr"; then
+  ok "photon maps: an adaptive render traces the maps its passes use and one more ($maps of 512), = --spp 32 --passes 4"
+else bad "photon maps: an adaptive render traces the maps its passes use and one more ($maps of 512, max spp ${mx:-?}; rc $m1$mu)"; fi
 
 finish

@@ -280,7 +280,7 @@ static struct photon_map *prepare(struct scene *s, uint32_t passes, uint32_t spp
                  0, "%s", err);
     cr_assert_null(maps, "the settings blob holds no map");
     asset_dir_fini(&dir);
-    struct photon_tracer *t = photon_tracer_new(s, &o, 0, *got, err, sizeof err);
+    struct photon_tracer *t = photon_tracer_new(s, &o, 0, *got, *got, err, sizeof err);
     cr_assert_not_null(t, "%s", err);
     for (uint32_t want = 0; want < *got;) {
         uint32_t pass;
