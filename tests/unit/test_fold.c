@@ -147,6 +147,18 @@ static void fold_taken(const struct image_desc *d, const uint32_t *order, float 
     fold_taken_n(d, PASSES, order, out, st, 0, 0, NULL);
 }
 
+/* order[0..n-1] shuffled (Fisher-Yates with a fixed LCG in *x). */
+static void shuffle(uint32_t *order, uint32_t n, uint64_t *x)
+{
+    for (uint32_t i = n - 1; i > 0; i--) {
+        *x = *x * 6364136223846793005ull + 1442695040888963407ull;
+        uint32_t j = (uint32_t)((*x >> 33) % (i + 1));
+        uint32_t tmp = order[i];
+        order[i] = order[j];
+        order[j] = tmp;
+    }
+}
+
 /* Over FOLD_KEEP_ALL_PASSES passes a tile's units are folded in batches as they come
  * (fold_add_take), whatever order they arrive and batches come back in: the same bits as
  * the plain fold, and with units coming pass by pass (the master's order) only a few
@@ -173,13 +185,7 @@ Test(fold, batches_give_the_same_bits_and_keep_few_copies)
     cr_assert(memcmp(a, b, bytes) == 0, "pixels differ with batches held back");
     uint64_t x = 999;
     for (int trial = 0; trial < 12; trial++) {
-        for (uint32_t i = n - 1; i > 0; i--) {
-            x = x * 6364136223846793005ull + 1442695040888963407ull;
-            uint32_t j = (uint32_t)((x >> 33) % (i + 1));
-            uint32_t tmp = order[i];
-            order[i] = order[j];
-            order[j] = tmp;
-        }
+        shuffle(order, n, &x);
         memset(b, 0, bytes);
         fold_taken_n(&d, passes, order, b, &sb, (uint32_t)trial % 5, x, NULL);
         cr_assert(memcmp(a, b, bytes) == 0, "trial %d: pixels differ folded in batches, another arrival order", trial);
@@ -205,13 +211,7 @@ Test(fold, any_arrival_order_gives_the_same_bits)
     fold_in_order(&d, order, a, &sa);
     uint64_t x = 12345;
     for (int trial = 0; trial < 20; trial++) {
-        for (uint32_t i = n - 1; i > 0; i--) { /* Fisher-Yates with a fixed LCG */
-            x = x * 6364136223846793005ull + 1442695040888963407ull;
-            uint32_t j = (uint32_t)((x >> 33) % (i + 1));
-            uint32_t tmp = order[i];
-            order[i] = order[j];
-            order[j] = tmp;
-        }
+        shuffle(order, n, &x);
         memset(b, 0, bytes);
         /* odd trials: units kept until a tile's last is in, taken out and folded by
          * fold_run, the master's way */
