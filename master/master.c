@@ -89,6 +89,10 @@ struct pass_map {
     double seconds;         /* tracing time */
 };
 
+/* RESULTs the checker pool may hold per thread before a worker's credit waits for its
+ * RESULT's check (on_result): about 30 MB a thread at 32 px tiles. */
+#define MASTER_POOL_BACKLOG 256u
+
 /* What happened, for tests and operators: OUT.stats.json ("counters"), and with
  * --verbose "summary: counter NAME VALUE" lines. */
 #define COUNTERS(X)                                                                                                \
@@ -252,9 +256,6 @@ static void master_fail(struct master *m, const char *fmt, ...)
  * renders, so a missing grid does not stop a long range half way; up to FRAMES_CHECK_MAX
  * frames, the rest when their frame starts). A missing one is reported as the parse of its
  * frame reports it: the scene's file:line:col, the frame and the file. */
-/* RESULTs the checker pool may hold per thread before a worker's credit waits for its
- * RESULT's check (on_result). */
-#define MASTER_POOL_BACKLOG 256u
 #define FRAMES_CHECK_MAX 100000u
 static int check_frame_files(struct master *m, const char *text, size_t len)
 {
