@@ -1,8 +1,10 @@
 /* Pass folding (see fold.h). Per tile: how many passes are folded, the running per-pixel
  * batch means, and copies of passes that arrived before an earlier one; both are given up
  * once the tile is final (the batch means' buffer is kept for the next tile: a fresh one
- * costs page faults, per tile, in the master's loop). The error estimate's sums (fold_est) run over final tiles in tile
- * order. */
+ * costs page faults, per tile, in the master's loop). fold_add_take's tiles keep copies of
+ * their units and hand them out in batches (fold_units), each carrying the tile's sums of
+ * the batches before it. The error estimate's sums (fold_est) run over final tiles in
+ * tile order. */
 #include "fold.h"
 #include "base/log.h"
 #include "render/aov.h"
