@@ -3,8 +3,9 @@
  * worker's in_flight equals the number of tiles that list it as a holder (zero once it is
  * gone), a queued tile has no holders, qpos gives each queued tile's place in
  * queue_buf (the queue is a window there, so nothing moves when a tile leaves from the
- * front or comes back to either end), and q_released counts the queued tiles below the
- * release limit. Called by master/master.c. */
+ * front or comes back to either end), q_released counts the queued tiles below the
+ * release limit, and the in-flight list (fl_*) holds exactly the assigned tiles with one
+ * holder, ordered by (assigned_ms, tile). Called by master/master.c. */
 #include "sched.h"
 #include "base/log.h"
 #include <signal.h>
@@ -24,6 +25,10 @@ struct sched *sched_new(uint32_t num_tiles)
         s->qpos[t] = SCHED_NOT_QUEUED;
     s->failed_tile = -1;
     s->released = num_tiles;
+    s->fl_prev = mem_alloc((num_tiles ? num_tiles : 1) * sizeof *s->fl_prev);
+    s->fl_next = mem_alloc((num_tiles ? num_tiles : 1) * sizeof *s->fl_next);
+    s->fl_in = mem_calloc(num_tiles ? num_tiles : 1, 1);
+    s->fl_head = s->fl_tail = SCHED_NOT_QUEUED;
     return s;
 }
 
@@ -35,6 +40,9 @@ void sched_free(struct sched **sp)
     free(s->tiles);
     free(s->queue_buf);
     free(s->qpos);
+    free(s->fl_prev);
+    free(s->fl_next);
+    free(s->fl_in);
     free(s->workers);
     free(s);
     *sp = NULL;
@@ -48,6 +56,8 @@ void sched_frame_begin(struct sched *s)
     s->q_count = 0;
     s->released = s->num_tiles;
     s->q_released = s->num_tiles;
+    memset(s->fl_in, 0, s->num_tiles);
+    s->fl_head = s->fl_tail = SCHED_NOT_QUEUED;
     s->queue = s->queue_buf + 1; /* room for the tiles that come back to the front */
     for (uint32_t t = 0; t < s->num_tiles; t++) {
         s->qpos[t] = (uint32_t)(s->queue - s->queue_buf) + s->q_count;
@@ -154,10 +164,54 @@ static void queue_push_front(struct sched *s, uint32_t tile)
     s->q_released += tile < s->released;
 }
 
+/* The in-flight list: tile a before tile b (older, or as old with a lower index). */
+static int fl_before(const struct sched *s, uint32_t a, uint32_t b)
+{
+    uint64_t ta = s->tiles[a].assigned_ms, tb = s->tiles[b].assigned_ms;
+    return ta < tb || (ta == tb && a < b);
+}
+
+/* Puts tile in the in-flight list, or takes it out, as it now has one holder or not. A
+ * tile comes in at its place from the back: it was just given, so that is the end or near. */
+static void fl_sync(struct sched *s, uint32_t tile)
+{
+    const struct sched_tile *t = &s->tiles[tile];
+    int want = t->state == SCHED_ASSIGNED && t->num_holders == 1;
+    if (s->fl_in[tile] && !want) {
+        uint32_t p = s->fl_prev[tile], n = s->fl_next[tile];
+        if (p != SCHED_NOT_QUEUED)
+            s->fl_next[p] = n;
+        else
+            s->fl_head = n;
+        if (n != SCHED_NOT_QUEUED)
+            s->fl_prev[n] = p;
+        else
+            s->fl_tail = p;
+        s->fl_in[tile] = 0;
+    } else if (!s->fl_in[tile] && want) {
+        uint32_t p = s->fl_tail;
+        while (p != SCHED_NOT_QUEUED && fl_before(s, tile, p))
+            p = s->fl_prev[p];
+        uint32_t n = p != SCHED_NOT_QUEUED ? s->fl_next[p] : s->fl_head;
+        s->fl_prev[tile] = p;
+        s->fl_next[tile] = n;
+        if (p != SCHED_NOT_QUEUED)
+            s->fl_next[p] = tile;
+        else
+            s->fl_head = tile;
+        if (n != SCHED_NOT_QUEUED)
+            s->fl_prev[n] = tile;
+        else
+            s->fl_tail = tile;
+        s->fl_in[tile] = 1;
+    }
+}
+
 static void mark_done(struct sched *s, uint32_t tile)
 {
     s->tiles[tile].state = SCHED_DONE;
     s->tiles_done++;
+    fl_sync(s, tile);
 }
 
 int sched_tile_set_done(struct sched *s, uint32_t tile)
@@ -188,6 +242,7 @@ static void drop_holder(struct sched *s, uint32_t tile, int32_t w)
         t->requeued = 1;
         queue_push_front(s, tile);
     }
+    fl_sync(s, tile);
 }
 
 static void drop_all_holders(struct sched *s, uint32_t tile)
@@ -352,6 +407,7 @@ static void give(struct sched *s, uint32_t tile, int32_t wi, int straggler, uint
     a->straggler = straggler;
     a->reissue = !straggler && t->requeued;
     t->requeued = 0;
+    fl_sync(s, tile);
     /* A tile that already took a worker down is rendered alone, so that a second crash
      * is blamed on it and not on its neighbours. */
     if (t->crashes > 0)
@@ -387,17 +443,14 @@ int sched_assign_next(struct sched *s, uint64_t now_ms, struct sched_assignment 
         const struct sched_worker *w = &s->workers[i];
         if (!can_take(w) || w->in_flight > 0)
             continue;
-        int32_t best = -1;
-        for (uint32_t tile = 0; tile < s->num_tiles; tile++) {
-            const struct sched_tile *t = &s->tiles[tile];
-            if (t->state != SCHED_ASSIGNED || t->num_holders != 1 || t->holder[0] == (int32_t)i || t->crashes > 0)
-                continue;
-            if (best < 0 || t->assigned_ms < s->tiles[best].assigned_ms)
-                best = (int32_t)tile;
-        }
-        if (best < 0)
+        /* The in-flight list is in that order: its first tile this worker may copy. */
+        uint32_t best = s->fl_head;
+        while (best != SCHED_NOT_QUEUED &&
+               (s->tiles[best].holder[0] == (int32_t)i || s->tiles[best].crashes > 0))
+            best = s->fl_next[best];
+        if (best == SCHED_NOT_QUEUED)
             return 0;
-        give(s, (uint32_t)best, (int32_t)i, 1, now_ms, a);
+        give(s, best, (int32_t)i, 1, now_ms, a);
         return 1;
     }
     return 0;

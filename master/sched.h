@@ -80,6 +80,10 @@ struct sched {
     uint32_t released;              /* queued tiles with an index below this may go out (sched_release) */
     uint32_t q_released;            /* queued tiles with an index below released: none, and
                                      * nothing in the queue can go out (no search of it) */
+    uint32_t *fl_prev, *fl_next;    /* the tiles in flight with one holder (the straggler copies'
+                                     * candidates), oldest first: by assigned_ms, then tile */
+    uint8_t *fl_in;                 /* per tile: in that list */
+    uint32_t fl_head, fl_tail;      /* SCHED_NOT_QUEUED when empty */
 };
 
 /* Why a worker leaves. Only a death a tile could cause blames its tiles: not leaving, a

@@ -536,10 +536,16 @@ static int model_holds(const struct model *md, int32_t w, uint32_t tile, uint32_
     return 0;
 }
 
+static void straggler_expected(const struct sched *s, int32_t *worker, int32_t *tile);
+
 static void drain_assignments(struct sched *s, struct model *md, uint64_t now)
 {
     struct sched_assignment a;
-    while (md->num_given < P_GIVEN && sched_assign_next(s, now, &a)) {
+    int32_t ew, et;
+    while (md->num_given < P_GIVEN && (straggler_expected(s, &ew, &et), sched_assign_next(s, now, &a))) {
+        if (a.straggler) /* the in-flight list gives the copy a scan of every tile would */
+            cr_assert(a.worker == ew && (int32_t)a.tile == et, "straggler copy of tile %u to worker %d, expected %d to %d",
+                      a.tile, a.worker, et, ew);
         cr_assert(!md->gone[a.worker] && s->workers[a.worker].ready);
         cr_assert_eq(md->done_count[a.tile], 0, "a done tile went out");
         md->g[md->num_given++] = (struct given){a.tile, a.attempt, a.worker, 0};
@@ -602,6 +608,50 @@ static void check_invariants(const struct sched *s)
     for (uint32_t q = 0; q < s->q_count; q++)
         rel += s->queue[q] < s->released;
     cr_assert_eq(s->q_released, rel, "queued tiles released");
+    /* The in-flight list: exactly the assigned tiles with one holder, linked both ways,
+     * oldest first (assigned_ms, then tile). */
+    uint32_t listed = 0, prev = SCHED_NOT_QUEUED;
+    for (uint32_t t = s->fl_head; t != SCHED_NOT_QUEUED; prev = t, t = s->fl_next[t]) {
+        cr_assert(t < s->num_tiles && listed < s->num_tiles, "the list's links");
+        cr_assert(s->fl_in[t] && s->fl_prev[t] == prev, "tile %u's links", t);
+        if (prev != SCHED_NOT_QUEUED)
+            cr_assert(s->tiles[prev].assigned_ms < s->tiles[t].assigned_ms ||
+                          (s->tiles[prev].assigned_ms == s->tiles[t].assigned_ms && prev < t),
+                      "tiles %u, %u in order", prev, t);
+        listed++;
+    }
+    cr_assert_eq(s->fl_tail, prev);
+    uint32_t one = 0;
+    for (uint32_t t = 0; t < s->num_tiles; t++) {
+        int want = s->tiles[t].state == SCHED_ASSIGNED && s->tiles[t].num_holders == 1;
+        cr_assert_eq(s->fl_in[t], want, "tile %u in the in-flight list", t);
+        one += want;
+    }
+    cr_assert_eq(listed, one);
+}
+
+/* The straggler copy sched_assign_next should make now, by a scan of every tile: for the
+ * first idle worker that may take one, the oldest tile (then the lowest) in flight with
+ * one holder, not its own, that crashed nobody. -1 worker: none is due. */
+static void straggler_expected(const struct sched *s, int32_t *worker, int32_t *tile)
+{
+    *worker = *tile = -1;
+    if (s->q_count > 0)
+        return;
+    for (uint32_t i = 0; i < s->num_workers; i++) {
+        const struct sched_worker *w = &s->workers[i];
+        if (w->gone || !w->ready || w->credits == 0 || w->isolated || w->blocked || w->in_flight > 0)
+            continue;
+        *worker = (int32_t)i;
+        for (uint32_t t = 0; t < s->num_tiles; t++) {
+            const struct sched_tile *st = &s->tiles[t];
+            if (st->state != SCHED_ASSIGNED || st->num_holders != 1 || st->holder[0] == (int32_t)i || st->crashes > 0)
+                continue;
+            if (*tile < 0 || st->assigned_ms < s->tiles[*tile].assigned_ms)
+                *tile = (int32_t)t;
+        }
+        return;
+    }
 }
 
 /* The queue keeps its order whatever leaves it from where: the front (assignments), the
