@@ -17,8 +17,11 @@
 #    at SCALE_SPP spp, REPS runs each, alternating, wall and CPU time (medians); efficiency
 #    = the second's time / the first's.
 # 5. A model of the speed-up at 16, 64, 256 and 1024 workers from 1-3 (see the doc).
+# (2b, between 2 and 3: the master's memory on the smoke in 64 passes against MEM_N fake
+# workers; MEM_N=0 skips it.)
 # Environment: SPP (64), N (fake workers, 16), SCALE_SPP (16), REPS (3), BCAST_NS
-# ("1 4 16 64"), MESH_N (880); WT_US and LOOP_US (both: skip parts 1-2, use these);
+# ("1 4 16 64"), MESH_N (880), MEM_N (64), MEM_SIZE (1024); WT_US and LOOP_US (both: skip
+# parts 1-2, use these);
 # DELIVERY_ONLY=1: part 3 alone. Output: bench-out/bench_master.txt.
 # Usage: BUILD=build sh scripts/bench_master.sh
 set -eu
@@ -85,6 +88,32 @@ say "headline (32 px, tcp + CurveZMQ, journal): the loop takes $loop32 us per ti
 elif [ -z "${DELIVERY_ONLY:-}" ]; then
   wt_us=$WT_US loop32=$LOOP_US
   say "given: worker $wt_us us per 32 px tile, the master's loop $loop32 us per tile"
+fi
+
+# 2b. the master's memory on a frame of many passes (docs/cluster.md, "The master's
+# memory"): the smoke at MEM_SIZE^2 in 64 photon-map passes against MEM_N fake workers
+# answering at once (ipc, no journal): peak resident memory of the master, the most
+# RESULTs its checker pool held, wall time.
+if [ -z "${DELIVERY_ONLY:-}" ] && [ "${MEM_N:-64}" -gt 0 ]; then
+  MEM_N=${MEM_N:-64}
+  MEM_SIZE=${MEM_SIZE:-1024}
+  mkdir -p "$T/sm"
+  cp scenes/smoke/* "$T/sm/"
+  python3 -c 'import json, sys
+d = json.load(open(sys.argv[1])); d["render"]["width"] = d["render"]["height"] = int(sys.argv[2])
+json.dump(d, open(sys.argv[1], "w"), indent=1)' "$T/sm/smoke.json" "$MEM_SIZE"
+  rm -f "$T/m.exr"*
+  /usr/bin/time -f "%M %e" -o "$T/mt" $BUILD/master "$T/sm/smoke.json" -o "$T/m.exr" --spp 64 --photons 20000 --tile 32 \
+    --workers 0 --bind "ipc://$T/mem.sock" --no-journal --worker-timeout-ms 120000 >"$T/mlog" 2>&1 &
+  mp=$!
+  $L "ipc://$T/mem.sock" -n "$MEM_N" --no-fetch >"$T/llog" 2>&1 || { cat "$T/llog" "$T/mlog" >&2; exit 1; }
+  wait $mp
+  units=$(python3 -c 'import json, sys; s = json.load(open(sys.argv[1])); print(s["tiles"] * s["passes"])' "$T/m.exr.stats.json")
+  pool=$(python3 -c 'import json, sys; print(json.load(open(sys.argv[1]))["counters"]["results_in_pool_max"])' "$T/m.exr.stats.json")
+  say ""
+  say "memory: the smoke at ${MEM_SIZE}x${MEM_SIZE} in 64 passes ($units units), $MEM_N fake workers, ipc, no journal"
+  say "master peak resident MB | most RESULTs in the checker pool | wall s | bytes a pixel"
+  awk -v p="$pool" -v px="$((MEM_SIZE * MEM_SIZE))" '{ printf "%.0f | %s | %s | %.0f\n", $1 / 1024, p, $2, $1 * 1024 / px }' "$T/mt" | tee -a "$R"
 fi
 
 # 3. blob delivery, point to point and by the broadcast
