@@ -90,7 +90,7 @@ struct pass_map {
 };
 
 /* RESULTs the checker pool may hold per thread before a worker's credit waits for its
- * RESULT's check (on_result): about 30 MB a thread at 32 px tiles. */
+ * RESULT's check (on_result): about 28 MB a thread at 32 px tiles. */
 #define MASTER_POOL_BACKLOG 256u
 
 /* What happened, for tests and operators: OUT.stats.json ("counters"), and with
