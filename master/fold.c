@@ -26,7 +26,6 @@ struct fold_early {
 
 struct fold_tile {
     uint32_t folded;            /* slots 0..folded-1 are in acc (fold_add_take: handed to batches) */
-    uint32_t in;                /* units given (fold_add_take) */
     int final;                  /* finished: takes nothing more */
     int busy;                   /* fold_add_take: a batch of its units is out (fold_units_return) */
     struct fold_tile *kept_state; /* fold_add_take: the batches' sums so far, while no batch is out */
@@ -45,7 +44,6 @@ struct fold {
      * reused, a tile's start costs a memset, not fresh pages */
     struct pass_pixel **spare;
     uint32_t num_spare, cap_spare;
-    uint32_t kept;              /* units kept by fold_add_take, not yet handed out in a batch */
 };
 
 struct fold *fold_new(const struct image_desc *desc, uint32_t passes, uint32_t spp_per_pass, uint32_t streams)
@@ -140,14 +138,10 @@ static void state_free(struct fold_tile **sp)
 
 static void tile_clear(struct fold *f, struct fold_tile *t)
 {
-    int taken = !t->acc; /* fold_add_take's tile: its copies count in kept */
     acc_put(f, t->acc);
     free(t->aov);
     for (uint32_t p = 0; t->early && p < f->passes; p++)
-        if (t->early[p].px) {
-            free(t->early[p].px);
-            f->kept -= taken;
-        }
+        free(t->early[p].px);
     free(t->early);
     state_free(&t->kept_state);
     memset(t, 0, sizeof *t);
@@ -331,7 +325,6 @@ static struct fold_units *take_batch(struct fold *f, uint32_t tile)
     t->kept_state = NULL;
     memcpy(u->unit, &t->early[t->folded], n * sizeof u->unit[0]);
     memset(&t->early[t->folded], 0, n * sizeof u->unit[0]);
-    f->kept -= n;
     t->folded += n;
     if (last) {
         free(t->early);
@@ -353,8 +346,6 @@ struct fold_units *fold_add_take_own(struct fold *f, uint32_t tile, uint32_t pas
         t->early = mem_calloc(f->passes, sizeof *t->early);
     keep_early(t, pass, pass, TILE_MASK_ALL, *px);
     *px = NULL;
-    f->kept++;
-    t->in++;
     return take_batch(f, tile);
 }
 
@@ -368,39 +359,37 @@ void fold_run(const struct fold *f, struct fold_units *u, void **scratch, size_t
               struct tile_stats *stats)
 {
     size_t pixels = tile_pixels(f, u->tile), need = pixels * sizeof(struct pass_pixel);
+    struct fold_tile whole, *t = u->state;
     if (u->first == 0 && u->last) { /* the whole tile at once: sums in the scratch */
         if (*scratch_size < need) {
             free(*scratch);
             *scratch = mem_alloc(need);
             *scratch_size = need;
         }
-        struct fold_tile t;
-        memset(&t, 0, sizeof t);
-        t.acc = *scratch;
-        memset(t.acc, 0, need);
-        fold_aovs_start(f, &t, pixels);
-        for (uint32_t i = 0; i < u->count; i++)
-            fold_pass(f, u->tile, &t, pixels, u->unit[i].pass, u->unit[i].mask, u->unit[i].px);
-        finish_pixels(f, u->tile, &t, out, stats);
-        free(t.aov);
-        return;
+        memset(&whole, 0, sizeof whole);
+        whole.acc = *scratch;
+        memset(whole.acc, 0, need);
+        fold_aovs_start(f, &whole, pixels);
+        t = &whole;
+    } else if (!t) { /* a tile's first batch: its sums, kept for the next batches */
+        t = u->state = mem_calloc(1, sizeof *u->state);
+        t->acc = mem_calloc(pixels ? pixels : 1, sizeof(struct pass_pixel));
+        fold_aovs_start(f, t, pixels);
     }
-    /* A batch: its slots added to the sums of the earlier ones (the same additions in the
+    /* The batch's slots added to the sums of the earlier ones (the same additions in the
      * same order as in one go), its copies freed at once. */
-    if (!u->state) {
-        u->state = mem_calloc(1, sizeof *u->state);
-        u->state->acc = mem_calloc(pixels ? pixels : 1, sizeof(struct pass_pixel));
-        fold_aovs_start(f, u->state, pixels);
-    }
     for (uint32_t i = 0; i < u->count; i++) {
-        fold_pass(f, u->tile, u->state, pixels, u->unit[i].pass, u->unit[i].mask, u->unit[i].px);
+        fold_pass(f, u->tile, t, pixels, u->unit[i].pass, u->unit[i].mask, u->unit[i].px);
         free(u->unit[i].px);
         u->unit[i].px = NULL;
     }
-    if (u->last) {
-        finish_pixels(f, u->tile, u->state, out, stats);
+    if (!u->last)
+        return;
+    finish_pixels(f, u->tile, t, out, stats);
+    if (t == &whole)
+        free(whole.aov);
+    else
         state_free(&u->state);
-    }
 }
 
 int fold_units_final(const struct fold_units *u) { return u->last; }
@@ -422,7 +411,16 @@ struct fold_units *fold_units_return(struct fold *f, struct fold_units **up)
     return take_batch(f, tile);
 }
 
-uint32_t fold_kept_units(const struct fold *f) { return f->kept; }
+uint32_t fold_kept_units(const struct fold *f)
+{
+    uint32_t n = 0;
+    for (uint32_t i = 0; i < f->num_tiles; i++) {
+        const struct fold_tile *t = &f->tiles[i];
+        for (uint32_t p = 0; !t->acc && t->early && p < f->passes; p++)
+            n += t->early[p].px != NULL;
+    }
+    return n;
+}
 
 uint32_t fold_units_tile(const struct fold_units *u) { return u->tile; }
 

@@ -82,7 +82,8 @@ int fold_units_final(const struct fold_units *u);
  * its sums, and its next batch is returned if one is due now, else NULL. A final batch is
  * only freed. */
 struct fold_units *fold_units_return(struct fold *f, struct fold_units **u);
-/* Units fold_add_take keeps that no batch has taken yet (over every tile). */
+/* Units fold_add_take keeps that no batch has taken yet (over every tile; a scan, for
+ * tests). */
 uint32_t fold_kept_units(const struct fold *f);
 uint32_t fold_units_tile(const struct fold_units *u);
 void fold_units_free(struct fold_units **u);
