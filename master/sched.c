@@ -28,7 +28,7 @@ struct sched *sched_new(uint32_t num_tiles)
     s->fl_prev = mem_alloc((num_tiles ? num_tiles : 1) * sizeof *s->fl_prev);
     s->fl_next = mem_alloc((num_tiles ? num_tiles : 1) * sizeof *s->fl_next);
     s->fl_in = mem_calloc(num_tiles ? num_tiles : 1, 1);
-    s->fl_head = s->fl_tail = SCHED_NOT_QUEUED;
+    s->fl_head = s->fl_tail = SCHED_NONE;
     return s;
 }
 
@@ -57,7 +57,7 @@ void sched_frame_begin(struct sched *s)
     s->released = s->num_tiles;
     s->q_released = s->num_tiles;
     memset(s->fl_in, 0, s->num_tiles);
-    s->fl_head = s->fl_tail = SCHED_NOT_QUEUED;
+    s->fl_head = s->fl_tail = SCHED_NONE;
     s->queue = s->queue_buf + 1; /* room for the tiles that come back to the front */
     for (uint32_t t = 0; t < s->num_tiles; t++) {
         s->qpos[t] = (uint32_t)(s->queue - s->queue_buf) + s->q_count;
@@ -179,27 +179,27 @@ static void fl_sync(struct sched *s, uint32_t tile)
     int want = t->state == SCHED_ASSIGNED && t->num_holders == 1;
     if (s->fl_in[tile] && !want) {
         uint32_t p = s->fl_prev[tile], n = s->fl_next[tile];
-        if (p != SCHED_NOT_QUEUED)
+        if (p != SCHED_NONE)
             s->fl_next[p] = n;
         else
             s->fl_head = n;
-        if (n != SCHED_NOT_QUEUED)
+        if (n != SCHED_NONE)
             s->fl_prev[n] = p;
         else
             s->fl_tail = p;
         s->fl_in[tile] = 0;
     } else if (!s->fl_in[tile] && want) {
         uint32_t p = s->fl_tail;
-        while (p != SCHED_NOT_QUEUED && fl_before(s, tile, p))
+        while (p != SCHED_NONE && fl_before(s, tile, p))
             p = s->fl_prev[p];
-        uint32_t n = p != SCHED_NOT_QUEUED ? s->fl_next[p] : s->fl_head;
+        uint32_t n = p != SCHED_NONE ? s->fl_next[p] : s->fl_head;
         s->fl_prev[tile] = p;
         s->fl_next[tile] = n;
-        if (p != SCHED_NOT_QUEUED)
+        if (p != SCHED_NONE)
             s->fl_next[p] = tile;
         else
             s->fl_head = tile;
-        if (n != SCHED_NOT_QUEUED)
+        if (n != SCHED_NONE)
             s->fl_prev[n] = tile;
         else
             s->fl_tail = tile;
@@ -418,7 +418,7 @@ int sched_assign_next(struct sched *s, uint64_t now_ms, struct sched_assignment 
 {
     /* Nothing queued is released (every queued unit waits for its pass's photon map):
      * nothing to search, and no straggler copies while units wait. */
-    if (s->q_count > 0 && s->q_released == 0)
+    if (sched_blocked(s))
         return 0;
     for (uint32_t i = 0; i < s->num_workers && s->q_count > 0; i++) {
         const struct sched_worker *w = &s->workers[i];
@@ -445,10 +445,9 @@ int sched_assign_next(struct sched *s, uint64_t now_ms, struct sched_assignment 
             continue;
         /* The in-flight list is in that order: its first tile this worker may copy. */
         uint32_t best = s->fl_head;
-        while (best != SCHED_NOT_QUEUED &&
-               (s->tiles[best].holder[0] == (int32_t)i || s->tiles[best].crashes > 0))
+        while (best != SCHED_NONE && (s->tiles[best].holder[0] == (int32_t)i || s->tiles[best].crashes > 0))
             best = s->fl_next[best];
-        if (best == SCHED_NOT_QUEUED)
+        if (best == SCHED_NONE)
             return 0;
         give(s, best, (int32_t)i, 1, now_ms, a);
         return 1;

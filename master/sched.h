@@ -61,7 +61,8 @@ struct sched_worker {
     uint32_t fail_streak;           /* invalid results in a row */
 };
 
-#define SCHED_NOT_QUEUED UINT32_MAX
+#define SCHED_NOT_QUEUED UINT32_MAX /* qpos of a tile not in the queue */
+#define SCHED_NONE UINT32_MAX       /* no tile: the in-flight list's ends and empty links */
 
 /* Callers read these fields; only sched_* functions change them. */
 struct sched {
@@ -83,7 +84,7 @@ struct sched {
     uint32_t *fl_prev, *fl_next;    /* the tiles in flight with one holder (the straggler copies'
                                      * candidates), oldest first: by assigned_ms, then tile */
     uint8_t *fl_in;                 /* per tile: in that list */
-    uint32_t fl_head, fl_tail;      /* SCHED_NOT_QUEUED when empty */
+    uint32_t fl_head, fl_tail;      /* SCHED_NONE when empty */
 };
 
 /* Why a worker leaves. Only a death a tile could cause blames its tiles: not leaving, a

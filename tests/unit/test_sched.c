@@ -610,11 +610,11 @@ static void check_invariants(const struct sched *s)
     cr_assert_eq(s->q_released, rel, "queued tiles released");
     /* The in-flight list: exactly the assigned tiles with one holder, linked both ways,
      * oldest first (assigned_ms, then tile). */
-    uint32_t listed = 0, prev = SCHED_NOT_QUEUED;
-    for (uint32_t t = s->fl_head; t != SCHED_NOT_QUEUED; prev = t, t = s->fl_next[t]) {
+    uint32_t listed = 0, prev = SCHED_NONE;
+    for (uint32_t t = s->fl_head; t != SCHED_NONE; prev = t, t = s->fl_next[t]) {
         cr_assert(t < s->num_tiles && listed < s->num_tiles, "the list's links");
         cr_assert(s->fl_in[t] && s->fl_prev[t] == prev, "tile %u's links", t);
-        if (prev != SCHED_NOT_QUEUED)
+        if (prev != SCHED_NONE)
             cr_assert(s->tiles[prev].assigned_ms < s->tiles[t].assigned_ms ||
                           (s->tiles[prev].assigned_ms == s->tiles[t].assigned_ms && prev < t),
                       "tiles %u, %u in order", prev, t);
