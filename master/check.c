@@ -296,4 +296,6 @@ struct check_item *checker_take(struct checker *c)
 
 int checker_fd(const struct checker *c) { return c->efd; }
 
+uint32_t checker_threads(const struct checker *c) { return c->num_threads; }
+
 uint32_t checker_pending(struct checker *c) { return c->pending; }

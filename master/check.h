@@ -91,6 +91,8 @@ struct check_item *checker_take(struct checker *c);
 void checker_item_free(struct checker *c, struct check_item *it);
 /* Readable (POLLIN) while checked items wait to be taken. */
 int checker_fd(const struct checker *c);
+/* The pool's threads. */
+uint32_t checker_threads(const struct checker *c);
 /* Items submitted and not yet taken. */
 uint32_t checker_pending(struct checker *c);
 /* Flushes, then blocks until every submitted item is checked (then checker_take returns

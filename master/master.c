@@ -208,7 +208,6 @@ struct master {
     uint64_t var_saturated;     /* its pixels whose variance channel is saturated (tile_variance_value) */
     float *decode_scratch;
     uint64_t results_in_pool;   /* RESULTs handed to the checker pool and not taken back */
-    uint32_t check_threads;     /* the pool's threads (0: none) */
     float *decode_keep;         /* the checked unit's copy for the fold (check_item.keep), while
                                  * result_verdict decides on it; NULL when the loop decoded */
     struct check_ctx check_ctx; /* what chunks of this frame must be (chunk_check) */
@@ -1694,7 +1693,7 @@ static void on_result(struct master *m, int32_t pi, const struct msg_result *r, 
         it->chunk = r->chunk;
         it->chunk_size = r->chunk_size;
         it->payload = net_frame_take(f); /* the chunk lives in it */
-        it->credit_owed = m->results_in_pool >= (uint64_t)MASTER_POOL_BACKLOG * m->check_threads;
+        it->credit_owed = m->results_in_pool >= (uint64_t)MASTER_POOL_BACKLOG * checker_threads(m->checker);
         if (!it->credit_owed)
             sched_worker_credit(m->sched, pi);
         checker_submit(m->checker, it);
@@ -2835,7 +2834,6 @@ int master_run(const struct master_opts *o)
     setup_tiles(&m);
     if (o->check_threads)
         m.checker = checker_new(o->check_threads);
-    m.check_threads = o->check_threads;
     m.zctx = zmq_ctx_new();
     m.sock = zmq_socket(m.zctx, ZMQ_ROUTER);
     net_socket_setup(m.sock);
