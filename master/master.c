@@ -172,6 +172,9 @@ struct master {
     uint32_t num_local, local_alive;
     uint32_t local_restarts;    /* local workers started again after one died or was evicted */
     uint64_t last_waiting_ms;   /* the last "waiting for workers" line (no live worker) */
+    uint64_t last_liveness_ms;  /* the last check_liveness (every LIVENESS_MS, not every pass) */
+    int sends_behind;           /* a JOB or MAP could not be queued to some peer: assign_tiles
+                                 * looks for peers still owed one (set by send_job, send_maps) */
     struct tile_stats stats;
     struct counters c;
     char last_worker_error[PROTO_MAX_STRING];
@@ -724,8 +727,10 @@ static void send_maps(struct master *m, struct peer *p)
         msg.u.map.published = m->maps_published;
         msg.u.map.hash = m->maps[pass].hash;
         msg.u.map.size = m->maps[pass].size;
-        if (send_to(m, p, &msg) != 0)
+        if (send_to(m, p, &msg) != 0) {
+            m->sends_behind = 1; /* assign_tiles tries again */
             return;
+        }
         p->maps_sent++;
     }
 }
@@ -876,6 +881,7 @@ static void send_job(struct master *m, struct peer *p)
             log_warn("worker %s: the JOB could not be queued; sending it again", p->name);
         p->job_sent = 0;
         p->job_retry_ms = net_now_ms() + JOB_RETRY_MS;
+        m->sends_behind = 1;
         return;
     }
     p->job_sent = 1;
@@ -1814,13 +1820,22 @@ static void result_verdict(struct master *m, int32_t pi, uint32_t unit, uint64_t
 /* Sends the MAPs still pending, then every tile the scheduler hands out now. */
 static void assign_tiles(struct master *m)
 {
-    for (uint32_t i = 0; i < m->num_peers; i++) {
-        if (m->sched->workers[i].gone)
-            continue;
-        if (!m->peers[i].job_sent && net_now_ms() >= m->peers[i].job_retry_ms)
-            send_job(m, &m->peers[i]);
-        else if (m->peers[i].maps_sent < m->maps_published)
-            send_maps(m, &m->peers[i]);
+    /* Peers owed a JOB or a MAP that their queue refused: only after such a refusal, so
+     * that a pass of the loop costs nothing per peer (thousands of them). */
+    if (m->sends_behind) {
+        m->sends_behind = 0; /* set again by a send below that is refused, or a JOB not yet due */
+        uint64_t now = net_now_ms();
+        for (uint32_t i = 0; i < m->num_peers; i++) {
+            if (m->sched->workers[i].gone)
+                continue;
+            if (!m->peers[i].job_sent) {
+                if (now >= m->peers[i].job_retry_ms)
+                    send_job(m, &m->peers[i]);
+                else
+                    m->sends_behind = 1;
+            } else if (m->peers[i].maps_sent < m->maps_published)
+                send_maps(m, &m->peers[i]);
+        }
     }
     struct sched_assignment a;
     while (sched_assign_next(m->sched, net_now_ms(), &a)) {
@@ -2399,6 +2414,7 @@ static void reap_local(struct master *m)
     }
 }
 
+#define LIVENESS_MS 10 /* check_liveness looks at every peer this often (timeouts are 100s of ms and more) */
 static void check_liveness(struct master *m, uint64_t now)
 {
     const struct master_opts *o = m->opts;
@@ -2490,6 +2506,8 @@ static int maps_poll(struct master *m)
  * (charged to that pass). */
 static void account_waits(struct master *m, uint64_t dt)
 {
+    if (dt == 0) /* most passes of a busy loop: nothing to add to anyone */
+        return;
     int blocked = sched_blocked(m->sched);
     uint32_t pass = m->maps_published < m->passes ? m->maps_published : m->passes - 1;
     for (uint32_t i = 0; i < m->num_peers; i++) {
@@ -2708,7 +2726,10 @@ static int frame_render(struct master *m, uint64_t *last_beat)
         if (!g_interrupted && maps_poll(m) != 0) /* interrupted: the tracer stopped too; said above */
             return -1;
         reap_local(m);
-        check_liveness(m, now);
+        if (now - m->last_liveness_ms >= LIVENESS_MS) {
+            check_liveness(m, now);
+            m->last_liveness_ms = now;
+        }
         if (m->fatal[0])
             continue;
         if (!o->bind && m->local_alive == 0 && sched_live_workers(m->sched) == 0) {

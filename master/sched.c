@@ -5,7 +5,9 @@
  * queue_buf (the queue is a window there, so nothing moves when a tile leaves from the
  * front or comes back to either end), q_released counts the queued tiles below the
  * release limit, and the in-flight list (fl_*) holds exactly the assigned tiles with one
- * holder, ordered by (assigned_ms, tile). Called by master/master.c. */
+ * holder, ordered by (assigned_ms, tile), a worker's bit in takers is set exactly when it
+ * can take a unit (can_take: taker_sync after every change of what that reads), and live
+ * counts the workers not gone. Called by master/master.c. */
 #include "sched.h"
 #include "base/log.h"
 #include <signal.h>
@@ -43,9 +45,41 @@ void sched_free(struct sched **sp)
     free(s->fl_prev);
     free(s->fl_next);
     free(s->fl_in);
+    free(s->takers);
     free(s->workers);
     free(s);
     *sp = NULL;
+}
+
+static int can_take(const struct sched_worker *w)
+{
+    return !w->gone && w->ready && w->credits > 0 && !w->isolated && !w->blocked;
+}
+
+/* Worker wi's bit in takers, as can_take says now. */
+static void taker_sync(struct sched *s, int32_t wi)
+{
+    uint64_t bit = 1ull << ((uint32_t)wi & 63);
+    if (can_take(&s->workers[wi]))
+        s->takers[(uint32_t)wi >> 6] |= bit;
+    else
+        s->takers[(uint32_t)wi >> 6] &= ~bit;
+}
+
+/* The first worker at or after `from` that can take a unit, or -1. */
+static int32_t next_taker(const struct sched *s, uint32_t from)
+{
+    uint32_t wd = from >> 6;
+    if (wd >= s->takers_words)
+        return -1;
+    uint64_t bits = s->takers[wd] & (~0ull << (from & 63));
+    for (;;) {
+        if (bits)
+            return (int32_t)(wd * 64 + (uint32_t)__builtin_ctzll(bits));
+        if (++wd >= s->takers_words)
+            return -1;
+        bits = s->takers[wd];
+    }
 }
 
 void sched_frame_begin(struct sched *s)
@@ -70,6 +104,8 @@ void sched_frame_begin(struct sched *s)
         w->in_flight = 0;
         w->isolated = 0;
     }
+    if (s->takers)
+        memset(s->takers, 0, sizeof *s->takers * s->takers_words); /* none is ready */
 }
 
 void sched_release(struct sched *s, uint32_t limit)
@@ -258,7 +294,14 @@ int32_t sched_worker_join(struct sched *s, uint32_t threads, uint64_t now_ms)
     memset(w, 0, sizeof *w);
     w->threads = threads ? threads : 1;
     w->last_heard_ms = w->last_progress_ms = now_ms;
-    return (int32_t)s->num_workers++;
+    if (s->num_workers / 64 + 1 > s->takers_words) {
+        uint32_t words = s->takers_words ? 2 * s->takers_words : 1;
+        s->takers = mem_realloc(s->takers, sizeof *s->takers * words);
+        memset(s->takers + s->takers_words, 0, sizeof *s->takers * (words - s->takers_words));
+        s->takers_words = words;
+    }
+    s->live++;
+    return (int32_t)s->num_workers++; /* not ready: its bit stays clear */
 }
 
 void sched_worker_rejoin(struct sched *s, int32_t wi, uint32_t threads, uint64_t now_ms)
@@ -268,6 +311,7 @@ void sched_worker_rejoin(struct sched *s, int32_t wi, uint32_t threads, uint64_t
     memset(w, 0, sizeof *w);
     w->threads = threads ? threads : 1;
     w->last_heard_ms = w->last_progress_ms = now_ms;
+    s->live++;
 }
 
 int sched_worker_ready(struct sched *s, int32_t wi, uint32_t credits)
@@ -279,6 +323,7 @@ int sched_worker_ready(struct sched *s, int32_t wi, uint32_t credits)
     w->credits = credits < w->threads * 4 ? credits : w->threads * 4;
     if (w->credits == 0)
         w->credits = 1;
+    taker_sync(s, wi);
     return 0;
 }
 
@@ -286,6 +331,7 @@ void sched_worker_heard(struct sched *s, int32_t w, uint64_t now_ms)
 {
     s->workers[w].last_heard_ms = now_ms;
     s->workers[w].blocked = 0;
+    taker_sync(s, w);
 }
 
 void sched_worker_progress(struct sched *s, int32_t w, uint64_t now_ms)
@@ -298,6 +344,7 @@ void sched_worker_credit(struct sched *s, int32_t wi)
     struct sched_worker *w = &s->workers[wi];
     if (w->credits < w->threads * 4)
         w->credits++;
+    taker_sync(s, wi);
 }
 
 void sched_worker_heartbeat(struct sched *s, int32_t wi, uint64_t samples_done, uint32_t stalled_ms, uint64_t now_ms)
@@ -362,14 +409,13 @@ void sched_evict(struct sched *s, int32_t wi, enum sched_evict_kind kind, struct
     }
     w->gone = 1;
     w->in_flight = 0;
+    s->live--;
+    taker_sync(s, wi);
 }
 
 uint32_t sched_live_workers(const struct sched *s)
 {
-    uint32_t n = 0;
-    for (uint32_t i = 0; i < s->num_workers; i++)
-        n += !s->workers[i].gone;
-    return n;
+    return s->live;
 }
 
 /* Whether a live, ready worker other than i exists (one that could take a tile i should not). */
@@ -379,11 +425,6 @@ static int other_ready_worker(const struct sched *s, uint32_t i)
         if (k != i && !s->workers[k].gone && s->workers[k].ready)
             return 1;
     return 0;
-}
-
-static int can_take(const struct sched_worker *w)
-{
-    return !w->gone && w->ready && w->credits > 0 && !w->isolated && !w->blocked;
 }
 
 static void give(struct sched *s, uint32_t tile, int32_t wi, int straggler, uint64_t now_ms,
@@ -412,6 +453,7 @@ static void give(struct sched *s, uint32_t tile, int32_t wi, int straggler, uint
      * is blamed on it and not on its neighbours. */
     if (t->crashes > 0)
         w->isolated = 1;
+    taker_sync(s, wi);
 }
 
 int sched_assign_next(struct sched *s, uint64_t now_ms, struct sched_assignment *a)
@@ -420,10 +462,9 @@ int sched_assign_next(struct sched *s, uint64_t now_ms, struct sched_assignment 
      * nothing to search, and no straggler copies while units wait. */
     if (sched_blocked(s))
         return 0;
-    for (uint32_t i = 0; i < s->num_workers && s->q_count > 0; i++) {
+    for (int32_t wi = next_taker(s, 0); wi >= 0 && s->q_count > 0; wi = next_taker(s, (uint32_t)wi + 1)) {
+        uint32_t i = (uint32_t)wi;
         const struct sched_worker *w = &s->workers[i];
-        if (!can_take(w))
-            continue;
         for (uint32_t qi = 0; qi < s->q_count; qi++) {
             uint32_t tile = s->queue[qi];
             if (tile >= s->released || (s->tiles[tile].crashes > 0 && w->in_flight > 0) ||
@@ -439,9 +480,10 @@ int sched_assign_next(struct sched *s, uint64_t now_ms, struct sched_assignment 
         return 0;
     /* Stragglers: an idle worker also takes the oldest tile still in flight elsewhere;
      * the first valid result wins (tiles are deterministic, so either will do). */
-    for (uint32_t i = 0; i < s->num_workers; i++) {
+    for (int32_t wi = next_taker(s, 0); wi >= 0; wi = next_taker(s, (uint32_t)wi + 1)) {
+        uint32_t i = (uint32_t)wi;
         const struct sched_worker *w = &s->workers[i];
-        if (!can_take(w) || w->in_flight > 0)
+        if (w->in_flight > 0)
             continue;
         /* The in-flight list is in that order: its first tile this worker may copy. */
         uint32_t best = s->fl_head;
@@ -465,6 +507,7 @@ void sched_assign_undo(struct sched *s, const struct sched_assignment *a)
     w->credits++;
     w->isolated = 0; /* give() isolates only a worker that was not */
     w->blocked = 1;
+    taker_sync(s, a->worker);
 }
 
 enum sched_result_verdict sched_result(const struct sched *s, int32_t w, uint32_t tile, uint32_t attempt)
@@ -490,6 +533,7 @@ void sched_result_valid(struct sched *s, int32_t wi, uint32_t tile)
     mark_done(s, tile);
     /* Both holders stop holding it (it is done, so nothing is re-queued). */
     drop_all_holders(s, tile);
+    taker_sync(s, wi);
 }
 
 static int sent_invalid(struct sched *s, int32_t wi, struct sched_eviction *ev)
@@ -508,6 +552,7 @@ int sched_result_invalid(struct sched *s, int32_t wi, uint32_t tile, struct sche
 {
     drop_holder(s, tile, wi);
     s->workers[wi].isolated = 0;
+    taker_sync(s, wi);
     return sent_invalid(s, wi, ev);
 }
 
@@ -515,6 +560,7 @@ void sched_result_nonfinite(struct sched *s, int32_t wi, uint32_t tile, uint64_t
 {
     drop_holder(s, tile, wi);
     s->workers[wi].isolated = 0;
+    taker_sync(s, wi);
     s->tiles[tile].nonfinite_by = wi + 1;
     s->tiles[tile].nonfinite_ms = now_ms;
 }

@@ -85,6 +85,11 @@ struct sched {
                                      * candidates), oldest first: by assigned_ms, then tile */
     uint8_t *fl_in;                 /* per tile: in that list */
     uint32_t fl_head, fl_tail;      /* SCHED_NONE when empty */
+    uint64_t *takers;               /* bit i: worker i can take a unit now (ready, with a credit,
+                                     * not gone, isolated or blocked): the assignment walks these
+                                     * in index order, not every worker */
+    uint32_t takers_words;          /* 64-bit words of takers allocated */
+    uint32_t live;                  /* workers not gone */
 };
 
 /* Why a worker leaves. Only a death a tile could cause blames its tiles: not leaving, a

@@ -8,6 +8,8 @@
 #    and without the journal. The master's CPU per tile over the tile phase (from /proc):
 #    the whole process and its main thread (the loop, the serial part). Workers kept busy
 #    = worker time per tile (scaled by pixels from 32 px) / the loop's time per tile.
+#    Then the headline case (32 px, tcp + CurveZMQ, journal) again with BIG_N fake
+#    workers: the loop's cost at the number of workers the target names.
 # 3. Blob delivery: a binary PLY of about 45 MB (scripts/gen_mesh.py 880) in a scene, to
 #    1, 4, 16 and 64 fake workers (--hold-ready: nobody renders before every peer has it),
 #    point to point (--bcast-mbps 0) and by the broadcast (--bcast-mbps 1000), one after the
@@ -19,7 +21,7 @@
 # 5. A model of the speed-up at 16, 64, 256 and 1024 workers from 1-3 (see the doc).
 # (2b, between 2 and 3: the master's memory on the smoke in 64 passes against MEM_N fake
 # workers; MEM_N=0 skips it.)
-# Environment: SPP (64), N (fake workers, 16), SCALE_SPP (16), REPS (3), BCAST_NS
+# Environment: SPP (64), N (fake workers, 16), BIG_N (1024; 0 skips it), SCALE_SPP (16), REPS (3), BCAST_NS
 # ("1 4 16 64"), MESH_N (880), MEM_N (64), MEM_SIZE (1024); WT_US and LOOP_US (both: skip
 # parts 1-2, use these);
 # DELIVERY_ONLY=1: part 3 alone. Output: bench-out/bench_master.txt.
@@ -29,6 +31,7 @@ set -eu
 bench_init master
 SPP=${SPP:-64}
 N=${N:-16}
+BIG_N=${BIG_N:-1024}
 SCALE_SPP=${SCALE_SPP:-16}
 REPS=${REPS:-3}
 BCAST_NS=${BCAST_NS:-"1 4 16 64"}
@@ -55,7 +58,8 @@ json.dump(d, open(sys.argv[1], "w"), indent=1)' "$T/big/cornell.json"
 $BUILD/master --keygen "$T/master.key" >/dev/null
 $BUILD/master --keygen "$T/w.key" >/dev/null
 cp "$T/w.key.pub" "$T/allow"
-# load TILE TRANSPORT JOURNAL: one master + loadpeers run; prints "tiles/s process_us loop_us"
+# load TILE TRANSPORT JOURNAL [WORKERS]: one master + loadpeers run (WORKERS fake workers,
+# default N); prints "tiles/s process_us loop_us"
 load() {
   rm -f "$T/o.exr"*
   case $2 in
@@ -67,7 +71,7 @@ load() {
   [ "$3" = on ] || jopt=--no-journal
   $BUILD/master "$T/big/cornell.json" -o "$T/o.exr" --tile "$1" --workers 0 --bind "$ep" $mopts $jopt >"$T/mlog" 2>&1 &
   mp=$!
-  $L "$ep" -n "$N" --no-fetch --image "$T/ref.exr" --master-pid $mp $lopts >"$T/llog" 2>&1 || { cat "$T/llog" "$T/mlog" >&2; exit 1; }
+  $L "$ep" -n "${4:-$N}" --no-fetch --image "$T/ref.exr" --master-pid $mp $lopts >"$T/llog" 2>&1 || { cat "$T/llog" "$T/mlog" >&2; exit 1; }
   wait $mp || { cat "$T/mlog" >&2; exit 1; }
   awk '/tiles_per_s/ {r = $3} /master_cpu_us_per_tile/ {p = $3; l = $5} END {print r, p, l}' "$T/llog"
 }
@@ -85,6 +89,13 @@ for tile in 16 32 64; do
   done
 done
 say "headline (32 px, tcp + CurveZMQ, journal): the loop takes $loop32 us per tile: one master keeps $(printf %.0f "$busy32") workers busy (target 1000)"
+if [ "$BIG_N" -gt 0 ]; then
+  set -- $(load 32 curve on "$BIG_N")
+  busybig=$(echo "$wt_us / $3" | bc -l)
+  say "the same with $BIG_N fake workers: $1 tiles/s, the loop $3 us per tile: $(printf %.0f "$busybig") workers kept busy"
+  # the model below takes the loop's larger cost of the two
+  loop32=$(echo "$loop32 $3" | awk '{print ($2 > $1) ? $2 : $1}')
+fi
 elif [ -z "${DELIVERY_ONLY:-}" ]; then
   wt_us=$WT_US loop32=$LOOP_US
   say "given: worker $wt_us us per 32 px tile, the master's loop $loop32 us per tile"
@@ -181,7 +192,7 @@ say "efficiency (1 worker x 2 threads / 2 workers x 1 thread): wall $(echo "$w1 
 # tile per loop_us; the frame takes the larger of the two, plus one tile's tail.
 say ""
 F=16384
-say "model: a 4096x4096 frame ($F tiles of 32 px at this scene's $(printf %.0f "$wt_us") us per tile), the loop's $loop32 us per tile, the blob's ${bc1:-?} s to one worker"
+say "model: a 4096x4096 frame ($F tiles of 32 px at this scene's $(printf %.0f "$wt_us") us per tile), the loop's $loop32 us per tile (the larger of the headline runs), the blob's ${bc1:-?} s to one worker"
 say "workers | speed-up (blob point to point) | efficiency | speed-up (blob once: broadcast) | efficiency"
 for w in 16 64 256 1024; do
   awk -v w="$w" -v F="$F" -v t="$wt_us" -v m="$loop32" -v b="${bc1:-0}" 'BEGIN {

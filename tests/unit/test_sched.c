@@ -578,6 +578,26 @@ static void deliver(struct sched *s, struct model *md, uint32_t i, int valid)
     }
 }
 
+/* The takers bitmap holds exactly the workers that can take a unit, and live counts the
+ * workers not gone. */
+static void check_workers(const struct sched *s)
+{
+    uint32_t live = 0;
+    cr_assert(s->takers_words * 64 >= s->num_workers);
+    for (uint32_t w = 0; w < s->takers_words * 64; w++) {
+        int bit = (int)((s->takers[w / 64] >> (w % 64)) & 1);
+        int can = 0;
+        if (w < s->num_workers) {
+            const struct sched_worker *k = &s->workers[w];
+            can = !k->gone && k->ready && k->credits > 0 && !k->isolated && !k->blocked;
+            live += !k->gone;
+        }
+        cr_assert_eq(bit, can, "worker %u's taker bit", w);
+    }
+    cr_assert_eq(s->live, live);
+    cr_assert_eq(sched_live_workers(s), live);
+}
+
 static void check_invariants(const struct sched *s)
 {
     uint32_t held[P_WORKERS] = {0}, done = 0;
@@ -621,6 +641,7 @@ static void check_invariants(const struct sched *s)
         listed++;
     }
     cr_assert_eq(s->fl_tail, prev);
+    check_workers(s);
     uint32_t one = 0;
     for (uint32_t t = 0; t < s->num_tiles; t++) {
         int want = s->tiles[t].state == SCHED_ASSIGNED && s->tiles[t].num_holders == 1;
@@ -805,4 +826,65 @@ Test(sched, property_every_tile_done_once_and_only_holders_count)
 {
     for (uint64_t seed = 1; seed <= 3000; seed++)
         run_sequence(seed * 7919);
+}
+
+/* Many workers (the takers bitmap spans several words): every assignment goes to the
+ * lowest-index worker that can take a unit, as a scan of every worker finds it, while
+ * workers join late, run out of credits, get them back, are blocked and heard from, and
+ * leave. */
+Test(sched, many_workers_take_units_in_index_order)
+{
+    const uint32_t workers = 300, tiles = 4000;
+    struct sched *s = sched_new(tiles);
+    sched_frame_begin(s);
+    uint64_t r = 12345;
+    for (uint32_t i = 0; i < workers; i++)
+        sched_worker_join(s, 1, 0);
+    check_workers(s);
+    struct sched_assignment held[4096];
+    uint32_t nheld = 0, checked = 0;
+    for (uint32_t step = 0; step < 20000 && s->tiles_done < tiles; step++) {
+        r = r * 6364136223846793005ull + 1442695040888963407ull;
+        uint32_t w = (uint32_t)(r >> 33) % workers, what = (uint32_t)(r >> 20) % 8;
+        const struct sched_worker *k = &s->workers[w];
+        if (what == 0 && !k->gone && !k->ready)
+            sched_worker_ready(s, (int32_t)w, 1 + (uint32_t)(r >> 40) % 4);
+        else if (what == 1 && !k->gone)
+            sched_worker_heard(s, (int32_t)w, step);
+        else if (what == 2 && nheld > 0) { /* an answer: its worker gets the credit back */
+            uint32_t i = (uint32_t)(r >> 12) % nheld;
+            struct sched_assignment a = held[i];
+            held[i] = held[--nheld];
+            if (sched_result(s, a.worker, a.tile, a.attempt) == SCHED_RESULT_CHECK)
+                sched_result_valid(s, a.worker, a.tile);
+            if (!s->workers[a.worker].gone)
+                sched_worker_credit(s, a.worker);
+        } else if (what == 3 && (r >> 50) % 40 == 0 && s->live > 8 && !k->gone) {
+            struct sched_eviction ev;
+            sched_evict(s, (int32_t)w, SCHED_LEFT, &ev);
+        } else {
+            /* the expected taker, by a scan */
+            int32_t want = -1;
+            for (uint32_t i = 0; i < s->num_workers && want < 0; i++) {
+                const struct sched_worker *q = &s->workers[i];
+                if (!q->gone && q->ready && q->credits > 0 && !q->isolated && !q->blocked)
+                    want = (int32_t)i;
+            }
+            struct sched_assignment a;
+            uint32_t queued = s->q_count;
+            int got = sched_assign_next(s, step, &a);
+            if (queued > 0) {
+                cr_assert_eq(got ? a.worker : -1, want, "step %u", step);
+                checked++;
+            }
+            if (got && what == 4) /* could not be queued: taken back, its worker blocked */
+                sched_assign_undo(s, &a);
+            else if (got && nheld < 4096)
+                held[nheld++] = a;
+        }
+        check_workers(s);
+    }
+    cr_assert(s->tiles_done > 1000 && checked > 2000 && s->live < workers, "%u done, %u checked, %u live", s->tiles_done,
+              checked, s->live);
+    sched_free(&s);
 }
