@@ -20,7 +20,7 @@ endif
 DEB_PKGS := gcc make pkg-config libembree-dev libopenexr-dev openexr libzmq3-dev libjansson-dev \
             libsodium-dev libpng-dev libstb-dev libcriterion-dev embree-tools gnuplot-nox python3 clang \
             procps openssh-client openssh-server libnanovdb-dev g++ zlib1g-dev libblosc-dev libfftw3-dev \
-            libdeflate-dev openimageio-tools
+            libdeflate-dev openimageio-tools webp
 DEPS_STAMP := $(BUILD)/.deps-ok
 
 # One folder per layer under common/ (see README, "Tour of the source"); sources by pattern.
