@@ -1,7 +1,8 @@
 /* The tile scheduler (see sched.h): pure state, no I/O, no clock, so every fault-tolerance
  * rule can be driven event by event in unit tests. Invariant kept by every function: a
  * worker's in_flight equals the number of tiles that list it as a holder (zero once it is
- * gone), a queued tile has no holders, qpos gives each queued tile's place in
+ * gone), and its held list names those tiles (each at the place the tile's holder_pos
+ * says), a queued tile has no holders, qpos gives each queued tile's place in
  * queue_buf (the queue is a window there, so nothing moves when a tile leaves from the
  * front or comes back to either end), q_released counts the queued tiles below the
  * release limit, and the in-flight list (fl_*) holds exactly the assigned tiles with one
@@ -46,6 +47,8 @@ void sched_free(struct sched **sp)
     free(s->fl_next);
     free(s->fl_in);
     free(s->takers);
+    for (uint32_t i = 0; i < s->num_workers; i++)
+        free(s->workers[i].held);
     free(s->workers);
     free(s);
     *sp = NULL;
@@ -259,6 +262,21 @@ int sched_tile_set_done(struct sched *s, uint32_t tile)
     return 0;
 }
 
+/* Takes the tile at place pos out of worker w's held list (the last one moves there). */
+static void held_remove(struct sched *s, int32_t w, uint32_t pos)
+{
+    struct sched_worker *wk = &s->workers[w];
+    CHECK(pos < wk->in_flight);
+    uint32_t last = wk->held[--wk->in_flight];
+    if (pos == wk->in_flight)
+        return;
+    wk->held[pos] = last;
+    struct sched_tile *lt = &s->tiles[last];
+    for (uint32_t k = 0; k < lt->num_holders; k++)
+        if (lt->holder[k] == w)
+            lt->holder_pos[k] = pos;
+}
+
 /* Removes holder w from the tile; it goes back to the front of the queue when nobody
  * else holds it and it is not done. */
 static void drop_holder(struct sched *s, uint32_t tile, int32_t w)
@@ -266,11 +284,11 @@ static void drop_holder(struct sched *s, uint32_t tile, int32_t w)
     struct sched_tile *t = &s->tiles[tile];
     for (uint32_t k = 0; k < t->num_holders; k++)
         if (t->holder[k] == w) {
+            held_remove(s, w, t->holder_pos[k]);
             t->holder[k] = t->holder[t->num_holders - 1];
             t->holder_attempt[k] = t->holder_attempt[t->num_holders - 1];
+            t->holder_pos[k] = t->holder_pos[t->num_holders - 1];
             t->num_holders--;
-            if (s->workers[w].in_flight)
-                s->workers[w].in_flight--;
             break;
         }
     if (t->state == SCHED_ASSIGNED && t->num_holders == 0) {
@@ -308,7 +326,10 @@ void sched_worker_rejoin(struct sched *s, int32_t wi, uint32_t threads, uint64_t
 {
     struct sched_worker *w = &s->workers[wi];
     CHECK(w->gone);
+    uint32_t *held = w->held, cap = w->held_cap; /* empty (it is gone); the room is kept */
     memset(w, 0, sizeof *w);
+    w->held = held;
+    w->held_cap = cap;
     w->threads = threads ? threads : 1;
     w->last_heard_ms = w->last_progress_ms = now_ms;
     s->live++;
@@ -385,6 +406,12 @@ enum sched_evict_kind sched_death_kind(int signaled, int signo)
     return signaled && signo == SIGKILL ? SCHED_KILLED : SCHED_DIED;
 }
 
+static int cmp_u32(const void *a, const void *b)
+{
+    uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
+    return (x > y) - (x < y);
+}
+
 void sched_evict(struct sched *s, int32_t wi, enum sched_evict_kind kind, struct sched_eviction *ev)
 {
     struct sched_worker *w = &s->workers[wi];
@@ -393,12 +420,15 @@ void sched_evict(struct sched *s, int32_t wi, enum sched_evict_kind kind, struct
     if (w->gone)
         return;
     int blames = kind != SCHED_LEFT && kind != SCHED_BANNED && kind != SCHED_KILLED;
-    for (uint32_t tile = 0; tile < s->num_tiles; tile++) {
+    /* The tiles it holds, in tile order (as a walk of every tile met them: the blame and
+     * the queue's order after the eviction do not depend on the order they were given). */
+    uint32_t n = w->in_flight, *tiles = mem_alloc(sizeof *tiles * (n ? n : 1));
+    memcpy(tiles, w->held, sizeof *tiles * n);
+    qsort(tiles, n, sizeof *tiles, cmp_u32);
+    for (uint32_t i = 0; i < n; i++) {
+        uint32_t tile = tiles[i];
         struct sched_tile *t = &s->tiles[tile];
-        int held = 0;
-        for (uint32_t k = 0; k < t->num_holders; k++)
-            held |= t->holder[k] == wi;
-        if (!held || t->state != SCHED_ASSIGNED)
+        if (t->state != SCHED_ASSIGNED)
             continue;
         if (blames && ++t->crashes >= SCHED_CRASHES_TO_FAIL && s->failed_tile < 0) {
             s->failed_tile = (int32_t)tile;
@@ -407,6 +437,7 @@ void sched_evict(struct sched *s, int32_t wi, enum sched_evict_kind kind, struct
         drop_holder(s, tile, wi);
         ev->requeued += t->state == SCHED_QUEUED;
     }
+    free(tiles);
     w->gone = 1;
     w->in_flight = 0;
     s->live--;
@@ -436,12 +467,17 @@ static void give(struct sched *s, uint32_t tile, int32_t wi, int straggler, uint
         w->last_progress_ms = now_ms; /* idle time is not a stall */
     t->state = SCHED_ASSIGNED;
     t->attempt++;
+    if (w->in_flight == w->held_cap) {
+        w->held_cap = w->held_cap ? 2 * w->held_cap : 8;
+        w->held = mem_realloc(w->held, sizeof *w->held * w->held_cap);
+    }
     t->holder[t->num_holders] = wi;
     t->holder_attempt[t->num_holders] = t->attempt;
+    t->holder_pos[t->num_holders] = w->in_flight;
     t->num_holders++;
     t->assigned_ms = now_ms;
     w->credits--;
-    w->in_flight++;
+    w->held[w->in_flight++] = tile;
     a->tile = tile;
     a->attempt = t->attempt;
     a->worker = wi;

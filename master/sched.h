@@ -40,6 +40,7 @@ struct sched_tile {
     uint32_t num_holders;
     int32_t holder[SCHED_MAX_HOLDERS];
     uint32_t holder_attempt[SCHED_MAX_HOLDERS];
+    uint32_t holder_pos[SCHED_MAX_HOLDERS]; /* this tile's place in each holder's held list */
     uint64_t assigned_ms;
     uint32_t crashes;               /* distinct workers that died holding it */
     int requeued;                   /* its next assignment is a re-issue */
@@ -52,6 +53,8 @@ struct sched_tile {
 struct sched_worker {
     int gone, banned, ready;
     uint32_t threads, credits, in_flight;
+    uint32_t *held, held_cap;       /* the tiles it holds: held[0 .. in_flight-1], in no order (an
+                                     * eviction visits these, not every tile of the frame) */
     int isolated;                   /* holds a suspect tile: gets nothing else meanwhile */
     int blocked;                    /* a TILE to it could not be queued (sched_assign_undo): it gets
                                      * nothing until it is heard from again */

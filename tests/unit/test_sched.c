@@ -129,6 +129,32 @@ Test(sched, reissue_goes_to_the_front_of_the_queue)
     sched_free(&s);
 }
 
+/* An eviction puts a worker's tiles back in tile order (each to the front: the highest
+ * first), whatever order it was given them in and its held list keeps them in. */
+Test(sched, an_eviction_requeues_in_tile_order)
+{
+    struct sched *s = setup(8, 1, 4);
+    for (int i = 0; i < 4; i++)
+        give_one(s, 1); /* tiles 0-3 */
+    sched_result_valid(s, 0, 0);
+    sched_worker_credit(s, 0);
+    sched_result_valid(s, 0, 2);
+    sched_worker_credit(s, 0);
+    give_one(s, 2); /* tile 4 */
+    give_one(s, 2); /* tile 5: it holds 3, 1, 4, 5 in its list (places moved by the removals) */
+    cr_assert_eq(s->workers[0].in_flight, 4);
+    cr_assert(s->workers[0].held[0] != 1 || s->workers[0].held[1] != 3, "the list is not in tile order");
+    struct sched_eviction ev;
+    sched_evict(s, 0, SCHED_LEFT, &ev);
+    cr_assert_eq(ev.requeued, 4);
+    const uint32_t want[] = {5, 4, 3, 1, 6, 7};
+    cr_assert_eq(s->q_count, 6);
+    for (uint32_t i = 0; i < 6; i++)
+        cr_assert_eq(s->queue[i], want[i], "queue[%u] = %u", i, s->queue[i]);
+    cr_assert_eq(s->workers[0].in_flight, 0);
+    sched_free(&s);
+}
+
 Test(sched, first_result_wins_and_the_straggler_copy_is_a_duplicate)
 {
     struct sched *s = setup(2, 1, 2);
@@ -596,6 +622,24 @@ static void check_workers(const struct sched *s)
     }
     cr_assert_eq(s->live, live);
     cr_assert_eq(sched_live_workers(s), live);
+    /* Each worker's held list names the tiles that list it as a holder, each at the place
+     * the tile records. */
+    for (uint32_t w = 0; w < s->num_workers; w++) {
+        const struct sched_worker *k = &s->workers[w];
+        for (uint32_t i = 0; i < k->in_flight; i++) {
+            const struct sched_tile *t = &s->tiles[k->held[i]];
+            int found = 0;
+            for (uint32_t h = 0; h < t->num_holders; h++)
+                found += t->holder[h] == (int32_t)w && t->holder_pos[h] == i;
+            cr_assert_eq(found, 1, "worker %u's held[%u] = tile %u", w, i, k->held[i]);
+        }
+    }
+    for (uint32_t t = 0; t < s->num_tiles; t++)
+        for (uint32_t h = 0; h < s->tiles[t].num_holders; h++) {
+            const struct sched_worker *k = &s->workers[s->tiles[t].holder[h]];
+            cr_assert(s->tiles[t].holder_pos[h] < k->in_flight && k->held[s->tiles[t].holder_pos[h]] == t,
+                      "tile %u's holder %u", t, h);
+        }
 }
 
 static void check_invariants(const struct sched *s)
