@@ -423,8 +423,10 @@ void sched_evict(struct sched *s, int32_t wi, enum sched_evict_kind kind, struct
     /* The tiles it holds, in tile order (as a walk of every tile met them: the blame and
      * the queue's order after the eviction do not depend on the order they were given). */
     uint32_t n = w->in_flight, *tiles = mem_alloc(sizeof *tiles * (n ? n : 1));
-    memcpy(tiles, w->held, sizeof *tiles * n);
-    qsort(tiles, n, sizeof *tiles, cmp_u32);
+    if (n > 0) { /* a worker that never held one has no list */
+        memcpy(tiles, w->held, sizeof *tiles * n);
+        qsort(tiles, n, sizeof *tiles, cmp_u32);
+    }
     for (uint32_t i = 0; i < n; i++) {
         uint32_t tile = tiles[i];
         struct sched_tile *t = &s->tiles[tile];
