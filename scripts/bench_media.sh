@@ -176,6 +176,10 @@ for sc in $SCENES; do
     echo "media: $sc: vpt, $1 spp (max_depth $vdepth), to span $pm's times" >&2
     echo "vpt $1 $(measure "$sc" "$T/v.exr" "$1" --media-method vpt --max-depth "$vdepth")" >>"$T/rows-$sc"
   done
+  # Each method's rows in order of time (the renders that span the photon method's times
+  # come last otherwise), for the table and the plot's lines.
+  awk -v order="$pm $EXTRA vpt" 'BEGIN { n = split(order, o, " "); for (i = 1; i <= n; i++) rank[o[i]] = i }
+    { print rank[$1], $0 }' "$T/rows-$sc" | sort -s -k1,1n -k4,4g | cut -d' ' -f2- >"$T/rows2" && mv "$T/rows2" "$T/rows-$sc"
   # The true error: the reference's own error removed in quadrature (the two are
   # independent, so E relRMSE^2 = true^2 + ref_rel^2); 0 where the reference's noise hides it.
   # Columns of rows: method spp secs relRMSE lowfreq errest pass_s true lowfreq_true
