@@ -430,8 +430,7 @@ void sched_evict(struct sched *s, int32_t wi, enum sched_evict_kind kind, struct
     for (uint32_t i = 0; i < n; i++) {
         uint32_t tile = tiles[i];
         struct sched_tile *t = &s->tiles[tile];
-        if (t->state != SCHED_ASSIGNED)
-            continue;
+        CHECK(t->state == SCHED_ASSIGNED); /* a held tile is assigned (the invariant above) */
         if (blames && ++t->crashes >= SCHED_CRASHES_TO_FAIL && s->failed_tile < 0) {
             s->failed_tile = (int32_t)tile;
             ev->blamed_tile = (int32_t)tile;
