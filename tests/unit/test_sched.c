@@ -142,8 +142,10 @@ Test(sched, an_eviction_requeues_in_tile_order)
     sched_worker_credit(s, 0);
     give_one(s, 2); /* tile 4 */
     give_one(s, 2); /* tile 5: it holds 3, 1, 4, 5 in its list (places moved by the removals) */
+    const uint32_t list[] = {3, 1, 4, 5}; /* not in tile order: the eviction must sort it */
     cr_assert_eq(s->workers[0].in_flight, 4);
-    cr_assert(s->workers[0].held[0] != 1 || s->workers[0].held[1] != 3, "the list is not in tile order");
+    for (uint32_t i = 0; i < 4; i++)
+        cr_assert_eq(s->workers[0].held[i], list[i], "held[%u] = %u", i, s->workers[0].held[i]);
     struct sched_eviction ev;
     sched_evict(s, 0, SCHED_LEFT, &ev);
     cr_assert_eq(ev.requeued, 4);
@@ -604,6 +606,12 @@ static void deliver(struct sched *s, struct model *md, uint32_t i, int valid)
     }
 }
 
+/* Whether a worker may take a unit now, restated here to check the scheduler against. */
+static int may_take(const struct sched_worker *w)
+{
+    return !w->gone && w->ready && w->credits > 0 && !w->isolated && !w->blocked;
+}
+
 /* The takers bitmap holds exactly the workers that can take a unit, and live counts the
  * workers not gone. */
 static void check_workers(const struct sched *s)
@@ -614,9 +622,8 @@ static void check_workers(const struct sched *s)
         int bit = (int)((s->takers[w / 64] >> (w % 64)) & 1);
         int can = 0;
         if (w < s->num_workers) {
-            const struct sched_worker *k = &s->workers[w];
-            can = !k->gone && k->ready && k->credits > 0 && !k->isolated && !k->blocked;
-            live += !k->gone;
+            can = may_take(&s->workers[w]);
+            live += !s->workers[w].gone;
         }
         cr_assert_eq(bit, can, "worker %u's taker bit", w);
     }
@@ -705,7 +712,7 @@ static void straggler_expected(const struct sched *s, int32_t *worker, int32_t *
         return;
     for (uint32_t i = 0; i < s->num_workers; i++) {
         const struct sched_worker *w = &s->workers[i];
-        if (w->gone || !w->ready || w->credits == 0 || w->isolated || w->blocked || w->in_flight > 0)
+        if (!may_take(w) || w->in_flight > 0)
             continue;
         *worker = (int32_t)i;
         for (uint32_t t = 0; t < s->num_tiles; t++) {
@@ -909,11 +916,9 @@ Test(sched, many_workers_take_units_in_index_order)
         } else {
             /* the expected taker, by a scan */
             int32_t want = -1;
-            for (uint32_t i = 0; i < s->num_workers && want < 0; i++) {
-                const struct sched_worker *q = &s->workers[i];
-                if (!q->gone && q->ready && q->credits > 0 && !q->isolated && !q->blocked)
+            for (uint32_t i = 0; i < s->num_workers && want < 0; i++)
+                if (may_take(&s->workers[i]))
                     want = (int32_t)i;
-            }
             struct sched_assignment a;
             uint32_t queued = s->q_count;
             int got = sched_assign_next(s, step, &a);
@@ -923,8 +928,10 @@ Test(sched, many_workers_take_units_in_index_order)
             }
             if (got && what == 4) /* could not be queued: taken back, its worker blocked */
                 sched_assign_undo(s, &a);
-            else if (got && nheld < 4096)
+            else if (got) {
+                cr_assert(nheld < 4096); /* at most the workers' credits are out */
                 held[nheld++] = a;
+            }
         }
         check_workers(s);
     }
