@@ -439,8 +439,8 @@ void sched_evict(struct sched *s, int32_t wi, enum sched_evict_kind kind, struct
         ev->requeued += t->state == SCHED_QUEUED;
     }
     free(tiles);
+    CHECK(w->in_flight == 0); /* drop_holder took each out of its list */
     w->gone = 1;
-    w->in_flight = 0;
     s->live--;
     taker_sync(s, wi);
 }
